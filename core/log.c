@@ -1,0 +1,103 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Logging, progress and clocks. Everything goes to stderr: stdout belongs to
+ * --json results and command output. */
+#include "setlight/core.h"
+
+#include <pthread.h>
+#include <stdarg.h>
+#include <time.h>
+#include <unistd.h>
+
+static sl_log_level min_level = SL_LOG_INFO;
+static bool quiet;
+static pthread_mutex_t log_lock = PTHREAD_MUTEX_INITIALIZER;
+
+void sl_log_set_level(sl_log_level level) { min_level = level; }
+void sl_log_set_quiet(bool q) { quiet = q; }
+bool sl_log_is_quiet(void) { return quiet; }
+
+void sl_log(sl_log_level level, const char *fmt, ...)
+{
+    static const char *const prefix[] = {"debug: ", "", "warning: ", "error: "};
+    if (level < min_level)
+        return;
+    if (quiet && level < SL_LOG_WARN)
+        return;
+    va_list ap;
+    pthread_mutex_lock(&log_lock);
+    fputs("setlight: ", stderr);
+    fputs(prefix[level], stderr);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputc('\n', stderr);
+    pthread_mutex_unlock(&log_lock);
+}
+
+double sl_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+double sl_cpu_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void progress_draw(sl_progress *p, bool final)
+{
+    double now = sl_seconds();
+    if (!final && now - p->last_draw_seconds < 0.1)
+        return;
+    p->last_draw_seconds = now;
+    double frac = p->total > 0 ? (double)p->done / (double)p->total : 0.0;
+    if (frac > 1)
+        frac = 1;
+    int bar = (int)(frac * 30 + 0.5);
+    char line[128];
+    int n = 0;
+    for (int i = 0; i < 30; i++)
+        line[n++] = i < bar ? '#' : '.';
+    line[n] = 0;
+    fprintf(stderr, "\r%-16.16s [%s] %5.1f%% %6.1fs%s", p->label ? p->label : "", line,
+            100.0 * frac, now - p->start_seconds, final ? "\n" : "");
+    fflush(stderr);
+}
+
+void sl_progress_begin(sl_progress *p, const char *label, int64_t total)
+{
+    p->label = label;
+    p->total = total;
+    p->done = 0;
+    p->start_seconds = sl_seconds();
+    p->last_draw_seconds = 0;
+    p->enabled = !quiet && isatty(STDERR_FILENO);
+    if (p->enabled)
+        progress_draw(p, false);
+}
+
+void sl_progress_add(sl_progress *p, int64_t amount)
+{
+    if (!p)
+        return;
+    int64_t done = __atomic_add_fetch(&p->done, amount, __ATOMIC_RELAXED);
+    (void)done;
+    if (p->enabled && pthread_mutex_trylock(&log_lock) == 0) {
+        progress_draw(p, false);
+        pthread_mutex_unlock(&log_lock);
+    }
+}
+
+void sl_progress_end(sl_progress *p)
+{
+    if (p && p->enabled) {
+        pthread_mutex_lock(&log_lock);
+        p->done = p->total;
+        progress_draw(p, true);
+        pthread_mutex_unlock(&log_lock);
+    }
+}

@@ -1,0 +1,395 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/*
+ * setlight core: image buffers, metadata, EXR and photo I/O, colour,
+ * lat-long and projection geometry, sampling distributions, errors,
+ * logging, progress, threads and atomic file output.
+ *
+ * Conventions (docs/conventions.md is the long form):
+ *  - Every fallible function returns an sl_result and, when `err` is not
+ *    NULL, fills it with a one-line message that names the file and the
+ *    problem. Libraries never print and never exit.
+ *  - Ownership: a function that fills an `sl_image *out` or `sl_meta *out`
+ *    hands the caller memory to release with sl_image_free / sl_meta_free.
+ *    Out-parameters are zeroed first, so freeing after a failure is safe.
+ *  - Pixels are scene-linear float, interleaved, `channels` per pixel.
+ *  - Lat-long images use OpenEXR's orientation (+Y up, centre column +Z,
+ *    a quarter width in +X) with texel centres at (x + 0.5) / width.
+ */
+#ifndef SETLIGHT_CORE_H
+#define SETLIGHT_CORE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------------ */
+/* Results and errors                                                  */
+/* ------------------------------------------------------------------ */
+
+typedef int32_t sl_result;
+
+enum {
+    SL_OK = 0,
+    SL_ERR_USAGE,       /* bad argument or option value (exit 2) */
+    SL_ERR_NOT_FOUND,   /* input file missing or not a regular file (exit 3) */
+    SL_ERR_INPUT,       /* input data invalid: corrupt, wrong format, wrong shape (exit 3) */
+    SL_ERR_IO,          /* reading or writing failed at the OS level (exit 1) */
+    SL_ERR_NOMEM,       /* allocation failed (exit 1) */
+    SL_ERR_UNSUPPORTED, /* feature not available in this build (exit 1) */
+    SL_ERR_CANCELLED,   /* stopped by the user (exit 1) */
+    SL_ERR_CAMERA,      /* camera refused, busy past retries, disconnected (exit 1) */
+    SL_ERR_INTERNAL,    /* invariant broken: a bug (exit 1) */
+    SL_ERR_COUNT
+};
+
+#define SL_ERROR_MESSAGE_MAX 1024
+
+typedef struct sl_error {
+    sl_result code;
+    char message[SL_ERROR_MESSAGE_MAX];
+} sl_error;
+
+/* Static, never freed. */
+const char *sl_result_name(sl_result code);
+/* CLI exit code for a result: 0, 1, 2 or 3 (see docs/conventions.md). */
+int sl_result_exit_code(sl_result code);
+
+/* Fill `err` (if not NULL) with code and printf-formatted message; returns code. */
+sl_result sl_error_set(sl_error *err, sl_result code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+void sl_error_clear(sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Logging and progress (stderr only; quiet suppresses info and progress) */
+/* ------------------------------------------------------------------ */
+
+typedef enum { SL_LOG_DEBUG, SL_LOG_INFO, SL_LOG_WARN, SL_LOG_ERROR } sl_log_level;
+
+void sl_log_set_level(sl_log_level min_level);
+void sl_log_set_quiet(bool quiet);
+bool sl_log_is_quiet(void);
+void sl_log(sl_log_level level, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* A progress bar drawn on stderr only when stderr is a terminal and not quiet. */
+typedef struct sl_progress {
+    const char *label;
+    int64_t total;
+    int64_t done;
+    double start_seconds;
+    double last_draw_seconds;
+    bool enabled;
+} sl_progress;
+
+void sl_progress_begin(sl_progress *p, const char *label, int64_t total);
+void sl_progress_add(sl_progress *p, int64_t amount); /* thread-safe */
+void sl_progress_end(sl_progress *p);
+
+/* Monotonic wall clock and process CPU time, in seconds. */
+double sl_seconds(void);
+double sl_cpu_seconds(void);
+
+/* ------------------------------------------------------------------ */
+/* Threads: deterministic parallel loops                               */
+/* ------------------------------------------------------------------ */
+
+/* 0 = number of online cores. Applies to later sl_parallel_for calls. */
+void sl_threads_set(int count);
+int sl_threads_get(void);
+
+/* Calls fn(ctx, begin, end, worker) over [0, count) in chunks of `grain`
+ * items. Chunks are fixed by count and grain alone, never by thread count,
+ * so work that writes per-chunk or per-item results is deterministic. */
+typedef void (*sl_range_fn)(void *ctx, int64_t begin, int64_t end, int worker);
+void sl_parallel_for(int64_t count, int64_t grain, sl_range_fn fn, void *ctx);
+
+/* ------------------------------------------------------------------ */
+/* Atomic file output                                                  */
+/* ------------------------------------------------------------------ */
+
+/* Writes go to a temporary name in the same folder that keeps the final
+ * extension (libraries choose formats by it): `dir/.name.sl-tmp-PID-N.ext`.
+ * Commit renames it over the final path; abort removes it. */
+typedef struct sl_atomic_file {
+    char final_path[4096];
+    char temp_path[4096];
+} sl_atomic_file;
+
+sl_result sl_atomic_begin(sl_atomic_file *f, const char *final_path, sl_error *err);
+sl_result sl_atomic_commit(sl_atomic_file *f, sl_error *err); /* fsyncs, renames */
+void sl_atomic_abort(sl_atomic_file *f);
+
+/* Writes a whole text/binary buffer atomically. */
+sl_result sl_write_file_atomic(const char *path, const void *data, size_t size, sl_error *err);
+
+/* Checks that `path` names an existing, readable, non-empty regular file.
+ * SL_ERR_NOT_FOUND for missing or a directory, SL_ERR_INPUT for empty. */
+sl_result sl_check_input_file(const char *path, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Image buffers                                                       */
+/* ------------------------------------------------------------------ */
+
+typedef struct sl_image {
+    int width;
+    int height;
+    int channels;  /* 1..4 */
+    size_t stride; /* floats per row, >= width * channels */
+    float *data;   /* owned; freed by sl_image_free */
+} sl_image;
+
+sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_error *err);
+void sl_image_free(sl_image *img);
+static inline float *sl_image_pixel(const sl_image *img, int x, int y)
+{
+    return img->data + (size_t)y * img->stride + (size_t)x * (size_t)img->channels;
+}
+sl_result sl_image_copy(const sl_image *src, sl_image *dst, sl_error *err);
+void sl_image_fill(sl_image *img, float value);
+
+/* Copies the rectangle [x, x+w) x [y, y+h); it must lie inside src. */
+sl_result sl_image_crop(const sl_image *src, int x, int y, int w, int h, sl_image *dst,
+                        sl_error *err);
+
+/* Resamples to width x height. Shrinking is area-weighted (each output
+ * pixel is the exact area average of the input it covers), so the mean and
+ * the total energy per unit area are kept; enlarging is bilinear. */
+sl_result sl_image_resample(const sl_image *src, int width, int height, sl_image *dst,
+                            sl_error *err);
+
+/* New image with `channels` channels: drops extra channels, repeats a single
+ * channel to RGB, fills a missing alpha with 1. */
+sl_result sl_image_convert_channels(const sl_image *src, int channels, sl_image *dst,
+                                    sl_error *err);
+
+typedef struct sl_image_stats {
+    double min[4], max[4];  /* over finite values */
+    double mean[4];         /* over finite values */
+    double sum[4];          /* compensated sum over finite values */
+    int64_t finite_count[4];
+    int64_t nan_count;      /* samples, all channels */
+    int64_t inf_count;
+    int64_t negative_count;
+} sl_image_stats;
+
+void sl_image_stats_compute(const sl_image *img, sl_image_stats *stats);
+
+/* Replaces NaN and Inf samples with `value`; returns how many were replaced. */
+int64_t sl_image_sanitize(sl_image *img, float value);
+
+/* ------------------------------------------------------------------ */
+/* Metadata                                                            */
+/* ------------------------------------------------------------------ */
+
+typedef enum { SL_ENVMAP_NONE = 0, SL_ENVMAP_LATLONG, SL_ENVMAP_CUBE } sl_envmap;
+
+typedef struct sl_attr {
+    char *name;  /* e.g. "setlight:inputs" */
+    char *value;
+} sl_attr;
+
+typedef struct sl_meta {
+    /* what the file is */
+    char format[32];       /* "openexr", "jpeg", "tiff", "png", "raw", ... */
+    int bits_per_sample;   /* 8, 16, 32 (float), 16 for half */
+    bool is_float;
+    sl_envmap envmap;
+    bool has_chromaticities;
+    float chromaticities[8]; /* red xy, green xy, blue xy, white xy */
+    char colorspace[64];   /* OCIO name if known, else "" */
+    /* EXIF; 0 or "" when absent */
+    double exposure_time;  /* seconds */
+    double f_number;
+    double iso;
+    double focal_length_mm;
+    char make[64];
+    char model[64];
+    char lens[128];
+    char datetime[32];     /* "YYYY:MM:DD HH:MM:SS" as in EXIF */
+    int orientation;       /* EXIF 1..8, 0 unknown */
+    /* other string attributes; setlight's own are "setlight:*" */
+    sl_attr *attrs;
+    int attr_count;
+} sl_meta;
+
+void sl_meta_init(sl_meta *meta);
+void sl_meta_free(sl_meta *meta);
+sl_result sl_meta_copy(const sl_meta *src, sl_meta *dst, sl_error *err);
+/* Sets or replaces a string attribute (copies both strings). */
+sl_result sl_meta_set(sl_meta *meta, const char *name, const char *value, sl_error *err);
+/* NULL if absent. */
+const char *sl_meta_get(const sl_meta *meta, const char *name);
+/* The Rec.709 / sRGB primaries with D65 white, as EXR chromaticities. */
+void sl_meta_set_rec709(sl_meta *meta);
+
+/* ------------------------------------------------------------------ */
+/* Image files                                                         */
+/* ------------------------------------------------------------------ */
+
+typedef enum { SL_PIXEL_HALF = 0, SL_PIXEL_FLOAT = 1 } sl_pixel_type;
+
+/* OpenEXR through its C API (openexr.h). Reads scanline or tiled, half,
+ * float or uint channels; RGB(A), Y, or any single layer of R,G,B[,A]. */
+sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
+/* Writes atomically. Writes `envmap`, `chromaticities` (Rec.709 unless
+ * meta says otherwise) and every attr as a string attribute. meta may be NULL. */
+sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *meta,
+                       sl_pixel_type type, sl_error *err);
+
+/* Camera and photo formats through OpenImageIO (JPEG, PNG, TIFF, HDR, DNG,
+ * camera raw via LibRaw). Integer formats come back scaled to [0, 1] with no
+ * transfer function removed: a JPEG stays sRGB-encoded, camera raw is read
+ * linear (no tone curve, camera white balance, Rec.709 output). */
+sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
+/* Reads metadata only (no pixels). */
+sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *width, int *height,
+                             int *channels, sl_error *err);
+/* Writes PNG/JPEG/TIFF (by extension) atomically with EXIF from meta.
+ * bits: 8 or 16 (TIFF/PNG), 32 for float TIFF. Values are written as given
+ * (clamped to [0,1] for integer formats): encode sRGB before if you want it. */
+sl_result sl_photo_write(const char *path, const sl_image *img, const sl_meta *meta, int bits,
+                         sl_error *err);
+
+/* Any image: EXR through sl_exr_read, anything else through sl_photo_read.
+ * Chooses by content (magic bytes), not by extension, so a PNG named .exr
+ * is reported as such. */
+sl_result sl_image_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
+/* By extension: .exr -> sl_exr_write(SL_PIXEL_HALF unless float asked),
+ * others -> sl_photo_write. */
+sl_result sl_image_write(const char *path, const sl_image *img, const sl_meta *meta,
+                         sl_pixel_type exr_type, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Colour                                                              */
+/* ------------------------------------------------------------------ */
+
+float sl_srgb_to_linear(float v);
+float sl_linear_to_srgb(float v);
+
+/* Linear Rec.709 (D65) <-> CIE XYZ (Y of white = 1). */
+void sl_rec709_to_xyz(const double rgb[3], double xyz[3]);
+void sl_xyz_to_rec709(const double xyz[3], double rgb[3]);
+/* Bradford chromatic adaptation matrix from one white (XYZ) to another. */
+void sl_bradford(const double src_white_xyz[3], const double dst_white_xyz[3], double m[3][3]);
+extern const double SL_WHITE_D65[3];
+extern const double SL_WHITE_D50[3];
+/* XYZ -> CIELAB relative to `white` (XYZ with Y = 1), and back. */
+void sl_xyz_to_lab(const double xyz[3], const double white[3], double lab[3]);
+void sl_lab_to_xyz(const double lab[3], const double white[3], double xyz[3]);
+/* CIEDE2000 colour difference (kL = kC = kH = 1). */
+double sl_ciede2000(const double lab1[3], const double lab2[3]);
+
+/* The OCIO config shipped with setlight (SETLIGHT_OCIO_CONFIG overrides). */
+const char *sl_color_config_path(void);
+/* Canonical name of a colour space (aliases accepted), or NULL if unknown. */
+const char *sl_color_space_name(const char *name);
+/* Names of the colour spaces in the config, NULL-terminated, static. */
+const char *const *sl_color_space_list(void);
+/* Converts RGB(A) pixels in place through OpenColorIO. Alpha untouched.
+ * SL_ERR_USAGE naming the space when either name is unknown. */
+sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Geometry: lat-long and projections                                  */
+/* ------------------------------------------------------------------ */
+
+/* (u, v) in [0,1]^2, u along the width, v down the height.
+ * longitude = pi * (1 - 2u), latitude = pi * (0.5 - v),
+ * dir = (sin lon cos lat, sin lat, cos lon cos lat). */
+void sl_latlong_to_dir(double u, double v, double dir[3]);
+void sl_dir_to_latlong(const double dir[3], double *u, double *v);
+/* Exact solid angle of one texel in row y of a width x height lat-long. */
+double sl_latlong_texel_solid_angle(int y, int width, int height);
+/* Bilinear lookup with longitude wrap and pole clamping. out gets channels floats. */
+void sl_latlong_lookup(const sl_image *img, double u, double v, float *out);
+/* True when width == 2 * height. */
+bool sl_is_latlong_shape(int width, int height);
+
+typedef enum {
+    SL_PROJ_LATLONG = 0,
+    SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z */
+    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map, centre looks along +Z */
+    SL_PROJ_CUBEMAP,    /* vertical cross, faces +X -X +Y -Y +Z -Z as OpenEXR's */
+    SL_PROJ_COUNT
+} sl_projection;
+
+/* "latlong", "mirrorball", "angular", "cubemap"; -1 if unknown. */
+int sl_projection_from_name(const char *name);
+const char *sl_projection_name(sl_projection p);
+
+/* Image coordinates (u,v in [0,1]) <-> direction for a projection. Returns
+ * false where the (u,v) is outside the projection's valid area. */
+bool sl_projection_to_dir(sl_projection p, double u, double v, double dir[3]);
+bool sl_dir_to_projection(sl_projection p, const double dir[3], double *u, double *v);
+/* Output size for a projection given a lat-long width (cubemap: 3:4 cross). */
+void sl_projection_size(sl_projection p, int latlong_width, int *width, int *height);
+
+/* Row-major 3x3 rotation: world_dir = rot * map_dir. */
+void sl_rotation_y(double degrees, double rot[3][3]);
+void sl_rotation_euler(double yaw_deg, double pitch_deg, double roll_deg, double rot[3][3]);
+
+/* Reprojects src (projection `from`) into a new image of projection `to`
+ * whose lat-long-equivalent width is `width`. rot may be NULL. Each output
+ * pixel is supersampled (ss x ss) so that shrinking does not alias. */
+sl_result sl_reproject(const sl_image *src, sl_projection from, sl_projection to, int width,
+                       const double rot[3][3], sl_image *dst, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Sampling distributions (built in double precision)                  */
+/* ------------------------------------------------------------------ */
+
+typedef struct sl_distrib1d {
+    int n;
+    double *func;  /* n non-negative values */
+    double *cdf;   /* n + 1 values, cdf[0] = 0, cdf[n] = 1 */
+    double integral; /* sum(func) / n: the integral over [0,1] */
+} sl_distrib1d;
+
+/* A zero or all-zero function gives a uniform distribution with integral 0.
+ * NaN, Inf or negative values are SL_ERR_INPUT. */
+sl_result sl_distrib1d_init(sl_distrib1d *d, const double *func, int n, sl_error *err);
+void sl_distrib1d_free(sl_distrib1d *d);
+/* Continuous sample in [0,1); pdf over [0,1]; offset = bin index. */
+double sl_distrib1d_sample(const sl_distrib1d *d, double u, double *pdf, int *offset);
+/* Discrete sample of a bin; pmf = func[i] / sum. */
+int sl_distrib1d_sample_discrete(const sl_distrib1d *d, double u, double *pmf);
+double sl_distrib1d_pdf(const sl_distrib1d *d, double x);
+
+typedef struct sl_distrib2d {
+    int nu, nv;
+    sl_distrib1d *conditional; /* nv rows of nu */
+    sl_distrib1d marginal;     /* over v */
+} sl_distrib2d;
+
+/* func is nv rows of nu values, row-major. */
+sl_result sl_distrib2d_init(sl_distrib2d *d, const double *func, int nu, int nv, sl_error *err);
+void sl_distrib2d_free(sl_distrib2d *d);
+/* Returns (u, v) in [0,1)^2 and the pdf over the unit square. */
+void sl_distrib2d_sample(const sl_distrib2d *d, double u0, double u1, double uv[2], double *pdf);
+double sl_distrib2d_pdf(const sl_distrib2d *d, double u, double v);
+
+/* Chi-square goodness of fit: p-value of `stat` with `dof` degrees of freedom. */
+double sl_chi2_pvalue(double stat, int dof);
+
+/* ------------------------------------------------------------------ */
+/* Version                                                             */
+/* ------------------------------------------------------------------ */
+
+const char *sl_version(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* SETLIGHT_CORE_H */

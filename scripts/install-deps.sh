@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Installs every Debian package setlight needs to build, test and benchmark.
+# Safe to run again: apt-get skips what is installed. Uses sudo when not root.
+set -euo pipefail
+packages=(
+  build-essential cmake pkg-config git
+  libopenexr-dev libimath-dev openexr
+  libopenimageio-dev openimageio-tools
+  libopencv-dev libopencv-contrib-dev
+  libgphoto2-dev gphoto2
+  libopencolorio-dev
+  libraw-dev
+  libjansson-dev
+  libssl-dev
+  python3
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

@@ -1,0 +1,111 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+#include "testing.h"
+
+#include <dirent.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+int sl_test_passed;
+int sl_test_failed;
+int sl_test_skipped;
+
+void sl_test_fail(const char *file, int line, const char *fmt, ...)
+{
+    va_list ap;
+    sl_test_failed++;
+    fprintf(stdout, "%s:%d: FAILED: ", file, line);
+    va_start(ap, fmt);
+    vfprintf(stdout, fmt, ap);
+    va_end(ap);
+    fputc('\n', stdout);
+    fflush(stdout);
+}
+
+static char tmpdir[4096];
+
+const char *sl_test_tmpdir(void)
+{
+    if (tmpdir[0])
+        return tmpdir;
+    char exe[256] = "test";
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n > 0) {
+        exe[n] = 0;
+        char *slash = strrchr(exe, '/');
+        if (slash)
+            memmove(exe, slash + 1, strlen(slash));
+    }
+    mkdir(SETLIGHT_TEST_TMP, 0755);
+    snprintf(tmpdir, sizeof tmpdir, "%.3800s/%.255s", SETLIGHT_TEST_TMP, exe);
+    char cmd[4200];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmpdir);
+    if (system(cmd) != 0)
+        fprintf(stderr, "warning: could not clear %s\n", tmpdir);
+    mkdir(tmpdir, 0755);
+    return tmpdir;
+}
+
+const char *sl_test_path(const char *name)
+{
+    static char buf[8][4096];
+    static int next;
+    char *b = buf[next++ & 7];
+    snprintf(b, 4096, "%.3000s/%.1000s", sl_test_tmpdir(), name);
+    return b;
+}
+
+void sl_test_skip(const char *what)
+{
+    sl_test_skipped++;
+    printf("skip %s\n", what);
+}
+
+const char *sl_test_data(const char *relative)
+{
+    static char buf[8][4096];
+    static int next;
+    const char *root = getenv("SETLIGHT_SHARED_DATA");
+    if (!root || !*root)
+        root = SETLIGHT_SHARED_DATA;
+    char *b = buf[next++ & 7];
+    snprintf(b, 4096, "%.3000s/%.1000s", root, relative);
+    struct stat st;
+    if (stat(b, &st) != 0) {
+        char msg[4200];
+        snprintf(msg, sizeof msg, "shared data %s absent", relative);
+        sl_test_skip(msg);
+        return NULL;
+    }
+    return b;
+}
+
+bool sl_test_file_exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+int sl_test_count_files(const char *dir)
+{
+    DIR *d = opendir(dir);
+    if (!d)
+        return -1;
+    int n = 0;
+    struct dirent *e;
+    while ((e = readdir(d)))
+        if (strcmp(e->d_name, ".") && strcmp(e->d_name, ".."))
+            n++;
+    closedir(d);
+    return n;
+}
+
+int sl_test_finish(void)
+{
+    printf("%d passed, %d failed, %d skipped\n", sl_test_passed, sl_test_failed, sl_test_skipped);
+    return sl_test_failed ? 1 : 0;
+}
+
+const char *sl_test_errmsg(const sl_error *err) { return err ? err->message : ""; }

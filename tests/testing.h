@@ -1,0 +1,86 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* A small test harness: CHECK macros that count and report, one temp folder
+ * per test program, and the shared-data path with a clean skip when absent.
+ * Each test program ends with `return sl_test_finish();`, which prints
+ * "N passed, N failed" and returns the exit status. */
+#ifndef SETLIGHT_TESTING_H
+#define SETLIGHT_TESTING_H
+
+#include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
+
+#include "setlight/core.h"
+
+extern int sl_test_passed;
+extern int sl_test_failed;
+extern int sl_test_skipped;
+
+void sl_test_fail(const char *file, int line, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+#define CHECK(cond)                                                                        \
+    do {                                                                                   \
+        if (cond)                                                                          \
+            sl_test_passed++;                                                              \
+        else                                                                               \
+            sl_test_fail(__FILE__, __LINE__, "CHECK(%s)", #cond);                          \
+    } while (0)
+
+#define CHECK_MSG(cond, ...)                                                               \
+    do {                                                                                   \
+        if (cond)                                                                          \
+            sl_test_passed++;                                                              \
+        else                                                                               \
+            sl_test_fail(__FILE__, __LINE__, __VA_ARGS__);                                 \
+    } while (0)
+
+/* |a - b| <= tol, and neither is NaN. */
+#define CHECK_NEAR(a, b, tol)                                                              \
+    do {                                                                                   \
+        double _a = (double)(a), _b = (double)(b), _t = (double)(tol);                     \
+        if (fabs(_a - _b) <= _t)                                                           \
+            sl_test_passed++;                                                              \
+        else                                                                               \
+            sl_test_fail(__FILE__, __LINE__, "CHECK_NEAR(%s, %s, %s): %.10g vs %.10g (diff %.3g)", \
+                         #a, #b, #tol, _a, _b, fabs(_a - _b));                             \
+    } while (0)
+
+/* result == expected; prints the error message on failure. */
+#define CHECK_RESULT(expr, expected, errp)                                                 \
+    do {                                                                                   \
+        sl_result _r = (expr);                                                             \
+        if (_r == (expected))                                                              \
+            sl_test_passed++;                                                              \
+        else                                                                               \
+            sl_test_fail(__FILE__, __LINE__, "%s returned %s, expected %s: %s", #expr,    \
+                         sl_result_name(_r), sl_result_name(expected),                     \
+                         sl_test_errmsg(errp));                                            \
+    } while (0)
+
+#define CHECK_OK(expr, errp) CHECK_RESULT(expr, SL_OK, errp)
+
+const char *sl_test_errmsg(const sl_error *err);
+
+/* Runs a test function and prints its name. */
+#define RUN(fn)                                                                            \
+    do {                                                                                   \
+        int _f = sl_test_failed;                                                           \
+        fn();                                                                              \
+        printf("%s %s\n", sl_test_failed == _f ? "ok  " : "FAIL", #fn);                    \
+        fflush(stdout);                                                                    \
+    } while (0)
+
+/* A fresh folder for this test program (removed and remade at first call). */
+const char *sl_test_tmpdir(void);
+/* tmpdir + "/" + name, in a static rotating buffer. */
+const char *sl_test_path(const char *name);
+/* Path under ../shared/data, or NULL (and a "skip" line) when absent. */
+const char *sl_test_data(const char *relative);
+void sl_test_skip(const char *what);
+bool sl_test_file_exists(const char *path);
+/* Number of entries in a folder other than . and .. (-1 if it cannot be read). */
+int sl_test_count_files(const char *dir);
+int sl_test_finish(void);
+
+#endif

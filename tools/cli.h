@@ -1,0 +1,36 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Shared pieces of the setlight command: global options, error reporting
+ * and exit codes. Each command lives in cmd_<name>.c. */
+#ifndef SETLIGHT_CLI_H
+#define SETLIGHT_CLI_H
+
+#include <getopt.h>
+#include <stdbool.h>
+
+#include "setlight/core.h"
+
+typedef struct sl_cli {
+    const char *command; /* e.g. "info" */
+    bool json;           /* --json: machine-readable result on stdout */
+    bool quiet;          /* --quiet: no progress or info on stderr */
+    int threads;         /* --threads N, 0 = all cores */
+} sl_cli;
+
+typedef int (*sl_command_fn)(int argc, char **argv, const sl_cli *cli);
+
+/* Prints "setlight CMD: message" on stderr and returns the exit code. */
+int cli_fail(const sl_cli *cli, const sl_error *err);
+/* Usage error: prints the message and a pointer to --help; returns 2. */
+int cli_usage_error(const sl_cli *cli, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* getopt_long over argv with the given options; prints unknown-option errors
+ * in the project's form. Resets getopt state first. */
+void cli_getopt_reset(void);
+/* Parses a whole positive int / finite double; false on junk. */
+bool cli_parse_int(const char *s, int *out);
+bool cli_parse_double(const char *s, double *out);
+
+/* Command entry points. */
+int cmd_info(int argc, char **argv, const sl_cli *cli);
+int cmd_convert(int argc, char **argv, const sl_cli *cli);
+
+#endif
