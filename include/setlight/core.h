@@ -320,7 +320,8 @@ typedef enum {
     SL_PROJ_LATLONG = 0,
     SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z */
     SL_PROJ_ANGULAR,    /* Debevec light-probe angular map, centre looks along +Z */
-    SL_PROJ_CUBEMAP,    /* vertical cross, faces +X -X +Y -Y +Z -Z as OpenEXR's */
+    SL_PROJ_CUBEMAP,    /* OpenEXR's cube map: six square faces stacked vertically
+                           (width w, height 6w) in the order +X -X +Y -Y +Z -Z */
     SL_PROJ_COUNT
 } sl_projection;
 
@@ -332,7 +333,8 @@ const char *sl_projection_name(sl_projection p);
  * false where the (u,v) is outside the projection's valid area. */
 bool sl_projection_to_dir(sl_projection p, double u, double v, double dir[3]);
 bool sl_dir_to_projection(sl_projection p, const double dir[3], double *u, double *v);
-/* Output size for a projection given a lat-long width (cubemap: 3:4 cross). */
+/* Output size for a projection given a lat-long width: lat-long w x w/2,
+ * mirror ball and angular w/2 x w/2, cube map faces of w/4 (w/4 x 6w/4). */
 void sl_projection_size(sl_projection p, int latlong_width, int *width, int *height);
 
 /* Row-major 3x3 rotation: world_dir = rot * map_dir. */
