@@ -16,6 +16,7 @@ typedef struct command {
 
 static const command commands[] = {
     {"version", NULL, "print the version"},
+    {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},
     /* commands are added here as they land */
 
 };
