@@ -310,17 +310,18 @@ void sl_bsdf_albedo(const sl_material *m, double cos_theta, int n, double albedo
     int k = (int)sqrt((double)(n > 1 ? n : 1));
     for (int i = 0; i < k; i++)
         for (int j = 0; j < k; j++) {
-            /* Stratified in the direction, with u0 = 1 - (1-t)^3 packing samples
-             * at the GGX tail (see energy_integrate.c); a Weyl sequence picks
-             * the lobe. */
-            double t = 1.0 - (i + 0.5) / k;
-            double u[3] = {1.0 - t * t * t, (j + 0.5) / k,
+            /* Stratified in the direction, with u0 = 1 - (1-t)^3 packing strata
+             * at the GGX tail (see energy_integrate.c), each weighted by its
+             * exact width; a Weyl sequence picks the lobe. */
+            double ta = 1.0 - (double)i / k, tb = 1.0 - (i + 1.0) / k, tm = 0.5 * (ta + tb);
+            double u[3] = {1.0 - tm * tm * tm, (j + 0.5) / k,
                            fmod(0.5 + 0.6180339887498949 * (i * k + j), 1.0)};
             sl_bsdf_sample_rec s;
             if (!sl_bsdf_sample(m, wo, u, &s))
                 continue;
+            double w = (ta * ta * ta - tb * tb * tb) * k;
             for (int c = 0; c < 3; c++)
-                albedo[c] += 3.0 * t * t * s.f[c] * s.wi[2] / s.pdf;
+                albedo[c] += w * s.f[c] * s.wi[2] / s.pdf;
         }
     for (int c = 0; c < 3; c++)
         albedo[c] /= (double)k * k;

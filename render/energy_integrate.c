@@ -16,10 +16,11 @@ double sl_energy_integrate(double mu, double roughness, double ior, int k)
     double wo[3] = {sqrt(1.0 - mu * mu), 0.0, mu};
     double sum = 0.0;
     for (int i = 0; i < k; i++) {
-        /* u1 = 1 - (1-s)^3 packs samples near u1 = 1, where the heavy GGX tail
-         * sends wi below the horizon; a uniform grid resolves that edge badly. */
-        double s = (i + 0.5) / k, q = 1.0 - s;
-        double u1 = 1.0 - q * q * q, jac = 3.0 * q * q;
+        /* u1 = 1 - (1-s)^3 packs strata near u1 = 1, where the heavy GGX tail
+         * sends wi below the horizon (a uniform grid resolves that edge badly);
+         * each stratum is weighted by its exact width. */
+        double qa = 1.0 - (double)i / k, qb = 1.0 - (i + 1.0) / k, qm = 0.5 * (qa + qb);
+        double u1 = 1.0 - qm * qm * qm, jac = (qa * qa * qa - qb * qb * qb) * k;
         for (int j = 0; j < k; j++) {
             double h[3], wi[3];
             sl_ggx_sample_vndf(g, wo, u1, (j + 0.5) / k, h);

@@ -84,6 +84,10 @@ void sl_fresnel_eval(const sl_material *m, double cos_i, double f[3])
 
 void sl_fresnel_average(const sl_material *m, double favg[3])
 {
+    if (m->fresnel == SL_FRESNEL_ONE) {
+        favg[0] = favg[1] = favg[2] = 1.0;
+        return;
+    }
     if (m->fresnel == SL_FRESNEL_SCHLICK) {
         /* 2 int (F0 + (1-F0)(1-mu)^5) mu dmu = F0 + (1-F0)/21 */
         for (int c = 0; c < 3; c++)
