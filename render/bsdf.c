@@ -116,23 +116,13 @@ static void ms_fresnel(const sl_material *m, double e_avg, double fms[3])
         fms[c] = favg[c] * favg[c] * e_avg / (1.0 - favg[c] * (1.0 - e_avg));
 }
 
-/* Roughness at which the isotropic tables stand in for anisotropic GGX: the
- * arithmetic mean of the alphas, capped at 1 (the tables end there). Of the
- * min, harmonic, geometric, arithmetic and RMS means and a per-direction
- * projected alpha it keeps the furnace closest to 1; none bounds it, as E is
- * not monotonic in roughness at grazing and depends on the azimuth
- * (docs/render-bsdf.md, "Anisotropy"). */
-static double table_roughness(const sl_material *m)
-{
-    if (m->anisotropy <= 0.0)
-        return m->roughness;
-    sl_ggx g = sl_ggx_make(m->roughness, m->anisotropy);
-    return fmin(sqrt(0.5 * (g.ax + g.ay)), 1.0);
-}
-
+/* E of the single-scattering lobe with F = 1 for direction w; anisotropic GGX
+ * has its own tables over the azimuth of w (folded into [0, pi/2]). */
 static double e1_of(const sl_material *m, const double w[3])
 {
-    return sl_energy_e1(w[2], table_roughness(m));
+    if (m->anisotropy <= 0.0)
+        return sl_energy_e1(w[2], m->roughness);
+    return sl_energy_ea(w[2], atan2(fabs(w[1]), fabs(w[0])), m->roughness, m->anisotropy);
 }
 
 /* 1 - E_avg, the energy the compensation lobe restores at most; zero when
@@ -141,7 +131,9 @@ static double ms_room(const sl_material *m)
 {
     if (!m->compensate || smooth(m))
         return 0.0;
-    double room = 1.0 - sl_energy_e1_avg(table_roughness(m));
+    double e_avg = m->anisotropy > 0.0 ? sl_energy_ea_avg(m->roughness, m->anisotropy)
+                                       : sl_energy_e1_avg(m->roughness);
+    double room = 1.0 - e_avg;
     return room > 1e-6 ? room : 0.0;
 }
 

@@ -5,6 +5,8 @@
 
 #include <math.h>
 
+#include "microfacet.h"
+
 static void cell(double x, int n, int *i, double *f)
 {
     x = fmin(fmax(x, 0.0), 1.0) * (n - 1);
@@ -93,4 +95,47 @@ double sl_energy_ed_avg(double roughness, double ior)
     t_cell(ior_t(ior), &k, &fk);
     const float *a = sl_energy_ed_avg_table[k], *b = sl_energy_ed_avg_table[k + 1];
     return lerp(lerp(a[j], a[j + 1], fj), lerp(b[j], b[j + 1], fj), fk);
+}
+
+/* Anisotropy axis, linear in y: node 0 is the isotropic table, node l+1 the slab l. */
+static void a_cell(double a, int *l, double *f)
+{
+    a = fmin(fmax(a, 0.0), 1.0);
+    cell(sl_energy_a_y(a) / sl_energy_a_y(1.0), SL_E_NA + 1, l, f);
+}
+
+static double ea_slab(int l, double mu, double phi, double roughness)
+{
+    int i, j, m;
+    double fi, fj, fm;
+    mu_cell(mu, &i, &fi);
+    r_cell(roughness, &j, &fj);
+    cell(phi / (0.5 * SL_PI), SL_E_NPHI, &m, &fm);
+    double v[2];
+    for (int d = 0; d < 2; d++) {
+        const float *r0 = sl_energy_ea_table[l][m + d][j], *r1 = sl_energy_ea_table[l][m + d][j + 1];
+        v[d] = lerp(lerp(r0[i], r0[i + 1], fi), lerp(r1[i], r1[i + 1], fi), fj);
+    }
+    return lerp(v[0], v[1], fm);
+}
+
+double sl_energy_ea(double mu, double phi, double roughness, double anisotropy)
+{
+    int l;
+    double fl;
+    a_cell(anisotropy, &l, &fl);
+    double v0 = l == 0 ? sl_energy_e1(mu, roughness) : ea_slab(l - 1, mu, phi, roughness);
+    return lerp(v0, ea_slab(l, mu, phi, roughness), fl);
+}
+
+double sl_energy_ea_avg(double roughness, double anisotropy)
+{
+    int l, j;
+    double fl, fj;
+    a_cell(anisotropy, &l, &fl);
+    r_cell(roughness, &j, &fj);
+    const float *b = sl_energy_ea_avg_table[l];
+    double v0 = l == 0 ? sl_energy_e1_avg(roughness)
+                       : lerp(sl_energy_ea_avg_table[l - 1][j], sl_energy_ea_avg_table[l - 1][j + 1], fj);
+    return lerp(v0, lerp(b[j], b[j + 1], fj), fl);
 }

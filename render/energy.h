@@ -17,6 +17,17 @@
 #define SL_E_NR 32
 #define SL_E_NT 20
 
+/* Anisotropic GGX with F = 1: nodes uniform in y = 1/aspect - 1 = ax/alpha - 1
+ * (E is close to linear in y, and bends the safe way; in the anisotropy itself it
+ * falls steeply near 1), y_l = (l+1)/NA y(1), y = 0 being the isotropic table;
+ * and the azimuth of wo folded into [0, pi/2], phi_m = m/(NPHI-1) pi/2
+ * (E is symmetric about both axes of the anisotropy). The average over the
+ * hemisphere is exact for the interpolant (trapezoid over phi of the row
+ * averages), so the compensation lobe closes energy exactly as in the
+ * isotropic case. */
+#define SL_E_NA 4
+#define SL_E_NPHI 5
+
 /* E(mu, r) of the single-scattering isotropic GGX lobe with F = 1. */
 extern const float sl_energy_e1_table[SL_E_NR][SL_E_NMU];
 extern const float sl_energy_e1_avg_table[SL_E_NR];
@@ -24,11 +35,21 @@ extern const float sl_energy_e1_avg_table[SL_E_NR];
 extern const float sl_energy_ed_table[SL_E_NT][SL_E_NR][SL_E_NMU];
 extern const float sl_energy_ed_avg_table[SL_E_NT][SL_E_NR];
 
+extern const float sl_energy_ea_table[SL_E_NA][SL_E_NPHI][SL_E_NR][SL_E_NMU];
+extern const float sl_energy_ea_avg_table[SL_E_NA][SL_E_NR];
+
 /* Single-scattering directional albedo by stratified VNDF quadrature with
  * k x k samples: F = 1 when ior <= 0, else the exact dielectric Fresnel.
  * Roughness below SL_ROUGHNESS_DELTA is the mirror: E = F(mu). */
 double sl_energy_integrate(double mu, double roughness, double ior, int k);
-/* Positions of the mu and roughness nodes. */
+/* The same for anisotropic GGX with F = 1 and wo at azimuth phi. */
+double sl_energy_integrate_aniso(double mu, double phi, double roughness, double anisotropy,
+                                 int k);
+/* Positions of the mu, roughness, anisotropy and azimuth nodes. */
+double sl_energy_a_node(int l);
+/* The anisotropy axis coordinate y = 1/sqrt(1 - 0.9 a) - 1. */
+double sl_energy_a_y(double anisotropy);
+double sl_energy_phi_node(int m);
 double sl_energy_mu_node(int i);
 double sl_energy_r_node(int j);
 double sl_energy_t_node(int k);
@@ -42,5 +63,8 @@ double sl_energy_e1(double mu, double roughness);
 double sl_energy_e1_avg(double roughness);
 double sl_energy_ed(double mu, double roughness, double ior);
 double sl_energy_ed_avg(double roughness, double ior);
+/* Anisotropic E at |azimuth| folded into [0, pi/2], and its hemispherical average. */
+double sl_energy_ea(double mu, double phi, double roughness, double anisotropy);
+double sl_energy_ea_avg(double roughness, double anisotropy);
 
 #endif

@@ -7,13 +7,15 @@
 #include "fresnel.h"
 #include "microfacet.h"
 
-double sl_energy_integrate(double mu, double roughness, double ior, int k)
+static double integrate(double mu, double phi, double roughness, double anisotropy, double ior,
+                        int k)
 {
     mu = fmin(fmax(mu, 1e-6), 1.0);
     if (roughness < SL_ROUGHNESS_DELTA)
         return ior > 0.0 ? sl_fresnel_dielectric(mu, ior) : 1.0;
-    sl_ggx g = sl_ggx_make(roughness, 0.0);
-    double wo[3] = {sqrt(1.0 - mu * mu), 0.0, mu};
+    sl_ggx g = sl_ggx_make(roughness, anisotropy);
+    double s = sqrt(1.0 - mu * mu);
+    double wo[3] = {s * cos(phi), s * sin(phi), mu};
     double sum = 0.0;
     for (int i = 0; i < k; i++) {
         /* u1 = 1 - (1-s)^3 packs strata near u1 = 1, where the heavy GGX tail
@@ -34,6 +36,34 @@ double sl_energy_integrate(double mu, double roughness, double ior, int k)
         }
     }
     return sum / ((double)k * k);
+}
+
+double sl_energy_integrate(double mu, double roughness, double ior, int k)
+{
+    return integrate(mu, 0.0, roughness, 0.0, ior, k);
+}
+
+double sl_energy_integrate_aniso(double mu, double phi, double roughness, double anisotropy,
+                                 int k)
+{
+    return integrate(mu, phi, roughness, anisotropy, 0.0, k);
+}
+
+double sl_energy_a_y(double anisotropy)
+{
+    return 1.0 / sqrt(1.0 - 0.9 * anisotropy) - 1.0;
+}
+
+double sl_energy_a_node(int l)
+{
+    double y = (l + 1.0) / SL_E_NA * sl_energy_a_y(1.0);
+    double aspect = 1.0 / (1.0 + y);
+    return fmin((1.0 - aspect * aspect) / 0.9, 1.0);
+}
+
+double sl_energy_phi_node(int m)
+{
+    return 0.5 * SL_PI * m / (SL_E_NPHI - 1);
 }
 
 double sl_energy_mu_node(int i)
