@@ -228,6 +228,9 @@ const char *const *sl_color_space_list(void)
 
 sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_error *err)
 {
+    sl_error local; // the helpers report through err; its code is the result
+    if (!err)
+        err = &local;
     if (!img || !img->data || img->width <= 0 || img->height <= 0 ||
         img->stride < (size_t)img->width * (size_t)(img->channels > 0 ? img->channels : 1))
         return sl_error_set(err, SL_ERR_USAGE, "colour conversion: empty or malformed image");
@@ -240,7 +243,7 @@ sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_e
                             img->channels, img->channels == 1 ? "" : "s");
     loaded_config *lc = get_config(err);
     if (!lc)
-        return err ? err->code : SL_ERR_INPUT;
+        return err->code;
     long src = find_space(*lc, from);
     if (src < 0)
         return unknown_space(*lc, from, err);
@@ -252,7 +255,7 @@ sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_e
 
     OCIO::ConstCPUProcessorRcPtr cpu = get_processor(*lc, (size_t)src, (size_t)dst, err);
     if (!cpu)
-        return err ? err->code : SL_ERR_INPUT;
+        return err->code;
     if (cpu->isNoOp())
         return SL_OK;
 

@@ -372,11 +372,14 @@ static void test_ocio_srgb(void)
     CHECK_MSG(worst < 2e-6, "sRGB round trip relative error %.3g", worst);
     sl_image_free(&img);
 
-    /* Encoded 0.5 decodes to 0.2140 linear. */
+    /* Encoded 0.5 decodes to 0.2140 linear; negative values continue the
+     * linear segment (slope 12.9232 in OCIO, 12.92 in IEC) in both. */
     make_image(&img, 1, 1, 3, 0);
-    img.data[0] = img.data[1] = img.data[2] = 0.5f;
+    img.data[0] = img.data[1] = 0.5f;
+    img.data[2] = -0.1f;
     CHECK_OK(sl_color_convert(&img, "sRGB - Texture", "scene_linear", &err), &err);
     CHECK_NEAR(img.data[0], 0.214041140, 1e-6);
+    CHECK_NEAR(img.data[2], sl_srgb_to_linear(-0.1f), 2e-5);
     sl_image_free(&img);
 }
 
@@ -475,6 +478,7 @@ static void test_ocio_config_override(void)
     CHECK_RESULT(sl_color_convert(&img, "lin_rec709", "acescg", &err), SL_ERR_NOT_FOUND, &err);
     CHECK(strstr(err.message, missing) != NULL);
     CHECK(strstr(err.message, "SETLIGHT_OCIO_CONFIG") != NULL);
+    CHECK(sl_color_convert(&img, "lin_rec709", "acescg", NULL) == SL_ERR_NOT_FOUND);
     CHECK(img.data[0] == 0.25f);
     CHECK(sl_color_space_name("lin_rec709") == NULL);
     CHECK(sl_color_space_list()[0] == NULL);
