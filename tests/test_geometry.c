@@ -223,9 +223,9 @@ static void test_cubemap_faces(void)
         CHECK_NEAR(u, 0.5, 1e-15);
         CHECK_NEAR(v, (f + 0.5) / 6, 1e-15);
     }
-    /* Per-face orientation from ImfEnvmap.cpp: on +Z, image right is -X and
-     * image up is +Y; on -Z right is +X; on +X image right is +Z and up +Y;
-     * on +Y image up is -Z... (pos.y = max - pif.y with pif.y from z). */
+    /* Per-face orientation from ImfEnvmap.cpp: on +Z image right is -X and
+     * up is +Y; on -Z right is +X; on +X right is +Z and up +Y; the top of
+     * +Y is +Z and the top of -Y is -Z. */
     double d[3];
     sl_projection_to_dir(SL_PROJ_CUBEMAP, 0.9, 4.5 / 6, d);
     CHECK(d[0] < -0.5);
