@@ -139,6 +139,23 @@ static void test_enlarge_then_shrink(void)
     sl_image_free(&back);
 }
 
+static void test_threads(void)
+{
+    sl_error err;
+    sl_image src, a, b;
+    CHECK_OK(sl_image_alloc(&src, 301, 203, 3, &err), &err);
+    fill_hdr_noise(&src);
+    CHECK_OK(sl_image_resample(&src, 97, 400, &a, &err), &err);
+    int saved = sl_threads_get();
+    sl_threads_set(1);
+    CHECK_OK(sl_image_resample(&src, 97, 400, &b, &err), &err);
+    sl_threads_set(saved);
+    CHECK(a.data && b.data && memcmp(a.data, b.data, sizeof(float) * 97 * 400 * 3) == 0);
+    sl_image_free(&a);
+    sl_image_free(&b);
+    sl_image_free(&src);
+}
+
 static void test_bad_input(void)
 {
     sl_error err;
@@ -158,6 +175,7 @@ int main(void)
     RUN(test_mixed);
     RUN(test_constant);
     RUN(test_enlarge_then_shrink);
+    RUN(test_threads);
     RUN(test_bad_input);
     return sl_test_finish();
 }
