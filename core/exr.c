@@ -8,8 +8,10 @@
  * level). The returned image covers the display window, the frame that
  * lat-long geometry refers to: data-window pixels land at their position,
  * pixels outside the data window are 0, and overscan outside the display
- * window is cropped. */
+ * window is cropped. DWAA/DWAB pixels, which the OpenEXR 3.1 C API cannot
+ * decode, come through OpenImageIO (OpenEXR's C++ library) instead. */
 #include "setlight/core.h"
+#include "exr_oiio.h"
 
 #include <float.h>
 #include <math.h>
@@ -218,9 +220,12 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
         ch->decode_to_ptr = NULL;
         for (int c = 0; c < nc; c++)
             if (strcmp(ch->channel_name, pick->names[c]) == 0) {
-                ch->decode_to_ptr = (uint8_t *)(scratch + c);
-                ch->user_pixel_stride = nc * (int32_t)sizeof(float);
-                ch->user_line_stride = w * nc * (int32_t)sizeof(float);
+                /* Planar: OpenEXR 3.1's interleaved RGBA half fast path
+                 * assumes the pointers in the file's channel order (A,B,G,R)
+                 * and swaps the channels of interleaved RGBA output. */
+                ch->decode_to_ptr = (uint8_t *)(scratch + (size_t)c * (size_t)w * (size_t)h);
+                ch->user_pixel_stride = (int32_t)sizeof(float);
+                ch->user_line_stride = w * (int32_t)sizeof(float);
                 ch->user_data_type = EXR_PIXEL_FLOAT;
                 ch->user_bytes_per_element = sizeof(float);
             }
@@ -238,9 +243,9 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
             int fx = x0 + x;
             if (fx < fr->display.min.x || fx > fr->display.max.x)
                 continue;
-            memcpy(sl_image_pixel(img, fx - fr->display.min.x, fy - fr->display.min.y),
-                   scratch + ((size_t)y * (size_t)w + (size_t)x) * (size_t)nc,
-                   (size_t)nc * sizeof(float));
+            float *dst = sl_image_pixel(img, fx - fr->display.min.x, fy - fr->display.min.y);
+            for (int c = 0; c < nc; c++)
+                dst[c] = scratch[((size_t)c * (size_t)h + (size_t)y) * (size_t)w + (size_t)x];
         }
     }
     return EXR_ERR_SUCCESS;
@@ -370,7 +375,14 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
     }
     if (!r && (r = sl_image_alloc(img, w, h, pick.count, NULL)) != SL_OK)
         sl_error_set(err, r, "%s: cannot allocate a %dx%d EXR image", path, w, h);
-    if (!r)
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    if (!r && (rv = exr_get_compression(ctx, 0, &comp)) != EXR_ERR_SUCCESS)
+        r = corrupt(err, path, rv);
+    /* The 3.1 C API has no DWA decoder; OIIO's OpenEXR C++ library has. */
+    if (!r && (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB))
+        r = sl_exr_read_pixels_oiio(path, pick.names, pick.count, fr.display.min.x,
+                                    fr.display.min.y, img, err);
+    else if (!r)
         r = read_pixels(ctx, path, &pick, &fr, img, err);
     if (!r && meta)
         r = read_header_meta(ctx, &pick, meta, err);

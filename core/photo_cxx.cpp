@@ -19,6 +19,7 @@
  * order, like every other format here), raw:Demosaic "AHD" (LibRaw's default,
  * said explicitly). */
 #include "setlight/core.h"
+#include "exr_oiio.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -281,6 +282,43 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
     return sl_atomic_commit(&f, err);
 }
 
+sl_result exr_pixels_impl(const char *path, const char *const *names, int count, int x0, int y0,
+                          sl_image *img, sl_error *err)
+{
+    std::unique_ptr<ImageInput> in = ImageInput::open(path);
+    if (!in)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,
+                            one_line(OIIO::geterror()).c_str());
+    const ImageSpec &spec = in->spec();
+    int index[4];
+    for (int c = 0; c < count; c++) {
+        index[c] = spec.channelindex(names[c]);
+        if (index[c] < 0)
+            return sl_error_set(err, SL_ERR_INPUT, "%s: OpenImageIO sees no channel %s", path,
+                                names[c]);
+    }
+    std::vector<float> all((size_t)spec.width * (size_t)spec.height * (size_t)spec.nchannels);
+    if (!in->read_image(0, 0, 0, spec.nchannels, TypeDesc::FLOAT, all.data()))
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,
+                            one_line(in->geterror()).c_str());
+    for (int y = 0; y < spec.height; y++) {
+        int iy = spec.y + y - y0;
+        if (iy < 0 || iy >= img->height)
+            continue;
+        for (int x = 0; x < spec.width; x++) {
+            int ix = spec.x + x - x0;
+            if (ix < 0 || ix >= img->width)
+                continue;
+            const float *src = &all[((size_t)y * (size_t)spec.width + (size_t)x) * (size_t)spec.nchannels];
+            float *dst = sl_image_pixel(img, ix, iy);
+            for (int c = 0; c < count; c++)
+                dst[c] = src[index[c]];
+        }
+    }
+    in->close();
+    return SL_OK;
+}
+
 sl_result exception_error(const char *path, sl_error *err, const char *what, bool nomem)
 {
     return sl_error_set(err, nomem ? SL_ERR_NOMEM : SL_ERR_INTERNAL, "%s: OpenImageIO failed (%s)",
@@ -336,6 +374,20 @@ extern "C" sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *wi
     if (r && meta)
         sl_meta_free(meta);
     return r;
+}
+
+extern "C" sl_result sl_exr_read_pixels_oiio(const char *path, const char *const *names, int count,
+                                             int x0, int y0, sl_image *img, sl_error *err)
+{
+    try {
+        return exr_pixels_impl(path, names, count, x0, y0, img, err);
+    } catch (const std::bad_alloc &) {
+        return exception_error(path, err, "out of memory", true);
+    } catch (const std::exception &e) {
+        return exception_error(path, err, e.what(), false);
+    } catch (...) {
+        return exception_error(path, err, "unknown exception", false);
+    }
 }
 
 extern "C" sl_result sl_photo_write(const char *path, const sl_image *img, const sl_meta *meta,
