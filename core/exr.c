@@ -31,8 +31,14 @@ static _Thread_local char exr_message[512];
 static void capture_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
 {
     (void)ctxt;
-    if (!exr_message[0])
-        snprintf(exr_message, sizeof exr_message, "%s", msg ? msg : exr_get_default_error_message(code));
+    if (exr_message[0])
+        return;
+    /* Messages can quote corrupt header bytes: keep one printable line. */
+    const char *src = msg ? msg : exr_get_default_error_message(code);
+    size_t n = 0;
+    for (; src[n] && n < 160; n++)
+        exr_message[n] = src[n] >= 0x20 && src[n] < 0x7f ? src[n] : '?';
+    strcpy(exr_message + n, src[n] ? "..." : "");
 }
 
 static exr_context_initializer_t make_initializer(void)

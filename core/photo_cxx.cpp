@@ -180,8 +180,11 @@ void set_exif(ImageSpec &spec, const sl_meta *meta)
     if (meta->f_number > 0)
         spec.attribute("FNumber", (float)meta->f_number);
     if (meta->iso > 0) {
-        spec.attribute("Exif:PhotographicSensitivity", (int)std::lround(meta->iso));
-        spec.attribute("Exif:ISOSpeedRatings", (int)std::lround(meta->iso));
+        /* EXIF tag 0x8827 (ISOSpeedRatings is its old name) is a SHORT.
+         * OIIO 2.4 round-trips it in JPEG but not in TIFF. */
+        double iso = meta->iso < 65535 ? meta->iso : 65535;
+        unsigned short iso16 = (unsigned short)std::lround(iso);
+        spec.attribute("Exif:PhotographicSensitivity", TypeDesc::UINT16, &iso16);
     }
     if (meta->focal_length_mm > 0)
         spec.attribute("Exif:FocalLength", (float)meta->focal_length_mm);
@@ -229,8 +232,11 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
         nc -= 1;
     TypeDesc type = bits == 8 ? TypeDesc::UINT8 : bits == 16 ? TypeDesc::UINT16 : TypeDesc::FLOAT;
     ImageSpec spec(img->width, img->height, nc, type);
-    if (nc == 2 || nc == 4)
+    if (nc == 2 || nc == 4) {
         spec.alpha_channel = nc - 1;
+        /* Pixels are written as given: no un-premultiplying by alpha. */
+        spec.attribute("oiio:UnassociatedAlpha", 1);
+    }
     if (jpeg)
         spec.attribute("CompressionQuality", 95);
     if (tiff)

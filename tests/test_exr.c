@@ -499,6 +499,10 @@ static void expect_bad(const char *path, sl_result code, const char *fragment)
     CHECK_MSG(message_names(&err, path), "message does not name the file: %s", err.message);
     CHECK_MSG(!fragment || strstr(err.message, fragment), "message lacks \"%s\": %s", fragment,
               err.message);
+    bool one_line = true;
+    for (const char *p = err.message; *p; p++)
+        one_line = one_line && (unsigned char)*p >= 0x20 && (unsigned char)*p < 0x7f;
+    CHECK_MSG(one_line, "message is not one printable line: %s", err.message);
     CHECK(img.data == NULL && meta.attrs == NULL);
     sl_image_free(&img);
     sl_meta_free(&meta);
