@@ -281,6 +281,10 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_pick
         if (rv == EXR_ERR_SUCCESS) {
             tiles_x = (lw + chunk_w - 1) / chunk_w;
             tiles_y = (lh + chunk_h - 1) / chunk_h;
+            /* Chunks never exceed the level: size the scratch by that, not
+             * by a (possibly corrupt) tile size. */
+            chunk_w = chunk_w < lw ? chunk_w : lw;
+            chunk_h = chunk_h < lh ? chunk_h : lh;
         }
     }
     if (rv != EXR_ERR_SUCCESS)
@@ -419,7 +423,7 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
 {
     static const char *names[4][4] = {{"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
     int part = 0;
-    exr_result_t rv = exr_add_part(ctx, "rgba", EXR_STORAGE_SCANLINE, &part);
+    exr_result_t rv = exr_add_part(ctx, NULL, EXR_STORAGE_SCANLINE, &part);
     if (rv != EXR_ERR_SUCCESS)
         return rv;
     exr_attr_box2i_t win;
