@@ -39,9 +39,11 @@ using OIIO::ImageOutput;
 using OIIO::ImageSpec;
 using OIIO::TypeDesc;
 
-/* One line: OIIO messages can span several. */
+/* One short line: OIIO messages can span several and repeat per strip. */
 std::string one_line(std::string s)
 {
+    if (s.size() > 240)
+        s = s.substr(0, 240) + "...";
     for (char &c : s)
         if (c == '\n' || c == '\r')
             c = ' ';
@@ -130,7 +132,8 @@ sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *er
     if (r)
         return sl_error_set(err, r, "%s: cannot hold a %dx%d image with %d channels", path,
                             spec.width, spec.height, spec.nchannels);
-    if (!in->read_image(0, 0, 0, channels, TypeDesc::FLOAT, img->data)) {
+    /* Some readers (TIFF) report a short strip as an error yet return true. */
+    if (!in->read_image(0, 0, 0, channels, TypeDesc::FLOAT, img->data) || in->has_error()) {
         std::string why = one_line(in->geterror());
         sl_image_free(img);
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image (%s)", path,

@@ -318,14 +318,17 @@ static void test_bad_input(void)
     CHECK_OK(sl_write_file_atomic(junk_exr, noise, sizeof noise, &err), &err);
     expect_bad(junk_exr, SL_ERR_INPUT, "not an image file");
 
-    /* A PNG cut in half: the header reads, the pixels cannot. */
+    /* A TIFF cut in half: the header reads, the pixels cannot. (A cut PNG
+     * fails the same way, but OpenImageIO 2.4's PNG reader then leaks a
+     * string through libpng's longjmp and libpng prints to stderr, which
+     * the sanitizer build would flag.) */
     sl_image img;
     CHECK_OK(sl_image_alloc(&img, 64, 64, 3, &err), &err);
     for (size_t i = 0; i < (size_t)64 * 64 * 3; i++) {
         s = s * 1664525u + 1013904223u;
         img.data[i] = (float)(s >> 8) / 16777216.0f;
     }
-    const char *full = sl_test_path("full.png");
+    const char *full = sl_test_path("full.tif");
     CHECK_OK(sl_photo_write(full, &img, NULL, 8, &err), &err);
     sl_image_free(&img);
     FILE *fp = fopen(full, "rb");
@@ -334,7 +337,7 @@ static void test_bad_input(void)
     if (fp)
         fclose(fp);
     CHECK(n > 4000);
-    const char *cut = sl_test_path("cut.png");
+    const char *cut = sl_test_path("cut.tif");
     CHECK_OK(sl_write_file_atomic(cut, buf, n / 2, &err), &err);
     sl_image back;
     CHECK_RESULT(sl_image_read(cut, &back, NULL, &err), SL_ERR_INPUT, &err);
