@@ -368,12 +368,19 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
         r = corrupt(err, path, rv);
     } else if (window_size(&fr.display, &w, &h) || window_size(&fr.data, &dw, &dh)) {
         r = sl_error_set(err, SL_ERR_INPUT,
-                         "%s: truncated or corrupt EXR (window %dx%d data %dx%d beyond %d)", path,
+                         "%s: truncated or corrupt EXR (display window %dx%d, data window %dx%d: "
+                         "empty or over %d)",
+                         path,
                          fr.display.max.x - fr.display.min.x + 1, fr.display.max.y - fr.display.min.y + 1,
                          fr.data.max.x - fr.data.min.x + 1, fr.data.max.y - fr.data.min.y + 1,
                          EXR_MAX_DIM);
     } else if (!pick_channels(cl, &pick)) {
         r = sl_error_set(err, SL_ERR_INPUT, "%s: EXR has no R,G,B, Y or layer.R,G,B channels", path);
+    } else if (strcmp(pick.names[0], "Y") == 0 &&
+               (find_channel(cl, "RY") || find_channel(cl, "BY"))) {
+        /* Reading Y alone would silently turn a colour image grey. */
+        r = sl_error_set(err, SL_ERR_UNSUPPORTED,
+                         "%s: luminance/chroma (Y, RY, BY) EXR is not supported", path);
     } else {
         for (int c = 0; c < pick.count && !r; c++) {
             const exr_attr_chlist_entry_t *e = find_channel(cl, pick.names[c]);

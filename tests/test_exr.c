@@ -391,6 +391,18 @@ static void test_windows_tiles_types(void)
     CHECK(meta.bits_per_sample == 32);
     sl_image_free(&img);
     sl_meta_free(&meta);
+    /* Through OIIO the same 7-channel file keeps its first four channels. */
+    CHECK_OK(sl_photo_read(path, &img, NULL, &err), &err);
+    CHECK(img.channels == 4 && img.width == 12);
+    sl_image_free(&img);
+
+    /* Luminance/chroma: refused rather than read as grey. */
+    test_exr_spec yc = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 7, 7), box(0, 0, 7, 7), 3,
+                        {"Y", "RY", "BY"}, {EXR_PIXEL_HALF, EXR_PIXEL_HALF, EXR_PIXEL_HALF}};
+    path = sl_test_path("yc.exr");
+    CHECK(write_test_exr(path, &yc));
+    CHECK_RESULT(sl_exr_read(path, &img, NULL, &err), SL_ERR_UNSUPPORTED, &err);
+    CHECK(message_names(&err, path) && img.data == NULL);
 
     /* Only Z: nothing to read as colour. */
     test_exr_spec z = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 3, 3), box(0, 0, 3, 3), 1,
