@@ -17,7 +17,11 @@
  * discard them), raw:apply_scene_linear_scale 0 (values stay relative to the
  * white level, 1.0 = sensor saturation), raw:user_flip 0 (pixels in sensor
  * order, like every other format here), raw:Demosaic "AHD" (LibRaw's default,
- * said explicitly). */
+ * said explicitly).
+ *
+ * Writing: what survives is what OIIO 2.4 writes per format. JPEG keeps all
+ * the EXIF fields; TIFF all but ISO; PNG only the text ones (make, model,
+ * lens, date) plus setlight:* attributes as text chunks. */
 #include "setlight/core.h"
 #include "exr_oiio.h"
 
@@ -90,7 +94,8 @@ void copy_string(char *dst, size_t size, const std::string &src)
     std::snprintf(dst, size, "%s", src.c_str());
 }
 
-void fill_meta(ImageInput &in, const ImageSpec &spec, sl_meta *meta)
+sl_result fill_meta(const char *path, ImageInput &in, const ImageSpec &spec, sl_meta *meta,
+                    sl_error *err)
 {
     copy_string(meta->format, sizeof meta->format, in.format_name());
     meta->is_float = spec.format.is_floating_point();
@@ -116,6 +121,14 @@ void fill_meta(ImageInput &in, const ImageSpec &spec, sl_meta *meta)
     copy_string(meta->datetime, sizeof meta->datetime, when);
     int orientation = spec.get_int_attribute("Orientation", 0);
     meta->orientation = orientation >= 1 && orientation <= 8 ? orientation : 0;
+    /* setlight's own provenance, e.g. from PNG text chunks. */
+    for (const OIIO::ParamValue &p : spec.extra_attribs) {
+        if (p.type() != TypeDesc::STRING || std::strncmp(p.name().c_str(), "setlight:", 9) != 0)
+            continue;
+        if (sl_meta_set(meta, p.name().c_str(), p.get_string().c_str(), nullptr))
+            return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for metadata", path);
+    }
+    return SL_OK;
 }
 
 sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
@@ -139,8 +152,8 @@ sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *er
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image (%s)", path,
                             why.c_str());
     }
-    if (meta)
-        fill_meta(*in, spec, meta);
+    if (meta && (r = fill_meta(path, *in, spec, meta, err)) != SL_OK)
+        return r;
     in->close();
     return SL_OK;
 }
@@ -153,8 +166,8 @@ sl_result read_meta_impl(const char *path, sl_meta *meta, int *width, int *heigh
     if (r)
         return r;
     const ImageSpec &spec = in->spec();
-    if (meta)
-        fill_meta(*in, spec, meta);
+    if (meta && (r = fill_meta(path, *in, spec, meta, err)) != SL_OK)
+        return r;
     if (width)
         *width = spec.width;
     if (height)
