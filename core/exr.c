@@ -441,6 +441,12 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     memset(&center, 0, sizeof center);
     rv = exr_initialize_required_attr(ctx, part, &win, &win, 1.0f, &center, 1.0f,
                                       EXR_LINEORDER_INCREASING_Y, EXR_COMPRESSION_ZIP);
+    /* Names over 31 bytes (setlight:* can be) need the long-name flag. */
+    bool long_names = false;
+    for (int i = 0; meta && i < meta->attr_count; i++)
+        long_names = long_names || strlen(meta->attrs[i].name) > 31;
+    if (rv == EXR_ERR_SUCCESS && long_names)
+        rv = exr_set_longname_support(ctx, 1);
     exr_pixel_type_t pt = type == SL_PIXEL_FLOAT ? EXR_PIXEL_FLOAT : EXR_PIXEL_HALF;
     for (int c = 0; c < img->channels && rv == EXR_ERR_SUCCESS; c++)
         rv = exr_add_channel(ctx, part, names[img->channels - 1][c], pt,
@@ -560,7 +566,12 @@ sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *met
         rv = frv;
     if (rv != EXR_ERR_SUCCESS) {
         sl_atomic_abort(&f);
-        return sl_error_set(err, rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM : SL_ERR_IO,
+        /* Attribute problems come from the caller's meta, not the disk. */
+        bool bad_attr = rv == EXR_ERR_ATTR_TYPE_MISMATCH || rv == EXR_ERR_INVALID_ATTR ||
+                        rv == EXR_ERR_NAME_TOO_LONG || rv == EXR_ERR_INVALID_ARGUMENT;
+        return sl_error_set(err, rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM
+                                 : bad_attr                  ? SL_ERR_USAGE
+                                                             : SL_ERR_IO,
                             "%s: cannot write EXR (%s)", path, exr_why(rv));
     }
     return sl_atomic_commit(&f, err);

@@ -218,6 +218,9 @@ static void test_roundtrip(void)
             CHECK_OK(sl_meta_set(&meta, "setlight:inputs", "a.exr b.exr", &err), &err);
             CHECK_OK(sl_meta_set(&meta, "setlight:version", sl_version(), &err), &err);
             CHECK_OK(sl_meta_set(&meta, "setlight:exposures", "[0.004, 0.016]", &err), &err);
+            /* Longer than EXR's classic 31-byte name limit. */
+            CHECK_OK(sl_meta_set(&meta, "setlight:calibration_matrix_source", "macbeth.json", &err),
+                     &err);
             char name[64];
             snprintf(name, sizeof name, "rt_%s_%d.exr", t ? "float" : "half", nc);
             const char *path = sl_test_path(name);
@@ -254,6 +257,8 @@ static void test_roundtrip(void)
             CHECK(v && strcmp(v, "a.exr b.exr") == 0);
             v = sl_meta_get(&got, "setlight:exposures");
             CHECK(v && strcmp(v, "[0.004, 0.016]") == 0);
+            v = sl_meta_get(&got, "setlight:calibration_matrix_source");
+            CHECK(v && strcmp(v, "macbeth.json") == 0);
             v = sl_meta_get(&got, "setlight:version");
             CHECK(v && strcmp(v, sl_version()) == 0);
             sl_image_free(&img);
@@ -605,6 +610,15 @@ static void test_write_failures(void)
     CHECK_RESULT(sl_image_write(path, &img, NULL, SL_PIXEL_HALF, &err), SL_ERR_USAGE, &err);
     CHECK(message_names(&err, path));
     /* Only "plain" and "adir.exr" remain: no temp files. */
+    CHECK_MSG(sl_test_count_files(dir) == 2, "%d entries in %s", sl_test_count_files(dir), dir);
+    /* An attribute clashing with a required one of another type. */
+    sl_meta bad;
+    sl_meta_init(&bad);
+    CHECK_OK(sl_meta_set(&bad, "compression", "zip", &err), &err);
+    snprintf(path, sizeof path, "%s/clash.exr", dir);
+    CHECK_RESULT(sl_exr_write(path, &img, &bad, SL_PIXEL_HALF, &err), SL_ERR_USAGE, &err);
+    CHECK(message_names(&err, path) && !sl_test_file_exists(path));
+    sl_meta_free(&bad);
     CHECK_MSG(sl_test_count_files(dir) == 2, "%d entries in %s", sl_test_count_files(dir), dir);
     /* An image with no pixels is refused before anything is created. */
     sl_image none = {0};
