@@ -68,8 +68,8 @@ static sl_result corrupt(sl_error *err, const char *path, exr_result_t rv)
 /* ------------------------------------------------------------------ */
 
 typedef struct exr_pick {
-    int count;              /* 1..4 output channels */
-    const char *names[4];   /* file channel name for each output channel */
+    int count;            /* 1..4 output channels */
+    const char *names[4]; /* file channel name for each output channel */
     exr_pixel_type_t types[4];
 } exr_pick;
 
@@ -125,10 +125,7 @@ static bool pick_channels(const exr_attr_chlist_t *cl, exr_pick *pick)
     return false;
 }
 
-static void set_fixed(char *dst, size_t size, const char *src)
-{
-    snprintf(dst, size, "%s", src);
-}
+static void set_fixed(char *dst, size_t size, const char *src) { snprintf(dst, size, "%s", src); }
 
 /* Fills meta from the header: envmap, chromaticities, standard camera
  * attributes and every other string attribute. */
@@ -149,8 +146,8 @@ static sl_result read_header_meta(exr_context_t ctx, const exr_pick *pick, sl_me
         count = 0;
     for (int32_t i = 0; i < count; i++) {
         const exr_attribute_t *a = NULL;
-        if (exr_get_attribute_by_index(ctx, 0, EXR_ATTR_LIST_FILE_ORDER, i, &a) != EXR_ERR_SUCCESS ||
-            !a)
+        exr_result_t rv = exr_get_attribute_by_index(ctx, 0, EXR_ATTR_LIST_FILE_ORDER, i, &a);
+        if (rv != EXR_ERR_SUCCESS || !a)
             continue;
         const char *n = a->name;
         switch (a->type) {
@@ -212,8 +209,9 @@ typedef struct exr_frame {
 /* Decodes one chunk whose pixels start at file coordinates (x0, y0) and
  * copies the part inside the display window into img. */
 static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinfo, int x0, int y0,
-                                 const exr_pick *pick, const exr_frame *fr, exr_decode_pipeline_t *dec,
-                                 bool *initialized, float *scratch, sl_image *img)
+                                 const exr_pick *pick, const exr_frame *fr,
+                                 exr_decode_pipeline_t *dec, bool *initialized, float *scratch,
+                                 sl_image *img)
 {
     exr_result_t rv = *initialized ? exr_decoding_update(ctx, 0, cinfo, dec)
                                    : exr_decoding_initialize(ctx, 0, cinfo, dec);
@@ -292,7 +290,8 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_pick
     if (chunk_h <= 0 || chunk_h > EXR_MAX_DIM || chunk_w <= 0 || chunk_w > EXR_MAX_DIM)
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (chunk size %dx%d)",
                             path, (int)chunk_w, (int)chunk_h);
-    float *scratch = malloc((size_t)chunk_w * (size_t)chunk_h * (size_t)pick->count * sizeof(float));
+    float *scratch =
+        malloc((size_t)chunk_w * (size_t)chunk_h * (size_t)pick->count * sizeof(float));
     if (!scratch)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for EXR chunk", path);
 
@@ -370,12 +369,12 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
         r = sl_error_set(err, SL_ERR_INPUT,
                          "%s: truncated or corrupt EXR (display window %dx%d, data window %dx%d: "
                          "empty or over %d)",
-                         path,
-                         fr.display.max.x - fr.display.min.x + 1, fr.display.max.y - fr.display.min.y + 1,
-                         fr.data.max.x - fr.data.min.x + 1, fr.data.max.y - fr.data.min.y + 1,
-                         EXR_MAX_DIM);
+                         path, fr.display.max.x - fr.display.min.x + 1,
+                         fr.display.max.y - fr.display.min.y + 1, fr.data.max.x - fr.data.min.x + 1,
+                         fr.data.max.y - fr.data.min.y + 1, EXR_MAX_DIM);
     } else if (!pick_channels(cl, &pick)) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: EXR has no R,G,B, Y or layer.R,G,B channels", path);
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: EXR has no R,G,B, Y or layer.R,G,B channels",
+                         path);
     } else if (strcmp(pick.names[0], "Y") == 0 &&
                (find_channel(cl, "RY") || find_channel(cl, "BY"))) {
         /* Reading Y alone would silently turn a colour image grey. */
@@ -460,9 +459,13 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
         return rv;
     if (rv == EXR_ERR_SUCCESS && meta->envmap != SL_ENVMAP_NONE)
         rv = exr_attr_set_envmap(ctx, part, "envmap",
-                                 meta->envmap == SL_ENVMAP_CUBE ? EXR_ENVMAP_CUBE : EXR_ENVMAP_LATLONG);
+                                 meta->envmap == SL_ENVMAP_CUBE ? EXR_ENVMAP_CUBE
+                                                                : EXR_ENVMAP_LATLONG);
     /* EXIF-like fields under OpenEXR's standard attribute names. */
-    struct { const char *name; double value; } floats[] = {
+    struct {
+        const char *name;
+        double value;
+    } floats[] = {
         {"expTime", meta->exposure_time},
         {"aperture", meta->f_number},
         {"isoSpeed", meta->iso},
@@ -471,7 +474,10 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     for (size_t i = 0; i < sizeof floats / sizeof floats[0] && rv == EXR_ERR_SUCCESS; i++)
         if (floats[i].value > 0)
             rv = exr_attr_set_float(ctx, part, floats[i].name, (float)floats[i].value);
-    struct { const char *name; const char *value; } strings[] = {
+    struct {
+        const char *name;
+        const char *value;
+    } strings[] = {
         {"capDate", meta->datetime},
         {"cameraMake", meta->make},
         {"cameraModel", meta->model},
@@ -569,9 +575,10 @@ sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *met
         /* Attribute problems come from the caller's meta, not the disk. */
         bool bad_attr = rv == EXR_ERR_ATTR_TYPE_MISMATCH || rv == EXR_ERR_INVALID_ATTR ||
                         rv == EXR_ERR_NAME_TOO_LONG || rv == EXR_ERR_INVALID_ARGUMENT;
-        return sl_error_set(err, rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM
-                                 : bad_attr                  ? SL_ERR_USAGE
-                                                             : SL_ERR_IO,
+        return sl_error_set(err,
+                            rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM
+                            : bad_attr                  ? SL_ERR_USAGE
+                                                        : SL_ERR_IO,
                             "%s: cannot write EXR (%s)", path, exr_why(rv));
     }
     return sl_atomic_commit(&f, err);

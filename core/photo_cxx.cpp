@@ -36,7 +36,8 @@
 #include <string>
 #include <vector>
 
-namespace {
+namespace
+{
 
 using OIIO::ImageInput;
 using OIIO::ImageOutput;
@@ -78,8 +79,9 @@ sl_result open_input(const char *path, std::unique_ptr<ImageInput> &in, sl_error
     ImageSpec config = read_config();
     in = ImageInput::open(path, &config);
     if (!in)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: not an image file OIIO or OpenEXR can read (%s)",
-                            path, one_line(OIIO::geterror()).c_str());
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s: not an image file OIIO or OpenEXR can read (%s)", path,
+                            one_line(OIIO::geterror()).c_str());
     return SL_OK;
 }
 
@@ -235,12 +237,14 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
     bool tiff = ends_with(p, ".tif") || ends_with(p, ".tiff");
     if (!jpeg && !png && !tiff)
         return sl_error_set(err, SL_ERR_USAGE,
-                            "%s: unknown photo extension (use .png, .jpg, .jpeg, .tif, .tiff)", path);
-    bool bits_ok = jpeg ? bits == 8 : png ? (bits == 8 || bits == 16)
-                                          : (bits == 8 || bits == 16 || bits == 32);
+                            "%s: unknown photo extension (use .png, .jpg, .jpeg, .tif, .tiff)",
+                            path);
+    bool bits_ok = jpeg  ? bits == 8
+                   : png ? (bits == 8 || bits == 16)
+                         : (bits == 8 || bits == 16 || bits == 32);
     if (!bits_ok)
-        return sl_error_set(err, SL_ERR_USAGE, "%s: %d bits per sample not possible for this format",
-                            path, bits);
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "%s: %d bits per sample not possible for this format", path, bits);
 
     /* JPEG has no alpha: keep the colour channels only. */
     int nc = img->channels;
@@ -281,8 +285,8 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
     bool ok = false;
     try {
         std::unique_ptr<ImageOutput> out = ImageOutput::create(f.temp_path);
-        ok = out && out->open(f.temp_path, spec) &&
-             out->write_image(TypeDesc::FLOAT, pixels.data());
+        ok =
+            out && out->open(f.temp_path, spec) && out->write_image(TypeDesc::FLOAT, pixels.data());
         if (out) {
             if (!ok)
                 why = out->geterror();
@@ -331,7 +335,8 @@ sl_result exr_pixels_impl(const char *path, const char *const *names, int count,
             int ix = spec.x + x - x0;
             if (ix < 0 || ix >= img->width)
                 continue;
-            const float *src = &all[((size_t)y * (size_t)spec.width + (size_t)x) * (size_t)spec.nchannels];
+            const float *src =
+                &all[((size_t)y * (size_t)spec.width + (size_t)x) * (size_t)spec.nchannels];
             float *dst = sl_image_pixel(img, ix, iy);
             for (int c = 0; c < count; c++)
                 dst[c] = src[index[c]];

@@ -32,11 +32,11 @@ static float known(int x, int y, int c) { return (float)((x + 31 * y + 7 * c + 2
 typedef struct test_exr_spec {
     exr_storage_t storage;
     exr_tile_level_mode_t levels;
-    int tile;                 /* tile size when tiled */
+    int tile; /* tile size when tiled */
     exr_attr_box2i_t display;
     exr_attr_box2i_t data;
     int nch;
-    const char *names[8];     /* any order; the library sorts */
+    const char *names[8]; /* any order; the library sorts */
     exr_pixel_type_t types[8];
 } test_exr_spec;
 
@@ -72,8 +72,8 @@ static exr_result_t encode_chunk(exr_context_t ctx, const test_exr_spec *s, exr_
                                  int x0, int y0, int level, exr_encode_pipeline_t *enc, bool *init,
                                  void **bufs)
 {
-    exr_result_t rv = *init ? exr_encoding_update(ctx, 0, ci, enc)
-                            : exr_encoding_initialize(ctx, 0, ci, enc);
+    exr_result_t rv =
+        *init ? exr_encoding_update(ctx, 0, ci, enc) : exr_encoding_initialize(ctx, 0, ci, enc);
     if (rv)
         return rv;
     *init = true;
@@ -108,7 +108,8 @@ static bool write_test_exr(const char *path, const test_exr_spec *s)
         rv = exr_initialize_required_attr(ctx, part, &s->display, &s->data, 1.0f, &center, 1.0f,
                                           EXR_LINEORDER_INCREASING_Y, EXR_COMPRESSION_ZIP);
     for (int c = 0; c < s->nch && !rv; c++)
-        rv = exr_add_channel(ctx, part, s->names[c], s->types[c], EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+        rv = exr_add_channel(ctx, part, s->names[c], s->types[c], EXR_PERCEPTUALLY_LOGARITHMIC, 1,
+                             1);
     if (!rv && s->storage == EXR_STORAGE_TILED)
         rv = exr_set_tile_descriptor(ctx, part, (uint32_t)s->tile, (uint32_t)s->tile, s->levels,
                                      EXR_TILE_ROUND_DOWN);
@@ -204,7 +205,8 @@ static void test_roundtrip(void)
             sl_meta_init(&meta);
             meta.envmap = SL_ENVMAP_LATLONG;
             /* ACEScg (AP1) primaries: not the default, so they must be written. */
-            const float ap1[8] = {0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f};
+            const float ap1[8] = {0.713f, 0.293f, 0.165f,   0.830f,
+                                  0.128f, 0.044f, 0.32168f, 0.33767f};
             memcpy(meta.chromaticities, ap1, sizeof ap1);
             meta.has_chromaticities = true;
             meta.exposure_time = 1.0 / 250;
@@ -232,7 +234,8 @@ static void test_roundtrip(void)
                 for (int y = 0; y < 41; y++)
                     for (int x = 0; x < 37; x++)
                         for (int c = 0; c < nc; c++) {
-                            float a = sl_image_pixel(&img, x, y)[c], b = sl_image_pixel(&back, x, y)[c];
+                            float a = sl_image_pixel(&img, x, y)[c],
+                                  b = sl_image_pixel(&back, x, y)[c];
                             double e = fabs((double)a - b) / fabs((double)a);
                             if (e > worst)
                                 worst = e;
@@ -309,8 +312,13 @@ static void test_windows_tiles_types(void)
     static const int rgb_order[4] = {0, 1, 2, 3};
 
     /* Scanline, data window inside an offset display window. */
-    test_exr_spec s = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(-4, 10, 45, 39),
-                       box(3, 14, 30, 35), 3, {"R", "G", "B"},
+    test_exr_spec s = {EXR_STORAGE_SCANLINE,
+                       EXR_TILE_ONE_LEVEL,
+                       0,
+                       box(-4, 10, 45, 39),
+                       box(3, 14, 30, 35),
+                       3,
+                       {"R", "G", "B"},
                        {EXR_PIXEL_HALF, EXR_PIXEL_HALF, EXR_PIXEL_HALF}};
     const char *path = sl_test_path("window.exr");
     CHECK(write_test_exr(path, &s));
@@ -330,7 +338,12 @@ static void test_windows_tiles_types(void)
     sl_image_free(&img);
 
     /* Tiled, 16x16 tiles not dividing the size, RGBA float, offset data window. */
-    test_exr_spec t = {EXR_STORAGE_TILED, EXR_TILE_ONE_LEVEL, 16, box(5, 7, 57, 43), box(5, 7, 57, 43), 4,
+    test_exr_spec t = {EXR_STORAGE_TILED,
+                       EXR_TILE_ONE_LEVEL,
+                       16,
+                       box(5, 7, 57, 43),
+                       box(5, 7, 57, 43),
+                       4,
                        {"A", "B", "G", "R"},
                        {EXR_PIXEL_FLOAT, EXR_PIXEL_FLOAT, EXR_PIXEL_FLOAT, EXR_PIXEL_FLOAT}};
     static const int abgr[4] = {3, 2, 1, 0}; /* output R,G,B,A from names A,B,G,R */
@@ -353,8 +366,14 @@ static void test_windows_tiles_types(void)
     sl_image_free(&img);
 
     /* uint channels come back as their integer values. */
-    test_exr_spec u = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 20, 18), box(0, 0, 20, 18), 3,
-                       {"R", "G", "B"}, {EXR_PIXEL_UINT, EXR_PIXEL_UINT, EXR_PIXEL_UINT}};
+    test_exr_spec u = {EXR_STORAGE_SCANLINE,
+                       EXR_TILE_ONE_LEVEL,
+                       0,
+                       box(0, 0, 20, 18),
+                       box(0, 0, 20, 18),
+                       3,
+                       {"R", "G", "B"},
+                       {EXR_PIXEL_UINT, EXR_PIXEL_UINT, EXR_PIXEL_UINT}};
     path = sl_test_path("uint.exr");
     CHECK(write_test_exr(path, &u));
     CHECK_OK(sl_exr_read(path, &img, &meta, &err), &err);
@@ -364,8 +383,9 @@ static void test_windows_tiles_types(void)
     sl_meta_free(&meta);
 
     /* Luminance only: one channel; Y + A: two. */
-    test_exr_spec y = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 15, 9), box(0, 0, 15, 9), 1,
-                       {"Y"}, {EXR_PIXEL_HALF}};
+    test_exr_spec y = {
+        EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 15, 9), box(0, 0, 15, 9), 1, {"Y"},
+        {EXR_PIXEL_HALF}};
     path = sl_test_path("y.exr");
     CHECK(write_test_exr(path, &y));
     CHECK_OK(sl_exr_read(path, &img, NULL, &err), &err);
@@ -383,7 +403,12 @@ static void test_windows_tiles_types(void)
     sl_image_free(&img);
 
     /* No plain RGB: the first layer (sorted) with R,G,B wins; Z is ignored. */
-    test_exr_spec l = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 11, 7), box(0, 0, 11, 7), 7,
+    test_exr_spec l = {EXR_STORAGE_SCANLINE,
+                       EXR_TILE_ONE_LEVEL,
+                       0,
+                       box(0, 0, 11, 7),
+                       box(0, 0, 11, 7),
+                       7,
                        {"spec.R", "spec.G", "spec.B", "diffuse.B", "diffuse.G", "diffuse.R", "Z"},
                        {EXR_PIXEL_HALF, EXR_PIXEL_HALF, EXR_PIXEL_HALF, EXR_PIXEL_FLOAT,
                         EXR_PIXEL_FLOAT, EXR_PIXEL_FLOAT, EXR_PIXEL_FLOAT}};
@@ -402,16 +427,23 @@ static void test_windows_tiles_types(void)
     sl_image_free(&img);
 
     /* Luminance/chroma: refused rather than read as grey. */
-    test_exr_spec yc = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 7, 7), box(0, 0, 7, 7), 3,
-                        {"Y", "RY", "BY"}, {EXR_PIXEL_HALF, EXR_PIXEL_HALF, EXR_PIXEL_HALF}};
+    test_exr_spec yc = {EXR_STORAGE_SCANLINE,
+                        EXR_TILE_ONE_LEVEL,
+                        0,
+                        box(0, 0, 7, 7),
+                        box(0, 0, 7, 7),
+                        3,
+                        {"Y", "RY", "BY"},
+                        {EXR_PIXEL_HALF, EXR_PIXEL_HALF, EXR_PIXEL_HALF}};
     path = sl_test_path("yc.exr");
     CHECK(write_test_exr(path, &yc));
     CHECK_RESULT(sl_exr_read(path, &img, NULL, &err), SL_ERR_UNSUPPORTED, &err);
     CHECK(message_names(&err, path) && img.data == NULL);
 
     /* Only Z: nothing to read as colour. */
-    test_exr_spec z = {EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 3, 3), box(0, 0, 3, 3), 1,
-                       {"Z"}, {EXR_PIXEL_FLOAT}};
+    test_exr_spec z = {
+        EXR_STORAGE_SCANLINE, EXR_TILE_ONE_LEVEL, 0, box(0, 0, 3, 3), box(0, 0, 3, 3), 1, {"Z"},
+        {EXR_PIXEL_FLOAT}};
     path = sl_test_path("zonly.exr");
     CHECK(write_test_exr(path, &z));
     CHECK_RESULT(sl_exr_read(path, &img, &meta, &err), SL_ERR_INPUT, &err);
@@ -475,8 +507,8 @@ static void check_folder(const char *relative)
 static void test_real_files(void)
 {
     check_folder("hdri/exr_variants");
-    check_folder("hdri/blender_studiolights"); /* DWAB, B,G,R float */
-    check_folder("hdri/synthetic");            /* ZIPS half */
+    check_folder("hdri/blender_studiolights");                             /* DWAB, B,G,R float */
+    check_folder("hdri/synthetic");                                        /* ZIPS half */
     const char *memorial = sl_test_data("brackets/memorial/memorial.exr"); /* PIZ half */
     if (memorial)
         check_against_oiio(memorial);

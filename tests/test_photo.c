@@ -10,7 +10,10 @@
 
 #include "testing.h"
 
-static bool names(const sl_error *err, const char *path) { return strstr(err->message, path) != NULL; }
+static bool names(const sl_error *err, const char *path)
+{
+    return strstr(err->message, path) != NULL;
+}
 
 /* A smooth ramp in [0, 1] per channel (smooth so JPEG's error stays small),
  * with an alpha that reaches 0 (so nothing may divide by it). */
@@ -49,8 +52,8 @@ static void roundtrip(const char *name, int channels, int bits, double tol, cons
     const char *path = sl_test_path(name);
     CHECK_OK(sl_photo_write(path, &img, NULL, bits, &err), &err);
     CHECK_OK(sl_image_read(path, &back, &meta, &err), &err);
-    CHECK_MSG(back.width == 48 && back.height == 32 && back.channels == channels,
-              "%s: %dx%dx%d", name, back.width, back.height, back.channels);
+    CHECK_MSG(back.width == 48 && back.height == 32 && back.channels == channels, "%s: %dx%dx%d",
+              name, back.width, back.height, back.channels);
     if (back.data && back.channels == channels) {
         double d = max_diff(&img, &back);
         CHECK_MSG(d <= tol, "%s: max difference %g > %g", name, d, tol);
@@ -103,8 +106,12 @@ static void test_pixel_roundtrips(void)
 /* sl_image_write picks the format and depth from the extension. */
 static void test_image_write_dispatch(void)
 {
-    static const struct { const char *name; const char *format; int bits; } cases[] = {
-        {"d.exr", "openexr", 16}, {"d.png", "png", 16}, {"d.jpg", "jpeg", 8},
+    static const struct {
+        const char *name;
+        const char *format;
+        int bits;
+    } cases[] = {
+        {"d.exr", "openexr", 16}, {"d.png", "png", 16},  {"d.jpg", "jpeg", 8},
         {"d.jpeg", "jpeg", 8},    {"d.tif", "tiff", 16}, {"d.TIFF", "tiff", 16},
     };
     sl_error err;
@@ -117,7 +124,8 @@ static void test_image_write_dispatch(void)
         int w = 0, h = 0, c = 0;
         CHECK_OK(sl_image_write(path, &img, NULL, SL_PIXEL_HALF, &err), &err);
         CHECK_OK(sl_photo_read_meta(path, &meta, &w, &h, &c, &err), &err);
-        CHECK_MSG(strcmp(meta.format, cases[i].format) == 0 && meta.bits_per_sample == cases[i].bits,
+        CHECK_MSG(strcmp(meta.format, cases[i].format) == 0 &&
+                      meta.bits_per_sample == cases[i].bits,
                   "%s: %s %d-bit", cases[i].name, meta.format, meta.bits_per_sample);
         CHECK(w == 16 && h == 8 && c == 3);
         sl_meta_free(&meta);
@@ -255,8 +263,8 @@ static void test_real_hdr(void)
                       "%s: %lld NaN %lld Inf %lld negative", path, (long long)st.nan_count,
                       (long long)st.inf_count, (long long)st.negative_count);
             CHECK_MSG(st.max[1] > 1.0, "%s: max %g is not HDR", path, st.max[1]);
-            printf("  %s: %dx%d, max G %.4g, mean G %.4g\n", path, img.width, img.height,
-                   st.max[1], st.mean[1]);
+            printf("  %s: %dx%d, max G %.4g, mean G %.4g\n", path, img.width, img.height, st.max[1],
+                   st.mean[1]);
         }
         sl_image_free(&img);
         sl_meta_free(&meta);
