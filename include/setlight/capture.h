@@ -182,7 +182,8 @@ double sl_vset_sensor_noise_std(const sl_vset_camera *cam, double iso, double x)
 void sl_vset_camera_output_matrix(const sl_vset_camera *cam, double m[3][3]);
 
 typedef struct sl_vset_shot {
-    sl_image sensor; /* raw X in camera RGB: noisy, clipped to [0,1], quantised to raw_bits */
+    sl_image sensor; /* raw X in camera RGB, black subtracted (read noise may go a little
+                        below 0), clipped at 1, quantised to raw_bits */
     sl_image linear; /* white-balanced, colour-corrected, clipped to [0,1] */
     sl_image encoded; /* response applied to linear, not yet quantised */
 } sl_vset_shot;
