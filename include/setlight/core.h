@@ -318,8 +318,9 @@ bool sl_is_latlong_shape(int width, int height);
 
 typedef enum {
     SL_PROJ_LATLONG = 0,
-    SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z */
-    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map, centre looks along +Z */
+    SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z
+                           (+Y up, image right -X): centre reflects -Z, rim +Z */
+    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map of that same view: centre -Z */
     SL_PROJ_CUBEMAP,    /* OpenEXR's cube map: six square faces stacked vertically
                            (width w, height 6w) in the order +X -X +Y -Y +Z -Z */
     SL_PROJ_COUNT
@@ -337,13 +338,16 @@ bool sl_dir_to_projection(sl_projection p, const double dir[3], double *u, doubl
  * mirror ball and angular w/2 x w/2, cube map faces of w/4 (w/4 x 6w/4). */
 void sl_projection_size(sl_projection p, int latlong_width, int *width, int *height);
 
-/* Row-major 3x3 rotation: world_dir = rot * map_dir. */
+/* Row-major 3x3 rotation: world_dir = rot * map_dir. Right-handed: a
+ * positive angle about Y turns +Z toward +X. Euler: rot = Ry(yaw) Rx(pitch)
+ * Rz(roll) (roll first); positive pitch turns +Y toward +Z. */
 void sl_rotation_y(double degrees, double rot[3][3]);
 void sl_rotation_euler(double yaw_deg, double pitch_deg, double roll_deg, double rot[3][3]);
 
 /* Reprojects src (projection `from`) into a new image of projection `to`
- * whose lat-long-equivalent width is `width`. rot may be NULL. Each output
- * pixel is supersampled (ss x ss) so that shrinking does not alias. */
+ * whose lat-long-equivalent width is `width`. rot may be NULL; content at
+ * source direction s lands at rot * s. Each output pixel is supersampled
+ * (ss x ss) so that shrinking does not alias. */
 sl_result sl_reproject(const sl_image *src, sl_projection from, sl_projection to, int width,
                        const double rot[3][3], sl_image *dst, sl_error *err);
 
