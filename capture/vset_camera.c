@@ -167,7 +167,11 @@ static void shoot_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 v = v < -RAW_BLACK ? -RAW_BLACK : v > 1 ? 1 : v;
                 raw[c] = floor(v * levels + 0.5) / levels;
             }
-            double bal[3] = {raw[0] * cam->wb[0], raw[1] * cam->wb[1], raw[2] * cam->wb[2]}, lin[3];
+            /* White-balanced channels clip at the saturation level, as
+             * raw developers do, so blown highlights render white, not pink. */
+            double bal[3], lin[3];
+            for (int c = 0; c < 3; c++)
+                bal[c] = fmin(raw[c] * cam->wb[c], 1.0);
             m3_apply(cam->ccm, bal, lin);
             float *ps = sl_image_pixel(&s->shot->sensor, x, (int)y);
             float *pl = sl_image_pixel(&s->shot->linear, x, (int)y);

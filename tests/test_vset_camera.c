@@ -286,7 +286,7 @@ static void check_invert(const char *response, int out_bits, bool per_pixel)
                 for (int c = 0; c < 3; c++) {
                     raw[c] = (cam.cam_from_rec709[c][0] + cam.cam_from_rec709[c][1] +
                               cam.cam_from_rec709[c][2]) * xr;
-                    if (raw[c] > 0.95)
+                    if (raw[c] * cam.wb[c] > 0.95)
                         ok = 0;
                 }
                 if (!ok)

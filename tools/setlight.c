@@ -17,6 +17,7 @@ typedef struct command {
 static const command commands[] = {
     {"version", NULL, "print the version"},
     /* commands are added here as they land */
+    {"simulate", cmd_simulate, "photograph a virtual film set, with its ground truth"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);

@@ -161,7 +161,7 @@ typedef struct sl_vset_camera {
     double read_noise_post_e; /* after the ISO gain, electrons at ISO 100 */
     int raw_bits;             /* 12 or 14 */
     /* Colour: sensor RGB = cam_from_rec709 * L (green row sums to 1);
-     * output linear = ccm * diag(wb) * sensor RGB. */
+     * output linear = ccm * min(diag(wb) * sensor RGB, 1). */
     double cam_from_rec709[3][3];
     double wb[3];
     double ccm[3][3];
@@ -244,6 +244,48 @@ double sl_vset_lens_vignette(const sl_vset_lens *lens, int width, int height, do
 sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
                              const sl_image *latlong, int width, int height, int ss,
                              sl_image *out, sl_error *err);
+
+/* ---- set captures ---------------------------------------------------- */
+
+/* What the simulated data wrangler shoots: an HDRI bracket (`brackets`
+ * exposures `stops` apart, centred by metering the scene) for each of
+ * `views` fisheye views on a nodal head (plus the zenith if asked), every
+ * frame written as a camera would (JPEG, 16-bit TIFF, linear 16-bit TIFF,
+ * EXIF), with the ground truth in truth/. docs/virtual-set.md has the layout. */
+typedef struct sl_vset_capture_opts {
+    sl_vset_desc scene;
+    int latlong_width;             /* ground truth resolution */
+    int photo_width, photo_height; /* frame size */
+    int supersample;               /* per side, for the lens image */
+    uint64_t seed;
+    int views;                     /* around the horizon, 360/views apart */
+    bool zenith;
+    int brackets;
+    double stops;                  /* whole stops, on the camera's full-stop shutter scale */
+    double f_number, iso, wb_kelvin;
+    bool force;                    /* replace a capture already in the folder */
+} sl_vset_capture_opts;
+
+/* Defaults for a scene: small (1024 lat-long, 720x480 frames) or full
+ * (4096, 3000x2000); 3 views, 7 exposures 3 stops apart; aperture, ISO and
+ * white balance as a wrangler would set them for daylight, stage or night. */
+void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene, bool full);
+
+typedef struct sl_vset_capture_summary {
+    int frames;
+    int views;
+    double center_time_s;  /* metered exposure at the bracket centre */
+    double min_time_s, max_time_s;
+    double f_number, iso;
+} sl_vset_capture_summary;
+
+/* Writes the capture folder `dir`. It is assembled in a temporary sibling
+ * and renamed into place, so a failure leaves nothing behind. An existing
+ * empty folder is filled; one holding a capture (capture.json) is replaced
+ * only with `force` (else SL_ERR_USAGE); any other non-empty folder is
+ * refused (SL_ERR_USAGE). */
+sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
+                                sl_vset_capture_summary *summary, sl_error *err);
 
 #ifdef __cplusplus
 }

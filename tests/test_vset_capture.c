@@ -1,0 +1,216 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Simulated set captures: the files a seed makes, EXIF read back through
+ * OpenImageIO against the exposure plan, ground truth, and refusing to
+ * overwrite. Frames are tiny so the test stays fast. */
+#include <jansson.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "setlight/capture.h"
+#include "testing.h"
+
+static void tiny_opts(sl_vset_capture_opts *o, const char *scene, uint64_t seed)
+{
+    sl_vset_desc d;
+    sl_vset_preset(scene, &d, NULL);
+    sl_vset_capture_defaults(o, &d, false);
+    o->latlong_width = 128;
+    o->photo_width = 96;
+    o->photo_height = 64;
+    o->supersample = 1;
+    o->seed = seed;
+}
+
+static char *slurp(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *b = malloc((size_t)n + 1);
+    if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
+        free(b);
+        b = NULL;
+    }
+    fclose(f);
+    *size = (size_t)n;
+    return b;
+}
+
+static int same_file(const char *a, const char *b)
+{
+    size_t na, nb;
+    char *x = slurp(a, &na), *y = slurp(b, &nb);
+    int same = x && y && na == nb && memcmp(x, y, na) == 0;
+    free(x);
+    free(y);
+    return same;
+}
+
+static void test_capture_and_exif(void)
+{
+    sl_vset_capture_opts o;
+    sl_error err;
+    sl_vset_capture_summary s;
+    tiny_opts(&o, "exterior", 1);
+    const char *a = sl_test_path("cap_a");
+    CHECK_OK(sl_vset_capture_write(&o, a, &s, &err), &err);
+    CHECK(s.frames == 21 && s.views == 3);
+    /* The classic 7 x 3-stop bracket on nominal shutter speeds. */
+    CHECK_NEAR(s.min_time_s, 1.0 / 8000, 1e-12);
+    CHECK_NEAR(s.max_time_s, 30, 1e-12);
+
+    char path[4096];
+    snprintf(path, sizeof path, "%s/capture.json", a);
+    json_error_t je;
+    json_t *root = json_load_file(path, 0, &je);
+    CHECK(root != NULL);
+    json_t *frames = json_object_get(root, "frames");
+    CHECK(json_array_size(frames) == 21);
+    int checked = 0;
+    for (size_t i = 0; i < json_array_size(frames); i++) {
+        json_t *f = json_array_get(frames, i);
+        const char *name = json_string_value(json_object_get(f, "name"));
+        double t = json_number_value(json_object_get(f, "exposure_time_s"));
+        int bracket = (int)json_integer_value(json_object_get(f, "bracket"));
+        /* Nominal speeds: 3 stops apart to within a tenth of a stop each. */
+        CHECK_NEAR(log2(t / s.center_time_s), 3 * (bracket - 3), 0.1 * abs(bracket - 3) + 1e-8);
+        const char *exts[] = {".jpg", ".tif", "_linear.tif"};
+        for (int e = 0; e < 3; e++) {
+            snprintf(path, sizeof path, "%s/hdri/%s%s", a, name, exts[e]);
+            sl_meta m;
+            int w, h, c;
+            CHECK_OK(sl_photo_read_meta(path, &m, &w, &h, &c, &err), &err);
+            CHECK(w == 96 && h == 64 && c == 3);
+            /* EXIF rationals as OIIO forms them: within 1e-4. */
+            CHECK_NEAR(m.exposure_time / t, 1, 1e-4);
+            CHECK_NEAR(m.f_number, o.f_number, 1e-5);
+            /* OIIO 2.4 keeps ISO in JPEG EXIF but not in TIFF (core docs). */
+            CHECK(e != 0 || fabs(m.iso - o.iso) < 1e-9);
+            CHECK_NEAR(m.focal_length_mm, 8, 1e-5);
+            CHECK(strcmp(m.make, "setlight") == 0);
+            CHECK(strstr(m.model, "virtual") != NULL);
+            CHECK(strstr(m.lens, "fisheye") != NULL);
+            CHECK(strcmp(m.datetime, json_string_value(json_object_get(f, "datetime"))) == 0);
+            CHECK(e != 1 || m.bits_per_sample == 16);
+            sl_meta_free(&m);
+            checked++;
+        }
+    }
+    CHECK(checked == 63);
+    json_decref(root);
+
+    /* Ground truth beside the frames. */
+    sl_image ll;
+    sl_meta m;
+    snprintf(path, sizeof path, "%s/truth/latlong.exr", a);
+    CHECK_OK(sl_exr_read(path, &ll, &m, &err), &err);
+    CHECK(ll.width == 128 && ll.height == 64 && m.envmap == SL_ENVMAP_LATLONG);
+    sl_vset_scene sc;
+    CHECK_OK(sl_vset_scene_make(&o.scene, 128, &sc, &err), &err);
+    CHECK(memcmp(ll.data, sc.latlong.data, sizeof(float) * 128 * 64 * 3) == 0);
+    sl_vset_scene_free(&sc);
+    sl_image_free(&ll);
+    sl_meta_free(&m);
+    snprintf(path, sizeof path, "%s/truth/lights.json", a);
+    root = json_load_file(path, 0, &je);
+    CHECK(root && json_array_size(json_object_get(root, "lights")) == 1);
+    json_decref(root);
+    snprintf(path, sizeof path, "%s/truth/camera.json", a);
+    root = json_load_file(path, 0, &je);
+    CHECK(root && json_array_size(json_object_get(json_object_get(root, "response"), "curve")) ==
+                      SL_VSET_CRF_SAMPLES);
+    json_decref(root);
+
+    /* Same seed, same bytes; another seed, other noise but the same truth. */
+    const char *b = sl_test_path("cap_b"), *c = sl_test_path("cap_c");
+    sl_threads_set(1);
+    CHECK_OK(sl_vset_capture_write(&o, b, NULL, &err), &err);
+    sl_threads_set(0);
+    tiny_opts(&o, "exterior", 2);
+    CHECK_OK(sl_vset_capture_write(&o, c, NULL, &err), &err);
+    const char *files[] = {"capture.json", "hdri/IMG_0001.jpg", "hdri/IMG_0010.tif",
+                           "hdri/IMG_0021_linear.tif", "truth/latlong.exr", "truth/camera.json"};
+    for (int i = 0; i < 6; i++) {
+        char pa[4096], pb[4096], pc[4096];
+        snprintf(pa, sizeof pa, "%s/%s", a, files[i]);
+        snprintf(pb, sizeof pb, "%s/%s", b, files[i]);
+        snprintf(pc, sizeof pc, "%s/%s", c, files[i]);
+        CHECK_MSG(same_file(pa, pb), "%s differs between runs with one seed", files[i]);
+        bool truth = strncmp(files[i], "truth/", 6) == 0;
+        CHECK_MSG(same_file(pa, pc) == truth, "%s: seed changes %s", files[i],
+                  truth ? "the truth" : "nothing");
+    }
+}
+
+static void test_refusals(void)
+{
+    sl_vset_capture_opts o;
+    sl_error err;
+    tiny_opts(&o, "night", 3);
+    o.views = 1;
+    o.brackets = 2;
+    const char *top = sl_test_path("refusals");
+    mkdir(top, 0777);
+    char d[2048];
+    snprintf(d, sizeof d, "%s/cap", top);
+    CHECK_OK(sl_vset_capture_write(&o, d, NULL, &err), &err);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/capture.json", d);
+    size_t n0;
+    char *before = slurp(path, &n0);
+    /* A capture is there: refused, untouched, no temporary left. */
+    o.seed = 4;
+    o.brackets = 3;
+    CHECK_RESULT(sl_vset_capture_write(&o, d, NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, d) && strstr(err.message, "--force"));
+    size_t n1;
+    char *after = slurp(path, &n1);
+    CHECK(before && after && n0 == n1 && memcmp(before, after, n0) == 0);
+    free(after);
+    CHECK(sl_test_count_files(top) == 1);
+    /* --force replaces it. */
+    o.force = true;
+    CHECK_OK(sl_vset_capture_write(&o, d, NULL, &err), &err);
+    after = slurp(path, &n1);
+    CHECK(after && (n0 != n1 || memcmp(before, after, n0) != 0));
+    snprintf(path, sizeof path, "%s/hdri", d);
+    CHECK(sl_test_count_files(path) == 9);
+    free(before);
+    free(after);
+    CHECK(sl_test_count_files(top) == 1);
+
+    /* A folder holding other files is never touched, even with force. */
+    const char *other = sl_test_path("photos");
+    mkdir(other, 0777);
+    snprintf(path, sizeof path, "%s/keep.txt", other);
+    FILE *f = fopen(path, "w");
+    fputs("mine\n", f);
+    fclose(f);
+    CHECK_RESULT(sl_vset_capture_write(&o, other, NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(sl_test_count_files(other) == 1);
+    /* An empty folder is filled. */
+    const char *empty = sl_test_path("empty");
+    mkdir(empty, 0777);
+    o.force = false;
+    CHECK_OK(sl_vset_capture_write(&o, empty, NULL, &err), &err);
+    CHECK(sl_test_count_files(empty) == 3);
+    /* Cannot create: an I/O error naming the folder. */
+    CHECK_RESULT(sl_vset_capture_write(&o, "/proc/setlight-no/cap", NULL, &err), SL_ERR_IO, &err);
+    CHECK(strstr(err.message, "/proc/setlight-no/cap") != NULL);
+    /* A bad plan. */
+    o.brackets = 0;
+    CHECK_RESULT(sl_vset_capture_write(&o, sl_test_path("never"), NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(!sl_test_file_exists(sl_test_path("never")));
+}
+
+int main(void)
+{
+    RUN(test_capture_and_exif);
+    RUN(test_refusals);
+    return sl_test_finish();
+}
