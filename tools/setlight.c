@@ -15,8 +15,8 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
-    {"version", NULL, "print the version"},
-    /* commands are added here as they land */
+    {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
+    {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
     {"simulate", cmd_simulate, "photograph a virtual film set, with its ground truth"},
 
 };
