@@ -14,14 +14,26 @@
 
 #include "vset_internal.h"
 
-void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene, bool full)
+int sl_vset_size_from_name(const char *name)
 {
+    static const char *const names[] = {"tiny", "small", "full"};
+    for (int i = 0; i < 3; i++)
+        if (name && !strcmp(name, names[i]))
+            return i;
+    return -1;
+}
+
+void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene,
+                              sl_vset_size size)
+{
+    static const int ll[3] = {256, SL_VSET_SMALL_WIDTH, SL_VSET_FULL_WIDTH};
+    static const int pw[3] = {192, 720, 3000}, ph[3] = {128, 480, 2000}, ss[3] = {2, 2, 3};
     memset(o, 0, sizeof *o);
     o->scene = *scene;
-    o->latlong_width = full ? SL_VSET_FULL_WIDTH : SL_VSET_SMALL_WIDTH;
-    o->photo_width = full ? 3000 : 720;
-    o->photo_height = full ? 2000 : 480;
-    o->supersample = full ? 3 : 2;
+    o->latlong_width = ll[size];
+    o->photo_width = pw[size];
+    o->photo_height = ph[size];
+    o->supersample = ss[size];
     o->seed = 1;
     o->views = 3;
     o->brackets = 7;
@@ -269,17 +281,17 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     if (state == 1 && !o->force)
         return sl_error_set(err, SL_ERR_USAGE,
                             "%s: already holds a capture (use --force to replace it)", dir);
-    sl_vset_scene scene;
-    if ((r = sl_vset_scene_make(&o->scene, o->latlong_width, &scene, err)))
-        return r;
-
     char tmp[4096], old[4096];
     snprintf(tmp, sizeof tmp, "%s.sl-tmp-%ld", dir, (long)getpid());
     snprintf(old, sizeof old, "%s.sl-old-%ld", dir, (long)getpid());
     remove_tree(tmp);
     char sub[4200];
-    if ((r = make_dir(tmp, err))) {
-        sl_vset_scene_free(&scene);
+    if (mkdir(tmp, 0777) != 0)
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot create the capture folder: %s", dir,
+                            strerror(errno));
+    sl_vset_scene scene;
+    if ((r = sl_vset_scene_make(&o->scene, o->latlong_width, &scene, err))) {
+        remove_tree(tmp);
         return r;
     }
     snprintf(sub, sizeof sub, "%s/hdri", tmp);

@@ -368,6 +368,21 @@ static void texel_mean(const scene_ctx *s, const int *near, int nnear, int x, in
         out[c] = acc[c] / wsum;
 }
 
+/* True when a texel of angular half-diagonal `half` around d lies wholly
+ * outside a rect light. On the light's plane a displacement of angle a
+ * moves at most a (1 + x^2 + y^2), so that margin is conservative. */
+static bool rect_misses(const light_geo *g, const double d[3], double half)
+{
+    if (g->tx == 0)
+        return false; /* a disk: the cap test is already exact */
+    double z = v3_dot(d, g->c);
+    if (z < 0.2)
+        return false;
+    double x = v3_dot(d, g->right) / z, y = v3_dot(d, g->up) / z;
+    double m = 1.2 * half * (1.0 + x * x + y * y) + 1e-9;
+    return fabs(x) > g->tx + m || fabs(y) > g->ty + m;
+}
+
 static void scene_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
@@ -378,21 +393,47 @@ static void scene_rows(void *ctx, int64_t begin, int64_t end, int worker)
         double lat0 = VSET_PI * (0.5 - (double)y / h), lat1 = VSET_PI * (0.5 - (y + 1.0) / h);
         double eq = (lat0 > 0 && lat1 < 0) ? 1.0 : fmax(cos(lat0), cos(lat1));
         double half = sqrt(pow(0.5 * VSET_PI / h, 2) + pow(VSET_PI / w * eq, 2)) * 1.05;
+        /* Lights whose latitude band misses this row are skipped for it. */
+        double latc = VSET_PI * (0.5 - (y + 0.5) / h);
+        int row_lights[SL_VSET_MAX_LIGHTS], nrow = 0;
+        double cos_reach[SL_VSET_MAX_LIGHTS];
+        for (int i = 0; i < s->count; i++) {
+            if (s->only >= 0 && i != s->only)
+                continue;
+            double latl = asin(fmax(-1.0, fmin(1.0, s->geo[i].c[1])));
+            double reach = s->geo[i].bound + half;
+            if (fabs(latc - latl) > reach)
+                continue;
+            cos_reach[nrow] = reach >= VSET_PI ? -1.0 : cos(reach);
+            row_lights[nrow++] = i;
+        }
+        if (s->only >= 0 && nrow == 0)
+            continue; /* the image is already black */
         for (int x = 0; x < w; x++) {
             double d[3];
             vset_uv_dir((x + 0.5) / w, (y + 0.5) / h, d);
             int near[SL_VSET_MAX_LIGHTS], nnear = 0, n = EDGE_SS;
-            for (int i = 0; i < s->count; i++) {
-                if (s->only >= 0 && i != s->only)
-                    continue;
-                double cg = v3_dot(d, s->geo[i].c);
-                double ang = acos(cg > 1 ? 1 : cg < -1 ? -1 : cg);
-                if (ang <= s->geo[i].bound + half) {
+            for (int k = 0; k < nrow; k++) {
+                int i = row_lights[k];
+                if (v3_dot(d, s->geo[i].c) >= cos_reach[k] && !rect_misses(&s->geo[i], d, half)) {
                     near[nnear++] = i;
                     double need = ceil(ACROSS * 2 * half / s->geo[i].min_extent);
                     if (need > n)
                         n = need > EDGE_SS_MAX ? EDGE_SS_MAX : (int)need;
                 }
+            }
+            /* A texel wholly inside a single light needs no edge sampling. */
+            if (nnear == 1) {
+                const sl_vset_light *l = &s->desc->lights[near[0]];
+                const light_geo *g = &s->geo[near[0]];
+                bool inside = true;
+                for (int k = 0; k < 4 && inside; k++) {
+                    double cd[3];
+                    vset_uv_dir((double)(x + (k & 1)) / w, (double)(y + (k >> 1)) / h, cd);
+                    inside = light_contains(l, g, cd);
+                }
+                if (inside && light_contains(l, g, d))
+                    n = FILL_SS;
             }
             double rgb[3];
             if (nnear > 0)

@@ -15,7 +15,7 @@ static void tiny_opts(sl_vset_capture_opts *o, const char *scene, uint64_t seed)
 {
     sl_vset_desc d;
     sl_vset_preset(scene, &d, NULL);
-    sl_vset_capture_defaults(o, &d, false);
+    sl_vset_capture_defaults(o, &d, SL_VSET_SIZE_TINY);
     o->latlong_width = 128;
     o->photo_width = 96;
     o->photo_height = 64;

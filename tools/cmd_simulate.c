@@ -13,7 +13,7 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: setlight simulate --scene exterior|stage|night|FILE.json --out DIR\n"
-            "                         [--seed N] [--size small|full] [--zenith] [--force]\n\n"
+            "                         [--seed N] [--size tiny|small|full] [--zenith] [--force]\n\n"
             "Generates a virtual film set (a ground-truth HDR lat-long and its lights) and\n"
             "photographs it as a data wrangler would: a bracket of 7 exposures 3 stops apart\n"
             "for each of 3 fisheye views 120 degrees apart on a nodal head, written as JPEG,\n"
@@ -21,12 +21,17 @@ static void help(FILE *out)
             "  --scene NAME|FILE  built-in scene or a scene JSON file (docs/virtual-set.md)\n"
             "  -o, --out DIR      capture folder: created, or an empty folder\n"
             "  --seed N           sensor-noise seed (default 1); same seed, same files\n"
-            "  --size S           small (1024 lat-long, 720x480 frames; default) or full\n"
-            "                     (4096 lat-long, 3000x2000 frames)\n"
+            "  --size S           small (1024 lat-long, 720x480 frames; default), full\n"
+            "                     (4096 lat-long, 3000x2000 frames) or tiny (256, 192x128)\n"
             "  --zenith           add a fourth view straight up\n"
             "  --force            replace a capture already in DIR\n"
             "\nexit codes: 0 success, 1 runtime failure (e.g. DIR not writable), 2 usage error\n"
             "(unknown scene, DIR already holds a capture or other files), 3 invalid scene file\n");
+}
+
+static const char *size_name(int size)
+{
+    return size == SL_VSET_SIZE_TINY ? "tiny" : size == SL_VSET_SIZE_FULL ? "full" : "small";
 }
 
 static bool looks_like_file(const char *s)
@@ -45,7 +50,8 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
         {"zenith", no_argument, 0, O_ZENITH},     {"force", no_argument, 0, O_FORCE},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0}};
     const char *scene_arg = NULL, *out = NULL;
-    bool full = false, zenith = false, force = false;
+    int size = SL_VSET_SIZE_SMALL;
+    bool zenith = false, force = false;
     uint64_t seed = 1;
     cli_getopt_reset();
     int c;
@@ -65,12 +71,9 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
             break;
         }
         case O_SIZE:
-            if (!strcmp(optarg, "small"))
-                full = false;
-            else if (!strcmp(optarg, "full"))
-                full = true;
-            else
-                return cli_usage_error(cli, "--size is small or full, not '%s'", optarg);
+            size = sl_vset_size_from_name(optarg);
+            if (size < 0)
+                return cli_usage_error(cli, "--size is tiny, small or full, not '%s'", optarg);
             break;
         case O_ZENITH: zenith = true; break;
         case O_FORCE: force = true; break;
@@ -93,11 +96,10 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
     if (r)
         return cli_fail(cli, &err);
     sl_vset_capture_opts o;
-    sl_vset_capture_defaults(&o, &desc, full);
+    sl_vset_capture_defaults(&o, &desc, (sl_vset_size)size);
     o.seed = seed;
     o.zenith = zenith;
     o.force = force;
-    sl_log(SL_LOG_INFO, "simulating %s (%s) into %s", desc.name, full ? "full" : "small", out);
     sl_vset_capture_summary s;
     double t0 = sl_seconds();
     if ((r = sl_vset_capture_write(&o, out, &s, &err)))
@@ -108,7 +110,7 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
                ", \"size\": \"%s\", \"views\": %d, \"frames\": %d, \"f_number\": %g, \"iso\": %g, "
                "\"exposure_min_s\": %.9g, \"exposure_centre_s\": %.9g, \"exposure_max_s\": %.9g, "
                "\"seconds\": %.3f}\n",
-               out, desc.name, seed, full ? "full" : "small", s.views, s.frames, s.f_number,
+               out, desc.name, seed, size_name(size), s.views, s.frames, s.f_number,
                s.iso, s.min_time_s, s.center_time_s, s.max_time_s, secs);
     else
         sl_log(SL_LOG_INFO, "%d frames (%d views), f/%g ISO %g, %.6g..%.6g s, in %.1f s", s.frames,

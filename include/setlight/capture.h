@@ -266,10 +266,20 @@ typedef struct sl_vset_capture_opts {
     bool force;                    /* replace a capture already in the folder */
 } sl_vset_capture_opts;
 
-/* Defaults for a scene: small (1024 lat-long, 720x480 frames) or full
- * (4096, 3000x2000); 3 views, 7 exposures 3 stops apart; aperture, ISO and
- * white balance as a wrangler would set them for daylight, stage or night. */
-void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene, bool full);
+typedef enum {
+    SL_VSET_SIZE_TINY = 0, /* 256 lat-long, 192x128 frames: tests and quick looks */
+    SL_VSET_SIZE_SMALL,    /* 1024 lat-long, 720x480 frames */
+    SL_VSET_SIZE_FULL      /* 4096 lat-long, 3000x2000 frames */
+} sl_vset_size;
+
+/* "tiny", "small", "full"; -1 if unknown. */
+int sl_vset_size_from_name(const char *name);
+
+/* Defaults for a scene at a size: 3 views, 7 exposures 3 stops apart;
+ * aperture, ISO and white balance as a wrangler would set them for
+ * daylight, stage or night. */
+void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene,
+                              sl_vset_size size);
 
 typedef struct sl_vset_capture_summary {
     int frames;
