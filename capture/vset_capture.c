@@ -64,8 +64,9 @@ static const double shutter[] = {1.0 / 8000, 1.0 / 4000, 1.0 / 2000, 1.0 / 1000,
                                  4,          8,          15,         30};
 #define SHUTTER_COUNT ((int)(sizeof shutter / sizeof shutter[0]))
 
-static void plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera *cam,
-                           const sl_image *latlong, double *times)
+/* Returns the metered log-average luminance. */
+static double plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera *cam,
+                             const sl_image *latlong, double *times)
 {
     /* Meter the log-average luminance to 12% of raw saturation. */
     double acc = 0, wsum = 0;
@@ -93,6 +94,39 @@ static void plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera *
         first = 0;
     for (int k = 0; k < o->brackets; k++)
         times[k] = shutter[first + k * step];
+    return lavg;
+}
+
+/* A person 0.5 m wide and 1.8 m tall, 3 m away, walking across the first
+ * view between frames: the ghosting case for merges. */
+#define GHOST_WIDTH_DEG 9.5
+#define GHOST_EL_LOW (-28.0)
+#define GHOST_EL_HIGH 4.0
+
+static double ghost_azimuth(int bracket) { return -20.0 + 4.0 * bracket; }
+
+static sl_result paint_ghost(const sl_image *src, double az, double lum, sl_image *dst,
+                             sl_error *err)
+{
+    sl_result r = sl_image_copy(src, dst, err);
+    if (r)
+        return r;
+    static const double tint[3] = {0.9, 0.8, 0.7};
+    for (int y = 0; y < dst->height; y++) {
+        double el = 90.0 - 180.0 * (y + 0.5) / dst->height;
+        if (el < GHOST_EL_LOW || el > GHOST_EL_HIGH)
+            continue;
+        for (int x = 0; x < dst->width; x++) {
+            double lon = 180.0 * (1.0 - 2.0 * (x + 0.5) / dst->width);
+            double dz = fmod(lon - az + 540.0, 360.0) - 180.0;
+            if (fabs(dz) > 0.5 * GHOST_WIDTH_DEG)
+                continue;
+            float *p = sl_image_pixel(dst, x, y);
+            for (int c = 0; c < 3; c++)
+                p[c] = (float)(lum * tint[c]);
+        }
+    }
+    return SL_OK;
 }
 
 static int rm_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
@@ -189,18 +223,42 @@ static void exif_time(int seconds, char *out, size_t size)
 
 static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
                               const sl_vset_camera *cam, const sl_vset_lens *lens,
-                              const sl_image *latlong, const double *times, json_t *frames,
-                              sl_error *err)
+                              const sl_image *latlong, const double *times, double lavg,
+                              json_t *frames, sl_error *err)
 {
     int nviews = o->views + (o->zenith ? 1 : 0), frame = 0, clock = 0;
+    bool per_frame = o->jitter_deg > 0 || o->ghost;
     sl_result r = SL_OK;
     for (int v = 0; v < nviews && !r; v++) {
-        sl_vset_view view = {v < o->views ? 360.0 * v / o->views : 0, v < o->views ? 0 : 90, 0};
-        sl_image rad;
-        if ((r = sl_vset_lens_image(lens, &view, latlong, o->photo_width, o->photo_height,
-                                    o->supersample, &rad, err)))
+        const sl_vset_view base = {v < o->views ? 360.0 * v / o->views : 0,
+                                   v < o->views ? 0 : 90, 0};
+        sl_image rad = {0};
+        if (!per_frame && (r = sl_vset_lens_image(lens, &base, latlong, o->photo_width,
+                                                  o->photo_height, o->supersample, &rad, err)))
             break;
         for (int k = 0; k < o->brackets && !r; k++) {
+            sl_vset_view view = base;
+            bool ghost = o->ghost && v == 0;
+            if (per_frame) {
+                /* Hand-held or loose head: the view wanders a little per frame. */
+                uint64_t id = (uint64_t)(v * 64 + k) * 3u;
+                view.yaw_deg += o->jitter_deg * vset_gauss(o->seed, 9, id);
+                view.pitch_deg += o->jitter_deg * vset_gauss(o->seed, 9, id + 1);
+                view.roll_deg += o->jitter_deg * vset_gauss(o->seed, 9, id + 2);
+                sl_image env = {0};
+                const sl_image *use = latlong;
+                if (ghost) {
+                    if ((r = paint_ghost(latlong, ghost_azimuth(k), 0.5 * lavg, &env, err)))
+                        break;
+                    use = &env;
+                }
+                sl_image_free(&rad);
+                r = sl_vset_lens_image(lens, &view, use, o->photo_width, o->photo_height,
+                                       o->supersample, &rad, err);
+                sl_image_free(&env);
+                if (r)
+                    break;
+            }
             sl_vset_exposure e = {times[k], o->f_number, o->iso};
             sl_vset_shot shot;
             uint64_t seed = vset_mix64(o->seed ^ vset_mix64((uint64_t)(v * 64 + k)));
@@ -231,13 +289,20 @@ static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
                 snprintf(path, sizeof path, "%s/hdri/%s_linear.tif", tmp, name);
                 r = sl_photo_write(path, &shot.linear, &meta, 16, err);
             }
-            if (!r)
+            if (!r) {
+                json_t *g = ghost ? json_pack("{s:f, s:f, s:f, s:f}", "azimuth_deg",
+                                              ghost_azimuth(k), "width_deg", GHOST_WIDTH_DEG,
+                                              "elevation_low_deg", GHOST_EL_LOW,
+                                              "elevation_high_deg", GHOST_EL_HIGH)
+                                  : json_null();
                 json_array_append_new(
-                    frames, json_pack("{s:s, s:i, s:f, s:f, s:f, s:i, s:f, s:f, s:f, s:s}", "name",
-                                      name, "view", v, "yaw_deg", view.yaw_deg, "pitch_deg",
-                                      view.pitch_deg, "roll_deg", view.roll_deg, "bracket", k,
-                                      "exposure_time_s", e.time_s, "f_number", e.f_number, "iso",
-                                      e.iso, "datetime", meta.datetime));
+                    frames,
+                    json_pack("{s:s, s:i, s:f, s:f, s:f, s:i, s:f, s:f, s:f, s:s, s:o}", "name",
+                              name, "view", v, "yaw_deg", view.yaw_deg, "pitch_deg",
+                              view.pitch_deg, "roll_deg", view.roll_deg, "bracket", k,
+                              "exposure_time_s", e.time_s, "f_number", e.f_number, "iso", e.iso,
+                              "datetime", meta.datetime, "ghost", g));
+            }
             sl_meta_free(&meta);
             sl_vset_shot_free(&shot);
         }
@@ -258,6 +323,8 @@ static sl_result check_opts(const sl_vset_capture_opts *o, sl_error *err)
         o->photo_height > 16384 || o->supersample < 1 || o->supersample > 8)
         return sl_error_set(err, SL_ERR_USAGE, "frame size %dx%d or supersampling %d invalid",
                             o->photo_width, o->photo_height, o->supersample);
+    if (!(o->jitter_deg >= 0 && o->jitter_deg <= 10))
+        return sl_error_set(err, SL_ERR_USAGE, "jitter %g degrees (0..10)", o->jitter_deg);
     if (!(o->f_number >= 1 && o->f_number <= 64 && o->iso >= 25 && o->iso <= 409600))
         return sl_error_set(err, SL_ERR_USAGE, "aperture f/%g or ISO %g invalid", o->f_number,
                             o->iso);
@@ -306,10 +373,10 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     sl_vset_lens lens;
     sl_vset_lens_fisheye8(&lens);
     double times[16];
-    plan_exposures(o, &cam, &scene.latlong, times);
+    double lavg = plan_exposures(o, &cam, &scene.latlong, times);
     json_t *frames = json_array();
     if (!r)
-        r = shoot_frames(o, tmp, &cam, &lens, &scene.latlong, times, frames, err);
+        r = shoot_frames(o, tmp, &cam, &lens, &scene.latlong, times, lavg, frames, err);
     if (!r) {
         sl_meta meta;
         sl_meta_init(&meta);
@@ -339,13 +406,15 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
         for (int k = 0; k < o->brackets; k++)
             json_array_append_new(times_js, json_real(times[k]));
         json_t *root = json_pack(
-            "{s:s, s:s, s:s, s:I, s:i, s:b, s:i, s:f, s:o, s:f, s:f, s:s, s:i, s:i, s:o, s:{s:s, s:s, s:s}}",
+            "{s:s, s:s, s:s, s:I, s:i, s:b, s:i, s:f, s:o, s:f, s:f, s:s, s:i, s:i, s:f, s:b, s:o, "
+            "s:{s:s, s:s, s:s}}",
             "setlight_capture", "virtual set", "version", sl_version(), "scene", scene.desc.name,
             "seed", (json_int_t)o->seed, "views", o->views, "zenith", o->zenith, "brackets",
             o->brackets, "stops", o->stops, "exposure_times_s", times_js, "f_number",
             o->f_number, "iso", o->iso, "lens", lens.name, "width", o->photo_width, "height",
-            o->photo_height, "frames", frames, "truth", "latlong", "truth/latlong.exr",
-            "lights", "truth/lights.json", "camera", "truth/camera.json");
+            o->photo_height, "jitter_deg", o->jitter_deg, "ghost", o->ghost, "frames", frames,
+            "truth", "latlong", "truth/latlong.exr", "lights", "truth/lights.json", "camera",
+            "truth/camera.json");
         frames = NULL;
         snprintf(sub, sizeof sub, "%s/capture.json", tmp);
         r = write_json(sub, root, err);

@@ -13,7 +13,8 @@ static void help(FILE *out)
 {
     fprintf(out,
             "usage: setlight simulate --scene exterior|stage|night|FILE.json --out DIR\n"
-            "                         [--seed N] [--size tiny|small|full] [--zenith] [--force]\n\n"
+            "                         [--seed N] [--size tiny|small|full] [--zenith]\n"
+            "                         [--jitter DEG] [--ghost] [--force]\n\n"
             "Generates a virtual film set (a ground-truth HDR lat-long and its lights) and\n"
             "photographs it as a data wrangler would: a bracket of 7 exposures 3 stops apart\n"
             "for each of 3 fisheye views 120 degrees apart on a nodal head, written as JPEG,\n"
@@ -24,6 +25,9 @@ static void help(FILE *out)
             "  --size S           small (1024 lat-long, 720x480 frames; default), full\n"
             "                     (4096 lat-long, 3000x2000 frames) or tiny (256, 192x128)\n"
             "  --zenith           add a fourth view straight up\n"
+            "  --jitter DEG       hand-held: each frame's yaw, pitch and roll wander by this\n"
+            "                     standard deviation (0..10; default 0, a locked nodal head)\n"
+            "  --ghost            a person walks across the first view between frames\n"
             "  --force            replace a capture already in DIR\n"
             "\nexit codes: 0 success, 1 runtime failure (e.g. DIR not writable), 2 usage error\n"
             "(unknown scene, DIR already holds a capture or other files), 3 invalid scene file\n");
@@ -43,15 +47,17 @@ static bool looks_like_file(const char *s)
 
 int cmd_simulate(int argc, char **argv, const sl_cli *cli)
 {
-    enum { O_SCENE = 256, O_SEED, O_SIZE, O_ZENITH, O_FORCE };
+    enum { O_SCENE = 256, O_SEED, O_SIZE, O_ZENITH, O_FORCE, O_JITTER, O_GHOST };
     static const struct option opts[] = {
         {"scene", required_argument, 0, O_SCENE}, {"out", required_argument, 0, 'o'},
         {"seed", required_argument, 0, O_SEED},   {"size", required_argument, 0, O_SIZE},
         {"zenith", no_argument, 0, O_ZENITH},     {"force", no_argument, 0, O_FORCE},
+        {"jitter", required_argument, 0, O_JITTER}, {"ghost", no_argument, 0, O_GHOST},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0}};
     const char *scene_arg = NULL, *out = NULL;
     int size = SL_VSET_SIZE_SMALL;
-    bool zenith = false, force = false;
+    bool zenith = false, force = false, ghost = false;
+    double jitter = 0;
     uint64_t seed = 1;
     cli_getopt_reset();
     int c;
@@ -76,6 +82,12 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
                 return cli_usage_error(cli, "--size is tiny, small or full, not '%s'", optarg);
             break;
         case O_ZENITH: zenith = true; break;
+        case O_GHOST: ghost = true; break;
+        case O_JITTER:
+            if (!cli_parse_double(optarg, &jitter) || jitter < 0 || jitter > 10)
+                return cli_usage_error(cli, "--jitter needs degrees from 0 to 10, not '%s'",
+                                       optarg);
+            break;
         case O_FORCE: force = true; break;
         case ':': return cli_usage_error(cli, "%s needs a value", argv[optind - 1]);
         default: return cli_usage_error(cli, "unknown option %s", argv[optind - 1]);
@@ -100,6 +112,8 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
     o.seed = seed;
     o.zenith = zenith;
     o.force = force;
+    o.jitter_deg = jitter;
+    o.ghost = ghost;
     sl_vset_capture_summary s;
     double t0 = sl_seconds();
     if ((r = sl_vset_capture_write(&o, out, &s, &err)))

@@ -6,7 +6,7 @@
 S="$SETLIGHT"
 
 expect 0 "$S" simulate --help
-for o in --scene --out --seed --size --zenith --force; do out_has "$o"; done
+for o in --scene --out --seed --size --zenith --jitter --ghost --force; do out_has "$o"; done
 
 # A real run: the night set at the tiny size (the small one runs in the demo).
 expect 0 "$S" simulate --scene night --out "$T/night" --seed 3 --size tiny --json --quiet
@@ -58,7 +58,9 @@ expect 2 "$S" simulate --scene stage --out "$T/x4" --seed -5
 err_has "--seed"
 expect 2 "$S" simulate --scene stage --out "$T/x5" --frobnicate
 err_has "frobnicate"
-for d in x2 x3 x4 x5; do absent "$T/$d"; done
+expect 2 "$S" simulate --scene stage --out "$T/x6" --jitter 40
+err_has "--jitter"
+for d in x2 x3 x4 x5 x6; do absent "$T/$d"; done
 
 # Malformed scene files: exit 3, the file and the problem named, no output.
 printf '{"background": "dark", "lights": [}\n' > "$T/syntax.json"
