@@ -34,6 +34,8 @@ void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene
     o->photo_width = pw[size];
     o->photo_height = ph[size];
     o->supersample = ss[size];
+    sl_vset_response_preset("canon", &o->response, NULL);
+    o->raw_bits = 14;
     o->seed = 1;
     o->views = 3;
     o->brackets = 7;
@@ -323,6 +325,11 @@ static sl_result check_opts(const sl_vset_capture_opts *o, sl_error *err)
         o->photo_height > 16384 || o->supersample < 1 || o->supersample > 8)
         return sl_error_set(err, SL_ERR_USAGE, "frame size %dx%d or supersampling %d invalid",
                             o->photo_width, o->photo_height, o->supersample);
+    if (o->raw_bits != 12 && o->raw_bits != 14)
+        return sl_error_set(err, SL_ERR_USAGE, "raw bit depth %d (12 or 14)", o->raw_bits);
+    if (o->response.curve[SL_VSET_CRF_SAMPLES - 1] != 1.0 || o->response.curve[0] != 0.0)
+        return sl_error_set(err, SL_ERR_USAGE, "response curve '%s' is not normalised to 0..1",
+                            o->response.name);
     if (!(o->jitter_deg >= 0 && o->jitter_deg <= 10))
         return sl_error_set(err, SL_ERR_USAGE, "jitter %g degrees (0..10)", o->jitter_deg);
     if (!(o->f_number >= 1 && o->f_number <= 64 && o->iso >= 25 && o->iso <= 409600))
@@ -370,6 +377,8 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
 
     sl_vset_camera cam;
     sl_vset_camera_default(&cam, o->wb_kelvin);
+    cam.response = o->response;
+    cam.raw_bits = o->raw_bits;
     sl_vset_lens lens;
     sl_vset_lens_fisheye8(&lens);
     double times[16];

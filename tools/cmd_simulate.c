@@ -14,6 +14,7 @@ static void help(FILE *out)
     fprintf(out,
             "usage: setlight simulate --scene exterior|stage|night|FILE.json --out DIR\n"
             "                         [--seed N] [--size tiny|small|full] [--zenith]\n"
+            "                         [--response NAME|FILE [--curve NAME]] [--raw-bits 12|14]\n"
             "                         [--jitter DEG] [--ghost] [--force]\n\n"
             "Generates a virtual film set (a ground-truth HDR lat-long and its lights) and\n"
             "photographs it as a data wrangler would: a bracket of 7 exposures 3 stops apart\n"
@@ -25,6 +26,10 @@ static void help(FILE *out)
             "  --size S           small (1024 lat-long, 720x480 frames; default), full\n"
             "                     (4096 lat-long, 3000x2000 frames) or tiny (256, 192x128)\n"
             "  --zenith           add a fourth view straight up\n"
+            "  --response R       camera response: linear, srgb, filmic, canon (default), or a\n"
+            "                     curve file (DoRF dorfCurves.txt format, or \"I B\" lines)\n"
+            "  --curve NAME       which curve of a DoRF file (default: the first)\n"
+            "  --raw-bits N       raw quantisation, 12 or 14 (default)\n"
             "  --jitter DEG       hand-held: each frame's yaw, pitch and roll wander by this\n"
             "                     standard deviation (0..10; default 0, a locked nodal head)\n"
             "  --ghost            a person walks across the first view between frames\n"
@@ -42,22 +47,28 @@ static bool looks_like_file(const char *s)
 {
     struct stat sb;
     size_t n = strlen(s);
-    return strchr(s, '/') || (n > 5 && !strcmp(s + n - 5, ".json")) || stat(s, &sb) == 0;
+    return strchr(s, '/') || (n > 5 && !strcmp(s + n - 5, ".json")) ||
+           (n > 4 && !strcmp(s + n - 4, ".txt")) || stat(s, &sb) == 0;
 }
 
 int cmd_simulate(int argc, char **argv, const sl_cli *cli)
 {
-    enum { O_SCENE = 256, O_SEED, O_SIZE, O_ZENITH, O_FORCE, O_JITTER, O_GHOST };
+    enum { O_SCENE = 256, O_SEED, O_SIZE, O_ZENITH, O_FORCE, O_JITTER, O_GHOST, O_RESP, O_CURVE,
+           O_BITS };
     static const struct option opts[] = {
         {"scene", required_argument, 0, O_SCENE}, {"out", required_argument, 0, 'o'},
         {"seed", required_argument, 0, O_SEED},   {"size", required_argument, 0, O_SIZE},
         {"zenith", no_argument, 0, O_ZENITH},     {"force", no_argument, 0, O_FORCE},
         {"jitter", required_argument, 0, O_JITTER}, {"ghost", no_argument, 0, O_GHOST},
+        {"response", required_argument, 0, O_RESP}, {"curve", required_argument, 0, O_CURVE},
+        {"raw-bits", required_argument, 0, O_BITS},
         {"help", no_argument, 0, 'h'},            {0, 0, 0, 0}};
     const char *scene_arg = NULL, *out = NULL;
     int size = SL_VSET_SIZE_SMALL;
     bool zenith = false, force = false, ghost = false;
     double jitter = 0;
+    const char *response = "canon", *curve = NULL;
+    int raw_bits = 14;
     uint64_t seed = 1;
     cli_getopt_reset();
     int c;
@@ -83,6 +94,12 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
             break;
         case O_ZENITH: zenith = true; break;
         case O_GHOST: ghost = true; break;
+        case O_RESP: response = optarg; break;
+        case O_CURVE: curve = optarg; break;
+        case O_BITS:
+            if (!cli_parse_int(optarg, &raw_bits) || (raw_bits != 12 && raw_bits != 14))
+                return cli_usage_error(cli, "--raw-bits is 12 or 14, not '%s'", optarg);
+            break;
         case O_JITTER:
             if (!cli_parse_double(optarg, &jitter) || jitter < 0 || jitter > 10)
                 return cli_usage_error(cli, "--jitter needs degrees from 0 to 10, not '%s'",
@@ -109,6 +126,13 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
         return cli_fail(cli, &err);
     sl_vset_capture_opts o;
     sl_vset_capture_defaults(&o, &desc, (sl_vset_size)size);
+    if (curve && looks_like_file(response) == false)
+        return cli_usage_error(cli, "--curve picks a curve of a response file");
+    r = looks_like_file(response) ? sl_vset_response_load(response, curve, &o.response, &err)
+                                  : sl_vset_response_preset(response, &o.response, &err);
+    if (r)
+        return cli_fail(cli, &err);
+    o.raw_bits = raw_bits;
     o.seed = seed;
     o.zenith = zenith;
     o.force = force;

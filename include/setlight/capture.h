@@ -263,6 +263,8 @@ typedef struct sl_vset_capture_opts {
     int brackets;
     double stops;                  /* whole stops, on the camera's full-stop shutter scale */
     double f_number, iso, wb_kelvin;
+    sl_vset_response response;     /* the camera's curve (default "canon") */
+    int raw_bits;                  /* 12 or 14 (default) */
     double jitter_deg;             /* std of per-frame yaw, pitch, roll wander (hand-held) */
     bool ghost;                    /* a person walks across the first view between frames */
     bool force;                    /* replace a capture already in the folder */

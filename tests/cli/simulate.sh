@@ -6,7 +6,7 @@
 S="$SETLIGHT"
 
 expect 0 "$S" simulate --help
-for o in --scene --out --seed --size --zenith --jitter --ghost --force; do out_has "$o"; done
+for o in --scene --out --seed --size --zenith --response --curve --raw-bits --jitter --ghost --force; do out_has "$o"; done
 
 # A real run: the night set at the tiny size (the small one runs in the demo).
 expect 0 "$S" simulate --scene night --out "$T/night" --seed 3 --size tiny --json --quiet
@@ -21,6 +21,22 @@ for f in IMG_0001.jpg IMG_0001.tif IMG_0001_linear.tif IMG_0021.jpg; do present 
 json_eval "$T/night/truth/lights.json" 'len(d["lights"]) == 4 and all(l["integral_rgb"][1] > 0 for l in d["lights"])'
 json_eval "$T/night/capture.json" 'len(d["frames"]) == 21 and d["frames"][0]["exposure_time_s"] < d["frames"][6]["exposure_time_s"]'
 no_temp "$T"
+
+# A measured film curve from the DoRF database, 12-bit raw.
+if [ -f "$SETLIGHT_SHARED_DATA/crf/dorfCurves.txt" ]; then
+    expect 0 "$S" simulate --scene exterior --out "$T/film" --size tiny --raw-bits 12 \
+        --response "$SETLIGHT_SHARED_DATA/crf/dorfCurves.txt" --curve agfacolor-futura-100CDBlue
+    json_eval "$T/film/truth/camera.json" 'd["response"]["name"] == "agfacolor-futura-100CDBlue" and d["raw_bits"] == 12'
+    expect 3 "$S" simulate --scene exterior --out "$T/film2" --size tiny \
+        --response "$SETLIGHT_SHARED_DATA/crf/dorfCurves.txt" --curve no-such-film
+    err_has "no-such-film"
+    absent "$T/film2"
+else
+    skip "DoRF curves absent"
+fi
+expect 2 "$S" simulate --scene exterior --out "$T/resp" --size tiny --response velvia
+err_has "velvia"
+absent "$T/resp"
 
 # Refuses to overwrite a capture without --force; nothing changes.
 before=$(md5sum "$T/night/capture.json" "$T/night/hdri/IMG_0001.jpg")
