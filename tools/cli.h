@@ -33,5 +33,6 @@ bool cli_parse_double(const char *s, double *out);
 int cmd_info(int argc, char **argv, const sl_cli *cli);
 int cmd_convert(int argc, char **argv, const sl_cli *cli);
 int cmd_simulate(int argc, char **argv, const sl_cli *cli);
+int cmd_demo(int argc, char **argv, const sl_cli *cli);
 
 #endif
