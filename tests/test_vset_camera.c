@@ -107,6 +107,21 @@ static void test_noise(void)
     check_flat_noise(6400, 0.005); /* a few electrons: Poisson by counting */
 }
 
+static bool invert3(const double m[3][3], double out[3][3])
+{
+    double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                 m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                 m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if (det == 0)
+        return false;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            int a = (j + 1) % 3, b = (j + 2) % 3, c = (i + 1) % 3, d = (i + 2) % 3;
+            out[i][j] = (m[a][c] * m[b][d] - m[a][d] * m[b][c]) / det;
+        }
+    return true;
+}
+
 static void test_clipping_and_quantisation(void)
 {
     sl_vset_camera cam;
@@ -119,20 +134,10 @@ static void test_clipping_and_quantisation(void)
     CHECK_OK(sl_image_alloc(&rad, w, 4, 3, &err), &err);
     /* Green-only ramp through raw saturation, X from 0.5 to 1.5. */
     double inv[3][3];
-    {
-        const double *m0 = cam.cam_from_rec709[0], *m1 = cam.cam_from_rec709[1],
-                     *m2 = cam.cam_from_rec709[2];
-        double det = m0[0] * (m1[1] * m2[2] - m1[2] * m2[1]) -
-                     m0[1] * (m1[0] * m2[2] - m1[2] * m2[0]) +
-                     m0[2] * (m1[0] * m2[1] - m1[1] * m2[0]);
-        inv[0][1] = -(m0[1] * m2[2] - m0[2] * m2[1]) / det;
-        inv[1][1] = (m0[0] * m2[2] - m0[2] * m2[0]) / det;
-        inv[2][1] = -(m0[0] * m2[1] - m0[1] * m2[0]) / det;
-    }
+    CHECK(invert3(cam.cam_from_rec709, inv));
     for (int y = 0; y < 4; y++)
         for (int x = 0; x < w; x++) {
-            double X = 0.5 + (double)x / w, *dummy = NULL;
-            (void)dummy;
+            double X = 0.5 + (double)x / w;
             float *p = sl_image_pixel(&rad, x, y);
             for (int c = 0; c < 3; c++)
                 p[c] = (float)(inv[c][1] * X / scale);
@@ -220,21 +225,6 @@ static void test_determinism(void)
     CHECK_RESULT(sl_vset_camera_shoot(&cam, &bad, &rad, 5, &a, &err), SL_ERR_USAGE, &err);
     CHECK(a.sensor.data == NULL);
     sl_image_free(&rad);
-}
-
-static bool invert3(const double m[3][3], double out[3][3])
-{
-    double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
-                 m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                 m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    if (det == 0)
-        return false;
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) {
-            int a = (j + 1) % 3, b = (j + 2) % 3, c = (i + 1) % 3, d = (i + 2) % 3;
-            out[i][j] = (m[a][c] * m[b][d] - m[a][d] * m[b][c]) / det;
-        }
-    return true;
 }
 
 /* A bracket of 7 exposures 3 stops apart of a grey ramp from 1e-2 to 1e5
