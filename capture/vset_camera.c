@@ -41,9 +41,13 @@ void sl_vset_camera_default(sl_vset_camera *cam, double wb_kelvin)
     cam->read_noise_pre_e = 2.5;
     cam->read_noise_post_e = 25.5;
     cam->raw_bits = 14;
-    const double rgb_to_xyz[3][3] = {{0.4123907993, 0.3575843394, 0.1804807884},
-                                     {0.2126390059, 0.7151686788, 0.0721923154},
-                                     {0.0193308187, 0.1191947798, 0.9505321522}};
+    double rgb_to_xyz[3][3];
+    for (int j = 0; j < 3; j++) {
+        double e[3] = {j == 0, j == 1, j == 2}, col[3];
+        sl_rec709_to_xyz(e, col);
+        for (int i = 0; i < 3; i++)
+            rgb_to_xyz[i][j] = col[i];
+    }
     m3_mul(xyz_to_cam_5d2, rgb_to_xyz, cam->cam_from_rec709);
     /* Scale so that a white of luminance L gives green = L. */
     double g = cam->cam_from_rec709[1][0] + cam->cam_from_rec709[1][1] + cam->cam_from_rec709[1][2];

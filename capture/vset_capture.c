@@ -73,7 +73,7 @@ static double plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera
     /* Meter the log-average luminance to 12% of raw saturation. */
     double acc = 0, wsum = 0;
     for (int y = 0; y < latlong->height; y++) {
-        double dw = vset_texel_solid_angle(y, latlong->width, latlong->height);
+        double dw = sl_latlong_texel_solid_angle(y, latlong->width, latlong->height);
         for (int x = 0; x < latlong->width; x++) {
             const float *p = sl_image_pixel(latlong, x, y);
             double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];

@@ -1,8 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Private helpers of the virtual set: small vector maths, the lat-long
- * texel geometry of core.h (repeated here so the virtual set does not
- * depend on the geometry module's build order) and counter-based random
- * numbers whose value depends only on (seed, stream, index). */
+/* Private helpers of the virtual set: small vector maths and counter-based
+ * random numbers whose value depends only on (seed, stream, index). */
 #ifndef SETLIGHT_VSET_INTERNAL_H
 #define SETLIGHT_VSET_INTERNAL_H
 
@@ -46,31 +44,6 @@ static inline void vset_azel_dir(double az_deg, double el_deg, double d[3])
     d[0] = sin(az) * cos(el);
     d[1] = sin(el);
     d[2] = cos(az) * cos(el);
-}
-
-/* u along the width, v down the height, both in [0,1]. */
-static inline void vset_uv_dir(double u, double v, double d[3])
-{
-    double lon = VSET_PI * (1.0 - 2.0 * u), lat = VSET_PI * (0.5 - v);
-    d[0] = sin(lon) * cos(lat);
-    d[1] = sin(lat);
-    d[2] = cos(lon) * cos(lat);
-}
-
-static inline void vset_dir_uv(const double d[3], double *u, double *v)
-{
-    double lon = atan2(d[0], d[2]);
-    double y = d[1] < -1 ? -1 : d[1] > 1 ? 1 : d[1];
-    *u = 0.5 * (1.0 - lon / VSET_PI);
-    *v = 0.5 - asin(y) / VSET_PI;
-}
-
-/* Exact solid angle of a texel in row y. */
-static inline double vset_texel_solid_angle(int y, int width, int height)
-{
-    double top = VSET_PI * (0.5 - (double)y / height);
-    double bot = VSET_PI * (0.5 - (double)(y + 1) / height);
-    return (2.0 * VSET_PI / width) * (sin(top) - sin(bot));
 }
 
 static inline uint64_t vset_mix64(uint64_t z)
@@ -161,8 +134,5 @@ static inline double vset_gauss(uint64_t seed, uint64_t stream, uint64_t index)
     return sqrt(-2.0 * log(u1)) * cos(2.0 * VSET_PI * u2);
 }
 
-/* Rec.709 linear <-> XYZ (D65). */
-void vset_xyz_to_rec709(const double xyz[3], double rgb[3]);
-void vset_rec709_to_xyz(const double rgb[3], double xyz[3]);
 
 #endif

@@ -105,23 +105,6 @@ double sl_vset_lens_vignette(const sl_vset_lens *lens, int width, int height, do
     return g > 0 ? g : 0;
 }
 
-static void lookup(const sl_image *img, const double d[3], double out[3])
-{
-    double u, v;
-    vset_dir_uv(d, &u, &v);
-    double fx = u * img->width - 0.5, fy = v * img->height - 0.5;
-    int x0 = (int)floor(fx), y0 = (int)floor(fy);
-    double tx = fx - x0, ty = fy - y0;
-    int y1 = y0 + 1;
-    y0 = y0 < 0 ? 0 : y0 >= img->height ? img->height - 1 : y0;
-    y1 = y1 < 0 ? 0 : y1 >= img->height ? img->height - 1 : y1;
-    int xa = ((x0 % img->width) + img->width) % img->width, xb = (xa + 1) % img->width;
-    const float *a = sl_image_pixel(img, xa, y0), *b = sl_image_pixel(img, xb, y0);
-    const float *c = sl_image_pixel(img, xa, y1), *e = sl_image_pixel(img, xb, y1);
-    for (int k = 0; k < 3; k++)
-        out[k] = (1 - ty) * ((1 - tx) * a[k] + tx * b[k]) + ty * ((1 - tx) * c[k] + tx * e[k]);
-}
-
 typedef struct lens_ctx {
     const sl_vset_lens *lens;
     const sl_vset_view *view;
@@ -140,10 +123,12 @@ static void lens_rows(void *ctx, int64_t begin, int64_t end, int worker)
             double acc[3] = {0, 0, 0};
             for (int j = 0; j < n; j++)
                 for (int i = 0; i < n; i++) {
-                    double px = x + (i + 0.5) / n, py = (double)y + (j + 0.5) / n, d[3], rgb[3];
+                    double px = x + (i + 0.5) / n, py = (double)y + (j + 0.5) / n, d[3], u, v;
+                    float rgb[4];
                     if (!sl_vset_lens_to_dir(s->lens, s->view, w, h, px, py, d))
                         continue;
-                    lookup(s->env, d, rgb);
+                    sl_dir_to_latlong(d, &u, &v);
+                    sl_latlong_lookup(s->env, u, v, rgb);
                     double g = sl_vset_lens_vignette(s->lens, w, h, px, py);
                     for (int c = 0; c < 3; c++)
                         acc[c] += g * rgb[c];
@@ -159,7 +144,7 @@ sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
                              sl_image *out, sl_error *err)
 {
     memset(out, 0, sizeof *out);
-    if (latlong->channels < 3 || latlong->width != 2 * latlong->height)
+    if (latlong->channels < 3 || !sl_is_latlong_shape(latlong->width, latlong->height))
         return sl_error_set(err, SL_ERR_INPUT, "environment is %dx%d with %d channels, not an RGB lat-long",
                             latlong->width, latlong->height, latlong->channels);
     if (!(lens->focal_mm > 0 && lens->sensor_width_mm > 0) || ss < 1 || ss > 16)

@@ -357,7 +357,7 @@ static void texel_mean(const scene_ctx *s, const int *near, int nnear, int x, in
             uint64_t id = ((uint64_t)y * (uint64_t)w + (uint64_t)x) * 65536u + (uint64_t)(j * n + i);
             double v = v0 + (v1 - v0) * vset_uniform(7, 1, id);
             double u = (x + (i + vset_uniform(7, 2, id)) / n) / w, d[3], rgb[3];
-            vset_uv_dir(u, v, d);
+            sl_latlong_to_dir(u, v, d);
             sample(s, near, nnear, d, rgb);
             for (int c = 0; c < 3; c++)
                 acc[c] += wt * rgb[c];
@@ -411,7 +411,7 @@ static void scene_rows(void *ctx, int64_t begin, int64_t end, int worker)
             continue; /* the image is already black */
         for (int x = 0; x < w; x++) {
             double d[3];
-            vset_uv_dir((x + 0.5) / w, (y + 0.5) / h, d);
+            sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / h, d);
             int near[SL_VSET_MAX_LIGHTS], nnear = 0, n = EDGE_SS;
             for (int k = 0; k < nrow; k++) {
                 int i = row_lights[k];
@@ -429,7 +429,7 @@ static void scene_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 bool inside = true;
                 for (int k = 0; k < 4 && inside; k++) {
                     double cd[3];
-                    vset_uv_dir((double)(x + (k & 1)) / w, (double)(y + (k >> 1)) / h, cd);
+                    sl_latlong_to_dir((double)(x + (k & 1)) / w, (double)(y + (k >> 1)) / h, cd);
                     inside = light_contains(l, g, cd);
                 }
                 if (inside && light_contains(l, g, d))
@@ -543,7 +543,7 @@ static void image_integral(const sl_image *img, double total[3])
             double row = 0;
             for (int x = 0; x < img->width; x++)
                 row += sl_image_pixel(img, x, y)[c];
-            double t = row * vset_texel_solid_angle(y, img->width, img->height) - comp;
+            double t = row * sl_latlong_texel_solid_angle(y, img->width, img->height) - comp;
             double s2 = sum + t;
             comp = (s2 - sum) - t;
             sum = s2;

@@ -13,20 +13,6 @@
 #define SUN_E0_LUX 128000.0
 #define GROUND_HEIGHT_M 1.6
 
-void vset_xyz_to_rec709(const double xyz[3], double rgb[3])
-{
-    rgb[0] = 3.2409699419 * xyz[0] - 1.5373831776 * xyz[1] - 0.4986107603 * xyz[2];
-    rgb[1] = -0.9692436363 * xyz[0] + 1.8759675015 * xyz[1] + 0.0415550574 * xyz[2];
-    rgb[2] = 0.0556300797 * xyz[0] - 0.2039769589 * xyz[1] + 1.0569715142 * xyz[2];
-}
-
-void vset_rec709_to_xyz(const double rgb[3], double xyz[3])
-{
-    xyz[0] = 0.4123907993 * rgb[0] + 0.3575843394 * rgb[1] + 0.1804807884 * rgb[2];
-    xyz[1] = 0.2126390059 * rgb[0] + 0.7151686788 * rgb[1] + 0.0721923154 * rgb[2];
-    xyz[2] = 0.0193308187 * rgb[0] + 0.1191947798 * rgb[1] + 0.9505321522 * rgb[2];
-}
-
 static double luminance(const double rgb[3])
 {
     return 0.2126390059 * rgb[0] + 0.7151686788 * rgb[1] + 0.0721923154 * rgb[2];
@@ -48,7 +34,7 @@ void sl_vset_kelvin_rgb(double kelvin, double rgb[3])
     else
         y = 3.0817580 * x3 - 5.87338670 * x2 + 3.75112997 * x - 0.37001483;
     double xyz[3] = {x / y, 1.0, (1.0 - x - y) / y};
-    vset_xyz_to_rec709(xyz, rgb);
+    sl_xyz_to_rec709(xyz, rgb);
     for (int c = 0; c < 3; c++)
         if (rgb[c] < 0)
             rgb[c] = 0;
@@ -120,7 +106,7 @@ static void sky_radiance(const vset_daylight *d, const double dir[3], double rgb
         v[i] = d->zenith[i] * perez(d->perez[i], up[1], gamma) / d->norm[i];
     double Y = v[0] > 0 ? v[0] : 0, x = v[1], y = v[2];
     double xyz[3] = {x / y * Y, Y, (1.0 - x - y) / y * Y};
-    vset_xyz_to_rec709(xyz, rgb);
+    sl_xyz_to_rec709(xyz, rgb);
     for (int c = 0; c < 3; c++)
         if (rgb[c] < 0)
             rgb[c] = 0;
