@@ -36,5 +36,7 @@ void cli_warn_format_mismatch(const char *path, const sl_meta *meta);
 /* Command entry points. */
 int cmd_info(int argc, char **argv, const sl_cli *cli);
 int cmd_convert(int argc, char **argv, const sl_cli *cli);
+int cmd_simulate(int argc, char **argv, const sl_cli *cli);
+int cmd_demo(int argc, char **argv, const sl_cli *cli);
 
 #endif

@@ -17,6 +17,8 @@ typedef struct command {
 static const command commands[] = {
     {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
     {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"simulate", cmd_simulate, "photograph a virtual film set, with its ground truth"},
+    {"demo", cmd_demo, "simulate the stage set, run every stage on it, write report.html"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
