@@ -15,9 +15,11 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
-    {"version", NULL, "print the version"},
+    {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
+    {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"simulate", cmd_simulate, "photograph a virtual film set, with its ground truth"},
+    {"demo", cmd_demo, "simulate the stage set, run every stage on it, write report.html"},
     {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},
-    /* commands are added here as they land */
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
