@@ -1,0 +1,538 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* OpenEXR reading and writing through the OpenEXR C API (openexr.h),
+ * chunk by chunk with the library's decode/encode pipelines.
+ *
+ * Reading picks one part (the first) and one set of channels: R,G,B[,A];
+ * else Y[,A]; else the first layer (alphabetically) with L.R, L.G, L.B
+ * [,L.A]. Tiled files are read at level 0 (the full-resolution mip/rip
+ * level). The returned image covers the display window, the frame that
+ * lat-long geometry refers to: data-window pixels land at their position,
+ * pixels outside the data window are 0, and overscan outside the display
+ * window is cropped. */
+#include "setlight/core.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <openexr.h>
+
+/* Same limits as sl_image_alloc: a corrupt header must not allocate wildly. */
+#define EXR_MAX_DIM 65536
+
+/* OpenEXR reports problems through a callback that gets only the context;
+ * the stream's user_data belongs to the default file reader, so the message
+ * goes to a per-thread buffer for the call in progress. */
+static _Thread_local char exr_message[512];
+
+static void capture_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
+{
+    (void)ctxt;
+    if (!exr_message[0])
+        snprintf(exr_message, sizeof exr_message, "%s", msg ? msg : exr_get_default_error_message(code));
+}
+
+static exr_context_initializer_t make_initializer(void)
+{
+    exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+    init.error_handler_fn = capture_error;
+    init.max_image_width = EXR_MAX_DIM;
+    init.max_image_height = EXR_MAX_DIM;
+    init.max_tile_width = EXR_MAX_DIM;
+    init.max_tile_height = EXR_MAX_DIM;
+    return init;
+}
+
+/* The captured message, else the library's text for the code. */
+static const char *exr_why(exr_result_t rv)
+{
+    return exr_message[0] ? exr_message : exr_get_default_error_message(rv);
+}
+
+static sl_result corrupt(sl_error *err, const char *path, exr_result_t rv)
+{
+    return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path, exr_why(rv));
+}
+
+/* ------------------------------------------------------------------ */
+/* Reading                                                             */
+/* ------------------------------------------------------------------ */
+
+typedef struct exr_pick {
+    int count;              /* 1..4 output channels */
+    const char *names[4];   /* file channel name for each output channel */
+    exr_pixel_type_t types[4];
+} exr_pick;
+
+static const exr_attr_chlist_entry_t *find_channel(const exr_attr_chlist_t *cl, const char *name)
+{
+    for (int i = 0; i < cl->num_channels; i++)
+        if (strcmp(cl->entries[i].name.str, name) == 0)
+            return &cl->entries[i];
+    return NULL;
+}
+
+/* Looks for prefix+R,G,B[,A] (or prefix+Y[,A] when luminance). */
+static bool pick_layer(const exr_attr_chlist_t *cl, const char *prefix, bool luminance,
+                       exr_pick *pick)
+{
+    static const char *rgba[4] = {"R", "G", "B", "A"};
+    static const char *ya[2] = {"Y", "A"};
+    const char *const *want = luminance ? ya : rgba;
+    int needed = luminance ? 1 : 3, total = luminance ? 2 : 4;
+    char name[512];
+    memset(pick, 0, sizeof *pick);
+    for (int c = 0; c < total; c++) {
+        snprintf(name, sizeof name, "%s%s", prefix, want[c]);
+        const exr_attr_chlist_entry_t *e = find_channel(cl, name);
+        if (!e) {
+            if (c < needed)
+                return false;
+            break;
+        }
+        pick->names[pick->count] = e->name.str;
+        pick->types[pick->count] = e->pixel_type;
+        pick->count++;
+    }
+    return true;
+}
+
+static bool pick_channels(const exr_attr_chlist_t *cl, exr_pick *pick)
+{
+    if (pick_layer(cl, "", false, pick) || pick_layer(cl, "", true, pick))
+        return true;
+    /* The channel list is sorted, so the first ".R" found is the first layer. */
+    for (int i = 0; i < cl->num_channels; i++) {
+        const char *n = cl->entries[i].name.str;
+        size_t len = strlen(n);
+        if (len < 3 || strcmp(n + len - 2, ".R") != 0 || len - 1 >= 512)
+            continue;
+        char prefix[512];
+        memcpy(prefix, n, len - 1);
+        prefix[len - 1] = 0;
+        if (pick_layer(cl, prefix, false, pick))
+            return true;
+    }
+    return false;
+}
+
+static void set_fixed(char *dst, size_t size, const char *src)
+{
+    snprintf(dst, size, "%s", src);
+}
+
+/* Fills meta from the header: envmap, chromaticities, standard camera
+ * attributes and every other string attribute. */
+static sl_result read_header_meta(exr_context_t ctx, const exr_pick *pick, sl_meta *meta,
+                                  sl_error *err)
+{
+    set_fixed(meta->format, sizeof meta->format, "openexr");
+    bool all_half = true, any_uint = false;
+    for (int c = 0; c < pick->count; c++) {
+        all_half = all_half && pick->types[c] == EXR_PIXEL_HALF;
+        any_uint = any_uint || pick->types[c] == EXR_PIXEL_UINT;
+    }
+    meta->bits_per_sample = all_half ? 16 : 32;
+    meta->is_float = !any_uint;
+
+    int32_t count = 0;
+    if (exr_get_attribute_count(ctx, 0, &count) != EXR_ERR_SUCCESS)
+        count = 0;
+    for (int32_t i = 0; i < count; i++) {
+        const exr_attribute_t *a = NULL;
+        if (exr_get_attribute_by_index(ctx, 0, EXR_ATTR_LIST_FILE_ORDER, i, &a) != EXR_ERR_SUCCESS ||
+            !a)
+            continue;
+        const char *n = a->name;
+        switch (a->type) {
+        case EXR_ATTR_ENVMAP:
+            if (strcmp(n, "envmap") == 0)
+                meta->envmap = a->uc == EXR_ENVMAP_LATLONG ? SL_ENVMAP_LATLONG
+                               : a->uc == EXR_ENVMAP_CUBE  ? SL_ENVMAP_CUBE
+                                                           : SL_ENVMAP_NONE;
+            break;
+        case EXR_ATTR_CHROMATICITIES:
+            if (strcmp(n, "chromaticities") == 0 && a->chromaticities) {
+                const exr_attr_chromaticities_t *c = a->chromaticities;
+                float v[8] = {c->red_x,  c->red_y,  c->green_x, c->green_y,
+                              c->blue_x, c->blue_y, c->white_x, c->white_y};
+                memcpy(meta->chromaticities, v, sizeof v);
+                meta->has_chromaticities = true;
+            }
+            break;
+        case EXR_ATTR_FLOAT:
+            /* OpenEXR's standard attribute names (ImfStandardAttributes.h). */
+            if (strcmp(n, "expTime") == 0)
+                meta->exposure_time = a->f;
+            else if (strcmp(n, "aperture") == 0)
+                meta->f_number = a->f;
+            else if (strcmp(n, "isoSpeed") == 0)
+                meta->iso = a->f;
+            else if (strcmp(n, "nominalFocalLength") == 0)
+                meta->focal_length_mm = a->f;
+            break;
+        case EXR_ATTR_STRING:
+            if (!a->string || !a->string->str)
+                break;
+            if (strcmp(n, "capDate") == 0)
+                set_fixed(meta->datetime, sizeof meta->datetime, a->string->str);
+            else if (strcmp(n, "cameraMake") == 0)
+                set_fixed(meta->make, sizeof meta->make, a->string->str);
+            else if (strcmp(n, "cameraModel") == 0)
+                set_fixed(meta->model, sizeof meta->model, a->string->str);
+            else if (strcmp(n, "lensModel") == 0)
+                set_fixed(meta->lens, sizeof meta->lens, a->string->str);
+            else {
+                sl_result r = sl_meta_set(meta, n, a->string->str, err);
+                if (r)
+                    return r;
+            }
+            break;
+        default:
+            break;
+        }
+    }
+    return SL_OK;
+}
+
+typedef struct exr_frame {
+    exr_attr_box2i_t data;    /* data window */
+    exr_attr_box2i_t display; /* display window = output frame */
+} exr_frame;
+
+/* Decodes one chunk whose pixels start at file coordinates (x0, y0) and
+ * copies the part inside the display window into img. */
+static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinfo, int x0, int y0,
+                                 const exr_pick *pick, const exr_frame *fr, exr_decode_pipeline_t *dec,
+                                 bool *initialized, float *scratch, sl_image *img)
+{
+    exr_result_t rv = *initialized ? exr_decoding_update(ctx, 0, cinfo, dec)
+                                   : exr_decoding_initialize(ctx, 0, cinfo, dec);
+    if (rv != EXR_ERR_SUCCESS)
+        return rv;
+    *initialized = true;
+    int w = cinfo->width, h = cinfo->height, nc = pick->count;
+    for (int i = 0; i < dec->channel_count; i++) {
+        exr_coding_channel_info_t *ch = &dec->channels[i];
+        ch->decode_to_ptr = NULL;
+        for (int c = 0; c < nc; c++)
+            if (strcmp(ch->channel_name, pick->names[c]) == 0) {
+                ch->decode_to_ptr = (uint8_t *)(scratch + c);
+                ch->user_pixel_stride = nc * (int32_t)sizeof(float);
+                ch->user_line_stride = w * nc * (int32_t)sizeof(float);
+                ch->user_data_type = EXR_PIXEL_FLOAT;
+                ch->user_bytes_per_element = sizeof(float);
+            }
+    }
+    rv = exr_decoding_choose_default_routines(ctx, 0, dec);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_decoding_run(ctx, 0, dec);
+    if (rv != EXR_ERR_SUCCESS)
+        return rv;
+    for (int y = 0; y < h; y++) {
+        int fy = y0 + y;
+        if (fy < fr->display.min.y || fy > fr->display.max.y)
+            continue;
+        for (int x = 0; x < w; x++) {
+            int fx = x0 + x;
+            if (fx < fr->display.min.x || fx > fr->display.max.x)
+                continue;
+            memcpy(sl_image_pixel(img, fx - fr->display.min.x, fy - fr->display.min.y),
+                   scratch + ((size_t)y * (size_t)w + (size_t)x) * (size_t)nc,
+                   (size_t)nc * sizeof(float));
+        }
+    }
+    return EXR_ERR_SUCCESS;
+}
+
+static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_pick *pick,
+                             const exr_frame *fr, sl_image *img, sl_error *err)
+{
+    exr_storage_t storage;
+    exr_result_t rv = exr_get_storage(ctx, 0, &storage);
+    if (rv != EXR_ERR_SUCCESS)
+        return corrupt(err, path, rv);
+    if (storage != EXR_STORAGE_SCANLINE && storage != EXR_STORAGE_TILED)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: deep EXR data is not supported", path);
+
+    int dw = fr->data.max.x - fr->data.min.x + 1;
+    int32_t chunk_w = dw, chunk_h = 1, tiles_x = 1, tiles_y = 1;
+    if (storage == EXR_STORAGE_SCANLINE) {
+        rv = exr_get_scanlines_per_chunk(ctx, 0, &chunk_h);
+    } else {
+        int32_t lw = 0, lh = 0;
+        rv = exr_get_tile_sizes(ctx, 0, 0, 0, &chunk_w, &chunk_h);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_get_level_sizes(ctx, 0, 0, 0, &lw, &lh);
+        if (rv == EXR_ERR_SUCCESS && (chunk_w <= 0 || chunk_h <= 0 || lw <= 0 || lh <= 0))
+            rv = EXR_ERR_INVALID_ATTR;
+        if (rv == EXR_ERR_SUCCESS) {
+            tiles_x = (lw + chunk_w - 1) / chunk_w;
+            tiles_y = (lh + chunk_h - 1) / chunk_h;
+        }
+    }
+    if (rv != EXR_ERR_SUCCESS)
+        return corrupt(err, path, rv);
+    if (chunk_h <= 0 || chunk_h > EXR_MAX_DIM || chunk_w <= 0 || chunk_w > EXR_MAX_DIM)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (chunk size %dx%d)",
+                            path, (int)chunk_w, (int)chunk_h);
+    float *scratch = malloc((size_t)chunk_w * (size_t)chunk_h * (size_t)pick->count * sizeof(float));
+    if (!scratch)
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for EXR chunk", path);
+
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    bool initialized = false;
+    sl_result r = SL_OK;
+    exr_chunk_info_t cinfo;
+    if (storage == EXR_STORAGE_SCANLINE) {
+        for (int y = fr->data.min.y; y <= fr->data.max.y && !r; y += chunk_h) {
+            rv = exr_read_scanline_chunk_info(ctx, 0, y, &cinfo);
+            if (rv == EXR_ERR_SUCCESS)
+                rv = decode_chunk(ctx, &cinfo, fr->data.min.x, cinfo.start_y, pick, fr, &dec,
+                                  &initialized, scratch, img);
+            if (rv != EXR_ERR_SUCCESS)
+                r = corrupt(err, path, rv);
+        }
+    } else {
+        for (int ty = 0; ty < tiles_y && !r; ty++)
+            for (int tx = 0; tx < tiles_x && !r; tx++) {
+                rv = exr_read_tile_chunk_info(ctx, 0, tx, ty, 0, 0, &cinfo);
+                if (rv == EXR_ERR_SUCCESS)
+                    rv = decode_chunk(ctx, &cinfo, fr->data.min.x + tx * chunk_w,
+                                      fr->data.min.y + ty * chunk_h, pick, fr, &dec, &initialized,
+                                      scratch, img);
+                if (rv != EXR_ERR_SUCCESS)
+                    r = corrupt(err, path, rv);
+            }
+    }
+    if (initialized)
+        exr_decoding_destroy(ctx, &dec);
+    free(scratch);
+    return r;
+}
+
+static sl_result window_size(const exr_attr_box2i_t *b, int *w, int *h)
+{
+    int64_t ww = (int64_t)b->max.x - b->min.x + 1, hh = (int64_t)b->max.y - b->min.y + 1;
+    if (ww <= 0 || hh <= 0 || ww > EXR_MAX_DIM || hh > EXR_MAX_DIM)
+        return SL_ERR_INPUT;
+    *w = (int)ww;
+    *h = (int)hh;
+    return SL_OK;
+}
+
+sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
+{
+    memset(img, 0, sizeof *img);
+    if (meta)
+        sl_meta_init(meta);
+    sl_result r = sl_check_input_file(path, err);
+    if (r)
+        return r;
+
+    exr_message[0] = 0;
+    exr_context_initializer_t init = make_initializer();
+    exr_context_t ctx = NULL;
+    exr_result_t rv = exr_start_read(&ctx, path, &init);
+    if (rv != EXR_ERR_SUCCESS) {
+        exr_finish(&ctx);
+        return corrupt(err, path, rv);
+    }
+
+    const exr_attr_chlist_t *cl = NULL;
+    exr_frame fr;
+    exr_pick pick;
+    int w = 0, h = 0, dw = 0, dh = 0;
+    rv = exr_get_channels(ctx, 0, &cl);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_data_window(ctx, 0, &fr.data);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_display_window(ctx, 0, &fr.display);
+    if (rv != EXR_ERR_SUCCESS || !cl) {
+        r = corrupt(err, path, rv);
+    } else if (window_size(&fr.display, &w, &h) || window_size(&fr.data, &dw, &dh)) {
+        r = sl_error_set(err, SL_ERR_INPUT,
+                         "%s: truncated or corrupt EXR (window %dx%d data %dx%d beyond %d)", path,
+                         fr.display.max.x - fr.display.min.x + 1, fr.display.max.y - fr.display.min.y + 1,
+                         fr.data.max.x - fr.data.min.x + 1, fr.data.max.y - fr.data.min.y + 1,
+                         EXR_MAX_DIM);
+    } else if (!pick_channels(cl, &pick)) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: EXR has no R,G,B, Y or layer.R,G,B channels", path);
+    } else {
+        for (int c = 0; c < pick.count && !r; c++) {
+            const exr_attr_chlist_entry_t *e = find_channel(cl, pick.names[c]);
+            if (e->x_sampling != 1 || e->y_sampling != 1)
+                r = sl_error_set(err, SL_ERR_UNSUPPORTED,
+                                 "%s: subsampled EXR channel %s is not supported", path,
+                                 pick.names[c]);
+        }
+    }
+    if (!r && (r = sl_image_alloc(img, w, h, pick.count, NULL)) != SL_OK)
+        sl_error_set(err, r, "%s: cannot allocate a %dx%d EXR image", path, w, h);
+    if (!r)
+        r = read_pixels(ctx, path, &pick, &fr, img, err);
+    if (!r && meta)
+        r = read_header_meta(ctx, &pick, meta, err);
+    exr_finish(&ctx);
+    if (r) {
+        sl_image_free(img);
+        if (meta)
+            sl_meta_free(meta);
+        return r;
+    }
+    /* Half and float files can hold NaN/Inf; they are the caller's to count. */
+    return SL_OK;
+}
+
+/* ------------------------------------------------------------------ */
+/* Writing                                                             */
+/* ------------------------------------------------------------------ */
+
+static float sanitize(float v, float limit)
+{
+    if (isnan(v))
+        return 0.0f;
+    return v > limit ? limit : v < -limit ? -limit : v;
+}
+
+static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const sl_meta *meta,
+                                 sl_pixel_type type)
+{
+    static const char *names[4][4] = {{"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
+    int part = 0;
+    exr_result_t rv = exr_add_part(ctx, "rgba", EXR_STORAGE_SCANLINE, &part);
+    if (rv != EXR_ERR_SUCCESS)
+        return rv;
+    exr_attr_box2i_t win;
+    memset(&win, 0, sizeof win);
+    win.max.x = img->width - 1;
+    win.max.y = img->height - 1;
+    exr_attr_v2f_t center;
+    memset(&center, 0, sizeof center);
+    rv = exr_initialize_required_attr(ctx, part, &win, &win, 1.0f, &center, 1.0f,
+                                      EXR_LINEORDER_INCREASING_Y, EXR_COMPRESSION_ZIP);
+    exr_pixel_type_t pt = type == SL_PIXEL_FLOAT ? EXR_PIXEL_FLOAT : EXR_PIXEL_HALF;
+    for (int c = 0; c < img->channels && rv == EXR_ERR_SUCCESS; c++)
+        rv = exr_add_channel(ctx, part, names[img->channels - 1][c], pt,
+                             EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1);
+    exr_attr_chromaticities_t chroma = {0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f};
+    if (meta && meta->has_chromaticities)
+        memcpy(&chroma, meta->chromaticities, sizeof chroma);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_attr_set_chromaticities(ctx, part, "chromaticities", &chroma);
+    if (!meta)
+        return rv;
+    if (rv == EXR_ERR_SUCCESS && meta->envmap != SL_ENVMAP_NONE)
+        rv = exr_attr_set_envmap(ctx, part, "envmap",
+                                 meta->envmap == SL_ENVMAP_CUBE ? EXR_ENVMAP_CUBE : EXR_ENVMAP_LATLONG);
+    /* EXIF-like fields under OpenEXR's standard attribute names. */
+    struct { const char *name; double value; } floats[] = {
+        {"expTime", meta->exposure_time},
+        {"aperture", meta->f_number},
+        {"isoSpeed", meta->iso},
+        {"nominalFocalLength", meta->focal_length_mm},
+    };
+    for (size_t i = 0; i < sizeof floats / sizeof floats[0] && rv == EXR_ERR_SUCCESS; i++)
+        if (floats[i].value > 0)
+            rv = exr_attr_set_float(ctx, part, floats[i].name, (float)floats[i].value);
+    struct { const char *name; const char *value; } strings[] = {
+        {"capDate", meta->datetime},
+        {"cameraMake", meta->make},
+        {"cameraModel", meta->model},
+        {"lensModel", meta->lens},
+    };
+    for (size_t i = 0; i < sizeof strings / sizeof strings[0] && rv == EXR_ERR_SUCCESS; i++)
+        if (strings[i].value[0])
+            rv = exr_attr_set_string(ctx, part, strings[i].name, strings[i].value);
+    for (int i = 0; i < meta->attr_count && rv == EXR_ERR_SUCCESS; i++)
+        rv = exr_attr_set_string(ctx, part, meta->attrs[i].name, meta->attrs[i].value);
+    return rv;
+}
+
+static exr_result_t write_pixels(exr_context_t ctx, const sl_image *img, sl_pixel_type type)
+{
+    int32_t lines = 1;
+    exr_result_t rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
+    if (rv != EXR_ERR_SUCCESS)
+        return rv;
+    int nc = img->channels, w = img->width;
+    float *buf = malloc((size_t)w * (size_t)lines * (size_t)nc * sizeof(float));
+    if (!buf)
+        return EXR_ERR_OUT_OF_MEMORY;
+    /* Half cannot hold more than 65504: clamp rather than write Inf. */
+    float limit = type == SL_PIXEL_HALF ? 65504.0f : FLT_MAX;
+    exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+    bool initialized = false;
+    for (int y = 0; y < img->height && rv == EXR_ERR_SUCCESS; y += lines) {
+        exr_chunk_info_t cinfo;
+        rv = exr_write_scanline_chunk_info(ctx, 0, y, &cinfo);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        for (int j = 0; j < cinfo.height; j++) {
+            const float *src = img->data + (size_t)(y + j) * img->stride;
+            float *dst = buf + (size_t)j * (size_t)w * (size_t)nc;
+            for (size_t k = 0; k < (size_t)w * (size_t)nc; k++)
+                dst[k] = sanitize(src[k], limit);
+        }
+        rv = initialized ? exr_encoding_update(ctx, 0, &cinfo, &enc)
+                         : exr_encoding_initialize(ctx, 0, &cinfo, &enc);
+        if (rv != EXR_ERR_SUCCESS)
+            break;
+        initialized = true;
+        /* Channels come back in the file's (sorted) order: map by name. */
+        static const char *order = "RGBA";
+        for (int i = 0; i < enc.channel_count; i++) {
+            exr_coding_channel_info_t *ch = &enc.channels[i];
+            int c = nc <= 2 ? (ch->channel_name[0] == 'A' ? 1 : 0)
+                            : (int)(strchr(order, ch->channel_name[0]) - order);
+            ch->encode_from_ptr = (const uint8_t *)(buf + c);
+            ch->user_pixel_stride = nc * (int32_t)sizeof(float);
+            ch->user_line_stride = w * nc * (int32_t)sizeof(float);
+            ch->user_data_type = EXR_PIXEL_FLOAT;
+            ch->user_bytes_per_element = sizeof(float);
+        }
+        rv = exr_encoding_choose_default_routines(ctx, 0, &enc);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_encoding_run(ctx, 0, &enc);
+    }
+    if (initialized)
+        exr_encoding_destroy(ctx, &enc);
+    free(buf);
+    return rv;
+}
+
+sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *meta,
+                       sl_pixel_type type, sl_error *err)
+{
+    if (!img || !img->data || img->width <= 0 || img->height <= 0 || img->channels < 1 ||
+        img->channels > 4)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no image to write", path ? path : "(null)");
+    if (type != SL_PIXEL_HALF && type != SL_PIXEL_FLOAT)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: unknown EXR pixel type %d", path, (int)type);
+    sl_atomic_file f;
+    sl_result r = sl_atomic_begin(&f, path, err);
+    if (r)
+        return r;
+
+    exr_message[0] = 0;
+    exr_context_initializer_t init = make_initializer();
+    exr_context_t ctx = NULL;
+    exr_result_t rv = exr_start_write(&ctx, f.temp_path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = write_header(ctx, img, meta, type);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_write_header(ctx);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = write_pixels(ctx, img, type);
+    /* exr_finish writes the chunk offset table: it can fail too. */
+    exr_result_t frv = exr_finish(&ctx);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = frv;
+    if (rv != EXR_ERR_SUCCESS) {
+        sl_atomic_abort(&f);
+        return sl_error_set(err, rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM : SL_ERR_IO,
+                            "%s: cannot write EXR (%s)", path, exr_why(rv));
+    }
+    return sl_atomic_commit(&f, err);
+}

@@ -1,0 +1,353 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Camera and photo formats through OpenImageIO 2.4, behind the C API in
+ * core.h. No exception crosses into C.
+ *
+ * Reading returns subimage 0, mip level 0, the data window, the first (up to)
+ * four channels, as float: integer formats scaled to [0, 1] with no transfer
+ * function removed, alpha left unassociated as stored. No orientation is
+ * applied: the EXIF Orientation is reported in meta->orientation for the
+ * caller to honour. meta->colorspace is OIIO's "oiio:ColorSpace" verbatim
+ * (e.g. "sRGB", "Linear"); sl_color_space_name() maps aliases to the config.
+ *
+ * Camera raw (and DNG) goes through OIIO's LibRaw plugin, configured for
+ * scene-linear data: raw:ColorSpace "sRGB-linear" (Rec.709 primaries, no
+ * tone curve), raw:use_camera_wb 1 (as-shot white balance), raw:auto_bright 0
+ * (no exposure guess, so brackets keep their ratios), raw:HighlightMode 0
+ * (clip: saturated photosites stay at the white level, where a merge can
+ * discard them), raw:apply_scene_linear_scale 0 (values stay relative to the
+ * white level, 1.0 = sensor saturation), raw:user_flip 0 (pixels in sensor
+ * order, like every other format here), raw:Demosaic "AHD" (LibRaw's default,
+ * said explicitly). */
+#include "setlight/core.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cctype>
+#include <cfloat>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <new>
+#include <string>
+#include <vector>
+
+namespace {
+
+using OIIO::ImageInput;
+using OIIO::ImageOutput;
+using OIIO::ImageSpec;
+using OIIO::TypeDesc;
+
+/* One line: OIIO messages can span several. */
+std::string one_line(std::string s)
+{
+    for (char &c : s)
+        if (c == '\n' || c == '\r')
+            c = ' ';
+    while (!s.empty() && s.back() == ' ')
+        s.pop_back();
+    return s.empty() ? std::string("no detail") : s;
+}
+
+ImageSpec read_config()
+{
+    ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    config.attribute("raw:ColorSpace", "sRGB-linear");
+    config.attribute("raw:use_camera_wb", 1);
+    config.attribute("raw:auto_bright", 0);
+    config.attribute("raw:HighlightMode", 0);
+    config.attribute("raw:apply_scene_linear_scale", 0);
+    config.attribute("raw:user_flip", 0);
+    config.attribute("raw:Demosaic", "AHD");
+    return config;
+}
+
+sl_result open_input(const char *path, std::unique_ptr<ImageInput> &in, sl_error *err)
+{
+    sl_result r = sl_check_input_file(path, err);
+    if (r)
+        return r;
+    ImageSpec config = read_config();
+    in = ImageInput::open(path, &config);
+    if (!in)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: not an image file OIIO or OpenEXR can read (%s)",
+                            path, one_line(OIIO::geterror()).c_str());
+    return SL_OK;
+}
+
+double number(const ImageSpec &spec, const char *name)
+{
+    const OIIO::ParamValue *p = spec.find_attribute(name);
+    return p ? p->get_float() : 0.0;
+}
+
+void copy_string(char *dst, size_t size, const std::string &src)
+{
+    std::snprintf(dst, size, "%s", src.c_str());
+}
+
+void fill_meta(ImageInput &in, const ImageSpec &spec, sl_meta *meta)
+{
+    copy_string(meta->format, sizeof meta->format, in.format_name());
+    meta->is_float = spec.format.is_floating_point();
+    meta->bits_per_sample =
+        spec.get_int_attribute("oiio:BitsPerSample", (int)spec.format.size() * 8);
+    copy_string(meta->colorspace, sizeof meta->colorspace,
+                spec.get_string_attribute("oiio:ColorSpace"));
+    meta->exposure_time = number(spec, "ExposureTime");
+    meta->f_number = number(spec, "FNumber");
+    meta->iso = number(spec, "Exif:PhotographicSensitivity");
+    if (meta->iso <= 0)
+        meta->iso = number(spec, "Exif:ISOSpeedRatings");
+    meta->focal_length_mm = number(spec, "Exif:FocalLength");
+    copy_string(meta->make, sizeof meta->make, spec.get_string_attribute("Make"));
+    copy_string(meta->model, sizeof meta->model, spec.get_string_attribute("Model"));
+    std::string lens = spec.get_string_attribute("Exif:LensModel");
+    if (lens.empty())
+        lens = spec.get_string_attribute("LensModel");
+    copy_string(meta->lens, sizeof meta->lens, lens);
+    std::string when = spec.get_string_attribute("Exif:DateTimeOriginal");
+    if (when.empty())
+        when = spec.get_string_attribute("DateTime");
+    copy_string(meta->datetime, sizeof meta->datetime, when);
+    int orientation = spec.get_int_attribute("Orientation", 0);
+    meta->orientation = orientation >= 1 && orientation <= 8 ? orientation : 0;
+}
+
+sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
+{
+    std::unique_ptr<ImageInput> in;
+    sl_result r = open_input(path, in, err);
+    if (r)
+        return r;
+    const ImageSpec &spec = in->spec();
+    int channels = spec.nchannels < 4 ? spec.nchannels : 4;
+    if (spec.depth > 1)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: volume images are not supported", path);
+    r = sl_image_alloc(img, spec.width, spec.height, channels, nullptr);
+    if (r)
+        return sl_error_set(err, r, "%s: cannot hold a %dx%d image with %d channels", path,
+                            spec.width, spec.height, spec.nchannels);
+    if (!in->read_image(0, 0, 0, channels, TypeDesc::FLOAT, img->data)) {
+        std::string why = one_line(in->geterror());
+        sl_image_free(img);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image (%s)", path,
+                            why.c_str());
+    }
+    if (meta)
+        fill_meta(*in, spec, meta);
+    in->close();
+    return SL_OK;
+}
+
+sl_result read_meta_impl(const char *path, sl_meta *meta, int *width, int *height, int *channels,
+                         sl_error *err)
+{
+    std::unique_ptr<ImageInput> in;
+    sl_result r = open_input(path, in, err);
+    if (r)
+        return r;
+    const ImageSpec &spec = in->spec();
+    if (meta)
+        fill_meta(*in, spec, meta);
+    if (width)
+        *width = spec.width;
+    if (height)
+        *height = spec.height;
+    if (channels)
+        *channels = spec.nchannels < 4 ? spec.nchannels : 4;
+    in->close();
+    return SL_OK;
+}
+
+bool ends_with(const std::string &s, const char *suffix)
+{
+    size_t n = std::strlen(suffix);
+    if (s.size() < n)
+        return false;
+    for (size_t i = 0; i < n; i++)
+        if (std::tolower((unsigned char)s[s.size() - n + i]) != suffix[i])
+            return false;
+    return true;
+}
+
+void set_exif(ImageSpec &spec, const sl_meta *meta)
+{
+    if (meta->exposure_time > 0)
+        spec.attribute("ExposureTime", (float)meta->exposure_time);
+    if (meta->f_number > 0)
+        spec.attribute("FNumber", (float)meta->f_number);
+    if (meta->iso > 0) {
+        spec.attribute("Exif:PhotographicSensitivity", (int)std::lround(meta->iso));
+        spec.attribute("Exif:ISOSpeedRatings", (int)std::lround(meta->iso));
+    }
+    if (meta->focal_length_mm > 0)
+        spec.attribute("Exif:FocalLength", (float)meta->focal_length_mm);
+    if (meta->make[0])
+        spec.attribute("Make", meta->make);
+    if (meta->model[0])
+        spec.attribute("Model", meta->model);
+    if (meta->lens[0])
+        spec.attribute("Exif:LensModel", meta->lens);
+    if (meta->datetime[0]) {
+        spec.attribute("DateTime", meta->datetime);
+        spec.attribute("Exif:DateTimeOriginal", meta->datetime);
+    }
+    if (meta->orientation >= 1 && meta->orientation <= 8)
+        spec.attribute("Orientation", meta->orientation);
+    for (int i = 0; i < meta->attr_count; i++)
+        if (std::strncmp(meta->attrs[i].name, "setlight:", 9) == 0)
+            spec.attribute(meta->attrs[i].name, meta->attrs[i].value);
+}
+
+sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta, int bits,
+                     sl_error *err)
+{
+    if (!path || !*path)
+        return sl_error_set(err, SL_ERR_USAGE, "empty output path");
+    if (!img || !img->data || img->width <= 0 || img->height <= 0 || img->channels < 1 ||
+        img->channels > 4)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no image to write", path);
+    std::string p(path);
+    bool jpeg = ends_with(p, ".jpg") || ends_with(p, ".jpeg");
+    bool png = ends_with(p, ".png");
+    bool tiff = ends_with(p, ".tif") || ends_with(p, ".tiff");
+    if (!jpeg && !png && !tiff)
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "%s: unknown photo extension (use .png, .jpg, .jpeg, .tif, .tiff)", path);
+    bool bits_ok = jpeg ? bits == 8 : png ? (bits == 8 || bits == 16)
+                                          : (bits == 8 || bits == 16 || bits == 32);
+    if (!bits_ok)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: %d bits per sample not possible for this format",
+                            path, bits);
+
+    /* JPEG has no alpha: keep the colour channels only. */
+    int nc = img->channels;
+    if (jpeg && (nc == 2 || nc == 4))
+        nc -= 1;
+    TypeDesc type = bits == 8 ? TypeDesc::UINT8 : bits == 16 ? TypeDesc::UINT16 : TypeDesc::FLOAT;
+    ImageSpec spec(img->width, img->height, nc, type);
+    if (nc == 2 || nc == 4)
+        spec.alpha_channel = nc - 1;
+    if (jpeg)
+        spec.attribute("CompressionQuality", 95);
+    if (tiff)
+        spec.attribute("compression", "zip");
+    if (meta)
+        set_exif(spec, meta);
+
+    /* Integer formats clamp to [0, 1]; no NaN or Inf ever reaches a file. */
+    std::vector<float> pixels((size_t)img->width * (size_t)img->height * (size_t)nc);
+    float lo = bits == 32 ? -FLT_MAX : 0.0f, hi = bits == 32 ? FLT_MAX : 1.0f;
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            const float *src = sl_image_pixel(img, x, y);
+            float *dst = &pixels[((size_t)y * (size_t)img->width + (size_t)x) * (size_t)nc];
+            for (int c = 0; c < nc; c++) {
+                float v = src[c];
+                dst[c] = std::isnan(v) ? 0.0f : v < lo ? lo : v > hi ? hi : v;
+            }
+        }
+
+    sl_atomic_file f;
+    sl_result r = sl_atomic_begin(&f, path, err);
+    if (r)
+        return r;
+    std::string why;
+    bool ok = false;
+    try {
+        std::unique_ptr<ImageOutput> out = ImageOutput::create(f.temp_path);
+        ok = out && out->open(f.temp_path, spec) &&
+             out->write_image(TypeDesc::FLOAT, pixels.data());
+        if (out) {
+            if (!ok)
+                why = out->geterror();
+            ok = out->close() && ok;
+            if (!ok && why.empty())
+                why = out->geterror();
+        } else {
+            why = OIIO::geterror();
+        }
+    } catch (...) {
+        sl_atomic_abort(&f);
+        throw;
+    }
+    if (!ok) {
+        sl_atomic_abort(&f);
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot write image (%s)", path,
+                            one_line(why).c_str());
+    }
+    return sl_atomic_commit(&f, err);
+}
+
+sl_result exception_error(const char *path, sl_error *err, const char *what, bool nomem)
+{
+    return sl_error_set(err, nomem ? SL_ERR_NOMEM : SL_ERR_INTERNAL, "%s: OpenImageIO failed (%s)",
+                        path ? path : "(null)", what);
+}
+
+} // namespace
+
+extern "C" sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
+{
+    std::memset(img, 0, sizeof *img);
+    if (meta)
+        sl_meta_init(meta);
+    sl_result r;
+    try {
+        r = read_impl(path, img, meta, err);
+    } catch (const std::bad_alloc &) {
+        r = exception_error(path, err, "out of memory", true);
+    } catch (const std::exception &e) {
+        r = exception_error(path, err, e.what(), false);
+    } catch (...) {
+        r = exception_error(path, err, "unknown exception", false);
+    }
+    if (r) {
+        sl_image_free(img);
+        if (meta)
+            sl_meta_free(meta);
+    }
+    return r;
+}
+
+extern "C" sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *width, int *height,
+                                        int *channels, sl_error *err)
+{
+    if (meta)
+        sl_meta_init(meta);
+    if (width)
+        *width = 0;
+    if (height)
+        *height = 0;
+    if (channels)
+        *channels = 0;
+    sl_result r;
+    try {
+        r = read_meta_impl(path, meta, width, height, channels, err);
+    } catch (const std::bad_alloc &) {
+        r = exception_error(path, err, "out of memory", true);
+    } catch (const std::exception &e) {
+        r = exception_error(path, err, e.what(), false);
+    } catch (...) {
+        r = exception_error(path, err, "unknown exception", false);
+    }
+    if (r && meta)
+        sl_meta_free(meta);
+    return r;
+}
+
+extern "C" sl_result sl_photo_write(const char *path, const sl_image *img, const sl_meta *meta,
+                                    int bits, sl_error *err)
+{
+    try {
+        return write_impl(path, img, meta, bits, err);
+    } catch (const std::bad_alloc &) {
+        return exception_error(path, err, "out of memory", true);
+    } catch (const std::exception &e) {
+        return exception_error(path, err, e.what(), false);
+    } catch (...) {
+        return exception_error(path, err, "unknown exception", false);
+    }
+}
