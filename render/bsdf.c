@@ -81,7 +81,8 @@ bool sl_bsdf_is_delta(const sl_material *m)
     return m->type == SL_MAT_CONDUCTOR && m->roughness == 0.0;
 }
 
-bool sl_bsdf_sample(const sl_material *m, const double wo[3], const double u[3], sl_bsdf_sample *s)
+bool sl_bsdf_sample(const sl_material *m, const double wo[3], const double u[3],
+                    sl_bsdf_sample_rec *s)
 {
     memset(s, 0, sizeof *s);
     if (wo[2] <= 0.0)
@@ -115,7 +116,7 @@ void sl_bsdf_albedo(const sl_material *m, double cos_theta, int n, double albedo
     for (int i = 0; i < k; i++)
         for (int j = 0; j < k; j++) {
             double u[3] = {(i + 0.5) / k, (j + 0.5) / k, 0.5};
-            sl_bsdf_sample s;
+            sl_bsdf_sample_rec s;
             if (!sl_bsdf_sample(m, wo, u, &s) || s.pdf <= 0.0)
                 continue;
             for (int c = 0; c < 3; c++)

@@ -46,12 +46,13 @@ typedef struct sl_material {
     bool compensate;   /* Kulla-Conty multiple-scattering energy compensation */
 } sl_material;
 
-typedef struct sl_bsdf_sample {
+/* Result of sl_bsdf_sample (a C name cannot be both a type and a function). */
+typedef struct sl_bsdf_sample_rec {
     double wi[3]; /* sampled direction, local frame */
     double f[3];  /* BSDF value; for a delta lobe: F / |cos wi| so f*cos/pdf = weight */
     double pdf;   /* solid-angle pdf; for a delta lobe the probability of choosing it */
     bool delta;
-} sl_bsdf_sample;
+} sl_bsdf_sample_rec;
 
 /* Presets: grey 18% Lambert, chrome (measured reflectance documented in
  * docs/render-bsdf.md), generic conductor and plastic. All compensate. */
@@ -68,7 +69,8 @@ void sl_bsdf_eval(const sl_material *m, const double wo[3], const double wi[3], 
 /* Solid-angle pdf of sl_bsdf_sample for the non-delta part. */
 double sl_bsdf_pdf(const sl_material *m, const double wo[3], const double wi[3]);
 /* Samples wi given three uniform numbers; false when no direction (e.g. below the surface). */
-bool sl_bsdf_sample(const sl_material *m, const double wo[3], const double u[3], sl_bsdf_sample *s);
+bool sl_bsdf_sample(const sl_material *m, const double wo[3], const double u[3],
+                    sl_bsdf_sample_rec *s);
 /* True when the material has only a delta lobe (mirror). Lets the integrator skip light sampling. */
 bool sl_bsdf_is_delta(const sl_material *m);
 /* Directional albedo: integral of f cos over the hemisphere for wo at cos_theta,
