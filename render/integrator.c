@@ -1,0 +1,174 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Path integrator: next-event estimation from the dome combined with BSDF
+ * sampling by the power heuristic; delta lobes are followed exactly by BSDF
+ * sampling only. `bounces` counts the non-delta vertices after the first. */
+#include "render_internal.h"
+
+#define MAX_VERTICES 16
+
+void sl_integrator_init(sl_integrator *it, const sl_scene *scene, const sl_render_options *o)
+{
+    it->scene = scene;
+    it->o = o;
+    /* A lone sphere, rect or disk cannot shadow itself for directions above
+     * its tangent plane, so shadow rays are only needed with two shapes. */
+    it->can_occlude = scene->shape_count > 1;
+    it->dome_sampling = sl_dome_can_sample(&scene->dome) &&
+                        (o->strategy == SL_STRATEGY_MIS || o->strategy == SL_STRATEGY_LIGHT);
+}
+
+/* Direction for the next vertex by strategy; returns false when none. */
+static bool sample_direction(const sl_integrator *it, const sl_material *m, const double wo[3],
+                             const double u[3], sl_bsdf_sample_rec *bs)
+{
+    sl_strategy st = it->o->strategy;
+    if (sl_bsdf_is_delta(m) || (st != SL_STRATEGY_UNIFORM && st != SL_STRATEGY_COSINE))
+        return sl_bsdf_sample(m, wo, u, bs);
+    double phi = 2.0 * SL_PI * u[1], cos_t, pdf;
+    if (st == SL_STRATEGY_UNIFORM) {
+        cos_t = 1.0 - u[0];
+        pdf = 1.0 / (2.0 * SL_PI);
+    } else {
+        cos_t = sqrt(1.0 - u[0]);
+        pdf = cos_t / SL_PI;
+    }
+    double sin_t = sqrt(fmax(0.0, 1.0 - cos_t * cos_t));
+    v3_set(bs->wi, sin_t * cos(phi), sin_t * sin(phi), cos_t);
+    if (!(pdf > 0) || cos_t <= 0)
+        return false;
+    bs->pdf = pdf;
+    bs->delta = false;
+    sl_bsdf_eval(m, wo, bs->wi, bs->f);
+    return true;
+}
+
+void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py, double rgba[4],
+                         sl_counters *c)
+{
+    const sl_scene *scene = it->scene;
+    const sl_camera *cam = &scene->camera;
+    const sl_render_options *o = it->o;
+    double jit[2] = {0.5, 0.5};
+    if (!o->pixel_centers)
+        sl_sampler_2d(s, jit);
+    else
+        s->dim++;
+    rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0;
+    double org[3], dir[3];
+    if (!sl_camera_ray(cam, (px + jit[0]) / cam->width, (py + jit[1]) / cam->height, org, dir))
+        return;
+    c->camera_rays++;
+
+    double beta[3] = {1, 1, 1}, L[3] = {0, 0, 0};
+    bool prev_delta = true; /* the camera: what it sees directly gets full weight */
+    double prev_pdf = 0;
+    int nondelta = 0;
+    for (int vertex = 0; vertex < MAX_VERTICES; vertex++) {
+        sl_hit hit;
+        if (!sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &hit)) {
+            double Le[3];
+            if (vertex == 0) {
+                if (scene->background_env)
+                    sl_dome_background(&scene->dome, dir, Le);
+                else
+                    break;
+            } else {
+                sl_dome_radiance(&scene->dome, dir, Le);
+            }
+            double w = 1.0;
+            if (!prev_delta && it->dome_sampling)
+                w = o->strategy == SL_STRATEGY_LIGHT ? 0.0
+                                                     : mis_power(prev_pdf, sl_dome_pdf(&scene->dome, dir));
+            for (int k = 0; k < 3; k++)
+                L[k] += beta[k] * w * Le[k];
+            break;
+        }
+        if (vertex == 0)
+            rgba[3] = 1;
+        const sl_material *m = &scene->materials[scene->shapes[hit.shape].material];
+        bool delta = sl_bsdf_is_delta(m);
+        if (!delta && nondelta > o->bounces)
+            break;
+        frame fr;
+        frame_from_normal(&fr, hit.n);
+        double wo_world[3] = {-dir[0], -dir[1], -dir[2]}, wo[3];
+        frame_to_local(&fr, wo_world, wo);
+        if (wo[2] <= 0)
+            break; /* inside a sphere: no light reaches there */
+
+        double u_light[2], u_bsdf[3], u_tmp[2];
+        sl_sampler_2d(s, u_light);
+        sl_sampler_2d(s, u_tmp);
+        u_bsdf[0] = u_tmp[0], u_bsdf[1] = u_tmp[1];
+        u_bsdf[2] = sl_sampler_1d(s);
+        double u_rr = sl_sampler_1d(s);
+
+        if (!delta && it->dome_sampling) {
+            double wi[3], Le[3], pdf_l;
+            if (sl_dome_sample(&scene->dome, u_light, wi, Le, &pdf_l)) {
+                double wil[3], f[3];
+                frame_to_local(&fr, wi, wil);
+                if (wil[2] > 0 && (Le[0] > 0 || Le[1] > 0 || Le[2] > 0))
+                    sl_bsdf_eval(m, wo, wil, f);
+                else
+                    f[0] = f[1] = f[2] = 0;
+                if (f[0] <= 0 && f[1] <= 0 && f[2] <= 0) {
+                    c->zero_weight++;
+                } else {
+                    bool blocked = false;
+                    if (it->can_occlude) {
+                        double so[3];
+                        sl_offset_origin(hit.p, hit.n, wi, so);
+                        c->shadow_rays++;
+                        blocked = sl_scene_occluded(scene, so, wi, INFINITY);
+                    } else {
+                        c->shadow_skipped++;
+                    }
+                    if (!blocked) {
+                        double w = o->strategy == SL_STRATEGY_MIS
+                                       ? mis_power(pdf_l, sl_bsdf_pdf(m, wo, wil))
+                                       : 1.0;
+                        for (int k = 0; k < 3; k++)
+                            L[k] += beta[k] * f[k] * wil[2] * Le[k] * w / pdf_l;
+                    }
+                }
+            }
+        }
+
+        sl_bsdf_sample_rec bs;
+        if (!sample_direction(it, m, wo, u_bsdf, &bs) || !(bs.pdf > 0))
+            break;
+        double cos_i = fabs(bs.wi[2]);
+        bool any = false;
+        for (int k = 0; k < 3; k++) {
+            beta[k] *= bs.f[k] * cos_i / bs.pdf;
+            any = any || beta[k] > 0;
+        }
+        if (!any)
+            break;
+        if (!delta) {
+            nondelta++;
+            /* Russian roulette once past two non-delta vertices. */
+            if (nondelta > 2) {
+                double q = fmin(1.0, fmax(beta[0], fmax(beta[1], beta[2])));
+                if (u_rr >= q)
+                    break;
+                for (int k = 0; k < 3; k++)
+                    beta[k] /= q;
+            }
+        }
+        prev_delta = bs.delta;
+        prev_pdf = bs.pdf;
+        double wi_world[3];
+        frame_to_world(&fr, bs.wi, wi_world);
+        sl_offset_origin(hit.p, hit.n, wi_world, org);
+        v3_copy(dir, wi_world);
+        c->bsdf_rays++;
+    }
+    if (!v3_finite(L)) {
+        c->nonfinite++;
+        return;
+    }
+    for (int k = 0; k < 3; k++)
+        rgba[k] = L[k];
+}
