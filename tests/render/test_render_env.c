@@ -120,9 +120,318 @@ static void test_grey_real_hdri(void)
     sl_image_free(&env);
 }
 
+
+static int dir_bin(const double d[3], int nt, int np)
+{
+    double phi = atan2(d[0], d[2]);
+    if (phi < 0)
+        phi += 2 * SL_PI;
+    int i = (int)((1.0 - d[1]) * 0.5 * nt), j = (int)(phi / (2 * SL_PI) * np);
+    i = i < 0 ? 0 : i >= nt ? nt - 1 : i;
+    j = j < 0 ? 0 : j >= np ? np - 1 : j;
+    return i * np + j;
+}
+
+/* Equal-area bins in (cos theta about +Y, phi); expected counts integrate
+ * the dome's solid-angle pdf over each bin. */
+static void chi2_dome(double rotation)
+{
+    enum { NT = 12, NP = 24 };
+    const int64_t N = 200000;
+    sl_image env;
+    synthetic_env(&env, 32);
+    sl_scene s;
+    sl_scene_init(&s);
+    CHECK_OK(sl_scene_set_dome(&s, &env, rotation, 2.0, "env", NULL), NULL);
+    static double expected[NT * NP];
+    static int64_t observed[NT * NP];
+    memset(observed, 0, sizeof observed);
+    /* Each texel's probability is uniform in (u,v), so uniform in (theta,
+     * phi) over a theta band and a phi interval (the dome turns about +Y):
+     * its share of each bin is the exact overlap of those intervals. */
+    memset(expected, 0, sizeof expected);
+    double total = 0;
+    int w = env.width, h = env.height;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            /* from the solid-angle pdf: dω = 2 π² sin(theta) du dv */
+            double mc[3], dc[3], v = (y + 0.5) / h;
+            sl_latlong_to_dir((x + 0.5) / w, v, mc);
+            m3_mul(s.dome.rot, mc, dc);
+            double mass =
+                sl_dome_pdf(&s.dome, dc) * 2 * SL_PI * SL_PI * sin(SL_PI * v) / (w * h);
+            double phi_c = atan2(dc[0], dc[2]), dphi = 2 * SL_PI / w;
+            for (int i = 0; i < NT; i++) {
+                double b0 = acos(1.0 - 2.0 * i / NT) / SL_PI, b1 = acos(1.0 - 2.0 * (i + 1) / NT) / SL_PI;
+                double fv = (fmin(b1, (y + 1.0) / h) - fmax(b0, (double)y / h)) * h;
+                if (fv <= 0)
+                    continue;
+                for (int j = 0; j < NP; j++)
+                    for (int k = -1; k <= 1; k++) {
+                        double p0 = 2 * SL_PI * j / NP + 2 * SL_PI * k, p1 = p0 + 2 * SL_PI / NP;
+                        double fp = (fmin(p1, phi_c + 0.5 * dphi) - fmax(p0, phi_c - 0.5 * dphi)) / dphi;
+                        if (fp > 0) {
+                            expected[i * NP + j] += mass * fv * fp;
+                            total += mass * fv * fp;
+                        }
+                    }
+            }
+        }
+    CHECK_NEAR(total, 1.0, 1e-9);
+    sl_sampler smp;
+    int64_t rejected = 0, mismatched = 0;
+    for (int64_t k = 0; k < N; k++) {
+        double u[2], wi[3], L[3], pdf;
+        sl_sampler_start(&smp, 7, (uint32_t)k, false);
+        sl_sampler_2d(&smp, u);
+        if (!sl_dome_sample(&s.dome, u, wi, L, &pdf)) {
+            rejected++;
+            continue;
+        }
+        if (!(fabs(pdf - sl_dome_pdf(&s.dome, wi)) <= 1e-6 * pdf))
+            mismatched++;
+        observed[dir_bin(wi, NT, NP)]++;
+    }
+    CHECK(rejected == 0);
+    CHECK(mismatched == 0);
+    /* Pool bins with fewer than 5 expected samples into one. */
+    double stat = 0, pool_e = 0, pool_o = 0;
+    int dof = -1;
+    for (int b = 0; b < NT * NP; b++) {
+        double e = expected[b] * N;
+        if (e < 5) {
+            pool_e += e, pool_o += observed[b];
+            continue;
+        }
+        stat += (observed[b] - e) * (observed[b] - e) / e;
+        dof++;
+    }
+    if (pool_e > 0) {
+        stat += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+        dof++;
+    }
+    double p = sl_chi2_pvalue(stat, dof);
+    printf("  rotation %g: chi2 %.1f, dof %d, p %.3f\n", rotation, stat, dof, p);
+    CHECK(p > 0.001);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
+static void test_dome_chi2(void)
+{
+    chi2_dome(0);
+    chi2_dome(25);
+}
+
+/* One bright texel in a black map: the chrome ball shows it where core's
+ * mirror-ball projection puts that direction. */
+static void test_chrome_highlight(void)
+{
+    const int W = 64, size = 128, tx = 6, ty = 13;
+    sl_image env;
+    CHECK_OK(sl_image_alloc(&env, W, W / 2, 3, NULL), NULL);
+    sl_image_fill(&env, 0);
+    float *t = sl_image_pixel(&env, tx, ty);
+    t[0] = t[1] = t[2] = 1000;
+    sl_scene s;
+    sl_scene_init(&s);
+    sl_error err = {0};
+    CHECK_OK(sl_scene_preset(&s, "chrome", size, &err), &err);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "env", &err), &err);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 2;
+    o.pixel_centers = true;
+    sl_image img;
+    CHECK_OK(sl_render(&s, &o, &img, NULL, &err), &err);
+    double sx = 0, sy = 0, sw = 0;
+    for (int y = 0; y < size; y++)
+        for (int x = 0; x < size; x++) {
+            double v = sl_image_pixel(&img, x, y)[1];
+            sx += v * (x + 0.5), sy += v * (y + 0.5), sw += v;
+        }
+    double d[3], u, v;
+    sl_latlong_to_dir((tx + 0.5) / W, (ty + 0.5) / (W / 2), d);
+    CHECK(sl_dir_to_projection(SL_PROJ_MIRRORBALL, d, &u, &v));
+    CHECK(sw > 0);
+    printf("  highlight at (%.2f, %.2f), projection says (%.2f, %.2f)\n", sx / sw, sy / sw, u * size,
+           v * size);
+    CHECK_NEAR(sx / sw, u * size, 2.0);
+    CHECK_NEAR(sy / sw, v * size, 2.0);
+    sl_image_free(&img);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
+static void render_check_finite(const sl_scene *s, const sl_render_options *o, sl_image *img,
+                                sl_render_stats *st)
+{
+    sl_error err = {0};
+    CHECK_OK(sl_render(s, o, img, st, &err), &err);
+    sl_image_stats is;
+    sl_image_stats_compute(img, &is);
+    CHECK(is.nan_count == 0 && is.inf_count == 0);
+    CHECK(st->nonfinite_samples == 0);
+}
+
+/* A black dome but for one texel of 1e9: exact per-pixel answer, no fireflies. */
+static void test_single_hot_texel(void)
+{
+    const int W = 64, size = 16;
+    sl_image env;
+    CHECK_OK(sl_image_alloc(&env, W, W / 2, 3, NULL), NULL);
+    sl_image_fill(&env, 0);
+    float *t = sl_image_pixel(&env, 40, 12);
+    t[0] = t[1] = t[2] = 1e9f;
+    sl_scene s;
+    sl_scene_init(&s);
+    CHECK_OK(sl_scene_preset(&s, "grey", size, NULL), NULL);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "env", NULL), NULL);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 64;
+    o.pixel_centers = true;
+    sl_image img;
+    sl_render_stats st;
+    render_check_finite(&s, &o, &img, &st);
+    double worst = 0, peak = 0.18 / SL_PI * 1e9 * sl_latlong_texel_solid_angle(12, W, W / 2);
+    for (int py = 0; py < size; py++)
+        for (int px = 0; px < size; px++) {
+            double x = 2.0 * (px + 0.5) / size - 1.0, y = 1.0 - 2.0 * (py + 0.5) / size;
+            if (x * x + y * y >= 1)
+                continue;
+            double n[3] = {-x, y, -sqrt(1 - x * x - y * y)}, E[3];
+            quadrature_irradiance(&env, n, 8, E);
+            double ref = 0.18 / SL_PI * E[0], val = sl_image_pixel(&img, px, py)[0];
+            CHECK(val <= 1.02 * peak);
+            if (ref > 0.05 * peak)
+                worst = fmax(worst, fabs(val - ref) / ref);
+        }
+    printf("  1e9 texel: worst lit pixel %.3f%%\n", 100 * worst);
+    CHECK(worst < 0.01);
+    sl_image_free(&img);
+    sl_render_stats_free(&st);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
+static void test_black_and_bad_domes(void)
+{
+    sl_image env;
+    CHECK_OK(sl_image_alloc(&env, 32, 16, 3, NULL), NULL);
+    sl_image_fill(&env, 0);
+    sl_scene s;
+    sl_scene_init(&s);
+    CHECK_OK(sl_scene_preset(&s, "refs", 24, NULL), NULL);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "black", NULL), NULL);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 4;
+    sl_image img;
+    sl_render_stats st;
+    render_check_finite(&s, &o, &img, &st);
+    CHECK(!st.dome_sampled);
+    sl_image_stats is;
+    sl_image_stats_compute(&img, &is);
+    CHECK(is.max[0] == 0 && is.max[1] == 0 && is.max[2] == 0);
+    sl_image_free(&img);
+    sl_render_stats_free(&st);
+
+    /* NaN, Inf and negative texels: counted, zeroed, never in the output. */
+    sl_image_fill(&env, 1.0f);
+    sl_image_pixel(&env, 3, 3)[0] = NAN;
+    sl_image_pixel(&env, 7, 9)[2] = INFINITY;
+    sl_image_pixel(&env, 20, 5)[1] = -4.0f;
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "bad", NULL), NULL);
+    CHECK(s.dome.bad_texels == 3);
+    s.background_env = true;
+    render_check_finite(&s, &o, &img, &st);
+    CHECK(st.dome_bad_texels == 3);
+    sl_image_free(&img);
+    sl_render_stats_free(&st);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
+/* Conductors from mirror to rough under a sky with a 1e9 texel, at every
+ * angle including grazing: finite, and never brighter than the brightest texel. */
+static void test_roughness_grid(void)
+{
+    const double rough[] = {0, 1e-7, 1e-4, 1e-2, 1};
+    sl_image env;
+    CHECK_OK(sl_image_alloc(&env, 32, 16, 3, NULL), NULL);
+    sl_image_fill(&env, 1.0f);
+    float *t = sl_image_pixel(&env, 11, 5);
+    t[0] = t[1] = t[2] = 1e9f;
+    for (size_t i = 0; i < sizeof rough / sizeof rough[0]; i++) {
+        sl_scene s;
+        sl_scene_init(&s);
+        sl_material m;
+        double refl[3] = {0.9, 0.9, 0.9}, tint[3] = {1, 1, 1}, c[3] = {0, 0, 0};
+        sl_material_conductor(&m, refl, tint, rough[i]);
+        int mi;
+        CHECK_OK(sl_scene_add_material(&s, &m, &mi, NULL), NULL);
+        CHECK_OK(sl_scene_add_sphere(&s, c, 1, mi, NULL), NULL);
+        sl_camera_validation(&s.camera, 16, 16, 2.0, 10, 20);
+        CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "env", NULL), NULL);
+        sl_render_options o;
+        sl_render_options_init(&o);
+        o.spp = 16;
+        sl_image img;
+        sl_render_stats st;
+        render_check_finite(&s, &o, &img, &st);
+        sl_image_stats is;
+        sl_image_stats_compute(&img, &is);
+        CHECK_MSG(is.max[0] <= 1e9 && is.min[0] >= 0, "roughness %g: range %g..%g", rough[i],
+                  is.min[0], is.max[0]);
+        sl_image_free(&img);
+        sl_render_stats_free(&st);
+        sl_scene_free(&s);
+    }
+    sl_image_free(&env);
+}
+
+/* Same bytes for 1, 2 and 3 threads; a different seed changes them. */
+static void test_determinism(void)
+{
+    sl_image env;
+    synthetic_env(&env, 32);
+    sl_scene s;
+    sl_scene_init(&s);
+    CHECK_OK(sl_scene_preset(&s, "refs", 40, NULL), NULL);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 15, 1, "env", NULL), NULL);
+    s.background_env = true;
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 6;
+    o.bounces = 1;
+    sl_image img[4];
+    for (int k = 0; k < 3; k++) {
+        sl_threads_set(k + 1);
+        CHECK_OK(sl_render(&s, &o, &img[k], NULL, NULL), NULL);
+    }
+    o.seed = 2;
+    CHECK_OK(sl_render(&s, &o, &img[3], NULL, NULL), NULL);
+    sl_threads_set(0);
+    size_t bytes = (size_t)img[0].height * img[0].stride * sizeof(float);
+    CHECK(memcmp(img[0].data, img[1].data, bytes) == 0);
+    CHECK(memcmp(img[0].data, img[2].data, bytes) == 0);
+    CHECK(memcmp(img[0].data, img[3].data, bytes) != 0);
+    for (int k = 0; k < 4; k++)
+        sl_image_free(&img[k]);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
 int main(void)
 {
     RUN(test_grey_synthetic);
     RUN(test_grey_real_hdri);
+    RUN(test_dome_chi2);
+    RUN(test_chrome_highlight);
+    RUN(test_single_hot_texel);
+    RUN(test_black_and_bad_domes);
+    RUN(test_roughness_grid);
+    RUN(test_determinism);
     return sl_test_finish();
 }
