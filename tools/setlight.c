@@ -17,6 +17,7 @@ typedef struct command {
 static const command commands[] = {
     {"version", NULL, "print the version"},
     /* commands are added here as they land */
+    {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
