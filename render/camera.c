@@ -8,9 +8,10 @@ void sl_camera_validation(sl_camera *cam, int width, int height, double ortho_wi
                           double azimuth_deg, double elevation_deg)
 {
     double az = azimuth_deg * SL_PI / 180.0, el = elevation_deg * SL_PI / 180.0;
-    /* Unturned: forward +Z, up +Y. Azimuth turns forward toward +X. */
-    double fwd[3] = {sin(az) * cos(el), sin(el), cos(az) * cos(el)};
-    double up[3] = {-sin(az) * sin(el), cos(el), -cos(az) * sin(el)};
+    /* Unturned: forward +Z, up +Y. Azimuth turns forward toward +X; elevation
+     * raises the camera so that it looks down at the origin. */
+    double fwd[3] = {sin(az) * cos(el), -sin(el), cos(az) * cos(el)};
+    double up[3] = {sin(az) * sin(el), cos(el), cos(az) * sin(el)};
     cam->type = SL_CAMERA_ORTHOGRAPHIC;
     for (int i = 0; i < 3; i++) {
         cam->forward[i] = fwd[i];

@@ -13,8 +13,8 @@ void sl_integrator_init(sl_integrator *it, const sl_scene *scene, const sl_rende
     /* A lone sphere, rect or disk cannot shadow itself for directions above
      * its tangent plane, so shadow rays are only needed with two shapes. */
     it->can_occlude = scene->shape_count > 1;
-    it->dome_sampling = sl_dome_can_sample(&scene->dome) &&
-                        (o->strategy == SL_STRATEGY_MIS || o->strategy == SL_STRATEGY_LIGHT);
+    it->light_sampling = o->strategy == SL_STRATEGY_MIS || o->strategy == SL_STRATEGY_LIGHT;
+    it->dome_sampling = sl_dome_can_sample(&scene->dome) && it->light_sampling;
 }
 
 /* Direction for the next vertex by strategy; returns false when none. */
@@ -42,6 +42,16 @@ static bool sample_direction(const sl_integrator *it, const sl_material *m, cons
     return true;
 }
 
+/* Weight of emission found by a BSDF-sampled ray whose emitter light
+ * sampling also reaches with pdf_light. */
+static double emission_weight(const sl_integrator *it, bool prev_delta, double prev_pdf,
+                              double pdf_light)
+{
+    if (prev_delta || !it->light_sampling)
+        return 1.0;
+    return it->o->strategy == SL_STRATEGY_LIGHT ? 0.0 : mis_power(prev_pdf, pdf_light);
+}
+
 void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py, double rgba[4],
                          sl_counters *c)
 {
@@ -65,7 +75,38 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
     int nondelta = 0;
     for (int vertex = 0; vertex < MAX_VERTICES; vertex++) {
         sl_hit hit;
-        if (!sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &hit)) {
+        bool hit_shape = sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &hit);
+        double tmax = hit_shape ? hit.t : INFINITY;
+        /* The nearest area light in front of the shapes absorbs the ray. */
+        int nearest = -1;
+        double Ln[3] = {0, 0, 0};
+        for (int i = 0; i < scene->light_count; i++) {
+            double t, Le[3];
+            if (scene->lights[i].type != SL_LIGHT_DISTANT &&
+                sl_light_intersect(&scene->lights[i], org, dir, tmax, &t, Le)) {
+                nearest = i;
+                tmax = t;
+                v3_copy(Ln, Le);
+            }
+        }
+        if (nearest >= 0) {
+            double w = emission_weight(it, prev_delta, prev_pdf,
+                                       sl_light_pdf(&scene->lights[nearest], org, dir, tmax));
+            for (int k = 0; k < 3; k++)
+                L[k] += beta[k] * w * Ln[k];
+            break;
+        }
+        if (!hit_shape && (vertex > 0 || scene->background_env))
+            for (int i = 0; i < scene->light_count; i++) {
+                const sl_light *l = &scene->lights[i];
+                double t, Le[3];
+                if (l->type == SL_LIGHT_DISTANT && sl_light_intersect(l, org, dir, INFINITY, &t, Le)) {
+                    double w = emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(l, org, dir, t));
+                    for (int k = 0; k < 3; k++)
+                        L[k] += beta[k] * w * Le[k];
+                }
+            }
+        if (!hit_shape) {
             double Le[3];
             if (vertex == 0) {
                 if (scene->background_env)
@@ -75,10 +116,9 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
             } else {
                 sl_dome_radiance(&scene->dome, dir, Le);
             }
-            double w = 1.0;
-            if (!prev_delta && it->dome_sampling)
-                w = o->strategy == SL_STRATEGY_LIGHT ? 0.0
-                                                     : mis_power(prev_pdf, sl_dome_pdf(&scene->dome, dir));
+            double w = it->dome_sampling ? emission_weight(it, prev_delta, prev_pdf,
+                                                           sl_dome_pdf(&scene->dome, dir))
+                                         : 1.0;
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Le[k];
             break;
@@ -134,6 +174,38 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                 }
             }
         }
+
+        if (!delta && it->light_sampling)
+            for (int i = 0; i < scene->light_count; i++) {
+                const sl_light *l = &scene->lights[i];
+                double u_l[2], wi[3], Le[3], pdf_l, dist, wil[3], f[3];
+                bool dl;
+                sl_sampler_2d(s, u_l);
+                if (!sl_light_sample(l, hit.p, u_l, wi, &dist, Le, &pdf_l, &dl))
+                    continue;
+                frame_to_local(&fr, wi, wil);
+                if (wil[2] > 0 && (Le[0] > 0 || Le[1] > 0 || Le[2] > 0))
+                    sl_bsdf_eval(m, wo, wil, f);
+                else
+                    f[0] = f[1] = f[2] = 0;
+                if (f[0] <= 0 && f[1] <= 0 && f[2] <= 0) {
+                    c->zero_weight++;
+                    continue;
+                }
+                if (it->can_occlude) {
+                    double so[3];
+                    sl_offset_origin(hit.p, hit.n, wi, so);
+                    c->shadow_rays++;
+                    if (sl_scene_occluded(scene, so, wi, isinf(dist) ? INFINITY : dist * (1 - 1e-9)))
+                        continue;
+                } else {
+                    c->shadow_skipped++;
+                }
+                double w = (dl || o->strategy == SL_STRATEGY_LIGHT) ? 1.0
+                                                                    : mis_power(pdf_l, sl_bsdf_pdf(m, wo, wil));
+                for (int k = 0; k < 3; k++)
+                    L[k] += beta[k] * f[k] * wil[2] * Le[k] * w / pdf_l;
+            }
 
         sl_bsdf_sample_rec bs;
         if (!sample_direction(it, m, wo, u_bsdf, &bs) || !(bs.pdf > 0))

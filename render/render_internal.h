@@ -135,6 +135,18 @@ bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double
 double sl_dome_pdf(const sl_dome *dome, const double wi[3]);
 void sl_dome_free(sl_dome *dome);
 
+/* ---- lights (lights.c) ---- */
+/* Samples a direction toward the light from p; dist is the distance to the
+ * sampled point (INFINITY for distant lights). delta: a direction with no
+ * solid angle (pdf is then 1 and L is irradiance). */
+bool sl_light_sample(const sl_light *l, const double p[3], const double u[2], double wi[3],
+                     double *dist, double L[3], double *pdf, bool *delta);
+/* Solid-angle pdf of sl_light_sample for direction wi hitting the light at dist. */
+double sl_light_pdf(const sl_light *l, const double p[3], const double wi[3], double dist);
+/* A ray (o, d) reaching the light before tmax: distance and emitted radiance. */
+bool sl_light_intersect(const sl_light *l, const double o[3], const double d[3], double tmax,
+                        double *t, double L[3]);
+
 /* ---- integrator (integrator.c) ---- */
 typedef struct sl_counters {
     int64_t camera_rays, shadow_rays, bsdf_rays, shadow_skipped, zero_weight, nonfinite;
@@ -144,6 +156,7 @@ typedef struct sl_integrator {
     const sl_scene *scene;
     const sl_render_options *o;
     bool can_occlude; /* more than one shape: a shadow ray could hit something */
+    bool light_sampling; /* strategy samples lights and the dome */
     bool dome_sampling;
 } sl_integrator;
 

@@ -13,6 +13,9 @@ void sl_scene_init(sl_scene *scene)
 
 void sl_scene_free(sl_scene *scene)
 {
+    for (int i = 0; i < scene->light_count; i++)
+        sl_image_free(&scene->lights[i].texture);
+    free(scene->lights);
     free(scene->shapes);
     free(scene->materials);
     sl_dome_free(&scene->dome);

@@ -12,10 +12,13 @@
 static void help(FILE *out)
 {
     fprintf(out,
-            "usage: setlight render --env ENV [--scene PRESET|FILE.json] [options] -o OUT.exr\n\n"
+            "usage: setlight render --env ENV | --rig RIG.json [--scene PRESET|FILE.json] [options]\n"
+            "                       -o OUT.exr\n\n"
             "Renders validation references (grey ball, chrome ball, Macbeth chart...) lit by an\n"
-            "HDR lat-long, progressively, with an error estimate after each pass.\n\n"
+            "HDR lat-long or a light rig, progressively, with an error estimate after each pass.\n\n"
             "  --env FILE          lat-long environment (EXR, HDR or any image; width = 2 x height)\n"
+            "  --rig FILE          light rig JSON: rect/disk/sphere/distant lights and an optional\n"
+            "                      dome (docs/render.md)\n"
             "  --rotate DEG        turn the environment about +Y (default 0)\n"
             "  --intensity X       multiply the environment (default 1)\n"
             "  --scene NAME|FILE   preset (%s) or a scene JSON file\n"
@@ -94,7 +97,7 @@ static bool is_file(const char *s)
 int cmd_render(int argc, char **argv, const sl_cli *cli)
 {
     enum { O_ENV = 256, O_ROT, O_INT, O_SCENE, O_MAT, O_WIDTH, O_VIEW, O_BG, O_SPP, O_TIME,
-           O_TERR, O_BOUNCES, O_STRAT, O_SAMPLER, O_SEED, O_REF, O_STATS };
+           O_TERR, O_BOUNCES, O_STRAT, O_SAMPLER, O_SEED, O_REF, O_STATS, O_RIG };
     static const struct option opts[] = {
         {"env", required_argument, 0, O_ENV},         {"rotate", required_argument, 0, O_ROT},
         {"intensity", required_argument, 0, O_INT},   {"scene", required_argument, 0, O_SCENE},
@@ -104,10 +107,10 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         {"target-error", required_argument, 0, O_TERR},
         {"bounces", required_argument, 0, O_BOUNCES}, {"strategy", required_argument, 0, O_STRAT},
         {"sampler", required_argument, 0, O_SAMPLER}, {"seed", required_argument, 0, O_SEED},
-        {"reference", required_argument, 0, O_REF},   {"stats", required_argument, 0, O_STATS},
+        {"rig", required_argument, 0, O_RIG},         {"reference", required_argument, 0, O_REF},   {"stats", required_argument, 0, O_STATS},
         {"output", required_argument, 0, 'o'},        {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0}};
-    const char *env_path = NULL, *scene_arg = "grey", *mat_spec = NULL, *ref_path = NULL,
+    const char *rig_path = NULL, *env_path = NULL, *scene_arg = "grey", *mat_spec = NULL, *ref_path = NULL,
                *stats_path = NULL, *out_path = NULL;
     double rotate = 0, intensity = 1, az = 0, el = 0;
     bool view = false, bg_env = false, spp_given = false;
@@ -123,6 +126,7 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
             return 0;
         case 'o': out_path = optarg; break;
         case O_ENV: env_path = optarg; break;
+        case O_RIG: rig_path = optarg; break;
         case O_SCENE: scene_arg = optarg; break;
         case O_MAT: mat_spec = optarg; break;
         case O_REF: ref_path = optarg; break;
@@ -195,8 +199,8 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
     }
     if (optind < argc)
         return cli_usage_error(cli, "unexpected argument '%s'", argv[optind]);
-    if (!env_path)
-        return cli_usage_error(cli, "--env ENV is required");
+    if (!env_path == !rig_path)
+        return cli_usage_error(cli, "give exactly one of --env ENV and --rig RIG.json");
     if (!out_path)
         return cli_usage_error(cli, "-o OUT.exr is required");
     if (!spp_given && (o.time_limit > 0 || o.target_error > 0))
@@ -237,11 +241,14 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         for (int i = 0; i < scene.shape_count; i++)
             scene.shapes[i].material = idx;
     }
-    if ((r = sl_image_read(env_path, &env, NULL, &err)) ||
-        (r = sl_scene_set_dome(&scene, &env, rotate, intensity, env_path, &err)))
+    if (env_path && ((r = sl_image_read(env_path, &env, NULL, &err)) ||
+                     (r = sl_scene_set_dome(&scene, &env, rotate, intensity, env_path, &err))))
         goto fail;
+    if (rig_path && (r = sl_scene_read_rig(&scene, rig_path, &err)))
+        goto fail;
+    const char *light_src = env_path ? env_path : rig_path;
     if (scene.dome.bad_texels)
-        sl_log(SL_LOG_WARN, "%s: %lld NaN, Inf or negative samples set to 0", env_path,
+        sl_log(SL_LOG_WARN, "%s: %lld NaN, Inf or negative samples set to 0", light_src,
                (long long)scene.dome.bad_texels);
     if (ref_path) {
         if ((r = sl_image_read(ref_path, &ref, NULL, &err)))
@@ -259,8 +266,8 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
     sl_meta_init(&meta);
     char buf[256];
     const sl_render_pass *last = stats.pass_count ? &stats.passes[stats.pass_count - 1] : NULL;
-    snprintf(buf, sizeof buf, "scene=%s env=%s rotate=%g intensity=%g spp=%lld strategy=%s",
-             scene.name, env_path, rotate, intensity, (long long)stats.spp,
+    snprintf(buf, sizeof buf, "scene=%s %s=%s rotate=%g intensity=%g spp=%lld strategy=%s",
+             scene.name, env_path ? "env" : "rig", light_src, rotate, intensity, (long long)stats.spp,
              sl_strategy_name(o.strategy));
     sl_meta_set(&meta, "setlight:render", buf, NULL);
     snprintf(buf, sizeof buf, "%.6g", last ? last->est_rel_rmse : 0.0);

@@ -114,8 +114,9 @@ typedef struct sl_camera {
 
 /* The validation camera (docs/render.md): orthographic, looking along +Z
  * from z = -10 toward the origin, +Y up, image right = -X, the unit sphere
- * exactly filling the image width; then turned by azimuth (about +Y, toward
- * +X) and elevation (about the camera's right axis, upward). */
+ * exactly filling the image width; then orbited about the origin by azimuth
+ * (about +Y, the view turning toward +X) and elevation (the camera rising,
+ * looking down; 90 looks straight down with +Z at the image top). */
 void sl_camera_validation(sl_camera *cam, int width, int height, double ortho_width,
                           double azimuth_deg, double elevation_deg);
 
@@ -132,7 +133,30 @@ typedef struct sl_dome {
     sl_dome_sampler *sampler;
 } sl_dome;
 
+/* Area and distant lights with UsdLux's meaning: each light emits along its
+ * local -Z axis (rect, disk: from the face whose normal is -Z; sphere: all
+ * around). Radiance = color * intensity * 2^exposure; with normalize, divided
+ * by the emitting area (rect, disk, sphere) or, for a distant light, chosen so
+ * that the illuminance at normal incidence is intensity * 2^exposure. */
+typedef enum { SL_LIGHT_RECT = 0, SL_LIGHT_DISK, SL_LIGHT_SPHERE, SL_LIGHT_DISTANT } sl_light_type;
+
+typedef struct sl_light {
+    sl_light_type type;
+    double position[3];
+    double axis_x[3], axis_y[3], axis_z[3]; /* orthonormal, right-handed */
+    double width, height; /* rect, along axis_x and axis_y */
+    double radius;        /* disk, sphere */
+    double angle_deg;     /* distant: angular diameter (0 = a delta light) */
+    double color[3];
+    double intensity, exposure;
+    bool normalize;
+    sl_image texture;     /* rect only, optional (RGB multiplies color; row 0 at +axis_y) */
+    double radiance[3];   /* derived by sl_scene_add_light */
+} sl_light;
+
 typedef struct sl_scene {
+    sl_light *lights;
+    int light_count;
     sl_shape *shapes;
     int shape_count;
     sl_material *materials;
@@ -159,6 +183,13 @@ sl_result sl_scene_add_disk(sl_scene *scene, const double center[3], const doubl
  * rotation_deg turns the dome about +Y. `source` names it in messages. */
 sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotation_deg,
                             double intensity, const char *source, sl_error *err);
+
+/* Validates and appends a light (the scene takes over light->texture, also
+ * on failure). The axes are re-orthonormalised from axis_z and axis_y. */
+sl_result sl_scene_add_light(sl_scene *scene, sl_light *light, sl_error *err);
+/* Reads a light rig (docs/render.md): optional dome plus lights. Textures and
+ * the dome file are resolved relative to the rig's folder. */
+sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err);
 
 /* Validation scenes: "grey", "chrome", "chart", "refs", "shadow", "materials".
  * Sets shapes, materials and camera (width pixels wide); the dome is left
