@@ -266,6 +266,44 @@ sl_result sl_render_stats_write_json(const sl_render_stats *stats, const sl_rend
  * SL_ERR_INPUT when the sizes differ. */
 sl_result sl_relative_rmse(const sl_image *img, const sl_image *ref, double *out, sl_error *err);
 
+/* ---- Convergence reports: error against time for each strategy ---- */
+
+#define SL_CONVERGE_MAX 8
+
+typedef struct sl_converge_curve {
+    char name[32];             /* e.g. "mis+sobol" */
+    sl_strategy strategy;
+    bool low_discrepancy;
+    sl_render_stats stats;     /* passes carry ref_rel_rmse */
+} sl_converge_curve;
+
+typedef struct sl_converge_report {
+    sl_converge_curve curves[SL_CONVERGE_MAX];
+    int count;
+    int64_t reference_spp;     /* 0 when the reference was given */
+    double reference_seconds;
+} sl_converge_report;
+
+/* Renders the scene with uniform, cosine, bsdf, light and mis (independent
+ * random numbers) and mis+sobol, each up to base->spp samples per pixel,
+ * measuring the relative RMSE after every pass against `reference` or, when
+ * NULL, against a mis+sobol render of reference_spp samples. */
+sl_result sl_converge_run(const sl_scene *scene, const sl_render_options *base,
+                          const sl_image *reference, int64_t reference_spp,
+                          sl_converge_report *rep, sl_error *err);
+void sl_converge_report_free(sl_converge_report *rep);
+/* Samples per pixel at which the curve first reaches `target` (log-log
+ * interpolation between passes), or -1 if it never does. */
+double sl_converge_spp_to_reach(const sl_converge_curve *c, double target);
+/* Same, in seconds. */
+double sl_converge_seconds_to_reach(const sl_converge_curve *c, double target);
+/* Log-log plot of relative RMSE against seconds, one line per strategy. */
+sl_result sl_converge_write_svg(const sl_converge_report *rep, const char *path, sl_error *err);
+/* A Markdown table: strategy, spp, seconds, samples/s, final error, and the
+ * spp and seconds each needs to reach `target`. */
+sl_result sl_converge_write_table(const sl_converge_report *rep, double target, const char *path,
+                                  sl_error *err);
+
 /* Renders progressively until a stop condition holds. out gets an RGBA
  * image (alpha = coverage by the scene's shapes). Deterministic for a seed,
  * whatever the thread count. */
