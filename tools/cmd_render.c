@@ -4,7 +4,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "cli.h"
 #include "setlight/render.h"
@@ -85,13 +84,6 @@ static bool parse_material(const char *spec, sl_material *m)
         sl_material_plastic(m, rgb, 1.5, rough);
     }
     return true;
-}
-
-static bool is_file(const char *s)
-{
-    struct stat sb;
-    size_t n = strlen(s);
-    return stat(s, &sb) == 0 || (n > 5 && !strcmp(s + n - 5, ".json")) || strchr(s, '/');
 }
 
 int cmd_render(int argc, char **argv, const sl_cli *cli)
@@ -211,16 +203,12 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
 
     sl_error err = {0};
     sl_scene scene;
-    sl_image env = {0}, ref = {0}, img = {0};
+    sl_image ref = {0}, img = {0};
     sl_render_stats stats = {0};
     sl_scene_init(&scene);
     sl_result r;
-    bool preset = !is_file(scene_arg);
-    if (preset)
-        r = sl_scene_preset(&scene, scene_arg, width, &err);
-    else
-        r = sl_scene_read_json(&scene, scene_arg, width, &err);
-    if (r)
+    bool preset = !sl_scene_arg_is_file(scene_arg);
+    if ((r = sl_scene_load(&scene, scene_arg, width, env_path, rotate, intensity, rig_path, &err)))
         goto fail;
     if (view) {
         if (!preset) {
@@ -241,11 +229,6 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         for (int i = 0; i < scene.shape_count; i++)
             scene.shapes[i].material = idx;
     }
-    if (env_path && ((r = sl_image_read(env_path, &env, NULL, &err)) ||
-                     (r = sl_scene_set_dome(&scene, &env, rotate, intensity, env_path, &err))))
-        goto fail;
-    if (rig_path && (r = sl_scene_read_rig(&scene, rig_path, &err)))
-        goto fail;
     const char *light_src = env_path ? env_path : rig_path;
     if (scene.dome.bad_texels)
         sl_log(SL_LOG_WARN, "%s: %lld NaN, Inf or negative samples set to 0", light_src,
@@ -292,7 +275,6 @@ fail:
     sl_render_stats_free(&stats);
     sl_image_free(&img);
     sl_image_free(&ref);
-    sl_image_free(&env);
     sl_scene_free(&scene);
     return r ? cli_fail(cli, &err) : 0;
 }

@@ -16,8 +16,10 @@ typedef struct command {
 
 static const command commands[] = {
     {"version", NULL, "print the version"},
+    {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},
     /* commands are added here as they land */
     {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
+    {"converge", cmd_converge, "error against time for each sampling strategy (table, SVG)"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);

@@ -77,6 +77,30 @@ bool sl_bsdf_is_delta(const sl_material *m);
  * estimated with n stratified samples (for the furnace and tests). */
 void sl_bsdf_albedo(const sl_material *m, double cos_theta, int n, double albedo[3]);
 
+/* White furnace: the directional albedo of white (energy-preserving) lobes
+ * over roughness 0..1 and incidence, with and without compensation. */
+typedef struct sl_furnace_case {
+    const char *bsdf;  /* "lambert", "conductor", "conductor_aniso", "plastic" (static) */
+    double roughness;
+    double cos_theta;
+    bool compensated;
+    double albedo;     /* mean over channels (the lobes are white) */
+    double expected;   /* 1: a white energy-preserving lobe keeps all energy */
+} sl_furnace_case;
+
+typedef struct sl_furnace {
+    sl_furnace_case *cases;
+    int count;
+} sl_furnace;
+
+/* Runs every case with `samples` stratified samples each (>= 16); deterministic
+ * and parallel over cases. */
+sl_result sl_furnace_run(int samples, sl_furnace *out, sl_error *err);
+void sl_furnace_free(sl_furnace *f);
+/* {"cases": [{"bsdf", "roughness", "cos_theta", "compensated", "albedo",
+ * "expected"}, ...]}; *json is malloc'ed, free() it. */
+sl_result sl_furnace_json(const sl_furnace *f, char **json, sl_error *err);
+
 /* ================================================================== */
 /* Scenes, lights, cameras, integrator                                 */
 /* ================================================================== */
@@ -207,6 +231,15 @@ extern const char *const SL_COLORCHECKER_NAMES[24];
  * that are NaN, negative where they must not be, or of the wrong type are
  * SL_ERR_INPUT naming the field and the file. */
 sl_result sl_scene_read_json(sl_scene *scene, const char *path, int width, sl_error *err);
+
+/* What the commands do to set up a scene: scene_arg names a preset or, when
+ * it is an existing path or ends in .json, a scene file; then the lighting
+ * from exactly one of env (a lat-long image, turned and scaled) and rig. */
+sl_result sl_scene_load(sl_scene *scene, const char *scene_arg, int width, const char *env,
+                        double env_rotation_deg, double env_intensity, const char *rig,
+                        sl_error *err);
+/* True when sl_scene_load would read scene_arg as a file. */
+bool sl_scene_arg_is_file(const char *scene_arg);
 
 typedef enum {
     SL_STRATEGY_MIS = 0, /* BSDF + light sampling, power heuristic */

@@ -1,0 +1,43 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Directional-albedo tables for Kulla-Conty multiple-scattering compensation
+ * (Kulla & Conty 2017) and for the energy-conserving diffuse-under-coat
+ * (the "1 - E" approach). Tables are generated offline by
+ * scripts/gen_energy_tables.c into render/energy_tables.c. Private to render/. */
+#ifndef SETLIGHT_RENDER_ENERGY_H
+#define SETLIGHT_RENDER_ENERGY_H
+
+/* Grid: mu_i = (i/(NMU-1))^3 and roughness_j = (j/(NR-1))^2 (perceptual,
+ * alpha = r^2): dense at grazing and low roughness, where E changes on a scale
+ * of mu ~ alpha;
+ * t_k = k/(NT-1) with t = (ior-1)/(ior+1) = sqrt(F0). Entry mu = 0 holds the
+ * value at mu = 1e-6. Averages are exact for the piecewise-linear-in-mu
+ * interpolant, so int (1 - E(mu)) mu dmu matches (1 - E_avg)/2 exactly and the
+ * compensation lobes integrate to what they claim. */
+#define SL_E_NMU 32
+#define SL_E_NR 32
+#define SL_E_NT 16
+
+/* E(mu, r) of the single-scattering isotropic GGX lobe with F = 1. */
+extern const float sl_energy_e1_table[SL_E_NR][SL_E_NMU];
+extern const float sl_energy_e1_avg_table[SL_E_NR];
+/* The same with the exact dielectric Fresnel of index (1+t)/(1-t). */
+extern const float sl_energy_ed_table[SL_E_NT][SL_E_NR][SL_E_NMU];
+extern const float sl_energy_ed_avg_table[SL_E_NT][SL_E_NR];
+
+/* Single-scattering directional albedo by stratified VNDF quadrature with
+ * k x k samples: F = 1 when ior <= 0, else the exact dielectric Fresnel.
+ * Roughness below SL_ROUGHNESS_DELTA is the mirror: E = F(mu). */
+double sl_energy_integrate(double mu, double roughness, double ior, int k);
+/* Positions of the mu and roughness nodes. */
+double sl_energy_mu_node(int i);
+double sl_energy_r_node(int j);
+/* Exact 2 int E mu dmu of the piecewise-linear (in mu) interpolant through e[]. */
+double sl_energy_average(const double e[SL_E_NMU]);
+
+/* Interpolated lookups (bilinear / trilinear), arguments clamped to the grid. */
+double sl_energy_e1(double mu, double roughness);
+double sl_energy_e1_avg(double roughness);
+double sl_energy_ed(double mu, double roughness, double ior);
+double sl_energy_ed_avg(double roughness, double ior);
+
+#endif
