@@ -8,6 +8,13 @@
 #include "../../render/render_internal.h"
 #include "testing.h"
 
+/* Sanitizer builds run about 20x slower: smaller images, same assertions. */
+#if defined(__SANITIZE_ADDRESS__)
+#define WIDTH 24
+#else
+#define WIDTH 48
+#endif
+
 /* Sky gradient with a small sun: both sampling strategies have a weak spot. */
 static void sky_with_sun(sl_image *env)
 {
@@ -41,7 +48,7 @@ static void converge_scene(const char *preset, int width)
      * coverage noise, the same for every lighting strategy, dominate. */
     o.pixel_centers = true;
     sl_converge_report rep;
-    CHECK_OK(sl_converge_run(&s, &o, NULL, 1024, &rep, &err), &err);
+    CHECK_OK(sl_converge_run(&s, &o, NULL, 512, &rep, &err), &err);
     CHECK(rep.count == 6);
     const sl_converge_curve *mis = NULL, *bsdf = NULL, *light = NULL;
     for (int i = 0; i < rep.count; i++) {
@@ -79,8 +86,8 @@ static void converge_scene(const char *preset, int width)
     sl_image_free(&env);
 }
 
-static void test_converge_refs(void) { converge_scene("refs", 48); }
-static void test_converge_materials(void) { converge_scene("materials", 48); }
+static void test_converge_refs(void) { converge_scene("refs", WIDTH); }
+static void test_converge_materials(void) { converge_scene("materials", WIDTH); }
 
 int main(void)
 {
