@@ -72,6 +72,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
     double beta[3] = {1, 1, 1}, L[3] = {0, 0, 0};
     bool prev_delta = true; /* the camera: what it sees directly gets full weight */
     double prev_pdf = 0;
+    uint64_t prev_unsampled = 0;
     int nondelta = 0;
     for (int vertex = 0; vertex < MAX_VERTICES; vertex++) {
         sl_hit hit;
@@ -90,8 +91,10 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
             }
         }
         if (nearest >= 0) {
-            double w = emission_weight(it, prev_delta, prev_pdf,
-                                       sl_light_pdf(&scene->lights[nearest], org, dir, tmax));
+            double w = nearest < 64 && (prev_unsampled >> nearest & 1)
+                           ? 1.0
+                           : emission_weight(it, prev_delta, prev_pdf,
+                                             sl_light_pdf(&scene->lights[nearest], org, dir, tmax));
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Ln[k];
             break;
@@ -101,7 +104,9 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                 const sl_light *l = &scene->lights[i];
                 double t, Le[3];
                 if (l->type == SL_LIGHT_DISTANT && sl_light_intersect(l, org, dir, INFINITY, &t, Le)) {
-                    double w = emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(l, org, dir, t));
+                    double w = i < 64 && (prev_unsampled >> i & 1)
+                                   ? 1.0
+                                   : emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(l, org, dir, t));
                     for (int k = 0; k < 3; k++)
                         L[k] += beta[k] * w * Le[k];
                 }
@@ -175,12 +180,38 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
             }
         }
 
+        /* Lights not sampled here: emission found from this vertex gets weight 1. */
+        uint64_t unsampled = 0;
+        if (!delta && it->light_sampling && scene->light_count > 0) {
+            /* Cull lights far dimmer than the brightest, at Lambert vertices
+             * only (glossy lobes can favour a dim light) and for the first
+             * 64 lights (a bit mask remembers them for the next hit). */
+            bool cull = o->light_cull > 0 && m->type == SL_MAT_LAMBERT && scene->light_count > 1;
+            double bound[64], top = 0;
+            for (int i = 0; i < scene->light_count && i < 64; i++) {
+                bool behind;
+                bound[i] = sl_light_irradiance_bound(&scene->lights[i], hit.p, hit.n, &behind);
+                if (behind) {
+                    unsampled |= 1ull << i;
+                    c->behind++;
+                }
+                top = fmax(top, bound[i]);
+            }
+            if (cull && isfinite(top))
+                for (int i = 0; i < scene->light_count && i < 64; i++)
+                    if (!(unsampled >> i & 1) && bound[i] < o->light_cull * top) {
+                        unsampled |= 1ull << i;
+                        c->culled++;
+                    }
+        }
         if (!delta && it->light_sampling)
             for (int i = 0; i < scene->light_count; i++) {
                 const sl_light *l = &scene->lights[i];
                 double u_l[2], wi[3], Le[3], pdf_l, dist, wil[3], f[3];
                 bool dl;
                 sl_sampler_2d(s, u_l);
+                if (i < 64 && (unsampled >> i & 1))
+                    continue;
                 if (!sl_light_sample(l, hit.p, u_l, wi, &dist, Le, &pdf_l, &dl))
                     continue;
                 frame_to_local(&fr, wi, wil);
@@ -231,6 +262,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         }
         prev_delta = bs.delta;
         prev_pdf = bs.pdf;
+        prev_unsampled = unsampled;
         double wi_world[3];
         frame_to_world(&fr, bs.wi, wi_world);
         sl_offset_origin(hit.p, hit.n, wi_world, org);

@@ -343,3 +343,33 @@ bool sl_light_intersect(const sl_light *l, const double o[3], const double d[3],
     emitted(l, q, d, L);
     return true;
 }
+
+double sl_light_irradiance_bound(const sl_light *l, const double p[3], const double n[3],
+                                 bool *behind)
+{
+    *behind = false;
+    double Lmax = fmax(l->radiance[0], fmax(l->radiance[1], l->radiance[2]));
+    if (l->type == SL_LIGHT_DISTANT) {
+        double a = 0.5 * l->angle_deg * SL_PI / 180.0;
+        if (v3_dot(l->axis_z, n) <= -sin(a)) {
+            *behind = true;
+            return 0;
+        }
+        if (l->angle_deg == 0)
+            return Lmax;
+        return Lmax * 2 * SL_PI * one_minus_cos_cone(sin(a) * sin(a));
+    }
+    double d[3] = {p[0] - l->position[0], p[1] - l->position[1], p[2] - l->position[2]};
+    double R = l->type == SL_LIGHT_RECT ? 0.5 * sqrt(l->width * l->width + l->height * l->height)
+                                        : l->radius;
+    if ((l->type != SL_LIGHT_SPHERE && v3_dot(d, l->axis_z) >= 0) || v3_dot(d, n) >= R) {
+        *behind = true; /* the back of a one-sided light, or wholly below the horizon */
+        return 0;
+    }
+    if (l->texture.data)
+        return INFINITY;
+    double dist2 = v3_dot(d, d);
+    if (!(dist2 > R * R * (1 + 1e-9)))
+        return INFINITY;
+    return Lmax * 2 * SL_PI * one_minus_cos_cone(R * R / dist2);
+}

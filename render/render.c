@@ -16,6 +16,7 @@ void sl_render_options_init(sl_render_options *o)
     o->strategy = SL_STRATEGY_MIS;
     o->low_discrepancy = true;
     o->seed = 1;
+    o->light_cull = 1e-3;
 }
 
 static const char *const strategy_names[SL_STRATEGY_COUNT] = {"mis", "uniform", "cosine", "bsdf",
@@ -146,6 +147,7 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
         return sl_error_set(err, SL_ERR_USAGE, "render: image size %dx%d must be at least 1x1",
                             cam->width, cam->height);
     if (o->spp < 0 || !(o->time_limit >= 0) || !(o->target_error >= 0) || o->bounces < 0 ||
+        !(o->light_cull >= 0 && o->light_cull < 1) ||
         o->strategy < 0 || o->strategy >= SL_STRATEGY_COUNT)
         return sl_error_set(err, SL_ERR_USAGE, "render: negative or invalid stop condition");
     if (o->spp == 0 && o->time_limit == 0 && o->target_error == 0)
@@ -230,6 +232,8 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
         stats->shadow_rays_skipped += j.rows[y].shadow_skipped;
         stats->zero_weight_skipped += j.rows[y].zero_weight;
         stats->nonfinite_samples += j.rows[y].nonfinite;
+        stats->lights_culled += j.rows[y].culled;
+        stats->lights_behind += j.rows[y].behind;
     }
     stats->dome_bad_texels = scene->dome.bad_texels;
     stats->dome_sampled = j.it.dome_sampling;

@@ -147,9 +147,17 @@ double sl_light_pdf(const sl_light *l, const double p[3], const double wi[3], do
 bool sl_light_intersect(const sl_light *l, const double o[3], const double d[3], double tmax,
                         double *t, double L[3]);
 
+/* Upper bound of the irradiance the light can deliver at p with normal n
+ * (max channel), INFINITY when none is known (p inside its bounding sphere,
+ * a texture). *behind: p sees only the back of a one-sided light or the light
+ * is wholly below the horizon: exactly 0. */
+double sl_light_irradiance_bound(const sl_light *l, const double p[3], const double n[3],
+                                 bool *behind);
+
 /* ---- integrator (integrator.c) ---- */
 typedef struct sl_counters {
     int64_t camera_rays, shadow_rays, bsdf_rays, shadow_skipped, zero_weight, nonfinite;
+    int64_t culled, behind;
 } sl_counters;
 
 typedef struct sl_integrator {

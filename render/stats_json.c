@@ -24,6 +24,8 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(root, "bsdf_rays", json_integer(st->bsdf_rays));
     json_object_set_new(root, "shadow_rays_skipped", json_integer(st->shadow_rays_skipped));
     json_object_set_new(root, "zero_weight_skipped", json_integer(st->zero_weight_skipped));
+    json_object_set_new(root, "lights_culled", json_integer(st->lights_culled));
+    json_object_set_new(root, "lights_behind", json_integer(st->lights_behind));
     json_object_set_new(root, "nonfinite_samples", json_integer(st->nonfinite_samples));
     json_object_set_new(root, "dome_bad_texels", json_integer(st->dome_bad_texels));
     json_object_set_new(root, "dome_sampled", json_boolean(st->dome_sampled));

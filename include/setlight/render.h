@@ -264,6 +264,11 @@ typedef struct sl_render_options {
     bool pixel_centers;     /* sample pixel centres only (no box filter), for tests */
     uint64_t seed;
     const sl_image *reference; /* optional: true error per pass */
+    /* At a Lambert vertex, a light whose irradiance bound is below this
+     * fraction of the brightest light's is not sampled there; BSDF sampling
+     * still finds it (with full weight), so the image stays unbiased.
+     * 0 samples every light. Default 1e-3. */
+    double light_cull;
 } sl_render_options;
 
 void sl_render_options_init(sl_render_options *o); /* spp 64, MIS, low discrepancy */
@@ -284,6 +289,8 @@ typedef struct sl_render_stats {
     int64_t camera_rays, shadow_rays, bsdf_rays;
     int64_t shadow_rays_skipped; /* nothing in the scene could occlude */
     int64_t zero_weight_skipped; /* light samples whose BSDF value or pdf was zero */
+    int64_t lights_culled;       /* (vertex, light) pairs below the light_cull bound */
+    int64_t lights_behind;       /* (vertex, light) pairs behind a one-sided light or below the horizon: exactly 0 */
     int64_t nonfinite_samples;   /* NaN/Inf sample values dropped (a bug if not 0) */
     int64_t dome_bad_texels;
     bool dome_sampled;           /* false when the dome is black (nothing to sample) */

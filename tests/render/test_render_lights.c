@@ -367,8 +367,61 @@ static void test_normalize_and_bad_lights(void)
     sl_scene_free(&s);
 }
 
+/* A light 1e5 times dimmer than another is culled at Lambert vertices, and
+ * the image stays unbiased (BSDF sampling still finds it). Lights seen from
+ * behind are skipped exactly. */
+static void test_culling(void)
+{
+    sl_scene s;
+    sl_scene_init(&s);
+    CHECK_OK(sl_scene_preset(&s, "grey", 16, NULL), NULL);
+    /* the bright sphere lights the +X half (image left), the dim rect the -X half */
+    const double p1[3] = {6, 0, 0}, p2[3] = {-4, 0, -1}, p3[3] = {0, 0, 5};
+    const double e1[3] = {-1, 0, 0}, e2[3] = {1, 0, 0.25}, away[3] = {0, 0, 1};
+    sl_light l;
+    base_light(&l, SL_LIGHT_SPHERE, p1, e1);
+    l.radius = 0.5, l.intensity = 1e5;
+    CHECK_OK(sl_scene_add_light(&s, &l, NULL), NULL);
+    base_light(&l, SL_LIGHT_RECT, p2, e2);
+    l.width = l.height = 2, l.intensity = 1;
+    CHECK_OK(sl_scene_add_light(&s, &l, NULL), NULL);
+    base_light(&l, SL_LIGHT_DISK, p3, away); /* faces away from the sphere */
+    l.radius = 1;
+    CHECK_OK(sl_scene_add_light(&s, &l, NULL), NULL);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 1024;
+    sl_image a, b;
+    sl_render_stats sa, sb;
+    CHECK_OK(sl_render(&s, &o, &a, &sa, NULL), NULL);
+    o.light_cull = 0;
+    CHECK_OK(sl_render(&s, &o, &b, &sb, NULL), NULL);
+    CHECK(sa.lights_culled > 0 && sb.lights_culled == 0);
+    CHECK(sa.lights_behind > 0 && sb.lights_behind == sa.lights_behind);
+    /* where only the dim rect is above the horizon it is not culled (the
+     * bright light's bound is 0 there): same samples, same values */
+    double suma = 0, sumb = 0, ta = 0, tb = 0;
+    for (int y = 4; y < 12; y++)
+        for (int x = 13; x < 15; x++)
+            suma += sl_image_pixel(&a, x, y)[0], sumb += sl_image_pixel(&b, x, y)[0];
+    for (int y = 0; y < 16; y++)
+        for (int x = 0; x < 16; x++)
+            ta += sl_image_pixel(&a, x, y)[0], tb += sl_image_pixel(&b, x, y)[0];
+    printf("  culled %lld, behind %lld; dim-lit region %.6g vs %.6g, image %.6g vs %.6g without culling\n",
+           (long long)sa.lights_culled, (long long)sa.lights_behind, suma, sumb, ta, tb);
+    CHECK(sumb > 0);
+    CHECK_NEAR(suma / sumb, 1.0, 1e-3);
+    CHECK_NEAR(ta / tb, 1.0, 2e-3);
+    sl_image_free(&a);
+    sl_image_free(&b);
+    sl_render_stats_free(&sa);
+    sl_render_stats_free(&sb);
+    sl_scene_free(&s);
+}
+
 int main(void)
 {
+    RUN(test_culling);
     RUN(test_sphere_light);
     RUN(test_distant_lights);
     RUN(test_planar_lights);
