@@ -2,6 +2,8 @@
 /* Sample sequences: Owen-scrambled 2D Sobol with hash-based scrambling and
  * index shuffling per dimension pair (B. Burley, "Practical Hash-based Owen
  * Scrambling", JCGT 9(4), 2020), and PCG32 for independent random numbers. */
+#include <pthread.h>
+
 #include "render_internal.h"
 
 uint64_t sl_hash64(uint64_t x)
@@ -39,14 +41,33 @@ static uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed)
     return reverse_bits(laine_karras(reverse_bits(x), seed));
 }
 
-/* Sobol dimension 1 (dimension 0 is the bit-reversed index). */
+/* Sobol dimension 1 (dimension 0 is the bit-reversed index): the XOR of
+ * direction numbers v_k = v_{k-1} ^ (v_{k-1} >> 1) over the set bits of i,
+ * tabulated per byte of the index. */
+static uint32_t sobol1_table[4][256];
+
+static void sobol1_init(void)
+{
+    uint32_t v[32];
+    v[0] = 1u << 31;
+    for (int k = 1; k < 32; k++)
+        v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+    for (int b = 0; b < 4; b++)
+        for (int x = 0; x < 256; x++) {
+            uint32_t r = 0;
+            for (int k = 0; k < 8; k++)
+                if (x >> k & 1)
+                    r ^= v[8 * b + k];
+            sobol1_table[b][x] = r;
+        }
+}
+
+static pthread_once_t sobol1_once = PTHREAD_ONCE_INIT;
+
 static uint32_t sobol_dim1(uint32_t i)
 {
-    uint32_t r = 0, v = 1u << 31;
-    for (; i; i >>= 1, v ^= v >> 1)
-        if (i & 1)
-            r ^= v;
-    return r;
+    return sobol1_table[0][i & 255] ^ sobol1_table[1][(i >> 8) & 255] ^
+           sobol1_table[2][(i >> 16) & 255] ^ sobol1_table[3][i >> 24];
 }
 
 static double to_unit(uint32_t x) { return (double)x * (1.0 / 4294967296.0); }
@@ -62,6 +83,8 @@ static uint32_t pcg32(uint64_t *state)
 
 void sl_sampler_start(sl_sampler *s, uint64_t pixel_seed, uint32_t index, bool low_discrepancy)
 {
+    if (low_discrepancy)
+        pthread_once(&sobol1_once, sobol1_init);
     s->seed = pixel_seed;
     s->index = index;
     s->dim = 0;

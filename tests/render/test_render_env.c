@@ -300,6 +300,59 @@ static void test_chrome_highlight(void)
     sl_image_free(&env);
 }
 
+/* A perfect mirror ball rendered by the validation camera unwraps through
+ * core's mirror-ball projection into the environment that lit it. */
+static void test_mirror_ball_unwraps(void)
+{
+    const int W = 64;
+    sl_image env;
+    CHECK_OK(sl_image_alloc(&env, W, W / 2, 3, NULL), NULL);
+    for (int y = 0; y < W / 2; y++)
+        for (int x = 0; x < W; x++) {
+            double d[3];
+            sl_latlong_to_dir((x + 0.5) / W, (y + 0.5) / (W / 2), d);
+            float *p = sl_image_pixel(&env, x, y);
+            p[0] = (float)(1.0 + 0.8 * d[0]); /* distinct in every axis direction */
+            p[1] = (float)(1.0 + 0.8 * d[1]);
+            p[2] = (float)(1.0 + 0.8 * d[2]);
+        }
+    sl_scene s;
+    sl_scene_init(&s);
+    sl_material m;
+    const double one[3] = {1, 1, 1}, c[3] = {0, 0, 0};
+    sl_material_conductor(&m, one, one, 0.0);
+    m.fresnel = SL_FRESNEL_ONE;
+    int mi;
+    CHECK_OK(sl_scene_add_material(&s, &m, &mi, NULL), NULL);
+    CHECK_OK(sl_scene_add_sphere(&s, c, 1, mi, NULL), NULL);
+    sl_camera_validation(&s.camera, 256, 256, 2.0, 0, 0);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "env", NULL), NULL);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 4;
+    sl_image ball, ll;
+    sl_error err = {0};
+    CHECK_OK(sl_render(&s, &o, &ball, NULL, &err), &err);
+    CHECK_OK(sl_reproject(&ball, SL_PROJ_MIRRORBALL, SL_PROJ_LATLONG, W, NULL, &ll, &err), &err);
+    double worst = 0;
+    for (int y = 0; y < W / 2; y++)
+        for (int x = 0; x < W; x++) {
+            double d[3];
+            sl_latlong_to_dir((x + 0.5) / W, (y + 0.5) / (W / 2), d);
+            if (d[2] > 0.5)
+                continue; /* near +Z the ball's rim squeezes too much into a pixel */
+            for (int k = 0; k < 3; k++)
+                worst = fmax(worst, fabs(sl_image_pixel(&ll, x, y)[k] - sl_image_pixel(&env, x, y)[k]) /
+                                        sl_image_pixel(&env, x, y)[k]);
+        }
+    printf("  unwrapped mirror ball vs environment: worst %.2f%%\n", 100 * worst);
+    CHECK(worst < 0.03);
+    sl_image_free(&ball);
+    sl_image_free(&ll);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
 static void render_check_finite(const sl_scene *s, const sl_render_options *o, sl_image *img,
                                 sl_render_stats *st)
 {
@@ -469,6 +522,7 @@ int main(void)
     RUN(test_grey_real_hdri);
     RUN(test_dome_chi2);
     RUN(test_chrome_highlight);
+    RUN(test_mirror_ball_unwraps);
     RUN(test_single_hot_texel);
     RUN(test_black_and_bad_domes);
     RUN(test_roughness_grid);
