@@ -74,6 +74,20 @@ bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double
     return true;
 }
 
+void sl_dome_radiance_pdf(const sl_dome *dome, const double d[3], double L[3], double *pdf)
+{
+    double m[3], u, v;
+    m3_mul_transpose(dome->rot, d, m);
+    sl_dir_to_latlong(m, &u, &v);
+    const float *t = texel(&dome->image, u, v);
+    for (int c = 0; c < 3; c++)
+        L[c] = dome->intensity * t[c];
+    double sin_theta = sqrt(m[0] * m[0] + m[2] * m[2]);
+    *pdf = sin_theta < 1e-12 ? 0
+                             : sl_distrib2d_pdf(&dome->sampler->dist, u, v) /
+                                   (2.0 * SL_PI * SL_PI * sin_theta);
+}
+
 double sl_dome_pdf(const sl_dome *dome, const double wi[3])
 {
     double m[3], u, v;

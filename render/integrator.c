@@ -114,16 +114,20 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         if (!hit_shape) {
             double Le[3];
             if (vertex == 0) {
-                if (scene->background_env)
+                if (scene->background_env) {
                     sl_dome_background(&scene->dome, dir, Le);
-                else
-                    break;
+                    v3_copy(L, Le);
+                }
+                break;
+            }
+            double w = 1.0;
+            if (it->dome_sampling) {
+                double pdf_dome;
+                sl_dome_radiance_pdf(&scene->dome, dir, Le, &pdf_dome);
+                w = emission_weight(it, prev_delta, prev_pdf, pdf_dome);
             } else {
                 sl_dome_radiance(&scene->dome, dir, Le);
             }
-            double w = it->dome_sampling ? emission_weight(it, prev_delta, prev_pdf,
-                                                           sl_dome_pdf(&scene->dome, dir))
-                                         : 1.0;
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Le[k];
             break;

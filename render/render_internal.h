@@ -133,6 +133,8 @@ bool sl_dome_can_sample(const sl_dome *dome);
 /* Samples a world direction; pdf is per solid angle. False (pdf 0) at a pole. */
 bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double L[3], double *pdf);
 double sl_dome_pdf(const sl_dome *dome, const double wi[3]);
+/* Both at once (one lookup); only when sl_dome_can_sample. */
+void sl_dome_radiance_pdf(const sl_dome *dome, const double d[3], double L[3], double *pdf);
 void sl_dome_free(sl_dome *dome);
 
 /* ---- lights (lights.c) ---- */
