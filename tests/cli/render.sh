@@ -35,6 +35,15 @@ for o in --env --scene --material --width --view --background --spp --time --tar
     grep -q -- "$o" "$T/help.txt" || { echo "FAIL --help lacks $o"; fail=1; }
 done
 
+"$S" render --env "$T/env.hdr" --scene chrome --material plastic:0.5,0.1,0.1:0.3 --view 30,20 --width 12 --spp 2 -o "$T/mat.exr" --quiet
+check "material and view" 0 $?
+printf '{"lights": [{"type": "sphere", "position": [0, 4, -2], "radius": 0.5, "intensity": 20},
+  {"type": "distant", "direction": [0, -1, 1], "angle": 1, "intensity": 3, "normalize": true}],
+  "dome": {"file": "env.hdr", "intensity": 0.5}}' > "$T/rig.json"
+"$S" render --rig "$T/rig.json" --scene shadow --width 16 --spp 4 -o "$T/rig.exr" --stats "$T/rig_stats.json" --quiet
+check "rig render" 0 $?
+grep -q '"shadow_rays": [1-9]' "$T/rig_stats.json" || { echo "FAIL rig render traced no shadow rays"; fail=1; }
+
 run_bad() { # name expected-rc message-pattern args...
     local name=$1 want=$2 pat=$3; shift 3
     "$S" render "$@" -o "$T/bad.exr" 2> "$T/err.txt"
@@ -58,4 +67,12 @@ printf '{"materials": {"m": {"type": "lambert", "color": [0.5, -0.2, 0.1]}}, "ob
 run_bad "negative colour" 3 "negc.json: materials.m.color" --env "$T/env.hdr" --scene "$T/negc.json"
 run_bad "missing scene file" 3 "absent.json" --env "$T/env.hdr" --scene "$T/absent.json"
 run_bad "bad strategy" 2 "strategy" --env "$T/env.hdr" --strategy magic
+run_bad "bad material" 2 "material" --env "$T/env.hdr" --material gold
+run_bad "env and rig" 2 "exactly one" --env "$T/env.hdr" --rig "$T/rig.json"
+printf '{"lights": [{"type": "rect", "texture": "missing_softbox.exr"}]}' > "$T/rig_tex.json"
+run_bad "rig with missing texture" 3 "missing_softbox.exr" --rig "$T/rig_tex.json"
+printf '{"lights": [{"type": "disk", "radius": -0.5}]}' > "$T/rig_neg.json"
+run_bad "rig with negative radius" 3 "rig_neg.json: lights\[0\]" --rig "$T/rig_neg.json"
+printf '{"lights": [], "dome": {"file": "gone.exr"}}' > "$T/rig_dome.json"
+run_bad "rig with missing dome" 3 "gone.exr" --rig "$T/rig_dome.json"
 exit $fail

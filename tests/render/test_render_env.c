@@ -494,6 +494,10 @@ static void test_determinism(void)
     CHECK_OK(sl_scene_preset(&s, "refs", 40, NULL), NULL);
     CHECK_OK(sl_scene_set_dome(&s, &env, 15, 1, "env", NULL), NULL);
     s.background_env = true;
+    sl_light l = {.type = SL_LIGHT_RECT, .width = 1, .height = 0.5, .intensity = 5};
+    v3_set(l.position, 0, 3, -2), v3_set(l.axis_z, 0, 1, 0.3), v3_set(l.axis_y, 0, 0, 1);
+    v3_set(l.color, 1, 0.9, 0.8);
+    CHECK_OK(sl_scene_add_light(&s, &l, NULL), NULL);
     sl_render_options o;
     sl_render_options_init(&o);
     o.spp = 6;
