@@ -4,14 +4,16 @@
  * sampling only. `bounces` counts the non-delta vertices after the first. */
 #include "render_internal.h"
 
-#define MAX_VERTICES 16
+/* Delta (mirror) vertices allowed beyond the counted bounces. */
+#define MAX_DELTA_VERTICES 16
 
 void sl_integrator_init(sl_integrator *it, const sl_scene *scene, const sl_render_options *o)
 {
     it->scene = scene;
     it->o = o;
-    /* A lone sphere, rect or disk cannot shadow itself for directions above
-     * its tangent plane, so shadow rays are only needed with two shapes. */
+    /* A lone rect, disk or sphere seen from outside cannot shadow itself for
+     * directions above its tangent plane, so shadow rays are only needed with
+     * two shapes or inside a sphere. */
     it->can_occlude = scene->shape_count > 1;
     it->light_sampling = o->strategy == SL_STRATEGY_MIS || o->strategy == SL_STRATEGY_LIGHT;
     it->dome_sampling = sl_dome_can_sample(&scene->dome) && it->light_sampling;
@@ -74,7 +76,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
     double prev_pdf = 0;
     uint64_t prev_unsampled = 0;
     int nondelta = 0;
-    for (int vertex = 0; vertex < MAX_VERTICES; vertex++) {
+    for (int vertex = 0; vertex <= o->bounces + MAX_DELTA_VERTICES; vertex++) {
         sl_hit hit;
         bool hit_shape = sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &hit);
         double tmax = hit_shape ? hit.t : INFINITY;
@@ -143,7 +145,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         double wo_world[3] = {-dir[0], -dir[1], -dir[2]}, wo[3];
         frame_to_local(&fr, wo_world, wo);
         if (wo[2] <= 0)
-            break; /* inside a sphere: no light reaches there */
+            break; /* grazing: rounding put the viewer below the surface */
 
         double u_light[2], u_bsdf[3], u_tmp[2];
         sl_sampler_2d(s, u_light);
@@ -165,7 +167,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     c->zero_weight++;
                 } else {
                     bool blocked = false;
-                    if (it->can_occlude) {
+                    if (it->can_occlude || hit.inside) {
                         double so[3];
                         sl_offset_origin(hit.p, hit.n, wi, so);
                         c->shadow_rays++;
@@ -227,7 +229,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     c->zero_weight++;
                     continue;
                 }
-                if (it->can_occlude) {
+                if (it->can_occlude || hit.inside) {
                     double so[3];
                     sl_offset_origin(hit.p, hit.n, wi, so);
                     c->shadow_rays++;

@@ -108,8 +108,9 @@ double sl_sampler_1d(sl_sampler *s);
 typedef struct sl_hit {
     double t;
     double p[3];
-    double n[3]; /* geometric normal, facing the incoming ray for flat shapes */
+    double n[3]; /* geometric normal, facing the incoming ray */
     int shape;
+    bool inside; /* a sphere seen from inside: its concave side can occlude */
 } sl_hit;
 
 /* Nearest hit with t in (tmin, tmax). */
@@ -165,7 +166,8 @@ typedef struct sl_counters {
 typedef struct sl_integrator {
     const sl_scene *scene;
     const sl_render_options *o;
-    bool can_occlude; /* more than one shape: a shadow ray could hit something */
+    bool can_occlude; /* more than one shape: a shadow ray could hit something
+                         (a lone sphere can also shadow its own inside) */
     bool light_sampling; /* strategy samples lights and the dome */
     bool dome_sampling;
 } sl_integrator;

@@ -101,7 +101,13 @@ bool sl_scene_intersect(const sl_scene *scene, const double o[3], const double d
         /* Project onto the surface so secondary rays start from it. */
         for (int i = 0; i < 3; i++)
             hit->p[i] = s->center[i] + s->radius * hit->n[i];
+        /* Spheres are thin shells: seen from inside, the normal faces in. */
+        hit->inside = v3_dot(d, hit->n) > 0;
+        if (hit->inside)
+            for (int i = 0; i < 3; i++)
+                hit->n[i] = -hit->n[i];
     } else {
+        hit->inside = false;
         double sign = v3_dot(d, s->normal) > 0 ? -1.0 : 1.0;
         for (int i = 0; i < 3; i++)
             hit->n[i] = sign * s->normal[i];

@@ -419,8 +419,61 @@ static void test_culling(void)
     sl_scene_free(&s);
 }
 
+/* An integrating sphere: a Lambert shell (rho = 0.5) lit by a small sphere
+ * light at its centre. The wall's radiance after N bounces is
+ * rho/pi * E * sum_{k<=N} rho^k with E = Le pi (r/R)^2 (the light blocks
+ * about (r/R)^2 of the interreflections: 0.25% here). */
+static void test_integrating_sphere(void)
+{
+    const double rho = 0.5, Le = 100, r = 0.05, R = 1;
+    sl_scene s;
+    sl_scene_init(&s);
+    sl_material m;
+    sl_material_lambert(&m, rho, rho, rho);
+    int mi;
+    const double c[3] = {0, 0, 0};
+    CHECK_OK(sl_scene_add_material(&s, &m, &mi, NULL), NULL);
+    CHECK_OK(sl_scene_add_sphere(&s, c, R, mi, NULL), NULL);
+    const double emit[3] = {0, -1, 0};
+    sl_light l;
+    base_light(&l, SL_LIGHT_SPHERE, c, emit);
+    l.radius = r, l.intensity = Le;
+    CHECK_OK(sl_scene_add_light(&s, &l, NULL), NULL);
+    s.camera.type = SL_CAMERA_PERSPECTIVE;
+    v3_set(s.camera.position, 0, 0.5, 0);
+    v3_set(s.camera.forward, 0, 0, 1);
+    v3_set(s.camera.up, 0, 1, 0);
+    s.camera.fov_deg = 10;
+    s.camera.width = s.camera.height = 4;
+    const int bounces[] = {0, 1, 3, 30};
+    for (int b = 0; b < 4; b++) {
+        sl_render_options o;
+        sl_render_options_init(&o);
+        o.spp = 512;
+        o.bounces = bounces[b];
+        sl_image img;
+        sl_render_stats st;
+        CHECK_OK(sl_render(&s, &o, &img, &st, NULL), NULL);
+        double sum = 0, series = 0;
+        for (int k = 0; k <= bounces[b]; k++)
+            series += pow(rho, k);
+        for (int y = 0; y < 4; y++)
+            for (int x = 0; x < 4; x++)
+                sum += sl_image_pixel(&img, x, y)[1];
+        double expect = rho / SL_PI * Le * SL_PI * (r / R) * (r / R) * series;
+        printf("  %d bounces: %.6g, expected %.6g (%+.3f%%)\n", bounces[b], sum / 16, expect,
+               100 * (sum / 16 / expect - 1));
+        CHECK_NEAR(sum / 16 / expect, 1.0, bounces[b] ? 0.01 : 1e-3);
+        CHECK(st.shadow_rays > 0); /* the inside of a lone sphere can occlude */
+        sl_image_free(&img);
+        sl_render_stats_free(&st);
+    }
+    sl_scene_free(&s);
+}
+
 int main(void)
 {
+    RUN(test_integrating_sphere);
     RUN(test_culling);
     RUN(test_sphere_light);
     RUN(test_distant_lights);
