@@ -8,8 +8,10 @@
  * level). The returned image covers the display window, the frame that
  * lat-long geometry refers to: data-window pixels land at their position,
  * pixels outside the data window are 0, and overscan outside the display
- * window is cropped. */
+ * window is cropped. DWAA/DWAB pixels, which the OpenEXR 3.1 C API cannot
+ * decode, come through OpenImageIO (OpenEXR's C++ library) instead. */
 #include "setlight/core.h"
+#include "exr_oiio.h"
 
 #include <float.h>
 #include <math.h>
@@ -29,8 +31,14 @@ static _Thread_local char exr_message[512];
 static void capture_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
 {
     (void)ctxt;
-    if (!exr_message[0])
-        snprintf(exr_message, sizeof exr_message, "%s", msg ? msg : exr_get_default_error_message(code));
+    if (exr_message[0])
+        return;
+    /* Messages can quote corrupt header bytes: keep one printable line. */
+    const char *src = msg ? msg : exr_get_default_error_message(code);
+    size_t n = 0;
+    for (; src[n] && n < 160; n++)
+        exr_message[n] = src[n] >= 0x20 && src[n] < 0x7f ? src[n] : '?';
+    strcpy(exr_message + n, src[n] ? "..." : "");
 }
 
 static exr_context_initializer_t make_initializer(void)
@@ -60,8 +68,8 @@ static sl_result corrupt(sl_error *err, const char *path, exr_result_t rv)
 /* ------------------------------------------------------------------ */
 
 typedef struct exr_pick {
-    int count;              /* 1..4 output channels */
-    const char *names[4];   /* file channel name for each output channel */
+    int count;            /* 1..4 output channels */
+    const char *names[4]; /* file channel name for each output channel */
     exr_pixel_type_t types[4];
 } exr_pick;
 
@@ -117,10 +125,7 @@ static bool pick_channels(const exr_attr_chlist_t *cl, exr_pick *pick)
     return false;
 }
 
-static void set_fixed(char *dst, size_t size, const char *src)
-{
-    snprintf(dst, size, "%s", src);
-}
+static void set_fixed(char *dst, size_t size, const char *src) { snprintf(dst, size, "%s", src); }
 
 /* Fills meta from the header: envmap, chromaticities, standard camera
  * attributes and every other string attribute. */
@@ -141,8 +146,8 @@ static sl_result read_header_meta(exr_context_t ctx, const exr_pick *pick, sl_me
         count = 0;
     for (int32_t i = 0; i < count; i++) {
         const exr_attribute_t *a = NULL;
-        if (exr_get_attribute_by_index(ctx, 0, EXR_ATTR_LIST_FILE_ORDER, i, &a) != EXR_ERR_SUCCESS ||
-            !a)
+        exr_result_t rv = exr_get_attribute_by_index(ctx, 0, EXR_ATTR_LIST_FILE_ORDER, i, &a);
+        if (rv != EXR_ERR_SUCCESS || !a)
             continue;
         const char *n = a->name;
         switch (a->type) {
@@ -204,8 +209,9 @@ typedef struct exr_frame {
 /* Decodes one chunk whose pixels start at file coordinates (x0, y0) and
  * copies the part inside the display window into img. */
 static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinfo, int x0, int y0,
-                                 const exr_pick *pick, const exr_frame *fr, exr_decode_pipeline_t *dec,
-                                 bool *initialized, float *scratch, sl_image *img)
+                                 const exr_pick *pick, const exr_frame *fr,
+                                 exr_decode_pipeline_t *dec, bool *initialized, float *scratch,
+                                 sl_image *img)
 {
     exr_result_t rv = *initialized ? exr_decoding_update(ctx, 0, cinfo, dec)
                                    : exr_decoding_initialize(ctx, 0, cinfo, dec);
@@ -218,9 +224,12 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
         ch->decode_to_ptr = NULL;
         for (int c = 0; c < nc; c++)
             if (strcmp(ch->channel_name, pick->names[c]) == 0) {
-                ch->decode_to_ptr = (uint8_t *)(scratch + c);
-                ch->user_pixel_stride = nc * (int32_t)sizeof(float);
-                ch->user_line_stride = w * nc * (int32_t)sizeof(float);
+                /* Planar: OpenEXR 3.1's interleaved RGBA half fast path
+                 * assumes the pointers in the file's channel order (A,B,G,R)
+                 * and swaps the channels of interleaved RGBA output. */
+                ch->decode_to_ptr = (uint8_t *)(scratch + (size_t)c * (size_t)w * (size_t)h);
+                ch->user_pixel_stride = (int32_t)sizeof(float);
+                ch->user_line_stride = w * (int32_t)sizeof(float);
                 ch->user_data_type = EXR_PIXEL_FLOAT;
                 ch->user_bytes_per_element = sizeof(float);
             }
@@ -238,9 +247,9 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
             int fx = x0 + x;
             if (fx < fr->display.min.x || fx > fr->display.max.x)
                 continue;
-            memcpy(sl_image_pixel(img, fx - fr->display.min.x, fy - fr->display.min.y),
-                   scratch + ((size_t)y * (size_t)w + (size_t)x) * (size_t)nc,
-                   (size_t)nc * sizeof(float));
+            float *dst = sl_image_pixel(img, fx - fr->display.min.x, fy - fr->display.min.y);
+            for (int c = 0; c < nc; c++)
+                dst[c] = scratch[((size_t)c * (size_t)h + (size_t)y) * (size_t)w + (size_t)x];
         }
     }
     return EXR_ERR_SUCCESS;
@@ -270,6 +279,10 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_pick
         if (rv == EXR_ERR_SUCCESS) {
             tiles_x = (lw + chunk_w - 1) / chunk_w;
             tiles_y = (lh + chunk_h - 1) / chunk_h;
+            /* Chunks never exceed the level: size the scratch by that, not
+             * by a (possibly corrupt) tile size. */
+            chunk_w = chunk_w < lw ? chunk_w : lw;
+            chunk_h = chunk_h < lh ? chunk_h : lh;
         }
     }
     if (rv != EXR_ERR_SUCCESS)
@@ -277,7 +290,8 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_pick
     if (chunk_h <= 0 || chunk_h > EXR_MAX_DIM || chunk_w <= 0 || chunk_w > EXR_MAX_DIM)
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (chunk size %dx%d)",
                             path, (int)chunk_w, (int)chunk_h);
-    float *scratch = malloc((size_t)chunk_w * (size_t)chunk_h * (size_t)pick->count * sizeof(float));
+    float *scratch =
+        malloc((size_t)chunk_w * (size_t)chunk_h * (size_t)pick->count * sizeof(float));
     if (!scratch)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for EXR chunk", path);
 
@@ -353,12 +367,19 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
         r = corrupt(err, path, rv);
     } else if (window_size(&fr.display, &w, &h) || window_size(&fr.data, &dw, &dh)) {
         r = sl_error_set(err, SL_ERR_INPUT,
-                         "%s: truncated or corrupt EXR (window %dx%d data %dx%d beyond %d)", path,
-                         fr.display.max.x - fr.display.min.x + 1, fr.display.max.y - fr.display.min.y + 1,
-                         fr.data.max.x - fr.data.min.x + 1, fr.data.max.y - fr.data.min.y + 1,
-                         EXR_MAX_DIM);
+                         "%s: truncated or corrupt EXR (display window %dx%d, data window %dx%d: "
+                         "empty or over %d)",
+                         path, fr.display.max.x - fr.display.min.x + 1,
+                         fr.display.max.y - fr.display.min.y + 1, fr.data.max.x - fr.data.min.x + 1,
+                         fr.data.max.y - fr.data.min.y + 1, EXR_MAX_DIM);
     } else if (!pick_channels(cl, &pick)) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: EXR has no R,G,B, Y or layer.R,G,B channels", path);
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: EXR has no R,G,B, Y or layer.R,G,B channels",
+                         path);
+    } else if (strcmp(pick.names[0], "Y") == 0 &&
+               (find_channel(cl, "RY") || find_channel(cl, "BY"))) {
+        /* Reading Y alone would silently turn a colour image grey. */
+        r = sl_error_set(err, SL_ERR_UNSUPPORTED,
+                         "%s: luminance/chroma (Y, RY, BY) EXR is not supported", path);
     } else {
         for (int c = 0; c < pick.count && !r; c++) {
             const exr_attr_chlist_entry_t *e = find_channel(cl, pick.names[c]);
@@ -370,7 +391,14 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
     }
     if (!r && (r = sl_image_alloc(img, w, h, pick.count, NULL)) != SL_OK)
         sl_error_set(err, r, "%s: cannot allocate a %dx%d EXR image", path, w, h);
-    if (!r)
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    if (!r && (rv = exr_get_compression(ctx, 0, &comp)) != EXR_ERR_SUCCESS)
+        r = corrupt(err, path, rv);
+    /* The 3.1 C API has no DWA decoder; OIIO's OpenEXR C++ library has. */
+    if (!r && (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB))
+        r = sl_exr_read_pixels_oiio(path, pick.names, pick.count, fr.display.min.x,
+                                    fr.display.min.y, img, err);
+    else if (!r)
         r = read_pixels(ctx, path, &pick, &fr, img, err);
     if (!r && meta)
         r = read_header_meta(ctx, &pick, meta, err);
@@ -401,7 +429,7 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
 {
     static const char *names[4][4] = {{"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
     int part = 0;
-    exr_result_t rv = exr_add_part(ctx, "rgba", EXR_STORAGE_SCANLINE, &part);
+    exr_result_t rv = exr_add_part(ctx, NULL, EXR_STORAGE_SCANLINE, &part);
     if (rv != EXR_ERR_SUCCESS)
         return rv;
     exr_attr_box2i_t win;
@@ -412,6 +440,12 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     memset(&center, 0, sizeof center);
     rv = exr_initialize_required_attr(ctx, part, &win, &win, 1.0f, &center, 1.0f,
                                       EXR_LINEORDER_INCREASING_Y, EXR_COMPRESSION_ZIP);
+    /* Names over 31 bytes (setlight:* can be) need the long-name flag. */
+    bool long_names = false;
+    for (int i = 0; meta && i < meta->attr_count; i++)
+        long_names = long_names || strlen(meta->attrs[i].name) > 31;
+    if (rv == EXR_ERR_SUCCESS && long_names)
+        rv = exr_set_longname_support(ctx, 1);
     exr_pixel_type_t pt = type == SL_PIXEL_FLOAT ? EXR_PIXEL_FLOAT : EXR_PIXEL_HALF;
     for (int c = 0; c < img->channels && rv == EXR_ERR_SUCCESS; c++)
         rv = exr_add_channel(ctx, part, names[img->channels - 1][c], pt,
@@ -425,9 +459,13 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
         return rv;
     if (rv == EXR_ERR_SUCCESS && meta->envmap != SL_ENVMAP_NONE)
         rv = exr_attr_set_envmap(ctx, part, "envmap",
-                                 meta->envmap == SL_ENVMAP_CUBE ? EXR_ENVMAP_CUBE : EXR_ENVMAP_LATLONG);
+                                 meta->envmap == SL_ENVMAP_CUBE ? EXR_ENVMAP_CUBE
+                                                                : EXR_ENVMAP_LATLONG);
     /* EXIF-like fields under OpenEXR's standard attribute names. */
-    struct { const char *name; double value; } floats[] = {
+    struct {
+        const char *name;
+        double value;
+    } floats[] = {
         {"expTime", meta->exposure_time},
         {"aperture", meta->f_number},
         {"isoSpeed", meta->iso},
@@ -436,7 +474,10 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     for (size_t i = 0; i < sizeof floats / sizeof floats[0] && rv == EXR_ERR_SUCCESS; i++)
         if (floats[i].value > 0)
             rv = exr_attr_set_float(ctx, part, floats[i].name, (float)floats[i].value);
-    struct { const char *name; const char *value; } strings[] = {
+    struct {
+        const char *name;
+        const char *value;
+    } strings[] = {
         {"capDate", meta->datetime},
         {"cameraMake", meta->make},
         {"cameraModel", meta->model},
@@ -531,7 +572,13 @@ sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *met
         rv = frv;
     if (rv != EXR_ERR_SUCCESS) {
         sl_atomic_abort(&f);
-        return sl_error_set(err, rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM : SL_ERR_IO,
+        /* Attribute problems come from the caller's meta, not the disk. */
+        bool bad_attr = rv == EXR_ERR_ATTR_TYPE_MISMATCH || rv == EXR_ERR_INVALID_ATTR ||
+                        rv == EXR_ERR_NAME_TOO_LONG || rv == EXR_ERR_INVALID_ARGUMENT;
+        return sl_error_set(err,
+                            rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM
+                            : bad_attr                  ? SL_ERR_USAGE
+                                                        : SL_ERR_IO,
                             "%s: cannot write EXR (%s)", path, exr_why(rv));
     }
     return sl_atomic_commit(&f, err);

@@ -17,8 +17,13 @@
  * discard them), raw:apply_scene_linear_scale 0 (values stay relative to the
  * white level, 1.0 = sensor saturation), raw:user_flip 0 (pixels in sensor
  * order, like every other format here), raw:Demosaic "AHD" (LibRaw's default,
- * said explicitly). */
+ * said explicitly).
+ *
+ * Writing: what survives is what OIIO 2.4 writes per format. JPEG keeps all
+ * the EXIF fields; TIFF all but ISO; PNG only the text ones (make, model,
+ * lens, date) plus setlight:* attributes as text chunks. */
 #include "setlight/core.h"
+#include "exr_oiio.h"
 
 #include <OpenImageIO/imageio.h>
 
@@ -31,16 +36,19 @@
 #include <string>
 #include <vector>
 
-namespace {
+namespace
+{
 
 using OIIO::ImageInput;
 using OIIO::ImageOutput;
 using OIIO::ImageSpec;
 using OIIO::TypeDesc;
 
-/* One line: OIIO messages can span several. */
+/* One short line: OIIO messages can span several and repeat per strip. */
 std::string one_line(std::string s)
 {
+    if (s.size() > 240)
+        s = s.substr(0, 240) + "...";
     for (char &c : s)
         if (c == '\n' || c == '\r')
             c = ' ';
@@ -71,8 +79,9 @@ sl_result open_input(const char *path, std::unique_ptr<ImageInput> &in, sl_error
     ImageSpec config = read_config();
     in = ImageInput::open(path, &config);
     if (!in)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: not an image file OIIO or OpenEXR can read (%s)",
-                            path, one_line(OIIO::geterror()).c_str());
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s: not an image file OIIO or OpenEXR can read (%s)", path,
+                            one_line(OIIO::geterror()).c_str());
     return SL_OK;
 }
 
@@ -87,7 +96,8 @@ void copy_string(char *dst, size_t size, const std::string &src)
     std::snprintf(dst, size, "%s", src.c_str());
 }
 
-void fill_meta(ImageInput &in, const ImageSpec &spec, sl_meta *meta)
+sl_result fill_meta(const char *path, ImageInput &in, const ImageSpec &spec, sl_meta *meta,
+                    sl_error *err)
 {
     copy_string(meta->format, sizeof meta->format, in.format_name());
     meta->is_float = spec.format.is_floating_point();
@@ -113,6 +123,14 @@ void fill_meta(ImageInput &in, const ImageSpec &spec, sl_meta *meta)
     copy_string(meta->datetime, sizeof meta->datetime, when);
     int orientation = spec.get_int_attribute("Orientation", 0);
     meta->orientation = orientation >= 1 && orientation <= 8 ? orientation : 0;
+    /* setlight's own provenance, e.g. from PNG text chunks. */
+    for (const OIIO::ParamValue &p : spec.extra_attribs) {
+        if (p.type() != TypeDesc::STRING || std::strncmp(p.name().c_str(), "setlight:", 9) != 0)
+            continue;
+        if (sl_meta_set(meta, p.name().c_str(), p.get_string().c_str(), nullptr))
+            return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for metadata", path);
+    }
+    return SL_OK;
 }
 
 sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
@@ -129,14 +147,15 @@ sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *er
     if (r)
         return sl_error_set(err, r, "%s: cannot hold a %dx%d image with %d channels", path,
                             spec.width, spec.height, spec.nchannels);
-    if (!in->read_image(0, 0, 0, channels, TypeDesc::FLOAT, img->data)) {
+    /* Some readers (TIFF) report a short strip as an error yet return true. */
+    if (!in->read_image(0, 0, 0, channels, TypeDesc::FLOAT, img->data) || in->has_error()) {
         std::string why = one_line(in->geterror());
         sl_image_free(img);
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image (%s)", path,
                             why.c_str());
     }
-    if (meta)
-        fill_meta(*in, spec, meta);
+    if (meta && (r = fill_meta(path, *in, spec, meta, err)) != SL_OK)
+        return r;
     in->close();
     return SL_OK;
 }
@@ -149,8 +168,8 @@ sl_result read_meta_impl(const char *path, sl_meta *meta, int *width, int *heigh
     if (r)
         return r;
     const ImageSpec &spec = in->spec();
-    if (meta)
-        fill_meta(*in, spec, meta);
+    if (meta && (r = fill_meta(path, *in, spec, meta, err)) != SL_OK)
+        return r;
     if (width)
         *width = spec.width;
     if (height)
@@ -179,8 +198,11 @@ void set_exif(ImageSpec &spec, const sl_meta *meta)
     if (meta->f_number > 0)
         spec.attribute("FNumber", (float)meta->f_number);
     if (meta->iso > 0) {
-        spec.attribute("Exif:PhotographicSensitivity", (int)std::lround(meta->iso));
-        spec.attribute("Exif:ISOSpeedRatings", (int)std::lround(meta->iso));
+        /* EXIF tag 0x8827 (ISOSpeedRatings is its old name) is a SHORT.
+         * OIIO 2.4 round-trips it in JPEG but not in TIFF. */
+        double iso = meta->iso < 65535 ? meta->iso : 65535;
+        unsigned short iso16 = (unsigned short)std::lround(iso);
+        spec.attribute("Exif:PhotographicSensitivity", TypeDesc::UINT16, &iso16);
     }
     if (meta->focal_length_mm > 0)
         spec.attribute("Exif:FocalLength", (float)meta->focal_length_mm);
@@ -215,12 +237,14 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
     bool tiff = ends_with(p, ".tif") || ends_with(p, ".tiff");
     if (!jpeg && !png && !tiff)
         return sl_error_set(err, SL_ERR_USAGE,
-                            "%s: unknown photo extension (use .png, .jpg, .jpeg, .tif, .tiff)", path);
-    bool bits_ok = jpeg ? bits == 8 : png ? (bits == 8 || bits == 16)
-                                          : (bits == 8 || bits == 16 || bits == 32);
+                            "%s: unknown photo extension (use .png, .jpg, .jpeg, .tif, .tiff)",
+                            path);
+    bool bits_ok = jpeg  ? bits == 8
+                   : png ? (bits == 8 || bits == 16)
+                         : (bits == 8 || bits == 16 || bits == 32);
     if (!bits_ok)
-        return sl_error_set(err, SL_ERR_USAGE, "%s: %d bits per sample not possible for this format",
-                            path, bits);
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "%s: %d bits per sample not possible for this format", path, bits);
 
     /* JPEG has no alpha: keep the colour channels only. */
     int nc = img->channels;
@@ -228,8 +252,11 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
         nc -= 1;
     TypeDesc type = bits == 8 ? TypeDesc::UINT8 : bits == 16 ? TypeDesc::UINT16 : TypeDesc::FLOAT;
     ImageSpec spec(img->width, img->height, nc, type);
-    if (nc == 2 || nc == 4)
+    if (nc == 2 || nc == 4) {
         spec.alpha_channel = nc - 1;
+        /* Pixels are written as given: no un-premultiplying by alpha. */
+        spec.attribute("oiio:UnassociatedAlpha", 1);
+    }
     if (jpeg)
         spec.attribute("CompressionQuality", 95);
     if (tiff)
@@ -258,8 +285,8 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
     bool ok = false;
     try {
         std::unique_ptr<ImageOutput> out = ImageOutput::create(f.temp_path);
-        ok = out && out->open(f.temp_path, spec) &&
-             out->write_image(TypeDesc::FLOAT, pixels.data());
+        ok =
+            out && out->open(f.temp_path, spec) && out->write_image(TypeDesc::FLOAT, pixels.data());
         if (out) {
             if (!ok)
                 why = out->geterror();
@@ -279,6 +306,44 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
                             one_line(why).c_str());
     }
     return sl_atomic_commit(&f, err);
+}
+
+sl_result exr_pixels_impl(const char *path, const char *const *names, int count, int x0, int y0,
+                          sl_image *img, sl_error *err)
+{
+    std::unique_ptr<ImageInput> in = ImageInput::open(path);
+    if (!in)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,
+                            one_line(OIIO::geterror()).c_str());
+    const ImageSpec &spec = in->spec();
+    int index[4];
+    for (int c = 0; c < count; c++) {
+        index[c] = spec.channelindex(names[c]);
+        if (index[c] < 0)
+            return sl_error_set(err, SL_ERR_INPUT, "%s: OpenImageIO sees no channel %s", path,
+                                names[c]);
+    }
+    std::vector<float> all((size_t)spec.width * (size_t)spec.height * (size_t)spec.nchannels);
+    if (!in->read_image(0, 0, 0, spec.nchannels, TypeDesc::FLOAT, all.data()))
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,
+                            one_line(in->geterror()).c_str());
+    for (int y = 0; y < spec.height; y++) {
+        int iy = spec.y + y - y0;
+        if (iy < 0 || iy >= img->height)
+            continue;
+        for (int x = 0; x < spec.width; x++) {
+            int ix = spec.x + x - x0;
+            if (ix < 0 || ix >= img->width)
+                continue;
+            const float *src =
+                &all[((size_t)y * (size_t)spec.width + (size_t)x) * (size_t)spec.nchannels];
+            float *dst = sl_image_pixel(img, ix, iy);
+            for (int c = 0; c < count; c++)
+                dst[c] = src[index[c]];
+        }
+    }
+    in->close();
+    return SL_OK;
 }
 
 sl_result exception_error(const char *path, sl_error *err, const char *what, bool nomem)
@@ -336,6 +401,20 @@ extern "C" sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *wi
     if (r && meta)
         sl_meta_free(meta);
     return r;
+}
+
+extern "C" sl_result sl_exr_read_pixels_oiio(const char *path, const char *const *names, int count,
+                                             int x0, int y0, sl_image *img, sl_error *err)
+{
+    try {
+        return exr_pixels_impl(path, names, count, x0, y0, img, err);
+    } catch (const std::bad_alloc &) {
+        return exception_error(path, err, "out of memory", true);
+    } catch (const std::exception &e) {
+        return exception_error(path, err, e.what(), false);
+    } catch (...) {
+        return exception_error(path, err, "unknown exception", false);
+    }
 }
 
 extern "C" sl_result sl_photo_write(const char *path, const sl_image *img, const sl_meta *meta,

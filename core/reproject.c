@@ -29,13 +29,13 @@ typedef struct reproject_ctx {
 static bool disc_texel_used(int x, int y, int size)
 {
     double px = (x + 0.5) * 2.0 / size - 1.0, py = (y + 0.5) * 2.0 / size - 1.0;
-    double lim = 1.0 + 1.5 / size; /* half a texel diagonal is sqrt(2) / size */
+    double lim = 1.0 + 1.5 / size; /* just over half a texel diagonal, sqrt(2) / size */
     return px * px + py * py <= lim * lim;
 }
 
 /* Bilinear inside one rectangle of texels [x0, x0+w) x [y0, y0+h) with edge
  * clamping; used for whole circle images and for single cube faces. Texels
- * whose centre lies further than ~0.71 texel outside the disc carry no data
+ * whose centre lies more than 0.75 texel outside the disc carry no data
  * (mirror ball corners) and are left out with the weights renormalised. */
 static bool bilinear_rect(const sl_image *img, int x0, int y0, int w, int h, double fx,
                           double fy, bool disc, double *acc)

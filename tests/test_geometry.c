@@ -223,9 +223,9 @@ static void test_cubemap_faces(void)
         CHECK_NEAR(u, 0.5, 1e-15);
         CHECK_NEAR(v, (f + 0.5) / 6, 1e-15);
     }
-    /* Per-face orientation from ImfEnvmap.cpp: on +Z, image right is -X and
-     * image up is +Y; on -Z right is +X; on +X image right is +Z and up +Y;
-     * on +Y image up is -Z... (pos.y = max - pif.y with pif.y from z). */
+    /* Per-face orientation from ImfEnvmap.cpp: on +Z image right is -X and
+     * up is +Y; on -Z right is +X; on +X right is +Z and up +Y; the top of
+     * +Y is +Z and the top of -Y is -Z. */
     double d[3];
     sl_projection_to_dir(SL_PROJ_CUBEMAP, 0.9, 4.5 / 6, d);
     CHECK(d[0] < -0.5);
@@ -414,6 +414,41 @@ static void test_reproject_rotation(void)
     sl_image_free(&src);
 }
 
+static void test_reproject_orientation_and_threads(void)
+{
+    sl_error err;
+    sl_image src, ball, ball1;
+    CHECK_OK(sl_image_alloc(&src, 128, 64, 1, &err), &err);
+    /* A bright texel looking along +X (quarter width, equator). */
+    sl_image_pixel(&src, 32, 31)[0] = 1000.0f;
+    sl_image_pixel(&src, 32, 32)[0] = 1000.0f;
+    CHECK_OK(sl_reproject(&src, SL_PROJ_LATLONG, SL_PROJ_MIRRORBALL, 256, NULL, &ball, &err),
+             &err);
+    /* +X is the camera's left: it shows at px = -sin 45 deg, i.e. image left. */
+    int bx = -1, by = -1;
+    float best = -1.0f;
+    for (int y = 0; y < ball.height; y++)
+        for (int x = 0; x < ball.width; x++)
+            if (sl_image_pixel(&ball, x, y)[0] > best) {
+                best = sl_image_pixel(&ball, x, y)[0];
+                bx = x;
+                by = y;
+            }
+    double px = 2.0 * (bx + 0.5) / ball.width - 1.0, py = 1.0 - 2.0 * (by + 0.5) / ball.height;
+    printf("  +X texel on the 128-wide ball at (%.3f, %.3f)\n", px, py);
+    CHECK(fabs(px + sqrt(0.5)) < 0.03 && fabs(py) < 0.03);
+    /* Same bytes for one thread and for several. */
+    int saved = sl_threads_get();
+    sl_threads_set(1);
+    CHECK_OK(sl_reproject(&src, SL_PROJ_LATLONG, SL_PROJ_MIRRORBALL, 256, NULL, &ball1, &err),
+             &err);
+    sl_threads_set(saved);
+    CHECK(ball1.data && memcmp(ball.data, ball1.data, sizeof(float) * 128 * 128) == 0);
+    sl_image_free(&ball);
+    sl_image_free(&ball1);
+    sl_image_free(&src);
+}
+
 int main(void)
 {
     RUN(test_latlong_orientation);
@@ -426,5 +461,6 @@ int main(void)
     RUN(test_rotations);
     RUN(test_reproject_round_trip);
     RUN(test_reproject_rotation);
+    RUN(test_reproject_orientation_and_threads);
     return sl_test_finish();
 }

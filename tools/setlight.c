@@ -15,9 +15,9 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
-    {"version", NULL, "print the version"},
+    {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
+    {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
     {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},
-    /* commands are added here as they land */
     {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
     {"converge", cmd_converge, "error against time for each sampling strategy (table, SVG)"},
 

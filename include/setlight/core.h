@@ -299,6 +299,15 @@ const char *const *sl_color_space_list(void);
 /* Converts RGB(A) pixels in place through OpenColorIO. Alpha untouched.
  * SL_ERR_USAGE naming the space when either name is unknown. */
 sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_error *err);
+/* The EXR chromaticities (red, green, blue, white xy) of a colour space
+ * (name or alias); false when it has none (raw) or is unknown. */
+bool sl_color_space_chromaticities(const char *name, float xy[8]);
+/* Names the colour space of an image from its metadata: the setlight:colorspace
+ * attribute, then meta->colorspace when OCIO knows it, then chromaticities that
+ * match a known space. NULL when the file says nothing. */
+const char *sl_meta_color_space(const sl_meta *meta);
+/* Sets meta->colorspace, setlight:colorspace and matching chromaticities. */
+sl_result sl_meta_set_color_space(sl_meta *meta, const char *name, sl_error *err);
 
 /* ------------------------------------------------------------------ */
 /* Geometry: lat-long and projections                                  */
@@ -318,8 +327,9 @@ bool sl_is_latlong_shape(int width, int height);
 
 typedef enum {
     SL_PROJ_LATLONG = 0,
-    SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z */
-    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map, centre looks along +Z */
+    SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z
+                           (+Y up, image right -X): centre reflects -Z, rim +Z */
+    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map of that same view: centre -Z */
     SL_PROJ_CUBEMAP,    /* OpenEXR's cube map: six square faces stacked vertically
                            (width w, height 6w) in the order +X -X +Y -Y +Z -Z */
     SL_PROJ_COUNT
@@ -337,13 +347,16 @@ bool sl_dir_to_projection(sl_projection p, const double dir[3], double *u, doubl
  * mirror ball and angular w/2 x w/2, cube map faces of w/4 (w/4 x 6w/4). */
 void sl_projection_size(sl_projection p, int latlong_width, int *width, int *height);
 
-/* Row-major 3x3 rotation: world_dir = rot * map_dir. */
+/* Row-major 3x3 rotation: world_dir = rot * map_dir. Right-handed: a
+ * positive angle about Y turns +Z toward +X. Euler: rot = Ry(yaw) Rx(pitch)
+ * Rz(roll) (roll first); positive pitch turns +Y toward +Z. */
 void sl_rotation_y(double degrees, double rot[3][3]);
 void sl_rotation_euler(double yaw_deg, double pitch_deg, double roll_deg, double rot[3][3]);
 
 /* Reprojects src (projection `from`) into a new image of projection `to`
- * whose lat-long-equivalent width is `width`. rot may be NULL. Each output
- * pixel is supersampled (ss x ss) so that shrinking does not alias. */
+ * whose lat-long-equivalent width is `width`. rot may be NULL; content at
+ * source direction s lands at rot * s. Each output pixel is supersampled
+ * (ss x ss) so that shrinking does not alias. */
 sl_result sl_reproject(const sl_image *src, sl_projection from, sl_projection to, int width,
                        const double rot[3][3], sl_image *dst, sl_error *err);
 
@@ -383,6 +396,51 @@ double sl_distrib2d_pdf(const sl_distrib2d *d, double u, double v);
 
 /* Chi-square goodness of fit: p-value of `stat` with `dof` degrees of freedom. */
 double sl_chi2_pvalue(double stat, int dof);
+
+/* ------------------------------------------------------------------ */
+/* Reports: one HTML page with PNG images and SVG plots                */
+/* ------------------------------------------------------------------ */
+
+typedef struct sl_report sl_report; /* opaque */
+
+/* Starts a report whose page will be DIR/NAME.html; images and plots are
+ * written beside it. */
+sl_result sl_report_new(sl_report **rep, const char *dir, const char *name, const char *title,
+                        sl_error *err);
+/* Writes the page atomically and frees the report (also on failure). */
+sl_result sl_report_finish(sl_report *rep, sl_error *err);
+void sl_report_free(sl_report *rep);
+void sl_report_section(sl_report *rep, const char *title);
+/* A paragraph; the text is escaped. */
+void sl_report_text(sl_report *rep, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* A PNG of a linear image: scaled by 2^stops, sRGB-encoded, clamped. Written
+ * as DIR/FILE (e.g. "merge.png") and shown with its caption. */
+sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
+                          const char *caption, sl_error *err);
+/* A table: header then rows, every cell text (escaped). */
+void sl_report_table_begin(sl_report *rep, int columns, const char *const *header);
+void sl_report_table_row(sl_report *rep, const char *const *cells);
+void sl_report_table_end(sl_report *rep);
+
+typedef struct sl_plot_series {
+    const char *label;
+    const double *x, *y;
+    int count;
+} sl_plot_series;
+
+/* An SVG line plot written as DIR/FILE and shown in the page. Log axes skip
+ * non-positive values. */
+sl_result sl_report_plot(sl_report *rep, const char *file, const char *title, const char *xlabel,
+                         const char *ylabel, bool log_x, bool log_y, const sl_plot_series *series,
+                         int series_count, sl_error *err);
+/* Writes an SVG plot file without a report (for commands like converge). */
+sl_result sl_plot_write_svg(const char *path, const char *title, const char *xlabel,
+                            const char *ylabel, bool log_x, bool log_y,
+                            const sl_plot_series *series, int series_count, sl_error *err);
 
 /* ------------------------------------------------------------------ */
 /* Version                                                             */

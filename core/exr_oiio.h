@@ -1,0 +1,23 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Private: OpenEXR pixels through OpenImageIO, for compressions the
+ * OpenEXR 3.1 C API cannot decode (DWAA, DWAB). */
+#ifndef SETLIGHT_CORE_EXR_OIIO_H
+#define SETLIGHT_CORE_EXR_OIIO_H
+
+#include "setlight/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Reads part 0's channels `names[0..count)` into img, which is already
+ * allocated to the display window whose top-left is (x0, y0) and zeroed.
+ * Data outside the display window is dropped, as sl_exr_read does. */
+sl_result sl_exr_read_pixels_oiio(const char *path, const char *const *names, int count, int x0,
+                                  int y0, sl_image *img, sl_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,325 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* HTML reports: a page built in memory, images as PNG and plots as SVG
+ * beside it, the page written atomically at the end. */
+#include "setlight/core.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct sl_report {
+    char dir[2048];
+    char name[256];
+    char *html;
+    size_t len, cap;
+    bool failed; /* out of memory while building: finish reports it */
+    int table_columns;
+};
+
+static void append(sl_report *rep, const char *s, size_t n)
+{
+    if (rep->failed)
+        return;
+    if (rep->len + n + 1 > rep->cap) {
+        size_t cap = rep->cap ? rep->cap : 4096;
+        while (cap < rep->len + n + 1)
+            cap *= 2;
+        char *grown = realloc(rep->html, cap);
+        if (!grown) {
+            rep->failed = true;
+            return;
+        }
+        rep->html = grown;
+        rep->cap = cap;
+    }
+    memcpy(rep->html + rep->len, s, n);
+    rep->len += n;
+    rep->html[rep->len] = 0;
+}
+
+#define append_lit(rep, lit) append((rep), (lit), sizeof(lit) - 1)
+
+static void appendf(sl_report *rep, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void appendf(sl_report *rep, const char *fmt, ...)
+{
+    char buf[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    if (n > 0)
+        append(rep, buf, (size_t)n < sizeof buf ? (size_t)n : sizeof buf - 1);
+}
+
+static void append_escaped(sl_report *rep, const char *s)
+{
+    for (; *s; s++) {
+        switch (*s) {
+        case '<': append_lit(rep, "&lt;"); break;
+        case '>': append_lit(rep, "&gt;"); break;
+        case '&': append_lit(rep, "&amp;"); break;
+        case '"': append_lit(rep, "&quot;"); break;
+        default: append(rep, s, 1);
+        }
+    }
+}
+
+sl_result sl_report_new(sl_report **out, const char *dir, const char *name, const char *title,
+                        sl_error *err)
+{
+    static const char head1[] = "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>";
+    static const char head2[] =
+        "</title>\n<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;"
+        "color:#222}table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid "
+        "#bbb;padding:3px 8px;text-align:right}th{background:#eee}figure{display:"
+        "inline-block;margin:0.5em}img{max-width:512px}"
+        "figcaption{font-size:90%;color:#555}</style></head><body>\n<h1>";
+    *out = NULL;
+    sl_report *rep = calloc(1, sizeof *rep);
+    if (!rep)
+        return sl_error_set(err, SL_ERR_NOMEM, "out of memory for a report");
+    snprintf(rep->dir, sizeof rep->dir, "%s", dir);
+    snprintf(rep->name, sizeof rep->name, "%s", name);
+    append(rep, head1, sizeof head1 - 1);
+    append_escaped(rep, title);
+    append(rep, head2, sizeof head2 - 1);
+    append_escaped(rep, title);
+    append_lit(rep, "</h1>\n");
+    if (rep->failed) {
+        sl_report_free(rep);
+        return sl_error_set(err, SL_ERR_NOMEM, "out of memory for a report");
+    }
+    *out = rep;
+    return SL_OK;
+}
+
+void sl_report_free(sl_report *rep)
+{
+    if (!rep)
+        return;
+    free(rep->html);
+    free(rep);
+}
+
+sl_result sl_report_finish(sl_report *rep, sl_error *err)
+{
+    static const char tail[] = "</body></html>\n";
+    append(rep, tail, sizeof tail - 1);
+    sl_result r;
+    if (rep->failed)
+        r = sl_error_set(err, SL_ERR_NOMEM, "out of memory while building the report");
+    else {
+        char path[4096];
+        snprintf(path, sizeof path, "%s/%s.html", rep->dir, rep->name);
+        r = sl_write_file_atomic(path, rep->html, rep->len, err);
+    }
+    sl_report_free(rep);
+    return r;
+}
+
+void sl_report_section(sl_report *rep, const char *title)
+{
+    append_lit(rep, "<h2>");
+    append_escaped(rep, title);
+    append_lit(rep, "</h2>\n");
+}
+
+void sl_report_text(sl_report *rep, const char *fmt, ...)
+{
+    char buf[4096];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    append_lit(rep, "<p>");
+    append_escaped(rep, buf);
+    append_lit(rep, "</p>\n");
+}
+
+sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
+                          const char *caption, sl_error *err)
+{
+    sl_image png;
+    sl_result r = sl_image_alloc(&png, img->width, img->height, 3, err);
+    if (r)
+        return r;
+    float scale = (float)exp2(stops);
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            const float *s = sl_image_pixel(img, x, y);
+            float *d = sl_image_pixel(&png, x, y);
+            for (int c = 0; c < 3; c++) {
+                float v = (img->channels >= 3 ? s[c] : s[0]) * scale;
+                v = isfinite(v) ? (v < 0 ? 0 : v > 1 ? 1 : v) : 0;
+                d[c] = sl_linear_to_srgb(v);
+            }
+        }
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", rep->dir, file);
+    r = sl_photo_write(path, &png, NULL, 8, err);
+    sl_image_free(&png);
+    if (r)
+        return r;
+    append_lit(rep, "<figure><img src=\"");
+    append_escaped(rep, file);
+    append_lit(rep, "\"><figcaption>");
+    append_escaped(rep, caption ? caption : file);
+    append_lit(rep, "</figcaption></figure>\n");
+    return SL_OK;
+}
+
+void sl_report_table_begin(sl_report *rep, int columns, const char *const *header)
+{
+    append_lit(rep, "<table><tr>");
+    for (int i = 0; i < columns; i++) {
+        append_lit(rep, "<th>");
+        append_escaped(rep, header[i]);
+        append_lit(rep, "</th>");
+    }
+    append_lit(rep, "</tr>\n");
+    rep->table_columns = columns;
+}
+
+void sl_report_table_row(sl_report *rep, const char *const *cells)
+{
+    append_lit(rep, "<tr>");
+    for (int i = 0; i < rep->table_columns; i++) {
+        append_lit(rep, "<td>");
+        append_escaped(rep, cells[i] ? cells[i] : "");
+        append_lit(rep, "</td>");
+    }
+    append_lit(rep, "</tr>\n");
+}
+
+void sl_report_table_end(sl_report *rep) { append_lit(rep, "</table>\n"); }
+
+/* --- SVG plots -------------------------------------------------------- */
+
+static bool plottable(double v, bool log_axis) { return isfinite(v) && (!log_axis || v > 0); }
+
+static double axis_map(double v, double lo, double hi, bool log_axis)
+{
+    if (log_axis) {
+        v = log10(v);
+        lo = log10(lo);
+        hi = log10(hi);
+    }
+    return hi > lo ? (v - lo) / (hi - lo) : 0.5;
+}
+
+static void svg_build(sl_report *svg, const char *title, const char *xlabel, const char *ylabel,
+                      bool log_x, bool log_y, const sl_plot_series *series, int n)
+{
+    static const char *const colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#ff7f0e",
+                                          "#9467bd", "#8c564b", "#e377c2", "#17becf"};
+    const double W = 640, H = 420, L = 70, R = 170, T = 40, B = 50;
+    double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = -INFINITY;
+    for (int s = 0; s < n; s++)
+        for (int i = 0; i < series[s].count; i++) {
+            double x = series[s].x[i], y = series[s].y[i];
+            if (!plottable(x, log_x) || !plottable(y, log_y))
+                continue;
+            xlo = fmin(xlo, x), xhi = fmax(xhi, x), ylo = fmin(ylo, y), yhi = fmax(yhi, y);
+        }
+    if (!(xlo <= xhi)) {
+        xlo = 1, xhi = 10, ylo = 1, yhi = 10;
+    }
+    if (log_x) {
+        xlo = pow(10, floor(log10(xlo))), xhi = pow(10, ceil(log10(xhi)));
+    }
+    if (log_y) {
+        ylo = pow(10, floor(log10(ylo))), yhi = pow(10, ceil(log10(yhi)));
+    }
+    if (xlo == xhi)
+        xhi = xlo + 1;
+    if (ylo == yhi)
+        yhi = ylo + 1;
+    double pw = W - L - R, ph = H - T - B;
+    appendf(svg, "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%g\" height=\"%g\" "
+                 "font-family=\"sans-serif\" font-size=\"12\">\n", W, H);
+    appendf(svg, "<rect x=\"%g\" y=\"%g\" width=\"%g\" height=\"%g\" fill=\"none\" "
+                 "stroke=\"#444\"/>\n", L, T, pw, ph);
+    appendf(svg, "<text x=\"%g\" y=\"24\" text-anchor=\"middle\" font-size=\"14\">", L + pw / 2);
+    append_escaped(svg, title);
+    append_lit(svg, "</text>\n");
+    appendf(svg, "<text x=\"%g\" y=\"%g\" text-anchor=\"middle\">", L + pw / 2, H - 10);
+    append_escaped(svg, xlabel);
+    append_lit(svg, "</text>\n");
+    appendf(svg, "<text x=\"16\" y=\"%g\" text-anchor=\"middle\" transform=\"rotate(-90 16 %g)\">",
+            T + ph / 2, T + ph / 2);
+    append_escaped(svg, ylabel);
+    append_lit(svg, "</text>\n");
+    /* ticks: decades on log axes, 5 divisions on linear ones */
+    for (int axis = 0; axis < 2; axis++) {
+        bool lg = axis ? log_y : log_x;
+        double lo = axis ? ylo : xlo, hi = axis ? yhi : xhi;
+        int steps = lg ? (int)lround(log10(hi) - log10(lo)) : 5;
+        if (steps < 1)
+            steps = 1;
+        if (steps > 12)
+            steps = 12;
+        for (int k = 0; k <= steps; k++) {
+            double v = lg ? pow(10, log10(lo) + (log10(hi) - log10(lo)) * k / steps)
+                          : lo + (hi - lo) * k / steps;
+            double t = axis_map(v, lo, hi, lg);
+            if (axis == 0)
+                appendf(svg, "<line x1=\"%.1f\" y1=\"%g\" x2=\"%.1f\" y2=\"%g\" stroke=\"#ddd\"/>"
+                             "<text x=\"%.1f\" y=\"%g\" text-anchor=\"middle\">%.3g</text>\n",
+                        L + t * pw, T, L + t * pw, T + ph, L + t * pw, T + ph + 16, v);
+            else
+                appendf(svg, "<line x1=\"%g\" y1=\"%.1f\" x2=\"%g\" y2=\"%.1f\" stroke=\"#ddd\"/>"
+                             "<text x=\"%g\" y=\"%.1f\" text-anchor=\"end\">%.3g</text>\n",
+                        L, T + (1 - t) * ph, L + pw, T + (1 - t) * ph, L - 4, T + (1 - t) * ph + 4, v);
+        }
+    }
+    for (int s = 0; s < n; s++) {
+        const char *colour = colours[s % 8];
+        appendf(svg, "<polyline fill=\"none\" stroke-width=\"2\" stroke=\"%s\" points=\"", colour);
+        for (int i = 0; i < series[s].count; i++) {
+            double x = series[s].x[i], y = series[s].y[i];
+            if (!plottable(x, log_x) || !plottable(y, log_y))
+                continue;
+            appendf(svg, "%.1f,%.1f ", L + axis_map(x, xlo, xhi, log_x) * pw,
+                    T + (1 - axis_map(y, ylo, yhi, log_y)) * ph);
+        }
+        append_lit(svg, "\"/>\n");
+        appendf(svg, "<line x1=\"%g\" y1=\"%g\" x2=\"%g\" y2=\"%g\" stroke=\"%s\" stroke-width=\"2\"/>"
+                     "<text x=\"%g\" y=\"%g\">", W - R + 10, T + 10 + 18.0 * s, W - R + 30,
+                T + 10 + 18.0 * s, colour, W - R + 36, T + 14 + 18.0 * s);
+        append_escaped(svg, series[s].label ? series[s].label : "");
+        append_lit(svg, "</text>\n");
+    }
+    append_lit(svg, "</svg>\n");
+}
+
+sl_result sl_plot_write_svg(const char *path, const char *title, const char *xlabel,
+                            const char *ylabel, bool log_x, bool log_y,
+                            const sl_plot_series *series, int series_count, sl_error *err)
+{
+    sl_report svg;
+    memset(&svg, 0, sizeof svg);
+    svg_build(&svg, title, xlabel, ylabel, log_x, log_y, series, series_count);
+    sl_result r = svg.failed ? sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path)
+                             : sl_write_file_atomic(path, svg.html, svg.len, err);
+    free(svg.html);
+    return r;
+}
+
+sl_result sl_report_plot(sl_report *rep, const char *file, const char *title, const char *xlabel,
+                         const char *ylabel, bool log_x, bool log_y, const sl_plot_series *series,
+                         int series_count, sl_error *err)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", rep->dir, file);
+    sl_result r = sl_plot_write_svg(path, title, xlabel, ylabel, log_x, log_y, series,
+                                    series_count, err);
+    if (r)
+        return r;
+    append_lit(rep, "<figure><img src=\"");
+    append_escaped(rep, file);
+    append_lit(rep, "\"><figcaption>");
+    append_escaped(rep, title);
+    append_lit(rep, "</figcaption></figure>\n");
+    return SL_OK;
+}

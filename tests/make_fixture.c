@@ -1,0 +1,88 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Writes synthetic images for the CLI tests (darktable-style synthetic
+ * fixtures: every value known, bad values on purpose).
+ *   make_fixture KIND OUT [W H]
+ * KIND: latlong   smooth RGB lat-long (2:1), envmap attribute set
+ *       sun       black lat-long with one 1e5 texel at +Z... and a sky of 1
+ *       nan       lat-long with NaN and Inf samples, as a PFM file written here
+ *                 byte by byte (setlight's own writers never write NaN)
+ *       wide      a 3:1 image with no envmap attribute
+ *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr) */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "setlight/core.h"
+
+/* Portable float map: header, then little-endian float rows bottom to top. */
+static sl_result write_pfm(const char *path, const sl_image *img, sl_error *err)
+{
+    FILE *f = fopen(path, "wb");
+    if (!f)
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot write", path);
+    fprintf(f, "PF\n%d %d\n-1.0\n", img->width, img->height);
+    for (int y = img->height - 1; y >= 0; y--)
+        fwrite(sl_image_pixel(img, 0, y), sizeof(float), (size_t)img->width * 3, f);
+    return fclose(f) == 0 ? SL_OK : sl_error_set(err, SL_ERR_IO, "%s: write failed", path);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 3) {
+        fprintf(stderr, "usage: make_fixture KIND OUT [W H]\n");
+        return 2;
+    }
+    const char *kind = argv[1], *out = argv[2];
+    int w = argc > 3 ? atoi(argv[3]) : 64, h = argc > 4 ? atoi(argv[4]) : w / 2;
+    if (!strcmp(kind, "wide"))
+        h = w / 3;
+    sl_image img;
+    sl_meta meta;
+    sl_error err;
+    sl_meta_init(&meta);
+    if (sl_image_alloc(&img, w, h, 3, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            float *p = sl_image_pixel(&img, x, y);
+            double u = (x + 0.5) / w, v = (y + 0.5) / h;
+            p[0] = (float)(0.2 + 0.8 * u);
+            p[1] = (float)(0.2 + 0.8 * v);
+            p[2] = (float)(0.5 + 0.4 * sin(6.283185307179586 * u));
+        }
+    if (!strcmp(kind, "sun")) {
+        sl_image_fill(&img, 1.0f);
+        float *p = sl_image_pixel(&img, w / 2, h / 4);
+        p[0] = p[1] = p[2] = 1e5f;
+    }
+    if (!strcmp(kind, "nan")) {
+        sl_image_pixel(&img, 1, 1)[0] = NAN;
+        sl_image_pixel(&img, 2, 1)[1] = INFINITY;
+        sl_image_pixel(&img, 3, 2)[2] = -INFINITY;
+    }
+    if (strcmp(kind, "wide") != 0)
+        meta.envmap = SL_ENVMAP_LATLONG;
+    sl_meta_set_rec709(&meta);
+    sl_result r;
+    if (!strcmp(kind, "png")) {
+        /* sl_photo_write picks the format by extension: write .png, then rename. */
+        char tmp[4096];
+        snprintf(tmp, sizeof tmp, "%s.tmp.png", out);
+        r = sl_photo_write(tmp, &img, &meta, 8, &err);
+        if (!r && rename(tmp, out) != 0)
+            r = sl_error_set(&err, SL_ERR_IO, "%s: rename failed", out);
+    } else if (!strcmp(kind, "nan"))
+        r = write_pfm(out, &img, &err);
+    else
+        r = sl_exr_write(out, &img, &meta, SL_PIXEL_FLOAT, &err);
+    sl_image_free(&img);
+    sl_meta_free(&meta);
+    if (r) {
+        fprintf(stderr, "make_fixture: %s\n", err.message);
+        return 1;
+    }
+    return 0;
+}

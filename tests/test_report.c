@@ -1,0 +1,97 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* HTML reports and SVG plots: content escaped, files written atomically,
+ * images written as PNG beside the page. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "testing.h"
+
+static char *slurp(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *s = calloc((size_t)n + 1, 1);
+    if (s && fread(s, 1, (size_t)n, f) != (size_t)n) {
+        free(s);
+        s = NULL;
+    }
+    fclose(f);
+    return s;
+}
+
+static void test_report_page(void)
+{
+    sl_report *rep;
+    sl_error err;
+    CHECK_OK(sl_report_new(&rep, sl_test_tmpdir(), "report", "Demo <stage>", &err), &err);
+    sl_report_section(rep, "Merge & unwrap");
+    sl_report_text(rep, "median error %.2f%% in %.1f s", 0.8, 1.5);
+    const char *head[3] = {"stage", "error", "seconds"};
+    const char *row[3] = {"merge", "0.8%", "<1"};
+    sl_report_table_begin(rep, 3, head);
+    sl_report_table_row(rep, row);
+    sl_report_table_end(rep);
+    double x[4] = {0.1, 1, 10, 100}, y1[4] = {1, 0.3, 0.1, 0.03}, y2[4] = {2, 0.5, 0, 0.05};
+    sl_plot_series s[2] = {{"MIS", x, y1, 4}, {"BSDF only", x, y2, 4}};
+    CHECK_OK(sl_report_plot(rep, "conv.svg", "error vs time", "seconds", "relative RMSE", true,
+                            true, s, 2, &err),
+             &err);
+    sl_image img;
+    CHECK_OK(sl_image_alloc(&img, 8, 4, 3, &err), &err);
+    sl_image_fill(&img, 0.18f);
+    CHECK_OK(sl_report_image(rep, "grey.png", &img, 1.0, "grey at +1 stop", &err), &err);
+    sl_image_free(&img);
+    CHECK_OK(sl_report_finish(rep, &err), &err);
+
+    char *html = slurp(sl_test_path("report.html"));
+    CHECK(html != NULL);
+    if (html) {
+        CHECK(strstr(html, "Demo &lt;stage&gt;") != NULL);
+        CHECK(strstr(html, "Merge &amp; unwrap") != NULL);
+        CHECK(strstr(html, "<td>&lt;1</td>") != NULL);
+        CHECK(strstr(html, "src=\"conv.svg\"") != NULL);
+        CHECK(strstr(html, "src=\"grey.png\"") != NULL);
+        CHECK(strstr(html, "</html>") != NULL);
+        free(html);
+    }
+    char *svg = slurp(sl_test_path("conv.svg"));
+    CHECK(svg != NULL);
+    if (svg) {
+        CHECK(strstr(svg, "<svg") != NULL && strstr(svg, "</svg>") != NULL);
+        CHECK(strstr(svg, "BSDF only") != NULL);
+        /* two series: two polylines; the zero on a log axis is skipped, not NaN */
+        CHECK(strstr(svg, "nan") == NULL);
+        int lines = 0;
+        for (const char *p = svg; (p = strstr(p, "<polyline")); p++)
+            lines++;
+        CHECK(lines == 2);
+        free(svg);
+    }
+    sl_image back;
+    sl_meta meta;
+    CHECK_OK(sl_image_read(sl_test_path("grey.png"), &back, &meta, &err), &err);
+    /* 0.18 * 2 = 0.36 linear -> sRGB 0.63424 -> 162/255 */
+    CHECK_NEAR(sl_image_pixel(&back, 3, 2)[1], 162.0 / 255.0, 0.5 / 255.0);
+    sl_image_free(&back);
+    sl_meta_free(&meta);
+}
+
+static void test_report_bad_dir(void)
+{
+    sl_report *rep;
+    sl_error err;
+    CHECK_OK(sl_report_new(&rep, sl_test_path("no/such/dir"), "report", "x", &err), &err);
+    CHECK_RESULT(sl_report_finish(rep, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, "report.html") != NULL);
+}
+
+int main(void)
+{
+    RUN(test_report_page);
+    RUN(test_report_bad_dir);
+    return sl_test_finish();
+}
