@@ -75,10 +75,10 @@ static void test_stop_conditions(void)
 static void test_error_estimate(void)
 {
     sl_scene s;
-    grey_scene(&s, 24);
+    grey_scene(&s, 16);
     sl_render_options o;
     sl_render_options_init(&o);
-    o.spp = 2048;
+    o.spp = 1024;
     o.seed = 99;
     sl_image ref, img;
     sl_render_stats st;
