@@ -446,8 +446,9 @@ static void test_black_and_bad_domes(void)
     sl_image_free(&env);
 }
 
-/* Conductors from mirror to rough under a sky with a 1e9 texel, at every
- * angle including grazing: finite, and never brighter than the brightest texel. */
+/* Conductors and plastics from mirror to rough under a sky with a 1e9 texel,
+ * at every angle including grazing, with a bounce: finite, and never
+ * brighter than the brightest texel. */
 static void test_roughness_grid(void)
 {
     const double rough[] = {0, 1e-7, 1e-4, 1e-2, 1};
@@ -456,31 +457,39 @@ static void test_roughness_grid(void)
     sl_image_fill(&env, 1.0f);
     float *t = sl_image_pixel(&env, 11, 5);
     t[0] = t[1] = t[2] = 1e9f;
-    for (size_t i = 0; i < sizeof rough / sizeof rough[0]; i++) {
-        sl_scene s;
-        sl_scene_init(&s);
-        sl_material m;
-        double refl[3] = {0.9, 0.9, 0.9}, tint[3] = {1, 1, 1}, c[3] = {0, 0, 0};
-        sl_material_conductor(&m, refl, tint, rough[i]);
-        int mi;
-        CHECK_OK(sl_scene_add_material(&s, &m, &mi, NULL), NULL);
-        CHECK_OK(sl_scene_add_sphere(&s, c, 1, mi, NULL), NULL);
-        sl_camera_validation(&s.camera, 16, 16, 2.0, 10, 20);
-        CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "env", NULL), NULL);
-        sl_render_options o;
-        sl_render_options_init(&o);
-        o.spp = 16;
-        sl_image img;
-        sl_render_stats st;
-        render_check_finite(&s, &o, &img, &st);
-        sl_image_stats is;
-        sl_image_stats_compute(&img, &is);
-        CHECK_MSG(is.max[0] <= 1e9 && is.min[0] >= 0, "roughness %g: range %g..%g", rough[i],
-                  is.min[0], is.max[0]);
-        sl_image_free(&img);
-        sl_render_stats_free(&st);
-        sl_scene_free(&s);
-    }
+    for (size_t i = 0; i < sizeof rough / sizeof rough[0]; i++)
+        for (int kind = 0; kind < 2; kind++) {
+            sl_scene s;
+            sl_scene_init(&s);
+            sl_material m;
+            double refl[3] = {0.9, 0.9, 0.9}, tint[3] = {1, 1, 1}, c[3] = {0, 0, 0};
+            if (kind == 0)
+                sl_material_conductor(&m, refl, tint, rough[i]);
+            else
+                sl_material_plastic(&m, refl, 1.5, rough[i]);
+            int mi;
+            CHECK_OK(sl_scene_add_material(&s, &m, &mi, NULL), NULL);
+            CHECK_OK(sl_scene_add_sphere(&s, c, 1, mi, NULL), NULL);
+            /* a ground seen at 0.5 degrees: grazing on the plane as well as at the rim */
+            double g[3] = {0, -1, 0}, u[3] = {0, 0, 50}, v[3] = {50, 0, 0};
+            CHECK_OK(sl_scene_add_rect(&s, g, u, v, mi, NULL), NULL);
+            sl_camera_validation(&s.camera, 16, 16, 3.0, 10, 0.5);
+            CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "env", NULL), NULL);
+            sl_render_options o;
+            sl_render_options_init(&o);
+            o.spp = 16;
+            o.bounces = 1;
+            sl_image img;
+            sl_render_stats st;
+            render_check_finite(&s, &o, &img, &st);
+            sl_image_stats is;
+            sl_image_stats_compute(&img, &is);
+            CHECK_MSG(is.max[0] <= 1e9 && is.min[0] >= 0, "%s roughness %g: range %g..%g",
+                      kind ? "plastic" : "conductor", rough[i], is.min[0], is.max[0]);
+            sl_image_free(&img);
+            sl_render_stats_free(&st);
+            sl_scene_free(&s);
+        }
     sl_image_free(&env);
 }
 
