@@ -8,10 +8,23 @@
 
 #include "render_internal.h"
 
+/* Radiance and (u,v) pdf side by side, so an escaped ray costs one cache
+ * line. Both MIS techniques weight with this float pdf, so their weights
+ * still sum to one exactly; estimates divide by the double pdf. */
 struct sl_dome_sampler {
     sl_distrib2d dist;
+    float (*texels)[4]; /* r, g, b, pdf over (u,v) */
+    int w, h;
     bool valid; /* some texel has energy */
 };
+
+static const float *packed(const sl_dome_sampler *ds, double u, double v)
+{
+    int x = (int)(u * ds->w), y = (int)(v * ds->h);
+    x = x < 0 ? 0 : x >= ds->w ? ds->w - 1 : x;
+    y = y < 0 ? 0 : y >= ds->h ? ds->h - 1 : y;
+    return ds->texels[(size_t)y * (size_t)ds->w + (size_t)x];
+}
 
 static const float *texel(const sl_image *img, double u, double v)
 {
@@ -55,7 +68,8 @@ bool sl_dome_can_sample(const sl_dome *dome)
     return dome->present && dome->sampler && dome->sampler->valid && dome->intensity > 0;
 }
 
-bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double L[3], double *pdf)
+bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double L[3], double *pdf,
+                    double *mis_pdf)
 {
     double uv[2], p;
     sl_distrib2d_sample(&dome->sampler->dist, u[0], u[1], uv, &p);
@@ -67,10 +81,12 @@ bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double
     double m[3];
     sl_latlong_to_dir(uv[0], uv[1], m);
     m3_mul(dome->rot, m, wi);
-    const float *t = texel(&dome->image, uv[0], uv[1]);
+    const float *t = packed(dome->sampler, uv[0], uv[1]);
     for (int c = 0; c < 3; c++)
         L[c] = dome->intensity * t[c];
     *pdf = p / (2.0 * SL_PI * SL_PI * sin_theta);
+    if (mis_pdf)
+        *mis_pdf = t[3] / (2.0 * SL_PI * SL_PI * sin_theta);
     return true;
 }
 
@@ -79,13 +95,11 @@ void sl_dome_radiance_pdf(const sl_dome *dome, const double d[3], double L[3], d
     double m[3], u, v;
     m3_mul_transpose(dome->rot, d, m);
     sl_dir_to_latlong(m, &u, &v);
-    const float *t = texel(&dome->image, u, v);
+    const float *t = packed(dome->sampler, u, v);
     for (int c = 0; c < 3; c++)
         L[c] = dome->intensity * t[c];
     double sin_theta = sqrt(m[0] * m[0] + m[2] * m[2]);
-    *pdf = sin_theta < 1e-12 ? 0
-                             : sl_distrib2d_pdf(&dome->sampler->dist, u, v) /
-                                   (2.0 * SL_PI * SL_PI * sin_theta);
+    *pdf = sin_theta < 1e-12 ? 0 : t[3] / (2.0 * SL_PI * SL_PI * sin_theta);
 }
 
 double sl_dome_pdf(const sl_dome *dome, const double wi[3])
@@ -103,6 +117,7 @@ void sl_dome_free(sl_dome *dome)
 {
     if (dome->sampler) {
         sl_distrib2d_free(&dome->sampler->dist);
+        free(dome->sampler->texels);
         free(dome->sampler);
     }
     sl_image_free(&dome->image);
@@ -166,6 +181,19 @@ sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotatio
         return r;
     }
     dome->sampler->valid = any;
+    dome->sampler->w = w, dome->sampler->h = h;
+    dome->sampler->texels = malloc((size_t)w * (size_t)h * sizeof *dome->sampler->texels);
+    if (!dome->sampler->texels) {
+        sl_dome_free(dome);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for the dome", name);
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const float *t = sl_image_pixel(&dome->image, x, y);
+            float *d = dome->sampler->texels[(size_t)y * w + x];
+            d[0] = t[0], d[1] = t[1], d[2] = t[2];
+            d[3] = (float)sl_distrib2d_pdf(&dome->sampler->dist, (x + 0.5) / w, (y + 0.5) / h);
+        }
     sl_rotation_y(rotation_deg, dome->rot);
     dome->intensity = intensity;
     dome->present = true;

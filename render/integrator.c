@@ -155,8 +155,8 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         double u_rr = sl_sampler_1d(s);
 
         if (!delta && it->dome_sampling) {
-            double wi[3], Le[3], pdf_l;
-            if (sl_dome_sample(&scene->dome, u_light, wi, Le, &pdf_l)) {
+            double wi[3], Le[3], pdf_l, pdf_mis;
+            if (sl_dome_sample(&scene->dome, u_light, wi, Le, &pdf_l, &pdf_mis)) {
                 double wil[3], f[3];
                 frame_to_local(&fr, wi, wil);
                 if (wil[2] > 0 && (Le[0] > 0 || Le[1] > 0 || Le[2] > 0))
@@ -177,7 +177,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     }
                     if (!blocked) {
                         double w = o->strategy == SL_STRATEGY_MIS
-                                       ? mis_power(pdf_l, sl_bsdf_pdf(m, wo, wil))
+                                       ? mis_power(pdf_mis, sl_bsdf_pdf(m, wo, wil))
                                        : 1.0;
                         for (int k = 0; k < 3; k++)
                             L[k] += beta[k] * f[k] * wil[2] * Le[k] * w / pdf_l;

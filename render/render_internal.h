@@ -131,10 +131,14 @@ void sl_dome_radiance(const sl_dome *dome, const double d[3], double L[3]);
 void sl_dome_background(const sl_dome *dome, const double d[3], double L[3]);
 /* True when the dome has energy to importance-sample. */
 bool sl_dome_can_sample(const sl_dome *dome);
-/* Samples a world direction; pdf is per solid angle. False (pdf 0) at a pole. */
-bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double L[3], double *pdf);
+/* Samples a world direction; pdf is per solid angle (the estimator's);
+ * mis_pdf (may be NULL) is the value sl_dome_radiance_pdf gives for the same
+ * direction, for MIS weights. False (pdf 0) at a pole. */
+bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double L[3], double *pdf,
+                    double *mis_pdf);
+/* Solid-angle pdf in double precision (tests). */
 double sl_dome_pdf(const sl_dome *dome, const double wi[3]);
-/* Both at once (one lookup); only when sl_dome_can_sample. */
+/* Radiance and the MIS pdf at once (one lookup); only when sl_dome_can_sample. */
 void sl_dome_radiance_pdf(const sl_dome *dome, const double d[3], double L[3], double *pdf);
 void sl_dome_free(sl_dome *dome);
 

@@ -221,7 +221,7 @@ static void chi2_dome(double rotation)
         double u[2], wi[3], L[3], pdf;
         sl_sampler_start(&smp, 7, (uint32_t)k, false);
         sl_sampler_2d(&smp, u);
-        if (!sl_dome_sample(&s.dome, u, wi, L, &pdf)) {
+        if (!sl_dome_sample(&s.dome, u, wi, L, &pdf, NULL)) {
             rejected++;
             continue;
         }
