@@ -180,7 +180,7 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     if (half_target > (int64_t)UINT32_MAX)
         half_target = UINT32_MAX;
     int64_t n_half = 0;
-    double t0 = sl_seconds();
+    double t0 = sl_seconds(), c0 = sl_cpu_seconds();
     strcpy(stats->stop_reason, "spp");
     for (;;) {
         int64_t add = n_half > 0 ? n_half : 1;
@@ -223,6 +223,7 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     }
     stats->spp = 2 * n_half;
     stats->seconds = sl_seconds() - t0;
+    stats->cpu_seconds = sl_cpu_seconds() - c0;
     stats->samples_per_second =
         stats->seconds > 0 ? (double)npix * (double)stats->spp / stats->seconds : 0;
     for (int y = 0; y < cam->height; y++) {

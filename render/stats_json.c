@@ -17,6 +17,7 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(root, "seed", json_integer((json_int_t)o->seed));
     json_object_set_new(root, "spp", json_integer(st->spp));
     json_object_set_new(root, "seconds", json_real(st->seconds));
+    json_object_set_new(root, "cpu_seconds", json_real(st->cpu_seconds));
     json_object_set_new(root, "samples_per_second", json_real(st->samples_per_second));
     json_object_set_new(root, "stop_reason", json_string(st->stop_reason));
     json_object_set_new(root, "camera_rays", json_integer(st->camera_rays));

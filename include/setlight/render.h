@@ -285,7 +285,8 @@ typedef struct sl_render_stats {
     int pass_count;
     int64_t spp;
     double seconds;
-    double samples_per_second;   /* camera samples (pixels x spp) per second */
+    double cpu_seconds;          /* process CPU time spent in the render */
+    double samples_per_second;   /* camera samples (pixels x spp) per wall second */
     int64_t camera_rays, shadow_rays, bsdf_rays;
     int64_t shadow_rays_skipped; /* nothing in the scene could occlude */
     int64_t zero_weight_skipped; /* light samples whose BSDF value or pdf was zero */
