@@ -208,6 +208,8 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
             goto done;
         if ((r = push_pass(stats, &pass, err)))
             goto done;
+        if (o->on_pass)
+            o->on_pass(o->on_pass_ctx, &pass);
         if (n_half >= half_target) {
             strcpy(stats->stop_reason, "spp");
             break;

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "setlight/render.h"
@@ -84,6 +85,14 @@ static bool parse_material(const char *spec, sl_material *m)
         sl_material_plastic(m, rgb, 1.5, rough);
     }
     return true;
+}
+
+static void show_pass(void *ctx, const sl_render_pass *p)
+{
+    (void)ctx;
+    fprintf(stderr, "\r%lld spp, %.2f s, estimated relative RMSE %.4g   ", (long long)p->spp,
+            p->seconds, p->est_rel_rmse);
+    fflush(stderr);
 }
 
 int cmd_render(int argc, char **argv, const sl_cli *cli)
@@ -243,7 +252,13 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         }
         o.reference = &ref;
     }
-    if ((r = sl_render(&scene, &o, &img, &stats, &err)))
+    bool progress = !cli->quiet && isatty(2);
+    if (progress)
+        o.on_pass = show_pass;
+    r = sl_render(&scene, &o, &img, &stats, &err);
+    if (progress)
+        fputc('\n', stderr);
+    if (r)
         goto fail;
     sl_meta meta;
     sl_meta_init(&meta);

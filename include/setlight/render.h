@@ -254,6 +254,8 @@ typedef enum {
 int sl_strategy_from_name(const char *name);
 const char *sl_strategy_name(sl_strategy s);
 
+struct sl_render_pass;
+
 typedef struct sl_render_options {
     int64_t spp;            /* stop at this many samples per pixel (0 = no limit) */
     double time_limit;      /* seconds (0 = no limit) */
@@ -269,6 +271,9 @@ typedef struct sl_render_options {
      * still finds it (with full weight), so the image stays unbiased.
      * 0 samples every light. Default 1e-3. */
     double light_cull;
+    /* Called after every pass (from the calling thread), e.g. for progress. */
+    void (*on_pass)(void *ctx, const struct sl_render_pass *pass);
+    void *on_pass_ctx;
 } sl_render_options;
 
 void sl_render_options_init(sl_render_options *o); /* spp 64, MIS, low discrepancy */
