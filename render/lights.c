@@ -34,6 +34,8 @@ sl_result sl_scene_add_light(sl_scene *scene, sl_light *l, sl_error *err)
         bad = "distant angle must be >= 0 and < 180 degrees";
     else if (l->type > SL_LIGHT_DISTANT)
         bad = "unknown light type";
+    else if (l->texture.data && l->type != SL_LIGHT_RECT)
+        bad = "only rect lights take a texture";
     double z[3], y[3], x[3];
     v3_copy(z, l->axis_z);
     v3_copy(y, l->axis_y);
@@ -69,14 +71,41 @@ sl_result sl_scene_add_light(sl_scene *scene, sl_light *l, sl_error *err)
     }
     for (int c = 0; c < 3; c++)
         l->radiance[c] = l->color[c] * scale;
+    memset(&l->texture_dist, 0, sizeof l->texture_dist);
+    if (l->texture.data) {
+        /* Sample the rect in proportion to the texture's luminance: bad texels are 0. */
+        const sl_image *tx = &l->texture;
+        double *func = malloc((size_t)tx->width * (size_t)tx->height * sizeof *func);
+        if (!func) {
+            sl_image_free(&l->texture);
+            return sl_error_set(err, SL_ERR_NOMEM, "light %d: out of memory", scene->light_count);
+        }
+        for (int y = 0; y < tx->height; y++)
+            for (int x = 0; x < tx->width; x++) {
+                float *p = sl_image_pixel(tx, x, y);
+                for (int c = 0; c < tx->channels; c++)
+                    if (!isfinite(p[c]) || p[c] < 0)
+                        p[c] = 0;
+                double rgb[3] = {p[0], p[tx->channels >= 3 ? 1 : 0], p[tx->channels >= 3 ? 2 : 0]};
+                func[(size_t)y * tx->width + x] = fmax(luminance709(rgb), 1e-3 * fmax(rgb[0], fmax(rgb[1], rgb[2])));
+            }
+        sl_result r = sl_distrib2d_init(&l->texture_dist, func, tx->width, tx->height, err);
+        free(func);
+        if (r) {
+            sl_image_free(&l->texture);
+            return r;
+        }
+    }
     sl_light *nl = realloc(scene->lights, (size_t)(scene->light_count + 1) * sizeof *nl);
     if (!nl) {
         sl_image_free(&l->texture);
+        sl_distrib2d_free(&l->texture_dist);
         return sl_error_set(err, SL_ERR_NOMEM, "scene: out of memory for lights");
     }
     scene->lights = nl;
     nl[scene->light_count++] = *l;
     memset(&l->texture, 0, sizeof l->texture);
+    memset(&l->texture_dist, 0, sizeof l->texture_dist);
     return SL_OK;
 }
 
@@ -239,6 +268,14 @@ bool sl_light_sample(const sl_light *l, const double p[3], const double u[2], do
         return true;
     }
     case SL_LIGHT_RECT: {
+        if (l->texture.data) {
+            double st[2], pa;
+            sl_distrib2d_sample(&l->texture_dist, u[0], u[1], st, &pa);
+            for (int i = 0; i < 3; i++)
+                q[i] = l->position[i] + (st[0] - 0.5) * l->width * l->axis_x[i] +
+                       (0.5 - st[1]) * l->height * l->axis_y[i];
+            break;
+        }
         sphrect sr;
         sphrect_init(&sr, l, p);
         if (sr.S > SPHRECT_MIN) {
@@ -285,11 +322,21 @@ double sl_light_pdf(const sl_light *l, const double p[3], const double wi[3], do
         return 1.0 / (2 * SL_PI * omc);
     }
     case SL_LIGHT_RECT: {
+        double c = fabs(v3_dot(wi, l->axis_z));
+        if (l->texture.data) {
+            /* area pdf of the texture distribution at the point, to solid angle */
+            double r[3];
+            for (int i = 0; i < 3; i++)
+                r[i] = p[i] + dist * wi[i] - l->position[i];
+            double s = v3_dot(r, l->axis_x) / l->width + 0.5, t = 0.5 - v3_dot(r, l->axis_y) / l->height;
+            s = fmin(fmax(s, 0.0), 1.0), t = fmin(fmax(t, 0.0), 1.0);
+            double pa = sl_distrib2d_pdf(&l->texture_dist, s, t) / (l->width * l->height);
+            return c > 0 ? pa * dist * dist / c : 0;
+        }
         sphrect sr;
         sphrect_init(&sr, l, p);
         if (sr.S > SPHRECT_MIN)
             return 1.0 / sr.S;
-        double c = fabs(v3_dot(wi, l->axis_z));
         return c > 0 ? dist * dist / (c * l->width * l->height) : 0;
     }
     case SL_LIGHT_DISK: {

@@ -13,8 +13,10 @@ void sl_scene_init(sl_scene *scene)
 
 void sl_scene_free(sl_scene *scene)
 {
-    for (int i = 0; i < scene->light_count; i++)
+    for (int i = 0; i < scene->light_count; i++) {
         sl_image_free(&scene->lights[i].texture);
+        sl_distrib2d_free(&scene->lights[i].texture_dist);
+    }
     free(scene->lights);
     free(scene->shapes);
     free(scene->materials);

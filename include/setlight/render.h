@@ -176,6 +176,7 @@ typedef struct sl_light {
     bool normalize;
     sl_image texture;     /* rect only, optional (RGB multiplies color; row 0 at +axis_y) */
     double radiance[3];   /* derived by sl_scene_add_light */
+    sl_distrib2d texture_dist; /* derived: a textured rect is sampled by its texture */
 } sl_light;
 
 typedef struct sl_scene {

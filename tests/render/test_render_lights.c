@@ -32,6 +32,8 @@ static double render_vs(const sl_light *proto, irradiance_fn irr, int64_t spp, d
     sl_error err = {0};
     CHECK_OK(sl_scene_preset(&s, "grey", 12, &err), &err);
     sl_light l = *proto;
+    if (proto->texture.data) /* the scene takes over its own copy */
+        CHECK_OK(sl_image_copy(&proto->texture, &l.texture, NULL), NULL);
     CHECK_OK(sl_scene_add_light(&s, &l, &err), &err);
     sl_render_options o;
     sl_render_options_init(&o);
@@ -171,8 +173,14 @@ static double irr_rect_quadrature(const double p[3], const double n[3], const sl
             double cb = v3_dot(d, n) / r, cl = v3_dot(d, l->axis_z) / r;
             if (cb <= 0)
                 return 0; /* partly below the horizon: not compared */
+            double tex = 1.0;
+            if (l->texture.data) {
+                int tx = (int)((a + 0.5) / N * l->texture.width);
+                int ty = (int)((1.0 - (b + 0.5) / N) * l->texture.height); /* row 0 at +y */
+                tex = sl_image_pixel(&l->texture, tx, ty)[0];
+            }
             if (cl > 0)
-                E += l->radiance[0] * cb * cl / r2;
+                E += l->radiance[0] * tex * cb * cl / r2;
         }
     return E * l->width * l->height / (N * N);
 }
@@ -471,8 +479,29 @@ static void test_integrating_sphere(void)
     sl_scene_free(&s);
 }
 
+/* A textured rect (one hot texel) is sampled by its texture and matches the
+ * quadrature. */
+static void test_textured_rect(void)
+{
+    const double pos[3] = {0.3, 2.2, -1.8}, emit[3] = {-0.3, -2.2, 1.8};
+    double e[3] = {emit[0], emit[1], emit[2]}, worst;
+    v3_normalize(e);
+    sl_light l;
+    base_light(&l, SL_LIGHT_RECT, pos, e);
+    l.width = 2, l.height = 1, l.intensity = 1;
+    CHECK_OK(sl_image_alloc(&l.texture, 8, 4, 3, NULL), NULL);
+    sl_image_fill(&l.texture, 0.5f);
+    float *hot = sl_image_pixel(&l.texture, 6, 1);
+    hot[0] = hot[1] = hot[2] = 200.0f;
+    render_vs(&l, irr_rect_quadrature, 4096, &worst);
+    printf("  textured rect: worst %.3f%%\n", 100 * worst);
+    CHECK(worst < 0.01);
+    sl_image_free(&l.texture);
+}
+
 int main(void)
 {
+    RUN(test_textured_rect);
     RUN(test_integrating_sphere);
     RUN(test_culling);
     RUN(test_sphere_light);
