@@ -118,9 +118,10 @@ static void ms_fresnel(const sl_material *m, double e_avg, double fms[3])
 
 /* Roughness at which the isotropic tables stand in for anisotropic GGX: the
  * arithmetic mean of the alphas, capped at 1 (the tables end there). Of the
- * geometric mean, the RMS and the mean it keeps the furnace closest to 1
- * (docs/render-bsdf.md); E of anisotropic GGX also depends on the azimuth,
- * which isotropic tables cannot follow. */
+ * min, harmonic, geometric, arithmetic and RMS means and a per-direction
+ * projected alpha it keeps the furnace closest to 1; none bounds it, as E is
+ * not monotonic in roughness at grazing and depends on the azimuth
+ * (docs/render-bsdf.md, "Anisotropy"). */
 static double table_roughness(const sl_material *m)
 {
     if (m->anisotropy <= 0.0)

@@ -33,6 +33,15 @@ static void r_cell(double r, int *j, double *f)
     *f = fmin(fmax((r - a) / (b - a), 0.0), 1.0);
 }
 
+/* Linear in t between the nodes t_k = x_k^4. */
+static void t_cell(double t, int *k, double *f)
+{
+    t = fmin(fmax(t, 0.0), 1.0);
+    cell(sqrt(sqrt(t)), SL_E_NT, k, f);
+    double a = sl_energy_t_node(*k), b = sl_energy_t_node(*k + 1);
+    *f = fmin(fmax((t - a) / (b - a), 0.0), 1.0);
+}
+
 static double lerp(double a, double b, double f)
 {
     return a + (b - a) * f;
@@ -67,7 +76,7 @@ double sl_energy_ed(double mu, double roughness, double ior)
     double fi, fj, fk;
     mu_cell(mu, &i, &fi);
     r_cell(roughness, &j, &fj);
-    cell(ior_t(ior), SL_E_NT, &k, &fk);
+    t_cell(ior_t(ior), &k, &fk);
     double v[2];
     for (int d = 0; d < 2; d++) {
         const float *r0 = sl_energy_ed_table[k + d][j], *r1 = sl_energy_ed_table[k + d][j + 1];
@@ -81,7 +90,7 @@ double sl_energy_ed_avg(double roughness, double ior)
     int j, k;
     double fj, fk;
     r_cell(roughness, &j, &fj);
-    cell(ior_t(ior), SL_E_NT, &k, &fk);
+    t_cell(ior_t(ior), &k, &fk);
     const float *a = sl_energy_ed_avg_table[k], *b = sl_energy_ed_avg_table[k + 1];
     return lerp(lerp(a[j], a[j + 1], fj), lerp(b[j], b[j + 1], fj), fk);
 }

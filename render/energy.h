@@ -6,16 +6,16 @@
 #ifndef SETLIGHT_RENDER_ENERGY_H
 #define SETLIGHT_RENDER_ENERGY_H
 
-/* Grid: mu_i = (i/(NMU-1))^3 and roughness_j = (j/(NR-1))^2 (perceptual,
- * alpha = r^2): dense at grazing and low roughness, where E changes on a scale
- * of mu ~ alpha;
- * t_k = k/(NT-1) with t = (ior-1)/(ior+1) = sqrt(F0). Entry mu = 0 holds the
- * value at mu = 1e-6. Averages are exact for the piecewise-linear-in-mu
+/* Grid: mu_i = (i/(NMU-1))^3, roughness_j = (j/(NR-1))^2 (perceptual,
+ * alpha = r^2) and t_k = (k/(NT-1))^4 with t = (ior-1)/(ior+1) = sqrt(F0): dense
+ * at grazing, low roughness and index near 1, where E changes fastest (on a
+ * scale of mu ~ alpha, and of ior - 1 ~ mu^2 / 2 at grazing). Entry mu = 0
+ * holds the value at mu = 1e-6. Averages are exact for the piecewise-linear-in-mu
  * interpolant, so int (1 - E(mu)) mu dmu matches (1 - E_avg)/2 exactly and the
  * compensation lobes integrate to what they claim. */
 #define SL_E_NMU 32
 #define SL_E_NR 32
-#define SL_E_NT 16
+#define SL_E_NT 20
 
 /* E(mu, r) of the single-scattering isotropic GGX lobe with F = 1. */
 extern const float sl_energy_e1_table[SL_E_NR][SL_E_NMU];
@@ -31,6 +31,9 @@ double sl_energy_integrate(double mu, double roughness, double ior, int k);
 /* Positions of the mu and roughness nodes. */
 double sl_energy_mu_node(int i);
 double sl_energy_r_node(int j);
+double sl_energy_t_node(int k);
+/* Index of slab k: (1+t)/(1-t), or 0 (meaning F = 1) for t = 1. */
+double sl_energy_t_ior(int k);
 /* Exact 2 int E mu dmu of the piecewise-linear (in mu) interpolant through e[]. */
 double sl_energy_average(const double e[SL_E_NMU]);
 

@@ -48,6 +48,18 @@ double sl_energy_r_node(int j)
     return x * x;
 }
 
+double sl_energy_t_node(int k)
+{
+    double x = (double)k / (SL_E_NT - 1);
+    return x * x * x * x;
+}
+
+double sl_energy_t_ior(int k)
+{
+    double t = sl_energy_t_node(k);
+    return k == SL_E_NT - 1 ? 0.0 : (1.0 + t) / (1.0 - t);
+}
+
 double sl_energy_average(const double e[SL_E_NMU])
 {
     double s = 0.0;

@@ -19,7 +19,7 @@ void sl_fresnel_artist_nk(double r, double g, double *n, double *k);
 /* The material's Fresnel term per channel at cos_i = wo.h. */
 void sl_fresnel_eval(const sl_material *m, double cos_i, double f[3]);
 /* Hemispherical average 2 * int_0^1 F(mu) mu dmu per channel
- * (closed form for Schlick, 16-point Gauss-Legendre otherwise). */
+ * (closed form for Schlick, 8-point Gauss-Legendre otherwise). */
 void sl_fresnel_average(const sl_material *m, double favg[3]);
 
 #endif

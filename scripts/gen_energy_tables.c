@@ -41,6 +41,38 @@ static void fill(double ior, slab e)
             e[j][i] = fmin(e[j][i] + bump[j][i], 1.0);
 }
 
+/* The same bound across the index: the trilinear interpolant must reach the
+ * true E at every (t, r, mu) cell centre. Slab t = 0 stays 0 (no interface),
+ * so a cell touching it raises its other four corners twice as much. */
+static void bound_in_t(slab ed[SL_E_NT])
+{
+    static slab bump[SL_E_NT];
+    for (int k = 0; k + 1 < SL_E_NT; k++) {
+        double t = 0.5 * (sl_energy_t_node(k) + sl_energy_t_node(k + 1));
+        double ior = (1.0 + t) / (1.0 - t);
+        for (int j = 0; j + 1 < SL_E_NR; j++)
+            for (int i = 0; i + 1 < SL_E_NMU; i++) {
+                double mu = 0.5 * (sl_energy_mu_node(i) + sl_energy_mu_node(i + 1));
+                double r = 0.5 * (sl_energy_r_node(j) + sl_energy_r_node(j + 1));
+                double lerp = 0.0;
+                for (int c = 0; c < 8; c++)
+                    lerp += ed[k + (c >> 2)][j + ((c >> 1) & 1)][i + (c & 1)] / 8.0;
+                double d = sl_energy_integrate(mu, r, ior, K) - lerp;
+                for (int c = 0; c < 8; c++) {
+                    int kk = k + (c >> 2);
+                    if (kk == 0)
+                        continue;
+                    double *b = &bump[kk][j + ((c >> 1) & 1)][i + (c & 1)];
+                    *b = fmax(*b, k == 0 ? 2.0 * d : d);
+                }
+            }
+    }
+    for (int k = 1; k < SL_E_NT; k++)
+        for (int j = 0; j < SL_E_NR; j++)
+            for (int i = 0; i < SL_E_NMU; i++)
+                ed[k][j][i] = fmin(ed[k][j][i] + bump[k][j][i], 1.0);
+}
+
 static void print_slab(slab e)
 {
     for (int j = 0; j < SL_E_NR; j++) {
@@ -66,15 +98,16 @@ int main(void)
         printf("%.8ef,%s", sl_energy_average(e1[j]), j % 6 == 5 ? "\n" : " ");
     printf("};\n\nconst float sl_energy_ed_table[SL_E_NT][SL_E_NR][SL_E_NMU] = {\n");
     for (int k = 0; k < SL_E_NT; k++) {
-        double t = (double)k / (SL_E_NT - 1);
         if (k == 0) {
             for (int j = 0; j < SL_E_NR; j++)
                 for (int i = 0; i < SL_E_NMU; i++)
                     ed[k][j][i] = 0.0; /* index 1: no interface, no reflection */
         } else {
-            /* t = 1 is the infinite index, a perfect reflector (ior <= 0: F = 1). */
-            fill(k == SL_E_NT - 1 ? 0.0 : (1.0 + t) / (1.0 - t), ed[k]);
+            fill(sl_energy_t_ior(k), ed[k]);
         }
+    }
+    bound_in_t(ed);
+    for (int k = 0; k < SL_E_NT; k++) {
         printf("{\n");
         print_slab(ed[k]);
         printf("},\n");

@@ -18,7 +18,7 @@ static void usage(FILE *out)
             "Kulla-Conty energy compensation. An energy-preserving lobe has albedo 1; the\n"
             "uncompensated GGX shows the energy single scattering loses.\n\n"
             "options:\n"
-            "  --samples N   stratified samples per case (default 4096, at least 16)\n"
+            "  --samples N   stratified samples per case (default 16384, at least 16)\n"
             "  --json        print {\"cases\": [{\"bsdf\", \"roughness\", \"cos_theta\",\n"
             "                \"compensated\", \"albedo\", \"expected\"}, ...]} on stdout\n\n"
             "Without --json a table per lobe is printed: one row per roughness, one column\n"
@@ -61,7 +61,7 @@ int cmd_furnace(int argc, char **argv, const sl_cli *cli)
         {"help", no_argument, NULL, 'h'},
         {NULL, 0, NULL, 0},
     };
-    int samples = 4096;
+    int samples = 16384;
     cli_getopt_reset();
     int c;
     while ((c = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
