@@ -19,8 +19,8 @@ static void help(FILE *out)
             "  --env FILE          lat-long environment (EXR, HDR or any image; width = 2 x height)\n"
             "  --rig FILE          light rig JSON: rect/disk/sphere/distant lights and an optional\n"
             "                      dome (docs/render.md)\n"
-            "  --rotate DEG        turn the environment about +Y (default 0)\n"
-            "  --intensity X       multiply the environment (default 1)\n"
+            "  --rotate DEG        turn the environment about +Y (default 0; --env only)\n"
+            "  --intensity X       multiply the environment (default 1; --env only)\n"
             "  --scene NAME|FILE   preset (%s) or a scene JSON file\n"
             "                      (docs/render.md); default grey\n"
             "  --material SPEC     give every object this material: lambert:R,G,B | chrome |\n"
@@ -202,6 +202,8 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "unexpected argument '%s'", argv[optind]);
     if (!env_path == !rig_path)
         return cli_usage_error(cli, "give exactly one of --env ENV and --rig RIG.json");
+    if (rig_path && (rotate != 0 || intensity != 1))
+        return cli_usage_error(cli, "--rotate and --intensity apply to --env; a rig sets its dome's");
     if (!out_path)
         return cli_usage_error(cli, "-o OUT.exr is required");
     if (!spp_given && (o.time_limit > 0 || o.target_error > 0))
