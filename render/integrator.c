@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Path integrator: next-event estimation from the dome combined with BSDF
- * sampling by the power heuristic; delta lobes are followed exactly by BSDF
- * sampling only. `bounces` counts the non-delta vertices after the first. */
+/* Path integrator: next-event estimation from the dome and lights combined
+ * with BSDF sampling by the power heuristic; delta lobes are followed exactly
+ * by BSDF sampling only. `bounces` counts the surfaces a path may hit after
+ * its first non-delta vertex. */
 #include "render_internal.h"
 
 /* Delta (mirror) vertices allowed beyond the counted bounces. */
@@ -138,7 +139,10 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
             rgba[3] = 1;
         const sl_material *m = &scene->materials[scene->shapes[hit.shape].material];
         bool delta = sl_bsdf_is_delta(m);
-        if (!delta && nondelta > o->bounces)
+        /* Mirror chains are free up to the first non-delta vertex; after it
+         * every surface counts, so direct lighting has no caustic paths
+         * (diffuse -> mirror -> sun), which only MIS-less sampling could find. */
+        if (nondelta > o->bounces)
             break;
         frame fr;
         frame_from_normal(&fr, hit.n);
