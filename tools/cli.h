@@ -39,5 +39,7 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli);
 int cmd_furnace(int argc, char **argv, const sl_cli *cli);
 int cmd_render(int argc, char **argv, const sl_cli *cli);
 int cmd_converge(int argc, char **argv, const sl_cli *cli);
+int cmd_simulate(int argc, char **argv, const sl_cli *cli);
+int cmd_demo(int argc, char **argv, const sl_cli *cli);
 
 #endif

@@ -20,6 +20,8 @@ static const command commands[] = {
     {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},
     {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
     {"converge", cmd_converge, "error against time for each sampling strategy (table, SVG)"},
+    {"simulate", cmd_simulate, "photograph a virtual film set, with its ground truth"},
+    {"demo", cmd_demo, "simulate the stage set, run every stage on it, write report.html"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
