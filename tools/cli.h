@@ -36,8 +36,10 @@ void cli_warn_format_mismatch(const char *path, const sl_meta *meta);
 /* Command entry points. */
 int cmd_info(int argc, char **argv, const sl_cli *cli);
 int cmd_convert(int argc, char **argv, const sl_cli *cli);
+int cmd_furnace(int argc, char **argv, const sl_cli *cli);
+int cmd_render(int argc, char **argv, const sl_cli *cli);
+int cmd_converge(int argc, char **argv, const sl_cli *cli);
 int cmd_simulate(int argc, char **argv, const sl_cli *cli);
 int cmd_demo(int argc, char **argv, const sl_cli *cli);
-int cmd_furnace(int argc, char **argv, const sl_cli *cli);
 
 #endif
