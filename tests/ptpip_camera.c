@@ -589,6 +589,7 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
         }
         if (g.busy_left > 0 && g.captures + 1 >= g.busy_at) {
             g.busy_left--;
+            fprintf(stderr, "ptpip_camera: busy reply to the trigger of frame %d\n", g.captures + 1);
             r = send_response(RC_DeviceBusy, tid, NULL, 0);
             break;
         }

@@ -17,6 +17,9 @@ typedef struct command {
 static const command commands[] = {
     {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
     {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"capture", cmd_capture, "tethered bracketing through libgphoto2 with journal and resume"},
+    {"ingest", cmd_ingest, "group a card or folder of brackets into a session"},
+    {"cameras", cmd_cameras, "list the cameras libgphoto2 detects"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
