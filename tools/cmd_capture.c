@@ -324,7 +324,7 @@ int cmd_ingest(int argc, char **argv, const sl_cli *cli)
     double gap = 10;
     cli_getopt_reset();
     int c;
-    while ((c = getopt_long(argc, argv, "+ho:", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "ho:", opts, NULL)) != -1) {
         switch (c) {
         case 'h':
             fputs(ingest_help, stdout);
