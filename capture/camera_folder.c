@@ -96,6 +96,9 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
         snprintf(x->name, sizeof x->name, "%s", name);
         x->when = exif_seconds(meta.datetime);
         x->sequence = sequence_of(e->d_name);
+        /* a broken EXIF rational reads back as infinity: unknown */
+        if (!isfinite(meta.exposure_time))
+            meta.exposure_time = 0;
         x->meta = meta;
     }
     closedir(d);

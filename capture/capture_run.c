@@ -158,7 +158,7 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
     sl_meta meta;
     sl_error rerr;
     bool readable = sl_photo_read(path, &img, &meta, &rerr) == SL_OK;
-    rep.reported = readable ? meta.exposure_time : 0;
+    rep.reported = readable && isfinite(meta.exposure_time) ? meta.exposure_time : 0;
     double tol = o->tolerance_stops > 0 ? o->tolerance_stops : 1.0 / 3.0;
     if (readable) {
         linearize(&img, &meta);
@@ -232,7 +232,7 @@ static void load_prev(run_state *s, int v, const char *file)
     linearize(&img, &meta);
     sl_image_free(&s->prev);
     s->prev = img;
-    s->prev_time = meta.exposure_time;
+    s->prev_time = isfinite(meta.exposure_time) ? meta.exposure_time : 0;
     s->prev_view = v;
     sl_meta_free(&meta);
 }
