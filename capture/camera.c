@@ -71,4 +71,5 @@ void sl_camera_file_free(sl_camera_file *file)
     free(file->data);
     file->data = NULL;
     file->size = 0;
+    file->busy_retries = 0;
 }

@@ -248,15 +248,16 @@ static sl_result download(gp_impl *g, const CameraFilePath *path, sl_camera_file
 static sl_result gp_capture(void *impl, sl_camera_file *file, sl_error *err)
 {
     gp_impl *g = impl;
-    int gr = GP_OK;
+    int gr = GP_OK, busy = 0;
     /* Busy: the camera is still writing the last frame; back off and retry. */
-    for (int attempt = 0;; attempt++) {
+    for (;; busy++) {
         g->last_error[0] = 0;
         gr = gp_camera_trigger_capture(g->camera, g->context);
-        if (gr != GP_ERROR_CAMERA_BUSY || attempt >= 10)
+        if (gr != GP_ERROR_CAMERA_BUSY || busy >= 10)
             break;
-        sleep_ms(20 << (attempt < 5 ? attempt : 5));
+        sleep_ms(20 << (busy < 5 ? busy : 5));
     }
+    file->busy_retries = busy;
     if (gr == GP_ERROR_NOT_SUPPORTED) {
         /* Drivers without a separate trigger wait for the new file themselves. */
         CameraFilePath path;
@@ -264,7 +265,9 @@ static sl_result gp_capture(void *impl, sl_camera_file *file, sl_error *err)
         gr = gp_camera_capture(g->camera, GP_CAPTURE_IMAGE, &path, g->context);
         if (gr != GP_OK)
             return gp_fail(g, gr, "capture", err);
-        return download(g, &path, file, err);
+        sl_result r = download(g, &path, file, err);
+        file->busy_retries = busy;
+        return r;
     }
     if (gr != GP_OK)
         return gp_fail(g, gr, "trigger", err);
@@ -282,7 +285,9 @@ static sl_result gp_capture(void *impl, sl_camera_file *file, sl_error *err)
         if (type == GP_EVENT_FILE_ADDED && data) {
             CameraFilePath path = *(CameraFilePath *)data;
             free(data);
-            return download(g, &path, file, err);
+            sl_result r = download(g, &path, file, err);
+            file->busy_retries = busy;
+            return r;
         }
         /* every other event's data is ours to free too */
         free(data);
@@ -360,8 +365,11 @@ static sl_result model_for_port(gp_impl *g, char *port, char *model, size_t size
         /* libgphoto2 2.5.30 connects events to 15740 unless a second port is
          * given; a camera on another port serves both channels there. */
         const char *host = port + 6, *colon = strchr(host, ':');
-        if (colon && !strchr(colon + 1, ':') && strlen(port) + strlen(colon) < 128)
-            strcat(port, colon);
+        if (colon && !strchr(colon + 1, ':') && strlen(port) + strlen(colon) < 128) {
+            char event_port[128];
+            snprintf(event_port, sizeof event_port, "%s", colon);
+            strcat(port, event_port);
+        }
         snprintf(model, size, "PTP/IP Camera");
         return SL_OK;
     }

@@ -143,6 +143,7 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
     if ((r = sl_camera_capture(s->camera, &file, err)))
         return r;
     snprintf(rep.source, sizeof rep.source, "%s", file.source);
+    rep.busy_retries = file.busy_retries;
     char path[4096];
     if ((r = frame_name(s, v, i, file.source, rep.file, sizeof rep.file, path, sizeof path, err)) ||
         (r = sl_write_file_atomic(path, file.data, file.size, err))) {
@@ -198,6 +199,8 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
     json_object_set_new(ev, "measured_ratio", rep.measured_ratio > 0 ? json_real(rep.measured_ratio) : json_null());
     json_object_set_new(ev, "expected_ratio", rep.expected_ratio > 0 ? json_real(rep.expected_ratio) : json_null());
     json_object_set_new(ev, "sha256", json_string(sha));
+    if (rep.busy_retries)
+        json_object_set_new(ev, "busy_retries", json_integer(rep.busy_retries));
     if (!rep.accepted)
         json_object_set_new(ev, "reason", json_string(rep.reason));
     r = sl_journal_event(s->dir, ev, err);
@@ -256,8 +259,10 @@ static sl_result run(run_state *s, sl_error *err)
         if (all)
             continue;
         if (v > 0 && !any && !s->stepped[v]) {
-            if (o->step && (r = o->step(o->ctx, v, err)))
+            if (o->step && (r = o->step(o->ctx, v, err))) {
+                journal_error(s, v, 0, 0, err, NULL);
                 break;
+            }
             json_t *ev = json_object();
             json_object_set_new(ev, "event", json_string("step"));
             json_object_set_new(ev, "view", json_integer(v));
@@ -325,6 +330,9 @@ static void state_free(run_state *s)
 
 sl_result sl_capture_run(sl_camera *camera, const sl_capture_options *o, sl_error *err)
 {
+    sl_error local; /* the journal needs the message even when the caller does not */
+    if (!err)
+        err = &local;
     if (!o->dir || !*o->dir)
         return sl_error_set(err, SL_ERR_USAGE, "capture: no output folder");
     if (o->views < 1 || o->views > 360)

@@ -747,8 +747,8 @@ int main(int argc, char **argv)
         }
         i++;
     }
-    for (int k = 0; k <= 58 && g_shutter_count < 64; k++) {
-        uint32_t u = (uint32_t)lround(exp2(k / 3.0)); /* 1 .. 300000 (1/10000 s .. 30 s) */
+    for (int k = 0; k <= 55 && g_shutter_count < 64; k++) {
+        uint32_t u = (uint32_t)lround(exp2(k / 3.0)); /* 1 .. 327680 (1/10000 s .. 33 s) */
         if (g_shutter_count == 0 || g_shutters[g_shutter_count - 1] != u)
             g_shutters[g_shutter_count++] = u;
     }

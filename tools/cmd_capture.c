@@ -10,6 +10,14 @@
 #include "cli.h"
 #include "setlight/capture.h"
 
+/* Under LeakSanitizer: libgphoto2's USB port driver keeps the device list it
+ * gets from libusb_get_device_list when it loads (outside setlight). */
+const char *__lsan_default_suppressions(void);
+const char *__lsan_default_suppressions(void) { return "leak:libusb_get_device_list\n"; }
+/* and the report of that suppression would break the one-line error rule */
+const char *__lsan_default_options(void);
+const char *__lsan_default_options(void) { return "print_suppressions=0"; }
+
 static const char *capture_help =
     "usage: setlight capture [options] -o DIR\n"
     "       setlight capture [options] --resume DIR\n\n"

@@ -83,6 +83,7 @@ typedef struct sl_camera_file {
     unsigned char *data;
     size_t size;
     char source[256]; /* name on the card, e.g. "/store_00010001/IMG_0001.JPG" */
+    int busy_retries; /* busy replies retried before the trigger was taken */
 } sl_camera_file;
 
 /* Triggers one exposure, waits for the camera's file-added event and
@@ -116,6 +117,7 @@ typedef struct sl_capture_report {
     double configured;      /* exposure time the camera reported it was set to */
     double measured_ratio;  /* pixel ratio to the previous accepted frame, 0 if none */
     double expected_ratio;  /* what the EXIF exposures say that ratio should be */
+    int busy_retries;       /* busy replies to this frame's trigger */
     char file[256];         /* name inside the session folder */
     char source[256];
     char reason[256];       /* why a frame was rejected */

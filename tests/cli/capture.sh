@@ -101,7 +101,9 @@ EOF
 # --- help and detection
 expect 0 "$SETLIGHT" capture --help; out_has "usage: setlight capture"
 expect 0 "$SETLIGHT" ingest --help; out_has "usage: setlight ingest"
-expect 0 "$SETLIGHT" cameras --json; json_ok "$T/out"; json_eval "$T/out" 'isinstance(d["cameras"], list)'
+# libgphoto2's camera detection leaks inside drivers it unloads again (no
+# symbols left for a suppression): no leak check for the two detecting runs.
+expect 0 env ASAN_OPTIONS=detect_leaks=0 "$SETLIGHT" cameras --json; json_ok "$T/out"; json_eval "$T/out" 'isinstance(d["cameras"], list)'
 
 start_cam || { finish; exit 1; }
 
@@ -132,14 +134,17 @@ python3 -c 'import json,sys; l=[json.loads(x) for x in open(sys.argv[1])]; sys.e
 
 # --- busy replies: retried with backoff, no frame lost
 start_cam --busy 3 --busy-at 5
-expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --views 3 --no-prompt -o "$T/busy"
-check_session "$T/busy" 3 7
+expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --no-prompt -o "$T/busy"
+check_session "$T/busy" 1 7
 if [ "$(grep -c 'busy reply' "$T/cam.log")" -eq 3 ]; then ok; else bad "emulator sent no busy replies"; fi
+# the journal records them on the frame that waited (the 5th)
+python3 -c 'import json,sys; l=[json.loads(x) for x in open(sys.argv[1])]; b=[(e["view"],e["index"],e.get("busy_retries")) for e in l if e["event"]=="frame" and e.get("busy_retries")]; sys.exit(0 if b==[(0,4,3)] else print(b) or 1)' \
+  "$T/busy/journal.jsonl" && ok || bad "busy retries not journalled"
 
 # --- the camera ignores one shutter change: caught (EXIF and pixels) and retried
 start_cam --ignore-shutter 4
-expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --views 3 --no-prompt -o "$T/ignored"
-check_session "$T/ignored" 3 7
+expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --no-prompt -o "$T/ignored"
+check_session "$T/ignored" 1 7
 err_has "REJECTED"
 if python3 - "$T/ignored" <<'EOF'
 import json, sys
@@ -239,6 +244,9 @@ cp -r "$T/drop" "$T/tampered"
 echo x >>"$T/tampered/v00_f02.jpg"
 expect 3 cap --camera "ptpip:127.0.0.1:$PORT" --no-prompt --resume "$T/tampered"
 err_has "v00_f02.jpg"
+# a USB port where no camera is
+ASAN_OPTIONS=detect_leaks=0 expect 1 cap --camera usb:999,999 --bracket 7x3 --center 1/30 --no-prompt -o "$T/nousb"
+err_has "usb:999,999"; err_has "no camera"; absent "$T/nousb"
 stop_cam
 # no camera listening on that port any more
 # (libgphoto2 itself prints "connect cmd: Connection refused" before our line)
