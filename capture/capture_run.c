@@ -172,8 +172,8 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
         snprintf(rep.reason, sizeof rep.reason, "cannot read the file back: %.200s", rerr.message);
     else if (rep.reported > 0 && fabs(log2(rep.reported / planned)) > tol)
         snprintf(rep.reason, sizeof rep.reason,
-                 "the file says %.6g s, planned %.6g s (the camera ignored the setting)",
-                 rep.reported, planned);
+                 "the file says %.6g s, planned %.6g s, the camera's setting reads %.6g s "
+                 "(the camera ignored the setting)", rep.reported, planned, rep.configured);
     else if (rep.measured_ratio > 0 &&
              fabs(log2(rep.measured_ratio / rep.expected_ratio)) > (tol > 0.5 ? tol : 0.5))
         snprintf(rep.reason, sizeof rep.reason,
@@ -452,6 +452,11 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
             next_v = q / count;
             next_i = q % count;
         }
+    if (next_v < 0) {
+        /* complete already: nothing to shoot, nothing to journal */
+        r = sl_session_write(dir, err);
+        goto out;
+    }
     if (last_file && next_v == last_view && next_i > last_index)
         load_prev(&s, last_view, last_file);
     sl_capture_options opts = *o;

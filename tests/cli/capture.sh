@@ -186,6 +186,10 @@ src = [e["source"] for e in l if e["event"] == "frame"]
 assert len(src) == len(set(src))
 EOF
 then ok; else bad "journal does not show the gap and the resume"; fi
+# resuming a complete session shoots nothing and journals nothing
+lines=$(wc -l <"$T/drop/journal.jsonl")
+expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --no-prompt --resume "$T/drop"
+if [ "$(wc -l <"$T/drop/journal.jsonl")" -eq "$lines" ]; then ok; else bad "complete session journalled again"; fi
 
 # --- disk full: a 48 KiB tmpfs in a private mount namespace
 if unshare -rm true 2>/dev/null; then
