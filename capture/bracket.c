@@ -72,9 +72,11 @@ sl_result sl_bracket_plan_parse(const char *spec, double center, double **times,
     double *t;
     if (sscanf(spec, "%dx%lf%c", &n, &stops, &tail) == 2) {
         if (n < 1 || n > 64)
-            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: 1 to 64 exposures, not %d", spec, n);
+            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: 1 to 64 exposures, not %d", spec,
+                                n);
         if (!(stops > 0 && stops <= 6))
-            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: stops apart must be in (0, 6]", spec);
+            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: stops apart must be in (0, 6]",
+                                spec);
         if (!(center > 0))
             return sl_error_set(err, SL_ERR_USAGE, "bracket %s needs a centre shutter speed", spec);
         t = malloc((size_t)n * sizeof *t);
@@ -103,7 +105,8 @@ sl_result sl_bracket_plan_parse(const char *spec, double center, double **times,
             if (!(v > 0)) {
                 sl_error_set(err, SL_ERR_USAGE,
                              "bracket '%s': '%s' is not a shutter speed (use NxS or a list "
-                             "such as 1/1000,1/125,1/15)", spec, tok);
+                             "such as 1/1000,1/125,1/15)",
+                             spec, tok);
                 free(copy);
                 free(t);
                 return SL_ERR_USAGE;
@@ -143,8 +146,8 @@ sl_result sl_bracket_snap(double *times, int count, const double *offered, int o
             sl_shutter_format(offered[0], lo, sizeof lo);
             sl_shutter_format(offered[offered_count - 1], hi, sizeof hi);
             return sl_error_set(err, SL_ERR_USAGE,
-                                "shutter %s s is out of the camera's range (%s to %s s)", want,
-                                lo, hi);
+                                "shutter %s s is out of the camera's range (%s to %s s)", want, lo,
+                                hi);
         }
         if (moved_stops)
             moved_stops[i] = log2(offered[best] / times[i]);

@@ -36,9 +36,18 @@ void sl_camera_close(sl_camera *camera)
     free(camera);
 }
 
-const char *sl_camera_model(const sl_camera *camera) { return camera->model; }
-const char *sl_camera_port(const sl_camera *camera) { return camera->port; }
-const char *sl_camera_backend(const sl_camera *camera) { return camera->ops->name; }
+const char *sl_camera_model(const sl_camera *camera)
+{
+    return camera->model;
+}
+const char *sl_camera_port(const sl_camera *camera)
+{
+    return camera->port;
+}
+const char *sl_camera_backend(const sl_camera *camera)
+{
+    return camera->ops->name;
+}
 
 sl_result sl_camera_shutter_speeds(sl_camera *camera, double **speeds, int *count, sl_error *err)
 {

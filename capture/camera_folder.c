@@ -15,8 +15,8 @@
 typedef struct shot {
     char path[4096];
     char name[256];
-    double when;      /* EXIF time in seconds (0 unknown) */
-    long sequence;    /* the number in the file name, -1 if none */
+    double when;   /* EXIF time in seconds (0 unknown) */
+    long sequence; /* the number in the file name, -1 if none */
     sl_meta meta;
 } shot;
 
@@ -121,7 +121,8 @@ static bool in_bracket(json_t *frames, double t)
 {
     size_t i;
     json_t *f;
-    json_array_foreach(frames, i, f) {
+    json_array_foreach(frames, i, f)
+    {
         double u = json_number_value(json_object_get(f, "exposure_time"));
         if (u > 0 && t > 0 && fabs(log2(u / t)) < 0.1)
             return true;
@@ -216,8 +217,11 @@ sl_result sl_ingest(const char *src, const char *dir, double gap, int *frames, i
             json_t *f = json_object();
             json_object_set_new(f, "file", json_string(name));
             json_object_set_new(f, "source", json_string(x->name));
-            json_object_set_new(f, "exposure_time", x->meta.exposure_time > 0 ? json_real(x->meta.exposure_time) : json_null());
-            json_object_set_new(f, "f_number", x->meta.f_number > 0 ? json_real(x->meta.f_number) : json_null());
+            json_object_set_new(f, "exposure_time",
+                                x->meta.exposure_time > 0 ? json_real(x->meta.exposure_time)
+                                                          : json_null());
+            json_object_set_new(f, "f_number",
+                                x->meta.f_number > 0 ? json_real(x->meta.f_number) : json_null());
             json_object_set_new(f, "iso", x->meta.iso > 0 ? json_real(x->meta.iso) : json_null());
             json_object_set_new(f, "measured_ratio", json_null());
             json_object_set_new(f, "sha256", json_string(sha));

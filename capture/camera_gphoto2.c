@@ -68,7 +68,7 @@ static double choice_value(int kind, const char *text)
 static sl_result find_widget(gp_impl *g, int kind, CameraWidget **widget, const char **name,
                              sl_error *err)
 {
-    const char *const *names = kind == SET_SHUTTER ? k_shutter_names
+    const char *const *names = kind == SET_SHUTTER   ? k_shutter_names
                                : kind == SET_FNUMBER ? k_fnumber_names
                                                      : k_iso_names;
     *widget = NULL;
@@ -79,12 +79,11 @@ static sl_result find_widget(gp_impl *g, int kind, CameraWidget **widget, const 
             *name = names[i];
             return SL_OK;
         }
-        if (gr != GP_ERROR_BAD_PARAMETERS && gr != GP_ERROR_NOT_SUPPORTED &&
-            gr != GP_ERROR)
+        if (gr != GP_ERROR_BAD_PARAMETERS && gr != GP_ERROR_NOT_SUPPORTED && gr != GP_ERROR)
             return gp_fail(g, gr, "reading the camera settings", err);
     }
     return sl_error_set(err, SL_ERR_CAMERA, "%s: the camera has no %s setting", g->port,
-                        kind == SET_SHUTTER ? "shutter speed"
+                        kind == SET_SHUTTER   ? "shutter speed"
                         : kind == SET_FNUMBER ? "aperture"
                                               : "ISO");
 }
@@ -120,8 +119,10 @@ static sl_result gp_shutter_speeds(void *impl, double **speeds, int *count, sl_e
     qsort(v, (size_t)k, sizeof *v, cmp_double);
     if (k == 0) {
         free(v);
-        return sl_error_set(err, SL_ERR_CAMERA, "%s: the camera offers no shutter speeds (is it "
-                            "in manual mode?)", g->port);
+        return sl_error_set(err, SL_ERR_CAMERA,
+                            "%s: the camera offers no shutter speeds (is it "
+                            "in manual mode?)",
+                            g->port);
     }
     *speeds = v;
     *count = k;
@@ -307,8 +308,8 @@ static void gp_close(void *impl)
     free(g);
 }
 
-static const sl_camera_ops k_ops = {"gphoto2", gp_shutter_speeds, gp_set, gp_get, gp_capture,
-                                    gp_close};
+static const sl_camera_ops k_ops = {"gphoto2", gp_shutter_speeds, gp_set,
+                                    gp_get,    gp_capture,        gp_close};
 
 static sl_result autodetect(GPContext *ctx, CameraList **list, sl_error *err)
 {
@@ -413,8 +414,10 @@ sl_result sl_gphoto2_open(const char *port_in, sl_camera *camera, sl_error *err)
     sl_result r = SL_OK;
     int gr;
     if (strcmp(port, "auto") != 0 && !strchr(port, ':')) {
-        r = sl_error_set(err, SL_ERR_USAGE, "%s: unknown camera port (auto, usb:BUS,DEV, "
-                         "ptpip:HOST[:PORT], serial:DEVICE)", port_in);
+        r = sl_error_set(err, SL_ERR_USAGE,
+                         "%s: unknown camera port (auto, usb:BUS,DEV, "
+                         "ptpip:HOST[:PORT], serial:DEVICE)",
+                         port_in);
         goto done;
     }
     if ((gr = gp_port_info_list_new(&pil)) < GP_OK || (gr = gp_port_info_list_load(pil)) < GP_OK ||
@@ -424,8 +427,10 @@ sl_result sl_gphoto2_open(const char *port_in, sl_camera *camera, sl_error *err)
         goto done;
     }
     if (strcmp(port, "auto") != 0 && gp_port_info_list_lookup_path(pil, port) < GP_OK) {
-        r = sl_error_set(err, SL_ERR_USAGE, "%s: unknown camera port (auto, usb:BUS,DEV, "
-                         "ptpip:HOST[:PORT], serial:DEVICE)", port_in);
+        r = sl_error_set(err, SL_ERR_USAGE,
+                         "%s: unknown camera port (auto, usb:BUS,DEV, "
+                         "ptpip:HOST[:PORT], serial:DEVICE)",
+                         port_in);
         goto done;
     }
     if ((r = model_for_port(g, port, model, sizeof model, err)))

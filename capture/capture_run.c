@@ -20,10 +20,10 @@ typedef struct run_state {
     const char *dir;
     const double *times;
     int count, views;
-    bool *done;          /* views x count: accepted frames */
-    bool *stepped;       /* views: head moved for this view */
-    sl_image prev;       /* the previous accepted frame of the view, linear */
-    double prev_time;    /* its EXIF exposure time */
+    bool *done;       /* views x count: accepted frames */
+    bool *stepped;    /* views: head moved for this view */
+    sl_image prev;    /* the previous accepted frame of the view, linear */
+    double prev_time; /* its EXIF exposure time */
     int prev_view;
 } run_state;
 
@@ -173,7 +173,8 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
     else if (rep.reported > 0 && fabs(log2(rep.reported / planned)) > tol)
         snprintf(rep.reason, sizeof rep.reason,
                  "the file says %.6g s, planned %.6g s, the camera's setting reads %.6g s "
-                 "(the camera ignored the setting)", rep.reported, planned, rep.configured);
+                 "(the camera ignored the setting)",
+                 rep.reported, planned, rep.configured);
     else if (rep.measured_ratio > 0 &&
              fabs(log2(rep.measured_ratio / rep.expected_ratio)) > (tol > 0.5 ? tol : 0.5))
         snprintf(rep.reason, sizeof rep.reason,
@@ -192,12 +193,17 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
     json_object_set_new(ev, "file", json_string(rep.file));
     json_object_set_new(ev, "source", json_string(rep.source));
     json_object_set_new(ev, "planned", json_real(planned));
-    json_object_set_new(ev, "configured", rep.configured > 0 ? json_real(rep.configured) : json_null());
-    json_object_set_new(ev, "exposure_time", rep.reported > 0 ? json_real(rep.reported) : json_null());
-    json_object_set_new(ev, "f_number", readable && meta.f_number > 0 ? json_real(meta.f_number) : json_null());
+    json_object_set_new(ev, "configured",
+                        rep.configured > 0 ? json_real(rep.configured) : json_null());
+    json_object_set_new(ev, "exposure_time",
+                        rep.reported > 0 ? json_real(rep.reported) : json_null());
+    json_object_set_new(ev, "f_number",
+                        readable && meta.f_number > 0 ? json_real(meta.f_number) : json_null());
     json_object_set_new(ev, "iso", readable && meta.iso > 0 ? json_real(meta.iso) : json_null());
-    json_object_set_new(ev, "measured_ratio", rep.measured_ratio > 0 ? json_real(rep.measured_ratio) : json_null());
-    json_object_set_new(ev, "expected_ratio", rep.expected_ratio > 0 ? json_real(rep.expected_ratio) : json_null());
+    json_object_set_new(ev, "measured_ratio",
+                        rep.measured_ratio > 0 ? json_real(rep.measured_ratio) : json_null());
+    json_object_set_new(ev, "expected_ratio",
+                        rep.expected_ratio > 0 ? json_real(rep.expected_ratio) : json_null());
     json_object_set_new(ev, "sha256", json_string(sha));
     if (rep.busy_retries)
         json_object_set_new(ev, "busy_retries", json_integer(rep.busy_retries));
@@ -287,7 +293,8 @@ static sl_result run(run_state *s, sl_error *err)
             if (!r && !ok) {
                 r = sl_error_set(err, SL_ERR_CAMERA,
                                  "%s: view %d frame %d still wrong after %d attempts (see the "
-                                 "journal)", sl_camera_port(s->camera), v, i, max_attempts);
+                                 "journal)",
+                                 sl_camera_port(s->camera), v, i, max_attempts);
                 journal_error(s, v, i, max_attempts, err, NULL);
             }
             if (!r)
@@ -370,8 +377,13 @@ sl_result sl_capture_run(sl_camera *camera, const sl_capture_options *o, sl_erro
     json_decref(ev);
     if (r)
         return r;
-    run_state s = {.camera = camera, .o = o, .dir = o->dir, .times = o->times,
-                   .count = o->count, .views = o->views, .prev_view = -1};
+    run_state s = {.camera = camera,
+                   .o = o,
+                   .dir = o->dir,
+                   .times = o->times,
+                   .count = o->count,
+                   .views = o->views,
+                   .prev_view = -1};
     if (!(r = state_alloc(&s, err)))
         r = run(&s, err);
     state_free(&s);
@@ -393,8 +405,12 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
     int count = (int)json_array_size(jt);
     int views = (int)json_integer_value(json_object_get(plan, "views"));
     double *times = calloc((size_t)(count > 0 ? count : 1), sizeof *times);
-    run_state s = {.camera = camera, .dir = dir, .times = times, .count = count,
-                   .views = views, .prev_view = -1};
+    run_state s = {.camera = camera,
+                   .dir = dir,
+                   .times = times,
+                   .count = count,
+                   .views = views,
+                   .prev_view = -1};
     if (!times) {
         json_decref(events);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", dir);
@@ -413,7 +429,8 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
     int done = 0, last_view = -1, last_index = -1;
     const char *last_file = NULL;
     const char *last_error = NULL;
-    json_array_foreach(events, k, e) {
+    json_array_foreach(events, k, e)
+    {
         const char *kind = json_string_value(json_object_get(e, "event"));
         int v = (int)json_integer_value(json_object_get(e, "view"));
         int i = (int)json_integer_value(json_object_get(e, "index"));

@@ -20,8 +20,10 @@ static void sort_brackets(json_t *views)
 {
     size_t vi, bi;
     json_t *view, *bracket;
-    json_array_foreach(views, vi, view) {
-        json_array_foreach(json_object_get(view, "brackets"), bi, bracket) {
+    json_array_foreach(views, vi, view)
+    {
+        json_array_foreach(json_object_get(view, "brackets"), bi, bracket)
+        {
             json_t *frames = json_object_get(bracket, "frames");
             size_t n = json_array_size(frames);
             json_t **items = malloc(sizeof *items * (n ? n : 1));
@@ -89,20 +91,21 @@ sl_result sl_session_write(const char *dir, sl_error *err)
     }
     size_t i;
     json_t *e;
-    json_array_foreach(events, i, e) {
+    json_array_foreach(events, i, e)
+    {
         const char *kind = str(e, "event");
         int v = (int)json_integer_value(json_object_get(e, "view"));
         if (!strcmp(kind, "frame") && json_is_true(json_object_get(e, "accepted")) && v >= 0 &&
             v < nviews) {
             json_t *frame = json_object();
-            static const char *const keys[] = {"file", "source", "exposure_time", "f_number",
-                                               "iso", "planned", "measured_ratio", "sha256"};
+            static const char *const keys[] = {"file", "source",  "exposure_time",  "f_number",
+                                               "iso",  "planned", "measured_ratio", "sha256"};
             for (size_t k = 0; k < sizeof keys / sizeof keys[0]; k++) {
                 json_t *value = json_object_get(e, keys[k]);
                 json_object_set(frame, keys[k], value ? value : json_null());
             }
-            json_t *bracket = json_array_get(json_object_get(json_array_get(views, (size_t)v),
-                                                             "brackets"), 0);
+            json_t *bracket =
+                json_array_get(json_object_get(json_array_get(views, (size_t)v), "brackets"), 0);
             json_array_append_new(json_object_get(bracket, "frames"), frame);
         } else if (!strcmp(kind, "frame")) {
             char msg[512];

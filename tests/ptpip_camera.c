@@ -36,32 +36,55 @@
 #include "setlight/core.h"
 
 enum {
-    PKT_INIT_CMD_REQ = 1, PKT_INIT_CMD_ACK = 2, PKT_INIT_EVT_REQ = 3, PKT_INIT_EVT_ACK = 4,
-    PKT_CMD_REQ = 6, PKT_CMD_RESP = 7, PKT_EVENT = 8, PKT_START_DATA = 9, PKT_DATA = 10,
-    PKT_END_DATA = 12, PKT_PING = 13, PKT_PONG = 14
+    PKT_INIT_CMD_REQ = 1,
+    PKT_INIT_CMD_ACK = 2,
+    PKT_INIT_EVT_REQ = 3,
+    PKT_INIT_EVT_ACK = 4,
+    PKT_CMD_REQ = 6,
+    PKT_CMD_RESP = 7,
+    PKT_EVENT = 8,
+    PKT_START_DATA = 9,
+    PKT_DATA = 10,
+    PKT_END_DATA = 12,
+    PKT_PING = 13,
+    PKT_PONG = 14
 };
 enum {
-    OC_GetDeviceInfo = 0x1001, OC_OpenSession = 0x1002, OC_CloseSession = 0x1003,
-    OC_GetStorageIDs = 0x1004, OC_GetStorageInfo = 0x1005, OC_GetNumObjects = 0x1006,
-    OC_GetObjectHandles = 0x1007, OC_GetObjectInfo = 0x1008, OC_GetObject = 0x1009,
-    OC_InitiateCapture = 0x100E, OC_GetDevicePropDesc = 0x1014,
-    OC_GetDevicePropValue = 0x1015, OC_SetDevicePropValue = 0x1016
+    OC_GetDeviceInfo = 0x1001,
+    OC_OpenSession = 0x1002,
+    OC_CloseSession = 0x1003,
+    OC_GetStorageIDs = 0x1004,
+    OC_GetStorageInfo = 0x1005,
+    OC_GetNumObjects = 0x1006,
+    OC_GetObjectHandles = 0x1007,
+    OC_GetObjectInfo = 0x1008,
+    OC_GetObject = 0x1009,
+    OC_InitiateCapture = 0x100E,
+    OC_GetDevicePropDesc = 0x1014,
+    OC_GetDevicePropValue = 0x1015,
+    OC_SetDevicePropValue = 0x1016
 };
 enum {
-    RC_OK = 0x2001, RC_GeneralError = 0x2002, RC_SessionNotOpen = 0x2003,
-    RC_OperationNotSupported = 0x2005, RC_InvalidStorageID = 0x2008,
-    RC_InvalidObjectHandle = 0x2009, RC_DevicePropNotSupported = 0x200A,
-    RC_DeviceBusy = 0x2019, RC_InvalidDevicePropValue = 0x201C,
+    RC_OK = 0x2001,
+    RC_GeneralError = 0x2002,
+    RC_SessionNotOpen = 0x2003,
+    RC_OperationNotSupported = 0x2005,
+    RC_InvalidStorageID = 0x2008,
+    RC_InvalidObjectHandle = 0x2009,
+    RC_DevicePropNotSupported = 0x200A,
+    RC_DeviceBusy = 0x2019,
+    RC_InvalidDevicePropValue = 0x201C,
     RC_SessionAlreadyOpen = 0x201E
 };
 enum { EC_ObjectAdded = 0x4002, EC_CaptureComplete = 0x400D };
 enum { DPC_FNumber = 0x5007, DPC_ExposureTime = 0x500D, DPC_ExposureIndex = 0x500F };
 #define STORAGE_ID 0x00010001u
 
-static const uint16_t k_ops[] = {
-    OC_GetDeviceInfo, OC_OpenSession, OC_CloseSession, OC_GetStorageIDs, OC_GetStorageInfo,
-    OC_GetNumObjects, OC_GetObjectHandles, OC_GetObjectInfo, OC_GetObject,
-    OC_InitiateCapture, OC_GetDevicePropDesc, OC_GetDevicePropValue, OC_SetDevicePropValue};
+static const uint16_t k_ops[] = {OC_GetDeviceInfo,     OC_OpenSession,       OC_CloseSession,
+                                 OC_GetStorageIDs,     OC_GetStorageInfo,    OC_GetNumObjects,
+                                 OC_GetObjectHandles,  OC_GetObjectInfo,     OC_GetObject,
+                                 OC_InitiateCapture,   OC_GetDevicePropDesc, OC_GetDevicePropValue,
+                                 OC_SetDevicePropValue};
 static const uint16_t k_events[] = {EC_ObjectAdded, EC_CaptureComplete};
 static const uint16_t k_props[] = {DPC_FNumber, DPC_ExposureTime, DPC_ExposureIndex};
 
@@ -88,14 +111,25 @@ static void put(buf *b, const void *p, size_t n)
     memcpy(b->data + b->size, p, n);
     b->size += n;
 }
-static void put8(buf *b, uint8_t v) { put(b, &v, 1); }
-static void put16(buf *b, uint16_t v) { uint8_t x[2] = {(uint8_t)v, (uint8_t)(v >> 8)}; put(b, x, 2); }
+static void put8(buf *b, uint8_t v)
+{
+    put(b, &v, 1);
+}
+static void put16(buf *b, uint16_t v)
+{
+    uint8_t x[2] = {(uint8_t)v, (uint8_t)(v >> 8)};
+    put(b, x, 2);
+}
 static void put32(buf *b, uint32_t v)
 {
     uint8_t x[4] = {(uint8_t)v, (uint8_t)(v >> 8), (uint8_t)(v >> 16), (uint8_t)(v >> 24)};
     put(b, x, 4);
 }
-static void put64(buf *b, uint64_t v) { put32(b, (uint32_t)v); put32(b, (uint32_t)(v >> 32)); }
+static void put64(buf *b, uint64_t v)
+{
+    put32(b, (uint32_t)v);
+    put32(b, (uint32_t)(v >> 32));
+}
 /* PTP string: count of UCS-2 units including the terminator, then the units. */
 static void putstr(buf *b, const char *s)
 {
@@ -114,8 +148,14 @@ static void put16array(buf *b, const uint16_t *v, int n)
     for (int i = 0; i < n; i++)
         put16(b, v[i]);
 }
-static uint32_t get32(const uint8_t *p) { return p[0] | p[1] << 8 | p[2] << 16 | (uint32_t)p[3] << 24; }
-static uint16_t get16(const uint8_t *p) { return (uint16_t)(p[0] | p[1] << 8); }
+static uint32_t get32(const uint8_t *p)
+{
+    return p[0] | p[1] << 8 | p[2] << 16 | (uint32_t)p[3] << 24;
+}
+static uint16_t get16(const uint8_t *p)
+{
+    return (uint16_t)(p[0] | p[1] << 8);
+}
 
 typedef struct {
     uint32_t handle;
@@ -277,11 +317,11 @@ static int recv_data(buf *out)
 
 static void device_info(buf *b)
 {
-    put16(b, 100);        /* standard version 1.00 */
-    put32(b, 0);          /* no vendor extension: the plain PTP property set */
+    put16(b, 100); /* standard version 1.00 */
+    put32(b, 0);   /* no vendor extension: the plain PTP property set */
     put16(b, 100);
     putstr(b, "");
-    put16(b, 0);          /* functional mode */
+    put16(b, 0); /* functional mode */
     put16array(b, k_ops, (int)(sizeof k_ops / sizeof k_ops[0]));
     put16array(b, k_events, 2);
     put16array(b, k_props, 3);
@@ -309,10 +349,10 @@ static void prop_desc(buf *b, uint16_t prop)
     put16(b, prop);
     bool u32 = prop == DPC_ExposureTime;
     put16(b, u32 ? 0x0006 : 0x0004); /* UINT32 / UINT16 */
-    put8(b, 1);                       /* get/set */
-    prop_value(b, prop);              /* factory default: whatever is current */
+    put8(b, 1);                      /* get/set */
+    prop_value(b, prop);             /* factory default: whatever is current */
     prop_value(b, prop);
-    put8(b, 2);                       /* enumeration form */
+    put8(b, 2); /* enumeration form */
     if (prop == DPC_ExposureTime) {
         put16(b, (uint16_t)g_shutter_count);
         for (int i = 0; i < g_shutter_count; i++)
@@ -442,7 +482,7 @@ static void object_info(buf *b, const object *o)
     put32(b, 256);
     put32(b, 64);
     put32(b, 24);
-    put32(b, 0);   /* parent: root */
+    put32(b, 0); /* parent: root */
     put16(b, 0);
     put32(b, 0);
     put32(b, o->handle - 0x1000u + 1); /* sequence number */
@@ -540,8 +580,8 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
     }
     case OC_GetDevicePropDesc:
     case OC_GetDevicePropValue:
-        if (np < 1 || (p[0] != DPC_ExposureTime && p[0] != DPC_FNumber &&
-                       p[0] != DPC_ExposureIndex)) {
+        if (np < 1 ||
+            (p[0] != DPC_ExposureTime && p[0] != DPC_FNumber && p[0] != DPC_ExposureIndex)) {
             r = send_response(RC_DevicePropNotSupported, tid, NULL, 0);
             break;
         }
@@ -582,14 +622,14 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
     case OC_InitiateCapture: {
         if (g.drop_after > 0 && !g.dropped && g.captures == g.drop_after) {
             g.dropped = true;
-            fprintf(stderr, "ptpip_camera: dropping the connection after frame %d\n",
-                    g.captures);
+            fprintf(stderr, "ptpip_camera: dropping the connection after frame %d\n", g.captures);
             free(d.data);
             return -1;
         }
         if (g.busy_left > 0 && g.captures + 1 >= g.busy_at) {
             g.busy_left--;
-            fprintf(stderr, "ptpip_camera: busy reply to the trigger of frame %d\n", g.captures + 1);
+            fprintf(stderr, "ptpip_camera: busy reply to the trigger of frame %d\n",
+                    g.captures + 1);
             r = send_response(RC_DeviceBusy, tid, NULL, 0);
             break;
         }

@@ -16,10 +16,16 @@
 /* Under LeakSanitizer: libgphoto2's USB port driver keeps the device list it
  * gets from libusb_get_device_list when it loads (outside setlight). */
 const char *__lsan_default_suppressions(void);
-const char *__lsan_default_suppressions(void) { return "leak:libusb_get_device_list\n"; }
+const char *__lsan_default_suppressions(void)
+{
+    return "leak:libusb_get_device_list\n";
+}
 /* and the report of that suppression would break the one-line error rule */
 const char *__lsan_default_options(void);
-const char *__lsan_default_options(void) { return "print_suppressions=0"; }
+const char *__lsan_default_options(void)
+{
+    return "print_suppressions=0";
+}
 
 static void test_sha256(void)
 {
@@ -136,9 +142,12 @@ static void test_journal_and_session(void)
     char path[4096];
     snprintf(path, sizeof path, "%s/journal.jsonl", dir);
     /* a plan of 2 views x 2 frames, one frame rejected then retried */
-    CHECK_OK(sl_journal_append(dir, "{\"event\":\"session_start\",\"version\":1,\"camera\":"
-                                    "{\"model\":\"m\"},\"plan\":{\"times\":[0.01,0.08],"
-                                    "\"views\":2}}", &err), &err);
+    CHECK_OK(sl_journal_append(dir,
+                               "{\"event\":\"session_start\",\"version\":1,\"camera\":"
+                               "{\"model\":\"m\"},\"plan\":{\"times\":[0.01,0.08],"
+                               "\"views\":2}}",
+                               &err),
+             &err);
     const char *frames[] = {
         "{\"event\":\"frame\",\"view\":0,\"index\":1,\"accepted\":true,\"file\":\"b.jpg\","
         "\"exposure_time\":0.08,\"sha256\":\"x\"}",
@@ -163,13 +172,13 @@ static void test_journal_and_session(void)
         CHECK(json_integer_value(json_object_get(s, "version")) == 1);
         json_t *views = json_object_get(s, "views");
         CHECK(json_array_size(views) == 2);
-        json_t *f0 = json_object_get(json_array_get(json_object_get(json_array_get(views, 0),
-                                                                    "brackets"), 0), "frames");
+        json_t *f0 = json_object_get(
+            json_array_get(json_object_get(json_array_get(views, 0), "brackets"), 0), "frames");
         /* ordered by exposure, whatever the journal order */
         CHECK(json_array_size(f0) == 2);
         CHECK(!strcmp(json_string_value(json_object_get(json_array_get(f0, 0), "file")), "a.jpg"));
-        json_t *f1 = json_object_get(json_array_get(json_object_get(json_array_get(views, 1),
-                                                                    "brackets"), 0), "frames");
+        json_t *f1 = json_object_get(
+            json_array_get(json_object_get(json_array_get(views, 1), "brackets"), 0), "frames");
         CHECK(json_array_size(f1) == 1);
         CHECK(json_array_size(json_object_get(s, "problems")) == 1);
         json_decref(s);
@@ -269,8 +278,8 @@ static void test_ingest(void)
         json_t *vs = json_object_get(s, "views");
         for (int v = 0; v < 3 && v < (int)json_array_size(vs); v++) {
             json_t *bs = json_object_get(json_array_get(vs, (size_t)v), "brackets");
-            CHECK_MSG((int)json_array_size(bs) == brackets_per_view[v], "view %d: %zu brackets",
-                      v, json_array_size(bs));
+            CHECK_MSG((int)json_array_size(bs) == brackets_per_view[v], "view %d: %zu brackets", v,
+                      json_array_size(bs));
             for (size_t b = 0; b < json_array_size(bs); b++) {
                 json_t *fr = json_object_get(json_array_get(bs, b), "frames");
                 CHECK(json_array_size(fr) == 5);

@@ -132,7 +132,8 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
             break;
         case OPT_APERTURE:
             if (!cli_parse_double(optarg, &aperture) || aperture <= 0)
-                return cli_usage_error(cli, "--aperture needs an f-number such as 8, not '%s'", optarg);
+                return cli_usage_error(cli, "--aperture needs an f-number such as 8, not '%s'",
+                                       optarg);
             break;
         case OPT_ISO:
             if (!cli_parse_double(optarg, &iso) || iso <= 0)
@@ -342,7 +343,8 @@ int cmd_ingest(int argc, char **argv, const sl_cli *cli)
             break;
         case OPT_GAP:
             if (!cli_parse_double(optarg, &gap) || gap <= 0)
-                return cli_usage_error(cli, "--gap needs a number of seconds > 0, not '%s'", optarg);
+                return cli_usage_error(cli, "--gap needs a number of seconds > 0, not '%s'",
+                                       optarg);
             break;
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
