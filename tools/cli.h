@@ -41,5 +41,8 @@ int cmd_render(int argc, char **argv, const sl_cli *cli);
 int cmd_converge(int argc, char **argv, const sl_cli *cli);
 int cmd_simulate(int argc, char **argv, const sl_cli *cli);
 int cmd_demo(int argc, char **argv, const sl_cli *cli);
+int cmd_capture(int argc, char **argv, const sl_cli *cli);
+int cmd_ingest(int argc, char **argv, const sl_cli *cli);
+int cmd_cameras(int argc, char **argv, const sl_cli *cli);
 
 #endif
