@@ -10,11 +10,19 @@ for o in --size --seed --force; do out_has "$o"; done
 expect 0 "$S" demo "$T/demo" --json --quiet
 json_ok "$T/out"
 cp "$T/out" "$T/summary.json"
-json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames"]'
+json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "render"]'
 present "$T/demo/report.html"
 present "$T/demo/truth.png"
 present "$T/demo/capture/capture.json"
-for stage in simulate truth frames; do
+present "$T/demo/render_refs.png"
+# the renderer agrees with a brute-force irradiance sum at the grey ball's centre
+if python3 - "$T/demo/report.html" <<'PY'
+import re, sys
+m = re.search(r"brute-force irradiance sum [0-9.e+-]+ cd/m\^2 \(([+-][0-9.]+)%", open(sys.argv[1]).read())
+sys.exit(0 if m and abs(float(m.group(1))) < 1.0 else 1)
+PY
+then ok; else bad "grey-ball check missing or above 1%"; fi
+for stage in simulate truth frames render; do
     if grep -q "<td>$stage</td>" "$T/demo/report.html"; then ok; else bad "report lacks stage $stage"; fi
 done
 if grep -q "EXIF read back through OpenImageIO matches the plan for 21 of 21 frames" "$T/demo/report.html"; then ok; else bad "EXIF check missing from the report"; fi
