@@ -25,6 +25,71 @@ extern "C" {
 /* Calibrate: grey sphere and chart                                    */
 /* ================================================================== */
 
+/* ColorChecker Classic 24, chart order (patch 1 dark skin at the top left,
+ * row 4 the neutrals white ... black). Positions are pixel coordinates
+ * (x right, y down, pixel centres at +0.5). */
+#define SL_CHART_PATCHES 24
+
+/* The 24 patch centres from the centres of the four corner patches, in
+ * the order 1 (dark skin), 6 (bluish green), 24 (black), 19 (white):
+ * a projective map of the regular 6 x 4 grid, so perspective is allowed. */
+sl_result sl_chart_centers_from_corners(const double corners[4][2], double centers[24][2],
+                                        sl_error *err);
+
+typedef struct sl_chart_patch {
+    double center[2];
+    double radius;   /* of the sampled disc, pixels */
+    double rgb[3];   /* trimmed mean of the kept pixels (camera RGB) */
+    double spread;   /* relative standard deviation of the kept pixels' sum */
+    int pixels;      /* kept */
+    int clipped;     /* at or above the clip level in any channel */
+    int nonfinite;   /* NaN/Inf */
+    int trimmed;     /* dropped as outliers (glare, dust) */
+    bool valid;      /* usable: enough pixels, clipped fraction small */
+} sl_chart_patch;
+
+/* Samples each patch on the linear image (RGB or RGBA): a disc of
+ * radius_px (0: a quarter of the distance to the nearest other centre,
+ * so well inside the patch), pixels with any channel >= clip_level
+ * (0: no clip test) or non-finite rejected, then the brightest and darkest
+ * 10% by channel sum dropped. A patch is invalid when fewer than 4 pixels
+ * remain or more than 5% of its disc is clipped. */
+sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], double radius_px,
+                          double clip_level, sl_chart_patch patches[24], sl_error *err);
+
+typedef struct sl_ccm_options {
+    /* Constrain the fit so that the neutral patch maps exactly onto its
+     * reference: neutrals stay neutral. */
+    bool white_preserving;
+    int neutral_patch; /* 0-based; -1: the brightest valid of patches 19..24 */
+} sl_ccm_options;
+
+void sl_ccm_options_init(sl_ccm_options *o); /* not white-preserving, neutral -1 */
+
+typedef struct sl_ccm_fit {
+    double m[3][3];      /* working-space RGB = m * camera RGB */
+    double gain;         /* cbrt(det m): the matrix's overall scale */
+    int used;            /* patches in the fit */
+    bool used_patch[24];
+    int neutral_patch;   /* the constraint's patch, or -1 */
+    /* CIEDE2000 against the reference (D65, white Y = 1), -1 for patches
+     * not measured. "Before" is the camera RGB read as Rec.709 and scaled
+     * so the neutral patches' luminance matches (exposure removed). */
+    double de_before[24], de_after[24];
+    double de_before_mean, de_before_max, de_after_mean, de_after_max;
+} sl_ccm_fit;
+
+/* Weighted least squares, in double, of camera RGB onto reference
+ * (linear working-space RGB, e.g. SL_COLORCHECKER_LINEAR): each patch
+ * weighted by Y^(-4/3) of its reference, as CIELAB lightness is roughly
+ * Y^(1/3), so dark patches are not drowned by bright ones. Invalid patches
+ * are excluded; fewer than 6 valid patches is SL_ERR_INPUT. */
+sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double reference[24][3],
+                           const sl_ccm_options *o, sl_ccm_fit *fit, sl_error *err);
+
+/* CIEDE2000 between two linear Rec.709 colours (D65, white Y = 1). */
+double sl_chart_delta_e(const double rgb[3], const double ref[3]);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,44 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+#include <math.h>
+
+#include "calibrate_internal.h"
+
+bool sl_cal_solve(double *a, double *b, int n)
+{
+    double scale = 0;
+    for (int i = 0; i < n * n; i++)
+        scale = fmax(scale, fabs(a[i]));
+    if (!(scale > 0))
+        return false;
+    for (int k = 0; k < n; k++) {
+        int p = k;
+        for (int i = k + 1; i < n; i++)
+            if (fabs(a[i * n + k]) > fabs(a[p * n + k]))
+                p = i;
+        if (!(fabs(a[p * n + k]) > 1e-14 * scale))
+            return false;
+        if (p != k) {
+            for (int j = 0; j < n; j++) {
+                double t = a[k * n + j];
+                a[k * n + j] = a[p * n + j];
+                a[p * n + j] = t;
+            }
+            double t = b[k];
+            b[k] = b[p];
+            b[p] = t;
+        }
+        for (int i = k + 1; i < n; i++) {
+            double f = a[i * n + k] / a[k * n + k];
+            for (int j = k; j < n; j++)
+                a[i * n + j] -= f * a[k * n + j];
+            b[i] -= f * b[k];
+        }
+    }
+    for (int i = n - 1; i >= 0; i--) {
+        double s = b[i];
+        for (int j = i + 1; j < n; j++)
+            s -= a[i * n + j] * b[j];
+        b[i] = s / a[i * n + i];
+    }
+    return true;
+}
