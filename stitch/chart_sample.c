@@ -8,43 +8,51 @@
 #include "calibrate_internal.h"
 #include "setlight/stitch.h"
 
-sl_result sl_chart_centers_from_corners(const double corners[4][2], double centers[24][2],
-                                        sl_error *err)
+bool sl_cal_grid_centers(const double img[4][2], const double grid[4][2], double centers[24][2])
 {
-    memset(centers, 0, sizeof(double) * 48);
-    /* Grid coordinates (column, row) of the corner patches 1, 6, 24, 19. */
-    static const double g[4][2] = {{0, 0}, {5, 0}, {5, 3}, {0, 3}};
     double a[64] = {0}, b[8];
     for (int i = 0; i < 4; i++) {
-        double u = g[i][0], v = g[i][1], x = corners[i][0], y = corners[i][1];
-        if (!isfinite(x) || !isfinite(y))
-            return sl_error_set(err, SL_ERR_USAGE, "chart corners: corner %d is not finite", i + 1);
+        double u = grid[i][0], v = grid[i][1], x = img[i][0], y = img[i][1];
         double *r0 = a + (2 * i) * 8, *r1 = a + (2 * i + 1) * 8;
         r0[0] = u, r0[1] = v, r0[2] = 1, r0[6] = -u * x, r0[7] = -v * x;
         r1[3] = u, r1[4] = v, r1[5] = 1, r1[6] = -u * y, r1[7] = -v * y;
         b[2 * i] = x, b[2 * i + 1] = y;
     }
     if (!sl_cal_solve(a, b, 8))
-        return sl_error_set(err, SL_ERR_USAGE,
-                            "chart corners: degenerate (three corners on a line or repeated)");
+        return false;
     for (int p = 0; p < 24; p++) {
         double u = p % 6, v = p / 6;
         double w = b[6] * u + b[7] * v + 1;
         if (!(w > 1e-9))
-            return sl_error_set(err, SL_ERR_USAGE, "chart corners: not a convex quadrilateral");
+            return false;
         centers[p][0] = (b[0] * u + b[1] * v + b[2]) / w;
         centers[p][1] = (b[3] * u + b[4] * v + b[5]) / w;
     }
-    /* The corners must go round the chart one way: the grid's orientation
-     * sign is the same at every corner. */
+    return true;
+}
+
+sl_result sl_chart_centers_from_corners(const double corners[4][2], double centers[24][2],
+                                        sl_error *err)
+{
+    memset(centers, 0, sizeof(double) * 48);
+    /* Grid coordinates (column, row) of the corner patches 1, 6, 24, 19. */
+    static const double g[4][2] = {{0, 0}, {5, 0}, {5, 3}, {0, 3}};
+    for (int i = 0; i < 4; i++)
+        if (!isfinite(corners[i][0]) || !isfinite(corners[i][1]))
+            return sl_error_set(err, SL_ERR_USAGE, "chart corners: corner %d is not finite", i + 1);
+    /* The corners must go round the chart one way: the turn has the same
+     * sign at every corner (convex, not a bow-tie). */
     double s = 0;
     for (int i = 0; i < 4; i++) {
         const double *p0 = corners[i], *p1 = corners[(i + 1) % 4], *p2 = corners[(i + 2) % 4];
         double c = (p1[0] - p0[0]) * (p2[1] - p1[1]) - (p1[1] - p0[1]) * (p2[0] - p1[0]);
-        if (i && c * s <= 0)
-            return sl_error_set(err, SL_ERR_USAGE, "chart corners: not a convex quadrilateral");
+        if (c == 0 || (i && c * s <= 0))
+            return sl_error_set(err, SL_ERR_USAGE,
+                                "chart corners: not a convex quadrilateral in patch order 1, 6, 24, 19");
         s = c;
     }
+    if (!sl_cal_grid_centers(corners, g, centers))
+        return sl_error_set(err, SL_ERR_USAGE, "chart corners: degenerate quadrilateral");
     return SL_OK;
 }
 

@@ -90,6 +90,22 @@ sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double refere
 /* CIEDE2000 between two linear Rec.709 colours (D65, white Y = 1). */
 double sl_chart_delta_e(const double rgb[3], const double ref[3]);
 
+typedef struct sl_chart_detection {
+    double centers[24][2]; /* chart order */
+    double box[4][2];      /* the detector's chart outline */
+    double cost;           /* the detector's fit cost (lower is better) */
+    double fit_de_mean;    /* mean CIEDE2000 of the orientation's trial colour fit */
+} sl_chart_detection;
+
+/* Finds a ColorChecker Classic 24 on a linear image: OpenCV mcc runs on a
+ * tone-mapped 8-bit copy (99th-percentile luminance to white, sRGB curve);
+ * the patch grid follows from the detected outline, and of its eight
+ * possible orientations the one whose patches (sampled on the linear data,
+ * clip_level as in sl_chart_sample) best fit the reference by a colour
+ * matrix is kept. SL_ERR_INPUT "no chart found" when there is none. */
+sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *source,
+                          sl_chart_detection *out, sl_error *err);
+
 #ifdef __cplusplus
 }
 #endif
