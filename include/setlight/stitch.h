@@ -106,6 +106,44 @@ typedef struct sl_chart_detection {
 sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *source,
                           sl_chart_detection *out, sl_error *err);
 
+typedef struct sl_grey_options {
+    double albedo;          /* the photographed sphere's albedo (0.18) */
+    double circle[3];       /* sphere outline in the photo: cx, cy, r (pixels) */
+    double azimuth_deg, elevation_deg; /* the photo's view, as sl_camera_validation */
+    double inner;           /* use pixels within this fraction of the radius (0.85) */
+    int size;               /* virtual render, pixels across (0: 2r, at most 128) */
+    int64_t spp;            /* samples per pixel of the virtual render (256) */
+    uint64_t seed;
+    double clip_level;      /* photo pixels at or above are ignored (0: none) */
+} sl_grey_options;
+
+void sl_grey_options_init(sl_grey_options *o);
+
+typedef struct sl_grey_fit {
+    double gain[3];      /* multiply the HDRI's channels by these */
+    double scale;        /* exposure: Rec.709 luminance of gain */
+    double balance[3];   /* gain / scale */
+    int64_t pixels;      /* sphere pixels used */
+    int64_t rejected;    /* outliers (specks, clipped, off-ratio) */
+    double rel_rmse_before; /* virtual sphere under the HDRI vs photo, after exposure only */
+    double rel_rmse_after;  /* with gain */
+    double error_p95;       /* 95th percentile of |relative error| per pixel, after */
+    /* size x size RGBA: the photo resampled to the virtual camera, the
+     * virtual sphere under the calibrated HDRI, and the relative error
+     * (render - photo) / photo luminance, alpha = used mask. */
+    sl_image photo, render, error;
+} sl_grey_fit;
+
+void sl_grey_fit_free(sl_grey_fit *fit);
+
+/* Renders a Lambertian sphere of the given albedo under `hdri` with the
+ * validation camera and solves the per-channel gains that make it match
+ * the photographed sphere: per channel the median photo/render ratio, then
+ * the least-squares ratio over pixels within 20% of it. Rendering is
+ * linear in the dome, so the calibrated render is the render times gain. */
+sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *o,
+                             sl_grey_fit *fit, sl_error *err);
+
 #ifdef __cplusplus
 }
 #endif

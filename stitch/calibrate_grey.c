@@ -1,0 +1,220 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Grey sphere: the HDRI's exposure and balance from a photographed sphere
+ * and a virtual one rendered under the HDRI. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "setlight/render.h"
+#include "setlight/stitch.h"
+
+void sl_grey_options_init(sl_grey_options *o)
+{
+    memset(o, 0, sizeof(*o));
+    o->albedo = 0.18;
+    o->inner = 0.85;
+    o->spp = 256;
+    o->seed = 1;
+}
+
+void sl_grey_fit_free(sl_grey_fit *fit)
+{
+    sl_image_free(&fit->photo);
+    sl_image_free(&fit->render);
+    sl_image_free(&fit->error);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Bilinear lookup of channel c at pixel coordinates (x, y); false when any
+ * tap is outside, non-finite or clipped. */
+static bool bilinear(const sl_image *img, double x, double y, double clip, float out[3])
+{
+    x -= 0.5, y -= 0.5;
+    int x0 = (int)floor(x), y0 = (int)floor(y);
+    if (x0 < 0 || y0 < 0 || x0 + 1 >= img->width || y0 + 1 >= img->height)
+        return false;
+    double fx = x - x0, fy = y - y0;
+    double acc[3] = {0, 0, 0};
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 2; i++) {
+            const float *p = img->data + (size_t)(y0 + j) * img->stride +
+                             (size_t)(x0 + i) * img->channels;
+            double w = (i ? fx : 1 - fx) * (j ? fy : 1 - fy);
+            for (int c = 0; c < 3; c++) {
+                if (!isfinite(p[c]) || (clip > 0 && p[c] >= clip))
+                    return false;
+                acc[c] += w * p[c];
+            }
+        }
+    for (int c = 0; c < 3; c++)
+        out[c] = (float)acc[c];
+    return true;
+}
+
+static double lum(const float *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
+
+sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *opt,
+                             sl_grey_fit *fit, sl_error *err)
+{
+    memset(fit, 0, sizeof(*fit));
+    sl_grey_options o;
+    if (opt)
+        o = *opt;
+    else
+        sl_grey_options_init(&o);
+    double cx = o.circle[0], cy = o.circle[1], rad = o.circle[2];
+    if (!(rad >= 4) || !isfinite(cx) || !isfinite(cy))
+        return sl_error_set(err, SL_ERR_USAGE, "grey sphere: circle radius %g too small (4 px at least)",
+                            rad);
+    if (!(o.albedo > 0 && o.albedo <= 1) || !(o.inner > 0 && o.inner <= 1) || o.spp < 1)
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "grey sphere: albedo and inner fraction in (0, 1], spp >= 1");
+    if (!photo || !photo->data || photo->channels < 3)
+        return sl_error_set(err, SL_ERR_INPUT, "grey sphere photo: needs RGB");
+    int n = o.size > 0 ? o.size : (int)fmin(128, ceil(2 * rad));
+    if (n < 8)
+        n = 8;
+    sl_scene s;
+    sl_scene_init(&s);
+    /* The "grey" preset with the photographed sphere's albedo and view. */
+    sl_material mat;
+    sl_material_lambert(&mat, o.albedo, o.albedo, o.albedo);
+    int mi = 0;
+    const double origin[3] = {0, 0, 0};
+    sl_result r = sl_scene_add_material(&s, &mat, &mi, err);
+    if (!r)
+        r = sl_scene_add_sphere(&s, origin, 1.0, mi, err);
+    if (!r) {
+        sl_camera_validation(&s.camera, n, n, 2.0, o.azimuth_deg, o.elevation_deg);
+        r = sl_scene_set_dome(&s, hdri, 0, 1, "HDRI", err);
+    }
+    sl_render_options ro;
+    sl_render_options_init(&ro);
+    ro.spp = o.spp;
+    ro.seed = o.seed;
+    ro.bounces = 0; /* a convex sphere cannot see itself */
+    if (!r)
+        r = sl_render(&s, &ro, &fit->render, NULL, err);
+    sl_scene_free(&s);
+    if (!r)
+        r = sl_image_alloc(&fit->photo, n, n, 4, err);
+    if (!r)
+        r = sl_image_alloc(&fit->error, n, n, 4, err);
+    size_t cnt = (size_t)n * n;
+    double *ratio = r ? NULL : malloc(cnt * 3 * sizeof(double));
+    if (!r && !ratio)
+        r = sl_error_set(err, SL_ERR_NOMEM, "grey sphere: out of memory");
+    if (r) {
+        free(ratio);
+        sl_grey_fit_free(fit);
+        return r;
+    }
+    /* Resample the photo to the virtual camera: the circle spans the image. */
+    size_t k = 0;
+    for (int y = 0; y < n; y++)
+        for (int x = 0; x < n; x++) {
+            float *ph = fit->photo.data + (size_t)y * fit->photo.stride + (size_t)x * 4;
+            const float *re = fit->render.data + (size_t)y * fit->render.stride + (size_t)x * 4;
+            double u = (x + 0.5) / n * 2 - 1, v = (y + 0.5) / n * 2 - 1;
+            bool in = u * u + v * v < o.inner * o.inner &&
+                      bilinear(photo, cx + u * rad, cy + v * rad, o.clip_level, ph) &&
+                      re[0] > 0 && re[1] > 0 && re[2] > 0;
+            ph[3] = in ? 1.0f : 0.0f;
+            if (in) {
+                for (int c = 0; c < 3; c++)
+                    ratio[k * 3 + c] = ph[c] / re[c];
+                k++;
+            } else {
+                ph[0] = ph[1] = ph[2] = 0;
+            }
+        }
+    if (k < 16) {
+        free(ratio);
+        sl_grey_fit_free(fit);
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "grey sphere: only %zu usable pixels inside the circle", k);
+    }
+    double med[3];
+    double *tmp = malloc(k * sizeof(double));
+    if (!tmp) {
+        free(ratio);
+        sl_grey_fit_free(fit);
+        return sl_error_set(err, SL_ERR_NOMEM, "grey sphere: out of memory");
+    }
+    for (int c = 0; c < 3; c++) {
+        for (size_t i = 0; i < k; i++)
+            tmp[i] = ratio[i * 3 + c];
+        qsort(tmp, k, sizeof(double), cmp_double);
+        med[c] = tmp[k / 2];
+    }
+    /* Least squares over the inliers, and the error before and after. */
+    double spr[3] = {0}, srr[3] = {0};
+    size_t i = 0;
+    for (size_t p = 0; p < cnt; p++) {
+        float *ph = fit->photo.data + p * 4; /* n x n, stride n * 4 */
+        if (ph[3] == 0)
+            continue;
+        bool ok = true;
+        for (int c = 0; c < 3; c++)
+            ok = ok && fabs(ratio[i * 3 + c] / med[c] - 1) < 0.2;
+        i++;
+        if (!ok) {
+            ph[3] = 0;
+            fit->rejected++;
+            continue;
+        }
+        const float *re = fit->render.data + p * 4;
+        for (int c = 0; c < 3; c++) {
+            spr[c] += (double)ph[c] * re[c];
+            srr[c] += (double)re[c] * re[c];
+        }
+        fit->pixels++;
+    }
+    free(ratio);
+    for (int c = 0; c < 3; c++)
+        fit->gain[c] = srr[c] > 0 ? spr[c] / srr[c] : 0;
+    fit->scale = 0.2126 * fit->gain[0] + 0.7152 * fit->gain[1] + 0.0722 * fit->gain[2];
+    if (!(fit->scale > 0) || !isfinite(fit->scale) || fit->pixels < 16) {
+        free(tmp);
+        sl_grey_fit_free(fit);
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "grey sphere: no consistent ratio between photo and render");
+    }
+    for (int c = 0; c < 3; c++)
+        fit->balance[c] = fit->gain[c] / fit->scale;
+    double e0 = 0, e1 = 0, ref = 0;
+    size_t m = 0;
+    for (size_t p = 0; p < cnt; p++) {
+        float *ph = fit->photo.data + p * 4, *re = fit->render.data + p * 4,
+              *er = fit->error.data + p * 4;
+        double before[3];
+        for (int c = 0; c < 3; c++) {
+            before[c] = re[c] * fit->scale;
+            re[c] = (float)(re[c] * fit->gain[c]);
+        }
+        er[3] = ph[3];
+        if (ph[3] == 0) {
+            er[0] = er[1] = er[2] = 0;
+            continue;
+        }
+        double l = lum(ph);
+        for (int c = 0; c < 3; c++) {
+            e0 += (before[c] - ph[c]) * (before[c] - ph[c]);
+            e1 += ((double)re[c] - ph[c]) * ((double)re[c] - ph[c]);
+            ref += (double)ph[c] * ph[c];
+            er[c] = (float)(l > 0 ? (re[c] - ph[c]) / l : 0);
+        }
+        tmp[m++] = fabs(lum(er));
+    }
+    qsort(tmp, m, sizeof(double), cmp_double);
+    fit->error_p95 = m ? tmp[(size_t)(0.95 * (double)(m - 1))] : 0;
+    free(tmp);
+    fit->rel_rmse_before = sqrt(e0 / ref);
+    fit->rel_rmse_after = sqrt(e1 / ref);
+    return SL_OK;
+}
