@@ -44,5 +44,6 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli);
 int cmd_capture(int argc, char **argv, const sl_cli *cli);
 int cmd_ingest(int argc, char **argv, const sl_cli *cli);
 int cmd_cameras(int argc, char **argv, const sl_cli *cli);
+int cmd_calibrate(int argc, char **argv, const sl_cli *cli);
 
 #endif

@@ -22,6 +22,7 @@ static const command commands[] = {
     {"cameras", cmd_cameras, "list the cameras libgphoto2 detects"},
     {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
     {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"calibrate", cmd_calibrate, "match the HDRI to the plate camera: ColorChecker and grey sphere"},
     {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
     {"converge", cmd_converge, "error against time for each sampling strategy (table, SVG)"},
     {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# setlight calibrate end to end on rendered fixtures: grey sphere alone,
+# chart by corners plus grey sphere, no chart found, and the bad inputs.
+. "$(dirname "$0")/lib.bash"
+
+"$MAKE_FIXTURE" latlong "$T/env.exr" 64 32 || bad "fixture"
+# The grey-sphere "photo": the true light is the fixture at twice its level.
+"$SETLIGHT" render --env "$T/env.exr" --intensity 2 --scene grey --width 48 --spp 256 \
+    --seed 9 -o "$T/grey.exr" 2>/dev/null || bad "grey fixture"
+"$SETLIGHT" render --env "$T/env.exr" --scene chart --width 240 --spp 16 \
+    -o "$T/chart.exr" 2>/dev/null || bad "chart fixture"
+CORNERS=24,24,216,24,216,139.2,24,139.2
+
+expect 0 "$SETLIGHT" calibrate --help; out_has "usage: setlight calibrate"
+
+# --- grey sphere alone: exposure 2 recovered
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 -o "$T/cal.exr"
+json_ok "$T/out"
+json_eval "$T/out" 'abs(d["scale"] / 2 - 1) < 0.01 and d["grey"]["rel_rmse_after"] < 0.02'
+present "$T/cal.exr"
+expect 0 "$SETLIGHT" info --json "$T/cal.exr"
+out_has "setlight:calibration_matrix"
+
+# --- chart by corners, then the grey sphere
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chart.exr" \
+    --chart-corners $CORNERS --grey "$T/grey.exr" --grey-circle 24,24,24 -o "$T/cal2.exr"
+json_eval "$T/out" 'd["chart"]["patches_used"] == 24 and d["chart"]["delta_e_after_mean"] < 1.0'
+json_eval "$T/out" 'len(d["chart"]["patches"]) == 24 and d["chart"]["patches"][0]["pixels"] > 0'
+json_eval "$T/out" 'd["grey"]["rel_rmse_after"] < 0.02'
+
+# --- no chart in the chart photo: said, and the grey sphere carries on
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/grey.exr" \
+    --grey "$T/grey.exr" --grey-circle 24,24,24 -o "$T/cal3.exr"
+err_has "no chart found"
+json_eval "$T/out" 'd["chart"]["located"] == "not found" and "grey" in d'
+# ... and without a grey sphere it is an input error, nothing written.
+expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/grey.exr" -o "$T/cal4.exr"
+err_has "grey.exr: no chart found"; err_one_line; absent "$T/cal4.exr"; no_temp "$T"
+
+# --- bad inputs: usage (2), missing or bad files (3), nothing overwritten
+cp "$T/cal.exr" "$T/keep.exr"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" -o "$T/keep.exr"; err_has "--chart, --grey"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" -o "$T/keep.exr"
+err_has "--grey-circle"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" --grey-circle 1,2 \
+    -o "$T/keep.exr"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" --chart-corners 1,2,3 \
+    -o "$T/keep.exr"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" \
+    --chart-reference nosuch -o "$T/keep.exr"; err_has "nosuch"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" \
+    --chart-corners 0,0,1,1,2,2,3,3 -o "$T/keep.exr"; err_has "chart corners"
+expect 3 "$SETLIGHT" calibrate --hdri "$T/missing.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "missing.exr"; err_one_line
+expect 3 "$SETLIGHT" calibrate --hdri "$T/grey.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "not an RGB lat-long"
+# A circle on empty background: no sphere there.
+expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/chart.exr" \
+    --grey-circle 120,150,10 -o "$T/keep.exr"; err_has "chart.exr"; err_one_line
+cmp -s "$T/cal.exr" "$T/keep.exr" && ok || bad "keep.exr was overwritten"
+no_temp "$T"
+
+finish

@@ -1,0 +1,373 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* setlight calibrate: the HDRI made to match the plate camera through a
+ * ColorChecker and a grey sphere shot in the same light. */
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <strings.h>
+
+#include "cli.h"
+#include "setlight/render.h"
+#include "setlight/stitch.h"
+
+static const char *calibrate_help =
+    "usage: setlight calibrate --hdri ENV.exr [--chart CHART] [--grey GREY.exr\n"
+    "                          --grey-circle CX,CY,R] -o ENV_CAL.exr [options]\n\n"
+    "Fits a colour matrix from a ColorChecker Classic 24 photo (camera RGB to linear\n"
+    "Rec.709) and the exposure and channel balance that make a virtual grey sphere,\n"
+    "rendered under the HDRI, match the photographed one; writes the HDRI with both\n"
+    "applied and the transform in its metadata. At least one of --chart, --grey.\n\n"
+    "  --hdri FILE           the lat-long to calibrate (linear)\n"
+    "  -o, --output FILE     the calibrated lat-long (EXR, half unless --float)\n"
+    "  --chart FILE          chart photo: EXR is read as linear, other formats as sRGB;\n"
+    "                        the chart is found automatically (OpenCV mcc)\n"
+    "  --chart-corners X1,Y1,X2,Y2,X3,Y3,X4,Y4\n"
+    "                        centres of patches 1 (dark skin), 6 (bluish green),\n"
+    "                        24 (black), 19 (white) in pixels, instead of detection\n"
+    "  --chart-reference R   reference values: classic24 (X-Rite, post-2014)\n"
+    "  --white-preserving    the neutral patch maps exactly to its reference\n"
+    "  --clip LEVEL          chart/grey pixels at or above are clipped (default: none\n"
+    "                        for EXR, 0.999 for 8/16-bit photos)\n"
+    "  --grey FILE           grey-sphere photo (linear EXR)\n"
+    "  --grey-circle CX,CY,R the sphere's outline in the grey photo, pixels\n"
+    "  --grey-albedo A       the sphere's albedo (default 0.18)\n"
+    "  --grey-view AZ,EL     the photo's view as the validation camera (default 0,0)\n"
+    "  --spp N               samples per pixel of the virtual sphere (default 256)\n"
+    "  --float               write 32-bit float\n"
+    "  --json                print the result as JSON on stdout\n\n"
+    "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
+    "sphere, no sphere in the circle), 1 other failures. See docs/calibrate.md.\n";
+
+static bool parse_list(const char *s, double *v, int n)
+{
+    char buf[512];
+    if (strlen(s) >= sizeof buf)
+        return false;
+    strcpy(buf, s);
+    char *save = NULL, *tok = strtok_r(buf, ",", &save);
+    for (int i = 0; i < n; i++, tok = strtok_r(NULL, ",", &save))
+        if (!tok || !cli_parse_double(tok, &v[i]))
+            return false;
+    return tok == NULL;
+}
+
+static bool is_ldr_path(const char *path)
+{
+    const char *dot = strrchr(path, '.');
+    return dot && strcasecmp(dot, ".exr") != 0 && strcasecmp(dot, ".hdr") != 0;
+}
+
+static void mat_apply(const double m[3][3], float *v)
+{
+    double r[3];
+    for (int c = 0; c < 3; c++)
+        r[c] = m[c][0] * v[0] + m[c][1] * v[1] + m[c][2] * v[2];
+    for (int c = 0; c < 3; c++)
+        v[c] = (float)r[c];
+}
+
+static void apply_image(sl_image *img, const double m[3][3])
+{
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++)
+            mat_apply(m, img->data + (size_t)y * img->stride + (size_t)x * img->channels);
+}
+
+static json_t *json_matrix(const double m[3][3])
+{
+    json_t *a = json_array();
+    for (int i = 0; i < 3; i++)
+        json_array_append_new(a, json_pack("[f,f,f]", m[i][0], m[i][1], m[i][2]));
+    return a;
+}
+
+int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
+{
+    enum {
+        OPT_HDRI = 1000, OPT_CHART, OPT_CORNERS, OPT_REF, OPT_WP, OPT_CLIP, OPT_GREY,
+        OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT
+    };
+    static const struct option opts[] = {
+        {"help", no_argument, NULL, 'h'},
+        {"output", required_argument, NULL, 'o'},
+        {"hdri", required_argument, NULL, OPT_HDRI},
+        {"chart", required_argument, NULL, OPT_CHART},
+        {"chart-corners", required_argument, NULL, OPT_CORNERS},
+        {"chart-reference", required_argument, NULL, OPT_REF},
+        {"white-preserving", no_argument, NULL, OPT_WP},
+        {"clip", required_argument, NULL, OPT_CLIP},
+        {"grey", required_argument, NULL, OPT_GREY},
+        {"grey-circle", required_argument, NULL, OPT_CIRCLE},
+        {"grey-albedo", required_argument, NULL, OPT_ALBEDO},
+        {"grey-view", required_argument, NULL, OPT_VIEW},
+        {"spp", required_argument, NULL, OPT_SPP},
+        {"float", no_argument, NULL, OPT_FLOAT},
+        {0, 0, 0, 0}};
+    const char *hdri_path = NULL, *out_path = NULL, *chart_path = NULL, *grey_path = NULL;
+    double corners[4][2], clip = -1, view[2] = {0, 0};
+    bool have_corners = false, have_circle = false, use_float = false;
+    sl_ccm_options copt;
+    sl_ccm_options_init(&copt);
+    sl_grey_options gopt;
+    sl_grey_options_init(&gopt);
+
+    cli_getopt_reset();
+    int c;
+    while ((c = getopt_long(argc, argv, "+ho:", opts, NULL)) != -1) {
+        switch (c) {
+        case 'h':
+            fputs(calibrate_help, stdout);
+            return 0;
+        case 'o':
+            out_path = optarg;
+            break;
+        case OPT_HDRI:
+            hdri_path = optarg;
+            break;
+        case OPT_CHART:
+            chart_path = optarg;
+            break;
+        case OPT_CORNERS:
+            if (!parse_list(optarg, &corners[0][0], 8))
+                return cli_usage_error(cli, "--chart-corners needs 8 numbers, not '%s'", optarg);
+            have_corners = true;
+            break;
+        case OPT_REF:
+            if (strcmp(optarg, "classic24") != 0)
+                return cli_usage_error(cli, "unknown chart reference '%s' (classic24)", optarg);
+            break;
+        case OPT_WP:
+            copt.white_preserving = true;
+            break;
+        case OPT_CLIP:
+            if (!cli_parse_double(optarg, &clip) || !(clip > 0))
+                return cli_usage_error(cli, "--clip needs a positive level, not '%s'", optarg);
+            break;
+        case OPT_GREY:
+            grey_path = optarg;
+            break;
+        case OPT_CIRCLE:
+            if (!parse_list(optarg, gopt.circle, 3) || !(gopt.circle[2] > 0))
+                return cli_usage_error(cli, "--grey-circle needs CX,CY,R with R > 0, not '%s'",
+                                       optarg);
+            have_circle = true;
+            break;
+        case OPT_ALBEDO:
+            if (!cli_parse_double(optarg, &gopt.albedo) || !(gopt.albedo > 0 && gopt.albedo <= 1))
+                return cli_usage_error(cli, "--grey-albedo needs a number in (0, 1], not '%s'",
+                                       optarg);
+            break;
+        case OPT_VIEW:
+            if (!parse_list(optarg, view, 2))
+                return cli_usage_error(cli, "--grey-view needs AZ,EL in degrees, not '%s'", optarg);
+            break;
+        case OPT_SPP: {
+            int spp;
+            if (!cli_parse_int(optarg, &spp) || spp < 1)
+                return cli_usage_error(cli, "--spp needs a positive whole number, not '%s'", optarg);
+            gopt.spp = spp;
+            break;
+        }
+        case OPT_FLOAT:
+            use_float = true;
+            break;
+        default:
+            return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
+        }
+    }
+    if (optind < argc)
+        return cli_usage_error(cli, "unexpected argument '%s'", argv[optind]);
+    if (!hdri_path || !out_path)
+        return cli_usage_error(cli, "needs --hdri and -o");
+    if (!chart_path && !grey_path)
+        return cli_usage_error(cli, "needs --chart, --grey or both");
+    if (grey_path && !have_circle)
+        return cli_usage_error(cli, "--grey needs --grey-circle CX,CY,R");
+    if (have_corners && !chart_path)
+        return cli_usage_error(cli, "--chart-corners needs --chart");
+    gopt.azimuth_deg = view[0];
+    gopt.elevation_deg = view[1];
+
+    sl_image hdri = {0}, chart = {0}, grey = {0};
+    sl_meta hmeta, cmeta, gmeta, out_meta;
+    sl_meta_init(&hmeta);
+    sl_meta_init(&cmeta);
+    sl_meta_init(&gmeta);
+    sl_meta_init(&out_meta);
+    sl_grey_fit gfit = {0};
+    sl_error err;
+    sl_result r;
+    json_t *js = json_object();
+    double t[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    bool chart_used = false;
+
+    if ((r = sl_image_read(hdri_path, &hdri, &hmeta, &err)))
+        goto fail;
+    if (!sl_is_latlong_shape(hdri.width, hdri.height) || hdri.channels < 3) {
+        r = sl_error_set(&err, SL_ERR_INPUT, "%s: not an RGB lat-long (%dx%d, %d channels)",
+                         hdri_path, hdri.width, hdri.height, hdri.channels);
+        goto fail;
+    }
+    if (chart_path) {
+        if ((r = sl_image_read(chart_path, &chart, &cmeta, &err)))
+            goto fail;
+        if (chart.channels < 3) {
+            r = sl_error_set(&err, SL_ERR_INPUT, "%s: the chart photo needs RGB", chart_path);
+            goto fail;
+        }
+        double level = clip;
+        if (is_ldr_path(chart_path)) {
+            if ((r = sl_color_convert(&chart, "srgb", "lin_rec709", &err)))
+                goto fail;
+            if (level < 0)
+                level = sl_srgb_to_linear(0.999f);
+        }
+        if (level < 0)
+            level = 0;
+        double centers[24][2];
+        json_t *jc = json_object();
+        json_object_set_new(js, "chart", jc);
+        json_object_set_new(jc, "file", json_string(chart_path));
+        if (have_corners) {
+            r = sl_chart_centers_from_corners((const double(*)[2])corners, centers, &err);
+            json_object_set_new(jc, "located", json_string("corners"));
+        } else {
+            sl_chart_detection det;
+            r = sl_chart_detect(&chart, level, chart_path, &det, &err);
+            if (!r)
+                memcpy(centers, det.centers, sizeof(centers));
+            json_object_set_new(jc, "located", json_string(r ? "not found" : "detected"));
+        }
+        if (r == SL_ERR_INPUT && !have_corners && grey_path) {
+            /* No chart: the grey sphere alone still calibrates exposure and balance. */
+            sl_log(SL_LOG_WARN, "%s; continuing with the grey sphere alone", err.message);
+        } else if (r) {
+            goto fail;
+        } else {
+            sl_chart_patch p[24];
+            sl_ccm_fit fit;
+            if ((r = sl_chart_sample(&chart, (const double(*)[2])centers, 0, level, p, &err)))
+                goto fail;
+            if ((r = sl_ccm_fit_chart(p, SL_COLORCHECKER_LINEAR, &copt, &fit, &err))) {
+                sl_error_set(&err, r, "%s: %s", chart_path, err.message);
+                goto fail;
+            }
+            /* The chart's light level is unknown: keep the neutral patch's
+             * luminance, leave exposure to the grey sphere. */
+            int n = fit.neutral_patch >= 0 ? fit.neutral_patch : -1;
+            for (int k = 21; n < 0 && k >= 18; k--)
+                if (fit.used_patch[k])
+                    n = k;
+            double y_in = 0, y_out = 0;
+            if (n >= 0) {
+                float v[3] = {(float)p[n].rgb[0], (float)p[n].rgb[1], (float)p[n].rgb[2]};
+                y_in = 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+                mat_apply(fit.m, v);
+                y_out = 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+            }
+            double k = y_out > 0 && y_in > 0 ? y_in / y_out : 1 / fit.gain;
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++)
+                    t[i][j] = fit.m[i][j] * k;
+            chart_used = true;
+            json_t *jp = json_array();
+            int excluded = 0;
+            for (int q = 0; q < 24; q++) {
+                excluded += !fit.used_patch[q];
+                json_array_append_new(
+                    jp, json_pack("{s:i, s:s, s:[f,f], s:i, s:i, s:b, s:f, s:f}", "patch", q + 1,
+                                  "name", SL_COLORCHECKER_NAMES[q], "center", p[q].center[0],
+                                  p[q].center[1], "pixels", p[q].pixels, "clipped", p[q].clipped,
+                                  "used", fit.used_patch[q], "delta_e_before", fit.de_before[q],
+                                  "delta_e_after", fit.de_after[q]));
+            }
+            if (excluded)
+                sl_log(SL_LOG_WARN, "%s: %d patches excluded (clipped, shadowed or unusable)",
+                       chart_path, excluded);
+            json_object_set_new(jc, "patches", jp);
+            json_object_set_new(jc, "matrix", json_matrix(fit.m));
+            json_object_set_new(jc, "patches_used", json_integer(fit.used));
+            json_object_set_new(jc, "delta_e_before_mean", json_real(fit.de_before_mean));
+            json_object_set_new(jc, "delta_e_before_max", json_real(fit.de_before_max));
+            json_object_set_new(jc, "delta_e_after_mean", json_real(fit.de_after_mean));
+            json_object_set_new(jc, "delta_e_after_max", json_real(fit.de_after_max));
+            apply_image(&hdri, t);
+        }
+    }
+    if (grey_path) {
+        if ((r = sl_image_read(grey_path, &grey, &gmeta, &err)))
+            goto fail;
+        gopt.clip_level = clip > 0 ? clip : 0;
+        if ((r = sl_grey_sphere_fit(&hdri, &grey, &gopt, &gfit, &err))) {
+            sl_error_set(&err, r, "%s: %s", grey_path, err.message);
+            goto fail;
+        }
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                t[i][j] *= gfit.gain[i];
+        double g[3][3] = {{gfit.gain[0], 0, 0}, {0, gfit.gain[1], 0}, {0, 0, gfit.gain[2]}};
+        apply_image(&hdri, g);
+        json_object_set_new(js, "grey",
+                            json_pack("{s:s, s:[f,f,f], s:f, s:[f,f,f], s:I, s:I, s:f, s:f, s:f}",
+                                      "file", grey_path, "gain", gfit.gain[0], gfit.gain[1],
+                                      gfit.gain[2], "scale", gfit.scale, "balance",
+                                      gfit.balance[0], gfit.balance[1], gfit.balance[2], "pixels",
+                                      (json_int_t)gfit.pixels, "rejected",
+                                      (json_int_t)gfit.rejected, "rel_rmse_before",
+                                      gfit.rel_rmse_before, "rel_rmse_after",
+                                      gfit.rel_rmse_after, "error_p95", gfit.error_p95));
+    } else if (!chart_used) {
+        r = sl_error_set(&err, SL_ERR_INPUT, "%s: nothing to calibrate with", hdri_path);
+        goto fail;
+    }
+    char buf[512];
+    snprintf(buf, sizeof buf, "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g", t[0][0], t[0][1],
+             t[0][2], t[1][0], t[1][1], t[1][2], t[2][0], t[2][1], t[2][2]);
+    if ((r = sl_meta_set(&out_meta, "setlight:calibration_matrix", buf, &err)))
+        goto fail;
+    snprintf(buf, sizeof buf, "%.9g", grey_path ? gfit.scale : 1.0);
+    if ((r = sl_meta_set(&out_meta, "setlight:calibration_scale", buf, &err)) ||
+        (r = sl_meta_set(&out_meta, "setlight:source", hdri_path, &err)))
+        goto fail;
+    snprintf(buf, sizeof buf, "setlight %s calibrate%s%s%s%s", sl_version(),
+             chart_used ? " --chart " : "", chart_used ? chart_path : "",
+             grey_path ? " --grey " : "", grey_path ? grey_path : "");
+    if ((r = sl_meta_set(&out_meta, "setlight:command", buf, &err)) ||
+        (r = sl_meta_set_color_space(&out_meta, "lin_rec709", &err)))
+        goto fail;
+    out_meta.envmap = SL_ENVMAP_LATLONG;
+    if ((r = sl_image_write(out_path, &hdri, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
+                            &err)))
+        goto fail;
+    if (cli->json) {
+        json_object_set_new(js, "hdri", json_string(hdri_path));
+        json_object_set_new(js, "output", json_string(out_path));
+        json_object_set_new(js, "matrix", json_matrix(t));
+        json_object_set_new(js, "scale", json_real(grey_path ? gfit.scale : 1.0));
+        json_dumpf(js, stdout, JSON_INDENT(2));
+        fputc('\n', stdout);
+    }
+    json_decref(js);
+    sl_grey_fit_free(&gfit);
+    sl_image_free(&hdri);
+    sl_image_free(&chart);
+    sl_image_free(&grey);
+    sl_meta_free(&hmeta);
+    sl_meta_free(&cmeta);
+    sl_meta_free(&gmeta);
+    sl_meta_free(&out_meta);
+    return 0;
+
+fail:
+    json_decref(js);
+    sl_grey_fit_free(&gfit);
+    sl_image_free(&hdri);
+    sl_image_free(&chart);
+    sl_image_free(&grey);
+    sl_meta_free(&hmeta);
+    sl_meta_free(&cmeta);
+    sl_meta_free(&gmeta);
+    sl_meta_free(&out_meta);
+    return cli_fail(cli, &err);
+}
