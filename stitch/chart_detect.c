@@ -50,9 +50,9 @@ sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *so
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", source);
     if (!(white > 0))
         return sl_error_set(err, SL_ERR_INPUT, "%s: no chart found (the image is black)", source);
-    /* mcc is slow on large images and needs no more than ~1000 pixels
+    /* mcc is slow on large images and needs no more than ~800 pixels
      * across a chart that fills the frame: box-average down by f. */
-    int f = (int)ceil((img->width > img->height ? img->width : img->height) / 1200.0);
+    int f = (int)ceil((img->width > img->height ? img->width : img->height) / 800.0);
     int w = img->width / f, h = img->height / f;
     if (w < 1 || h < 1)
         return sl_error_set(err, SL_ERR_INPUT, "%s: no chart found (image too small)", source);

@@ -1,9 +1,12 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* setlight calibrate: the HDRI made to match the plate camera through a
  * ColorChecker and a grey sphere shot in the same light. */
+#include <errno.h>
 #include <jansson.h>
 #include <math.h>
+#include <sys/stat.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
@@ -35,6 +38,8 @@ static const char *calibrate_help =
     "  --grey-view AZ,EL     the photo's view as the validation camera (default 0,0)\n"
     "  --spp N               samples per pixel of the virtual sphere (default 256)\n"
     "  --float               write 32-bit float\n"
+    "  --report DIR          write DIR/calibrate.html (chart table, grey sphere photo,\n"
+    "                        render and error images) and DIR/calibrate.json\n"
     "  --json                print the result as JSON on stdout\n\n"
     "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
     "sphere, no sphere in the circle), 1 other failures. See docs/calibrate.md.\n";
@@ -86,7 +91,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
 {
     enum {
         OPT_HDRI = 1000, OPT_CHART, OPT_CORNERS, OPT_REF, OPT_WP, OPT_CLIP, OPT_GREY,
-        OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT
+        OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT, OPT_REPORT
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -103,8 +108,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         {"grey-view", required_argument, NULL, OPT_VIEW},
         {"spp", required_argument, NULL, OPT_SPP},
         {"float", no_argument, NULL, OPT_FLOAT},
+        {"report", required_argument, NULL, OPT_REPORT},
         {0, 0, 0, 0}};
-    const char *hdri_path = NULL, *out_path = NULL, *chart_path = NULL, *grey_path = NULL;
+    const char *hdri_path = NULL, *out_path = NULL, *chart_path = NULL, *grey_path = NULL,
+               *report_dir = NULL;
     double corners[4][2], clip = -1, view[2] = {0, 0};
     bool have_corners = false, have_circle = false, use_float = false;
     sl_ccm_options copt;
@@ -172,6 +179,9 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         case OPT_FLOAT:
             use_float = true;
             break;
+        case OPT_REPORT:
+            report_dir = optarg;
+            break;
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
         }
@@ -201,6 +211,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     json_t *js = json_object();
     double t[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     bool chart_used = false;
+    sl_chart_patch p[24];
+    sl_ccm_fit fit;
 
     if ((r = sl_image_read(hdri_path, &hdri, &hmeta, &err)))
         goto fail;
@@ -245,8 +257,6 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         } else if (r) {
             goto fail;
         } else {
-            sl_chart_patch p[24];
-            sl_ccm_fit fit;
             if ((r = sl_chart_sample(&chart, (const double(*)[2])centers, 0, level, p, &err)))
                 goto fail;
             if ((r = sl_ccm_fit_chart(p, SL_COLORCHECKER_LINEAR, &copt, &fit, &err))) {
@@ -340,11 +350,37 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     if ((r = sl_image_write(out_path, &hdri, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
                             &err)))
         goto fail;
+    json_object_set_new(js, "hdri", json_string(hdri_path));
+    json_object_set_new(js, "output", json_string(out_path));
+    json_object_set_new(js, "matrix", json_matrix(t));
+    json_object_set_new(js, "scale", json_real(grey_path ? gfit.scale : 1.0));
+    if (report_dir) {
+        if (mkdir(report_dir, 0777) && errno != EEXIST) {
+            r = sl_error_set(&err, SL_ERR_IO, "%s: cannot create the report folder: %s",
+                             report_dir, strerror(errno));
+            goto fail;
+        }
+        sl_report *rep = NULL;
+        if ((r = sl_report_new(&rep, report_dir, "calibrate", "setlight calibrate", &err)))
+            goto fail;
+        sl_report_text(rep, "HDRI %s calibrated to %s.", hdri_path, out_path);
+        if ((r = sl_calibrate_report(rep, "", chart_used ? p : NULL, chart_used ? &fit : NULL,
+                                     grey_path ? &gfit : NULL, &err))) {
+            sl_report_free(rep);
+            goto fail;
+        }
+        if ((r = sl_report_finish(rep, &err)))
+            goto fail;
+        char *text = json_dumps(js, JSON_INDENT(2));
+        char path[4096];
+        snprintf(path, sizeof path, "%s/calibrate.json", report_dir);
+        r = text ? sl_write_file_atomic(path, text, strlen(text), &err)
+                 : sl_error_set(&err, SL_ERR_NOMEM, "%s: out of memory", path);
+        free(text);
+        if (r)
+            goto fail;
+    }
     if (cli->json) {
-        json_object_set_new(js, "hdri", json_string(hdri_path));
-        json_object_set_new(js, "output", json_string(out_path));
-        json_object_set_new(js, "matrix", json_matrix(t));
-        json_object_set_new(js, "scale", json_real(grey_path ? gfit.scale : 1.0));
         json_dumpf(js, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
     }

@@ -144,6 +144,13 @@ void sl_grey_fit_free(sl_grey_fit *fit);
 sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *o,
                              sl_grey_fit *fit, sl_error *err);
 
+/* Adds a "Calibration" section to a report: the chart's per-patch table
+ * (pixels, clipped, CIEDE2000 before and after) and the grey sphere's
+ * photo, calibrated render and error images with their numbers. Either
+ * part may be NULL. Image files are prefixed with `prefix`. */
+sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart_patch *patches,
+                              const sl_ccm_fit *chart, const sl_grey_fit *grey, sl_error *err);
+
 #ifdef __cplusplus
 }
 #endif

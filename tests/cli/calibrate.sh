@@ -29,6 +29,15 @@ json_eval "$T/out" 'd["chart"]["patches_used"] == 24 and d["chart"]["delta_e_aft
 json_eval "$T/out" 'len(d["chart"]["patches"]) == 24 and d["chart"]["patches"][0]["pixels"] > 0'
 json_eval "$T/out" 'd["grey"]["rel_rmse_after"] < 0.02'
 
+# --- the report: HTML with the patch table and the grey sphere images, JSON
+expect 0 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" \
+    --chart-corners $CORNERS --grey "$T/grey.exr" --grey-circle 24,24,24 -o "$T/cal5.exr" \
+    --report "$T/rep"
+present "$T/rep/calibrate.html"; present "$T/rep/grey_error.png"; present "$T/rep/grey_render.png"
+grep -q "bluish green" "$T/rep/calibrate.html" && ok || bad "report lacks the patch table"
+json_ok "$T/rep/calibrate.json"
+json_eval "$T/rep/calibrate.json" 'abs(d["scale"] / 2 - 1) < 0.01'
+
 # --- no chart in the chart photo: said, and the grey sphere carries on
 expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/grey.exr" \
     --grey "$T/grey.exr" --grey-circle 24,24,24 -o "$T/cal3.exr"
