@@ -17,10 +17,13 @@
 static const char *calibrate_help =
     "usage: setlight calibrate --hdri ENV.exr [--chart CHART] [--grey GREY.exr\n"
     "                          --grey-circle CX,CY,R] -o ENV_CAL.exr [options]\n\n"
-    "Fits a colour matrix from a ColorChecker Classic 24 photo (camera RGB to linear\n"
-    "Rec.709) and the exposure and channel balance that make a virtual grey sphere,\n"
-    "rendered under the HDRI, match the photographed one; writes the HDRI with both\n"
-    "applied and the transform in its metadata. At least one of --chart, --grey.\n\n"
+    "The chart photo (plate camera) gives a colour matrix from camera RGB to linear\n"
+    "Rec.709, scaled to keep the neutral patch's luminance. The grey-sphere photo, shot\n"
+    "on the same camera, goes through that matrix; then the HDRI gets the exposure and\n"
+    "channel gains that make a virtual grey sphere rendered under it match the photo.\n"
+    "With a chart alone, the HDRI is taken to come from the chart's camera and gets the\n"
+    "matrix. Transform in the output's setlight:calibration_matrix (and\n"
+    "setlight:plate_matrix). At least one of --chart, --grey.\n\n"
     "  --hdri FILE           the lat-long to calibrate (linear)\n"
     "  -o, --output FILE     the calibrated lat-long (EXR, half unless --float)\n"
     "  --chart FILE          chart photo: EXR is read as linear, other formats as sRGB;\n"
@@ -209,7 +212,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     sl_error err;
     sl_result r;
     json_t *js = json_object();
-    double t[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    double t[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, plate[3][3];
     bool chart_used = false;
     sl_chart_patch p[24];
     sl_ccm_fit fit;
@@ -302,22 +305,38 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             json_object_set_new(jc, "delta_e_before_max", json_real(fit.de_before_max));
             json_object_set_new(jc, "delta_e_after_mean", json_real(fit.de_after_mean));
             json_object_set_new(jc, "delta_e_after_max", json_real(fit.de_after_max));
-            apply_image(&hdri, t);
+            memcpy(plate, t, sizeof(plate));
         }
     }
     if (grey_path) {
         if ((r = sl_image_read(grey_path, &grey, &gmeta, &err)))
             goto fail;
-        gopt.clip_level = clip > 0 ? clip : 0;
+        if (grey.channels < 3) {
+            r = sl_error_set(&err, SL_ERR_INPUT, "%s: the grey-sphere photo needs RGB", grey_path);
+            goto fail;
+        }
+        if (chart_used) {
+            /* The grey sphere was shot on the plate's camera, like the chart:
+             * into the working space through the chart's matrix, clipped
+             * pixels marked first (the fit skips non-finite ones). */
+            for (int y = 0; y < grey.height; y++)
+                for (int x = 0; x < grey.width; x++) {
+                    float *v = grey.data + (size_t)y * grey.stride + (size_t)x * grey.channels;
+                    if (clip > 0 && (v[0] >= clip || v[1] >= clip || v[2] >= clip))
+                        v[0] = v[1] = v[2] = NAN;
+                }
+            apply_image(&grey, plate);
+        } else {
+            gopt.clip_level = clip > 0 ? clip : 0;
+        }
         if ((r = sl_grey_sphere_fit(&hdri, &grey, &gopt, &gfit, &err))) {
             sl_error_set(&err, r, "%s: %s", grey_path, err.message);
             goto fail;
         }
+        memset(t, 0, sizeof(t));
         for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++)
-                t[i][j] *= gfit.gain[i];
-        double g[3][3] = {{gfit.gain[0], 0, 0}, {0, gfit.gain[1], 0}, {0, 0, gfit.gain[2]}};
-        apply_image(&hdri, g);
+            t[i][i] = gfit.gain[i];
+        apply_image(&hdri, t);
         json_object_set_new(js, "grey",
                             json_pack("{s:s, s:[f,f,f], s:f, s:[f,f,f], s:I, s:I, s:f, s:f, s:f}",
                                       "file", grey_path, "gain", gfit.gain[0], gfit.gain[1],
@@ -327,7 +346,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                       (json_int_t)gfit.rejected, "rel_rmse_before",
                                       gfit.rel_rmse_before, "rel_rmse_after",
                                       gfit.rel_rmse_after, "error_p95", gfit.error_p95));
-    } else if (!chart_used) {
+    } else if (chart_used) {
+        /* Chart alone: the HDRI is taken to come from the chart's camera. */
+        apply_image(&hdri, plate);
+    } else {
         r = sl_error_set(&err, SL_ERR_INPUT, "%s: nothing to calibrate with", hdri_path);
         goto fail;
     }
@@ -336,6 +358,13 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
              t[0][2], t[1][0], t[1][1], t[1][2], t[2][0], t[2][1], t[2][2]);
     if ((r = sl_meta_set(&out_meta, "setlight:calibration_matrix", buf, &err)))
         goto fail;
+    if (chart_used) {
+        snprintf(buf, sizeof buf, "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g", plate[0][0],
+                 plate[0][1], plate[0][2], plate[1][0], plate[1][1], plate[1][2], plate[2][0],
+                 plate[2][1], plate[2][2]);
+        if ((r = sl_meta_set(&out_meta, "setlight:plate_matrix", buf, &err)))
+            goto fail;
+    }
     snprintf(buf, sizeof buf, "%.9g", grey_path ? gfit.scale : 1.0);
     if ((r = sl_meta_set(&out_meta, "setlight:calibration_scale", buf, &err)) ||
         (r = sl_meta_set(&out_meta, "setlight:source", hdri_path, &err)))
@@ -353,6 +382,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     json_object_set_new(js, "hdri", json_string(hdri_path));
     json_object_set_new(js, "output", json_string(out_path));
     json_object_set_new(js, "matrix", json_matrix(t));
+    if (chart_used)
+        json_object_set_new(js, "plate_matrix", json_matrix(plate));
     json_object_set_new(js, "scale", json_real(grey_path ? gfit.scale : 1.0));
     if (report_dir) {
         if (mkdir(report_dir, 0777) && errno != EEXIST) {

@@ -28,6 +28,12 @@ expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chart.exr"
 json_eval "$T/out" 'd["chart"]["patches_used"] == 24 and d["chart"]["delta_e_after_mean"] < 1.0'
 json_eval "$T/out" 'len(d["chart"]["patches"]) == 24 and d["chart"]["patches"][0]["pixels"] > 0'
 json_eval "$T/out" 'd["grey"]["rel_rmse_after"] < 0.02'
+# The grey photo went through the plate matrix: the HDRI gets only diagonal gains.
+json_eval "$T/out" 'd["matrix"][0][1] == 0 and d["matrix"][2][0] == 0 and "plate_matrix" in d'
+# A chart alone: the HDRI gets the plate matrix itself.
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chart.exr" \
+    --chart-corners $CORNERS -o "$T/cal6.exr"
+json_eval "$T/out" 'd["matrix"] == d["plate_matrix"] and d["scale"] == 1'
 
 # --- the report: HTML with the patch table and the grey sphere images, JSON
 expect 0 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" \
