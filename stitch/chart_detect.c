@@ -15,8 +15,8 @@ static int cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* 99th percentile of luminance over a subsample of finite pixels. */
-static double white_level(const sl_image *img)
+/* 99th percentile of luminance over a subsample of finite, unclipped pixels. */
+static double white_level(const sl_image *img, double clip_level)
 {
     size_t n = (size_t)img->width * img->height, step = n / 65536 + 1, k = 0;
     float *v = malloc((n / step + 1) * sizeof(float));
@@ -25,7 +25,9 @@ static double white_level(const sl_image *img)
     for (size_t i = 0; i < n; i += step) {
         const float *p = img->data + (i / img->width) * img->stride + (i % img->width) * img->channels;
         float y = 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
-        if (isfinite(y) && y > 0)
+        bool clipped = clip_level > 0 && (p[0] >= clip_level || p[1] >= clip_level ||
+                                          p[2] >= clip_level);
+        if (isfinite(y) && y > 0 && !clipped)
             v[k++] = y;
     }
     double w = 0;
@@ -45,7 +47,7 @@ sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *so
         source = "chart image";
     if (!img || !img->data || img->channels < 3)
         return sl_error_set(err, SL_ERR_INPUT, "%s: chart detection needs RGB", source);
-    double white = white_level(img);
+    double white = white_level(img, clip_level);
     if (white < 0)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", source);
     if (!(white > 0))

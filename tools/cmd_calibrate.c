@@ -2,6 +2,7 @@
 /* setlight calibrate: the HDRI made to match the plate camera through a
  * ColorChecker and a grey sphere shot in the same light. */
 #include <errno.h>
+#include <float.h>
 #include <jansson.h>
 #include <math.h>
 #include <sys/stat.h>
@@ -40,6 +41,9 @@ static const char *calibrate_help =
     "  --grey-albedo A       the sphere's albedo (default 0.18)\n"
     "  --grey-view AZ,EL     the photo's view as the validation camera (default 0,0)\n"
     "  --spp N               samples per pixel of the virtual sphere (default 256)\n"
+    "  --colorspace NAME     output colour space (OCIO name, default lin_rec709)\n"
+    "  --chart-colorspace NAME  the chart photo's colour space (default: srgb for\n"
+    "                        8/16-bit photos, the file's own or lin_rec709 for EXR)\n"
     "  --float               write 32-bit float\n"
     "  --report DIR          write DIR/calibrate.html (chart table, grey sphere photo,\n"
     "                        render and error images) and DIR/calibrate.json\n"
@@ -94,7 +98,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
 {
     enum {
         OPT_HDRI = 1000, OPT_CHART, OPT_CORNERS, OPT_REF, OPT_WP, OPT_CLIP, OPT_GREY,
-        OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT, OPT_REPORT
+        OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT, OPT_REPORT, OPT_CS, OPT_CHART_CS
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -112,9 +116,11 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         {"spp", required_argument, NULL, OPT_SPP},
         {"float", no_argument, NULL, OPT_FLOAT},
         {"report", required_argument, NULL, OPT_REPORT},
+        {"colorspace", required_argument, NULL, OPT_CS},
+        {"chart-colorspace", required_argument, NULL, OPT_CHART_CS},
         {0, 0, 0, 0}};
     const char *hdri_path = NULL, *out_path = NULL, *chart_path = NULL, *grey_path = NULL,
-               *report_dir = NULL;
+               *report_dir = NULL, *out_cs = "lin_rec709", *chart_cs = NULL;
     double corners[4][2], clip = -1, view[2] = {0, 0};
     bool have_corners = false, have_circle = false, use_float = false;
     sl_ccm_options copt;
@@ -185,6 +191,17 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         case OPT_REPORT:
             report_dir = optarg;
             break;
+        case OPT_CS:
+        case OPT_CHART_CS: {
+            const char *name = sl_color_space_name(optarg);
+            if (!name)
+                return cli_usage_error(cli, "unknown colour space '%s' (see docs/color.md)", optarg);
+            if (c == OPT_CS)
+                out_cs = name;
+            else
+                chart_cs = name;
+            break;
+        }
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
         }
@@ -232,14 +249,47 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             goto fail;
         }
         double level = clip;
-        if (is_ldr_path(chart_path)) {
-            if ((r = sl_color_convert(&chart, "srgb", "lin_rec709", &err)))
+        const char *cs = chart_cs ? chart_cs
+                         : is_ldr_path(chart_path) ? "srgb"
+                         : sl_meta_color_space(&cmeta) ? sl_meta_color_space(&cmeta)
+                                                       : "lin_rec709";
+        /* Clipping is judged on the file's values, before any conversion;
+         * clipped pixels then carry FLT_MAX, which the sampler counts as clipped. */
+        if (level < 0 && is_ldr_path(chart_path))
+            level = 0.999;
+        unsigned char *clipped = NULL;
+        if (level > 0) {
+            clipped = calloc((size_t)chart.width * chart.height, 1);
+            if (!clipped) {
+                r = sl_error_set(&err, SL_ERR_NOMEM, "%s: out of memory", chart_path);
                 goto fail;
-            if (level < 0)
-                level = sl_srgb_to_linear(0.999f);
+            }
+            for (int y = 0; y < chart.height; y++)
+                for (int x = 0; x < chart.width; x++) {
+                    const float *v =
+                        chart.data + (size_t)y * chart.stride + (size_t)x * chart.channels;
+                    clipped[(size_t)y * chart.width + x] =
+                        v[0] >= level || v[1] >= level || v[2] >= level;
+                }
         }
-        if (level < 0)
+        if (strcmp(cs, "lin_rec709") != 0 &&
+            (r = sl_color_convert(&chart, cs, "lin_rec709", &err))) {
+            free(clipped);
+            goto fail;
+        }
+        if (clipped) {
+            for (int y = 0; y < chart.height; y++)
+                for (int x = 0; x < chart.width; x++)
+                    if (clipped[(size_t)y * chart.width + x]) {
+                        float *v =
+                            chart.data + (size_t)y * chart.stride + (size_t)x * chart.channels;
+                        v[0] = v[1] = v[2] = FLT_MAX;
+                    }
+            free(clipped);
+            level = FLT_MAX;
+        } else {
             level = 0;
+        }
         double centers[24][2];
         json_t *jc = json_object();
         json_object_set_new(js, "chart", jc);
@@ -373,7 +423,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
              chart_used ? " --chart " : "", chart_used ? chart_path : "",
              grey_path ? " --grey " : "", grey_path ? grey_path : "");
     if ((r = sl_meta_set(&out_meta, "setlight:command", buf, &err)) ||
-        (r = sl_meta_set_color_space(&out_meta, "lin_rec709", &err)))
+        (r = sl_meta_set_color_space(&out_meta, out_cs, &err)))
+        goto fail;
+    if (strcmp(out_cs, "lin_rec709") != 0 &&
+        (r = sl_color_convert(&hdri, "lin_rec709", out_cs, &err)))
         goto fail;
     out_meta.envmap = SL_ENVMAP_LATLONG;
     if ((r = sl_image_write(out_path, &hdri, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,

@@ -53,6 +53,24 @@ json_eval "$T/out" 'd["chart"]["located"] == "not found" and "grey" in d'
 expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/grey.exr" -o "$T/cal4.exr"
 err_has "grey.exr: no chart found"; err_one_line; absent "$T/cal4.exr"; no_temp "$T"
 
+# --- colour spaces: ACEScg out (recorded), an sRGB PNG chart in; unknown names refused
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 --colorspace acescg -o "$T/cal_aces.exr"
+expect 0 "$SETLIGHT" info --json "$T/cal_aces.exr"; out_has '"colorspace": "acescg"'
+# A real sRGB JPEG chart photo, found by the detector (when the shared data is there).
+JPG="${SETLIGHT_SHARED_DATA:-/nonexistent}/colorchecker/arcu/color_checker_1.jpg"
+if [ -f "$JPG" ]; then
+  # OpenCV 4.6's mcc leaks from its own allocator when it finds a chart.
+  printf 'leak:cv::fastMalloc\n' >"$T/lsan.supp"
+  expect 0 env LSAN_OPTIONS="suppressions=$T/lsan.supp" "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$JPG" -o "$T/cal_jpg.exr"
+  json_eval "$T/out" 'd["chart"]["located"] == "detected" and d["chart"]["patches_used"] >= 20'
+  json_eval "$T/out" 'd["chart"]["delta_e_after_mean"] < d["chart"]["delta_e_before_mean"]'
+else
+  skip "shared chart photo"
+fi
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 --colorspace nosuchspace -o "$T/keep.exr"; err_has "nosuchspace"
+
 # --- bad inputs: usage (2), missing or bad files (3), nothing overwritten
 cp "$T/cal.exr" "$T/keep.exr"
 expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" -o "$T/keep.exr"; err_has "--chart, --grey"
