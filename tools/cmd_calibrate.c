@@ -241,6 +241,15 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                          hdri_path, hdri.width, hdri.height, hdri.channels);
         goto fail;
     }
+    {
+        sl_image_stats st;
+        sl_image_stats_compute(&hdri, &st);
+        if (st.nan_count + st.inf_count) {
+            sl_log(SL_LOG_WARN, "%s: %lld NaN and %lld Inf samples replaced by 0", hdri_path,
+                   (long long)st.nan_count, (long long)st.inf_count);
+            sl_image_sanitize(&hdri, 0.0f);
+        }
+    }
     if (chart_path) {
         if ((r = sl_image_read(chart_path, &chart, &cmeta, &err)))
             goto fail;

@@ -71,6 +71,14 @@ fi
 expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" \
     --grey-circle 24,24,24 --colorspace nosuchspace -o "$T/keep.exr"; err_has "nosuchspace"
 
+# --- NaN/Inf in the HDRI: counted, replaced, none in the output
+"$MAKE_FIXTURE" nan "$T/nan.exr" 64 32 || bad "fixture"
+expect 0 "$SETLIGHT" calibrate --hdri "$T/nan.exr" --grey "$T/grey.exr" --grey-circle 24,24,24 \
+    -o "$T/cal_nan.exr"
+err_has "replaced by 0"
+expect 0 "$SETLIGHT" info --json "$T/cal_nan.exr"
+json_eval "$T/out" 'd["files"][0]["nan_count"] == 0 and d["files"][0]["inf_count"] == 0'
+
 # --- bad inputs: usage (2), missing or bad files (3), nothing overwritten
 cp "$T/cal.exr" "$T/keep.exr"
 expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" -o "$T/keep.exr"; err_has "--chart, --grey"
