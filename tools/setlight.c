@@ -17,6 +17,8 @@ typedef struct command {
 static const command commands[] = {
     {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
     {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"merge", cmd_merge, "merge a bracket of exposures into HDR radiance (EXR)"},
+    {"response", cmd_response, "recover a camera response curve from a bracket"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
