@@ -25,7 +25,7 @@ static const char *merge_help =
     "  --mask PATH            clipped mask EXR (R,G,B = 1 where saturated in every\n"
     "                         frame); default OUT_clipped.exr; --no-mask to skip\n"
     "  --noise GAIN,FLOOR     noise model var = GAIN * y + FLOOR (default 2e-5,1e-6)\n"
-    "  --saturation Z         values at or above Z (0..1) are saturated (default 0.98)\n"
+    "  --saturation Z         values at or above Z (0..1) are saturated (default 0.95)\n"
     "  --black Z              values at or below Z carry no weight (default 0.004)\n"
     "  --tolerance STOPS      EXIF vs data disagreement reported above (default 0.2)\n"
     "  --samples N            response samples per channel (default 4000)\n"
