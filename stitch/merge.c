@@ -275,39 +275,69 @@ static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
     return SL_OK;
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median_inplace(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* Robust line y = a + g x (Theil-Sen: median of pairwise slopes, then the
+ * median intercept); g = 1 when not fitted or too few points. */
+static void robust_line(const double *x, const double *y, int n, bool fit_slope, double *a,
+                        double *g, double *scratch)
+{
+    *g = 1;
+    int k = 0;
+    if (fit_slope && n >= 3) {
+        for (int i = 0; i < n; i++)
+            for (int j = i + 1; j < n; j++)
+                if (x[j] != x[i])
+                    scratch[k++] = (y[j] - y[i]) / (x[j] - x[i]);
+        if (k)
+            *g = median_inplace(scratch, k);
+        if (!(*g > 0.1))
+            *g = 1;
+    }
+    for (int i = 0; i < n; i++)
+        scratch[i] = y[i] - *g * x[i];
+    *a = median_inplace(scratch, n);
+}
+
 /* Fits neighbour ratios, chains them into exposures and compares with EXIF.
- * Each run of fitted ratios is put on the EXIF scale by its median offset,
- * so one lying frame stands out instead of shifting all the others. */
+ * Each run of fitted ratios is put on the EXIF scale by a robust line
+ * through (EXIF, fitted) log exposures, so one lying frame stands out
+ * instead of moving the others. With a recovered response the line's slope
+ * is fitted too: curve and exposures are only known up to a common power
+ * (Grossberg and Nayar), which EXIF, taken as mostly right, pins down. */
 static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt)
 {
     int count = res->frame_count;
     double *ratio = m->ratio;
     res->fitted_ratios = merge_fit_ratios(&m->samples, &res->response, m->black, m->saturation, ratio);
     res->disagreeing_frames = 0;
+    bool fit_slope = opt->response_mode == SL_RESPONSE_AUTO;
     int q = 0;
     while (q < count) {
         int end = q; /* run [q, end]: ratios q..end-1 all fitted */
         while (end + 1 < count && ratio[end] > 0)
             end++;
-        double lf = log(res->frames[m->order[q]].exif_exposure);
-        double *off = m->offsets;
+        int n = end - q + 1;
+        double lf = 0, *lx = m->offsets;
         for (int k = q; k <= end; k++) {
             if (k > q)
                 lf += log(ratio[k - 1]);
             m->log_fit[k] = lf;
-            off[k - q] = lf - log(res->frames[m->order[k]].exif_exposure);
+            lx[k - q] = log(res->frames[m->order[k]].exif_exposure);
         }
-        int n = end - q + 1;
-        for (int i = 1; i < n; i++) { /* n is small: insertion sort */
-            double v = off[i];
-            int j = i - 1;
-            while (j >= 0 && off[j] > v) {
-                off[j + 1] = off[j];
-                j--;
-            }
-            off[j + 1] = v;
-        }
-        double med = n % 2 ? off[n / 2] : 0.5 * (off[n / 2 - 1] + off[n / 2]);
+        double a = 0, g = 1;
+        if (n >= 2)
+            robust_line(lx, m->log_fit + q, n, fit_slope, &a, &g, m->scratch);
         for (int k = q; k <= end; k++) {
             sl_merge_frame *f = &res->frames[m->order[k]];
             if (n < 2) {
@@ -316,7 +346,7 @@ static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_o
                 f->disagrees = false;
                 continue;
             }
-            f->fitted_exposure = exp(m->log_fit[k] - med);
+            f->fitted_exposure = exp((m->log_fit[k] - a) / g);
             f->disagreement_stops = log2(f->fitted_exposure / f->exif_exposure);
             f->disagrees = fabs(f->disagreement_stops) > opt->tolerance_stops;
             res->disagreeing_frames += f->disagrees;
@@ -337,7 +367,7 @@ static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_m
     double *loge = m->offsets;
     for (int q = 0; q < res->frame_count; q++) {
         const sl_merge_frame *f = &res->frames[m->order[q]];
-        loge[q] = log(use_fitted ? f->exposure : f->exif_exposure);
+        loge[q] = log(use_fitted && f->fitted_exposure > 0 ? f->fitted_exposure : f->exif_exposure);
     }
     /* Wider steps leave more of the curve to smoothness: 10 at 3 stops, 5.4 at 2. */
     double lambda = opt->smoothness;
@@ -366,6 +396,8 @@ void merge_ctx_free(merge_ctx *m)
     free(m->ratio);
     free(m->offsets);
     free(m->log_fit);
+    free(m->prev_fit);
+    free(m->scratch);
     memset(m, 0, sizeof *m);
 }
 
@@ -397,7 +429,9 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         m->ratio = calloc((size_t)count, sizeof *m->ratio);
         m->offsets = calloc((size_t)count, sizeof *m->offsets);
         m->log_fit = calloc((size_t)count, sizeof *m->log_fit);
-        if (!m->ratio || !m->offsets || !m->log_fit)
+        m->prev_fit = calloc((size_t)count, sizeof *m->prev_fit);
+        m->scratch = calloc((size_t)count * count, sizeof *m->scratch);
+        if (!m->ratio || !m->offsets || !m->log_fit || !m->prev_fit || !m->scratch)
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     }
     if (!r)
@@ -427,14 +461,23 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     if (r)
         return r;
     check_exposures(m, out, &opt);
-    /* With data exposures the response is refitted on them, twice: a lying
-     * frame bends the first curve a little. */
-    for (int round = 0; round < 2 && opt.response_mode == SL_RESPONSE_AUTO &&
-                        opt.exposures == SL_EXPOSURES_DATA && out->disagreeing_frames;
+    /* A recovered curve bends to fit whatever exposures it was given, so a
+     * lying frame would hide in it: alternate curve and measured exposures
+     * until the exposures settle (each round removes most of the error). */
+    for (int round = 0; round < 8 && opt.response_mode == SL_RESPONSE_AUTO &&
+                        out->fitted_ratios > 0;
          round++) {
+        for (int i = 0; i < count; i++)
+            m->prev_fit[i] = out->frames[i].fitted_exposure;
         if ((r = recover_response(m, out, &opt, true, err)))
             return r;
         check_exposures(m, out, &opt);
+        double moved = 0;
+        for (int i = 0; i < count; i++)
+            if (m->prev_fit[i] > 0 && out->frames[i].fitted_exposure > 0)
+                moved = fmax(moved, fabs(log2(out->frames[i].fitted_exposure / m->prev_fit[i])));
+        if (moved < 0.002)
+            break;
     }
     out->reference = m->order[(count - 1) / 2];
     out->bits = m->bits;

@@ -8,10 +8,32 @@
 /* Fewer usable pixel pairs than this and a ratio is not trusted. */
 enum { MIN_PAIRS = 32 };
 
-static int cmp_double(const void *a, const void *b)
+/* The k-th smallest of v[0..n) (Hoare's selection; reorders v). */
+static double select_kth(double *v, int n, int k)
 {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        double pivot = v[lo + (hi - lo) / 2];
+        int i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot)
+                i++;
+            while (v[j] > pivot)
+                j--;
+            if (i <= j) {
+                double t = v[i];
+                v[i++] = v[j];
+                v[j--] = t;
+            }
+        }
+        if (k <= j)
+            hi = j;
+        else if (k >= i)
+            lo = i;
+        else
+            break;
+    }
+    return v[k];
 }
 
 int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double black,
@@ -39,8 +61,8 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
             }
         if (n < MIN_PAIRS)
             continue;
-        qsort(r, (size_t)n, sizeof *r, cmp_double);
-        ratio[q] = n % 2 ? r[n / 2] : 0.5 * (r[n / 2 - 1] + r[n / 2]);
+        double upper = select_kth(r, n, n / 2);
+        ratio[q] = n % 2 ? upper : 0.5 * (upper + select_kth(r, n / 2, n / 2 - 1));
         fitted++;
     }
     free(r);

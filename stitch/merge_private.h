@@ -42,6 +42,8 @@ typedef struct merge_ctx {
     double *ratio;         /* per rank: fitted e[r+1] / e[r], 0 unknown */
     double *offsets;       /* scratch, one per frame */
     double *log_fit;       /* per rank: chained fitted log exposure */
+    double *prev_fit;      /* per frame: fitted exposure of the previous round */
+    double *scratch;       /* frames^2 doubles */
 } merge_ctx;
 
 /* Everything before the pixels are merged: frames, samples, response, exposure check. */
