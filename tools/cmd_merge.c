@@ -149,11 +149,11 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     sl_merge_options_init(&a->opt);
     a->opt.response_mode = SL_RESPONSE_AUTO;
     cli_getopt_reset();
-    int c;
-    while ((c = getopt_long(argc, argv, "+ho:", opts, NULL)) != -1) {
+    int c, which = 0;
+    while ((c = getopt_long(argc, argv, "+ho:", opts, &which)) != -1) {
         bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE;
         if (merge_only && !is_merge)
-            return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
+            return cli_usage_error(cli, "unknown option '--%s'", opts[which].name);
         switch (c) {
         case 'h':
             fputs(is_merge ? merge_help : response_help, stdout);
@@ -214,8 +214,8 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         case OPT_SMOOTH: {
             double v;
             if (!cli_parse_double(optarg, &v) || v < 0)
-                return cli_usage_error(cli, "%s needs a non-negative number, not '%s'",
-                                       argv[optind - 2 >= 0 ? optind - 2 : 0], optarg);
+                return cli_usage_error(cli, "--%s needs a non-negative number, not '%s'",
+                                       opts[which].name, optarg);
             if (c == OPT_SAT)
                 a->opt.saturation = v;
             else if (c == OPT_BLACK)
