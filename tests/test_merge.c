@@ -473,12 +473,18 @@ static void test_real_brackets(void)
     }
 }
 
+static void test_float_tiff_7x3(void)
+{
+    accuracy_case("float7x3", bracket(7, 3, MF_LINEAR, 32, "tif"), SL_RESPONSE_LINEAR);
+}
+
 int main(void)
 {
     RUN(test_jpeg_gamma_7x3);
     RUN(test_jpeg_scurve_5x2);
     RUN(test_tiff16_linear_7x3);
     RUN(test_tiff16_linear_5x2);
+    RUN(test_float_tiff_7x3);
     RUN(test_exif_lie);
     RUN(test_response_file);
     RUN(test_deterministic);
