@@ -15,10 +15,6 @@ static mf_bracket bracket(int frames, double stops, mf_curve curve, int bits, co
     mf_bracket b = {.width = 256, .height = 128, .frames = frames, .stops = stops,
                     .curve = curve, .bits = bits, .ext = ext, .sun = true,
                     .noise_gain = 2e-5, .noise_floor = 1e-6, .seed = 7};
-    if (sanitized()) {
-        b.width = 128;
-        b.height = 64;
-    }
     return b;
 }
 
