@@ -491,6 +491,8 @@ sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_
     merge_ctx m;
     sl_result r = merge_prepare(paths, count, opt, &m, out, err);
     merge_ctx_free(&m);
+    if (r)
+        sl_merge_result_free(out);
     out->seconds = sl_seconds() - t0;
     return r;
 }
@@ -509,6 +511,8 @@ sl_result sl_merge(const char *const *paths, int count, const sl_merge_options *
     if (!r)
         r = merge_pass(&m, &opt, out, err);
     merge_ctx_free(&m);
+    if (r)
+        sl_merge_result_free(out);
     out->seconds = sl_seconds() - t0;
     return r;
 }

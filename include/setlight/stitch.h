@@ -93,7 +93,8 @@ typedef struct sl_merge_result {
 /* Merges a bracket of frames (any order, same size and bit depth) into
  * radiance. Frames are read a strip at a time. Pixels saturated in every
  * frame get the lower bound from the shortest exposure and a 1 in
- * `clipped`; no NaN, Inf or negative value is produced. */
+ * `clipped`; no NaN, Inf or negative value is produced. On failure `out`
+ * is left empty. */
 sl_result sl_merge(const char *const *paths, int count, const sl_merge_options *opt,
                    sl_merge_result *out, sl_error *err);
 void sl_merge_result_free(sl_merge_result *res);
