@@ -20,6 +20,8 @@ void sl_merge_options_init(sl_merge_options *opt)
     opt->black = 0.004;
     opt->tolerance_stops = 0.2;
     opt->seed = 1;
+    opt->deghost_sigma = 5;
+    opt->deghost_model_error = 0.05;
 }
 
 void sl_merge_result_free(sl_merge_result *res)
@@ -28,6 +30,7 @@ void sl_merge_result_free(sl_merge_result *res)
         return;
     sl_image_free(&res->radiance);
     sl_image_free(&res->clipped);
+    sl_image_free(&res->ghost);
     sl_response_free(&res->response);
     for (int i = 0; i < res->frame_count; i++)
         free(res->frames[i].path);
@@ -49,6 +52,9 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
     if (count < 2)
         return sl_error_set(err, SL_ERR_USAGE, "%s: a merge needs at least two frames",
                             count == 1 ? paths[0] : "(no frames)");
+    if (count > MERGE_MAX_FRAMES)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: %d frames; a merge takes at most %d",
+                            paths[count - 1], count, MERGE_MAX_FRAMES);
     res->frames = calloc((size_t)count, sizeof *res->frames);
     m->order = calloc((size_t)count, sizeof *m->order);
     if (!res->frames || !m->order)
@@ -415,7 +421,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     m->saturation = opt.saturation;
     if (!(opt.saturation > opt.black + 0.1) || !(opt.black >= 0) || !(opt.saturation <= 1) ||
         !(opt.noise_gain >= 0) || !(opt.noise_floor > 0) || !(opt.smoothness >= 0) ||
-        opt.samples < 16 || !(opt.tolerance_stops > 0))
+        opt.samples < 16 || !(opt.tolerance_stops > 0) || !(opt.deghost_sigma > 0) ||
+        !(opt.deghost_model_error >= 0))
         return sl_error_set(err, SL_ERR_USAGE,
                             "merge: options out of range (0 <= black < saturation - 0.1, "
                             "saturation <= 1, noise floor > 0, smoothness >= 0, samples >= 16)");

@@ -31,7 +31,7 @@ typedef struct pass_ctx {
     int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
 } pass_ctx;
 
-enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNTS = 6 };
+enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
 
 /* Inverse variance of a linearised value, before the exposure factor. */
 static double weight_base(const pass_ctx *p, int c, double z)
@@ -60,6 +60,30 @@ static void read_strips(void *ctx, int64_t begin, int64_t end, int worker)
         p->results[r] = merge_strip_read(p->rd[r], p->y0, p->y1, p->buf[r], &p->errs[r]);
 }
 
+/* Weighted median of x over the entries with w > 0. */
+static double weighted_median(const double *x, const double *w, int n)
+{
+    int idx[MERGE_MAX_FRAMES], k = 0;
+    double total = 0;
+    for (int r = 0; r < n; r++)
+        if (w[r] > 0) {
+            int j = k++;
+            while (j > 0 && x[idx[j - 1]] > x[r]) {
+                idx[j] = idx[j - 1];
+                j--;
+            }
+            idx[j] = r;
+            total += w[r];
+        }
+    double run = 0;
+    for (int j = 0; j < k; j++) {
+        run += w[idx[j]];
+        if (run >= 0.5 * total)
+            return x[idx[j]];
+    }
+    return k ? x[idx[k - 1]] : 0;
+}
+
 static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
@@ -67,17 +91,17 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
     const merge_ctx *m = p->m;
     int w = m->width, f = p->frames;
     float sat = (float)m->saturation;
+    double xs[3][MERGE_MAX_FRAMES], ws[3][MERGE_MAX_FRAMES];
+    bool satr[3][MERGE_MAX_FRAMES];
     for (int64_t row = begin; row < end; row++) {
         int y = p->y0 + (int)row;
         float *out = sl_image_pixel(&p->res->radiance, 0, y);
         float *mask = sl_image_pixel(&p->res->clipped, 0, y);
+        float *ghost = p->res->ghost.data ? sl_image_pixel(&p->res->ghost, 0, y) : NULL;
         int64_t *cnt = p->row_counts + (size_t)y * COUNTS;
         for (int x = 0; x < w; x++) {
             size_t idx = ((size_t)row * w + x) * 3;
-            bool any = false;
-            for (int c = 0; c < 3; c++) {
-                double num = 0, den = 0, fallback = 0, shortest = 0;
-                int nsat = 0;
+            for (int c = 0; c < 3; c++)
                 for (int r = 0; r < f; r++) {
                     float z = p->buf[r][idx + c];
                     double y_lin, wb;
@@ -86,28 +110,52 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
                         k = k < 0 ? 0 : k >= p->levels ? p->levels - 1 : k;
                         y_lin = p->inv[c][k];
                         wb = p->wb[c][k];
+                    } else if (!isfinite(z)) {
+                        cnt[COUNT_NONFINITE]++;
+                        xs[c][r] = ws[c][r] = 0;
+                        satr[c][r] = false;
+                        continue;
                     } else {
-                        if (!isfinite(z)) {
-                            cnt[COUNT_NONFINITE]++;
-                            continue;
-                        }
                         y_lin = sl_response_eval(&p->res->response, c, z);
                         wb = weight_base(p, c, z);
                     }
-                    double x_r = y_lin / p->e[r];
-                    if (r == 0)
-                        shortest = x_r;
-                    if (z >= sat)
+                    xs[c][r] = y_lin / p->e[r];
+                    ws[c][r] = wb * p->e[r] * p->e[r];
+                    satr[c][r] = z >= sat;
+                }
+            /* Deghost: a frame far from the weighted median (beyond the noise
+             * model plus a model error) in any channel is left out. */
+            bool reject[MERGE_MAX_FRAMES] = {false}, ghosted = false;
+            if (ghost)
+                for (int c = 0; c < 3; c++) {
+                    double med = weighted_median(xs[c], ws[c], f);
+                    double model = p->opt->deghost_model_error * med;
+                    for (int r = 0; r < f; r++) {
+                        if (ws[c][r] <= 0)
+                            continue;
+                        double d = xs[c][r] - med, var = 1 / ws[c][r] + model * model;
+                        if (d * d > p->opt->deghost_sigma * p->opt->deghost_sigma * var)
+                            reject[r] = ghosted = true;
+                    }
+                }
+            bool any = false;
+            for (int c = 0; c < 3; c++) {
+                double num = 0, den = 0, fallback = 0;
+                int nsat = 0;
+                for (int r = 0; r < f; r++) {
+                    if (satr[c][r])
                         nsat++;
-                    else
-                        fallback = x_r; /* longest unsaturated so far */
-                    num += wb * p->e[r] * y_lin;
-                    den += wb * p->e[r] * p->e[r];
+                    else if (!reject[r])
+                        fallback = xs[c][r]; /* longest unsaturated so far */
+                    if (!reject[r]) {
+                        num += ws[c][r] * xs[c][r];
+                        den += ws[c][r];
+                    }
                 }
                 double v;
                 if (nsat == f) {
                     /* The shortest frame's value is a lower bound, never an estimate. */
-                    v = shortest;
+                    v = xs[c][0];
                     mask[x * 3 + c] = 1;
                     cnt[c]++;
                     any = true;
@@ -120,6 +168,10 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 out[x * 3 + c] = (float)v;
             }
             cnt[3] += any;
+            if (ghosted) {
+                ghost[x] = 1;
+                cnt[COUNT_GHOST]++;
+            }
         }
     }
 }
@@ -161,6 +213,8 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_r
         r = sl_image_alloc(&res->radiance, m->width, m->height, 3, err);
     if (!r)
         r = sl_image_alloc(&res->clipped, m->width, m->height, 3, err);
+    if (!r && opt->deghost)
+        r = sl_image_alloc(&res->ghost, m->width, m->height, 1, err);
     if (!r)
         r = build_luts(&p, err);
     double ref = res->frames[res->reference].exposure;
@@ -194,6 +248,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_r
             res->clipped_pixels += cnt[3];
             res->underexposed_samples += cnt[COUNT_UNDER];
             res->nonfinite_samples += cnt[COUNT_NONFINITE];
+            res->ghost_pixels += cnt[COUNT_GHOST];
             if (latlong && cnt[3])
                 solid += (double)cnt[3] * sl_latlong_texel_solid_angle(y, m->width, m->height);
         }

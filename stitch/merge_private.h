@@ -5,6 +5,9 @@
 
 #include "setlight/stitch.h"
 
+/* Frames per merge (per-pixel work keeps them on the stack). */
+enum { MERGE_MAX_FRAMES = 64 };
+
 /* Pixel values at sample positions: z[(i * frames + r) * 3 + c] for
  * position i and frame rank r (shortest exposure first). */
 typedef struct merge_samples {

@@ -88,6 +88,11 @@ sl_result mf_make_bracket(const char *dir, const char *prefix, const mf_bracket 
             for (int c = 0; c < 3; c++)
                 sl_image_pixel(&out->clipped, x, y)[c] = p[c] * shortest >= 1 ? 1.0f : 0.0f;
         }
+    if ((r = sl_image_alloc(&out->ghost, b->width, b->height, 1, err)))
+        return r;
+    for (int y = (int)(0.4 * b->height); b->ghost && y < (int)(0.7 * b->height); y++)
+        for (int x = (int)(0.3 * b->width); x < (int)(0.45 * b->width); x++)
+            *sl_image_pixel(&out->ghost, x, y) = 1;
     sl_image frame = {0};
     if ((r = sl_image_alloc(&frame, b->width, b->height, 3, err)))
         return r;
@@ -98,6 +103,8 @@ sl_result mf_make_bracket(const char *dir, const char *prefix, const mf_bracket 
             for (int x = 0; x < b->width; x++)
                 for (int c = 0; c < 3; c++) {
                     double lin = sl_image_pixel(&out->radiance, x, y)[c] * gain;
+                    if (b->ghost && k == b->ghost_frame && *sl_image_pixel(&out->ghost, x, y) > 0)
+                        lin *= 0.25;
                     double clipped = lin > 1 ? 1 : lin;
                     double noisy = lin + sqrt(b->noise_gain * clipped + b->noise_floor) * gauss(&state);
                     sl_image_pixel(&frame, x, y)[c] = (float)mf_curve_forward(b->curve, noisy);
@@ -141,6 +148,7 @@ void mf_result_free(mf_result *r)
 {
     sl_image_free(&r->radiance);
     sl_image_free(&r->clipped);
+    sl_image_free(&r->ghost);
 }
 
 static int cmp_double(const void *a, const void *b)

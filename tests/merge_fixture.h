@@ -25,11 +25,14 @@ typedef struct mf_bracket {
     uint64_t seed;
     int lie_frame;      /* this frame's EXIF time is off by lie_stops (0 stops: no lie) */
     double lie_stops;
+    bool ghost;         /* a dark object (a quarter of the radiance) in one frame only */
+    int ghost_frame;
 } mf_bracket;
 
 typedef struct mf_result {
     sl_image radiance;  /* truth: what the middle frame would record, unclipped */
     sl_image clipped;   /* truth: 1 where the shortest frame saturates (noise-free) */
+    sl_image ghost;     /* truth: 1 channel, 1 where the object is (when ghost) */
     int frames;
     char paths[MF_MAX_FRAMES][512];
     double times[MF_MAX_FRAMES]; /* true seconds (EXIF has them unless a frame lies) */

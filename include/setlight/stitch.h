@@ -52,6 +52,9 @@ typedef struct sl_merge_options {
     double black;               /* z at or below which a sample has no weight; 0: 0.004 */
     double tolerance_stops;     /* EXIF vs data disagreement reported above; 0: 0.2 */
     uint64_t seed;              /* for sample positions */
+    bool deghost;               /* leave out frames that disagree with the others */
+    double deghost_sigma;       /* disagreement: beyond this many standard deviations (5) */
+    double deghost_model_error; /* relative error added to the noise model (0.05) */
 } sl_merge_options;
 
 /* Fills the defaults above. */
@@ -74,6 +77,7 @@ typedef struct sl_merge_frame {
 typedef struct sl_merge_result {
     sl_image radiance;          /* RGB, relative radiance (the reference frame's scale) */
     sl_image clipped;           /* RGB, 1 where the channel is saturated in every frame */
+    sl_image ghost;             /* with deghost: 1 channel, 1 where a frame was left out */
     sl_response response;
     sl_merge_frame *frames;     /* in the given order */
     int frame_count;
@@ -85,13 +89,16 @@ typedef struct sl_merge_result {
     double clipped_solid_angle; /* steradians when the frames are 2:1 lat-longs, else -1 */
     int64_t underexposed_samples; /* no frame above black: longest frame's value kept */
     int64_t disagreeing_frames;
+    int64_t ghost_pixels;       /* with deghost: pixels where a frame was left out */
     int64_t nonfinite_samples;  /* NaN/Inf input samples (float frames), given no weight */
     int fitted_ratios;          /* neighbour ratios measured from the data (of frames - 1) */
     double seconds;
 } sl_merge_result;
 
-/* Merges a bracket of frames (any order, same size and bit depth) into
- * radiance. Frames are read a strip at a time. Pixels saturated in every
+/* Merges a bracket of frames (any order, same size and bit depth, at most
+ * 64) into radiance. With deghost, per pixel, a frame whose value is more
+ * than deghost_sigma deviations (noise model plus model error) from the
+ * weighted median of the frames in any channel is left out. Frames are read a strip at a time. Pixels saturated in every
  * frame get the lower bound from the shortest exposure and a 1 in
  * `clipped`; no NaN, Inf or negative value is produced. On failure `out`
  * is left empty. */
