@@ -27,9 +27,11 @@ static sl_result set_number(sl_meta *meta, const char *name, const char *fmt, do
     return sl_meta_set(meta, name, buf, err);
 }
 
-sl_result sl_merge_write(const char *path, const char *mask_path, const sl_merge_result *res,
-                         sl_error *err)
+sl_result sl_merge_write(const char *path, const char *mask_path, const char *ghost_path,
+                         const sl_merge_result *res, sl_error *err)
 {
+    if (ghost_path && !res->ghost.data)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no ghost mask without deghost", ghost_path);
     sl_meta meta;
     sl_meta_init(&meta);
     meta.envmap = sl_is_latlong_shape(res->radiance.width, res->radiance.height)
@@ -78,22 +80,32 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const sl_merge
                        res->clipped_solid_angle, err);
     if (!r && mask_path)
         r = sl_meta_set(&meta, "setlight:merge:clipped_mask", mask_path, err);
+    if (!r && res->ghost.data)
+        r = set_number(&meta, "setlight:merge:ghost_pixels", "%.0f", (double)res->ghost_pixels, err);
+    if (!r && ghost_path)
+        r = sl_meta_set(&meta, "setlight:merge:ghost_mask", ghost_path, err);
     free(frames);
     free(curve);
-    if (!r && mask_path) {
+    const char *side_path[2] = {mask_path, ghost_path};
+    const sl_image *side_img[2] = {&res->clipped, &res->ghost};
+    bool written[2] = {false, false};
+    for (int i = 0; i < 2 && !r; i++) {
+        if (!side_path[i])
+            continue;
         sl_meta mm;
         sl_meta_init(&mm);
         mm.envmap = meta.envmap;
         r = sl_meta_set(&mm, "setlight:merge:mask_of", path, err);
         if (!r)
-            r = sl_exr_write(mask_path, &res->clipped, &mm, SL_PIXEL_HALF, err);
+            r = sl_exr_write(side_path[i], side_img[i], &mm, SL_PIXEL_HALF, err);
+        written[i] = !r;
         sl_meta_free(&mm);
     }
-    if (!r) {
+    if (!r)
         r = sl_exr_write(path, &res->radiance, &meta, SL_PIXEL_FLOAT, err);
-        if (r && mask_path)
-            unlink(mask_path); /* no half-written pair */
-    }
+    for (int i = 0; i < 2 && r; i++)
+        if (written[i])
+            unlink(side_path[i]); /* no half-written set */
     sl_meta_free(&meta);
     return r;
 }

@@ -24,6 +24,10 @@ static const char *merge_help =
     "                         the pixels; either way disagreements are reported\n"
     "  --mask PATH            clipped mask EXR (R,G,B = 1 where saturated in every\n"
     "                         frame); default OUT_clipped.exr; --no-mask to skip\n"
+    "  --deghost              leave out, per pixel, frames that disagree with the others\n"
+    "                         beyond the noise model (moving people, cars, leaves); the\n"
+    "                         ghost mask (Y = 1 where a frame was left out) goes to\n"
+    "                         OUT_ghost.exr unless --ghost-mask PATH\n"
     "  --noise GAIN,FLOOR     noise model var = GAIN * y + FLOOR (default 2e-5,1e-6)\n"
     "  --saturation Z         values at or above Z (0..1) are saturated (default 0.95)\n"
     "  --black Z              values at or below Z carry no weight (default 0.004)\n"
@@ -120,6 +124,7 @@ typedef struct merge_args {
     sl_merge_options opt;
     const char *output;
     const char *mask;
+    const char *ghost_mask;
     bool no_mask;
     double *times;
     int time_count;
@@ -130,7 +135,7 @@ typedef struct merge_args {
 static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, merge_args *a)
 {
     enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
-           OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH };
+           OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"output", required_argument, NULL, 'o'},
@@ -145,13 +150,16 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         {"tolerance", required_argument, NULL, OPT_TOL},
         {"samples", required_argument, NULL, OPT_SAMPLES},
         {"smoothness", required_argument, NULL, OPT_SMOOTH},
+        {"deghost", no_argument, NULL, OPT_DEGHOST},
+        {"ghost-mask", required_argument, NULL, OPT_GHOSTMASK},
         {0, 0, 0, 0}};
     sl_merge_options_init(&a->opt);
     a->opt.response_mode = SL_RESPONSE_AUTO;
     cli_getopt_reset();
     int c, which = 0;
     while ((c = getopt_long(argc, argv, "+ho:", opts, &which)) != -1) {
-        bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE;
+        bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE ||
+                          c == OPT_DEGHOST || c == OPT_GHOSTMASK;
         if (merge_only && !is_merge)
             return cli_usage_error(cli, "unknown option '--%s'", opts[which].name);
         switch (c) {
@@ -194,6 +202,13 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
             break;
         case OPT_NOMASK:
             a->no_mask = true;
+            break;
+        case OPT_DEGHOST:
+            a->opt.deghost = true;
+            break;
+        case OPT_GHOSTMASK:
+            a->ghost_mask = optarg;
+            a->opt.deghost = true;
             break;
         case OPT_NOISE: {
             double *v = NULL;
@@ -251,15 +266,15 @@ static void free_args(merge_args *a)
     sl_response_free(&a->response);
 }
 
-/* "dir/name.exr" -> "dir/name_clipped.exr" */
-static char *default_mask_path(const char *out)
+/* "dir/name.exr" -> "dir/name_SUFFIX.exr" */
+static char *sidecar_path(const char *out, const char *suffix)
 {
     size_t n = strlen(out);
     const char *dot = strrchr(out, '.'), *slash = strrchr(out, '/');
     size_t stem = dot && (!slash || dot > slash) ? (size_t)(dot - out) : n;
-    char *p = malloc(n + 16);
+    char *p = malloc(n + strlen(suffix) + 8);
     if (p)
-        snprintf(p, n + 16, "%.*s_clipped.exr", (int)stem, out);
+        snprintf(p, n + strlen(suffix) + 8, "%.*s_%s.exr", (int)stem, out, suffix);
     return p;
 }
 
@@ -273,14 +288,16 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
     }
     sl_error err;
     sl_merge_result res;
-    char *mask = a.no_mask ? NULL : a.mask ? strdup(a.mask) : default_mask_path(a.output);
+    char *mask = a.no_mask ? NULL : a.mask ? strdup(a.mask) : sidecar_path(a.output, "clipped");
+    char *ghost = !a.opt.deghost ? NULL : a.ghost_mask ? strdup(a.ghost_mask) : sidecar_path(a.output, "ghost");
     sl_result r = sl_merge((const char *const *)argv + optind, argc - optind, &a.opt, &res, &err);
-    if (!r && !a.no_mask && !mask)
+    if (!r && ((!a.no_mask && !mask) || (a.opt.deghost && !ghost)))
         r = sl_error_set(&err, SL_ERR_NOMEM, "out of memory");
     if (!r)
-        r = sl_merge_write(a.output, mask, &res, &err);
+        r = sl_merge_write(a.output, mask, ghost, &res, &err);
     if (r) {
         free(mask);
+        free(ghost);
         sl_merge_result_free(&res);
         free_args(&a);
         return cli_fail(cli, &err);
@@ -292,8 +309,9 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
            100 * res.clipped_fraction, res.seconds);
     if (cli->json) {
         json_t *o = json_pack(
-            "{s:s, s:s?, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:f}",
-            "output", a.output, "mask", mask, "width", res.radiance.width, "height",
+            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:f}",
+            "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
+            (json_int_t)res.ghost_pixels, "width", res.radiance.width, "height",
             res.radiance.height, "response", res.response.source, "exposures",
             a.opt.exposures == SL_EXPOSURES_DATA ? "data" : "exif", "frames", frames_json(&res),
             "reference_frame", res.reference, "clipped_pixels", (json_int_t)res.clipped_pixels,
@@ -308,6 +326,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
         json_decref(o);
     }
     free(mask);
+    free(ghost);
     sl_merge_result_free(&res);
     free_args(&a);
     return 0;

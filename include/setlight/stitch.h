@@ -109,9 +109,11 @@ void sl_merge_result_free(sl_merge_result *res);
 sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_options *opt,
                             sl_merge_result *out, sl_error *err);
 /* Writes the radiance EXR (float) with provenance attributes and, when
- * mask_path is not NULL, the clipped mask beside it (both atomically). */
-sl_result sl_merge_write(const char *path, const char *mask_path, const sl_merge_result *res,
-                         sl_error *err);
+ * mask_path / ghost_path are not NULL, the clipped mask (RGB) and the ghost
+ * mask (Y, needs a deghosted result) beside it, each atomically; on failure
+ * none of them is left. */
+sl_result sl_merge_write(const char *path, const char *mask_path, const char *ghost_path,
+                         const sl_merge_result *res, sl_error *err);
 
 /* ================================================================== */
 /* Unwrap: chrome ball to lat-long                                     */

@@ -64,6 +64,14 @@ expect 0 "$SETLIGHT" merge --json --response linear --no-mask -o "$T/lin.exr" --
 json_eval "$T/out" 'd["response"] == "linear" and d["mask"] is None and [f["rank"] for f in d["frames"]] == [2, 0, 1]'
 absent "$T/lin_clipped.exr"
 
+# --- deghost on a static bracket: a ghost mask with nothing in it
+expect 0 "$SETLIGHT" merge --json --deghost -o "$T/dg.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["ghost_mask"].endswith("dg_ghost.exr") and d["ghost_pixels"] == 0'
+present "$T/dg_ghost.exr"
+expect 0 "$SETLIGHT" info --json "$T/dg_ghost.exr"
+json_eval "$T/out" 'd["files"][0]["channel_stats"][0]["max"] == 0'
+expect 2 "$SETLIGHT" response --deghost -o "$T/x.json" --times $TIMES "${F[@]}"; err_has "--deghost"
+
 # --- a response saved once and reused
 expect 0 "$SETLIGHT" response --json -o "$T/crf.json" --times $TIMES "${F[@]}"
 json_ok "$T/crf.json"
