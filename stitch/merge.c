@@ -140,7 +140,6 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
                                 "exposure times",
                                 b->path, a->path, b->time, b->f_number, b->iso);
     }
-    m->uses_n_iso = all_n_iso;
     return SL_OK;
 }
 

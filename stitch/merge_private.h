@@ -17,10 +17,10 @@ typedef struct merge_samples {
 } merge_samples;
 
 /* Debevec-Malik: the log inverse response g(z) on `nodes` nodes such that
- * g(z_ir) = ln E_i + ln e_r, with hat weights, second-difference smoothness
- * `lambda`, and samples chosen stratified over scene intensity. Solved in
- * double through the Schur complement of the per-sample unknowns (a dense
- * nodes x nodes Cholesky). */
+ * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
+ * second derivative of g against ln z, and samples chosen stratified over
+ * scene intensity. Solved in double through the Schur complement of the
+ * per-sample unknowns (a dense nodes x nodes Cholesky). */
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
                              uint64_t seed, sl_response *out, sl_error *err);
@@ -36,7 +36,6 @@ typedef struct merge_ctx {
     int width, height, bits;
     bool is_float;
     int orientation;
-    bool uses_n_iso;       /* exposures include aperture and ISO */
     double black, saturation;
     int *order;            /* order[rank] = frame index, shortest exposure first */
     int64_t *sample_pos;   /* y * width + x, increasing */
