@@ -17,6 +17,7 @@ typedef struct command {
 static const command commands[] = {
     {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
     {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"rig", cmd_rig, "extract area lights and a residual dome from a lat-long, as USD and JSON"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
