@@ -76,27 +76,35 @@ static int neighbours(int x, int y, int w, int h, int *nx, int *ny)
     return n;
 }
 
-typedef struct comp {
-    double dir[3];   /* energy-weighted mean, unit */
-    double radius;   /* largest angle from dir to a texel edge */
-    double energy;
-} comp;
 
-static int uf_find(int *parent, int i)
+
+
+/* Labels the 8-connected components (wrap, pole) of mask into labels (1..),
+ * in scan order; returns the count. */
+static int components(const unsigned char *mask, int w, int h, int *labels, int *queue)
 {
-    while (parent[i] != i) {
-        parent[i] = parent[parent[i]];
-        i = parent[i];
+    size_t n = (size_t)w * h;
+    int count = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (labels[i] || !mask[i])
+            continue;
+        count++;
+        size_t head = 0, tail = 0;
+        queue[tail++] = (int)i;
+        labels[i] = count;
+        while (head < tail) {
+            int p = queue[head++], nx[8], ny[8];
+            int k = neighbours(p % w, p / w, w, h, nx, ny);
+            for (int j = 0; j < k; j++) {
+                size_t q = (size_t)ny[j] * w + nx[j];
+                if (!labels[q] && mask[q]) {
+                    labels[q] = count;
+                    queue[tail++] = (int)q;
+                }
+            }
+        }
     }
-    return i;
-}
-
-static double angle_between(const double a[3], const double b[3])
-{
-    double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                   a[0] * b[1] - a[1] * b[0]};
-    return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
-                 a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+    return count;
 }
 
 sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, double merge_rad,
@@ -104,147 +112,85 @@ sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, doubl
 {
     size_t n = (size_t)w * h;
     *count = 0;
-    int *queue = malloc(n * sizeof *queue);
-    if (!queue)
+    int *queue = malloc(n * sizeof *queue), *group = calloc(n, sizeof *group);
+    unsigned char *seed = malloc(n), *a = malloc(n), *b = malloc(n);
+    int *rowsum = malloc(((size_t)w + 1) * sizeof *rowsum);
+    if (!queue || !group || !seed || !a || !b || !rowsum) {
+        free(queue);
+        free(group);
+        free(seed);
+        free(a);
+        free(b);
+        free(rowsum);
         return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%dx%d map)", w, h);
+    }
+    for (size_t i = 0; i < n; i++)
+        seed[i] = lum[i] > threshold_lum;
 
-    /* Connected components of the seeds, in scan order. */
-    int ncomp = 0;
-    for (size_t i = 0; i < n; i++) {
-        if (labels[i] || !(lum[i] > threshold_lum))
-            continue;
-        ncomp++;
-        size_t head = 0, tail = 0;
-        queue[tail++] = (int)i;
-        labels[i] = ncomp;
-        while (head < tail) {
-            int p = queue[head++], nx[8], ny[8];
-            int k = neighbours(p % w, p / w, w, h, nx, ny);
-            for (int j = 0; j < k; j++) {
-                size_t q = (size_t)ny[j] * w + nx[j];
-                if (!labels[q] && lum[q] > threshold_lum) {
-                    labels[q] = ncomp;
-                    queue[tail++] = (int)q;
-                }
+    /* Fragments of one fixture: seeds grown by half the merge angle (a box
+     * of that angular half-size: wider in texels toward the poles) that
+     * touch are one group. Separable, so linear in the map size. */
+    double dlon = 2 * M_PI / w, dlat = M_PI / h;
+    int ky = (int)lround(0.5 * merge_rad / dlat);
+    for (int y = 0; y < h; y++) {
+        const unsigned char *s = seed + (size_t)y * w;
+        unsigned char *o = a + (size_t)y * w;
+        double c = cos(M_PI * (0.5 - (y + 0.5) / h));
+        double kxd = 0.5 * merge_rad / (dlon * c);
+        int kx = kxd >= w / 2 ? w / 2 : (int)lround(kxd);
+        rowsum[0] = 0;
+        for (int x = 0; x < w; x++)
+            rowsum[x + 1] = rowsum[x] + s[x];
+        for (int x = 0; x < w; x++) {
+            if (2 * kx + 1 >= w) {
+                o[x] = rowsum[w] > 0;
+                continue;
             }
+            int lo = x - kx, hi = x + kx + 1, sum;
+            if (lo < 0)
+                sum = rowsum[hi] + rowsum[w] - rowsum[w + lo];
+            else if (hi > w)
+                sum = rowsum[w] - rowsum[lo] + rowsum[hi - w];
+            else
+                sum = rowsum[hi] - rowsum[lo];
+            o[x] = sum > 0;
         }
     }
-    if (!ncomp) {
-        free(queue);
-        return SL_OK;
-    }
-
-    comp *c = calloc((size_t)ncomp, sizeof *c);
-    int *parent = malloc((size_t)ncomp * sizeof *parent);
-    if (!c || !parent) {
-        free(queue);
-        free(c);
-        free(parent);
-        return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d regions)", ncomp);
-    }
-    double dv[3];
-    for (size_t i = 0; i < n; i++) {
-        if (!labels[i])
-            continue;
-        comp *k = &c[labels[i] - 1];
-        int y = (int)(i / (size_t)w);
-        double e = lum[i] * sl_latlong_texel_solid_angle(y, w, h);
-        rig_texel_dir((int)(i % (size_t)w), y, w, h, dv);
-        for (int a = 0; a < 3; a++)
-            k->dir[a] += e * dv[a];
-        k->energy += e;
-    }
-    for (int j = 0; j < ncomp; j++) {
-        double l = sqrt(c[j].dir[0] * c[j].dir[0] + c[j].dir[1] * c[j].dir[1] +
-                        c[j].dir[2] * c[j].dir[2]);
-        for (int a = 0; a < 3; a++)
-            c[j].dir[a] = l > 0 ? c[j].dir[a] / l : (a == 2);
-        parent[j] = j;
-    }
-    /* Half the texel's angular diagonal, so a one-texel fragment has a size. */
-    double half_texel = 0.5 * hypot(2 * M_PI / w, M_PI / h);
-    for (size_t i = 0; i < n; i++) {
-        if (!labels[i])
-            continue;
-        comp *k = &c[labels[i] - 1];
-        rig_texel_dir((int)(i % (size_t)w), (int)(i / (size_t)w), w, h, dv);
-        double a = angle_between(k->dir, dv) + half_texel;
-        if (a > k->radius)
-            k->radius = a;
-    }
-    /* Candidate pairs by bounding caps, then the exact gap between their
-     * outline texels (centre distance less one texel). */
-    int *bstart = calloc((size_t)ncomp + 1, sizeof *bstart);
-    double *bdir = NULL;
-    size_t nb = 0;
-    if (!bstart)
-        goto nomem;
-    for (int pass = 0; pass < 2; pass++) {
-        int *fill = pass ? calloc((size_t)ncomp, sizeof *fill) : NULL;
-        if (pass && !fill)
-            goto nomem;
-        for (size_t i = 0; i < n; i++) {
-            if (!labels[i])
-                continue;
-            int x = (int)(i % (size_t)w), y = (int)(i / (size_t)w), nx[8], ny[8];
-            int k = neighbours(x, y, w, h, nx, ny);
-            bool edge = false;
-            for (int j = 0; j < k && !edge; j++)
-                edge = labels[(size_t)ny[j] * w + nx[j]] != labels[i];
-            if (!edge)
-                continue;
-            int l = labels[i] - 1;
-            if (!pass) {
-                bstart[l + 1]++;
-                nb++;
-            } else {
-                rig_texel_dir(x, y, w, h, &bdir[3 * (size_t)(bstart[l] + fill[l]++)]);
-            }
-        }
-        free(fill);
-        if (!pass) {
-            for (int j = 0; j < ncomp; j++)
-                bstart[j + 1] += bstart[j];
-            bdir = malloc((nb ? nb : 1) * 3 * sizeof *bdir);
-            if (!bdir)
-                goto nomem;
+    for (int x = 0; x < w; x++) {
+        int run = 0; /* seeds of column x within [y - ky, y + ky] */
+        for (int y = 0; y < ky && y < h; y++)
+            run += a[(size_t)y * w + x];
+        for (int y = 0; y < h; y++) {
+            if (y + ky < h)
+                run += a[(size_t)(y + ky) * w + x];
+            if (y - ky - 1 >= 0)
+                run -= a[(size_t)(y - ky - 1) * w + x];
+            b[(size_t)y * w + x] = run > 0;
         }
     }
-    double texel = M_PI / h;
-    for (int a = 0; a < ncomp; a++)
-        for (int b = a + 1; b < ncomp; b++) {
-            double gap = angle_between(c[a].dir, c[b].dir) - c[a].radius - c[b].radius;
-            if (gap >= merge_rad)
-                continue;
-            int ra = uf_find(parent, a), rb = uf_find(parent, b);
-            if (ra == rb)
-                continue;
-            double best = INFINITY;
-            for (int i = bstart[a]; i < bstart[a + 1] && best - texel >= merge_rad; i++)
-                for (int j = bstart[b]; j < bstart[b + 1]; j++) {
-                    double g = angle_between(&bdir[3 * (size_t)i], &bdir[3 * (size_t)j]);
-                    best = g < best ? g : best;
-                }
-            if (best - texel < merge_rad)
-                parent[ra > rb ? ra : rb] = ra < rb ? ra : rb;
-        }
-    free(bstart);
-    free(bdir);
-    bstart = NULL;
-    bdir = NULL;
-    /* Renumber roots 1..count in order of first appearance. */
-    int *newid = calloc((size_t)ncomp, sizeof *newid);
-    if (!newid)
-        goto nomem;
+    components(b, w, h, group, queue);
+    /* Regions: the seeds, numbered by group in order of first appearance. */
     int m = 0;
-    for (size_t i = 0; i < n; i++) {
-        if (!labels[i])
-            continue;
-        int r = uf_find(parent, labels[i] - 1);
-        if (!newid[r])
-            newid[r] = ++m;
-        labels[i] = newid[r];
+    int *newid = group; /* reuse: group ids map to region ids in place */
+    int *map = calloc(n + 1, sizeof *map);
+    if (!map) {
+        free(queue);
+        free(group);
+        free(seed);
+        free(a);
+        free(b);
+        free(rowsum);
+        return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%dx%d map)", w, h);
     }
+    for (size_t i = 0; i < n; i++) {
+        if (!seed[i])
+            continue;
+        int g = newid[i];
+        if (!map[g])
+            map[g] = ++m;
+        labels[i] = map[g];
+    }
+    free(map);
 
     /* Grow every region by `ring` texels (breadth first, first come keeps). */
     size_t tail = 0;
@@ -267,16 +213,11 @@ sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, doubl
         }
     }
     *count = m;
-    free(newid);
     free(queue);
-    free(c);
-    free(parent);
+    free(group);
+    free(seed);
+    free(a);
+    free(b);
+    free(rowsum);
     return SL_OK;
-nomem:
-    free(bstart);
-    free(bdir);
-    free(queue);
-    free(c);
-    free(parent);
-    return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d regions)", ncomp);
 }

@@ -67,19 +67,17 @@ static double cap_radius(double omega)
     return acos(c < -1 ? -1 : c > 1 ? 1 : c);
 }
 
-bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *labels, int label,
+bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *texels, int count,
                     const sl_rig_options *opt, sl_rig_light *L)
 {
     int w = rgb->width, h = rgb->height;
     memset(L, 0, sizeof *L);
     rig_sum integ[3] = {{0}}, ysum = {0}, y2sum = {0};
     double dsum[3] = {0, 0, 0}, dv[3];
-    int texels = 0;
-    for (int y = 0; y < h; y++) {
+    for (int t = 0; t < count; t++) {
+        int x = texels[t] % w, y = texels[t] / w;
         double om = sl_latlong_texel_solid_angle(y, w, h);
-        for (int x = 0; x < w; x++) {
-            if (labels[(size_t)y * w + x] != label)
-                continue;
+        {
             const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
             double e[3];
             for (int c = 0; c < 3; c++) {
@@ -92,11 +90,10 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *la
             rig_texel_dir(x, y, w, h, dv);
             for (int a = 0; a < 3; a++)
                 dsum[a] += ly * om * dv[a];
-            texels++;
         }
     }
     double Y = rig_sum_get(&ysum), Y2 = rig_sum_get(&y2sum);
-    L->texels = texels;
+    L->texels = count;
     for (int c = 0; c < 3; c++)
         L->integral[c] = rig_sum_get(&integ[c]);
     if (!(Y > 0) || !(Y2 > 0) || !(dot(dsum, dsum) > 0))
@@ -118,11 +115,10 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *la
     normalize(e1);
     cross(d, e1, e2);
     double m[6] = {0}; /* sum w, wx, wy, wxx, wxy, wyy */
-    for (int y = 0; y < h; y++) {
+    for (int t = 0; t < count; t++) {
+        int x = texels[t] % w, y = texels[t] / w;
         double om = sl_latlong_texel_solid_angle(y, w, h);
-        for (int x = 0; x < w; x++) {
-            if (labels[(size_t)y * w + x] != label)
-                continue;
+        {
             const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
             double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
             rig_texel_dir(x, y, w, h, dv);
@@ -149,11 +145,10 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *la
     /* Kurtosis along the principal axes: 1.8 for a uniform rectangle's
      * marginal, 2.0 for a disk's (semicircle law). */
     double k4[2] = {0, 0}, k2[2] = {0, 0};
-    for (int y = 0; y < h; y++) {
+    for (int t = 0; t < count; t++) {
+        int x = texels[t] % w, y = texels[t] / w;
         double om = sl_latlong_texel_solid_angle(y, w, h);
-        for (int x = 0; x < w; x++) {
-            if (labels[(size_t)y * w + x] != label)
-                continue;
+        {
             const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
             double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
             rig_texel_dir(x, y, w, h, dv);
@@ -288,9 +283,10 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, b
             snprintf(reason, sizeof reason, "--max-lights %d reached", opt->max_lights);
         } else if (acc < opt->energy * total * (1 - 1e-12)) {
             k = true;
-        } else if (L->shape == SL_RIG_DISTANT) {
+        } else if (L->shape == SL_RIG_DISTANT && L->share >= 0.005) {
             /* Tiny, very bright sources are what a dome renders worst and
-             * what casts the sharpest shadows: never left in it by the cut. */
+             * what casts the sharpest shadows: not left in it by the cut
+             * (stars and glints under 0.5% of the energy are). */
             k = true;
         } else {
             k = false;

@@ -55,9 +55,9 @@ double rig_weighted_median(const float *lum, int w, int h, sl_error *err, sl_res
  * the original elsewhere into out (RGB, allocated by the caller). */
 sl_result rig_fill(const sl_image *rgb, const int *labels, sl_image *out, sl_error *err);
 
-/* fit.c: fits one region `label` of labels against original and residual;
- * false when the region has no energy above its fill. */
-bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *labels, int label,
+/* fit.c: fits one region (its texel indices y * w + x) against original
+ * and residual; false when the region has no energy above its fill. */
+bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *texels, int count,
                     const sl_rig_options *opt, sl_rig_light *light);
 /* Positions a fitted light on the sphere/room of opt (no-op at infinity). */
 void rig_place_light(sl_rig_light *light, const sl_rig_options *opt);

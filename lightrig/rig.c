@@ -45,14 +45,14 @@ static sl_result check_options(const sl_rig_options *o, sl_error *err)
     return SL_OK;
 }
 
-/* RGB copy with NaN/Inf (and negative) samples set to 0. */
+/* RGB copy with NaN/Inf and negative samples set to 0. */
 static sl_result sanitized_rgb(const sl_image *env, sl_image *rgb, int64_t *nonfinite,
-                               sl_error *err)
+                               int64_t *negative, sl_error *err)
 {
     sl_result r = sl_image_alloc(rgb, env->width, env->height, 3, err);
     if (r)
         return r;
-    int64_t bad = 0;
+    int64_t bad = 0, neg = 0;
     for (int y = 0; y < env->height; y++)
         for (int x = 0; x < env->width; x++) {
             const float *p = sl_image_pixel(env, x, y);
@@ -63,10 +63,12 @@ static sl_result sanitized_rgb(const sl_image *env, sl_image *rgb, int64_t *nonf
                     bad++;
                     v = 0;
                 }
+                neg += v < 0;
                 q[c] = v > 0 ? v : 0;
             }
         }
     *nonfinite = bad;
+    *negative = neg;
     return SL_OK;
 }
 
@@ -101,7 +103,7 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
     bool *keep = NULL;
     rig->width = w;
     rig->height = h;
-    if ((r = sanitized_rgb(env, &rgb, &rig->nonfinite, err)))
+    if ((r = sanitized_rgb(env, &rgb, &rig->nonfinite, &rig->negative, err)))
         goto fail;
     rig->labels = calloc(n, sizeof *rig->labels);
     lum = malloc(n * sizeof *lum);
@@ -156,8 +158,31 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
         goto fail;
     }
     bool *valid = keep; /* reused: fit success first, then the selection */
-    for (int i = 0; i < count; i++)
-        valid[i] = rig_fit_region(&rgb, &rig->residual, rig->labels, i + 1, opt, &cand[i]);
+    /* Texels of each region, by counting sort on the label. */
+    int *first = calloc((size_t)count + 2, sizeof *first);
+    int *texels = malloc((n ? n : 1) * sizeof *texels);
+    if (!first || !texels) {
+        free(first);
+        free(texels);
+        r = sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d regions)", count);
+        goto fail;
+    }
+    for (size_t i = 0; i < n; i++)
+        if (rig->labels[i])
+            first[rig->labels[i] + 1]++;
+    for (int l = 1; l <= count; l++)
+        first[l + 1] += first[l];
+    for (size_t i = 0; i < n; i++)
+        if (rig->labels[i])
+            texels[first[rig->labels[i]]++] = (int)i;
+    /* first[l] has moved to the end of region l, the start of region l + 1 */
+    for (int i = 0; i < count; i++) {
+        int b = i ? first[i] : 0;
+        valid[i] = rig_fit_region(&rgb, &rig->residual, texels + b, first[i + 1] - b, opt,
+                                  &cand[i]);
+    }
+    free(first);
+    free(texels);
     /* Regions with nothing above their fill go back to the dome as they were. */
     int nvalid = 0;
     int *remap = calloc((size_t)count + 1, sizeof *remap);

@@ -245,6 +245,9 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     if (rig.nonfinite)
         sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples counted, set to 0 and left out", in_path,
                (long long)rig.nonfinite);
+    if (rig.negative)
+        sl_log(SL_LOG_WARN, "%s: %lld negative samples (lossy compression?) set to 0", in_path,
+               (long long)rig.negative);
     bool black = !(rig.original[0] > 0 || rig.original[1] > 0 || rig.original[2] > 0);
     if (black)
         sl_log(SL_LOG_WARN, "%s: the map is black: the rig is empty (no lights, black dome)",
@@ -290,11 +293,12 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         json_t *rj = s ? json_loads(s, 0, NULL) : NULL;
         free(s);
         json_t *o = json_pack(
-            "{s:s, s:s, s:s?, s:s, s:s?, s:s, s:i, s:i, s:I, s:f, s:f, s:f, s:b, s:f, s:o?}",
+            "{s:s, s:s, s:s?, s:s, s:s?, s:s, s:i, s:i, s:I, s:I, s:f, s:f, s:f, s:b, s:f, s:o?}",
             "input", in_path, "output", out_path, "json", json_path, "residual", res_path,
             "preview", preview_path, "method",
             opt.method == SL_RIG_METHOD_MEDIANCUT ? "mediancut" : "regions", "lights",
             rig.light_count, "skipped", rig.skipped_count, "nonfinite", (json_int_t)rig.nonfinite,
+            "negative", (json_int_t)rig.negative,
             "median_luminance", rig.median_luminance, "threshold_luminance",
             rig.threshold_luminance, "relative_error", rig.relative_error, "black", black,
             "seconds", sl_seconds() - t0, "rig", rj);

@@ -93,12 +93,14 @@ typedef struct sl_rig {
     double dome[3];
     double relative_error; /* max over channels |lights + dome - original| / original */
     int64_t nonfinite;     /* NaN/Inf samples set to 0 before extraction */
+    int64_t negative;      /* negative samples (lossy codecs) set to 0 */
     double median_luminance;
     double threshold_luminance;
 } sl_rig;
 
 /* Extracts a rig from an RGB(A) lat-long (2:1; alpha ignored). NaN/Inf
- * samples are counted in rig->nonfinite and treated as 0. A black map gives
+ * samples are counted in rig->nonfinite, negative ones in rig->negative,
+ * and both treated as 0 (the ledger's original is the map after that). A black map gives
  * an empty rig. SL_ERR_USAGE for bad options (max_lights < 0, energy outside
  * (0, 1], a room that does not contain the capture point). */
 sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig *rig,
