@@ -77,20 +77,18 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *te
     for (int t = 0; t < count; t++) {
         int x = texels[t] % w, y = texels[t] / w;
         double om = sl_latlong_texel_solid_angle(y, w, h);
-        {
-            const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
-            double e[3];
-            for (int c = 0; c < 3; c++) {
-                e[c] = (double)p[c] - (double)q[c];
-                rig_sum_add(&integ[c], e[c] * om);
-            }
-            double ly = rig_luma(e);
-            rig_sum_add(&ysum, ly * om);
-            rig_sum_add(&y2sum, ly * ly * om);
-            rig_texel_dir(x, y, w, h, dv);
-            for (int a = 0; a < 3; a++)
-                dsum[a] += ly * om * dv[a];
+        const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
+        double e[3];
+        for (int c = 0; c < 3; c++) {
+            e[c] = (double)p[c] - (double)q[c];
+            rig_sum_add(&integ[c], e[c] * om);
         }
+        double ly = rig_luma(e);
+        rig_sum_add(&ysum, ly * om);
+        rig_sum_add(&y2sum, ly * ly * om);
+        rig_texel_dir(x, y, w, h, dv);
+        for (int a = 0; a < 3; a++)
+            dsum[a] += ly * om * dv[a];
     }
     double Y = rig_sum_get(&ysum), Y2 = rig_sum_get(&y2sum);
     L->texels = count;
@@ -100,10 +98,11 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *te
         return false;
     memcpy(L->direction, dsum, sizeof dsum);
     normalize(L->direction);
-    /* Effective solid angle (participation ratio): the area of a uniform
-     * source with the same energy and energy-squared, so soft edges count
-     * for the fraction they cover. */
-    double omega = Y * Y / Y2;
+    /* Effective solid angle: each texel counts for the fraction of the
+     * source's plateau radiance it shows (the energy-weighted mean), capped
+     * at 1, so a half-covered edge texel counts about half. */
+    double plateau = Y2 / Y;
+    rig_sum omega_sum = {0};
 
     /* Tangent frame and second moments of the gnomonic projection. */
     double *d = L->direction, e1[3], e2[3], helper[3] = {0, 1, 0};
@@ -118,22 +117,23 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *te
     for (int t = 0; t < count; t++) {
         int x = texels[t] % w, y = texels[t] / w;
         double om = sl_latlong_texel_solid_angle(y, w, h);
-        {
-            const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
-            double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
-            rig_texel_dir(x, y, w, h, dv);
-            double z = dot(dv, d);
-            if (z < 0.05)
-                continue;
-            double wt = rig_luma(e) * om, u = dot(dv, e1) / z, v = dot(dv, e2) / z;
-            m[0] += wt;
-            m[1] += wt * u;
-            m[2] += wt * v;
-            m[3] += wt * u * u;
-            m[4] += wt * u * v;
-            m[5] += wt * v * v;
-        }
+        const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
+        double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
+        rig_texel_dir(x, y, w, h, dv);
+        double z = dot(dv, d), ly = rig_luma(e);
+        rig_sum_add(&omega_sum, om * (ly < plateau ? ly / plateau : 1));
+        /* the tangent plane holds the texels within ~87 degrees */
+        if (z < 0.05)
+            continue;
+        double wt = ly * om, u = dot(dv, e1) / z, v = dot(dv, e2) / z;
+        m[0] += wt;
+        m[1] += wt * u;
+        m[2] += wt * v;
+        m[3] += wt * u * u;
+        m[4] += wt * u * v;
+        m[5] += wt * v * v;
     }
+    double omega = rig_sum_get(&omega_sum);
     double mu = m[1] / m[0], mv = m[2] / m[0];
     double cuu = m[3] / m[0] - mu * mu, cuv = m[4] / m[0] - mu * mv, cvv = m[5] / m[0] - mv * mv;
     double tr = 0.5 * (cuu + cvv), det = sqrt(0.25 * (cuu - cvv) * (cuu - cvv) + cuv * cuv);
@@ -148,21 +148,19 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *te
     for (int t = 0; t < count; t++) {
         int x = texels[t] % w, y = texels[t] / w;
         double om = sl_latlong_texel_solid_angle(y, w, h);
-        {
-            const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
-            double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
-            rig_texel_dir(x, y, w, h, dv);
-            double z = dot(dv, d);
-            if (z < 0.05)
-                continue;
-            double wt = rig_luma(e) * om;
-            double a = dot(dv, L->axis_u) / z - (cos(th) * mu + sin(th) * mv);
-            double b = dot(dv, L->axis_v) / z - (-sin(th) * mu + cos(th) * mv);
-            k2[0] += wt * a * a;
-            k4[0] += wt * a * a * a * a;
-            k2[1] += wt * b * b;
-            k4[1] += wt * b * b * b * b;
-        }
+        const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
+        double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
+        rig_texel_dir(x, y, w, h, dv);
+        double z = dot(dv, d);
+        if (z < 0.05)
+            continue;
+        double wt = rig_luma(e) * om;
+        double a = dot(dv, L->axis_u) / z - (cos(th) * mu + sin(th) * mv);
+        double b = dot(dv, L->axis_v) / z - (-sin(th) * mu + cos(th) * mv);
+        k2[0] += wt * a * a;
+        k4[0] += wt * a * a * a * a;
+        k2[1] += wt * b * b;
+        k4[1] += wt * b * b * b * b;
     }
     double kurt = 0.5 * (k4[0] * m[0] / (k2[0] * k2[0]) + k4[1] * m[0] / (k2[1] * k2[1]));
 
