@@ -246,8 +246,8 @@ static int cmp_ranked(const void *a, const void *b)
     return x->index - y->index;
 }
 
-sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, bool *keep,
-                     sl_rig_skip **skipped, int *skipped_count, sl_error *err)
+sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, const int *tags,
+                     bool *keep, sl_rig_skip **skipped, int *skipped_count, sl_error *err)
 {
     *skipped = NULL;
     *skipped_count = 0;
@@ -271,12 +271,22 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, b
         return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
     }
     double acc = 0;
-    int kept = 0;
+    int kept = 0, forced = 0;
+    for (int i = 0; i < count; i++)
+        forced += tags[i] > 0;
     for (int i = 0; i < count; i++) {
         sl_rig_light *L = &cand[r[i].index];
+        int tag = tags[r[i].index];
         char reason[128] = "";
         bool k;
-        if (opt->max_lights > 0 && kept >= opt->max_lights) {
+        if (tag < 0) {
+            k = false;
+            snprintf(reason, sizeof reason, "--exclude %g,%g", opt->exclude[-tag - 1][0],
+                     opt->exclude[-tag - 1][1]);
+        } else if (tag > 0) {
+            k = true; /* tagged by hand: kept whatever its energy */
+            forced--;
+        } else if (opt->max_lights > 0 && kept + forced >= opt->max_lights) {
             k = false;
             snprintf(reason, sizeof reason, "--max-lights %d reached", opt->max_lights);
         } else if (acc < opt->energy * total * (1 - 1e-12)) {

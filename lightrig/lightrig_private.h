@@ -62,8 +62,15 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *te
 /* Positions a fitted light on the sphere/room of opt (no-op at infinity). */
 void rig_place_light(sl_rig_light *light, const sl_rig_options *opt);
 /* Ranks candidates and chooses the kept ones (keep[i] true); fills skipped. */
-sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, bool *keep,
-                     sl_rig_skip **skipped, int *skipped_count, sl_error *err);
+sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, const int *tags,
+                     bool *keep, sl_rig_skip **skipped, int *skipped_count, sl_error *err);
+
+/* tags.c: the artist tags of opt on the regions of labels (count regions).
+ * Includes with no region there get a new one (count grows). tags (count
+ * + SL_RIG_MAX_TAGS + 1 entries, by label) get +k for include k, -k for
+ * exclude k (1-based). */
+sl_result rig_apply_tags(const float *lum, int w, int h, const sl_rig_options *opt, int *labels,
+                         int *count, int *tags, sl_error *err);
 
 /* ledger.c: rig->original, lights_sum, dome, relative_error. */
 void rig_ledger(const sl_image *rgb, sl_rig *rig);

@@ -40,6 +40,21 @@ static sl_result check_options(const sl_rig_options *o, sl_error *err)
                             "lightrig: the room (height %g) does not contain the capture point "
                             "(height %g)",
                             o->room[2], o->capture_height);
+    if (o->include_count < 0 || o->include_count > SL_RIG_MAX_TAGS || o->exclude_count < 0 ||
+        o->exclude_count > SL_RIG_MAX_TAGS)
+        return sl_error_set(err, SL_ERR_USAGE, "lightrig: at most %d include and exclude tags",
+                            SL_RIG_MAX_TAGS);
+    if (o->max_lights > 0 && o->include_count > o->max_lights)
+        return sl_error_set(err, SL_ERR_USAGE, "lightrig: %d --include tags but --max-lights %d",
+                            o->include_count, o->max_lights);
+    for (int k = 0; k < o->include_count + o->exclude_count; k++) {
+        const double *t = k < o->include_count ? o->include[k] : o->exclude[k - o->include_count];
+        if (!(fabs(t[0]) <= 90 && fabs(t[1]) <= 180))
+            return sl_error_set(err, SL_ERR_USAGE,
+                                "lightrig: tag %g,%g: latitude must be within +-90 and longitude "
+                                "within +-180 degrees",
+                                t[0], t[1]);
+    }
     if (o->method == SL_RIG_METHOD_MEDIANCUT && o->max_lights < 1)
         return sl_error_set(err, SL_ERR_USAGE, "lightrig: median cut needs a light count");
     return SL_OK;
@@ -101,6 +116,7 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
     float *lum = NULL;
     sl_rig_light *cand = NULL;
     bool *keep = NULL;
+    int *tags = NULL;
     rig->width = w;
     rig->height = h;
     if ((r = sanitized_rgb(env, &rgb, &rig->nonfinite, &rig->negative, err)))
@@ -148,6 +164,14 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
         (r = rig_detect(lum, w, h, rig->threshold_luminance, opt->merge_degrees * M_PI / 180, 2,
                         rig->labels, &count, err)))
         goto fail;
+    /* by label; tags may add up to SL_RIG_MAX_TAGS regions */
+    tags = calloc((size_t)count + SL_RIG_MAX_TAGS + 1, sizeof *tags);
+    if (!tags) {
+        r = sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d regions)", count);
+        goto fail;
+    }
+    if ((r = rig_apply_tags(lum, w, h, opt, rig->labels, &count, tags, err)))
+        goto fail;
     if ((r = rig_fill(&rgb, rig->labels, &rig->residual, err)))
         goto fail;
 
@@ -193,6 +217,7 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
     for (int i = 0; i < count; i++)
         if (valid[i]) {
             cand[nvalid] = cand[i];
+            tags[nvalid] = tags[i + 1]; /* by candidate from here on */
             remap[i + 1] = ++nvalid;
         }
     for (size_t i = 0; i < n; i++) {
@@ -203,7 +228,7 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
         rig->labels[i] = remap[rig->labels[i]];
     }
     memset(keep, 0, (size_t)(count ? count : 1) * sizeof *keep);
-    r = rig_select(cand, nvalid, opt, keep, &rig->skipped, &rig->skipped_count, err);
+    r = rig_select(cand, nvalid, opt, tags, keep, &rig->skipped, &rig->skipped_count, err);
     if (r) {
         free(remap);
         goto fail;
@@ -246,12 +271,14 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
     rig_ledger(&rgb, rig);
 
 done:
+    free(tags);
     free(cand);
     free(keep);
     free(lum);
     sl_image_free(&rgb);
     return SL_OK;
 fail:
+    free(tags);
     free(cand);
     free(keep);
     free(lum);

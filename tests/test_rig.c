@@ -439,6 +439,72 @@ static void test_mediancut(void)
     sl_image_free(&img);
 }
 
+/* Artist tags: an exclude leaves a light in the dome, an include makes a
+ * light of a region under the threshold. */
+static void test_tags(void)
+{
+    sl_image img;
+    scene_light L[4], faint;
+    make_stage(&img, L);
+    sc_add(&img, &faint, 50, 120, 0, 4 * M_PI / 180, 0, false, (double[3]){2, 2, 2});
+    sl_rig_options opt;
+    sl_rig_options_default(&opt);
+    opt.energy = 1;
+    sl_rig rig;
+    sl_error err;
+    CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK_MSG(rig.light_count == 4, "faint patch found without a tag: %d lights", rig.light_count);
+    double dome0 = rig.dome[1];
+    sl_rig_free(&rig);
+
+    opt.exclude[0][0] = 40.3; /* near, not exactly on, the disk's centre */
+    opt.exclude[0][1] = -100.5;
+    opt.exclude_count = 1;
+    opt.include[0][0] = 50;
+    opt.include[0][1] = 120;
+    opt.include_count = 1;
+    CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK_MSG(rig.light_count == 4 && rig.skipped_count == 1, "tags: %d lights, %d skipped",
+              rig.light_count, rig.skipped_count);
+    if (rig.skipped_count == 1) {
+        CHECK(strstr(rig.skipped[0].reason, "--exclude 40.3,-100.5") != NULL);
+        CHECK(sc_angle(rig.skipped[0].direction, L[1].dir) < M_PI / 180);
+    }
+    double ang;
+    const sl_rig_light *f = nearest(&rig, faint.dir, &ang);
+    CHECK(f && ang < M_PI / 180);
+    if (f) {
+        /* its power above the sky behind it */
+        double bg = 0.5 * (0.6 + 0.4 * sin(50 * M_PI / 180)) * 0.9;
+        printf("  included faint light: dir %.3f deg, power %+.2f%%\n", ang * 180 / M_PI,
+               100 * (f->integral[1] / ((2 - bg) * faint.solid_angle) - 1));
+        CHECK_NEAR(f->integral[1] / ((2 - bg) * faint.solid_angle), 1, 0.03);
+    }
+    nearest(&rig, L[1].dir, &ang);
+    CHECK(ang > 10 * M_PI / 180); /* the excluded disk is not a light */
+    CHECK(rig.relative_error < 1e-6);
+    /* the excluded disk went back to the dome, the faint one left it */
+    CHECK(rig.dome[1] > dome0 + 0.9 * L[1].rgb[1] * L[1].solid_angle - f->integral[1] - 0.05);
+    sl_rig_free(&rig);
+
+    /* more includes than --max-lights; an include where the map is black */
+    opt.max_lights = 1;
+    opt.include[1][0] = 20;
+    opt.include[1][1] = 30;
+    opt.include_count = 2;
+    CHECK_RESULT(sl_rig_extract(&img, &opt, &rig, &err), SL_ERR_USAGE, &err);
+    opt.max_lights = 0;
+    opt.include[0][0] = 95;
+    CHECK_RESULT(sl_rig_extract(&img, &opt, &rig, &err), SL_ERR_USAGE, &err);
+    sl_image_fill(&img, 0);
+    opt.include[0][0] = 0;
+    opt.include_count = 1;
+    opt.exclude_count = 0;
+    CHECK_RESULT(sl_rig_extract(&img, &opt, &rig, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, "black") != NULL);
+    sl_image_free(&img);
+}
+
 int main(void)
 {
     RUN(test_stage);
@@ -449,5 +515,6 @@ int main(void)
     RUN(test_positions);
     RUN(test_bad_maps);
     RUN(test_mediancut);
+    RUN(test_tags);
     return sl_test_finish();
 }

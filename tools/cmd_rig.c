@@ -36,6 +36,9 @@ static const char *rig_help =
     "  --capture-height H    height of the capture point in the room (needs --room)\n"
     "  --method M            regions (default) or mediancut (Debevec 2005; needs\n"
     "                        --max-lights)\n"
+    "  --include LAT,LON     always keep the light there (degrees; grown from the\n"
+    "                        brightest texel within 2 degrees if none was found)\n"
+    "  --exclude LAT,LON     leave the light there in the dome (both repeatable)\n"
     "  --assume-latlong      accept a 2:1 image without the envmap attribute\n\n"
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
@@ -70,7 +73,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
 {
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
-        OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE
+        OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
+        OPT_INCLUDE, OPT_EXCLUDE
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -88,6 +92,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"capture-height", required_argument, NULL, OPT_HEIGHT},
         {"method", required_argument, NULL, OPT_METHOD},
         {"assume-latlong", no_argument, NULL, OPT_ASSUME},
+        {"include", required_argument, NULL, OPT_INCLUDE},
+        {"exclude", required_argument, NULL, OPT_EXCLUDE},
         {0, 0, 0, 0}};
     sl_rig_options opt;
     sl_rig_options_default(&opt);
@@ -170,6 +176,25 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         case OPT_ASSUME:
             assume = true;
             break;
+        case OPT_INCLUDE:
+        case OPT_EXCLUDE: {
+            bool inc = c == OPT_INCLUDE;
+            int *n = inc ? &opt.include_count : &opt.exclude_count;
+            double *t = inc ? opt.include[*n < SL_RIG_MAX_TAGS ? *n : 0]
+                            : opt.exclude[*n < SL_RIG_MAX_TAGS ? *n : 0];
+            char tail;
+            if (*n >= SL_RIG_MAX_TAGS)
+                return cli_usage_error(cli, "at most %d --%s tags", SL_RIG_MAX_TAGS,
+                                       inc ? "include" : "exclude");
+            if (sscanf(optarg, "%lf,%lf%c", &t[0], &t[1], &tail) != 2 || !(fabs(t[0]) <= 90) ||
+                !(fabs(t[1]) <= 180))
+                return cli_usage_error(cli,
+                                       "--%s needs LAT,LON in degrees (latitude within +-90, "
+                                       "longitude within +-180), not '%s'",
+                                       inc ? "include" : "exclude", optarg);
+            (*n)++;
+            break;
+        }
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
         }

@@ -29,6 +29,8 @@ const char *sl_rig_shape_name(sl_rig_shape s);
 
 typedef enum { SL_RIG_METHOD_REGIONS = 0, SL_RIG_METHOD_MEDIANCUT } sl_rig_method;
 
+#define SL_RIG_MAX_TAGS 32
+
 typedef struct sl_rig_options {
     sl_rig_method method;
     /* A texel seeds a light when its luminance is above threshold x the
@@ -52,6 +54,14 @@ typedef struct sl_rig_options {
     double distance;
     double room[3];
     double capture_height;
+    /* Artist tags, as on set: (latitude, longitude) in degrees. The region
+     * at (or within 2 degrees of) an include is always kept, and is grown
+     * from the brightest texel there when nothing was detected; the region
+     * at an exclude stays in the dome. */
+    double include[SL_RIG_MAX_TAGS][2];
+    int include_count;
+    double exclude[SL_RIG_MAX_TAGS][2];
+    int exclude_count;
 } sl_rig_options;
 
 void sl_rig_options_default(sl_rig_options *opt);

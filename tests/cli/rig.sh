@@ -32,7 +32,7 @@ PY
 # --- help and a good run
 expect 0 "$SETLIGHT" rig --help; out_has "usage: setlight rig"; out_has "--max-lights"
 expect 0 "$SETLIGHT" --help; out_has "rig"
-mkdir -p "$T/o"
+mkdir -p "$T/o" "$T/bad"
 expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/stage.usda" --json "$T/o/stage.json" \
   --preview "$T/o/stage.png" --energy 1
 present "$T/o/stage.usda"; present "$T/o/stage_residual.exr"; present "$T/o/stage.json"
@@ -59,6 +59,12 @@ json_eval "$T/o/room.json" 'all(l["position"] is not None and l["size"] is not N
 if grep -q 'def RectLight' "$T/o/room.usda"; then ok; else bad "room rig has no RectLight"; fi
 expect 0 "$SETLIGHT" rig --json --method mediancut --max-lights 8 "$T/stage.exr" -o "$T/o/mc.usda"
 json_eval "$T/out" 'd["lights"] == 8 and d["method"] == "mediancut" and d["relative_error"] < 1e-6'
+
+# --- artist tags: the panel around column 305, row 45 of 512x256 is at latitude 58, longitude -35
+expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/tags.usda" --energy 1 --exclude 58,-35
+json_eval "$T/out" 'd["lights"] == 1 and d["skipped"] == 1 and "--exclude" in d["rig"]["skipped"][0]["reason"]'
+expect 2 "$SETLIGHT" rig --include 100,0 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--include"; err_one_line
+expect 2 "$SETLIGHT" rig --exclude 10 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--exclude"
 
 # --- a sun (one texel at 1e5): a distant light
 expect 0 "$SETLIGHT" rig --json "$T/sun.exr" -o "$T/o/sun.usda"
