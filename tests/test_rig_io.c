@@ -148,7 +148,8 @@ static void check_usda(const sl_rig *rig, const char *path)
                            : L->shape == SL_RIG_SPHERE ? "SphereLight"
                                                        : "DiskLight";
         CHECK_MSG(!strcmp(q->type, want), "prim %d is %s, want %s", i, q->type, want);
-        double in = attr_num(q, "float inputs:intensity"), ex = attr_num(q, "float inputs:exposure");
+        double in = attr_num(q, "float inputs:intensity");
+        double ex = attr_num(q, "float inputs:exposure");
         double col[3];
         CHECK(attr_nums(q, "color3f inputs:color", col, 3) == 3);
         const char *norm = attr(q, "bool inputs:normalize");

@@ -211,8 +211,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     if (!out_path)
         return cli_usage_error(cli, "needs -o RIG.usda");
     if (!has_suffix(out_path, ".usda"))
-        return cli_usage_error(cli, "the rig is written as USD ASCII: -o needs a .usda name, not '%s'",
-                               out_path);
+        return cli_usage_error(
+            cli, "the rig is written as USD ASCII: -o needs a .usda name, not '%s'", out_path);
     if (json_path && !has_suffix(json_path, ".json"))
         return cli_usage_error(cli, "--json needs a .json name, not '%s'", json_path);
     if (res_path && !has_suffix(res_path, ".exr"))
@@ -278,8 +278,9 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_WARN, "%s: the map is black: the rig is empty (no lights, black dome)",
                in_path);
     else if (!rig.light_count)
-        sl_log(SL_LOG_WARN, "%s: nothing above %g x the median luminance: the rig is the dome alone",
-               in_path, opt.threshold);
+        sl_log(SL_LOG_WARN,
+               "%s: nothing above %g x the median luminance: the rig is the dome alone", in_path,
+               opt.threshold);
 
     /* Outputs: the dome first, so the USD never names a missing file. */
     char buf[1024];
