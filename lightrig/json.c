@@ -27,7 +27,7 @@ static json_t *rig_json(const sl_rig *rig, const char *dome_file)
         json_object_set_new(o, "integral", vec(L->integral, 3));
         json_object_set_new(o, "position", L->has_position ? vec(L->position, 3) : json_null());
         json_object_set_new(o, "size", L->has_position ? vec(L->size, 2) : json_null());
-        json_object_set_new(o, "texture", json_null());
+        json_object_set_new(o, "texture", L->texture[0] ? json_string(L->texture) : json_null());
         json_array_append_new(lights, o);
     }
     for (int i = 0; i < rig->skipped_count; i++) {

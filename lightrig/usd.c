@@ -59,6 +59,8 @@ static void write_light(FILE *f, const sl_rig_light *L, int index)
     } else if (L->shape == SL_RIG_RECT) {
         fprintf(f, "        float inputs:width = %.9g\n        float inputs:height = %.9g\n",
                 L->size[0], L->size[1]);
+        if (L->texture[0] && asset_ok(L->texture))
+            fprintf(f, "        asset inputs:texture:file = @%s@\n", L->texture);
     } else {
         fprintf(f, "        float inputs:radius = %.9g\n", 0.5 * L->size[0]);
     }

@@ -174,6 +174,14 @@ static void check_usda(const sl_rig *rig, const char *path)
             CHECK_NEAR(2 * M_PI * (1 - cos(ang / 2)) / L->solid_angle, 1, 1e-5);
         } else if (!strcmp(q->type, "RectLight")) {
             CHECK_NEAR(attr_num(q, "float inputs:width"), L->size[0], 1e-6 * L->size[0]);
+            const char *tf = attr(q, "asset inputs:texture:file");
+            if (L->texture[0]) {
+                char want[300];
+                snprintf(want, sizeof want, "@%s@", L->texture);
+                CHECK(tf && !strcmp(tf, want));
+            } else {
+                CHECK(tf == NULL);
+            }
             CHECK_NEAR(attr_num(q, "float inputs:height"), L->size[1], 1e-6 * L->size[1]);
         } else {
             CHECK_NEAR(attr_num(q, "float inputs:radius"), L->size[0] / 2, 1e-6 * L->size[0]);
@@ -260,8 +268,36 @@ static void test_outputs(void)
     opt.room[2] = 5;
     opt.capture_height = 1.6;
     CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK_OK(sl_rig_write_textures(&rig, &img, sl_test_path("room"), &err), &err);
     CHECK_OK(sl_rig_write_usda(&rig, sl_test_path("room.usda"), "dome.exr", &err), &err);
     check_usda(&rig, sl_test_path("room.usda"));
+    CHECK_OK(sl_rig_write_json(&rig, sl_test_path("room.json"), "dome.exr", &err), &err);
+    /* the softbox's texture: uniform, so every inner pixel is near the mean (1) */
+    for (int i = 0; i < rig.light_count; i++) {
+        const sl_rig_light *L = &rig.lights[i];
+        CHECK((L->shape == SL_RIG_RECT) == (L->texture[0] != 0));
+        if (!L->texture[0])
+            continue;
+        char want[64];
+        snprintf(want, sizeof want, "room_light_%02d.exr", i + 1);
+        CHECK_MSG(!strcmp(L->texture, want), "texture %s, want %s", L->texture, want);
+        sl_image tex;
+        sl_meta tm;
+        CHECK_OK(sl_exr_read(sl_test_path(L->texture), &tex, &tm, &err), &err);
+        CHECK(tex.width == 64 && tex.height >= 30 && tex.height <= 34); /* 16 x 8 degrees */
+        if (tex.width == 64) {
+            /* the map's blur (1.4 degree texels) dims the border: the plateau
+             * is a little above the mean, and flat */
+            const float *c = sl_image_pixel(&tex, 32, tex.height / 2);
+            const float *q = sl_image_pixel(&tex, 20, tex.height / 2);
+            CHECK_NEAR(c[1], 1, 0.15);
+            CHECK_NEAR(q[1] / c[1], 1, 0.02);
+            CHECK_NEAR(c[0] / c[1], 1, 0.01);
+            printf("  softbox texture: plateau %.3f x the mean\n", c[1]);
+        }
+        sl_image_free(&tex);
+        sl_meta_free(&tm);
+    }
     int rects = 0, spheres = 0, distant = 0;
     for (int i = 0; i < rig.light_count; i++) {
         rects += rig.lights[i].shape == SL_RIG_RECT;

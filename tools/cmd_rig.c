@@ -39,6 +39,8 @@ static const char *rig_help =
     "  --include LAT,LON     always keep the light there (degrees; grown from the\n"
     "                        brightest texel within 2 degrees if none was found)\n"
     "  --exclude LAT,LON     leave the light there in the dome (both repeatable)\n"
+    "  --textures            textured rect lights (with --distance or --room): the\n"
+    "                        region's crop as RIG_light_NN.exr beside RIG.usda\n"
     "  --assume-latlong      accept a 2:1 image without the envmap attribute\n\n"
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
@@ -74,7 +76,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
         OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
-        OPT_INCLUDE, OPT_EXCLUDE
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -94,11 +96,12 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"assume-latlong", no_argument, NULL, OPT_ASSUME},
         {"include", required_argument, NULL, OPT_INCLUDE},
         {"exclude", required_argument, NULL, OPT_EXCLUDE},
+        {"textures", no_argument, NULL, OPT_TEXTURES},
         {0, 0, 0, 0}};
     sl_rig_options opt;
     sl_rig_options_default(&opt);
     const char *out_path = NULL, *json_path = NULL, *res_path = NULL, *preview_path = NULL;
-    bool assume = false, have_height = false, max_given = false;
+    bool assume = false, have_height = false, max_given = false, textures = false;
 
     cli_getopt_reset();
     int c;
@@ -175,6 +178,9 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             break;
         case OPT_ASSUME:
             assume = true;
+            break;
+        case OPT_TEXTURES:
+            textures = true;
             break;
         case OPT_INCLUDE:
         case OPT_EXCLUDE: {
@@ -305,6 +311,13 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     /* Float: half would round the dome by up to 0.05% per texel. */
     if ((r = sl_exr_write(res_path, &rig.residual, &out_meta, SL_PIXEL_FLOAT, &err)))
         goto fail;
+    if (textures) {
+        /* beside the USD, named after it */
+        char prefix[PATH_MAX];
+        snprintf(prefix, sizeof prefix, "%.*s", (int)(strlen(out_path) - 5), out_path);
+        if ((r = sl_rig_write_textures(&rig, &env, prefix, &err)))
+            goto fail;
+    }
     char dome_ref[2 * PATH_MAX + 2];
     dome_reference(out_path, res_path, dome_ref, sizeof dome_ref);
     if ((r = sl_rig_write_usda(&rig, out_path, dome_ref, &err)))

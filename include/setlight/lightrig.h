@@ -80,6 +80,7 @@ typedef struct sl_rig_light {
     double position[3];    /* metres from the capture point */
     double size[2];        /* physical width, height (disk/sphere: diameter twice) */
     int texels;            /* texels in its region */
+    char texture[256];     /* texture file name (beside the USD), "" if none */
 } sl_rig_light;
 
 typedef struct sl_rig_skip {
@@ -126,6 +127,14 @@ sl_result sl_rig_write_json(const sl_rig *rig, const char *path, const char *dom
                             sl_error *err);
 /* The rig's JSON text (caller frees with free()). */
 char *sl_rig_json_string(const sl_rig *rig, const char *dome_file);
+/* Textured area lights: for every positioned rect light, the region's
+ * light above the dome as seen from the capture point (column 0 at the
+ * light's local +X, row 0 at +Y), normalised to a solid-angle-weighted mean
+ * luminance of 1 so the power is unchanged, written as PREFIX_light_NN.exr
+ * (float); the base name goes into light->texture. env is the map the rig
+ * was extracted from. */
+sl_result sl_rig_write_textures(sl_rig *rig, const sl_image *env, const char *prefix,
+                                sl_error *err);
 /* A PNG of the map with every light outlined and numbered (1-based, as in
  * the USD and JSON order). */
 sl_result sl_rig_write_preview(const sl_rig *rig, const sl_image *env, const char *path,

@@ -56,6 +56,11 @@ json_eval "$T/out" 'd["files"][0]["channel_stats"][0]["max"] < 5'
 expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/room.usda" --json "$T/o/room.json" \
   --room 8,6,4 --capture-height 1.5 --energy 1
 json_eval "$T/o/room.json" 'all(l["position"] is not None and l["size"] is not None for l in d["lights"])'
+expect 0 "$SETLIGHT" rig "$T/stage.exr" -o "$T/o/tex.usda" --json "$T/o/tex.json" \
+  --distance 4 --energy 1 --textures
+present "$T/o/tex_light_01.exr"
+json_eval "$T/o/tex.json" 'd["lights"][0]["texture"] == "tex_light_01.exr"'
+if grep -q '@tex_light_01.exr@' "$T/o/tex.usda"; then ok; else bad "usda lacks the texture"; fi
 if grep -q 'def RectLight' "$T/o/room.usda"; then ok; else bad "room rig has no RectLight"; fi
 expect 0 "$SETLIGHT" rig --json --method mediancut --max-lights 8 "$T/stage.exr" -o "$T/o/mc.usda"
 json_eval "$T/out" 'd["lights"] == 8 and d["method"] == "mediancut" and d["relative_error"] < 1e-6'
