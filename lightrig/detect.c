@@ -107,13 +107,13 @@ static int components(const unsigned char *mask, int w, int h, int *labels, int 
     return count;
 }
 
-sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, double merge_rad,
-                     int ring, int *labels, int *count, sl_error *err)
+sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, double peak_fraction,
+                     double merge_rad, int ring, int *labels, int *count, sl_error *err)
 {
     size_t n = (size_t)w * h;
     *count = 0;
     int *queue = malloc(n * sizeof *queue), *group = calloc(n, sizeof *group);
-    unsigned char *seed = malloc(n), *a = malloc(n), *b = malloc(n);
+    unsigned char *seed = calloc(n, 1), *a = malloc(n), *b = malloc(n);
     int *rowsum = malloc(((size_t)w + 1) * sizeof *rowsum);
     if (!queue || !group || !seed || !a || !b || !rowsum) {
         free(queue);
@@ -126,6 +126,29 @@ sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, doubl
     }
     for (size_t i = 0; i < n; i++)
         seed[i] = lum[i] > threshold_lum;
+    /* A fixture is much brighter than the lit surface around it (a lamp over
+     * a white cyclorama, the sun in its aureole): within each connected
+     * bright area only what reaches peak_fraction of its peak seeds a light. */
+    int nc = components(seed, w, h, group, queue);
+    float *peak = calloc((size_t)nc + 1, sizeof *peak);
+    if (!peak) {
+        free(queue);
+        free(group);
+        free(seed);
+        free(a);
+        free(b);
+        free(rowsum);
+        return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%dx%d map)", w, h);
+    }
+    for (size_t i = 0; i < n; i++)
+        if (group[i] && lum[i] > peak[group[i]])
+            peak[group[i]] = lum[i];
+    for (size_t i = 0; i < n; i++) {
+        if (group[i] && !(lum[i] >= peak_fraction * peak[group[i]]))
+            seed[i] = 0;
+        group[i] = 0;
+    }
+    free(peak);
 
     /* Fragments of one fixture: seeds grown by half the merge angle (a box
      * of that angular half-size: wider in texels toward the poles) that

@@ -42,10 +42,11 @@ void rig_texel_dir(int x, int y, int w, int h, double dir[3]);
 
 /* detect.c: candidate regions. lum is w x h luminance (finite, >= 0).
  * labels (w x h, zeroed by caller) get 1..count; seeds are texels above
- * threshold_lum, fragments closer than merge_rad (gap between edges) join,
+ * threshold_lum and above peak_fraction of the brightest texel connected
+ * to them, fragments closer than merge_rad (gap between edges) join,
  * and every region grows by `ring` texels to take in its soft edge. */
-sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, double merge_rad,
-                     int ring, int *labels, int *count, sl_error *err);
+sl_result rig_detect(const float *lum, int w, int h, double threshold_lum, double peak_fraction,
+                     double merge_rad, int ring, int *labels, int *count, sl_error *err);
 
 /* Solid-angle-weighted median of lum (0 for an all-zero map). */
 double rig_weighted_median(const float *lum, int w, int h, sl_error *err, sl_result *res);

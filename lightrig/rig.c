@@ -28,6 +28,9 @@ static sl_result check_options(const sl_rig_options *o, sl_error *err)
     if (!(o->threshold > 1))
         return sl_error_set(err, SL_ERR_USAGE, "lightrig: threshold must be above 1, not %g",
                             o->threshold);
+    if (!(o->peak_fraction >= 0 && o->peak_fraction <= 1))
+        return sl_error_set(err, SL_ERR_USAGE, "lightrig: peak fraction must be in [0, 1], not %g",
+                            o->peak_fraction);
     if (!(o->merge_degrees >= 0) || !(o->unresolved_degrees > 0 && o->unresolved_degrees < 10))
         return sl_error_set(err, SL_ERR_USAGE, "lightrig: bad merge or unresolved angle");
     if (o->distance < 0)
@@ -161,7 +164,8 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
 
     int count = 0;
     if (base > 0 &&
-        (r = rig_detect(lum, w, h, rig->threshold_luminance, opt->merge_degrees * M_PI / 180, 2,
+        (r = rig_detect(lum, w, h, rig->threshold_luminance, opt->peak_fraction,
+                        opt->merge_degrees * M_PI / 180, 2,
                         rig->labels, &count, err)))
         goto fail;
     /* by label; tags may add up to SL_RIG_MAX_TAGS regions */

@@ -202,6 +202,40 @@ static void test_fragments(void)
     sl_image_free(&img);
 }
 
+/* A lamp in front of the bright surface it lights (a white cyclorama at 20x
+ * the sky, well above the threshold): the lamp alone is the light. */
+static void test_lamp_on_cyc(void)
+{
+    sl_image img;
+    sl_image_alloc(&img, W, H, 3, NULL);
+    sc_background(&img, 0.5, false);
+    scene_light cyc, lamp;
+    sc_add(&img, &cyc, 0, -60, 0, tan(40 * M_PI / 180), tan(15 * M_PI / 180), true,
+           (double[3]){10, 10, 10});
+    sc_add(&img, &lamp, 10, -50, 0, 3 * M_PI / 180, 0, false, (double[3]){2000, 1900, 1700});
+    sl_rig_options opt;
+    sl_rig_options_default(&opt);
+    opt.energy = 1;
+    sl_rig rig;
+    sl_error err;
+    CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK_MSG(rig.light_count == 1, "lamp on cyc: %d lights", rig.light_count);
+    if (rig.light_count >= 1) {
+        double ang = sc_angle(rig.lights[0].direction, lamp.dir);
+        CHECK_MSG(ang < M_PI / 180, "lamp direction off by %.2f deg", ang * 180 / M_PI);
+        CHECK_NEAR(rig.lights[0].integral[1] / (1900 * lamp.solid_angle), 1, 0.03);
+        CHECK_NEAR(rig.lights[0].solid_angle / lamp.solid_angle, 1, 0.10);
+    }
+    CHECK(rig.relative_error < 1e-6);
+    sl_rig_free(&rig);
+    /* without the peak rule the cyc joins the lamp and pulls it off */
+    opt.peak_fraction = 0;
+    CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK(rig.light_count == 1 && sc_angle(rig.lights[0].direction, lamp.dir) > 2 * M_PI / 180);
+    sl_rig_free(&rig);
+    sl_image_free(&img);
+}
+
 static void test_selection(void)
 {
     sl_image img;
@@ -511,6 +545,7 @@ int main(void)
     RUN(test_sun);
     RUN(test_night);
     RUN(test_fragments);
+    RUN(test_lamp_on_cyc);
     RUN(test_selection);
     RUN(test_positions);
     RUN(test_bad_maps);

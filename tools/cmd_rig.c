@@ -28,6 +28,9 @@ static const char *rig_help =
     "  --max-lights N        at most N lights (N >= 1)\n"
     "  --threshold K         a light's texels are above K x the map's median\n"
     "                        luminance (solid-angle weighted; default 8)\n"
+    "  --peak-fraction F     ... and at least F x the brightest texel of their bright\n"
+    "                        area, so a lamp is not joined to the wall it lights\n"
+    "                        (default 0.02; 0 keeps whole areas)\n"
     "  --merge DEG           fragments closer than DEG are one fixture (default 2)\n"
     "  --unresolved DEG      angular diameter given to sources smaller than the\n"
     "                        texels (default 0.53, the sun)\n"
@@ -76,7 +79,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
         OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
-        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_PEAK
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -97,6 +100,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"include", required_argument, NULL, OPT_INCLUDE},
         {"exclude", required_argument, NULL, OPT_EXCLUDE},
         {"textures", no_argument, NULL, OPT_TEXTURES},
+        {"peak-fraction", required_argument, NULL, OPT_PEAK},
         {0, 0, 0, 0}};
     sl_rig_options opt;
     sl_rig_options_default(&opt);
@@ -137,6 +141,12 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         case OPT_THRESHOLD:
             if (!cli_parse_double(optarg, &opt.threshold) || !(opt.threshold > 1))
                 return cli_usage_error(cli, "--threshold needs a number above 1, not '%s'", optarg);
+            break;
+        case OPT_PEAK:
+            if (!cli_parse_double(optarg, &opt.peak_fraction) || opt.peak_fraction < 0 ||
+                opt.peak_fraction > 1)
+                return cli_usage_error(cli, "--peak-fraction needs a number in [0, 1], not '%s'",
+                                       optarg);
             break;
         case OPT_MERGE:
             if (!cli_parse_double(optarg, &opt.merge_degrees) || opt.merge_degrees < 0 ||

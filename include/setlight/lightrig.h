@@ -36,6 +36,10 @@ typedef struct sl_rig_options {
     /* A texel seeds a light when its luminance is above threshold x the
      * solid-angle-weighted median luminance of the map (default 8). */
     double threshold;
+    /* ... and reaches this fraction of the brightest texel of its connected
+     * bright area, so a lamp is not merged with the white wall it lights
+     * (default 0.02; 0 keeps the whole area). */
+    double peak_fraction;
     /* Keep the smallest set of lights carrying this share of the directional
      * energy (the energy of all candidates above their smooth fill); 0..1, default 0.9. */
     double energy;
