@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 
 #include "cli.h"
 #include "setlight/lightrig.h"
@@ -48,6 +49,16 @@ static const char *rig_help =
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
     "(missing, corrupt, not a lat-long), 1 could not write. See docs/lightrig.md.\n";
+
+/* The folder of an output exists: checked for every output before any is
+ * written, so a run that fails on the last one has not written the first. */
+static bool out_dir_ok(const char *path)
+{
+    char buf[PATH_MAX];
+    struct stat st;
+    snprintf(buf, sizeof buf, "%s", path);
+    return stat(dirname(buf), &st) == 0 && S_ISDIR(st.st_mode);
+}
 
 static bool has_suffix(const char *s, const char *suffix)
 {
@@ -253,6 +264,10 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         snprintf(res_buf, sizeof res_buf, "%.*s_residual.exr", (int)n, out_path);
         res_path = res_buf;
     }
+    const char *outs[4] = {out_path, res_path, json_path, preview_path};
+    for (int k = 0; k < 4; k++)
+        if (outs[k] && !out_dir_ok(outs[k]))
+            return cli_usage_error(cli, "%s: output folder missing", outs[k]);
     double t0 = sl_seconds();
 
     sl_image env = {0};

@@ -98,6 +98,9 @@ expect 2 "$SETLIGHT" rig --method mediancut "$T/stage.exr" -o "$T/bad/a.usda"; e
 expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/bad/a.usd"; err_has ".usda"
 expect 2 "$SETLIGHT" rig "$T/stage.exr"; err_has "-o"
 expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/nosuchdir/a.usda"; err_has "nosuchdir"
+# a missing folder for the last output: nothing written, not even the first
+expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/bad/a.usda" --preview "$T/nosuchdir/p.png"
+err_has "nosuchdir"; err_one_line
 if [ "$(ls -A "$T/bad")" = "" ]; then ok; else bad "output left in $T/bad: $(ls -A "$T/bad")"; fi
 
 finish
