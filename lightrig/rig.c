@@ -110,9 +110,13 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
     sl_result r = check_options(opt, err);
     if (r)
         return r;
-    if (!env || !env->data || !sl_is_latlong_shape(env->width, env->height) || env->height < 4)
+    if (!env || !env->data || !sl_is_latlong_shape(env->width, env->height))
         return sl_error_set(err, SL_ERR_INPUT, "lightrig: not a lat-long: %dx%d is not 2:1",
                             env ? env->width : 0, env ? env->height : 0);
+    if (env->height < 4)
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "lightrig: a %dx%d lat-long is too small (8x4 at least)", env->width,
+                            env->height);
     int w = env->width, h = env->height;
     size_t n = (size_t)w * h;
     sl_image rgb = {0};

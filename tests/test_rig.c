@@ -373,6 +373,19 @@ static void test_bad_maps(void)
     CHECK_RESULT(sl_rig_extract(&img, &opt, &rig, &err), SL_ERR_INPUT, &err);
     CHECK(strstr(err.message, "2:1") != NULL);
     sl_image_free(&img);
+    /* too small, and the smallest accepted */
+    sl_image_alloc(&img, 6, 3, 3, NULL);
+    sl_image_fill(&img, 1);
+    CHECK_RESULT(sl_rig_extract(&img, &opt, &rig, &err), SL_ERR_INPUT, &err);
+    CHECK(strstr(err.message, "too small") != NULL);
+    sl_image_free(&img);
+    sl_image_alloc(&img, 8, 4, 3, NULL);
+    sl_image_fill(&img, 1);
+    sl_image_pixel(&img, 3, 1)[1] = 1000;
+    CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK(rig.light_count == 1 && rig.relative_error < 1e-6);
+    sl_rig_free(&rig);
+    sl_image_free(&img);
     /* bad options */
     sl_image_alloc(&img, 64, 32, 3, NULL);
     sl_image_fill(&img, 1);
