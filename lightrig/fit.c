@@ -30,6 +30,7 @@ void sl_rig_options_default(sl_rig_options *opt)
     opt->method = SL_RIG_METHOD_REGIONS;
     opt->threshold = 8;
     opt->peak_fraction = 0.02;
+    opt->max_solid_angle = 0.25;
     opt->energy = 0.9;
     opt->max_lights = 0;
     opt->merge_degrees = 2;
@@ -271,10 +272,17 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
         free(r);
         return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
     }
-    double acc = 0;
+    /* The cut is on the energy of the candidates that may become lights:
+     * not excluded by hand, not wider than a fixture. */
+    double acc = 0, eligible = 0;
     int kept = 0, forced = 0;
-    for (int i = 0; i < count; i++)
+    for (int i = 0; i < count; i++) {
         forced += tags[i] > 0;
+        bool wide = opt->max_solid_angle > 0 && cand[i].solid_angle > opt->max_solid_angle;
+        double y = rig_luma(cand[i].integral);
+        if (tags[i] > 0 || (tags[i] == 0 && !wide))
+            eligible += y > 0 ? y : 0;
+    }
     for (int i = 0; i < count; i++) {
         sl_rig_light *L = &cand[r[i].index];
         int tag = tags[r[i].index];
@@ -287,10 +295,16 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
         } else if (tag > 0) {
             k = true; /* tagged by hand: kept whatever its energy */
             forced--;
+        } else if (opt->max_solid_angle > 0 && L->solid_angle > opt->max_solid_angle) {
+            k = false;
+            snprintf(reason, sizeof reason,
+                     "area: %.3g sr is wider than a fixture (--max-solid-angle %g); the dome "
+                     "renders it exactly",
+                     L->solid_angle, opt->max_solid_angle);
         } else if (opt->max_lights > 0 && kept + forced >= opt->max_lights) {
             k = false;
             snprintf(reason, sizeof reason, "--max-lights %d reached", opt->max_lights);
-        } else if (acc < opt->energy * total * (1 - 1e-12)) {
+        } else if (acc < opt->energy * eligible * (1 - 1e-12)) {
             k = true;
         } else if (L->shape == SL_RIG_DISTANT && L->share >= 0.005) {
             /* Tiny, very bright sources are what a dome renders worst and
@@ -302,7 +316,7 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
             snprintf(reason, sizeof reason,
                      "energy: the kept lights already carry %.1f%% of the directional energy "
                      "(--energy %g)",
-                     100 * acc / total, opt->energy);
+                     100 * acc / eligible, opt->energy);
         }
         keep[r[i].index] = k;
         if (k) {

@@ -133,6 +133,22 @@ sl_result rig_mediancut(const sl_image *rgb, const sl_rig_options *opt, sl_rig *
         double l = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         for (int a = 0; a < 3; a++)
             L->direction[a] = l > 0 ? d[a] / l : (a == 2);
+        /* a frame for the USD transform */
+        double helper[3] = {0, 1, 0};
+        if (fabs(L->direction[1]) > 0.9) {
+            helper[0] = 1;
+            helper[1] = 0;
+        }
+        double *dd = L->direction, *au = L->axis_u, *av = L->axis_v;
+        au[0] = helper[1] * dd[2] - helper[2] * dd[1];
+        au[1] = helper[2] * dd[0] - helper[0] * dd[2];
+        au[2] = helper[0] * dd[1] - helper[1] * dd[0];
+        double la = sqrt(au[0] * au[0] + au[1] * au[1] + au[2] * au[2]);
+        for (int a = 0; a < 3; a++)
+            au[a] /= la;
+        av[0] = dd[1] * au[2] - dd[2] * au[1];
+        av[1] = dd[2] * au[0] - dd[0] * au[2];
+        av[2] = dd[0] * au[1] - dd[1] * au[0];
         L->shape = SL_RIG_DISTANT;
         L->solid_angle = om_sum;
         double rr = acos(1 - fmin(om_sum, 4 * M_PI) / (2 * M_PI));

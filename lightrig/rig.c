@@ -31,6 +31,8 @@ static sl_result check_options(const sl_rig_options *o, sl_error *err)
     if (!(o->peak_fraction >= 0 && o->peak_fraction <= 1))
         return sl_error_set(err, SL_ERR_USAGE, "lightrig: peak fraction must be in [0, 1], not %g",
                             o->peak_fraction);
+    if (!(o->max_solid_angle >= 0))
+        return sl_error_set(err, SL_ERR_USAGE, "lightrig: max solid angle must be >= 0");
     if (!(o->merge_degrees >= 0) || !(o->unresolved_degrees > 0 && o->unresolved_degrees < 10))
         return sl_error_set(err, SL_ERR_USAGE, "lightrig: bad merge or unresolved angle");
     if (o->distance < 0)

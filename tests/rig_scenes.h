@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "setlight/core.h"
+#include "setlight/lightrig.h"
 
 typedef struct scene_light {
     double dir[3];
@@ -152,6 +153,98 @@ static inline void sc_add(sl_image *img, scene_light *L, double lat, double lon,
     L->rect = rect;
     L->solid_angle = rect ? 4 * asin(a * b / sqrt((1 + a * a) * (1 + b * b)))
                           : 2 * M_PI * (1 - cos(a));
+}
+
+/* Diffuse irradiance E(n) for a set of normals: what a grey (Lambertian)
+ * sphere shows of a map, and of a rig (dome texels plus each light as its
+ * fitted shape). rig_rmse: relative RMSE over 48 normals. */
+static inline void irradiance_map(const sl_image *img, const double n[][3], int count, double *e)
+{
+    for (int k = 0; k < count; k++)
+        e[k] = 0;
+    for (int y = 0; y < img->height; y++) {
+        double om = sl_latlong_texel_solid_angle(y, img->width, img->height);
+        for (int x = 0; x < img->width; x++) {
+            double d[3];
+            sl_latlong_to_dir((x + 0.5) / img->width, (y + 0.5) / img->height, d);
+            const float *p = sl_image_pixel(img, x, y);
+            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            for (int k = 0; k < count; k++) {
+                double c = sc_dot(n[k], d);
+                if (c > 0)
+                    e[k] += l * om * c;
+            }
+        }
+    }
+}
+
+/* Adds a light's irradiance over the normals, the light rendered as its
+ * fitted shape (rect or cap, uniform radiance over its solid angle; distant
+ * lights as caps too) by a 24 x 24 quadrature. */
+static inline void light_irradiance(const sl_rig_light *L, const double n[][3], int count,
+                                    double *e)
+{
+    enum { Q = 24 };
+    const double *d = L->direction, *u = L->axis_u, *v = L->axis_v;
+    double y = 0.2126 * L->radiance[0] + 0.7152 * L->radiance[1] + 0.0722 * L->radiance[2];
+    bool rect = L->shape == SL_RIG_RECT;
+    double a = tan(L->angular_size[0] / 2), b = tan(L->angular_size[1] / 2);
+    double r = acos(fmax(-1, 1 - L->solid_angle / (2 * M_PI)));
+    double wsum = 0, dirs[Q * Q][3], wts[Q * Q];
+    for (int j = 0; j < Q; j++)
+        for (int i = 0; i < Q; i++) {
+            double p[3], w;
+            if (rect) {
+                double X = (2 * (i + 0.5) / Q - 1) * a, Y = (2 * (j + 0.5) / Q - 1) * b;
+                for (int k = 0; k < 3; k++)
+                    p[k] = d[k] + X * u[k] + Y * v[k];
+                w = pow(1 + X * X + Y * Y, -1.5);
+            } else {
+                /* cap: uniform in cos(theta) and in phi */
+                double ct = 1 - (1 - cos(r)) * (j + 0.5) / Q, st = sqrt(1 - ct * ct);
+                double ph = 2 * M_PI * (i + 0.5) / Q;
+                for (int k = 0; k < 3; k++)
+                    p[k] = ct * d[k] + st * (cos(ph) * u[k] + sin(ph) * v[k]);
+                w = 1;
+            }
+            double l = sqrt(sc_dot(p, p));
+            for (int k = 0; k < 3; k++)
+                dirs[j * Q + i][k] = p[k] / l;
+            wts[j * Q + i] = w;
+            wsum += w;
+        }
+    for (int k = 0; k < count; k++) {
+        double acc = 0;
+        for (int q = 0; q < Q * Q; q++) {
+            double c = sc_dot(n[k], dirs[q]);
+            if (c > 0)
+                acc += wts[q] * c;
+        }
+        e[k] += y * L->solid_angle * acc / wsum;
+    }
+}
+
+static inline double rig_rmse(const sl_image *img, const sl_rig *rig)
+{
+    enum { N = 48 };
+    double n[N][3], e0[N], e1[N];
+    for (int k = 0; k < N; k++) {
+        /* Fibonacci sphere */
+        double z = 1 - (2 * k + 1.0) / N, r = sqrt(1 - z * z), phi = k * 2.399963229728653;
+        n[k][0] = r * cos(phi);
+        n[k][1] = z;
+        n[k][2] = r * sin(phi);
+    }
+    irradiance_map(img, n, N, e0);
+    irradiance_map(&rig->residual, n, N, e1);
+    for (int i = 0; i < rig->light_count; i++)
+        light_irradiance(&rig->lights[i], n, N, e1);
+    double se = 0, s0 = 0;
+    for (int k = 0; k < N; k++) {
+        se += (e1[k] - e0[k]) * (e1[k] - e0[k]);
+        s0 += e0[k] * e0[k];
+    }
+    return sqrt(se / s0);
 }
 
 #endif

@@ -236,6 +236,35 @@ static void test_lamp_on_cyc(void)
     sl_image_free(&img);
 }
 
+/* A wide bright patch (a lit wall, a sky) stays in the dome. */
+static void test_wide(void)
+{
+    sl_image img;
+    sl_image_alloc(&img, W, H, 3, NULL);
+    sc_background(&img, 0.5, false);
+    scene_light wall;
+    sc_add(&img, &wall, 10, 90, 0, tan(25 * M_PI / 180), tan(20 * M_PI / 180), true,
+           (double[3]){20, 20, 20});
+    sl_rig_options opt;
+    sl_rig_options_default(&opt);
+    opt.energy = 1;
+    sl_rig rig;
+    sl_error err;
+    CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK(rig.light_count == 0 && rig.skipped_count == 1);
+    if (rig.skipped_count == 1) {
+        CHECK(strstr(rig.skipped[0].reason, "area") != NULL);
+        CHECK_NEAR(rig.skipped[0].solid_angle / wall.solid_angle, 1, 0.05);
+    }
+    CHECK_NEAR(rig.dome[1] / rig.original[1], 1, 1e-9);
+    sl_rig_free(&rig);
+    opt.max_solid_angle = 0;
+    CHECK_OK(sl_rig_extract(&img, &opt, &rig, &err), &err);
+    CHECK(rig.light_count == 1 && rig.lights[0].shape == SL_RIG_RECT);
+    sl_rig_free(&rig);
+    sl_image_free(&img);
+}
+
 static void test_selection(void)
 {
     sl_image img;
@@ -397,58 +426,6 @@ static void test_bad_maps(void)
     sl_image_free(&img);
 }
 
-/* Diffuse irradiance E(n) for a set of normals: the grey-sphere view of a
- * map, and of a rig (dome texels plus each light at its direction). */
-static void irradiance_map(const sl_image *img, const double n[][3], int count, double *e)
-{
-    for (int k = 0; k < count; k++)
-        e[k] = 0;
-    for (int y = 0; y < img->height; y++) {
-        double om = sl_latlong_texel_solid_angle(y, img->width, img->height);
-        for (int x = 0; x < img->width; x++) {
-            double d[3];
-            sl_latlong_to_dir((x + 0.5) / img->width, (y + 0.5) / img->height, d);
-            const float *p = sl_image_pixel(img, x, y);
-            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-            for (int k = 0; k < count; k++) {
-                double c = sc_dot(n[k], d);
-                if (c > 0)
-                    e[k] += l * om * c;
-            }
-        }
-    }
-}
-
-static double rig_rmse(const sl_image *img, const sl_rig *rig)
-{
-    enum { N = 48 };
-    double n[N][3], e0[N], e1[N];
-    for (int k = 0; k < N; k++) {
-        /* Fibonacci sphere */
-        double z = 1 - (2 * k + 1.0) / N, r = sqrt(1 - z * z), phi = k * 2.399963229728653;
-        n[k][0] = r * cos(phi);
-        n[k][1] = z;
-        n[k][2] = r * sin(phi);
-    }
-    irradiance_map(img, n, N, e0);
-    irradiance_map(&rig->residual, n, N, e1);
-    for (int i = 0; i < rig->light_count; i++) {
-        const sl_rig_light *L = &rig->lights[i];
-        double y = 0.2126 * L->integral[0] + 0.7152 * L->integral[1] + 0.0722 * L->integral[2];
-        for (int k = 0; k < N; k++) {
-            double c = sc_dot(n[k], L->direction);
-            if (c > 0)
-                e1[k] += y * c;
-        }
-    }
-    double se = 0, s0 = 0;
-    for (int k = 0; k < N; k++) {
-        se += (e1[k] - e0[k]) * (e1[k] - e0[k]);
-        s0 += e0[k] * e0[k];
-    }
-    return sqrt(se / s0);
-}
-
 /* Median cut with the same number of lights: exact ledger, and a grey
  * sphere's irradiance further from the map's than the rig's. */
 static void test_mediancut(void)
@@ -559,6 +536,7 @@ int main(void)
     RUN(test_night);
     RUN(test_fragments);
     RUN(test_lamp_on_cyc);
+    RUN(test_wide);
     RUN(test_selection);
     RUN(test_positions);
     RUN(test_bad_maps);

@@ -32,6 +32,7 @@ static const char *rig_help =
     "  --peak-fraction F     ... and at least F x the brightest texel of their bright\n"
     "                        area, so a lamp is not joined to the wall it lights\n"
     "                        (default 0.02; 0 keeps whole areas)\n"
+    "  --max-solid-angle SR  wider regions stay in the dome (default 0.25; 0: no limit)\n"
     "  --merge DEG           fragments closer than DEG are one fixture (default 2)\n"
     "  --unresolved DEG      angular diameter given to sources smaller than the\n"
     "                        texels (default 0.53, the sun)\n"
@@ -90,7 +91,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
         OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
-        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_PEAK
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_PEAK, OPT_MAXSA
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -112,6 +113,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"exclude", required_argument, NULL, OPT_EXCLUDE},
         {"textures", no_argument, NULL, OPT_TEXTURES},
         {"peak-fraction", required_argument, NULL, OPT_PEAK},
+        {"max-solid-angle", required_argument, NULL, OPT_MAXSA},
         {0, 0, 0, 0}};
     sl_rig_options opt;
     sl_rig_options_default(&opt);
@@ -157,6 +159,12 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             if (!cli_parse_double(optarg, &opt.peak_fraction) || opt.peak_fraction < 0 ||
                 opt.peak_fraction > 1)
                 return cli_usage_error(cli, "--peak-fraction needs a number in [0, 1], not '%s'",
+                                       optarg);
+            break;
+        case OPT_MAXSA:
+            if (!cli_parse_double(optarg, &opt.max_solid_angle) || opt.max_solid_angle < 0 ||
+                opt.max_solid_angle > 4 * M_PI)
+                return cli_usage_error(cli, "--max-solid-angle needs sr in [0, 4 pi], not '%s'",
                                        optarg);
             break;
         case OPT_MERGE:

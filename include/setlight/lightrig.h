@@ -45,6 +45,10 @@ typedef struct sl_rig_options {
     double energy;
     /* At most this many lights (>= 1); 0 means no limit (default). */
     int max_lights;
+    /* Regions wider than this (sr) stay in the dome: a bright sky or a lit
+     * wall is not a fixture, and the dome renders it exactly (default 0.25,
+     * a cap of about 32 degrees; 0: no limit). */
+    double max_solid_angle;
     /* Fragments closer than this (degrees, gap between their edges) are one
      * fixture (default 2). */
     double merge_degrees;
