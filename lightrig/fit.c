@@ -30,7 +30,7 @@ void sl_rig_options_default(sl_rig_options *opt)
     opt->method = SL_RIG_METHOD_REGIONS;
     opt->threshold = 8;
     opt->peak_fraction = 0.02;
-    opt->max_solid_angle = 0.25;
+    opt->max_solid_angle = 0.3;
     opt->energy = 0.9;
     opt->max_lights = 0;
     opt->merge_degrees = 2;

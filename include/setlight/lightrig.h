@@ -46,8 +46,8 @@ typedef struct sl_rig_options {
     /* At most this many lights (>= 1); 0 means no limit (default). */
     int max_lights;
     /* Regions wider than this (sr) stay in the dome: a bright sky or a lit
-     * wall is not a fixture, and the dome renders it exactly (default 0.25,
-     * a cap of about 32 degrees; 0: no limit). */
+     * wall is not a fixture, and the dome renders it exactly (default 0.3,
+     * a cap of about 36 degrees; 0: no limit). */
     double max_solid_angle;
     /* Fragments closer than this (degrees, gap between their edges) are one
      * fixture (default 2). */
