@@ -18,14 +18,14 @@
  * and background (anti-aliasing, blur, fit error); they are never read. */
 #define RIM_MARGIN 0.7
 /* Sample points are kept this far inside the outline. */
-#define RIM_CLAMP 1.0
+#define RIM_CLAMP 0.7
 
 typedef struct unwrap_ctx {
     const sl_image *photo; /* 3 channels, finite */
     const sl_ball_view *view;
     const sl_reflectance *refl;
     sl_image *out;
-    double ring_mean[3];
+    double blind_fill[3];
 } unwrap_ctx;
 
 /* Bilinear lookup of the ball's own pixels; returns false when the point had
@@ -72,25 +72,23 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
     return inside;
 }
 
-/* Radiance seen in `dir`, and whether the photo really shows it. In the blind
- * cone the rim value of the same azimuth fades into the mean of the whole rim
- * toward the cone's axis: smooth, with no invented detail. */
+/* Radiance seen in `dir`, and whether the photo really shows it. The blind
+ * cone gets the median of the rim, flat: a rim pixel next to a bright source
+ * must not be stretched over the whole cone, and no detail is invented. */
 static bool radiance(const unwrap_ctx *c, const double dir[3], double out[3])
 {
     ball_hit h;
     ball_view_map(c->view, dir, &h);
+    if (h.blind) {
+        memcpy(out, c->blind_fill, sizeof c->blind_fill);
+        return false;
+    }
     double refl[3];
     bool seen = photo_lookup(c, h.x, h.y, out);
     sl_reflectance_eval(c->refl, h.cos_incidence, refl);
     for (int k = 0; k < 3; k++)
         out[k] /= refl[k];
-    if (!h.blind)
-        return seen;
-    double t = (h.phi - c->view->phi_max) / (M_PI - c->view->phi_max);
-    t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
-    for (int k = 0; k < 3; k++)
-        out[k] = (1.0 - t) * out[k] + t * c->ring_mean[k];
-    return false;
+    return seen;
 }
 
 static void pixel_of(const unwrap_ctx *c, double u, double v, double xy[2])
@@ -101,6 +99,12 @@ static void pixel_of(const unwrap_ctx *c, double u, double v, double xy[2])
     ball_view_map(c->view, d, &h);
     xy[0] = h.x;
     xy[1] = h.y;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
 }
 
 static int sub_count(double extent_px)
@@ -193,9 +197,13 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
         goto done;
 
     unwrap_ctx c = {.photo = &rgb, .view = view, .refl = refl, .out = out};
-    double ring[3] = {0, 0, 0};
+    double *ring = malloc(sizeof(double) * 3 * RING_SAMPLES);
+    if (!ring) {
+        r = sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
+        goto done;
+    }
     for (int i = 0; i < RING_SAMPLES; i++) {
-        /* Just past the edge of the visible range, where blind directions start. */
+        /* The edge of the visible range, where the blind cone starts. */
         double psi = 2.0 * M_PI * (i + 0.5) / RING_SAMPLES, phi = view->phi_max;
         double dv[3] = {sin(phi) * cos(psi), sin(phi) * sin(psi), -cos(phi)}, dc[3], dw[3];
         for (int k = 0; k < 3; k++)
@@ -210,10 +218,14 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
         photo_lookup(&c, h.x, h.y, val);
         sl_reflectance_eval(refl, h.cos_incidence, rf);
         for (int k = 0; k < 3; k++)
-            ring[k] += val[k] / rf[k];
+            ring[k * RING_SAMPLES + i] = val[k] / rf[k];
     }
-    for (int k = 0; k < 3; k++)
-        c.ring_mean[k] = ring[k] / RING_SAMPLES;
+    for (int k = 0; k < 3; k++) {
+        qsort(ring + k * RING_SAMPLES, RING_SAMPLES, sizeof(double), cmp_double);
+        c.blind_fill[k] = 0.5 * (ring[k * RING_SAMPLES + RING_SAMPLES / 2 - 1] +
+                                 ring[k * RING_SAMPLES + RING_SAMPLES / 2]);
+    }
+    free(ring);
     sl_parallel_for(out->height, 2, unwrap_rows, &c);
 
     if (info) {
