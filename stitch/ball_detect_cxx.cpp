@@ -17,12 +17,16 @@ extern "C" int ball_hough_cxx(const unsigned char *gray, int width, int height,
     try {
         cv::Mat img(height, width, CV_8UC1, const_cast<unsigned char *>(gray));
         cv::Mat blurred;
-        cv::GaussianBlur(img, blurred, cv::Size(5, 5), 1.5);
-        std::vector<cv::Vec3f> circles;
-        // A low accumulator threshold on purpose: false candidates are cheap,
-        // the edge fit rejects them; a missed ball is not recoverable.
-        cv::HoughCircles(blurred, circles, cv::HOUGH_GRADIENT, 1.0, min_dist, 100.0, 18.0,
+        cv::GaussianBlur(img, blurred, cv::Size(0, 0), 1.5);
+        // The accurate variant first (few, well-supported circles), then the
+        // classic one with a low threshold so a ball in clutter still gets a
+        // candidate; the edge fit in ball_detect.c decides.
+        std::vector<cv::Vec3f> circles, more;
+        cv::HoughCircles(blurred, circles, cv::HOUGH_GRADIENT_ALT, 1.5, min_dist, 150.0, 0.5,
                          (int)min_radius, (int)max_radius);
+        cv::HoughCircles(blurred, more, cv::HOUGH_GRADIENT, 1.0, min_dist, 100.0, 18.0,
+                         (int)min_radius, (int)max_radius);
+        circles.insert(circles.end(), more.begin(), more.end());
         int n = 0;
         for (const cv::Vec3f &c : circles) {
             if (n >= max_out)

@@ -146,20 +146,21 @@ static double hash01(uint32_t a, uint32_t b)
     return (h & 0xFFFFFF) / 16777216.0;
 }
 
-/* Blocks of grey and colour, diagonal stripes and a few tiny hot spots. */
+/* Blocks of grey and colour (23 x 17 px), diagonal stripes and a few tiny
+ * hot spots. */
 static void background(const ball_fixture *f, double x, double y, double rgb[3])
 {
     if (!f->clutter) {
-        rgb[0] = rgb[1] = rgb[2] = 0.2;
+        rgb[0] = rgb[1] = rgb[2] = 0.05; /* a dark backdrop */
         return;
     }
-    int bx = (int)floor(x / 9.0), by = (int)floor(y / 7.0);
-    double base = 0.04 + 0.7 * hash01((uint32_t)bx, (uint32_t)by);
-    double stripe = fmod(x + 0.6 * y, 23.0) < 3.0 ? 0.5 : 1.0;
+    int bx = (int)floor(x / 23.0), by = (int)floor(y / 17.0);
+    double base = 0.08 + 0.4 * hash01((uint32_t)bx, (uint32_t)by);
+    double stripe = fmod(x + 0.6 * y, 61.0) < 4.0 ? 0.6 : 1.0;
     for (int k = 0; k < 3; k++)
         rgb[k] = base * stripe * (0.7 + 0.6 * hash01((uint32_t)(bx + 31 * k), (uint32_t)by + 7));
-    if (hash01((uint32_t)bx + 1000, (uint32_t)by) > 0.96) {
-        double dx = x - (bx + 0.5) * 9.0, dy = y - (by + 0.5) * 7.0;
+    if (hash01((uint32_t)bx + 1000, (uint32_t)by) > 0.8) {
+        double dx = x - (bx + 0.5) * 23.0, dy = y - (by + 0.5) * 17.0;
         if (dx * dx + dy * dy < 1.5 * 1.5)
             rgb[0] = rgb[1] = rgb[2] = 30.0;
     }

@@ -32,7 +32,7 @@ typedef struct ball_fixture {
     sl_reflectance reflectance;
     const sl_image *env; /* lat-long to reflect; NULL for the procedural one */
     int ss;              /* sub-samples per pixel axis */
-    bool clutter;        /* textured background instead of a flat 0.2 */
+    bool clutter;        /* textured background instead of a flat 0.05 */
 } ball_fixture;
 
 /* A fixture with the defaults: orthographic, 1 ball, reflectance 1, ss 4, clutter. */

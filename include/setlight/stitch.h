@@ -34,7 +34,8 @@ typedef struct sl_ball_circle {
  * a log-tonemapped copy, then sub-pixel edge points on the HDR image along
  * rays from each candidate's centre and a robust least-squares circle fit.
  * SL_ERR_INPUT when no ball is found, when two or more are, or when the ball
- * is cut by the frame edge; `name` (a file name) starts the message. */
+ * is cut by the frame edge (circle then holds the clipped ball's outline);
+ * `name` (a file name) starts the message. */
 sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle *circle,
                          sl_error *err);
 
