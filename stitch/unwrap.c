@@ -35,7 +35,7 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
     const sl_ball_view *v = c->view;
     const sl_image *img = c->photo;
     bool inside = true;
-    double dx = x - v->cx, dy = y - v->cy, d = hypot(dx, dy), lim = v->r - RIM_CLAMP;
+    double dx = x - v->cx, dy = y - v->cy, d = sqrt(dx * dx + dy * dy), lim = v->r - RIM_CLAMP;
     if (d > lim) {
         x = v->cx + dx * lim / d;
         y = v->cy + dy * lim / d;
@@ -51,7 +51,8 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
             double w = (i ? tx : 1.0 - tx) * (j ? ty : 1.0 - ty);
             if (w == 0.0 || xi < 0 || yi < 0 || xi >= img->width || yi >= img->height)
                 continue;
-            if (hypot(xi + 0.5 - v->cx, yi + 0.5 - v->cy) > keep)
+            double ex = xi + 0.5 - v->cx, ey = yi + 0.5 - v->cy;
+            if (ex * ex + ey * ey > keep * keep)
                 continue;
             const float *p = sl_image_pixel(img, xi, yi);
             for (int k = 0; k < 3; k++)
@@ -101,6 +102,15 @@ static void pixel_of(const unwrap_ctx *c, double u, double v, double xy[2])
     xy[1] = h.y;
 }
 
+static double smaller_singular_value(const double j[2][2])
+{
+    double p = j[0][0] * j[0][0] + j[1][0] * j[1][0];
+    double q = j[0][1] * j[0][1] + j[1][1] * j[1][1];
+    double s = j[0][0] * j[0][1] + j[1][0] * j[1][1];
+    double tr = 0.5 * (p + q), det = p * q - s * s;
+    return sqrt(fmax(tr - sqrt(fmax(tr * tr - det, 0.0)), 0.0));
+}
+
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
@@ -122,13 +132,21 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
     for (int64_t y = begin; y < end; y++) {
         for (int x = 0; x < w; x++) {
             double uc = (x + 0.5) / w, vc = (y + 0.5) / h, dir[3];
-            double a[2], b[2];
+            /* The texel's footprint in the photo: its extent sets the sampling,
+             * and per radian (longitude and latitude steps are orthogonal on
+             * the sphere) it is the mapping's Jacobian. */
+            double a[2], b[2], j[2][2];
             pixel_of(c, uc - 0.5 / w, vc, a);
             pixel_of(c, uc + 0.5 / w, vc, b);
             int nu = sub_count(hypot(b[0] - a[0], b[1] - a[1]));
+            double lon_step = 2.0 * M_PI / w * cos(M_PI * (0.5 - vc));
+            j[0][0] = (b[0] - a[0]) / lon_step;
+            j[1][0] = (b[1] - a[1]) / lon_step;
             pixel_of(c, uc, vc - 0.5 / h, a);
             pixel_of(c, uc, vc + 0.5 / h, b);
             int nv = sub_count(hypot(b[0] - a[0], b[1] - a[1]));
+            j[0][1] = (b[0] - a[0]) / (M_PI / h);
+            j[1][1] = (b[1] - a[1]) / (M_PI / h);
             double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
             for (int j = 0; j < nv; j++) {
                 double v = (y + (j + 0.5) / nv) / h;
@@ -143,8 +161,7 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     wsum += wt;
                 }
             }
-            sl_latlong_to_dir(uc, vc, dir);
-            double conf = ref > 0.0 ? sl_ball_view_resolution(c->view, dir) / ref : 0.0;
+            double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
             conf = conf > 1.0 ? 1.0 : conf;
             float *p = sl_image_pixel(c->out, x, (int)y);
             for (int k = 0; k < 3; k++)

@@ -4,6 +4,7 @@
 
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 
 #ifndef M_PI
@@ -300,4 +301,51 @@ void ball_fixture_circle(const ball_fixture *f, int i, sl_ball_circle *c)
     c->cx = ppx + 0.5 * (lo + hi) * ux;
     c->cy = ppy + 0.5 * (lo + hi) * uy;
     c->r = 0.5 * (0.5 * (hi - lo) + perp);
+}
+
+int ball_fixture_main(const char *kind, const char *out)
+{
+    ball_fixture f;
+    ball_fixture_init(&f, 200, 160);
+    f.ss = 3;
+    f.perspective = true;
+    f.focal_px = 180; /* --focal-mm 18 --sensor-mm 20 */
+    f.balls[0].distance = 4.0;
+    f.balls[0].px = 104;
+    f.balls[0].py = 86;
+    sl_reflectance_chrome(&f.reflectance);
+    if (!strcmp(kind, "ballnone")) {
+        f.ball_count = 0;
+    } else if (!strcmp(kind, "balltwo")) {
+        f.ball_count = 2;
+        f.balls[0].px = 52;
+        f.balls[0].distance = 5.0;
+        f.balls[1] = f.balls[0];
+        f.balls[1].px = 150;
+    } else if (!strcmp(kind, "ballclip")) {
+        f.balls[0].px = 158; /* 4.5 px cut off on the right */
+    } else if (strcmp(kind, "ball") != 0 && strcmp(kind, "balljpg") != 0) {
+        fprintf(stderr, "make_fixture: unknown ball kind %s\n", kind);
+        return 2;
+    }
+    sl_image img = {0};
+    sl_meta meta;
+    sl_error err;
+    sl_meta_init(&meta);
+    sl_result r = ball_fixture_render(&f, &img, &err);
+    if (!r && !strcmp(kind, "balljpg")) {
+        for (size_t i = 0; i < img.stride * (size_t)img.height; i++)
+            img.data[i] = sl_linear_to_srgb(img.data[i] > 1.0f ? 1.0f : img.data[i]);
+        r = sl_photo_write(out, &img, &meta, 8, &err);
+    } else if (!r) {
+        sl_meta_set_rec709(&meta);
+        r = sl_exr_write(out, &img, &meta, SL_PIXEL_FLOAT, &err);
+    }
+    sl_image_free(&img);
+    sl_meta_free(&meta);
+    if (r) {
+        fprintf(stderr, "make_fixture: %s\n", err.message);
+        return 1;
+    }
+    return 0;
 }

@@ -61,4 +61,8 @@ void ball_fixture_circle(const ball_fixture *f, int i, sl_ball_circle *c);
 bool ball_fixture_trace(const ball_fixture *f, int i, double x, double y, double dir[3],
                         double *cos_incidence);
 
+/* make_fixture's ball kinds (200x160 perspective chrome ball, focal 180 px):
+ * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone. */
+int ball_fixture_main(const char *kind, const char *out);
+
 #endif

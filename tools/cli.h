@@ -32,5 +32,6 @@ bool cli_parse_double(const char *s, double *out);
 /* Command entry points. */
 int cmd_info(int argc, char **argv, const sl_cli *cli);
 int cmd_convert(int argc, char **argv, const sl_cli *cli);
+int cmd_unwrap(int argc, char **argv, const sl_cli *cli);
 
 #endif

@@ -17,6 +17,7 @@ typedef struct command {
 static const command commands[] = {
     {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
     {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"unwrap", cmd_unwrap, "chrome-ball photo to lat-long (finds the ball, exact perspective)"},
 
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
