@@ -16,7 +16,7 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-#define MAX_CANDIDATES 32
+#define MAX_CANDIDATES 64
 /* Fraction of in-frame rays with an edge on the circle. Measured: synthetic
  * balls 0.65-0.8, the real iPhone probes 0.59-0.61, clutter coincidences
  * at most 0.37. */
@@ -218,11 +218,12 @@ static bool ray_edge(const det_image *im, double cx, double cy, double r, double
 }
 
 /* Edge points around (cx, cy, r), then a robust fit; f gets the result. */
-static bool refine(const det_image *im, double cx, double cy, double r, double win, fit *f)
+static bool refine(const det_image *im, double cx, double cy, double r, double win, int max_rays,
+                   fit *f)
 {
     memset(f, 0, sizeof *f);
     int n = (int)lround(2.0 * M_PI * r / 1.5);
-    n = n < 48 ? 48 : (n > 1024 ? 1024 : n);
+    n = n < 48 ? 48 : (n > max_rays ? max_rays : n);
     edge_pt *pts = malloc((size_t)n * sizeof *pts);
     bool *use = malloc((size_t)n * sizeof *use);
     double *res = malloc((size_t)n * sizeof *res);
@@ -414,8 +415,9 @@ static sl_result build_images(const sl_image *photo, det_image *im, unsigned cha
 static void consider(const det_image *im, double cx, double cy, double r, fit *found, int *nf)
 {
     fit f;
-    if (!refine(im, cx, cy, r, fmax(3.0, 0.05 * r), &f) || !refine(im, f.cx, f.cy, f.r, 3.0, &f) ||
-        f.support < MIN_SUPPORT)
+    /* A quick look with few rays first; most candidates end there. */
+    if (!refine(im, cx, cy, r, fmax(3.0, 0.05 * r), 128, &f) || f.support < 0.4 * MIN_SUPPORT ||
+        !refine(im, f.cx, f.cy, f.r, 3.0, 1024, &f) || f.support < MIN_SUPPORT)
         return;
     for (int j = 0; j < *nf; j++) {
         double d = hypot(f.cx - found[j].cx, f.cy - found[j].cy);
@@ -446,7 +448,8 @@ sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle
     int big = photo->width > photo->height ? photo->width : photo->height;
     double min_r = small / 10.0 > 6.0 ? small / 10.0 : 6.0;
     float cand[3 * MAX_CANDIDATES];
-    int nc = ball_hough_cxx(gray, photo->width, photo->height, min_r, 0.6 * big, min_r, cand,
+    /* Centres only 4 px apart: a clutter peak must not hide the ball's. */
+    int nc = ball_hough_cxx(gray, photo->width, photo->height, min_r, 0.6 * big, 4.0, cand,
                             MAX_CANDIDATES);
     if (nc < 0) {
         r = sl_error_set(err, SL_ERR_INTERNAL, "%s: OpenCV circle detection failed", name);

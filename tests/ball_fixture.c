@@ -172,9 +172,17 @@ sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *
     sl_result r = sl_image_alloc(photo, f->width, f->height, 3, err);
     if (r)
         return r;
-    int ss = f->ss > 0 ? f->ss : 1;
+    sl_ball_circle circles[2];
+    for (int b = 0; b < f->ball_count; b++)
+        ball_fixture_circle(f, b, &circles[b]);
     for (int y = 0; y < f->height; y++)
         for (int x = 0; x < f->width; x++) {
+            /* Only pixels near a ball need supersampling (it is what is measured). */
+            int ss = 1;
+            for (int b = 0; b < f->ball_count; b++)
+                if (hypot(x + 0.5 - circles[b].cx, y + 0.5 - circles[b].cy) <
+                    1.1 * circles[b].r + 3.0)
+                    ss = f->ss > 0 ? f->ss : 1;
             double acc[3] = {0, 0, 0};
             for (int j = 0; j < ss; j++)
                 for (int i = 0; i < ss; i++) {

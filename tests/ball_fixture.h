@@ -31,7 +31,7 @@ typedef struct ball_fixture {
     ball_fixture_ball balls[2];
     sl_reflectance reflectance;
     const sl_image *env; /* lat-long to reflect; NULL for the procedural one */
-    int ss;              /* sub-samples per pixel axis */
+    int ss;              /* sub-samples per pixel axis, near the balls (1 elsewhere) */
     bool clutter;        /* textured background instead of a flat 0.05 */
 } ball_fixture;
 

@@ -133,12 +133,6 @@ static void report(const char *what, const errors *e, const sl_unwrap_info *info
            e->irr[4], e->irr[5], e->source_deg[0], e->source_deg[1], e->source_deg[2]);
 }
 
-static bool sanitized(void)
-{
-    const char *s = getenv("SETLIGHT_SANITIZED");
-    return s && *s && strcmp(s, "0") != 0;
-}
-
 static bool run(const ball_fixture *f, sl_ball_camera model, errors *e, sl_unwrap_info *info)
 {
     sl_image photo = {0}, out = {0}, truth = {0};
@@ -178,7 +172,7 @@ static void perspective_scene(ball_fixture *f)
     f->azimuth_deg = 20;
     f->elevation_deg = 5;
     f->roll_deg = 3;
-    f->ss = sanitized() ? 3 : 4;
+    f->ss = 4;
     sl_reflectance_chrome(&f->reflectance);
 }
 
@@ -241,7 +235,7 @@ static void test_ortho_vs_perspective(void)
     f.balls[0].distance = 2.0;
     f.balls[0].px = 120;
     f.balls[0].py = 100;
-    f.ss = sanitized() ? 3 : 4;
+    f.ss = 4;
     errors ep, eo;
     sl_unwrap_info ip, io;
     if (!run(&f, SL_BALL_PERSPECTIVE, &ep, &ip) || !run(&f, SL_BALL_ORTHOGRAPHIC, &eo, &io))
