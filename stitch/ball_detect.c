@@ -16,7 +16,7 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-#define MAX_CANDIDATES 64
+#define MAX_CANDIDATES 128
 /* Fraction of in-frame rays with an edge on the circle. Measured: synthetic
  * balls 0.65-0.8, the real iPhone probes 0.59-0.61, clutter coincidences
  * at most 0.37. */
@@ -27,6 +27,7 @@
 #define SUPPORT_TOLERANCE 1.0
 #define SUPPORT_PER_RADIUS 120.0
 #define EDGE_HALF 1.5 /* px each side of an edge for its centroid */
+#define SECOND_BALL_RATIO 0.8
 #define INLIER_MIN 0.5 /* robust-fit inlier band (px), from 3 sigma clamped to these */
 #define INLIER_MAX 2.0
 
@@ -409,6 +410,12 @@ static sl_result build_images(const sl_image *photo, det_image *im, unsigned cha
     return SL_OK;
 }
 
+static int cmp_support(const void *a, const void *b)
+{
+    double x = ((const fit *)a)->support, y = ((const fit *)b)->support;
+    return x > y ? -1 : x < y;
+}
+
 /* Fits one candidate; a ball is added to found[], merged with the same ball
  * found before or with a round reflection inside it (the better supported
  * outline stays). */
@@ -475,6 +482,11 @@ sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle
         for (int k = 0; k < nrad; k++)
             consider(&im, cx, cy, radii[k], found, &nf);
     }
+    /* Best supported first; a second outline counts as a ball only when it is
+     * nearly as well supported (small circles meet chance edges in clutter). */
+    qsort(found, (size_t)nf, sizeof *found, cmp_support);
+    while (nf > 1 && found[nf - 1].support < SECOND_BALL_RATIO * found[0].support)
+        nf--;
     if (nf == 0) {
         r = sl_error_set(err, SL_ERR_INPUT,
                          "%s: no chrome ball found (give its outline with --circle cx,cy,r)",
