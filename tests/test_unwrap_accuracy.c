@@ -100,8 +100,11 @@ static void measure(const sl_image *out, const sl_image *truth, const sl_ball_vi
         e->irr[i] = irr_o[i] / irr_t[i] - 1.0;
         e->irr_worst = fmax(e->irr_worst, fabs(e->irr[i]));
     }
-    if (!sources)
+    if (!sources) {
+        for (int i = 0; i < BALL_FIXTURE_SOURCES; i++)
+            e->source_deg[i] = NAN; /* only the procedural scene has known sources */
         return;
+    }
     /* Light-weighted centroid of each source's neighbourhood. */
     for (int s = 0; s < BALL_FIXTURE_SOURCES; s++) {
         double sd[3], rad, c[3] = {0, 0, 0};
@@ -118,6 +121,7 @@ static void measure(const sl_image *out, const sl_image *truth, const sl_ball_vi
                     c[k] += wt * d[k];
             }
         double cn = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        /* Nothing bright within 4 radii: lost, reported as 180 degrees. */
         double dot = cn > 0 ? (c[0] * sd[0] + c[1] * sd[1] + c[2] * sd[2]) / cn : -1.0;
         e->source_deg[s] = acos(fmax(-1.0, fmin(1.0, dot))) * 180.0 / M_PI;
     }
