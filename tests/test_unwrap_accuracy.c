@@ -137,7 +137,16 @@ static void report(const char *what, const errors *e, const sl_unwrap_info *info
            e->irr[4], e->irr[5], e->source_deg[0], e->source_deg[1], e->source_deg[2]);
 }
 
-static bool run(const ball_fixture *f, sl_ball_camera model, errors *e, sl_unwrap_info *info)
+/* Truth samples per texel axis: about 1.25 degrees apart or finer, so the
+ * 3-degree sources are integrated well at any output size. */
+static int truth_sub(int width)
+{
+    int sub = (int)ceil(6.0 * 276.0 / width);
+    return sub < 6 ? 6 : sub;
+}
+
+static bool run_width(const ball_fixture *f, sl_ball_camera model, int width, errors *e,
+                      sl_unwrap_info *info)
 {
     sl_image photo = {0}, out = {0}, truth = {0};
     sl_error err;
@@ -148,11 +157,12 @@ static bool run(const ball_fixture *f, sl_ball_camera model, errors *e, sl_unwra
                                         .roll_deg = f->roll_deg}};
     ball_fixture_circle(f, 0, &o.circle);
     o.reflectance = f->reflectance;
+    o.width = width;
     sl_ball_view v;
     bool ok = false;
     if (sl_ball_view_init(&v, f->width, f->height, &o.circle, &o.geometry, &err) ||
         ball_fixture_render(f, &photo, &err) || sl_unwrap(&photo, &o, &out, info, &err) ||
-        ball_fixture_truth(f, out.width, 6, &truth, &err)) {
+        ball_fixture_truth(f, out.width, truth_sub(out.width), &truth, &err)) {
         CHECK_MSG(false, "%s", err.message);
         goto done;
     }
@@ -163,6 +173,11 @@ done:
     sl_image_free(&out);
     sl_image_free(&truth);
     return ok;
+}
+
+static bool run(const ball_fixture *f, sl_ball_camera model, errors *e, sl_unwrap_info *info)
+{
+    return run_width(f, model, 0, e, info);
 }
 
 static void perspective_scene(ball_fixture *f)
@@ -259,10 +274,29 @@ static void test_ortho_vs_perspective(void)
     CHECK(fmax(eo.source_deg[1], eo.source_deg[2]) > 3.0);
 }
 
+/* A lat-long far coarser than the photo: every texel averages many photo
+ * pixels, so a 3-degree source keeps its energy and place instead of being
+ * hit or missed by a point sample. */
+static void test_coarse_output(void)
+{
+    ball_fixture f;
+    perspective_scene(&f);
+    errors e;
+    sl_unwrap_info info;
+    if (!run_width(&f, SL_BALL_PERSPECTIVE, 48, &e, &info))
+        return;
+    report("perspective chrome ball into a 48x24 lat-long", &e, &info);
+    CHECK(fabs(e.seen_ratio - 1.0) <= 0.01);
+    CHECK(e.front <= 0.02);
+    for (int s = 0; s < BALL_FIXTURE_SOURCES; s++)
+        CHECK_MSG(e.source_deg[s] <= 2.0, "source %d off by %.3f deg", s, e.source_deg[s]);
+}
+
 int main(void)
 {
     RUN(test_perspective_accuracy);
     RUN(test_real_hdri);
     RUN(test_ortho_vs_perspective);
+    RUN(test_coarse_output);
     return sl_test_finish();
 }
