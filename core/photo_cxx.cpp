@@ -193,8 +193,14 @@ bool ends_with(const std::string &s, const char *suffix)
 
 void set_exif(ImageSpec &spec, const sl_meta *meta)
 {
-    if (meta->exposure_time > 0)
-        spec.attribute("ExposureTime", (float)meta->exposure_time);
+    if (meta->exposure_time > 0) {
+        /* OIIO 2.4's float_to_rational writes inf to JPEG EXIF when 1/t is
+         * a whole number in float (1/2, 1/16 s); one ulp off avoids it. */
+        float t = (float)meta->exposure_time;
+        if (t < 1.0f && 1.0f / t == std::floor(1.0f / t))
+            t = std::nextafter(t, 0.0f);
+        spec.attribute("ExposureTime", t);
+    }
     if (meta->f_number > 0)
         spec.attribute("FNumber", (float)meta->f_number);
     if (meta->iso > 0) {

@@ -6,6 +6,8 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+#include <strings.h>
 
 int cli_fail(const sl_cli *cli, const sl_error *err)
 {
@@ -50,4 +52,16 @@ bool cli_parse_double(const char *s, double *out)
         return false;
     *out = v;
     return true;
+}
+
+void cli_warn_format_mismatch(const char *path, const sl_meta *meta)
+{
+    const char *dot = strrchr(path, '.');
+    if (!dot || !meta->format[0])
+        return;
+    bool named_exr = strcasecmp(dot, ".exr") == 0;
+    bool is_exr = strcmp(meta->format, "openexr") == 0;
+    if (named_exr != is_exr)
+        sl_log(SL_LOG_WARN, "%s: the file is %s, not what its name says; read as %s", path,
+               meta->format, meta->format);
 }

@@ -29,9 +29,21 @@ void cli_getopt_reset(void);
 bool cli_parse_int(const char *s, int *out);
 bool cli_parse_double(const char *s, double *out);
 
+/* Warns (one line naming the file) when a file's content is not the format
+ * its name says, e.g. a PNG named .exr: it is read for what it is. */
+void cli_warn_format_mismatch(const char *path, const sl_meta *meta);
+
 /* Command entry points. */
 int cmd_info(int argc, char **argv, const sl_cli *cli);
 int cmd_convert(int argc, char **argv, const sl_cli *cli);
+int cmd_furnace(int argc, char **argv, const sl_cli *cli);
+int cmd_render(int argc, char **argv, const sl_cli *cli);
+int cmd_converge(int argc, char **argv, const sl_cli *cli);
+int cmd_simulate(int argc, char **argv, const sl_cli *cli);
+int cmd_demo(int argc, char **argv, const sl_cli *cli);
+int cmd_capture(int argc, char **argv, const sl_cli *cli);
+int cmd_ingest(int argc, char **argv, const sl_cli *cli);
+int cmd_cameras(int argc, char **argv, const sl_cli *cli);
 int cmd_unwrap(int argc, char **argv, const sl_cli *cli);
 
 #endif

@@ -126,6 +126,7 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
     sl_result r = sl_image_read(in_path, &src, &meta, &err);
     if (r)
         return cli_fail(cli, &err);
+    cli_warn_format_mismatch(in_path, &meta);
 
     if (from < 0)
         from = meta.envmap == SL_ENVMAP_CUBE ? SL_PROJ_CUBEMAP : SL_PROJ_LATLONG;

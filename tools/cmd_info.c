@@ -171,6 +171,7 @@ int cmd_info(int argc, char **argv, const sl_cli *cli)
             }
             continue;
         }
+        cli_warn_format_mismatch(argv[i], &meta);
         sl_image_stats st;
         sl_image_stats_compute(&img, &st);
         if (cli->json)

@@ -16,10 +16,437 @@ extern "C" {
 /* ================================================================== */
 /* Virtual set: scenes and the simulated camera                        */
 /* ================================================================== */
+/*
+ * docs/virtual-set.md is the long form. Units: radiance is luminance-scaled
+ * scene-linear Rec.709 (D65), 1.0 = 1 cd/m^2 of luminance. Directions use
+ * the lat-long convention of core.h: azimuth 0 is +Z (the centre column),
+ * azimuth 90 is +X (a quarter width in), elevation 90 is +Y.
+ */
+
+#define SL_VSET_MAX_LIGHTS 32
+#define SL_VSET_SMALL_WIDTH 1024
+#define SL_VSET_FULL_WIDTH 4096
+
+typedef enum {
+    SL_VSET_BG_SKY = 0, /* Preetham daylight sky over a textured ground */
+    SL_VSET_BG_ROOM,    /* a box room with textured walls, floor and ceiling */
+    SL_VSET_BG_DARK     /* dark surroundings: L = dark * (1 + 0.5 y) */
+} sl_vset_background;
+
+typedef enum {
+    SL_VSET_SHAPE_DISK = 0, /* spherical cap; width_deg is its angular diameter */
+    SL_VSET_SHAPE_RECT      /* a flat rectangle facing the camera (gnomonic) */
+} sl_vset_shape;
+
+typedef enum {
+    SL_VSET_EMIT_UNIFORM = 0, /* constant radiance: colour * luminance */
+    SL_VSET_EMIT_SUN,         /* disk whose radiance comes from the sky model */
+    SL_VSET_EMIT_WINDOW       /* shows the daylight exterior, times transmission */
+} sl_vset_emit;
+
+typedef struct sl_vset_light {
+    char name[64];
+    sl_vset_shape shape;
+    sl_vset_emit emit;
+    double azimuth_deg, elevation_deg; /* centre */
+    double width_deg, height_deg;      /* rect: full angular extents; disk: diameter */
+    double roll_deg;                   /* rect: rotation about its centre direction */
+    double kelvin;                     /* > 0: colour of a black body; else rgb */
+    double rgb[3];                     /* colour, rescaled to luminance 1 */
+    double luminance;                  /* cd/m^2 (uniform); transmission (window) */
+    /* Filled by sl_vset_scene_make: */
+    double dir[3];       /* unit direction of the centre */
+    double solid_angle;  /* exact, steradians */
+    double radiance[3];  /* mean radiance over the light */
+    double integral[3];  /* integral of L over the light's solid angle */
+} sl_vset_light;
+
+typedef struct sl_vset_desc {
+    char name[64];
+    sl_vset_background background;
+    /* Daylight (sky background and what windows look out on). The sun
+     * position comes from the light with emit SL_VSET_EMIT_SUN when there
+     * is one, else from these two. */
+    double sun_azimuth_deg, sun_elevation_deg;
+    double turbidity;     /* Preetham, 2..10 */
+    double ground_albedo; /* mean ground albedo, 0..1 */
+    double room_illuminance; /* lux falling on room walls */
+    double dark_luminance;   /* dark background level, cd/m^2 */
+    int light_count;
+    sl_vset_light lights[SL_VSET_MAX_LIGHTS];
+} sl_vset_desc;
+
+typedef struct sl_vset_scene {
+    sl_vset_desc desc;  /* with the lights' computed fields filled */
+    sl_image latlong;   /* RGB float, width x width/2 */
+    double total[3];    /* integral of L over the sphere, from the texels */
+} sl_vset_scene;
+
+/* Names of the built-in scenes, NULL-terminated: "exterior", "stage", "night". */
+const char *const *sl_vset_preset_names(void);
+/* SL_ERR_USAGE naming the scene when unknown. */
+sl_result sl_vset_preset(const char *name, sl_vset_desc *desc, sl_error *err);
+/* Reads a scene JSON file (format in docs/virtual-set.md). SL_ERR_NOT_FOUND
+ * when missing, SL_ERR_INPUT naming the file and the field when malformed. */
+sl_result sl_vset_desc_read_json(const char *path, sl_vset_desc *desc, sl_error *err);
+/* Checks every value of a description; SL_ERR_INPUT naming the field. */
+sl_result sl_vset_desc_validate(const sl_vset_desc *desc, sl_error *err);
+
+/* Builds the ground-truth lat-long of `width` (even, >= 16) and fills the
+ * lights' directions, solid angles, radiances and integrals. Light edges
+ * are antialiased by exact-area supersampling of the texels they touch. */
+sl_result sl_vset_scene_make(const sl_vset_desc *desc, int width, sl_vset_scene *scene,
+                             sl_error *err);
+void sl_vset_scene_free(sl_vset_scene *scene);
+/* One light alone on black, as it appears in the scene's lat-long of
+ * `width`: for checking integrals and as a ground-truth mask. */
+sl_result sl_vset_light_image(const sl_vset_desc *desc, int index, int width, sl_image *out,
+                              sl_error *err);
+/* The lights as JSON (truth/lights.json); caller frees with free(). */
+char *sl_vset_lights_json(const sl_vset_scene *scene);
+
+/* Linear Rec.709 colour of a black body, scaled to luminance 1
+ * (1667..25000 K, Kim et al. Planckian-locus fit; out-of-gamut parts clipped). */
+void sl_vset_kelvin_rgb(double kelvin, double rgb[3]);
+/* Sun radiance (linear Rec.709, cd/m^2-scaled) seen at the ground for a sun
+ * elevation and turbidity: extraterrestrial disk dimmed by Rayleigh and
+ * aerosol extinction along the Kasten-Young air mass. */
+void sl_vset_sun_radiance(double elevation_deg, double turbidity, double rgb[3]);
+/* Preetham sky radiance for a view direction, without the sun disk. */
+void sl_vset_sky_radiance(const double sun_dir[3], double turbidity, const double dir[3],
+                          double rgb[3]);
+
+/* ---- camera response ---------------------------------------------- */
+
+#define SL_VSET_CRF_SAMPLES 1024
+
+/* A monotonic response: out = curve(in), in and out in [0, 1], sampled at
+ * in = i / (SL_VSET_CRF_SAMPLES - 1) and linearly interpolated. */
+typedef struct sl_vset_response {
+    char name[128];
+    double curve[SL_VSET_CRF_SAMPLES];
+} sl_vset_response;
+
+/* "linear", "srgb", "filmic", "canon"; NULL-terminated. */
+const char *const *sl_vset_response_names(void);
+sl_result sl_vset_response_preset(const char *name, sl_vset_response *resp, sl_error *err);
+/* A curve file: the DoRF database format (name, type, "I =", samples,
+ * "B =", samples; `curve_name` picks one, NULL the first) or plain text
+ * with "I B" per line. The curve is resampled and made monotonic. */
+sl_result sl_vset_response_load(const char *path, const char *curve_name,
+                                sl_vset_response *resp, sl_error *err);
+double sl_vset_response_apply(const sl_vset_response *resp, double x);
+/* Inverse: the smallest in with curve(in) >= y, interpolated. */
+double sl_vset_response_invert(const sl_vset_response *resp, double y);
+/* d curve / d in at x (from the table). */
+double sl_vset_response_slope(const sl_vset_response *resp, double x);
+
+/* ---- camera body ---------------------------------------------------- */
+
+typedef struct sl_vset_exposure {
+    double time_s;
+    double f_number;
+    double iso;
+} sl_vset_exposure;
+
+typedef struct sl_vset_camera {
+    char make[64];
+    char model[64];
+    /* Sensor: relative exposure X = L * t * (ISO/100) * k / N^2, X = 1 at
+     * raw saturation. k follows ISO 12232 saturation speed, k = 100 q / 78,
+     * q = 0.65 (lens transmission and cos^4 at the centre). */
+    double k;
+    double full_well_e;     /* electrons at raw saturation, base ISO 100 */
+    double read_noise_pre_e;  /* before the ISO gain, electrons */
+    double read_noise_post_e; /* after the ISO gain, electrons at ISO 100 */
+    int raw_bits;             /* 12 or 14 */
+    /* Colour: sensor RGB = cam_from_rec709 * L (green row sums to 1);
+     * output linear = ccm * min(diag(wb) * sensor RGB, 1). */
+    double cam_from_rec709[3][3];
+    double wb[3];
+    double ccm[3][3];
+    sl_vset_response response;
+} sl_vset_camera;
+
+/* A full-frame body modelled on the Canon EOS 5D Mark II (Adobe DNG
+ * ColorMatrix2), white balance `wb_kelvin` (e.g. 5500 daylight, 3200
+ * tungsten), response "canon". */
+void sl_vset_camera_default(sl_vset_camera *cam, double wb_kelvin);
+/* t * (ISO/100) * k / N^2 */
+double sl_vset_exposure_scale(const sl_vset_camera *cam, const sl_vset_exposure *e);
+/* Standard deviation of the raw value X (X = 1 at saturation) at mean X,
+ * at this ISO: Poisson shot noise plus Gaussian read noise. */
+double sl_vset_sensor_noise_std(const sl_vset_camera *cam, double iso, double x);
+/* The 3x3 from scene radiance (Rec.709) to output linear RGB:
+ * ccm * diag(wb) * cam_from_rec709. */
+void sl_vset_camera_output_matrix(const sl_vset_camera *cam, double m[3][3]);
+
+typedef struct sl_vset_shot {
+    sl_image sensor; /* raw X in camera RGB, black subtracted (read noise may go a little
+                        below 0), clipped at 1, quantised to raw_bits */
+    sl_image linear; /* white-balanced, colour-corrected, clipped to [0,1] */
+    sl_image encoded; /* response applied to linear, not yet quantised */
+} sl_vset_shot;
+
+/* Photographs `radiance` (Rec.709 at the sensor, vignetting included):
+ * exposure, Poisson-Gaussian noise from `seed` (each pixel's noise depends
+ * only on seed and position), raw clipping and quantisation, white balance,
+ * colour matrix and response. */
+sl_result sl_vset_camera_shoot(const sl_vset_camera *cam, const sl_vset_exposure *e,
+                               const sl_image *radiance, uint64_t seed, sl_vset_shot *shot,
+                               sl_error *err);
+void sl_vset_shot_free(sl_vset_shot *shot);
+/* Rounds every sample to the nearest of 2^bits - 1 levels in [0, 1]. */
+void sl_vset_quantize(sl_image *img, int bits);
+
+/* ---- lenses --------------------------------------------------------- */
+
+typedef enum {
+    SL_VSET_LENS_RECTILINEAR = 0, /* r = f tan(theta) */
+    SL_VSET_LENS_EQUISOLID        /* fisheye, r = 2 f sin(theta / 2), theta <= 90 deg */
+} sl_vset_lens_type;
+
+typedef struct sl_vset_lens {
+    char name[128];
+    sl_vset_lens_type type;
+    double focal_mm;
+    double sensor_width_mm; /* the image's width; pixels are square */
+    /* Optical vignetting: gain 1 + a rho^2 + b rho^4, rho = r / half
+     * diagonal; rectilinear lenses also get natural cos^4(theta). */
+    double vignette_a, vignette_b;
+} sl_vset_lens;
+
+/* Where the camera points: yaw = azimuth of the optical axis, pitch =
+ * elevation, roll about the axis (degrees). Image right at yaw 0 is -X. */
+typedef struct sl_vset_view {
+    double yaw_deg, pitch_deg, roll_deg;
+} sl_vset_view;
+
+/* 8mm equisolid fisheye on a 36 mm wide sensor (a circular 180 deg image). */
+void sl_vset_lens_fisheye8(sl_vset_lens *lens);
+/* Rectilinear lens of focal_mm on a 36 mm wide sensor. */
+void sl_vset_lens_rectilinear(sl_vset_lens *lens, double focal_mm);
+
+/* Direction seen at image position (x, y) in pixels (0,0 = top-left
+ * corner of the top-left pixel) of a width x height image; false outside
+ * the image circle. */
+bool sl_vset_lens_to_dir(const sl_vset_lens *lens, const sl_vset_view *view, int width,
+                         int height, double x, double y, double dir[3]);
+/* Inverse; false when the direction is outside the lens's field. */
+bool sl_vset_lens_from_dir(const sl_vset_lens *lens, const sl_vset_view *view, int width,
+                           int height, const double dir[3], double *x, double *y);
+/* Vignetting gain at image position (x, y). */
+double sl_vset_lens_vignette(const sl_vset_lens *lens, int width, int height, double x,
+                             double y);
+/* Radiance image of an environment at infinity (lat-long) through the lens:
+ * ss x ss samples per pixel, bilinear lookups, vignetting applied, black
+ * outside the image circle. */
+sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
+                             const sl_image *latlong, int width, int height, int ss,
+                             sl_image *out, sl_error *err);
+
+/* ---- set captures ---------------------------------------------------- */
+
+/* What the simulated data wrangler shoots: an HDRI bracket (`brackets`
+ * exposures `stops` apart, centred by metering the scene) for each of
+ * `views` fisheye views on a nodal head (plus the zenith if asked), every
+ * frame written as a camera would (JPEG, 16-bit TIFF, linear 16-bit TIFF,
+ * EXIF), with the ground truth in truth/. docs/virtual-set.md has the layout. */
+typedef struct sl_vset_capture_opts {
+    sl_vset_desc scene;
+    int latlong_width;             /* ground truth resolution */
+    int photo_width, photo_height; /* frame size */
+    int supersample;               /* per side, for the lens image */
+    uint64_t seed;
+    int views;                     /* around the horizon, 360/views apart */
+    bool zenith;
+    int brackets;
+    double stops;                  /* whole stops, on the camera's full-stop shutter scale */
+    double f_number, iso, wb_kelvin;
+    sl_vset_response response;     /* the camera's curve (default "canon") */
+    int raw_bits;                  /* 12 or 14 (default) */
+    double jitter_deg;             /* std of per-frame yaw, pitch, roll wander (hand-held) */
+    bool ghost;                    /* a person walks across the first view between frames */
+    bool force;                    /* replace a capture already in the folder */
+} sl_vset_capture_opts;
+
+typedef enum {
+    SL_VSET_SIZE_TINY = 0, /* 256 lat-long, 192x128 frames: tests and quick looks */
+    SL_VSET_SIZE_SMALL,    /* 1024 lat-long, 720x480 frames */
+    SL_VSET_SIZE_FULL      /* 4096 lat-long, 3000x2000 frames */
+} sl_vset_size;
+
+/* "tiny", "small", "full"; -1 if unknown. */
+int sl_vset_size_from_name(const char *name);
+
+/* Defaults for a scene at a size: 3 views, 7 exposures 3 stops apart;
+ * aperture, ISO and white balance as a wrangler would set them for
+ * daylight, stage or night. */
+void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene,
+                              sl_vset_size size);
+
+typedef struct sl_vset_capture_summary {
+    int frames;
+    int views;
+    double center_time_s;  /* metered exposure at the bracket centre */
+    double min_time_s, max_time_s;
+    double f_number, iso;
+} sl_vset_capture_summary;
+
+/* Writes the capture folder `dir`. It is assembled in a temporary sibling
+ * and renamed into place, so a failure leaves nothing behind. An existing
+ * empty folder is filled; one holding a capture (capture.json) is replaced
+ * only with `force` (else SL_ERR_USAGE); any other non-empty folder is
+ * refused (SL_ERR_USAGE). */
+sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
+                                sl_vset_capture_summary *summary, sl_error *err);
 
 /* ================================================================== */
 /* Cameras, bracket plans, journal and sessions                        */
 /* ================================================================== */
+
+/* --- Shutter speeds and bracket plans (docs/capture.md) --- */
+
+/* "1/30", "0.5", "2", "2s", "0.0333s", "1\"", "1 1/3" -> seconds; 0 when not a
+ * shutter speed. */
+double sl_shutter_parse(const char *text);
+/* 1/30 -> "1/30", 0.5 -> "1/2", 2.5 -> "2.5". */
+void sl_shutter_format(double seconds, char *buf, size_t size);
+
+/* "NxS" (N exposures S stops apart, centred on `center` seconds; N odd or
+ * even) or an explicit comma list of shutter speeds ("1/1000,1/125,1/15").
+ * Result ascending, malloc'd. SL_ERR_USAGE for junk, N < 1 or > 64, S <= 0. */
+sl_result sl_bracket_plan_parse(const char *spec, double center, double **times, int *count,
+                                sl_error *err);
+/* Snaps every planned time to the nearest offered speed (in stops). Writes
+ * the snapped times into `times` and how many stops each moved into
+ * `moved_stops` (may be NULL). SL_ERR_USAGE naming the speed when it is more
+ * than `max_stops` from every offered speed (out of the camera's range) or
+ * when two planned times snap to the same speed. */
+sl_result sl_bracket_snap(double *times, int count, const double *offered, int offered_count,
+                          double max_stops, double *moved_stops, sl_error *err);
+
+/* --- Cameras --- */
+
+typedef struct sl_camera sl_camera;
+
+typedef struct sl_camera_settings {
+    double exposure_time; /* seconds; 0 = unknown / leave as is */
+    double f_number;
+    double iso;
+} sl_camera_settings;
+
+typedef struct sl_camera_entry {
+    char model[128];
+    char port[128];
+} sl_camera_entry;
+
+/* Cameras libgphoto2 detects (USB and serial; network cameras are never
+ * detected and are given as ptpip:HOST[:PORT]). *list is malloc'd. */
+sl_result sl_camera_list(sl_camera_entry **list, int *count, sl_error *err);
+
+/* Opens a camera: "auto" (the first detected), or a libgphoto2 port such as
+ * "usb:001,004" or "ptpip:HOST[:PORT[:EVENTPORT]]". SL_ERR_USAGE for a port
+ * libgphoto2 does not know, SL_ERR_CAMERA when nothing answers there. */
+sl_result sl_camera_open(const char *port, sl_camera **camera, sl_error *err);
+void sl_camera_close(sl_camera *camera);
+/* "setlight PTP-IP test camera", "ptpip:127.0.0.1:15740", "gphoto2". */
+const char *sl_camera_model(const sl_camera *camera);
+const char *sl_camera_port(const sl_camera *camera);
+const char *sl_camera_backend(const sl_camera *camera);
+
+/* Shutter speeds the camera offers, ascending seconds (malloc'd). */
+sl_result sl_camera_shutter_speeds(sl_camera *camera, double **speeds, int *count, sl_error *err);
+/* Sets every non-zero field to the nearest value the camera offers; a busy
+ * camera is retried with backoff. */
+sl_result sl_camera_set(sl_camera *camera, const sl_camera_settings *settings, sl_error *err);
+/* What the camera reports it is set to. */
+sl_result sl_camera_get(sl_camera *camera, sl_camera_settings *settings, sl_error *err);
+
+typedef struct sl_camera_file {
+    unsigned char *data;
+    size_t size;
+    char source[256]; /* name on the card, e.g. "/store_00010001/IMG_0001.JPG" */
+    int busy_retries; /* busy replies retried before the trigger was taken */
+} sl_camera_file;
+
+/* Triggers one exposure, waits for the camera's file-added event and
+ * downloads that file (never deleted from the card). Busy replies are
+ * retried with backoff; a lost connection is SL_ERR_CAMERA. */
+sl_result sl_camera_capture(sl_camera *camera, sl_camera_file *file, sl_error *err);
+void sl_camera_file_free(sl_camera_file *file);
+
+/* --- SHA-256 (FIPS 180-4) --- */
+
+void sl_sha256(const void *data, size_t size, unsigned char digest[32]);
+/* 64 lowercase hex digits and a terminator. */
+void sl_sha256_hex(const void *data, size_t size, char hex[65]);
+sl_result sl_sha256_file(const char *path, char hex[65], sl_error *err);
+
+/* --- Journal: DIR/journal.jsonl, one JSON object per line, append-only --- */
+
+/* Appends one event (a JSON object text without newline) and fsyncs the
+ * file before returning: nothing is triggered before the line is on disk. */
+sl_result sl_journal_append(const char *dir, const char *json_line, sl_error *err);
+
+/* --- Capture sessions --- */
+
+typedef struct sl_capture_report {
+    int view, index;        /* frame position in the plan */
+    int views, count;       /* the plan's size */
+    int attempt;            /* 1 for the first try */
+    bool accepted;
+    double planned;         /* seconds */
+    double reported;        /* exposure time in the file's EXIF (0 unknown) */
+    double configured;      /* exposure time the camera reported it was set to */
+    double measured_ratio;  /* pixel ratio to the previous accepted frame, 0 if none */
+    double expected_ratio;  /* what the EXIF exposures say that ratio should be */
+    int busy_retries;       /* busy replies to this frame's trigger */
+    char file[256];         /* name inside the session folder */
+    char source[256];
+    char reason[256];       /* why a frame was rejected */
+} sl_capture_report;
+
+/* Called between views (before view `next_view`, from 1): move the nodal
+ * head. Return SL_OK to go on; anything else stops the capture cleanly. */
+typedef sl_result (*sl_capture_step_fn)(void *ctx, int next_view, sl_error *err);
+typedef void (*sl_capture_frame_fn)(void *ctx, const sl_capture_report *report);
+
+typedef struct sl_capture_options {
+    const char *dir;            /* session folder (created if absent) */
+    const double *times;        /* planned exposure times, already snapped */
+    int count;
+    int views;                  /* >= 1 */
+    double f_number, iso;       /* 0 = leave the camera's setting */
+    int max_attempts;           /* per frame (default 3) */
+    double tolerance_stops;     /* EXIF and measured-ratio tolerance (default 1/3) */
+    sl_capture_step_fn step;    /* may be NULL */
+    sl_capture_frame_fn on_frame; /* may be NULL */
+    void *ctx;
+} sl_capture_options;
+
+/* A new session in an empty (or absent) folder: journals the plan, shoots
+ * views x count frames, verifies each (EXIF exposure and pixel ratio) and
+ * retries a frame the camera got wrong, writes session.json. Stops at the
+ * first unrecoverable fault with the journal consistent (SL_ERR_CAMERA,
+ * SL_ERR_IO for a full disk). */
+sl_result sl_capture_run(sl_camera *camera, const sl_capture_options *options, sl_error *err);
+/* Continues the session in `dir` with its journalled plan from the next
+ * missing frame. SL_ERR_INPUT when dir is not a session or its journal is
+ * corrupt (nothing is touched then). options->dir, times, count and views
+ * are ignored (taken from the journal). */
+sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *options,
+                            const char *dir, sl_error *err);
+/* Rewrites DIR/session.json (version 1) from the journal. */
+sl_result sl_session_write(const char *dir, sl_error *err);
+
+/* Groups the photographs in `src` into brackets and views by EXIF time,
+ * exposure and sequence, copies them into `dir` (never overwriting) and
+ * writes DIR/session.json. Non-image files are listed as problems; a folder
+ * with no photographs is SL_ERR_INPUT. gap_seconds: a pause longer than this
+ * between two frames starts a new view (0: 10 s). */
+sl_result sl_ingest(const char *src, const char *dir, double gap_seconds, int *frames,
+                    int *views, sl_error *err);
 
 #ifdef __cplusplus
 }

@@ -40,6 +40,7 @@ done
 # a PNG renamed to .exr is read for what it is
 expect 0 "$SETLIGHT" info --json "$T/png_named.exr"
 json_eval "$T/out" 'd["files"][0]["format"] == "png"'
+err_has "png_named.exr: the file is png"; err_one_line
 # several files: every one is examined, exit code of the first failure
 expect 3 "$SETLIGHT" info "$T/env.exr" "$T/missing.exr" "$T/nan.pfm"
 out_has "env.exr"; out_has "nan.pfm"; err_has "missing.exr"

@@ -1,0 +1,505 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The capture loop: views x bracket frames, each set, triggered, downloaded,
+ * written atomically, checksummed, verified (EXIF exposure and the pixel
+ * ratio to the previous frame) and journalled before the next trigger. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "camera_backend.h"
+#include "capture_private.h"
+
+typedef struct run_state {
+    sl_camera *camera;
+    const sl_capture_options *o;
+    const char *dir;
+    const double *times;
+    int count, views;
+    bool *done;       /* views x count: accepted frames */
+    bool *stepped;    /* views: head moved for this view */
+    sl_image prev;    /* the previous accepted frame of the view, linear */
+    double prev_time; /* its EXIF exposure time */
+    int prev_view;
+} run_state;
+
+/* Linear light for ratio measurement: 8/16-bit photos are sRGB-encoded
+ * (in-camera JPEG), camera raw and float files are linear. */
+static void linearize(sl_image *img, const sl_meta *meta)
+{
+    if (meta->is_float || !strcmp(meta->format, "raw"))
+        return;
+    size_t n = (size_t)img->width * (size_t)img->height * (size_t)img->channels;
+    for (size_t i = 0; i < n; i++)
+        img->data[i] = sl_srgb_to_linear(img->data[i]);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Median of cur/prev over pixels well exposed in both (0 when too few). */
+static double measure_ratio(const sl_image *prev, const sl_image *cur)
+{
+    if (!prev->data || prev->width != cur->width || prev->height != cur->height ||
+        prev->channels != cur->channels)
+        return 0;
+    size_t n = (size_t)cur->width * (size_t)cur->height, k = 0;
+    double *r = malloc(n * sizeof *r);
+    if (!r)
+        return 0;
+    int c = cur->channels > 1 ? 1 : 0;
+    for (size_t i = 0; i < n; i++) {
+        double a = prev->data[i * (size_t)cur->channels + (size_t)c];
+        double b = cur->data[i * (size_t)cur->channels + (size_t)c];
+        if (a > 0.02 && a < 0.85 && b > 0.02 && b < 0.85)
+            r[k++] = b / a;
+    }
+    double m = 0;
+    if (k >= 32) {
+        qsort(r, k, sizeof *r, cmp_double);
+        m = k % 2 ? r[k / 2] : 0.5 * (r[k / 2 - 1] + r[k / 2]);
+    }
+    free(r);
+    return m;
+}
+
+static const char *extension_of(const char *source)
+{
+    const char *dot = strrchr(source, '.');
+    if (!dot || strchr(dot, '/') || strlen(dot) > 8)
+        return ".jpg";
+    return dot;
+}
+
+/* The first free name for this frame: v00_f03.jpg, then v00_f03_r2.jpg ... */
+static sl_result frame_name(const run_state *s, int v, int i, const char *source, char *name,
+                            size_t size, char *path, size_t psize, sl_error *err)
+{
+    char ext[16];
+    snprintf(ext, sizeof ext, "%s", extension_of(source));
+    for (char *c = ext; *c; c++)
+        if (*c >= 'A' && *c <= 'Z')
+            *c = (char)(*c - 'A' + 'a');
+    for (int n = 1; n < 1000; n++) {
+        if (n == 1)
+            snprintf(name, size, "v%02d_f%02d%s", v, i, ext);
+        else
+            snprintf(name, size, "v%02d_f%02d_r%d%s", v, i, n, ext);
+        sl_result r = sl_capture_path(path, psize, s->dir, name, err);
+        if (r)
+            return r;
+        struct stat st;
+        if (stat(path, &st) != 0 && errno == ENOENT)
+            return SL_OK;
+    }
+    return sl_error_set(err, SL_ERR_IO, "%s: no free name for view %d frame %d", s->dir, v, i);
+}
+
+static sl_result journal_error(const run_state *s, int v, int i, int attempt, const sl_error *e,
+                               sl_error *err)
+{
+    json_t *ev = json_object();
+    json_object_set_new(ev, "event", json_string("error"));
+    json_object_set_new(ev, "view", json_integer(v));
+    json_object_set_new(ev, "index", json_integer(i));
+    json_object_set_new(ev, "attempt", json_integer(attempt));
+    json_object_set_new(ev, "code", json_string(sl_result_name(e->code)));
+    json_object_set_new(ev, "message", json_string(e->message));
+    sl_result r = sl_journal_event(s->dir, ev, err);
+    json_decref(ev);
+    return r;
+}
+
+/* One attempt at frame (v, i). *accepted tells whether it passed. */
+static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, sl_error *err)
+{
+    const sl_capture_options *o = s->o;
+    double planned = s->times[i];
+    sl_capture_report rep;
+    memset(&rep, 0, sizeof rep);
+    rep.view = v;
+    rep.index = i;
+    rep.views = s->views;
+    rep.count = s->count;
+    rep.attempt = attempt;
+    rep.planned = planned;
+    *accepted = false;
+
+    sl_camera_settings set = {planned, 0, 0};
+    sl_result r = sl_camera_set(s->camera, &set, err);
+    if (r)
+        return r;
+    sl_camera_settings now;
+    if (!sl_camera_get(s->camera, &now, NULL))
+        rep.configured = now.exposure_time;
+    sl_camera_file file;
+    if ((r = sl_camera_capture(s->camera, &file, err)))
+        return r;
+    snprintf(rep.source, sizeof rep.source, "%s", file.source);
+    rep.busy_retries = file.busy_retries;
+    char path[4096];
+    if ((r = frame_name(s, v, i, file.source, rep.file, sizeof rep.file, path, sizeof path, err)) ||
+        (r = sl_write_file_atomic(path, file.data, file.size, err))) {
+        sl_camera_file_free(&file);
+        return r;
+    }
+    char sha[65];
+    sl_sha256_hex(file.data, file.size, sha);
+    sl_camera_file_free(&file);
+
+    /* Closed loop: what the file says and what its pixels say. */
+    sl_image img = {0};
+    sl_meta meta;
+    sl_error rerr;
+    bool readable = sl_photo_read(path, &img, &meta, &rerr) == SL_OK;
+    rep.reported = readable && isfinite(meta.exposure_time) ? meta.exposure_time : 0;
+    double tol = o->tolerance_stops > 0 ? o->tolerance_stops : 1.0 / 3.0;
+    if (readable) {
+        linearize(&img, &meta);
+        if (s->prev.data && s->prev_view == v && s->prev_time > 0) {
+            rep.measured_ratio = measure_ratio(&s->prev, &img);
+            rep.expected_ratio = planned / s->prev_time;
+        }
+    }
+    if (!readable)
+        snprintf(rep.reason, sizeof rep.reason, "cannot read the file back: %.200s", rerr.message);
+    else if (rep.reported > 0 && fabs(log2(rep.reported / planned)) > tol)
+        snprintf(rep.reason, sizeof rep.reason,
+                 "the file says %.6g s, planned %.6g s, the camera's setting reads %.6g s "
+                 "(the camera ignored the setting)",
+                 rep.reported, planned, rep.configured);
+    else if (rep.measured_ratio > 0 &&
+             fabs(log2(rep.measured_ratio / rep.expected_ratio)) > (tol > 0.5 ? tol : 0.5))
+        snprintf(rep.reason, sizeof rep.reason,
+                 "pixels are %.3g x the previous frame, the exposures say %.3g x",
+                 rep.measured_ratio, rep.expected_ratio);
+    else
+        rep.accepted = true;
+
+    json_t *ev = json_object();
+    json_object_set_new(ev, "event", json_string("frame"));
+    json_object_set_new(ev, "view", json_integer(v));
+    json_object_set_new(ev, "bracket", json_integer(0));
+    json_object_set_new(ev, "index", json_integer(i));
+    json_object_set_new(ev, "attempt", json_integer(attempt));
+    json_object_set_new(ev, "accepted", json_boolean(rep.accepted));
+    json_object_set_new(ev, "file", json_string(rep.file));
+    json_object_set_new(ev, "source", json_string(rep.source));
+    json_object_set_new(ev, "planned", json_real(planned));
+    json_object_set_new(ev, "configured",
+                        rep.configured > 0 ? json_real(rep.configured) : json_null());
+    json_object_set_new(ev, "exposure_time",
+                        rep.reported > 0 ? json_real(rep.reported) : json_null());
+    json_object_set_new(ev, "f_number",
+                        readable && meta.f_number > 0 ? json_real(meta.f_number) : json_null());
+    json_object_set_new(ev, "iso", readable && meta.iso > 0 ? json_real(meta.iso) : json_null());
+    json_object_set_new(ev, "measured_ratio",
+                        rep.measured_ratio > 0 ? json_real(rep.measured_ratio) : json_null());
+    json_object_set_new(ev, "expected_ratio",
+                        rep.expected_ratio > 0 ? json_real(rep.expected_ratio) : json_null());
+    json_object_set_new(ev, "sha256", json_string(sha));
+    if (rep.busy_retries)
+        json_object_set_new(ev, "busy_retries", json_integer(rep.busy_retries));
+    if (!rep.accepted)
+        json_object_set_new(ev, "reason", json_string(rep.reason));
+    r = sl_journal_event(s->dir, ev, err);
+    json_decref(ev);
+    if (readable)
+        sl_meta_free(&meta);
+    if (!r && rep.accepted && readable) {
+        sl_image_free(&s->prev);
+        s->prev = img;
+        s->prev_time = rep.reported > 0 ? rep.reported : planned;
+        s->prev_view = v;
+        img.data = NULL;
+    }
+    sl_image_free(&img);
+    if (r)
+        return r;
+    *accepted = rep.accepted;
+    if (o->on_frame)
+        o->on_frame(o->ctx, &rep);
+    return SL_OK;
+}
+
+/* Loads an accepted frame from disk as the reference for the next ratio. */
+static void load_prev(run_state *s, int v, const char *file)
+{
+    char path[4096];
+    sl_image img = {0};
+    sl_meta meta;
+    if (sl_capture_path(path, sizeof path, s->dir, file, NULL) ||
+        sl_photo_read(path, &img, &meta, NULL))
+        return;
+    linearize(&img, &meta);
+    sl_image_free(&s->prev);
+    s->prev = img;
+    s->prev_time = isfinite(meta.exposure_time) ? meta.exposure_time : 0;
+    s->prev_view = v;
+    sl_meta_free(&meta);
+}
+
+static sl_result run(run_state *s, sl_error *err)
+{
+    const sl_capture_options *o = s->o;
+    int max_attempts = o->max_attempts > 0 ? o->max_attempts : 3;
+    sl_result r = SL_OK;
+    if (o->f_number > 0 || o->iso > 0) {
+        sl_camera_settings fixed = {0, o->f_number, o->iso};
+        if ((r = sl_camera_set(s->camera, &fixed, err)))
+            return r;
+    }
+    for (int v = 0; v < s->views && !r; v++) {
+        bool any = false, all = true;
+        for (int i = 0; i < s->count; i++) {
+            any |= s->done[v * s->count + i];
+            all &= s->done[v * s->count + i];
+        }
+        if (all)
+            continue;
+        if (v > 0 && !any && !s->stepped[v]) {
+            if (o->step && (r = o->step(o->ctx, v, err))) {
+                journal_error(s, v, 0, 0, err, NULL);
+                break;
+            }
+            json_t *ev = json_object();
+            json_object_set_new(ev, "event", json_string("step"));
+            json_object_set_new(ev, "view", json_integer(v));
+            r = sl_journal_event(s->dir, ev, err);
+            json_decref(ev);
+            if (r)
+                break;
+            s->stepped[v] = true;
+        }
+        for (int i = 0; i < s->count && !r; i++) {
+            if (s->done[v * s->count + i])
+                continue;
+            bool ok = false;
+            for (int a = 1; a <= max_attempts && !ok && !r; a++) {
+                r = shoot(s, v, i, a, &ok, err);
+                if (r) {
+                    /* the journal keeps the failure; if even that fails, the
+                     * first error is the one to report */
+                    journal_error(s, v, i, a, err, NULL);
+                }
+            }
+            if (!r && !ok) {
+                r = sl_error_set(err, SL_ERR_CAMERA,
+                                 "%s: view %d frame %d still wrong after %d attempts (see the "
+                                 "journal)",
+                                 sl_camera_port(s->camera), v, i, max_attempts);
+                journal_error(s, v, i, max_attempts, err, NULL);
+            }
+            if (!r)
+                s->done[v * s->count + i] = true;
+        }
+    }
+    if (!r) {
+        json_t *ev = json_object();
+        json_object_set_new(ev, "event", json_string("session_end"));
+        json_object_set_new(ev, "frames", json_integer(s->views * s->count));
+        r = sl_journal_event(s->dir, ev, err);
+        json_decref(ev);
+    }
+    /* session.json reflects whatever is on disk, also after a failure */
+    sl_error serr;
+    sl_result sr = sl_session_write(s->dir, &serr);
+    if (!r && sr) {
+        r = sr;
+        if (err)
+            *err = serr;
+    }
+    return r;
+}
+
+static sl_result state_alloc(run_state *s, sl_error *err)
+{
+    s->done = calloc((size_t)s->views * (size_t)s->count, sizeof *s->done);
+    s->stepped = calloc((size_t)s->views, sizeof *s->stepped);
+    if (!s->done || !s->stepped)
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", s->dir);
+    return SL_OK;
+}
+
+static void state_free(run_state *s)
+{
+    free(s->done);
+    free(s->stepped);
+    sl_image_free(&s->prev);
+}
+
+sl_result sl_capture_run(sl_camera *camera, const sl_capture_options *o, sl_error *err)
+{
+    sl_error local; /* the journal needs the message even when the caller does not */
+    if (!err)
+        err = &local;
+    if (!o->dir || !*o->dir)
+        return sl_error_set(err, SL_ERR_USAGE, "capture: no output folder");
+    if (o->views < 1 || o->views > 360)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: views must be 1 to 360, not %d", o->dir,
+                            o->views);
+    if (o->count < 1 || !o->times)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: empty bracket plan", o->dir);
+    struct stat st;
+    if (stat(o->dir, &st) == 0) {
+        char jp[4096];
+        if (!S_ISDIR(st.st_mode))
+            return sl_error_set(err, SL_ERR_USAGE, "%s: exists and is not a folder", o->dir);
+        if (!sl_capture_path(jp, sizeof jp, o->dir, SL_JOURNAL_NAME, NULL) && stat(jp, &st) == 0)
+            return sl_error_set(err, SL_ERR_USAGE,
+                                "%s: already holds a session (use --resume to continue it)",
+                                o->dir);
+    } else if (mkdir(o->dir, 0755) != 0)
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot create: %s", o->dir, strerror(errno));
+
+    json_t *ev = json_object(), *cam = json_object(), *plan = json_object(), *times = json_array();
+    json_object_set_new(ev, "event", json_string("session_start"));
+    json_object_set_new(ev, "version", json_integer(1));
+    json_object_set_new(cam, "model", json_string(sl_camera_model(camera)));
+    json_object_set_new(cam, "port", json_string(sl_camera_port(camera)));
+    json_object_set_new(cam, "backend", json_string(sl_camera_backend(camera)));
+    json_object_set_new(ev, "camera", cam);
+    for (int i = 0; i < o->count; i++)
+        json_array_append_new(times, json_real(o->times[i]));
+    json_object_set_new(plan, "times", times);
+    json_object_set_new(plan, "views", json_integer(o->views));
+    json_object_set_new(plan, "f_number", json_real(o->f_number));
+    json_object_set_new(plan, "iso", json_real(o->iso));
+    json_object_set_new(ev, "plan", plan);
+    sl_result r = sl_journal_event(o->dir, ev, err);
+    json_decref(ev);
+    if (r)
+        return r;
+    run_state s = {.camera = camera,
+                   .o = o,
+                   .dir = o->dir,
+                   .times = o->times,
+                   .count = o->count,
+                   .views = o->views,
+                   .prev_view = -1};
+    if (!(r = state_alloc(&s, err)))
+        r = run(&s, err);
+    state_free(&s);
+    return r;
+}
+
+sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, const char *dir,
+                            sl_error *err)
+{
+    json_t *events;
+    sl_result r = sl_journal_read(dir, &events, err);
+    if (r)
+        return r == SL_ERR_NOT_FOUND
+                   ? sl_error_set(err, SL_ERR_INPUT, "%s: not a capture session (no %s)", dir,
+                                  SL_JOURNAL_NAME)
+                   : r;
+    json_t *plan = json_object_get(json_array_get(events, 0), "plan");
+    json_t *jt = json_object_get(plan, "times");
+    int count = (int)json_array_size(jt);
+    int views = (int)json_integer_value(json_object_get(plan, "views"));
+    double *times = calloc((size_t)(count > 0 ? count : 1), sizeof *times);
+    run_state s = {.camera = camera,
+                   .dir = dir,
+                   .times = times,
+                   .count = count,
+                   .views = views,
+                   .prev_view = -1};
+    if (!times) {
+        json_decref(events);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", dir);
+    }
+    for (int i = 0; i < count; i++)
+        times[i] = json_number_value(json_array_get(jt, (size_t)i));
+    if (count < 1 || views < 1 || views > 360) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: the journal's plan is not valid", dir);
+        goto out;
+    }
+    if ((r = state_alloc(&s, err)))
+        goto out;
+    /* What is already done, and is it still intact? */
+    size_t k;
+    json_t *e;
+    int done = 0, last_view = -1, last_index = -1;
+    const char *last_file = NULL;
+    const char *last_error = NULL;
+    json_array_foreach(events, k, e)
+    {
+        const char *kind = json_string_value(json_object_get(e, "event"));
+        int v = (int)json_integer_value(json_object_get(e, "view"));
+        int i = (int)json_integer_value(json_object_get(e, "index"));
+        if (!strcmp(kind, "step") && v >= 0 && v < views)
+            s.stepped[v] = true;
+        if (!strcmp(kind, "error"))
+            last_error = json_string_value(json_object_get(e, "message"));
+        if (strcmp(kind, "frame") != 0 || !json_is_true(json_object_get(e, "accepted")))
+            continue;
+        const char *file = json_string_value(json_object_get(e, "file"));
+        const char *sha = json_string_value(json_object_get(e, "sha256"));
+        if (v < 0 || v >= views || i < 0 || i >= count || !file || !sha) {
+            r = sl_error_set(err, SL_ERR_INPUT, "%s: corrupt journal: bad frame event %zu", dir,
+                             k + 1);
+            goto out;
+        }
+        char path[4096], hex[65];
+        if ((r = sl_capture_path(path, sizeof path, dir, file, err)))
+            goto out;
+        if (sl_sha256_file(path, hex, NULL) || strcmp(hex, sha) != 0) {
+            r = sl_error_set(err, SL_ERR_INPUT, "%s: missing or changed since it was journalled",
+                             path);
+            goto out;
+        }
+        if (!s.done[v * count + i])
+            done++;
+        s.done[v * count + i] = true;
+        last_view = v;
+        last_index = i;
+        last_file = file;
+    }
+    /* The reference for the next ratio, when resuming inside a view. */
+    int next_v = -1, next_i = -1;
+    for (int q = 0; q < views * count && next_v < 0; q++)
+        if (!s.done[q]) {
+            next_v = q / count;
+            next_i = q % count;
+        }
+    if (next_v < 0) {
+        /* complete already: nothing to shoot, nothing to journal */
+        r = sl_session_write(dir, err);
+        goto out;
+    }
+    if (last_file && next_v == last_view && next_i > last_index)
+        load_prev(&s, last_view, last_file);
+    sl_capture_options opts = *o;
+    opts.dir = dir;
+    opts.times = times;
+    opts.count = count;
+    opts.views = views;
+    s.o = &opts;
+    if (opts.f_number <= 0)
+        opts.f_number = json_number_value(json_object_get(plan, "f_number"));
+    if (opts.iso <= 0)
+        opts.iso = json_number_value(json_object_get(plan, "iso"));
+    json_t *ev = json_object();
+    json_object_set_new(ev, "event", json_string("resume"));
+    json_object_set_new(ev, "frames_done", json_integer(done));
+    json_object_set_new(ev, "next_view", json_integer(next_v));
+    json_object_set_new(ev, "next_index", json_integer(next_i));
+    json_object_set_new(ev, "after_error", last_error ? json_string(last_error) : json_null());
+    json_object_set_new(ev, "camera", json_string(sl_camera_port(camera)));
+    r = sl_journal_event(dir, ev, err);
+    json_decref(ev);
+    if (!r)
+        r = run(&s, err);
+out:
+    state_free(&s);
+    free(times);
+    json_decref(events);
+    return r;
+}

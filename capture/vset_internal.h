@@ -1,0 +1,138 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Private helpers of the virtual set: small vector maths and counter-based
+ * random numbers whose value depends only on (seed, stream, index). */
+#ifndef SETLIGHT_VSET_INTERNAL_H
+#define SETLIGHT_VSET_INTERNAL_H
+
+#include <math.h>
+#include <stdint.h>
+
+#include "setlight/capture.h"
+
+#define VSET_PI 3.14159265358979323846
+#define VSET_DEG (VSET_PI / 180.0)
+
+static inline double v3_dot(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static inline void v3_cross(const double a[3], const double b[3], double out[3])
+{
+    double x = a[1] * b[2] - a[2] * b[1];
+    double y = a[2] * b[0] - a[0] * b[2];
+    double z = a[0] * b[1] - a[1] * b[0];
+    out[0] = x;
+    out[1] = y;
+    out[2] = z;
+}
+
+static inline void v3_normalize(double v[3])
+{
+    double n = sqrt(v3_dot(v, v));
+    if (n > 0) {
+        v[0] /= n;
+        v[1] /= n;
+        v[2] /= n;
+    }
+}
+
+/* Azimuth/elevation in degrees -> unit direction (core.h lat-long axes). */
+static inline void vset_azel_dir(double az_deg, double el_deg, double d[3])
+{
+    double az = az_deg * VSET_DEG, el = el_deg * VSET_DEG;
+    d[0] = sin(az) * cos(el);
+    d[1] = sin(el);
+    d[2] = cos(az) * cos(el);
+}
+
+static inline uint64_t vset_mix64(uint64_t z)
+{
+    z += 0x9e3779b97f4a7c15ull;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+/* A uniform double in (0, 1) for (seed, stream, index). */
+static inline double vset_uniform(uint64_t seed, uint64_t stream, uint64_t index)
+{
+    uint64_t h = vset_mix64(seed ^ vset_mix64(stream * 0x632be59bd9b4e019ull + index));
+    return ((double)(h >> 11) + 0.5) * (1.0 / 9007199254740992.0);
+}
+
+/* Smooth value noise in 2D and its fractal sum, in about [0, 1]. */
+double vset_value_noise(double x, double y, uint64_t salt);
+double vset_fbm(double x, double y, int octaves, uint64_t salt);
+
+/* The sun's angular diameter and disk solid angle. */
+#define VSET_SUN_DIAMETER_DEG 0.53
+
+/* Precomputed daylight: Preetham sky for a sun position and turbidity,
+ * the sun's radiance and the ground it lights. */
+typedef struct vset_daylight {
+    double sun_dir[3];
+    double turbidity;
+    double perez[3][5]; /* A..E for Y, x, y */
+    double zenith[3];   /* Y (cd/m^2), x, y at the zenith */
+    double norm[3];     /* Perez F(0, theta_sun) for Y, x, y */
+    double sun_rgb[3];  /* sun disk radiance */
+    double ground_irr[3]; /* sun + sky irradiance on the ground */
+    double albedo;
+} vset_daylight;
+
+void vset_daylight_init(vset_daylight *d, double sun_az_deg, double sun_el_deg,
+                        double turbidity, double ground_albedo);
+/* Sky (above the horizon) or textured lit ground (below), no sun disk. */
+void vset_daylight_radiance(const vset_daylight *d, const double dir[3], double rgb[3]);
+
+/* out = a * b for 3x3 matrices; out may alias either. */
+static inline void m3_mul(const double a[3][3], const double b[3][3], double out[3][3])
+{
+    double t[3][3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            t[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            out[i][j] = t[i][j];
+}
+
+static inline void m3_apply(const double m[3][3], const double v[3], double out[3])
+{
+    double t[3];
+    for (int i = 0; i < 3; i++)
+        t[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
+    out[0] = t[0];
+    out[1] = t[1];
+    out[2] = t[2];
+}
+
+/* Inverse by cofactors; false when singular. */
+static inline bool m3_invert(const double m[3][3], double out[3][3])
+{
+    double c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
+    double c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
+    double c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
+    double det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
+    if (fabs(det) < 1e-300)
+        return false;
+    double t[3][3] = {
+        {c00, m[0][2] * m[2][1] - m[0][1] * m[2][2], m[0][1] * m[1][2] - m[0][2] * m[1][1]},
+        {c01, m[0][0] * m[2][2] - m[0][2] * m[2][0], m[0][2] * m[1][0] - m[0][0] * m[1][2]},
+        {c02, m[0][1] * m[2][0] - m[0][0] * m[2][1], m[0][0] * m[1][1] - m[0][1] * m[1][0]}};
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            out[i][j] = t[i][j] / det;
+    return true;
+}
+
+/* A standard normal variate for (seed, stream, index) by Box-Muller. */
+static inline double vset_gauss(uint64_t seed, uint64_t stream, uint64_t index)
+{
+    double u1 = vset_uniform(seed, stream, 2 * index), u2 = vset_uniform(seed, stream, 2 * index + 1);
+    return sqrt(-2.0 * log(u1)) * cos(2.0 * VSET_PI * u2);
+}
+
+
+#endif

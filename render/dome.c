@@ -1,0 +1,201 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The dome light: a lat-long image, piecewise constant per texel, sampled in
+ * proportion to luminance x sin(theta) with a 2D distribution built in double
+ * precision (maps spanning 1e-6..1e9 keep their small texels). The (u,v) pdf
+ * becomes a solid-angle pdf through dω = 2 π² sin(theta) du dv. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "render_internal.h"
+
+/* Radiance and (u,v) pdf side by side, so an escaped ray costs one cache
+ * line. Both MIS techniques weight with this float pdf, so their weights
+ * still sum to one exactly; estimates divide by the double pdf. */
+struct sl_dome_sampler {
+    sl_distrib2d dist;
+    float (*texels)[4]; /* r, g, b, pdf over (u,v) */
+    int w, h;
+    bool valid; /* some texel has energy */
+};
+
+static const float *packed(const sl_dome_sampler *ds, double u, double v)
+{
+    int x = (int)(u * ds->w), y = (int)(v * ds->h);
+    x = x < 0 ? 0 : x >= ds->w ? ds->w - 1 : x;
+    y = y < 0 ? 0 : y >= ds->h ? ds->h - 1 : y;
+    return ds->texels[(size_t)y * (size_t)ds->w + (size_t)x];
+}
+
+static const float *texel(const sl_image *img, double u, double v)
+{
+    int x = (int)(u * img->width), y = (int)(v * img->height);
+    x = x < 0 ? 0 : x >= img->width ? img->width - 1 : x;
+    y = y < 0 ? 0 : y >= img->height ? img->height - 1 : y;
+    return sl_image_pixel(img, x, y);
+}
+
+void sl_dome_radiance(const sl_dome *dome, const double d[3], double L[3])
+{
+    if (!dome->present) {
+        L[0] = L[1] = L[2] = 0;
+        return;
+    }
+    double m[3], u, v;
+    m3_mul_transpose(dome->rot, d, m);
+    sl_dir_to_latlong(m, &u, &v);
+    const float *t = texel(&dome->image, u, v);
+    for (int c = 0; c < 3; c++)
+        L[c] = dome->intensity * t[c];
+}
+
+void sl_dome_background(const sl_dome *dome, const double d[3], double L[3])
+{
+    if (!dome->present) {
+        L[0] = L[1] = L[2] = 0;
+        return;
+    }
+    double m[3], u, v;
+    float px[3];
+    m3_mul_transpose(dome->rot, d, m);
+    sl_dir_to_latlong(m, &u, &v);
+    sl_latlong_lookup(&dome->image, u, v, px);
+    for (int c = 0; c < 3; c++)
+        L[c] = dome->intensity * px[c];
+}
+
+bool sl_dome_can_sample(const sl_dome *dome)
+{
+    return dome->present && dome->sampler && dome->sampler->valid && dome->intensity > 0;
+}
+
+bool sl_dome_sample(const sl_dome *dome, const double u[2], double wi[3], double L[3], double *pdf,
+                    double *mis_pdf)
+{
+    double uv[2], p;
+    sl_distrib2d_sample(&dome->sampler->dist, u[0], u[1], uv, &p);
+    double sin_theta = sin(SL_PI * uv[1]);
+    if (!(p > 0) || sin_theta < 1e-12) {
+        *pdf = 0;
+        return false;
+    }
+    double m[3];
+    sl_latlong_to_dir(uv[0], uv[1], m);
+    m3_mul(dome->rot, m, wi);
+    const float *t = packed(dome->sampler, uv[0], uv[1]);
+    for (int c = 0; c < 3; c++)
+        L[c] = dome->intensity * t[c];
+    *pdf = p / (2.0 * SL_PI * SL_PI * sin_theta);
+    if (mis_pdf)
+        *mis_pdf = t[3] / (2.0 * SL_PI * SL_PI * sin_theta);
+    return true;
+}
+
+void sl_dome_radiance_pdf(const sl_dome *dome, const double d[3], double L[3], double *pdf)
+{
+    double m[3], u, v;
+    m3_mul_transpose(dome->rot, d, m);
+    sl_dir_to_latlong(m, &u, &v);
+    const float *t = packed(dome->sampler, u, v);
+    for (int c = 0; c < 3; c++)
+        L[c] = dome->intensity * t[c];
+    double sin_theta = sqrt(m[0] * m[0] + m[2] * m[2]);
+    *pdf = sin_theta < 1e-12 ? 0 : t[3] / (2.0 * SL_PI * SL_PI * sin_theta);
+}
+
+double sl_dome_pdf(const sl_dome *dome, const double wi[3])
+{
+    double m[3], u, v;
+    m3_mul_transpose(dome->rot, wi, m);
+    double sin_theta = sqrt(m[0] * m[0] + m[2] * m[2]);
+    if (sin_theta < 1e-12)
+        return 0;
+    sl_dir_to_latlong(m, &u, &v);
+    return sl_distrib2d_pdf(&dome->sampler->dist, u, v) / (2.0 * SL_PI * SL_PI * sin_theta);
+}
+
+void sl_dome_free(sl_dome *dome)
+{
+    if (dome->sampler) {
+        sl_distrib2d_free(&dome->sampler->dist);
+        free(dome->sampler->texels);
+        free(dome->sampler);
+    }
+    sl_image_free(&dome->image);
+    memset(dome, 0, sizeof *dome);
+}
+
+sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotation_deg,
+                            double intensity, const char *source, sl_error *err)
+{
+    const char *name = source ? source : "dome";
+    sl_dome_free(&scene->dome);
+    if (!env || !env->data || env->width < 1 || env->height < 1 || env->channels < 1)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: empty environment image", name);
+    if (!sl_is_latlong_shape(env->width, env->height))
+        return sl_error_set(err, SL_ERR_INPUT, "%s: %dx%d is not a lat-long (width must be 2 x height)",
+                            name, env->width, env->height);
+    if (!isfinite(intensity) || intensity < 0 || !isfinite(rotation_deg))
+        return sl_error_set(err, SL_ERR_INPUT, "%s: dome intensity must be finite and >= 0, rotation finite",
+                            name);
+    sl_dome *dome = &scene->dome;
+    sl_result r = sl_image_alloc(&dome->image, env->width, env->height, 3, err);
+    if (r)
+        return r;
+    int w = env->width, h = env->height;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const float *s = sl_image_pixel(env, x, y);
+            float *d = sl_image_pixel(&dome->image, x, y);
+            for (int c = 0; c < 3; c++) {
+                float v = s[env->channels >= 3 ? c : 0];
+                if (!isfinite(v) || v < 0) {
+                    dome->bad_texels++;
+                    v = 0;
+                }
+                d[c] = v;
+            }
+        }
+    double *func = malloc((size_t)w * (size_t)h * sizeof *func);
+    dome->sampler = calloc(1, sizeof *dome->sampler);
+    if (!func || !dome->sampler) {
+        free(func);
+        sl_dome_free(dome);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for the dome distribution", name);
+    }
+    bool any = false;
+    for (int y = 0; y < h; y++) {
+        double st = sin(SL_PI * (y + 0.5) / h);
+        for (int x = 0; x < w; x++) {
+            const float *t = sl_image_pixel(&dome->image, x, y);
+            double c[3] = {t[0], t[1], t[2]};
+            /* The largest channel keeps the pdf positive wherever radiance is. */
+            double lum = fmax(luminance709(c), fmax(c[0], fmax(c[1], c[2])) * 1e-3);
+            func[(size_t)y * w + x] = lum * st;
+            any = any || lum > 0;
+        }
+    }
+    r = sl_distrib2d_init(&dome->sampler->dist, func, w, h, err);
+    free(func);
+    if (r) {
+        sl_dome_free(dome);
+        return r;
+    }
+    dome->sampler->valid = any;
+    dome->sampler->w = w, dome->sampler->h = h;
+    dome->sampler->texels = malloc((size_t)w * (size_t)h * sizeof *dome->sampler->texels);
+    if (!dome->sampler->texels) {
+        sl_dome_free(dome);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for the dome", name);
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const float *t = sl_image_pixel(&dome->image, x, y);
+            float *d = dome->sampler->texels[(size_t)y * w + x];
+            d[0] = t[0], d[1] = t[1], d[2] = t[2];
+            d[3] = (float)sl_distrib2d_pdf(&dome->sampler->dist, (x + 0.5) / w, (y + 0.5) / h);
+        }
+    sl_rotation_y(rotation_deg, dome->rot);
+    dome->intensity = intensity;
+    dome->present = true;
+    return SL_OK;
+}

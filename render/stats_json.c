@@ -1,0 +1,52 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Render statistics as JSON: error against time per pass, throughput and
+ * what the integrator skipped (docs/render.md). */
+#include <jansson.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "render_internal.h"
+
+sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_options *o,
+                                     const char *path, sl_error *err)
+{
+    json_t *root = json_object(), *passes = json_array();
+    json_object_set_new(root, "strategy", json_string(sl_strategy_name(o->strategy)));
+    json_object_set_new(root, "low_discrepancy", json_boolean(o->low_discrepancy));
+    json_object_set_new(root, "bounces", json_integer(o->bounces));
+    json_object_set_new(root, "seed", json_integer((json_int_t)o->seed));
+    json_object_set_new(root, "spp", json_integer(st->spp));
+    json_object_set_new(root, "seconds", json_real(st->seconds));
+    json_object_set_new(root, "cpu_seconds", json_real(st->cpu_seconds));
+    json_object_set_new(root, "samples_per_second", json_real(st->samples_per_second));
+    json_object_set_new(root, "stop_reason", json_string(st->stop_reason));
+    json_object_set_new(root, "camera_rays", json_integer(st->camera_rays));
+    json_object_set_new(root, "shadow_rays", json_integer(st->shadow_rays));
+    json_object_set_new(root, "bsdf_rays", json_integer(st->bsdf_rays));
+    json_object_set_new(root, "shadow_rays_skipped", json_integer(st->shadow_rays_skipped));
+    json_object_set_new(root, "zero_weight_skipped", json_integer(st->zero_weight_skipped));
+    json_object_set_new(root, "lights_culled", json_integer(st->lights_culled));
+    json_object_set_new(root, "lights_behind", json_integer(st->lights_behind));
+    json_object_set_new(root, "nonfinite_samples", json_integer(st->nonfinite_samples));
+    json_object_set_new(root, "dome_bad_texels", json_integer(st->dome_bad_texels));
+    json_object_set_new(root, "dome_sampled", json_boolean(st->dome_sampled));
+    for (int i = 0; i < st->pass_count; i++) {
+        const sl_render_pass *p = &st->passes[i];
+        json_t *jp = json_object();
+        json_object_set_new(jp, "spp", json_integer(p->spp));
+        json_object_set_new(jp, "seconds", json_real(p->seconds));
+        json_object_set_new(jp, "est_rel_rmse", json_real(p->est_rel_rmse));
+        json_object_set_new(jp, "ref_rel_rmse", p->ref_rel_rmse >= 0 ? json_real(p->ref_rel_rmse) : json_null());
+        json_array_append_new(passes, jp);
+    }
+    json_object_set_new(root, "passes", passes);
+    char *text = json_dumps(root, JSON_INDENT(2) | JSON_REAL_PRECISION(8));
+    json_decref(root);
+    if (!text)
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory formatting statistics", path);
+    size_t n = strlen(text);
+    text[n] = '\n';
+    sl_result r = sl_write_file_atomic(path, text, n + 1, err);
+    free(text);
+    return r;
+}

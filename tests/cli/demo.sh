@@ -1,0 +1,49 @@
+#!/bin/bash
+# setlight demo on the small size, as CI runs it: the report lists every
+# stage, and an earlier demo is not replaced without --force.
+. "$(dirname "$0")/lib.bash"
+S="$SETLIGHT"
+
+expect 0 "$S" demo --help
+for o in --size --seed --force; do out_has "$o"; done
+
+expect 0 "$S" demo "$T/demo" --json --quiet
+json_ok "$T/out"
+cp "$T/out" "$T/summary.json"
+json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "render"]'
+present "$T/demo/report.html"
+present "$T/demo/truth.png"
+present "$T/demo/capture/capture.json"
+present "$T/demo/render_refs.png"
+# the renderer agrees with a brute-force irradiance sum at the grey ball's centre
+if python3 - "$T/demo/report.html" <<'PY'
+import re, sys
+m = re.search(r"brute-force irradiance sum [0-9.e+-]+ cd/m\^2 \(([+-][0-9.]+)%", open(sys.argv[1]).read())
+sys.exit(0 if m and abs(float(m.group(1))) < 1.0 else 1)
+PY
+then ok; else bad "grey-ball check missing or above 1%"; fi
+for stage in simulate truth frames render; do
+    if grep -q "<td>$stage</td>" "$T/demo/report.html"; then ok; else bad "report lacks stage $stage"; fi
+done
+if grep -q "EXIF read back through OpenImageIO matches the plan for 21 of 21 frames" "$T/demo/report.html"; then ok; else bad "EXIF check missing from the report"; fi
+no_temp "$T/demo"
+
+before=$(md5sum "$T/demo/report.html")
+expect 2 "$S" demo "$T/demo" --size tiny
+err_has "--force"
+err_one_line
+[ "$before" = "$(md5sum "$T/demo/report.html")" ] && ok || bad "report changed without --force"
+expect 0 "$S" demo "$T/demo" --size tiny --force --quiet
+present "$T/demo/report.html"
+
+mkdir -p "$T/busy" && echo mine > "$T/busy/notes.txt"
+expect 2 "$S" demo "$T/busy" --size tiny
+err_has "busy"
+[ "$(ls "$T/busy")" = "notes.txt" ] && ok || bad "busy folder was touched"
+expect 2 "$S" demo "$T/x" --size full
+err_has "full"
+absent "$T/x"
+expect 1 "$S" demo /proc/setlight-nope --size tiny
+err_has "/proc/setlight-nope"
+
+finish

@@ -1,0 +1,78 @@
+#!/bin/bash
+# setlight render end to end: a small render, its stats, and every bad input
+# giving one message, the documented exit code and no output file.
+set -u
+S="$SETLIGHT"
+T="$SETLIGHT_TEST_TMP/cli_render"
+rm -rf "$T" && mkdir -p "$T"
+fail=0
+check() { # name expected-rc actual-rc
+    if [ "$2" != "$3" ]; then echo "FAIL $1: exit $3, expected $2"; fail=1; else echo "ok   $1"; fi
+}
+noout() { # name file
+    if [ -e "$2" ] || ls "$T"/.*sl-tmp* >/dev/null 2>&1; then echo "FAIL $1: output left behind"; fail=1; fi
+}
+# A valid environment: write one with the renderer itself is not possible, so
+# build a tiny Radiance HDR by hand (32x16, uniform).
+python3 - "$T/env.hdr" <<'PY'
+import sys
+w, h = 32, 16
+with open(sys.argv[1], "wb") as f:
+    f.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w))
+    f.write(bytes([128, 128, 128, 129]) * (w * h))  # 1.0 everywhere
+PY
+
+"$S" render --env "$T/env.hdr" --scene grey --width 16 --spp 4 -o "$T/grey.exr" --stats "$T/grey.json" --quiet
+check "grey render" 0 $?
+[ -s "$T/grey.exr" ] || { echo "FAIL no grey.exr"; fail=1; }
+grep -q '"passes"' "$T/grey.json" || { echo "FAIL stats without passes"; fail=1; }
+"$S" render --env "$T/env.hdr" --scene grey --width 16 --spp 4 --reference "$T/grey.exr" -o "$T/grey2.exr" --json --quiet > "$T/out.json"
+check "render with reference" 0 $?
+grep -q '"ref_rel_rmse": 0,' "$T/out.json" || grep -q '"ref_rel_rmse": 0\b' "$T/out.json" || { echo "FAIL same seed should match its reference exactly: $(cat "$T/out.json")"; fail=1; }
+"$S" render --help > "$T/help.txt"
+check "help" 0 $?
+for o in --env --scene --material --width --view --background --spp --time --target-error --bounces --strategy --sampler --seed --reference --stats --output; do
+    grep -q -- "$o" "$T/help.txt" || { echo "FAIL --help lacks $o"; fail=1; }
+done
+
+"$S" render --env "$T/env.hdr" --scene chrome --material plastic:0.5,0.1,0.1:0.3 --view 30,20 --width 12 --spp 2 -o "$T/mat.exr" --quiet
+check "material and view" 0 $?
+printf '{"lights": [{"type": "sphere", "position": [0, 4, -2], "radius": 0.5, "intensity": 20},
+  {"type": "distant", "direction": [0, -1, 1], "angle": 1, "intensity": 3, "normalize": true}],
+  "dome": {"file": "env.hdr", "intensity": 0.5}}' > "$T/rig.json"
+"$S" render --rig "$T/rig.json" --scene shadow --width 16 --spp 4 -o "$T/rig.exr" --stats "$T/rig_stats.json" --quiet
+check "rig render" 0 $?
+grep -q '"shadow_rays": [1-9]' "$T/rig_stats.json" || { echo "FAIL rig render traced no shadow rays"; fail=1; }
+
+run_bad() { # name expected-rc message-pattern args...
+    local name=$1 want=$2 pat=$3; shift 3
+    "$S" render "$@" -o "$T/bad.exr" 2> "$T/err.txt"
+    local rc=$?
+    check "$name" "$want" "$rc"
+    [ "$(wc -l < "$T/err.txt")" -eq 1 ] || { echo "FAIL $name: not one line: $(cat "$T/err.txt")"; fail=1; }
+    grep -q -- "$pat" "$T/err.txt" || { echo "FAIL $name: message lacks '$pat': $(cat "$T/err.txt")"; fail=1; }
+    noout "$name" "$T/bad.exr"
+}
+run_bad "missing env" 3 "nope.exr" --env "$T/nope.exr"
+printf 'this is not an image' > "$T/corrupt.exr"
+run_bad "corrupt env" 3 "corrupt.exr" --env "$T/corrupt.exr"
+run_bad "unknown preset" 2 "teapot" --env "$T/env.hdr" --scene teapot
+run_bad "zero width" 2 "width" --env "$T/env.hdr" --width 0
+run_bad "no env" 2 "env" --scene grey
+printf '{"materials": {"m": {"type": "lambert"}}, "objects": [{"type": "sphere", "radius": -1, "material": "m"}]}' > "$T/neg.json"
+run_bad "negative radius" 3 "neg.json: objects\[0\].radius" --env "$T/env.hdr" --scene "$T/neg.json"
+printf '{"materials": {"m": {"type": "lambert", "color": [0.5, NaN, 0.1]}}, "objects": []}' > "$T/nan.json"
+run_bad "NaN in scene" 3 "nan.json" --env "$T/env.hdr" --scene "$T/nan.json"
+printf '{"materials": {"m": {"type": "lambert", "color": [0.5, -0.2, 0.1]}}, "objects": [{"type": "sphere", "material": "m"}]}' > "$T/negc.json"
+run_bad "negative colour" 3 "negc.json: materials.m.color" --env "$T/env.hdr" --scene "$T/negc.json"
+run_bad "missing scene file" 3 "absent.json" --env "$T/env.hdr" --scene "$T/absent.json"
+run_bad "bad strategy" 2 "strategy" --env "$T/env.hdr" --strategy magic
+run_bad "bad material" 2 "material" --env "$T/env.hdr" --material gold
+run_bad "env and rig" 2 "exactly one" --env "$T/env.hdr" --rig "$T/rig.json"
+printf '{"lights": [{"type": "rect", "texture": "missing_softbox.exr"}]}' > "$T/rig_tex.json"
+run_bad "rig with missing texture" 3 "missing_softbox.exr" --rig "$T/rig_tex.json"
+printf '{"lights": [{"type": "disk", "radius": -0.5}]}' > "$T/rig_neg.json"
+run_bad "rig with negative radius" 3 "rig_neg.json: lights\[0\]" --rig "$T/rig_neg.json"
+printf '{"lights": [], "dome": {"file": "gone.exr"}}' > "$T/rig_dome.json"
+run_bad "rig with missing dome" 3 "gone.exr" --rig "$T/rig_dome.json"
+exit $fail

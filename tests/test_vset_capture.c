@@ -1,0 +1,398 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Simulated set captures: the files a seed makes, EXIF read back through
+ * OpenImageIO against the exposure plan, ground truth, and refusing to
+ * overwrite. Frames are tiny so the test stays fast. */
+#include <jansson.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "setlight/capture.h"
+#include "testing.h"
+
+static void tiny_opts(sl_vset_capture_opts *o, const char *scene, uint64_t seed)
+{
+    sl_vset_desc d;
+    sl_vset_preset(scene, &d, NULL);
+    sl_vset_capture_defaults(o, &d, SL_VSET_SIZE_TINY);
+    o->latlong_width = 128;
+    o->photo_width = 96;
+    o->photo_height = 64;
+    o->supersample = 1;
+    o->seed = seed;
+}
+
+static char *slurp(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *b = malloc((size_t)n + 1);
+    if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
+        free(b);
+        b = NULL;
+    }
+    fclose(f);
+    *size = (size_t)n;
+    return b;
+}
+
+static int same_file(const char *a, const char *b)
+{
+    size_t na, nb;
+    char *x = slurp(a, &na), *y = slurp(b, &nb);
+    int same = x && y && na == nb && memcmp(x, y, na) == 0;
+    free(x);
+    free(y);
+    return same;
+}
+
+static void test_capture_and_exif(void)
+{
+    sl_vset_capture_opts o;
+    sl_error err;
+    sl_vset_capture_summary s;
+    tiny_opts(&o, "exterior", 1);
+    const char *a = sl_test_path("cap_a");
+    CHECK_OK(sl_vset_capture_write(&o, a, &s, &err), &err);
+    CHECK(s.frames == 21 && s.views == 3);
+    /* The classic 7 x 3-stop bracket on nominal shutter speeds. */
+    CHECK_NEAR(s.min_time_s, 1.0 / 8000, 1e-12);
+    CHECK_NEAR(s.max_time_s, 30, 1e-12);
+
+    char path[4096];
+    snprintf(path, sizeof path, "%s/capture.json", a);
+    json_error_t je;
+    json_t *root = json_load_file(path, 0, &je);
+    CHECK(root != NULL);
+    json_t *frames = json_object_get(root, "frames");
+    CHECK(json_array_size(frames) == 21);
+    int checked = 0;
+    for (size_t i = 0; i < json_array_size(frames); i++) {
+        json_t *f = json_array_get(frames, i);
+        const char *name = json_string_value(json_object_get(f, "name"));
+        double t = json_number_value(json_object_get(f, "exposure_time_s"));
+        int bracket = (int)json_integer_value(json_object_get(f, "bracket"));
+        /* Nominal speeds: 3 stops apart to within a tenth of a stop each. */
+        CHECK_NEAR(log2(t / s.center_time_s), 3 * (bracket - 3), 0.1 * abs(bracket - 3) + 1e-8);
+        const char *exts[] = {".jpg", ".tif", "_linear.tif"};
+        for (int e = 0; e < 3; e++) {
+            snprintf(path, sizeof path, "%s/hdri/%s%s", a, name, exts[e]);
+            sl_meta m;
+            int w, h, c;
+            CHECK_OK(sl_photo_read_meta(path, &m, &w, &h, &c, &err), &err);
+            CHECK(w == 96 && h == 64 && c == 3);
+            /* EXIF rationals as OIIO forms them: within 1e-4. */
+            CHECK_NEAR(m.exposure_time / t, 1, 1e-4);
+            CHECK_NEAR(m.f_number, o.f_number, 1e-5);
+            /* OIIO 2.4 keeps ISO in JPEG EXIF but not in TIFF (core docs). */
+            CHECK(e != 0 || fabs(m.iso - o.iso) < 1e-9);
+            CHECK_NEAR(m.focal_length_mm, 8, 1e-5);
+            CHECK(strcmp(m.make, "setlight") == 0);
+            CHECK(strstr(m.model, "virtual") != NULL);
+            CHECK(strstr(m.lens, "fisheye") != NULL);
+            CHECK(strcmp(m.datetime, json_string_value(json_object_get(f, "datetime"))) == 0);
+            CHECK(e != 1 || m.bits_per_sample == 16);
+            sl_meta_free(&m);
+            checked++;
+        }
+    }
+    CHECK(checked == 63);
+    json_decref(root);
+
+    /* Ground truth beside the frames. */
+    sl_image ll;
+    sl_meta m;
+    snprintf(path, sizeof path, "%s/truth/latlong.exr", a);
+    CHECK_OK(sl_exr_read(path, &ll, &m, &err), &err);
+    CHECK(ll.width == 128 && ll.height == 64 && m.envmap == SL_ENVMAP_LATLONG);
+    sl_vset_scene sc;
+    CHECK_OK(sl_vset_scene_make(&o.scene, 128, &sc, &err), &err);
+    CHECK(memcmp(ll.data, sc.latlong.data, sizeof(float) * 128 * 64 * 3) == 0);
+    sl_vset_scene_free(&sc);
+    sl_image_free(&ll);
+    sl_meta_free(&m);
+    snprintf(path, sizeof path, "%s/truth/lights.json", a);
+    root = json_load_file(path, 0, &je);
+    CHECK(root && json_array_size(json_object_get(root, "lights")) == 1);
+    json_decref(root);
+    snprintf(path, sizeof path, "%s/truth/camera.json", a);
+    root = json_load_file(path, 0, &je);
+    CHECK(root && json_array_size(json_object_get(json_object_get(root, "response"), "curve")) ==
+                      SL_VSET_CRF_SAMPLES);
+    json_decref(root);
+
+    /* Same seed, same bytes; another seed, other noise but the same truth. */
+    const char *b = sl_test_path("cap_b"), *c = sl_test_path("cap_c");
+    sl_threads_set(1);
+    CHECK_OK(sl_vset_capture_write(&o, b, NULL, &err), &err);
+    sl_threads_set(0);
+    tiny_opts(&o, "exterior", 2);
+    CHECK_OK(sl_vset_capture_write(&o, c, NULL, &err), &err);
+    const char *files[] = {"capture.json", "hdri/IMG_0001.jpg", "hdri/IMG_0010.tif",
+                           "hdri/IMG_0021_linear.tif", "truth/latlong.exr", "truth/camera.json"};
+    for (int i = 0; i < 6; i++) {
+        char pa[4096], pb[4096], pc[4096];
+        snprintf(pa, sizeof pa, "%s/%s", a, files[i]);
+        snprintf(pb, sizeof pb, "%s/%s", b, files[i]);
+        snprintf(pc, sizeof pc, "%s/%s", c, files[i]);
+        CHECK_MSG(same_file(pa, pb), "%s differs between runs with one seed", files[i]);
+        bool truth = strncmp(files[i], "truth/", 6) == 0;
+        CHECK_MSG(same_file(pa, pc) == truth, "%s: seed changes %s", files[i],
+                  truth ? "the truth" : "nothing");
+    }
+}
+
+static void test_refusals(void)
+{
+    sl_vset_capture_opts o;
+    sl_error err;
+    tiny_opts(&o, "night", 3);
+    o.views = 1;
+    o.brackets = 2;
+    const char *top = sl_test_path("refusals");
+    mkdir(top, 0777);
+    char d[2048];
+    snprintf(d, sizeof d, "%s/cap", top);
+    CHECK_OK(sl_vset_capture_write(&o, d, NULL, &err), &err);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/capture.json", d);
+    size_t n0;
+    char *before = slurp(path, &n0);
+    /* A capture is there: refused, untouched, no temporary left. */
+    o.seed = 4;
+    o.brackets = 3;
+    CHECK_RESULT(sl_vset_capture_write(&o, d, NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, d) && strstr(err.message, "--force"));
+    size_t n1;
+    char *after = slurp(path, &n1);
+    CHECK(before && after && n0 == n1 && memcmp(before, after, n0) == 0);
+    free(after);
+    CHECK(sl_test_count_files(top) == 1);
+    /* --force replaces it. */
+    o.force = true;
+    CHECK_OK(sl_vset_capture_write(&o, d, NULL, &err), &err);
+    after = slurp(path, &n1);
+    CHECK(after && (n0 != n1 || memcmp(before, after, n0) != 0));
+    snprintf(path, sizeof path, "%s/hdri", d);
+    CHECK(sl_test_count_files(path) == 9);
+    free(before);
+    free(after);
+    CHECK(sl_test_count_files(top) == 1);
+
+    /* A folder holding other files is never touched, even with force. */
+    const char *other = sl_test_path("photos");
+    mkdir(other, 0777);
+    snprintf(path, sizeof path, "%s/keep.txt", other);
+    FILE *f = fopen(path, "w");
+    fputs("mine\n", f);
+    fclose(f);
+    CHECK_RESULT(sl_vset_capture_write(&o, other, NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(sl_test_count_files(other) == 1);
+    /* An empty folder is filled. */
+    const char *empty = sl_test_path("empty");
+    mkdir(empty, 0777);
+    o.force = false;
+    CHECK_OK(sl_vset_capture_write(&o, empty, NULL, &err), &err);
+    CHECK(sl_test_count_files(empty) == 3);
+    /* Cannot create: an I/O error naming the folder. */
+    CHECK_RESULT(sl_vset_capture_write(&o, "/proc/setlight-no/cap", NULL, &err), SL_ERR_IO, &err);
+    CHECK(strstr(err.message, "/proc/setlight-no/cap") != NULL);
+    /* A bad plan. */
+    o.brackets = 0;
+    CHECK_RESULT(sl_vset_capture_write(&o, sl_test_path("never"), NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(!sl_test_file_exists(sl_test_path("never")));
+}
+
+static json_t *frames_of(const char *dir)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/capture.json", dir);
+    json_error_t je;
+    return json_load_file(path, 0, &je);
+}
+
+static double frame_num(json_t *root, int i, const char *key)
+{
+    return json_number_value(json_object_get(json_array_get(json_object_get(root, "frames"), (size_t)i), key));
+}
+
+/* Zenith view, hand-held jitter and a walking person. */
+static void test_views_jitter_ghost(void)
+{
+    sl_vset_capture_opts o;
+    sl_error err;
+    sl_vset_capture_summary s;
+    tiny_opts(&o, "stage", 9);
+    o.zenith = true;
+    o.brackets = 3;
+    const char *plain = sl_test_path("plain"), *moved = sl_test_path("moved");
+    CHECK_OK(sl_vset_capture_write(&o, plain, &s, &err), &err);
+    CHECK(s.frames == 12 && s.views == 4);
+    json_t *a = frames_of(plain);
+    CHECK(frame_num(a, 11, "pitch_deg") == 90 && frame_num(a, 3, "yaw_deg") == 120);
+    CHECK(json_is_null(json_object_get(json_array_get(json_object_get(a, "frames"), 0), "ghost")));
+
+    o.jitter_deg = 0.5;
+    o.ghost = true;
+    CHECK_OK(sl_vset_capture_write(&o, moved, &s, &err), &err);
+    json_t *b = frames_of(moved);
+    double wander = 0;
+    for (int i = 0; i < 12; i++) {
+        double dy = frame_num(b, i, "yaw_deg") - frame_num(a, i, "yaw_deg");
+        double dp = frame_num(b, i, "pitch_deg") - frame_num(a, i, "pitch_deg");
+        double dr = frame_num(b, i, "roll_deg") - frame_num(a, i, "roll_deg");
+        wander += dy * dy + dp * dp + dr * dr;
+    }
+    double sd = sqrt(wander / (3 * 12));
+    printf("  jitter: measured %.3f deg for 0.5 asked\n", sd);
+    CHECK(sd > 0.3 && sd < 0.7);
+    /* The ghost walks across view 0 only, 4 degrees per frame. */
+    json_t *f0 = json_array_get(json_object_get(b, "frames"), 0);
+    json_t *f1 = json_array_get(json_object_get(b, "frames"), 1);
+    json_t *f7 = json_array_get(json_object_get(b, "frames"), 3);
+    CHECK_NEAR(json_number_value(json_object_get(json_object_get(f1, "ghost"), "azimuth_deg")) -
+                   json_number_value(json_object_get(json_object_get(f0, "ghost"), "azimuth_deg")),
+               4, 1e-9);
+    CHECK(json_is_null(json_object_get(f7, "ghost")));
+    json_decref(a);
+    json_decref(b);
+    /* Ghost without jitter: view 0 frames change, the others stay the same bytes. */
+    const char *ghost = sl_test_path("ghost");
+    o.jitter_deg = 0;
+    CHECK_OK(sl_vset_capture_write(&o, ghost, &s, &err), &err);
+    char p1[4096], p2[4096];
+    snprintf(p1, sizeof p1, "%s/hdri/IMG_0002.tif", plain);
+    snprintf(p2, sizeof p2, "%s/hdri/IMG_0002.tif", ghost);
+    CHECK(!same_file(p1, p2));
+    snprintf(p1, sizeof p1, "%s/hdri/IMG_0005.tif", plain);
+    snprintf(p2, sizeof p2, "%s/hdri/IMG_0005.tif", ghost);
+    CHECK(same_file(p1, p2));
+    o.jitter_deg = 11;
+    CHECK_RESULT(sl_vset_capture_write(&o, sl_test_path("never2"), NULL, &err), SL_ERR_USAGE, &err);
+}
+
+static double jnum(json_t *o, const char *key) { return json_number_value(json_object_get(o, key)); }
+
+/* The frames, inverted with nothing but the files of the capture (EXIF and
+ * truth/camera.json), give back the ground-truth lat-long: the camera,
+ * lens, EXIF and truth agree. */
+static void test_frames_invert_to_truth(void)
+{
+    sl_vset_capture_opts o;
+    sl_error err;
+    tiny_opts(&o, "exterior", 5);
+    o.photo_width = 240;
+    o.photo_height = 160;
+    o.supersample = 1; /* point samples at pixel centres: what a lookup gives */
+    const char *dir = sl_test_path("invert");
+    CHECK_OK(sl_vset_capture_write(&o, dir, NULL, &err), &err);
+    char path[4096];
+    snprintf(path, sizeof path, "%s/truth/camera.json", dir);
+    json_error_t je;
+    json_t *cam = json_load_file(path, 0, &je);
+    CHECK(cam != NULL);
+    if (!cam)
+        return;
+    sl_vset_response resp;
+    memset(&resp, 0, sizeof resp);
+    json_t *curve = json_object_get(json_object_get(cam, "response"), "curve");
+    for (int i = 0; i < SL_VSET_CRF_SAMPLES; i++)
+        resp.curve[i] = json_number_value(json_array_get(curve, (size_t)i));
+    double m[3][3], minv[3][3];
+    json_t *mj = json_object_get(cam, "output_from_rec709");
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            m[i][j] = json_number_value(json_array_get(json_array_get(mj, (size_t)i), (size_t)j));
+    double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                 m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                 m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            int a = (j + 1) % 3, b = (j + 2) % 3, c = (i + 1) % 3, d = (i + 2) % 3;
+            minv[i][j] = (m[a][c] * m[b][d] - m[a][d] * m[b][c]) / det;
+        }
+    json_t *lj = json_object_get(cam, "lens");
+    sl_vset_lens lens;
+    memset(&lens, 0, sizeof lens);
+    lens.type = SL_VSET_LENS_EQUISOLID;
+    lens.focal_mm = jnum(lj, "focal_mm");
+    lens.sensor_width_mm = jnum(lj, "sensor_width_mm");
+    lens.vignette_a = jnum(lj, "vignette_a");
+    lens.vignette_b = jnum(lj, "vignette_b");
+    double k = jnum(cam, "k");
+    json_decref(cam);
+
+    sl_image truth;
+    sl_meta tm;
+    snprintf(path, sizeof path, "%s/truth/latlong.exr", dir);
+    CHECK_OK(sl_exr_read(path, &truth, &tm, &err), &err);
+    sl_meta_free(&tm);
+    json_t *capj = frames_of(dir);
+    json_t *frames = json_object_get(capj, "frames");
+    int used = 0, close = 0;
+    double sum_rel = 0;
+    for (size_t f = 0; f < json_array_size(frames); f++) {
+        json_t *fr = json_array_get(frames, f);
+        snprintf(path, sizeof path, "%s/hdri/%s.tif", dir,
+                 json_string_value(json_object_get(fr, "name")));
+        sl_image img;
+        sl_meta meta;
+        CHECK_OK(sl_photo_read(path, &img, &meta, &err), &err);
+        /* Exposure from EXIF (TIFF loses ISO in OIIO 2.4: it is in the plan). */
+        double scale = meta.exposure_time * (jnum(fr, "iso") / 100.0) * k /
+                       (meta.f_number * meta.f_number);
+        sl_vset_view view = {jnum(fr, "yaw_deg"), jnum(fr, "pitch_deg"), jnum(fr, "roll_deg")};
+        for (int y = 4; y < img.height - 4; y += 2)
+            for (int x = 4; x < img.width - 4; x += 2) {
+                const float *p = sl_image_pixel(&img, x, y);
+                double lin[3], est[3] = {0, 0, 0}, dir3[3], ok = 1;
+                for (int c = 0; c < 3; c++) {
+                    lin[c] = sl_vset_response_invert(&resp, p[c]);
+                    if (lin[c] < 0.1 || lin[c] > 0.7)
+                        ok = 0;
+                }
+                if (!ok || !sl_vset_lens_to_dir(&lens, &view, img.width, img.height, x + 0.5,
+                                                y + 0.5, dir3))
+                    continue;
+                double g = sl_vset_lens_vignette(&lens, img.width, img.height, x + 0.5, y + 0.5);
+                for (int i = 0; i < 3; i++)
+                    for (int j = 0; j < 3; j++)
+                        est[i] += minv[i][j] * lin[j] / (scale * g);
+                double u, v;
+                sl_dir_to_latlong(dir3, &u, &v);
+                float ref[3];
+                sl_latlong_lookup(&truth, u, v, ref);
+                double ly = 0.2126 * est[0] + 0.7152 * est[1] + 0.0722 * est[2];
+                double ry = 0.2126 * ref[0] + 0.7152 * ref[1] + 0.0722 * ref[2];
+                double rel = ly / ry - 1;
+                used++;
+                sum_rel += rel;
+                /* 5% is over 2.5 sigma of shot noise at the darkest pixels used. */
+                if (fabs(rel) < 0.05)
+                    close++;
+            }
+        sl_image_free(&img);
+        sl_meta_free(&meta);
+    }
+    json_decref(capj);
+    sl_image_free(&truth);
+    printf("  %d well-exposed pixels: %.2f%% within 5%% of the truth, mean error %.3f%%\n", used,
+           100.0 * close / used, 100.0 * sum_rel / used);
+    CHECK(used > 2000);
+    CHECK((double)close / used > 0.995);
+    CHECK(fabs(sum_rel / used) < 0.002);
+}
+
+int main(void)
+{
+    RUN(test_capture_and_exif);
+    RUN(test_refusals);
+    RUN(test_views_jitter_ghost);
+    RUN(test_frames_invert_to_truth);
+    return sl_test_finish();
+}

@@ -1,0 +1,416 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* setlight demo: simulates the stage set, runs every pipeline stage that
+ * exists on the capture, and writes DIR/report.html. New stages add a row
+ * to `stages` below. */
+#include <dirent.h>
+#include <errno.h>
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+#include "setlight/capture.h"
+#include "setlight/render.h"
+
+typedef struct demo {
+    const char *dir;
+    char capture[4096];
+    sl_vset_size size;
+    uint64_t seed;
+    bool force;
+    sl_report *rep;
+    /* filled by the stages */
+    sl_vset_capture_summary summary;
+    double lavg;
+} demo;
+
+typedef sl_result (*stage_fn)(demo *d, char *note, size_t note_size, sl_error *err);
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: setlight demo [DIR] [--size tiny|small] [--seed N] [--force]\n\n"
+            "Simulates the 'stage' virtual set (no camera, no downloaded data), runs every\n"
+            "pipeline stage setlight has on the capture, and writes DIR/report.html with the\n"
+            "stages, their numbers and pictures. DIR defaults to ./setlight-demo.\n\n"
+            "  --size S    small (default; a few minutes at most on 2 cores) or tiny\n"
+            "  --seed N    sensor-noise seed (default 1)\n"
+            "  --force     replace an earlier demo in DIR\n"
+            "\nexit codes: 0 success, 1 runtime failure, 2 usage error (DIR holds other files,\n"
+            "or an earlier demo without --force), 3 invalid input data\n");
+}
+
+static sl_result stage_simulate(demo *d, char *note, size_t n, sl_error *err)
+{
+    sl_vset_desc desc;
+    sl_result r = sl_vset_preset("stage", &desc, err);
+    if (r)
+        return r;
+    sl_vset_capture_opts o;
+    sl_vset_capture_defaults(&o, &desc, d->size);
+    o.seed = d->seed;
+    o.force = d->force;
+    if ((r = sl_vset_capture_write(&o, d->capture, &d->summary, err)))
+        return r;
+    snprintf(note, n, "%d frames in %d views, f/%g ISO %g, %.6g to %g s", d->summary.frames,
+             d->summary.views, d->summary.f_number, d->summary.iso, d->summary.min_time_s,
+             d->summary.max_time_s);
+    return SL_OK;
+}
+
+static json_t *load_json(const char *dir, const char *name, sl_error *err)
+{
+    char path[4300];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    json_error_t je;
+    json_t *j = json_load_file(path, 0, &je);
+    if (!j)
+        sl_error_set(err, SL_ERR_INPUT, "%s: line %d: %s", path, je.line, je.text);
+    return j;
+}
+
+/* The ground truth, read back from the capture as any stage would. */
+static sl_result stage_truth(demo *d, char *note, size_t n, sl_error *err)
+{
+    char path[4300];
+    snprintf(path, sizeof path, "%s/truth/latlong.exr", d->capture);
+    sl_image ll;
+    sl_meta meta;
+    sl_result r = sl_exr_read(path, &ll, &meta, err);
+    sl_meta_free(&meta);
+    if (r)
+        return r;
+    double acc = 0, wsum = 0;
+    for (int y = 0; y < ll.height; y++) {
+        double lat0 = M_PI * (0.5 - (double)y / ll.height);
+        double lat1 = M_PI * (0.5 - (double)(y + 1) / ll.height);
+        double dw = sin(lat0) - sin(lat1);
+        for (int x = 0; x < ll.width; x++) {
+            const float *p = sl_image_pixel(&ll, x, y);
+            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            acc += dw * log(l > 1e-6 ? l : 1e-6);
+            wsum += dw;
+        }
+    }
+    d->lavg = exp(acc / wsum);
+    sl_report_section(d->rep, "Ground truth");
+    sl_report_text(d->rep, "The set's HDR lat-long (%dx%d, log-average luminance %.3g cd/m^2), "
+                           "shown with its log-average at 18%% grey.",
+                   ll.width, ll.height, d->lavg);
+    r = sl_report_image(d->rep, "truth.png", &ll, log2(0.18 / d->lavg), "truth/latlong.exr",
+                        err);
+    sl_image_free(&ll);
+    if (r)
+        return r;
+    json_t *lights = load_json(d->capture, "truth/lights.json", err);
+    if (!lights)
+        return err ? err->code : SL_ERR_INPUT;
+    static const char *const head[] = {"light", "shape", "azimuth", "elevation",
+                                       "solid angle (sr)", "luminance (cd/m^2)",
+                                       "integral Y"};
+    sl_report_table_begin(d->rep, 7, head);
+    json_t *arr = json_object_get(lights, "lights");
+    for (size_t i = 0; i < json_array_size(arr); i++) {
+        json_t *l = json_array_get(arr, i);
+        json_t *rad = json_object_get(l, "radiance_rgb"), *in = json_object_get(l, "integral_rgb");
+        double y = 0.2126 * json_number_value(json_array_get(rad, 0)) +
+                   0.7152 * json_number_value(json_array_get(rad, 1)) +
+                   0.0722 * json_number_value(json_array_get(rad, 2));
+        double iy = 0.2126 * json_number_value(json_array_get(in, 0)) +
+                    0.7152 * json_number_value(json_array_get(in, 1)) +
+                    0.0722 * json_number_value(json_array_get(in, 2));
+        char c[7][64];
+        snprintf(c[0], 64, "%s", json_string_value(json_object_get(l, "name")));
+        snprintf(c[1], 64, "%s", json_string_value(json_object_get(l, "shape")));
+        snprintf(c[2], 64, "%.1f", json_number_value(json_object_get(l, "azimuth_deg")));
+        snprintf(c[3], 64, "%.1f", json_number_value(json_object_get(l, "elevation_deg")));
+        snprintf(c[4], 64, "%.4g", json_number_value(json_object_get(l, "solid_angle_sr")));
+        snprintf(c[5], 64, "%.4g", y);
+        snprintf(c[6], 64, "%.4g", iy);
+        const char *cells[7] = {c[0], c[1], c[2], c[3], c[4], c[5], c[6]};
+        sl_report_table_row(d->rep, cells);
+    }
+    sl_report_table_end(d->rep);
+    snprintf(note, n, "%zu lights, log-average %.3g cd/m^2", json_array_size(arr), d->lavg);
+    json_decref(lights);
+    return SL_OK;
+}
+
+/* The frames as a pipeline reads them: pixels and EXIF, checked against
+ * the capture's plan. */
+static sl_result stage_frames(demo *d, char *note, size_t n, sl_error *err)
+{
+    json_t *cap = load_json(d->capture, "capture.json", err);
+    if (!cap)
+        return err ? err->code : SL_ERR_INPUT;
+    json_t *frames = json_object_get(cap, "frames");
+    int brackets = (int)json_integer_value(json_object_get(cap, "brackets"));
+    int checked = 0, matched = 0;
+    sl_result r = SL_OK;
+    sl_report_section(d->rep, "Frames");
+    sl_report_text(d->rep, "The middle exposure of each view, as the camera's JPEG.");
+    for (size_t i = 0; i < json_array_size(frames) && !r; i++) {
+        json_t *f = json_array_get(frames, i);
+        const char *name = json_string_value(json_object_get(f, "name"));
+        char path[4300];
+        snprintf(path, sizeof path, "%s/hdri/%s.jpg", d->capture, name);
+        sl_meta m;
+        if ((r = sl_photo_read_meta(path, &m, NULL, NULL, NULL, err)))
+            break;
+        double t = json_number_value(json_object_get(f, "exposure_time_s"));
+        checked++;
+        if (fabs(m.exposure_time / t - 1) < 1e-4 &&
+            fabs(m.f_number - json_number_value(json_object_get(f, "f_number"))) < 1e-4 &&
+            fabs(m.iso - json_number_value(json_object_get(f, "iso"))) < 1e-6 &&
+            !strcmp(m.datetime, json_string_value(json_object_get(f, "datetime"))))
+            matched++;
+        sl_meta_free(&m);
+        if (json_integer_value(json_object_get(f, "bracket")) == brackets / 2) {
+            sl_image img;
+            sl_meta pm;
+            if ((r = sl_photo_read(path, &img, &pm, err)))
+                break;
+            sl_meta_free(&pm);
+            /* The report re-encodes as sRGB: undo that to show the JPEG as is. */
+            for (int y = 0; y < img.height; y++)
+                for (int x = 0; x < img.width * img.channels; x++) {
+                    float *p = sl_image_pixel(&img, 0, y) + x;
+                    *p = sl_srgb_to_linear(*p);
+                }
+            char file[96], caption[160];
+            snprintf(file, sizeof file, "frame_%s.png", name);
+            snprintf(caption, sizeof caption, "%s: view %d, yaw %.0f, %g s", name,
+                     (int)json_integer_value(json_object_get(f, "view")),
+                     json_number_value(json_object_get(f, "yaw_deg")), t);
+            r = sl_report_image(d->rep, file, &img, 0, caption, err);
+            sl_image_free(&img);
+        }
+    }
+    json_decref(cap);
+    if (r)
+        return r;
+    sl_report_text(d->rep, "EXIF read back through OpenImageIO matches the plan for %d of %d "
+                           "frames.", matched, checked);
+    snprintf(note, n, "%d frames read, EXIF matches the plan for %d", checked, matched);
+    if (matched != checked)
+        return sl_error_set(err, SL_ERR_INTERNAL, "%s: EXIF differs from the plan in %d frames",
+                            d->capture, checked - matched);
+    return SL_OK;
+}
+
+
+/* Irradiance at a surface of normal n from a lat-long, summed over every
+ * texel: the renderer's independent ground truth. */
+static double irradiance_y(const sl_image *ll, const double n[3])
+{
+    double e = 0;
+    for (int y = 0; y < ll->height; y++) {
+        double dw = sl_latlong_texel_solid_angle(y, ll->width, ll->height);
+        for (int x = 0; x < ll->width; x++) {
+            double dir[3];
+            sl_latlong_to_dir((x + 0.5) / ll->width, (y + 0.5) / ll->height, dir);
+            double c = dir[0] * n[0] + dir[1] * n[1] + dir[2] * n[2];
+            if (c <= 0)
+                continue;
+            const float *p = sl_image_pixel(ll, x, y);
+            e += (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]) * c * dw;
+        }
+    }
+    return e;
+}
+
+/* The on-set references (grey ball, chrome ball, chart) rendered under the
+ * ground-truth lat-long, and the grey ball's centre checked against a
+ * brute-force irradiance sum. */
+static sl_result stage_render(demo *d, char *note, size_t n, sl_error *err)
+{
+    char path[4300];
+    snprintf(path, sizeof path, "%s/truth/latlong.exr", d->capture);
+    sl_image ll, img = {0}, grey = {0};
+    sl_meta meta;
+    sl_result r = sl_exr_read(path, &ll, &meta, err);
+    sl_meta_free(&meta);
+    if (r)
+        return r;
+    sl_scene scene;
+    sl_scene_init(&scene);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    sl_render_stats st = {0}, gst = {0};
+    o.spp = d->size == SL_VSET_SIZE_TINY ? 16 : 64;
+    if ((r = sl_scene_preset(&scene, "refs", d->size == SL_VSET_SIZE_TINY ? 192 : 480, err)) ||
+        (r = sl_scene_set_dome(&scene, &ll, 0, 1, path, err)) ||
+        (r = sl_render(&scene, &o, &img, &st, err)))
+        goto done;
+    sl_report_section(d->rep, "Render");
+    sl_report_text(d->rep, "Grey ball, chrome ball and ColorChecker under the ground-truth "
+                           "lat-long: %lld spp in %.2f s (%.3g samples/s), estimated relative "
+                           "RMSE %.2f%%.",
+                   (long long)st.spp, st.seconds, st.samples_per_second,
+                   st.pass_count ? 100 * st.passes[st.pass_count - 1].est_rel_rmse : 0.0);
+    if ((r = sl_report_image(d->rep, "render_refs.png", &img, log2(0.18 / d->lavg),
+                             "refs under truth/latlong.exr", err)))
+        goto done;
+    /* The grey ball alone, its centre pixel against the irradiance sum. */
+    sl_scene_free(&scene);
+    sl_scene_init(&scene);
+    o.spp = 8192;
+    o.pixel_centers = true;
+    if ((r = sl_scene_preset(&scene, "grey", 9, err)) ||
+        (r = sl_scene_set_dome(&scene, &ll, 0, 1, path, err)) ||
+        (r = sl_render(&scene, &o, &grey, &gst, err)))
+        goto done;
+    {
+        static const double toward_camera[3] = {0, 0, -1};
+        double expected = 0.18 / M_PI * irradiance_y(&ll, toward_camera);
+        const float *p = sl_image_pixel(&grey, 4, 4);
+        double got = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+        double rel = got / expected - 1;
+        sl_report_text(d->rep, "Grey ball centre: rendered %.5g, brute-force irradiance sum "
+                               "%.5g cd/m^2 (%+.2f%%, 8192 samples).",
+                       got, expected, 100 * rel);
+        snprintf(note, n, "refs %lld spp in %.1f s; grey centre vs irradiance sum %+.2f%%",
+                 (long long)st.spp, st.seconds, 100 * rel);
+    }
+done:
+    sl_render_stats_free(&st);
+    sl_render_stats_free(&gst);
+    sl_scene_free(&scene);
+    sl_image_free(&img);
+    sl_image_free(&grey);
+    sl_image_free(&ll);
+    return r;
+}
+
+static const struct {
+    const char *name;
+    const char *what;
+    stage_fn fn;
+} stages[] = {
+    {"simulate", "virtual set photographed: brackets, EXIF, ground truth", stage_simulate},
+    {"truth", "ground-truth lat-long and light list read back", stage_truth},
+    {"frames", "frames and EXIF read back and checked against the plan", stage_frames},
+    {"render", "grey ball, chrome ball and chart rendered under the ground truth", stage_render},
+};
+
+/* 0 absent or empty, 1 an earlier demo, 2 something else. */
+static int dir_state(const char *dir)
+{
+    DIR *dp = opendir(dir);
+    if (!dp)
+        return 0;
+    int files = 0;
+    bool demo_page = false;
+    struct dirent *e;
+    while ((e = readdir(dp))) {
+        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+            continue;
+        files++;
+        if (!strcmp(e->d_name, "report.html") || !strcmp(e->d_name, "capture"))
+            demo_page = true;
+    }
+    closedir(dp);
+    return files == 0 ? 0 : demo_page ? 1 : 2;
+}
+
+int cmd_demo(int argc, char **argv, const sl_cli *cli)
+{
+    enum { O_SIZE = 256, O_SEED, O_FORCE };
+    static const struct option opts[] = {{"size", required_argument, 0, O_SIZE},
+                                         {"seed", required_argument, 0, O_SEED},
+                                         {"force", no_argument, 0, O_FORCE},
+                                         {"help", no_argument, 0, 'h'},
+                                         {0, 0, 0, 0}};
+    demo d;
+    memset(&d, 0, sizeof d);
+    d.size = SL_VSET_SIZE_SMALL;
+    d.seed = 1;
+    cli_getopt_reset();
+    int c;
+    while ((c = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
+        switch (c) {
+        case 'h': help(stdout); return 0;
+        case O_SIZE: {
+            int s = sl_vset_size_from_name(optarg);
+            if (s != SL_VSET_SIZE_TINY && s != SL_VSET_SIZE_SMALL)
+                return cli_usage_error(cli, "--size is tiny or small, not '%s'", optarg);
+            d.size = (sl_vset_size)s;
+            break;
+        }
+        case O_SEED: {
+            int v;
+            if (!cli_parse_int(optarg, &v) || v < 0)
+                return cli_usage_error(cli, "--seed needs a whole number >= 0, not '%s'", optarg);
+            d.seed = (uint64_t)v;
+            break;
+        }
+        case O_FORCE: d.force = true; break;
+        case ':': return cli_usage_error(cli, "%s needs a value", argv[optind - 1]);
+        default: return cli_usage_error(cli, "unknown option %s", argv[optind - 1]);
+        }
+    }
+    if (argc - optind > 1)
+        return cli_usage_error(cli, "unexpected argument '%s'", argv[optind + 1]);
+    d.dir = optind < argc ? argv[optind] : "setlight-demo";
+    sl_error err;
+    sl_error_clear(&err);
+    int state = dir_state(d.dir);
+    if (state == 2) {
+        sl_error_set(&err, SL_ERR_USAGE, "%s: folder holds other files; choose another", d.dir);
+        return cli_fail(cli, &err);
+    }
+    if (state == 1 && !d.force) {
+        sl_error_set(&err, SL_ERR_USAGE, "%s: holds an earlier demo (use --force to replace it)",
+                     d.dir);
+        return cli_fail(cli, &err);
+    }
+    if (mkdir(d.dir, 0777) != 0 && errno != EEXIST) {
+        sl_error_set(&err, SL_ERR_IO, "%s: cannot create folder: %s", d.dir, strerror(errno));
+        return cli_fail(cli, &err);
+    }
+    snprintf(d.capture, sizeof d.capture, "%s/capture", d.dir);
+    sl_result r = sl_report_new(&d.rep, d.dir, "report", "setlight demo: the virtual stage", &err);
+    if (r)
+        return cli_fail(cli, &err);
+    sl_report_text(d.rep, "setlight %s simulated the 'stage' virtual set (seed %llu) and ran every "
+                          "pipeline stage it has on the capture in %s.",
+                   sl_version(), (unsigned long long)d.seed, d.capture);
+    int count = (int)(sizeof stages / sizeof stages[0]);
+    char notes[16][256];
+    double secs[16];
+    for (int i = 0; i < count && !r; i++) {
+        double t0 = sl_seconds();
+        notes[i][0] = 0;
+        r = stages[i].fn(&d, notes[i], sizeof notes[i], &err);
+        secs[i] = sl_seconds() - t0;
+        sl_log(SL_LOG_INFO, "%s: %s (%.1f s)", stages[i].name, r ? err.message : notes[i],
+               secs[i]);
+    }
+    if (r) {
+        sl_report_free(d.rep);
+        return cli_fail(cli, &err);
+    }
+    sl_report_section(d.rep, "Stages");
+    static const char *const head[] = {"stage", "what", "result", "seconds"};
+    sl_report_table_begin(d.rep, 4, head);
+    for (int i = 0; i < count; i++) {
+        char s[32];
+        snprintf(s, sizeof s, "%.2f", secs[i]);
+        const char *cells[4] = {stages[i].name, stages[i].what, notes[i], s};
+        sl_report_table_row(d.rep, cells);
+    }
+    sl_report_table_end(d.rep);
+    if ((r = sl_report_finish(d.rep, &err)))
+        return cli_fail(cli, &err);
+    if (cli->json) {
+        printf("{\"report\": \"%s/report.html\", \"stages\": [", d.dir);
+        for (int i = 0; i < count; i++)
+            printf("%s{\"name\": \"%s\", \"seconds\": %.3f}", i ? ", " : "", stages[i].name,
+                   secs[i]);
+        printf("]}\n");
+    }
+    return 0;
+}

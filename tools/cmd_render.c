@@ -1,0 +1,297 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* setlight render: the validation renderer on the command line. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "setlight/render.h"
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: setlight render --env ENV | --rig RIG.json [--scene PRESET|FILE.json] [options]\n"
+            "                       -o OUT.exr\n\n"
+            "Renders validation references (grey ball, chrome ball, Macbeth chart...) lit by an\n"
+            "HDR lat-long or a light rig, progressively, with an error estimate after each pass.\n\n"
+            "  --env FILE          lat-long environment (EXR, HDR or any image; width = 2 x height)\n"
+            "  --rig FILE          light rig JSON: rect/disk/sphere/distant lights and an optional\n"
+            "                      dome (docs/render.md)\n"
+            "  --rotate DEG        turn the environment about +Y (default 0; --env only)\n"
+            "  --intensity X       multiply the environment (default 1; --env only)\n"
+            "  --scene NAME|FILE   preset (%s) or a scene JSON file\n"
+            "                      (docs/render.md); default grey\n"
+            "  --material SPEC     give every object this material: lambert:R,G,B | chrome |\n"
+            "                      conductor:R,G,B:ROUGHNESS | plastic:R,G,B:ROUGHNESS\n"
+            "  --width N           image width in pixels (default 512; height from the scene)\n"
+            "  --view AZ,EL        turn the validation camera (degrees; presets only)\n"
+            "  --background MODE   black (default) or env: what camera rays that miss see\n"
+            "  --spp N             stop at N samples per pixel (default 64 unless --time or\n"
+            "                      --target-error is given)\n"
+            "  --time SECONDS      stop when the next pass would pass this wall time\n"
+            "  --target-error E    stop when the estimated relative RMSE is at most E\n"
+            "  --bounces N         indirect bounces after the first hit (default 0: direct)\n"
+            "  --strategy NAME     mis (default), bsdf, light, cosine or uniform\n"
+            "  --sampler NAME      sobol (Owen-scrambled, default) or random\n"
+            "  --seed N            sample seed (default 1); same seed, same bytes\n"
+            "  --reference IMG     image of the same size: true relative RMSE per pass\n"
+            "  --stats FILE.json   error against time per pass, rays, skipped work\n"
+            "  -o, --output FILE   output EXR (float RGBA; alpha = coverage), written atomically\n"
+            "\nexit codes: 0 success, 1 runtime failure, 2 usage error, 3 invalid input data\n",
+            sl_scene_preset_names());
+}
+
+static bool parse_rgb(const char *s, double rgb[3], const char **rest)
+{
+    char *end;
+    for (int i = 0; i < 3; i++) {
+        rgb[i] = strtod(s, &end);
+        if (end == s || !isfinite(rgb[i]) || rgb[i] < 0)
+            return false;
+        s = end;
+        if (i < 2) {
+            if (*s != ',')
+                return false;
+            s++;
+        }
+    }
+    *rest = s;
+    return true;
+}
+
+static bool parse_material(const char *spec, sl_material *m)
+{
+    double rgb[3], rough;
+    const char *rest;
+    if (!strcmp(spec, "chrome")) {
+        sl_material_chrome(m);
+        return true;
+    }
+    if (!strncmp(spec, "lambert:", 8))
+        return parse_rgb(spec + 8, rgb, &rest) && !*rest &&
+               (sl_material_lambert(m, rgb[0], rgb[1], rgb[2]), true);
+    bool conductor = !strncmp(spec, "conductor:", 10), plastic = !strncmp(spec, "plastic:", 8);
+    if (!conductor && !plastic)
+        return false;
+    if (!parse_rgb(spec + (conductor ? 10 : 8), rgb, &rest) || *rest != ':' ||
+        !cli_parse_double(rest + 1, &rough) || rough < 0)
+        return false;
+    if (conductor) {
+        const double tint[3] = {1, 1, 1};
+        sl_material_conductor(m, rgb, tint, rough);
+    } else {
+        sl_material_plastic(m, rgb, 1.5, rough);
+    }
+    return true;
+}
+
+static void show_pass(void *ctx, const sl_render_pass *p)
+{
+    (void)ctx;
+    fprintf(stderr, "\r%lld spp, %.2f s, estimated relative RMSE %.4g   ", (long long)p->spp,
+            p->seconds, p->est_rel_rmse);
+    fflush(stderr);
+}
+
+int cmd_render(int argc, char **argv, const sl_cli *cli)
+{
+    enum { O_ENV = 256, O_ROT, O_INT, O_SCENE, O_MAT, O_WIDTH, O_VIEW, O_BG, O_SPP, O_TIME,
+           O_TERR, O_BOUNCES, O_STRAT, O_SAMPLER, O_SEED, O_REF, O_STATS, O_RIG };
+    static const struct option opts[] = {
+        {"env", required_argument, 0, O_ENV},         {"rotate", required_argument, 0, O_ROT},
+        {"intensity", required_argument, 0, O_INT},   {"scene", required_argument, 0, O_SCENE},
+        {"material", required_argument, 0, O_MAT},    {"width", required_argument, 0, O_WIDTH},
+        {"view", required_argument, 0, O_VIEW},       {"background", required_argument, 0, O_BG},
+        {"spp", required_argument, 0, O_SPP},         {"time", required_argument, 0, O_TIME},
+        {"target-error", required_argument, 0, O_TERR},
+        {"bounces", required_argument, 0, O_BOUNCES}, {"strategy", required_argument, 0, O_STRAT},
+        {"sampler", required_argument, 0, O_SAMPLER}, {"seed", required_argument, 0, O_SEED},
+        {"rig", required_argument, 0, O_RIG},         {"reference", required_argument, 0, O_REF},   {"stats", required_argument, 0, O_STATS},
+        {"output", required_argument, 0, 'o'},        {"help", no_argument, 0, 'h'},
+        {0, 0, 0, 0}};
+    const char *rig_path = NULL, *env_path = NULL, *scene_arg = "grey", *mat_spec = NULL, *ref_path = NULL,
+               *stats_path = NULL, *out_path = NULL;
+    double rotate = 0, intensity = 1, az = 0, el = 0;
+    bool view = false, bg_env = false, spp_given = false;
+    int width = 512, bounces = 0, seed = 1;
+    sl_render_options o;
+    sl_render_options_init(&o);
+    cli_getopt_reset();
+    int c;
+    while ((c = getopt_long(argc, argv, ":ho:", opts, NULL)) != -1) {
+        switch (c) {
+        case 'h':
+            help(stdout);
+            return 0;
+        case 'o': out_path = optarg; break;
+        case O_ENV: env_path = optarg; break;
+        case O_RIG: rig_path = optarg; break;
+        case O_SCENE: scene_arg = optarg; break;
+        case O_MAT: mat_spec = optarg; break;
+        case O_REF: ref_path = optarg; break;
+        case O_STATS: stats_path = optarg; break;
+        case O_ROT:
+            if (!cli_parse_double(optarg, &rotate))
+                return cli_usage_error(cli, "--rotate needs a number of degrees");
+            break;
+        case O_INT:
+            if (!cli_parse_double(optarg, &intensity) || intensity < 0)
+                return cli_usage_error(cli, "--intensity needs a number >= 0");
+            break;
+        case O_WIDTH:
+            if (!cli_parse_int(optarg, &width) || width < 1 || width > 65536)
+                return cli_usage_error(cli, "--width needs a whole number from 1 to 65536");
+            break;
+        case O_VIEW:
+            if (sscanf(optarg, "%lf,%lf", &az, &el) != 2 || !isfinite(az) || !isfinite(el) ||
+                fabs(el) > 90)
+                return cli_usage_error(cli, "--view needs AZ,EL in degrees (|EL| <= 90)");
+            view = true;
+            break;
+        case O_BG:
+            if (strcmp(optarg, "env") && strcmp(optarg, "black"))
+                return cli_usage_error(cli, "--background is env or black");
+            bg_env = !strcmp(optarg, "env");
+            break;
+        case O_SPP: {
+            int n;
+            if (!cli_parse_int(optarg, &n) || n < 1)
+                return cli_usage_error(cli, "--spp needs a whole number >= 1");
+            o.spp = n;
+            spp_given = true;
+            break;
+        }
+        case O_TIME:
+            if (!cli_parse_double(optarg, &o.time_limit) || o.time_limit <= 0)
+                return cli_usage_error(cli, "--time needs a number of seconds > 0");
+            break;
+        case O_TERR:
+            if (!cli_parse_double(optarg, &o.target_error) || o.target_error <= 0)
+                return cli_usage_error(cli, "--target-error needs a number > 0");
+            break;
+        case O_BOUNCES:
+            if (!cli_parse_int(optarg, &bounces) || bounces < 0 || bounces > 64)
+                return cli_usage_error(cli, "--bounces needs a whole number from 0 to 64");
+            o.bounces = bounces;
+            break;
+        case O_STRAT: {
+            int s = sl_strategy_from_name(optarg);
+            if (s < 0)
+                return cli_usage_error(cli, "unknown --strategy '%s' (mis, bsdf, light, cosine, uniform)",
+                                       optarg);
+            o.strategy = (sl_strategy)s;
+            break;
+        }
+        case O_SAMPLER:
+            if (strcmp(optarg, "sobol") && strcmp(optarg, "random"))
+                return cli_usage_error(cli, "--sampler is sobol or random");
+            o.low_discrepancy = !strcmp(optarg, "sobol");
+            break;
+        case O_SEED:
+            if (!cli_parse_int(optarg, &seed) || seed < 0)
+                return cli_usage_error(cli, "--seed needs a whole number >= 0");
+            o.seed = (uint64_t)seed;
+            break;
+        case ':': return cli_usage_error(cli, "%s needs a value", argv[optind - 1]);
+        default: return cli_usage_error(cli, "unknown option %s", argv[optind - 1]);
+        }
+    }
+    if (optind < argc)
+        return cli_usage_error(cli, "unexpected argument '%s'", argv[optind]);
+    if (!env_path == !rig_path)
+        return cli_usage_error(cli, "give exactly one of --env ENV and --rig RIG.json");
+    if (rig_path && (rotate != 0 || intensity != 1))
+        return cli_usage_error(cli, "--rotate and --intensity apply to --env; a rig sets its dome's");
+    if (!out_path)
+        return cli_usage_error(cli, "-o OUT.exr is required");
+    if (!spp_given && (o.time_limit > 0 || o.target_error > 0))
+        o.spp = 0;
+    sl_material mat;
+    if (mat_spec && !parse_material(mat_spec, &mat))
+        return cli_usage_error(cli, "bad --material '%s'", mat_spec);
+
+    sl_error err = {0};
+    sl_scene scene;
+    sl_image ref = {0}, img = {0};
+    sl_render_stats stats = {0};
+    sl_scene_init(&scene);
+    sl_result r;
+    bool preset = !sl_scene_arg_is_file(scene_arg);
+    if ((r = sl_scene_load(&scene, scene_arg, width, env_path, rotate, intensity, rig_path, &err)))
+        goto fail;
+    if (view) {
+        if (!preset) {
+            sl_error_set(&err, SL_ERR_USAGE, "--view turns a preset's validation camera; "
+                                             "scene files set their own camera");
+            r = SL_ERR_USAGE;
+            goto fail;
+        }
+        sl_camera *cam = &scene.camera;
+        sl_camera_validation(cam, cam->width, cam->height, cam->ortho_width, az, el);
+    }
+    if (bg_env)
+        scene.background_env = true;
+    if (mat_spec) {
+        int idx;
+        if ((r = sl_scene_add_material(&scene, &mat, &idx, &err)))
+            goto fail;
+        for (int i = 0; i < scene.shape_count; i++)
+            scene.shapes[i].material = idx;
+    }
+    const char *light_src = env_path ? env_path : rig_path;
+    if (scene.dome.bad_texels)
+        sl_log(SL_LOG_WARN, "%s: %lld NaN, Inf or negative samples set to 0", light_src,
+               (long long)scene.dome.bad_texels);
+    if (ref_path) {
+        if ((r = sl_image_read(ref_path, &ref, NULL, &err)))
+            goto fail;
+        if (ref.width != scene.camera.width || ref.height != scene.camera.height || ref.channels < 3) {
+            r = sl_error_set(&err, SL_ERR_INPUT, "%s: reference is %dx%d, the render %dx%d (RGB needed)",
+                             ref_path, ref.width, ref.height, scene.camera.width, scene.camera.height);
+            goto fail;
+        }
+        o.reference = &ref;
+    }
+    bool progress = !cli->quiet && isatty(2);
+    if (progress)
+        o.on_pass = show_pass;
+    r = sl_render(&scene, &o, &img, &stats, &err);
+    if (progress)
+        fputc('\n', stderr);
+    if (r)
+        goto fail;
+    sl_meta meta;
+    sl_meta_init(&meta);
+    char buf[256];
+    const sl_render_pass *last = stats.pass_count ? &stats.passes[stats.pass_count - 1] : NULL;
+    snprintf(buf, sizeof buf, "scene=%s %s=%s rotate=%g intensity=%g spp=%lld strategy=%s",
+             scene.name, env_path ? "env" : "rig", light_src, rotate, intensity, (long long)stats.spp,
+             sl_strategy_name(o.strategy));
+    sl_meta_set(&meta, "setlight:render", buf, NULL);
+    snprintf(buf, sizeof buf, "%.6g", last ? last->est_rel_rmse : 0.0);
+    sl_meta_set(&meta, "setlight:estimated_rel_rmse", buf, NULL);
+    r = sl_exr_write(out_path, &img, &meta, SL_PIXEL_FLOAT, &err);
+    sl_meta_free(&meta);
+    if (r)
+        goto fail;
+    if (stats_path && (r = sl_render_stats_write_json(&stats, &o, stats_path, &err)))
+        goto fail;
+    if (cli->json)
+        printf("{\"output\": \"%s\", \"spp\": %lld, \"seconds\": %.6g, \"est_rel_rmse\": %.6g, "
+               "\"ref_rel_rmse\": %.6g, \"stop_reason\": \"%s\", \"dome_bad_texels\": %lld}\n",
+               out_path, (long long)stats.spp, stats.seconds, last ? last->est_rel_rmse : 0.0,
+               last ? last->ref_rel_rmse : -1.0, stats.stop_reason,
+               (long long)scene.dome.bad_texels);
+    else
+        sl_log(SL_LOG_INFO, "%s: %dx%d, %lld spp in %.3f s, estimated relative RMSE %.4g (%s)",
+               out_path, img.width, img.height, (long long)stats.spp, stats.seconds,
+               last ? last->est_rel_rmse : 0.0, stats.stop_reason);
+fail:
+    sl_render_stats_free(&stats);
+    sl_image_free(&img);
+    sl_image_free(&ref);
+    sl_scene_free(&scene);
+    return r ? cli_fail(cli, &err) : 0;
+}
