@@ -38,12 +38,12 @@ typedef struct det_image {
 } det_image;
 
 typedef struct edge_pt {
-    double x, y, strength;
+    double x, y;
 } edge_pt;
 
 typedef struct fit {
-    double cx, cy, r, rms, tolerance;
-    int inliers, rays_in_frame, rays_clipped;
+    double cx, cy, r, rms;
+    int inliers;
     double support;
 } fit;
 
@@ -164,19 +164,16 @@ static bool circle_fit(const edge_pt *p, const bool *use, int n, double c[3])
 
 /* Sub-pixel edge along one ray, searched in [r - win, r + win]. */
 static bool ray_edge(const det_image *im, double cx, double cy, double r, double win, double dx,
-                     double dy, edge_pt *out, bool *clipped)
+                     double dy, edge_pt *out)
 {
-    *clipped = false;
     double lo = r - win, hi = r + win;
     if (lo < 1.0)
         lo = 1.0;
     /* The window may end at the frame; the circle itself may not. */
     while (hi > lo && !in_frame(im, cx + (hi + EDGE_HALF + 0.5) * dx, cy + (hi + EDGE_HALF + 0.5) * dy))
         hi -= 0.25;
-    if (hi < r + 1.0) {
-        *clipped = true;
+    if (hi < r + 1.0)
         return false;
-    }
     if (!in_frame(im, cx + (lo - EDGE_HALF - 0.5) * dx, cy + (lo - EDGE_HALF - 0.5) * dy))
         return false;
     double best = -1.0, best_s = 0.0;
@@ -214,7 +211,6 @@ static bool ray_edge(const det_image *im, double cx, double cy, double r, double
     }
     out->x = cx + s_edge * dx;
     out->y = cy + s_edge * dy;
-    out->strength = best;
     return true;
 }
 
@@ -234,13 +230,8 @@ static bool refine(const det_image *im, double cx, double cy, double r, double w
     int m = 0;
     for (int i = 0; i < n; i++) {
         double a = 2.0 * M_PI * (i + 0.5) / n;
-        bool clipped;
-        if (ray_edge(im, cx, cy, r, win, cos(a), sin(a), &pts[m], &clipped))
+        if (ray_edge(im, cx, cy, r, win, cos(a), sin(a), &pts[m]))
             m++;
-        if (clipped)
-            f->rays_clipped++;
-        else
-            f->rays_in_frame++;
     }
     double c[3] = {cx, cy, r};
     for (int i = 0; i < m; i++)
@@ -265,7 +256,6 @@ static bool refine(const det_image *im, double cx, double cy, double r, double w
      * perspective ellipse (axes differ by ~r (1/cos(off-axis) - 1)), lens
      * distortion and texture next to the rim all scale with the radius. */
     double tol = fmax(SUPPORT_TOLERANCE, c[2] / SUPPORT_PER_RADIUS);
-    f->tolerance = tol;
     double ss = 0.0;
     for (int i = 0; i < m; i++)
         if (use[i] && res[i] <= tol) {
