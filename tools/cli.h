@@ -47,5 +47,6 @@ int cmd_cameras(int argc, char **argv, const sl_cli *cli);
 int cmd_merge(int argc, char **argv, const sl_cli *cli);
 int cmd_response(int argc, char **argv, const sl_cli *cli);
 int cmd_rig(int argc, char **argv, const sl_cli *cli);
+int cmd_unwrap(int argc, char **argv, const sl_cli *cli);
 
 #endif

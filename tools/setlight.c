@@ -22,6 +22,7 @@ static const command commands[] = {
     {"cameras", cmd_cameras, "list the cameras libgphoto2 detects"},
     {"merge", cmd_merge, "merge a bracket of exposures into HDR radiance (EXR)"},
     {"response", cmd_response, "recover a camera response curve from a bracket"},
+    {"unwrap", cmd_unwrap, "chrome-ball photo to lat-long (finds the ball, exact perspective)"},
     {"rig", cmd_rig, "extract area lights and a residual dome from a lat-long, as USD and JSON"},
     {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
     {"converge", cmd_converge, "error against time for each sampling strategy (table, SVG)"},
