@@ -476,6 +476,8 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli)
     int count = (int)(sizeof stages / sizeof stages[0]);
     char notes[16][256];
     double secs[16];
+    sl_progress bar;
+    sl_progress_begin(&bar, "demo", count);
     for (int i = 0; i < count && !r; i++) {
         double t0 = sl_seconds();
         notes[i][0] = 0;
@@ -483,7 +485,9 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli)
         secs[i] = sl_seconds() - t0;
         sl_log(SL_LOG_INFO, "%s: %s (%.1f s)", stages[i].name, r ? err.message : notes[i],
                secs[i]);
+        sl_progress_add(&bar, 1);
     }
+    sl_progress_end(&bar);
     if (r) {
         sl_report_free(d.rep);
         return cli_fail(cli, &err);
