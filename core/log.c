@@ -11,6 +11,9 @@
 static sl_log_level min_level = SL_LOG_INFO;
 static bool quiet;
 static pthread_mutex_t log_lock = PTHREAD_MUTEX_INITIALIZER;
+/* The bar on screen, if any: log lines clear it, print, and draw it again. */
+static sl_progress *active_bar;
+static void progress_draw(sl_progress *p, bool final);
 
 void sl_log_set_level(sl_log_level level) { min_level = level; }
 void sl_log_set_quiet(bool q) { quiet = q; }
@@ -25,12 +28,18 @@ void sl_log(sl_log_level level, const char *fmt, ...)
         return;
     va_list ap;
     pthread_mutex_lock(&log_lock);
+    if (active_bar)
+        fputs("\r\033[K", stderr);
     fputs("setlight: ", stderr);
     fputs(prefix[level], stderr);
     va_start(ap, fmt);
     vfprintf(stderr, fmt, ap);
     va_end(ap);
     fputc('\n', stderr);
+    if (active_bar) {
+        active_bar->last_draw_seconds = 0;
+        progress_draw(active_bar, false);
+    }
     pthread_mutex_unlock(&log_lock);
 }
 
@@ -76,8 +85,12 @@ void sl_progress_begin(sl_progress *p, const char *label, int64_t total)
     p->start_seconds = sl_seconds();
     p->last_draw_seconds = 0;
     p->enabled = !quiet && isatty(STDERR_FILENO);
-    if (p->enabled)
+    if (p->enabled) {
+        pthread_mutex_lock(&log_lock);
+        active_bar = p;
         progress_draw(p, false);
+        pthread_mutex_unlock(&log_lock);
+    }
 }
 
 void sl_progress_add(sl_progress *p, int64_t amount)
@@ -98,6 +111,8 @@ void sl_progress_end(sl_progress *p)
         pthread_mutex_lock(&log_lock);
         p->done = p->total;
         progress_draw(p, true);
+        if (active_bar == p)
+            active_bar = NULL;
         pthread_mutex_unlock(&log_lock);
     }
 }

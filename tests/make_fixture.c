@@ -7,12 +7,14 @@
  *       nan       lat-long with NaN and Inf samples, as a PFM file written here
  *                 byte by byte (setlight's own writers never write NaN)
  *       wide      a 3:1 image with no envmap attribute
- *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr) */
+ *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr)
+ *       ball...   chrome-ball photos, see ball_fixture.h */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "ball_fixture.h"
 #include "setlight/core.h"
 
 /* Portable float map: header, then little-endian float rows bottom to top. */
@@ -34,6 +36,8 @@ int main(int argc, char **argv)
         return 2;
     }
     const char *kind = argv[1], *out = argv[2];
+    if (!strncmp(kind, "ball", 4))
+        return ball_fixture_main(kind, out);
     int w = argc > 3 ? atoi(argv[3]) : 64, h = argc > 4 ? atoi(argv[4]) : w / 2;
     if (!strcmp(kind, "wide"))
         h = w / 3;

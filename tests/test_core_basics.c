@@ -139,6 +139,19 @@ static void test_meta(void)
     sl_meta_free(&c);
 }
 
+static void test_progress_quiet_off_terminal(void)
+{
+    /* ctest's stderr is a pipe: no bar, and every call is safe. */
+    sl_progress p;
+    sl_progress_begin(&p, "test", 10);
+    CHECK(!p.enabled);
+    sl_progress_add(&p, 4);
+    sl_progress_add(&p, 6);
+    CHECK(p.done == 10);
+    sl_progress_end(&p);
+    sl_progress_add(NULL, 1);
+}
+
 int main(void)
 {
     RUN(test_exit_codes);
@@ -147,5 +160,6 @@ int main(void)
     RUN(test_parallel_deterministic);
     RUN(test_atomic_output);
     RUN(test_meta);
+    RUN(test_progress_quiet_off_terminal);
     return sl_test_finish();
 }

@@ -44,6 +44,10 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli);
 int cmd_capture(int argc, char **argv, const sl_cli *cli);
 int cmd_ingest(int argc, char **argv, const sl_cli *cli);
 int cmd_cameras(int argc, char **argv, const sl_cli *cli);
+int cmd_merge(int argc, char **argv, const sl_cli *cli);
+int cmd_response(int argc, char **argv, const sl_cli *cli);
+int cmd_rig(int argc, char **argv, const sl_cli *cli);
+int cmd_unwrap(int argc, char **argv, const sl_cli *cli);
 int cmd_calibrate(int argc, char **argv, const sl_cli *cli);
 
 #endif

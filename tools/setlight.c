@@ -20,12 +20,16 @@ static const command commands[] = {
     {"capture", cmd_capture, "tethered bracketing through libgphoto2 with journal and resume"},
     {"ingest", cmd_ingest, "group a card or folder of brackets into a session"},
     {"cameras", cmd_cameras, "list the cameras libgphoto2 detects"},
-    {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
-    {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"merge", cmd_merge, "merge a bracket of exposures into HDR radiance (EXR)"},
+    {"response", cmd_response, "recover a camera response curve from a bracket"},
+    {"unwrap", cmd_unwrap, "chrome-ball photo to lat-long (finds the ball, exact perspective)"},
+    {"rig", cmd_rig, "extract area lights and a residual dome from a lat-long, as USD and JSON"},
     {"calibrate", cmd_calibrate, "match the HDRI to the plate camera: ColorChecker and grey sphere"},
     {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
     {"converge", cmd_converge, "error against time for each sampling strategy (table, SVG)"},
     {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},
+    {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
+    {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
 

@@ -17,9 +17,228 @@ extern "C" {
 /* Merge: brackets to HDR radiance                                     */
 /* ================================================================== */
 
+/* An inverse camera response: pixel value z in [0, 1] -> linear exposure,
+ * sampled at z = k / (nodes - 1) per channel and interpolated linearly.
+ * Increasing, with inverse[nodes - 1] = 1 (the value a saturated pixel
+ * would linearise to). docs/merge.md describes the JSON file form. */
+typedef struct sl_response {
+    int channels;    /* 3 */
+    int nodes;       /* >= 2 */
+    double *inverse; /* channels rows of nodes values; owned */
+    char source[64]; /* "linear", "debevec-malik", or the file it came from */
+} sl_response;
+
+sl_result sl_response_linear(sl_response *resp, int nodes, sl_error *err);
+void sl_response_free(sl_response *resp);
+/* Linear exposure for value z (clamped to [0, 1]) in one channel. */
+double sl_response_eval(const sl_response *resp, int channel, double z);
+/* JSON files {"format": "setlight-response", "version": 1, ...}; written atomically. */
+sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err);
+sl_result sl_response_write(const char *path, const sl_response *resp, sl_error *err);
+
+typedef enum { SL_RESPONSE_LINEAR = 0, SL_RESPONSE_AUTO, SL_RESPONSE_GIVEN } sl_response_mode;
+typedef enum { SL_EXPOSURES_EXIF = 0, SL_EXPOSURES_DATA } sl_exposure_source;
+
+typedef struct sl_merge_options {
+    const double *times;        /* seconds per frame in the given order; NULL: EXIF */
+    sl_exposure_source exposures; /* which exposures the merge uses */
+    sl_response_mode response_mode;
+    const sl_response *response; /* for SL_RESPONSE_GIVEN */
+    double smoothness;          /* Debevec-Malik lambda; 0: 10 (widest step / 3 stops)^1.5 */
+    int samples;                /* response samples per channel; 0: default 4000 */
+    double noise_gain;          /* Poisson term: var(y) = gain * y + floor, y linear in [0, 1] */
+    double noise_floor;         /*   0, 0: defaults 2e-5, 1e-6 (docs/merge.md) */
+    double saturation;          /* z at or above which a sample is saturated (JPEG rings a few codes below 255 inside clipped areas); default 0.95 */
+    double black;               /* z at or below which a sample has no weight; 0: 0.004 */
+    double tolerance_stops;     /* EXIF vs data disagreement reported above; 0: 0.2 */
+    uint64_t seed;              /* for sample positions */
+    bool deghost;               /* leave out frames that disagree with the others */
+    double deghost_sigma;       /* disagreement: beyond this many standard deviations (5) */
+    double deghost_model_error; /* relative error added to the noise model (0.05) */
+} sl_merge_options;
+
+/* Fills the defaults above. */
+void sl_merge_options_init(sl_merge_options *opt);
+
+typedef struct sl_merge_frame {
+    char *path;
+    double exif_time, f_number, iso; /* 0 when absent */
+    double time;                     /* seconds used (EXIF or --times) */
+    double exif_exposure;            /* relative exposure t * ISO / N^2 (t when N, ISO absent) */
+    double fitted_exposure;          /* from the pixel data, on the same scale; 0 if unknown */
+    double disagreement_stops;       /* log2(fitted / exif) after the common offset */
+    bool disagrees;                  /* |disagreement| > tolerance */
+    double exposure;                 /* the one the merge used */
+    int rank;                        /* 0 = shortest exposure */
+    double saturated_fraction;       /* pixels with a channel at or above saturation */
+    double black_fraction;           /* pixels with every channel at or below black */
+} sl_merge_frame;
+
+typedef struct sl_merge_result {
+    sl_image radiance;          /* RGB, relative radiance (the reference frame's scale) */
+    sl_image clipped;           /* RGB, 1 where the channel is saturated in every frame */
+    sl_image ghost;             /* with deghost: 1 channel, 1 where a frame was left out */
+    sl_response response;
+    sl_merge_frame *frames;     /* in the given order */
+    int frame_count;
+    int reference;              /* frame whose exposure scales the radiance (median) */
+    int bits;                   /* bits per sample of the frames */
+    int64_t clipped_pixels;     /* pixels with any channel clipped in every frame */
+    int64_t clipped_samples[3];
+    double clipped_fraction;    /* clipped_pixels / pixels */
+    double clipped_solid_angle; /* steradians when the frames are 2:1 lat-longs, else -1 */
+    int64_t underexposed_samples; /* no frame above black: longest frame's value kept */
+    int64_t disagreeing_frames;
+    int64_t ghost_pixels;       /* with deghost: pixels where a frame was left out */
+    int64_t nonfinite_samples;  /* NaN/Inf input samples (float frames), given no weight */
+    int fitted_ratios;          /* neighbour ratios measured from the data (of frames - 1) */
+    double seconds;
+} sl_merge_result;
+
+/* Merges a bracket of frames (any order, same size and bit depth, at most
+ * 64) into radiance. With deghost, per pixel, a frame whose value is more
+ * than deghost_sigma deviations (noise model plus model error) from the
+ * weighted median of the frames in any channel is left out. Frames are read a strip at a time. Pixels saturated in every
+ * frame get the lower bound from the shortest exposure and a 1 in
+ * `clipped`; no NaN, Inf or negative value is produced. On failure `out`
+ * is left empty. */
+sl_result sl_merge(const char *const *paths, int count, const sl_merge_options *opt,
+                   sl_merge_result *out, sl_error *err);
+void sl_merge_result_free(sl_merge_result *res);
+/* Recovers the response alone (Debevec-Malik) and checks the exposures. */
+sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_options *opt,
+                            sl_merge_result *out, sl_error *err);
+/* Writes the radiance EXR (float) with provenance attributes and, when
+ * mask_path / ghost_path are not NULL, the clipped mask (RGB) and the ghost
+ * mask (Y, needs a deghosted result) beside it, each atomically; on failure
+ * none of them is left. */
+sl_result sl_merge_write(const char *path, const char *mask_path, const char *ghost_path,
+                         const sl_merge_result *res, sl_error *err);
+
 /* ================================================================== */
 /* Unwrap: chrome ball to lat-long                                     */
 /* ================================================================== */
+
+/* The ball's outline in the photo, in pixels of the full image: the image's
+ * top-left corner is (0, 0) and pixel (i, j) has its centre at
+ * (i + 0.5, j + 0.5). */
+typedef struct sl_ball_circle {
+    double cx, cy, r;
+    double residual;  /* RMS distance (px) of the edge points to the circle; 0 if given */
+    int edge_points;  /* sub-pixel edge points the fit used; 0 if given */
+} sl_ball_circle;
+
+/* Finds one chrome ball: circle candidates from OpenCV's Hough transform on
+ * a log-tonemapped copy, then sub-pixel edge points on the HDR image along
+ * rays from each candidate's centre and a robust least-squares circle fit.
+ * SL_ERR_INPUT when no ball is found, when two or more are, or when the ball
+ * is cut by the frame edge (circle then holds the clipped ball's outline);
+ * `name` (a file name) starts the message. */
+sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle *circle,
+                         sl_error *err);
+
+typedef enum {
+    SL_BALL_ORTHOGRAPHIC = 0, /* camera infinitely far: the classic mirror-ball map */
+    SL_BALL_PERSPECTIVE       /* pinhole camera at a finite distance */
+} sl_ball_camera;
+
+/* How the photo was taken. The camera frame looks along +Z with +Y up and
+ * image right -X (the renderer's validation camera); azimuth, elevation and
+ * roll place it in the set: world = Ry(azimuth) Rx(-elevation) Rz(roll) cam,
+ * so azimuth +90 looks along +X, elevation +90 looks up (+Y), and a positive
+ * roll turns the camera's up toward its right. */
+typedef struct sl_ball_geometry {
+    sl_ball_camera camera;
+    /* Perspective only. focal_px: the focal length in pixels of this image
+     * (focal_mm * image_width / sensor_width_mm), principal point at the image
+     * centre; with it the ball may sit anywhere in the frame and its distance
+     * comes from its apparent size. distance: camera to ball centre in ball
+     * radii (distance_mm / (diameter_mm / 2)); overrides the apparent size.
+     * At least one must be > 0; with only the distance the ball is taken to
+     * be on the optical axis. */
+    double focal_px;
+    double distance;
+    double azimuth_deg, elevation_deg, roll_deg;
+} sl_ball_geometry;
+
+typedef enum {
+    SL_REFLECTANCE_CONSTANT = 0, /* R per channel at every angle (1 = ideal mirror) */
+    SL_REFLECTANCE_CONDUCTOR     /* exact unpolarised Fresnel of a metal, n + ik per channel */
+} sl_reflectance_kind;
+
+typedef struct sl_reflectance {
+    sl_reflectance_kind kind;
+    double value[3];
+    double n[3], k[3];
+} sl_reflectance;
+
+void sl_reflectance_constant(sl_reflectance *refl, double r, double g, double b);
+/* A neutral conductor n = 3.2, k = 3.3: 0.55 at normal incidence rising to
+ * 1 at grazing, typical of chrome-plated balls. */
+void sl_reflectance_chrome(sl_reflectance *refl);
+/* Reflectance per channel for the cosine of the angle of incidence. */
+void sl_reflectance_eval(const sl_reflectance *refl, double cos_incidence, double out[3]);
+
+/* The mapping between set directions and photo pixels for one ball photo. */
+typedef struct sl_ball_view {
+    sl_ball_camera camera;
+    int width, height;         /* photo size */
+    double cx, cy, r;          /* the circle */
+    double focal_px;           /* perspective: the pinhole used */
+    double distance;           /* perspective: camera to centre in ball radii; 0 orthographic */
+    double ball_angle;         /* angular radius of the ball seen from the camera (rad) */
+    double off_axis;           /* angle between the optical axis and the ball centre (rad) */
+    double phi_max;            /* largest angle from the view axis's reverse seen: pi - ball_angle */
+    double cam_to_world[3][3];
+    double view_to_cam[3][3];  /* view frame: +Z from the camera through the ball centre */
+    double theta_table[1025];  /* sphere angle for reflected angle, uniform in [0, phi_max] */
+    double centre_px_per_rad;  /* photo resolution where the ball reflects back at the camera */
+} sl_ball_view;
+
+/* SL_ERR_USAGE when the circle is not inside the photo or the perspective
+ * model lacks focal length and distance. */
+sl_result sl_ball_view_init(sl_ball_view *view, int width, int height, const sl_ball_circle *c,
+                            const sl_ball_geometry *g, sl_error *err);
+/* Set direction -> photo pixel (x, y) on the ball and the cosine of the
+ * angle of incidence there. Directions in the blind cone behind the ball
+ * return false and the rim point of the same azimuth. */
+bool sl_ball_view_dir_to_pixel(const sl_ball_view *view, const double dir[3], double *x,
+                               double *y, double *cos_incidence);
+/* Photo pixel -> reflected set direction; false off the ball. */
+bool sl_ball_view_pixel_to_dir(const sl_ball_view *view, double x, double y, double dir[3],
+                               double *cos_incidence);
+/* Photo pixels per radian of set direction along the direction of least
+ * resolution (the smaller singular value of the mapping); 0 in the blind cone. */
+double sl_ball_view_resolution(const sl_ball_view *view, const double dir[3]);
+
+typedef struct sl_unwrap_options {
+    sl_ball_circle circle;
+    sl_ball_geometry geometry;
+    sl_reflectance reflectance;
+    int width; /* output lat-long width; 0 = matched to the ball's resolution */
+} sl_unwrap_options;
+
+typedef struct sl_unwrap_info {
+    int width, height;
+    double distance;          /* camera distance in ball radii; 0 orthographic */
+    double focal_px;
+    double ball_angle_deg;    /* angular radius of the ball seen from the camera */
+    double blind_angle_deg;   /* half-angle of the cone behind the ball the photo cannot see */
+    double off_axis_deg;
+    double centre_px_per_rad;
+    double blind_fraction;    /* of the sphere's solid angle */
+    int64_t nonfinite;        /* NaN/Inf photo samples replaced by 0 */
+} sl_unwrap_info;
+
+/* Unwraps a linear HDR photo of a chrome ball into a lat-long of the set's
+ * radiance (OpenEXR orientation), 4 channels: RGB and a confidence in [0, 1]
+ * (the resolution relative to the ball's centre; 0 in the blind cone, where
+ * RGB is a smooth fill from the rim, never detail). Each output texel is the
+ * solid-angle-weighted average of the photo over its footprint, sampled finely
+ * enough that bright sources do not alias. Pixels are divided by the
+ * reflectance at their angle of incidence. info may be NULL. */
+sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
+                    sl_unwrap_info *info, sl_error *err);
 
 /* ================================================================== */
 /* Calibrate: grey sphere and chart                                    */

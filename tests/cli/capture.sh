@@ -253,8 +253,10 @@ ASAN_OPTIONS=detect_leaks=0 expect 1 cap --camera usb:999,999 --bracket 7x3 --ce
 err_has "usb:999,999"; err_has "no camera"; absent "$T/nousb"
 stop_cam
 # no camera listening on that port any more
-# (libgphoto2 itself prints "connect cmd: Connection refused" before our line)
-expect 1 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --no-prompt -o "$T/gone"
+# (libgphoto2 itself prints "connect cmd: Connection refused" before our line;
+# its ptp2 driver leaks its PTP parameters on this failed init, inside a module
+# it has unloaded by exit, so LeakSanitizer cannot name it to suppress it)
+ASAN_OPTIONS=detect_leaks=0 expect 1 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --no-prompt -o "$T/gone"
 err_has "setlight capture: ptpip:127.0.0.1:$PORT: no camera answers"; absent "$T/gone"
 
 # --- ingest: a card of shuffled names grouped by EXIF time and exposure. The

@@ -10,7 +10,7 @@ for o in --size --seed --force; do out_has "$o"; done
 expect 0 "$S" demo "$T/demo" --json --quiet
 json_ok "$T/out"
 cp "$T/out" "$T/summary.json"
-json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "render"]'
+json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "merge", "render"]'
 present "$T/demo/report.html"
 present "$T/demo/truth.png"
 present "$T/demo/capture/capture.json"
@@ -22,7 +22,7 @@ m = re.search(r"brute-force irradiance sum [0-9.e+-]+ cd/m\^2 \(([+-][0-9.]+)%",
 sys.exit(0 if m and abs(float(m.group(1))) < 1.0 else 1)
 PY
 then ok; else bad "grey-ball check missing or above 1%"; fi
-for stage in simulate truth frames render; do
+for stage in simulate truth frames merge render; do
     if grep -q "<td>$stage</td>" "$T/demo/report.html"; then ok; else bad "report lacks stage $stage"; fi
 done
 if grep -q "EXIF read back through OpenImageIO matches the plan for 21 of 21 frames" "$T/demo/report.html"; then ok; else bad "EXIF check missing from the report"; fi

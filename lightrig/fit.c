@@ -1,0 +1,336 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Fitting a light to a region: energy, direction, solid angle, shape from
+ * second moments on the tangent plane; placement on a sphere or a room;
+ * ranking and selection. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "lightrig_private.h"
+
+const char *sl_rig_shape_name(sl_rig_shape s)
+{
+    switch (s) {
+    case SL_RIG_RECT:
+        return "rect";
+    case SL_RIG_DISK:
+        return "disk";
+    case SL_RIG_SPHERE:
+        return "sphere";
+    case SL_RIG_DISTANT:
+        return "distant";
+    }
+    return "?";
+}
+
+void sl_rig_options_default(sl_rig_options *opt)
+{
+    memset(opt, 0, sizeof *opt);
+    opt->method = SL_RIG_METHOD_REGIONS;
+    opt->threshold = 8;
+    opt->peak_fraction = 0.02;
+    opt->max_solid_angle = 0.3;
+    opt->energy = 0.9;
+    opt->max_lights = 0;
+    opt->merge_degrees = 2;
+    opt->unresolved_degrees = 0.53;
+}
+
+static void cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static double dot(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void normalize(double v[3])
+{
+    double l = sqrt(dot(v, v));
+    for (int i = 0; i < 3; i++)
+        v[i] /= l;
+}
+
+/* Solid angle of a rectangle facing the viewer at unit distance, half-sides a, b. */
+static double rect_solid_angle(double a, double b)
+{
+    return 4 * asin(a * b / sqrt((1 + a * a) * (1 + b * b)));
+}
+
+/* Disk of angular radius r: 2 pi (1 - cos r). */
+static double cap_radius(double omega)
+{
+    double c = 1 - omega / (2 * M_PI);
+    return acos(c < -1 ? -1 : c > 1 ? 1 : c);
+}
+
+bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *texels, int count,
+                    const sl_rig_options *opt, sl_rig_light *L)
+{
+    int w = rgb->width, h = rgb->height;
+    memset(L, 0, sizeof *L);
+    rig_sum integ[3] = {{0}}, ysum = {0}, y2sum = {0};
+    double dsum[3] = {0, 0, 0}, dv[3];
+    for (int t = 0; t < count; t++) {
+        int x = texels[t] % w, y = texels[t] / w;
+        double om = sl_latlong_texel_solid_angle(y, w, h);
+        const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
+        double e[3];
+        for (int c = 0; c < 3; c++) {
+            e[c] = (double)p[c] - (double)q[c];
+            rig_sum_add(&integ[c], e[c] * om);
+        }
+        double ly = rig_luma(e);
+        rig_sum_add(&ysum, ly * om);
+        rig_sum_add(&y2sum, ly * ly * om);
+        rig_texel_dir(x, y, w, h, dv);
+        for (int a = 0; a < 3; a++)
+            dsum[a] += ly * om * dv[a];
+    }
+    double Y = rig_sum_get(&ysum), Y2 = rig_sum_get(&y2sum);
+    L->texels = count;
+    for (int c = 0; c < 3; c++)
+        L->integral[c] = rig_sum_get(&integ[c]);
+    if (!(Y > 0) || !(Y2 > 0) || !(dot(dsum, dsum) > 0))
+        return false;
+    memcpy(L->direction, dsum, sizeof dsum);
+    normalize(L->direction);
+    /* Effective solid angle: each texel counts for the fraction of the
+     * source's plateau radiance it shows (the energy-weighted mean), capped
+     * at 1, so a half-covered edge texel counts about half. */
+    double plateau = Y2 / Y;
+    rig_sum omega_sum = {0};
+
+    /* Tangent frame and second moments of the gnomonic projection. */
+    double *d = L->direction, e1[3], e2[3], helper[3] = {0, 1, 0};
+    if (fabs(d[1]) > 0.9) {
+        helper[0] = 1;
+        helper[1] = 0;
+    }
+    cross(helper, d, e1);
+    normalize(e1);
+    cross(d, e1, e2);
+    double m[6] = {0}; /* sum w, wx, wy, wxx, wxy, wyy */
+    for (int t = 0; t < count; t++) {
+        int x = texels[t] % w, y = texels[t] / w;
+        double om = sl_latlong_texel_solid_angle(y, w, h);
+        const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
+        double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
+        rig_texel_dir(x, y, w, h, dv);
+        double z = dot(dv, d), ly = rig_luma(e);
+        rig_sum_add(&omega_sum, om * (ly < plateau ? ly / plateau : 1));
+        /* the tangent plane holds the texels within ~87 degrees */
+        if (z < 0.05)
+            continue;
+        double wt = ly * om, u = dot(dv, e1) / z, v = dot(dv, e2) / z;
+        m[0] += wt;
+        m[1] += wt * u;
+        m[2] += wt * v;
+        m[3] += wt * u * u;
+        m[4] += wt * u * v;
+        m[5] += wt * v * v;
+    }
+    double omega = rig_sum_get(&omega_sum);
+    double mu = m[1] / m[0], mv = m[2] / m[0];
+    double cuu = m[3] / m[0] - mu * mu, cuv = m[4] / m[0] - mu * mv, cvv = m[5] / m[0] - mv * mv;
+    double tr = 0.5 * (cuu + cvv), det = sqrt(0.25 * (cuu - cvv) * (cuu - cvv) + cuv * cuv);
+    double l1 = tr + det, l2 = tr - det;
+    double th = 0.5 * atan2(2 * cuv, cuu - cvv);
+    for (int a = 0; a < 3; a++)
+        L->axis_u[a] = cos(th) * e1[a] + sin(th) * e2[a];
+    cross(d, L->axis_u, L->axis_v);
+    /* Kurtosis along the principal axes: 1.8 for a uniform rectangle's
+     * marginal, 2.0 for a disk's (semicircle law). */
+    double k4[2] = {0, 0}, k2[2] = {0, 0};
+    for (int t = 0; t < count; t++) {
+        int x = texels[t] % w, y = texels[t] / w;
+        double om = sl_latlong_texel_solid_angle(y, w, h);
+        const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
+        double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
+        rig_texel_dir(x, y, w, h, dv);
+        double z = dot(dv, d);
+        if (z < 0.05)
+            continue;
+        double wt = rig_luma(e) * om;
+        double a = dot(dv, L->axis_u) / z - (cos(th) * mu + sin(th) * mv);
+        double b = dot(dv, L->axis_v) / z - (-sin(th) * mu + cos(th) * mv);
+        k2[0] += wt * a * a;
+        k4[0] += wt * a * a * a * a;
+        k2[1] += wt * b * b;
+        k4[1] += wt * b * b * b * b;
+    }
+    double kurt = 0.5 * (k4[0] * m[0] / (k2[0] * k2[0]) + k4[1] * m[0] / (k2[1] * k2[1]));
+
+    double eq_texel = (2 * M_PI / w) * (M_PI / h);
+    if (omega < 4.5 * eq_texel) {
+        /* Smaller than the texels can show: the map cannot tell its size. */
+        L->shape = SL_RIG_DISTANT;
+        double r = 0.5 * opt->unresolved_degrees * M_PI / 180;
+        L->solid_angle = 2 * M_PI * (1 - cos(r));
+        L->angular_size[0] = L->angular_size[1] = 2 * r;
+    } else {
+        L->solid_angle = omega;
+        double aspect = l2 > 0 ? sqrt(l1 / l2) : 1e3;
+        if (aspect > 1.3 || !(kurt > 1.9)) {
+            L->shape = SL_RIG_RECT;
+            /* Half-sides from the variances (a^2/3), scaled to the solid angle. */
+            double a0 = sqrt(3 * l1), b0 = sqrt(3 * (l2 > 0 ? l2 : l1 * 1e-6));
+            double lo = 0, hi = 1;
+            while (rect_solid_angle(hi * a0, hi * b0) < omega && hi < 1e6)
+                hi *= 2;
+            for (int it = 0; it < 100; it++) {
+                double s = 0.5 * (lo + hi);
+                if (rect_solid_angle(s * a0, s * b0) < omega)
+                    lo = s;
+                else
+                    hi = s;
+            }
+            double s = 0.5 * (lo + hi);
+            L->angular_size[0] = 2 * atan(s * a0);
+            L->angular_size[1] = 2 * atan(s * b0);
+        } else {
+            L->shape = SL_RIG_DISK;
+            L->angular_size[0] = L->angular_size[1] = 2 * cap_radius(omega);
+        }
+    }
+    for (int c = 0; c < 3; c++)
+        L->radiance[c] = L->integral[c] / L->solid_angle;
+    return true;
+}
+
+void rig_place_light(sl_rig_light *L, const sl_rig_options *opt)
+{
+    bool room = opt->room[0] > 0 && opt->room[1] > 0 && opt->room[2] > 0;
+    if (L->shape == SL_RIG_DISTANT || (!room && !(opt->distance > 0)))
+        return;
+    const double *d = L->direction;
+    double t = opt->distance;
+    if (room) {
+        double lo[3] = {-opt->room[0] / 2, -opt->capture_height, -opt->room[1] / 2};
+        double hi[3] = {opt->room[0] / 2, opt->room[2] - opt->capture_height, opt->room[1] / 2};
+        t = INFINITY;
+        for (int a = 0; a < 3; a++) {
+            if (d[a] > 1e-12)
+                t = fmin(t, hi[a] / d[a]);
+            else if (d[a] < -1e-12)
+                t = fmin(t, lo[a] / d[a]);
+        }
+    }
+    L->has_position = true;
+    for (int a = 0; a < 3; a++)
+        L->position[a] = t * d[a];
+    /* Facing the capture point, sized to keep the solid angle. */
+    if (L->shape == SL_RIG_RECT) {
+        L->size[0] = 2 * t * tan(L->angular_size[0] / 2);
+        L->size[1] = 2 * t * tan(L->angular_size[1] / 2);
+    } else {
+        /* Round: a sphere (a bulb lights the whole room) of the same cap. */
+        L->shape = SL_RIG_SPHERE;
+        L->size[0] = L->size[1] = 2 * t * sin(L->angular_size[0] / 2);
+    }
+}
+
+typedef struct ranked {
+    double y;
+    int index;
+} ranked;
+
+static int cmp_ranked(const void *a, const void *b)
+{
+    const ranked *x = a, *y = b;
+    if (x->y != y->y)
+        return x->y < y->y ? 1 : -1;
+    return x->index - y->index;
+}
+
+sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, const int *tags,
+                     bool *keep, sl_rig_skip **skipped, int *skipped_count, sl_error *err)
+{
+    *skipped = NULL;
+    *skipped_count = 0;
+    ranked *r = malloc((size_t)(count ? count : 1) * sizeof *r);
+    if (!r)
+        return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
+    double total = 0;
+    /* Rank by luminous power: a grey (Lambertian) sphere's total reflected
+     * light is proportional to it whatever the direction. */
+    for (int i = 0; i < count; i++) {
+        r[i].y = rig_luma(cand[i].integral);
+        r[i].index = i;
+        total += r[i].y > 0 ? r[i].y : 0;
+    }
+    qsort(r, (size_t)count, sizeof *r, cmp_ranked);
+    for (int i = 0; i < count; i++)
+        cand[r[i].index].share = total > 0 ? r[i].y / total : 0;
+    *skipped = calloc((size_t)(count ? count : 1), sizeof **skipped);
+    if (!*skipped) {
+        free(r);
+        return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
+    }
+    /* The cut is on the energy of the candidates that may become lights:
+     * not excluded by hand, not wider than a fixture. */
+    double acc = 0, eligible = 0;
+    int kept = 0, forced = 0;
+    for (int i = 0; i < count; i++) {
+        forced += tags[i] > 0;
+        bool wide = opt->max_solid_angle > 0 && cand[i].solid_angle > opt->max_solid_angle;
+        double y = rig_luma(cand[i].integral);
+        if (tags[i] > 0 || (tags[i] == 0 && !wide))
+            eligible += y > 0 ? y : 0;
+    }
+    for (int i = 0; i < count; i++) {
+        sl_rig_light *L = &cand[r[i].index];
+        int tag = tags[r[i].index];
+        char reason[128] = "";
+        bool k;
+        if (tag < 0) {
+            k = false;
+            snprintf(reason, sizeof reason, "--exclude %g,%g", opt->exclude[-tag - 1][0],
+                     opt->exclude[-tag - 1][1]);
+        } else if (tag > 0) {
+            k = true; /* tagged by hand: kept whatever its energy */
+            forced--;
+        } else if (opt->max_solid_angle > 0 && L->solid_angle > opt->max_solid_angle) {
+            k = false;
+            snprintf(reason, sizeof reason,
+                     "area: %.3g sr is wider than a fixture (--max-solid-angle %g); the dome "
+                     "renders it exactly",
+                     L->solid_angle, opt->max_solid_angle);
+        } else if (opt->max_lights > 0 && kept + forced >= opt->max_lights) {
+            k = false;
+            snprintf(reason, sizeof reason, "--max-lights %d reached", opt->max_lights);
+        } else if (acc < opt->energy * eligible * (1 - 1e-12)) {
+            k = true;
+        } else if (L->shape == SL_RIG_DISTANT && L->share >= 0.005) {
+            /* Tiny, very bright sources are what a dome renders worst and
+             * what casts the sharpest shadows: not left in it by the cut
+             * (stars and glints under 0.5% of the energy are). */
+            k = true;
+        } else {
+            k = false;
+            snprintf(reason, sizeof reason,
+                     "energy: the kept lights already carry %.1f%% of the directional energy "
+                     "(--energy %g)",
+                     100 * acc / eligible, opt->energy);
+        }
+        keep[r[i].index] = k;
+        if (k) {
+            kept++;
+            acc += r[i].y;
+            continue;
+        }
+        sl_rig_skip *s = &(*skipped)[(*skipped_count)++];
+        memcpy(s->direction, L->direction, sizeof s->direction);
+        memcpy(s->integral, L->integral, sizeof s->integral);
+        s->solid_angle = L->solid_angle;
+        s->share = L->share;
+        snprintf(s->reason, sizeof s->reason, "%s", reason);
+    }
+    free(r);
+    return SL_OK;
+}

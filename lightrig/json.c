@@ -1,0 +1,85 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* rig.json, version 1 (schema in docs/lightrig.md). */
+#include <jansson.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "lightrig_private.h"
+
+static json_t *vec(const double *v, int n)
+{
+    json_t *a = json_array();
+    for (int i = 0; i < n; i++)
+        json_array_append_new(a, json_real(v[i]));
+    return a;
+}
+
+static json_t *rig_json(const sl_rig *rig, const char *dome_file)
+{
+    json_t *lights = json_array(), *skipped = json_array();
+    for (int i = 0; i < rig->light_count; i++) {
+        const sl_rig_light *L = &rig->lights[i];
+        json_t *o = json_object();
+        json_object_set_new(o, "type", json_string(sl_rig_shape_name(L->shape)));
+        json_object_set_new(o, "direction", vec(L->direction, 3));
+        json_object_set_new(o, "solid_angle", json_real(L->solid_angle));
+        json_object_set_new(o, "radiance", vec(L->radiance, 3));
+        json_object_set_new(o, "integral", vec(L->integral, 3));
+        json_object_set_new(o, "position", L->has_position ? vec(L->position, 3) : json_null());
+        json_object_set_new(o, "size", L->has_position ? vec(L->size, 2) : json_null());
+        json_object_set_new(o, "texture", L->texture[0] ? json_string(L->texture) : json_null());
+        json_array_append_new(lights, o);
+    }
+    for (int i = 0; i < rig->skipped_count; i++) {
+        const sl_rig_skip *s = &rig->skipped[i];
+        json_t *o = json_object();
+        json_object_set_new(o, "direction", vec(s->direction, 3));
+        json_object_set_new(o, "solid_angle", json_real(s->solid_angle));
+        json_object_set_new(o, "integral", vec(s->integral, 3));
+        json_object_set_new(o, "share", json_real(s->share));
+        json_object_set_new(o, "reason", json_string(s->reason));
+        json_array_append_new(skipped, o);
+    }
+    json_t *dome = json_object();
+    json_object_set_new(dome, "file", dome_file ? json_string(dome_file) : json_null());
+    json_object_set_new(dome, "integral", vec(rig->dome, 3));
+    json_t *ledger = json_object();
+    json_object_set_new(ledger, "original", vec(rig->original, 3));
+    json_object_set_new(ledger, "lights", vec(rig->lights_sum, 3));
+    json_object_set_new(ledger, "dome", vec(rig->dome, 3));
+    json_object_set_new(ledger, "relative_error", json_real(rig->relative_error));
+    json_t *root = json_object();
+    json_object_set_new(root, "version", json_integer(1));
+    json_object_set_new(root, "lights", lights);
+    json_object_set_new(root, "dome", dome);
+    json_object_set_new(root, "ledger", ledger);
+    json_object_set_new(root, "skipped", skipped);
+    return root;
+}
+
+char *sl_rig_json_string(const sl_rig *rig, const char *dome_file)
+{
+    json_t *root = rig_json(rig, dome_file);
+    char *s = json_dumps(root, JSON_INDENT(2) | JSON_REAL_PRECISION(17));
+    json_decref(root);
+    return s;
+}
+
+sl_result sl_rig_write_json(const sl_rig *rig, const char *path, const char *dome_file,
+                            sl_error *err)
+{
+    char *s = sl_rig_json_string(rig, dome_file);
+    if (!s)
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+    size_t n = strlen(s);
+    char *t = realloc(s, n + 2);
+    if (!t) {
+        free(s);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+    }
+    t[n] = '\n';
+    t[n + 1] = 0;
+    sl_result r = sl_write_file_atomic(path, t, n + 1, err);
+    free(t);
+    return r;
+}

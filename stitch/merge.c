@@ -1,0 +1,524 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* sl_merge: frames checked, sampled, response recovered, exposures checked,
+ * then merged a strip at a time (merge_pass.c). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "merge_private.h"
+#include "strip_reader.h"
+
+enum { SAMPLE_TARGET = 65536, SAMPLE_STRIP = 64, RESPONSE_NODES = 256 };
+
+void sl_merge_options_init(sl_merge_options *opt)
+{
+    memset(opt, 0, sizeof *opt);
+    opt->samples = 4000;
+    opt->noise_gain = 2e-5;
+    opt->noise_floor = 1e-6;
+    opt->saturation = 0.95;
+    opt->black = 0.004;
+    opt->tolerance_stops = 0.2;
+    opt->seed = 1;
+    opt->deghost_sigma = 5;
+    opt->deghost_model_error = 0.05;
+}
+
+void sl_merge_result_free(sl_merge_result *res)
+{
+    if (!res)
+        return;
+    sl_image_free(&res->radiance);
+    sl_image_free(&res->clipped);
+    sl_image_free(&res->ghost);
+    sl_response_free(&res->response);
+    for (int i = 0; i < res->frame_count; i++)
+        free(res->frames[i].path);
+    free(res->frames);
+    memset(res, 0, sizeof *res);
+}
+
+static int cmp_rank(const void *a, const void *b, void *ctx)
+{
+    const sl_merge_frame *f = ctx;
+    double x = f[*(const int *)a].exif_exposure, y = f[*(const int *)b].exif_exposure;
+    return (x > y) - (x < y);
+}
+
+/* Reads every frame's header; checks count, sizes, depths and exposures. */
+static sl_result setup_frames(const char *const *paths, int count, const sl_merge_options *opt,
+                              sl_merge_result *res, merge_ctx *m, sl_error *err)
+{
+    if (count < 2)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: a merge needs at least two frames",
+                            count == 1 ? paths[0] : "(no frames)");
+    if (count > MERGE_MAX_FRAMES)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: %d frames; a merge takes at most %d",
+                            paths[count - 1], count, MERGE_MAX_FRAMES);
+    res->frames = calloc((size_t)count, sizeof *res->frames);
+    m->order = calloc((size_t)count, sizeof *m->order);
+    if (!res->frames || !m->order)
+        return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    res->frame_count = count;
+    bool all_n_iso = true;
+    sl_result r = SL_OK;
+    for (int i = 0; i < count && !r; i++) {
+        sl_merge_frame *f = &res->frames[i];
+        if (!(f->path = strdup(paths[i])))
+            return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+        merge_strip_reader *rd;
+        merge_strip_info info;
+        sl_meta meta;
+        sl_meta_init(&meta);
+        int w, h, ch;
+        r = sl_photo_read_meta(paths[i], &meta, &w, &h, &ch, err);
+        if (!r)
+            r = merge_strip_open(paths[i], &rd, &info, err);
+        if (r) {
+            sl_meta_free(&meta);
+            break;
+        }
+        merge_strip_close(rd);
+        f->exif_time = meta.exposure_time;
+        f->f_number = meta.f_number;
+        f->iso = meta.iso;
+        int orientation = meta.orientation;
+        sl_meta_free(&meta);
+        if (i == 0) {
+            m->width = info.width;
+            m->height = info.height;
+            m->bits = info.bits;
+            m->is_float = info.is_float;
+            m->orientation = orientation;
+            if (info.width < 4 || info.height < 4)
+                return sl_error_set(err, SL_ERR_INPUT,
+                                    "%s: %dx%d is too small to merge (at least 4x4)", paths[i],
+                                    info.width, info.height);
+        } else if (info.width != m->width || info.height != m->height)
+            return sl_error_set(err, SL_ERR_INPUT, "%s: %dx%d, but %s is %dx%d (frames differ in size)",
+                                paths[i], info.width, info.height, paths[0], m->width, m->height);
+        else if (orientation != m->orientation)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: EXIF orientation %d, but %s has %d (frames differ in "
+                                "orientation)",
+                                paths[i], orientation, paths[0], m->orientation);
+        else if (info.bits != m->bits || info.is_float != m->is_float)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: %d-bit%s samples, but %s has %d-bit%s (mixed bit depths)",
+                                paths[i], info.bits, info.is_float ? " float" : "", paths[0],
+                                m->bits, m->is_float ? " float" : "");
+        if (opt->times) {
+            if (!(opt->times[i] > 0) || !isfinite(opt->times[i]))
+                return sl_error_set(err, SL_ERR_USAGE, "%s: exposure time %g is not positive",
+                                    paths[i], opt->times[i]);
+            f->time = opt->times[i];
+        } else if (f->exif_time > 0 && isfinite(f->exif_time))
+            f->time = f->exif_time;
+        else
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: no exposure time in EXIF (give --times)", paths[i]);
+        all_n_iso = all_n_iso && f->f_number > 0 && f->iso > 0;
+    }
+    if (r)
+        return r;
+    if (!m->is_float && m->bits > 16)
+        m->is_float = true; /* 32-bit integer samples: no lookup table */
+    for (int i = 0; i < count; i++) {
+        sl_merge_frame *f = &res->frames[i];
+        f->exif_exposure = all_n_iso ? f->time * f->iso / (f->f_number * f->f_number) : f->time;
+        m->order[i] = i;
+    }
+    qsort_r(m->order, (size_t)count, sizeof *m->order, cmp_rank, res->frames);
+    for (int q = 0; q < count; q++) {
+        res->frames[m->order[q]].rank = q;
+        if (q == 0)
+            continue;
+        const sl_merge_frame *a = &res->frames[m->order[q - 1]], *b = &res->frames[m->order[q]];
+        if (b->exif_exposure <= a->exif_exposure * (1 + 1e-6))
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: same exposure as %s (%g s at f/%g ISO %g): duplicate "
+                                "exposure times",
+                                b->path, a->path, b->time, b->f_number, b->iso);
+    }
+    return SL_OK;
+}
+
+/* Sample positions: one jittered pixel per cell of a grid over the frame. */
+static sl_result choose_positions(merge_ctx *m, uint64_t seed, sl_error *err)
+{
+    int64_t pixels = (int64_t)m->width * m->height;
+    int gw, gh;
+    if (pixels <= SAMPLE_TARGET) {
+        gw = m->width;
+        gh = m->height;
+    } else {
+        gw = (int)ceil(sqrt((double)SAMPLE_TARGET * m->width / m->height));
+        gw = gw > m->width ? m->width : gw;
+        gh = SAMPLE_TARGET / gw;
+        gh = gh > m->height ? m->height : gh < 1 ? 1 : gh;
+    }
+    m->samples.count = gw * gh;
+    m->sample_pos = malloc((size_t)m->samples.count * sizeof *m->sample_pos);
+    if (!m->sample_pos)
+        return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    uint64_t state = seed;
+    int n = 0;
+    for (int cy = 0; cy < gh; cy++) {
+        int y0 = (int)((int64_t)cy * m->height / gh), y1 = (int)((int64_t)(cy + 1) * m->height / gh);
+        for (int cx = 0; cx < gw; cx++) {
+            int x0 = (int)((int64_t)cx * m->width / gw), x1 = (int)((int64_t)(cx + 1) * m->width / gw);
+            int x = x0 + (int)(merge_rand(&state) % (uint64_t)(x1 - x0));
+            int y = y0 + (int)(merge_rand(&state) % (uint64_t)(y1 - y0));
+            m->sample_pos[n++] = (int64_t)y * m->width + x;
+        }
+    }
+    /* Cells in one grid row may pick different rows: sort so strips meet them in order. */
+    for (int i = 1; i < n; i++) {
+        int64_t v = m->sample_pos[i];
+        int j = i - 1;
+        while (j >= 0 && m->sample_pos[j] > v) {
+            m->sample_pos[j + 1] = m->sample_pos[j];
+            j--;
+        }
+        m->sample_pos[j + 1] = v;
+    }
+    return SL_OK;
+}
+
+typedef struct sample_job {
+    merge_ctx *m;
+    sl_merge_result *res;
+    sl_error *errs;
+    sl_result *results;
+} sample_job;
+
+/* One frame: reads it strip by strip, keeps the sample positions' values
+ * and counts saturated, black and white pixels. */
+static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    sample_job *job = ctx;
+    merge_ctx *m = job->m;
+    for (int64_t i = begin; i < end; i++) {
+        sl_merge_frame *f = &job->res->frames[i];
+        int rank = f->rank, w = m->width;
+        merge_strip_reader *rd = NULL;
+        merge_strip_info info;
+        float *buf = malloc((size_t)SAMPLE_STRIP * w * 3 * sizeof *buf);
+        sl_result r = buf ? merge_strip_open(f->path, &rd, &info, &job->errs[i])
+                          : sl_error_set(&job->errs[i], SL_ERR_NOMEM, "merge: out of memory");
+        int64_t sat = 0, black = 0, white = 0;
+        int s = 0;
+        for (int y0 = 0; y0 < m->height && !r; y0 += SAMPLE_STRIP) {
+            int y1 = y0 + SAMPLE_STRIP < m->height ? y0 + SAMPLE_STRIP : m->height;
+            if ((r = merge_strip_read(rd, y0, y1, buf, &job->errs[i])))
+                break;
+            for (int64_t p = 0; p < (int64_t)(y1 - y0) * w; p++) {
+                const float *v = buf + p * 3;
+                int ns = 0, nb = 0;
+                for (int c = 0; c < 3; c++) {
+                    ns += v[c] >= m->saturation;
+                    nb += v[c] <= m->black;
+                }
+                sat += ns > 0;
+                white += ns == 3;
+                black += nb == 3;
+            }
+            int64_t end_pos = (int64_t)y1 * w;
+            for (; s < m->samples.count && m->sample_pos[s] < end_pos; s++) {
+                const float *v = buf + (m->sample_pos[s] - (int64_t)y0 * w) * 3;
+                float *dst = m->samples.z + ((size_t)s * m->samples.frames + rank) * 3;
+                for (int c = 0; c < 3; c++)
+                    dst[c] = isfinite(v[c]) ? v[c] : 0.0f;
+            }
+        }
+        merge_strip_close(rd);
+        free(buf);
+        job->results[i] = r;
+        double pixels = (double)m->width * m->height;
+        f->saturated_fraction = sat / pixels;
+        f->black_fraction = black / pixels;
+        m->white_pixels[i] = white;
+    }
+}
+
+static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
+{
+    int count = res->frame_count;
+    m->samples.frames = count;
+    m->samples.z = calloc((size_t)m->samples.count * count * 3, sizeof *m->samples.z);
+    m->white_pixels = calloc((size_t)count, sizeof *m->white_pixels);
+    sl_error *errs = calloc((size_t)count, sizeof *errs);
+    sl_result *results = calloc((size_t)count, sizeof *results);
+    sl_result r = SL_OK;
+    if (!m->samples.z || !m->white_pixels || !errs || !results)
+        r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    if (!r) {
+        sample_job job = {m, res, errs, results};
+        sl_parallel_for(count, 1, sample_frame, &job);
+        for (int i = 0; i < count && !r; i++)
+            if ((r = results[i]) && err)
+                *err = errs[i];
+    }
+    free(errs);
+    free(results);
+    if (r)
+        return r;
+    bool all_black = true, all_white = true;
+    for (int i = 0; i < count; i++) {
+        all_black = all_black && res->frames[i].black_fraction >= 1;
+        all_white = all_white && m->white_pixels[i] == (int64_t)m->width * m->height;
+    }
+    if (all_black)
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s .. %s: every frame is black (no value above %g)", res->frames[0].path,
+                            res->frames[count - 1].path, m->black);
+    if (all_white)
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s .. %s: every frame is saturated (no value below %g)",
+                            res->frames[0].path, res->frames[count - 1].path, m->saturation);
+    return SL_OK;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median_inplace(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* Robust line y = a + g x (Theil-Sen: median of pairwise slopes, then the
+ * median intercept); g = 1 when not fitted or too few points. */
+static void robust_line(const double *x, const double *y, int n, bool fit_slope, double *a,
+                        double *g, double *scratch)
+{
+    *g = 1;
+    int k = 0;
+    if (fit_slope && n >= 3) {
+        for (int i = 0; i < n; i++)
+            for (int j = i + 1; j < n; j++)
+                if (x[j] != x[i])
+                    scratch[k++] = (y[j] - y[i]) / (x[j] - x[i]);
+        if (k)
+            *g = median_inplace(scratch, k);
+        if (!(*g > 0.1))
+            *g = 1;
+    }
+    for (int i = 0; i < n; i++)
+        scratch[i] = y[i] - *g * x[i];
+    *a = median_inplace(scratch, n);
+}
+
+/* Fits neighbour ratios, chains them into exposures and compares with EXIF.
+ * Each run of fitted ratios is put on the EXIF scale by a robust line
+ * through (EXIF, fitted) log exposures, so one lying frame stands out
+ * instead of moving the others. With a recovered response the line's slope
+ * is fitted too: curve and exposures are only known up to a common power
+ * (Grossberg and Nayar), which EXIF, taken as mostly right, pins down. */
+static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt)
+{
+    int count = res->frame_count;
+    double *ratio = m->ratio;
+    res->fitted_ratios = merge_fit_ratios(&m->samples, &res->response, m->black, m->saturation, ratio);
+    res->disagreeing_frames = 0;
+    bool fit_slope = opt->response_mode == SL_RESPONSE_AUTO;
+    int q = 0;
+    while (q < count) {
+        int end = q; /* run [q, end]: ratios q..end-1 all fitted */
+        while (end + 1 < count && ratio[end] > 0)
+            end++;
+        int n = end - q + 1;
+        double lf = 0, *lx = m->offsets;
+        for (int k = q; k <= end; k++) {
+            if (k > q)
+                lf += log(ratio[k - 1]);
+            m->log_fit[k] = lf;
+            lx[k - q] = log(res->frames[m->order[k]].exif_exposure);
+        }
+        double a = 0, g = 1;
+        if (n >= 2)
+            robust_line(lx, m->log_fit + q, n, fit_slope, &a, &g, m->scratch);
+        for (int k = q; k <= end; k++) {
+            sl_merge_frame *f = &res->frames[m->order[k]];
+            if (n < 2) {
+                f->fitted_exposure = 0;
+                f->disagreement_stops = 0;
+                f->disagrees = false;
+                continue;
+            }
+            f->fitted_exposure = exp((m->log_fit[k] - a) / g);
+            f->disagreement_stops = log2(f->fitted_exposure / f->exif_exposure);
+            f->disagrees = fabs(f->disagreement_stops) > opt->tolerance_stops;
+            res->disagreeing_frames += f->disagrees;
+        }
+        q = end + 1;
+    }
+    for (int i = 0; i < count; i++) {
+        sl_merge_frame *f = &res->frames[i];
+        f->exposure = opt->exposures == SL_EXPOSURES_DATA && f->fitted_exposure > 0
+                          ? f->fitted_exposure
+                          : f->exif_exposure;
+    }
+}
+
+static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,
+                                  bool use_fitted, sl_error *err)
+{
+    double *loge = m->offsets;
+    for (int q = 0; q < res->frame_count; q++) {
+        const sl_merge_frame *f = &res->frames[m->order[q]];
+        loge[q] = log(use_fitted && f->fitted_exposure > 0 ? f->fitted_exposure : f->exif_exposure);
+    }
+    /* Wider steps leave more of the curve to smoothness: 10 at 3 stops, 5.4 at 2. */
+    double lambda = opt->smoothness;
+    if (lambda == 0) {
+        double widest = 0;
+        for (int q = 1; q < res->frame_count; q++)
+            widest = fmax(widest, (loge[q] - loge[q - 1]) / log(2));
+        lambda = 10 * pow(fmin(fmax(widest, 1), 4) / 3, 1.5);
+    }
+    sl_response fitted;
+    sl_result r = merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda,
+                                     opt->samples, m->black, m->saturation, opt->seed, &fitted, err);
+    if (r)
+        return r;
+    sl_response_free(&res->response);
+    res->response = fitted;
+    return SL_OK;
+}
+
+void merge_ctx_free(merge_ctx *m)
+{
+    free(m->order);
+    free(m->sample_pos);
+    free(m->samples.z);
+    free(m->white_pixels);
+    free(m->ratio);
+    free(m->offsets);
+    free(m->log_fit);
+    free(m->prev_fit);
+    free(m->scratch);
+    memset(m, 0, sizeof *m);
+}
+
+sl_result merge_prepare(const char *const *paths, int count, const sl_merge_options *opt_in,
+                        merge_ctx *m, sl_merge_result *out, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    memset(m, 0, sizeof *m);
+    sl_merge_options opt;
+    if (opt_in)
+        opt = *opt_in;
+    else
+        sl_merge_options_init(&opt);
+    m->black = opt.black;
+    m->saturation = opt.saturation;
+    if (!(opt.saturation > opt.black + 0.1) || !(opt.black >= 0) || !(opt.saturation <= 1) ||
+        !(opt.noise_gain >= 0) || !(opt.noise_floor > 0) || !(opt.smoothness >= 0) ||
+        opt.samples < 16 || !(opt.tolerance_stops > 0) || !(opt.deghost_sigma > 0) ||
+        !(opt.deghost_model_error >= 0))
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "merge: options out of range (0 <= black < saturation - 0.1, "
+                            "saturation <= 1, noise floor > 0, smoothness >= 0, samples >= 16)");
+    if (opt.response_mode == SL_RESPONSE_GIVEN && (!opt.response || opt.response->channels != 3))
+        return sl_error_set(err, SL_ERR_USAGE, "merge: a given response needs three curves");
+    sl_result r = setup_frames(paths, count, &opt, out, m, err);
+    if (!r && m->is_float && opt.response_mode == SL_RESPONSE_AUTO)
+        r = sl_error_set(err, SL_ERR_INPUT,
+                         "%s: float samples are linear already: use --response linear", paths[0]);
+    if (!r) {
+        m->ratio = calloc((size_t)count, sizeof *m->ratio);
+        m->offsets = calloc((size_t)count, sizeof *m->offsets);
+        m->log_fit = calloc((size_t)count, sizeof *m->log_fit);
+        m->prev_fit = calloc((size_t)count, sizeof *m->prev_fit);
+        m->scratch = calloc((size_t)count * count, sizeof *m->scratch);
+        if (!m->ratio || !m->offsets || !m->log_fit || !m->prev_fit || !m->scratch)
+            r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    }
+    if (!r)
+        r = choose_positions(m, opt.seed, err);
+    if (!r)
+        r = sample_pass(m, out, err);
+    if (r)
+        return r;
+    switch (opt.response_mode) {
+    case SL_RESPONSE_LINEAR:
+        r = sl_response_linear(&out->response, RESPONSE_NODES, err);
+        break;
+    case SL_RESPONSE_GIVEN:
+        out->response.inverse = malloc((size_t)opt.response->nodes * 3 * sizeof(double));
+        if (!out->response.inverse)
+            return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+        memcpy(out->response.inverse, opt.response->inverse,
+               (size_t)opt.response->nodes * 3 * sizeof(double));
+        out->response.channels = 3;
+        out->response.nodes = opt.response->nodes;
+        memcpy(out->response.source, opt.response->source, sizeof out->response.source);
+        break;
+    case SL_RESPONSE_AUTO:
+        r = recover_response(m, out, &opt, false, err);
+        break;
+    }
+    if (r)
+        return r;
+    check_exposures(m, out, &opt);
+    /* A recovered curve bends to fit whatever exposures it was given, so a
+     * lying frame would hide in it: alternate curve and measured exposures
+     * until the exposures settle (each round removes most of the error). */
+    for (int round = 0; round < 8 && opt.response_mode == SL_RESPONSE_AUTO &&
+                        out->fitted_ratios > 0;
+         round++) {
+        for (int i = 0; i < count; i++)
+            m->prev_fit[i] = out->frames[i].fitted_exposure;
+        if ((r = recover_response(m, out, &opt, true, err)))
+            return r;
+        check_exposures(m, out, &opt);
+        double moved = 0;
+        for (int i = 0; i < count; i++)
+            if (m->prev_fit[i] > 0 && out->frames[i].fitted_exposure > 0)
+                moved = fmax(moved, fabs(log2(out->frames[i].fitted_exposure / m->prev_fit[i])));
+        if (moved < 0.002)
+            break;
+    }
+    out->reference = m->order[(count - 1) / 2];
+    out->bits = m->bits;
+    return SL_OK;
+}
+
+sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_options *opt,
+                            sl_merge_result *out, sl_error *err)
+{
+    double t0 = sl_seconds();
+    merge_ctx m;
+    sl_result r = merge_prepare(paths, count, opt, &m, out, err);
+    merge_ctx_free(&m);
+    if (r)
+        sl_merge_result_free(out);
+    out->seconds = sl_seconds() - t0;
+    return r;
+}
+
+sl_result sl_merge(const char *const *paths, int count, const sl_merge_options *opt_in,
+                   sl_merge_result *out, sl_error *err)
+{
+    double t0 = sl_seconds();
+    sl_merge_options opt;
+    if (opt_in)
+        opt = *opt_in;
+    else
+        sl_merge_options_init(&opt);
+    merge_ctx m;
+    sl_result r = merge_prepare(paths, count, &opt, &m, out, err);
+    if (!r)
+        r = merge_pass(&m, &opt, out, err);
+    merge_ctx_free(&m);
+    if (r)
+        sl_merge_result_free(out);
+    out->seconds = sl_seconds() - t0;
+    return r;
+}

@@ -1,0 +1,70 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Exposure ratios measured from the pixels, to check what EXIF claims. */
+#include <math.h>
+#include <stdlib.h>
+
+#include "merge_private.h"
+
+/* Fewer usable pixel pairs than this and a ratio is not trusted. */
+enum { MIN_PAIRS = 32 };
+
+/* The k-th smallest of v[0..n) (Hoare's selection; reorders v). */
+static double select_kth(double *v, int n, int k)
+{
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        double pivot = v[lo + (hi - lo) / 2];
+        int i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot)
+                i++;
+            while (v[j] > pivot)
+                j--;
+            if (i <= j) {
+                double t = v[i];
+                v[i++] = v[j];
+                v[j--] = t;
+            }
+        }
+        if (k <= j)
+            hi = j;
+        else if (k >= i)
+            lo = i;
+        else
+            break;
+    }
+    return v[k];
+}
+
+int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double black,
+                     double saturation, double *ratio)
+{
+    int f = s->frames, fitted = 0;
+    /* Well exposed: above 1% of full scale in linear terms (dark codes are
+     * few and noisy) and clear of the shoulder. */
+    double lo = fmax(2 * black, 0.02), hi = saturation - 0.04, ylo = 0.01;
+    double *r = malloc((size_t)s->count * 3 * sizeof *r);
+    for (int q = 0; q + 1 < f; q++) {
+        ratio[q] = 0;
+        if (!r)
+            continue;
+        int n = 0;
+        for (int i = 0; i < s->count; i++)
+            for (int c = 0; c < 3; c++) {
+                double z0 = s->z[((size_t)i * f + q) * 3 + c];
+                double z1 = s->z[((size_t)i * f + q + 1) * 3 + c];
+                if (!(z0 > lo && z0 < hi && z1 > lo && z1 < hi))
+                    continue;
+                double y0 = sl_response_eval(resp, c, z0), y1 = sl_response_eval(resp, c, z1);
+                if (y0 > ylo && y1 > ylo)
+                    r[n++] = y1 / y0;
+            }
+        if (n < MIN_PAIRS)
+            continue;
+        double upper = select_kth(r, n, n / 2);
+        ratio[q] = n % 2 ? upper : 0.5 * (upper + select_kth(r, n / 2, n / 2 - 1));
+        fitted++;
+    }
+    free(r);
+    return fitted;
+}

@@ -1,0 +1,275 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The merge proper: every frame read a strip at a time (decoded in parallel,
+ * one frame per thread), then each pixel and channel merged with
+ * inverse-variance weights from a Poisson-Gaussian noise model. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "merge_private.h"
+#include "strip_reader.h"
+
+enum { STRIP = 32 };
+
+/* Fraction of full scale over which weights fade to zero below saturation,
+ * so noise around the threshold does not switch a frame in and out. */
+#define SHOULDER 0.05
+
+typedef struct pass_ctx {
+    const merge_ctx *m;
+    const sl_merge_options *opt;
+    sl_merge_result *res;
+    int frames;
+    double *e;              /* per rank, relative to the reference frame */
+    merge_strip_reader **rd; /* per rank */
+    float **buf;            /* per rank: STRIP rows of RGB */
+    sl_error *errs;
+    sl_result *results;
+    int y0, y1;
+    int levels;             /* 2^bits for integer frames, 0 for float */
+    float *inv[3], *wb[3];  /* per level: linear value and weight without exposure */
+    int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
+} pass_ctx;
+
+enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
+
+/* Inverse variance of a linearised value, before the exposure factor. */
+static double weight_base(const pass_ctx *p, int c, double z)
+{
+    const merge_ctx *m = p->m;
+    if (!(z > m->black) || z >= m->saturation)
+        return 0;
+    const sl_response *resp = &p->res->response;
+    double y = sl_response_eval(resp, c, z);
+    double var = p->opt->noise_gain * y + p->opt->noise_floor;
+    if (p->levels) {
+        /* Quantisation: a uniform step of the code, carried through the curve. */
+        double h = 1.0 / (resp->nodes - 1), lo = fmax(z - h, 0), hi = fmin(z + h, 1);
+        double slope = (sl_response_eval(resp, c, hi) - sl_response_eval(resp, c, lo)) / (hi - lo);
+        double step = slope / (p->levels - 1);
+        var += step * step / 12;
+    }
+    return fmin(1, (m->saturation - z) / SHOULDER) / var;
+}
+
+static void read_strips(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    pass_ctx *p = ctx;
+    for (int64_t r = begin; r < end; r++)
+        p->results[r] = merge_strip_read(p->rd[r], p->y0, p->y1, p->buf[r], &p->errs[r]);
+}
+
+/* Weighted median of x over the entries with w > 0. */
+static double weighted_median(const double *x, const double *w, int n)
+{
+    int idx[MERGE_MAX_FRAMES], k = 0;
+    double total = 0;
+    for (int r = 0; r < n; r++)
+        if (w[r] > 0) {
+            int j = k++;
+            while (j > 0 && x[idx[j - 1]] > x[r]) {
+                idx[j] = idx[j - 1];
+                j--;
+            }
+            idx[j] = r;
+            total += w[r];
+        }
+    double run = 0;
+    for (int j = 0; j < k; j++) {
+        run += w[idx[j]];
+        if (run >= 0.5 * total)
+            return x[idx[j]];
+    }
+    return k ? x[idx[k - 1]] : 0;
+}
+
+static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    pass_ctx *p = ctx;
+    const merge_ctx *m = p->m;
+    int w = m->width, f = p->frames;
+    float sat = (float)m->saturation;
+    double xs[3][MERGE_MAX_FRAMES], ws[3][MERGE_MAX_FRAMES];
+    bool satr[3][MERGE_MAX_FRAMES];
+    for (int64_t row = begin; row < end; row++) {
+        int y = p->y0 + (int)row;
+        float *out = sl_image_pixel(&p->res->radiance, 0, y);
+        float *mask = sl_image_pixel(&p->res->clipped, 0, y);
+        float *ghost = p->res->ghost.data ? sl_image_pixel(&p->res->ghost, 0, y) : NULL;
+        int64_t *cnt = p->row_counts + (size_t)y * COUNTS;
+        for (int x = 0; x < w; x++) {
+            size_t idx = ((size_t)row * w + x) * 3;
+            for (int c = 0; c < 3; c++)
+                for (int r = 0; r < f; r++) {
+                    float z = p->buf[r][idx + c];
+                    double y_lin, wb;
+                    if (p->levels) {
+                        int k = (int)(z * (float)(p->levels - 1) + 0.5f);
+                        k = k < 0 ? 0 : k >= p->levels ? p->levels - 1 : k;
+                        y_lin = p->inv[c][k];
+                        wb = p->wb[c][k];
+                    } else if (!isfinite(z)) {
+                        cnt[COUNT_NONFINITE]++;
+                        xs[c][r] = ws[c][r] = 0;
+                        satr[c][r] = false;
+                        continue;
+                    } else {
+                        y_lin = sl_response_eval(&p->res->response, c, z);
+                        wb = weight_base(p, c, z);
+                    }
+                    xs[c][r] = y_lin / p->e[r];
+                    ws[c][r] = wb * p->e[r] * p->e[r];
+                    satr[c][r] = z >= sat;
+                }
+            /* Deghost: a frame far from the weighted median (beyond the noise
+             * model plus a model error) in any channel is left out. */
+            bool reject[MERGE_MAX_FRAMES] = {false}, ghosted = false;
+            if (ghost)
+                for (int c = 0; c < 3; c++) {
+                    double med = weighted_median(xs[c], ws[c], f);
+                    double model = p->opt->deghost_model_error * med;
+                    for (int r = 0; r < f; r++) {
+                        if (ws[c][r] <= 0)
+                            continue;
+                        double d = xs[c][r] - med, var = 1 / ws[c][r] + model * model;
+                        if (d * d > p->opt->deghost_sigma * p->opt->deghost_sigma * var)
+                            reject[r] = ghosted = true;
+                    }
+                }
+            bool any = false;
+            for (int c = 0; c < 3; c++) {
+                double num = 0, den = 0, fallback = 0;
+                int nsat = 0;
+                for (int r = 0; r < f; r++) {
+                    if (satr[c][r])
+                        nsat++;
+                    else if (!reject[r])
+                        fallback = xs[c][r]; /* longest unsaturated so far */
+                    if (!reject[r]) {
+                        num += ws[c][r] * xs[c][r];
+                        den += ws[c][r];
+                    }
+                }
+                double v;
+                if (nsat == f) {
+                    /* The shortest frame's value is a lower bound, never an estimate. */
+                    v = xs[c][0];
+                    mask[x * 3 + c] = 1;
+                    cnt[c]++;
+                    any = true;
+                } else if (den > 0) {
+                    v = num / den;
+                } else {
+                    v = fallback;
+                    cnt[COUNT_UNDER]++;
+                }
+                out[x * 3 + c] = (float)v;
+            }
+            cnt[3] += any;
+            if (ghosted) {
+                ghost[x] = 1;
+                cnt[COUNT_GHOST]++;
+            }
+        }
+    }
+}
+
+static sl_result build_luts(pass_ctx *p, sl_error *err)
+{
+    if (p->m->is_float)
+        return SL_OK;
+    p->levels = 1 << p->m->bits;
+    for (int c = 0; c < 3; c++) {
+        p->inv[c] = malloc((size_t)p->levels * sizeof *p->inv[c]);
+        p->wb[c] = malloc((size_t)p->levels * sizeof *p->wb[c]);
+        if (!p->inv[c] || !p->wb[c])
+            return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+        for (int k = 0; k < p->levels; k++) {
+            double z = (double)k / (p->levels - 1);
+            p->inv[c][k] = (float)sl_response_eval(&p->res->response, c, z);
+            p->wb[c][k] = (float)weight_base(p, c, z);
+        }
+    }
+    return SL_OK;
+}
+
+sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_result *res,
+                     sl_error *err)
+{
+    int f = res->frame_count;
+    pass_ctx p = {.m = m, .opt = opt, .res = res, .frames = f};
+    p.e = calloc((size_t)f, sizeof *p.e);
+    p.rd = calloc((size_t)f, sizeof *p.rd);
+    p.buf = calloc((size_t)f, sizeof *p.buf);
+    p.errs = calloc((size_t)f, sizeof *p.errs);
+    p.results = calloc((size_t)f, sizeof *p.results);
+    p.row_counts = calloc((size_t)m->height * COUNTS, sizeof *p.row_counts);
+    sl_result r = SL_OK;
+    if (!p.e || !p.rd || !p.buf || !p.errs || !p.results || !p.row_counts)
+        r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    if (!r)
+        r = sl_image_alloc(&res->radiance, m->width, m->height, 3, err);
+    if (!r)
+        r = sl_image_alloc(&res->clipped, m->width, m->height, 3, err);
+    if (!r && opt->deghost)
+        r = sl_image_alloc(&res->ghost, m->width, m->height, 1, err);
+    if (!r)
+        r = build_luts(&p, err);
+    double ref = res->frames[res->reference].exposure;
+    for (int q = 0; q < f && !r; q++) {
+        const sl_merge_frame *fr = &res->frames[m->order[q]];
+        p.e[q] = fr->exposure / ref;
+        merge_strip_info info;
+        p.buf[q] = malloc((size_t)STRIP * m->width * 3 * sizeof *p.buf[q]);
+        if (!p.buf[q])
+            r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+        else
+            r = merge_strip_open(fr->path, &p.rd[q], &info, err);
+    }
+    for (int y0 = 0; y0 < m->height && !r; y0 += STRIP) {
+        p.y0 = y0;
+        p.y1 = y0 + STRIP < m->height ? y0 + STRIP : m->height;
+        sl_parallel_for(f, 1, read_strips, &p);
+        for (int q = 0; q < f && !r; q++)
+            if ((r = p.results[q]) && err)
+                *err = p.errs[q];
+        if (!r)
+            sl_parallel_for(p.y1 - p.y0, 1, merge_rows, &p);
+    }
+    if (!r) {
+        bool latlong = sl_is_latlong_shape(m->width, m->height);
+        double solid = 0;
+        for (int y = 0; y < m->height; y++) {
+            const int64_t *cnt = p.row_counts + (size_t)y * COUNTS;
+            for (int c = 0; c < 3; c++)
+                res->clipped_samples[c] += cnt[c];
+            res->clipped_pixels += cnt[3];
+            res->underexposed_samples += cnt[COUNT_UNDER];
+            res->nonfinite_samples += cnt[COUNT_NONFINITE];
+            res->ghost_pixels += cnt[COUNT_GHOST];
+            if (latlong && cnt[3])
+                solid += (double)cnt[3] * sl_latlong_texel_solid_angle(y, m->width, m->height);
+        }
+        res->clipped_fraction = (double)res->clipped_pixels / ((double)m->width * m->height);
+        res->clipped_solid_angle = latlong ? solid : -1;
+    }
+    for (int q = 0; q < f; q++) {
+        if (p.rd)
+            merge_strip_close(p.rd[q]);
+        if (p.buf)
+            free(p.buf[q]);
+    }
+    for (int c = 0; c < 3; c++) {
+        free(p.inv[c]);
+        free(p.wb[c]);
+    }
+    free(p.e);
+    free(p.rd);
+    free(p.buf);
+    free(p.errs);
+    free(p.results);
+    free(p.row_counts);
+    return r;
+}

@@ -1,0 +1,68 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Pieces of the merge shared between its files (stitch/merge*.c, response*.c). */
+#ifndef SETLIGHT_STITCH_MERGE_PRIVATE_H
+#define SETLIGHT_STITCH_MERGE_PRIVATE_H
+
+#include "setlight/stitch.h"
+
+/* Frames per merge (per-pixel work keeps them on the stack). */
+enum { MERGE_MAX_FRAMES = 64 };
+
+/* Pixel values at sample positions: z[(i * frames + r) * 3 + c] for
+ * position i and frame rank r (shortest exposure first). */
+typedef struct merge_samples {
+    int count;
+    int frames;
+    float *z;
+} merge_samples;
+
+/* Debevec-Malik: the log inverse response g(z) on `nodes` nodes such that
+ * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
+ * second derivative of g against ln z, and samples chosen stratified over
+ * scene intensity. Solved in double through the Schur complement of the
+ * per-sample unknowns (a dense nodes x nodes Cholesky). */
+sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
+                             double lambda, int max_samples, double black, double saturation,
+                             uint64_t seed, sl_response *out, sl_error *err);
+
+/* Exposure ratio between neighbouring ranks from pixels well exposed in
+ * both (median of linearised ratios); ratio[r] = e[r+1] / e[r], 0 when too
+ * few pixels are usable. Returns how many ratios could be fitted. */
+int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double black,
+                     double saturation, double *ratio);
+
+/* State shared by the merge stages (merge.c, merge_pass.c). */
+typedef struct merge_ctx {
+    int width, height, bits;
+    bool is_float;
+    int orientation;
+    double black, saturation;
+    int *order;            /* order[rank] = frame index, shortest exposure first */
+    int64_t *sample_pos;   /* y * width + x, increasing */
+    merge_samples samples;
+    int64_t *white_pixels; /* per frame: pixels saturated in every channel */
+    double *ratio;         /* per rank: fitted e[r+1] / e[r], 0 unknown */
+    double *offsets;       /* scratch, one per frame */
+    double *log_fit;       /* per rank: chained fitted log exposure */
+    double *prev_fit;      /* per frame: fitted exposure of the previous round */
+    double *scratch;       /* frames^2 doubles */
+} merge_ctx;
+
+/* Everything before the pixels are merged: frames, samples, response, exposure check. */
+sl_result merge_prepare(const char *const *paths, int count, const sl_merge_options *opt,
+                        merge_ctx *m, sl_merge_result *out, sl_error *err);
+/* Merges the frames strip by strip into out->radiance and out->clipped. */
+sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_result *out,
+                     sl_error *err);
+void merge_ctx_free(merge_ctx *m);
+
+/* splitmix64: a small seeded generator for sample positions. */
+static inline uint64_t merge_rand(uint64_t *state)
+{
+    uint64_t z = (*state += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+#endif

@@ -1,0 +1,111 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The merged EXR and its clipped mask, with provenance attributes. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "merge_private.h"
+
+/* Appends text to a growing string; false when out of memory. */
+static bool append(char **s, size_t *len, const char *text)
+{
+    size_t n = strlen(text);
+    char *t = realloc(*s, *len + n + 1);
+    if (!t)
+        return false;
+    memcpy(t + *len, text, n + 1);
+    *s = t;
+    *len += n;
+    return true;
+}
+
+static sl_result set_number(sl_meta *meta, const char *name, const char *fmt, double v, sl_error *err)
+{
+    char buf[64];
+    snprintf(buf, sizeof buf, fmt, v);
+    return sl_meta_set(meta, name, buf, err);
+}
+
+sl_result sl_merge_write(const char *path, const char *mask_path, const char *ghost_path,
+                         const sl_merge_result *res, sl_error *err)
+{
+    if (ghost_path && !res->ghost.data)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no ghost mask without deghost", ghost_path);
+    sl_meta meta;
+    sl_meta_init(&meta);
+    meta.envmap = sl_is_latlong_shape(res->radiance.width, res->radiance.height)
+                      ? SL_ENVMAP_LATLONG
+                      : SL_ENVMAP_NONE;
+    sl_result r = sl_meta_set_color_space(&meta, "lin_rec709", err);
+    /* One line per frame: path, EXIF time, f-number, ISO, exposures. */
+    char *frames = NULL, *curve = NULL, line[4096 + 256];
+    size_t fl = 0, cl = 0;
+    bool ok = true;
+    for (int i = 0; i < res->frame_count && ok; i++) {
+        const sl_merge_frame *f = &res->frames[i];
+        snprintf(line, sizeof line,
+                 "%s t=%.6g N=%.3g ISO=%.6g exif=%.6g fitted=%.6g used=%.6g off_stops=%.3f%s\n",
+                 f->path, f->time, f->f_number, f->iso, f->exif_exposure, f->fitted_exposure,
+                 f->exposure, f->disagreement_stops, f->disagrees ? " DISAGREES" : "");
+        ok = append(&frames, &fl, line);
+    }
+    for (int c = 0; c < 3 && ok; c++)
+        for (int k = 0; k < res->response.nodes && ok; k++) {
+            snprintf(line, sizeof line, k + 1 < res->response.nodes ? "%.6g " : "%.6g\n",
+                     res->response.inverse[c * res->response.nodes + k]);
+            ok = append(&curve, &cl, line);
+        }
+    if (!ok && !r)
+        r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+    char version[64];
+    snprintf(version, sizeof version, "setlight %s", sl_version());
+    if (!r)
+        r = sl_meta_set(&meta, "setlight:version", version, err);
+    if (!r)
+        r = sl_meta_set(&meta, "setlight:merge:frames", frames ? frames : "", err);
+    if (!r)
+        r = sl_meta_set(&meta, "setlight:merge:response_source", res->response.source, err);
+    if (!r)
+        r = sl_meta_set(&meta, "setlight:merge:response", curve ? curve : "", err);
+    if (!r)
+        r = set_number(&meta, "setlight:merge:reference_exposure", "%.9g",
+                       res->frames[res->reference].exposure, err);
+    if (!r)
+        r = set_number(&meta, "setlight:merge:clipped_fraction", "%.9g", res->clipped_fraction, err);
+    if (!r)
+        r = set_number(&meta, "setlight:merge:clipped_pixels", "%.0f", (double)res->clipped_pixels, err);
+    if (!r && res->clipped_solid_angle >= 0)
+        r = set_number(&meta, "setlight:merge:clipped_solid_angle_sr", "%.9g",
+                       res->clipped_solid_angle, err);
+    if (!r && mask_path)
+        r = sl_meta_set(&meta, "setlight:merge:clipped_mask", mask_path, err);
+    if (!r && res->ghost.data)
+        r = set_number(&meta, "setlight:merge:ghost_pixels", "%.0f", (double)res->ghost_pixels, err);
+    if (!r && ghost_path)
+        r = sl_meta_set(&meta, "setlight:merge:ghost_mask", ghost_path, err);
+    free(frames);
+    free(curve);
+    const char *side_path[2] = {mask_path, ghost_path};
+    const sl_image *side_img[2] = {&res->clipped, &res->ghost};
+    bool written[2] = {false, false};
+    for (int i = 0; i < 2 && !r; i++) {
+        if (!side_path[i])
+            continue;
+        sl_meta mm;
+        sl_meta_init(&mm);
+        mm.envmap = meta.envmap;
+        r = sl_meta_set(&mm, "setlight:merge:mask_of", path, err);
+        if (!r)
+            r = sl_exr_write(side_path[i], side_img[i], &mm, SL_PIXEL_HALF, err);
+        written[i] = !r;
+        sl_meta_free(&mm);
+    }
+    if (!r)
+        r = sl_exr_write(path, &res->radiance, &meta, SL_PIXEL_FLOAT, err);
+    for (int i = 0; i < 2 && r; i++)
+        if (written[i])
+            unlink(side_path[i]); /* no half-written set */
+    sl_meta_free(&meta);
+    return r;
+}

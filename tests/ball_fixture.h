@@ -1,0 +1,68 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Synthetic chrome-ball photos by exact ray tracing, with their ground
+ * truth: an orthographic or pinhole camera (principal point at the image
+ * centre) placed in the set by azimuth/elevation/roll, one or two mirror
+ * spheres, reflection at the hit point, a procedural environment with small
+ * bright sources (or any lat-long), a reflectance, supersampled pixels and a
+ * cluttered background. Independent of the unwrap code except for the
+ * camera-to-set rotation (sl_rotation_euler). */
+#ifndef SETLIGHT_BALL_FIXTURE_H
+#define SETLIGHT_BALL_FIXTURE_H
+
+#include "setlight/stitch.h"
+
+#define BALL_FIXTURE_SOURCES 3
+
+typedef struct ball_fixture_ball {
+    /* Orthographic: the outline in pixels (pixel centres at i + 0.5).
+     * Perspective: the pixel where the centre projects and the distance
+     * from the camera in ball radii. */
+    double px, py;
+    double r;        /* orthographic radius in pixels */
+    double distance; /* perspective */
+} ball_fixture_ball;
+
+typedef struct ball_fixture {
+    int width, height;
+    bool perspective;
+    double focal_px;
+    double azimuth_deg, elevation_deg, roll_deg;
+    int ball_count; /* 1 or 2 */
+    ball_fixture_ball balls[2];
+    sl_reflectance reflectance;
+    const sl_image *env; /* lat-long to reflect; NULL for the procedural one */
+    int ss;              /* sub-samples per pixel axis, near the balls (1 elsewhere) */
+    bool clutter;        /* textured background instead of a flat 0.05 */
+} ball_fixture;
+
+/* A fixture with the defaults: orthographic, 1 ball, reflectance 1, ss 4, clutter. */
+void ball_fixture_init(ball_fixture *f, int width, int height);
+
+/* The procedural environment (smooth sky and ground and three small bright
+ * discs) in set direction `dir` (unit). */
+void ball_fixture_env(const double dir[3], double rgb[3]);
+/* Centre direction (unit) and angular radius (rad) of bright source i. */
+void ball_fixture_source(int i, double dir[3], double *radius);
+
+/* Renders the photo (3 channels). */
+sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *err);
+
+/* Ground truth: the environment box-filtered over each texel of a
+ * width x width/2 lat-long (sub x sub solid-angle-weighted samples). */
+sl_result ball_fixture_truth(const ball_fixture *f, int width, int sub, sl_image *out,
+                             sl_error *err);
+
+/* The outline a circle fit sees for ball i, measured on the traced
+ * silhouette: ellipse centre and mean semi-axis. */
+void ball_fixture_circle(const ball_fixture *f, int i, sl_ball_circle *c);
+
+/* Traces the camera ray through photo point (x, y) to ball i: the reflected
+ * set direction and the cosine of incidence; false on a miss. */
+bool ball_fixture_trace(const ball_fixture *f, int i, double x, double y, double dir[3],
+                        double *cos_incidence);
+
+/* make_fixture's ball kinds (200x160 perspective chrome ball, focal 180 px):
+ * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone. */
+int ball_fixture_main(const char *kind, const char *out);
+
+#endif

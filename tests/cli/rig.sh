@@ -1,0 +1,106 @@
+#!/usr/bin/env bash
+# setlight rig end to end: outputs, --json summary and rig.json, median cut,
+# and every bad input the lightrig issue names (exit code, one-line message
+# naming the file, no output left behind).
+. "$(dirname "$0")/lib.bash"
+
+"$MAKE_FIXTURE" sun "$T/sun.exr" 64 32 || bad "fixture"
+"$MAKE_FIXTURE" latlong "$T/smooth.exr" 64 32 || bad "fixture"
+"$MAKE_FIXTURE" nan "$T/nan.pfm" 64 32 || bad "fixture"
+"$MAKE_FIXTURE" wide "$T/wide.exr" 96 || bad "fixture"
+# A black map and a stage with two panels, written as PFM (no envmap attribute).
+python3 - "$T" <<'PY'
+import math, struct, sys
+t = sys.argv[1]
+def pfm(path, w, h, f):
+    with open(path, "wb") as o:
+        o.write(b"PF\n%d %d\n-1.0\n" % (w, h))
+        for y in range(h - 1, -1, -1):
+            row = []
+            for x in range(w):
+                row += f(x, y, w, h)
+            o.write(struct.pack("<%df" % len(row), *row))
+pfm(t + "/black.pfm", 64, 32, lambda x, y, w, h: [0.0, 0.0, 0.0])
+def stage(x, y, w, h):
+    if 100 <= x < 120 and 60 <= y < 70: return [50.0, 50.0, 50.0]
+    if 300 <= x < 310 and 40 <= y < 50: return [80.0, 60.0, 40.0]
+    return [0.5, 0.5, 0.5]
+pfm(t + "/stage.pfm", 512, 256, stage)
+PY
+"$SETLIGHT" convert --float "$T/stage.pfm" "$T/stage.exr" || bad "convert stage"
+
+# --- help and a good run
+expect 0 "$SETLIGHT" rig --help; out_has "usage: setlight rig"; out_has "--max-lights"
+expect 0 "$SETLIGHT" --help; out_has "rig"
+mkdir -p "$T/o" "$T/bad"
+expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/stage.usda" --json "$T/o/stage.json" \
+  --preview "$T/o/stage.png" --energy 1
+present "$T/o/stage.usda"; present "$T/o/stage_residual.exr"; present "$T/o/stage.json"
+present "$T/o/stage.png"; no_temp "$T/o"
+json_ok "$T/out"
+json_eval "$T/out" 'd["lights"] == 2 and d["relative_error"] < 1e-3 and d["rig"]["version"] == 1'
+json_eval "$T/o/stage.json" 'd["version"] == 1 and len(d["lights"]) == 2 and d["ledger"]["relative_error"] < 1e-3'
+json_eval "$T/o/stage.json" 'set(d) == {"version", "lights", "dome", "ledger", "skipped"} and d["dome"]["file"] == "stage_residual.exr"'
+json_eval "$T/o/stage.json" 'all(set(l) == {"type","direction","solid_angle","radiance","integral","position","size","texture"} for l in d["lights"])'
+json_eval "$T/o/stage.json" 'all(abs(sum(v*v for v in l["direction"]) - 1) < 1e-9 and l["position"] is None for l in d["lights"])'
+# ledger: lights + dome = original per channel
+json_eval "$T/o/stage.json" 'all(abs(d["ledger"]["lights"][c] + d["ledger"]["dome"][c] - d["ledger"]["original"][c]) <= 1e-3 * d["ledger"]["original"][c] for c in range(3))'
+if grep -q 'def DomeLight "dome"' "$T/o/stage.usda" && grep -q '@stage_residual.exr@' "$T/o/stage.usda" &&
+  [ "$(grep -c 'def DistantLight' "$T/o/stage.usda")" -eq 2 ]; then ok; else bad "usda content"; fi
+expect 0 "$SETLIGHT" info --json "$T/o/stage_residual.exr"
+json_eval "$T/out" 'd["files"][0]["envmap"] == "latlong" and d["files"][0]["nan_count"] == 0'
+# the dome no longer holds the panels
+json_eval "$T/out" 'd["files"][0]["channel_stats"][0]["max"] < 5'
+
+# --- positions in a room; median cut
+expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/room.usda" --json "$T/o/room.json" \
+  --room 8,6,4 --capture-height 1.5 --energy 1
+json_eval "$T/o/room.json" 'all(l["position"] is not None and l["size"] is not None for l in d["lights"])'
+expect 0 "$SETLIGHT" rig "$T/stage.exr" -o "$T/o/tex.usda" --json "$T/o/tex.json" \
+  --distance 4 --energy 1 --textures
+present "$T/o/tex_light_01.exr"
+json_eval "$T/o/tex.json" 'd["lights"][0]["texture"] == "tex_light_01.exr"'
+if grep -q '@tex_light_01.exr@' "$T/o/tex.usda"; then ok; else bad "usda lacks the texture"; fi
+if grep -q 'def RectLight' "$T/o/room.usda"; then ok; else bad "room rig has no RectLight"; fi
+expect 0 "$SETLIGHT" rig --json --method mediancut --max-lights 8 "$T/stage.exr" -o "$T/o/mc.usda"
+json_eval "$T/out" 'd["lights"] == 8 and d["method"] == "mediancut" and d["relative_error"] < 1e-6'
+
+# --- artist tags: the panel around column 305, row 45 of 512x256 is at latitude 58, longitude -35
+expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/tags.usda" --energy 1 --exclude 58,-35
+json_eval "$T/out" 'd["lights"] == 1 and d["skipped"] == 1 and "--exclude" in d["rig"]["skipped"][0]["reason"]'
+expect 2 "$SETLIGHT" rig --include 100,0 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--include"; err_one_line
+expect 2 "$SETLIGHT" rig --exclude 10 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--exclude"
+
+# --- a sun (one texel at 1e5): a distant light
+expect 0 "$SETLIGHT" rig --json "$T/sun.exr" -o "$T/o/sun.usda"
+json_eval "$T/out" 'd["lights"] == 1 and d["rig"]["lights"][0]["type"] == "distant"'
+
+# --- black map: empty rig, clear message, exit 0
+expect 0 "$SETLIGHT" rig --json --assume-latlong "$T/black.pfm" -o "$T/o/black.usda"
+err_has "black"; json_eval "$T/out" 'd["lights"] == 0 and d["black"]'
+present "$T/o/black.usda"
+
+# --- NaN/Inf: counted, excluded, reported
+expect 0 "$SETLIGHT" rig --json --assume-latlong "$T/nan.pfm" -o "$T/o/nan.usda"
+err_has "nan.pfm"; err_has "3 NaN/Inf"; json_eval "$T/out" 'd["nonfinite"] == 3'
+
+# --- bad inputs: exit code, one line naming the file or option, no output
+mkdir -p "$T/bad"
+expect 3 "$SETLIGHT" rig "$T/missing.exr" -o "$T/bad/a.usda"; err_has "missing.exr"; err_one_line
+expect 3 "$SETLIGHT" rig "$T/wide.exr" -o "$T/bad/a.usda"; err_has "wide.exr"; err_has "2:1"; err_one_line
+expect 3 "$SETLIGHT" rig "$T/black.pfm" -o "$T/bad/a.usda"; err_has "black.pfm"; err_has "--assume-latlong"; err_one_line
+expect 2 "$SETLIGHT" rig --max-lights 0 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--max-lights"; err_one_line
+expect 2 "$SETLIGHT" rig --room 8,6,2 --capture-height 2.5 "$T/stage.exr" -o "$T/bad/a.usda"
+err_has "does not contain the capture point"; err_one_line
+expect 2 "$SETLIGHT" rig --room 8,6,4 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--capture-height"
+expect 2 "$SETLIGHT" rig --energy 1.5 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--energy"
+expect 2 "$SETLIGHT" rig --method mediancut "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--max-lights"
+expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/bad/a.usd"; err_has ".usda"
+expect 2 "$SETLIGHT" rig "$T/stage.exr"; err_has "-o"
+expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/nosuchdir/a.usda"; err_has "nosuchdir"
+# a missing folder for the last output: nothing written, not even the first
+expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/bad/a.usda" --preview "$T/nosuchdir/p.png"
+err_has "nosuchdir"; err_one_line
+if [ "$(ls -A "$T/bad")" = "" ]; then ok; else bad "output left in $T/bad: $(ls -A "$T/bad")"; fi
+
+finish

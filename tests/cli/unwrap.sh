@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# setlight unwrap end to end: a ray-traced perspective chrome ball (detected,
+# unwrapped with the lens, reflectance divided out), provenance and JSON, and
+# every bad input the issue names: no ball, two balls, a ball cut by the frame,
+# an 8-bit JPEG (warned and linearised), a circle outside the image.
+. "$(dirname "$0")/lib.bash"
+
+for k in ball balltwo ballclip ballnone; do
+  "$MAKE_FIXTURE" "$k" "$T/$k.exr" || bad "fixture $k"
+done
+"$MAKE_FIXTURE" balljpg "$T/ball.jpg" || bad "fixture balljpg"
+
+expect 0 "$SETLIGHT" unwrap --help; out_has "usage: setlight unwrap"
+expect 0 "$SETLIGHT" --help; out_has "unwrap"
+
+# --- a good ball: found, lens model from focal length and sensor width
+expect 0 "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 --reflectance chrome \
+  -o "$T/env.exr" "$T/ball.exr"
+json_ok "$T/out"
+json_eval "$T/out" 'd["circle"]["detected"] and abs(d["circle"]["cx"] - 104.3) < 0.5 and abs(d["circle"]["r"] - 46.5) < 0.5'
+json_eval "$T/out" 'd["camera"] == "perspective" and abs(d["distance_radii"] - 4.0) < 0.05'
+json_eval "$T/out" 'd["width"] == 2 * d["height"] and d["width"] % 4 == 0'
+present "$T/env.exr"; no_temp "$T"
+expect 0 "$SETLIGHT" info --json "$T/env.exr"
+json_eval "$T/out" 'd["files"][0]["envmap"] == "latlong" and d["files"][0]["channels"] == 4'
+expect 0 "$SETLIGHT" info "$T/env.exr"
+out_has "setlight:ball_circle"; out_has "setlight:ball_camera perspective"
+out_has "setlight:ball_reflectance conductor"
+
+# --- given circle, orthographic model, fixed width, RGB only
+expect 0 "$SETLIGHT" unwrap --json --circle 104.33,86.37,46.47 --camera ortho --width 64 \
+  --no-confidence -o "$T/ortho.exr" "$T/ball.exr"
+json_eval "$T/out" 'not d["circle"]["detected"] and d["camera"] == "orthographic" and d["width"] == 64'
+expect 0 "$SETLIGHT" info --json "$T/ortho.exr"
+json_eval "$T/out" 'd["files"][0]["channels"] == 3'
+
+# --- camera orientation and field of view options are accepted and recorded
+expect 0 "$SETLIGHT" unwrap --fov 58.07 --camera-azimuth 30 --camera-elevation 10 \
+  --camera-roll 2 -o "$T/turned.exr" "$T/ball.exr"
+expect 0 "$SETLIGHT" info "$T/turned.exr"; out_has "azimuth 30, elevation 10, roll 2"
+
+# --- an 8-bit JPEG: warned, linearised, still unwrapped
+expect 0 "$SETLIGHT" unwrap --json -o "$T/jpg.exr" "$T/ball.jpg"
+err_has "not HDR"; err_has "ball.jpg"
+json_eval "$T/out" 'd["ldr_linearised"] == True'
+
+# --- bad inputs: exit code, one line naming the file, no output left behind
+mkdir -p "$T/outdir"
+expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ballnone.exr"
+err_has "ballnone.exr"; err_has "no chrome ball"; err_one_line; absent "$T/outdir/a.exr"
+expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/balltwo.exr"
+err_has "balltwo.exr"; err_has "2 balls"; err_one_line; absent "$T/outdir/a.exr"
+expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ballclip.exr"
+err_has "ballclip.exr"; err_has "cut by the frame edge"; err_one_line; absent "$T/outdir/a.exr"
+expect 2 "$SETLIGHT" unwrap --circle 180,80,40 -o "$T/outdir/a.exr" "$T/ball.exr"
+err_has "not inside"; err_has "ball.exr"; err_one_line; absent "$T/outdir/a.exr"
+expect 2 "$SETLIGHT" unwrap --circle 1,2 -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "--circle"
+expect 2 "$SETLIGHT" unwrap --camera fisheye -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "fisheye"
+expect 2 "$SETLIGHT" unwrap --reflectance 2 -o "$T/outdir/a.exr" "$T/ball.exr"
+expect 2 "$SETLIGHT" unwrap --width 33 -o "$T/outdir/a.exr" "$T/ball.exr"
+expect 2 "$SETLIGHT" unwrap --focal-mm 18 -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "--sensor-mm"
+expect 2 "$SETLIGHT" unwrap --distance 300 -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "--ball-diameter"
+expect 2 "$SETLIGHT" unwrap "$T/ball.exr"; err_has "-o"
+expect 2 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ball.exr" "$T/ball.exr"; err_has "one ball photo"
+expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/missing.exr"; err_has "missing.exr"; err_one_line
+no_temp "$T/outdir"
+if [ "$(ls -A "$T/outdir")" = "" ]; then ok; else bad "outdir not empty: $(ls "$T/outdir")"; fi
+
+# --- the real iPhone probes (when present): this one is whole and unwraps
+P="${SETLIGHT_SHARED_DATA:-}/probes/chromeball_iphone7/160.JPG"
+if [ -f "$P" ]; then
+  expect 0 "$SETLIGHT" unwrap --json -o "$T/iphone.exr" "$P"
+  json_eval "$T/out" 'd["circle"]["detected"] and 225 < d["circle"]["r"] < 240'
+else
+  skip "real probe photo"
+fi
+
+finish

@@ -1,0 +1,333 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Chrome-ball unwrap geometry: the orthographic model against core's mirror
+ * ball, exactness of the perspective model against an independent ray tracer
+ * (off-centre ball, camera turned in the set), orientation signs, the blind
+ * cone, reflectance, confidence, bad options and determinism. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ball_fixture.h"
+#include "setlight/stitch.h"
+#include "testing.h"
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double angle_between(const double a[3], const double b[3])
+{
+    double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+                 a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+}
+
+/* The orthographic model with a circle filling a square image is core's
+ * SL_PROJ_MIRRORBALL. */
+static void test_ortho_matches_core(void)
+{
+    sl_ball_view v;
+    sl_ball_circle c = {.cx = 50, .cy = 50, .r = 50};
+    sl_ball_geometry g = {.camera = SL_BALL_ORTHOGRAPHIC};
+    CHECK_OK(sl_ball_view_init(&v, 100, 100, &c, &g, NULL), NULL);
+    double worst = 0.0;
+    for (int i = 0; i < 500; i++) {
+        double u = (i * 0.618034) - floor(i * 0.618034), w = (i * 0.41421) - floor(i * 0.41421);
+        double d[3], pu, pv, x, y;
+        sl_latlong_to_dir(u, 0.02 + 0.96 * w, d);
+        if (!sl_dir_to_projection(SL_PROJ_MIRRORBALL, d, &pu, &pv))
+            continue;
+        CHECK(sl_ball_view_dir_to_pixel(&v, d, &x, &y, NULL));
+        worst = fmax(worst, hypot(x - pu * 100, y - pv * 100));
+    }
+    printf("  ortho vs core mirror ball: worst %.3g px\n", worst);
+    CHECK(worst < 1e-9);
+    CHECK_NEAR(v.centre_px_per_rad, 25.0, 1e-4); /* r / 2 */
+}
+
+/* Pixel -> direction by the fixture's ray tracer, direction -> pixel by the
+ * model initialised from the traced outline: the same pixel. */
+static void check_exact(const ball_fixture *f, const char *what)
+{
+    sl_ball_circle c;
+    ball_fixture_circle(f, 0, &c);
+    sl_ball_geometry g = {.camera = f->perspective ? SL_BALL_PERSPECTIVE : SL_BALL_ORTHOGRAPHIC,
+                          .focal_px = f->focal_px,
+                          .azimuth_deg = f->azimuth_deg,
+                          .elevation_deg = f->elevation_deg,
+                          .roll_deg = f->roll_deg};
+    sl_ball_view v;
+    sl_error err;
+    CHECK_OK(sl_ball_view_init(&v, f->width, f->height, &c, &g, &err), &err);
+    double worst = 0.0, worst_dir = 0.0, worst_cos = 0.0;
+    int n = 0, unseen = 0;
+    for (int j = 0; j < 40; j++)
+        for (int i = 0; i < 40; i++) {
+            double x = c.cx + c.r * (-1.0 + 2.0 * (i + 0.5) / 40);
+            double y = c.cy + c.r * (-1.0 + 2.0 * (j + 0.5) / 40);
+            double d[3], d2[3], ci, ci2, mx, my;
+            if (!ball_fixture_trace(f, 0, x, y, d, &ci) || ci < 0.02)
+                continue;
+            if (!sl_ball_view_dir_to_pixel(&v, d, &mx, &my, &ci2))
+                unseen++;
+            worst = fmax(worst, hypot(mx - x, my - y));
+            worst_cos = fmax(worst_cos, fabs(ci - ci2));
+            if (sl_ball_view_pixel_to_dir(&v, x, y, d2, NULL))
+                worst_dir = fmax(worst_dir, angle_between(d, d2));
+            n++;
+        }
+    printf("  %s: %d points, worst %.3g px, inverse %.3g rad, cos %.3g (ball %.2f deg, off "
+           "axis %.2f deg)\n",
+           what, n, worst, worst_dir, worst_cos, v.ball_angle * 180 / M_PI,
+           v.off_axis * 180 / M_PI);
+    CHECK(n > 1000);
+    CHECK(unseen == 0);
+    CHECK_MSG(worst < 1e-6, "%s: %.3g px", what, worst);
+    /* Off-centre, the limit is the fixture's own silhouette measurement (~1e-8). */
+    CHECK_MSG(worst_dir < 1e-7, "%s: %.3g rad", what, worst_dir);
+    CHECK(worst_cos < 1e-9);
+}
+
+static void test_exact_geometry(void)
+{
+    ball_fixture f;
+    ball_fixture_init(&f, 320, 240);
+    f.balls[0].px = 120.3;
+    f.balls[0].py = 140.7;
+    f.balls[0].r = 61.2;
+    f.azimuth_deg = 30;
+    f.elevation_deg = -12;
+    f.roll_deg = 7;
+    check_exact(&f, "orthographic, turned camera");
+
+    f.perspective = true;
+    f.focal_px = 300; /* about 56 degrees across 320 px */
+    f.balls[0].distance = 3.0;
+    f.balls[0].px = 160;
+    f.balls[0].py = 120;
+    check_exact(&f, "perspective, centred, 3 radii");
+    f.balls[0].distance = 5.0;
+    f.balls[0].px = 205.5;
+    f.balls[0].py = 88.25;
+    check_exact(&f, "perspective, off-centre, 5 radii");
+    f.balls[0].distance = 2.2;
+    f.focal_px = 100; /* 116 degrees across */
+    f.balls[0].px = 215;
+    f.balls[0].py = 150;
+    check_exact(&f, "perspective, off-centre, wide, 2.2 radii");
+    /* Distance alone: the ball is taken to be on the axis. */
+    f.balls[0].distance = 4.0;
+    f.balls[0].px = 160;
+    f.balls[0].py = 120;
+    sl_ball_circle c;
+    ball_fixture_circle(&f, 0, &c);
+    sl_ball_geometry g = {.camera = SL_BALL_PERSPECTIVE, .distance = 4.0};
+    sl_ball_view v;
+    CHECK_OK(sl_ball_view_init(&v, 320, 240, &c, &g, NULL), NULL);
+    CHECK_NEAR(v.focal_px, f.focal_px, 1e-6);
+}
+
+/* Signs of the camera orientation, checked by hand from the docs. */
+static void test_orientation(void)
+{
+    sl_ball_circle c = {.cx = 50, .cy = 50, .r = 40};
+    sl_ball_view v;
+    double d[3];
+    struct {
+        double az, el, roll;
+        double x, y; /* photo point */
+        double want[3];
+    } cases[] = {
+        {0, 0, 0, 50, 50, {0, 0, -1}},   /* centre reflects back at the camera */
+        {0, 0, 0, 90 - 40 * (1 - sqrt(0.5)), 50, {-1, 0, 0}}, /* image right: -X */
+        {90, 0, 0, 50, 50, {-1, 0, 0}},  /* looking along +X */
+        {0, 90, 0, 50, 50, {0, -1, 0}},  /* looking up */
+        {0, 0, 90, 50, 50 - 40 * sqrt(0.5), {-1, 0, 0}}, /* rolled: image up is -X */
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        sl_ball_geometry g = {.azimuth_deg = cases[i].az,
+                              .elevation_deg = cases[i].el,
+                              .roll_deg = cases[i].roll};
+        CHECK_OK(sl_ball_view_init(&v, 100, 100, &c, &g, NULL), NULL);
+        CHECK(sl_ball_view_pixel_to_dir(&v, cases[i].x, cases[i].y, d, NULL));
+        double a = angle_between(d, cases[i].want);
+        CHECK_MSG(a < 1e-6, "case %zu: dir %.4f %.4f %.4f", i, d[0], d[1], d[2]);
+    }
+}
+
+static void test_blind_cone(void)
+{
+    sl_ball_circle c = {.cx = 160, .cy = 120, .r = 50};
+    sl_ball_geometry g = {.camera = SL_BALL_PERSPECTIVE, .distance = 3.0};
+    sl_ball_view v;
+    CHECK_OK(sl_ball_view_init(&v, 320, 240, &c, &g, NULL), NULL);
+    double alpha = asin(1.0 / 3.0);
+    CHECK_NEAR(v.ball_angle, alpha, 1e-12);
+    CHECK_NEAR(v.phi_max, M_PI - alpha, 1e-12);
+    double x, y;
+    double in[3] = {sin(alpha * 0.99), 0, cos(alpha * 0.99)};
+    double out[3] = {sin(alpha * 1.01), 0, cos(alpha * 1.01)};
+    CHECK(!sl_ball_view_dir_to_pixel(&v, in, &x, &y, NULL));
+    CHECK(hypot(x - 160, y - 120) > 49.99); /* on the rim */
+    CHECK(sl_ball_view_dir_to_pixel(&v, out, &x, &y, NULL));
+    CHECK(sl_ball_view_resolution(&v, in) == 0.0);
+    /* Orthographic: nothing is blind but straight +Z. */
+    g.camera = SL_BALL_ORTHOGRAPHIC;
+    CHECK_OK(sl_ball_view_init(&v, 320, 240, &c, &g, NULL), NULL);
+    CHECK(sl_ball_view_dir_to_pixel(&v, in, &x, &y, NULL));
+}
+
+static void test_reflectance(void)
+{
+    sl_reflectance r;
+    double out[3];
+    sl_reflectance_chrome(&r);
+    sl_reflectance_eval(&r, 1.0, out);
+    double n = 3.2, k = 3.3;
+    double r0 = ((n - 1) * (n - 1) + k * k) / ((n + 1) * (n + 1) + k * k);
+    CHECK_NEAR(out[0], r0, 1e-12);
+    CHECK_NEAR(out[1], 0.55, 0.01);
+    sl_reflectance_eval(&r, 0.0, out);
+    CHECK_NEAR(out[2], 1.0, 1e-12);
+    /* A conductor's reflectance dips slightly before grazing, then rises to 1. */
+    sl_reflectance_eval(&r, cos(60 * M_PI / 180), out);
+    double at60 = out[0];
+    sl_reflectance_eval(&r, cos(88 * M_PI / 180), out);
+    CHECK(out[0] > at60);
+    /* Dielectric limit: k = 0 gives Schlick's R0 at normal incidence. */
+    r.n[0] = 1.5;
+    r.k[0] = 0.0;
+    sl_reflectance_eval(&r, 1.0, out);
+    CHECK_NEAR(out[0], 0.04, 1e-12);
+    sl_reflectance_constant(&r, 0.6, 0.5, 0.4);
+    sl_reflectance_eval(&r, 0.3, out);
+    CHECK(out[0] == 0.6 && out[1] == 0.5 && out[2] == 0.4);
+}
+
+/* Core's mirror-ball image of a lat-long (the renderer's camera) unwraps to
+ * that lat-long; confidence is cos(phi / 2) for the orthographic ball. */
+static void test_unwrap_core_ball(void)
+{
+    ball_fixture f;
+    ball_fixture_init(&f, 8, 8);
+    sl_image env = {0}, ball = {0}, out = {0};
+    CHECK_OK(ball_fixture_truth(&f, 256, 4, &env, NULL), NULL);
+    CHECK_OK(sl_reproject(&env, SL_PROJ_LATLONG, SL_PROJ_MIRRORBALL, 1024, NULL, &ball, NULL),
+             NULL);
+    sl_unwrap_options o = {.circle = {.cx = 256, .cy = 256, .r = 256}, .width = 256};
+    sl_reflectance_constant(&o.reflectance, 1, 1, 1);
+    sl_unwrap_info info;
+    sl_error err;
+    CHECK_OK(sl_unwrap(&ball, &o, &out, &info, &err), &err);
+    CHECK(out.width == 256 && out.height == 128 && out.channels == 4);
+    double *rel = malloc(sizeof(double) * 256 * 128);
+    int n = 0;
+    double conf_err = 0.0;
+    for (int y = 0; y < 128; y++)
+        for (int x = 0; x < 256; x++) {
+            double d[3];
+            sl_latlong_to_dir((x + 0.5) / 256, (y + 0.5) / 128, d);
+            double phi = atan2(hypot(d[0], d[1]), -d[2]);
+            const float *p = sl_image_pixel(&out, x, y), *t = sl_image_pixel(&env, x, y);
+            if (phi < M_PI / 2) {
+                double lo = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+                double lt = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+                rel[n++] = fabs(lo - lt) / lt;
+                conf_err = fmax(conf_err, fabs(p[3] - cos(phi / 2)));
+            }
+        }
+    qsort(rel, (size_t)n, sizeof *rel, cmp_double);
+    double med = rel[n / 2];
+    printf("  core mirror ball 1024 px -> 256 lat-long: front median rel err %.4f, confidence "
+           "worst %.4f\n",
+           med, conf_err);
+    CHECK(med < 0.01);
+    CHECK(conf_err < 0.02);
+    free(rel);
+    sl_image_free(&env);
+    sl_image_free(&ball);
+    sl_image_free(&out);
+}
+
+static void test_bad_options(void)
+{
+    sl_image img = {0}, out = {0};
+    CHECK_OK(sl_image_alloc(&img, 64, 48, 3, NULL), NULL);
+    sl_image_fill(&img, 0.5f);
+    sl_unwrap_options o = {.circle = {.cx = 50, .cy = 24, .r = 20}};
+    sl_reflectance_constant(&o.reflectance, 1, 1, 1);
+    sl_error err;
+    CHECK_RESULT(sl_unwrap(&img, &o, &out, NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, "not inside") != NULL);
+    CHECK(out.data == NULL);
+    o.circle.cx = 30;
+    o.geometry.camera = SL_BALL_PERSPECTIVE;
+    CHECK_RESULT(sl_unwrap(&img, &o, &out, NULL, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, "focal") != NULL);
+    o.geometry.distance = 0.5;
+    CHECK_RESULT(sl_unwrap(&img, &o, &out, NULL, &err), SL_ERR_USAGE, &err);
+    o.geometry.camera = SL_BALL_ORTHOGRAPHIC;
+    sl_reflectance_constant(&o.reflectance, 0, 1, 1);
+    CHECK_RESULT(sl_unwrap(&img, &o, &out, NULL, &err), SL_ERR_USAGE, &err);
+    sl_reflectance_constant(&o.reflectance, 1, 1, 1);
+    o.width = 33;
+    CHECK_RESULT(sl_unwrap(&img, &o, &out, NULL, &err), SL_ERR_USAGE, &err);
+    /* NaN in the photo is counted and never reaches the output. */
+    o.width = 0;
+    sl_image_pixel(&img, 30, 24)[1] = NAN;
+    sl_unwrap_info info;
+    CHECK_OK(sl_unwrap(&img, &o, &out, &info, &err), &err);
+    CHECK(info.nonfinite == 1);
+    CHECK(info.width == 64); /* 2 pi * r/2 = 62.8, rounded up to a multiple of 4 */
+    sl_image_stats st;
+    sl_image_stats_compute(&out, &st);
+    CHECK(st.nan_count == 0 && st.inf_count == 0);
+    sl_image_free(&out);
+    sl_image_free(&img);
+}
+
+static void test_deterministic(void)
+{
+    ball_fixture f;
+    ball_fixture_init(&f, 96, 80);
+    f.perspective = true;
+    f.focal_px = 90;
+    f.balls[0].distance = 3.0;
+    f.balls[0].px = 50;
+    f.balls[0].py = 42;
+    f.ss = 2;
+    sl_image photo = {0}, a = {0}, b = {0};
+    CHECK_OK(ball_fixture_render(&f, &photo, NULL), NULL);
+    sl_unwrap_options o = {.geometry = {.camera = SL_BALL_PERSPECTIVE, .focal_px = 90}};
+    ball_fixture_circle(&f, 0, &o.circle);
+    sl_reflectance_chrome(&o.reflectance);
+    sl_threads_set(1);
+    CHECK_OK(sl_unwrap(&photo, &o, &a, NULL, NULL), NULL);
+    sl_threads_set(2);
+    CHECK_OK(sl_unwrap(&photo, &o, &b, NULL, NULL), NULL);
+    sl_threads_set(0);
+    CHECK(a.width == b.width && a.data && b.data &&
+          memcmp(a.data, b.data, sizeof(float) * a.stride * a.height) == 0);
+    sl_image_free(&photo);
+    sl_image_free(&a);
+    sl_image_free(&b);
+}
+
+int main(void)
+{
+    RUN(test_ortho_matches_core);
+    RUN(test_exact_geometry);
+    RUN(test_orientation);
+    RUN(test_blind_cone);
+    RUN(test_reflectance);
+    RUN(test_unwrap_core_ball);
+    RUN(test_bad_options);
+    RUN(test_deterministic);
+    return sl_test_finish();
+}

@@ -1,0 +1,371 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* setlight merge and setlight response: brackets to HDR radiance, and the
+ * camera response recovered from a bracket. */
+#include <jansson.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "setlight/stitch.h"
+
+static const char *merge_help =
+    "usage: setlight merge [options] -o OUT.exr FRAME...\n\n"
+    "Merges a bracket of exposures (any order, any format OpenImageIO reads) into one\n"
+    "float EXR of relative radiance, scaled like the middle exposure.\n\n"
+    "  -o, --output OUT.exr   the radiance image (required)\n"
+    "  --times T1,T2,...      exposure times in seconds (e.g. 1/30,1/250), in frame order;\n"
+    "                         default: EXIF ExposureTime (with FNumber and ISO when every\n"
+    "                         frame has them: relative exposure t * ISO / N^2)\n"
+    "  --response MODE        auto (Debevec-Malik from the bracket, default), linear (raw,\n"
+    "                         linear TIFF/EXR), or a curve file from 'setlight response'\n"
+    "  --exposures SRC        exif (default) or data: use exposure ratios measured from\n"
+    "                         the pixels; either way disagreements are reported\n"
+    "  --mask PATH            clipped mask EXR (R,G,B = 1 where saturated in every\n"
+    "                         frame); default OUT_clipped.exr; --no-mask to skip\n"
+    "  --deghost              leave out, per pixel, frames that disagree with the others\n"
+    "                         beyond the noise model (moving people, cars, leaves); the\n"
+    "                         ghost mask (Y = 1 where a frame was left out) goes to\n"
+    "                         OUT_ghost.exr unless --ghost-mask PATH\n"
+    "  --noise GAIN,FLOOR     noise model var = GAIN * y + FLOOR (default 2e-5,1e-6)\n"
+    "  --saturation Z         values at or above Z (0..1) are saturated (default 0.95)\n"
+    "  --black Z              values at or below Z carry no weight (default 0.004)\n"
+    "  --tolerance STOPS      EXIF vs data disagreement reported above (default 0.2)\n"
+    "  --samples N            response samples per channel (default 4000)\n"
+    "  --smoothness L         response smoothness (default 10 at 3-stop steps)\n"
+    "  --json                 print the result (frames, exposures, clipping) as JSON\n\n"
+    "Exit codes: 0 merged, 1 runtime failure, 2 usage error, 3 bad input (frames of\n"
+    "different sizes or bit depths, duplicate exposures, no exposure information,\n"
+    "corrupt, all black or all saturated frames). See docs/merge.md.\n";
+
+static const char *response_help =
+    "usage: setlight response [options] -o CRF.json FRAME...\n\n"
+    "Recovers the camera response (Debevec-Malik) from one bracket and saves it for\n"
+    "'setlight merge --response CRF.json' on the rest of a shoot.\n\n"
+    "  -o, --output CRF.json  the response curve file (required)\n"
+    "  --times, --exposures, --saturation, --black, --samples, --smoothness,\n"
+    "  --tolerance            as for setlight merge\n"
+    "  --json                 print the exposure check and curve summary as JSON\n";
+
+static bool parse_time(const char *s, double *out)
+{
+    const char *slash = strchr(s, '/');
+    if (!slash)
+        return cli_parse_double(s, out) && *out > 0;
+    char num[64];
+    size_t n = (size_t)(slash - s);
+    if (n == 0 || n >= sizeof num)
+        return false;
+    memcpy(num, s, n);
+    num[n] = '\0';
+    double a, b;
+    if (!cli_parse_double(num, &a) || !cli_parse_double(slash + 1, &b) || !(b > 0))
+        return false;
+    *out = a / b;
+    return *out > 0;
+}
+
+/* "1/30,1/4,2" -> times; returns the count or -1 on junk. */
+static int parse_times(const char *s, double **times)
+{
+    int n = 1;
+    for (const char *p = s; *p; p++)
+        n += *p == ',';
+    *times = calloc((size_t)n, sizeof **times);
+    char *copy = strdup(s);
+    if (!*times || !copy) {
+        free(copy);
+        return -1;
+    }
+    int k = 0;
+    char *save = NULL;
+    for (char *tok = strtok_r(copy, ",", &save); tok; tok = strtok_r(NULL, ",", &save))
+        if (k >= n || !parse_time(tok, &(*times)[k++])) {
+            free(copy);
+            return -1;
+        }
+    free(copy);
+    return k == n ? n : -1;
+}
+
+static json_t *frames_json(const sl_merge_result *res)
+{
+    json_t *a = json_array();
+    for (int i = 0; i < res->frame_count; i++) {
+        const sl_merge_frame *f = &res->frames[i];
+        json_array_append_new(
+            a, json_pack("{s:s, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:b, s:i, s:f, s:f}", "path",
+                         f->path, "time", f->time, "f_number", f->f_number, "iso", f->iso,
+                         "exif_exposure", f->exif_exposure, "fitted_exposure",
+                         f->fitted_exposure, "exposure", f->exposure, "disagreement_stops",
+                         f->disagreement_stops, "disagrees", f->disagrees, "rank", f->rank,
+                         "saturated_fraction", f->saturated_fraction, "black_fraction",
+                         f->black_fraction));
+    }
+    return a;
+}
+
+static void log_frames(const sl_merge_result *res)
+{
+    for (int i = 0; i < res->frame_count; i++) {
+        const sl_merge_frame *f = &res->frames[i];
+        if (f->disagrees)
+            sl_log(SL_LOG_WARN,
+                   "%s: exposure from the pixels is %+.2f stops off what EXIF/--times says",
+                   f->path, f->disagreement_stops);
+    }
+    if (res->fitted_ratios < res->frame_count - 1)
+        sl_log(SL_LOG_WARN, "%d of %d exposure steps could not be measured from the pixels",
+               res->frame_count - 1 - res->fitted_ratios, res->frame_count - 1);
+}
+
+typedef struct merge_args {
+    sl_merge_options opt;
+    const char *output;
+    const char *mask;
+    const char *ghost_mask;
+    bool no_mask;
+    double *times;
+    int time_count;
+    sl_response response;
+} merge_args;
+
+/* Parses options shared by merge and response; returns -1 to go on, else an exit code. */
+static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, merge_args *a)
+{
+    enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
+           OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK };
+    static const struct option opts[] = {
+        {"help", no_argument, NULL, 'h'},
+        {"output", required_argument, NULL, 'o'},
+        {"times", required_argument, NULL, OPT_TIMES},
+        {"response", required_argument, NULL, OPT_RESP},
+        {"exposures", required_argument, NULL, OPT_EXPO},
+        {"mask", required_argument, NULL, OPT_MASK},
+        {"no-mask", no_argument, NULL, OPT_NOMASK},
+        {"noise", required_argument, NULL, OPT_NOISE},
+        {"saturation", required_argument, NULL, OPT_SAT},
+        {"black", required_argument, NULL, OPT_BLACK},
+        {"tolerance", required_argument, NULL, OPT_TOL},
+        {"samples", required_argument, NULL, OPT_SAMPLES},
+        {"smoothness", required_argument, NULL, OPT_SMOOTH},
+        {"deghost", no_argument, NULL, OPT_DEGHOST},
+        {"ghost-mask", required_argument, NULL, OPT_GHOSTMASK},
+        {0, 0, 0, 0}};
+    sl_merge_options_init(&a->opt);
+    a->opt.response_mode = SL_RESPONSE_AUTO;
+    cli_getopt_reset();
+    int c, which = 0;
+    while ((c = getopt_long(argc, argv, "+ho:", opts, &which)) != -1) {
+        bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE ||
+                          c == OPT_DEGHOST || c == OPT_GHOSTMASK;
+        if (merge_only && !is_merge)
+            return cli_usage_error(cli, "unknown option '--%s'", opts[which].name);
+        switch (c) {
+        case 'h':
+            fputs(is_merge ? merge_help : response_help, stdout);
+            return 0;
+        case 'o':
+            a->output = optarg;
+            break;
+        case OPT_TIMES:
+            free(a->times);
+            if ((a->time_count = parse_times(optarg, &a->times)) < 0)
+                return cli_usage_error(cli, "--times needs positive seconds like 1/30,1/4,2, not '%s'",
+                                       optarg);
+            break;
+        case OPT_RESP:
+            sl_response_free(&a->response);
+            if (!strcmp(optarg, "auto"))
+                a->opt.response_mode = SL_RESPONSE_AUTO;
+            else if (!strcmp(optarg, "linear"))
+                a->opt.response_mode = SL_RESPONSE_LINEAR;
+            else {
+                sl_error err;
+                if (sl_response_read(optarg, &a->response, &err))
+                    return cli_fail(cli, &err);
+                a->opt.response_mode = SL_RESPONSE_GIVEN;
+                a->opt.response = &a->response;
+            }
+            break;
+        case OPT_EXPO:
+            if (!strcmp(optarg, "exif"))
+                a->opt.exposures = SL_EXPOSURES_EXIF;
+            else if (!strcmp(optarg, "data"))
+                a->opt.exposures = SL_EXPOSURES_DATA;
+            else
+                return cli_usage_error(cli, "--exposures is exif or data, not '%s'", optarg);
+            break;
+        case OPT_MASK:
+            a->mask = optarg;
+            break;
+        case OPT_NOMASK:
+            a->no_mask = true;
+            break;
+        case OPT_DEGHOST:
+            a->opt.deghost = true;
+            break;
+        case OPT_GHOSTMASK:
+            a->ghost_mask = optarg;
+            a->opt.deghost = true;
+            break;
+        case OPT_NOISE: {
+            double *v = NULL;
+            int n = parse_times(optarg, &v);
+            if (n != 2) {
+                free(v);
+                return cli_usage_error(cli, "--noise needs GAIN,FLOOR (two positive numbers), not '%s'",
+                                       optarg);
+            }
+            a->opt.noise_gain = v[0];
+            a->opt.noise_floor = v[1];
+            free(v);
+            break;
+        }
+        case OPT_SAT:
+        case OPT_BLACK:
+        case OPT_TOL:
+        case OPT_SMOOTH: {
+            double v;
+            if (!cli_parse_double(optarg, &v) || v < 0)
+                return cli_usage_error(cli, "--%s needs a non-negative number, not '%s'",
+                                       opts[which].name, optarg);
+            if (c == OPT_SAT)
+                a->opt.saturation = v;
+            else if (c == OPT_BLACK)
+                a->opt.black = v;
+            else if (c == OPT_TOL)
+                a->opt.tolerance_stops = v;
+            else
+                a->opt.smoothness = v;
+            break;
+        }
+        case OPT_SAMPLES:
+            if (!cli_parse_int(optarg, &a->opt.samples) || a->opt.samples < 16)
+                return cli_usage_error(cli, "--samples needs a whole number >= 16, not '%s'", optarg);
+            break;
+        default:
+            return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
+        }
+    }
+    if (!a->output)
+        return cli_usage_error(cli, "needs -o %s", is_merge ? "OUT.exr" : "CRF.json");
+    if (argc - optind < 1)
+        return cli_usage_error(cli, "needs the bracket's frames");
+    if (a->times && a->time_count != argc - optind)
+        return cli_usage_error(cli, "--times gives %d times for %d frames", a->time_count,
+                               argc - optind);
+    a->opt.times = a->times;
+    return -1;
+}
+
+static void free_args(merge_args *a)
+{
+    free(a->times);
+    sl_response_free(&a->response);
+}
+
+/* "dir/name.exr" -> "dir/name_SUFFIX.exr" */
+static char *sidecar_path(const char *out, const char *suffix)
+{
+    size_t n = strlen(out);
+    const char *dot = strrchr(out, '.'), *slash = strrchr(out, '/');
+    size_t stem = dot && (!slash || dot > slash) ? (size_t)(dot - out) : n;
+    char *p = malloc(n + strlen(suffix) + 8);
+    if (p)
+        snprintf(p, n + strlen(suffix) + 8, "%.*s_%s.exr", (int)stem, out, suffix);
+    return p;
+}
+
+int cmd_merge(int argc, char **argv, const sl_cli *cli)
+{
+    merge_args a = {0};
+    int rc = parse_args(argc, argv, cli, true, &a);
+    if (rc >= 0) {
+        free_args(&a);
+        return rc;
+    }
+    sl_error err;
+    sl_merge_result res;
+    char *mask = a.no_mask ? NULL : a.mask ? strdup(a.mask) : sidecar_path(a.output, "clipped");
+    char *ghost = !a.opt.deghost ? NULL : a.ghost_mask ? strdup(a.ghost_mask) : sidecar_path(a.output, "ghost");
+    sl_result r = sl_merge((const char *const *)argv + optind, argc - optind, &a.opt, &res, &err);
+    if (!r && ((!a.no_mask && !mask) || (a.opt.deghost && !ghost)))
+        r = sl_error_set(&err, SL_ERR_NOMEM, "out of memory");
+    if (!r)
+        r = sl_merge_write(a.output, mask, ghost, &res, &err);
+    if (r) {
+        free(mask);
+        free(ghost);
+        sl_merge_result_free(&res);
+        free_args(&a);
+        return cli_fail(cli, &err);
+    }
+    log_frames(&res);
+    sl_log(SL_LOG_INFO,
+           "%s: %d frames, response %s, %lld pixels clipped in every frame (%.4f%%), %.2f s",
+           a.output, res.frame_count, res.response.source, (long long)res.clipped_pixels,
+           100 * res.clipped_fraction, res.seconds);
+    if (cli->json) {
+        json_t *o = json_pack(
+            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:f}",
+            "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
+            (json_int_t)res.ghost_pixels, "width", res.radiance.width, "height",
+            res.radiance.height, "response", res.response.source, "exposures",
+            a.opt.exposures == SL_EXPOSURES_DATA ? "data" : "exif", "frames", frames_json(&res),
+            "reference_frame", res.reference, "clipped_pixels", (json_int_t)res.clipped_pixels,
+            "clipped_samples", (json_int_t)res.clipped_samples[0],
+            (json_int_t)res.clipped_samples[1], (json_int_t)res.clipped_samples[2],
+            "clipped_fraction", res.clipped_fraction, "clipped_solid_angle_sr",
+            res.clipped_solid_angle, "underexposed_samples", (json_int_t)res.underexposed_samples,
+            "disagreeing_frames", (json_int_t)res.disagreeing_frames, "nonfinite_samples",
+            (json_int_t)res.nonfinite_samples, "seconds", res.seconds);
+        json_dumpf(o, stdout, JSON_INDENT(2));
+        fputc('\n', stdout);
+        json_decref(o);
+    }
+    free(mask);
+    free(ghost);
+    sl_merge_result_free(&res);
+    free_args(&a);
+    return 0;
+}
+
+int cmd_response(int argc, char **argv, const sl_cli *cli)
+{
+    merge_args a = {0};
+    int rc = parse_args(argc, argv, cli, false, &a);
+    if (rc >= 0) {
+        free_args(&a);
+        return rc;
+    }
+    sl_error err;
+    sl_merge_result res;
+    sl_result r =
+        sl_merge_response((const char *const *)argv + optind, argc - optind, &a.opt, &res, &err);
+    if (!r)
+        r = sl_response_write(a.output, &res.response, &err);
+    if (r) {
+        sl_merge_result_free(&res);
+        free_args(&a);
+        return cli_fail(cli, &err);
+    }
+    log_frames(&res);
+    if (cli->json) {
+        double mid[3];
+        for (int c = 0; c < 3; c++)
+            mid[c] = sl_response_eval(&res.response, c, 0.5);
+        json_t *o = json_pack("{s:s, s:s, s:i, s:[f,f,f], s:o, s:I, s:f}", "output", a.output,
+                              "source", res.response.source, "nodes", res.response.nodes,
+                              "linear_at_half", mid[0], mid[1], mid[2], "frames",
+                              frames_json(&res), "disagreeing_frames",
+                              (json_int_t)res.disagreeing_frames, "seconds", res.seconds);
+        json_dumpf(o, stdout, JSON_INDENT(2));
+        fputc('\n', stdout);
+        json_decref(o);
+    }
+    sl_merge_result_free(&res);
+    free_args(&a);
+    return 0;
+}

@@ -1,0 +1,396 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* setlight rig ENV.exr -o RIG.usda: area lights plus a residual dome. */
+#include <jansson.h>
+#include <libgen.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+#include "setlight/lightrig.h"
+
+static const char *rig_help =
+    "usage: setlight rig [options] ENV.exr -o RIG.usda [--json RIG.json]\n"
+    "                    [--residual RES.exr] [--preview PREVIEW.png]\n\n"
+    "Extracts the bright regions of a lat-long HDRI into area lights and paints them\n"
+    "out of a residual dome, so that lights + dome carry exactly the map's energy.\n"
+    "Writes USD (UsdLux), optionally the same rig as JSON and a preview PNG.\n\n"
+    "  -o, --output FILE     the rig as USD ASCII (.usda)\n"
+    "  --json [FILE.json]    print a summary as JSON on stdout; when followed by a\n"
+    "                        name ending in .json, also write rig.json there\n"
+    "  --residual FILE.exr   the residual dome (default: RIG_residual.exr beside RIG.usda)\n"
+    "  --preview FILE.png    the map with every light outlined and numbered\n"
+    "  --energy F            keep the fewest lights carrying this share of the\n"
+    "                        directional energy (default 0.9)\n"
+    "  --max-lights N        at most N lights (N >= 1)\n"
+    "  --threshold K         a light's texels are above K x the map's median\n"
+    "                        luminance (solid-angle weighted; default 8)\n"
+    "  --peak-fraction F     ... and at least F x the brightest texel of their bright\n"
+    "                        area, so a lamp is not joined to the wall it lights\n"
+    "                        (default 0.02; 0 keeps whole areas)\n"
+    "  --max-solid-angle SR  wider regions stay in the dome (default 0.3; 0: no limit)\n"
+    "  --merge DEG           fragments closer than DEG are one fixture (default 2)\n"
+    "  --unresolved DEG      angular diameter given to sources smaller than the\n"
+    "                        texels (default 0.53, the sun)\n"
+    "  --distance D          place lights on a sphere of radius D (metres)\n"
+    "  --room W,D,H          place lights on a box W wide (X), D deep (Z), H high (Y)\n"
+    "  --capture-height H    height of the capture point in the room (needs --room)\n"
+    "  --method M            regions (default) or mediancut (Debevec 2005; needs\n"
+    "                        --max-lights)\n"
+    "  --include LAT,LON     always keep the light there (degrees; grown from the\n"
+    "                        brightest texel within 2 degrees if none was found)\n"
+    "  --exclude LAT,LON     leave the light there in the dome (both repeatable)\n"
+    "  --textures            textured rect lights (with --distance or --room): the\n"
+    "                        region's crop as RIG_light_NN.exr beside RIG.usda\n"
+    "  --assume-latlong      accept a 2:1 image without the envmap attribute\n\n"
+    "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
+    "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
+    "(missing, corrupt, not a lat-long), 1 could not write. See docs/lightrig.md.\n";
+
+/* The folder of an output exists: checked for every output before any is
+ * written, so a run that fails on the last one has not written the first. */
+static bool out_dir_ok(const char *path)
+{
+    char buf[PATH_MAX];
+    struct stat st;
+    snprintf(buf, sizeof buf, "%s", path);
+    return stat(dirname(buf), &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+static bool has_suffix(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), m = strlen(suffix);
+    return n >= m && strcasecmp(s + n - m, suffix) == 0;
+}
+
+/* The residual's name as the USD file should reference it: bare when both
+ * sit in one folder, else absolute. */
+static void dome_reference(const char *usda, const char *residual, char *out, size_t size)
+{
+    char a[PATH_MAX], b[PATH_MAX], ra[PATH_MAX], rb[PATH_MAX];
+    snprintf(a, sizeof a, "%s", usda);
+    snprintf(b, sizeof b, "%s", residual);
+    const char *da = dirname(a), *db = dirname(b);
+    if (realpath(da, ra) && realpath(db, rb) && strcmp(ra, rb) == 0) {
+        snprintf(b, sizeof b, "%s", residual);
+        snprintf(out, size, "%s", basename(b));
+    } else if (residual[0] == '/' || !realpath(db, rb)) {
+        snprintf(out, size, "%s", residual);
+    } else {
+        snprintf(b, sizeof b, "%s", residual);
+        snprintf(out, size, "%s/%s", rb, basename(b));
+    }
+}
+
+int cmd_rig(int argc, char **argv, const sl_cli *cli)
+{
+    enum {
+        OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
+        OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_PEAK, OPT_MAXSA
+    };
+    static const struct option opts[] = {
+        {"help", no_argument, NULL, 'h'},
+        {"output", required_argument, NULL, 'o'},
+        {"json", required_argument, NULL, OPT_JSONFILE}, /* only as --json=FILE */
+        {"residual", required_argument, NULL, OPT_RESIDUAL},
+        {"preview", required_argument, NULL, OPT_PREVIEW},
+        {"energy", required_argument, NULL, OPT_ENERGY},
+        {"max-lights", required_argument, NULL, OPT_MAX},
+        {"threshold", required_argument, NULL, OPT_THRESHOLD},
+        {"merge", required_argument, NULL, OPT_MERGE},
+        {"unresolved", required_argument, NULL, OPT_UNRESOLVED},
+        {"distance", required_argument, NULL, OPT_DISTANCE},
+        {"room", required_argument, NULL, OPT_ROOM},
+        {"capture-height", required_argument, NULL, OPT_HEIGHT},
+        {"method", required_argument, NULL, OPT_METHOD},
+        {"assume-latlong", no_argument, NULL, OPT_ASSUME},
+        {"include", required_argument, NULL, OPT_INCLUDE},
+        {"exclude", required_argument, NULL, OPT_EXCLUDE},
+        {"textures", no_argument, NULL, OPT_TEXTURES},
+        {"peak-fraction", required_argument, NULL, OPT_PEAK},
+        {"max-solid-angle", required_argument, NULL, OPT_MAXSA},
+        {0, 0, 0, 0}};
+    sl_rig_options opt;
+    sl_rig_options_default(&opt);
+    const char *out_path = NULL, *json_path = NULL, *res_path = NULL, *preview_path = NULL;
+    bool assume = false, have_height = false, max_given = false, textures = false;
+
+    cli_getopt_reset();
+    int c;
+    while ((c = getopt_long(argc, argv, "ho:", opts, NULL)) != -1) {
+        switch (c) {
+        case 'h':
+            fputs(rig_help, stdout);
+            return 0;
+        case 'o':
+            out_path = optarg;
+            break;
+        case OPT_JSONFILE:
+            json_path = optarg;
+            break;
+        case OPT_RESIDUAL:
+            res_path = optarg;
+            break;
+        case OPT_PREVIEW:
+            preview_path = optarg;
+            break;
+        case OPT_ENERGY:
+            if (!cli_parse_double(optarg, &opt.energy) || !(opt.energy > 0 && opt.energy <= 1))
+                return cli_usage_error(cli, "--energy needs a share in (0, 1], not '%s'", optarg);
+            break;
+        case OPT_MAX:
+            if (!cli_parse_int(optarg, &opt.max_lights) || opt.max_lights < 1)
+                return cli_usage_error(cli,
+                                       "--max-lights needs a whole number of 1 or more, not '%s' "
+                                       "(for no lights, use the map itself as the dome)",
+                                       optarg);
+            max_given = true;
+            break;
+        case OPT_THRESHOLD:
+            if (!cli_parse_double(optarg, &opt.threshold) || !(opt.threshold > 1))
+                return cli_usage_error(cli, "--threshold needs a number above 1, not '%s'", optarg);
+            break;
+        case OPT_PEAK:
+            if (!cli_parse_double(optarg, &opt.peak_fraction) || opt.peak_fraction < 0 ||
+                opt.peak_fraction > 1)
+                return cli_usage_error(cli, "--peak-fraction needs a number in [0, 1], not '%s'",
+                                       optarg);
+            break;
+        case OPT_MAXSA:
+            if (!cli_parse_double(optarg, &opt.max_solid_angle) || opt.max_solid_angle < 0 ||
+                opt.max_solid_angle > 4 * M_PI)
+                return cli_usage_error(cli, "--max-solid-angle needs sr in [0, 4 pi], not '%s'",
+                                       optarg);
+            break;
+        case OPT_MERGE:
+            if (!cli_parse_double(optarg, &opt.merge_degrees) || opt.merge_degrees < 0 ||
+                opt.merge_degrees > 90)
+                return cli_usage_error(cli, "--merge needs degrees from 0 to 90, not '%s'", optarg);
+            break;
+        case OPT_UNRESOLVED:
+            if (!cli_parse_double(optarg, &opt.unresolved_degrees) ||
+                !(opt.unresolved_degrees > 0 && opt.unresolved_degrees < 10))
+                return cli_usage_error(cli, "--unresolved needs degrees in (0, 10), not '%s'",
+                                       optarg);
+            break;
+        case OPT_DISTANCE:
+            if (!cli_parse_double(optarg, &opt.distance) || !(opt.distance > 0))
+                return cli_usage_error(cli, "--distance needs a positive number, not '%s'", optarg);
+            break;
+        case OPT_ROOM: {
+            char tail;
+            if (sscanf(optarg, "%lf,%lf,%lf%c", &opt.room[0], &opt.room[1], &opt.room[2],
+                       &tail) != 3 ||
+                !(opt.room[0] > 0 && opt.room[1] > 0 && opt.room[2] > 0) ||
+                !isfinite(opt.room[0] + opt.room[1] + opt.room[2]))
+                return cli_usage_error(cli, "--room needs W,D,H (three positive sizes), not '%s'",
+                                       optarg);
+            break;
+        }
+        case OPT_HEIGHT:
+            if (!cli_parse_double(optarg, &opt.capture_height))
+                return cli_usage_error(cli, "--capture-height needs a number, not '%s'", optarg);
+            have_height = true;
+            break;
+        case OPT_METHOD:
+            if (!strcmp(optarg, "regions"))
+                opt.method = SL_RIG_METHOD_REGIONS;
+            else if (!strcmp(optarg, "mediancut"))
+                opt.method = SL_RIG_METHOD_MEDIANCUT;
+            else
+                return cli_usage_error(cli, "unknown method '%s' (regions, mediancut)", optarg);
+            break;
+        case OPT_ASSUME:
+            assume = true;
+            break;
+        case OPT_TEXTURES:
+            textures = true;
+            break;
+        case OPT_INCLUDE:
+        case OPT_EXCLUDE: {
+            bool inc = c == OPT_INCLUDE;
+            int *n = inc ? &opt.include_count : &opt.exclude_count;
+            double *t = inc ? opt.include[*n < SL_RIG_MAX_TAGS ? *n : 0]
+                            : opt.exclude[*n < SL_RIG_MAX_TAGS ? *n : 0];
+            char tail;
+            if (*n >= SL_RIG_MAX_TAGS)
+                return cli_usage_error(cli, "at most %d --%s tags", SL_RIG_MAX_TAGS,
+                                       inc ? "include" : "exclude");
+            if (sscanf(optarg, "%lf,%lf%c", &t[0], &t[1], &tail) != 2 || !(fabs(t[0]) <= 90) ||
+                !(fabs(t[1]) <= 180))
+                return cli_usage_error(cli,
+                                       "--%s needs LAT,LON in degrees (latitude within +-90, "
+                                       "longitude within +-180), not '%s'",
+                                       inc ? "include" : "exclude", optarg);
+            (*n)++;
+            break;
+        }
+        default:
+            return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
+        }
+    }
+    int npos = argc - optind;
+    /* The global --json is taken before this parser sees it; a .json name
+     * that followed it is left as a second operand. */
+    if (npos == 2 && cli->json && has_suffix(argv[optind + 1], ".json") && !json_path) {
+        json_path = argv[optind + 1];
+        npos = 1;
+    }
+    if (npos != 1)
+        return cli_usage_error(cli, "needs one input map (and -o RIG.usda)");
+    if (!out_path)
+        return cli_usage_error(cli, "needs -o RIG.usda");
+    if (!has_suffix(out_path, ".usda"))
+        return cli_usage_error(
+            cli, "the rig is written as USD ASCII: -o needs a .usda name, not '%s'", out_path);
+    if (json_path && !has_suffix(json_path, ".json"))
+        return cli_usage_error(cli, "--json needs a .json name, not '%s'", json_path);
+    if (res_path && !has_suffix(res_path, ".exr"))
+        return cli_usage_error(cli, "--residual needs an .exr name, not '%s'", res_path);
+    if (preview_path && !has_suffix(preview_path, ".png"))
+        return cli_usage_error(cli, "--preview needs a .png name, not '%s'", preview_path);
+    bool room = opt.room[0] > 0;
+    if (room != have_height)
+        return cli_usage_error(cli, "--room and --capture-height go together");
+    if (room && opt.distance > 0)
+        return cli_usage_error(cli, "give --distance or --room, not both");
+    if (room && !(opt.capture_height > 0 && opt.capture_height < opt.room[2]))
+        return cli_usage_error(cli,
+                               "the room (%g high) does not contain the capture point at height %g",
+                               opt.room[2], opt.capture_height);
+    if (opt.method == SL_RIG_METHOD_MEDIANCUT && !max_given)
+        return cli_usage_error(cli, "--method mediancut needs --max-lights N");
+    const char *in_path = argv[optind];
+    char res_buf[PATH_MAX];
+    if (!res_path) {
+        size_t n = strlen(out_path) - 5;
+        snprintf(res_buf, sizeof res_buf, "%.*s_residual.exr", (int)n, out_path);
+        res_path = res_buf;
+    }
+    const char *outs[4] = {out_path, res_path, json_path, preview_path};
+    for (int k = 0; k < 4; k++)
+        if (outs[k] && !out_dir_ok(outs[k]))
+            return cli_usage_error(cli, "%s: output folder missing", outs[k]);
+    double t0 = sl_seconds();
+
+    sl_image env = {0};
+    sl_meta meta, out_meta;
+    sl_meta_init(&meta);
+    sl_meta_init(&out_meta);
+    sl_rig rig = {0};
+    sl_error err;
+    sl_result r = sl_check_input_file(in_path, &err);
+    if (r || (r = sl_image_read(in_path, &env, &meta, &err)))
+        goto fail;
+    if (!sl_is_latlong_shape(env.width, env.height)) {
+        sl_error_set(&err, SL_ERR_INPUT, "%s: not a lat-long: %dx%d is not 2:1%s", in_path,
+                     env.width, env.height,
+                     meta.envmap == SL_ENVMAP_CUBE ? " (a cube map: convert it first)" : "");
+        goto fail;
+    }
+    if (meta.envmap != SL_ENVMAP_LATLONG && !assume) {
+        sl_error_set(&err, SL_ERR_INPUT,
+                     "%s: no envmap attribute saying it is a lat-long (give --assume-latlong)",
+                     in_path);
+        goto fail;
+    }
+    if ((r = sl_rig_extract(&env, &opt, &rig, &err))) {
+        /* library messages name the stage; name the file too */
+        sl_error e2;
+        sl_error_set(&e2, err.code, "%s: %s", in_path, err.message);
+        err = e2;
+        goto fail;
+    }
+    if (rig.nonfinite)
+        sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples counted, set to 0 and left out", in_path,
+               (long long)rig.nonfinite);
+    if (rig.negative)
+        sl_log(SL_LOG_WARN, "%s: %lld negative samples (lossy compression?) set to 0", in_path,
+               (long long)rig.negative);
+    bool black = !(rig.original[0] > 0 || rig.original[1] > 0 || rig.original[2] > 0);
+    if (black)
+        sl_log(SL_LOG_WARN, "%s: the map is black: the rig is empty (no lights, black dome)",
+               in_path);
+    else if (!rig.light_count)
+        sl_log(SL_LOG_WARN,
+               "%s: nothing above %g x the median luminance: the rig is the dome alone", in_path,
+               opt.threshold);
+
+    /* Outputs: the dome first, so the USD never names a missing file. */
+    char buf[1024];
+    const char *cs = sl_meta_color_space(&meta);
+    if (cs) {
+        if ((r = sl_meta_set_color_space(&out_meta, cs, &err)))
+            goto fail;
+    } else {
+        sl_meta_set_rec709(&out_meta);
+    }
+    out_meta.envmap = SL_ENVMAP_LATLONG;
+    snprintf(buf, sizeof buf, "setlight %s rig: residual dome (%d lights extracted)",
+             sl_version(), rig.light_count);
+    if ((r = sl_meta_set(&out_meta, "setlight:command", buf, &err)) ||
+        (r = sl_meta_set(&out_meta, "setlight:source", in_path, &err)))
+        goto fail;
+    if (rig.nonfinite) {
+        snprintf(buf, sizeof buf, "%lld", (long long)rig.nonfinite);
+        if ((r = sl_meta_set(&out_meta, "setlight:nonfinite_replaced", buf, &err)))
+            goto fail;
+    }
+    /* Float: half would round the dome by up to 0.05% per texel. */
+    if ((r = sl_exr_write(res_path, &rig.residual, &out_meta, SL_PIXEL_FLOAT, &err)))
+        goto fail;
+    if (textures) {
+        /* beside the USD, named after it */
+        char prefix[PATH_MAX];
+        snprintf(prefix, sizeof prefix, "%.*s", (int)(strlen(out_path) - 5), out_path);
+        if ((r = sl_rig_write_textures(&rig, &env, prefix, &err)))
+            goto fail;
+    }
+    char dome_ref[2 * PATH_MAX + 2];
+    dome_reference(out_path, res_path, dome_ref, sizeof dome_ref);
+    if ((r = sl_rig_write_usda(&rig, out_path, dome_ref, &err)))
+        goto fail;
+    if (json_path && (r = sl_rig_write_json(&rig, json_path, dome_ref, &err)))
+        goto fail;
+    if (preview_path && (r = sl_rig_write_preview(&rig, &env, preview_path, &err)))
+        goto fail;
+
+    if (cli->json) {
+        char *s = sl_rig_json_string(&rig, dome_ref);
+        json_t *rj = s ? json_loads(s, 0, NULL) : NULL;
+        free(s);
+        json_t *o = json_pack(
+            "{s:s, s:s, s:s?, s:s, s:s?, s:s, s:i, s:i, s:I, s:I, s:f, s:f, s:f, s:b, s:f, s:o?}",
+            "input", in_path, "output", out_path, "json", json_path, "residual", res_path,
+            "preview", preview_path, "method",
+            opt.method == SL_RIG_METHOD_MEDIANCUT ? "mediancut" : "regions", "lights",
+            rig.light_count, "skipped", rig.skipped_count, "nonfinite", (json_int_t)rig.nonfinite,
+            "negative", (json_int_t)rig.negative,
+            "median_luminance", rig.median_luminance, "threshold_luminance",
+            rig.threshold_luminance, "relative_error", rig.relative_error, "black", black,
+            "seconds", sl_seconds() - t0, "rig", rj);
+        json_dumpf(o, stdout, JSON_INDENT(2) | JSON_REAL_PRECISION(10));
+        fputc('\n', stdout);
+        json_decref(o);
+    } else if (!sl_log_is_quiet()) {
+        sl_log(SL_LOG_INFO, "%s: %d lights, %d skipped, ledger error %.2g", out_path,
+               rig.light_count, rig.skipped_count, rig.relative_error);
+    }
+    sl_rig_free(&rig);
+    sl_image_free(&env);
+    sl_meta_free(&meta);
+    sl_meta_free(&out_meta);
+    return 0;
+
+fail:
+    sl_rig_free(&rig);
+    sl_image_free(&env);
+    sl_meta_free(&meta);
+    sl_meta_free(&out_meta);
+    return cli_fail(cli, &err);
+}
