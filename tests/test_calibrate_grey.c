@@ -82,6 +82,11 @@ static void test_stage(void)
     CHECK(fit.rel_rmse_after < 0.02);
     CHECK(fit.rel_rmse_before > 0.05); /* the balance was visibly off */
     sl_grey_fit_free(&fit);
+    /* The sphere found by unwrap's ball detector instead of given. */
+    sl_ball_circle bc;
+    CHECK_OK(sl_ball_detect(&photo, "grey.exr", &bc, &err), &err);
+    printf("  detected circle %.2f %.2f %.2f (true 70 60 %.1f)\n", bc.cx, bc.cy, bc.r, n / 2.0);
+    CHECK(hypot(bc.cx - 70, bc.cy - 60) < 1 && fabs(bc.r - n / 2.0) < 1);
     /* A circle on the black surround: no sphere there. */
     o.circle[0] = 140, o.circle[1] = 100, o.circle[2] = 15;
     CHECK_RESULT(sl_grey_sphere_fit(&hdri, &photo, &o, &fit, &err), SL_ERR_INPUT, &err);

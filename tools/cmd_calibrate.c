@@ -17,7 +17,7 @@
 
 static const char *calibrate_help =
     "usage: setlight calibrate --hdri ENV.exr [--chart CHART] [--grey GREY.exr\n"
-    "                          --grey-circle CX,CY,R] -o ENV_CAL.exr [options]\n\n"
+    "                          [--grey-circle CX,CY,R]] -o ENV_CAL.exr [options]\n\n"
     "The chart photo (plate camera) gives a colour matrix from camera RGB to linear\n"
     "Rec.709, scaled to keep the neutral patch's luminance. The grey-sphere photo, shot\n"
     "on the same camera, goes through that matrix; then the HDRI gets the exposure and\n"
@@ -37,7 +37,8 @@ static const char *calibrate_help =
     "  --clip LEVEL          chart/grey pixels at or above are clipped (default: none\n"
     "                        for EXR, 0.999 for 8/16-bit photos)\n"
     "  --grey FILE           grey-sphere photo (linear EXR)\n"
-    "  --grey-circle CX,CY,R the sphere's outline in the grey photo, pixels\n"
+    "  --grey-circle CX,CY,R the sphere's outline in the grey photo, pixels (default:\n"
+    "                        found as unwrap finds a ball; none or several: exit 3)\n"
     "  --grey-albedo A       the sphere's albedo (default 0.18)\n"
     "  --grey-view AZ,EL     the photo's view as the validation camera (default 0,0)\n"
     "  --spp N               samples per pixel of the virtual sphere (default 256)\n"
@@ -49,7 +50,8 @@ static const char *calibrate_help =
     "                        render and error images) and DIR/calibrate.json\n"
     "  --json                print the result as JSON on stdout\n\n"
     "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
-    "sphere, no sphere in the circle), 1 other failures. See docs/calibrate.md.\n";
+    "sphere, no sphere found or none in the circle), 1 other failures. See\n"
+    "docs/calibrate.md.\n";
 
 static bool parse_list(const char *s, double *v, int n)
 {
@@ -212,8 +214,6 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "needs --hdri and -o");
     if (!chart_path && !grey_path)
         return cli_usage_error(cli, "needs --chart, --grey or both");
-    if (grey_path && !have_circle)
-        return cli_usage_error(cli, "--grey needs --grey-circle CX,CY,R");
     if (have_corners && !chart_path)
         return cli_usage_error(cli, "--chart-corners needs --chart");
     gopt.azimuth_deg = view[0];
@@ -374,6 +374,19 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             r = sl_error_set(&err, SL_ERR_INPUT, "%s: the grey-sphere photo needs RGB", grey_path);
             goto fail;
         }
+        if (!have_circle) {
+            /* Found as unwrap finds a chrome ball: Hough candidates, sub-pixel edge fit. */
+            sl_ball_circle bc;
+            if ((r = sl_ball_detect(&grey, grey_path, &bc, &err))) {
+                if (r == SL_ERR_INPUT)
+                    sl_error_set(&err, r,
+                                 "%s: no grey sphere found (one whole sphere in the frame is "
+                                 "needed; or give --grey-circle CX,CY,R)",
+                                 grey_path);
+                goto fail;
+            }
+            gopt.circle[0] = bc.cx, gopt.circle[1] = bc.cy, gopt.circle[2] = bc.r;
+        }
         if (chart_used) {
             /* The grey sphere was shot on the plate's camera, like the chart:
              * into the working space through the chart's matrix, clipped
@@ -397,8 +410,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             t[i][i] = gfit.gain[i];
         apply_image(&hdri, t);
         json_object_set_new(js, "grey",
-                            json_pack("{s:s, s:[f,f,f], s:f, s:[f,f,f], s:I, s:I, s:f, s:f, s:f}",
-                                      "file", grey_path, "gain", gfit.gain[0], gfit.gain[1],
+                            json_pack("{s:s, s:[f,f,f], s:[f,f,f], s:f, s:[f,f,f], s:I, s:I, s:f, s:f, s:f}",
+                                      "file", grey_path, "circle", gopt.circle[0],
+                                      gopt.circle[1], gopt.circle[2], "gain", gfit.gain[0],
+                                      gfit.gain[1],
                                       gfit.gain[2], "scale", gfit.scale, "balance",
                                       gfit.balance[0], gfit.balance[1], gfit.balance[2], "pixels",
                                       (json_int_t)gfit.pixels, "rejected",

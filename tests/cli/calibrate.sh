@@ -82,8 +82,9 @@ json_eval "$T/out" 'd["files"][0]["nan_count"] == 0 and d["files"][0]["inf_count
 # --- bad inputs: usage (2), missing or bad files (3), nothing overwritten
 cp "$T/cal.exr" "$T/keep.exr"
 expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" -o "$T/keep.exr"; err_has "--chart, --grey"
-expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" -o "$T/keep.exr"
-err_has "--grey-circle"
+# No circle given and no whole sphere in the photo (it fills the frame): exit 3.
+expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" -o "$T/keep.exr"
+err_has "grey.exr: no grey sphere found"; err_one_line
 expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" --grey-circle 1,2 \
     -o "$T/keep.exr"
 expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" --chart-corners 1,2,3 \
