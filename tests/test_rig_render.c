@@ -60,7 +60,7 @@ static void write_rig(const sl_image *env, sl_rig_method method, int max_lights,
 int main(void)
 {
     if (getenv("SETLIGHT_SANITIZED"))
-        W = 16, SPP = 128;
+        W = 16, SPP = 512;
     sl_image env;
     CHECK_OK(sl_image_alloc(&env, 256, 128, 3, NULL), NULL);
     sc_background(&env, 0.5, true);
