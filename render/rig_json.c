@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Light rigs as JSON (docs/render.md): an optional dome and a list of
- * UsdLux-style lights. Paths are relative to the rig's folder. */
+/* rig.json version 1 (the light-rig extractor's format, docs/lightrig.md)
+ * turned into renderer lights: each light, seen from the capture point at
+ * the origin, keeps the rig's direction, solid angle and radiance. Paths are
+ * relative to the rig's folder. */
 #include <jansson.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,98 +19,101 @@ static void resolve(const char *rig, const char *file, char *out, size_t n)
         snprintf(out, n, "%.*s/%s", (int)(slash - rig), rig, file);
 }
 
-static bool num(json_t *o, const char *key, double def, double *out)
+/* n finite numbers, each >= lo. */
+static bool nums(json_t *v, int n, double lo, double *out)
 {
-    json_t *v = json_object_get(o, key);
-    if (!v) {
-        *out = def;
-        return true;
-    }
-    *out = json_number_value(v);
-    return json_is_number(v) && isfinite(*out);
-}
-
-static bool vec3(json_t *o, const char *key, const double def[3], double out[3])
-{
-    json_t *v = json_object_get(o, key);
-    if (!v) {
-        v3_copy(out, def);
-        return true;
-    }
-    if (!json_is_array(v) || json_array_size(v) != 3)
+    if (!json_is_array(v) || json_array_size(v) != (size_t)n)
         return false;
-    for (int i = 0; i < 3; i++) {
+    for (int i = 0; i < n; i++) {
         json_t *e = json_array_get(v, (size_t)i);
         out[i] = json_number_value(e);
-        if (!json_is_number(e) || !isfinite(out[i]))
+        if (!json_is_number(e) || !isfinite(out[i]) || out[i] < lo)
             return false;
     }
     return true;
 }
 
+static sl_result read_image(const char *path, const char *field, const char *file, sl_image *img,
+                            sl_error *err)
+{
+    char full[4096];
+    resolve(path, file, full, sizeof full);
+    sl_error ierr = {0};
+    if (sl_image_read(full, img, NULL, &ierr))
+        return sl_error_set(err, SL_ERR_INPUT, "%s: %s: %s", path, field, ierr.message);
+    return SL_OK;
+}
+
 static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t i, sl_error *err)
 {
+    char field[64];
+    const char *type = json_string_value(json_object_get(j, "type"));
+    double dir[3], omega, rad[3], pos[3] = {0, 0, 0}, size[2] = {0, 0};
+    json_t *jpos = json_object_get(j, "position"), *jsize = json_object_get(j, "size");
+    json_t *jtex = json_object_get(j, "texture");
+    const char *bad = NULL;
+    if (!json_is_object(j))
+        bad = "";
+    else if (!type || (strcmp(type, "rect") && strcmp(type, "disk") && strcmp(type, "sphere") &&
+                       strcmp(type, "distant")))
+        bad = "type";
+    else if (!nums(json_object_get(j, "direction"), 3, -INFINITY, dir) || !v3_normalize(dir))
+        bad = "direction";
+    else if (omega = json_number_value(json_object_get(j, "solid_angle")),
+             !json_is_number(json_object_get(j, "solid_angle")) ||
+                 !(omega > 0 && omega <= 4 * SL_PI))
+        bad = "solid_angle";
+    else if (!nums(json_object_get(j, "radiance"), 3, 0, rad))
+        bad = "radiance";
+    else if (!json_is_null(jpos) && !nums(jpos, 3, -INFINITY, pos))
+        bad = "position";
+    else if (json_is_null(jpos) != json_is_null(jsize) ||
+             (!json_is_null(jsize) && !(nums(jsize, 2, 0, size) && size[0] > 0 && size[1] > 0)))
+        bad = "size";
+    else if (!json_is_null(jtex) && (!json_is_string(jtex) || json_is_null(jpos) ||
+                                     strcmp(type, "rect")))
+        bad = "texture";
+    if (bad) {
+        snprintf(field, sizeof field, "lights[%zu]%s%s", i, *bad ? "." : "", bad);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: %s is missing, of the wrong type, not finite "
+                            "or out of range", path, field);
+    }
     sl_light l;
     memset(&l, 0, sizeof l);
-    const char *type = json_string_value(json_object_get(j, "type"));
-    if (!type)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: lights[%zu].type is missing", path, i);
-    if (!strcmp(type, "rect"))
-        l.type = SL_LIGHT_RECT;
-    else if (!strcmp(type, "disk"))
-        l.type = SL_LIGHT_DISK;
-    else if (!strcmp(type, "sphere"))
-        l.type = SL_LIGHT_SPHERE;
-    else if (!strcmp(type, "distant"))
+    l.intensity = 1;
+    v3_copy(l.color, rad);
+    /* Every light emits along its -Z, toward the capture point. */
+    v3_copy(l.axis_z, dir);
+    if (json_is_null(jpos)) {
+        /* At infinity: the cone of the rig's solid angle. A cone cannot
+         * exceed a hemisphere (median cut's regions can), so there the
+         * radiance carries the rest of the region's power. */
+        double c = 1 - omega / (2 * SL_PI), cmin = cos(0.5 * 179.9 * SL_PI / 180);
+        if (c < cmin) {
+            for (int k = 0; k < 3; k++)
+                l.color[k] *= omega / (2 * SL_PI * (1 - cmin));
+            c = cmin;
+        }
         l.type = SL_LIGHT_DISTANT;
-    else
-        return sl_error_set(err, SL_ERR_INPUT,
-                            "%s: lights[%zu].type '%s' is not rect, disk, sphere or distant", path, i,
-                            type);
-    const double zero[3] = {0, 0, 0}, down[3] = {0, -1, 0}, one[3] = {1, 1, 1}, y[3] = {0, 1, 0},
-                 z[3] = {0, 0, 1};
-    double dir[3], up[3];
-    json_t *norm = json_object_get(j, "normalize");
-    const char *field = NULL;
-    if (!vec3(j, "position", zero, l.position))
-        field = "position";
-    else if (!vec3(j, "direction", down, dir))
-        field = "direction";
-    else if (!vec3(j, "up", fabs(dir[1]) > 0.9 * v3_length(dir) ? z : y, up))
-        field = "up";
-    else if (!vec3(j, "color", one, l.color))
-        field = "color";
-    else if (!num(j, "intensity", 1.0, &l.intensity))
-        field = "intensity";
-    else if (!num(j, "exposure", 0.0, &l.exposure))
-        field = "exposure";
-    else if (!num(j, "width", 1.0, &l.width))
-        field = "width";
-    else if (!num(j, "height", 1.0, &l.height))
-        field = "height";
-    else if (!num(j, "radius", 0.5, &l.radius))
-        field = "radius";
-    else if (!num(j, "angle", 0.53, &l.angle_deg))
-        field = "angle";
-    else if (norm && !json_is_boolean(norm))
-        field = "normalize";
-    if (field)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: lights[%zu].%s has the wrong type or is not finite",
-                            path, i, field);
-    l.normalize = json_is_true(norm);
-    /* UsdLux lights emit along their -Z axis. */
-    for (int k = 0; k < 3; k++) {
-        l.axis_z[k] = -dir[k];
-        l.axis_y[k] = up[k];
+        l.angle_deg = 2 * acos(c) * 180 / SL_PI;
+    } else {
+        /* Placed, facing the capture point, sized by the rig. */
+        v3_copy(l.position, pos);
+        if (v3_normalize(pos))
+            v3_copy(l.axis_z, pos);
+        l.type = !strcmp(type, "sphere") ? SL_LIGHT_SPHERE
+                 : !strcmp(type, "disk") ? SL_LIGHT_DISK : SL_LIGHT_RECT;
+        l.width = size[0];
+        l.height = size[1];
+        l.radius = 0.5 * size[0];
     }
-    const char *tex = json_string_value(json_object_get(j, "texture"));
-    if (tex) {
-        char full[4096];
-        resolve(path, tex, full, sizeof full);
-        sl_error terr = {0};
-        sl_result r = sl_image_read(full, &l.texture, NULL, &terr);
+    /* v1 carries no roll: +Y up unless the light is overhead or underfoot. */
+    v3_set(l.axis_y, 0, fabs(l.axis_z[1]) > 0.9 ? 0 : 1, fabs(l.axis_z[1]) > 0.9 ? 1 : 0);
+    if (json_is_string(jtex)) {
+        snprintf(field, sizeof field, "lights[%zu].texture", i);
+        sl_result r = read_image(path, field, json_string_value(jtex), &l.texture, err);
         if (r)
-            return sl_error_set(err, r, "%s: lights[%zu].texture: %s", path, i, terr.message);
+            return r;
     }
     sl_error lerr = {0};
     sl_result r = sl_scene_add_light(scene, &l, &lerr);
@@ -128,35 +133,35 @@ sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err)
     if (!root)
         return sl_error_set(err, SL_ERR_INPUT, "%s: line %d: %s", path, jerr.line, jerr.text);
     json_t *lights = json_object_get(root, "lights"), *dome = json_object_get(root, "dome");
-    if (!json_is_object(root) || (lights && !json_is_array(lights)) || (dome && !json_is_object(dome))) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: a rig is an object with a \"lights\" array and an "
-                                            "optional \"dome\" object", path);
+    json_t *version = json_object_get(root, "version");
+    json_t *file = dome ? json_object_get(dome, "file") : NULL;
+    if (!json_is_object(root) || !json_is_integer(version) || json_integer_value(version) != 1) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: version is not 1 (a rig.json version 1 from "
+                                            "setlight rig is expected)", path);
+        goto done;
+    }
+    if (!json_is_array(lights)) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: lights is not an array", path);
+        goto done;
+    }
+    if (!json_is_object(dome) || !(json_is_null(file) || json_is_string(file))) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: dome is not an object with a file (or null)",
+                         path);
         goto done;
     }
     for (size_t i = 0; i < json_array_size(lights); i++)
         if ((r = read_light(scene, path, json_array_get(lights, i), i, err)))
             goto done;
-    if (dome) {
-        const char *file = json_string_value(json_object_get(dome, "file"));
-        double rot, inten;
-        if (!file || !num(dome, "rotation", 0, &rot) || !num(dome, "intensity", 1, &inten)) {
-            r = sl_error_set(err, SL_ERR_INPUT,
-                             "%s: dome needs a \"file\" and numeric rotation/intensity", path);
-            goto done;
-        }
-        char full[4096];
-        resolve(path, file, full, sizeof full);
+    if (json_is_string(file)) {
         sl_image env;
-        if ((r = sl_image_read(full, &env, NULL, err)))
+        if ((r = read_image(path, "dome.file", json_string_value(file), &env, err)))
             goto done;
-        r = sl_scene_set_dome(scene, &env, rot, inten, full, err);
+        char full[4096];
+        resolve(path, json_string_value(file), full, sizeof full);
+        r = sl_scene_set_dome(scene, &env, 0, 1, full, err);
         sl_image_free(&env);
         if (r)
             goto done;
-    }
-    if (!dome && scene->light_count == 0) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: the rig has no lights and no dome", path);
-        goto done;
     }
     r = SL_OK;
 done:

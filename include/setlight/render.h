@@ -212,8 +212,10 @@ sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotatio
 /* Validates and appends a light (the scene takes over light->texture, also
  * on failure). The axes are re-orthonormalised from axis_z and axis_y. */
 sl_result sl_scene_add_light(sl_scene *scene, sl_light *light, sl_error *err);
-/* Reads a light rig (docs/render.md): optional dome plus lights. Textures and
- * the dome file are resolved relative to the rig's folder. */
+/* Reads a rig.json version 1 (docs/lightrig.md; mapping in docs/render.md):
+ * each light keeps its direction, solid angle and radiance as seen from the
+ * origin, plus the residual dome. Textures and the dome file are resolved
+ * relative to the rig's folder. */
 sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err);
 
 /* Validation scenes: "grey", "chrome", "chart", "refs", "shadow", "materials".

@@ -37,9 +37,11 @@ done
 
 "$S" render --env "$T/env.hdr" --scene chrome --material plastic:0.5,0.1,0.1:0.3 --view 30,20 --width 12 --spp 2 -o "$T/mat.exr" --quiet
 check "material and view" 0 $?
-printf '{"lights": [{"type": "sphere", "position": [0, 4, -2], "radius": 0.5, "intensity": 20},
-  {"type": "distant", "direction": [0, -1, 1], "angle": 1, "intensity": 3, "normalize": true}],
-  "dome": {"file": "env.hdr", "intensity": 0.5}}' > "$T/rig.json"
+printf '{"version": 1, "lights": [{"type": "sphere", "direction": [0, 0.894, -0.447], "solid_angle": 0.05,
+  "radiance": [20, 20, 20], "integral": [1, 1, 1], "position": [0, 4, -2], "size": [1, 1], "texture": null},
+  {"type": "distant", "direction": [0, 0.707, -0.707], "solid_angle": 0.0003, "radiance": [3000, 3000, 3000],
+  "integral": [0.9, 0.9, 0.9], "position": null, "size": null, "texture": null}],
+  "dome": {"file": "env.hdr", "integral": [1, 1, 1]}}' > "$T/rig.json"
 "$S" render --rig "$T/rig.json" --scene shadow --width 16 --spp 4 -o "$T/rig.exr" --stats "$T/rig_stats.json" --quiet
 check "rig render" 0 $?
 grep -q '"shadow_rays": [1-9]' "$T/rig_stats.json" || { echo "FAIL rig render traced no shadow rays"; fail=1; }
@@ -69,10 +71,15 @@ run_bad "missing scene file" 3 "absent.json" --env "$T/env.hdr" --scene "$T/abse
 run_bad "bad strategy" 2 "strategy" --env "$T/env.hdr" --strategy magic
 run_bad "bad material" 2 "material" --env "$T/env.hdr" --material gold
 run_bad "env and rig" 2 "exactly one" --env "$T/env.hdr" --rig "$T/rig.json"
-printf '{"lights": [{"type": "rect", "texture": "missing_softbox.exr"}]}' > "$T/rig_tex.json"
-run_bad "rig with missing texture" 3 "missing_softbox.exr" --rig "$T/rig_tex.json"
-printf '{"lights": [{"type": "disk", "radius": -0.5}]}' > "$T/rig_neg.json"
-run_bad "rig with negative radius" 3 "rig_neg.json: lights\[0\]" --rig "$T/rig_neg.json"
-printf '{"lights": [], "dome": {"file": "gone.exr"}}' > "$T/rig_dome.json"
-run_bad "rig with missing dome" 3 "gone.exr" --rig "$T/rig_dome.json"
+L='"direction": [0, 1, 0], "solid_angle": 0.1, "integral": [1, 1, 1]'
+printf '{"version": 1, "dome": {"file": null}, "lights": [{"type": "rect", %s, "radiance": [1, 1, 1],
+  "position": [0, 3, 0], "size": [1, 1], "texture": "missing_softbox.exr"}]}' "$L" > "$T/rig_tex.json"
+run_bad "rig with missing texture" 3 "rig_tex.json: lights\[0\].texture.*missing_softbox.exr" --rig "$T/rig_tex.json"
+printf '{"version": 1, "dome": {"file": null}, "lights": [{"type": "disk", %s, "radiance": [1, -1, 1],
+  "position": null, "size": null, "texture": null}]}' "$L" > "$T/rig_neg.json"
+run_bad "rig with negative radiance" 3 "rig_neg.json: lights\[0\].radiance" --rig "$T/rig_neg.json"
+printf '{"version": 1, "lights": [], "dome": {"file": "gone.exr"}}' > "$T/rig_dome.json"
+run_bad "rig with missing dome" 3 "rig_dome.json: dome.file.*gone.exr" --rig "$T/rig_dome.json"
+printf '{"lights": [], "dome": {"file": "env.hdr"}}' > "$T/rig_old.json"
+run_bad "rig without version 1" 3 "rig_old.json: version" --rig "$T/rig_old.json"
 exit $fail

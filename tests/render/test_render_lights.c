@@ -364,25 +364,53 @@ static void test_normalize_and_bad_lights(void)
     CHECK_RESULT(sl_scene_add_light(&s, &l, &err), SL_ERR_INPUT, &err);
     CHECK(s.light_count == 1);
 
-    /* Rig files: a missing texture and a negative intensity. */
+    /* Rig files (rig.json v1): a missing texture, wrong version, negative
+     * values; then a distant and a placed sphere light. */
     const char *rig = sl_test_path("rig.json");
+    static const char *const bad[][2] = {
+        {"{\"version\": 1, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"rect\", "
+         "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, 1, 1], "
+         "\"position\": [0, 3, 0], \"size\": [1, 1], \"texture\": \"nowhere.exr\"}]}",
+         "lights[0].texture"},
+        {"{\"version\": 2, \"dome\": {\"file\": null}, \"lights\": []}", "version"},
+        {"{\"version\": 1, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"disk\", "
+         "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, -1, 1], "
+         "\"position\": null, \"size\": null, \"texture\": null}]}",
+         "lights[0].radiance"},
+        {"{\"version\": 1, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"disk\", "
+         "\"direction\": [0, 1, 0], \"solid_angle\": -0.1, \"radiance\": [1, 1, 1], "
+         "\"position\": null, \"size\": null, \"texture\": null}]}",
+         "lights[0].solid_angle"},
+        {"{\"version\": 1, \"dome\": {\"file\": \"gone.exr\"}, \"lights\": []}", "dome.file"},
+    };
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        FILE *f = fopen(rig, "w");
+        fputs(bad[k][0], f);
+        fclose(f);
+        CHECK_RESULT(sl_scene_read_rig(&s, rig, &err), SL_ERR_INPUT, &err);
+        CHECK(strstr(err.message, "rig.json") && strstr(err.message, bad[k][1]));
+        CHECK(s.light_count == 1);
+    }
     FILE *f = fopen(rig, "w");
-    fprintf(f, "{\"lights\": [{\"type\": \"rect\", \"texture\": \"nowhere.exr\"}]}");
-    fclose(f);
-    CHECK_RESULT(sl_scene_read_rig(&s, rig, &err), SL_ERR_NOT_FOUND, &err);
-    CHECK(strstr(err.message, "rig.json") && strstr(err.message, "nowhere.exr"));
-    f = fopen(rig, "w");
-    fprintf(f, "{\"lights\": [{\"type\": \"sphere\", \"intensity\": -2}]}");
-    fclose(f);
-    CHECK_RESULT(sl_scene_read_rig(&s, rig, &err), SL_ERR_INPUT, &err);
-    CHECK(strstr(err.message, "lights[0]") && strstr(err.message, "intensity"));
-    f = fopen(rig, "w");
-    fprintf(f, "{\"lights\": [{\"type\": \"sphere\", \"radius\": 0.3, \"position\": [0, 4, 0], "
-               "\"normalize\": true, \"intensity\": 5}]}");
+    fprintf(f, "{\"version\": 1, \"dome\": {\"file\": null}, \"lights\": ["
+               "{\"type\": \"distant\", \"direction\": [0, 2, 0], \"solid_angle\": %.17g, "
+               "\"radiance\": [3, 2, 1], \"integral\": [0, 0, 0], \"position\": null, "
+               "\"size\": null, \"texture\": null},"
+               "{\"type\": \"sphere\", \"direction\": [1, 0, 0], \"solid_angle\": 0.1, "
+               "\"radiance\": [5, 5, 5], \"integral\": [0.5, 0.5, 0.5], \"position\": [4, 0, 0], "
+               "\"size\": [0.6, 0.6], \"texture\": null}]}",
+            2 * SL_PI * (1 - cos(0.01)));
     fclose(f);
     CHECK_OK(sl_scene_read_rig(&s, rig, &err), &err);
-    CHECK(s.light_count == 2);
-    CHECK_NEAR(s.lights[1].radiance[0], 5 / (4 * SL_PI * 0.09), 1e-9);
+    CHECK(s.light_count == 3);
+    CHECK(s.lights[1].type == SL_LIGHT_DISTANT && s.lights[2].type == SL_LIGHT_SPHERE);
+    CHECK_NEAR(s.lights[1].angle_deg, 2 * 0.01 * 180 / SL_PI, 1e-9);
+    CHECK_NEAR(s.lights[1].axis_z[1], 1, 1e-12); /* emits along -Z: down, from above */
+    CHECK_NEAR(s.lights[1].radiance[0], 3, 1e-12);
+    CHECK_NEAR(s.lights[2].radius, 0.3, 1e-12);
+    CHECK_NEAR(s.lights[2].position[0], 4, 1e-12);
+    CHECK_NEAR(s.lights[2].radiance[2], 5, 1e-12);
+    CHECK(!s.dome.present);
     sl_scene_free(&s);
 }
 
