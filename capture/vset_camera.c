@@ -26,7 +26,7 @@ static void white_balance_for(const double cam[3][3], double kelvin, double wb[3
         sl_vset_kelvin_rgb(kelvin, rgb);
     else
         rgb[0] = rgb[1] = rgb[2] = 1.0;
-    m3_apply(cam, rgb, raw);
+    sl_mat3_apply(cam, rgb, raw);
     for (int c = 0; c < 3; c++)
         wb[c] = raw[1] / raw[c];
 }
@@ -48,7 +48,7 @@ void sl_vset_camera_default(sl_vset_camera *cam, double wb_kelvin)
         for (int i = 0; i < 3; i++)
             rgb_to_xyz[i][j] = col[i];
     }
-    m3_mul(xyz_to_cam_5d2, rgb_to_xyz, cam->cam_from_rec709);
+    sl_mat3_mul(xyz_to_cam_5d2, rgb_to_xyz, cam->cam_from_rec709);
     /* Scale so that a white of luminance L gives green = L. */
     double g = cam->cam_from_rec709[1][0] + cam->cam_from_rec709[1][1] + cam->cam_from_rec709[1][2];
     for (int i = 0; i < 3; i++)
@@ -59,16 +59,16 @@ void sl_vset_camera_default(sl_vset_camera *cam, double wb_kelvin)
      * Rec.709), then saturated like a camera picture style. */
     double wb65[3], inv[3][3], d[3][3] = {{0}};
     white_balance_for(cam->cam_from_rec709, 0, wb65);
-    m3_invert(cam->cam_from_rec709, inv);
+    sl_mat3_invert(cam->cam_from_rec709, inv);
     for (int c = 0; c < 3; c++)
         d[c][c] = 1.0 / wb65[c];
-    m3_mul(inv, d, cam->ccm);
+    sl_mat3_mul(inv, d, cam->ccm);
     const double lw[3] = {0.2126390059, 0.7151686788, 0.0721923154};
     double sat[3][3];
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++)
             sat[i][j] = (1.0 - CAMERA_SATURATION) * lw[j] + (i == j ? CAMERA_SATURATION : 0);
-    m3_mul(sat, cam->ccm, cam->ccm);
+    sl_mat3_mul(sat, cam->ccm, cam->ccm);
     sl_vset_response_preset("canon", &cam->response, NULL);
 }
 
@@ -100,8 +100,8 @@ void sl_vset_camera_output_matrix(const sl_vset_camera *cam, double m[3][3])
     double d[3][3] = {{0}};
     for (int c = 0; c < 3; c++)
         d[c][c] = cam->wb[c];
-    m3_mul(cam->ccm, d, m);
-    m3_mul(m, cam->cam_from_rec709, m);
+    sl_mat3_mul(cam->ccm, d, m);
+    sl_mat3_mul(m, cam->cam_from_rec709, m);
 }
 
 void sl_vset_quantize(sl_image *img, int bits)
@@ -155,7 +155,7 @@ static void shoot_rows(void *ctx, int64_t begin, int64_t end, int worker)
         for (int x = 0; x < w; x++) {
             const float *p = sl_image_pixel(s->radiance, x, (int)y);
             double L[3] = {p[0], p[1], p[2]}, raw[3];
-            m3_apply(cam->cam_from_rec709, L, raw);
+            sl_mat3_apply(cam->cam_from_rec709, L, raw);
             uint64_t id = ((uint64_t)y * (uint64_t)w + (uint64_t)x) * 3u;
             for (int c = 0; c < 3; c++) {
                 double mean_e = raw[c] * s->scale * s->fw;
@@ -176,7 +176,7 @@ static void shoot_rows(void *ctx, int64_t begin, int64_t end, int worker)
             double bal[3], lin[3];
             for (int c = 0; c < 3; c++)
                 bal[c] = fmin(raw[c] * cam->wb[c], 1.0);
-            m3_apply(cam->ccm, bal, lin);
+            sl_mat3_apply(cam->ccm, bal, lin);
             float *ps = sl_image_pixel(&s->shot->sensor, x, (int)y);
             float *pl = sl_image_pixel(&s->shot->linear, x, (int)y);
             float *pe = sl_image_pixel(&s->shot->encoded, x, (int)y);

@@ -33,44 +33,6 @@ float sl_linear_to_srgb(float v)
     return (float)(1.055 * pow(l, 1.0 / 2.4) - 0.055);
 }
 
-static void mat_mul(const double a[3][3], const double b[3][3], double out[3][3])
-{
-    double r[3][3];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            r[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            out[i][j] = r[i][j];
-}
-
-static void mat_vec(const double m[3][3], const double v[3], double out[3])
-{
-    double r[3];
-    for (int i = 0; i < 3; i++)
-        r[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
-    out[0] = r[0];
-    out[1] = r[1];
-    out[2] = r[2];
-}
-
-/* Inverse by the adjugate; the matrices here are well conditioned. */
-static void mat_inv(const double m[3][3], double out[3][3])
-{
-    double c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
-    double c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
-    double c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
-    double det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
-    double r[3][3] = {
-        {c00, m[0][2] * m[2][1] - m[0][1] * m[2][2], m[0][1] * m[1][2] - m[0][2] * m[1][1]},
-        {c01, m[0][0] * m[2][2] - m[0][2] * m[2][0], m[0][2] * m[1][0] - m[0][0] * m[1][2]},
-        {c02, m[0][1] * m[2][0] - m[0][0] * m[2][1], m[0][0] * m[1][1] - m[0][1] * m[1][0]},
-    };
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            out[i][j] = r[i][j] / det;
-}
-
 /* RGB -> XYZ from primaries and white chromaticities (SMPTE RP 177): the
  * columns are the primaries' xyz scaled so that RGB (1,1,1) gives white. */
 static void rgb_to_xyz_from_xy(const double xy[4][2], double m[3][3])
@@ -83,8 +45,8 @@ static void rgb_to_xyz_from_xy(const double xy[4][2], double m[3][3])
     }
     double w[3] = {xy[3][0] / xy[3][1], 1.0, (1.0 - xy[3][0] - xy[3][1]) / xy[3][1]};
     double pinv[3][3], s[3];
-    mat_inv(p, pinv);
-    mat_vec(pinv, w, s);
+   sl_mat3_invert(p, pinv);
+    sl_mat3_apply(pinv, w, s);
     for (int i = 0; i < 3; i++)
         for (int c = 0; c < 3; c++)
             m[i][c] = p[i][c] * s[c];
@@ -98,19 +60,19 @@ static void rec709_init(void)
     /* ITU-R BT.709-6 primaries, D65 white. */
     static const double xy[4][2] = {{0.64, 0.33}, {0.30, 0.60}, {0.15, 0.06}, {0.3127, 0.3290}};
     rgb_to_xyz_from_xy(xy, rec709_to_xyz_m);
-    mat_inv(rec709_to_xyz_m, xyz_to_rec709_m);
+   sl_mat3_invert(rec709_to_xyz_m, xyz_to_rec709_m);
 }
 
 void sl_rec709_to_xyz(const double rgb[3], double xyz[3])
 {
     pthread_once(&rec709_once, rec709_init);
-    mat_vec(rec709_to_xyz_m, rgb, xyz);
+    sl_mat3_apply(rec709_to_xyz_m, rgb, xyz);
 }
 
 void sl_xyz_to_rec709(const double xyz[3], double rgb[3])
 {
     pthread_once(&rec709_once, rec709_init);
-    mat_vec(xyz_to_rec709_m, xyz, rgb);
+    sl_mat3_apply(xyz_to_rec709_m, xyz, rgb);
 }
 
 /* Bradford cone response (Lam 1985) with the 4-decimal coefficients that
@@ -123,12 +85,12 @@ void sl_bradford(const double src_white_xyz[3], const double dst_white_xyz[3], d
         {0.0389, -0.0685, 1.0296},
     };
     double ma_inv[3][3], src[3], dst[3];
-    mat_inv(ma, ma_inv);
-    mat_vec(ma, src_white_xyz, src);
-    mat_vec(ma, dst_white_xyz, dst);
+   sl_mat3_invert(ma, ma_inv);
+    sl_mat3_apply(ma, src_white_xyz, src);
+    sl_mat3_apply(ma, dst_white_xyz, dst);
     double scale[3][3] = {{dst[0] / src[0], 0, 0}, {0, dst[1] / src[1], 0}, {0, 0, dst[2] / src[2]}};
-    mat_mul(scale, ma, m);
-    mat_mul(ma_inv, m, m);
+    sl_mat3_mul(scale, ma, m);
+    sl_mat3_mul(ma_inv, m, m);
 }
 
 /* CIE 15:2004 with the exact rational constants (CIE 15 and Lindbloom)

@@ -85,17 +85,6 @@ bool sl_is_latlong_shape(int width, int height)
     return width > 0 && height > 0 && width == 2 * height;
 }
 
-static void mat_mul(double a[3][3], double b[3][3], double out[3][3])
-{
-    double t[3][3];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            t[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            out[i][j] = t[i][j];
-}
-
 /* Right-handed rotation by `degrees` about axis 0 (X), 1 (Y) or 2 (Z). */
 static void axis_rotation(int axis, double degrees, double r[3][3])
 {
@@ -119,6 +108,6 @@ void sl_rotation_euler(double yaw_deg, double pitch_deg, double roll_deg, double
     axis_rotation(1, yaw_deg, ry);
     axis_rotation(0, pitch_deg, rx);
     axis_rotation(2, roll_deg, rz);
-    mat_mul(rx, rz, rot);
-    mat_mul(ry, rot, rot);
+    sl_mat3_mul(rx, rz, rot);
+    sl_mat3_mul(ry, rot, rot);
 }

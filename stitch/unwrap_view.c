@@ -19,12 +19,6 @@
 
 #define TABLE_N 1024
 
-static void mat_vec(const double m[3][3], const double v[3], double out[3])
-{
-    for (int i = 0; i < 3; i++)
-        out[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
-}
-
 static void mat_t_vec(const double m[3][3], const double v[3], double out[3])
 {
     for (int i = 0; i < 3; i++)
@@ -85,7 +79,7 @@ void ball_view_map(const sl_ball_view *v, const double dir[3], ball_hit *hit)
     double p[3] = {st * ex, st * ey, -ct};
     if (v->distance == 0.0) {
         double pc[3];
-        mat_vec(v->view_to_cam, p, pc);
+        sl_mat3_apply(v->view_to_cam, p, pc);
         hit->x = v->cx - v->r * pc[0];
         hit->y = v->cy - v->r * pc[1];
         hit->cos_incidence = ct;
@@ -94,7 +88,7 @@ void ball_view_map(const sl_ball_view *v, const double dir[3], ball_hit *hit)
     double d[3] = {p[0], p[1], p[2] + v->distance}, dc[3];
     double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     double cosi = -(d[0] * p[0] + d[1] * p[1] + d[2] * p[2]) / len;
-    mat_vec(v->view_to_cam, d, dc);
+    sl_mat3_apply(v->view_to_cam, d, dc);
     double ppx = 0.5 * v->width, ppy = 0.5 * v->height;
     hit->x = ppx - v->focal_px * dc[0] / dc[2];
     hit->y = ppy - v->focal_px * dc[1] / dc[2];
@@ -149,8 +143,8 @@ bool sl_ball_view_pixel_to_dir(const sl_ball_view *v, double x, double y, double
     double dn = d[0] * o[0] + d[1] * o[1] + d[2] * o[2];
     double wv[3] = {d[0] - 2.0 * dn * o[0], d[1] - 2.0 * dn * o[1], d[2] - 2.0 * dn * o[2]};
     double wc[3];
-    mat_vec(v->view_to_cam, wv, wc);
-    mat_vec(v->cam_to_world, wc, dir);
+    sl_mat3_apply(v->view_to_cam, wv, wc);
+    sl_mat3_apply(v->cam_to_world, wc, dir);
     if (cos_incidence)
         *cos_incidence = -dn;
     return true;
@@ -345,8 +339,8 @@ sl_result sl_ball_view_init(sl_ball_view *v, int width, int height, const sl_bal
         }
     }
     double back[3] = {0.0, 0.0, -1.0}, bc[3], bw[3];
-    mat_vec(v->view_to_cam, back, bc);
-    mat_vec(v->cam_to_world, bc, bw);
+    sl_mat3_apply(v->view_to_cam, back, bc);
+    sl_mat3_apply(v->cam_to_world, bc, bw);
     v->centre_px_per_rad = sl_ball_view_resolution(v, bw);
     return SL_OK;
 }

@@ -347,6 +347,12 @@ bool sl_dir_to_projection(sl_projection p, const double dir[3], double *u, doubl
  * mirror ball and angular w/2 x w/2, cube map faces of w/4 (w/4 x 6w/4). */
 void sl_projection_size(sl_projection p, int latlong_width, int *width, int *height);
 
+/* Small 3x3 linear algebra in double, row-major; out may alias an input. */
+void sl_mat3_mul(const double a[3][3], const double b[3][3], double out[3][3]);
+void sl_mat3_apply(const double m[3][3], const double v[3], double out[3]);
+/* Inverse by cofactors; false (out untouched) when singular. */
+bool sl_mat3_invert(const double m[3][3], double out[3][3]);
+
 /* Row-major 3x3 rotation: world_dir = rot * map_dir. Right-handed: a
  * positive angle about Y turns +Z toward +X. Euler: rot = Ry(yaw) Rx(pitch)
  * Rz(roll) (roll first); positive pitch turns +Y toward +Z. */
