@@ -65,3 +65,10 @@ void cli_warn_format_mismatch(const char *path, const sl_meta *meta)
         sl_log(SL_LOG_WARN, "%s: the file is %s, not what its name says; read as %s", path,
                meta->format, meta->format);
 }
+
+bool cli_parse_view(const char *s, double *az, double *el)
+{
+    char tail;
+    return sscanf(s, "%lf,%lf%c", az, el, &tail) == 2 && isfinite(*az) && isfinite(*el) &&
+           fabs(*el) <= 90;
+}

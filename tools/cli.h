@@ -28,6 +28,8 @@ void cli_getopt_reset(void);
 /* Parses a whole positive int / finite double; false on junk. */
 bool cli_parse_int(const char *s, int *out);
 bool cli_parse_double(const char *s, double *out);
+/* "AZ,EL" in degrees with |EL| <= 90 (render and converge --view). */
+bool cli_parse_view(const char *s, double *az, double *el);
 
 /* Warns (one line naming the file) when a file's content is not the format
  * its name says, e.g. a PNG named .exr: it is read for what it is. */

@@ -145,8 +145,7 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                 return cli_usage_error(cli, "--width needs a whole number from 1 to 65536");
             break;
         case O_VIEW:
-            if (sscanf(optarg, "%lf,%lf", &az, &el) != 2 || !isfinite(az) || !isfinite(el) ||
-                fabs(el) > 90)
+            if (!cli_parse_view(optarg, &az, &el))
                 return cli_usage_error(cli, "--view needs AZ,EL in degrees (|EL| <= 90)");
             view = true;
             break;
