@@ -363,6 +363,48 @@ void sl_grey_fit_free(sl_grey_fit *fit);
 sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *o,
                              sl_grey_fit *fit, sl_error *err);
 
+/* ---- Clipped-sun repair ---- */
+
+typedef struct sl_sun_options {
+    double diameter_deg; /* the clipped source's angular diameter (0.53: the sun) */
+} sl_sun_options;
+
+void sl_sun_options_init(sl_sun_options *o);
+
+typedef struct sl_sun_repair {
+    bool repaired;            /* false when the mask flags nothing (nothing done) */
+    int64_t clipped_texels;   /* flagged in the mask (any channel >= 0.5) */
+    double solid_angle;       /* of the flagged texels, sr */
+    double direction[3];      /* their solid-angle-weighted centroid: the source's centre */
+    double azimuth_deg, elevation_deg; /* of direction, lat-long convention */
+    double source_solid_angle;  /* of the disc, sr */
+    /* Radiances of the disc in the HDRI's units (before the gains): */
+    double bound[3];          /* what the clipped map held above the sky (a lower bound) */
+    double fitted[3];         /* the least-squares fit */
+    double radiance[3];       /* written: fitted, but at least bound */
+    double radiance_sigma[3]; /* standard error of fitted, from the fit's residuals */
+    double gain[3];           /* the exposure gains fitted with it */
+    double energy_before[3];  /* integral of the map over the sphere before, L * sr */
+    double energy_added[3];   /* integral of what the repair added */
+    double rel_rmse_before;   /* grey sphere, best gains under the clipped map */
+    double rel_rmse_after;    /* best gains and the fitted source */
+    int64_t pixels;           /* grey sphere pixels in the fit */
+} sl_sun_repair;
+
+/* Repairs a source clipped in every frame of the merge (`mask`: the merge's
+ * clipped mask, the HDRI's size, any channel >= 0.5 flagged). The source is
+ * a disc of o->diameter_deg at the flagged texels' centroid; the flagged
+ * texels and those the disc touches are refilled with the mean of a ring
+ * round them, then per channel photo = g * render(sky) + g * L * render(disc)
+ * is solved by least squares over the grey sphere (options as for
+ * sl_grey_sphere_fit; the photo in the HDRI's working space) and the disc
+ * written into `hdri` at radiance L. With no flagged texel, nothing is done
+ * (repaired false). SL_ERR_INPUT when the flagged texels are not one source,
+ * the source does not light the visible side of the sphere, or no fit. */
+sl_result sl_sun_repair_fit(sl_image *hdri, const sl_image *mask, const sl_image *photo,
+                            const sl_grey_options *grey, const sl_sun_options *o,
+                            sl_sun_repair *out, sl_error *err);
+
 /* Adds a "Calibration" section to a report: the chart's per-patch table
  * (pixels, clipped, CIEDE2000 before and after) and the grey sphere's
  * photo, calibrated render and error images with their numbers. Either
