@@ -112,16 +112,29 @@ void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, sl_i
 {
     int n = out->width;
     double cx = o->circle[0], cy = o->circle[1], rad = o->circle[2];
-    /* The circle spans the virtual camera's image. */
+    /* The circle spans the virtual camera's image; each virtual pixel is
+     * the mean of k x k bilinear taps over its footprint (k photo pixels
+     * across it), so a photo larger than the render averages its noise. */
+    int k = (int)ceil(2 * rad / n);
+    if (k < 1)
+        k = 1;
     for (int y = 0; y < n; y++)
         for (int x = 0; x < n; x++) {
             float *ph = out->data + (size_t)y * out->stride + (size_t)x * 4;
             double u = (x + 0.5) / n * 2 - 1, v = (y + 0.5) / n * 2 - 1;
-            bool in = u * u + v * v < o->inner * o->inner &&
-                      bilinear(photo, cx + u * rad, cy + v * rad, o->clip_level, ph);
+            bool in = u * u + v * v < o->inner * o->inner;
+            double acc[3] = {0, 0, 0};
+            for (int j = 0; in && j < k; j++)
+                for (int i = 0; in && i < k; i++) {
+                    double su = (x + (i + 0.5) / k) / n * 2 - 1, sv = (y + (j + 0.5) / k) / n * 2 - 1;
+                    float t[3];
+                    in = bilinear(photo, cx + su * rad, cy + sv * rad, o->clip_level, t);
+                    for (int c = 0; c < 3; c++)
+                        acc[c] += t[c];
+                }
             ph[3] = in ? 1.0f : 0.0f;
-            if (!in)
-                ph[0] = ph[1] = ph[2] = 0;
+            for (int c = 0; c < 3; c++)
+                ph[c] = in ? (float)(acc[c] / (k * k)) : 0.0f;
         }
 }
 

@@ -157,3 +157,25 @@ sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double refere
         return sl_error_set(err, SL_ERR_INPUT, "chart: the fitted colour matrix is singular");
     return SL_OK;
 }
+
+void sl_ccm_plate_matrix(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                         double plate[3][3])
+{
+    /* The chart's light level is unknown: keep the neutral patch's
+     * luminance, leave exposure to the grey sphere. */
+    int n = fit->neutral_patch;
+    for (int k = 21; n < 0 && k >= 18; k--)
+        if (fit->used_patch[k])
+            n = k;
+    double y_in = 0, y_out = 0;
+    if (n >= 0) {
+        double v[3];
+        sl_mat3_apply(fit->m, patches[n].rgb, v);
+        y_in = luminance(patches[n].rgb);
+        y_out = luminance(v);
+    }
+    double k = y_out > 0 && y_in > 0 ? y_in / y_out : 1 / fit->gain;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            plate[i][j] = fit->m[i][j] * k;
+}

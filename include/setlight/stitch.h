@@ -306,6 +306,13 @@ typedef struct sl_ccm_fit {
 sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double reference[24][3],
                            const sl_ccm_options *o, sl_ccm_fit *fit, sl_error *err);
 
+/* The matrix used downstream (the plate matrix): fit->m scaled so the
+ * neutral patch (the constraint's, else the first used of 22, 21, 20, 19:
+ * neutral 3.5 upward, white last as it clips first) keeps its luminance, since the chart's light level is unknown; exposure
+ * is left to the grey sphere. */
+void sl_ccm_plate_matrix(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                         double plate[3][3]);
+
 /* CIEDE2000 between two linear Rec.709 colours (D65, white Y = 1). */
 double sl_chart_delta_e(const double rgb[3], const double ref[3]);
 
