@@ -313,6 +313,22 @@ sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double refere
 void sl_ccm_plate_matrix(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
                          double plate[3][3]);
 
+typedef enum {
+    SL_CHART_SPACE_LAB_D50 = 0, /* CIELAB, D50 white (as X-Rite publishes) */
+    SL_CHART_SPACE_XYZ_D50,     /* CIE XYZ under D50, white Y = 1 or 100 */
+    SL_CHART_SPACE_LIN_REC709   /* linear Rec.709 (D65), the working space */
+} sl_chart_space;
+
+/* Reads 24 reference values in chart order (docs/calibrate.md): CSV with a
+ * header row "L,a,b", "X,Y,Z" or "R,G,B" (an extra first column, e.g. the
+ * patch name, allowed), or JSON {"space": "lab_d50" | "xyz_d50" |
+ * "lin_rec709", "patches": [[v1, v2, v3] x 24]}; "#" lines are comments.
+ * Converted to linear Rec.709 (Bradford D50 -> D65). SL_ERR_NOT_FOUND when
+ * missing; SL_ERR_INPUT naming the file and line when malformed. space
+ * may be NULL. */
+sl_result sl_chart_reference_read(const char *path, double reference[24][3], sl_chart_space *space,
+                                  sl_error *err);
+
 /* CIEDE2000 between two linear Rec.709 colours (D65, white Y = 1). */
 double sl_chart_delta_e(const double rgb[3], const double ref[3]);
 
