@@ -272,7 +272,9 @@ typedef struct sl_chart_patch {
  * so well inside the patch), pixels with any channel >= clip_level
  * (0: no clip test) or non-finite rejected, then the brightest and darkest
  * 10% by channel sum dropped. A patch is invalid when fewer than 4 pixels
- * remain or more than 5% of its disc is clipped. */
+ * remain, more than 5% of its disc is clipped, or the kept pixels' relative
+ * spread exceeds SL_CHART_MAX_SPREAD (a shadow edge or glare across it). */
+#define SL_CHART_MAX_SPREAD 0.15
 sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], double radius_px,
                           double clip_level, sl_chart_patch patches[24], sl_error *err);
 
@@ -281,15 +283,23 @@ typedef struct sl_ccm_options {
      * reference: neutrals stay neutral. */
     bool white_preserving;
     int neutral_patch; /* 0-based; -1: the brightest valid of patches 19..24 */
+    /* Patches lit differently from the rest (part of the chart in shadow,
+     * glare): after a first fit, only the largest group whose fitted /
+     * reference luminance ratios agree within this factor is kept, and the
+     * fit redone (up to 3 rounds). 0 or 1: off. Default 1.5. */
+    double outlier_ratio;
 } sl_ccm_options;
 
-void sl_ccm_options_init(sl_ccm_options *o); /* not white-preserving, neutral -1 */
+/* Not white-preserving, neutral -1, outlier_ratio 1.5. */
+void sl_ccm_options_init(sl_ccm_options *o);
 
 typedef struct sl_ccm_fit {
     double m[3][3];      /* working-space RGB = m * camera RGB */
     double gain;         /* cbrt(det m): the matrix's overall scale */
     int used;            /* patches in the fit */
     bool used_patch[24];
+    bool outlier[24];    /* valid, but left out as lit differently (shadow, glare) */
+    int outliers;
     int neutral_patch;   /* the constraint's patch, or -1 */
     /* CIEDE2000 against the reference (D65, white Y = 1), -1 for patches
      * not measured. "Before" is the camera RGB read as Rec.709 and scaled
