@@ -396,6 +396,13 @@ void sl_grey_fit_free(sl_grey_fit *fit);
 sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *o,
                              sl_grey_fit *fit, sl_error *err);
 
+/* Absolute calibration: the luminance (cd/m^2) of a linear value 1.0
+ * (raw saturation) in a photo taken at this exposure, from ISO 12232's
+ * saturation-based speed: L = 78 N^2 / (q S t), q = 0.65 (lens
+ * transmission, cos^4 at the centre), i.e. 120 N^2 / (S t). 0 when any
+ * value is missing (<= 0). */
+double sl_exposure_luminance(double time_s, double f_number, double iso);
+
 /* ---- Clipped-sun repair ---- */
 
 typedef struct sl_sun_options {
