@@ -580,7 +580,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                 js, "sun_repair",
                 json_pack("{s:s, s:I, s:f, s:f, s:f, s:f, s:f, s:[f,f,f], s:[f,f,f], s:[f,f,f], "
                           "s:[f,f,f], s:f, s:f, s:f}",
-                          "mask", mask_path ? mask_path : "(from the HDRI)", "clipped_texels",
+                          "mask", mp, "clipped_texels",
                           (json_int_t)sun.clipped_texels, "clipped_solid_angle_sr",
                           sun.solid_angle, "azimuth_deg", sun.azimuth_deg, "elevation_deg",
                           sun.elevation_deg, "diameter_deg", sopt.diameter_deg,
