@@ -320,6 +320,28 @@ static int cmp_ranked(const void *a, const void *b)
     return x->index - y->index;
 }
 
+/* GGX roughness of the glossy sphere the lights are ranked for. */
+#define RIG_GLOSSY_ALPHA 0.3
+
+/* A light's glossy contribution: the peak of its highlight on a GGX sphere
+ * (alpha 0.3, white Fresnel, seen along the normal with the light behind
+ * the viewer): radiance x the share of the lobe the light covers, which for
+ * a cap of angular radius r (half-vectors within r/2) is
+ * tan^2(r/2) / (alpha^2 + tan^2(r/2)). A small light's is its power over
+ * 4 pi alpha^2 (as for grey); a large soft one's saturates at its radiance. */
+static double glossy_score(const sl_rig_light *L)
+{
+    double t = tan(0.5 * cap_radius(L->solid_angle)), a2 = RIG_GLOSSY_ALPHA * RIG_GLOSSY_ALPHA;
+    double y = rig_luma(L->integral) / L->solid_angle;
+    return (y > 0 ? y : 0) * t * t / (a2 + t * t);
+}
+
+static bool eligible(const sl_rig_light *L, int tag, const sl_rig_options *opt)
+{
+    bool wide = opt->max_solid_angle > 0 && L->solid_angle > opt->max_solid_angle;
+    return tag > 0 || (tag == 0 && !wide);
+}
+
 sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, const int *tags,
                      bool *keep, sl_rig_skip **skipped, int *skipped_count, sl_error *err)
 {
@@ -328,37 +350,52 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
     ranked *r = malloc((size_t)(count ? count : 1) * sizeof *r);
     if (!r)
         return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
-    double total = 0;
-    /* Rank by luminous power: a grey (Lambertian) sphere's total reflected
-     * light is proportional to it whatever the direction. */
-    for (int i = 0; i < count; i++) {
-        r[i].y = rig_luma(cand[i].integral);
-        r[i].index = i;
-        total += r[i].y > 0 ? r[i].y : 0;
-    }
-    qsort(r, (size_t)count, sizeof *r, cmp_ranked);
-    for (int i = 0; i < count; i++)
-        cand[r[i].index].share = total > 0 ? r[i].y / total : 0;
-    *skipped = calloc((size_t)(count ? count : 1), sizeof **skipped);
-    if (!*skipped) {
+    /* Two contributions: to a grey (Lambertian) sphere, whose total
+     * reflected light is proportional to the luminous power whatever the
+     * direction, and to a glossy sphere's highlights, which favour small
+     * bright sources over large soft ones of the same power. */
+    double total = 0, total_g = 0, *gl = malloc((size_t)(count ? count : 1) * sizeof *gl);
+    if (!gl) {
         free(r);
         return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
     }
-    /* The cut is on the energy of the candidates that may become lights:
-     * not excluded by hand, not wider than a fixture. */
-    double acc = 0, eligible = 0;
+    for (int i = 0; i < count; i++) {
+        double y = rig_luma(cand[i].integral);
+        gl[i] = glossy_score(&cand[i]);
+        total += y > 0 ? y : 0;
+        total_g += gl[i];
+    }
+    for (int i = 0; i < count; i++) {
+        double y = rig_luma(cand[i].integral);
+        cand[i].share = total > 0 && y > 0 ? y / total : 0;
+        cand[i].share_glossy = total_g > 0 ? gl[i] / total_g : 0;
+        /* ranked by the larger of its two shares */
+        r[i].y = fmax(cand[i].share, cand[i].share_glossy);
+        r[i].index = i;
+    }
+    qsort(r, (size_t)count, sizeof *r, cmp_ranked);
+    *skipped = calloc((size_t)(count ? count : 1), sizeof **skipped);
+    if (!*skipped) {
+        free(r);
+        free(gl);
+        return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
+    }
+    /* The cut is on the contributions of the candidates that may become
+     * lights: not excluded by hand, not wider than a fixture; the kept set
+     * reaches --energy of both. */
+    double acc = 0, acc_g = 0, elig = 0, elig_g = 0;
     int kept = 0, forced = 0;
     for (int i = 0; i < count; i++) {
         forced += tags[i] > 0;
-        bool wide = opt->max_solid_angle > 0 && cand[i].solid_angle > opt->max_solid_angle;
-        double y = rig_luma(cand[i].integral);
-        if (tags[i] > 0 || (tags[i] == 0 && !wide))
-            eligible += y > 0 ? y : 0;
+        if (eligible(&cand[i], tags[i], opt)) {
+            elig += cand[i].share;
+            elig_g += cand[i].share_glossy;
+        }
     }
     for (int i = 0; i < count; i++) {
         sl_rig_light *L = &cand[r[i].index];
         int tag = tags[r[i].index];
-        char reason[128] = "";
+        char reason[160] = "";
         bool k;
         if (tag < 0) {
             k = false;
@@ -376,7 +413,8 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
         } else if (opt->max_lights > 0 && kept + forced >= opt->max_lights) {
             k = false;
             snprintf(reason, sizeof reason, "--max-lights %d reached", opt->max_lights);
-        } else if (acc < opt->energy * eligible * (1 - 1e-12)) {
+        } else if (acc < opt->energy * elig * (1 - 1e-12) ||
+                   acc_g < opt->energy * elig_g * (1 - 1e-12)) {
             k = true;
         } else if (L->shape == SL_RIG_DISTANT && L->share >= 0.005) {
             /* Tiny, very bright sources are what a dome renders worst and
@@ -387,13 +425,14 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
             k = false;
             snprintf(reason, sizeof reason,
                      "energy: the kept lights already carry %.1f%% of the directional energy "
-                     "(--energy %g)",
-                     100 * acc / eligible, opt->energy);
+                     "for a grey sphere and %.1f%% for a glossy one (--energy %g)",
+                     100 * acc / elig, 100 * acc_g / elig_g, opt->energy);
         }
         keep[r[i].index] = k;
         if (k) {
             kept++;
-            acc += r[i].y;
+            acc += L->share;
+            acc_g += L->share_glossy;
             continue;
         }
         sl_rig_skip *s = &(*skipped)[(*skipped_count)++];
@@ -401,8 +440,10 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
         memcpy(s->integral, L->integral, sizeof s->integral);
         s->solid_angle = L->solid_angle;
         s->share = L->share;
+        s->share_glossy = L->share_glossy;
         snprintf(s->reason, sizeof s->reason, "%s", reason);
     }
     free(r);
+    free(gl);
     return SL_OK;
 }

@@ -372,7 +372,7 @@ static void test_normalize_and_bad_lights(void)
          "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, 1, 1], "
          "\"position\": [0, 3, 0], \"size\": [1, 1], \"texture\": \"nowhere.exr\"}]}",
          "lights[0].texture"},
-        {"{\"version\": 2, \"dome\": {\"file\": null}, \"lights\": []}", "version"},
+        {"{\"version\": 3, \"dome\": {\"file\": null}, \"lights\": []}", "version"},
         {"{\"version\": 1, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"disk\", "
          "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, -1, 1], "
          "\"position\": null, \"size\": null, \"texture\": null}]}",
