@@ -3,6 +3,8 @@
 #ifndef SETLIGHT_STITCH_MERGE_PRIVATE_H
 #define SETLIGHT_STITCH_MERGE_PRIVATE_H
 
+#include <math.h>
+
 #include "setlight/stitch.h"
 
 /* Frames per merge (per-pixel work keeps them on the stack). */
@@ -15,6 +17,15 @@ typedef struct merge_samples {
     int frames;
     float *z;
 } merge_samples;
+
+/* The brightest channel of position i in frame rank r. A camera clips each
+ * raw channel before its colour matrix mixes them, so one saturated channel
+ * spoils the pixel's others: saturation is judged on this. */
+static inline float merge_zmax(const merge_samples *s, int i, int r)
+{
+    const float *v = s->z + ((size_t)i * s->frames + r) * 3;
+    return fmaxf(v[0], fmaxf(v[1], v[2]));
+}
 
 /* Debevec-Malik: the log inverse response g(z) on `nodes` nodes such that
  * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
