@@ -215,7 +215,9 @@ static void merge_case(const vb_spec *spec, mode md, bool strict)
     vb_free(&b);
 }
 
-static int width(void) { return sanitized() ? 128 : 256; }
+/* Smaller brackets leave too few samples for the self-calibration; under
+ * sanitizers only the cases held to the goal run, at the same size. */
+static int width(void) { return 256; }
 
 static vb_spec spec(const char *scene, int frames, int stops, bool jpeg)
 {
@@ -237,6 +239,8 @@ static void run_scenes(bool jpeg, mode md)
 {
     static const char *const scenes[] = {"exterior", "stage", "night"};
     for (int i = 0; i < 3; i++) {
+        if (sanitized() && !meets_goal(scenes[i], md))
+            continue;
         vb_spec a = spec(scenes[i], 7, 3, jpeg), b = spec(scenes[i], 5, 2, jpeg);
         merge_case(&a, md, meets_goal(scenes[i], md));
         merge_case(&b, md, meets_goal(scenes[i], md));
