@@ -117,6 +117,11 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
         else
             return sl_error_set(err, SL_ERR_INPUT,
                                 "%s: no exposure time in EXIF (give --times)", paths[i]);
+        if (opt->absolute && !(f->f_number > 0 && f->iso > 0))
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: no %s in EXIF: absolute units need the f-number and ISO "
+                                "of every frame",
+                                paths[i], f->f_number > 0 ? "ISO" : "f-number");
         all_n_iso = all_n_iso && f->f_number > 0 && f->iso > 0;
     }
     if (r)
@@ -487,6 +492,12 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     }
     out->reference = m->order[(count - 1) / 2];
     out->bits = m->bits;
+    out->noise_gain = opt.noise_gain;
+    out->noise_floor = opt.noise_floor;
+    out->black = opt.black;
+    out->saturation = opt.saturation;
+    out->absolute = opt.absolute;
+    out->output_exposure = opt.absolute ? SL_MERGE_K_SAT : out->frames[out->reference].exposure;
     return SL_OK;
 }
 

@@ -227,7 +227,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_r
         r = sl_image_alloc(&res->ghost, m->width, m->height, 1, err);
     if (!r)
         r = build_luts(&p, err);
-    double ref = res->frames[res->reference].exposure;
+    double ref = res->output_exposure;
     for (int q = 0; q < f && !r; q++) {
         const sl_merge_frame *fr = &res->frames[m->order[q]];
         p.e[q] = fr->exposure / ref;

@@ -66,6 +66,9 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
 sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_result *out,
                      sl_error *err);
 void merge_ctx_free(merge_ctx *m);
+/* Units, output scale and weights as EXR attributes (setlight:merge:units,
+ * output_exposure, weights). */
+sl_result merge_provenance_meta(sl_meta *meta, const sl_merge_result *res, sl_error *err);
 
 /* splitmix64: a small seeded generator for sample positions. */
 static inline uint64_t merge_rand(uint64_t *state)

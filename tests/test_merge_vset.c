@@ -303,11 +303,94 @@ static void test_exif_lie(void)
     lie_case(true);
 }
 
+/* Absolute units: every bracket, whatever its exposures, aperture and ISO,
+ * lands on the radiance's own scale (truth / ref_scale). */
+static void absolute_case(const char *scene, int frames, int stops, int shift)
+{
+    vb_spec sp = spec(scene, frames, stops, true);
+    sp.shift = shift;
+    char name[64];
+    snprintf(name, sizeof name, "abs_%s_%dx%d_%+d", scene, frames, stops, shift);
+    sl_error err;
+    vb_bracket b;
+    CHECK_OK(vb_make(sl_test_tmpdir(), name, &sp, &b, &err), &err);
+    const char *paths[VB_MAX_FRAMES];
+    for (int k = 0; k < b.frames; k++)
+        paths[k] = b.paths[k];
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    sl_response given = {0};
+    true_response(&b, &given);
+    opt.response_mode = SL_RESPONSE_GIVEN;
+    opt.response = &given;
+    opt.absolute = true;
+    sl_merge_result res;
+    CHECK_OK(sl_merge(paths, b.frames, &opt, &res, &err), &err);
+    if (res.radiance.data) {
+        /* Provenance: units, scale and weights in the EXR's attributes. */
+        char out[600];
+        snprintf(out, sizeof out, "%s/%s.exr", sl_test_tmpdir(), name);
+        CHECK_OK(sl_merge_write(out, NULL, NULL, &res, &err), &err);
+        sl_image back = {0};
+        sl_meta meta;
+        sl_meta_init(&meta);
+        CHECK_OK(sl_image_read(out, &back, &meta, &err), &err);
+        const char *units = sl_meta_get(&meta, "setlight:merge:units");
+        const char *weights = sl_meta_get(&meta, "setlight:merge:weights");
+        const char *oe = sl_meta_get(&meta, "setlight:merge:output_exposure");
+        CHECK(units && strncmp(units, "cd/m^2", 6) == 0);
+        CHECK(weights && strstr(weights, "inverse variance") != NULL);
+        CHECK(oe && atof(oe) == SL_MERGE_K_SAT);
+        sl_meta_free(&meta);
+        sl_image_free(&back);
+        /* Compare with truth / ref_scale: scale the merge by ref_scale instead. */
+        for (size_t i = 0; i < (size_t)res.radiance.width * res.radiance.height * 3; i++)
+            res.radiance.data[i] *= (float)b.ref_scale;
+        stats bl = compare(&res.radiance, &b, 4, true);
+        printf("  %s: f/%g ISO %g, reference %.6g s: absolute / truth = %.4f, 4x4 median "
+               "%.2f%%\n",
+               name, b.f_number, b.iso, b.times[b.reference], bl.scale, 100 * bl.median);
+        CHECK(res.absolute && res.output_exposure == SL_MERGE_K_SAT);
+        CHECK_NEAR(bl.scale, 1, 0.01);
+    }
+    sl_merge_result_free(&res);
+    sl_response_free(&given);
+    vb_free(&b);
+}
+
+static void test_absolute(void)
+{
+    absolute_case("exterior", 7, 3, 0);
+    absolute_case("exterior", 5, 2, 2);
+    if (!sanitized()) {
+        absolute_case("stage", 7, 3, 0);
+        absolute_case("night", 5, 2, -1);
+    }
+    /* TIFF keeps no ISO (OpenImageIO 2.4): absolute units are refused, naming the frame. */
+    vb_spec sp = spec("exterior", 5, 2, false);
+    sp.width = 32;
+    vb_bracket b;
+    sl_error err;
+    CHECK_OK(vb_make(sl_test_tmpdir(), "abs_tiff", &sp, &b, &err), &err);
+    const char *paths[VB_MAX_FRAMES];
+    for (int k = 0; k < b.frames; k++)
+        paths[k] = b.paths[k];
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.response_mode = SL_RESPONSE_LINEAR;
+    opt.absolute = true;
+    sl_merge_result res;
+    CHECK_RESULT(sl_merge(paths, b.frames, &opt, &res, &err), SL_ERR_INPUT, &err);
+    CHECK(strstr(err.message, b.paths[0]) != NULL && strstr(err.message, "ISO") != NULL);
+    vb_free(&b);
+}
+
 int main(void)
 {
     RUN(test_linear);
     RUN(test_jpeg_true_curve);
     RUN(test_jpeg_self_calibrated);
     RUN(test_exif_lie);
+    RUN(test_absolute);
     return sl_test_finish();
 }

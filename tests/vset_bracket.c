@@ -43,7 +43,7 @@ static void plan(const vb_spec *s, const sl_vset_camera *cam, const sl_image *ll
     for (int i = 1; i < SHUTTERS; i++)
         if (fabs(log(shutter[i] / t)) < fabs(log(shutter[centre] / t)))
             centre = i;
-    int first = centre - (s->frames - 1) / 2 * s->stops;
+    int first = centre - (s->frames - 1) / 2 * s->stops + s->shift;
     int last = first + (s->frames - 1) * s->stops;
     if (last > SHUTTERS - 1)
         first -= last - (SHUTTERS - 1);
@@ -108,6 +108,7 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
     sl_vset_exposure eref = {out->times[out->reference], out->f_number, out->iso};
     double s0 = sl_vset_exposure_scale(&out->cam, &e0);
     double sref = sl_vset_exposure_scale(&out->cam, &eref);
+    out->ref_scale = sref;
     /* The merge's threshold in linear terms: codes at or above it are saturated. */
     double sat_lin = spec->jpeg ? sl_vset_response_invert(&out->cam.response, spec->saturation)
                                 : spec->saturation;

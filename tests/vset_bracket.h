@@ -19,6 +19,7 @@ typedef struct vb_spec {
     int width;            /* lat-long width (frames are the lat-long itself) */
     double saturation;    /* the merge's saturation code (for the clipped truth) */
     uint64_t seed;
+    int shift;            /* the whole bracket this many shutter steps longer than metered */
     int lie_frame;        /* this rank's EXIF time is off by lie_stops (0: none) */
     double lie_stops;
 } vb_spec;
@@ -29,6 +30,8 @@ typedef struct vb_bracket {
     int frames;
     int reference;             /* rank of the middle frame: the merge's scale */
     double times[VB_MAX_FRAMES];
+    double ref_scale; /* the camera's exposure scale at the reference frame: truth / ref_scale
+                         is the output-linear value of the radiance itself (cd/m^2 units) */
     double f_number, iso;
     char paths[VB_MAX_FRAMES][512]; /* shortest first */
     sl_image truth;   /* output-linear value at the reference exposure, noise-free, unclipped */
