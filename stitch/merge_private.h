@@ -36,6 +36,17 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                              double lambda, int max_samples, double black, double saturation,
                              uint64_t seed, sl_response *out, sl_error *err);
 
+/* Robertson-Borman-Stevenson: the same curve from the same samples by
+ * alternating irradiance and per-code estimates (response_robertson.c). */
+sl_result merge_fit_robertson(const merge_samples *s, const double *log_exposure, int nodes,
+                              int max_samples, double black, double saturation, uint64_t seed,
+                              sl_response *out, sl_error *err);
+
+/* Up to max_samples positions for channel c, spread over a crude log
+ * radiance and over the frame; returns how many (-1 out of memory). */
+int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,
+                         double saturation, int max_samples, uint64_t seed, int *chosen);
+
 /* Exposure ratio between neighbouring ranks from pixels well exposed in
  * both (median of linearised ratios); ratio[r] = e[r+1] / e[r], 0 when too
  * few pixels are usable. Returns how many ratios could be fitted. */

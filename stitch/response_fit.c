@@ -52,9 +52,8 @@ static bool cholesky_solve(double *a, double *b, int n)
 /* Picks up to max_samples positions for one channel, spread evenly over a
  * crude log radiance (each value read in the frame where it is nearest
  * mid-grey), in a seeded random order so they also spread over the frame. */
-static int choose_samples(const merge_samples *s, int c, const double *log_exposure,
-                          double black, double saturation, int max_samples, uint64_t seed,
-                          int *chosen)
+int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,
+                         double saturation, int max_samples, uint64_t seed, int *chosen)
 {
     int n = s->count, f = s->frames;
     double *key = malloc((size_t)n * sizeof *key);
@@ -130,7 +129,7 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
     int equations = 0, total = 0;
     for (int c = 0; c < 3 && !r; c++) {
         int *ch = chosen + (size_t)c * s->count;
-        int m = choose_samples(s, c, log_exposure, black, saturation, max_samples, seed, ch);
+        int m = merge_choose_samples(s, c, log_exposure, black, saturation, max_samples, seed, ch);
         if (m < 0) {
             r = sl_error_set(err, SL_ERR_NOMEM, "response: out of memory");
             break;

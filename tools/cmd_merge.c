@@ -18,8 +18,9 @@ static const char *merge_help =
     "  --times T1,T2,...      exposure times in seconds (e.g. 1/30,1/250), in frame order;\n"
     "                         default: EXIF ExposureTime (with FNumber and ISO when every\n"
     "                         frame has them: relative exposure t * ISO / N^2)\n"
-    "  --response MODE        auto (Debevec-Malik from the bracket, default), linear (raw,\n"
-    "                         linear TIFF/EXR), or a curve file from 'setlight response'\n"
+    "  --response MODE        auto (Debevec-Malik from the bracket, default), robertson\n"
+    "                         (Robertson et al. from the bracket), linear (raw, linear\n"
+    "                         TIFF/EXR), or a curve file from 'setlight response'\n"
     "  --exposures SRC        exif (default) or data: use exposure ratios measured from\n"
     "                         the pixels; either way disagreements are reported\n"
     "  --mask PATH            clipped mask EXR (R,G,B = 1 where saturated in every\n"
@@ -184,6 +185,8 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
             sl_response_free(&a->response);
             if (!strcmp(optarg, "auto"))
                 a->opt.response_mode = SL_RESPONSE_AUTO;
+            else if (!strcmp(optarg, "robertson"))
+                a->opt.response_mode = SL_RESPONSE_ROBERTSON;
             else if (!strcmp(optarg, "linear"))
                 a->opt.response_mode = SL_RESPONSE_LINEAR;
             else {

@@ -36,7 +36,13 @@ double sl_response_eval(const sl_response *resp, int channel, double z);
 sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err);
 sl_result sl_response_write(const char *path, const sl_response *resp, sl_error *err);
 
-typedef enum { SL_RESPONSE_LINEAR = 0, SL_RESPONSE_AUTO, SL_RESPONSE_GIVEN } sl_response_mode;
+/* AUTO: Debevec-Malik from the bracket; ROBERTSON: Robertson-Borman-Stevenson. */
+typedef enum {
+    SL_RESPONSE_LINEAR = 0,
+    SL_RESPONSE_AUTO,
+    SL_RESPONSE_GIVEN,
+    SL_RESPONSE_ROBERTSON
+} sl_response_mode;
 typedef enum { SL_EXPOSURES_EXIF = 0, SL_EXPOSURES_DATA } sl_exposure_source;
 
 typedef struct sl_merge_options {
