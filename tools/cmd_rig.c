@@ -45,7 +45,7 @@ static const char *rig_help =
     "  --include LAT,LON     always keep the light there (degrees; grown from the\n"
     "                        brightest texel within 2 degrees if none was found)\n"
     "  --exclude LAT,LON     leave the light there in the dome (both repeatable)\n"
-    "  --textures            textured rect lights (with --distance or --room): the\n"
+    "  --textures            textured rect lights (positioned or at infinity): the\n"
     "                        region's crop as RIG_light_NN.exr beside RIG.usda\n"
     "  --assume-latlong      accept a 2:1 image without the envmap attribute\n"
     "  --validate[=SPP]      render the grey, chrome and shadow scenes (96 px) under\n"
