@@ -82,6 +82,24 @@ void sl_fresnel_eval(const sl_material *m, double cos_i, double f[3])
     }
 }
 
+/* The quadrature costs 24 conductor evaluations and every compensated
+ * BSDF evaluation needs it: each thread keeps the last material's answer. */
+typedef struct favg_memo {
+    bool valid;
+    sl_fresnel_mode fresnel;
+    double base_color[3], edge_tint[3], ior, favg[3];
+} favg_memo;
+
+static bool memo_matches(const favg_memo *c, const sl_material *m)
+{
+    if (!c->valid || c->fresnel != m->fresnel || c->ior != m->ior)
+        return false;
+    for (int i = 0; i < 3; i++)
+        if (c->base_color[i] != m->base_color[i] || c->edge_tint[i] != m->edge_tint[i])
+            return false;
+    return true;
+}
+
 void sl_fresnel_average(const sl_material *m, double favg[3])
 {
     if (m->fresnel == SL_FRESNEL_ONE) {
@@ -92,6 +110,12 @@ void sl_fresnel_average(const sl_material *m, double favg[3])
         /* 2 int (F0 + (1-F0)(1-mu)^5) mu dmu = F0 + (1-F0)/21 */
         for (int c = 0; c < 3; c++)
             favg[c] = m->base_color[c] + (1.0 - m->base_color[c]) / 21.0;
+        return;
+    }
+    static _Thread_local favg_memo memo;
+    if (memo_matches(&memo, m)) {
+        for (int c = 0; c < 3; c++)
+            favg[c] = memo.favg[c];
         return;
     }
     /* 8-point Gauss-Legendre on [0, 1]: F is smooth, error below 1e-4 (tested). */
@@ -107,5 +131,13 @@ void sl_fresnel_average(const sl_material *m, double favg[3])
         sl_fresnel_eval(m, mu, f);
         for (int c = 0; c < 3; c++)
             favg[c] += 2.0 * wt * f[c] * mu;
+    }
+    memo.valid = true;
+    memo.fresnel = m->fresnel;
+    memo.ior = m->ior;
+    for (int c = 0; c < 3; c++) {
+        memo.base_color[c] = m->base_color[c];
+        memo.edge_tint[c] = m->edge_tint[c];
+        memo.favg[c] = favg[c];
     }
 }

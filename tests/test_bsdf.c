@@ -177,6 +177,43 @@ static void test_fresnel_average(void)
     CHECK_NEAR(fa[0], 0.091778, 2e-6);
 }
 
+/* The average is remembered per thread for the last material: alternating
+ * materials that differ in one Fresnel field each must each get their own
+ * (a midpoint rule with 4096 steps is the independent answer). */
+static void test_fresnel_average_memo(void)
+{
+    sl_material ms[5];
+    const double r[3] = {0.9, 0.6, 0.3}, g[3] = {1, 1, 1}, g2[3] = {1, 0.2, 1};
+    sl_material_conductor(&ms[0], r, g, 0.3);
+    sl_material_conductor(&ms[1], r, g2, 0.3); /* edge tint differs */
+    ms[2] = ms[0];
+    ms[2].base_color[2] = 0.31;                /* one reflectance differs */
+    sl_material_plastic(&ms[3], r, 1.5, 0.3);
+    ms[3].fresnel = SL_FRESNEL_DIELECTRIC;
+    ms[4] = ms[3];
+    ms[4].ior = 1.33; /* ior differs */
+    double want[5][3];
+    for (int i = 0; i < 5; i++) {
+        want[i][0] = want[i][1] = want[i][2] = 0;
+        for (int k = 0; k < 4096; k++) {
+            double mu = (k + 0.5) / 4096, f[3];
+            sl_fresnel_eval(&ms[i], mu, f);
+            for (int c = 0; c < 3; c++)
+                want[i][c] += 2 * f[c] * mu / 4096;
+        }
+    }
+    /* each neighbour pair differs in one field */
+    static const int order[] = {0, 1, 0, 2, 0, 3, 4, 3, 1, 1, 2};
+    int wrong = 0;
+    for (size_t i = 0; i < sizeof order / sizeof order[0]; i++) {
+        double fa[3];
+        sl_fresnel_average(&ms[order[i]], fa);
+        for (int c = 0; c < 3; c++)
+            wrong += !(fabs(fa[c] - want[order[i]][c]) < 1e-4);
+    }
+    CHECK(wrong == 0);
+}
+
 static void test_lambert_exact(void)
 {
     sl_material m;
@@ -495,6 +532,7 @@ int main(void)
 {
     RUN(test_fresnel_known_values);
     RUN(test_fresnel_average);
+    RUN(test_fresnel_average_memo);
     RUN(test_lambert_exact);
     RUN(test_material_check);
     RUN(test_reciprocity);
