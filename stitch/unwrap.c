@@ -19,6 +19,13 @@
 #define RIM_MARGIN 0.7
 /* Sample points are kept this far inside the outline. */
 #define RIM_CLAMP 0.7
+/* Footprints up to this many photo pixels per texel are sampled with the
+ * mapping taken as linear across the texel. */
+#define FAST_MAX_EXTENT 16.0
+/* ... and bending less than this many pixels over two texels. */
+#define FAST_MAX_BEND 0.5
+#define REFL_TABLE 1024
+#define ROW_GRAIN 32
 
 typedef struct unwrap_ctx {
     const sl_image *photo; /* 3 channels, finite */
@@ -26,6 +33,11 @@ typedef struct unwrap_ctx {
     const sl_reflectance *refl;
     sl_image *out;
     double blind_fill[3];
+    double world_to_view[3][3];
+    double *sin_lon, *cos_lon;  /* per output column */
+    double *sub_weights[SUB_MAX + 1]; /* [n][y * n + j]: solid angle of sub-row j of row y */
+    double inv_refl[3];         /* constant reflectance */
+    double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
 } unwrap_ctx;
 
 /* Bilinear lookup of the ball's own pixels; returns false when the point had
@@ -123,52 +135,274 @@ static int sub_count(double extent_px)
     return n < 2.0 ? 2 : (n > SUB_MAX ? SUB_MAX : (int)n);
 }
 
+/* The exact texel: every sub-sample mapped on its own, the rim and the blind
+ * cone handled per sample. */
+static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
+{
+    int w = c->out->width, h = c->out->height;
+    double ref = c->view->centre_px_per_rad;
+    double uc = (x + 0.5) / w, vc = (y + 0.5) / h, dir[3];
+    /* The texel's footprint in the photo: its extent sets the sampling, and
+     * per radian (longitude and latitude steps are orthogonal on the
+     * sphere) it is the mapping's Jacobian. */
+    double a[2], b[2], j[2][2];
+    pixel_of(c, uc - 0.5 / w, vc, a);
+    pixel_of(c, uc + 0.5 / w, vc, b);
+    int nu = sub_count(hypot(b[0] - a[0], b[1] - a[1]));
+    double lon_step = 2.0 * M_PI / w * cos(M_PI * (0.5 - vc));
+    j[0][0] = (b[0] - a[0]) / lon_step;
+    j[1][0] = (b[1] - a[1]) / lon_step;
+    pixel_of(c, uc, vc - 0.5 / h, a);
+    pixel_of(c, uc, vc + 0.5 / h, b);
+    int nv = sub_count(hypot(b[0] - a[0], b[1] - a[1]));
+    j[0][1] = (b[0] - a[0]) / (M_PI / h);
+    j[1][1] = (b[1] - a[1]) / (M_PI / h);
+    double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
+    for (int jj = 0; jj < nv; jj++) {
+        double v = (y + (jj + 0.5) / nv) / h;
+        double wt = cos(M_PI * (0.5 - v)); /* solid angle per unit (u, v) */
+        for (int i = 0; i < nu; i++) {
+            double u = (x + (i + 0.5) / nu) / w, val[3];
+            sl_latlong_to_dir(u, v, dir);
+            if (radiance(c, dir, val))
+                seen_w += wt;
+            for (int k = 0; k < 3; k++)
+                acc[k] += wt * val[k];
+            wsum += wt;
+        }
+    }
+    double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
+    conf = conf > 1.0 ? 1.0 : conf;
+    for (int k = 0; k < 3; k++)
+        p[k] = (float)(acc[k] / wsum);
+    p[3] = (float)(conf * seen_w / wsum);
+}
+
+static int fast_count(double extent_px)
+{
+    double n = ceil(extent_px);
+    return n < 1.0 ? 1 : (n > SUB_MAX ? SUB_MAX : (int)n);
+}
+
+/* Bilinear lookup at a point whose four taps are all ball pixels clear of
+ * the rim margin (checked by the caller). */
+static inline void bilinear(const sl_image *img, double x, double y, double out[3])
+{
+    double fx = x - 0.5, fy = y - 0.5;
+    int x0 = (int)fx, y0 = (int)fy;
+    double tx = fx - x0, ty = fy - y0;
+    const float *p0 = img->data + (size_t)y0 * img->stride + (size_t)x0 * 3;
+    const float *p1 = p0 + img->stride;
+    for (int k = 0; k < 3; k++) {
+        double top = p0[k] + tx * (p0[k + 3] - p0[k]);
+        double bot = p1[k] + tx * (p1[k + 3] - p1[k]);
+        out[k] = top + ty * (bot - top);
+    }
+}
+
+/* Texel centres of one lat-long row mapped to the photo. */
+typedef struct centre {
+    double x, y, cosi;
+    bool blind;
+} centre;
+
+static void map_row(const unwrap_ctx *c, int y, centre *row)
+{
+    int w = c->out->width, h = c->out->height;
+    double lat = M_PI * (0.5 - (y + 0.5) / h), cl = cos(lat), sl = sin(lat);
+    const double(*m)[3] = c->world_to_view;
+    for (int x = 0; x < w; x++) {
+        double d[3] = {c->sin_lon[x] * cl, sl, c->cos_lon[x] * cl}, wv[3];
+        for (int k = 0; k < 3; k++)
+            wv[k] = m[k][0] * d[0] + m[k][1] * d[1] + m[k][2] * d[2];
+        double z = -wv[2];
+        if (c->view->distance == 0.0 && z > -0.5) {
+            /* Orthographic, unit direction, away from the back: the pixel
+             * offset is r sin(phi/2) / sin(phi) = r / (2 cos(phi/2)) times
+             * (wv0, wv1), with cos(phi/2) = sqrt((1 + z) / 2). */
+            double ct = sqrt(0.5 * (1.0 + z)), k = c->view->r * 0.5 / ct;
+            row[x].x = c->view->cx - k * wv[0];
+            row[x].y = c->view->cy - k * wv[1];
+            row[x].cosi = ct;
+            row[x].blind = false;
+            continue;
+        }
+        ball_hit hit;
+        ball_view_map_local(c->view, wv, &hit);
+        row[x].x = hit.x;
+        row[x].y = hit.y;
+        row[x].cosi = hit.cos_incidence;
+        row[x].blind = hit.blind;
+    }
+}
+
+static void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
+{
+    if (!c->refl_table) {
+        memcpy(out, c->inv_refl, sizeof c->inv_refl);
+        return;
+    }
+    double t = cosi * REFL_TABLE;
+    int i = (int)t;
+    i = i < 0 ? 0 : (i >= REFL_TABLE ? REFL_TABLE - 1 : i);
+    double f = t - i;
+    const double *a = c->refl_table + 3 * i;
+    for (int k = 0; k < 3; k++)
+        out[k] = a[k] + f * (a[k + 3] - a[k]);
+}
+
+/* Rows in chunks: each worker keeps the texel centres of the rows above and
+ * below, so each centre is mapped once (plus two rows per chunk). Where the
+ * footprint is clear of the blind cone and at most a few photo pixels wide,
+ * the mapping is linear across the texel: sub-samples are placed with the
+ * centres' differences and read bilinearly (checked against the rim only
+ * when the footprint comes near it); elsewhere the texel is done exactly. */
 static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
     const unwrap_ctx *c = ctx;
+    const sl_ball_view *view = c->view;
     int w = c->out->width, h = c->out->height;
-    double ref = c->view->centre_px_per_rad;
-    for (int64_t y = begin; y < end; y++) {
-        for (int x = 0; x < w; x++) {
-            double uc = (x + 0.5) / w, vc = (y + 0.5) / h, dir[3];
-            /* The texel's footprint in the photo: its extent sets the sampling,
-             * and per radian (longitude and latitude steps are orthogonal on
-             * the sphere) it is the mapping's Jacobian. */
-            double a[2], b[2], j[2][2];
-            pixel_of(c, uc - 0.5 / w, vc, a);
-            pixel_of(c, uc + 0.5 / w, vc, b);
-            int nu = sub_count(hypot(b[0] - a[0], b[1] - a[1]));
-            double lon_step = 2.0 * M_PI / w * cos(M_PI * (0.5 - vc));
-            j[0][0] = (b[0] - a[0]) / lon_step;
-            j[1][0] = (b[1] - a[1]) / lon_step;
-            pixel_of(c, uc, vc - 0.5 / h, a);
-            pixel_of(c, uc, vc + 0.5 / h, b);
-            int nv = sub_count(hypot(b[0] - a[0], b[1] - a[1]));
-            j[0][1] = (b[0] - a[0]) / (M_PI / h);
-            j[1][1] = (b[1] - a[1]) / (M_PI / h);
-            double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
-            for (int j = 0; j < nv; j++) {
-                double v = (y + (j + 0.5) / nv) / h;
-                double wt = cos(M_PI * (0.5 - v)); /* solid angle per unit (u, v) */
-                for (int i = 0; i < nu; i++) {
-                    double u = (x + (i + 0.5) / nu) / w, val[3];
-                    sl_latlong_to_dir(u, v, dir);
-                    if (radiance(c, dir, val))
-                        seen_w += wt;
-                    for (int k = 0; k < 3; k++)
-                        acc[k] += wt * val[k];
-                    wsum += wt;
-                }
-            }
-            double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
-            conf = conf > 1.0 ? 1.0 : conf;
-            float *p = sl_image_pixel(c->out, x, (int)y);
-            for (int k = 0; k < 3; k++)
-                p[k] = (float)(acc[k] / wsum);
-            p[3] = (float)(conf * seen_w / wsum);
-        }
+    centre *buf = malloc(sizeof(centre) * 3 * (size_t)w);
+    if (!buf) {
+        /* No memory for the fast path: the exact one needs none. */
+        for (int64_t y = begin; y < end; y++)
+            for (int x = 0; x < w; x++)
+                texel_exact(c, x, (int)y, sl_image_pixel(c->out, x, (int)y));
+        return;
     }
+    centre *rows[3] = {buf, buf + w, buf + 2 * (size_t)w};
+    if (begin > 0)
+        map_row(c, (int)begin - 1, rows[0]);
+    map_row(c, (int)begin, rows[1]);
+    double ref = view->centre_px_per_rad, keep = view->r - RIM_MARGIN;
+    for (int64_t yy = begin; yy < end; yy++) {
+        int y = (int)yy;
+        if (y + 1 < h)
+            map_row(c, y + 1, rows[2]);
+        const centre *up = y > 0 ? rows[0] : rows[1], *down = y + 1 < h ? rows[2] : rows[1];
+        double vscale = (y > 0 && y + 1 < h) ? 0.5 : 1.0;
+        double vc = (y + 0.5) / h;
+        double lon_step = 2.0 * M_PI / w * cos(M_PI * (0.5 - vc)), lat_step = M_PI / h;
+        for (int x = 0; x < w; x++) {
+            const centre *ce = &rows[1][x];
+            const centre *l = &rows[1][x > 0 ? x - 1 : w - 1], *r = &rows[1][x + 1 < w ? x + 1 : 0];
+            float *p = sl_image_pixel(c->out, x, y);
+            if (ce->blind || l->blind || r->blind || up[x].blind || down[x].blind) {
+                texel_exact(c, x, y, p);
+                continue;
+            }
+            /* Photo pixels per texel step along u and v. */
+            double du[2] = {0.5 * (r->x - l->x), 0.5 * (r->y - l->y)};
+            double dv[2] = {vscale * (down[x].x - up[x].x), vscale * (down[x].y - up[x].y)};
+            double eu = sqrt(du[0] * du[0] + du[1] * du[1]);
+            double ev = sqrt(dv[0] * dv[0] + dv[1] * dv[1]);
+            /* Curvature of the mapping: how far the centre is from its
+             * neighbours' midpoints. */
+            double cu = fabs(r->x + l->x - 2.0 * ce->x) + fabs(r->y + l->y - 2.0 * ce->y);
+            double cv = y > 0 && y + 1 < h ? fabs(down[x].x + up[x].x - 2.0 * ce->x) +
+                                                 fabs(down[x].y + up[x].y - 2.0 * ce->y)
+                                           : 0.0;
+            if (eu > FAST_MAX_EXTENT || ev > FAST_MAX_EXTENT || cu > FAST_MAX_BEND ||
+                cv > FAST_MAX_BEND) {
+                texel_exact(c, x, y, p);
+                continue;
+            }
+            /* Near the rim each sample is checked and clamped like the exact path's. */
+            double ex = ce->x - view->cx, ey = ce->y - view->cy;
+            double reach = sqrt(ex * ex + ey * ey) + 0.5 * (eu + ev) + 1.5;
+            bool checked = reach > keep;
+            double val[3], inv[3], seen = 1.0;
+            inv_reflectance(c, ce->cosi, inv);
+            if (eu <= 1.0 && ev <= 1.0) {
+                /* The bilinear tent is already wider than the footprint. */
+                if (checked)
+                    seen = photo_lookup(c, ce->x, ce->y, val) ? 1.0 : 0.0;
+                else
+                    bilinear(c->photo, ce->x, ce->y, val);
+            } else {
+                /* Bilinear tents one pixel apart sum to a constant: a
+                 * sample per pixel of extent integrates without aliasing. */
+                int nu = fast_count(eu), nv = fast_count(ev);
+                const double *wt = c->sub_weights[nv] + (size_t)y * nv;
+                double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
+                for (int j = 0; j < nv; j++) {
+                    double b = (j + 0.5) / nv - 0.5;
+                    for (int i = 0; i < nu; i++) {
+                        double a = (i + 0.5) / nu - 0.5, s[3];
+                        double sx = ce->x + a * du[0] + b * dv[0], sy = ce->y + a * du[1] + b * dv[1];
+                        if (!checked)
+                            bilinear(c->photo, sx, sy, s);
+                        else if (photo_lookup(c, sx, sy, s))
+                            seen_w += wt[j];
+                        for (int k = 0; k < 3; k++)
+                            acc[k] += wt[j] * s[k];
+                    }
+                    wsum += nu * wt[j];
+                }
+                for (int k = 0; k < 3; k++)
+                    val[k] = acc[k] / wsum;
+                if (checked)
+                    seen = seen_w / wsum;
+            }
+            double j[2][2] = {{du[0] / lon_step, dv[0] / lat_step},
+                              {du[1] / lon_step, dv[1] / lat_step}};
+            double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
+            for (int k = 0; k < 3; k++)
+                p[k] = (float)(val[k] * inv[k]);
+            p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen);
+        }
+        centre *t = rows[0];
+        rows[0] = rows[1];
+        rows[1] = rows[2];
+        rows[2] = t;
+    }
+    free(buf);
+}
+
+static void tables_free(unwrap_ctx *c)
+{
+    free(c->sin_lon);
+    free(c->cos_lon);
+    free(c->refl_table);
+    for (int n = 0; n <= SUB_MAX; n++)
+        free(c->sub_weights[n]);
+}
+
+/* Per-column trigonometry, per-row sub-sample weights and the reflectance. */
+static sl_result tables_init(unwrap_ctx *c, sl_error *err)
+{
+    int w = c->out->width, h = c->out->height;
+    c->sin_lon = malloc(sizeof(double) * w);
+    c->cos_lon = malloc(sizeof(double) * w);
+    bool ok = c->sin_lon && c->cos_lon;
+    for (int n = 1; n <= SUB_MAX && ok; n++)
+        ok = (c->sub_weights[n] = malloc(sizeof(double) * (size_t)h * n)) != NULL;
+    if (ok && c->refl->kind == SL_REFLECTANCE_CONDUCTOR)
+        ok = (c->refl_table = malloc(sizeof(double) * 3 * (REFL_TABLE + 1))) != NULL;
+    if (!ok) {
+        tables_free(c);
+        return sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
+    }
+    for (int x = 0; x < w; x++) {
+        double lon = M_PI * (1.0 - 2.0 * (x + 0.5) / w);
+        c->sin_lon[x] = sin(lon);
+        c->cos_lon[x] = cos(lon);
+    }
+    for (int n = 1; n <= SUB_MAX; n++)
+        for (int y = 0; y < h; y++)
+            for (int j = 0; j < n; j++)
+                c->sub_weights[n][(size_t)y * n + j] = cos(M_PI * (0.5 - (y + (j + 0.5) / n) / h));
+    double rf[3];
+    sl_reflectance_eval(c->refl, 1.0, rf);
+    for (int k = 0; k < 3; k++)
+        c->inv_refl[k] = 1.0 / rf[k];
+    for (int i = 0; c->refl_table && i <= REFL_TABLE; i++) {
+        sl_reflectance_eval(c->refl, (double)i / REFL_TABLE, rf);
+        for (int k = 0; k < 3; k++)
+            c->refl_table[3 * i + k] = 1.0 / rf[k];
+    }
+    return SL_OK;
 }
 
 sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
@@ -214,6 +448,11 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
         goto done;
 
     unwrap_ctx c = {.photo = &rgb, .view = view, .refl = refl, .out = out};
+    double v2w[3][3];
+    sl_mat3_mul(view->cam_to_world, view->view_to_cam, v2w);
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++)
+            c.world_to_view[i][k] = v2w[k][i];
     double *ring = malloc(sizeof(double) * 3 * RING_SAMPLES);
     if (!ring) {
         r = sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
@@ -243,7 +482,10 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
                                  ring[k * RING_SAMPLES + RING_SAMPLES / 2]);
     }
     free(ring);
-    sl_parallel_for(out->height, 2, unwrap_rows, &c);
+    if ((r = tables_init(&c, err)))
+        goto done;
+    sl_parallel_for(out->height, ROW_GRAIN, unwrap_rows, &c);
+    tables_free(&c);
 
     if (info) {
         info->width = out->width;

@@ -222,6 +222,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         sl_meta_free(&out_meta);
         return cli_fail(cli, &err);
     }
+    double t1 = sl_seconds();
     bool ldr = !meta.is_float;
     if (ldr) {
         sl_log(SL_LOG_WARN,
@@ -264,8 +265,10 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     }
 
     sl_unwrap_info info;
+    double t_read = t1 - t0, t2 = sl_seconds();
     if ((r = sl_unwrap(&photo, &o, &out, &info, &err)))
         goto fail;
+    double t_detect = t2 - t1, t_unwrap = sl_seconds() - t2;
     if (info.nonfinite)
         sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples replaced by 0", in_path,
                (long long)info.nonfinite);
@@ -323,14 +326,16 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     for (int i = 0; i < na; i++)
         if ((r = sl_meta_set(&out_meta, attrs[i].name, attrs[i].value, &err)))
             goto fail;
+    double t3 = sl_seconds();
     r = sl_exr_write(out_path, &out, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF, &err);
     if (r)
         goto fail;
+    double t_write = sl_seconds() - t3;
 
     if (cli->json) {
         json_t *j = json_pack(
             "{s:s, s:s, s:{s:f, s:f, s:f, s:f, s:i, s:b}, s:s, s:f, s:f, s:f, s:f, s:f, s:i, "
-            "s:i, s:s, s:f, s:I, s:b, s:f}",
+            "s:i, s:s, s:f, s:I, s:b, s:f, s:{s:f, s:f, s:f, s:f}}",
             "input", in_path, "output", out_path, "circle", "cx", o.circle.cx, "cy", o.circle.cy,
             "r", o.circle.r, "residual", o.circle.residual, "edge_points", o.circle.edge_points,
             "detected", detected, "camera",
@@ -339,7 +344,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             info.ball_angle_deg, "off_axis_deg", info.off_axis_deg, "centre_px_per_rad",
             info.centre_px_per_rad, "width", out.width, "height", out.height, "reflectance",
             refl, "blind_fraction", info.blind_fraction, "nonfinite_replaced",
-            (json_int_t)info.nonfinite, "ldr_linearised", ldr, "seconds", sl_seconds() - t0);
+            (json_int_t)info.nonfinite, "ldr_linearised", ldr, "seconds", sl_seconds() - t0, "timing", "read", t_read,
+            "detect", t_detect, "unwrap", t_unwrap, "write", t_write);
         json_dumpf(j, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(j);
