@@ -405,6 +405,13 @@ static sl_result tables_init(unwrap_ctx *c, sl_error *err)
     return SL_OK;
 }
 
+int unwrap_auto_width(const sl_ball_view *view)
+{
+    /* One texel per photo pixel where the ball looks back at the camera. */
+    int width = 4 * (int)ceil(2.0 * M_PI * view->centre_px_per_rad / 4.0);
+    return width < 16 ? 16 : (width > 65536 ? 65536 : width);
+}
+
 sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
                     sl_unwrap_info *info, sl_error *err)
 {
@@ -438,12 +445,7 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
         goto done;
     int64_t nonfinite = sl_image_sanitize(&rgb, 0.0f);
 
-    int width = opt->width;
-    if (!width) {
-        /* One texel per photo pixel where the ball looks back at the camera. */
-        width = 4 * (int)ceil(2.0 * M_PI * view->centre_px_per_rad / 4.0);
-        width = width < 16 ? 16 : (width > 65536 ? 65536 : width);
-    }
+    int width = opt->width ? opt->width : unwrap_auto_width(view);
     if ((r = sl_image_alloc(out, width, width / 2, 4, err)))
         goto done;
 

@@ -19,6 +19,10 @@ void ball_view_map(const sl_ball_view *view, const double dir[3], ball_hit *hit)
 /* The same for a direction already in the view frame (unit). */
 void ball_view_map_local(const sl_ball_view *view, const double wv[3], ball_hit *hit);
 
+/* The default lat-long width for a view: one texel per photo pixel where
+ * the ball looks back at the camera. */
+int unwrap_auto_width(const sl_ball_view *view);
+
 /* C shim over OpenCV's HoughCircles: up to max_out circles (x, y, r)
  * on an 8-bit single-channel image, strongest first. Returns the count, or
  * -1 when OpenCV failed. */
