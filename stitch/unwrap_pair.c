@@ -15,8 +15,11 @@
 
 /* Overlap: both confidences at least this. */
 #define OVERLAP_CONF 0.25
-/* Width of the lat-long the azimuth is searched on. */
-#define SEARCH_WIDTH 720
+/* Width of the lat-long the azimuth is searched on: twice the views' own
+ * resolution (the golden section then resolves a small fraction of a
+ * texel), within these bounds. */
+#define SEARCH_WIDTH_MIN 256
+#define SEARCH_WIDTH_MAX 720
 /* Log ratios beyond this (a factor 1.65) count as this much: a moved
  * object or a reflection of the other camera does not pull the fit. */
 #define LOG_CLAMP 0.5
@@ -111,13 +114,16 @@ static double median_cost(const search_ctx *c, double s_deg, double *scratch, do
 
 /* Finds view 2's azimuth offset on small unwraps of both views. */
 static sl_result refine_azimuth(const sl_image *p1, const sl_image *p2,
-                                const sl_unwrap_pair_options *opt, double *best_deg,
+                                const sl_unwrap_pair_options *opt, int width, double *best_deg,
                                 sl_unwrap_pair_info *info, sl_error *err)
 {
     sl_unwrap_options o1 = opt->views[0], o2 = opt->views[1];
-    o1.width = o2.width = SEARCH_WIDTH;
+    width = 2 * ((width + 1) / 2);
+    width = width < SEARCH_WIDTH_MIN ? SEARCH_WIDTH_MIN
+                                     : (width > SEARCH_WIDTH_MAX ? SEARCH_WIDTH_MAX : width);
+    o1.width = o2.width = width;
     sl_image a = {0}, b = {0};
-    search_ctx c = {.w = SEARCH_WIDTH, .h = SEARCH_WIDTH / 2};
+    search_ctx c = {.w = width, .h = width / 2};
     size_t n = (size_t)c.w * c.h;
     double *scratch = NULL;
     sl_result r;
@@ -277,17 +283,17 @@ sl_result sl_unwrap_pair(const sl_image *photo1, const sl_image *photo2,
             return sl_error_set(err, SL_ERR_USAGE, "both views need the same lat-long width");
         o[0].width = o[1].width = o[0].width | o[1].width;
     }
-    if (!o[0].width) {
-        int w0 = unwrap_auto_width(&v[0]), w1 = unwrap_auto_width(&v[1]);
-        o[0].width = o[1].width = w0 > w1 ? w0 : w1;
-    }
+    int w0 = unwrap_auto_width(&v[0]), w1 = unwrap_auto_width(&v[1]);
+    int own = w0 > w1 ? w0 : w1;
+    if (!o[0].width)
+        o[0].width = o[1].width = own;
     double offset = 0.0;
     if (info) {
         info->azimuth_given_deg = o[1].geometry.azimuth_deg;
         info->residual_given = info->residual = info->overlap_fraction = NAN;
     }
     if (opt->search_deg > 0.0) {
-        if ((r = refine_azimuth(photo1, photo2, opt, &offset, info, err)))
+        if ((r = refine_azimuth(photo1, photo2, opt, 2 * own, &offset, info, err)))
             return r;
         o[1].geometry.azimuth_deg += offset;
         if ((r = sl_ball_view_init(&v[1], photo2->width, photo2->height, &o[1].circle,
