@@ -200,6 +200,38 @@ static inline void bilinear(const sl_image *img, double x, double y, double out[
     }
 }
 
+/* Catmull-Rom lookup where the photo is magnified (sharper than the
+ * bilinear tent), clamped to the range of the four nearest pixels so that
+ * it never rings around a bright source. All 16 taps must be ball pixels
+ * clear of the rim margin (checked by the caller). */
+static inline void bicubic(const sl_image *img, double x, double y, double out[3])
+{
+    double fx = x - 0.5, fy = y - 0.5;
+    int x0 = (int)fx, y0 = (int)fy;
+    double tx = fx - x0, ty = fy - y0, wx[4], wy[4];
+    wx[0] = 0.5 * tx * (tx * (2.0 - tx) - 1.0);
+    wx[1] = 0.5 * (tx * tx * (3.0 * tx - 5.0) + 2.0);
+    wx[2] = 0.5 * tx * (tx * (4.0 - 3.0 * tx) + 1.0);
+    wx[3] = 0.5 * tx * tx * (tx - 1.0);
+    wy[0] = 0.5 * ty * (ty * (2.0 - ty) - 1.0);
+    wy[1] = 0.5 * (ty * ty * (3.0 * ty - 5.0) + 2.0);
+    wy[2] = 0.5 * ty * (ty * (4.0 - 3.0 * ty) + 1.0);
+    wy[3] = 0.5 * ty * ty * (ty - 1.0);
+    const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * 3;
+    double acc[3] = {0, 0, 0};
+    for (int j = 0; j < 4; j++) {
+        const float *p = base + (size_t)j * img->stride;
+        for (int k = 0; k < 3; k++)
+            acc[k] += wy[j] * (wx[0] * p[k] + wx[1] * p[3 + k] + wx[2] * p[6 + k] + wx[3] * p[9 + k]);
+    }
+    const float *a = base + img->stride + 3, *b = a + img->stride;
+    for (int k = 0; k < 3; k++) {
+        float lo = fminf(fminf(a[k], a[3 + k]), fminf(b[k], b[3 + k]));
+        float hi = fmaxf(fmaxf(a[k], a[3 + k]), fmaxf(b[k], b[3 + k]));
+        out[k] = acc[k] < lo ? lo : (acc[k] > hi ? hi : acc[k]);
+    }
+}
+
 /* Texel centres of one lat-long row mapped to the photo. */
 typedef struct centre {
     double x, y, cosi;
@@ -311,12 +343,14 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
             /* Near the rim each sample is checked and clamped like the exact path's. */
             double ex = ce->x - view->cx, ey = ce->y - view->cy;
             double reach = sqrt(ex * ex + ey * ey) + 0.5 * (eu + ev) + 1.5;
-            bool checked = reach > keep;
+            bool checked = reach > keep, cubic = reach + 1.0 <= keep;
             double val[3], inv[3], seen = 1.0;
             inv_reflectance(c, ce->cosi, inv);
             if (eu <= 1.0 && ev <= 1.0) {
                 /* The bilinear tent is already wider than the footprint. */
-                if (checked)
+                if (cubic)
+                    bicubic(c->photo, ce->x, ce->y, val);
+                else if (checked)
                     seen = photo_lookup(c, ce->x, ce->y, val) ? 1.0 : 0.0;
                 else
                     bilinear(c->photo, ce->x, ce->y, val);
@@ -331,7 +365,9 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     for (int i = 0; i < nu; i++) {
                         double a = (i + 0.5) / nu - 0.5, s[3];
                         double sx = ce->x + a * du[0] + b * dv[0], sy = ce->y + a * du[1] + b * dv[1];
-                        if (!checked)
+                        if (cubic)
+                            bicubic(c->photo, sx, sy, s);
+                        else if (!checked)
                             bilinear(c->photo, sx, sy, s);
                         else if (photo_lookup(c, sx, sy, s))
                             seen_w += wt[j];
