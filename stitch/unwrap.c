@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -28,7 +29,7 @@
 #define ROW_GRAIN 32
 
 typedef struct unwrap_ctx {
-    const sl_image *photo; /* 3 channels, finite */
+    const sl_image *photo; /* RGBA (A unused), finite */
     const sl_ball_view *view;
     const sl_reflectance *refl;
     sl_image *out;
@@ -184,20 +185,31 @@ static int fast_count(double extent_px)
     return n < 1.0 ? 1 : (n > SUB_MAX ? SUB_MAX : (int)n);
 }
 
+/* The photo is held as RGBA floats (A unused) so that a pixel is one
+ * 4-wide vector. */
+typedef float v4f __attribute__((vector_size(16)));
+
+static inline v4f load4(const float *p)
+{
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
 /* Bilinear lookup at a point whose four taps are all ball pixels clear of
  * the rim margin (checked by the caller). */
 static inline void bilinear(const sl_image *img, double x, double y, double out[3])
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
-    double tx = fx - x0, ty = fy - y0;
-    const float *p0 = img->data + (size_t)y0 * img->stride + (size_t)x0 * 3;
+    float tx = (float)(fx - x0), ty = (float)(fy - y0);
+    const float *p0 = img->data + (size_t)y0 * img->stride + (size_t)x0 * 4;
     const float *p1 = p0 + img->stride;
-    for (int k = 0; k < 3; k++) {
-        double top = p0[k] + tx * (p0[k + 3] - p0[k]);
-        double bot = p1[k] + tx * (p1[k + 3] - p1[k]);
-        out[k] = top + ty * (bot - top);
-    }
+    v4f top = load4(p0) * (1.0f - tx) + load4(p0 + 4) * tx;
+    v4f bot = load4(p1) * (1.0f - tx) + load4(p1 + 4) * tx;
+    v4f v = top * (1.0f - ty) + bot * ty;
+    for (int k = 0; k < 3; k++)
+        out[k] = v[k];
 }
 
 /* Catmull-Rom lookup where the photo is magnified (sharper than the
@@ -208,26 +220,28 @@ static inline void bicubic(const sl_image *img, double x, double y, double out[3
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
-    double tx = fx - x0, ty = fy - y0, wx[4], wy[4];
-    wx[0] = 0.5 * tx * (tx * (2.0 - tx) - 1.0);
-    wx[1] = 0.5 * (tx * tx * (3.0 * tx - 5.0) + 2.0);
-    wx[2] = 0.5 * tx * (tx * (4.0 - 3.0 * tx) + 1.0);
-    wx[3] = 0.5 * tx * tx * (tx - 1.0);
-    wy[0] = 0.5 * ty * (ty * (2.0 - ty) - 1.0);
-    wy[1] = 0.5 * (ty * ty * (3.0 * ty - 5.0) + 2.0);
-    wy[2] = 0.5 * ty * (ty * (4.0 - 3.0 * ty) + 1.0);
-    wy[3] = 0.5 * ty * ty * (ty - 1.0);
-    const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * 3;
-    double acc[3] = {0, 0, 0};
+    float tx = (float)(fx - x0), ty = (float)(fy - y0);
+    float wx0 = 0.5f * tx * (tx * (2.0f - tx) - 1.0f);
+    float wx1 = 0.5f * (tx * tx * (3.0f * tx - 5.0f) + 2.0f);
+    float wx2 = 0.5f * tx * (tx * (4.0f - 3.0f * tx) + 1.0f);
+    float wx3 = 0.5f * tx * tx * (tx - 1.0f);
+    float wy[4] = {0.5f * ty * (ty * (2.0f - ty) - 1.0f),
+                   0.5f * (ty * ty * (3.0f * ty - 5.0f) + 2.0f),
+                   0.5f * ty * (ty * (4.0f - 3.0f * ty) + 1.0f), 0.5f * ty * ty * (ty - 1.0f)};
+    const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * 4;
+    v4f acc = {0, 0, 0, 0};
     for (int j = 0; j < 4; j++) {
         const float *p = base + (size_t)j * img->stride;
-        for (int k = 0; k < 3; k++)
-            acc[k] += wy[j] * (wx[0] * p[k] + wx[1] * p[3 + k] + wx[2] * p[6 + k] + wx[3] * p[9 + k]);
+        acc += (load4(p) * wx0 + load4(p + 4) * wx1 + load4(p + 8) * wx2 + load4(p + 12) * wx3) *
+               wy[j];
     }
-    const float *a = base + img->stride + 3, *b = a + img->stride;
+    const float *a = base + img->stride + 4, *b = a + img->stride;
     for (int k = 0; k < 3; k++) {
-        float lo = fminf(fminf(a[k], a[3 + k]), fminf(b[k], b[3 + k]));
-        float hi = fmaxf(fmaxf(a[k], a[3 + k]), fmaxf(b[k], b[3 + k]));
+        float lo = a[k], hi = a[k], v[3] = {a[4 + k], b[k], b[4 + k]};
+        for (int i = 0; i < 3; i++) {
+            lo = v[i] < lo ? v[i] : lo;
+            hi = v[i] > hi ? v[i] : hi;
+        }
         out[k] = acc[k] < lo ? lo : (acc[k] > hi ? hi : acc[k]);
     }
 }
@@ -341,9 +355,18 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 continue;
             }
             /* Near the rim each sample is checked and clamped like the exact path's. */
-            double ex = ce->x - view->cx, ey = ce->y - view->cy;
-            double reach = sqrt(ex * ex + ey * ey) + 0.5 * (eu + ev) + 1.5;
-            bool checked = reach > keep, cubic = reach + 1.0 <= keep;
+            /* Farthest point of the footprint from the ball's centre (a
+             * corner: distance is convex), plus the lookup's reach: bilinear
+             * taps lie within sqrt(2) px of the point, Catmull-Rom's within
+             * 2 sqrt(2). */
+            double ex = ce->x - view->cx, ey = ce->y - view->cy, far2 = 0.0;
+            for (int q = 0; q < 4; q++) {
+                double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
+                double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
+                far2 = fmax(far2, qx * qx + qy * qy);
+            }
+            double far = sqrt(far2);
+            bool checked = far + 1.5 > keep, cubic = far + 2.9 <= keep;
             double val[3], inv[3], seen = 1.0;
             inv_reflectance(c, ce->cosi, inv);
             if (eu <= 1.0 && ev <= 1.0) {
@@ -441,6 +464,32 @@ static sl_result tables_init(unwrap_ctx *c, sl_error *err)
     return SL_OK;
 }
 
+/* An image in memory the kernel may back with huge pages: lookups that
+ * follow curves through a large photo otherwise miss the TLB on almost
+ * every row. Freed by sl_image_free (free). */
+static sl_result image_alloc_large(sl_image *img, int width, int height, int channels,
+                                   sl_error *err)
+{
+    memset(img, 0, sizeof *img);
+    size_t bytes = (size_t)width * (size_t)height * (size_t)channels * sizeof(float);
+    size_t align = (size_t)2 << 20;
+    void *p = NULL;
+    if (bytes < align)
+        return sl_image_alloc(img, width, height, channels, err);
+    if (posix_memalign(&p, align, (bytes + align - 1) / align * align))
+        return sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory for a %dx%d image",
+                            width, height);
+#ifdef MADV_HUGEPAGE
+    madvise(p, (bytes + align - 1) / align * align, MADV_HUGEPAGE);
+#endif
+    img->width = width;
+    img->height = height;
+    img->channels = channels;
+    img->stride = (size_t)width * (size_t)channels;
+    img->data = p;
+    return SL_OK;
+}
+
 int unwrap_auto_width(const sl_ball_view *view)
 {
     /* One texel per photo pixel where the ball looks back at the camera. */
@@ -477,12 +526,20 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
                                     &opt->geometry, err);
     if (r)
         goto done;
-    if ((r = sl_image_convert_channels(photo, 3, &rgb, err)))
+    if ((r = image_alloc_large(&rgb, photo->width, photo->height, 4, err)))
         goto done;
+    for (int y = 0; y < photo->height; y++)
+        for (int x = 0; x < photo->width; x++) {
+            const float *s = sl_image_pixel(photo, x, y);
+            float *d = sl_image_pixel(&rgb, x, y);
+            for (int k = 0; k < 3; k++)
+                d[k] = s[photo->channels >= 3 ? k : 0];
+            d[3] = 0.0f;
+        }
     int64_t nonfinite = sl_image_sanitize(&rgb, 0.0f);
 
     int width = opt->width ? opt->width : unwrap_auto_width(view);
-    if ((r = sl_image_alloc(out, width, width / 2, 4, err)))
+    if ((r = image_alloc_large(out, width, width / 2, 4, err)))
         goto done;
 
     unwrap_ctx c = {.photo = &rgb, .view = view, .refl = refl, .out = out};
