@@ -53,6 +53,39 @@ static double cone_median(const sl_image *out, const sl_image *truth, const doub
     return v;
 }
 
+/* Worst relative error of the irradiance on a grey sphere's six axis
+ * normals, and of the sphere's total (the integral of L over all
+ * directions), unwrapped vs truth. */
+static void irradiance_errors(const sl_image *out, const sl_image *truth, double *worst_axis,
+                              double *total)
+{
+    static const double nrm[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                                     {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+    double eo[6] = {0}, et[6] = {0}, to = 0, tt = 0;
+    int w = out->width, h = out->height;
+    for (int y = 0; y < h; y++) {
+        double dw = sl_latlong_texel_solid_angle(y, w, h);
+        for (int x = 0; x < w; x++) {
+            double d[3];
+            sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / h, d);
+            double lo = lum(sl_image_pixel(out, x, y)), lt = lum(sl_image_pixel(truth, x, y));
+            to += lo * dw;
+            tt += lt * dw;
+            for (int i = 0; i < 6; i++) {
+                double c = d[0] * nrm[i][0] + d[1] * nrm[i][1] + d[2] * nrm[i][2];
+                if (c > 0) {
+                    eo[i] += lo * c * dw;
+                    et[i] += lt * c * dw;
+                }
+            }
+        }
+    }
+    *worst_axis = 0;
+    for (int i = 0; i < 6; i++)
+        *worst_axis = fmax(*worst_axis, fabs(eo[i] / et[i] - 1.0));
+    *total = to / tt - 1.0;
+}
+
 static void view_fixture(ball_fixture *f, const sl_image *env, double azimuth)
 {
     ball_fixture_init(f, 320, 240);
@@ -127,6 +160,14 @@ static void test_two_views(void)
     printf("  behind ball 1 (45 deg): single %.4f, merged %.4f; photographer (10 deg): single "
            "%.4f, merged %.4f; view 1's front hemisphere merged %.4f\n",
            s_back, m_back, s_phot, m_phot, m_front);
+    double s_irr, s_tot, m_irr, m_tot;
+    irradiance_errors(&single, &truth, &s_irr, &s_tot);
+    irradiance_errors(&merged, &truth, &m_irr, &m_tot);
+    printf("  grey sphere: worst axis irradiance error single %.4f, merged %.4f; total single "
+           "%+.4f, merged %+.4f\n",
+           s_irr, m_irr, s_tot, m_tot);
+    CHECK(m_irr <= 0.02);
+    CHECK(fabs(m_tot) <= 0.02);
     CHECK(fabs(info.azimuth_deg - 90.0) <= 0.5);
     CHECK(info.residual < info.residual_given);
     CHECK(m_back < s_back);
