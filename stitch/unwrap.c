@@ -179,9 +179,12 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
     p[3] = (float)(conf * seen_w / wsum);
 }
 
+/* Samples along a footprint axis: at most 1.25 px apart. Lookups one pixel
+ * apart sum to a constant; at 1.25 px the sum of (pixel-wide) bilinear
+ * tents ripples by about +-2.6%, the price of a quarter fewer lookups. */
 static int fast_count(double extent_px)
 {
-    double n = ceil(extent_px);
+    double n = ceil(extent_px - 0.25);
     return n < 1.0 ? 1 : (n > SUB_MAX ? SUB_MAX : (int)n);
 }
 
@@ -262,7 +265,7 @@ static void map_row(const unwrap_ctx *c, int y, centre *row)
         for (int k = 0; k < 3; k++)
             wv[k] = m[k][0] * d[0] + m[k][1] * d[1] + m[k][2] * d[2];
         double z = -wv[2];
-        if (c->view->distance == 0.0 && z > -0.5) {
+        if (c->view->distance == 0.0 && z > -0.9999) {
             /* Orthographic, unit direction, away from the back: the pixel
              * offset is r sin(phi/2) / sin(phi) = r / (2 cos(phi/2)) times
              * (wv0, wv1), with cos(phi/2) = sqrt((1 + z) / 2). */
@@ -369,8 +372,8 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
             bool checked = far + 1.5 > keep, cubic = far + 2.9 <= keep;
             double val[3], inv[3], seen = 1.0;
             inv_reflectance(c, ce->cosi, inv);
-            if (eu <= 1.0 && ev <= 1.0) {
-                /* The bilinear tent is already wider than the footprint. */
+            if (eu <= 1.25 && ev <= 1.25) {
+                /* The lookup's kernel is about as wide as the footprint. */
                 if (cubic)
                     bicubic(c->photo, ce->x, ce->y, val);
                 else if (checked)
@@ -378,8 +381,6 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 else
                     bilinear(c->photo, ce->x, ce->y, val);
             } else {
-                /* Bilinear tents one pixel apart sum to a constant: a
-                 * sample per pixel of extent integrates without aliasing. */
                 int nu = fast_count(eu), nv = fast_count(ev);
                 const double *wt = c->sub_weights[nv] + (size_t)y * nv;
                 double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
