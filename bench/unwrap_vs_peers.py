@@ -52,6 +52,8 @@ def main():
     ap.add_argument("--peers", default=os.path.normpath(os.path.join(ROOT, "..", "..", "shared",
                                                                      "peers", "merge")))
     ap.add_argument("--work", default="/tmp/setlight-bench/unwrap")
+    ap.add_argument("--tools", default="setlight,pfspanoramic,nona_bilinear,nona_cubic",
+                    help="comma-separated subset to run")
     a = ap.parse_args()
     if not os.path.isdir(a.peers):
         a.peers = "/work/shared/peers/merge"
@@ -95,6 +97,8 @@ def main():
         for code in (0, 5):
             make_pto.ball_pto(ball, pto % code, width, h, code)
         for name, cmd in tools.items():
+            if name not in a.tools.split(","):
+                continue
             runs = []
             for _ in range(a.repeats):
                 runs.append(run_timed(cmd, w))
@@ -127,7 +131,10 @@ def main():
                  100 * r["side"], 100 * r["back"], r["sun_energy"] or 0))
     print()
     for case in sorted({r["case"] for r in results}):
-        mine = [r for r in results if r["case"] == case and r["tool"] == "setlight"][0]
+        mine = [r for r in results if r["case"] == case and r["tool"] == "setlight"]
+        if not mine:
+            continue
+        mine = mine[0]
         for r in results:
             if r["case"] != case or r["tool"] == "setlight":
                 continue
