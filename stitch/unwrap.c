@@ -36,7 +36,6 @@ typedef struct unwrap_ctx {
     double blind_fill[3];
     double world_to_view[3][3];
     double *sin_lon, *cos_lon;  /* per output column */
-    double *sub_weights[SUB_MAX + 1]; /* [n][y * n + j]: solid angle of sub-row j of row y */
     double inv_refl[3];         /* constant reflectance */
     double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
 } unwrap_ctx;
@@ -179,13 +178,15 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
     p[3] = (float)(conf * seen_w / wsum);
 }
 
-/* Samples along a footprint axis: at most 1.25 px apart. Lookups one pixel
- * apart sum to a constant; at 1.25 px the sum of (pixel-wide) bilinear
- * tents ripples by about +-2.6%, the price of a quarter fewer lookups. */
+/* Samples along a footprint axis of extent e px: spread over e - 1 px (the
+ * lookup's kernel covers the last pixel) at most 1.25 px apart. Lookups one
+ * pixel apart sum to a constant; at 1.25 px the sum of (pixel-wide)
+ * bilinear tents ripples by about +-2.6%, the price of a quarter fewer
+ * lookups. */
 static int fast_count(double extent_px)
 {
-    double n = ceil(extent_px - 0.25);
-    return n < 1.0 ? 1 : (n > SUB_MAX ? SUB_MAX : (int)n);
+    double n = extent_px <= 1.25 ? 1.0 : ceil((extent_px - 1.0) / 1.25) + 1.0;
+    return n > SUB_MAX ? SUB_MAX : (int)n;
 }
 
 /* The photo is held as RGBA floats (A unused) so that a pixel is one
@@ -332,7 +333,8 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
         const centre *up = y > 0 ? rows[0] : rows[1], *down = y + 1 < h ? rows[2] : rows[1];
         double vscale = (y > 0 && y + 1 < h) ? 0.5 : 1.0;
         double vc = (y + 0.5) / h;
-        double lon_step = 2.0 * M_PI / w * cos(M_PI * (0.5 - vc)), lat_step = M_PI / h;
+        double cos_lat = cos(M_PI * (0.5 - vc)), sin_lat = sin(M_PI * (0.5 - vc));
+        double lon_step = 2.0 * M_PI / w * cos_lat, lat_step = M_PI / h;
         for (int x = 0; x < w; x++) {
             const centre *ce = &rows[1][x];
             const centre *l = &rows[1][x > 0 ? x - 1 : w - 1], *r = &rows[1][x + 1 < w ? x + 1 : 0];
@@ -381,24 +383,29 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 else
                     bilinear(c->photo, ce->x, ce->y, val);
             } else {
+                /* The lookup's kernel already spans about a pixel: samples
+                 * cover the footprint less that pixel. */
                 int nu = fast_count(eu), nv = fast_count(ev);
-                const double *wt = c->sub_weights[nv] + (size_t)y * nv;
+                double su = nu > 1 ? (eu - 1.0) / eu / (nu - 1) : 0.0;
+                double sv = nv > 1 ? (ev - 1.0) / ev / (nv - 1) : 0.0;
                 double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
                 for (int j = 0; j < nv; j++) {
-                    double b = (j + 0.5) / nv - 0.5;
+                    double b = (j - 0.5 * (nv - 1)) * sv;
+                    /* Solid angle per unit v at the sample's latitude (first order). */
+                    double wt = cos_lat + sin_lat * b * lat_step;
                     for (int i = 0; i < nu; i++) {
-                        double a = (i + 0.5) / nu - 0.5, s[3];
+                        double a = (i - 0.5 * (nu - 1)) * su, s[3];
                         double sx = ce->x + a * du[0] + b * dv[0], sy = ce->y + a * du[1] + b * dv[1];
                         if (cubic)
                             bicubic(c->photo, sx, sy, s);
                         else if (!checked)
                             bilinear(c->photo, sx, sy, s);
                         else if (photo_lookup(c, sx, sy, s))
-                            seen_w += wt[j];
+                            seen_w += wt;
                         for (int k = 0; k < 3; k++)
-                            acc[k] += wt[j] * s[k];
+                            acc[k] += wt * s[k];
                     }
-                    wsum += nu * wt[j];
+                    wsum += nu * wt;
                 }
                 for (int k = 0; k < 3; k++)
                     val[k] = acc[k] / wsum;
@@ -425,19 +432,15 @@ static void tables_free(unwrap_ctx *c)
     free(c->sin_lon);
     free(c->cos_lon);
     free(c->refl_table);
-    for (int n = 0; n <= SUB_MAX; n++)
-        free(c->sub_weights[n]);
 }
 
-/* Per-column trigonometry, per-row sub-sample weights and the reflectance. */
+/* Per-column trigonometry and the reflectance. */
 static sl_result tables_init(unwrap_ctx *c, sl_error *err)
 {
-    int w = c->out->width, h = c->out->height;
+    int w = c->out->width;
     c->sin_lon = malloc(sizeof(double) * w);
     c->cos_lon = malloc(sizeof(double) * w);
     bool ok = c->sin_lon && c->cos_lon;
-    for (int n = 1; n <= SUB_MAX && ok; n++)
-        ok = (c->sub_weights[n] = malloc(sizeof(double) * (size_t)h * n)) != NULL;
     if (ok && c->refl->kind == SL_REFLECTANCE_CONDUCTOR)
         ok = (c->refl_table = malloc(sizeof(double) * 3 * (REFL_TABLE + 1))) != NULL;
     if (!ok) {
@@ -449,10 +452,6 @@ static sl_result tables_init(unwrap_ctx *c, sl_error *err)
         c->sin_lon[x] = sin(lon);
         c->cos_lon[x] = cos(lon);
     }
-    for (int n = 1; n <= SUB_MAX; n++)
-        for (int y = 0; y < h; y++)
-            for (int j = 0; j < n; j++)
-                c->sub_weights[n][(size_t)y * n + j] = cos(M_PI * (0.5 - (y + (j + 0.5) / n) / h));
     double rf[3];
     sl_reflectance_eval(c->refl, 1.0, rf);
     for (int k = 0; k < 3; k++)
