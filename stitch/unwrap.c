@@ -216,7 +216,21 @@ static inline void bilinear(const sl_image *img, double x, double y, double out[
         out[k] = v[k];
 }
 
-/* Catmull-Rom lookup where the photo is magnified (sharper than the
+/* Keys' cubic convolution kernel with a = -0.75 (a little sharper than
+ * Catmull-Rom's -0.5; measured on the peers' 1024 ball: front 0.182% vs
+ * 0.187%), for |t| <= 1 and 1 < |t| < 2. */
+#define KEYS_A -0.75f
+static inline float keys_near(float t)
+{
+    return ((KEYS_A + 2.0f) * t - (KEYS_A + 3.0f)) * t * t + 1.0f;
+}
+
+static inline float keys_far(float t)
+{
+    return ((KEYS_A * t - 5.0f * KEYS_A) * t + 8.0f * KEYS_A) * t - 4.0f * KEYS_A;
+}
+
+/* Cubic lookup where the photo is magnified (sharper than the
  * bilinear tent), clamped to the range of the four nearest pixels so that
  * it never rings around a bright source. All 16 taps must be ball pixels
  * clear of the rim margin (checked by the caller). */
@@ -225,13 +239,9 @@ static inline void bicubic(const sl_image *img, double x, double y, double out[3
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
     float tx = (float)(fx - x0), ty = (float)(fy - y0);
-    float wx0 = 0.5f * tx * (tx * (2.0f - tx) - 1.0f);
-    float wx1 = 0.5f * (tx * tx * (3.0f * tx - 5.0f) + 2.0f);
-    float wx2 = 0.5f * tx * (tx * (4.0f - 3.0f * tx) + 1.0f);
-    float wx3 = 0.5f * tx * tx * (tx - 1.0f);
-    float wy[4] = {0.5f * ty * (ty * (2.0f - ty) - 1.0f),
-                   0.5f * (ty * ty * (3.0f * ty - 5.0f) + 2.0f),
-                   0.5f * ty * (ty * (4.0f - 3.0f * ty) + 1.0f), 0.5f * ty * ty * (ty - 1.0f)};
+    float wx0 = keys_far(1.0f + tx), wx1 = keys_near(tx), wx2 = keys_near(1.0f - tx),
+          wx3 = keys_far(2.0f - tx);
+    float wy[4] = {keys_far(1.0f + ty), keys_near(ty), keys_near(1.0f - ty), keys_far(2.0f - ty)};
     const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * 4;
     v4f acc = {0, 0, 0, 0};
     for (int j = 0; j < 4; j++) {
@@ -362,7 +372,7 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
             /* Near the rim each sample is checked and clamped like the exact path's. */
             /* Farthest point of the footprint from the ball's centre (a
              * corner: distance is convex), plus the lookup's reach: bilinear
-             * taps lie within sqrt(2) px of the point, Catmull-Rom's within
+             * taps lie within sqrt(2) px of the point, the cubic's within
              * 2 sqrt(2). */
             double ex = ce->x - view->cx, ey = ce->y - view->cy, far2 = 0.0;
             for (int q = 0; q < 4; q++) {
