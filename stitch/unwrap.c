@@ -369,11 +369,11 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 texel_exact(c, x, y, p);
                 continue;
             }
-            /* Near the rim each sample is checked and clamped like the exact path's. */
             /* Farthest point of the footprint from the ball's centre (a
              * corner: distance is convex), plus the lookup's reach: bilinear
              * taps lie within sqrt(2) px of the point, the cubic's within
-             * 2 sqrt(2). */
+             * 2 sqrt(2). Near the rim each sample is checked and clamped
+             * like the exact path's. */
             double ex = ce->x - view->cx, ey = ce->y - view->cy, far2 = 0.0;
             for (int q = 0; q < 4; q++) {
                 double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
