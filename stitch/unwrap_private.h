@@ -5,18 +5,23 @@
 
 #include "setlight/stitch.h"
 
-/* One set direction on the ball: photo pixel, cosine of incidence, and the
- * angle phi between the reflected direction and the view axis's reverse
- * (0 = straight back at the camera). blind: phi beyond what the ball shows;
- * the pixel is then the rim point of the same azimuth. */
+/* One set direction on the ball: photo pixel and cosine of incidence.
+ * blind: the direction is farther than phi_max from the view axis's reverse
+ * (0 = straight back at the camera), beyond what the ball shows; the pixel
+ * is then the rim point of the same azimuth. */
 typedef struct ball_hit {
     double x, y;
     double cos_incidence;
-    double phi;
     bool blind;
 } ball_hit;
 
 void ball_view_map(const sl_ball_view *view, const double dir[3], ball_hit *hit);
+/* The same for a direction already in the view frame (unit). */
+void ball_view_map_local(const sl_ball_view *view, const double wv[3], ball_hit *hit);
+
+/* The default lat-long width for a view: one texel per photo pixel where
+ * the ball looks back at the camera. */
+int unwrap_auto_width(const sl_ball_view *view);
 
 /* C shim over OpenCV's HoughCircles: up to max_out circles (x, y, r)
  * on an 8-bit single-channel image, strongest first. Returns the count, or

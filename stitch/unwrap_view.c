@@ -65,26 +65,36 @@ void ball_view_map(const sl_ball_view *v, const double dir[3], ball_hit *hit)
     double wc[3], wv[3];
     mat_t_vec(v->cam_to_world, dir, wc);
     mat_t_vec(v->view_to_cam, wc, wv);
+    ball_view_map_local(v, wv, hit);
+}
+
+void ball_view_map_local(const sl_ball_view *v, const double wv[3], ball_hit *hit)
+{
     double rho = sqrt(wv[0] * wv[0] + wv[1] * wv[1]);
-    double phi = atan2(rho, -wv[2]);
     double ex = 1.0, ey = 0.0;
     if (rho > 0.0) {
         ex = wv[0] / rho;
         ey = wv[1] / rho;
     }
-    hit->phi = phi;
+    if (v->distance == 0.0) {
+        /* theta = phi / 2: half-angle formulas without cancellation (rho^2
+         * = n^2 - z^2), no trigonometry. The orthographic view frame is the
+         * camera frame. */
+        double z = -wv[2], n = sqrt(rho * rho + z * z), r2 = rho * rho;
+        double one_minus = z > 0.0 ? r2 / (n * (n + z)) : (n - z) / n;
+        double one_plus = z < 0.0 ? r2 / (n * (n - z)) : (n + z) / n;
+        hit->blind = false;
+        double st = sqrt(0.5 * one_minus), ct = sqrt(0.5 * one_plus);
+        hit->x = v->cx - v->r * st * ex;
+        hit->y = v->cy - v->r * st * ey;
+        hit->cos_incidence = ct;
+        return;
+    }
+    double phi = atan2(rho, -wv[2]);
     hit->blind = phi > v->phi_max;
     double theta = theta_for_phi(v, hit->blind ? v->phi_max : phi);
     double st = sin(theta), ct = cos(theta);
     double p[3] = {st * ex, st * ey, -ct};
-    if (v->distance == 0.0) {
-        double pc[3];
-        sl_mat3_apply(v->view_to_cam, p, pc);
-        hit->x = v->cx - v->r * pc[0];
-        hit->y = v->cy - v->r * pc[1];
-        hit->cos_incidence = ct;
-        return;
-    }
     double d[3] = {p[0], p[1], p[2] + v->distance}, dc[3];
     double len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     double cosi = -(d[0] * p[0] + d[1] * p[1] + d[2] * p[2]) / len;

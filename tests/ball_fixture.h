@@ -62,7 +62,8 @@ bool ball_fixture_trace(const ball_fixture *f, int i, double x, double y, double
                         double *cos_incidence);
 
 /* make_fixture's ball kinds (200x160 perspective chrome ball, focal 180 px):
- * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone. */
+ * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone, and ball90
+ * (the same set from azimuth 90, for two-view merging). */
 int ball_fixture_main(const char *kind, const char *out);
 
 #endif

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "cli.h"
 #include "setlight/stitch.h"
@@ -14,7 +15,7 @@
 #endif
 
 static const char *unwrap_help =
-    "usage: setlight unwrap [options] -o OUT.exr BALL\n\n"
+    "usage: setlight unwrap [options] -o OUT.exr BALL [BALL2]\n\n"
     "Unwraps a linear HDR photo of a chrome ball into a lat-long of the set's radiance\n"
     "(OpenEXR orientation, envmap attribute). The ball is found automatically unless\n"
     "--circle is given. The camera looks along +Z with +Y up unless turned with\n"
@@ -37,6 +38,18 @@ static const char *unwrap_help =
     "  --reflectance R        ball reflectance: a number (1 = ideal mirror, the\n"
     "                         default), R,G,B, or 'chrome' (Fresnel of a conductor,\n"
     "                         0.55 head-on rising to 1 at grazing)\n"
+    "  --reflectance-patch AZ,EL,RADIUS,L[,G,B]\n"
+    "                         solve the reflectance instead: the set patch in direction\n"
+    "                         AZ,EL (degrees, like the camera's) of RADIUS degrees has\n"
+    "                         radiance L (or R,G,B), e.g. a grey card measured directly\n"
+    "Second view (BALL2, the same ball from about 90 degrees around it):\n"
+    "  --circle2 CX,CY,R      its circle (default: detected)\n"
+    "  --camera2-azimuth DEG  its camera direction (default: --camera-azimuth + 90)\n"
+    "  --camera2-elevation DEG, --camera2-roll DEG (default: view 1's)\n"
+    "  --search DEG           refine view 2's azimuth within +-DEG from the overlap\n"
+    "                         (default 20; 0 keeps it as given)\n"
+    "  --occluder DEG         half-angle of the cone around each camera (the camera\n"
+    "                         and photographer) taken from the other view (default 20)\n"
     "  --width N              output width (even; default: one texel per photo pixel\n"
     "                         where the ball faces the camera)\n"
     "  --no-confidence        write RGB only\n"
@@ -47,7 +60,8 @@ static const char *unwrap_help =
     "photo (JPEG, PNG) is taken as sRGB, linearised with a warning: its highlights\n"
     "are clipped, so bright sources come out too dark.\n"
     "Exit codes: 0 done, 1 failure, 2 usage error (bad option, circle outside the\n"
-    "image), 3 bad input (unreadable, no ball, two balls, ball cut by the frame).\n"
+    "image), 3 bad input (unreadable, no ball, two balls, ball cut by the frame,\n"
+    "reflectance patch not seen).\n"
     "See docs/unwrap.md.\n";
 
 static bool parse_list(const char *s, double *v, int n)
@@ -79,11 +93,87 @@ static void reflectance_text(const sl_reflectance *r, char *buf, size_t size)
         snprintf(buf, size, "%g,%g,%g", r->value[0], r->value[1], r->value[2]);
 }
 
+/* One photo: read (an 8-bit one linearised with a warning), its circle
+ * given or detected, and its focal length in pixels. */
+typedef struct view_in {
+    const char *path;
+    sl_image photo;
+    sl_meta meta;
+    bool ldr, detected;
+    int64_t nonfinite;
+} view_in;
+
+static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle, double focal_mm,
+                           double sensor_mm, double fov, sl_error *err)
+{
+    sl_result r = sl_image_read(v->path, &v->photo, &v->meta, err);
+    if (r)
+        return r;
+    v->ldr = !v->meta.is_float;
+    if (v->ldr) {
+        sl_log(SL_LOG_WARN,
+               "%s: %d-bit %s, not HDR: taken as sRGB and linearised; clipped highlights make "
+               "bright sources too dark",
+               v->path, v->meta.bits_per_sample, v->meta.format);
+        for (size_t i = 0; i < v->photo.stride * (size_t)v->photo.height; i++)
+            v->photo.data[i] = sl_srgb_to_linear(v->photo.data[i]);
+    }
+    /* Geometry: focal length in pixels of this image, from the lens or the field of view. */
+    if (focal_mm == 0 && sensor_mm > 0 && v->meta.focal_length_mm > 0)
+        focal_mm = v->meta.focal_length_mm;
+    if (focal_mm > 0 && sensor_mm == 0)
+        return sl_error_set(err, SL_ERR_USAGE, "--focal-mm needs --sensor-mm (the sensor width)");
+    if (focal_mm > 0)
+        o->geometry.focal_px = focal_mm * v->photo.width / sensor_mm;
+    else if (fov > 0)
+        o->geometry.focal_px = 0.5 * v->photo.width / tan(0.5 * fov * M_PI / 180.0);
+    v->detected = !have_circle;
+    if (have_circle) {
+        const sl_ball_circle *c = &o->circle;
+        if (c->cx - c->r < 0 || c->cy - c->r < 0 || c->cx + c->r > v->photo.width ||
+            c->cy + c->r > v->photo.height)
+            return sl_error_set(err, SL_ERR_USAGE, "--circle %g,%g,%g is not inside the %dx%d image %s",
+                                c->cx, c->cy, c->r, v->photo.width, v->photo.height, v->path);
+        return SL_OK;
+    }
+    return sl_ball_detect(&v->photo, v->path, &o->circle, err);
+}
+
+static void view_free(view_in *v)
+{
+    sl_image_free(&v->photo);
+    sl_meta_free(&v->meta);
+}
+
+/* CPU seconds of the whole process (all threads): on a shared machine the
+ * wall time of a stage says little. */
+static double cpu_seconds(void)
+{
+    struct timespec ts;
+    if (clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts))
+        return 0.0;
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* NaN (not measured) as null. */
+static json_t *number(double v)
+{
+    return isfinite(v) ? json_real(v) : json_null();
+}
+
+static json_t *circle_json(const sl_ball_circle *c, bool detected)
+{
+    return json_pack("{s:f, s:f, s:f, s:f, s:i, s:b}", "cx", c->cx, "cy", c->cy, "r", c->r,
+                     "residual", c->residual, "edge_points", c->edge_points, "detected",
+                     detected);
+}
+
 int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
 {
     enum {
         OPT_CIRCLE = 1000, OPT_CAMERA, OPT_FOCAL, OPT_SENSOR, OPT_FOV, OPT_DIST, OPT_DIAM,
-        OPT_AZ, OPT_EL, OPT_ROLL, OPT_REFL, OPT_WIDTH, OPT_NOCONF, OPT_FLOAT
+        OPT_AZ, OPT_EL, OPT_ROLL, OPT_REFL, OPT_WIDTH, OPT_NOCONF, OPT_FLOAT, OPT_PATCH,
+        OPT_CIRCLE2, OPT_AZ2, OPT_EL2, OPT_ROLL2, OPT_SEARCH, OPT_OCCLUDER
     };
     static const struct option opts[] = {{"help", no_argument, NULL, 'h'},
                                          {"output", required_argument, NULL, 'o'},
@@ -98,18 +188,29 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                                          {"camera-elevation", required_argument, NULL, OPT_EL},
                                          {"camera-roll", required_argument, NULL, OPT_ROLL},
                                          {"reflectance", required_argument, NULL, OPT_REFL},
+                                         {"reflectance-patch", required_argument, NULL, OPT_PATCH},
                                          {"width", required_argument, NULL, OPT_WIDTH},
                                          {"no-confidence", no_argument, NULL, OPT_NOCONF},
                                          {"float", no_argument, NULL, OPT_FLOAT},
+                                         {"circle2", required_argument, NULL, OPT_CIRCLE2},
+                                         {"camera2-azimuth", required_argument, NULL, OPT_AZ2},
+                                         {"camera2-elevation", required_argument, NULL, OPT_EL2},
+                                         {"camera2-roll", required_argument, NULL, OPT_ROLL2},
+                                         {"search", required_argument, NULL, OPT_SEARCH},
+                                         {"occluder", required_argument, NULL, OPT_OCCLUDER},
                                          {0, 0, 0, 0}};
     const char *out_path = NULL;
-    sl_unwrap_options o;
-    memset(&o, 0, sizeof o);
-    sl_reflectance_constant(&o.reflectance, 1, 1, 1);
-    bool have_circle = false, confidence = true, use_float = false;
+    sl_unwrap_pair_options po;
+    memset(&po, 0, sizeof po);
+    sl_unwrap_options *o = &po.views[0], *o2 = &po.views[1];
+    sl_reflectance_constant(&o->reflectance, 1, 1, 1);
+    po.search_deg = 20;
+    po.occluder_deg = 20;
+    bool have_circle = false, have_circle2 = false, confidence = true, use_float = false;
+    bool have_refl = false, have_patch = false, have[3] = {false, false, false};
+    double cam2[3] = {0, 0, 0}, patch[6] = {0};
     int camera = -1;
     double focal_mm = 0, sensor_mm = 0, fov = 0, dist_mm = 0, diam_mm = 0;
-    char refl_arg[64] = "1";
 
     cli_getopt_reset();
     int c;
@@ -122,15 +223,17 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         case 'o':
             out_path = optarg;
             break;
-        case OPT_CIRCLE: {
+        case OPT_CIRCLE:
+        case OPT_CIRCLE2: {
             double xyz[3];
             if (!parse_list(optarg, xyz, 3) || !(xyz[2] > 0))
-                return cli_usage_error(cli, "--circle needs CX,CY,R with R > 0, not '%s'",
-                                       optarg);
-            o.circle.cx = xyz[0];
-            o.circle.cy = xyz[1];
-            o.circle.r = xyz[2];
-            have_circle = true;
+                return cli_usage_error(cli, "%s needs CX,CY,R with R > 0, not '%s'",
+                                       c == OPT_CIRCLE ? "--circle" : "--circle2", optarg);
+            sl_ball_circle *ci = c == OPT_CIRCLE ? &o->circle : &o2->circle;
+            ci->cx = xyz[0];
+            ci->cy = xyz[1];
+            ci->r = xyz[2];
+            *(c == OPT_CIRCLE ? &have_circle : &have_circle2) = true;
             break;
         }
         case OPT_CAMERA:
@@ -159,31 +262,61 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         case OPT_AZ:
         case OPT_EL:
         case OPT_ROLL:
-            if (!cli_parse_double(optarg, &v))
+        case OPT_AZ2:
+        case OPT_EL2:
+        case OPT_ROLL2:
+            if (!cli_parse_double(optarg, &v) || !isfinite(v))
                 return cli_usage_error(cli, "camera angles are numbers of degrees, not '%s'",
                                        optarg);
-            *(c == OPT_AZ   ? &o.geometry.azimuth_deg
-              : c == OPT_EL ? &o.geometry.elevation_deg
-                            : &o.geometry.roll_deg) = v;
+            if (c == OPT_AZ2 || c == OPT_EL2 || c == OPT_ROLL2) {
+                int i = c == OPT_AZ2 ? 0 : (c == OPT_EL2 ? 1 : 2);
+                cam2[i] = v;
+                have[i] = true;
+            } else {
+                *(c == OPT_AZ   ? &o->geometry.azimuth_deg
+                  : c == OPT_EL ? &o->geometry.elevation_deg
+                                : &o->geometry.roll_deg) = v;
+            }
+            break;
+        case OPT_SEARCH:
+        case OPT_OCCLUDER:
+            if (!cli_parse_double(optarg, &v) || !(v >= 0) ||
+                !(v <= (c == OPT_SEARCH ? 90 : 60)))
+                return cli_usage_error(cli, "%s needs degrees from 0 to %d, not '%s'",
+                                       c == OPT_SEARCH ? "--search" : "--occluder",
+                                       c == OPT_SEARCH ? 90 : 60, optarg);
+            *(c == OPT_SEARCH ? &po.search_deg : &po.occluder_deg) = v;
             break;
         case OPT_REFL: {
             double rgb[3];
-            snprintf(refl_arg, sizeof refl_arg, "%s", optarg);
+            have_refl = true;
             if (!strcmp(optarg, "chrome"))
-                sl_reflectance_chrome(&o.reflectance);
+                sl_reflectance_chrome(&o->reflectance);
             else if (parse_list(optarg, rgb, 1) && rgb[0] > 0 && rgb[0] <= 1)
-                sl_reflectance_constant(&o.reflectance, rgb[0], rgb[0], rgb[0]);
+                sl_reflectance_constant(&o->reflectance, rgb[0], rgb[0], rgb[0]);
             else if (parse_list(optarg, rgb, 3) && rgb[0] > 0 && rgb[1] > 0 && rgb[2] > 0 &&
                      rgb[0] <= 1 && rgb[1] <= 1 && rgb[2] <= 1)
-                sl_reflectance_constant(&o.reflectance, rgb[0], rgb[1], rgb[2]);
+                sl_reflectance_constant(&o->reflectance, rgb[0], rgb[1], rgb[2]);
             else
                 return cli_usage_error(
                     cli, "--reflectance is R or R,G,B in (0, 1], or chrome, not '%s'", optarg);
             break;
         }
+        case OPT_PATCH:
+            if (parse_list(optarg, patch, 4)) {
+                patch[4] = patch[5] = patch[3];
+            } else if (!parse_list(optarg, patch, 6)) {
+                return cli_usage_error(cli, "--reflectance-patch needs AZ,EL,RADIUS,L or "
+                                            "AZ,EL,RADIUS,R,G,B, not '%s'", optarg);
+            }
+            if (!(patch[2] > 0 && patch[2] < 90) || !(patch[3] > 0 && patch[4] > 0 && patch[5] > 0))
+                return cli_usage_error(cli, "--reflectance-patch needs a radius in (0, 90) degrees "
+                                            "and a positive radiance, not '%s'", optarg);
+            have_patch = true;
+            break;
         case OPT_WIDTH:
-            if (!cli_parse_int(optarg, &o.width) || o.width < 8 || o.width > 65536 ||
-                o.width % 2)
+            if (!cli_parse_int(optarg, &o->width) || o->width < 8 || o->width > 65536 ||
+                o->width % 2)
                 return cli_usage_error(cli, "--width needs an even number from 8 to 65536, not "
                                             "'%s'", optarg);
             break;
@@ -199,10 +332,11 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     }
     if (!out_path)
         return cli_usage_error(cli, "needs an output file (-o OUT.exr)");
-    if (argc - optind != 1)
-        return cli_usage_error(cli, argc - optind > 1 ? "one ball photo at a time (two-view "
-                                                        "merging is not available yet)"
-                                                      : "needs a ball photo");
+    int nviews = argc - optind;
+    if (nviews < 1)
+        return cli_usage_error(cli, "needs a ball photo");
+    if (nviews > 2)
+        return cli_usage_error(cli, "one or two ball photos, not %d", nviews);
     if ((dist_mm > 0) != (diam_mm > 0))
         return cli_usage_error(cli, "--distance and --ball-diameter go together");
     if (dist_mm > 0 && !(dist_mm > 0.5 * diam_mm))
@@ -210,65 +344,86 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                                dist_mm, diam_mm);
     if (focal_mm > 0 && fov > 0)
         return cli_usage_error(cli, "give --focal-mm or --fov, not both");
-    const char *in_path = argv[optind];
+    if (have_patch && have_refl)
+        return cli_usage_error(cli, "give --reflectance or --reflectance-patch, not both");
+    if (nviews == 1 && (have_circle2 || have[0] || have[1] || have[2]))
+        return cli_usage_error(cli, "--circle2 and --camera2-* need a second ball photo");
     double t0 = sl_seconds();
 
-    sl_image photo = {0}, out = {0};
-    sl_meta meta, out_meta;
+    view_in views[2];
+    memset(views, 0, sizeof views);
+    views[0].path = argv[optind];
+    views[1].path = nviews == 2 ? argv[optind + 1] : NULL;
+    sl_image out = {0};
+    sl_meta out_meta;
     sl_meta_init(&out_meta);
     sl_error err;
-    sl_result r = sl_image_read(in_path, &photo, &meta, &err);
-    if (r) {
-        sl_meta_free(&out_meta);
-        return cli_fail(cli, &err);
-    }
-    bool ldr = !meta.is_float;
-    if (ldr) {
-        sl_log(SL_LOG_WARN,
-               "%s: %d-bit %s, not HDR: taken as sRGB and linearised; clipped highlights make "
-               "bright sources too dark",
-               in_path, meta.bits_per_sample, meta.format);
-        for (size_t i = 0; i < photo.stride * (size_t)photo.height; i++)
-            photo.data[i] = sl_srgb_to_linear(photo.data[i]);
-    }
+    sl_result r;
 
-    /* Geometry: focal length in pixels of this image, from the lens or the field of view. */
-    if (focal_mm == 0 && sensor_mm > 0 && meta.focal_length_mm > 0)
-        focal_mm = meta.focal_length_mm;
-    if (focal_mm > 0 && sensor_mm == 0) {
-        sl_error_set(&err, SL_ERR_USAGE, "--focal-mm needs --sensor-mm (the sensor width)");
-        goto fail;
-    }
-    if (focal_mm > 0)
-        o.geometry.focal_px = focal_mm * photo.width / sensor_mm;
-    else if (fov > 0)
-        o.geometry.focal_px = 0.5 * photo.width / tan(0.5 * fov * M_PI / 180.0);
     if (dist_mm > 0)
-        o.geometry.distance = dist_mm / (0.5 * diam_mm);
-    bool known = o.geometry.focal_px > 0 || o.geometry.distance > 0;
+        o->geometry.distance = dist_mm / (0.5 * diam_mm);
+    if ((r = load_view(&views[0], o, have_circle, focal_mm, sensor_mm, fov, &err)))
+        goto fail;
+    if (nviews == 2) {
+        o2->geometry = o->geometry;
+        o2->geometry.focal_px = 0;
+        o2->geometry.azimuth_deg = have[0] ? cam2[0] : o->geometry.azimuth_deg + 90.0;
+        if (have[1])
+            o2->geometry.elevation_deg = cam2[1];
+        if (have[2])
+            o2->geometry.roll_deg = cam2[2];
+        o2->reflectance = o->reflectance;
+        o2->width = o->width;
+        if ((r = load_view(&views[1], o2, have_circle2, focal_mm, sensor_mm, fov, &err)))
+            goto fail;
+    }
     if (camera < 0)
-        camera = known ? SL_BALL_PERSPECTIVE : SL_BALL_ORTHOGRAPHIC;
-    o.geometry.camera = (sl_ball_camera)camera;
+        camera = o->geometry.focal_px > 0 || o->geometry.distance > 0 ? SL_BALL_PERSPECTIVE
+                                                                     : SL_BALL_ORTHOGRAPHIC;
+    o->geometry.camera = o2->geometry.camera = (sl_ball_camera)camera;
 
-    bool detected = !have_circle;
-    if (have_circle) {
-        if (o.circle.cx - o.circle.r < 0 || o.circle.cy - o.circle.r < 0 ||
-            o.circle.cx + o.circle.r > photo.width || o.circle.cy + o.circle.r > photo.height) {
-            sl_error_set(&err, SL_ERR_USAGE,
-                         "--circle %g,%g,%g is not inside the %dx%d image %s", o.circle.cx,
-                         o.circle.cy, o.circle.r, photo.width, photo.height, in_path);
+    double t1 = sl_seconds(), cpu1 = cpu_seconds();
+    sl_unwrap_pair_info pinfo;
+    memset(&pinfo, 0, sizeof pinfo);
+    sl_unwrap_info *info = &pinfo.views[0];
+    if (nviews == 2)
+        r = sl_unwrap_pair(&views[0].photo, &views[1].photo, &po, &out, &pinfo, &err);
+    else
+        r = sl_unwrap(&views[0].photo, o, &out, info, &err);
+    if (r)
+        goto fail;
+    double refl_patch[3] = {0, 0, 0};
+    if (have_patch) {
+        double az = patch[0] * M_PI / 180.0, el = patch[1] * M_PI / 180.0;
+        double dir[3] = {sin(az) * cos(el), sin(el), cos(az) * cos(el)};
+        if ((r = sl_unwrap_patch_reflectance(&out, dir, patch[2] * M_PI / 180.0, patch + 3,
+                                             refl_patch, &err))) {
+            char why[sizeof err.message];
+            snprintf(why, sizeof why, "%s", err.message);
+            sl_error_set(&err, r, "%s: %s", views[0].path, why);
             goto fail;
         }
-    } else if ((r = sl_ball_detect(&photo, in_path, &o.circle, &err))) {
-        goto fail;
+        for (int y = 0; y < out.height; y++)
+            for (int x = 0; x < out.width; x++) {
+                float *p = sl_image_pixel(&out, x, y);
+                for (int k = 0; k < 3; k++)
+                    p[k] = (float)(p[k] / refl_patch[k]);
+            }
+        sl_reflectance_constant(&o->reflectance, refl_patch[0], refl_patch[1], refl_patch[2]);
+        sl_log(SL_LOG_INFO, "ball reflectance from the patch: %.4f, %.4f, %.4f", refl_patch[0],
+               refl_patch[1], refl_patch[2]);
     }
-
-    sl_unwrap_info info;
-    if ((r = sl_unwrap(&photo, &o, &out, &info, &err)))
-        goto fail;
-    if (info.nonfinite)
-        sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples replaced by 0", in_path,
-               (long long)info.nonfinite);
+    double t_unwrap = sl_seconds() - t1, cpu_unwrap = cpu_seconds() - cpu1;
+    for (int i = 0; i < nviews; i++)
+        if (pinfo.views[i].nonfinite)
+            sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples replaced by 0", views[i].path,
+                   (long long)pinfo.views[i].nonfinite);
+    if (nviews == 2 && po.search_deg > 0)
+        sl_log(SL_LOG_INFO,
+               "%s: view 2 azimuth %.3f deg (given %.3f), median log luminance difference "
+               "%.4f (%.4f as given) over %.1f%% of the sphere",
+               views[1].path, pinfo.azimuth_deg, pinfo.azimuth_given_deg, pinfo.residual,
+               pinfo.residual_given, 100.0 * pinfo.overlap_fraction);
     if (!confidence) {
         sl_image rgb;
         if ((r = sl_image_convert_channels(&out, 3, &rgb, &err)))
@@ -279,81 +434,122 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
 
     out_meta.envmap = SL_ENVMAP_LATLONG;
     char buf[1024], refl[160];
-    reflectance_text(&o.reflectance, refl, sizeof refl);
-    const char *cs = sl_meta_color_space(&meta);
+    reflectance_text(&o->reflectance, refl, sizeof refl);
+    if (have_patch) {
+        size_t len = strlen(refl);
+        snprintf(refl + len, sizeof refl - len, " (from a patch at %g,%g, %g deg)", patch[0],
+                 patch[1], patch[2]);
+    }
+    const char *cs = sl_meta_color_space(&views[0].meta);
     if (!cs || !strcmp(cs, "srgb"))
         cs = "lin_rec709";
     struct {
         const char *name;
         char value[256];
-    } attrs[10];
+    } attrs[16];
     int na = 0;
-    snprintf(attrs[na].value, sizeof attrs[na].value, "%.4f,%.4f,%.4f", o.circle.cx,
-             o.circle.cy, o.circle.r);
-    attrs[na++].name = "setlight:ball_circle";
-    snprintf(attrs[na].value, sizeof attrs[na].value, "%s, fit residual %.3f px, %d edge points",
-             detected ? "detected" : "given", o.circle.residual, o.circle.edge_points);
-    attrs[na++].name = "setlight:ball_circle_source";
-    snprintf(attrs[na].value, sizeof attrs[na].value,
-             "%s, focal %.3f px, distance %.4f ball radii, ball %.3f deg, off axis %.3f deg",
-             camera == SL_BALL_PERSPECTIVE ? "perspective" : "orthographic", info.focal_px,
-             info.distance, info.ball_angle_deg, info.off_axis_deg);
-    attrs[na++].name = "setlight:ball_camera";
-    snprintf(attrs[na].value, sizeof attrs[na].value, "azimuth %g, elevation %g, roll %g deg",
-             o.geometry.azimuth_deg, o.geometry.elevation_deg, o.geometry.roll_deg);
-    attrs[na++].name = "setlight:camera_orientation";
+    for (int i = 0; i < nviews; i++) {
+        const sl_unwrap_options *oi = &po.views[i];
+        const sl_unwrap_info *ii = &pinfo.views[i];
+        snprintf(attrs[na].value, sizeof attrs[na].value, "%.4f,%.4f,%.4f", oi->circle.cx,
+                 oi->circle.cy, oi->circle.r);
+        attrs[na++].name = i ? "setlight:ball2_circle" : "setlight:ball_circle";
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "%s, fit residual %.3f px, %d edge points",
+                 views[i].detected ? "detected" : "given", oi->circle.residual,
+                 oi->circle.edge_points);
+        attrs[na++].name = i ? "setlight:ball2_circle_source" : "setlight:ball_circle_source";
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "%s, focal %.3f px, distance %.4f ball radii, ball %.3f deg, off axis %.3f deg",
+                 camera == SL_BALL_PERSPECTIVE ? "perspective" : "orthographic", ii->focal_px,
+                 ii->distance, ii->ball_angle_deg, ii->off_axis_deg);
+        attrs[na++].name = i ? "setlight:ball2_camera" : "setlight:ball_camera";
+        snprintf(attrs[na].value, sizeof attrs[na].value, "azimuth %g, elevation %g, roll %g deg",
+                 i ? pinfo.azimuth_deg : oi->geometry.azimuth_deg, oi->geometry.elevation_deg,
+                 oi->geometry.roll_deg);
+        attrs[na++].name = i ? "setlight:camera2_orientation" : "setlight:camera_orientation";
+    }
+    if (nviews == 2) {
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "view 2 azimuth %.3f deg (given %.3f, searched +-%g), median |log| luminance "
+                 "difference %.4f (%.4f as given), overlap %.3f of the sphere, occluder cones "
+                 "%g deg",
+                 pinfo.azimuth_deg, pinfo.azimuth_given_deg, po.search_deg, pinfo.residual,
+                 pinfo.residual_given, pinfo.overlap_fraction, po.occluder_deg);
+        attrs[na++].name = "setlight:two_views";
+    }
     snprintf(attrs[na].value, sizeof attrs[na].value, "%s", refl);
     attrs[na++].name = "setlight:ball_reflectance";
-    snprintf(attrs[na].value, sizeof attrs[na].value, "%.3f", info.blind_angle_deg);
+    snprintf(attrs[na].value, sizeof attrs[na].value, "%.3f", info->blind_angle_deg);
     attrs[na++].name = "setlight:blind_cone_deg";
     if (confidence) {
         snprintf(attrs[na].value, sizeof attrs[na].value,
                  "confidence: resolution relative to the ball centre, 0 where unseen");
         attrs[na++].name = "setlight:alpha";
     }
-    if (ldr) {
+    if (views[0].ldr || views[1].ldr) {
         snprintf(attrs[na].value, sizeof attrs[na].value, "8-bit sRGB input linearised");
         attrs[na++].name = "setlight:input_note";
     }
     snprintf(buf, sizeof buf, "setlight %s unwrap", sl_version());
     if ((r = sl_meta_set(&out_meta, "setlight:command", buf, &err)) ||
-        (r = sl_meta_set(&out_meta, "setlight:source", in_path, &err)) ||
+        (r = sl_meta_set(&out_meta, "setlight:source", views[0].path, &err)) ||
+        (nviews == 2 && (r = sl_meta_set(&out_meta, "setlight:source2", views[1].path, &err))) ||
         (r = sl_meta_set_color_space(&out_meta, cs, &err)))
         goto fail;
     for (int i = 0; i < na; i++)
         if ((r = sl_meta_set(&out_meta, attrs[i].name, attrs[i].value, &err)))
             goto fail;
+    double t3 = sl_seconds();
     r = sl_exr_write(out_path, &out, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF, &err);
     if (r)
         goto fail;
+    double t_write = sl_seconds() - t3;
 
     if (cli->json) {
         json_t *j = json_pack(
-            "{s:s, s:s, s:{s:f, s:f, s:f, s:f, s:i, s:b}, s:s, s:f, s:f, s:f, s:f, s:f, s:i, "
-            "s:i, s:s, s:f, s:I, s:b, s:f}",
-            "input", in_path, "output", out_path, "circle", "cx", o.circle.cx, "cy", o.circle.cy,
-            "r", o.circle.r, "residual", o.circle.residual, "edge_points", o.circle.edge_points,
-            "detected", detected, "camera",
+            "{s:s, s:s, s:o, s:s, s:f, s:f, s:f, s:f, s:f, s:i, s:i, s:s, s:f, s:I, s:b, s:f, "
+            "s:{s:f, s:f, s:f, s:f}}",
+            "input", views[0].path, "output", out_path, "circle",
+            circle_json(&o->circle, views[0].detected), "camera",
             camera == SL_BALL_PERSPECTIVE ? "perspective" : "orthographic", "focal_px",
-            info.focal_px, "distance_radii", info.distance, "ball_angle_deg",
-            info.ball_angle_deg, "off_axis_deg", info.off_axis_deg, "centre_px_per_rad",
-            info.centre_px_per_rad, "width", out.width, "height", out.height, "reflectance",
-            refl, "blind_fraction", info.blind_fraction, "nonfinite_replaced",
-            (json_int_t)info.nonfinite, "ldr_linearised", ldr, "seconds", sl_seconds() - t0);
+            info->focal_px, "distance_radii", info->distance, "ball_angle_deg",
+            info->ball_angle_deg, "off_axis_deg", info->off_axis_deg, "centre_px_per_rad",
+            info->centre_px_per_rad, "width", out.width, "height", out.height, "reflectance",
+            refl, "blind_fraction", info->blind_fraction, "nonfinite_replaced",
+            (json_int_t)(pinfo.views[0].nonfinite + pinfo.views[1].nonfinite), "ldr_linearised",
+            views[0].ldr || views[1].ldr, "seconds", sl_seconds() - t0, "timing", "read_detect",
+            t1 - t0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap, "write", t_write);
+        if (have_patch)
+            json_object_set_new(j, "reflectance_patch",
+                                json_pack("{s:[f, f, f], s:[f, f, f]}", "radiance", patch[3],
+                                          patch[4], patch[5], "reflectance", refl_patch[0],
+                                          refl_patch[1], refl_patch[2]));
+        if (nviews == 2)
+            json_object_set_new(
+                j, "view2",
+                json_pack("{s:s, s:o, s:f, s:f, s:o, s:o, s:o, s:f, s:f}", "input",
+                          views[1].path, "circle", circle_json(&o2->circle, views[1].detected),
+                          "azimuth_given_deg", pinfo.azimuth_given_deg, "azimuth_deg",
+                          pinfo.azimuth_deg, "residual_given", number(pinfo.residual_given),
+                          "residual", number(pinfo.residual), "overlap_fraction",
+                          number(pinfo.overlap_fraction),
+                          "focal_px", pinfo.views[1].focal_px, "distance_radii",
+                          pinfo.views[1].distance));
         json_dumpf(j, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(j);
     }
-    sl_image_free(&photo);
+    view_free(&views[0]);
+    view_free(&views[1]);
     sl_image_free(&out);
-    sl_meta_free(&meta);
     sl_meta_free(&out_meta);
     return 0;
 
 fail:
-    sl_image_free(&photo);
+    view_free(&views[0]);
+    view_free(&views[1]);
     sl_image_free(&out);
-    sl_meta_free(&meta);
     sl_meta_free(&out_meta);
     return cli_fail(cli, &err);
 }

@@ -261,6 +261,46 @@ typedef struct sl_unwrap_info {
 sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
                     sl_unwrap_info *info, sl_error *err);
 
+/* Two photos of the same ball from different places (about 90 degrees
+ * apart around the ball is best). */
+typedef struct sl_unwrap_pair_options {
+    sl_unwrap_options views[2]; /* the same width (0: the larger default) */
+    /* View 2's azimuth is searched within +-search_deg of the given one
+     * for the best agreement of the two unwraps where both are confident;
+     * 0: taken as given. */
+    double search_deg;
+    /* Half-angle of the cone around each camera's direction (the camera
+     * and photographer reflected at the ball's centre) left to the other
+     * view wherever it sees it; 0: none. */
+    double occluder_deg;
+} sl_unwrap_pair_options;
+
+typedef struct sl_unwrap_pair_info {
+    sl_unwrap_info views[2];
+    double azimuth_given_deg, azimuth_deg; /* view 2's, as given and as used */
+    /* Median |log| luminance ratio of the two views in the overlap (both
+     * confidences >= 0.25, outside both occluder cones), at the given and
+     * the used azimuth. */
+    double residual_given, residual;
+    double overlap_fraction; /* of the sphere's solid angle */
+} sl_unwrap_pair_info;
+
+/* Unwraps both photos and merges them into one lat-long (RGB and
+ * confidence), weighting each texel by each view's confidence, with each
+ * occluder cone given to the other view. info may be NULL. */
+sl_result sl_unwrap_pair(const sl_image *photo1, const sl_image *photo2,
+                         const sl_unwrap_pair_options *opt, sl_image *out,
+                         sl_unwrap_pair_info *info, sl_error *err);
+
+/* The ball's reflectance from a patch of known radiance: the mean of an
+ * unwrap made with reflectance 1 (RGB and confidence) over the cone of
+ * half-angle radius_rad around dir, divided by the patch's radiance, per
+ * channel. SL_ERR_INPUT when the patch is not seen with confidence >= 0.25
+ * over at least 90% of it, or is black. */
+sl_result sl_unwrap_patch_reflectance(const sl_image *latlong, const double dir[3],
+                                      double radius_rad, const double radiance[3],
+                                      double reflectance[3], sl_error *err);
+
 /* ================================================================== */
 /* Calibrate: grey sphere and chart                                    */
 /* ================================================================== */

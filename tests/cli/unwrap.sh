@@ -5,7 +5,7 @@
 # an 8-bit JPEG (warned and linearised), a circle outside the image.
 . "$(dirname "$0")/lib.bash"
 
-for k in ball balltwo ballclip ballnone; do
+for k in ball ball90 balltwo ballclip ballnone; do
   "$MAKE_FIXTURE" "$k" "$T/$k.exr" || bad "fixture $k"
 done
 "$MAKE_FIXTURE" balljpg "$T/ball.jpg" || bad "fixture balljpg"
@@ -39,6 +39,28 @@ expect 0 "$SETLIGHT" unwrap --fov 58.07 --camera-azimuth 30 --camera-elevation 1
   --camera-roll 2 -o "$T/turned.exr" "$T/ball.exr"
 expect 0 "$SETLIGHT" info "$T/turned.exr"; out_has "azimuth 30, elevation 10, roll 2"
 
+# --- two views a quarter turn apart, view 2's azimuth given 6 degrees off and found again
+expect 0 "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 --reflectance chrome \
+  --camera2-azimuth 84 -o "$T/two.exr" "$T/ball.exr" "$T/ball90.exr"
+json_eval "$T/out" 'abs(d["view2"]["azimuth_deg"] - 90) < 0.5 and d["view2"]["azimuth_given_deg"] == 84'
+json_eval "$T/out" 'd["view2"]["residual"] < d["view2"]["residual_given"] and d["view2"]["circle"]["detected"]'
+err_has "view 2 azimuth"
+expect 0 "$SETLIGHT" info "$T/two.exr"; out_has "setlight:source2"; out_has "setlight:two_views"
+expect 0 "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 --search 0 -o "$T/two0.exr" \
+  "$T/ball.exr" "$T/ball90.exr"
+json_eval "$T/out" 'd["view2"]["azimuth_deg"] == 90 and d["view2"]["residual"] is None'
+
+# --- reflectance from a patch of known radiance (in front of the ball: azimuth 180):
+# the ball's mean there over the radiance; halving the radiance doubles it
+expect 0 "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 --reflectance-patch 180,10,12,1 \
+  -o "$T/patch1.exr" "$T/ball.exr"
+json_eval "$T/out" '0.01 < d["reflectance_patch"]["reflectance"][1] < 10'
+M=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["reflectance_patch"]["reflectance"][1])' "$T/out")
+expect 0 "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 --reflectance-patch "180,10,12,$M,$M,$M" \
+  -o "$T/patch2.exr" "$T/ball.exr"
+json_eval "$T/out" 'abs(d["reflectance_patch"]["reflectance"][1] - 1) < 1e-6'
+expect 0 "$SETLIGHT" info "$T/patch2.exr"; out_has "from a patch at 180,10, 12 deg"
+
 # --- an 8-bit JPEG: warned, linearised, still unwrapped
 expect 0 "$SETLIGHT" unwrap --json -o "$T/jpg.exr" "$T/ball.jpg"
 err_has "not HDR"; err_has "ball.jpg"
@@ -61,7 +83,17 @@ expect 2 "$SETLIGHT" unwrap --width 33 -o "$T/outdir/a.exr" "$T/ball.exr"
 expect 2 "$SETLIGHT" unwrap --focal-mm 18 -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "--sensor-mm"
 expect 2 "$SETLIGHT" unwrap --distance 300 -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "--ball-diameter"
 expect 2 "$SETLIGHT" unwrap "$T/ball.exr"; err_has "-o"
-expect 2 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ball.exr" "$T/ball.exr"; err_has "one ball photo"
+expect 2 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ball.exr" "$T/ball.exr" "$T/ball.exr"
+err_has "one or two ball photos"
+expect 2 "$SETLIGHT" unwrap --circle2 50,50,20 -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "second ball photo"
+expect 2 "$SETLIGHT" unwrap --search 100 -o "$T/outdir/a.exr" "$T/ball.exr" "$T/ball90.exr"; err_has "--search"
+expect 2 "$SETLIGHT" unwrap --reflectance 0.5 --reflectance-patch 0,0,5,1 -o "$T/outdir/a.exr" "$T/ball.exr"
+err_has "not both"
+expect 2 "$SETLIGHT" unwrap --reflectance-patch 0,0,5 -o "$T/outdir/a.exr" "$T/ball.exr"; err_has "--reflectance-patch"
+# a patch behind the ball (the camera looks along +Z: azimuth 0 is behind it) is not seen
+expect 3 "$SETLIGHT" unwrap --focal-mm 18 --sensor-mm 20 --reflectance-patch 0,0,5,1 -o "$T/outdir/a.exr" "$T/ball.exr"
+err_has "ball.exr"; err_has "reflectance patch"; err_one_line
+expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ball.exr" "$T/balltwo.exr"; err_has "balltwo.exr"; err_has "2 balls"
 expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/missing.exr"; err_has "missing.exr"; err_one_line
 no_temp "$T/outdir"
 if [ "$(ls -A "$T/outdir")" = "" ]; then ok; else bad "outdir not empty: $(ls "$T/outdir")"; fi
