@@ -4,12 +4,14 @@
  * f-number and ISO, trigger a capture and download the JPEG it "took".
  *
  *   ptpip_camera [--port N] [--lifetime S] [--busy N] [--busy-at K]
- *                [--ignore-shutter K] [--drop-after N]
+ *                [--ignore-shutter K] [--refuse-shutter K] [--drop-after N]
  *
  * Prints "PORT n" on stdout once listening (port 0 or absent: picks a free one).
  * Faults: --busy N answers the next N InitiateCapture requests from capture
  * K (--busy-at, default 1) with Device Busy (0x2019); --ignore-shutter K acks
- * the K-th exposure-time change without applying it; --drop-after N closes
+ * the K-th exposure-time change without applying it; --refuse-shutter K
+ * answers the K-th exposure-time change, and every later request for that
+ * value, with Invalid Device Prop Value (0x201C); --drop-after N closes
  * both connections when the trigger of frame N+1 arrives (once), then accepts
  * a new connection with the card contents kept. The program exits after
  * --lifetime seconds (default 120) so a crashed test never leaves it behind.
@@ -166,7 +168,8 @@ typedef struct {
 } object;
 
 static struct {
-    int busy_left, busy_at, ignore_shutter, drop_after;
+    int busy_left, busy_at, ignore_shutter, refuse_shutter, drop_after;
+    uint32_t refused; /* the exposure-time value refused since --refuse-shutter */
     bool dropped;
     uint32_t shutter, fnumber, iso;
     int shutter_sets;
@@ -606,6 +609,14 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
             r = send_response(RC_InvalidDevicePropValue, tid, NULL, 0);
             break;
         }
+        if (prop == DPC_ExposureTime &&
+            ((g.refused && v == g.refused) || g.shutter_sets + 1 == g.refuse_shutter)) {
+            g.shutter_sets += v != g.refused;
+            g.refused = v;
+            fprintf(stderr, "ptpip_camera: refusing exposure time %u\n", (unsigned)v);
+            r = send_response(RC_InvalidDevicePropValue, tid, NULL, 0);
+            break;
+        }
         if (prop == DPC_ExposureTime) {
             g.shutter_sets++;
             if (g.shutter_sets != g.ignore_shutter)
@@ -779,6 +790,8 @@ int main(int argc, char **argv)
             g.busy_at = atoi(v);
         else if (!strcmp(a, "--ignore-shutter"))
             g.ignore_shutter = atoi(v);
+        else if (!strcmp(a, "--refuse-shutter"))
+            g.refuse_shutter = atoi(v);
         else if (!strcmp(a, "--drop-after"))
             g.drop_after = atoi(v);
         else {
