@@ -344,7 +344,7 @@ sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_erro
     }
     c->ops = &k_ops;
     c->impl = v;
-    snprintf(c->model, sizeof c->model, "%s %s (%s)", v->body.make, v->body.model,
+    snprintf(c->model, sizeof c->model, "%.40s %.40s (%.40s)", v->body.make, v->body.model,
              v->scene.desc.name);
     return SL_OK;
 }

@@ -23,9 +23,12 @@ static bool sanitized(void)
     return s && *s && strcmp(s, "0");
 }
 
+/* The exterior (sky and sun) builds in half the time of the stage room: the
+ * fault tests use it, the full capture the stage. */
 static void vopts(sl_virtual_camera_opts *o)
 {
     memset(o, 0, sizeof *o);
+    snprintf(o->scene, sizeof o->scene, "exterior");
     /* smaller frames under sanitizers, same assertions */
     o->width = sanitized() ? 160 : 240;
     o->height = sanitized() ? 112 : 160;
@@ -39,19 +42,31 @@ static sl_camera *open_virtual(const sl_virtual_camera_opts *o)
     return cam;
 }
 
-/* The 7x3 plan around 1/30 s snapped to the camera's speeds. */
-static int plan(sl_camera *cam, double **times)
+/* A plan snapped to the camera's speeds; centre 0: the camera's metered
+ * setting. */
+static int plan_of(sl_camera *cam, const char *spec, double centre, double **times)
 {
     sl_error err;
     int n = 0, k = 0;
     double *offered = NULL;
     *times = NULL;
-    CHECK_OK(sl_bracket_plan_parse("7x3", 1.0 / 30, times, &n, &err), &err);
+    if (centre <= 0) {
+        sl_camera_settings now;
+        CHECK_OK(sl_camera_get(cam, &now, &err), &err);
+        centre = now.exposure_time;
+    }
+    CHECK_OK(sl_bracket_plan_parse(spec, centre, times, &n, &err), &err);
     CHECK_OK(sl_camera_shutter_speeds(cam, &offered, &k, &err), &err);
     if (*times && offered)
         CHECK_OK(sl_bracket_snap(*times, n, offered, k, 1.0, NULL, &err), &err);
     free(offered);
     return n;
+}
+
+/* The fault tests: 7 frames 2 stops apart around the metered speed. */
+static int plan(sl_camera *cam, double **times)
+{
+    return plan_of(cam, "7x2", 1.0 / 125, times);
 }
 
 static json_t *journal(const char *dir)
@@ -165,8 +180,9 @@ static void check_session(const char *dir, int views, int count, const double *t
                   1.0 / 6);
             measured += json_real_value(json_object_get(f, "measured_ratio")) > 0;
         }
-        /* the two fastest frames share too few well-exposed pixels */
-        CHECK_MSG(measured >= count - 2, "view %zu: %d ratios measured", v, measured);
+        /* a view's first frame has nothing to compare with; the fastest
+         * frames of a dim view share few mid-tones with their neighbour */
+        CHECK_MSG(measured >= count - 3, "view %zu: %d ratios measured", v, measured);
     }
     json_decref(s);
 }
@@ -240,11 +256,12 @@ static void test_full_capture(void)
 {
     sl_virtual_camera_opts vo;
     vopts(&vo);
+    snprintf(vo.scene, sizeof vo.scene, "stage");
     sl_camera *cam = open_virtual(&vo);
     if (!cam)
         return;
     double *times;
-    int n = plan(cam, &times);
+    int n = plan_of(cam, "7x3", 1.0 / 30, &times);
     const char *dir = sl_test_path("full");
     sl_capture_options o = options(dir, times, n, 3);
     sl_error err;
@@ -384,7 +401,7 @@ static void test_busy(void)
     vo.busy = 1000;
     vo.busy_at = 3;
     j = run_with("busyforever", &vo, SL_ERR_CAMERA, &err, NULL);
-    CHECK(strstr(err.message, "busy") && strstr(err.message, "virtual:stage"));
+    CHECK(strstr(err.message, "busy") && strstr(err.message, "virtual:exterior"));
     acc = events(j, "frame", 1);
     errs = events(j, "error", -1);
     CHECK(json_array_size(acc) == 2);
@@ -399,11 +416,11 @@ static void test_refused_setting(void)
     sl_virtual_camera_opts vo;
     sl_error err;
     vopts(&vo);
-    vo.refuse_shutter = 1.0 / 30;
+    vo.refuse_shutter = 1.0 / 125;
     double *times;
     json_t *j = run_with("refused", &vo, SL_ERR_CAMERA, &err, &times);
-    CHECK(strstr(err.message, "refused") && strstr(err.message, "1/30") &&
-          strstr(err.message, "virtual:stage"));
+    CHECK(strstr(err.message, "refused") && strstr(err.message, "1/125") &&
+          strstr(err.message, "virtual:exterior"));
     json_t *acc = events(j, "frame", 1), *errs = events(j, "error", -1),
            *rec = events(j, "reconnect", -1);
     CHECK(json_array_size(acc) == 3);
@@ -421,7 +438,7 @@ static void test_refused_setting(void)
     json_t *s = json_load_file(sp, 0, &je);
     CHECK(s && json_array_size(json_object_get(s, "problems")) == 1);
     json_decref(s);
-    /* with a camera that takes 1/30, --resume finishes the bracket */
+    /* with a camera that takes 1/125, --resume finishes the bracket */
     vopts(&vo);
     sl_camera *cam = open_virtual(&vo);
     sl_capture_options o;
@@ -488,7 +505,7 @@ static void test_disconnect_and_resume(void)
     CHECK_RESULT(sl_capture_run(cam, &o, &err), SL_ERR_CAMERA, &err);
     double waited = sl_seconds() - t0;
     sl_camera_close(cam);
-    CHECK(strstr(err.message, "virtual:stage") && strstr(err.message, "lost") &&
+    CHECK(strstr(err.message, "virtual:exterior") && strstr(err.message, "lost") &&
           strstr(err.message, "--resume"));
     CHECK(!strchr(err.message, '\n'));
     CHECK_MSG(waited < 10, "gave up after %.1f s", waited);
