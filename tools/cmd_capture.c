@@ -297,7 +297,8 @@ done:
 static const char *cameras_help =
     "usage: setlight cameras [--json]\n\n"
     "Lists the cameras libgphoto2 detects (USB and serial). Network cameras are not\n"
-    "detected; give them to capture as --camera ptpip:HOST[:PORT].\n";
+    "detected; give them to capture as --camera ptpip:HOST[:PORT]. The virtual set's\n"
+    "camera is always there as --camera virtual[:SCENE] and is not listed.\n";
 
 int cmd_cameras(int argc, char **argv, const sl_cli *cli)
 {

@@ -116,6 +116,14 @@ assert any("rejected" in p for p in s["problems"])
 EOF
 then ok; else bad "ignored shutter not caught"; fi
 
+# --- the emulator serving the virtual camera's photographs of the exterior:
+# the verification measures real scene ratios and the bracket merges
+start_cam --scene exterior
+expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 5x2 --center 1/125 --aperture 16 --no-prompt -o "$T/scene"
+check_session "$T/scene" 1 5
+expect 0 "$SETLIGHT" merge --json -o "$T/scene.exr" "$T/scene"/v00_f0?.jpg
+json_eval "$T/out" 'len(d["frames"]) == 5 and d["disagreeing_frames"] == 0'
+
 # --- a setting the camera refuses (Invalid Device Prop Value for the 4th
 # shutter speed): clear message, journal consistent, no reconnection tried
 start_cam --refuse-shutter 4
