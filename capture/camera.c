@@ -1,7 +1,9 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* sl_camera: the backend-independent face of a camera. */
+/* sl_camera: the backend-independent face of a camera. Busy replies are
+ * retried here, with the same backoff for every backend. */
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "camera_backend.h"
 
@@ -10,15 +12,46 @@ sl_result sl_camera_list(sl_camera_entry **list, int *count, sl_error *err)
     return sl_gphoto2_list(list, count, err);
 }
 
+static bool is_virtual(const char *port)
+{
+    return !strcmp(port, "virtual") || !strncmp(port, "virtual:", 8);
+}
+
 sl_result sl_camera_open(const char *port, sl_camera **camera, sl_error *err)
 {
     *camera = NULL;
     if (!port || !*port)
-        return sl_error_set(err, SL_ERR_USAGE, "no camera port given (auto, usb:..., ptpip:HOST)");
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "no camera port given (auto, usb:..., ptpip:HOST, virtual)");
+    if (is_virtual(port)) {
+        sl_virtual_camera_opts o;
+        memset(&o, 0, sizeof o);
+        if (port[7] == ':' && strlen(port + 8) >= sizeof o.scene)
+            return sl_error_set(err, SL_ERR_USAGE, "%.200s...: scene name too long", port);
+        if (port[7] == ':')
+            strcpy(o.scene, port + 8);
+        return sl_camera_open_virtual(&o, camera, err);
+    }
     sl_camera *c = calloc(1, sizeof *c);
     if (!c)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", port);
     sl_result r = sl_gphoto2_open(port, c, err);
+    if (r) {
+        free(c);
+        return r;
+    }
+    *camera = c;
+    return SL_OK;
+}
+
+sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
+                                 sl_error *err)
+{
+    *camera = NULL;
+    sl_camera *c = calloc(1, sizeof *c);
+    if (!c)
+        return sl_error_set(err, SL_ERR_NOMEM, "virtual camera: out of memory");
+    sl_result r = sl_virtual_open(o, c, err);
     if (r) {
         free(c);
         return r;
@@ -53,24 +86,64 @@ sl_result sl_camera_shutter_speeds(sl_camera *camera, double **speeds, int *coun
 {
     *speeds = NULL;
     *count = 0;
-    return camera->ops->shutter_speeds(camera->impl, speeds, count, err);
+    return camera->ops->shutter_speeds(camera, speeds, count, err);
+}
+
+/* Busy: the camera is still writing the last frame. 20 ms doubling to 640 ms. */
+static void backoff(int attempt)
+{
+    int ms = 20 << (attempt < 5 ? attempt : 5);
+    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
 }
 
 sl_result sl_camera_set(sl_camera *camera, const sl_camera_settings *settings, sl_error *err)
 {
-    return camera->ops->set(camera->impl, settings, err);
+    sl_result r;
+    for (int attempt = 0;; attempt++) {
+        camera->busy = false;
+        r = camera->ops->set(camera, settings, err);
+        if (!r || !camera->busy || attempt >= 8)
+            break;
+        backoff(attempt);
+    }
+    return r;
 }
 
 sl_result sl_camera_get(sl_camera *camera, sl_camera_settings *settings, sl_error *err)
 {
     memset(settings, 0, sizeof *settings);
-    return camera->ops->get(camera->impl, settings, err);
+    return camera->ops->get(camera, settings, err);
 }
 
 sl_result sl_camera_capture(sl_camera *camera, sl_camera_file *file, sl_error *err)
 {
     memset(file, 0, sizeof *file);
-    return camera->ops->capture(camera->impl, file, err);
+    sl_result r;
+    int busy = 0;
+    for (;; busy++) {
+        camera->busy = false;
+        r = camera->ops->capture(camera, file, err);
+        if (!r || !camera->busy || busy >= 10)
+            break;
+        backoff(busy);
+    }
+    file->busy_retries = busy;
+    return r;
+}
+
+void sl_camera_aim(sl_camera *camera, int view, int views)
+{
+    if (camera->ops->aim)
+        camera->ops->aim(camera, view, views);
+}
+
+sl_result sl_camera_reconnect(sl_camera *camera, sl_error *err)
+{
+    sl_result r = camera->ops->reconnect(camera, err);
+    if (!r)
+        camera->lost = false;
+    return r;
 }
 
 void sl_camera_file_free(sl_camera_file *file)

@@ -5,12 +5,21 @@
 
 #include "setlight/capture.h"
 
+/* Every op fails with an sl_error naming the port; a backend marks a busy
+ * reply (camera.c retries it with backoff) or a lost connection (the
+ * capture loop reconnects) on the camera before returning. */
 typedef struct sl_camera_ops {
     const char *name;
-    sl_result (*shutter_speeds)(void *impl, double **speeds, int *count, sl_error *err);
-    sl_result (*set)(void *impl, const sl_camera_settings *s, sl_error *err);
-    sl_result (*get)(void *impl, sl_camera_settings *s, sl_error *err);
-    sl_result (*capture)(void *impl, sl_camera_file *file, sl_error *err);
+    sl_result (*shutter_speeds)(sl_camera *c, double **speeds, int *count, sl_error *err);
+    sl_result (*set)(sl_camera *c, const sl_camera_settings *s, sl_error *err);
+    sl_result (*get)(sl_camera *c, sl_camera_settings *s, sl_error *err);
+    /* One trigger, the wait for the new file and its download. */
+    sl_result (*capture)(sl_camera *c, sl_camera_file *file, sl_error *err);
+    /* The nodal head now points at view `view` of `views` (NULL: the
+     * head is outside the camera's reach, as with real bodies). */
+    void (*aim)(sl_camera *c, int view, int views);
+    /* Opens the connection again after it was lost. */
+    sl_result (*reconnect)(sl_camera *c, sl_error *err);
     void (*close)(void *impl);
 } sl_camera_ops;
 
@@ -19,10 +28,17 @@ struct sl_camera {
     void *impl;
     char model[128];
     char port[128];
+    bool busy; /* the last failure was a busy reply */
+    bool lost; /* the connection is gone until reconnect succeeds */
 };
 
 /* libgphoto2 (camera_gphoto2.c). */
 sl_result sl_gphoto2_open(const char *port, sl_camera *camera, sl_error *err);
 sl_result sl_gphoto2_list(sl_camera_entry **list, int *count, sl_error *err);
+/* The virtual set's camera (camera_virtual.c). */
+sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *camera, sl_error *err);
+
+/* Reopens a lost connection; clears camera->lost on success. */
+sl_result sl_camera_reconnect(sl_camera *camera, sl_error *err);
 
 #endif

@@ -95,6 +95,11 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
         snprintf(x->path, sizeof x->path, "%s", path);
         snprintf(x->name, sizeof x->name, "%s", name);
         x->when = exif_seconds(meta.datetime);
+        /* Bodies in continuous drive shoot several frames a second: the
+         * EXIF sub-second field orders them (else exposure and sequence). */
+        double subsec = x->when > 0 ? sl_exif_subsec_file(path) : -1;
+        if (subsec >= 0)
+            x->when += subsec;
         x->sequence = sequence_of(e->d_name);
         /* a broken EXIF rational reads back as infinity: unknown */
         if (!isfinite(meta.exposure_time))
@@ -105,8 +110,9 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
     return r;
 }
 
-/* By EXIF time, then exposure (a bracket is shot within a second or two),
- * then the sequence number. */
+/* By EXIF time (with its sub-second part when the camera writes one), then
+ * exposure (a bracket is shot within a second or two), then the sequence
+ * number. */
 static int cmp_shot(const void *a, const void *b)
 {
     const shot *x = a, *y = b;

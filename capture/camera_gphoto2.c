@@ -7,7 +7,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "camera_backend.h"
 
@@ -29,17 +28,40 @@ static void on_error(GPContext *context, const char *text, void *data)
             *c = ' ';
 }
 
-static void sleep_ms(int ms)
+/* Results that mean the connection itself is gone (cable out, camera off,
+ * network down): the capture loop reconnects. */
+static bool connection_lost(int gr)
 {
-    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
-    nanosleep(&ts, NULL);
+    return gr == GP_ERROR_IO || gr == GP_ERROR_TIMEOUT || gr == GP_ERROR_IO_INIT ||
+           gr == GP_ERROR_IO_READ || gr == GP_ERROR_IO_WRITE || gr == GP_ERROR_IO_UPDATE ||
+           gr == GP_ERROR_IO_USB_FIND || gr == GP_ERROR_IO_USB_CLAIM ||
+           gr == GP_ERROR_IO_USB_CLEAR_HALT;
 }
 
-/* A libgphoto2 failure as an sl_error naming the port. */
-static sl_result gp_fail(gp_impl *g, int gr, const char *what, sl_error *err)
+/* A libgphoto2 failure as an sl_error naming the port; marks busy replies
+ * and lost connections on the camera. The ptp2 driver reports a PTP/IP
+ * socket that went away as a generic error (PTP General Error): during a
+ * trigger or a download that is taken as a lost connection (`io`), while
+ * setting a value it is the camera refusing it. */
+static sl_result gp_fail_io(sl_camera *c, gp_impl *g, int gr, bool io, const char *what,
+                            sl_error *err)
 {
+    if (c) {
+        c->busy = gr == GP_ERROR_CAMERA_BUSY;
+        c->lost = connection_lost(gr) || (io && gr == GP_ERROR);
+    }
     return sl_error_set(err, SL_ERR_CAMERA, "%s: %s failed: %s%s%s", g->port, what,
                         gp_result_as_string(gr), g->last_error[0] ? ": " : "", g->last_error);
+}
+
+static sl_result gp_fail_on(sl_camera *c, gp_impl *g, int gr, const char *what, sl_error *err)
+{
+    return gp_fail_io(c, g, gr, false, what, err);
+}
+
+static sl_result gp_fail(gp_impl *g, int gr, const char *what, sl_error *err)
+{
+    return gp_fail_on(NULL, g, gr, what, err);
 }
 
 /* Widget names by setting, in the order libgphoto2's drivers use them. */
@@ -65,9 +87,10 @@ static double choice_value(int kind, const char *text)
     return v;
 }
 
-static sl_result find_widget(gp_impl *g, int kind, CameraWidget **widget, const char **name,
+static sl_result find_widget(sl_camera *c, int kind, CameraWidget **widget, const char **name,
                              sl_error *err)
 {
+    gp_impl *g = c->impl;
     const char *const *names = kind == SET_SHUTTER   ? k_shutter_names
                                : kind == SET_FNUMBER ? k_fnumber_names
                                                      : k_iso_names;
@@ -80,7 +103,7 @@ static sl_result find_widget(gp_impl *g, int kind, CameraWidget **widget, const 
             return SL_OK;
         }
         if (gr != GP_ERROR_BAD_PARAMETERS && gr != GP_ERROR_NOT_SUPPORTED && gr != GP_ERROR)
-            return gp_fail(g, gr, "reading the camera settings", err);
+            return gp_fail_on(c, g, gr, "reading the camera settings", err);
     }
     return sl_error_set(err, SL_ERR_CAMERA, "%s: the camera has no %s setting", g->port,
                         kind == SET_SHUTTER   ? "shutter speed"
@@ -94,12 +117,12 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static sl_result gp_shutter_speeds(void *impl, double **speeds, int *count, sl_error *err)
+static sl_result gp_shutter_speeds(sl_camera *c, double **speeds, int *count, sl_error *err)
 {
-    gp_impl *g = impl;
+    gp_impl *g = c->impl;
     CameraWidget *w;
     const char *name;
-    sl_result r = find_widget(g, SET_SHUTTER, &w, &name, err);
+    sl_result r = find_widget(c, SET_SHUTTER, &w, &name, err);
     if (r)
         return r;
     int n = gp_widget_count_choices(w);
@@ -130,11 +153,12 @@ static sl_result gp_shutter_speeds(void *impl, double **speeds, int *count, sl_e
 }
 
 /* Sets one setting to the offered choice nearest `value` (in stops). */
-static sl_result set_one(gp_impl *g, int kind, double value, sl_error *err)
+static sl_result set_one(sl_camera *c, int kind, double value, sl_error *err)
 {
+    gp_impl *g = c->impl;
     CameraWidget *w;
     const char *name;
-    sl_result r = find_widget(g, kind, &w, &name, err);
+    sl_result r = find_widget(c, kind, &w, &name, err);
     if (r)
         return r;
     const char *best = NULL;
@@ -154,41 +178,36 @@ static sl_result set_one(gp_impl *g, int kind, double value, sl_error *err)
         gp_widget_free(w);
         return sl_error_set(err, SL_ERR_CAMERA, "%s: setting %s offers no values", g->port, name);
     }
+    g->last_error[0] = 0;
     int gr = gp_widget_set_value(w, best);
-    for (int attempt = 0; gr == GP_OK; attempt++) {
-        g->last_error[0] = 0;
+    if (gr == GP_OK)
         gr = gp_camera_set_single_config(g->camera, name, w, g->context);
-        if (gr != GP_ERROR_CAMERA_BUSY || attempt >= 8)
-            break;
-        sleep_ms(20 << (attempt < 5 ? attempt : 5));
-    }
     gp_widget_free(w);
     if (gr != GP_OK) {
         char what[96];
         snprintf(what, sizeof what, "setting %s to %g", name, value);
-        return gp_fail(g, gr, what, err);
+        return gp_fail_on(c, g, gr, what, err);
     }
     return SL_OK;
 }
 
-static sl_result gp_set(void *impl, const sl_camera_settings *s, sl_error *err)
+static sl_result gp_set(sl_camera *c, const sl_camera_settings *s, sl_error *err)
 {
-    gp_impl *g = impl;
     sl_result r = SL_OK;
     if (s->f_number > 0)
-        r = set_one(g, SET_FNUMBER, s->f_number, err);
+        r = set_one(c, SET_FNUMBER, s->f_number, err);
     if (!r && s->iso > 0)
-        r = set_one(g, SET_ISO, s->iso, err);
+        r = set_one(c, SET_ISO, s->iso, err);
     if (!r && s->exposure_time > 0)
-        r = set_one(g, SET_SHUTTER, s->exposure_time, err);
+        r = set_one(c, SET_SHUTTER, s->exposure_time, err);
     return r;
 }
 
-static double get_one(gp_impl *g, int kind)
+static double get_one(sl_camera *c, int kind)
 {
     CameraWidget *w;
     const char *name;
-    if (find_widget(g, kind, &w, &name, NULL))
+    if (find_widget(c, kind, &w, &name, NULL))
         return 0;
     const char *value = NULL;
     double v = 0;
@@ -198,19 +217,19 @@ static double get_one(gp_impl *g, int kind)
     return v;
 }
 
-static sl_result gp_get(void *impl, sl_camera_settings *s, sl_error *err)
+static sl_result gp_get(sl_camera *c, sl_camera_settings *s, sl_error *err)
 {
     (void)err;
-    gp_impl *g = impl;
-    s->exposure_time = get_one(g, SET_SHUTTER);
-    s->f_number = get_one(g, SET_FNUMBER);
-    s->iso = get_one(g, SET_ISO);
+    s->exposure_time = get_one(c, SET_SHUTTER);
+    s->f_number = get_one(c, SET_FNUMBER);
+    s->iso = get_one(c, SET_ISO);
     return SL_OK;
 }
 
-static sl_result download(gp_impl *g, const CameraFilePath *path, sl_camera_file *file,
+static sl_result download(sl_camera *c, const CameraFilePath *path, sl_camera_file *file,
                           sl_error *err)
 {
+    gp_impl *g = c->impl;
     CameraFile *f = NULL;
     int gr = gp_file_new(&f);
     if (gr == GP_OK) {
@@ -227,7 +246,7 @@ static sl_result download(gp_impl *g, const CameraFilePath *path, sl_camera_file
             gp_file_unref(f);
         char what[400];
         snprintf(what, sizeof what, "downloading %.200s/%.128s", path->folder, path->name);
-        return gp_fail(g, gr, what, err);
+        return gp_fail_io(c, g, gr, true, what, err);
     }
     file->data = malloc(size ? size : 1);
     if (!file->data) {
@@ -246,32 +265,22 @@ static sl_result download(gp_impl *g, const CameraFilePath *path, sl_camera_file
     return SL_OK;
 }
 
-static sl_result gp_capture(void *impl, sl_camera_file *file, sl_error *err)
+static sl_result gp_capture(sl_camera *c, sl_camera_file *file, sl_error *err)
 {
-    gp_impl *g = impl;
-    int gr = GP_OK, busy = 0;
-    /* Busy: the camera is still writing the last frame; back off and retry. */
-    for (;; busy++) {
-        g->last_error[0] = 0;
-        gr = gp_camera_trigger_capture(g->camera, g->context);
-        if (gr != GP_ERROR_CAMERA_BUSY || busy >= 10)
-            break;
-        sleep_ms(20 << (busy < 5 ? busy : 5));
-    }
-    file->busy_retries = busy;
+    gp_impl *g = c->impl;
+    g->last_error[0] = 0;
+    int gr = gp_camera_trigger_capture(g->camera, g->context);
     if (gr == GP_ERROR_NOT_SUPPORTED) {
         /* Drivers without a separate trigger wait for the new file themselves. */
         CameraFilePath path;
         memset(&path, 0, sizeof path);
         gr = gp_camera_capture(g->camera, GP_CAPTURE_IMAGE, &path, g->context);
         if (gr != GP_OK)
-            return gp_fail(g, gr, "capture", err);
-        sl_result r = download(g, &path, file, err);
-        file->busy_retries = busy;
-        return r;
+            return gp_fail_io(c, g, gr, true, "capture", err);
+        return download(c, &path, file, err);
     }
     if (gr != GP_OK)
-        return gp_fail(g, gr, "trigger", err);
+        return gp_fail_io(c, g, gr, true, "trigger", err);
     /* Wait for the new file; long exposures and slow cards get 60 s. */
     double deadline = sl_seconds() + 60.0;
     while (sl_seconds() < deadline) {
@@ -281,19 +290,31 @@ static sl_result gp_capture(void *impl, sl_camera_file *file, sl_error *err)
         gr = gp_camera_wait_for_event(g->camera, 1000, &type, &data, g->context);
         if (gr != GP_OK) {
             free(data);
-            return gp_fail(g, gr, "waiting for the new file", err);
+            return gp_fail_io(c, g, gr, true, "waiting for the new file", err);
         }
         if (type == GP_EVENT_FILE_ADDED && data) {
             CameraFilePath path = *(CameraFilePath *)data;
             free(data);
-            sl_result r = download(g, &path, file, err);
-            file->busy_retries = busy;
-            return r;
+            return download(c, &path, file, err);
         }
         /* every other event's data is ours to free too */
         free(data);
     }
+    c->lost = true;
     return sl_error_set(err, SL_ERR_CAMERA, "%s: no new file 60 s after the trigger", g->port);
+}
+
+static sl_result gp_reconnect(sl_camera *c, sl_error *err)
+{
+    gp_impl *g = c->impl;
+    gp_camera_exit(g->camera, g->context);
+    g->last_error[0] = 0;
+    int gr = gp_camera_init(g->camera, g->context);
+    if (gr < GP_OK)
+        return sl_error_set(err, SL_ERR_CAMERA, "%s: no camera answers: %s%s%s", g->port,
+                            gp_result_as_string(gr), g->last_error[0] ? ": " : "",
+                            g->last_error);
+    return SL_OK;
 }
 
 static void gp_close(void *impl)
@@ -308,8 +329,8 @@ static void gp_close(void *impl)
     free(g);
 }
 
-static const sl_camera_ops k_ops = {"gphoto2", gp_shutter_speeds, gp_set,
-                                    gp_get,    gp_capture,        gp_close};
+static const sl_camera_ops k_ops = {"gphoto2", gp_shutter_speeds, gp_set,       gp_get,
+                                    gp_capture, NULL,              gp_reconnect, gp_close};
 
 static sl_result autodetect(GPContext *ctx, CameraList **list, sl_error *err)
 {

@@ -23,4 +23,14 @@ sl_result sl_capture_path(char *buf, size_t size, const char *dir, const char *n
 sl_result sl_session_write_json(const char *dir, json_t *camera, json_t *views, json_t *problems,
                                 sl_error *err);
 
+/* EXIF SubSecTimeOriginal (else SubSecTime) of a JPEG or TIFF as a fraction
+ * of a second; -1 when absent. */
+double sl_exif_subsec(const unsigned char *data, size_t size);
+double sl_exif_subsec_file(const char *path);
+/* Replaces a JPEG stream's APP0/APP1 segments with a camera's EXIF: make,
+ * model, date, exposure time, f-number, ISO, focal length and
+ * SubSecTimeOriginal (milliseconds). *jpeg is realloc'd. */
+sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *meta, int subsec_ms,
+                           sl_error *err);
+
 #endif

@@ -9,6 +9,7 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "camera_backend.h"
@@ -58,7 +59,7 @@ static double measure_ratio(const sl_image *prev, const sl_image *cur)
     for (size_t i = 0; i < n; i++) {
         double a = prev->data[i * (size_t)cur->channels + (size_t)c];
         double b = cur->data[i * (size_t)cur->channels + (size_t)c];
-        if (a > 0.02 && a < 0.85 && b > 0.02 && b < 0.85)
+        if (a > 0.005 && a < 0.85 && b > 0.005 && b < 0.85)
             r[k++] = b / a;
     }
     double m = 0;
@@ -168,18 +169,25 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
             rep.expected_ratio = planned / s->prev_time;
         }
     }
-    if (!readable)
-        snprintf(rep.reason, sizeof rep.reason, "cannot read the file back: %.200s", rerr.message);
-    else if (rep.reported > 0 && fabs(log2(rep.reported / planned)) > tol)
-        snprintf(rep.reason, sizeof rep.reason,
-                 "the file says %.6g s, planned %.6g s, the camera's setting reads %.6g s "
-                 "(the camera ignored the setting)",
+    /* Two independent witnesses: the EXIF a body writes can be wrong too
+     * (a stuck mechanism records the speed it was asked for). */
+    bool exif_bad = rep.reported > 0 && fabs(log2(rep.reported / planned)) > tol;
+    bool pixels_bad = rep.measured_ratio > 0 &&
+                      fabs(log2(rep.measured_ratio / rep.expected_ratio)) > (tol > 0.5 ? tol : 0.5);
+    char exif_why[128] = "", pixel_why[96] = "";
+    if (exif_bad)
+        snprintf(exif_why, sizeof exif_why,
+                 "the file says %.6g s, planned %.6g s, the camera's setting reads %.6g s",
                  rep.reported, planned, rep.configured);
-    else if (rep.measured_ratio > 0 &&
-             fabs(log2(rep.measured_ratio / rep.expected_ratio)) > (tol > 0.5 ? tol : 0.5))
-        snprintf(rep.reason, sizeof rep.reason,
+    if (pixels_bad)
+        snprintf(pixel_why, sizeof pixel_why,
                  "pixels are %.3g x the previous frame, the exposures say %.3g x",
                  rep.measured_ratio, rep.expected_ratio);
+    if (!readable)
+        snprintf(rep.reason, sizeof rep.reason, "cannot read the file back: %.200s", rerr.message);
+    else if (exif_bad || pixels_bad)
+        snprintf(rep.reason, sizeof rep.reason, "%s%s%s (the camera ignored the setting)",
+                 exif_why, exif_bad && pixels_bad ? "; " : "", pixel_why);
     else
         rep.accepted = true;
 
@@ -204,6 +212,9 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
                         rep.measured_ratio > 0 ? json_real(rep.measured_ratio) : json_null());
     json_object_set_new(ev, "expected_ratio",
                         rep.expected_ratio > 0 ? json_real(rep.expected_ratio) : json_null());
+    json_object_set_new(ev, "exif_ok", rep.reported > 0 ? json_boolean(!exif_bad) : json_null());
+    json_object_set_new(ev, "pixels_ok",
+                        rep.measured_ratio > 0 ? json_boolean(!pixels_bad) : json_null());
     json_object_set_new(ev, "sha256", json_string(sha));
     if (rep.busy_retries)
         json_object_set_new(ev, "busy_retries", json_integer(rep.busy_retries));
@@ -246,16 +257,70 @@ static void load_prev(run_state *s, int v, const char *file)
     sl_meta_free(&meta);
 }
 
+static void sleep_s(double seconds)
+{
+    struct timespec ts = {(time_t)seconds, (long)((seconds - floor(seconds)) * 1e9)};
+    nanosleep(&ts, NULL);
+}
+
+static sl_result set_fixed(run_state *s, sl_error *err)
+{
+    const sl_capture_options *o = s->o;
+    if (o->f_number <= 0 && o->iso <= 0)
+        return SL_OK;
+    sl_camera_settings fixed = {0, o->f_number, o->iso};
+    return sl_camera_set(s->camera, &fixed, err);
+}
+
+/* The connection is gone: reconnect with backoff (0.25 s doubling to 4 s)
+ * within the options' window. On failure `err` keeps the disconnect and
+ * says that the run gave up. Journalled either way. */
+static sl_result reconnect(run_state *s, int v, int i, sl_error *err)
+{
+    double window = s->o->reconnect_seconds == 0 ? 10.0 : s->o->reconnect_seconds;
+    double t0 = sl_seconds(), delay = 0.25;
+    int tries = 0;
+    sl_result r = SL_ERR_CAMERA;
+    while (window > 0 && sl_seconds() - t0 + delay <= window) {
+        sleep_s(delay);
+        tries++;
+        sl_error e;
+        if (!(r = sl_camera_reconnect(s->camera, &e)) && !(r = set_fixed(s, &e)))
+            break;
+        delay = delay * 2 < 4 ? delay * 2 : 4;
+    }
+    json_t *ev = json_object();
+    json_object_set_new(ev, "event", json_string("reconnect"));
+    json_object_set_new(ev, "view", json_integer(v));
+    json_object_set_new(ev, "index", json_integer(i));
+    json_object_set_new(ev, "ok", json_boolean(r == SL_OK));
+    json_object_set_new(ev, "tries", json_integer(tries));
+    json_object_set_new(ev, "seconds", json_real(round((sl_seconds() - t0) * 1000) / 1000));
+    sl_error jerr;
+    sl_result jr = sl_journal_event(s->dir, ev, &jerr);
+    json_decref(ev);
+    if (jr) {
+        *err = jerr;
+        return jr;
+    }
+    if (r) {
+        char first[SL_ERROR_MESSAGE_MAX];
+        snprintf(first, sizeof first, "%s", err->message);
+        return sl_error_set(err, SL_ERR_CAMERA,
+                            "%.400s (no reconnection in %.0f s; --resume continues the session)",
+                            first, window > 0 ? window : 0);
+    }
+    sl_camera_aim(s->camera, v, s->views);
+    return SL_OK;
+}
+
 static sl_result run(run_state *s, sl_error *err)
 {
     const sl_capture_options *o = s->o;
     int max_attempts = o->max_attempts > 0 ? o->max_attempts : 3;
     sl_result r = SL_OK;
-    if (o->f_number > 0 || o->iso > 0) {
-        sl_camera_settings fixed = {0, o->f_number, o->iso};
-        if ((r = sl_camera_set(s->camera, &fixed, err)))
-            return r;
-    }
+    if ((r = set_fixed(s, err)))
+        return r;
     for (int v = 0; v < s->views && !r; v++) {
         bool any = false, all = true;
         for (int i = 0; i < s->count; i++) {
@@ -278,16 +343,30 @@ static sl_result run(run_state *s, sl_error *err)
                 break;
             s->stepped[v] = true;
         }
+        sl_camera_aim(s->camera, v, s->views);
         for (int i = 0; i < s->count && !r; i++) {
             if (s->done[v * s->count + i])
                 continue;
             bool ok = false;
+            int reconnects = 0;
             for (int a = 1; a <= max_attempts && !ok && !r; a++) {
                 r = shoot(s, v, i, a, &ok, err);
                 if (r) {
                     /* the journal keeps the failure; if even that fails, the
                      * first error is the one to report */
                     journal_error(s, v, i, a, err, NULL);
+                    /* a lost connection is not the camera getting the frame
+                     * wrong: it does not use up an attempt */
+                    if (s->camera->lost && reconnects < 3 && s->o->reconnect_seconds >= 0) {
+                        reconnects++;
+                        if (!(r = reconnect(s, v, i, err)))
+                            a--;
+                    } else if (s->camera->lost) {
+                        char first[SL_ERROR_MESSAGE_MAX];
+                        snprintf(first, sizeof first, "%s", err->message);
+                        r = sl_error_set(err, SL_ERR_CAMERA,
+                                         "%.400s (--resume continues the session)", first);
+                    }
                 }
             }
             if (!r && !ok) {

@@ -4,12 +4,15 @@
  * f-number and ISO, trigger a capture and download the JPEG it "took".
  *
  *   ptpip_camera [--port N] [--lifetime S] [--busy N] [--busy-at K]
- *                [--ignore-shutter K] [--drop-after N]
+ *                [--ignore-shutter K] [--refuse-shutter K] [--drop-after N]
+ *                [--scene NAME]
  *
  * Prints "PORT n" on stdout once listening (port 0 or absent: picks a free one).
  * Faults: --busy N answers the next N InitiateCapture requests from capture
  * K (--busy-at, default 1) with Device Busy (0x2019); --ignore-shutter K acks
- * the K-th exposure-time change without applying it; --drop-after N closes
+ * the K-th exposure-time change without applying it; --refuse-shutter K
+ * answers the K-th exposure-time change, and every later request for that
+ * value, with Invalid Device Prop Value (0x201C); --drop-after N closes
  * both connections when the trigger of frame N+1 arrives (once), then accepts
  * a new connection with the card contents kept. The program exits after
  * --lifetime seconds (default 120) so a crashed test never leaves it behind.
@@ -17,7 +20,9 @@
  * The photographs: a horizontal ramp of radiance spanning 22 stops, exposed
  * with the set exposure time, f-number and ISO (linear, then sRGB-encoded),
  * so pixel ratios between two frames follow their exposure ratio. EXIF holds
- * the exposure actually used. */
+ * the exposure actually used. With --scene NAME (a virtual-set preset or
+ * scene file) they are the virtual camera's photographs of that scene at the
+ * nearest speed, aperture and ISO that body offers, with its EXIF. */
 #include <arpa/inet.h>
 #include <errno.h>
 #include <math.h>
@@ -33,7 +38,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "setlight/core.h"
+#include "setlight/capture.h"
 
 enum {
     PKT_INIT_CMD_REQ = 1,
@@ -166,7 +171,9 @@ typedef struct {
 } object;
 
 static struct {
-    int busy_left, busy_at, ignore_shutter, drop_after;
+    int busy_left, busy_at, ignore_shutter, refuse_shutter, drop_after;
+    uint32_t refused; /* the exposure-time value refused since --refuse-shutter */
+    sl_camera *scene; /* --scene: the virtual camera that takes the pictures */
     bool dropped;
     uint32_t shutter, fnumber, iso;
     int shutter_sets;
@@ -395,12 +402,47 @@ static object *find_object(uint32_t h)
 }
 
 /* Takes a picture with the current settings; returns the new object or NULL. */
+static object *new_object(void)
+{
+    object *o = &g.objects[g.object_count];
+    memset(o, 0, sizeof *o);
+    o->handle = 0x1000u + (uint32_t)g.object_count;
+    snprintf(o->name, sizeof o->name, "IMG_%04d.JPG", g.object_count + 1);
+    /* A fixed clock, one second per frame, so runs are reproducible. */
+    time_t when = 1767268800 + g.object_count; /* 2026-01-01 12:00:00 UTC */
+    struct tm tm;
+    gmtime_r(&when, &tm);
+    strftime(o->date, sizeof o->date, "%Y%m%dT%H%M%S", &tm);
+    return o;
+}
+
+static object *scene_picture(double t, double n, double iso)
+{
+    if (g.object_count == (int)(sizeof g.objects / sizeof g.objects[0]))
+        return NULL;
+    sl_camera_settings s = {t, n, iso};
+    sl_camera_file f;
+    sl_error err;
+    if (sl_camera_set(g.scene, &s, &err) || sl_camera_capture(g.scene, &f, &err)) {
+        fprintf(stderr, "ptpip_camera: %s\n", err.message);
+        return NULL;
+    }
+    object *o = new_object();
+    o->jpeg = f.data;
+    o->size = f.size;
+    g.object_count++;
+    g.captures++;
+    return o;
+}
+
 static object *take_picture(void)
 {
     if (g.object_count == (int)(sizeof g.objects / sizeof g.objects[0]))
         return NULL;
     const int w = 256, h = 64;
     double t = g.shutter / 10000.0, n = g.fnumber / 100.0, iso = g.iso;
+    if (g.scene)
+        return scene_picture(t, n, iso);
     /* Exposure scale: a radiance of 1 at 1/30 s, f/4, ISO 100 gives 0.18. */
     double k = 0.18 * 30.0 * 16.0 * t * iso / 100.0 / (n * n);
     sl_image img;
@@ -417,15 +459,10 @@ static object *take_picture(void)
                 p[c] = sl_linear_to_srgb((float)(v > 1.0 ? 1.0 : v));
             }
         }
-    object *o = &g.objects[g.object_count];
-    memset(o, 0, sizeof *o);
-    o->handle = 0x1000u + (uint32_t)g.object_count;
-    snprintf(o->name, sizeof o->name, "IMG_%04d.JPG", g.object_count + 1);
-    /* A fixed clock, one second per frame, so runs are reproducible. */
-    time_t when = 1767268800 + g.object_count; /* 2026-01-01 12:00:00 UTC */
+    object *o = new_object();
+    time_t when = 1767268800 + g.object_count;
     struct tm tm;
     gmtime_r(&when, &tm);
-    strftime(o->date, sizeof o->date, "%Y%m%dT%H%M%S", &tm);
     sl_meta meta;
     sl_meta_init(&meta);
     meta.exposure_time = t;
@@ -606,6 +643,14 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
             r = send_response(RC_InvalidDevicePropValue, tid, NULL, 0);
             break;
         }
+        if (prop == DPC_ExposureTime &&
+            ((g.refused && v == g.refused) || g.shutter_sets + 1 == g.refuse_shutter)) {
+            g.shutter_sets += v != g.refused;
+            g.refused = v;
+            fprintf(stderr, "ptpip_camera: refusing exposure time %u\n", (unsigned)v);
+            r = send_response(RC_InvalidDevicePropValue, tid, NULL, 0);
+            break;
+        }
         if (prop == DPC_ExposureTime) {
             g.shutter_sets++;
             if (g.shutter_sets != g.ignore_shutter)
@@ -779,6 +824,16 @@ int main(int argc, char **argv)
             g.busy_at = atoi(v);
         else if (!strcmp(a, "--ignore-shutter"))
             g.ignore_shutter = atoi(v);
+        else if (!strcmp(a, "--scene")) {
+            char port[600];
+            snprintf(port, sizeof port, "virtual:%s", v ? v : "");
+            sl_error err;
+            if (sl_camera_open(port, &g.scene, &err)) {
+                fprintf(stderr, "ptpip_camera: %s\n", err.message);
+                return 2;
+            }
+        } else if (!strcmp(a, "--refuse-shutter"))
+            g.refuse_shutter = atoi(v);
         else if (!strcmp(a, "--drop-after"))
             g.drop_after = atoi(v);
         else {

@@ -244,14 +244,8 @@ static void test_ingest(void)
     }
     for (int i = 0; i < n; i++)
         order[i] = i;
-    unsigned seed = 12345;
-    for (int i = n - 1; i > 0; i--) {
-        seed = seed * 1103515245u + 12345u;
-        int j = (int)((seed >> 8) % (unsigned)(i + 1));
-        int tmp = order[i];
-        order[i] = order[j];
-        order[j] = tmp;
-    }
+    uint64_t seed = 12345;
+    sl_test_shuffle(order, n, &seed);
     for (int i = 0; i < n; i++) {
         char path[4096];
         snprintf(path, sizeof path, "%s/DSC_%04d.JPG", src, 9000 - 37 * order[i]);

@@ -102,6 +102,53 @@ int sl_test_count_files(const char *dir)
     return n;
 }
 
+char *sl_test_read_file(const char *path, size_t *size)
+{
+    if (size)
+        *size = 0;
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *s = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    if (s && fread(s, 1, (size_t)n, f) != (size_t)n) {
+        free(s);
+        s = NULL;
+    }
+    fclose(f);
+    if (s) {
+        s[n] = 0;
+        if (size)
+            *size = (size_t)n;
+    }
+    return s;
+}
+
+uint64_t sl_test_rand(uint64_t *state)
+{
+    uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+double sl_test_uniform(uint64_t *state)
+{
+    return (double)(sl_test_rand(state) >> 11) * 0x1.0p-53;
+}
+
+void sl_test_shuffle(int *a, int n, uint64_t *state)
+{
+    for (int i = n - 1; i > 0; i--) {
+        int j = (int)(sl_test_rand(state) % (uint64_t)(i + 1));
+        int t = a[i];
+        a[i] = a[j];
+        a[j] = t;
+    }
+}
+
 int sl_test_finish(void)
 {
     printf("%d passed, %d failed, %d skipped\n", sl_test_passed, sl_test_failed, sl_test_skipped);

@@ -8,6 +8,8 @@
 
 #include <math.h>
 #include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 
 #include "setlight/core.h"
@@ -81,6 +83,15 @@ void sl_test_skip(const char *what);
 bool sl_test_file_exists(const char *path);
 /* Number of entries in a folder other than . and .. (-1 if it cannot be read). */
 int sl_test_count_files(const char *dir);
+/* The whole file, NUL-terminated (for text), malloc'd; size may be NULL.
+ * NULL when it cannot be read. */
+char *sl_test_read_file(const char *path, size_t *size);
+/* splitmix64 on a caller's state: the same numbers on every platform. */
+uint64_t sl_test_rand(uint64_t *state);
+/* Uniform in [0, 1) with 53 bits. */
+double sl_test_uniform(uint64_t *state);
+/* Fisher-Yates shuffle of n ints. */
+void sl_test_shuffle(int *a, int n, uint64_t *state);
 int sl_test_finish(void);
 
 #endif

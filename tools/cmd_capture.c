@@ -26,7 +26,9 @@ static const char *capture_help =
     "frame the camera got wrong, and keeps an append-only journal in DIR so that\n"
     "--resume continues after a crash or a disconnect. Nothing is ever deleted from\n"
     "the card or overwritten on disk.\n\n"
-    "  --camera PORT        auto (first detected, default), usb:BUS,DEV, ptpip:HOST[:PORT]\n"
+    "  --camera PORT        auto (first detected, default), usb:BUS,DEV, ptpip:HOST[:PORT],\n"
+    "                       virtual[:SCENE] (the virtual set's camera: exterior, stage,\n"
+    "                       night or a scene JSON file; default stage)\n"
     "  --bracket PLAN       NxS: N exposures S stops apart around --center (default 7x3),\n"
     "                       or a list of shutter speeds: 1/1000,1/125,1/15\n"
     "  --center SPEED       centre shutter speed, e.g. 1/30 (default: the camera's setting)\n"
@@ -36,9 +38,12 @@ static const char *capture_help =
     "  --step-command CMD   run CMD (sh -c, SETLIGHT_VIEW set) between views to turn the head\n"
     "  --no-prompt          do not wait for Enter between views\n"
     "  --max-attempts N     tries per frame before giving up (default 3)\n"
+    "  --reconnect SECONDS  after a disconnect keep reconnecting this long (default 10;\n"
+    "                       0: stop at once, --resume continues)\n"
     "  -o, --output DIR     new session folder\n"
     "  --resume DIR         continue the session in DIR from its next missing frame\n"
-    "  --json               print the result as JSON on stdout\n\n"
+    "  --json               print the result as JSON on stdout (dir, ok, camera,\n"
+    "                       frames shot in this run, plan with its snapping, error)\n\n"
     "Plans are snapped to the camera's shutter speeds (reported); a speed more than\n"
     "one stop outside the camera's range is a usage error (exit 2).\n";
 
@@ -46,6 +51,8 @@ typedef struct step_ctx {
     const sl_cli *cli;
     const char *command;
     bool prompt;
+    sl_progress progress; /* frames accepted, on a terminal */
+    int accepted;         /* frames accepted in this run */
 } step_ctx;
 
 static sl_result step(void *ctx, int next_view, sl_error *err)
@@ -65,6 +72,8 @@ static sl_result step(void *ctx, int next_view, sl_error *err)
     }
     if (!s->prompt)
         return SL_OK;
+    if (s->progress.enabled)
+        fputs("\r\033[K", stderr); /* the prompt replaces the bar's line */
     fprintf(stderr, "Turn the head to view %d and press Enter (Ctrl-D stops)... ", next_view + 1);
     fflush(stderr);
     char line[64];
@@ -73,27 +82,35 @@ static sl_result step(void *ctx, int next_view, sl_error *err)
     return SL_OK;
 }
 
+/* One line per frame (planned, reported and measured exposure) above the
+ * progress bar. */
 static void on_frame(void *ctx, const sl_capture_report *r)
 {
     step_ctx *s = ctx;
+    s->accepted += r->accepted;
     if (s->cli->quiet)
         return;
-    char plan[32], got[32];
+    if (!s->progress.label)
+        sl_progress_begin(&s->progress, "capture", (int64_t)r->views * r->count);
+    char plan[32], got[32], ratio[64] = "";
     sl_shutter_format(r->planned, plan, sizeof plan);
     sl_shutter_format(r->reported, got, sizeof got);
-    fprintf(stderr, "view %d/%d frame %d/%d  planned %s s  file says %s s", r->view + 1,
-            r->views, r->index + 1, r->count, plan, got);
     if (r->measured_ratio > 0)
-        fprintf(stderr, "  ratio %.2f (expected %.2f)", r->measured_ratio, r->expected_ratio);
-    fprintf(stderr, "  %s %s\n", r->accepted ? "ok" : "REJECTED", r->file);
+        snprintf(ratio, sizeof ratio, "  ratio %.2f (expected %.2f)", r->measured_ratio,
+                 r->expected_ratio);
+    sl_log(SL_LOG_INFO, "view %d/%d frame %d/%d  planned %s s  file says %s s%s  %s %s",
+           r->view + 1, r->views, r->index + 1, r->count, plan, got, ratio,
+           r->accepted ? "ok" : "REJECTED", r->file);
     if (!r->accepted)
-        fprintf(stderr, "  rejected: %s\n", r->reason);
+        sl_log(SL_LOG_INFO, "  rejected: %s", r->reason);
+    if (r->accepted)
+        sl_progress_add(&s->progress, 1);
 }
 
 int cmd_capture(int argc, char **argv, const sl_cli *cli)
 {
     enum { OPT_CAMERA = 1000, OPT_BRACKET, OPT_CENTER, OPT_APERTURE, OPT_ISO, OPT_VIEWS, OPT_STEP,
-           OPT_NOPROMPT, OPT_ATTEMPTS, OPT_RESUME };
+           OPT_NOPROMPT, OPT_ATTEMPTS, OPT_RESUME, OPT_RECONNECT };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"camera", required_argument, NULL, OPT_CAMERA},
@@ -107,9 +124,10 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
         {"max-attempts", required_argument, NULL, OPT_ATTEMPTS},
         {"output", required_argument, NULL, 'o'},
         {"resume", required_argument, NULL, OPT_RESUME},
+        {"reconnect", required_argument, NULL, OPT_RECONNECT},
         {0, 0, 0, 0}};
     const char *port = "auto", *bracket = "7x3", *out = NULL, *resume = NULL;
-    double center = 0, aperture = 0, iso = 0;
+    double center = 0, aperture = 0, iso = 0, reconnect = 10;
     int views = 1, attempts = 3;
     step_ctx sc = {.cli = cli, .prompt = true};
     cli_getopt_reset();
@@ -160,6 +178,11 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
         case OPT_RESUME:
             resume = optarg;
             break;
+        case OPT_RECONNECT:
+            if (!cli_parse_double(optarg, &reconnect) || reconnect < 0 || reconnect > 3600)
+                return cli_usage_error(cli, "--reconnect needs 0 to 3600 seconds, not '%s'",
+                                       optarg);
+            break;
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
         }
@@ -188,8 +211,8 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
     if ((r = sl_camera_open(port, &camera, &err)))
         return cli_fail(cli, &err);
     sl_capture_options o = {.dir = out, .views = views, .f_number = aperture, .iso = iso,
-                            .max_attempts = attempts, .step = step, .on_frame = on_frame,
-                            .ctx = &sc};
+                            .max_attempts = attempts, .reconnect_seconds = reconnect > 0 ? reconnect : -1,
+                            .step = step, .on_frame = on_frame, .ctx = &sc};
     json_t *snaps = json_array();
     if (resume) {
         r = sl_capture_resume(camera, &o, resume, &err);
@@ -238,11 +261,17 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
         r = sl_capture_run(camera, &o, &err);
     }
 done:
-    sl_camera_close(camera);
+    if (sc.progress.label)
+        sl_progress_end(&sc.progress);
     if (cli->json) {
         json_t *j = json_object();
         json_object_set_new(j, "dir", json_string(resume ? resume : out));
         json_object_set_new(j, "ok", json_boolean(r == SL_OK));
+        json_object_set_new(j, "camera",
+                            json_pack("{s:s, s:s, s:s}", "model", sl_camera_model(camera), "port",
+                                      sl_camera_port(camera), "backend",
+                                      sl_camera_backend(camera)));
+        json_object_set_new(j, "frames", json_integer(sc.accepted));
         json_object_set_new(j, "plan", snaps);
         json_object_set_new(j, "seconds", json_real(sl_seconds() - t0));
         if (r)
@@ -254,6 +283,7 @@ done:
         json_decref(j);
     } else
         json_decref(snaps);
+    sl_camera_close(camera);
     free(times);
     free(moved);
     free(offered);
@@ -267,7 +297,8 @@ done:
 static const char *cameras_help =
     "usage: setlight cameras [--json]\n\n"
     "Lists the cameras libgphoto2 detects (USB and serial). Network cameras are not\n"
-    "detected; give them to capture as --camera ptpip:HOST[:PORT].\n";
+    "detected; give them to capture as --camera ptpip:HOST[:PORT]. The virtual set's\n"
+    "camera is always there as --camera virtual[:SCENE] and is not listed.\n";
 
 int cmd_cameras(int argc, char **argv, const sl_cli *cli)
 {

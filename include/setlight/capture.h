@@ -345,10 +345,33 @@ typedef struct sl_camera_entry {
  * detected and are given as ptpip:HOST[:PORT]). *list is malloc'd. */
 sl_result sl_camera_list(sl_camera_entry **list, int *count, sl_error *err);
 
-/* Opens a camera: "auto" (the first detected), or a libgphoto2 port such as
- * "usb:001,004" or "ptpip:HOST[:PORT[:EVENTPORT]]". SL_ERR_USAGE for a port
- * libgphoto2 does not know, SL_ERR_CAMERA when nothing answers there. */
+/* Opens a camera: "auto" (the first detected), a libgphoto2 port such as
+ * "usb:001,004" or "ptpip:HOST[:PORT[:EVENTPORT]]", or "virtual[:SCENE]"
+ * (sl_camera_open_virtual with a preset or a scene JSON file, default
+ * "stage"). SL_ERR_USAGE for a port libgphoto2 does not know or an unknown
+ * scene, SL_ERR_CAMERA when nothing answers there. */
 sl_result sl_camera_open(const char *port, sl_camera **camera, sl_error *err);
+
+/* The virtual set's camera: photographs a virtual scene (sl_vset_*) through
+ * the 8 mm fisheye on a nodal head that turns 360/views degrees per view,
+ * with the simulated body (noise, 14-bit raw, sRGB-encoded JPEG) and EXIF
+ * like a real camera's (exposure, date with SubSecTimeOriginal on a virtual
+ * clock: 0.2 s between frames plus the exposure, 15 s per head turn). It
+ * offers third-stop shutter speeds 1/8000..30 s, f/2.8..22, ISO 100..3200;
+ * it starts metered for the scene. Faults, for tests, are off when 0. */
+typedef struct sl_virtual_camera_opts {
+    char scene[512];          /* preset name or scene JSON path; "" = "stage" */
+    int width, height;        /* frame size (0: 360 x 240) */
+    uint64_t seed;            /* sensor noise (0: 1) */
+    int busy, busy_at;        /* answer `busy` triggers from frame busy_at (1-based) busy */
+    int ignore_shutter;       /* the k-th shutter change is acknowledged, not applied */
+    bool exif_lies;           /* ...and the file's EXIF shows the requested speed */
+    double refuse_shutter;    /* a shutter speed (s) the camera refuses to set */
+    int drop_after;           /* the connection drops at the trigger of frame N+1 */
+    int down_attempts;        /* reconnections refused after the drop (-1: all) */
+} sl_virtual_camera_opts;
+sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
+                                 sl_error *err);
 void sl_camera_close(sl_camera *camera);
 /* "setlight PTP-IP test camera", "ptpip:127.0.0.1:15740", "gphoto2". */
 const char *sl_camera_model(const sl_camera *camera);
@@ -375,6 +398,10 @@ typedef struct sl_camera_file {
  * retried with backoff; a lost connection is SL_ERR_CAMERA. */
 sl_result sl_camera_capture(sl_camera *camera, sl_camera_file *file, sl_error *err);
 void sl_camera_file_free(sl_camera_file *file);
+/* The nodal head now points at view `view` of `views`: turns the virtual
+ * camera's head; real bodies cannot be aimed (the step command or the
+ * wrangler turns the head), so for them it does nothing. */
+void sl_camera_aim(sl_camera *camera, int view, int views);
 
 /* --- SHA-256 (FIPS 180-4) --- */
 
@@ -419,6 +446,8 @@ typedef struct sl_capture_options {
     int views;                  /* >= 1 */
     double f_number, iso;       /* 0 = leave the camera's setting */
     int max_attempts;           /* per frame (default 3) */
+    double reconnect_seconds;   /* after a lost connection, keep reconnecting with
+                                   backoff this long (0: 10 s; < 0: give up at once) */
     double tolerance_stops;     /* EXIF and measured-ratio tolerance (default 1/3) */
     sl_capture_step_fn step;    /* may be NULL */
     sl_capture_frame_fn on_frame; /* may be NULL */
@@ -427,9 +456,9 @@ typedef struct sl_capture_options {
 
 /* A new session in an empty (or absent) folder: journals the plan, shoots
  * views x count frames, verifies each (EXIF exposure and pixel ratio) and
- * retries a frame the camera got wrong, writes session.json. Stops at the
- * first unrecoverable fault with the journal consistent (SL_ERR_CAMERA,
- * SL_ERR_IO for a full disk). */
+ * retries a frame the camera got wrong, reconnects a lost camera (journal
+ * "reconnect"), writes session.json. Stops at the first unrecoverable fault
+ * with the journal consistent (SL_ERR_CAMERA, SL_ERR_IO for a full disk). */
 sl_result sl_capture_run(sl_camera *camera, const sl_capture_options *options, sl_error *err);
 /* Continues the session in `dir` with its journalled plan from the next
  * missing frame. SL_ERR_INPUT when dir is not a session or its journal is

@@ -1,0 +1,350 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The virtual camera: the virtual set's simulated body and fisheye on a
+ * nodal head, behind the same sl_camera interface as libgphoto2, so the
+ * whole capture path (plan, snapping, verification, journal, resume) runs
+ * without hardware. It can inject the faults real cameras show. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "camera_backend.h"
+#include "capture_private.h"
+
+/* Nominal third-stop speeds, as bodies label them and write them to EXIF. */
+static const double k_speeds[] = {
+    1.0 / 8000, 1.0 / 6400, 1.0 / 5000, 1.0 / 4000, 1.0 / 3200, 1.0 / 2500, 1.0 / 2000,
+    1.0 / 1600, 1.0 / 1250, 1.0 / 1000, 1.0 / 800,  1.0 / 640,  1.0 / 500,  1.0 / 400,
+    1.0 / 320,  1.0 / 250,  1.0 / 200,  1.0 / 160,  1.0 / 125,  1.0 / 100,  1.0 / 80,
+    1.0 / 60,   1.0 / 50,   1.0 / 40,   1.0 / 30,   1.0 / 25,   1.0 / 20,   1.0 / 15,
+    1.0 / 13,   1.0 / 10,   1.0 / 8,    1.0 / 6,    1.0 / 5,    1.0 / 4,    0.3,
+    0.4,        0.5,        0.6,        0.8,        1,          1.3,        1.6,
+    2,          2.5,        3.2,        4,          5,          6,          8,
+    10,         13,         15,         20,         25,         30};
+static const double k_fnumbers[] = {2.8, 4, 5.6, 8, 11, 16, 22};
+static const double k_isos[] = {100, 200, 400, 800, 1600, 3200};
+#define COUNT(a) ((int)(sizeof(a) / sizeof(a)[0]))
+
+/* The shoot day of the virtual clock: 2026-05-14 10:00:00 UTC. */
+#define CLOCK_EPOCH 1778752800.0
+#define FRAME_GAP_S 0.2 /* 5 frames a second, as a body in continuous drive */
+#define HEAD_TURN_S 15.0
+
+typedef struct vcam {
+    sl_virtual_camera_opts o;
+    sl_vset_scene scene;
+    sl_vset_camera body;
+    sl_vset_lens lens;
+    int width, height;
+    sl_image radiance; /* the current view through the lens, cached */
+    int view, views;
+    double shutter;        /* what the camera reports it is set to */
+    double actual_shutter; /* what it exposes with */
+    double f_number, iso;
+    int shutter_changes;
+    int delivered; /* frames on the card */
+    int busy_left, down_left;
+    bool dropped, lost;
+    double clock; /* seconds since CLOCK_EPOCH */
+    char tmpdir[4096];
+} vcam;
+
+static double nearest(const double *v, int n, double x)
+{
+    double best = v[0];
+    for (int i = 1; i < n; i++)
+        if (fabs(log(v[i] / x)) < fabs(log(best / x)))
+            best = v[i];
+    return best;
+}
+
+static sl_result lost(sl_camera *c, sl_error *err)
+{
+    c->lost = true;
+    return sl_error_set(err, SL_ERR_CAMERA, "%s: the connection to the camera is lost (I/O error)",
+                        c->port);
+}
+
+static sl_result v_shutter_speeds(sl_camera *c, double **speeds, int *count, sl_error *err)
+{
+    vcam *v = c->impl;
+    if (v->lost)
+        return lost(c, err);
+    double *s = malloc(sizeof k_speeds);
+    if (!s)
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", c->port);
+    memcpy(s, k_speeds, sizeof k_speeds);
+    *speeds = s;
+    *count = COUNT(k_speeds);
+    return SL_OK;
+}
+
+static sl_result v_set(sl_camera *c, const sl_camera_settings *s, sl_error *err)
+{
+    vcam *v = c->impl;
+    if (v->lost)
+        return lost(c, err);
+    if (s->f_number > 0)
+        v->f_number = nearest(k_fnumbers, COUNT(k_fnumbers), s->f_number);
+    if (s->iso > 0)
+        v->iso = nearest(k_isos, COUNT(k_isos), s->iso);
+    if (s->exposure_time > 0) {
+        double t = nearest(k_speeds, COUNT(k_speeds), s->exposure_time);
+        if (v->o.refuse_shutter > 0 && fabs(log2(t / v->o.refuse_shutter)) < 1.0 / 6) {
+            char a[32];
+            sl_shutter_format(t, a, sizeof a);
+            return sl_error_set(err, SL_ERR_CAMERA,
+                                "%s: setting shutterspeed to %s s failed: the camera refused the "
+                                "value",
+                                c->port, a);
+        }
+        if (t != v->shutter && ++v->shutter_changes == v->o.ignore_shutter) {
+            /* acknowledged, not applied; a body with a stuck mechanism even
+             * reports and records the new speed */
+            if (v->o.exif_lies)
+                v->shutter = t;
+        } else {
+            v->shutter = t;
+            v->actual_shutter = t;
+        }
+    }
+    return SL_OK;
+}
+
+static sl_result v_get(sl_camera *c, sl_camera_settings *s, sl_error *err)
+{
+    vcam *v = c->impl;
+    if (v->lost)
+        return lost(c, err);
+    s->exposure_time = v->shutter;
+    s->f_number = v->f_number;
+    s->iso = v->iso;
+    return SL_OK;
+}
+
+static uint64_t mix64(uint64_t x)
+{
+    x += 0x9E3779B97F4A7C15ull;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
+}
+
+/* The sRGB-encoded JPEG of one exposure, as the body's encoder writes it. */
+static sl_result encode(sl_camera *c, const sl_image *img, unsigned char **data, size_t *size,
+                        sl_error *err)
+{
+    vcam *v = c->impl;
+    char path[4200];
+    snprintf(path, sizeof path, "%s/frame.jpg", v->tmpdir);
+    sl_meta none;
+    sl_meta_init(&none);
+    sl_result r = sl_photo_write(path, img, &none, 8, err);
+    sl_meta_free(&none);
+    if (r)
+        return r;
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot read back: %s", path, strerror(errno));
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    *data = n > 0 ? malloc((size_t)n) : NULL;
+    bool ok = *data && fread(*data, 1, (size_t)n, f) == (size_t)n;
+    fclose(f);
+    remove(path);
+    if (!ok) {
+        free(*data);
+        *data = NULL;
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot read back", path);
+    }
+    *size = (size_t)n;
+    return SL_OK;
+}
+
+static sl_result v_capture(sl_camera *c, sl_camera_file *file, sl_error *err)
+{
+    vcam *v = c->impl;
+    if (v->lost)
+        return lost(c, err);
+    int frame = v->delivered + 1;
+    if (v->o.drop_after > 0 && !v->dropped && v->delivered == v->o.drop_after) {
+        v->dropped = v->lost = true;
+        v->down_left = v->o.down_attempts;
+        return lost(c, err);
+    }
+    if (v->busy_left > 0 && frame >= (v->o.busy_at > 0 ? v->o.busy_at : 1)) {
+        v->busy_left--;
+        c->busy = true;
+        return sl_error_set(err, SL_ERR_CAMERA, "%s: trigger failed: the camera is busy",
+                            c->port);
+    }
+    sl_result r = SL_OK;
+    if (!v->radiance.data) {
+        const sl_vset_view view = {v->views > 0 ? 360.0 * v->view / v->views : 0, 0, 0};
+        r = sl_vset_lens_image(&v->lens, &view, &v->scene.latlong, v->width, v->height, 2,
+                               &v->radiance, err);
+        if (r)
+            return r;
+    }
+    sl_vset_exposure e = {v->actual_shutter, v->f_number, v->iso};
+    sl_vset_shot shot;
+    if ((r = sl_vset_camera_shoot(&v->body, &e, &v->radiance, mix64(v->o.seed ^ (uint64_t)frame),
+                                  &shot, err)))
+        return r;
+    unsigned char *data = NULL;
+    size_t size = 0;
+    r = encode(c, &shot.encoded, &data, &size, err);
+    sl_vset_shot_free(&shot);
+    if (r)
+        return r;
+    sl_meta meta;
+    sl_meta_init(&meta);
+    meta.exposure_time = v->shutter; /* what the body believes it used */
+    meta.f_number = v->f_number;
+    meta.iso = v->iso;
+    meta.focal_length_mm = v->lens.focal_mm;
+    snprintf(meta.make, sizeof meta.make, "%s", v->body.make);
+    snprintf(meta.model, sizeof meta.model, "%s", v->body.model);
+    time_t when = (time_t)(CLOCK_EPOCH + floor(v->clock));
+    struct tm tm;
+    gmtime_r(&when, &tm);
+    strftime(meta.datetime, sizeof meta.datetime, "%Y:%m:%d %H:%M:%S", &tm);
+    int ms = (int)floor((v->clock - floor(v->clock)) * 1000.0);
+    r = sl_jpeg_set_exif(&data, &size, &meta, ms, err);
+    sl_meta_free(&meta);
+    if (r) {
+        free(data);
+        return r;
+    }
+    v->clock += v->actual_shutter + FRAME_GAP_S;
+    v->delivered = frame;
+    file->data = data;
+    file->size = size;
+    snprintf(file->source, sizeof file->source, "/DCIM/100VSET/IMG_%04d.JPG", frame);
+    return SL_OK;
+}
+
+static void v_aim(sl_camera *c, int view, int views)
+{
+    vcam *v = c->impl;
+    if (view == v->view && views == v->views)
+        return;
+    if (v->delivered > 0)
+        v->clock += HEAD_TURN_S;
+    v->view = view;
+    v->views = views;
+    sl_image_free(&v->radiance);
+}
+
+static sl_result v_reconnect(sl_camera *c, sl_error *err)
+{
+    vcam *v = c->impl;
+    if (!v->lost)
+        return SL_OK;
+    if (v->down_left < 0 || v->down_left-- > 0)
+        return sl_error_set(err, SL_ERR_CAMERA, "%s: no camera answers", c->port);
+    v->lost = false;
+    return SL_OK;
+}
+
+static void v_close(void *impl)
+{
+    vcam *v = impl;
+    if (!v)
+        return;
+    if (v->tmpdir[0])
+        rmdir(v->tmpdir);
+    sl_image_free(&v->radiance);
+    sl_vset_scene_free(&v->scene);
+    free(v);
+}
+
+static const sl_camera_ops k_ops = {"virtual", v_shutter_speeds, v_set,       v_get,
+                                    v_capture, v_aim,            v_reconnect, v_close};
+
+/* Log-average luminance over the sphere: what a meter reads. */
+static double log_average(const sl_image *ll)
+{
+    double acc = 0, wsum = 0;
+    for (int y = 0; y < ll->height; y++) {
+        double dw = sl_latlong_texel_solid_angle(y, ll->width, ll->height);
+        for (int x = 0; x < ll->width; x++) {
+            const float *p = sl_image_pixel(ll, x, y);
+            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            acc += dw * log(l > 1e-6 ? l : 1e-6);
+            wsum += dw;
+        }
+    }
+    return exp(acc / wsum);
+}
+
+sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_error *err)
+{
+    vcam *v = calloc(1, sizeof *v);
+    if (!v)
+        return sl_error_set(err, SL_ERR_NOMEM, "virtual camera: out of memory");
+    v->o = *o;
+    if (!v->o.scene[0])
+        snprintf(v->o.scene, sizeof v->o.scene, "stage");
+    if (!v->o.seed)
+        v->o.seed = 1;
+    v->width = o->width > 0 ? o->width : 360;
+    v->height = o->height > 0 ? o->height : 240;
+    v->busy_left = o->busy;
+    v->views = 1;
+    snprintf(c->port, sizeof c->port, "virtual:%.119s", v->o.scene);
+    sl_result r = SL_OK;
+    if (v->width < 16 || v->height < 16 || v->width > 8192 || v->height > 8192)
+        r = sl_error_set(err, SL_ERR_USAGE, "%s: frame size %dx%d (16..8192)", c->port, v->width,
+                         v->height);
+    sl_vset_desc desc;
+    const char *scene = v->o.scene;
+    bool file = strchr(scene, '/') || strstr(scene, ".json");
+    if (!r)
+        r = file ? sl_vset_desc_read_json(scene, &desc, err) : sl_vset_preset(scene, &desc, err);
+    if (r == SL_ERR_USAGE && !file)
+        r = sl_error_set(err, SL_ERR_USAGE,
+                         "%s: unknown virtual scene '%s' (exterior, stage, night, or a scene "
+                         "JSON file)",
+                         c->port, scene);
+    if (!r)
+        /* about two texels per pixel at the fisheye's centre */
+        r = sl_vset_scene_make(&desc, 2 * (int)lround(0.7 * v->width), &v->scene, err);
+    if (r) {
+        v_close(v);
+        return r;
+    }
+    /* Exposure as a wrangler would set it for this kind of scene, metered
+     * to 12% of raw saturation at the log-average luminance. */
+    sl_vset_capture_opts d;
+    sl_vset_capture_defaults(&d, &desc, SL_VSET_SIZE_TINY);
+    sl_vset_camera_default(&v->body, d.wb_kelvin);
+    sl_vset_response_preset("srgb", &v->body.response, NULL);
+    snprintf(v->body.model, sizeof v->body.model, "virtual camera");
+    sl_vset_lens_fisheye8(&v->lens);
+    v->f_number = nearest(k_fnumbers, COUNT(k_fnumbers), d.f_number);
+    v->iso = nearest(k_isos, COUNT(k_isos), d.iso);
+    double lavg = log_average(&v->scene.latlong);
+    v->shutter = nearest(k_speeds, COUNT(k_speeds),
+                         0.12 * v->f_number * v->f_number / (lavg * v->body.k * v->iso / 100.0));
+    v->actual_shutter = v->shutter;
+    const char *tmp = getenv("TMPDIR");
+    snprintf(v->tmpdir, sizeof v->tmpdir, "%s/setlight-vcam.XXXXXX", tmp && *tmp ? tmp : "/tmp");
+    if (!mkdtemp(v->tmpdir)) {
+        r = sl_error_set(err, SL_ERR_IO, "%s: cannot create a temporary folder: %s", v->tmpdir,
+                         strerror(errno));
+        v->tmpdir[0] = 0;
+        v_close(v);
+        return r;
+    }
+    c->ops = &k_ops;
+    c->impl = v;
+    snprintf(c->model, sizeof c->model, "%.40s %.40s (%.40s)", v->body.make, v->body.model,
+             v->scene.desc.name);
+    return SL_OK;
+}

@@ -1,0 +1,367 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The few EXIF bits capture needs that OIIO's metadata does not carry:
+ * SubSecTimeOriginal (frames shot less than a second apart) for ingest, and
+ * a camera-style APP1 segment for the virtual camera's JPEGs. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "capture_private.h"
+
+/* ---- reading ------------------------------------------------------- */
+
+typedef struct tiff {
+    const unsigned char *p;
+    size_t n;
+    bool big; /* "MM" byte order */
+} tiff;
+
+static bool rd16(const tiff *t, size_t at, unsigned *v)
+{
+    if (at + 2 > t->n)
+        return false;
+    const unsigned char *q = t->p + at;
+    *v = t->big ? (unsigned)(q[0] << 8 | q[1]) : (unsigned)(q[1] << 8 | q[0]);
+    return true;
+}
+
+static bool rd32(const tiff *t, size_t at, unsigned long *v)
+{
+    if (at + 4 > t->n)
+        return false;
+    const unsigned char *q = t->p + at;
+    *v = t->big ? (unsigned long)q[0] << 24 | (unsigned long)q[1] << 16 |
+                      (unsigned long)q[2] << 8 | q[3]
+                : (unsigned long)q[3] << 24 | (unsigned long)q[2] << 16 |
+                      (unsigned long)q[1] << 8 | q[0];
+    return true;
+}
+
+/* The entry `tag` of the IFD at `ifd`: its type, count and the offset of its
+ * value (inline values sit in the entry itself). */
+static bool find_tag(const tiff *t, unsigned long ifd, unsigned tag, unsigned *type,
+                     unsigned long *count, size_t *value_at)
+{
+    unsigned n;
+    if (!rd16(t, ifd, &n))
+        return false;
+    for (unsigned i = 0; i < n; i++) {
+        size_t e = ifd + 2 + 12 * (size_t)i;
+        unsigned tg;
+        if (!rd16(t, e, &tg) || !rd16(t, e + 2, type) || !rd32(t, e + 4, count))
+            return false;
+        if (tg != tag)
+            continue;
+        static const int size[] = {0, 1, 1, 2, 4, 8, 1, 1, 2, 4, 8, 4, 8};
+        size_t bytes = *type < 13 ? (size_t)size[*type] * *count : 0;
+        unsigned long off;
+        if (bytes <= 4)
+            *value_at = e + 8;
+        else if (rd32(t, e + 8, &off))
+            *value_at = off;
+        else
+            return false;
+        return *value_at + bytes <= t->n;
+    }
+    return false;
+}
+
+/* ASCII digits of a SubSecTime tag as a fraction of a second. */
+static double subsec_value(const tiff *t, unsigned long ifd, unsigned tag)
+{
+    unsigned type;
+    unsigned long count;
+    size_t at;
+    if (!find_tag(t, ifd, tag, &type, &count, &at) || type != 2)
+        return -1;
+    double v = 0, scale = 0.1;
+    int digits = 0;
+    for (unsigned long i = 0; i < count && i < 9; i++) {
+        unsigned char c = t->p[at + i];
+        if (c == 0 || c == ' ')
+            break;
+        if (c < '0' || c > '9')
+            return -1;
+        v += scale * (c - '0');
+        scale *= 0.1;
+        digits++;
+    }
+    return digits ? v : -1;
+}
+
+static double tiff_subsec(const unsigned char *p, size_t n)
+{
+    tiff t = {p, n, false};
+    if (n < 8)
+        return -1;
+    if (!memcmp(p, "MM\0*", 4))
+        t.big = true;
+    else if (memcmp(p, "II*\0", 4))
+        return -1;
+    unsigned long ifd0, exif;
+    unsigned type;
+    unsigned long count;
+    size_t at;
+    if (!rd32(&t, 4, &ifd0) || !find_tag(&t, ifd0, 0x8769, &type, &count, &at) ||
+        !rd32(&t, at, &exif))
+        return -1;
+    double s = subsec_value(&t, exif, 0x9291); /* SubSecTimeOriginal */
+    if (s < 0)
+        s = subsec_value(&t, exif, 0x9290); /* SubSecTime */
+    return s;
+}
+
+double sl_exif_subsec(const unsigned char *data, size_t size)
+{
+    if (size >= 4 && (!memcmp(data, "II*\0", 4) || !memcmp(data, "MM\0*", 4)))
+        return tiff_subsec(data, size);
+    if (size < 4 || data[0] != 0xFF || data[1] != 0xD8)
+        return -1;
+    size_t i = 2;
+    while (i + 4 <= size && data[i] == 0xFF) {
+        unsigned marker = data[i + 1];
+        size_t len = (size_t)data[i + 2] << 8 | data[i + 3];
+        if (marker == 0xDA || len < 2 || i + 2 + len > size)
+            break; /* the EXIF segment comes before the scan */
+        if (marker == 0xE1 && len >= 8 && !memcmp(data + i + 4, "Exif\0\0", 6))
+            return tiff_subsec(data + i + 10, len - 8);
+        i += 2 + len;
+    }
+    return -1;
+}
+
+double sl_exif_subsec_file(const char *path)
+{
+    /* EXIF lives in the first 64 KiB of a JPEG (one APP1 segment) and, in
+     * camera TIFFs, near the start. */
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return -1;
+    unsigned char *buf = malloc(1 << 17);
+    size_t n = buf ? fread(buf, 1, 1 << 17, f) : 0;
+    fclose(f);
+    double s = buf ? sl_exif_subsec(buf, n) : -1;
+    free(buf);
+    return s;
+}
+
+/* ---- writing ------------------------------------------------------- */
+
+typedef struct out {
+    unsigned char *p;
+    size_t n, cap;
+    bool failed;
+} out;
+
+static void grow(out *o, size_t n)
+{
+    if (o->failed || o->n + n <= o->cap)
+        return;
+    size_t cap = (o->n + n) * 2;
+    unsigned char *q = realloc(o->p, cap);
+    if (!q) {
+        o->failed = true;
+        return;
+    }
+    o->p = q;
+    o->cap = cap;
+}
+
+static void w8(out *o, const void *p, size_t n)
+{
+    grow(o, n);
+    if (o->failed)
+        return;
+    memcpy(o->p + o->n, p, n);
+    o->n += n;
+}
+
+static void w16(out *o, unsigned v)
+{
+    unsigned char b[2] = {(unsigned char)v, (unsigned char)(v >> 8)};
+    w8(o, b, 2);
+}
+
+static void w32(out *o, unsigned long v)
+{
+    unsigned char b[4] = {(unsigned char)v, (unsigned char)(v >> 8), (unsigned char)(v >> 16),
+                          (unsigned char)(v >> 24)};
+    w8(o, b, 4);
+}
+
+typedef struct entry {
+    unsigned tag, type;
+    unsigned long count;
+    unsigned char value[64]; /* little-endian bytes */
+} entry;
+
+static void ascii(entry *e, unsigned tag, const char *s)
+{
+    e->tag = tag;
+    e->type = 2;
+    size_t n = strlen(s);
+    if (n > sizeof e->value - 1)
+        n = sizeof e->value - 1;
+    memcpy(e->value, s, n);
+    e->value[n] = 0;
+    e->count = (unsigned long)n + 1;
+}
+
+static void le32(unsigned char *b, unsigned long v)
+{
+    for (int i = 0; i < 4; i++)
+        b[i] = (unsigned char)(v >> (8 * i));
+}
+
+static void rational(entry *e, unsigned tag, unsigned long num, unsigned long den)
+{
+    e->tag = tag;
+    e->type = 5;
+    e->count = 1;
+    le32(e->value, num);
+    le32(e->value + 4, den);
+}
+
+static void short1(entry *e, unsigned tag, unsigned v)
+{
+    e->tag = tag;
+    e->type = 3;
+    e->count = 1;
+    e->value[0] = (unsigned char)v;
+    e->value[1] = (unsigned char)(v >> 8);
+}
+
+static size_t entry_bytes(const entry *e)
+{
+    return e->type == 5 ? 8 * e->count : e->type == 3 ? 2 * e->count : e->count;
+}
+
+/* One IFD at TIFF offset `at` with its out-of-line values after it; returns
+ * the offset just past them. */
+static size_t write_ifd(out *o, size_t at, const entry *e, int n)
+{
+    size_t data = at + 2 + 12 * (size_t)n + 4;
+    w16(o, (unsigned)n);
+    for (int i = 0; i < n; i++) {
+        w16(o, e[i].tag);
+        w16(o, e[i].type);
+        w32(o, e[i].count);
+        size_t b = entry_bytes(&e[i]);
+        if (b <= 4) {
+            unsigned char v[4] = {0};
+            memcpy(v, e[i].value, b);
+            w8(o, v, 4);
+        } else {
+            w32(o, (unsigned long)data);
+            data += b + (b & 1);
+        }
+    }
+    w32(o, 0); /* no next IFD */
+    for (int i = 0; i < n; i++) {
+        size_t b = entry_bytes(&e[i]);
+        if (b > 4) {
+            w8(o, e[i].value, b);
+            if (b & 1)
+                w8(o, "", 1);
+        }
+    }
+    return data;
+}
+
+/* Exposure time as a camera writes it: 1/N below a second, tenths above. */
+static void exposure_rational(double t, unsigned long *num, unsigned long *den)
+{
+    if (t < 1.0 && fabs(1.0 / t - round(1.0 / t)) < 0.02 * (1.0 / t)) {
+        *num = 1;
+        *den = (unsigned long)round(1.0 / t);
+    } else if (t < 1.0) {
+        *num = (unsigned long)round(t * 1e6);
+        *den = 1000000;
+    } else {
+        *num = (unsigned long)round(t * 10);
+        *den = 10;
+    }
+}
+
+sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *meta,
+                           int subsec_ms, sl_error *err)
+{
+    unsigned char *src = *jpeg;
+    size_t n = *size;
+    if (n < 4 || src[0] != 0xFF || src[1] != 0xD8)
+        return sl_error_set(err, SL_ERR_INTERNAL, "EXIF: not a JPEG stream");
+    entry ifd0[5], exif[6];
+    int n0 = 0, n1 = 0;
+    memset(ifd0, 0, sizeof ifd0);
+    memset(exif, 0, sizeof exif);
+    ascii(&ifd0[n0++], 0x010F, meta->make);
+    ascii(&ifd0[n0++], 0x0110, meta->model);
+    short1(&ifd0[n0++], 0x0112, 1);
+    ascii(&ifd0[n0++], 0x0132, meta->datetime);
+    entry *link = &ifd0[n0++];
+    link->tag = 0x8769;
+    link->type = 4;
+    link->count = 1;
+    unsigned long num, den;
+    exposure_rational(meta->exposure_time, &num, &den);
+    rational(&exif[n1++], 0x829A, num, den);
+    rational(&exif[n1++], 0x829D, (unsigned long)round(meta->f_number * 10), 10);
+    short1(&exif[n1++], 0x8827, (unsigned)lround(meta->iso));
+    ascii(&exif[n1++], 0x9003, meta->datetime);
+    char ss[8];
+    snprintf(ss, sizeof ss, "%03d", subsec_ms < 0 ? 0 : subsec_ms % 1000);
+    ascii(&exif[n1++], 0x9291, ss);
+    rational(&exif[n1++], 0x920A, (unsigned long)round(meta->focal_length_mm * 10), 10);
+    /* focal length's tag sorts before SubSecTimeOriginal */
+    entry tmp = exif[4];
+    exif[4] = exif[5];
+    exif[5] = tmp;
+
+    /* TIFF: header, IFD0 and its values, then the Exif IFD. */
+    size_t ifd0_size = 2 + 12 * (size_t)n0 + 4;
+    for (int i = 0; i < n0; i++) {
+        size_t b = entry_bytes(&ifd0[i]);
+        if (b > 4)
+            ifd0_size += b + (b & 1);
+    }
+    le32(link->value, (unsigned long)(8 + ifd0_size));
+    out t = {0};
+    w8(&t, "II*\0", 4);
+    w32(&t, 8);
+    size_t end = write_ifd(&t, 8, ifd0, n0);
+    write_ifd(&t, end, exif, n1);
+    if (t.failed || t.n + 8 > 65535) {
+        free(t.p);
+        return sl_error_set(err, SL_ERR_NOMEM, "EXIF: out of memory");
+    }
+
+    /* SOI, our APP1, then the stream without its own APP0/APP1 segments. */
+    out j = {0};
+    w8(&j, "\xFF\xD8\xFF\xE1", 4);
+    size_t len = t.n + 8;
+    unsigned char l[2] = {(unsigned char)(len >> 8), (unsigned char)len};
+    w8(&j, l, 2);
+    w8(&j, "Exif\0\0", 6);
+    w8(&j, t.p, t.n);
+    free(t.p);
+    size_t i = 2;
+    while (i + 4 <= n && src[i] == 0xFF) {
+        unsigned marker = src[i + 1];
+        size_t seg = (size_t)src[i + 2] << 8 | src[i + 3];
+        if (marker == 0xDA || seg < 2 || i + 2 + seg > n)
+            break;
+        if (marker != 0xE0 && marker != 0xE1)
+            w8(&j, src + i, 2 + seg);
+        i += 2 + seg;
+    }
+    w8(&j, src + i, n - i);
+    if (j.failed) {
+        free(j.p);
+        return sl_error_set(err, SL_ERR_NOMEM, "EXIF: out of memory");
+    }
+    free(src);
+    *jpeg = j.p;
+    *size = j.n;
+    return SL_OK;
+}
