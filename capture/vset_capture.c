@@ -29,7 +29,7 @@ void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene
     static const int ll[3] = {256, SL_VSET_SMALL_WIDTH, SL_VSET_FULL_WIDTH};
     static const int pw[3] = {192, 720, 3000}, ph[3] = {128, 480, 2000}, ss[3] = {2, 2, 3};
     static const int qw[3] = {192, 480, 1500}, qh[3] = {128, 320, 1000};
-    static const int64_t spp_chrome[3] = {4, 8, 16}, spp_diffuse[3] = {16, 32, 256};
+    static const int64_t spp_aa[3] = {4, 8, 16}, spp_grey[3] = {8, 16, 128};
     memset(o, 0, sizeof *o);
     o->scene = *scene;
     o->latlong_width = ll[size];
@@ -38,8 +38,8 @@ void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene
     o->supersample = ss[size];
     o->probe_width = qw[size];
     o->probe_height = qh[size];
-    o->probe_spp_chrome = spp_chrome[size];
-    o->probe_spp_diffuse = spp_diffuse[size];
+    o->probe_spp_aa = spp_aa[size];
+    o->probe_spp_grey = spp_grey[size];
     sl_vset_response_preset("canon", &o->response, NULL);
     o->raw_bits = 14;
     o->seed = 1;
@@ -401,7 +401,7 @@ static sl_result shoot_probes(const sl_vset_capture_opts *o, const char *tmp,
     for (int kind = 0; kind < 3 && !r; kind++) {
         sl_vset_probe p;
         sl_vset_probe_default(&p, (sl_vset_probe_kind)kind, o->probe_width, o->probe_height);
-        p.spp = kind == SL_VSET_PROBE_CHROME ? o->probe_spp_chrome : o->probe_spp_diffuse;
+        p.spp = kind == SL_VSET_PROBE_GREY ? o->probe_spp_grey : o->probe_spp_aa;
         /* The render is truth: the same for every sensor-noise seed. */
         p.seed = 0x9000u + (uint64_t)kind;
         sl_vset_probe_geometry g;
@@ -486,7 +486,7 @@ static sl_result check_opts(const sl_vset_capture_opts *o, sl_error *err)
                             o->photo_width, o->photo_height, o->supersample);
     if (o->probe_width != 0 &&
         (o->probe_width < 16 || o->probe_height < 16 || o->probe_width > 16384 ||
-         o->probe_height > 16384 || o->probe_spp_chrome < 1 || o->probe_spp_diffuse < 1))
+         o->probe_height > 16384 || o->probe_spp_aa < 1 || o->probe_spp_grey < 1))
         return sl_error_set(err, SL_ERR_USAGE, "probe photo size %dx%d or samples invalid",
                             o->probe_width, o->probe_height);
     if (o->raw_bits != 12 && o->raw_bits != 14)

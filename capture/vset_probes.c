@@ -2,7 +2,14 @@
 /* Probe photographs of the virtual set: a chrome ball, an 18% grey ball and
  * a ColorChecker, each rendered by render/ under the set's lat-long with a
  * pinhole camera at the capture point, so the chrome ball reflects the set
- * and the grey ball and the chart are lit by it. */
+ * and the grey ball and the chart are lit by it.
+ *
+ * The chart is flat and the set at infinity, so every patch receives the
+ * same irradiance E: the chart is rendered under a unit dome with cosine
+ * sampling (each sample exactly the albedo it hits, no noise) and scaled by
+ * E / pi summed over the lat-long's texels, then laid over the set seen
+ * through the lens. Noise-free, and far cheaper than 25 rectangles under
+ * small bright lights. */
 #include <string.h>
 
 #include "setlight/render.h"
@@ -92,6 +99,52 @@ static sl_result add_chart(sl_scene *s, const sl_vset_probe *p, const double c[3
     return SL_OK;
 }
 
+/* Irradiance on a surface facing `n`, summed over every texel. */
+static void irradiance(const sl_image *ll, const double n[3], double e[3])
+{
+    e[0] = e[1] = e[2] = 0;
+    for (int y = 0; y < ll->height; y++) {
+        double dw = sl_latlong_texel_solid_angle(y, ll->width, ll->height);
+        for (int x = 0; x < ll->width; x++) {
+            double d[3];
+            sl_latlong_to_dir((x + 0.5) / ll->width, (y + 0.5) / ll->height, d);
+            double c = v3_dot(d, n);
+            if (c <= 0)
+                continue;
+            const float *p = sl_image_pixel(ll, x, y);
+            for (int k = 0; k < 3; k++)
+                e[k] += p[k] * c * dw;
+        }
+    }
+}
+
+/* The chart's render (RGB = albedo x coverage + 1 - coverage, alpha =
+ * coverage) made radiance: chart x E / pi over the set behind it. */
+static void compose_chart(const sl_vset_probe *p, const sl_image *ll, const double f[3],
+                          sl_image *img)
+{
+    double n[3] = {-f[0], -f[1], -f[2]}, e[3];
+    irradiance(ll, n, e);
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            float *px = sl_image_pixel(img, x, y);
+            double a = px[3], bg[3] = {0, 0, 0};
+            for (int j = 0; j < 2; j++)
+                for (int i = 0; i < 2; i++) {
+                    double d[3], u, v;
+                    float t[4];
+                    sl_vset_lens_to_dir(&p->lens, &p->view, img->width, img->height,
+                                        x + 0.25 + 0.5 * i, y + 0.25 + 0.5 * j, d);
+                    sl_dir_to_latlong(d, &u, &v);
+                    sl_latlong_lookup(ll, u, v, t);
+                    for (int k = 0; k < 3; k++)
+                        bg[k] += 0.25 * t[k];
+                }
+            for (int k = 0; k < 3; k++)
+                px[k] = (float)((px[k] - (1 - a)) * e[k] / VSET_PI + (1 - a) * bg[k]);
+        }
+}
+
 sl_result sl_vset_probe_render(const sl_vset_probe *p, const sl_image *latlong,
                                sl_image *radiance, sl_vset_probe_geometry *geo, sl_error *err)
 {
@@ -153,17 +206,29 @@ sl_result sl_vset_probe_render(const sl_vset_probe *p, const sl_image *latlong,
         g.r = g.focal_px * tan(a);
         g.ball_angle_deg = a / VSET_DEG;
     }
-    if (!res)
-        res = sl_scene_set_dome(&s, latlong, 0, 1, "virtual set lat-long", err);
+    sl_image unit = {0};
     sl_render_options o;
     sl_render_options_init(&o);
     o.spp = p->spp;
     o.seed = p->seed;
+    if (p->kind == SL_VSET_PROBE_CHART) {
+        o.strategy = SL_STRATEGY_COSINE;
+        if (!res)
+            res = sl_image_alloc(&unit, 8, 4, 3, err);
+        for (int i = 0; !res && i < 8 * 4 * 3; i++)
+            unit.data[i] = 1.0f;
+    }
+    if (!res)
+        res = sl_scene_set_dome(&s, p->kind == SL_VSET_PROBE_CHART ? &unit : latlong, 0, 1,
+                                "virtual set lat-long", err);
+    sl_image_free(&unit);
     sl_render_stats st;
     memset(&st, 0, sizeof st);
     sl_image img = {0};
     if (!res)
         res = sl_render(&s, &o, &img, &st, err);
+    if (!res && p->kind == SL_VSET_PROBE_CHART)
+        compose_chart(p, latlong, f, &img);
     if (!res)
         res = sl_image_alloc(radiance, p->width, p->height, 3, err);
     if (!res) {

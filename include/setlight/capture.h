@@ -288,7 +288,9 @@ const char *sl_vset_probe_name(sl_vset_probe_kind kind);
 void sl_vset_probe_default(sl_vset_probe *p, sl_vset_probe_kind kind, int width, int height);
 /* Renders the probe under `latlong` (Rec.709 radiance) with render/'s
  * perspective camera and applies the lens's vignetting: `radiance` gets the
- * RGB image at the sensor, ready for sl_vset_camera_shoot. geo may be NULL. */
+ * RGB image at the sensor, ready for sl_vset_camera_shoot. The chart, flat
+ * under a set at infinity, gets one irradiance summed over the lat-long
+ * (noise-free; the render gives what each pixel sees). geo may be NULL. */
 sl_result sl_vset_probe_render(const sl_vset_probe *p, const sl_image *latlong,
                                sl_image *radiance, sl_vset_probe_geometry *geo, sl_error *err);
 
@@ -317,9 +319,11 @@ typedef struct sl_vset_capture_opts {
     bool force;                    /* replace a capture already in the folder */
     /* Probe photos (chrome ball, grey ball, chart) with a long lens: the
      * chrome ball bracketed like the HDRI, the others 3 exposures 2 stops
-     * apart. probe_width 0: no probes. */
+     * apart. probe_width 0: no probes. Samples per pixel: the chrome ball
+     * and the chart need them for antialiasing only (a mirror and a flat
+     * chart render without noise), the grey ball for its lighting. */
     int probe_width, probe_height;
-    int64_t probe_spp_chrome, probe_spp_diffuse;
+    int64_t probe_spp_aa, probe_spp_grey;
 } sl_vset_capture_opts;
 
 typedef enum {
