@@ -53,8 +53,9 @@ void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene
         o->wb_kelvin = 5500;
         break;
     case SL_VSET_BG_ROOM:
+        /* The stage's key lights are daylight-balanced. */
         o->f_number = 8;
-        o->wb_kelvin = 3200;
+        o->wb_kelvin = 5600;
         break;
     default:
         o->f_number = 4;
@@ -72,10 +73,9 @@ static const double shutter[] = {1.0 / 8000, 1.0 / 4000, 1.0 / 2000, 1.0 / 1000,
                                  4,          8,          15,         30};
 #define SHUTTER_COUNT ((int)(sizeof shutter / sizeof shutter[0]))
 
-/* Returns the metered log-average luminance; *centre_index gets the
- * shutter scale index of the metered exposure. */
+/* Returns the metered log-average luminance. */
 static double plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera *cam,
-                             const sl_image *latlong, double *times, int *centre_index)
+                             const sl_image *latlong, double *times)
 {
     /* Meter the log-average luminance to 12% of raw saturation. */
     double acc = 0, wsum = 0;
@@ -103,7 +103,6 @@ static double plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera
         first = 0;
     for (int k = 0; k < o->brackets; k++)
         times[k] = shutter[first + k * step];
-    *centre_index = centre;
     return lavg;
 }
 
@@ -388,13 +387,35 @@ static json_t *probe_truth(const sl_vset_probe *p, const sl_vset_probe_geometry 
     return j;
 }
 
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double percentile_luminance(const sl_image *img, double q)
+{
+    size_t n = (size_t)img->width * (size_t)img->height;
+    float *l = malloc(n * sizeof *l);
+    if (!l)
+        return 1;
+    for (size_t i = 0; i < n; i++) {
+        const float *p = img->data + i * (size_t)img->channels;
+        l[i] = 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+    }
+    qsort(l, n, sizeof *l, cmp_float);
+    double v = l[(size_t)(q * (double)(n - 1))];
+    free(l);
+    return v > 1e-9 ? v : 1e-9;
+}
+
 /* Chrome ball, grey ball and chart with the long lens: rendered under the
  * truth, photographed (the chrome ball with the HDRI's bracket, the others
- * with three exposures two stops apart round the metered one), the render
- * kept as truth. */
+ * with three exposures two stops apart round one metered on the probe), the
+ * render kept as truth. */
 static sl_result shoot_probes(const sl_vset_capture_opts *o, const char *tmp,
                               const sl_vset_camera *cam, const sl_image *latlong,
-                              const double *times, int centre, json_t *probes, json_t *truth,
+                              const double *times, json_t *probes, json_t *truth,
                               int *frame, int *clock, sl_error *err)
 {
     sl_result r = SL_OK;
@@ -409,11 +430,19 @@ static sl_result shoot_probes(const sl_vset_capture_opts *o, const char *tmp,
         if ((r = sl_vset_probe_render(&p, latlong, &rad, &g, err)))
             break;
         double pt[16];
-        int n = 0;
+        int n = 0, centre;
         if (kind == SL_VSET_PROBE_CHROME) {
             for (n = 0; n < o->brackets; n++)
                 pt[n] = times[n];
         } else {
+            /* Metered on the probe, as a wrangler spot-meters the chart:
+             * its bright end (98th percentile) at 70% of saturation. */
+            double t = 0.7 * o->f_number * o->f_number /
+                       (percentile_luminance(&rad, 0.98) * cam->k * o->iso / 100.0);
+            centre = 0;
+            for (int i = 1; i < SHUTTER_COUNT; i++)
+                if (fabs(log(shutter[i] / t)) < fabs(log(shutter[centre] / t)))
+                    centre = i;
             for (int d = -2; d <= 2; d += 2) {
                 int i = centre + d < 0 ? 0 : centre + d >= SHUTTER_COUNT ? SHUTTER_COUNT - 1
                                                                          : centre + d;
@@ -546,8 +575,8 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     sl_vset_lens lens;
     sl_vset_lens_fisheye8(&lens);
     double times[16];
-    int centre, frame = 0, clock = 0;
-    double lavg = plan_exposures(o, &cam, &scene.latlong, times, &centre);
+    int frame = 0, clock = 0;
+    double lavg = plan_exposures(o, &cam, &scene.latlong, times);
     json_t *frames = json_array(), *probes = json_array(), *probes_truth = json_array();
     if (!r)
         r = shoot_frames(o, tmp, &cam, &lens, &scene.latlong, times, lavg, frames, &frame,
@@ -556,7 +585,7 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
         snprintf(sub, sizeof sub, "%s/probes", tmp);
         r = make_dir(sub, err);
         if (!r)
-            r = shoot_probes(o, tmp, &cam, &scene.latlong, times, centre, probes, probes_truth,
+            r = shoot_probes(o, tmp, &cam, &scene.latlong, times, probes, probes_truth,
                              &frame, &clock, err);
         if (!r) {
             snprintf(sub, sizeof sub, "%s/truth/probes.json", tmp);
