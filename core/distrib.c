@@ -11,6 +11,20 @@
 /* The largest double below 1: samples live in [0, 1). */
 #define ONE_MINUS_EPS 0x1.fffffffffffffp-1
 
+/* Largest i in [lo, hi] with cdf[i] <= u (cdf[lo] <= u). For u < 1 the bin
+ * found always has cdf[i+1] > u >= cdf[i], so it has non-zero probability. */
+static int search_bin(const double *cdf, int lo, int hi, double u)
+{
+    while (lo < hi) {
+        int mid = lo + (hi - lo + 1) / 2;
+        if (cdf[mid] <= u)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
+}
+
 sl_result sl_distrib1d_init(sl_distrib1d *d, const double *func, int n, sl_error *err)
 {
     memset(d, 0, sizeof *d);
@@ -21,7 +35,8 @@ sl_result sl_distrib1d_init(sl_distrib1d *d, const double *func, int n, sl_error
             return sl_error_set(err, SL_ERR_INPUT, "distribution: value %d is %g", i, func[i]);
     d->func = malloc(sizeof(double) * (size_t)n);
     d->cdf = malloc(sizeof(double) * ((size_t)n + 1));
-    if (!d->func || !d->cdf) {
+    d->guide = malloc(sizeof(int) * ((size_t)n + 1));
+    if (!d->func || !d->cdf || !d->guide) {
         sl_distrib1d_free(d);
         return sl_error_set(err, SL_ERR_NOMEM, "distribution: out of memory for %d values", n);
     }
@@ -51,6 +66,15 @@ sl_result sl_distrib1d_init(sl_distrib1d *d, const double *func, int n, sl_error
             d->cdf[i] = (double)i / n;
     }
     d->cdf[n] = 1.0;
+    /* Cut points (Chen & Asau 1974): the search for u in [k/n, (k+1)/n) is
+     * confined to [guide[k], guide[k+1]], a bin or two for smooth maps, and
+     * finds exactly the bin the full binary search finds. */
+    for (int k = 0, i = 0; k <= n; k++) {
+        double u = k < n ? (double)k / n : ONE_MINUS_EPS;
+        while (i < n - 1 && d->cdf[i + 1] <= u)
+            i++;
+        d->guide[k] = i;
+    }
     return SL_OK;
 }
 
@@ -60,22 +84,21 @@ void sl_distrib1d_free(sl_distrib1d *d)
         return;
     free(d->func);
     free(d->cdf);
+    free(d->guide);
     memset(d, 0, sizeof *d);
 }
 
-/* Largest i in [0, n-1] with cdf[i] <= u. For u < 1 the bin found always
- * has cdf[i+1] > u >= cdf[i], so it has non-zero probability. */
+/* Largest i in [0, n-1] with cdf[i] <= u, for u in [0, 1). */
 static int find_bin(const sl_distrib1d *d, double u)
 {
-    int lo = 0, hi = d->n - 1;
-    while (lo < hi) {
-        int mid = lo + (hi - lo + 1) / 2;
-        if (d->cdf[mid] <= u)
-            lo = mid;
-        else
-            hi = mid - 1;
-    }
-    return lo;
+    int n = d->n, k = (int)(u * n);
+    /* k / n <= u < (k + 1) / n in the arithmetic the guide was built with */
+    k = k < 0 ? 0 : k > n - 1 ? n - 1 : k;
+    while (k > 0 && (double)k / n > u)
+        k--;
+    while (k < n - 1 && (double)(k + 1) / n <= u)
+        k++;
+    return search_bin(d->cdf, d->guide[k], d->guide[k + 1], u);
 }
 
 static double clamp_u(double u)

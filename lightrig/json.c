@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* rig.json, version 1 (schema in docs/lightrig.md). */
+/* rig.json, version 2 (schema in docs/lightrig.md). */
 #include <jansson.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -28,6 +29,13 @@ static json_t *rig_json(const sl_rig *rig, const char *dome_file)
         json_object_set_new(o, "position", L->has_position ? vec(L->position, 3) : json_null());
         json_object_set_new(o, "size", L->has_position ? vec(L->size, 2) : json_null());
         json_object_set_new(o, "texture", L->texture[0] ? json_string(L->texture) : json_null());
+        /* v2: the shape at infinity (degrees: full angular width along
+         * axis_u, height along direction x axis_u) and the two rankings */
+        json_object_set_new(o, "axis_u", vec(L->axis_u, 3));
+        double deg[2] = {L->angular_size[0] * 180 / M_PI, L->angular_size[1] * 180 / M_PI};
+        json_object_set_new(o, "angular_size", vec(deg, 2));
+        json_object_set_new(o, "share", json_real(L->share));
+        json_object_set_new(o, "share_glossy", json_real(L->share_glossy));
         json_array_append_new(lights, o);
     }
     for (int i = 0; i < rig->skipped_count; i++) {
@@ -37,6 +45,7 @@ static json_t *rig_json(const sl_rig *rig, const char *dome_file)
         json_object_set_new(o, "solid_angle", json_real(s->solid_angle));
         json_object_set_new(o, "integral", vec(s->integral, 3));
         json_object_set_new(o, "share", json_real(s->share));
+        json_object_set_new(o, "share_glossy", json_real(s->share_glossy));
         json_object_set_new(o, "reason", json_string(s->reason));
         json_array_append_new(skipped, o);
     }
@@ -49,7 +58,7 @@ static json_t *rig_json(const sl_rig *rig, const char *dome_file)
     json_object_set_new(ledger, "dome", vec(rig->dome, 3));
     json_object_set_new(ledger, "relative_error", json_real(rig->relative_error));
     json_t *root = json_object();
-    json_object_set_new(root, "version", json_integer(1));
+    json_object_set_new(root, "version", json_integer(2));
     json_object_set_new(root, "lights", lights);
     json_object_set_new(root, "dome", dome);
     json_object_set_new(root, "ledger", ledger);

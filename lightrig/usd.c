@@ -25,9 +25,21 @@ static void split_radiance(const double rad[3], double color[3], double *intensi
     *intensity = y / ldexp(1.0, *exposure);
 }
 
+/* A rect at infinity is written as a RectLight this far away (metres),
+ * sized to its angular extent: USD has no rect at infinity, and a set is
+ * tens of metres across, so the parallax stays under about 0.1 degree. */
+#define RIG_USD_FAR 1e4
+
+static bool far_rect(const sl_rig_light *L)
+{
+    return !L->has_position && L->shape == SL_RIG_RECT;
+}
+
 static void put_matrix(FILE *f, const sl_rig_light *L)
 {
-    const double *p = L->has_position ? L->position : (const double[3]){0, 0, 0};
+    double p[3] = {0, 0, 0};
+    for (int a = 0; a < 3; a++)
+        p[a] = L->has_position ? L->position[a] : far_rect(L) ? RIG_USD_FAR * L->direction[a] : 0;
     fprintf(f,
             "        matrix4d xformOp:transform = ( (%.17g, %.17g, %.17g, 0), (%.17g, %.17g, "
             "%.17g, 0), (%.17g, %.17g, %.17g, 0), (%.17g, %.17g, %.17g, 1) )\n"
@@ -44,15 +56,25 @@ static bool asset_ok(const char *s)
 
 static void write_light(FILE *f, const sl_rig_light *L, int index)
 {
-    const char *type = !L->has_position           ? "DistantLight"
-                       : L->shape == SL_RIG_RECT   ? "RectLight"
+    const char *type = L->shape == SL_RIG_RECT     ? "RectLight"
+                       : !L->has_position          ? "DistantLight"
                        : L->shape == SL_RIG_SPHERE ? "SphereLight"
                                                    : "DiskLight";
-    double color[3], intensity;
+    double color[3], intensity, rad[3];
     int exposure;
-    split_radiance(L->radiance, color, &intensity, &exposure);
+    double tu = tan(0.5 * L->angular_size[0]), tv = tan(0.5 * L->angular_size[1]);
+    /* far rect: the radiance that keeps the power over its exact solid angle */
+    double k = far_rect(L) ? L->solid_angle / (4 * asin(tu * tv / sqrt((1 + tu * tu) *
+                                                                         (1 + tv * tv))))
+                           : 1;
+    for (int c = 0; c < 3; c++)
+        rad[c] = L->radiance[c] * k;
+    split_radiance(rad, color, &intensity, &exposure);
     fprintf(f, "\n    def %s \"light_%02d\"\n    {\n", type, index);
-    if (!L->has_position) {
+    if (far_rect(L)) {
+        fprintf(f, "        float inputs:width = %.9g\n        float inputs:height = %.9g\n",
+                2 * RIG_USD_FAR * tu, 2 * RIG_USD_FAR * tv);
+    } else if (!L->has_position) {
         /* The disk of the same solid angle: same radiance, same power. */
         double r = acos(1 - L->solid_angle / (2 * M_PI));
         fprintf(f, "        float inputs:angle = %.9g\n", 2 * r * 180 / M_PI);
@@ -76,9 +98,11 @@ static void write_light(FILE *f, const sl_rig_light *L, int index)
             "        custom double setlight:solidAngle = %.17g\n"
             "        custom double3 setlight:integral = (%.17g, %.17g, %.17g)\n"
             "        custom double2 setlight:angularSize = (%.17g, %.17g)\n"
+            "        custom bool setlight:atInfinity = %d\n"
             "    }\n",
             sl_rig_shape_name(L->shape), L->solid_angle, L->integral[0], L->integral[1],
-            L->integral[2], L->angular_size[0] * 180 / M_PI, L->angular_size[1] * 180 / M_PI);
+            L->integral[2], L->angular_size[0] * 180 / M_PI, L->angular_size[1] * 180 / M_PI,
+            !L->has_position);
 }
 
 sl_result sl_rig_write_usda(const sl_rig *rig, const char *path, const char *dome_file,

@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* rig.json version 1 (the light-rig extractor's format, docs/lightrig.md)
- * turned into renderer lights: each light, seen from the capture point at
- * the origin, keeps the rig's direction, solid angle and radiance. Paths are
+/* rig.json versions 1 and 2 (the light-rig extractor's format,
+ * docs/lightrig.md) turned into renderer lights: each light, seen from the
+ * capture point at the origin, keeps the rig's direction, solid angle and
+ * radiance; with version 2 also its shape and roll at infinity. Paths are
  * relative to the rig's folder. */
 #include <jansson.h>
 #include <stdio.h>
@@ -44,13 +45,19 @@ static sl_result read_image(const char *path, const char *field, const char *fil
     return SL_OK;
 }
 
-static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t i, sl_error *err)
+/* A rect at infinity becomes a rect this far away (metres): the validation
+ * scenes are a few metres across, so the parallax is under 0.03 degrees. */
+#define RIG_FAR 1e4
+
+static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t i, int version,
+                            sl_error *err)
 {
     char field[64];
     const char *type = json_string_value(json_object_get(j, "type"));
     double dir[3], omega, rad[3], pos[3] = {0, 0, 0}, size[2] = {0, 0};
     json_t *jpos = json_object_get(j, "position"), *jsize = json_object_get(j, "size");
     json_t *jtex = json_object_get(j, "texture");
+    double axis_u[3] = {0, 0, 0}, ang[2] = {0, 0};
     const char *bad = NULL;
     if (!json_is_object(j))
         bad = "";
@@ -73,6 +80,13 @@ static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t
     else if (!json_is_null(jtex) && (!json_is_string(jtex) || json_is_null(jpos) ||
                                      strcmp(type, "rect")))
         bad = "texture";
+    else if (version >= 2 && (!nums(json_object_get(j, "axis_u"), 3, -INFINITY, axis_u) ||
+                              !v3_normalize(axis_u) || fabs(v3_dot(axis_u, dir)) > 1e-3))
+        bad = "axis_u";
+    else if (version >= 2 && (!nums(json_object_get(j, "angular_size"), 2, 0, ang) ||
+                              !(ang[0] > 0 && ang[0] <= 360 && ang[1] > 0 && ang[1] <= 360) ||
+                              (!strcmp(type, "rect") && !(ang[0] < 180 && ang[1] < 180))))
+        bad = "angular_size";
     if (bad) {
         snprintf(field, sizeof field, "lights[%zu]%s%s", i, *bad ? "." : "", bad);
         return sl_error_set(err, SL_ERR_INPUT, "%s: %s is missing, of the wrong type, not finite "
@@ -84,7 +98,19 @@ static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t
     v3_copy(l.color, rad);
     /* Every light emits along its -Z, toward the capture point. */
     v3_copy(l.axis_z, dir);
-    if (json_is_null(jpos)) {
+    if (json_is_null(jpos) && version >= 2 && !strcmp(type, "rect")) {
+        /* A rect at infinity: far away, with its angular size and roll,
+         * and the radiance that keeps its solid angle's power exactly. */
+        double tu = tan(0.5 * ang[0] * SL_PI / 180), tv = tan(0.5 * ang[1] * SL_PI / 180);
+        double om = 4 * asin(tu * tv / sqrt((1 + tu * tu) * (1 + tv * tv)));
+        for (int k = 0; k < 3; k++)
+            l.color[k] *= omega / om;
+        l.type = SL_LIGHT_RECT;
+        for (int k = 0; k < 3; k++)
+            l.position[k] = RIG_FAR * dir[k];
+        l.width = 2 * RIG_FAR * tu;
+        l.height = 2 * RIG_FAR * tv;
+    } else if (json_is_null(jpos)) {
         /* At infinity: the cone of the rig's solid angle. A cone cannot
          * exceed a hemisphere (median cut's regions can), so there the
          * radiance carries the rest of the region's power. */
@@ -107,8 +133,13 @@ static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t
         l.height = size[1];
         l.radius = 0.5 * size[0];
     }
-    /* v1 carries no roll: +Y up unless the light is overhead or underfoot. */
-    v3_set(l.axis_y, 0, fabs(l.axis_z[1]) > 0.9 ? 0 : 1, fabs(l.axis_z[1]) > 0.9 ? 1 : 0);
+    if (version >= 2) {
+        /* the rig's frame: X = axis_u (the width), Y = direction x axis_u */
+        v3_cross(l.axis_z, axis_u, l.axis_y);
+    } else {
+        /* v1 carries no roll: +Y up unless the light is overhead or underfoot. */
+        v3_set(l.axis_y, 0, fabs(l.axis_z[1]) > 0.9 ? 0 : 1, fabs(l.axis_z[1]) > 0.9 ? 1 : 0);
+    }
     if (json_is_string(jtex)) {
         snprintf(field, sizeof field, "lights[%zu].texture", i);
         sl_result r = read_image(path, field, json_string_value(jtex), &l.texture, err);
@@ -135,8 +166,9 @@ sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err)
     json_t *lights = json_object_get(root, "lights"), *dome = json_object_get(root, "dome");
     json_t *version = json_object_get(root, "version");
     json_t *file = dome ? json_object_get(dome, "file") : NULL;
-    if (!json_is_object(root) || !json_is_integer(version) || json_integer_value(version) != 1) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: version is not 1 (a rig.json version 1 from "
+    if (!json_is_object(root) || !json_is_integer(version) ||
+        json_integer_value(version) < 1 || json_integer_value(version) > 2) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: version is not 1 or 2 (a rig.json from "
                                             "setlight rig is expected)", path);
         goto done;
     }
@@ -150,7 +182,8 @@ sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err)
         goto done;
     }
     for (size_t i = 0; i < json_array_size(lights); i++)
-        if ((r = read_light(scene, path, json_array_get(lights, i), i, err)))
+        if ((r = read_light(scene, path, json_array_get(lights, i), i,
+                            (int)json_integer_value(version), err)))
             goto done;
     if (json_is_string(file)) {
         sl_image env;

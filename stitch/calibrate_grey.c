@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "calibrate_internal.h"
 #include "setlight/render.h"
 #include "setlight/stitch.h"
 
@@ -58,6 +59,85 @@ static bool bilinear(const sl_image *img, double x, double y, double clip, float
 
 static double lum(const float *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
 
+sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_error *err)
+{
+    double cx = o->circle[0], cy = o->circle[1], rad = o->circle[2];
+    if (!(rad >= 4) || !isfinite(cx) || !isfinite(cy))
+        return sl_error_set(err, SL_ERR_USAGE, "grey sphere: circle radius %g too small (4 px at least)",
+                            rad);
+    if (!(o->albedo > 0 && o->albedo <= 1) || !(o->inner > 0 && o->inner <= 1) || o->spp < 1)
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "grey sphere: albedo and inner fraction in (0, 1], spp >= 1");
+    if (!photo || !photo->data || photo->channels < 3)
+        return sl_error_set(err, SL_ERR_INPUT, "grey sphere photo: needs RGB");
+    return SL_OK;
+}
+
+int sl_cal_sphere_size(const sl_grey_options *o)
+{
+    int n = o->size > 0 ? o->size : (int)fmin(128, ceil(2 * o->circle[2]));
+    return n < 8 ? 8 : n;
+}
+
+sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, int n, sl_image *out,
+                               sl_error *err)
+{
+    memset(out, 0, sizeof(*out));
+    sl_scene s;
+    sl_scene_init(&s);
+    /* The "grey" preset with the photographed sphere's albedo and view. */
+    sl_material mat;
+    sl_material_lambert(&mat, o->albedo, o->albedo, o->albedo);
+    int mi = 0;
+    const double origin[3] = {0, 0, 0};
+    sl_result r = sl_scene_add_material(&s, &mat, &mi, err);
+    if (!r)
+        r = sl_scene_add_sphere(&s, origin, 1.0, mi, err);
+    if (!r) {
+        sl_camera_validation(&s.camera, n, n, 2.0, o->azimuth_deg, o->elevation_deg);
+        r = sl_scene_set_dome(&s, env, 0, 1, "HDRI", err);
+    }
+    sl_render_options ro;
+    sl_render_options_init(&ro);
+    ro.spp = o->spp;
+    ro.seed = o->seed;
+    ro.bounces = 0; /* a convex sphere cannot see itself */
+    if (!r)
+        r = sl_render(&s, &ro, out, NULL, err);
+    sl_scene_free(&s);
+    return r;
+}
+
+void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, sl_image *out)
+{
+    int n = out->width;
+    double cx = o->circle[0], cy = o->circle[1], rad = o->circle[2];
+    /* The circle spans the virtual camera's image; each virtual pixel is
+     * the mean of k x k bilinear taps over its footprint (k photo pixels
+     * across it), so a photo larger than the render averages its noise. */
+    int k = (int)ceil(2 * rad / n);
+    if (k < 1)
+        k = 1;
+    for (int y = 0; y < n; y++)
+        for (int x = 0; x < n; x++) {
+            float *ph = out->data + (size_t)y * out->stride + (size_t)x * 4;
+            double u = (x + 0.5) / n * 2 - 1, v = (y + 0.5) / n * 2 - 1;
+            bool in = u * u + v * v < o->inner * o->inner;
+            double acc[3] = {0, 0, 0};
+            for (int j = 0; in && j < k; j++)
+                for (int i = 0; in && i < k; i++) {
+                    double su = (x + (i + 0.5) / k) / n * 2 - 1, sv = (y + (j + 0.5) / k) / n * 2 - 1;
+                    float t[3];
+                    in = bilinear(photo, cx + su * rad, cy + sv * rad, o->clip_level, t);
+                    for (int c = 0; c < 3; c++)
+                        acc[c] += t[c];
+                }
+            ph[3] = in ? 1.0f : 0.0f;
+            for (int c = 0; c < 3; c++)
+                ph[c] = in ? (float)(acc[c] / (k * k)) : 0.0f;
+        }
+}
+
 sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *opt,
                              sl_grey_fit *fit, sl_error *err)
 {
@@ -67,40 +147,11 @@ sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const 
         o = *opt;
     else
         sl_grey_options_init(&o);
-    double cx = o.circle[0], cy = o.circle[1], rad = o.circle[2];
-    if (!(rad >= 4) || !isfinite(cx) || !isfinite(cy))
-        return sl_error_set(err, SL_ERR_USAGE, "grey sphere: circle radius %g too small (4 px at least)",
-                            rad);
-    if (!(o.albedo > 0 && o.albedo <= 1) || !(o.inner > 0 && o.inner <= 1) || o.spp < 1)
-        return sl_error_set(err, SL_ERR_USAGE,
-                            "grey sphere: albedo and inner fraction in (0, 1], spp >= 1");
-    if (!photo || !photo->data || photo->channels < 3)
-        return sl_error_set(err, SL_ERR_INPUT, "grey sphere photo: needs RGB");
-    int n = o.size > 0 ? o.size : (int)fmin(128, ceil(2 * rad));
-    if (n < 8)
-        n = 8;
-    sl_scene s;
-    sl_scene_init(&s);
-    /* The "grey" preset with the photographed sphere's albedo and view. */
-    sl_material mat;
-    sl_material_lambert(&mat, o.albedo, o.albedo, o.albedo);
-    int mi = 0;
-    const double origin[3] = {0, 0, 0};
-    sl_result r = sl_scene_add_material(&s, &mat, &mi, err);
-    if (!r)
-        r = sl_scene_add_sphere(&s, origin, 1.0, mi, err);
-    if (!r) {
-        sl_camera_validation(&s.camera, n, n, 2.0, o.azimuth_deg, o.elevation_deg);
-        r = sl_scene_set_dome(&s, hdri, 0, 1, "HDRI", err);
-    }
-    sl_render_options ro;
-    sl_render_options_init(&ro);
-    ro.spp = o.spp;
-    ro.seed = o.seed;
-    ro.bounces = 0; /* a convex sphere cannot see itself */
-    if (!r)
-        r = sl_render(&s, &ro, &fit->render, NULL, err);
-    sl_scene_free(&s);
+    sl_result r = sl_cal_grey_check(&o, photo, err);
+    if (r)
+        return r;
+    int n = sl_cal_sphere_size(&o);
+    r = sl_cal_render_sphere(hdri, &o, n, &fit->render, err);
     if (!r)
         r = sl_image_alloc(&fit->photo, n, n, 4, err);
     if (!r)
@@ -114,25 +165,19 @@ sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const 
         sl_grey_fit_free(fit);
         return r;
     }
-    /* Resample the photo to the virtual camera: the circle spans the image. */
+    sl_cal_resample_photo(photo, &o, &fit->photo);
     size_t k = 0;
-    for (int y = 0; y < n; y++)
-        for (int x = 0; x < n; x++) {
-            float *ph = fit->photo.data + (size_t)y * fit->photo.stride + (size_t)x * 4;
-            const float *re = fit->render.data + (size_t)y * fit->render.stride + (size_t)x * 4;
-            double u = (x + 0.5) / n * 2 - 1, v = (y + 0.5) / n * 2 - 1;
-            bool in = u * u + v * v < o.inner * o.inner &&
-                      bilinear(photo, cx + u * rad, cy + v * rad, o.clip_level, ph) &&
-                      re[0] > 0 && re[1] > 0 && re[2] > 0;
-            ph[3] = in ? 1.0f : 0.0f;
-            if (in) {
-                for (int c = 0; c < 3; c++)
-                    ratio[k * 3 + c] = ph[c] / re[c];
-                k++;
-            } else {
-                ph[0] = ph[1] = ph[2] = 0;
-            }
-        }
+    for (size_t q = 0; q < cnt; q++) {
+        float *ph = fit->photo.data + q * 4;
+        const float *re = fit->render.data + q * 4;
+        if (ph[3] != 0 && !(re[0] > 0 && re[1] > 0 && re[2] > 0))
+            ph[3] = 0, ph[0] = ph[1] = ph[2] = 0;
+        if (ph[3] == 0)
+            continue;
+        for (int c = 0; c < 3; c++)
+            ratio[k * 3 + c] = ph[c] / re[c];
+        k++;
+    }
     if (k < 16) {
         free(ratio);
         sl_grey_fit_free(fit);

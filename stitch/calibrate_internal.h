@@ -5,11 +5,24 @@
 
 #include <stdbool.h>
 
+#include "setlight/stitch.h"
+
 /* Solves a x = b in place (a: n x n row-major, b: n) by Gaussian
  * elimination with partial pivoting; false when singular. */
 bool sl_cal_solve(double *a, double *b, int n);
 
-
+/* Grey sphere helpers shared by the fit and the clipped-sun repair. */
+sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_error *err);
+/* Pixels across the virtual render. */
+int sl_cal_sphere_size(const sl_grey_options *o);
+/* The virtual sphere (albedo, view, spp, seed of o) under env, n x n RGBA. */
+sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, int n, sl_image *out,
+                               sl_error *err);
+/* The photo's circle resampled onto out (n x n RGBA, allocated), each
+ * pixel the mean over its footprint: alpha 1 where the pixel is within
+ * o->inner of the radius and every tap is finite and below o->clip_level,
+ * else 0 and black. */
+void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, sl_image *out);
 
 #include <stddef.h>
 

@@ -93,6 +93,11 @@ sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *so
     static const double g[4][2] = {{-6.0 / 11, -6.0 / 11}, {61.0 / 11, -6.0 / 11},
                                    {61.0 / 11, 39.0 / 11}, {-6.0 / 11, 39.0 / 11}};
     double best = INFINITY;
+    /* Orientations are judged on every usable patch: the outlier test would
+     * let a wrong one keep only the patches it happens to fit. */
+    sl_ccm_options co;
+    sl_ccm_options_init(&co);
+    co.outlier_ratio = 0;
     for (int k = 0; k < 4; k++)
         for (int d = -1; d <= 1; d += 2) {
             double quad[4][2], c[24][2];
@@ -106,7 +111,7 @@ sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *so
             sl_chart_patch p[24];
             sl_ccm_fit fit;
             if (sl_chart_sample(img, c, 0, clip_level, p, NULL) ||
-                sl_ccm_fit_chart(p, SL_COLORCHECKER_LINEAR, NULL, &fit, NULL))
+                sl_ccm_fit_chart(p, SL_COLORCHECKER_LINEAR, &co, &fit, NULL))
                 continue;
             if (fit.de_after_mean < best) {
                 best = fit.de_after_mean;

@@ -2,6 +2,7 @@
 /* Colour-correction matrix from chart patches, with CIEDE2000 before and
  * after. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "calibrate_internal.h"
@@ -26,6 +27,7 @@ void sl_ccm_options_init(sl_ccm_options *o)
 {
     memset(o, 0, sizeof(*o));
     o->neutral_patch = -1;
+    o->outlier_ratio = 2.0;
 }
 
 static double det3(const double m[3][3])
@@ -49,19 +51,16 @@ static void summarise(const double *de, const bool *have, double *mean, double *
     *max = n ? mx : -1;
 }
 
-sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double reference[24][3],
-                           const sl_ccm_options *opt, sl_ccm_fit *fit, sl_error *err)
+static sl_result fit_once(const sl_chart_patch patches[24], const double reference[24][3],
+                          const sl_ccm_options *opt, const bool exclude[24], sl_ccm_fit *fit,
+                          sl_error *err)
 {
     memset(fit, 0, sizeof(*fit));
     fit->neutral_patch = -1;
-    sl_ccm_options defaults;
-    sl_ccm_options_init(&defaults);
-    if (!opt)
-        opt = &defaults;
     double w[24];
     for (int p = 0; p < 24; p++) {
         double y = luminance(reference[p]);
-        bool ok = patches[p].valid && y > 0 && isfinite(y);
+        bool ok = patches[p].valid && !exclude[p] && y > 0 && isfinite(y);
         for (int c = 0; c < 3; c++)
             ok = ok && isfinite(patches[p].rgb[c]) && isfinite(reference[p][c]);
         fit->used_patch[p] = ok;
@@ -156,4 +155,82 @@ sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double refere
     if (!isfinite(d) || d == 0)
         return sl_error_set(err, SL_ERR_INPUT, "chart: the fitted colour matrix is singular");
     return SL_OK;
+}
+
+static int cmp_lq(const void *a, const void *b)
+{
+    const double *x = a, *y = b;
+    return (x[0] > y[0]) - (x[0] < y[0]);
+}
+
+sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double reference[24][3],
+                           const sl_ccm_options *opt, sl_ccm_fit *fit, sl_error *err)
+{
+    sl_ccm_options defaults;
+    sl_ccm_options_init(&defaults);
+    if (!opt)
+        opt = &defaults;
+    bool excl[24] = {false};
+    sl_result r = fit_once(patches, reference, opt, excl, fit, err);
+    if (r || !(opt->outlier_ratio > 1))
+        return r;
+    /* A shadow across part of the chart (or glare, or a reflection) makes
+     * those patches darker or brighter than any colour matrix can explain:
+     * keep the largest group whose fitted/reference luminance ratios lie
+     * within outlier_ratio of each other (the brighter on a tie), refit. */
+    for (int round = 0; round < 3; round++) {
+        double lq[24][2];
+        int m = 0;
+        for (int p = 0; p < 24; p++) {
+            if (!fit->used_patch[p])
+                continue;
+            double v[3];
+            sl_mat3_apply(fit->m, patches[p].rgb, v);
+            double q = luminance(v) / luminance(reference[p]);
+            lq[m][0] = q > 0 ? log(q) : -1e300;
+            lq[m++][1] = p;
+        }
+        qsort(lq, (size_t)m, sizeof(lq[0]), cmp_lq);
+        int best = 0, bi = 0;
+        for (int i = 0, j = 0; i < m; i++) {
+            while (j < m && lq[j][0] - lq[i][0] <= log(opt->outlier_ratio))
+                j++;
+            if (j - i >= best)
+                best = j - i, bi = i;
+        }
+        if (best == m || best < 6)
+            break;
+        for (int k = 0; k < m; k++)
+            if (k < bi || k >= bi + best)
+                excl[(int)lq[k][1]] = true;
+        if ((r = fit_once(patches, reference, opt, excl, fit, err)))
+            return r;
+    }
+    for (int p = 0; p < 24; p++) {
+        fit->outlier[p] = excl[p];
+        fit->outliers += excl[p];
+    }
+    return SL_OK;
+}
+
+void sl_ccm_plate_matrix(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                         double plate[3][3])
+{
+    /* The chart's light level is unknown: keep the neutral patch's
+     * luminance, leave exposure to the grey sphere. */
+    int n = fit->neutral_patch;
+    for (int k = 21; n < 0 && k >= 18; k--)
+        if (fit->used_patch[k])
+            n = k;
+    double y_in = 0, y_out = 0;
+    if (n >= 0) {
+        double v[3];
+        sl_mat3_apply(fit->m, patches[n].rgb, v);
+        y_in = luminance(patches[n].rgb);
+        y_out = luminance(v);
+    }
+    double k = y_out > 0 && y_in > 0 ? y_in / y_out : 1 / fit->gain;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            plate[i][j] = fit->m[i][j] * k;
 }

@@ -143,8 +143,10 @@ sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], doub
             double mean = sk / (double)k, var = fmax(ss / (double)k - mean * mean, 0);
             pt->spread = mean > 0 ? sqrt(var) / mean : 0;
         }
+        /* A patch that varies more than noise and texture do has a shadow
+         * edge or glare across it. */
         pt->valid = k >= 4 && disc > 0 && pt->clipped <= 0.05 * disc &&
-                    pt->nonfinite <= 0.5 * disc;
+                    pt->nonfinite <= 0.5 * disc && pt->spread <= SL_CHART_MAX_SPREAD;
     }
     free(buf);
     return SL_OK;

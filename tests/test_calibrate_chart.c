@@ -201,6 +201,67 @@ static void test_fit_exact(void) { check_fit(0, false); }
 static void test_fit_noisy(void) { check_fit(0.02, false); }
 static void test_fit_white_preserving(void) { check_fit(0.02, true); }
 
+/* A shadow across the chart: everything right of the middle of column 4
+ * (0-based 3) gets a quarter of the light. Column 4's patches straddle the
+ * edge (non-uniform, invalid); columns 5 and 6 are uniformly darker, which
+ * no colour matrix explains: left out as outliers, and the fit on the lit
+ * half is as good as on a whole chart. */
+static void test_half_in_shadow(void)
+{
+    double cam[3][3], truth[3][3], c[24][2];
+    camera_matrix(cam);
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            cam[i][j] *= 0.37;
+    invert3(cam, truth);
+    sl_image img = {0};
+    CHECK(chart_photo(&img, 1.0, cam, 0.01));
+    preset_centers(W, c);
+    double edge = c[3][0];
+    for (int y = 0; y < img.height; y++)
+        for (int x = 0; x < img.width; x++)
+            if (x + 0.5 > edge)
+                for (int k = 0; k < 3; k++)
+                    img.data[(size_t)y * img.stride + (size_t)x * img.channels + k] *= 0.25f;
+    sl_chart_patch p[24];
+    sl_error err;
+    CHECK_OK(sl_chart_sample(&img, c, 0, 0, p, &err), &err);
+    sl_ccm_fit fit;
+    CHECK_OK(sl_ccm_fit_chart(p, SL_COLORCHECKER_LINEAR, NULL, &fit, &err), &err);
+    int straddle = 0, outliers_right = 0;
+    for (int i = 0; i < 24; i++) {
+        if (i % 6 == 3)
+            straddle += !p[i].valid;
+        if (i % 6 >= 4)
+            outliers_right += fit.outlier[i];
+    }
+    double worst = 0, norm = 0;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            worst = fmax(worst, fabs(fit.m[i][j] - truth[i][j]));
+            norm = fmax(norm, fabs(truth[i][j]));
+        }
+    printf("  half in shadow: %d of 4 edge patches invalid (spread %.2f), %d outliers (%d in "
+           "the shadow), %d used; dE2000 after mean %.3f max %.3f, matrix error %.2e\n",
+           straddle, p[3].spread, fit.outliers, outliers_right, fit.used, fit.de_after_mean,
+           fit.de_after_max, worst / norm);
+    CHECK(straddle == 4);
+    CHECK(outliers_right == 8 && fit.outliers == 8);
+    CHECK(fit.used == 12);
+    CHECK(fit.de_after_mean <= 1.0 && fit.de_after_max <= 3.0);
+    CHECK(worst / norm < 0.02);
+    /* With the outlier test off, the shadowed patches drag the fit. */
+    sl_ccm_options o;
+    sl_ccm_options_init(&o);
+    o.outlier_ratio = 0;
+    sl_ccm_fit raw;
+    CHECK_OK(sl_ccm_fit_chart(p, SL_COLORCHECKER_LINEAR, &o, &raw, &err), &err);
+    printf("  without the outlier test: %d used, dE2000 after mean %.3f max %.3f\n", raw.used,
+           raw.de_after_mean, raw.de_after_max);
+    CHECK(raw.used == 20 && raw.de_after_mean > 3);
+    sl_image_free(&img);
+}
+
 static void test_too_few_patches(void)
 {
     sl_chart_patch p[24];
@@ -224,6 +285,7 @@ int main(void)
     RUN(test_fit_exact);
     RUN(test_fit_noisy);
     RUN(test_fit_white_preserving);
+    RUN(test_half_in_shadow);
     RUN(test_too_few_patches);
     return sl_test_finish();
 }

@@ -145,9 +145,10 @@ static void test_real_photos(void)
         for (int k = 18; k < 23; k++)
             ordered = ordered && lum(p[k].rgb) > lum(p[k + 1].rgb);
         printf("  %-44s %4dx%-4d cost %6.2f  max spread %.3f (patch %2d) neutrals %s  "
-               "dE2000 vs X-Rite: before %.2f (max %.2f) after CCM %.2f (max %.2f)\n",
+               "dE2000 vs X-Rite: before %.2f (max %.2f) after CCM %.2f (max %.2f), %d used, %d outliers\n",
                photos[i], img.width, img.height, d.cost, spread, worst + 1, ordered ? "ordered" : "NOT ordered",
-               fit.de_before_mean, fit.de_before_max, fit.de_after_mean, fit.de_after_max);
+               fit.de_before_mean, fit.de_before_max, fit.de_after_mean, fit.de_after_max, fit.used,
+               fit.outliers);
         CHECK_MSG(ordered, "%s: neutral row not ordered", photos[i]);
         CHECK_MSG(spread < 0.05, "%s: patch spread %.3f", photos[i], spread);
         sl_image_free(&img);

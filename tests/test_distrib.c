@@ -85,6 +85,42 @@ static void test_chi2_pvalue(void)
     CHECK(sl_chi2_pvalue(INFINITY, 3) == 0.0);
 }
 
+/* The cut-point search must find exactly the bin of a full search: the
+ * largest i with cdf[i] <= u, at bin and cut-point edges, across zero bins,
+ * and for a spike that takes almost all of the mass. */
+static void test_1d_guided_search(void)
+{
+    enum { N = 1000 };
+    static double f[N];
+    for (int i = 0; i < N; i++)
+        f[i] = (i % 7 == 3 || (i > 200 && i < 260)) ? 0.0 : 1e-6 + (i * 31 % 13);
+    f[500] = 1e9;
+    sl_distrib1d d;
+    sl_error err;
+    CHECK_OK(sl_distrib1d_init(&d, f, N, &err), &err);
+    int wrong = 0, tried = 0;
+    for (int k = 0; k <= 4 * N; k++) {
+        double base[3] = {(double)k / (4 * N), (double)(k % N) / N, k < N ? d.cdf[k] : 0.5};
+        for (int j = 0; j < 3; j++)
+            for (int e = -2; e <= 2; e++) {
+                double u = base[j];
+                for (int m = 0; m < (e < 0 ? -e : e); m++)
+                    u = nextafter(u, e < 0 ? -1.0 : 2.0);
+                if (!(u >= 0.0 && u < 1.0))
+                    continue;
+                int full = 0;
+                for (int i = 0; i < N; i++)
+                    if (d.cdf[i] <= u)
+                        full = i;
+                tried++;
+                wrong += sl_distrib1d_sample_discrete(&d, u, NULL) != full;
+            }
+    }
+    CHECK(tried > 50000);
+    CHECK(wrong == 0);
+    sl_distrib1d_free(&d);
+}
+
 static void test_1d_fit(void)
 {
     enum { N = 64, HB = 256, S = 100000 };
@@ -400,6 +436,7 @@ int main(void)
 {
     RUN(test_chi2_pvalue);
     RUN(test_1d_fit);
+    RUN(test_1d_guided_search);
     RUN(test_1d_extreme_range);
     RUN(test_1d_degenerate);
     RUN(test_2d_fit);

@@ -143,8 +143,12 @@ static void check_usda(const sl_rig *rig, const char *path)
     for (int i = 0; i + 1 < n && i < rig->light_count; i++) {
         const sl_rig_light *L = &rig->lights[i];
         const prim *q = &p[i + 1];
-        const char *want = !L->has_position          ? "DistantLight"
-                           : L->shape == SL_RIG_RECT  ? "RectLight"
+        /* a rect at infinity: a RectLight 1e4 m away of its angular size */
+        bool far = !L->has_position && L->shape == SL_RIG_RECT;
+        double tu = tan(L->angular_size[0] / 2), tv = tan(L->angular_size[1] / 2);
+        double far_omega = 4 * asin(tu * tv / sqrt((1 + tu * tu) * (1 + tv * tv)));
+        const char *want = L->shape == SL_RIG_RECT    ? "RectLight"
+                           : !L->has_position         ? "DistantLight"
                            : L->shape == SL_RIG_SPHERE ? "SphereLight"
                                                        : "DiskLight";
         CHECK_MSG(!strcmp(q->type, want), "prim %d is %s, want %s", i, q->type, want);
@@ -154,8 +158,12 @@ static void check_usda(const sl_rig *rig, const char *path)
         CHECK(attr_nums(q, "color3f inputs:color", col, 3) == 3);
         const char *norm = attr(q, "bool inputs:normalize");
         CHECK(norm && !strcmp(norm, "0"));
+        /* the power: radiance x the shape's exact solid angle */
         for (int c = 0; c < 3; c++)
-            CHECK_NEAR(in * pow(2, ex) * col[c] / L->radiance[c], 1, 1e-6);
+            CHECK_NEAR(in * pow(2, ex) * col[c] * (far ? far_omega : L->solid_angle) /
+                           L->integral[c], 1, 1e-6);
+        const char *inf = attr(q, "custom bool setlight:atInfinity");
+        CHECK(inf && !strcmp(inf, L->has_position ? "0" : "1"));
         double m[16];
         CHECK(attr_nums(q, "matrix4d xformOp:transform", m, 16) == 16);
         const char *order = attr(q, "uniform token[] xformOpOrder");
@@ -163,7 +171,8 @@ static void check_usda(const sl_rig *rig, const char *path)
         /* rows: X = width axis, Y, Z = toward the light (it emits along -Z) */
         for (int a = 0; a < 3; a++) {
             CHECK_NEAR(m[8 + a], L->direction[a], 1e-12);
-            CHECK_NEAR(m[12 + a], L->has_position ? L->position[a] : 0, 1e-9);
+            CHECK_NEAR(m[12 + a],
+                       L->has_position ? L->position[a] : far ? 1e4 * L->direction[a] : 0, 1e-9);
         }
         double cx[3] = {m[1] * m[6] - m[2] * m[5], m[2] * m[4] - m[0] * m[6],
                         m[0] * m[5] - m[1] * m[4]};
@@ -173,7 +182,15 @@ static void check_usda(const sl_rig *rig, const char *path)
             double ang = attr_num(q, "float inputs:angle") * M_PI / 180;
             CHECK_NEAR(2 * M_PI * (1 - cos(ang / 2)) / L->solid_angle, 1, 1e-5);
         } else if (!strcmp(q->type, "RectLight")) {
-            CHECK_NEAR(attr_num(q, "float inputs:width"), L->size[0], 1e-6 * L->size[0]);
+            double wh[2] = {far ? 2e4 * tu : L->size[0], far ? 2e4 * tv : L->size[1]};
+            CHECK_NEAR(attr_num(q, "float inputs:width"), wh[0], 1e-6 * wh[0]);
+            if (far) {
+                /* seen from the capture point: the light's solid angle and
+                 * its width along the rows' X axis (axis_u) */
+                CHECK_NEAR(far_omega / L->solid_angle, 1, 1e-6);
+                for (int a = 0; a < 3; a++)
+                    CHECK_NEAR(m[a], L->axis_u[a], 1e-12);
+            }
             const char *tf = attr(q, "asset inputs:texture:file");
             if (L->texture[0]) {
                 char want[300];
@@ -182,7 +199,7 @@ static void check_usda(const sl_rig *rig, const char *path)
             } else {
                 CHECK(tf == NULL);
             }
-            CHECK_NEAR(attr_num(q, "float inputs:height"), L->size[1], 1e-6 * L->size[1]);
+            CHECK_NEAR(attr_num(q, "float inputs:height"), wh[1], 1e-6 * wh[1]);
         } else {
             CHECK_NEAR(attr_num(q, "float inputs:radius"), L->size[0] / 2, 1e-6 * L->size[0]);
         }
@@ -197,16 +214,17 @@ static void check_json(const sl_rig *rig, const char *path)
     CHECK_MSG(root != NULL, "rig.json: %s", je.text);
     if (!root)
         return;
-    CHECK(json_integer_value(json_object_get(root, "version")) == 1);
+    CHECK(json_integer_value(json_object_get(root, "version")) == 2);
     CHECK(json_object_size(root) == 5);
     json_t *lights = json_object_get(root, "lights");
     CHECK((int)json_array_size(lights) == rig->light_count);
-    static const char *keys[] = {"type", "direction", "solid_angle", "radiance",
-                                 "integral", "position", "size", "texture"};
+    static const char *keys[] = {"type",     "direction", "solid_angle",  "radiance",
+                                 "integral", "position",  "size",         "texture",
+                                 "axis_u",   "angular_size", "share",     "share_glossy"};
     for (int i = 0; i < rig->light_count && i < (int)json_array_size(lights); i++) {
         json_t *l = json_array_get(lights, i);
-        CHECK(json_object_size(l) == 8);
-        for (int k = 0; k < 8; k++)
+        CHECK(json_object_size(l) == 12);
+        for (int k = 0; k < 12; k++)
             CHECK_MSG(json_object_get(l, keys[k]) != NULL, "light lacks %s", keys[k]);
         CHECK(!strcmp(json_string_value(json_object_get(l, "type")),
                       sl_rig_shape_name(rig->lights[i].shape)));
@@ -215,7 +233,14 @@ static void check_json(const sl_rig *rig, const char *path)
                   rig->lights[i].integral[c]);
             CHECK(json_real_value(json_array_get(json_object_get(l, "direction"), c)) ==
                   rig->lights[i].direction[c]);
+            CHECK(json_real_value(json_array_get(json_object_get(l, "axis_u"), c)) ==
+                  rig->lights[i].axis_u[c]);
         }
+        for (int c = 0; c < 2; c++)
+            CHECK_NEAR(json_real_value(json_array_get(json_object_get(l, "angular_size"), c)),
+                       rig->lights[i].angular_size[c] * 180 / M_PI, 1e-12);
+        CHECK(json_real_value(json_object_get(l, "share_glossy")) ==
+              rig->lights[i].share_glossy);
     }
     json_t *ledger = json_object_get(root, "ledger");
     for (int c = 0; c < 3; c++) {

@@ -325,23 +325,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                 sl_error_set(&err, r, "%s: %s", chart_path, err.message);
                 goto fail;
             }
-            /* The chart's light level is unknown: keep the neutral patch's
-             * luminance, leave exposure to the grey sphere. */
-            int n = fit.neutral_patch >= 0 ? fit.neutral_patch : -1;
-            for (int k = 21; n < 0 && k >= 18; k--)
-                if (fit.used_patch[k])
-                    n = k;
-            double y_in = 0, y_out = 0;
-            if (n >= 0) {
-                float v[3] = {(float)p[n].rgb[0], (float)p[n].rgb[1], (float)p[n].rgb[2]};
-                y_in = 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
-                mat_apply(fit.m, v);
-                y_out = 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
-            }
-            double k = y_out > 0 && y_in > 0 ? y_in / y_out : 1 / fit.gain;
-            for (int i = 0; i < 3; i++)
-                for (int j = 0; j < 3; j++)
-                    t[i][j] = fit.m[i][j] * k;
+            sl_ccm_plate_matrix(p, &fit, t);
             chart_used = true;
             json_t *jp = json_array();
             int excluded = 0;

@@ -28,6 +28,8 @@ static void help(FILE *out)
             "  --width N           image width in pixels (default 512; height from the scene)\n"
             "  --view AZ,EL        turn the validation camera (degrees; presets only)\n"
             "  --background MODE   black (default) or env: what camera rays that miss see\n"
+            "  --pixel-centers     sample each pixel's centre only (no box filter), as a\n"
+            "                      renderer with a vanishing pixel filter does\n"
             "  --spp N             stop at N samples per pixel (default 64 unless --time or\n"
             "                      --target-error is given)\n"
             "  --time SECONDS      stop when the next pass would pass this wall time\n"
@@ -98,7 +100,7 @@ static void show_pass(void *ctx, const sl_render_pass *p)
 int cmd_render(int argc, char **argv, const sl_cli *cli)
 {
     enum { O_ENV = 256, O_ROT, O_INT, O_SCENE, O_MAT, O_WIDTH, O_VIEW, O_BG, O_SPP, O_TIME,
-           O_TERR, O_BOUNCES, O_STRAT, O_SAMPLER, O_SEED, O_REF, O_STATS, O_RIG };
+           O_TERR, O_BOUNCES, O_STRAT, O_SAMPLER, O_SEED, O_REF, O_STATS, O_RIG, O_CENTERS };
     static const struct option opts[] = {
         {"env", required_argument, 0, O_ENV},         {"rotate", required_argument, 0, O_ROT},
         {"intensity", required_argument, 0, O_INT},   {"scene", required_argument, 0, O_SCENE},
@@ -109,6 +111,7 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         {"bounces", required_argument, 0, O_BOUNCES}, {"strategy", required_argument, 0, O_STRAT},
         {"sampler", required_argument, 0, O_SAMPLER}, {"seed", required_argument, 0, O_SEED},
         {"rig", required_argument, 0, O_RIG},         {"reference", required_argument, 0, O_REF},   {"stats", required_argument, 0, O_STATS},
+        {"pixel-centers", no_argument, 0, O_CENTERS},
         {"output", required_argument, 0, 'o'},        {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0}};
     const char *rig_path = NULL, *env_path = NULL, *scene_arg = "grey", *mat_spec = NULL, *ref_path = NULL,
@@ -132,6 +135,7 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         case O_MAT: mat_spec = optarg; break;
         case O_REF: ref_path = optarg; break;
         case O_STATS: stats_path = optarg; break;
+        case O_CENTERS: o.pixel_centers = true; break;
         case O_ROT:
             if (!cli_parse_double(optarg, &rotate))
                 return cli_usage_error(cli, "--rotate needs a number of degrees");

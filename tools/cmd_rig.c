@@ -32,7 +32,7 @@ static const char *rig_help =
     "  --peak-fraction F     ... and at least F x the brightest texel of their bright\n"
     "                        area, so a lamp is not joined to the wall it lights\n"
     "                        (default 0.02; 0 keeps whole areas)\n"
-    "  --max-solid-angle SR  wider regions stay in the dome (default 0.3; 0: no limit)\n"
+    "  --max-solid-angle SR  wider regions stay in the dome (default 0.4; 0: no limit)\n"
     "  --merge DEG           fragments closer than DEG are one fixture (default 2)\n"
     "  --unresolved DEG      angular diameter given to sources smaller than the\n"
     "                        texels (default 0.53, the sun)\n"

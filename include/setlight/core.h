@@ -375,6 +375,7 @@ typedef struct sl_distrib1d {
     double *func;  /* n non-negative values */
     double *cdf;   /* n + 1 values, cdf[0] = 0, cdf[n] = 1 */
     double integral; /* sum(func) / n: the integral over [0,1] */
+    int *guide;    /* n + 1 cut points: guide[k] = bin of u = k / n (search starts) */
 } sl_distrib1d;
 
 /* A zero or all-zero function gives a uniform distribution with integral 0.

@@ -41,7 +41,8 @@ typedef struct sl_rig_options {
      * (default 0.02; 0 keeps the whole area). */
     double peak_fraction;
     /* Keep the smallest set of lights carrying this share of the directional
-     * energy (the energy of all candidates above their smooth fill); 0..1, default 0.9. */
+     * energy (the energy of all candidates above their smooth fill) as a grey
+     * sphere sees it and as a glossy one does; 0..1, default 0.9. */
     double energy;
     /* At most this many lights (>= 1); 0 means no limit (default). */
     int max_lights;
@@ -83,7 +84,8 @@ typedef struct sl_rig_light {
     double axis_u[3];      /* tangent frame: major axis (rect width), unit */
     double axis_v[3];      /* minor axis, direction x axis_u ... see docs */
     double angular_size[2];/* full angular width and height (rad); disk: both the diameter */
-    double share;          /* of the directional energy (luminance) */
+    double share;          /* of the grey sphere's light: luminous power */
+    double share_glossy;   /* of the glossy sphere's highlights (see docs) */
     bool has_position;
     double position[3];    /* metres from the capture point */
     double size[2];        /* physical width, height (disk/sphere: diameter twice) */
@@ -96,7 +98,8 @@ typedef struct sl_rig_skip {
     double solid_angle;
     double integral[3];
     double share;
-    char reason[128];
+    double share_glossy;
+    char reason[160];
 } sl_rig_skip;
 
 typedef struct sl_rig {
@@ -130,7 +133,7 @@ void sl_rig_free(sl_rig *rig);
  * written into the DomeLight's texture (relative to the .usda or absolute). */
 sl_result sl_rig_write_usda(const sl_rig *rig, const char *path, const char *dome_file,
                             sl_error *err);
-/* The rig as rig.json (version 1), written atomically; dome_file as above (may be NULL). */
+/* The rig as rig.json (version 2), written atomically; dome_file as above (may be NULL). */
 sl_result sl_rig_write_json(const sl_rig *rig, const char *path, const char *dome_file,
                             sl_error *err);
 /* The rig's JSON text (caller frees with free()). */

@@ -272,7 +272,9 @@ typedef struct sl_chart_patch {
  * so well inside the patch), pixels with any channel >= clip_level
  * (0: no clip test) or non-finite rejected, then the brightest and darkest
  * 10% by channel sum dropped. A patch is invalid when fewer than 4 pixels
- * remain or more than 5% of its disc is clipped. */
+ * remain, more than 5% of its disc is clipped, or the kept pixels' relative
+ * spread exceeds SL_CHART_MAX_SPREAD (a shadow edge or glare across it). */
+#define SL_CHART_MAX_SPREAD 0.15
 sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], double radius_px,
                           double clip_level, sl_chart_patch patches[24], sl_error *err);
 
@@ -281,15 +283,23 @@ typedef struct sl_ccm_options {
      * reference: neutrals stay neutral. */
     bool white_preserving;
     int neutral_patch; /* 0-based; -1: the brightest valid of patches 19..24 */
+    /* Patches lit differently from the rest (part of the chart in shadow,
+     * glare): after a first fit, only the largest group whose fitted /
+     * reference luminance ratios agree within this factor is kept, and the
+     * fit redone (up to 3 rounds). 0 or 1: off. Default 1.5. */
+    double outlier_ratio;
 } sl_ccm_options;
 
-void sl_ccm_options_init(sl_ccm_options *o); /* not white-preserving, neutral -1 */
+/* Not white-preserving, neutral -1, outlier_ratio 1.5. */
+void sl_ccm_options_init(sl_ccm_options *o);
 
 typedef struct sl_ccm_fit {
     double m[3][3];      /* working-space RGB = m * camera RGB */
     double gain;         /* cbrt(det m): the matrix's overall scale */
     int used;            /* patches in the fit */
     bool used_patch[24];
+    bool outlier[24];    /* valid, but left out as lit differently (shadow, glare) */
+    int outliers;
     int neutral_patch;   /* the constraint's patch, or -1 */
     /* CIEDE2000 against the reference (D65, white Y = 1), -1 for patches
      * not measured. "Before" is the camera RGB read as Rec.709 and scaled
@@ -305,6 +315,29 @@ typedef struct sl_ccm_fit {
  * are excluded; fewer than 6 valid patches is SL_ERR_INPUT. */
 sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double reference[24][3],
                            const sl_ccm_options *o, sl_ccm_fit *fit, sl_error *err);
+
+/* The matrix used downstream (the plate matrix): fit->m scaled so the
+ * neutral patch (the constraint's, else the first used of 22, 21, 20, 19:
+ * neutral 3.5 upward, white last as it clips first) keeps its luminance, since the chart's light level is unknown; exposure
+ * is left to the grey sphere. */
+void sl_ccm_plate_matrix(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                         double plate[3][3]);
+
+typedef enum {
+    SL_CHART_SPACE_LAB_D50 = 0, /* CIELAB, D50 white (as X-Rite publishes) */
+    SL_CHART_SPACE_XYZ_D50,     /* CIE XYZ under D50, white Y = 1 or 100 */
+    SL_CHART_SPACE_LIN_REC709   /* linear Rec.709 (D65), the working space */
+} sl_chart_space;
+
+/* Reads 24 reference values in chart order (docs/calibrate.md): CSV with a
+ * header row "L,a,b", "X,Y,Z" or "R,G,B" (an extra first column, e.g. the
+ * patch name, allowed), or JSON {"space": "lab_d50" | "xyz_d50" |
+ * "lin_rec709", "patches": [[v1, v2, v3] x 24]}; "#" lines are comments.
+ * Converted to linear Rec.709 (Bradford D50 -> D65). SL_ERR_NOT_FOUND when
+ * missing; SL_ERR_INPUT naming the file and line when malformed. space
+ * may be NULL. */
+sl_result sl_chart_reference_read(const char *path, double reference[24][3], sl_chart_space *space,
+                                  sl_error *err);
 
 /* CIEDE2000 between two linear Rec.709 colours (D65, white Y = 1). */
 double sl_chart_delta_e(const double rgb[3], const double ref[3]);
@@ -362,6 +395,48 @@ void sl_grey_fit_free(sl_grey_fit *fit);
  * linear in the dome, so the calibrated render is the render times gain. */
 sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *o,
                              sl_grey_fit *fit, sl_error *err);
+
+/* ---- Clipped-sun repair ---- */
+
+typedef struct sl_sun_options {
+    double diameter_deg; /* the clipped source's angular diameter (0.53: the sun) */
+} sl_sun_options;
+
+void sl_sun_options_init(sl_sun_options *o);
+
+typedef struct sl_sun_repair {
+    bool repaired;            /* false when the mask flags nothing (nothing done) */
+    int64_t clipped_texels;   /* flagged in the mask (any channel >= 0.5) */
+    double solid_angle;       /* of the flagged texels, sr */
+    double direction[3];      /* their solid-angle-weighted centroid: the source's centre */
+    double azimuth_deg, elevation_deg; /* of direction, lat-long convention */
+    double source_solid_angle;  /* of the disc, sr */
+    /* Radiances of the disc in the HDRI's units (before the gains): */
+    double bound[3];          /* what the clipped map held above the sky (a lower bound) */
+    double fitted[3];         /* the least-squares fit */
+    double radiance[3];       /* written: fitted, but at least bound */
+    double radiance_sigma[3]; /* standard error of fitted, from the fit's residuals */
+    double gain[3];           /* the exposure gains fitted with it */
+    double energy_before[3];  /* integral of the map over the sphere before, L * sr */
+    double energy_added[3];   /* integral of what the repair added */
+    double rel_rmse_before;   /* grey sphere, best gains under the clipped map */
+    double rel_rmse_after;    /* best gains and the fitted source */
+    int64_t pixels;           /* grey sphere pixels in the fit */
+} sl_sun_repair;
+
+/* Repairs a source clipped in every frame of the merge (`mask`: the merge's
+ * clipped mask, the HDRI's size, any channel >= 0.5 flagged). The source is
+ * a disc of o->diameter_deg at the flagged texels' centroid; the flagged
+ * texels and those the disc touches are refilled with the mean of a ring
+ * round them, then per channel photo = g * render(sky) + g * L * render(disc)
+ * is solved by least squares over the grey sphere (options as for
+ * sl_grey_sphere_fit; the photo in the HDRI's working space) and the disc
+ * written into `hdri` at radiance L. With no flagged texel, nothing is done
+ * (repaired false). SL_ERR_INPUT when the flagged texels are not one source,
+ * the source does not light the visible side of the sphere, or no fit. */
+sl_result sl_sun_repair_fit(sl_image *hdri, const sl_image *mask, const sl_image *photo,
+                            const sl_grey_options *grey, const sl_sun_options *o,
+                            sl_sun_repair *out, sl_error *err);
 
 /* Adds a "Calibration" section to a report: the chart's per-patch table
  * (pixels, clipped, CIEDE2000 before and after) and the grey sphere's

@@ -31,7 +31,7 @@ check "render with reference" 0 $?
 grep -q '"ref_rel_rmse": 0,' "$T/out.json" || grep -q '"ref_rel_rmse": 0\b' "$T/out.json" || { echo "FAIL same seed should match its reference exactly: $(cat "$T/out.json")"; fail=1; }
 "$S" render --help > "$T/help.txt"
 check "help" 0 $?
-for o in --env --scene --material --width --view --background --spp --time --target-error --bounces --strategy --sampler --seed --reference --stats --output; do
+for o in --env --scene --material --width --view --background --pixel-centers --spp --time --target-error --bounces --strategy --sampler --seed --reference --stats --output; do
     grep -q -- "$o" "$T/help.txt" || { echo "FAIL --help lacks $o"; fail=1; }
 done
 
@@ -45,6 +45,17 @@ printf '{"version": 1, "lights": [{"type": "sphere", "direction": [0, 0.894, -0.
 "$S" render --rig "$T/rig.json" --scene shadow --width 16 --spp 4 -o "$T/rig.exr" --stats "$T/rig_stats.json" --quiet
 check "rig render" 0 $?
 grep -q '"shadow_rays": [1-9]' "$T/rig_stats.json" || { echo "FAIL rig render traced no shadow rays"; fail=1; }
+
+# Pixel centres: a mirror ball's pixels are then exact after one sample pair,
+# so 2 and 8 samples per pixel give the same image (error 0 against each other).
+"$S" render --env "$T/env.hdr" --scene chrome --material conductor:1,1,1:0 --pixel-centers --width 12 --spp 2 -o "$T/c2.exr" --quiet
+check "pixel centres" 0 $?
+"$S" render --env "$T/env.hdr" --scene chrome --material conductor:1,1,1:0 --pixel-centers --width 12 --spp 8 --seed 5 \
+    --reference "$T/c2.exr" -o "$T/c8.exr" --json --quiet > "$T/c8.json"
+grep -q '"ref_rel_rmse": 0,' "$T/c8.json" || { echo "FAIL pixel centres: 8 spp differ from 2: $(cat "$T/c8.json")"; fail=1; }
+"$S" render --env "$T/env.hdr" --scene chrome --material conductor:1,1,1:0 --width 12 --spp 8 --seed 5 \
+    --reference "$T/c2.exr" -o "$T/c8b.exr" --json --quiet > "$T/c8b.json"
+grep -q '"ref_rel_rmse": 0,' "$T/c8b.json" && { echo "FAIL box-filtered pixels should differ from pixel centres"; fail=1; }
 
 run_bad() { # name expected-rc message-pattern args...
     local name=$1 want=$2 pat=$3; shift 3
@@ -60,6 +71,12 @@ printf 'this is not an image' > "$T/corrupt.exr"
 run_bad "corrupt env" 3 "corrupt.exr" --env "$T/corrupt.exr"
 run_bad "unknown preset" 2 "teapot" --env "$T/env.hdr" --scene teapot
 run_bad "zero width" 2 "width" --env "$T/env.hdr" --width 0
+python3 - "$T/square.hdr" <<'PY'
+import sys
+with open(sys.argv[1], "wb") as f:
+    f.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 16 +X 16\n" + bytes([128, 128, 128, 129]) * 256)
+PY
+run_bad "env not a lat-long" 3 "square.hdr.*lat-long" --env "$T/square.hdr"
 run_bad "no env" 2 "env" --scene grey
 printf '{"materials": {"m": {"type": "lambert"}}, "objects": [{"type": "sphere", "radius": -1, "material": "m"}]}' > "$T/neg.json"
 run_bad "negative radius" 3 "neg.json: objects\[0\].radius" --env "$T/env.hdr" --scene "$T/neg.json"

@@ -38,15 +38,15 @@ expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/stage.usda" --json "$T/o
 present "$T/o/stage.usda"; present "$T/o/stage_residual.exr"; present "$T/o/stage.json"
 present "$T/o/stage.png"; no_temp "$T/o"
 json_ok "$T/out"
-json_eval "$T/out" 'd["lights"] == 2 and d["relative_error"] < 1e-3 and d["rig"]["version"] == 1'
-json_eval "$T/o/stage.json" 'd["version"] == 1 and len(d["lights"]) == 2 and d["ledger"]["relative_error"] < 1e-3'
+json_eval "$T/out" 'd["lights"] == 2 and d["relative_error"] < 1e-3 and d["rig"]["version"] == 2'
+json_eval "$T/o/stage.json" 'd["version"] == 2 and len(d["lights"]) == 2 and d["ledger"]["relative_error"] < 1e-3'
 json_eval "$T/o/stage.json" 'set(d) == {"version", "lights", "dome", "ledger", "skipped"} and d["dome"]["file"] == "stage_residual.exr"'
-json_eval "$T/o/stage.json" 'all(set(l) == {"type","direction","solid_angle","radiance","integral","position","size","texture"} for l in d["lights"])'
+json_eval "$T/o/stage.json" 'all(set(l) == {"type","direction","solid_angle","radiance","integral","position","size","texture","axis_u","angular_size","share","share_glossy"} for l in d["lights"])'
 json_eval "$T/o/stage.json" 'all(abs(sum(v*v for v in l["direction"]) - 1) < 1e-9 and l["position"] is None for l in d["lights"])'
 # ledger: lights + dome = original per channel
 json_eval "$T/o/stage.json" 'all(abs(d["ledger"]["lights"][c] + d["ledger"]["dome"][c] - d["ledger"]["original"][c]) <= 1e-3 * d["ledger"]["original"][c] for c in range(3))'
 if grep -q 'def DomeLight "dome"' "$T/o/stage.usda" && grep -q '@stage_residual.exr@' "$T/o/stage.usda" &&
-  [ "$(grep -c 'def DistantLight' "$T/o/stage.usda")" -eq 2 ]; then ok; else bad "usda content"; fi
+  [ "$(grep -c 'def RectLight\|def DistantLight' "$T/o/stage.usda")" -eq 2 ]; then ok; else bad "usda content"; fi
 expect 0 "$SETLIGHT" info --json "$T/o/stage_residual.exr"
 json_eval "$T/out" 'd["files"][0]["envmap"] == "latlong" and d["files"][0]["nan_count"] == 0'
 # the dome no longer holds the panels

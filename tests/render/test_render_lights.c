@@ -305,6 +305,143 @@ static void test_light_sampler_chi2(void)
     sl_scene_free(&s);
 }
 
+/* (s, t) in the unit square of a point of the light seen from p, and the
+ * solid angle per unit (s, t) there; the direction and its distance. */
+static void param_dir(const sl_light *l, const double p[3], double s0, double t0, double d[3],
+                      double *dist, double *jac)
+{
+    double q[3];
+    if (l->type == SL_LIGHT_DISTANT) { /* cone coordinates about axis_z */
+        double a = 0.5 * l->angle_deg * SL_PI / 180, omc = 1 - cos(a);
+        double ct = 1 - s0 * omc, st = sqrt(fmax(0, 1 - ct * ct)), phi = 2 * SL_PI * t0;
+        frame f;
+        frame_from_normal(&f, l->axis_z);
+        double loc[3] = {st * cos(phi), st * sin(phi), ct};
+        frame_to_world(&f, loc, d);
+        *dist = INFINITY;
+        *jac = 2 * SL_PI * omc;
+        return;
+    }
+    double area;
+    if (l->type == SL_LIGHT_DISK) { /* polar, area-uniform in s */
+        double r = l->radius * sqrt(s0), phi = 2 * SL_PI * t0;
+        for (int i = 0; i < 3; i++)
+            q[i] = l->position[i] + r * cos(phi) * l->axis_x[i] + r * sin(phi) * l->axis_y[i];
+        area = SL_PI * l->radius * l->radius;
+    } else {
+        for (int i = 0; i < 3; i++)
+            q[i] = l->position[i] + (s0 - 0.5) * l->width * l->axis_x[i] + (t0 - 0.5) * l->height * l->axis_y[i];
+        area = l->width * l->height;
+    }
+    for (int i = 0; i < 3; i++)
+        d[i] = q[i] - p[i];
+    double r = v3_length(d);
+    for (int i = 0; i < 3; i++)
+        d[i] /= r;
+    *dist = r;
+    *jac = area * fabs(v3_dot(d, l->axis_z)) / (r * r);
+}
+
+/* Inverse of param_dir for a sampled direction. */
+static void dir_param(const sl_light *l, const double p[3], const double wi[3], double dist, double *s0,
+                      double *t0)
+{
+    double loc[3], r[3];
+    if (l->type == SL_LIGHT_DISTANT) {
+        double a = 0.5 * l->angle_deg * SL_PI / 180;
+        frame f;
+        frame_from_normal(&f, l->axis_z);
+        frame_to_local(&f, wi, loc);
+        *s0 = (1 - loc[2]) / (1 - cos(a));
+        *t0 = atan2(loc[1], loc[0]) / (2 * SL_PI);
+    } else {
+        for (int i = 0; i < 3; i++)
+            r[i] = p[i] + dist * wi[i] - l->position[i];
+        double x = v3_dot(r, l->axis_x), y = v3_dot(r, l->axis_y);
+        if (l->type == SL_LIGHT_DISK) {
+            *s0 = (x * x + y * y) / (l->radius * l->radius);
+            *t0 = atan2(y, x) / (2 * SL_PI);
+        } else {
+            *s0 = x / l->width + 0.5, *t0 = y / l->height + 0.5;
+        }
+    }
+    if (*t0 < 0)
+        *t0 += 1;
+}
+
+/* Chi-square of the disk (by area), distant cone and textured-rect samplers:
+ * bins over the light's own (s, t), expected counts from integrating
+ * sl_light_pdf over each bin (so the pdf the MIS weights use is checked too). */
+static void test_light_sampler_chi2_more(void)
+{
+    enum { NB = 10, SUB = 20, N = 100000 };
+    const double p[3] = {0.1, -0.2, 0.3};
+    const double pos[3] = {0.7, 0.4, 1.2}, emit[3] = {-0.6, -0.2, -0.77};
+    double e[3] = {emit[0], emit[1], emit[2]};
+    v3_normalize(e);
+    sl_light lights[3];
+    base_light(&lights[0], SL_LIGHT_DISK, pos, e);
+    lights[0].radius = 0.7;
+    base_light(&lights[1], SL_LIGHT_DISTANT, pos, e);
+    lights[1].angle_deg = 40;
+    base_light(&lights[2], SL_LIGHT_RECT, pos, e);
+    lights[2].width = 1.5, lights[2].height = 0.8;
+    CHECK_OK(sl_image_alloc(&lights[2].texture, 8, 4, 3, NULL), NULL);
+    sl_image_fill(&lights[2].texture, 0.5f);
+    float *hot = sl_image_pixel(&lights[2].texture, 6, 1);
+    hot[0] = hot[1] = hot[2] = 20.0f;
+    sl_scene s;
+    sl_scene_init(&s);
+    for (int k = 0; k < 3; k++)
+        CHECK_OK(sl_scene_add_light(&s, &lights[k], NULL), NULL);
+    static const char *const names[3] = {"disk", "distant 40 deg", "textured rect"};
+    for (int k = 0; k < 3; k++) {
+        const sl_light *l = &s.lights[k];
+        static double expected[NB * NB];
+        static int64_t observed[NB * NB];
+        memset(expected, 0, sizeof expected);
+        memset(observed, 0, sizeof observed);
+        double total = 0;
+        for (int a = 0; a < NB * SUB; a++)
+            for (int b = 0; b < NB * SUB; b++) {
+                double d[3], dist, jac;
+                param_dir(l, p, (a + 0.5) / (NB * SUB), (b + 0.5) / (NB * SUB), d, &dist, &jac);
+                double m = sl_light_pdf(l, p, d, dist) * jac / (NB * SUB * NB * SUB);
+                expected[(a / SUB) * NB + b / SUB] += m;
+                total += m;
+            }
+        CHECK_MSG(fabs(total - 1) < 3e-3, "%s: pdf integrates to %.5f", names[k], total);
+        sl_sampler smp;
+        int failed = 0;
+        for (int n = 0; n < N; n++) {
+            double u[2], wi[3], L[3], pdf, dist, s0, t0;
+            bool delta;
+            sl_sampler_start(&smp, 1000 + 37 * k, (uint32_t)n, false);
+            sl_sampler_2d(&smp, u);
+            if (!sl_light_sample(l, p, u, wi, &dist, L, &pdf, &delta) ||
+                !(fabs(pdf - sl_light_pdf(l, p, wi, dist)) <= 1e-9 * pdf)) {
+                failed++;
+                continue;
+            }
+            dir_param(l, p, wi, dist, &s0, &t0);
+            int a = (int)(s0 * NB), b = (int)(t0 * NB);
+            a = a < 0 ? 0 : a >= NB ? NB - 1 : a;
+            b = b < 0 ? 0 : b >= NB ? NB - 1 : b;
+            observed[a * NB + b]++;
+        }
+        CHECK(failed == 0);
+        double stat = 0;
+        for (int i = 0; i < NB * NB; i++) {
+            double ex = expected[i] / total * N;
+            stat += (observed[i] - ex) * (observed[i] - ex) / ex;
+        }
+        double pv = sl_chi2_pvalue(stat, NB * NB - 1);
+        printf("  %s light: chi2 %.1f, p %.3f\n", names[k], stat, pv);
+        CHECK(pv > 0.001);
+    }
+    sl_scene_free(&s);
+}
+
 /* A delta sun straight down: the ground under the sphere is in full shadow,
  * the ground far away gets rho/pi * E. */
 static void test_shadow(void)
@@ -372,7 +509,7 @@ static void test_normalize_and_bad_lights(void)
          "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, 1, 1], "
          "\"position\": [0, 3, 0], \"size\": [1, 1], \"texture\": \"nowhere.exr\"}]}",
          "lights[0].texture"},
-        {"{\"version\": 2, \"dome\": {\"file\": null}, \"lights\": []}", "version"},
+        {"{\"version\": 3, \"dome\": {\"file\": null}, \"lights\": []}", "version"},
         {"{\"version\": 1, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"disk\", "
          "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, -1, 1], "
          "\"position\": null, \"size\": null, \"texture\": null}]}",
@@ -548,6 +685,7 @@ int main(void)
     RUN(test_planar_lights);
     RUN(test_big_rect);
     RUN(test_light_sampler_chi2);
+    RUN(test_light_sampler_chi2_more);
     RUN(test_shadow);
     RUN(test_normalize_and_bad_lights);
     return sl_test_finish();
