@@ -15,7 +15,7 @@ export LSAN_OPTIONS="suppressions=$T/lsan.supp"
 # Under the sanitizers (several times slower) the first run is tiny too; the
 # checks below hold at both sizes.
 size=small
-[ -n "$SETLIGHT_SANITIZED" ] && size=tiny
+[ -n "${SETLIGHT_SANITIZED:-}" ] && size=tiny
 expect 0 "$S" demo "$T/demo" --size $size --json --quiet
 json_ok "$T/out"
 cp "$T/out" "$T/summary.json"
