@@ -95,6 +95,20 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
         sl_report_table_row(d->rep, cells);
     }
     sl_report_table_end(d->rep);
+    /* The preview as the report shows it: its PNG is sRGB, the report re-encodes. */
+    snprintf(path, sizeof path, "%s/rig_preview.png", d->dir);
+    sl_image prev;
+    sl_meta pm;
+    if ((r = sl_photo_read(path, &prev, &pm, err)))
+        goto done;
+    sl_meta_free(&pm);
+    for (size_t i = 0; i < (size_t)prev.width * prev.height * prev.channels; i++)
+        prev.data[i] = sl_srgb_to_linear(prev.data[i]);
+    r = sl_report_image(d->rep, "rig_preview.png", &prev, 0,
+                        "the truth lat-long with the rig's lights outlined and numbered", err);
+    sl_image_free(&prev);
+    if (r)
+        goto done;
     snprintf(note, n, "%d lights; %d of %zu truth lights matched (worst %.2f deg); ledger %.1e",
              rig.light_count, matched, json_array_size(arr), worst_angle, rig.relative_error);
 done:
