@@ -110,7 +110,7 @@ sl_result sl_rig_write_textures(sl_rig *rig, const sl_image *env, const char *pr
     if (!env || env->width != rig->width || env->height != rig->height || !rig->labels)
         return sl_error_set(err, SL_ERR_USAGE, "%s: textures need the rig's own map", prefix);
     for (int i = 0; i < rig->light_count; i++) {
-        if (rig->lights[i].shape != SL_RIG_RECT || !rig->lights[i].has_position)
+        if (rig->lights[i].shape != SL_RIG_RECT)
             continue;
         sl_result r = write_one(rig, env, i, prefix, err);
         if (r)

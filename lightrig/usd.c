@@ -74,6 +74,8 @@ static void write_light(FILE *f, const sl_rig_light *L, int index)
     if (far_rect(L)) {
         fprintf(f, "        float inputs:width = %.9g\n        float inputs:height = %.9g\n",
                 2 * RIG_USD_FAR * tu, 2 * RIG_USD_FAR * tv);
+        if (L->texture[0] && asset_ok(L->texture))
+            fprintf(f, "        asset inputs:texture:file = @%s@\n", L->texture);
     } else if (!L->has_position) {
         /* The disk of the same solid angle: same radiance, same power. */
         double r = acos(1 - L->solid_angle / (2 * M_PI));

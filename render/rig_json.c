@@ -77,8 +77,8 @@ static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t
     else if (json_is_null(jpos) != json_is_null(jsize) ||
              (!json_is_null(jsize) && !(nums(jsize, 2, 0, size) && size[0] > 0 && size[1] > 0)))
         bad = "size";
-    else if (!json_is_null(jtex) && (!json_is_string(jtex) || json_is_null(jpos) ||
-                                     strcmp(type, "rect")))
+    else if (!json_is_null(jtex) && (!json_is_string(jtex) || strcmp(type, "rect") ||
+                                     (version < 2 && json_is_null(jpos))))
         bad = "texture";
     else if (version >= 2 && (!nums(json_object_get(j, "axis_u"), 3, -INFINITY, axis_u) ||
                               !v3_normalize(axis_u) || fabs(v3_dot(axis_u, dir)) > 1e-3))
@@ -145,6 +145,18 @@ static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t
         sl_result r = read_image(path, field, json_string_value(jtex), &l.texture, err);
         if (r)
             return r;
+        /* UsdLux (and setlight rig) put the texture's first column at the
+         * light's +X; the renderer samples column 0 at -X. */
+        for (int y = 0; y < l.texture.height; y++)
+            for (int x = 0; x < l.texture.width / 2; x++) {
+                float *a = sl_image_pixel(&l.texture, x, y);
+                float *b = sl_image_pixel(&l.texture, l.texture.width - 1 - x, y);
+                for (int c = 0; c < l.texture.channels; c++) {
+                    float t = a[c];
+                    a[c] = b[c];
+                    b[c] = t;
+                }
+            }
     }
     sl_error lerr = {0};
     sl_result r = sl_scene_add_light(scene, &l, &lerr);

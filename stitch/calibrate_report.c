@@ -32,7 +32,10 @@ sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart
             snprintf(c[3], sizeof c[3], "%.2f", chart->de_before[p]);
             snprintf(c[4], sizeof c[4], "%.2f", chart->de_after[p]);
             const char *row[] = {c[0], SL_COLORCHECKER_NAMES[p], c[1], c[2],
-                                 chart->used_patch[p] ? "yes" : "excluded",
+                                 chart->used_patch[p] ? "yes"
+                                 : chart->outlier[p]  ? "outlier (lit differently)"
+                                 : !patches[p].valid  ? "excluded (clipped or non-uniform)"
+                                                      : "excluded",
                                  chart->de_before[p] < 0 ? "-" : c[3],
                                  chart->de_after[p] < 0 ? "-" : c[4]};
             sl_report_table_row(rep, row);

@@ -42,3 +42,12 @@ bool sl_cal_solve(double *a, double *b, int n)
     }
     return true;
 }
+
+double sl_exposure_luminance(double time_s, double f_number, double iso)
+{
+    if (!(time_s > 0 && f_number > 0 && iso > 0) || !isfinite(time_s * f_number * iso))
+        return 0;
+    /* ISO 12232 saturation-based speed: a focal-plane exposure of 78 / S
+     * lux s saturates; H = q L t / N^2 with q = 0.65. */
+    return 78.0 * f_number * f_number / (0.65 * iso * time_s);
+}

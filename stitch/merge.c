@@ -117,6 +117,11 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
         else
             return sl_error_set(err, SL_ERR_INPUT,
                                 "%s: no exposure time in EXIF (give --times)", paths[i]);
+        if (opt->absolute && !(f->f_number > 0 && f->iso > 0))
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: no %s in EXIF: absolute units need the f-number and ISO "
+                                "of every frame",
+                                paths[i], f->f_number > 0 ? "ISO" : "f-number");
         all_n_iso = all_n_iso && f->f_number > 0 && f->iso > 0;
     }
     if (r)
@@ -326,7 +331,8 @@ static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_o
     double *ratio = m->ratio;
     res->fitted_ratios = merge_fit_ratios(&m->samples, &res->response, m->black, m->saturation, ratio);
     res->disagreeing_frames = 0;
-    bool fit_slope = opt->response_mode == SL_RESPONSE_AUTO;
+    bool fit_slope = opt->response_mode == SL_RESPONSE_AUTO ||
+                     opt->response_mode == SL_RESPONSE_ROBERTSON;
     int q = 0;
     while (q < count) {
         int end = q; /* run [q, end]: ratios q..end-1 all fitted */
@@ -383,8 +389,12 @@ static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_m
         lambda = 10 * pow(fmin(fmax(widest, 1), 4) / 3, 1.5);
     }
     sl_response fitted;
-    sl_result r = merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda,
-                                     opt->samples, m->black, m->saturation, opt->seed, &fitted, err);
+    sl_result r = opt->response_mode == SL_RESPONSE_ROBERTSON
+                      ? merge_fit_robertson(&m->samples, loge, RESPONSE_NODES, opt->samples,
+                                            m->black, m->saturation, opt->seed, &fitted, err)
+                      : merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda,
+                                           opt->samples, m->black, m->saturation, opt->seed,
+                                           &fitted, err);
     if (r)
         return r;
     sl_response_free(&res->response);
@@ -428,7 +438,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     if (opt.response_mode == SL_RESPONSE_GIVEN && (!opt.response || opt.response->channels != 3))
         return sl_error_set(err, SL_ERR_USAGE, "merge: a given response needs three curves");
     sl_result r = setup_frames(paths, count, &opt, out, m, err);
-    if (!r && m->is_float && opt.response_mode == SL_RESPONSE_AUTO)
+    bool recovered = opt.response_mode == SL_RESPONSE_AUTO || opt.response_mode == SL_RESPONSE_ROBERTSON;
+    if (!r && m->is_float && recovered)
         r = sl_error_set(err, SL_ERR_INPUT,
                          "%s: float samples are linear already: use --response linear", paths[0]);
     if (!r) {
@@ -461,6 +472,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         memcpy(out->response.source, opt.response->source, sizeof out->response.source);
         break;
     case SL_RESPONSE_AUTO:
+    case SL_RESPONSE_ROBERTSON:
         r = recover_response(m, out, &opt, false, err);
         break;
     }
@@ -470,7 +482,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     /* A recovered curve bends to fit whatever exposures it was given, so a
      * lying frame would hide in it: alternate curve and measured exposures
      * until the exposures settle (each round removes most of the error). */
-    for (int round = 0; round < 8 && opt.response_mode == SL_RESPONSE_AUTO &&
+    for (int round = 0; round < 8 && recovered &&
                         out->fitted_ratios > 0;
          round++) {
         for (int i = 0; i < count; i++)
@@ -487,6 +499,12 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     }
     out->reference = m->order[(count - 1) / 2];
     out->bits = m->bits;
+    out->noise_gain = opt.noise_gain;
+    out->noise_floor = opt.noise_floor;
+    out->black = opt.black;
+    out->saturation = opt.saturation;
+    out->absolute = opt.absolute;
+    out->output_exposure = opt.absolute ? SL_MERGE_K_SAT : out->frames[out->reference].exposure;
     return SL_OK;
 }
 

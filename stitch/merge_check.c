@@ -53,7 +53,7 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
             for (int c = 0; c < 3; c++) {
                 double z0 = s->z[((size_t)i * f + q) * 3 + c];
                 double z1 = s->z[((size_t)i * f + q + 1) * 3 + c];
-                if (!(z0 > lo && z0 < hi && z1 > lo && z1 < hi))
+                if (!(z0 > lo && z1 > lo && merge_zmax(s, i, q) < hi && merge_zmax(s, i, q + 1) < hi))
                     continue;
                 double y0 = sl_response_eval(resp, c, z0), y1 = sl_response_eval(resp, c, z1);
                 if (y0 > ylo && y1 > ylo)

@@ -33,7 +33,8 @@ typedef struct pass_ctx {
 
 enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
 
-/* Inverse variance of a linearised value, before the exposure factor. */
+/* Inverse variance of a linearised value, before the exposure factor and
+ * the pixel's shoulder fade. */
 static double weight_base(const pass_ctx *p, int c, double z)
 {
     const merge_ctx *m = p->m;
@@ -49,7 +50,7 @@ static double weight_base(const pass_ctx *p, int c, double z)
         double step = slope / (p->levels - 1);
         var += step * step / 12;
     }
-    return fmin(1, (m->saturation - z) / SHOULDER) / var;
+    return 1 / var;
 }
 
 static void read_strips(void *ctx, int64_t begin, int64_t end, int worker)
@@ -92,7 +93,7 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
     int w = m->width, f = p->frames;
     float sat = (float)m->saturation;
     double xs[3][MERGE_MAX_FRAMES], ws[3][MERGE_MAX_FRAMES];
-    bool satr[3][MERGE_MAX_FRAMES];
+    bool satr[MERGE_MAX_FRAMES];
     for (int64_t row = begin; row < end; row++) {
         int y = p->y0 + (int)row;
         float *out = sl_image_pixel(&p->res->radiance, 0, y);
@@ -101,6 +102,17 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
         int64_t *cnt = p->row_counts + (size_t)y * COUNTS;
         for (int x = 0; x < w; x++) {
             size_t idx = ((size_t)row * w + x) * 3;
+            /* A camera clips each raw channel before its colour matrix mixes
+             * them, so one saturated channel spoils the pixel's others: the
+             * pixel is saturated as a whole, and fades out by its brightest
+             * channel. */
+            double fade[MERGE_MAX_FRAMES];
+            for (int r = 0; r < f; r++) {
+                const float *v = p->buf[r] + idx;
+                float zmax = fmaxf(v[0], fmaxf(v[1], v[2]));
+                satr[r] = zmax >= sat;
+                fade[r] = satr[r] ? 0 : fmin(1, (m->saturation - zmax) / SHOULDER);
+            }
             for (int c = 0; c < 3; c++)
                 for (int r = 0; r < f; r++) {
                     float z = p->buf[r][idx + c];
@@ -113,15 +125,13 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     } else if (!isfinite(z)) {
                         cnt[COUNT_NONFINITE]++;
                         xs[c][r] = ws[c][r] = 0;
-                        satr[c][r] = false;
                         continue;
                     } else {
                         y_lin = sl_response_eval(&p->res->response, c, z);
                         wb = weight_base(p, c, z);
                     }
                     xs[c][r] = y_lin / p->e[r];
-                    ws[c][r] = wb * p->e[r] * p->e[r];
-                    satr[c][r] = z >= sat;
+                    ws[c][r] = wb * fade[r] * p->e[r] * p->e[r];
                 }
             /* Deghost: a frame far from the weighted median (beyond the noise
              * model plus a model error) in any channel is left out. */
@@ -143,7 +153,7 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 double num = 0, den = 0, fallback = 0;
                 int nsat = 0;
                 for (int r = 0; r < f; r++) {
-                    if (satr[c][r])
+                    if (satr[r])
                         nsat++;
                     else if (!reject[r])
                         fallback = xs[c][r]; /* longest unsaturated so far */
@@ -217,7 +227,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_r
         r = sl_image_alloc(&res->ghost, m->width, m->height, 1, err);
     if (!r)
         r = build_luts(&p, err);
-    double ref = res->frames[res->reference].exposure;
+    double ref = res->output_exposure;
     for (int q = 0; q < f && !r; q++) {
         const sl_merge_frame *fr = &res->frames[m->order[q]];
         p.e[q] = fr->exposure / ref;

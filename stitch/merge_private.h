@@ -3,6 +3,8 @@
 #ifndef SETLIGHT_STITCH_MERGE_PRIVATE_H
 #define SETLIGHT_STITCH_MERGE_PRIVATE_H
 
+#include <math.h>
+
 #include "setlight/stitch.h"
 
 /* Frames per merge (per-pixel work keeps them on the stack). */
@@ -16,6 +18,15 @@ typedef struct merge_samples {
     float *z;
 } merge_samples;
 
+/* The brightest channel of position i in frame rank r. A camera clips each
+ * raw channel before its colour matrix mixes them, so one saturated channel
+ * spoils the pixel's others: saturation is judged on this. */
+static inline float merge_zmax(const merge_samples *s, int i, int r)
+{
+    const float *v = s->z + ((size_t)i * s->frames + r) * 3;
+    return fmaxf(v[0], fmaxf(v[1], v[2]));
+}
+
 /* Debevec-Malik: the log inverse response g(z) on `nodes` nodes such that
  * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
  * second derivative of g against ln z, and samples chosen stratified over
@@ -24,6 +35,17 @@ typedef struct merge_samples {
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
                              uint64_t seed, sl_response *out, sl_error *err);
+
+/* Robertson-Borman-Stevenson: the same curve from the same samples by
+ * alternating irradiance and per-code estimates (response_robertson.c). */
+sl_result merge_fit_robertson(const merge_samples *s, const double *log_exposure, int nodes,
+                              int max_samples, double black, double saturation, uint64_t seed,
+                              sl_response *out, sl_error *err);
+
+/* Up to max_samples positions for channel c, spread over a crude log
+ * radiance and over the frame; returns how many (-1 out of memory). */
+int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,
+                         double saturation, int max_samples, uint64_t seed, int *chosen);
 
 /* Exposure ratio between neighbouring ranks from pixels well exposed in
  * both (median of linearised ratios); ratio[r] = e[r+1] / e[r], 0 when too
@@ -55,6 +77,9 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
 sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_result *out,
                      sl_error *err);
 void merge_ctx_free(merge_ctx *m);
+/* Units, output scale and weights as EXR attributes (setlight:merge:units,
+ * output_exposure, weights). */
+sl_result merge_provenance_meta(sl_meta *meta, const sl_merge_result *res, sl_error *err);
 
 /* splitmix64: a small seeded generator for sample positions. */
 static inline uint64_t merge_rand(uint64_t *state)

@@ -72,6 +72,8 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
         r = set_number(&meta, "setlight:merge:reference_exposure", "%.9g",
                        res->frames[res->reference].exposure, err);
     if (!r)
+        r = merge_provenance_meta(&meta, res, err);
+    if (!r)
         r = set_number(&meta, "setlight:merge:clipped_fraction", "%.9g", res->clipped_fraction, err);
     if (!r)
         r = set_number(&meta, "setlight:merge:clipped_pixels", "%.0f", (double)res->clipped_pixels, err);

@@ -52,9 +52,8 @@ static bool cholesky_solve(double *a, double *b, int n)
 /* Picks up to max_samples positions for one channel, spread evenly over a
  * crude log radiance (each value read in the frame where it is nearest
  * mid-grey), in a seeded random order so they also spread over the frame. */
-static int choose_samples(const merge_samples *s, int c, const double *log_exposure,
-                          double black, double saturation, int max_samples, uint64_t seed,
-                          int *chosen)
+int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,
+                         double saturation, int max_samples, uint64_t seed, int *chosen)
 {
     int n = s->count, f = s->frames;
     double *key = malloc((size_t)n * sizeof *key);
@@ -70,7 +69,7 @@ static int choose_samples(const merge_samples *s, int c, const double *log_expos
         double best = 2, k = NAN;
         for (int r = 0; r < f; r++) {
             double z = s->z[((size_t)i * f + r) * 3 + c];
-            if (z > black && z < saturation && fabs(z - 0.5) < best) {
+            if (z > black && merge_zmax(s, i, r) < saturation && fabs(z - 0.5) < best) {
                 best = fabs(z - 0.5);
                 k = log(z) - log_exposure[r];
             }
@@ -114,7 +113,7 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
     double *a = malloc(nn * sizeof *a);
     double *b = malloc((size_t)nodes * sizeof *b);
     double *inv = calloc((size_t)nodes * 3, sizeof *inv);
-    int *chosen = malloc((size_t)(s->count > 0 ? s->count : 1) * sizeof *chosen);
+    int *chosen = malloc((size_t)(s->count > 0 ? s->count : 1) * 3 * sizeof *chosen);
     int *idx = malloc((size_t)f * 2 * sizeof *idx);
     double *val = malloc((size_t)f * 2 * sizeof *val);
     sl_result r = SL_OK;
@@ -122,30 +121,28 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         r = sl_error_set(err, SL_ERR_NOMEM, "response: out of memory");
         goto done;
     }
+    /* One curve for the three channels: cameras apply one tone curve after
+     * their colour matrix, and a curve per channel would leave each
+     * channel's scale to its own extrapolation to white (a colour cast). */
+    memset(a, 0, nn * sizeof *a);
+    memset(b, 0, (size_t)nodes * sizeof *b);
+    int equations = 0, total = 0;
     for (int c = 0; c < 3 && !r; c++) {
-        int m = choose_samples(s, c, log_exposure, black, saturation, max_samples, seed, chosen);
+        int *ch = chosen + (size_t)c * s->count;
+        int m = merge_choose_samples(s, c, log_exposure, black, saturation, max_samples, seed, ch);
         if (m < 0) {
             r = sl_error_set(err, SL_ERR_NOMEM, "response: out of memory");
             break;
         }
-        if (m < 16) {
-            r = sl_error_set(err, SL_ERR_INPUT,
-                             "too few well-exposed pixels (%d in channel %d) to recover the "
-                             "response; give --response linear or a curve file",
-                             m, c);
-            break;
-        }
-        memset(a, 0, nn * sizeof *a);
-        memset(b, 0, (size_t)nodes * sizeof *b);
-        int equations = 0;
+        total += m;
         for (int t = 0; t < m; t++) {
-            const float *zi = s->z + (size_t)chosen[t] * f * 3;
+            const float *zi = s->z + (size_t)ch[t] * f * 3;
             /* u = sum of w^2 * (interpolation row) over the frames, d = sum w^2. */
             int nz = 0;
             double d = 0, sb = 0;
             for (int q = 0; q < f; q++) {
                 double z = zi[q * 3 + c];
-                double w = hat(z, black, saturation);
+                double w = merge_zmax(s, ch[t], q) < saturation ? hat(z, black, saturation) : 0;
                 if (w <= 0)
                     continue;
                 double w2 = w * w, p = z * (nodes - 1);
@@ -174,6 +171,13 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                 b[idx[e]] -= val[e] * sb / d;
             }
         }
+    }
+    if (!r && total < 16)
+        r = sl_error_set(err, SL_ERR_INPUT,
+                         "too few well-exposed pixels (%d) to recover the response; give "
+                         "--response linear or a curve file",
+                         total);
+    if (!r) {
         /* Smoothness of g against ln z: gamma-like curves are nearly straight
          * there, while the log-periodic wiggle that brackets with wide steps
          * cannot pin down (Debevec-Malik's weak spot) is strongly curved.
@@ -204,13 +208,13 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         a[2 * nodes + 2] += l2;
         /* g(mid) = 0 fixes the free offset; the curve is rescaled below. */
         a[(nodes / 2) * nodes + nodes / 2] += 1 + (double)equations;
-        if (!cholesky_solve(a, b, nodes)) {
+        if (!cholesky_solve(a, b, nodes))
             r = sl_error_set(err, SL_ERR_INPUT,
                              "the response cannot be recovered from these frames (singular "
                              "system); give --response linear or a curve file");
-            break;
-        }
-        double *row = inv + (size_t)c * nodes;
+    }
+    if (!r) {
+        double *row = inv;
         row[0] = 0;
         for (int k = 1; k < nodes; k++) {
             double v = exp(b[k]);
@@ -220,6 +224,8 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         double top = row[nodes - 1];
         for (int k = 0; k < nodes; k++)
             row[k] /= top;
+        for (int c = 1; c < 3; c++)
+            memcpy(inv + (size_t)c * nodes, row, (size_t)nodes * sizeof *row);
     }
     if (!r) {
         out->channels = 3;

@@ -38,6 +38,31 @@ int main(int argc, char **argv)
     const char *kind = argv[1], *out = argv[2];
     if (!strncmp(kind, "ball", 4))
         return ball_fixture_main(kind, out);
+    if (!strcmp(kind, "exif")) {
+        /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata. */
+        if (argc < 7) {
+            fprintf(stderr, "usage: make_fixture exif OUT IN SECONDS F-NUMBER ISO\n");
+            return 2;
+        }
+        sl_image im;
+        sl_meta md, in;
+        sl_error e;
+        sl_meta_init(&md);
+        sl_result rr = sl_image_read(argv[3], &im, &in, &e);
+        if (!rr) {
+            sl_meta_free(&in);
+            sl_meta_set_rec709(&md);
+            md.exposure_time = atof(argv[4]);
+            md.f_number = atof(argv[5]);
+            md.iso = atof(argv[6]);
+            rr = sl_exr_write(out, &im, &md, SL_PIXEL_FLOAT, &e);
+            sl_image_free(&im);
+            sl_meta_free(&md);
+        }
+        if (rr)
+            fprintf(stderr, "make_fixture: %s\n", e.message);
+        return rr ? 1 : 0;
+    }
     int w = argc > 3 ? atoi(argv[3]) : 64, h = argc > 4 ? atoi(argv[4]) : w / 2;
     if (!strcmp(kind, "wide"))
         h = w / 3;
@@ -57,10 +82,16 @@ int main(int argc, char **argv)
             p[1] = (float)(0.2 + 0.8 * v);
             p[2] = (float)(0.5 + 0.4 * sin(6.283185307179586 * u));
         }
-    if (!strcmp(kind, "sun")) {
-        sl_image_fill(&img, 1.0f);
+    if (!strcmp(kind, "sun") || !strcmp(kind, "sunclip") || !strcmp(kind, "sunmask")) {
+        /* sunclip: the sun clipped at 100 as a merge leaves it, naming its
+         * mask (sunmask: 1 at the sun) as the merge does. */
+        sl_image_fill(&img, kind[3] == 'm' ? 0.0f : 1.0f);
         float *p = sl_image_pixel(&img, w / 2, h / 4);
-        p[0] = p[1] = p[2] = 1e5f;
+        p[0] = p[1] = p[2] = kind[3] == 'c' ? 100.0f : kind[3] == 'm' ? 1.0f : 1e5f;
+        if (kind[3] == 'c' && sl_meta_set(&meta, "setlight:merge:clipped_mask", "sunmask.exr", &err)) {
+            fprintf(stderr, "%s\n", err.message);
+            return 1;
+        }
     }
     if (!strcmp(kind, "nan")) {
         sl_image_pixel(&img, 1, 1)[0] = NAN;

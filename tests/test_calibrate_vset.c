@@ -191,6 +191,27 @@ static void test_stage(void)
     printf("  calibrated HDRI vs the plate's view of the set: rel RMSE %.4f%%\n",
            100 * sqrt(e / ref));
     CHECK(sqrt(e / ref) < 0.01);
+    /* Absolute: the grey photo's exposure (t, f/4, ISO 100) gives cd/m^2 per
+     * unit; the set's radiance is in cd/m^2. The plate matrix keeps the
+     * neutral patch's luminance as the camera's RGB gives it (read as
+     * Rec.709): the light's luminance comes back to that camera's fidelity
+     * (white-balanced to tungsten, it reads 4-5% low here). */
+    double a = sl_exposure_luminance(eg.time_s, eg.f_number, eg.iso), yl = 0, yt = 0;
+    for (int y = 0; y < hdri.height; y++) {
+        double da = sl_latlong_texel_solid_angle(y, hdri.width, hdri.height);
+        for (int x = 0; x < hdri.width; x++) {
+            const float *t = vs.latlong.data + (size_t)y * vs.latlong.stride + (size_t)x * 3;
+            const float *v = hdri.data + (size_t)y * hdri.stride + (size_t)x * 3;
+            yt += da * (0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2]);
+            yl += da * a * (0.2126 * gf.gain[0] * v[0] + 0.7152 * gf.gain[1] * v[1] +
+                            0.0722 * gf.gain[2] * v[2]);
+        }
+    }
+    printf("  absolute: %.6g cd/m^2 per unit (1/s %.6g); sphere-integrated luminance %.5g vs "
+           "truth %.5g (%+.2f%%)\n",
+           a, 1 / s_grey, yl, yt, 100 * (yl / yt - 1));
+    CHECK(fabs(a * s_grey - 1) < 1e-9);
+    CHECK(fabs(yl / yt - 1) < 0.06);
     sl_grey_fit_free(&gf);
     sl_vset_shot_free(&chart);
     sl_vset_shot_free(&grey);

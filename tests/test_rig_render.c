@@ -6,6 +6,7 @@
  * lights. */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "rig_scenes.h"
 #include "setlight/render.h"
@@ -98,5 +99,39 @@ int main(void)
         sl_image_free(&b);
     }
     sl_image_free(&env);
+
+    /* v2 needs the shape at infinity: a light without axis_u, or one not
+     * across its direction, is refused naming the field. */
+    static const char *const bad[][2] = {
+        {"{\"version\": 2, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"rect\", "
+         "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, 1, 1], "
+         "\"position\": null, \"size\": null, \"texture\": null, "
+         "\"angular_size\": [20, 10]}]}",
+         "lights[0].axis_u"},
+        {"{\"version\": 2, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"rect\", "
+         "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, 1, 1], "
+         "\"position\": null, \"size\": null, \"texture\": null, \"axis_u\": [0, 1, 0], "
+         "\"angular_size\": [20, 10]}]}",
+         "lights[0].axis_u"},
+        {"{\"version\": 2, \"dome\": {\"file\": null}, \"lights\": [{\"type\": \"rect\", "
+         "\"direction\": [0, 1, 0], \"solid_angle\": 0.1, \"radiance\": [1, 1, 1], "
+         "\"position\": null, \"size\": null, \"texture\": null, \"axis_u\": [1, 0, 0], "
+         "\"angular_size\": [200, 10]}]}",
+         "lights[0].angular_size"},
+    };
+    const char *bad_path = sl_test_path("bad.json");
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        FILE *f = fopen(bad_path, "w");
+        fputs(bad[k][0], f);
+        fclose(f);
+        sl_scene s;
+        sl_scene_init(&s);
+        sl_error err = {0};
+        CHECK_RESULT(sl_scene_read_rig(&s, bad_path, &err), SL_ERR_INPUT, &err);
+        CHECK_MSG(strstr(err.message, "bad.json") && strstr(err.message, bad[k][1]), "%s",
+                  err.message);
+        CHECK(s.light_count == 0);
+        sl_scene_free(&s);
+    }
     return sl_test_finish();
 }

@@ -6,6 +6,7 @@
 #include <jansson.h>
 #include <math.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,13 +19,14 @@
 static const char *calibrate_help =
     "usage: setlight calibrate --hdri ENV.exr [--chart CHART] [--grey GREY.exr\n"
     "                          [--grey-circle CX,CY,R]] -o ENV_CAL.exr [options]\n\n"
-    "The chart photo (plate camera) gives a colour matrix from camera RGB to linear\n"
-    "Rec.709, scaled to keep the neutral patch's luminance. The grey-sphere photo, shot\n"
-    "on the same camera, goes through that matrix; then the HDRI gets the exposure and\n"
-    "channel gains that make a virtual grey sphere rendered under it match the photo.\n"
-    "With a chart alone, the HDRI is taken to come from the chart's camera and gets the\n"
-    "matrix. Transform in the output's setlight:calibration_matrix (and\n"
-    "setlight:plate_matrix). At least one of --chart, --grey.\n\n"
+    "The chart photo gives a colour matrix P from camera RGB to linear Rec.709, scaled\n"
+    "to keep the neutral patch's luminance. The grey-sphere photo, shot on the same\n"
+    "camera, goes through P, and so does the HDRI (--hdri-in chart, the default); then\n"
+    "the HDRI gets the gains g that make a virtual grey sphere rendered under it match\n"
+    "the photo: T = diag(g) P. A source clipped in every frame of the merge (the merge's\n"
+    "clipped mask) is repaired from the grey sphere first. With EXIF exposure on the\n"
+    "grey photo the result is in cd/m^2. Transform in the output's metadata. At least\n"
+    "one of --chart, --grey.\n\n"
     "  --hdri FILE           the lat-long to calibrate (linear)\n"
     "  -o, --output FILE     the calibrated lat-long (EXR, half unless --float)\n"
     "  --chart FILE          chart photo: EXR is read as linear, other formats as sRGB;\n"
@@ -32,11 +34,23 @@ static const char *calibrate_help =
     "  --chart-corners X1,Y1,X2,Y2,X3,Y3,X4,Y4\n"
     "                        centres of patches 1 (dark skin), 6 (bluish green),\n"
     "                        24 (black), 19 (white) in pixels, instead of detection\n"
-    "  --chart-reference R   reference values: classic24 (X-Rite, post-2014)\n"
+    "  --chart-reference R   reference values: classic24 (X-Rite, post-2014) or a CSV\n"
+    "                        or JSON file of 24 values (Lab D50, XYZ D50 or linear\n"
+    "                        Rec.709; docs/calibrate.md)\n"
     "  --white-preserving    the neutral patch maps exactly to its reference\n"
     "  --clip LEVEL          chart/grey pixels at or above are clipped (default: none\n"
     "                        for EXR, 0.999 for 8/16-bit photos)\n"
-    "  --grey FILE           grey-sphere photo (linear EXR)\n"
+    "  --grey FILE           grey-sphere photo (EXR linear, other formats sRGB)\n"
+    "  --grey-colorspace NAME  its colour space (default as for the chart photo)\n"
+    "  --hdri-in SPACE       chart: the HDRI is in the chart camera's RGB and goes\n"
+    "                        through P (default); working: it is already linear\n"
+    "                        Rec.709 from its own camera, only the gains apply\n"
+    "  --clipped-mask FILE   the merge's clipped mask (default: the HDRI's\n"
+    "                        setlight:merge:clipped_mask, when that file exists)\n"
+    "  --sun-size DEG        angular diameter of the clipped source (default 0.53)\n"
+    "  --no-sun-repair       leave clipped sources as they are\n"
+    "  --no-absolute         keep the grey photo's units instead of cd/m^2\n"
+    "  --exposure-tolerance STOPS  grey photo's EXIF vs the HDRI's allowed (default 1)\n"
     "  --grey-circle CX,CY,R the sphere's outline in the grey photo, pixels (default:\n"
     "                        found as unwrap finds a ball; none or several: exit 3)\n"
     "  --grey-albedo A       the sphere's albedo (default 0.18)\n"
@@ -50,8 +64,8 @@ static const char *calibrate_help =
     "                        render and error images) and DIR/calibrate.json\n"
     "  --json                print the result as JSON on stdout\n\n"
     "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
-    "sphere, no sphere found or none in the circle), 1 other failures. See\n"
-    "docs/calibrate.md.\n";
+    "sphere, no sphere found or none in the circle, a grey photo whose exposure\n"
+    "contradicts the HDRI's), 1 other failures. See docs/calibrate.md.\n";
 
 static bool parse_list(const char *s, double *v, int n)
 {
@@ -88,6 +102,53 @@ static void apply_image(sl_image *img, const double m[3][3])
             mat_apply(m, img->data + (size_t)y * img->stride + (size_t)x * img->channels);
 }
 
+/* Brings a photo into the working space (linear Rec.709) through OCIO from
+ * `cs` (NULL: sRGB for 8/16-bit formats, else the file's own space or
+ * lin_rec709). Clipping is judged on the file's values before the
+ * conversion (*level: the --clip level, < 0 for the default: 0.999 for
+ * 8/16-bit photos, none for EXR); clipped pixels then carry `marker` and
+ * *level becomes what the later stages test against. */
+static sl_result to_working(sl_image *img, const char *path, const sl_meta *meta, const char *cs,
+                            double *level, float marker, sl_error *err)
+{
+    if (!cs)
+        cs = is_ldr_path(path)              ? "srgb"
+             : sl_meta_color_space(meta) ? sl_meta_color_space(meta)
+                                         : "lin_rec709";
+    if (*level < 0 && is_ldr_path(path))
+        *level = 0.999;
+    unsigned char *clipped = NULL;
+    if (*level > 0) {
+        clipped = calloc((size_t)img->width * img->height, 1);
+        if (!clipped)
+            return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+        for (int y = 0; y < img->height; y++)
+            for (int x = 0; x < img->width; x++) {
+                const float *v = img->data + (size_t)y * img->stride + (size_t)x * img->channels;
+                clipped[(size_t)y * img->width + x] =
+                    v[0] >= *level || v[1] >= *level || v[2] >= *level;
+            }
+    }
+    sl_result r = SL_OK;
+    if (strcmp(cs, "lin_rec709") != 0 && (r = sl_color_convert(img, cs, "lin_rec709", err))) {
+        free(clipped);
+        return r;
+    }
+    if (clipped) {
+        for (int y = 0; y < img->height; y++)
+            for (int x = 0; x < img->width; x++)
+                if (clipped[(size_t)y * img->width + x]) {
+                    float *v = img->data + (size_t)y * img->stride + (size_t)x * img->channels;
+                    v[0] = v[1] = v[2] = marker;
+                }
+        free(clipped);
+        *level = isnan(marker) ? 0 : marker;
+    } else {
+        *level = 0;
+    }
+    return SL_OK;
+}
+
 static json_t *json_matrix(const double m[3][3])
 {
     json_t *a = json_array();
@@ -100,7 +161,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
 {
     enum {
         OPT_HDRI = 1000, OPT_CHART, OPT_CORNERS, OPT_REF, OPT_WP, OPT_CLIP, OPT_GREY,
-        OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT, OPT_REPORT, OPT_CS, OPT_CHART_CS
+        OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT, OPT_REPORT, OPT_CS, OPT_CHART_CS,
+        OPT_GREY_CS, OPT_HDRI_IN, OPT_MASK, OPT_SUN_SIZE, OPT_NO_REPAIR, OPT_NO_ABS, OPT_EXP_TOL
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -120,11 +182,22 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         {"report", required_argument, NULL, OPT_REPORT},
         {"colorspace", required_argument, NULL, OPT_CS},
         {"chart-colorspace", required_argument, NULL, OPT_CHART_CS},
+        {"grey-colorspace", required_argument, NULL, OPT_GREY_CS},
+        {"hdri-in", required_argument, NULL, OPT_HDRI_IN},
+        {"clipped-mask", required_argument, NULL, OPT_MASK},
+        {"sun-size", required_argument, NULL, OPT_SUN_SIZE},
+        {"no-sun-repair", no_argument, NULL, OPT_NO_REPAIR},
+        {"no-absolute", no_argument, NULL, OPT_NO_ABS},
+        {"exposure-tolerance", required_argument, NULL, OPT_EXP_TOL},
         {0, 0, 0, 0}};
     const char *hdri_path = NULL, *out_path = NULL, *chart_path = NULL, *grey_path = NULL,
-               *report_dir = NULL, *out_cs = "lin_rec709", *chart_cs = NULL;
-    double corners[4][2], clip = -1, view[2] = {0, 0};
-    bool have_corners = false, have_circle = false, use_float = false;
+               *report_dir = NULL, *out_cs = "lin_rec709", *chart_cs = NULL, *grey_cs = NULL,
+               *ref_path = NULL, *mask_path = NULL;
+    double corners[4][2], clip = -1, view[2] = {0, 0}, exp_tol = 1;
+    bool have_corners = false, have_circle = false, use_float = false, hdri_in_chart = true,
+         sun_repair = true, absolute = true;
+    sl_sun_options sopt;
+    sl_sun_options_init(&sopt);
     sl_ccm_options copt;
     sl_ccm_options_init(&copt);
     sl_grey_options gopt;
@@ -152,8 +225,34 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             have_corners = true;
             break;
         case OPT_REF:
-            if (strcmp(optarg, "classic24") != 0)
-                return cli_usage_error(cli, "unknown chart reference '%s' (classic24)", optarg);
+            /* A name is built in; anything else is a file. */
+            ref_path = strcmp(optarg, "classic24") != 0 ? optarg : NULL;
+            if (ref_path && !strchr(ref_path, '.') && !strchr(ref_path, '/'))
+                return cli_usage_error(cli, "unknown chart reference '%s' (classic24 or a .csv/.json file)",
+                                       optarg);
+            break;
+        case OPT_HDRI_IN:
+            if (strcmp(optarg, "chart") && strcmp(optarg, "working"))
+                return cli_usage_error(cli, "--hdri-in needs chart or working, not '%s'", optarg);
+            hdri_in_chart = !strcmp(optarg, "chart");
+            break;
+        case OPT_MASK:
+            mask_path = optarg;
+            break;
+        case OPT_SUN_SIZE:
+            if (!cli_parse_double(optarg, &sopt.diameter_deg) ||
+                !(sopt.diameter_deg > 0 && sopt.diameter_deg < 90))
+                return cli_usage_error(cli, "--sun-size needs degrees in (0, 90), not '%s'", optarg);
+            break;
+        case OPT_NO_REPAIR:
+            sun_repair = false;
+            break;
+        case OPT_NO_ABS:
+            absolute = false;
+            break;
+        case OPT_EXP_TOL:
+            if (!cli_parse_double(optarg, &exp_tol) || !(exp_tol > 0))
+                return cli_usage_error(cli, "--exposure-tolerance needs stops > 0, not '%s'", optarg);
             break;
         case OPT_WP:
             copt.white_preserving = true;
@@ -194,14 +293,17 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             report_dir = optarg;
             break;
         case OPT_CS:
-        case OPT_CHART_CS: {
+        case OPT_CHART_CS:
+        case OPT_GREY_CS: {
             const char *name = sl_color_space_name(optarg);
             if (!name)
                 return cli_usage_error(cli, "unknown colour space '%s' (see docs/color.md)", optarg);
             if (c == OPT_CS)
                 out_cs = name;
-            else
+            else if (c == OPT_CHART_CS)
                 chart_cs = name;
+            else
+                grey_cs = name;
             break;
         }
         default:
@@ -219,21 +321,29 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     gopt.azimuth_deg = view[0];
     gopt.elevation_deg = view[1];
 
-    sl_image hdri = {0}, chart = {0}, grey = {0};
-    sl_meta hmeta, cmeta, gmeta, out_meta;
+    sl_image hdri = {0}, chart = {0}, grey = {0}, mask = {0};
+    sl_meta hmeta, cmeta, gmeta, mmeta, out_meta;
     sl_meta_init(&hmeta);
     sl_meta_init(&cmeta);
     sl_meta_init(&gmeta);
+    sl_meta_init(&mmeta);
     sl_meta_init(&out_meta);
     sl_grey_fit gfit = {0};
+    sl_sun_repair sun = {0};
     sl_error err;
     sl_result r;
     json_t *js = json_object();
-    double t[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, plate[3][3];
-    bool chart_used = false;
+    double t[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, plate[3][3], reference[24][3];
+    bool chart_used = false, plate_on_hdri = false;
+    double abs_scale = 0; /* cd/m^2 per unit of the calibrated HDRI, 0: relative */
+    char abs_from[256] = "";
+    char mask_buf[4096];
     sl_chart_patch p[24];
     sl_ccm_fit fit;
 
+    memcpy(reference, SL_COLORCHECKER_LINEAR, sizeof(reference));
+    if (ref_path && (r = sl_chart_reference_read(ref_path, reference, NULL, &err)))
+        goto fail;
     if ((r = sl_image_read(hdri_path, &hdri, &hmeta, &err)))
         goto fail;
     if (!sl_is_latlong_shape(hdri.width, hdri.height) || hdri.channels < 3) {
@@ -249,6 +359,12 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                    (long long)st.nan_count, (long long)st.inf_count);
             sl_image_sanitize(&hdri, 0.0f);
         }
+        /* The working space is linear Rec.709: an HDRI that says it is in
+         * another space comes in through OCIO. */
+        const char *hcs = sl_meta_color_space(&hmeta);
+        if (hcs && strcmp(hcs, "lin_rec709") != 0 &&
+            (r = sl_color_convert(&hdri, hcs, "lin_rec709", &err)))
+            goto fail;
     }
     if (chart_path) {
         if ((r = sl_image_read(chart_path, &chart, &cmeta, &err)))
@@ -258,51 +374,13 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             goto fail;
         }
         double level = clip;
-        const char *cs = chart_cs ? chart_cs
-                         : is_ldr_path(chart_path) ? "srgb"
-                         : sl_meta_color_space(&cmeta) ? sl_meta_color_space(&cmeta)
-                                                       : "lin_rec709";
-        /* Clipping is judged on the file's values, before any conversion;
-         * clipped pixels then carry FLT_MAX, which the sampler counts as clipped. */
-        if (level < 0 && is_ldr_path(chart_path))
-            level = 0.999;
-        unsigned char *clipped = NULL;
-        if (level > 0) {
-            clipped = calloc((size_t)chart.width * chart.height, 1);
-            if (!clipped) {
-                r = sl_error_set(&err, SL_ERR_NOMEM, "%s: out of memory", chart_path);
-                goto fail;
-            }
-            for (int y = 0; y < chart.height; y++)
-                for (int x = 0; x < chart.width; x++) {
-                    const float *v =
-                        chart.data + (size_t)y * chart.stride + (size_t)x * chart.channels;
-                    clipped[(size_t)y * chart.width + x] =
-                        v[0] >= level || v[1] >= level || v[2] >= level;
-                }
-        }
-        if (strcmp(cs, "lin_rec709") != 0 &&
-            (r = sl_color_convert(&chart, cs, "lin_rec709", &err))) {
-            free(clipped);
+        if ((r = to_working(&chart, chart_path, &cmeta, chart_cs, &level, FLT_MAX, &err)))
             goto fail;
-        }
-        if (clipped) {
-            for (int y = 0; y < chart.height; y++)
-                for (int x = 0; x < chart.width; x++)
-                    if (clipped[(size_t)y * chart.width + x]) {
-                        float *v =
-                            chart.data + (size_t)y * chart.stride + (size_t)x * chart.channels;
-                        v[0] = v[1] = v[2] = FLT_MAX;
-                    }
-            free(clipped);
-            level = FLT_MAX;
-        } else {
-            level = 0;
-        }
         double centers[24][2];
         json_t *jc = json_object();
         json_object_set_new(js, "chart", jc);
         json_object_set_new(jc, "file", json_string(chart_path));
+        json_object_set_new(jc, "reference", json_string(ref_path ? ref_path : "classic24"));
         if (have_corners) {
             r = sl_chart_centers_from_corners((const double(*)[2])corners, centers, &err);
             json_object_set_new(jc, "located", json_string("corners"));
@@ -321,35 +399,50 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         } else {
             if ((r = sl_chart_sample(&chart, (const double(*)[2])centers, 0, level, p, &err)))
                 goto fail;
-            if ((r = sl_ccm_fit_chart(p, SL_COLORCHECKER_LINEAR, &copt, &fit, &err))) {
+            if ((r = sl_ccm_fit_chart(p, (const double(*)[3])reference, &copt, &fit, &err))) {
                 sl_error_set(&err, r, "%s: %s", chart_path, err.message);
                 goto fail;
             }
-            sl_ccm_plate_matrix(p, &fit, t);
+            sl_ccm_plate_matrix(p, &fit, plate);
             chart_used = true;
             json_t *jp = json_array();
-            int excluded = 0;
+            int invalid = 0;
             for (int q = 0; q < 24; q++) {
-                excluded += !fit.used_patch[q];
+                invalid += !p[q].valid;
                 json_array_append_new(
-                    jp, json_pack("{s:i, s:s, s:[f,f], s:i, s:i, s:b, s:f, s:f}", "patch", q + 1,
-                                  "name", SL_COLORCHECKER_NAMES[q], "center", p[q].center[0],
-                                  p[q].center[1], "pixels", p[q].pixels, "clipped", p[q].clipped,
-                                  "used", fit.used_patch[q], "delta_e_before", fit.de_before[q],
-                                  "delta_e_after", fit.de_after[q]));
+                    jp, json_pack("{s:i, s:s, s:[f,f], s:i, s:i, s:f, s:b, s:b, s:f, s:f}", "patch",
+                                  q + 1, "name", SL_COLORCHECKER_NAMES[q], "center",
+                                  p[q].center[0], p[q].center[1], "pixels", p[q].pixels,
+                                  "clipped", p[q].clipped, "spread", p[q].spread, "outlier",
+                                  fit.outlier[q], "used", fit.used_patch[q], "delta_e_before",
+                                  fit.de_before[q], "delta_e_after", fit.de_after[q]));
             }
-            if (excluded)
-                sl_log(SL_LOG_WARN, "%s: %d patches excluded (clipped, shadowed or unusable)",
-                       chart_path, excluded);
+            if (invalid)
+                sl_log(SL_LOG_WARN,
+                       "%s: %d patches excluded as clipped, non-uniform (a shadow edge or glare "
+                       "across them) or too small",
+                       chart_path, invalid);
+            if (fit.outliers)
+                sl_log(SL_LOG_WARN,
+                       "%s: %d patches excluded as lit differently from the rest (part of the "
+                       "chart in shadow?)",
+                       chart_path, fit.outliers);
             json_object_set_new(jc, "patches", jp);
             json_object_set_new(jc, "matrix", json_matrix(fit.m));
             json_object_set_new(jc, "patches_used", json_integer(fit.used));
+            json_object_set_new(jc, "patches_invalid", json_integer(invalid));
+            json_object_set_new(jc, "patches_outliers", json_integer(fit.outliers));
             json_object_set_new(jc, "delta_e_before_mean", json_real(fit.de_before_mean));
             json_object_set_new(jc, "delta_e_before_max", json_real(fit.de_before_max));
             json_object_set_new(jc, "delta_e_after_mean", json_real(fit.de_after_mean));
             json_object_set_new(jc, "delta_e_after_max", json_real(fit.de_after_max));
-            memcpy(plate, t, sizeof(plate));
         }
+    }
+    if (chart_used && (hdri_in_chart || !grey_path)) {
+        /* The HDRI in the chart camera's RGB: into the working space through P. */
+        apply_image(&hdri, plate);
+        memcpy(t, plate, sizeof(t));
+        plate_on_hdri = true;
     }
     if (grey_path) {
         if ((r = sl_image_read(grey_path, &grey, &gmeta, &err)))
@@ -371,28 +464,88 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             }
             gopt.circle[0] = bc.cx, gopt.circle[1] = bc.cy, gopt.circle[2] = bc.r;
         }
+        /* Clipped pixels are judged on the file's values and carry NaN from
+         * then on, which the fit skips. */
+        double level = clip;
+        if ((r = to_working(&grey, grey_path, &gmeta, grey_cs, &level, NAN, &err)))
+            goto fail;
         if (chart_used) {
-            /* The grey sphere was shot on the plate's camera, like the chart:
-             * into the working space through the chart's matrix, clipped
-             * pixels marked first (the fit skips non-finite ones). */
-            for (int y = 0; y < grey.height; y++)
-                for (int x = 0; x < grey.width; x++) {
-                    float *v = grey.data + (size_t)y * grey.stride + (size_t)x * grey.channels;
-                    if (clip > 0 && (v[0] >= clip || v[1] >= clip || v[2] >= clip))
-                        v[0] = v[1] = v[2] = NAN;
-                }
+            /* Shot on the plate's camera, like the chart. */
             apply_image(&grey, plate);
-        } else {
-            gopt.clip_level = clip > 0 ? clip : 0;
+        }
+        gopt.clip_level = level;
+        /* The merge's clipped mask: a source clipped in every frame. */
+        const char *mp = mask_path ? mask_path : sl_meta_get(&hmeta, "setlight:merge:clipped_mask");
+        if (mp && !mask_path && access(mp, R_OK) != 0) {
+            /* Recorded relative to where the merge ran: try beside the HDRI. */
+            const char *slash = strrchr(hdri_path, '/'), *base = strrchr(mp, '/');
+            snprintf(mask_buf, sizeof mask_buf, "%.*s%s", slash ? (int)(slash - hdri_path + 1) : 0,
+                     hdri_path, base ? base + 1 : mp);
+            if (access(mask_buf, R_OK) == 0) {
+                mp = mask_buf;
+            } else {
+                sl_log(SL_LOG_WARN, "%s: its clipped mask %s is missing; no sun repair", hdri_path,
+                       mp);
+                mp = NULL;
+            }
+        }
+        if (mp && sun_repair) {
+            if ((r = sl_image_read(mp, &mask, &mmeta, &err)))
+                goto fail;
+            r = sl_sun_repair_fit(&hdri, &mask, &grey, &gopt, &sopt, &sun, &err);
+            if (r == SL_ERR_INPUT) {
+                sl_log(SL_LOG_WARN, "%s: %s; not repaired", mp, err.message);
+                json_object_set_new(js, "sun_repair", json_pack("{s:s, s:s}", "mask", mp,
+                                                                "error", err.message));
+                memset(&sun, 0, sizeof(sun));
+            } else if (r) {
+                goto fail;
+            }
         }
         if ((r = sl_grey_sphere_fit(&hdri, &grey, &gopt, &gfit, &err))) {
             sl_error_set(&err, r, "%s: %s", grey_path, err.message);
             goto fail;
         }
-        memset(t, 0, sizeof(t));
-        for (int i = 0; i < 3; i++)
-            t[i][i] = gfit.gain[i];
-        apply_image(&hdri, t);
+        double g[3][3] = {{gfit.gain[0], 0, 0}, {0, gfit.gain[1], 0}, {0, 0, gfit.gain[2]}};
+        apply_image(&hdri, g);
+        sl_mat3_mul(g, t, t);
+        /* Absolute: the grey photo's exposure gives cd/m^2 per unit. */
+        double lp = sl_exposure_luminance(gmeta.exposure_time, gmeta.f_number, gmeta.iso);
+        if (lp > 0) {
+            /* The HDRI's own exposure: its EXIF, else the merge's reference frame. */
+            double eh = hmeta.exposure_time > 0 && hmeta.f_number > 0 && hmeta.iso > 0
+                            ? hmeta.exposure_time * hmeta.iso / (hmeta.f_number * hmeta.f_number)
+                            : 0;
+            const char *ref = sl_meta_get(&hmeta, "setlight:merge:reference_exposure");
+            if (!(eh > 0) && ref)
+                eh = strtod(ref, NULL);
+            double ep = gmeta.exposure_time * gmeta.iso / (gmeta.f_number * gmeta.f_number);
+            if (eh > 0 && isfinite(eh)) {
+                /* Photo units per HDRI unit: the metadata says ep / eh, the sphere says scale. */
+                double stops = log2(gfit.scale * eh / ep);
+                json_object_set_new(js, "exposure_check",
+                                    json_pack("{s:f, s:f, s:f, s:f}", "hdri_exposure", eh,
+                                              "grey_exposure", ep, "disagreement_stops", stops,
+                                              "tolerance_stops", exp_tol));
+                if (!(fabs(stops) <= exp_tol)) {
+                    r = sl_error_set(&err, SL_ERR_INPUT,
+                                     "%s: exposure metadata (%g s, f/%g, ISO %g) contradicts "
+                                     "the HDRI's (reference exposure %g): the grey sphere puts "
+                                     "them %.2f stops apart (tolerance %g)",
+                                     grey_path, gmeta.exposure_time, gmeta.f_number, gmeta.iso,
+                                     eh, stops, exp_tol);
+                    goto fail;
+                }
+            }
+            if (absolute) {
+                abs_scale = lp;
+                snprintf(abs_from, sizeof abs_from, "%s: %g s, f/%g, ISO %g", grey_path,
+                         gmeta.exposure_time, gmeta.f_number, gmeta.iso);
+                double a[3][3] = {{lp, 0, 0}, {0, lp, 0}, {0, 0, lp}};
+                apply_image(&hdri, a);
+                sl_mat3_mul(a, t, t);
+            }
+        }
         json_object_set_new(js, "grey",
                             json_pack("{s:s, s:[f,f,f], s:[f,f,f], s:f, s:[f,f,f], s:I, s:I, s:f, s:f, s:f}",
                                       "file", grey_path, "circle", gopt.circle[0],
@@ -404,10 +557,41 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                       (json_int_t)gfit.rejected, "rel_rmse_before",
                                       gfit.rel_rmse_before, "rel_rmse_after",
                                       gfit.rel_rmse_after, "error_p95", gfit.error_p95));
-    } else if (chart_used) {
-        /* Chart alone: the HDRI is taken to come from the chart's camera. */
-        apply_image(&hdri, plate);
-    } else {
+        if (sun.repaired) {
+            /* In the output's units: times the gains and the absolute scale. */
+            double k = abs_scale > 0 ? abs_scale : 1, rad[3], sig[3], added[3], before[3];
+            for (int ch = 0; ch < 3; ch++) {
+                rad[ch] = sun.radiance[ch] * gfit.gain[ch] * k;
+                sig[ch] = sun.radiance_sigma[ch] * gfit.gain[ch] * k;
+                added[ch] = sun.energy_added[ch] * gfit.gain[ch] * k;
+                before[ch] = sun.energy_before[ch] * gfit.gain[ch] * k;
+            }
+            double la = 0.2126 * added[0] + 0.7152 * added[1] + 0.0722 * added[2];
+            double lb = 0.2126 * before[0] + 0.7152 * before[1] + 0.0722 * before[2];
+            sl_log(SL_LOG_INFO,
+                   "%s: clipped source at azimuth %.2f, elevation %.2f repaired: radiance %.4g "
+                   "(+-%.2f%%), %.1f%% energy added; grey sphere error %.2f%% -> %.2f%%",
+                   hdri_path, sun.azimuth_deg, sun.elevation_deg,
+                   0.2126 * rad[0] + 0.7152 * rad[1] + 0.0722 * rad[2],
+                   100 * sun.radiance_sigma[1] / fmax(sun.fitted[1], 1e-30),
+                   lb > 0 ? 100 * la / lb : 0, 100 * sun.rel_rmse_before,
+                   100 * gfit.rel_rmse_after);
+            json_object_set_new(
+                js, "sun_repair",
+                json_pack("{s:s, s:I, s:f, s:f, s:f, s:f, s:f, s:[f,f,f], s:[f,f,f], s:[f,f,f], "
+                          "s:[f,f,f], s:f, s:f, s:f}",
+                          "mask", mp, "clipped_texels",
+                          (json_int_t)sun.clipped_texels, "clipped_solid_angle_sr",
+                          sun.solid_angle, "azimuth_deg", sun.azimuth_deg, "elevation_deg",
+                          sun.elevation_deg, "diameter_deg", sopt.diameter_deg,
+                          "source_solid_angle_sr", sun.source_solid_angle, "radiance", rad[0],
+                          rad[1], rad[2], "radiance_sigma", sig[0], sig[1], sig[2],
+                          "energy_before", before[0], before[1], before[2], "energy_added",
+                          added[0], added[1], added[2], "energy_added_fraction",
+                          lb > 0 ? la / lb : 0, "rel_rmse_before", sun.rel_rmse_before,
+                          "rel_rmse_after", sun.rel_rmse_after));
+        }
+    } else if (!chart_used) {
         r = sl_error_set(&err, SL_ERR_INPUT, "%s: nothing to calibrate with", hdri_path);
         goto fail;
     }
@@ -420,13 +604,33 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         snprintf(buf, sizeof buf, "%.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g %.9g", plate[0][0],
                  plate[0][1], plate[0][2], plate[1][0], plate[1][1], plate[1][2], plate[2][0],
                  plate[2][1], plate[2][2]);
-        if ((r = sl_meta_set(&out_meta, "setlight:plate_matrix", buf, &err)))
+        if ((r = sl_meta_set(&out_meta, "setlight:plate_matrix", buf, &err)) ||
+            (r = sl_meta_set(&out_meta, "setlight:calibration_hdri_in",
+                             plate_on_hdri ? "chart" : "working", &err)))
             goto fail;
     }
     snprintf(buf, sizeof buf, "%.9g", grey_path ? gfit.scale : 1.0);
     if ((r = sl_meta_set(&out_meta, "setlight:calibration_scale", buf, &err)) ||
-        (r = sl_meta_set(&out_meta, "setlight:source", hdri_path, &err)))
+        (r = sl_meta_set(&out_meta, "setlight:source", hdri_path, &err)) ||
+        (r = sl_meta_set(&out_meta, "setlight:units", abs_scale > 0 ? "cd/m^2" : "relative",
+                         &err)))
         goto fail;
+    if (abs_scale > 0) {
+        snprintf(buf, sizeof buf, "%.9g", abs_scale);
+        if ((r = sl_meta_set(&out_meta, "setlight:absolute_scale", buf, &err)) ||
+            (r = sl_meta_set(&out_meta, "setlight:absolute_from", abs_from, &err)))
+            goto fail;
+    }
+    if (sun.repaired) {
+        snprintf(buf, sizeof buf,
+                 "azimuth %.4f elevation %.4f diameter %.4f radiance %.9g %.9g %.9g sigma %.9g %.9g "
+                 "%.9g (before the calibration transform)",
+                 sun.azimuth_deg, sun.elevation_deg, sopt.diameter_deg, sun.radiance[0],
+                 sun.radiance[1], sun.radiance[2], sun.radiance_sigma[0], sun.radiance_sigma[1],
+                 sun.radiance_sigma[2]);
+        if ((r = sl_meta_set(&out_meta, "setlight:sun_repair", buf, &err)))
+            goto fail;
+    }
     snprintf(buf, sizeof buf, "setlight %s calibrate%s%s%s%s", sl_version(),
              chart_used ? " --chart " : "", chart_used ? chart_path : "",
              grey_path ? " --grey " : "", grey_path ? grey_path : "");
@@ -442,10 +646,15 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         goto fail;
     json_object_set_new(js, "hdri", json_string(hdri_path));
     json_object_set_new(js, "output", json_string(out_path));
+    json_object_set_new(js, "hdri_in", json_string(plate_on_hdri ? "chart" : "working"));
     json_object_set_new(js, "matrix", json_matrix(t));
     if (chart_used)
         json_object_set_new(js, "plate_matrix", json_matrix(plate));
     json_object_set_new(js, "scale", json_real(grey_path ? gfit.scale : 1.0));
+    json_object_set_new(js, "units", json_string(abs_scale > 0 ? "cd/m^2" : "relative"));
+    if (abs_scale > 0)
+        json_object_set_new(js, "absolute",
+                            json_pack("{s:f, s:s}", "cd_m2_per_unit", abs_scale, "from", abs_from));
     if (report_dir) {
         if (mkdir(report_dir, 0777) && errno != EEXIST) {
             r = sl_error_set(&err, SL_ERR_IO, "%s: cannot create the report folder: %s",
@@ -456,6 +665,20 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         if ((r = sl_report_new(&rep, report_dir, "calibrate", "setlight calibrate", &err)))
             goto fail;
         sl_report_text(rep, "HDRI %s calibrated to %s.", hdri_path, out_path);
+        if (sun.repaired)
+            sl_report_text(rep,
+                           "Clipped source at azimuth %.2f, elevation %.2f (%lld texels clipped): "
+                           "fitted radiance %.4g (+-%.2f%%, in the HDRI's units before the "
+                           "transform); grey sphere error with the clipped map %.2f%%, with "
+                           "the repair %.2f%%.",
+                           sun.azimuth_deg, sun.elevation_deg, (long long)sun.clipped_texels,
+                           0.2126 * sun.radiance[0] + 0.7152 * sun.radiance[1] +
+                               0.0722 * sun.radiance[2],
+                           100 * sun.radiance_sigma[1] / fmax(sun.fitted[1], 1e-30),
+                           100 * sun.rel_rmse_before, 100 * sun.rel_rmse_after);
+        if (abs_scale > 0)
+            sl_report_text(rep, "Absolute: %.6g cd/m^2 per unit of the grey photo (%s).",
+                           abs_scale, abs_from);
         if ((r = sl_calibrate_report(rep, "", chart_used ? p : NULL, chart_used ? &fit : NULL,
                                      grey_path ? &gfit : NULL, &err))) {
             sl_report_free(rep);
@@ -476,16 +699,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         json_dumpf(js, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
     }
-    json_decref(js);
-    sl_grey_fit_free(&gfit);
-    sl_image_free(&hdri);
-    sl_image_free(&chart);
-    sl_image_free(&grey);
-    sl_meta_free(&hmeta);
-    sl_meta_free(&cmeta);
-    sl_meta_free(&gmeta);
-    sl_meta_free(&out_meta);
-    return 0;
+    r = SL_OK;
 
 fail:
     json_decref(js);
@@ -493,9 +707,11 @@ fail:
     sl_image_free(&hdri);
     sl_image_free(&chart);
     sl_image_free(&grey);
+    sl_image_free(&mask);
     sl_meta_free(&hmeta);
     sl_meta_free(&cmeta);
     sl_meta_free(&gmeta);
+    sl_meta_free(&mmeta);
     sl_meta_free(&out_meta);
-    return cli_fail(cli, &err);
+    return r ? cli_fail(cli, &err) : 0;
 }

@@ -18,8 +18,9 @@ static const char *merge_help =
     "  --times T1,T2,...      exposure times in seconds (e.g. 1/30,1/250), in frame order;\n"
     "                         default: EXIF ExposureTime (with FNumber and ISO when every\n"
     "                         frame has them: relative exposure t * ISO / N^2)\n"
-    "  --response MODE        auto (Debevec-Malik from the bracket, default), linear (raw,\n"
-    "                         linear TIFF/EXR), or a curve file from 'setlight response'\n"
+    "  --response MODE        auto (Debevec-Malik from the bracket, default), robertson\n"
+    "                         (Robertson et al. from the bracket), linear (raw, linear\n"
+    "                         TIFF/EXR), or a curve file from 'setlight response'\n"
     "  --exposures SRC        exif (default) or data: use exposure ratios measured from\n"
     "                         the pixels; either way disagreements are reported\n"
     "  --mask PATH            clipped mask EXR (R,G,B = 1 where saturated in every\n"
@@ -34,6 +35,9 @@ static const char *merge_help =
     "  --tolerance STOPS      EXIF vs data disagreement reported above (default 0.2)\n"
     "  --samples N            response samples per channel (default 4000)\n"
     "  --smoothness L         response smoothness (default 10 at 3-stop steps)\n"
+    "  --absolute             output in cd/m^2 from EXIF time, f-number and ISO:\n"
+    "                         L = 120 y N^2 / (t ISO), y linear with 1 = saturation (ISO\n"
+    "                         12232 saturation speed, lens factor 0.65); default relative\n"
     "  --json                 print the result (frames, exposures, clipping) as JSON\n\n"
     "Exit codes: 0 merged, 1 runtime failure, 2 usage error, 3 bad input (frames of\n"
     "different sizes or bit depths, duplicate exposures, no exposure information,\n"
@@ -135,7 +139,8 @@ typedef struct merge_args {
 static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, merge_args *a)
 {
     enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
-           OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK };
+           OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK,
+           OPT_ABS };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"output", required_argument, NULL, 'o'},
@@ -152,6 +157,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         {"smoothness", required_argument, NULL, OPT_SMOOTH},
         {"deghost", no_argument, NULL, OPT_DEGHOST},
         {"ghost-mask", required_argument, NULL, OPT_GHOSTMASK},
+        {"absolute", no_argument, NULL, OPT_ABS},
         {0, 0, 0, 0}};
     sl_merge_options_init(&a->opt);
     a->opt.response_mode = SL_RESPONSE_AUTO;
@@ -159,7 +165,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     int c, which = 0;
     while ((c = getopt_long(argc, argv, "+ho:", opts, &which)) != -1) {
         bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE ||
-                          c == OPT_DEGHOST || c == OPT_GHOSTMASK;
+                          c == OPT_DEGHOST || c == OPT_GHOSTMASK || c == OPT_ABS;
         if (merge_only && !is_merge)
             return cli_usage_error(cli, "unknown option '--%s'", opts[which].name);
         switch (c) {
@@ -179,6 +185,8 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
             sl_response_free(&a->response);
             if (!strcmp(optarg, "auto"))
                 a->opt.response_mode = SL_RESPONSE_AUTO;
+            else if (!strcmp(optarg, "robertson"))
+                a->opt.response_mode = SL_RESPONSE_ROBERTSON;
             else if (!strcmp(optarg, "linear"))
                 a->opt.response_mode = SL_RESPONSE_LINEAR;
             else {
@@ -205,6 +213,9 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
             break;
         case OPT_DEGHOST:
             a->opt.deghost = true;
+            break;
+        case OPT_ABS:
+            a->opt.absolute = true;
             break;
         case OPT_GHOSTMASK:
             a->ghost_mask = optarg;
@@ -309,7 +320,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
            100 * res.clipped_fraction, res.seconds);
     if (cli->json) {
         json_t *o = json_pack(
-            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:f}",
+            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:f}",
             "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
             (json_int_t)res.ghost_pixels, "width", res.radiance.width, "height",
             res.radiance.height, "response", res.response.source, "exposures",
@@ -320,7 +331,10 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
             "clipped_fraction", res.clipped_fraction, "clipped_solid_angle_sr",
             res.clipped_solid_angle, "underexposed_samples", (json_int_t)res.underexposed_samples,
             "disagreeing_frames", (json_int_t)res.disagreeing_frames, "nonfinite_samples",
-            (json_int_t)res.nonfinite_samples, "seconds", res.seconds);
+            (json_int_t)res.nonfinite_samples, "units", res.absolute ? "cd/m^2" : "relative",
+            "output_exposure", res.output_exposure, "weights", "noise_gain", res.noise_gain,
+            "noise_floor", res.noise_floor, "black", res.black, "saturation", res.saturation,
+            "seconds", res.seconds);
         json_dumpf(o, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(o);

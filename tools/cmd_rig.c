@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "rig_validate.h"
 #include "setlight/lightrig.h"
 
 static const char *rig_help =
@@ -44,9 +45,12 @@ static const char *rig_help =
     "  --include LAT,LON     always keep the light there (degrees; grown from the\n"
     "                        brightest texel within 2 degrees if none was found)\n"
     "  --exclude LAT,LON     leave the light there in the dome (both repeatable)\n"
-    "  --textures            textured rect lights (with --distance or --room): the\n"
+    "  --textures            textured rect lights (positioned or at infinity): the\n"
     "                        region's crop as RIG_light_NN.exr beside RIG.usda\n"
-    "  --assume-latlong      accept a 2:1 image without the envmap attribute\n\n"
+    "  --assume-latlong      accept a 2:1 image without the envmap attribute\n"
+    "  --validate[=SPP]      render the grey, chrome and shadow scenes (96 px) under\n"
+    "                        the map and under the rig and report their relative\n"
+    "                        RMSE (SPP samples per pixel, default 64)\n\n"
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
     "(missing, corrupt, not a lat-long), 1 could not write. See docs/lightrig.md.\n";
@@ -91,7 +95,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
         OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
-        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_PEAK, OPT_MAXSA
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_PEAK, OPT_MAXSA, OPT_VALIDATE
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -114,11 +118,13 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"textures", no_argument, NULL, OPT_TEXTURES},
         {"peak-fraction", required_argument, NULL, OPT_PEAK},
         {"max-solid-angle", required_argument, NULL, OPT_MAXSA},
+        {"validate", optional_argument, NULL, OPT_VALIDATE},
         {0, 0, 0, 0}};
     sl_rig_options opt;
     sl_rig_options_default(&opt);
     const char *out_path = NULL, *json_path = NULL, *res_path = NULL, *preview_path = NULL;
     bool assume = false, have_height = false, max_given = false, textures = false;
+    long long validate_spp = 0;
 
     cli_getopt_reset();
     int c;
@@ -130,6 +136,14 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         case 'o':
             out_path = optarg;
             break;
+        case OPT_VALIDATE: {
+            char *end = NULL;
+            validate_spp = optarg ? strtoll(optarg, &end, 10) : 64;
+            if (optarg && (end == optarg || *end || validate_spp < 1 || validate_spp > 1 << 20))
+                return cli_usage_error(cli, "--validate needs samples per pixel in 1..%d, not '%s'",
+                                       1 << 20, optarg);
+            break;
+        }
         case OPT_JSONFILE:
             json_path = optarg;
             break;
@@ -359,6 +373,28 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         goto fail;
     if (preview_path && (r = sl_rig_write_preview(&rig, &env, preview_path, &err)))
         goto fail;
+    rig_validation val = {0};
+    if (validate_spp > 0) {
+        /* The renderer reads the rig as a file: rig.json when written, else
+         * a temporary one beside the USD (the dome reference is relative to it). */
+        char tmp[PATH_MAX];
+        const char *rj = json_path;
+        if (!rj) {
+            snprintf(tmp, sizeof tmp, "%.*s.validate.json", (int)(strlen(out_path) - 5), out_path);
+            if ((r = sl_rig_write_json(&rig, tmp, dome_ref, &err)))
+                goto fail;
+            rj = tmp;
+        }
+        r = rig_validate(&env, rj, 96, validate_spp, &val, &err);
+        if (rj == tmp)
+            remove(tmp);
+        if (r)
+            goto fail;
+        sl_log(SL_LOG_INFO,
+               "validation (96 px, %lld spp, relative RMSE rig against map): grey %.2f%%, "
+               "chrome %.2f%%, shadow %.2f%%",
+               validate_spp, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2]);
+    }
 
     if (cli->json) {
         char *s = sl_rig_json_string(&rig, dome_ref);
@@ -374,6 +410,13 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             "median_luminance", rig.median_luminance, "threshold_luminance",
             rig.threshold_luminance, "relative_error", rig.relative_error, "black", black,
             "seconds", sl_seconds() - t0, "rig", rj);
+        if (validate_spp > 0) {
+            json_t *vj = json_pack("{s:i, s:I, s:f}", "width", val.width, "spp",
+                                   (json_int_t)val.spp, "seconds", val.seconds);
+            for (int k = 0; k < RIG_VALIDATE_SCENES; k++)
+                json_object_set_new(vj, val.scene[k], json_real(val.error[k]));
+            json_object_set_new(o, "validation", vj);
+        }
         json_dumpf(o, stdout, JSON_INDENT(2) | JSON_REAL_PRECISION(10));
         fputc('\n', stdout);
         json_decref(o);

@@ -138,7 +138,7 @@ sl_result sl_rig_write_json(const sl_rig *rig, const char *path, const char *dom
                             sl_error *err);
 /* The rig's JSON text (caller frees with free()). */
 char *sl_rig_json_string(const sl_rig *rig, const char *dome_file);
-/* Textured area lights: for every positioned rect light, the region's
+/* Textured area lights: for every rect light (positioned or at infinity), the region's
  * light above the dome as seen from the capture point (column 0 at the
  * light's local +X, row 0 at +Y), normalised to a solid-angle-weighted mean
  * luminance of 1 so the power is unchanged, written as PREFIX_light_NN.exr

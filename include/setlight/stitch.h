@@ -36,7 +36,13 @@ double sl_response_eval(const sl_response *resp, int channel, double z);
 sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err);
 sl_result sl_response_write(const char *path, const sl_response *resp, sl_error *err);
 
-typedef enum { SL_RESPONSE_LINEAR = 0, SL_RESPONSE_AUTO, SL_RESPONSE_GIVEN } sl_response_mode;
+/* AUTO: Debevec-Malik from the bracket; ROBERTSON: Robertson-Borman-Stevenson. */
+typedef enum {
+    SL_RESPONSE_LINEAR = 0,
+    SL_RESPONSE_AUTO,
+    SL_RESPONSE_GIVEN,
+    SL_RESPONSE_ROBERTSON
+} sl_response_mode;
 typedef enum { SL_EXPOSURES_EXIF = 0, SL_EXPOSURES_DATA } sl_exposure_source;
 
 typedef struct sl_merge_options {
@@ -55,7 +61,15 @@ typedef struct sl_merge_options {
     bool deghost;               /* leave out frames that disagree with the others */
     double deghost_sigma;       /* disagreement: beyond this many standard deviations (5) */
     double deghost_model_error; /* relative error added to the noise model (0.05) */
+    bool absolute;              /* output in cd/m^2 from EXIF time, f-number and ISO:
+                                   L = SL_MERGE_K_SAT * y * N^2 / (t * ISO) (docs/merge.md) */
 } sl_merge_options;
+
+/* ISO 12232 saturation-based speed: a sensor saturates at H = 78 / ISO lux s,
+ * and H = q L t / N^2 with q = 0.65 (lens transmission, vignetting, cos^4 at
+ * the centre), so a linear value y (1 = saturation) is L = 78 / q * y N^2 /
+ * (t ISO) cd/m^2. 78 / 0.65 = 120. */
+#define SL_MERGE_K_SAT 120.0
 
 /* Fills the defaults above. */
 void sl_merge_options_init(sl_merge_options *opt);
@@ -75,7 +89,8 @@ typedef struct sl_merge_frame {
 } sl_merge_frame;
 
 typedef struct sl_merge_result {
-    sl_image radiance;          /* RGB, relative radiance (the reference frame's scale) */
+    sl_image radiance;          /* RGB, relative radiance (the reference frame's scale), or
+                                   absolute (cd/m^2) with options.absolute */
     sl_image clipped;           /* RGB, 1 where the channel is saturated in every frame */
     sl_image ghost;             /* with deghost: 1 channel, 1 where a frame was left out */
     sl_response response;
@@ -92,6 +107,12 @@ typedef struct sl_merge_result {
     int64_t ghost_pixels;       /* with deghost: pixels where a frame was left out */
     int64_t nonfinite_samples;  /* NaN/Inf input samples (float frames), given no weight */
     int fitted_ratios;          /* neighbour ratios measured from the data (of frames - 1) */
+    /* Provenance: what scaled and weighted the merge. */
+    double output_exposure;     /* radiance = y / e * output_exposure: the reference
+                                   frame's exposure, or SL_MERGE_K_SAT when absolute */
+    bool absolute;              /* radiance in cd/m^2 (green = luminance for a camera whose
+                                   green is luminance); else relative */
+    double noise_gain, noise_floor, black, saturation;
     double seconds;
 } sl_merge_result;
 
@@ -395,6 +416,13 @@ void sl_grey_fit_free(sl_grey_fit *fit);
  * linear in the dome, so the calibrated render is the render times gain. */
 sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const sl_grey_options *o,
                              sl_grey_fit *fit, sl_error *err);
+
+/* Absolute calibration: the luminance (cd/m^2) of a linear value 1.0
+ * (raw saturation) in a photo taken at this exposure, from ISO 12232's
+ * saturation-based speed: L = 78 N^2 / (q S t), q = 0.65 (lens
+ * transmission, cos^4 at the centre), i.e. 120 N^2 / (S t). 0 when any
+ * value is missing (<= 0). */
+double sl_exposure_luminance(double time_s, double f_number, double iso);
 
 /* ---- Clipped-sun repair ---- */
 

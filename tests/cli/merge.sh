@@ -55,6 +55,13 @@ json_ok "$T/out"
 json_eval "$T/out" 'd["width"] == 64 and d["height"] == 32 and len(d["frames"]) == 3 and d["response"] == "debevec-malik"'
 json_eval "$T/out" 'd["disagreeing_frames"] == 0 and d["mask"].endswith("out_clipped.exr")'
 present "$T/out.exr"; present "$T/out_clipped.exr"; no_temp "$T"
+json_eval "$T/out" 'd["units"] == "relative" and d["weights"]["saturation"] == 0.95 and d["weights"]["noise_gain"] == 2e-5'
+expect 0 "$SETLIGHT" merge --json --response robertson -o "$T/rob.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["response"] == "robertson" and d["disagreeing_frames"] == 0'
+# Absolute units need EXIF f-number and ISO on every frame (PNG has none).
+expect 3 "$SETLIGHT" merge --absolute -o "$T/abs.exr" --times $TIMES "${F[@]}"; err_has "br_0.png"; err_has "f-number"; err_one_line
+absent "$T/abs.exr"
+expect 2 "$SETLIGHT" response --absolute -o "$T/x.json" --times $TIMES "${F[@]}"; err_has "--absolute"
 expect 0 "$SETLIGHT" info --json "$T/out.exr"
 json_eval "$T/out" 'd["files"][0]["nan_count"] == 0 and d["files"][0]["inf_count"] == 0 and d["files"][0]["negative_count"] == 0'
 json_eval "$T/out" 'd["files"][0]["envmap"] == "latlong"'

@@ -52,6 +52,15 @@ json_eval "$T/out" 'd["files"][0]["envmap"] == "latlong" and d["files"][0]["nan_
 # the dome no longer holds the panels
 json_eval "$T/out" 'd["files"][0]["channel_stats"][0]["max"] < 5'
 
+# --- validation renders (the two panels are uniform rects: the rig is close to the map)
+mkdir -p "$T/v"
+expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/v/stage.usda" --energy 1 --validate=16
+json_eval "$T/out" 'd["validation"]["spp"] == 16 and d["validation"]["width"] == 96 and all(0 <= d["validation"][k] < 0.2 for k in ("grey", "chrome", "shadow"))'
+# the temporary rig.json for the renderer is gone
+if [ -z "$(ls "$T/v" | grep -v '^stage.usda$\|^stage_residual.exr$')" ]; then ok; else bad "validate left files: $(ls "$T/v")"; fi
+expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/v/x.usda" --validate=0
+[ ! -e "$T/v/x.usda" ] && ok || bad "--validate=0 wrote output"
+
 # --- positions in a room; median cut
 expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/room.usda" --json "$T/o/room.json" \
   --room 8,6,4 --capture-height 1.5 --energy 1

@@ -1,0 +1,402 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* sl_merge on brackets shot by the virtual set's camera (tests/vset_bracket.c):
+ * exterior, stage and night; 7x3 and 5x2 stops; 8-bit JPEG through the
+ * camera's curve (self-calibrated) and 14-bit linear. Radiance, response,
+ * clipping and the EXIF check against the ground truth. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "setlight/stitch.h"
+#include "testing.h"
+#include "vset_bracket.h"
+
+static bool sanitized(void) { return getenv("SETLIGHT_SANITIZED") != NULL; }
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Channels scored: not clipped in every frame (truth) and at least 2% of
+ * white in the longest frame that leaves the pixel unsaturated (darker ones
+ * are a few codes of noise in every frame). */
+static bool scored(const vb_bracket *b, int x, int y, int c)
+{
+    return sl_image_pixel(&b->clipped, x, y)[c] == 0 &&
+           sl_image_pixel(&b->best, x, y)[c] >= 0.02;
+}
+
+typedef struct stats {
+    int64_t n;
+    double median, p99, scale;
+} stats;
+
+/* Relative error of merged vs truth over `block` x `block` means of scored
+ * channels (blocks with every channel scored): block 1 is per pixel, noise
+ * included; block 4 averages 16 pixels, which leaves what the merge itself
+ * gets wrong (curve, exposures, weights) above a quarter of the noise. With
+ * fit_scale after the median ratio (a self-calibrated curve knows radiance
+ * only up to a factor). */
+static stats compare(const sl_image *merged, const vb_bracket *b, int block, bool fit_scale)
+{
+    stats st = {0, NAN, NAN, 1};
+    size_t cap = (size_t)merged->width * merged->height * 3;
+    double *e = malloc(cap * sizeof *e);
+    if (!e)
+        return st;
+    size_t m = 0;
+    for (int by = 0; by + block <= merged->height; by += block)
+        for (int bx = 0; bx + block <= merged->width; bx += block)
+            for (int c = 0; c < 3; c++) {
+                double sm = 0, st_ = 0;
+                bool ok = true;
+                for (int y = by; y < by + block && ok; y++)
+                    for (int x = bx; x < bx + block; x++) {
+                        ok = ok && scored(b, x, y, c);
+                        sm += sl_image_pixel(merged, x, y)[c];
+                        st_ += sl_image_pixel(&b->truth, x, y)[c];
+                    }
+                if (ok)
+                    e[m++] = sm / st_;
+            }
+    if (m) {
+        if (fit_scale) {
+            qsort(e, m, sizeof *e, cmp_double);
+            st.scale = e[m / 2];
+        }
+        for (size_t i = 0; i < m; i++)
+            e[i] = fabs(e[i] / st.scale - 1);
+        qsort(e, m, sizeof *e, cmp_double);
+        st.median = e[m / 2];
+        st.p99 = e[(size_t)(0.99 * (double)(m - 1))];
+    }
+    st.n = (int64_t)m;
+    free(e);
+    return st;
+}
+
+/* Worst error of the recovered inverse response after one free scale (the
+ * median ratio), over codes whose linear value the bracket exposes: from
+ * 1% of white to just below the saturation code. */
+static double response_error(const sl_response *resp, const sl_vset_response *truth,
+                             double zlo, double zhi, double *worst_z)
+{
+    double worst = 0;
+    for (int c = 0; c < 3; c++) {
+        double ratio[256];
+        int n = 0;
+        for (double z = zlo; z <= zhi + 1e-9 && n < 256; z += 1.0 / 255)
+            ratio[n++] = sl_response_eval(resp, c, z) / sl_vset_response_invert(truth, z);
+        double sorted[256];
+        memcpy(sorted, ratio, (size_t)n * sizeof *ratio);
+        qsort(sorted, (size_t)n, sizeof *sorted, cmp_double);
+        double s = sorted[n / 2];
+        for (int i = 0; i < n; i++)
+            if (fabs(ratio[i] / s - 1) > worst) {
+                worst = fabs(ratio[i] / s - 1);
+                *worst_z = zlo + i / 255.0;
+            }
+    }
+    return worst;
+}
+
+/* Pixels whose clipped flag differs from the truth's, away from the
+ * noise margin of the saturation threshold. */
+static int64_t mask_mismatch(const sl_image *got, const vb_bracket *b, int64_t *flagged,
+                             int64_t *truth_flagged)
+{
+    int64_t n = 0;
+    *flagged = *truth_flagged = 0;
+    for (int y = 0; y < got->height; y++)
+        for (int x = 0; x < got->width; x++) {
+            bool g = sl_image_pixel(got, x, y)[0] + sl_image_pixel(got, x, y)[1] +
+                         sl_image_pixel(got, x, y)[2] > 0;
+            bool t = sl_image_pixel(&b->clipped, x, y)[0] > 0;
+            *flagged += g;
+            *truth_flagged += t;
+            if (g == t || sl_image_pixel(&b->margin, x, y)[0] > 0)
+                continue;
+            /* JPEG rings within two pixels of a clipped area's edge. */
+            bool edge = false;
+            for (int dy = -2; dy <= 2 && b->spec.jpeg; dy++)
+                for (int dx = -2; dx <= 2; dx++) {
+                    int xx = x + dx, yy = y + dy;
+                    if (xx >= 0 && yy >= 0 && xx < got->width && yy < got->height &&
+                        (sl_image_pixel(&b->clipped, xx, yy)[0] > 0) != t)
+                        edge = true;
+                }
+            n += !edge;
+        }
+    return n;
+}
+
+static void check_clean(const sl_image *img)
+{
+    sl_image_stats st;
+    sl_image_stats_compute(img, &st);
+    CHECK(st.nan_count == 0 && st.inf_count == 0 && st.negative_count == 0);
+}
+
+typedef enum { MODE_LINEAR, MODE_TRUE_CURVE, MODE_SELF, MODE_ROBERTSON } mode;
+
+/* The camera's true inverse response as a merge curve. */
+static void true_response(const vb_bracket *b, sl_response *out)
+{
+    sl_error err;
+    CHECK_OK(sl_response_linear(out, 256, &err), &err);
+    for (int c = 0; c < 3; c++)
+        for (int k = 0; k < 256; k++)
+            out->inverse[c * 256 + k] = sl_vset_response_invert(&b->cam.response, k / 255.0);
+    snprintf(out->source, sizeof out->source, "virtual camera");
+}
+
+/* Merges one bracket and scores it; the goal bounds are asserted for
+ * `strict` cases, and always: clean output, the clipped pixels, no frame
+ * named when EXIF is true. */
+static void merge_case(const vb_spec *spec, mode md, bool strict)
+{
+    static const char *const mode_name[] = {"linear", "true curve", "self-calibrated",
+                                            "Robertson"};
+    char name[96];
+    snprintf(name, sizeof name, "%s_%s_%dx%d_%s", spec->scene, spec->curve, spec->frames,
+             spec->stops, spec->jpeg ? "jpg" : "lin14");
+    sl_error err;
+    vb_bracket b;
+    CHECK_OK(vb_make(sl_test_tmpdir(), name, spec, &b, &err), &err);
+    const char *paths[VB_MAX_FRAMES];
+    for (int k = 0; k < b.frames; k++)
+        paths[k] = b.paths[b.frames - 1 - k];
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    sl_response given = {0};
+    opt.response_mode = md == MODE_SELF        ? SL_RESPONSE_AUTO
+                        : md == MODE_ROBERTSON  ? SL_RESPONSE_ROBERTSON
+                        : md == MODE_TRUE_CURVE ? SL_RESPONSE_GIVEN
+                                                : SL_RESPONSE_LINEAR;
+    if (md == MODE_TRUE_CURVE) {
+        true_response(&b, &given);
+        opt.response = &given;
+    }
+    sl_merge_result res;
+    CHECK_OK(sl_merge(paths, b.frames, &opt, &res, &err), &err);
+    if (res.radiance.data) {
+        bool fit = md == MODE_SELF || md == MODE_ROBERTSON;
+        stats px = compare(&res.radiance, &b, 1, fit), bl = compare(&res.radiance, &b, 4, fit);
+        int64_t flagged, truth_flagged, wrong = mask_mismatch(&res.clipped, &b, &flagged, &truth_flagged);
+        printf("  %s (%s): per pixel median %.2f%% p99 %.2f%%; 4x4 blocks median %.2f%% p99 "
+               "%.2f%% (%lld); scale %.4f; clipped %lld px (truth %lld, %lld off the margin "
+               "differ); %d named; %.2f s\n",
+               name, mode_name[md], 100 * px.median, 100 * px.p99, 100 * bl.median,
+               100 * bl.p99, (long long)bl.n, bl.scale, (long long)flagged,
+               (long long)truth_flagged, (long long)wrong, (int)res.disagreeing_frames,
+               res.seconds);
+        for (int i = 0; i < b.frames && res.disagreeing_frames; i++)
+            if (res.frames[i].disagrees)
+                printf("    named: %s %+.2f stops\n", res.frames[i].path,
+                       res.frames[i].disagreement_stops);
+        if (fit) {
+            double wz = 0, zlo = sl_vset_response_apply(&b.cam.response, 0.02);
+            double re = response_error(&res.response, &b.cam.response, zlo, 0.9, &wz);
+            printf("    response error %.2f%% (worst at z %.3f) over z [%.3f, 0.9]\n", 100 * re,
+                   wz, zlo);
+            if (strict)
+                CHECK_MSG(re <= 0.02, "%s response error %.4f", name, re);
+        }
+        if (strict) {
+            CHECK_MSG(bl.median <= 0.01, "%s block median %.4f", name, bl.median);
+            CHECK_MSG(bl.p99 <= 0.05, "%s block p99 %.4f", name, bl.p99);
+            CHECK(res.disagreeing_frames == 0);
+        }
+        CHECK(bl.n > 100);
+        CHECK_MSG(wrong == 0, "%s: %lld clipped flags differ", name, (long long)wrong);
+        check_clean(&res.radiance);
+    }
+    sl_merge_result_free(&res);
+    sl_response_free(&given);
+    vb_free(&b);
+}
+
+/* Smaller brackets leave too few samples for the self-calibration; under
+ * sanitizers only the exterior set runs, at the same size. */
+static int width(void) { return 256; }
+
+static vb_spec spec(const char *scene, int frames, int stops, bool jpeg)
+{
+    vb_spec s = {.scene = scene, .curve = "canon", .frames = frames, .stops = stops,
+                 .jpeg = jpeg, .width = width(), .saturation = 0.95, .seed = 3};
+    return s;
+}
+
+/* The goal bounds (block median 1%, p99 5%, response 2%, no frame named)
+ * hold for these; the other cases print their numbers (docs/merge.md has
+ * them and why: the night set's noise, the stage's curve recovery). */
+static bool meets_goal(const char *scene, mode md)
+{
+    return md != MODE_ROBERTSON && strcmp(scene, "exterior") == 0;
+}
+
+static void run_scenes(bool jpeg, mode md)
+{
+    static const char *const scenes[] = {"exterior", "stage", "night"};
+    for (int i = 0; i < 3; i++) {
+        if (sanitized() && strcmp(scenes[i], "exterior") != 0)
+            continue;
+        vb_spec a = spec(scenes[i], 7, 3, jpeg), b = spec(scenes[i], 5, 2, jpeg);
+        merge_case(&a, md, meets_goal(scenes[i], md));
+        merge_case(&b, md, meets_goal(scenes[i], md));
+    }
+}
+
+/* 14-bit linear frames: the merge proper (weights, clipping, exposures). */
+static void test_linear(void) { run_scenes(false, MODE_LINEAR); }
+
+/* 8-bit JPEGs through the camera's true curve: the merge with 8-bit codes. */
+static void test_jpeg_true_curve(void) { run_scenes(true, MODE_TRUE_CURVE); }
+
+/* 8-bit JPEGs, the curve recovered from the bracket alone. */
+static void test_jpeg_self_calibrated(void) { run_scenes(true, MODE_SELF); }
+
+/* The same with Robertson's method, for comparison (numbers printed). */
+static void test_jpeg_robertson(void) { run_scenes(true, MODE_ROBERTSON); }
+
+/* EXIF off by one stop on one frame: the check names that frame alone, and
+ * the measured exposures meet the goal bounds. */
+static void lie_case(bool jpeg)
+{
+    vb_spec sp = spec("exterior", 7, 3, jpeg);
+    sp.lie_frame = 2;
+    sp.lie_stops = 1;
+    char name[64];
+    snprintf(name, sizeof name, "lie_%s", jpeg ? "jpg" : "lin14");
+    sl_error err;
+    vb_bracket b;
+    CHECK_OK(vb_make(sl_test_tmpdir(), name, &sp, &b, &err), &err);
+    const char *paths[VB_MAX_FRAMES];
+    for (int k = 0; k < b.frames; k++)
+        paths[k] = b.paths[k];
+    for (int data = 0; data < 2; data++) {
+        sl_merge_options opt;
+        sl_merge_options_init(&opt);
+        opt.response_mode = jpeg ? SL_RESPONSE_AUTO : SL_RESPONSE_LINEAR;
+        opt.exposures = data ? SL_EXPOSURES_DATA : SL_EXPOSURES_EXIF;
+        sl_merge_result res;
+        CHECK_OK(sl_merge(paths, b.frames, &opt, &res, &err), &err);
+        if (!res.radiance.data)
+            continue;
+        stats bl = compare(&res.radiance, &b, 4, jpeg);
+        printf("  %s, exposures %s: frame 2 %+.3f stops%s, %d named; 4x4 blocks median %.2f%% "
+               "p99 %.2f%%\n",
+               name, data ? "data" : "exif", res.frames[2].disagreement_stops,
+               res.frames[2].disagrees ? " (named)" : "", (int)res.disagreeing_frames,
+               100 * bl.median, 100 * bl.p99);
+        CHECK(res.frames[2].disagrees && res.disagreeing_frames == 1);
+        CHECK_NEAR(res.frames[2].disagreement_stops, -1, 0.1);
+        if (data) {
+            CHECK_MSG(bl.median <= 0.01, "%s block median %.4f", name, bl.median);
+            CHECK_MSG(bl.p99 <= 0.05, "%s block p99 %.4f", name, bl.p99);
+        }
+        sl_merge_result_free(&res);
+    }
+    vb_free(&b);
+}
+
+static void test_exif_lie(void)
+{
+    lie_case(false);
+    lie_case(true);
+}
+
+/* Absolute units: every bracket, whatever its exposures, aperture and ISO,
+ * lands on the radiance's own scale (truth / ref_scale). */
+static void absolute_case(const char *scene, int frames, int stops, int shift)
+{
+    vb_spec sp = spec(scene, frames, stops, true);
+    sp.shift = shift;
+    char name[64];
+    snprintf(name, sizeof name, "abs_%s_%dx%d_%+d", scene, frames, stops, shift);
+    sl_error err;
+    vb_bracket b;
+    CHECK_OK(vb_make(sl_test_tmpdir(), name, &sp, &b, &err), &err);
+    const char *paths[VB_MAX_FRAMES];
+    for (int k = 0; k < b.frames; k++)
+        paths[k] = b.paths[k];
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    sl_response given = {0};
+    true_response(&b, &given);
+    opt.response_mode = SL_RESPONSE_GIVEN;
+    opt.response = &given;
+    opt.absolute = true;
+    sl_merge_result res;
+    CHECK_OK(sl_merge(paths, b.frames, &opt, &res, &err), &err);
+    if (res.radiance.data) {
+        /* Provenance: units, scale and weights in the EXR's attributes. */
+        char out[600];
+        snprintf(out, sizeof out, "%s/%s.exr", sl_test_tmpdir(), name);
+        CHECK_OK(sl_merge_write(out, NULL, NULL, &res, &err), &err);
+        sl_image back = {0};
+        sl_meta meta;
+        sl_meta_init(&meta);
+        CHECK_OK(sl_image_read(out, &back, &meta, &err), &err);
+        const char *units = sl_meta_get(&meta, "setlight:merge:units");
+        const char *weights = sl_meta_get(&meta, "setlight:merge:weights");
+        const char *oe = sl_meta_get(&meta, "setlight:merge:output_exposure");
+        CHECK(units && strncmp(units, "cd/m^2", 6) == 0);
+        CHECK(weights && strstr(weights, "inverse variance") != NULL);
+        CHECK(oe && atof(oe) == SL_MERGE_K_SAT);
+        sl_meta_free(&meta);
+        sl_image_free(&back);
+        /* Compare with truth / ref_scale: scale the merge by ref_scale instead. */
+        for (size_t i = 0; i < (size_t)res.radiance.width * res.radiance.height * 3; i++)
+            res.radiance.data[i] *= (float)b.ref_scale;
+        stats bl = compare(&res.radiance, &b, 4, true);
+        printf("  %s: f/%g ISO %g, reference %.6g s: absolute / truth = %.4f, 4x4 median "
+               "%.2f%%\n",
+               name, b.f_number, b.iso, b.times[b.reference], bl.scale, 100 * bl.median);
+        CHECK(res.absolute && res.output_exposure == SL_MERGE_K_SAT);
+        CHECK_NEAR(bl.scale, 1, 0.01);
+    }
+    sl_merge_result_free(&res);
+    sl_response_free(&given);
+    vb_free(&b);
+}
+
+static void test_absolute(void)
+{
+    absolute_case("exterior", 7, 3, 0);
+    absolute_case("exterior", 5, 2, 2);
+    if (!sanitized()) {
+        absolute_case("stage", 7, 3, 0);
+        absolute_case("night", 5, 2, -1);
+    }
+    /* TIFF keeps no ISO (OpenImageIO 2.4): absolute units are refused, naming the frame. */
+    vb_spec sp = spec("exterior", 5, 2, false);
+    sp.width = 32;
+    vb_bracket b;
+    sl_error err;
+    CHECK_OK(vb_make(sl_test_tmpdir(), "abs_tiff", &sp, &b, &err), &err);
+    const char *paths[VB_MAX_FRAMES];
+    for (int k = 0; k < b.frames; k++)
+        paths[k] = b.paths[k];
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.response_mode = SL_RESPONSE_LINEAR;
+    opt.absolute = true;
+    sl_merge_result res;
+    CHECK_RESULT(sl_merge(paths, b.frames, &opt, &res, &err), SL_ERR_INPUT, &err);
+    CHECK(strstr(err.message, b.paths[0]) != NULL && strstr(err.message, "ISO") != NULL);
+    vb_free(&b);
+}
+
+int main(void)
+{
+    RUN(test_linear);
+    RUN(test_jpeg_true_curve);
+    RUN(test_jpeg_self_calibrated);
+    RUN(test_jpeg_robertson);
+    RUN(test_exif_lie);
+    RUN(test_absolute);
+    return sl_test_finish();
+}

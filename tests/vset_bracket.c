@@ -1,0 +1,189 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+#include "vset_bracket.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+/* The full-stop shutter speeds the virtual camera writes to EXIF (as in
+ * capture/vset_capture.c); the simulated exposure is the nominal time. */
+static const double shutter[] = {1.0 / 8000, 1.0 / 4000, 1.0 / 2000, 1.0 / 1000, 1.0 / 500,
+                                 1.0 / 250,  1.0 / 125,  1.0 / 60,   1.0 / 30,   1.0 / 15,
+                                 1.0 / 8,    1.0 / 4,    1.0 / 2,    1,          2,
+                                 4,          8,          15,         30};
+enum { SHUTTERS = (int)(sizeof shutter / sizeof shutter[0]) };
+
+/* Aperture, ISO and white balance as the virtual set's wrangler sets them. */
+static void scene_settings(const char *scene, double *n, double *iso, double *kelvin)
+{
+    *n = 8, *iso = 100, *kelvin = 3200;
+    if (strcmp(scene, "exterior") == 0)
+        *n = 16, *kelvin = 5500;
+    else if (strcmp(scene, "night") == 0)
+        *n = 4, *iso = 400;
+}
+
+/* Metered like the virtual set: the log-average luminance at 12% of raw
+ * saturation, the bracket centred there and kept on the shutter scale. */
+static void plan(const vb_spec *s, const sl_vset_camera *cam, const sl_image *ll, double n,
+                 double iso, double *times)
+{
+    double acc = 0, wsum = 0;
+    for (int y = 0; y < ll->height; y++) {
+        double dw = sl_latlong_texel_solid_angle(y, ll->width, ll->height);
+        for (int x = 0; x < ll->width; x++) {
+            const float *p = sl_image_pixel(ll, x, y);
+            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            acc += dw * log(l > 1e-6 ? l : 1e-6);
+            wsum += dw;
+        }
+    }
+    double t = 0.12 * n * n / (exp(acc / wsum) * cam->k * iso / 100.0);
+    int centre = 0;
+    for (int i = 1; i < SHUTTERS; i++)
+        if (fabs(log(shutter[i] / t)) < fabs(log(shutter[centre] / t)))
+            centre = i;
+    int first = centre - (s->frames - 1) / 2 * s->stops + s->shift;
+    int last = first + (s->frames - 1) * s->stops;
+    if (last > SHUTTERS - 1)
+        first -= last - (SHUTTERS - 1);
+    if (first < 0)
+        first = 0;
+    for (int k = 0; k < s->frames; k++)
+        times[k] = shutter[first + k * s->stops];
+}
+
+/* Noise-free camera output (linear, per channel) of radiance rgb at an
+ * exposure scale: sensor clip, white balance and its clip, colour matrix,
+ * output clip. *balanced gets the largest white-balanced sensor value. */
+static void develop(const sl_vset_camera *cam, const float *rgb, double scale, double out[3],
+                    double *balanced)
+{
+    double bal[3];
+    *balanced = 0;
+    for (int i = 0; i < 3; i++) {
+        double s = 0;
+        for (int j = 0; j < 3; j++)
+            s += cam->cam_from_rec709[i][j] * rgb[j];
+        s *= scale;
+        bal[i] = cam->wb[i] * fmin(s, 1.0);
+        *balanced = fmax(*balanced, cam->wb[i] * s);
+        bal[i] = fmin(bal[i], 1.0);
+    }
+    for (int i = 0; i < 3; i++) {
+        double o = 0;
+        for (int j = 0; j < 3; j++)
+            o += cam->ccm[i][j] * bal[j];
+        out[i] = fmin(fmax(o, 0.0), 1.0);
+    }
+}
+
+sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_bracket *out,
+                  sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    out->spec = *spec;
+    if (spec->frames < 2 || spec->frames > VB_MAX_FRAMES)
+        return sl_error_set(err, SL_ERR_USAGE, "vset bracket: 2..%d frames", VB_MAX_FRAMES);
+    sl_vset_desc desc;
+    double kelvin;
+    sl_result r = sl_vset_preset(spec->scene, &desc, err);
+    if (r)
+        return r;
+    scene_settings(spec->scene, &out->f_number, &out->iso, &kelvin);
+    sl_vset_camera_default(&out->cam, kelvin);
+    if ((r = sl_vset_response_preset(spec->curve, &out->cam.response, err)))
+        return r;
+    sl_vset_scene scene;
+    if ((r = sl_vset_scene_make(&desc, spec->width, &scene, err)))
+        return r;
+    const sl_image *ll = &scene.latlong;
+    int w = ll->width, h = ll->height;
+    out->frames = spec->frames;
+    out->reference = (spec->frames - 1) / 2;
+    plan(spec, &out->cam, ll, out->f_number, out->iso, out->times);
+    double m[3][3];
+    sl_vset_camera_output_matrix(&out->cam, m);
+    sl_vset_exposure e0 = {out->times[0], out->f_number, out->iso};
+    sl_vset_exposure eref = {out->times[out->reference], out->f_number, out->iso};
+    double s0 = sl_vset_exposure_scale(&out->cam, &e0);
+    double sref = sl_vset_exposure_scale(&out->cam, &eref);
+    out->ref_scale = sref;
+    /* The merge's threshold in linear terms: codes at or above it are saturated. */
+    double sat_lin = spec->jpeg ? sl_vset_response_invert(&out->cam.response, spec->saturation)
+                                : spec->saturation;
+    if ((r = sl_image_alloc(&out->truth, w, h, 3, err)) ||
+        (r = sl_image_alloc(&out->clipped, w, h, 3, err)) ||
+        (r = sl_image_alloc(&out->margin, w, h, 3, err)) ||
+        (r = sl_image_alloc(&out->best, w, h, 3, err))) {
+        sl_vset_scene_free(&scene);
+        return r;
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const float *l = sl_image_pixel(ll, x, y);
+            float *t = sl_image_pixel(&out->truth, x, y);
+            for (int i = 0; i < 3; i++) {
+                double v = 0;
+                for (int j = 0; j < 3; j++)
+                    v += m[i][j] * l[j];
+                t[i] = (float)(v * sref);
+            }
+            /* Saturated as a whole (the merge's rule): any channel at the
+             * saturation code, or a balanced raw channel clipped (it spoils
+             * the others through the colour matrix). */
+            double o[3], bal;
+            develop(&out->cam, l, s0, o, &bal);
+            double omax = fmax(o[0], fmax(o[1], o[2]));
+            bool clipped = omax >= sat_lin || bal >= 1;
+            bool near = fabs(omax / sat_lin - 1) < 0.05 || fabs(bal - 1) < 0.05;
+            float *best = sl_image_pixel(&out->best, x, y);
+            best[0] = best[1] = best[2] = 0;
+            for (int k = spec->frames - 1; k >= 0; k--) {
+                sl_vset_exposure ek = {out->times[k], out->f_number, out->iso};
+                double sk = sl_vset_exposure_scale(&out->cam, &ek), ok[3], bk;
+                develop(&out->cam, l, sk, ok, &bk);
+                if (fmax(ok[0], fmax(ok[1], ok[2])) < sat_lin && bk < 1) {
+                    for (int c = 0; c < 3; c++)
+                        best[c] = (float)(t[c] * sk / sref);
+                    break;
+                }
+            }
+            for (int c = 0; c < 3; c++) {
+                sl_image_pixel(&out->clipped, x, y)[c] = clipped ? 1.0f : 0.0f;
+                sl_image_pixel(&out->margin, x, y)[c] = near ? 1.0f : 0.0f;
+            }
+        }
+    for (int k = 0; k < spec->frames && !r; k++) {
+        sl_vset_exposure e = {out->times[k], out->f_number, out->iso};
+        sl_vset_shot shot;
+        if ((r = sl_vset_camera_shoot(&out->cam, &e, ll, spec->seed * 131 + (uint64_t)k, &shot,
+                                      err)))
+            break;
+        sl_meta meta;
+        sl_meta_init(&meta);
+        meta.exposure_time = out->times[k] * (k == spec->lie_frame ? exp2(spec->lie_stops) : 1);
+        meta.f_number = out->f_number;
+        meta.iso = out->iso;
+        snprintf(out->paths[k], sizeof out->paths[k], "%s/%s_%d.%s", dir, prefix, k,
+                 spec->jpeg ? "jpg" : "tif");
+        if (spec->jpeg)
+            r = sl_photo_write(out->paths[k], &shot.encoded, &meta, 8, err);
+        else {
+            sl_vset_quantize(&shot.linear, out->cam.raw_bits);
+            r = sl_photo_write(out->paths[k], &shot.linear, &meta, 16, err);
+        }
+        sl_meta_free(&meta);
+        sl_vset_shot_free(&shot);
+    }
+    sl_vset_scene_free(&scene);
+    return r;
+}
+
+void vb_free(vb_bracket *b)
+{
+    sl_image_free(&b->truth);
+    sl_image_free(&b->clipped);
+    sl_image_free(&b->margin);
+    sl_image_free(&b->best);
+}

@@ -1,0 +1,49 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Brackets shot by the virtual set's camera (include/setlight/capture.h) of
+ * a virtual-set lat-long, with the ground truth the merge must recover: the
+ * noise-free, unclipped output-linear value at the reference exposure and
+ * which channels no frame exposes below saturation. */
+#ifndef SETLIGHT_TESTS_VSET_BRACKET_H
+#define SETLIGHT_TESTS_VSET_BRACKET_H
+
+#include "setlight/capture.h"
+
+enum { VB_MAX_FRAMES = 16 };
+
+typedef struct vb_spec {
+    const char *scene;    /* "exterior", "stage", "night" */
+    const char *curve;    /* camera response preset ("canon", "srgb", "filmic") */
+    int frames;           /* 7 or 5 */
+    int stops;            /* 3 or 2, on the camera's full-stop shutter scale */
+    bool jpeg;            /* 8-bit JPEG through the curve, else 14-bit linear in a 16-bit TIFF */
+    int width;            /* lat-long width (frames are the lat-long itself) */
+    double saturation;    /* the merge's saturation code (for the clipped truth) */
+    uint64_t seed;
+    int shift;            /* the whole bracket this many shutter steps longer than metered */
+    int lie_frame;        /* this rank's EXIF time is off by lie_stops (0: none) */
+    double lie_stops;
+} vb_spec;
+
+typedef struct vb_bracket {
+    vb_spec spec;
+    sl_vset_camera cam;
+    int frames;
+    int reference;             /* rank of the middle frame: the merge's scale */
+    double times[VB_MAX_FRAMES];
+    double ref_scale; /* the camera's exposure scale at the reference frame: truth / ref_scale
+                         is the output-linear value of the radiance itself (cd/m^2 units) */
+    double f_number, iso;
+    char paths[VB_MAX_FRAMES][512]; /* shortest first */
+    sl_image truth;   /* output-linear value at the reference exposure, noise-free, unclipped */
+    sl_image clipped; /* 1 where the shortest frame is saturated in that channel (noise-free) */
+    sl_image margin;  /* 1 where noise could move a channel across a threshold that matters */
+    sl_image best;    /* noise-free output-linear value in the longest frame that leaves the
+                         pixel unsaturated (0 when every frame saturates it) */
+} vb_bracket;
+
+/* Writes DIR/PREFIX_<rank>.{jpg,tif}. */
+sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_bracket *out,
+                  sl_error *err);
+void vb_free(vb_bracket *b);
+
+#endif
