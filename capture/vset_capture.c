@@ -28,12 +28,18 @@ void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene
 {
     static const int ll[3] = {256, SL_VSET_SMALL_WIDTH, SL_VSET_FULL_WIDTH};
     static const int pw[3] = {192, 720, 3000}, ph[3] = {128, 480, 2000}, ss[3] = {2, 2, 3};
+    static const int qw[3] = {192, 480, 1500}, qh[3] = {128, 320, 1000};
+    static const int64_t spp_aa[3] = {4, 8, 16}, spp_grey[3] = {8, 16, 128};
     memset(o, 0, sizeof *o);
     o->scene = *scene;
     o->latlong_width = ll[size];
     o->photo_width = pw[size];
     o->photo_height = ph[size];
     o->supersample = ss[size];
+    o->probe_width = qw[size];
+    o->probe_height = qh[size];
+    o->probe_spp_aa = spp_aa[size];
+    o->probe_spp_grey = spp_grey[size];
     sl_vset_response_preset("canon", &o->response, NULL);
     o->raw_bits = 14;
     o->seed = 1;
@@ -47,8 +53,9 @@ void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene
         o->wb_kelvin = 5500;
         break;
     case SL_VSET_BG_ROOM:
+        /* The stage's key lights are daylight-balanced. */
         o->f_number = 8;
-        o->wb_kelvin = 3200;
+        o->wb_kelvin = 5600;
         break;
     default:
         o->f_number = 4;
@@ -223,12 +230,48 @@ static void exif_time(int seconds, char *out, size_t size)
     snprintf(out, size, "2026:05:14 %02d:%02d:%02d", h, m, s);
 }
 
+/* EXIF of a frame; the camera's clock moves on by the exposure and a second. */
+static void frame_meta(sl_meta *meta, const sl_vset_camera *cam, const sl_vset_lens *lens,
+                       const sl_vset_exposure *e, int *clock)
+{
+    sl_meta_init(meta);
+    meta->exposure_time = e->time_s;
+    meta->f_number = e->f_number;
+    meta->iso = e->iso;
+    meta->focal_length_mm = lens->focal_mm;
+    meta->orientation = 1;
+    snprintf(meta->make, sizeof meta->make, "%s", cam->make);
+    snprintf(meta->model, sizeof meta->model, "%s", cam->model);
+    snprintf(meta->lens, sizeof meta->lens, "%s", lens->name);
+    exif_time(*clock, meta->datetime, sizeof meta->datetime);
+    *clock += 1 + (int)ceil(e->time_s);
+}
+
+/* A frame as the camera writes it: 8-bit JPEG and 16-bit TIFF through the
+ * response, and the linear 16-bit TIFF. */
+static sl_result write_frame(const char *tmp, const char *folder, const char *name,
+                             const sl_vset_shot *shot, const sl_meta *meta, sl_error *err)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s/%s.jpg", tmp, folder, name);
+    sl_result r = sl_photo_write(path, &shot->encoded, meta, 8, err);
+    if (!r) {
+        snprintf(path, sizeof path, "%s/%s/%s.tif", tmp, folder, name);
+        r = sl_photo_write(path, &shot->encoded, meta, 16, err);
+    }
+    if (!r) {
+        snprintf(path, sizeof path, "%s/%s/%s_linear.tif", tmp, folder, name);
+        r = sl_photo_write(path, &shot->linear, meta, 16, err);
+    }
+    return r;
+}
+
 static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
                               const sl_vset_camera *cam, const sl_vset_lens *lens,
                               const sl_image *latlong, const double *times, double lavg,
-                              json_t *frames, sl_error *err)
+                              json_t *frames, int *frame, int *clock, sl_error *err)
 {
-    int nviews = o->views + (o->zenith ? 1 : 0), frame = 0, clock = 0;
+    int nviews = o->views + (o->zenith ? 1 : 0);
     bool per_frame = o->jitter_deg > 0 || o->ghost;
     sl_result r = SL_OK;
     for (int v = 0; v < nviews && !r; v++) {
@@ -266,31 +309,12 @@ static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
             uint64_t seed = vset_mix64(o->seed ^ vset_mix64((uint64_t)(v * 64 + k)));
             if ((r = sl_vset_camera_shoot(cam, &e, &rad, seed, &shot, err)))
                 break;
-            frame++;
+            (*frame)++;
             sl_meta meta;
-            sl_meta_init(&meta);
-            meta.exposure_time = e.time_s;
-            meta.f_number = e.f_number;
-            meta.iso = e.iso;
-            meta.focal_length_mm = lens->focal_mm;
-            meta.orientation = 1;
-            snprintf(meta.make, sizeof meta.make, "%s", cam->make);
-            snprintf(meta.model, sizeof meta.model, "%s", cam->model);
-            snprintf(meta.lens, sizeof meta.lens, "%s", lens->name);
-            exif_time(clock, meta.datetime, sizeof meta.datetime);
-            clock += 1 + (int)ceil(e.time_s);
-            char name[64], path[4200];
-            snprintf(name, sizeof name, "IMG_%04d", frame);
-            snprintf(path, sizeof path, "%s/hdri/%s.jpg", tmp, name);
-            r = sl_photo_write(path, &shot.encoded, &meta, 8, err);
-            if (!r) {
-                snprintf(path, sizeof path, "%s/hdri/%s.tif", tmp, name);
-                r = sl_photo_write(path, &shot.encoded, &meta, 16, err);
-            }
-            if (!r) {
-                snprintf(path, sizeof path, "%s/hdri/%s_linear.tif", tmp, name);
-                r = sl_photo_write(path, &shot.linear, &meta, 16, err);
-            }
+            char name[64];
+            snprintf(name, sizeof name, "IMG_%04d", *frame);
+            frame_meta(&meta, cam, lens, &e, clock);
+            r = write_frame(tmp, "hdri", name, &shot, &meta, err);
             if (!r) {
                 json_t *g = ghost ? json_pack("{s:f, s:f, s:f, s:f}", "azimuth_deg",
                                               ghost_azimuth(k), "width_deg", GHOST_WIDTH_DEG,
@@ -308,8 +332,172 @@ static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
             sl_meta_free(&meta);
             sl_vset_shot_free(&shot);
         }
-        clock += 20; /* turning the nodal head */
+        *clock += 20; /* turning the nodal head */
         sl_image_free(&rad);
+    }
+    return r;
+}
+
+static json_t *points(const double (*pt)[2], int n)
+{
+    json_t *a = json_array();
+    for (int i = 0; i < n; i++)
+        json_array_append_new(a, json_pack("[ff]", pt[i][0], pt[i][1]));
+    return a;
+}
+
+/* The probe's ground truth: where it is in the photo and how it was made. */
+static json_t *probe_truth(const sl_vset_probe *p, const sl_vset_probe_geometry *g,
+                           json_t *names, const char *radiance_file)
+{
+    double f[3], r[3], u[3];
+    vset_view_frame(&p->view, f, r, u);
+    json_t *j = json_pack(
+        "{s:s, s:o, s:s, s:i, s:i, s:f, s:f, s:f, s:f, s:f, s:{s:f, s:f, s:f, s:[fff]}, "
+        "s:{s:I, s:f}}",
+        "kind", sl_vset_probe_name(p->kind), "frames", names, "radiance", radiance_file,
+        "width", p->width, "height", p->height, "focal_mm", p->lens.focal_mm, "sensor_width_mm",
+        p->lens.sensor_width_mm, "sensor_height_mm",
+        p->lens.sensor_width_mm * p->height / p->width, "focal_px", g->focal_px, "distance_m",
+        p->distance_m, "camera", "yaw_deg", p->view.yaw_deg, "pitch_deg", p->view.pitch_deg,
+        "roll_deg", p->view.roll_deg, "forward", f[0], f[1], f[2], "render", "spp",
+        (json_int_t)g->spp, "est_rel_rmse", g->render_rel_rmse);
+    if (p->kind == SL_VSET_PROBE_CHART) {
+        json_object_set_new(
+            j, "chart",
+            json_pack("{s:s, s:f, s:f, s:o, s:o, s:o}", "reference", "SL_COLORCHECKER_LINEAR",
+                      "width_m", p->size_m, "height_m", p->size_m * 0.68, "corners",
+                      points((const double(*)[2])g->corners, 4), "outline",
+                      points((const double(*)[2])g->outline, 4), "patch_centers",
+                      points((const double(*)[2])g->patch_centers, 24)));
+    } else {
+        json_t *mat = p->kind == SL_VSET_PROBE_CHROME
+                          ? json_pack("{s:s, s:[fff], s:[fff], s:f}", "model",
+                                      "conductor, Gulbrandsen artist Fresnel (sl_material_chrome)",
+                                      "base_color", 0.549, 0.556, 0.554, "edge_tint", 0.559,
+                                      0.559, 0.559, "roughness", 0.0)
+                          : json_pack("{s:s, s:f}", "model", "lambert", "albedo", 0.18);
+        json_object_set_new(
+            j, "ball",
+            json_pack("{s:f, s:f, s:f, s:f, s:f, s:f, s:o}", "cx", g->cx, "cy", g->cy, "r_px",
+                      g->r, "diameter_m", p->size_m, "distance_radii",
+                      p->distance_m / (0.5 * p->size_m), "angular_radius_deg",
+                      g->ball_angle_deg, "material", mat));
+    }
+    return j;
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double percentile_luminance(const sl_image *img, double q)
+{
+    size_t n = (size_t)img->width * (size_t)img->height;
+    float *l = malloc(n * sizeof *l);
+    if (!l)
+        return 1;
+    for (size_t i = 0; i < n; i++) {
+        const float *p = img->data + i * (size_t)img->channels;
+        l[i] = 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+    }
+    qsort(l, n, sizeof *l, cmp_float);
+    double v = l[(size_t)(q * (double)(n - 1))];
+    free(l);
+    return v > 1e-9 ? v : 1e-9;
+}
+
+/* Chrome ball, grey ball and chart with the long lens: rendered under the
+ * truth, photographed (the chrome ball with the HDRI's bracket, the others
+ * with three exposures two stops apart round one metered on the probe), the
+ * render kept as truth. */
+static sl_result shoot_probes(const sl_vset_capture_opts *o, const char *tmp,
+                              const sl_vset_camera *cam, const sl_image *latlong,
+                              const double *times, json_t *probes, json_t *truth,
+                              int *frame, int *clock, sl_error *err)
+{
+    sl_result r = SL_OK;
+    for (int kind = 0; kind < 3 && !r; kind++) {
+        sl_vset_probe p;
+        sl_vset_probe_default(&p, (sl_vset_probe_kind)kind, o->probe_width, o->probe_height);
+        p.spp = kind == SL_VSET_PROBE_GREY ? o->probe_spp_grey : o->probe_spp_aa;
+        /* The render is truth: the same for every sensor-noise seed. */
+        p.seed = 0x9000u + (uint64_t)kind;
+        sl_vset_probe_geometry g;
+        sl_image rad;
+        if ((r = sl_vset_probe_render(&p, latlong, &rad, &g, err)))
+            break;
+        double pt[16];
+        int n = 0, centre;
+        if (kind == SL_VSET_PROBE_CHROME) {
+            for (n = 0; n < o->brackets; n++)
+                pt[n] = times[n];
+        } else {
+            /* Metered on the probe, as a wrangler spot-meters the chart:
+             * its bright end (98th percentile) at 70% of saturation. */
+            double t = 0.7 * o->f_number * o->f_number /
+                       (percentile_luminance(&rad, 0.98) * cam->k * o->iso / 100.0);
+            centre = 0;
+            for (int i = 1; i < SHUTTER_COUNT; i++)
+                if (fabs(log(shutter[i] / t)) < fabs(log(shutter[centre] / t)))
+                    centre = i;
+            for (int d = -2; d <= 2; d += 2) {
+                int i = centre + d < 0 ? 0 : centre + d >= SHUTTER_COUNT ? SHUTTER_COUNT - 1
+                                                                         : centre + d;
+                if (n == 0 || shutter[i] != pt[n - 1])
+                    pt[n++] = shutter[i];
+            }
+        }
+        json_t *fr = json_array(), *names = json_array();
+        for (int k = 0; k < n && !r; k++) {
+            sl_vset_exposure e = {pt[k], o->f_number, o->iso};
+            sl_vset_shot shot;
+            uint64_t seed = vset_mix64(o->seed ^ vset_mix64(0x7000u + (uint64_t)(kind * 64 + k)));
+            if ((r = sl_vset_camera_shoot(cam, &e, &rad, seed, &shot, err)))
+                break;
+            (*frame)++;
+            char name[64];
+            snprintf(name, sizeof name, "IMG_%04d", *frame);
+            sl_meta meta;
+            frame_meta(&meta, cam, &p.lens, &e, clock);
+            r = write_frame(tmp, "probes", name, &shot, &meta, err);
+            if (!r) {
+                json_array_append_new(fr, json_pack("{s:s, s:i, s:f, s:f, s:f, s:s}", "name",
+                                                    name, "bracket", k, "exposure_time_s",
+                                                    e.time_s, "f_number", e.f_number, "iso",
+                                                    e.iso, "datetime", meta.datetime));
+                json_array_append_new(names, json_string(name));
+            }
+            sl_meta_free(&meta);
+            sl_vset_shot_free(&shot);
+        }
+        *clock += 10; /* the next probe into place */
+        char file[64], path[4200];
+        snprintf(file, sizeof file, "truth/probe_%s.exr", sl_vset_probe_name(p.kind));
+        snprintf(path, sizeof path, "%s/%s", tmp, file);
+        if (!r) {
+            sl_meta meta;
+            sl_meta_init(&meta);
+            sl_meta_set_rec709(&meta);
+            r = sl_meta_set(&meta, "setlight:units",
+                            "radiance at the sensor (vignetting applied), 1 = 1 cd/m^2", err);
+            if (!r)
+                r = sl_exr_write(path, &rad, &meta, SL_PIXEL_FLOAT, err);
+            sl_meta_free(&meta);
+        }
+        sl_image_free(&rad);
+        if (!r) {
+            json_array_append_new(probes, json_pack("{s:s, s:s, s:f, s:o}", "kind",
+                                                    sl_vset_probe_name(p.kind), "lens",
+                                                    p.lens.name, "focal_mm", p.lens.focal_mm,
+                                                    "frames", fr));
+            json_array_append_new(truth, probe_truth(&p, &g, names, file));
+        } else {
+            json_decref(fr);
+            json_decref(names);
+        }
     }
     return r;
 }
@@ -325,6 +513,11 @@ static sl_result check_opts(const sl_vset_capture_opts *o, sl_error *err)
         o->photo_height > 16384 || o->supersample < 1 || o->supersample > 8)
         return sl_error_set(err, SL_ERR_USAGE, "frame size %dx%d or supersampling %d invalid",
                             o->photo_width, o->photo_height, o->supersample);
+    if (o->probe_width != 0 &&
+        (o->probe_width < 16 || o->probe_height < 16 || o->probe_width > 16384 ||
+         o->probe_height > 16384 || o->probe_spp_aa < 1 || o->probe_spp_grey < 1))
+        return sl_error_set(err, SL_ERR_USAGE, "probe photo size %dx%d or samples invalid",
+                            o->probe_width, o->probe_height);
     if (o->raw_bits != 12 && o->raw_bits != 14)
         return sl_error_set(err, SL_ERR_USAGE, "raw bit depth %d (12 or 14)", o->raw_bits);
     if (o->response.curve[SL_VSET_CRF_SAMPLES - 1] != 1.0 || o->response.curve[0] != 0.0)
@@ -382,10 +575,27 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     sl_vset_lens lens;
     sl_vset_lens_fisheye8(&lens);
     double times[16];
+    int frame = 0, clock = 0;
     double lavg = plan_exposures(o, &cam, &scene.latlong, times);
-    json_t *frames = json_array();
+    json_t *frames = json_array(), *probes = json_array(), *probes_truth = json_array();
     if (!r)
-        r = shoot_frames(o, tmp, &cam, &lens, &scene.latlong, times, lavg, frames, err);
+        r = shoot_frames(o, tmp, &cam, &lens, &scene.latlong, times, lavg, frames, &frame,
+                         &clock, err);
+    if (!r && o->probe_width > 0) {
+        snprintf(sub, sizeof sub, "%s/probes", tmp);
+        r = make_dir(sub, err);
+        if (!r)
+            r = shoot_probes(o, tmp, &cam, &scene.latlong, times, probes, probes_truth,
+                             &frame, &clock, err);
+        if (!r) {
+            snprintf(sub, sizeof sub, "%s/truth/probes.json", tmp);
+            r = write_json(sub, json_pack("{s:s, s:O}", "axes",
+                                          "pixels: (0, 0) is the top-left corner of the "
+                                          "top-left pixel; world as truth/latlong.exr",
+                                          "probes", probes_truth),
+                           err);
+        }
+    }
     if (!r) {
         sl_meta meta;
         sl_meta_init(&meta);
@@ -425,10 +635,15 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
             "truth", "latlong", "truth/latlong.exr", "lights", "truth/lights.json", "camera",
             "truth/camera.json");
         frames = NULL;
+        json_object_set(root, "probes", probes);
+        if (o->probe_width > 0)
+            json_object_set_new(json_object_get(root, "truth"), "probes", json_string("truth/probes.json"));
         snprintf(sub, sizeof sub, "%s/capture.json", tmp);
         r = write_json(sub, root, err);
     }
     json_decref(frames);
+    json_decref(probes);
+    json_decref(probes_truth);
     sl_vset_scene_free(&scene);
     if (!r) {
         /* Swap the finished folder in; an old capture goes only after. */
@@ -454,6 +669,7 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     }
     if (summary) {
         summary->frames = (o->views + (o->zenith ? 1 : 0)) * o->brackets;
+        summary->probe_frames = frame - summary->frames;
         summary->views = o->views + (o->zenith ? 1 : 0);
         summary->center_time_s = times[o->brackets / 2];
         summary->min_time_s = times[0];

@@ -46,6 +46,19 @@ static inline void vset_azel_dir(double az_deg, double el_deg, double d[3])
     d[2] = cos(az) * cos(el);
 }
 
+/* Camera frame of a view: forward, right (image +x) and up (image -y). */
+static inline void vset_view_frame(const sl_vset_view *v, double f[3], double r[3], double u[3])
+{
+    vset_azel_dir(v->yaw_deg, v->pitch_deg, f);
+    double yaw = v->yaw_deg * VSET_DEG, roll = v->roll_deg * VSET_DEG;
+    double r0[3] = {-cos(yaw), 0, sin(yaw)}, u0[3];
+    v3_cross(r0, f, u0);
+    for (int k = 0; k < 3; k++) {
+        r[k] = cos(roll) * r0[k] + sin(roll) * u0[k];
+        u[k] = -sin(roll) * r0[k] + cos(roll) * u0[k];
+    }
+}
+
 static inline uint64_t vset_mix64(uint64_t z)
 {
     z += 0x9e3779b97f4a7c15ull;

@@ -28,19 +28,6 @@ void sl_vset_lens_rectilinear(sl_vset_lens *lens, double focal_mm)
     lens->vignette_b = 0;
 }
 
-/* Camera frame: forward along the view, right (image +x) and up (image -y). */
-static void view_frame(const sl_vset_view *v, double f[3], double r[3], double u[3])
-{
-    vset_azel_dir(v->yaw_deg, v->pitch_deg, f);
-    double yaw = v->yaw_deg * VSET_DEG, roll = v->roll_deg * VSET_DEG;
-    double r0[3] = {-cos(yaw), 0, sin(yaw)}, u0[3];
-    v3_cross(r0, f, u0);
-    for (int k = 0; k < 3; k++) {
-        r[k] = cos(roll) * r0[k] + sin(roll) * u0[k];
-        u[k] = -sin(roll) * r0[k] + cos(roll) * u0[k];
-    }
-}
-
 static double pitch_mm(const sl_vset_lens *lens, int width) { return lens->sensor_width_mm / width; }
 
 bool sl_vset_lens_to_dir(const sl_vset_lens *lens, const sl_vset_view *view, int width,
@@ -58,7 +45,7 @@ bool sl_vset_lens_to_dir(const sl_vset_lens *lens, const sl_vset_view *view, int
         theta = atan(r / lens->focal_mm);
     }
     double f[3], ri[3], u[3];
-    view_frame(view, f, ri, u);
+    vset_view_frame(view, f, ri, u);
     double st = sin(theta), ct = cos(theta);
     double cx = r > 0 ? sx / r : 0, cy = r > 0 ? sy / r : 0;
     for (int k = 0; k < 3; k++)
@@ -70,7 +57,7 @@ bool sl_vset_lens_from_dir(const sl_vset_lens *lens, const sl_vset_view *view, i
                            int height, const double dir[3], double *x, double *y)
 {
     double f[3], ri[3], u[3];
-    view_frame(view, f, ri, u);
+    vset_view_frame(view, f, ri, u);
     double cz = v3_dot(dir, f), cx = v3_dot(dir, ri), cy = v3_dot(dir, u);
     double s = sqrt(cx * cx + cy * cy);
     double theta = atan2(s, cz), r;

@@ -20,7 +20,99 @@ static void tiny_opts(sl_vset_capture_opts *o, const char *scene, uint64_t seed)
     o->photo_width = 96;
     o->photo_height = 64;
     o->supersample = 1;
+    o->probe_width = 0;
     o->seed = seed;
+}
+
+/* The probe photos as the capture lists them, read back: EXIF as the plan
+ * says, and the truth's geometry consistent with the lens and the files. */
+static void check_probes(const char *dir, const sl_vset_capture_opts *o)
+{
+    char path[4096];
+    json_error_t je;
+    sl_error err;
+    snprintf(path, sizeof path, "%s/capture.json", dir);
+    json_t *cap = json_load_file(path, 0, &je);
+    snprintf(path, sizeof path, "%s/truth/probes.json", dir);
+    json_t *truth = json_load_file(path, 0, &je);
+    CHECK(cap && truth);
+    if (!cap || !truth)
+        return;
+    json_t *probes = json_object_get(cap, "probes"), *tp = json_object_get(truth, "probes");
+    CHECK(json_array_size(probes) == 3 && json_array_size(tp) == 3);
+    static const char *const kinds[3] = {"chrome", "grey", "chart"};
+    static const size_t counts[3] = {7, 3, 3};
+    int frame = 22; /* after the 21 HDRI frames */
+    for (size_t i = 0; i < 3 && i < json_array_size(probes); i++) {
+        json_t *p = json_array_get(probes, i), *t = json_array_get(tp, i);
+        CHECK(strcmp(json_string_value(json_object_get(p, "kind")), kinds[i]) == 0);
+        CHECK(strcmp(json_string_value(json_object_get(t, "kind")), kinds[i]) == 0);
+        json_t *frames = json_object_get(p, "frames"), *names = json_object_get(t, "frames");
+        CHECK(json_array_size(frames) == counts[i] && json_array_size(names) == counts[i]);
+        double focal = json_number_value(json_object_get(t, "focal_mm"));
+        double sw = json_number_value(json_object_get(t, "sensor_width_mm"));
+        int w = (int)json_integer_value(json_object_get(t, "width"));
+        int h = (int)json_integer_value(json_object_get(t, "height"));
+        CHECK(w == o->probe_width && h == o->probe_height);
+        CHECK_NEAR(json_number_value(json_object_get(t, "focal_px")), focal * w / sw, 1e-6);
+        json_t *ball = json_object_get(t, "ball");
+        if (ball) {
+            double dist = json_number_value(json_object_get(t, "distance_m"));
+            double dia = json_number_value(json_object_get(ball, "diameter_m"));
+            CHECK_NEAR(json_number_value(json_object_get(ball, "r_px")),
+                       focal * w / sw * tan(asin(0.5 * dia / dist)), 1e-6);
+            CHECK_NEAR(json_number_value(json_object_get(ball, "cx")), 0.5 * w, 1e-9);
+            CHECK_NEAR(json_number_value(json_object_get(ball, "distance_radii")),
+                       dist / (0.5 * dia), 1e-9);
+        } else {
+            CHECK(json_array_size(json_object_get(json_object_get(t, "chart"), "patch_centers")) ==
+                  24);
+        }
+        double prev = 0;
+        for (size_t k = 0; k < json_array_size(frames); k++) {
+            json_t *f = json_array_get(frames, k);
+            const char *name = json_string_value(json_object_get(f, "name"));
+            char want[32];
+            snprintf(want, sizeof want, "IMG_%04d", frame++);
+            CHECK(strcmp(name, want) == 0);
+            CHECK(strcmp(name, json_string_value(json_array_get(names, k))) == 0);
+            double t_s = json_number_value(json_object_get(f, "exposure_time_s"));
+            CHECK(t_s > prev);
+            prev = t_s;
+            const char *exts[] = {".jpg", ".tif", "_linear.tif"};
+            for (int e = 0; e < 3; e++) {
+                snprintf(path, sizeof path, "%s/probes/%s%s", dir, name, exts[e]);
+                sl_meta m;
+                int pw, ph, pc;
+                CHECK_OK(sl_photo_read_meta(path, &m, &pw, &ph, &pc, &err), &err);
+                CHECK(pw == w && ph == h && pc == 3);
+                CHECK_NEAR(m.exposure_time / t_s, 1, 1e-4);
+                CHECK_NEAR(m.f_number, o->f_number, 1e-5);
+                CHECK(e != 0 || fabs(m.iso - o->iso) < 1e-9);
+                CHECK_NEAR(m.focal_length_mm, focal, 1e-5);
+                CHECK(strstr(m.lens, "200mm") != NULL);
+                CHECK(strcmp(m.datetime, json_string_value(json_object_get(f, "datetime"))) ==
+                      0);
+                sl_meta_free(&m);
+            }
+        }
+        /* The render kept as truth is the probe photo's size. */
+        snprintf(path, sizeof path, "%s/%s", dir,
+                 json_string_value(json_object_get(t, "radiance")));
+        sl_image img;
+        sl_meta m;
+        CHECK_OK(sl_exr_read(path, &img, &m, &err), &err);
+        CHECK(img.width == w && img.height == h);
+        sl_image_free(&img);
+        sl_meta_free(&m);
+    }
+    /* The chrome ball is bracketed like the HDRI. */
+    json_t *f0 = json_array_get(json_object_get(json_array_get(probes, 0), "frames"), 0);
+    json_t *h0 = json_array_get(json_object_get(cap, "frames"), 0);
+    CHECK(json_number_value(json_object_get(f0, "exposure_time_s")) ==
+          json_number_value(json_object_get(h0, "exposure_time_s")));
+    json_decref(cap);
+    json_decref(truth);
 }
 
 static char *slurp(const char *path, size_t *size)
@@ -57,9 +149,12 @@ static void test_capture_and_exif(void)
     sl_error err;
     sl_vset_capture_summary s;
     tiny_opts(&o, "exterior", 1);
+    o.probe_width = 96;
+    o.probe_height = 64;
     const char *a = sl_test_path("cap_a");
     CHECK_OK(sl_vset_capture_write(&o, a, &s, &err), &err);
-    CHECK(s.frames == 21 && s.views == 3);
+    CHECK(s.frames == 21 && s.views == 3 && s.probe_frames == 13);
+    check_probes(a, &o);
     /* The classic 7 x 3-stop bracket on nominal shutter speeds. */
     CHECK_NEAR(s.min_time_s, 1.0 / 8000, 1e-12);
     CHECK_NEAR(s.max_time_s, 30, 1e-12);
@@ -132,10 +227,16 @@ static void test_capture_and_exif(void)
     CHECK_OK(sl_vset_capture_write(&o, b, NULL, &err), &err);
     sl_threads_set(0);
     tiny_opts(&o, "exterior", 2);
+    o.probe_width = 96;
+    o.probe_height = 64;
     CHECK_OK(sl_vset_capture_write(&o, c, NULL, &err), &err);
-    const char *files[] = {"capture.json", "hdri/IMG_0001.jpg", "hdri/IMG_0010.tif",
-                           "hdri/IMG_0021_linear.tif", "truth/latlong.exr", "truth/camera.json"};
-    for (int i = 0; i < 6; i++) {
+    const char *files[] = {"capture.json",          "hdri/IMG_0001.jpg",
+                           "hdri/IMG_0010.tif",     "hdri/IMG_0021_linear.tif",
+                           "probes/IMG_0022.jpg",   "probes/IMG_0030.tif",
+                           "probes/IMG_0034_linear.tif", "truth/latlong.exr",
+                           "truth/camera.json",     "truth/probes.json",
+                           "truth/probe_chrome.exr", "truth/probe_chart.exr"};
+    for (int i = 0; i < 12; i++) {
         char pa[4096], pb[4096], pc[4096];
         snprintf(pa, sizeof pa, "%s/%s", a, files[i]);
         snprintf(pb, sizeof pb, "%s/%s", b, files[i]);

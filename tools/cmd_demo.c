@@ -12,23 +12,8 @@
 #include <sys/stat.h>
 
 #include "cli.h"
-#include "setlight/capture.h"
+#include "demo.h"
 #include "setlight/render.h"
-#include "setlight/stitch.h"
-
-typedef struct demo {
-    const char *dir;
-    char capture[4096];
-    sl_vset_size size;
-    uint64_t seed;
-    bool force;
-    sl_report *rep;
-    /* filled by the stages */
-    sl_vset_capture_summary summary;
-    double lavg;
-} demo;
-
-typedef sl_result (*stage_fn)(demo *d, char *note, size_t note_size, sl_error *err);
 
 static void help(FILE *out)
 {
@@ -60,17 +45,6 @@ static sl_result stage_simulate(demo *d, char *note, size_t n, sl_error *err)
              d->summary.views, d->summary.f_number, d->summary.iso, d->summary.min_time_s,
              d->summary.max_time_s);
     return SL_OK;
-}
-
-static json_t *load_json(const char *dir, const char *name, sl_error *err)
-{
-    char path[4300];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    json_error_t je;
-    json_t *j = json_load_file(path, 0, &je);
-    if (!j)
-        sl_error_set(err, SL_ERR_INPUT, "%s: line %d: %s", path, je.line, je.text);
-    return j;
 }
 
 /* The ground truth, read back from the capture as any stage would. */
@@ -106,7 +80,7 @@ static sl_result stage_truth(demo *d, char *note, size_t n, sl_error *err)
     sl_image_free(&ll);
     if (r)
         return r;
-    json_t *lights = load_json(d->capture, "truth/lights.json", err);
+    json_t *lights = demo_load_json(d->capture, "truth/lights.json", err);
     if (!lights)
         return err ? err->code : SL_ERR_INPUT;
     static const char *const head[] = {"light", "shape", "azimuth", "elevation",
@@ -144,7 +118,7 @@ static sl_result stage_truth(demo *d, char *note, size_t n, sl_error *err)
  * the capture's plan. */
 static sl_result stage_frames(demo *d, char *note, size_t n, sl_error *err)
 {
-    json_t *cap = load_json(d->capture, "capture.json", err);
+    json_t *cap = demo_load_json(d->capture, "capture.json", err);
     if (!cap)
         return err ? err->code : SL_ERR_INPUT;
     json_t *frames = json_object_get(cap, "frames");
@@ -223,10 +197,10 @@ static double true_inverse(json_t *curve, double z)
  * is scored against the camera's true response curve. */
 static sl_result stage_merge(demo *d, char *note, size_t n, sl_error *err)
 {
-    json_t *cap = load_json(d->capture, "capture.json", err);
+    json_t *cap = demo_load_json(d->capture, "capture.json", err);
     if (!cap)
         return err ? err->code : SL_ERR_INPUT;
-    json_t *cam = load_json(d->capture, "truth/camera.json", err);
+    json_t *cam = demo_load_json(d->capture, "truth/camera.json", err);
     if (!cam) {
         json_decref(cap);
         return err ? err->code : SL_ERR_INPUT;
@@ -382,12 +356,18 @@ done:
 static const struct {
     const char *name;
     const char *what;
-    stage_fn fn;
+    demo_stage_fn fn;
 } stages[] = {
     {"simulate", "virtual set photographed: brackets, EXIF, ground truth", stage_simulate},
     {"truth", "ground-truth lat-long and light list read back", stage_truth},
     {"frames", "frames and EXIF read back and checked against the plan", stage_frames},
     {"merge", "one view's bracket merged to HDR, response scored against the truth", stage_merge},
+    {"unwrap", "chrome-ball bracket merged, ball found, unwrapped, scored against the truth",
+     demo_stage_unwrap},
+    {"calibrate", "chart colour matrix and grey-ball exposure scale against the camera model",
+     demo_stage_calibrate},
+    {"rig", "light rig from the truth lat-long, lights matched to the truth, energy ledger",
+     demo_stage_rig},
     {"render", "grey ball, chrome ball and chart rendered under the ground truth", stage_render},
 };
 

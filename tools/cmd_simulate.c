@@ -18,8 +18,10 @@ static void help(FILE *out)
             "                         [--jitter DEG] [--ghost] [--force]\n\n"
             "Generates a virtual film set (a ground-truth HDR lat-long and its lights) and\n"
             "photographs it as a data wrangler would: a bracket of 7 exposures 3 stops apart\n"
-            "for each of 3 fisheye views 120 degrees apart on a nodal head, written as JPEG,\n"
-            "16-bit TIFF and linear TIFF with EXIF, plus the ground truth in DIR/truth.\n\n"
+            "for each of 3 fisheye views 120 degrees apart on a nodal head, then a chrome\n"
+            "ball, an 18%% grey ball and a ColorChecker with a 200 mm lens (DIR/probes),\n"
+            "written as JPEG, 16-bit TIFF and linear TIFF with EXIF, plus the ground truth\n"
+            "in DIR/truth (lat-long, lights, camera, probe positions and renders).\n\n"
             "  --scene NAME|FILE  built-in scene or a scene JSON file (docs/virtual-set.md)\n"
             "  -o, --out DIR      capture folder: created, or an empty folder\n"
             "  --seed N           sensor-noise seed (default 1); same seed, same files\n"
@@ -145,13 +147,15 @@ int cmd_simulate(int argc, char **argv, const sl_cli *cli)
     double secs = sl_seconds() - t0;
     if (cli->json)
         printf("{\"out\": \"%s\", \"scene\": \"%s\", \"seed\": %" PRIu64
-               ", \"size\": \"%s\", \"views\": %d, \"frames\": %d, \"f_number\": %g, \"iso\": %g, "
+               ", \"size\": \"%s\", \"views\": %d, \"frames\": %d, \"probe_frames\": %d, "
+               "\"f_number\": %g, \"iso\": %g, "
                "\"exposure_min_s\": %.9g, \"exposure_centre_s\": %.9g, \"exposure_max_s\": %.9g, "
                "\"seconds\": %.3f}\n",
-               out, desc.name, seed, size_name(size), s.views, s.frames, s.f_number,
+               out, desc.name, seed, size_name(size), s.views, s.frames, s.probe_frames, s.f_number,
                s.iso, s.min_time_s, s.center_time_s, s.max_time_s, secs);
     else
-        sl_log(SL_LOG_INFO, "%d frames (%d views), f/%g ISO %g, %.6g..%.6g s, in %.1f s", s.frames,
-               s.views, s.f_number, s.iso, s.min_time_s, s.max_time_s, secs);
+        sl_log(SL_LOG_INFO, "%d frames (%d views) and %d probe frames, f/%g ISO %g, %.6g..%.6g s, "
+               "in %.1f s", s.frames, s.views, s.probe_frames, s.f_number, s.iso, s.min_time_s,
+               s.max_time_s, secs);
     return 0;
 }

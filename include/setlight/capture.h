@@ -245,6 +245,55 @@ sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
                              const sl_image *latlong, int width, int height, int ss,
                              sl_image *out, sl_error *err);
 
+/* ---- probes: chrome ball, grey ball and chart ------------------------ */
+
+typedef enum {
+    SL_VSET_PROBE_CHROME = 0, /* polished chrome ball: render's sl_material_chrome (a mirror) */
+    SL_VSET_PROBE_GREY,       /* 18% grey Lambertian ball */
+    SL_VSET_PROBE_CHART       /* ColorChecker Classic 24 facing the camera */
+} sl_vset_probe_kind;
+
+/* A probe photographed from the capture point (the world origin) with a
+ * long lens: the ball's or chart's centre sits on the optical axis at
+ * distance_m, lit by the set's lat-long at infinity (which the render
+ * also shows behind it). */
+typedef struct sl_vset_probe {
+    sl_vset_probe_kind kind;
+    sl_vset_lens lens;  /* rectilinear */
+    sl_vset_view view;  /* the camera direction */
+    double distance_m;
+    double size_m;      /* ball diameter, or the chart's frame width */
+    int width, height;
+    int64_t spp;        /* render samples per pixel */
+    uint64_t seed;
+} sl_vset_probe;
+
+/* Where the probe lands in the photo, and how the render went. */
+typedef struct sl_vset_probe_geometry {
+    double focal_px;             /* focal_mm * width / sensor_width_mm */
+    double cx, cy, r;            /* ball outline, pixels (on axis: an exact circle) */
+    double ball_angle_deg;       /* ball's angular radius seen from the camera */
+    double patch_centers[24][2]; /* chart, chart order */
+    double corners[4][2];        /* chart: centres of patches 1, 6, 24, 19 */
+    double outline[4][2];        /* chart frame corners, clockwise from the top left */
+    int64_t spp;
+    double render_rel_rmse;      /* the renderer's estimate of its relative RMSE */
+    double seconds;
+} sl_vset_probe_geometry;
+
+/* "chrome", "grey", "chart". */
+const char *sl_vset_probe_name(sl_vset_probe_kind kind);
+/* A 200 mm lens (vignetting -3% at the corner, plus cos^4) looking along
+ * azimuth 180 from 2 m: a 100 mm ball, or a 250 mm wide chart. */
+void sl_vset_probe_default(sl_vset_probe *p, sl_vset_probe_kind kind, int width, int height);
+/* Renders the probe under `latlong` (Rec.709 radiance) with render/'s
+ * perspective camera and applies the lens's vignetting: `radiance` gets the
+ * RGB image at the sensor, ready for sl_vset_camera_shoot. The chart, flat
+ * under a set at infinity, gets one irradiance summed over the lat-long
+ * (noise-free; the render gives what each pixel sees). geo may be NULL. */
+sl_result sl_vset_probe_render(const sl_vset_probe *p, const sl_image *latlong,
+                               sl_image *radiance, sl_vset_probe_geometry *geo, sl_error *err);
+
 /* ---- set captures ---------------------------------------------------- */
 
 /* What the simulated data wrangler shoots: an HDRI bracket (`brackets`
@@ -268,6 +317,13 @@ typedef struct sl_vset_capture_opts {
     double jitter_deg;             /* std of per-frame yaw, pitch, roll wander (hand-held) */
     bool ghost;                    /* a person walks across the first view between frames */
     bool force;                    /* replace a capture already in the folder */
+    /* Probe photos (chrome ball, grey ball, chart) with a long lens: the
+     * chrome ball bracketed like the HDRI, the others 3 exposures 2 stops
+     * apart. probe_width 0: no probes. Samples per pixel: the chrome ball
+     * and the chart need them for antialiasing only (a mirror and a flat
+     * chart render without noise), the grey ball for its lighting. */
+    int probe_width, probe_height;
+    int64_t probe_spp_aa, probe_spp_grey;
 } sl_vset_capture_opts;
 
 typedef enum {
@@ -286,7 +342,8 @@ void sl_vset_capture_defaults(sl_vset_capture_opts *o, const sl_vset_desc *scene
                               sl_vset_size size);
 
 typedef struct sl_vset_capture_summary {
-    int frames;
+    int frames;        /* HDRI frames */
+    int probe_frames;  /* chrome ball, grey ball and chart frames */
     int views;
     double center_time_s;  /* metered exposure at the bracket centre */
     double min_time_s, max_time_s;

@@ -12,7 +12,11 @@ for o in --scene --out --seed --size --zenith --response --curve --raw-bits --ji
 expect 0 "$S" simulate --scene night --out "$T/night" --seed 3 --size tiny --json --quiet
 json_ok "$T/out"
 cp "$T/out" "$T/summary.json"
-json_eval "$T/summary.json" 'd["frames"] == 21 and d["views"] == 3 and d["scene"] == "night"'
+json_eval "$T/summary.json" 'd["frames"] == 21 and d["views"] == 3 and d["scene"] == "night" and d["probe_frames"] == 13'
+for f in IMG_0022.jpg IMG_0028_linear.tif IMG_0034.tif; do present "$T/night/probes/$f"; done
+present "$T/night/truth/probes.json"
+for k in chrome grey chart; do present "$T/night/truth/probe_$k.exr"; done
+json_eval "$T/night/truth/probes.json" '[p["kind"] for p in d["probes"]] == ["chrome", "grey", "chart"] and len(d["probes"][2]["chart"]["corners"]) == 4 and d["probes"][0]["ball"]["r_px"] > 10'
 present "$T/night/capture.json"
 present "$T/night/truth/latlong.exr"
 present "$T/night/truth/lights.json"

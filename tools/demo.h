@@ -1,0 +1,45 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Private to `setlight demo`: the state the stages share and the helpers
+ * that read the simulated capture back as any pipeline would. */
+#ifndef SETLIGHT_DEMO_H
+#define SETLIGHT_DEMO_H
+
+#include <jansson.h>
+#include <stddef.h>
+
+#include "setlight/capture.h"
+#include "setlight/stitch.h"
+
+typedef struct demo {
+    const char *dir;
+    char capture[4096];
+    sl_vset_size size;
+    uint64_t seed;
+    bool force;
+    sl_report *rep;
+    /* filled by the stages */
+    sl_vset_capture_summary summary;
+    double lavg;
+} demo;
+
+typedef sl_result (*demo_stage_fn)(demo *d, char *note, size_t note_size, sl_error *err);
+
+/* DIR/name parsed; NULL with err set (the message names the file). */
+json_t *demo_load_json(const char *dir, const char *name, sl_error *err);
+sl_result demo_truth_latlong(const demo *d, sl_image *ll, sl_error *err);
+/* truth/camera.json's output_from_rec709 and k. */
+sl_result demo_camera(const demo *d, double out_from_rec709[3][3], double *k, sl_error *err);
+/* Merges a probe's bracket (its linear TIFFs, linear response, EXIF
+ * exposures), or with middle_only takes its middle frame alone. *truth gets the probe's entry of truth/probes.json (a new
+ * reference), *exposure the reference frame's k t (ISO/100) / N^2: merged
+ * value = exposure * output_from_rec709 * radiance. */
+sl_result demo_merge_probe(const demo *d, const char *kind, bool middle_only,
+                           sl_merge_result *res, json_t **truth, double *exposure, sl_error *err);
+/* A linear image as the report shows it: exposure so the log-average is 18% grey. */
+double demo_stops(double lavg);
+
+sl_result demo_stage_unwrap(demo *d, char *note, size_t n, sl_error *err);
+sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err);
+sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err);
+
+#endif
