@@ -59,8 +59,10 @@ static bool bilinear(const sl_image *img, double x, double y, double clip, float
 
 static double lum(const float *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
 
-sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_error *err)
+sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_cal_view *view,
+                            sl_error *err)
 {
+    memset(view, 0, sizeof(*view));
     double cx = o->circle[0], cy = o->circle[1], rad = o->circle[2];
     if (!(rad >= 4) || !isfinite(cx) || !isfinite(cy))
         return sl_error_set(err, SL_ERR_USAGE, "grey sphere: circle radius %g too small (4 px at least)",
@@ -68,8 +70,32 @@ sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_
     if (!(o->albedo > 0 && o->albedo <= 1) || !(o->inner > 0 && o->inner <= 1) || o->spp < 1)
         return sl_error_set(err, SL_ERR_USAGE,
                             "grey sphere: albedo and inner fraction in (0, 1], spp >= 1");
+    if (!(o->focal_px >= 0) || !(o->distance >= 0))
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "grey sphere: focal length %g px and distance %g radii must be >= 0",
+                            o->focal_px, o->distance);
     if (!photo || !photo->data || photo->channels < 3)
         return sl_error_set(err, SL_ERR_INPUT, "grey sphere photo: needs RGB");
+    if (o->focal_px == 0 && o->distance == 0)
+        return SL_OK;
+    /* The pinhole's geometry is unwrap's: distance and direction of the
+     * centre from the circle and focal length. */
+    sl_ball_geometry g = {.camera = SL_BALL_PERSPECTIVE, .focal_px = o->focal_px,
+                          .distance = o->distance};
+    sl_ball_circle c = {.cx = cx, .cy = cy, .r = rad};
+    sl_ball_view bv;
+    sl_error e;
+    sl_result r = sl_ball_view_init(&bv, photo->width, photo->height, &c, &g, &e);
+    if (r)
+        return sl_error_set(err, r, "grey sphere: %s", e.message);
+    view->distance = bv.distance;
+    view->tan_half = tan(bv.ball_angle);
+    view->focal_px = bv.focal_px;
+    /* Without a focal length the sphere is on the axis: the principal point
+     * is the circle's centre. */
+    view->ppx = o->focal_px > 0 ? 0.5 * photo->width : cx;
+    view->ppy = o->focal_px > 0 ? 0.5 * photo->height : cy;
+    memcpy(view->view_to_cam, bv.view_to_cam, sizeof(view->view_to_cam));
     return SL_OK;
 }
 
@@ -79,8 +105,20 @@ int sl_cal_sphere_size(const sl_grey_options *o)
     return n < 8 ? 8 : n;
 }
 
-sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, int n, sl_image *out,
-                               sl_error *err)
+/* The validation camera's frame (+Z forward, +Y up, +X left) in the set. */
+static void cam_to_world(const sl_grey_options *o, double m[3][3])
+{
+    sl_camera c;
+    sl_camera_validation(&c, 1, 1, 2.0, o->azimuth_deg, o->elevation_deg);
+    const double *f = c.forward, *u = c.up;
+    double left[3] = {u[1] * f[2] - u[2] * f[1], u[2] * f[0] - u[0] * f[2],
+                      u[0] * f[1] - u[1] * f[0]};
+    for (int i = 0; i < 3; i++)
+        m[i][0] = left[i], m[i][1] = u[i], m[i][2] = f[i];
+}
+
+sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, const sl_cal_view *v,
+                               int n, sl_image *out, sl_error *err)
 {
     memset(out, 0, sizeof(*out));
     sl_scene s;
@@ -95,6 +133,26 @@ sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, in
         r = sl_scene_add_sphere(&s, origin, 1.0, mi, err);
     if (!r) {
         sl_camera_validation(&s.camera, n, n, 2.0, o->azimuth_deg, o->elevation_deg);
+        if (v->distance > 0) {
+            /* The pinhole looks at the centre; the outline fills the frame. */
+            double cw[3][3], fwd[3], up[3];
+            cam_to_world(o, cw);
+            for (int i = 0; i < 3; i++) {
+                fwd[i] = up[i] = 0;
+                for (int j = 0; j < 3; j++)
+                    for (int k = 0; k < 3; k++) {
+                        fwd[i] += cw[i][j] * v->view_to_cam[j][k] * (k == 2);
+                        up[i] += cw[i][j] * v->view_to_cam[j][k] * (k == 1);
+                    }
+            }
+            s.camera.type = SL_CAMERA_PERSPECTIVE;
+            s.camera.fov_deg = 2 * atan(v->tan_half) * 180 / M_PI;
+            for (int i = 0; i < 3; i++) {
+                s.camera.forward[i] = fwd[i];
+                s.camera.up[i] = up[i];
+                s.camera.position[i] = -v->distance * fwd[i];
+            }
+        }
         r = sl_scene_set_dome(&s, env, 0, 1, "HDRI", err);
     }
     sl_render_options ro;
@@ -108,10 +166,27 @@ sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, in
     return r;
 }
 
-void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, sl_image *out)
+/* Virtual image point (su, sv in [-1, 1], right and down) -> photo pixel. */
+static void to_photo(const sl_grey_options *o, const sl_cal_view *v, double su, double sv,
+                     double *x, double *y)
+{
+    if (v->distance == 0) {
+        *x = o->circle[0] + su * o->circle[2];
+        *y = o->circle[1] + sv * o->circle[2];
+        return;
+    }
+    /* The virtual camera's right is -X of the view frame, as the photo's. */
+    double d[3] = {-su * v->tan_half, -sv * v->tan_half, 1}, dc[3];
+    sl_mat3_apply(v->view_to_cam, d, dc);
+    *x = v->ppx - v->focal_px * dc[0] / dc[2];
+    *y = v->ppy - v->focal_px * dc[1] / dc[2];
+}
+
+void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, const sl_cal_view *v,
+                           sl_image *out)
 {
     int n = out->width;
-    double cx = o->circle[0], cy = o->circle[1], rad = o->circle[2];
+    double rad = o->circle[2];
     /* The circle spans the virtual camera's image; each virtual pixel is
      * the mean of k x k bilinear taps over its footprint (k photo pixels
      * across it), so a photo larger than the render averages its noise. */
@@ -121,14 +196,16 @@ void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, sl_i
     for (int y = 0; y < n; y++)
         for (int x = 0; x < n; x++) {
             float *ph = out->data + (size_t)y * out->stride + (size_t)x * 4;
-            double u = (x + 0.5) / n * 2 - 1, v = (y + 0.5) / n * 2 - 1;
-            bool in = u * u + v * v < o->inner * o->inner;
+            double u = (x + 0.5) / n * 2 - 1, v0 = (y + 0.5) / n * 2 - 1;
+            bool in = u * u + v0 * v0 < o->inner * o->inner;
             double acc[3] = {0, 0, 0};
             for (int j = 0; in && j < k; j++)
                 for (int i = 0; in && i < k; i++) {
                     double su = (x + (i + 0.5) / k) / n * 2 - 1, sv = (y + (j + 0.5) / k) / n * 2 - 1;
+                    double px, py;
                     float t[3];
-                    in = bilinear(photo, cx + su * rad, cy + sv * rad, o->clip_level, t);
+                    to_photo(o, v, su, sv, &px, &py);
+                    in = bilinear(photo, px, py, o->clip_level, t);
                     for (int c = 0; c < 3; c++)
                         acc[c] += t[c];
                 }
@@ -147,11 +224,12 @@ sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const 
         o = *opt;
     else
         sl_grey_options_init(&o);
-    sl_result r = sl_cal_grey_check(&o, photo, err);
+    sl_cal_view view;
+    sl_result r = sl_cal_grey_check(&o, photo, &view, err);
     if (r)
         return r;
     int n = sl_cal_sphere_size(&o);
-    r = sl_cal_render_sphere(hdri, &o, n, &fit->render, err);
+    r = sl_cal_render_sphere(hdri, &o, &view, n, &fit->render, err);
     if (!r)
         r = sl_image_alloc(&fit->photo, n, n, 4, err);
     if (!r)
@@ -165,7 +243,7 @@ sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const 
         sl_grey_fit_free(fit);
         return r;
     }
-    sl_cal_resample_photo(photo, &o, &fit->photo);
+    sl_cal_resample_photo(photo, &o, &view, &fit->photo);
     size_t k = 0;
     for (size_t q = 0; q < cnt; q++) {
         float *ph = fit->photo.data + q * 4;

@@ -12,17 +12,30 @@
 bool sl_cal_solve(double *a, double *b, int n);
 
 /* Grey sphere helpers shared by the fit and the clipped-sun repair. */
-sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_error *err);
+/* The virtual camera: perspective (distance > 0) looks at the sphere's
+ * centre with the sphere's outline spanning its image; a virtual pixel's
+ * ray is traced to the photo through the pinhole (focal_px, principal
+ * point ppx, ppy; view_to_cam as sl_ball_view's). */
+typedef struct sl_cal_view {
+    double distance;   /* sphere radii; 0 orthographic */
+    double tan_half;   /* tan of the sphere's angular radius */
+    double focal_px, ppx, ppy;
+    double view_to_cam[3][3];
+} sl_cal_view;
+/* Checks the options against the photo and sets up the view. */
+sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_cal_view *view,
+                            sl_error *err);
 /* Pixels across the virtual render. */
 int sl_cal_sphere_size(const sl_grey_options *o);
 /* The virtual sphere (albedo, view, spp, seed of o) under env, n x n RGBA. */
-sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, int n, sl_image *out,
-                               sl_error *err);
+sl_result sl_cal_render_sphere(const sl_image *env, const sl_grey_options *o, const sl_cal_view *v,
+                               int n, sl_image *out, sl_error *err);
 /* The photo's circle resampled onto out (n x n RGBA, allocated), each
  * pixel the mean over its footprint: alpha 1 where the pixel is within
  * o->inner of the radius and every tap is finite and below o->clip_level,
  * else 0 and black. */
-void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, sl_image *out);
+void sl_cal_resample_photo(const sl_image *photo, const sl_grey_options *o, const sl_cal_view *v,
+                           sl_image *out);
 
 #include <stddef.h>
 

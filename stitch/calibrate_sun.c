@@ -73,7 +73,8 @@ sl_result sl_sun_repair_fit(sl_image *hdri, const sl_image *mask, const sl_image
     if (!(so.diameter_deg > 0 && so.diameter_deg < 90))
         return sl_error_set(err, SL_ERR_USAGE, "sun repair: source diameter %g degrees not in (0, 90)",
                             so.diameter_deg);
-    sl_result r = sl_cal_grey_check(&go, photo, err);
+    sl_cal_view view;
+    sl_result r = sl_cal_grey_check(&go, photo, &view, err);
     if (r)
         return r;
     int w = hdri->width, h = hdri->height;
@@ -189,11 +190,11 @@ sl_result sl_sun_repair_fit(sl_image *hdri, const sl_image *mask, const sl_image
     /* The sphere under the sky alone and under the unit disc alone;
      * rendering is linear in the dome. */
     int n = sl_cal_sphere_size(&go);
-    if ((r = sl_cal_render_sphere(&filled, &go, n, &r0, err)) ||
-        (r = sl_cal_render_sphere(&unit, &go, n, &rs, err)) ||
+    if ((r = sl_cal_render_sphere(&filled, &go, &view, n, &r0, err)) ||
+        (r = sl_cal_render_sphere(&unit, &go, &view, n, &rs, err)) ||
         (r = sl_image_alloc(&ph, n, n, 4, err)))
         goto done;
-    sl_cal_resample_photo(photo, &go, &ph);
+    sl_cal_resample_photo(photo, &go, &view, &ph);
     /* Per channel: photo = g * sky + y * disc (y = g * radiance), least squares. */
     double a00[3] = {0}, a01[3] = {0}, a11[3] = {0}, b0[3] = {0}, b1[3] = {0}, bb[3] = {0};
     double slit = 0;

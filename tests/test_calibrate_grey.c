@@ -100,8 +100,109 @@ static void test_stage(void)
     sl_vset_scene_free(&vs);
 }
 
+/* An 18% grey ball photographed by a pinhole on its axis, d radii away,
+ * the outline r px across in a w x w frame. */
+static int render_pinhole(const sl_image *env, int w, double d, double r, int64_t spp,
+                          sl_image *out)
+{
+    sl_error err;
+    sl_scene s;
+    sl_scene_init(&s);
+    sl_material mat;
+    sl_material_lambert(&mat, 0.18, 0.18, 0.18);
+    int mi = 0;
+    const double origin[3] = {0, 0, 0};
+    double f = r / tan(asin(1 / d));
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = spp;
+    o.seed = 777;
+    o.bounces = 0;
+    int ok = sl_scene_add_material(&s, &mat, &mi, &err) == SL_OK &&
+             sl_scene_add_sphere(&s, origin, 1.0, mi, &err) == SL_OK;
+    if (ok) {
+        sl_camera_validation(&s.camera, w, w, 2.0, 0, 0);
+        s.camera.type = SL_CAMERA_PERSPECTIVE;
+        s.camera.fov_deg = 2 * atan(0.5 * w / f) * 180 / M_PI;
+        s.camera.position[0] = s.camera.position[1] = 0;
+        s.camera.position[2] = -d;
+        ok = sl_scene_set_dome(&s, env, 0, 1, "truth", &err) == SL_OK &&
+             sl_render(&s, &o, out, NULL, &err) == SL_OK;
+    }
+    if (!ok)
+        printf("pinhole photo render failed: %s\n", err.message);
+    sl_scene_free(&s);
+    return ok;
+}
+
+/* The HDRI is the truth, so every gain should be 1: the orthographic fit
+ * is off by the lens's perspective, the pinhole fit recovers 1. */
+static void test_perspective(void)
+{
+    bool san = getenv("SETLIGHT_SANITIZED") != NULL;
+    int w = san ? 40 : 64;
+    double r = 0.4 * w;
+    int64_t spp = san ? 128 : 512;
+    sl_error err;
+    sl_vset_desc desc;
+    sl_vset_scene vs = {0};
+    CHECK_OK(sl_vset_preset("stage", &desc, &err), &err);
+    CHECK_OK(sl_vset_scene_make(&desc, 128, &vs, &err), &err);
+    if (!vs.latlong.data)
+        return;
+    /* 40 radii: the virtual set's 200 mm lens at 2 m; 3 radii: a wide lens close up. */
+    const double dist[2] = {40, 3};
+    for (int t = 0; t < 2; t++) {
+        sl_image photo = {0};
+        if (!render_pinhole(&vs.latlong, w, dist[t], r, spp, &photo))
+            break;
+        double f = r / tan(asin(1 / dist[t]));
+        sl_grey_options o;
+        sl_grey_options_init(&o);
+        o.circle[0] = o.circle[1] = 0.5 * w, o.circle[2] = r;
+        o.spp = spp / 2;
+        sl_grey_fit ortho, persp, by_dist;
+        CHECK_OK(sl_grey_sphere_fit(&vs.latlong, &photo, &o, &ortho, &err), &err);
+        o.focal_px = f;
+        CHECK_OK(sl_grey_sphere_fit(&vs.latlong, &photo, &o, &persp, &err), &err);
+        /* The distance alone (ball on the axis) gives the same camera. */
+        o.focal_px = 0, o.distance = dist[t];
+        CHECK_OK(sl_grey_sphere_fit(&vs.latlong, &photo, &o, &by_dist, &err), &err);
+        printf("  %g radii (%dpx, r %.1f px, focal %.1f px): scale orthographic %.4f (%+.2f%%, "
+               "RMSE %.4f), perspective %.4f (%+.2f%%, RMSE %.4f), by distance %.4f\n",
+               dist[t], w, r, f, ortho.scale, 100 * (ortho.scale - 1), ortho.rel_rmse_after,
+               persp.scale, 100 * (persp.scale - 1), persp.rel_rmse_after, by_dist.scale);
+        CHECK(fabs(persp.scale - 1) < 0.003);
+        CHECK(fabs(by_dist.scale - 1) < 0.003);
+        for (int c = 0; c < 3; c++)
+            CHECK(fabs(persp.gain[c] - 1) < 0.005);
+        if (t == 1) /* at 40 radii the shape error is below the render noise */
+            CHECK(persp.rel_rmse_after < 0.8 * ortho.rel_rmse_after);
+        /* The orthographic model's bias is the lens's, well beyond the noise. */
+        CHECK(fabs(ortho.scale - 1) > (t == 0 ? 0.005 : 0.03));
+        sl_grey_fit_free(&ortho);
+        sl_grey_fit_free(&persp);
+        sl_grey_fit_free(&by_dist);
+        sl_image_free(&photo);
+    }
+    /* A camera inside the sphere is refused. */
+    sl_grey_options o;
+    sl_grey_options_init(&o);
+    o.circle[0] = o.circle[1] = 0.5 * w, o.circle[2] = r;
+    o.distance = 0.9;
+    sl_grey_fit fit;
+    sl_image img = {0};
+    CHECK_OK(sl_image_alloc(&img, w, w, 3, &err), &err);
+    CHECK_RESULT(sl_grey_sphere_fit(&vs.latlong, &img, &o, &fit, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, "inside") != NULL);
+    CHECK(fit.render.data == NULL);
+    sl_image_free(&img);
+    sl_vset_scene_free(&vs);
+}
+
 int main(void)
 {
     RUN(test_stage);
+    RUN(test_perspective);
     return sl_test_finish();
 }

@@ -428,6 +428,13 @@ typedef struct sl_grey_options {
     int64_t spp;            /* samples per pixel of the virtual render (256) */
     uint64_t seed;
     double clip_level;      /* photo pixels at or above are ignored (0: none) */
+    /* The photo's camera as in sl_ball_geometry: both 0 orthographic; else a
+     * pinhole with focal_px (focal length in pixels of the photo, principal
+     * point at its centre; the distance then follows from the circle) and/or
+     * distance (camera to sphere centre in sphere radii; alone, the sphere is
+     * on the optical axis). The virtual sphere is rendered from there. */
+    double focal_px;
+    double distance;
 } sl_grey_options;
 
 void sl_grey_options_init(sl_grey_options *o);
@@ -450,7 +457,8 @@ typedef struct sl_grey_fit {
 void sl_grey_fit_free(sl_grey_fit *fit);
 
 /* Renders a Lambertian sphere of the given albedo under `hdri` with the
- * validation camera and solves the per-channel gains that make it match
+ * photo's camera geometry (the validation camera's view, orthographic or
+ * the pinhole of o->focal_px / o->distance) and solves the per-channel gains that make it match
  * the photographed sphere: per channel the median photo/render ratio, then
  * the least-squares ratio over pixels within 20% of it. Rendering is
  * linear in the dome, so the calibrated render is the render times gain. */
