@@ -55,6 +55,15 @@ static const char *calibrate_help =
     "                        found as unwrap finds a ball; none or several: exit 3)\n"
     "  --grey-albedo A       the sphere's albedo (default 0.18)\n"
     "  --grey-view AZ,EL     the photo's view as the validation camera (default 0,0)\n"
+    "  --camera MODEL        grey photo's camera, ortho or perspective (default:\n"
+    "                        perspective when the focal length, field of view or\n"
+    "                        distance is known; as setlight unwrap)\n"
+    "  --focal-mm F          lens focal length (default: the EXIF one when\n"
+    "                        --sensor-mm is given)\n"
+    "  --sensor-mm W         sensor width in mm (with the focal length)\n"
+    "  --fov DEG             horizontal field of view of the whole grey photo instead\n"
+    "  --distance MM         camera to sphere centre (needs --ball-diameter)\n"
+    "  --ball-diameter MM    the grey sphere's diameter\n"
     "  --spp N               samples per pixel of the virtual sphere (default 256)\n"
     "  --colorspace NAME     output colour space (OCIO name, default lin_rec709)\n"
     "  --chart-colorspace NAME  the chart photo's colour space (default: srgb for\n"
@@ -162,7 +171,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_HDRI = 1000, OPT_CHART, OPT_CORNERS, OPT_REF, OPT_WP, OPT_CLIP, OPT_GREY,
         OPT_CIRCLE, OPT_ALBEDO, OPT_VIEW, OPT_SPP, OPT_FLOAT, OPT_REPORT, OPT_CS, OPT_CHART_CS,
-        OPT_GREY_CS, OPT_HDRI_IN, OPT_MASK, OPT_SUN_SIZE, OPT_NO_REPAIR, OPT_NO_ABS, OPT_EXP_TOL
+        OPT_GREY_CS, OPT_HDRI_IN, OPT_MASK, OPT_SUN_SIZE, OPT_NO_REPAIR, OPT_NO_ABS, OPT_EXP_TOL,
+        OPT_CAMERA, OPT_FOCAL, OPT_SENSOR, OPT_FOV, OPT_DIST, OPT_DIAM
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -189,11 +199,19 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         {"no-sun-repair", no_argument, NULL, OPT_NO_REPAIR},
         {"no-absolute", no_argument, NULL, OPT_NO_ABS},
         {"exposure-tolerance", required_argument, NULL, OPT_EXP_TOL},
+        {"camera", required_argument, NULL, OPT_CAMERA},
+        {"focal-mm", required_argument, NULL, OPT_FOCAL},
+        {"sensor-mm", required_argument, NULL, OPT_SENSOR},
+        {"fov", required_argument, NULL, OPT_FOV},
+        {"distance", required_argument, NULL, OPT_DIST},
+        {"ball-diameter", required_argument, NULL, OPT_DIAM},
         {0, 0, 0, 0}};
     const char *hdri_path = NULL, *out_path = NULL, *chart_path = NULL, *grey_path = NULL,
                *report_dir = NULL, *out_cs = "lin_rec709", *chart_cs = NULL, *grey_cs = NULL,
                *ref_path = NULL, *mask_path = NULL;
     double corners[4][2], clip = -1, view[2] = {0, 0}, exp_tol = 1;
+    double focal_mm = 0, sensor_mm = 0, fov = 0, dist_mm = 0, diam_mm = 0, v;
+    int camera = -1; /* -1: perspective when anything gives the geometry */
     bool have_corners = false, have_circle = false, use_float = false, hdri_in_chart = true,
          sun_repair = true, absolute = true;
     sl_sun_options sopt;
@@ -279,6 +297,29 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             if (!parse_list(optarg, view, 2))
                 return cli_usage_error(cli, "--grey-view needs AZ,EL in degrees, not '%s'", optarg);
             break;
+        case OPT_CAMERA:
+            if (!strcmp(optarg, "ortho") || !strcmp(optarg, "orthographic"))
+                camera = SL_BALL_ORTHOGRAPHIC;
+            else if (!strcmp(optarg, "perspective"))
+                camera = SL_BALL_PERSPECTIVE;
+            else
+                return cli_usage_error(cli, "--camera is ortho or perspective, not '%s'", optarg);
+            break;
+        case OPT_FOCAL:
+        case OPT_SENSOR:
+        case OPT_FOV:
+        case OPT_DIST:
+        case OPT_DIAM:
+            if (!cli_parse_double(optarg, &v) || !(v > 0) || (c == OPT_FOV && !(v < 180)))
+                return cli_usage_error(cli, "%s needs a positive number%s, not '%s'",
+                                       argv[optind - 1] ? argv[optind - 1] : "option",
+                                       c == OPT_FOV ? " of degrees below 180" : "", optarg);
+            *(c == OPT_FOCAL    ? &focal_mm
+              : c == OPT_SENSOR ? &sensor_mm
+              : c == OPT_FOV    ? &fov
+              : c == OPT_DIST   ? &dist_mm
+                                : &diam_mm) = v;
+            break;
         case OPT_SPP: {
             int spp;
             if (!cli_parse_int(optarg, &spp) || spp < 1)
@@ -318,6 +359,15 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "needs --chart, --grey or both");
     if (have_corners && !chart_path)
         return cli_usage_error(cli, "--chart-corners needs --chart");
+    if ((dist_mm > 0) != (diam_mm > 0))
+        return cli_usage_error(cli, "--distance and --ball-diameter go together");
+    if (dist_mm > 0 && !(dist_mm > 0.5 * diam_mm))
+        return cli_usage_error(cli, "--distance %g mm puts the camera inside a %g mm ball",
+                               dist_mm, diam_mm);
+    if (focal_mm > 0 && fov > 0)
+        return cli_usage_error(cli, "give --focal-mm or --fov, not both");
+    if (focal_mm > 0 && sensor_mm == 0)
+        return cli_usage_error(cli, "--focal-mm needs --sensor-mm (the sensor width)");
     gopt.azimuth_deg = view[0];
     gopt.elevation_deg = view[1];
 
@@ -474,6 +524,24 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             apply_image(&grey, plate);
         }
         gopt.clip_level = level;
+        /* The photo's camera, as unwrap takes it: focal length in pixels of
+         * this image from the lens (EXIF when only the sensor is given) or
+         * the field of view; distance in sphere radii. */
+        double fmm = focal_mm > 0 || sensor_mm == 0 ? focal_mm : gmeta.focal_length_mm;
+        if (fmm > 0 && sensor_mm > 0)
+            gopt.focal_px = fmm * grey.width / sensor_mm;
+        else if (fov > 0)
+            gopt.focal_px = 0.5 * grey.width / tan(0.5 * fov * M_PI / 180.0);
+        if (dist_mm > 0)
+            gopt.distance = dist_mm / (0.5 * diam_mm);
+        if (camera == SL_BALL_ORTHOGRAPHIC)
+            gopt.focal_px = gopt.distance = 0;
+        else if (camera == SL_BALL_PERSPECTIVE && gopt.focal_px == 0 && gopt.distance == 0) {
+            r = sl_error_set(&err, SL_ERR_USAGE,
+                             "%s: --camera perspective needs the focal length (--focal-mm and "
+                             "--sensor-mm, EXIF, or --fov) or --distance", grey_path);
+            goto fail;
+        }
         /* The merge's clipped mask: a source clipped in every frame. */
         const char *mp = mask_path ? mask_path : sl_meta_get(&hmeta, "setlight:merge:clipped_mask");
         if (mp && !mask_path && access(mp, R_OK) != 0) {
@@ -557,6 +625,11 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                       (json_int_t)gfit.rejected, "rel_rmse_before",
                                       gfit.rel_rmse_before, "rel_rmse_after",
                                       gfit.rel_rmse_after, "error_p95", gfit.error_p95));
+        json_object_set_new(json_object_get(js, "grey"), "camera",
+                            json_pack("{s:s, s:f, s:f}", "model",
+                                      gopt.focal_px > 0 || gopt.distance > 0 ? "perspective"
+                                                                             : "orthographic",
+                                      "focal_px", gopt.focal_px, "distance_radii", gopt.distance));
         if (sun.repaired) {
             /* In the output's units: times the gains and the absolute scale. */
             double k = abs_scale > 0 ? abs_scale : 1, rad[3], sig[3], added[3], before[3];

@@ -39,6 +39,26 @@ json_eval "$T/out" 'd["hdri_in"] == "working" and abs(d["scale"] / 2 - 1) < 0.01
 expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" --hdri-in raw -o "$T/keep.exr"
 err_has "--hdri-in"
 
+# --- the grey photo's camera (unwrap's options): the orthographic fixture is a
+# pinhole 2000 radii away, so the perspective fit gives the same exposure.
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 --spp 64 --distance 50000 --ball-diameter 50 -o "$T/cal_far.exr"
+json_eval "$T/out" 'd["grey"]["camera"]["model"] == "perspective" and d["grey"]["camera"]["distance_radii"] == 2000 and abs(d["scale"] / 2 - 1) < 0.01'
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 --spp 64 --fov 0.1 -o "$T/cal_fov.exr"
+json_eval "$T/out" 'd["grey"]["camera"]["focal_px"] > 27000 and abs(d["scale"] / 2 - 1) < 0.01'
+expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --grey "$T/grey.exr" \
+    --grey-circle 24,24,24 --spp 64 --camera ortho --fov 0.1 -o "$T/cal_ortho.exr"
+json_eval "$T/out" 'd["grey"]["camera"]["model"] == "orthographic"'
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" --distance 2000 \
+    -o "$T/keep.exr"; err_has "--ball-diameter"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" --distance 20 \
+    --ball-diameter 50 -o "$T/keep.exr"; err_has "inside"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" --focal-mm 50 \
+    -o "$T/keep.exr"; err_has "--sensor-mm"
+expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/grey.exr" --grey-circle 24,24,24 \
+    --camera perspective -o "$T/keep.exr"; err_has "grey.exr"; err_one_line
+
 # --- a reference file: X-Rite's published Lab (D50), as a CSV with a name column
 {
   echo "# ColorChecker Classic, X-Rite after November 2014, CIELAB D50"
