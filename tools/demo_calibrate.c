@@ -102,6 +102,9 @@ sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err)
     go.circle[2] = json_number_value(json_object_get(tb, "r_px"));
     go.azimuth_deg = json_number_value(json_object_get(tc, "yaw_deg"));
     go.elevation_deg = json_number_value(json_object_get(tc, "pitch_deg"));
+    /* The probe's long lens at its distance: the virtual sphere from the same pinhole. */
+    go.focal_px = json_number_value(json_object_get(gt, "focal_px"));
+    go.distance = json_number_value(json_object_get(tb, "distance_radii"));
     go.size = d->size == SL_VSET_SIZE_TINY ? 32 : 64;
     go.spp = 64;
     go.seed = d->seed;
@@ -127,11 +130,12 @@ sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err)
                    fit.de_before_max, fit.de_after_mean, fit.de_after_max);
     sl_report_text(d->rep,
                    "Grey ball: %d frames merged and taken back to cd/m^2 through the camera "
-                   "model (output matrix, EXIF exposure). Gains for truth/latlong.exr to "
+                   "model (output matrix, EXIF exposure); virtual sphere seen by the probe's "
+                   "pinhole (%.0f px focal length, %.1f ball radii away). Gains for truth/latlong.exr to "
                    "match it, all 1 in truth: %.4f %.4f %.4f, exposure scale %.4f (%+.2f%%, "
                    "worst channel %.2f%%). Sphere relative RMSE %.1f%% before (exposure "
                    "only), %.1f%% after.",
-                   grey.frame_count, gfit.gain[0], gfit.gain[1], gfit.gain[2], gfit.scale,
+                   grey.frame_count, go.focal_px, go.distance, gfit.gain[0], gfit.gain[1], gfit.gain[2], gfit.scale,
                    100 * scale_err, 100 * worst_gain, 100 * gfit.rel_rmse_before,
                    100 * gfit.rel_rmse_after);
     if ((r = sl_report_image(d->rep, "calibrate_chart.png", &chart.radiance,
