@@ -37,7 +37,7 @@ u = re.search(r"front hemisphere \(toward the camera\), both averaged to 128x64:
 c = re.search(r"CIEDE2000 mean ([0-9.]+) \(max [0-9.]+\) before, ([0-9.]+) \(max", t)
 g = re.search(r"exposure scale [0-9.]+ \(([+-][0-9.]+)%", t)
 r = re.search(r"7 of 7 truth lights matched|Each truth light", t)
-ok = u and abs(float(u.group(1))) < 5 and c and float(c.group(2)) < 1 and g and abs(float(g.group(1))) < 5 and r
+ok = u and abs(float(u.group(1))) < 5 and c and float(c.group(2)) < 1 and g and abs(float(g.group(1))) < 1 and r
 sys.exit(0 if ok else 1)
 PY
 then ok; else bad "unwrap, calibrate or rig numbers missing or off"; fi
