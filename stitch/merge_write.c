@@ -111,7 +111,7 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
         sl_meta_free(&mm);
     }
     if (!r)
-        r = sl_exr_write(path, &res->radiance, &meta, SL_PIXEL_FLOAT, err);
+        r = sl_exr_write_compressed(path, &res->radiance, &meta, SL_PIXEL_FLOAT, SL_EXR_PIZ, err);
     for (int i = 0; i < 2 && r; i++)
         if (written[i])
             unlink(side_path[i]); /* no half-written set */
