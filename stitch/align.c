@@ -10,7 +10,6 @@
 #include <string.h>
 
 #include "merge_private.h"
-#include "strip_reader.h"
 
 /* Alignment works on at most this many pixels (box-averaged blocks). */
 enum { ALIGN_PIXELS = 3000000, MIN_TOP = 24, MAX_LEVELS = 8, HIST = 4096, MIN_OVERLAP = 2000 };
@@ -52,9 +51,9 @@ static inline bool valid(float v) { return v >= 0 && v <= 1; }
 static sl_result read_luma(const char *path, int scale, const sl_merge_options *opt, plane *out,
                            sl_error *err)
 {
-    merge_strip_reader *rd;
-    merge_strip_info info;
-    sl_result r = merge_strip_open(path, &rd, &info, err);
+    sl_photo_strips *rd;
+    sl_photo_strip_info info;
+    sl_result r = sl_photo_strips_open(path, &rd, &info, err);
     if (r)
         return r;
     int w = info.width / scale, h = info.height / scale, fw = info.width;
@@ -68,7 +67,7 @@ static sl_result read_luma(const char *path, int scale, const sl_merge_options *
         r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
     float black = (float)fmax(opt->black, DARK), sat = (float)opt->saturation;
     for (int by = 0; by < h && !r; by++) {
-        if ((r = merge_strip_read(rd, by * scale, (by + 1) * scale, buf, err)))
+        if ((r = sl_photo_strips_read(rd, by * scale, (by + 1) * scale, buf, err)))
             break;
         memset(acc, 0, (size_t)w * sizeof *acc);
         memset(state, 0, (size_t)w);
@@ -88,7 +87,7 @@ static sl_result read_luma(const char *path, int scale, const sl_merge_options *
         for (int x = 0; x < w; x++)
             dst[x] = state[x] == 2 ? SAT : state[x] == 1 ? BLACK : (float)fmin(acc[x] * inv, 1);
     }
-    merge_strip_close(rd);
+    sl_photo_strips_close(rd);
     free(buf);
     free(acc);
     free(state);
@@ -473,12 +472,12 @@ sl_result sl_align_bracket(const char *const *paths, int count, const double *ex
         return sl_error_set(err, SL_ERR_USAGE,
                             "%s: alignment limits out of range (shift > 0, 0 < angle <= 10)",
                             paths[0]);
-    merge_strip_reader *rd;
-    merge_strip_info info;
-    sl_result r = merge_strip_open(paths[0], &rd, &info, err);
+    sl_photo_strips *rd;
+    sl_photo_strip_info info;
+    sl_result r = sl_photo_strips_open(paths[0], &rd, &info, err);
     if (r)
         return r;
-    merge_strip_close(rd);
+    sl_photo_strips_close(rd);
     int scale = 1;
     while ((double)(info.width / scale) * (info.height / scale) > ALIGN_PIXELS)
         scale++;

@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "merge_private.h"
-#include "strip_reader.h"
 #include "warp_reader.h"
 
 enum { SAMPLE_TARGET = 65536, SAMPLE_STRIP = 64, RESPONSE_NODES = 256 };
@@ -69,19 +68,19 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
         sl_merge_frame *f = &res->frames[i];
         if (!(f->path = strdup(paths[i])))
             return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-        merge_strip_reader *rd;
-        merge_strip_info info;
+        sl_photo_strips *rd;
+        sl_photo_strip_info info;
         sl_meta meta;
         sl_meta_init(&meta);
         int w, h, ch;
         r = sl_photo_read_meta(paths[i], &meta, &w, &h, &ch, err);
         if (!r)
-            r = merge_strip_open(paths[i], &rd, &info, err);
+            r = sl_photo_strips_open(paths[i], &rd, &info, err);
         if (r) {
             sl_meta_free(&meta);
             break;
         }
-        merge_strip_close(rd);
+        sl_photo_strips_close(rd);
         f->exif_time = meta.exposure_time;
         f->f_number = meta.f_number;
         f->iso = meta.iso;

@@ -6,10 +6,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "strip_reader.h"
 
 struct merge_frame_reader {
-    merge_strip_reader *rd;
+    sl_photo_strips *rd;
     int width, height;
     bool warp;
     double c, s, tx, ty, cx, cy;
@@ -25,8 +24,8 @@ sl_result merge_frame_open(const char *path, const sl_align_transform *align, in
     merge_frame_reader *fr = calloc(1, sizeof *fr);
     if (!fr)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    merge_strip_info info;
-    sl_result r = merge_strip_open(path, &fr->rd, &info, err);
+    sl_photo_strip_info info;
+    sl_result r = sl_photo_strips_open(path, &fr->rd, &info, err);
     if (r) {
         free(fr);
         return r;
@@ -82,7 +81,7 @@ static sl_result fill(merge_frame_reader *fr, int need_lo, int need_hi, sl_error
         /* Rows below lo are read into the ring too (a reader cannot skip). */
         int slot = fr->hi % fr->cap, n = need_hi - fr->hi;
         n = n < fr->cap - slot ? n : fr->cap - slot;
-        sl_result r = merge_strip_read(fr->rd, fr->hi, fr->hi + n,
+        sl_result r = sl_photo_strips_read(fr->rd, fr->hi, fr->hi + n,
                                        fr->ring + (size_t)slot * fr->width * 3, err);
         if (r)
             return r;
@@ -96,7 +95,7 @@ static sl_result fill(merge_frame_reader *fr, int need_lo, int need_hi, sl_error
 sl_result merge_frame_read(merge_frame_reader *fr, int y0, int y1, float *rgb, sl_error *err)
 {
     if (!fr->warp)
-        return merge_strip_read(fr->rd, y0, y1, rgb, err);
+        return sl_photo_strips_read(fr->rd, y0, y1, rgb, err);
     int w = fr->width, h = fr->height;
     double ys[4] = {source_y(fr, 0, y0), source_y(fr, w, y0), source_y(fr, 0, y1),
                     source_y(fr, w, y1)};
@@ -153,7 +152,7 @@ void merge_frame_close(merge_frame_reader *fr)
 {
     if (!fr)
         return;
-    merge_strip_close(fr->rd);
+    sl_photo_strips_close(fr->rd);
     free(fr->ring);
     free(fr);
 }

@@ -268,6 +268,22 @@ sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *width, int *h
 sl_result sl_photo_write(const char *path, const sl_image *img, const sl_meta *meta, int bits,
                          sl_error *err);
 
+/* A photo read a strip of rows at a time (bounded memory), opened exactly
+ * as sl_photo_read opens it (camera raw linear). Rows come as RGB float
+ * (grey repeated, alpha dropped), width * 3 floats per row, and must be
+ * asked for in increasing order. */
+typedef struct sl_photo_strips sl_photo_strips;
+typedef struct sl_photo_strip_info {
+    int width, height;
+    int file_channels;
+    int bits;      /* bits per sample in the file */
+    bool is_float; /* float or half samples */
+} sl_photo_strip_info;
+sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
+                               sl_photo_strip_info *info, sl_error *err);
+sl_result sl_photo_strips_read(sl_photo_strips *strips, int y0, int y1, float *rgb, sl_error *err);
+void sl_photo_strips_close(sl_photo_strips *strips);
+
 /* Any image: EXR through sl_exr_read, anything else through sl_photo_read.
  * Chooses by content (magic bytes), not by extension, so a PNG named .exr
  * is reported as such. */
