@@ -12,7 +12,7 @@
 #include "merge_private.h"
 
 /* Alignment works on at most this many pixels (box-averaged blocks). */
-enum { ALIGN_PIXELS = 3000000, MIN_TOP = 24, MAX_LEVELS = 8, HIST = 4096, MIN_OVERLAP = 2000 };
+enum { ALIGN_PIXELS = 3000000, MIN_TOP = 24, MAX_LEVELS = 8, HIST = 4096 };
 
 /* Luminance in [0, 1]; BLACK below the black level (or too dark to carry
  * signal: a few noisy codes only give a false match), SAT at saturation. */
@@ -37,11 +37,13 @@ static void luma_free(luma *l)
     memset(l, 0, sizeof *l);
 }
 
-/* Well-exposed pixels an estimate needs: MIN_OVERLAP, or 2% of a small image. */
+/* Well-exposed pixels (in both frames) an estimate needs: 5% of the image.
+ * Fewer, in a dark or clipped frame, can still pull the match off by a
+ * pixel or more; such a frame is better left alone and said so. */
 static int64_t min_overlap(const plane *p)
 {
-    int64_t n = (int64_t)p->w * p->h / 50;
-    return n < 200 ? 200 : n > MIN_OVERLAP ? MIN_OVERLAP : n;
+    int64_t n = (int64_t)p->w * p->h / 20;
+    return n < 200 ? 200 : n;
 }
 
 static inline bool valid(float v) { return v >= 0 && v <= 1; }

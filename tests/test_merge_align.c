@@ -21,6 +21,9 @@ typedef struct blob {
     double x, y, sigma, stops;
 } blob;
 
+/* Smaller frames under sanitizers (same assertions). */
+static int size(int full) { return getenv("SETLIGHT_SANITIZED") ? full * 2 / 3 : full; }
+
 static uint64_t rng(uint64_t *s)
 {
     uint64_t z = (*s += 0x9e3779b97f4a7c15ull);
@@ -160,7 +163,7 @@ static void test_known_warp(void)
 {
     sl_error err;
     scene s;
-    make_scene(&s, 480, 360, 7);
+    make_scene(&s, size(480), size(360), 7);
     const warp t[5] = {{20, -13, 1}, {-20, 7.4, -0.5}, {0, 0, 0}, {12.3, 19.6, 0.8}, {-17.75, -20, -1}};
     bracket b;
     make_bracket(&b, "align_warp", &s, 5, 2, 0, t);
@@ -189,7 +192,7 @@ static void test_aligned_frames(void)
 {
     sl_error err;
     scene s;
-    make_scene(&s, 400, 300, 11);
+    make_scene(&s, size(400), size(300), 11);
     warp t[7];
     memset(t, 0, sizeof t);
     bracket b;
@@ -215,7 +218,7 @@ static void test_dark_frame(void)
 {
     sl_error err;
     scene s;
-    make_scene(&s, 320, 240, 5);
+    make_scene(&s, size(320), size(240), 5);
     const warp t[3] = {{0, 0, 0}, {0, 0, 0}, {6, -4, 0.3}};
     bracket b;
     make_bracket(&b, "align_dark", &s, 3, 2, 0, t);
@@ -240,7 +243,7 @@ static void test_merge_aligned(void)
 {
     sl_error err;
     scene s;
-    make_scene(&s, 320, 240, 3);
+    make_scene(&s, size(360), size(270), 3);
     const warp moved[5] = {{9.5, -6, 0.7}, {-12, 4.25, -0.4}, {0, 0, 0}, {7, 11, 0.5}, {-15, -8, -0.9}};
     warp still[5];
     memset(still, 0, sizeof still);
