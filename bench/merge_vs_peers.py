@@ -125,14 +125,15 @@ def main():
                      rows[-1]["failure"]), flush=True)
     size = "6000x4000" if a.big else "2048x1024"
     print("\n%s, median of %d run(s); ratio = peer / setlight (above 1: setlight better)" % (size, repeats))
-    print("| stack | tool | wall s | CPU s | peak MB | mid-tone median err | p99 err (all) | sun energy | wall ratio | memory ratio |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("| stack | tool | wall s | CPU s | peak MB | mid-tone median err | p99 err (all) | sun energy | wall ratio | CPU ratio | memory ratio | error ratio |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         base = next(x for x in rows if x["stack"] == row["stack"] and x["tool"] == "setlight")
-        print("| %s | %s | %.2f | %.2f | %.0f | %.2f %% | %.1f %% | %.2f | %.1f | %.1f |" % (
+        print("| %s | %s | %.2f | %.2f | %.0f | %.2f %% | %.1f %% | %.2f | %.1f | %.1f | %.1f | %.1f |" % (
             row["stack"], row["tool"], row["wall"], row["cpu"], row["peak_mb"], 100 * row["mid_med"],
             100 * row["all_p99"], row["sun_energy"], row["wall"] / base["wall"],
-            row["peak_mb"] / base["peak_mb"]))
+            row["cpu"] / base["cpu"], row["peak_mb"] / base["peak_mb"],
+            row["mid_med"] / base["mid_med"]))
 
 
 if __name__ == "__main__":
