@@ -157,8 +157,8 @@ static sl_result copy_file(const char *from, const char *to, char sha[65], sl_er
     return r;
 }
 
-sl_result sl_ingest(const char *src, const char *dir, double gap, int *frames, int *nviews,
-                    sl_error *err)
+sl_result sl_ingest(const char *src, const char *dir, double gap, sl_progress *progress,
+                    int *frames, int *nviews, sl_error *err)
 {
     *frames = *nviews = 0;
     if (gap <= 0)
@@ -182,6 +182,8 @@ sl_result sl_ingest(const char *src, const char *dir, double gap, int *frames, i
     json_t *views = json_array();
     if (!r) {
         qsort(s.items, (size_t)s.count, sizeof *s.items, cmp_shot);
+        if (progress)
+            progress->total = s.count;
         json_t *view = NULL, *brackets = NULL, *bracket = NULL;
         int v = -1, b = 0, k = 0;
         for (int i = 0; i < s.count && !r; i++) {
@@ -233,6 +235,7 @@ sl_result sl_ingest(const char *src, const char *dir, double gap, int *frames, i
             json_object_set_new(f, "sha256", json_string(sha));
             json_array_append_new(json_object_get(bracket, "frames"), f);
             (*frames)++;
+            sl_progress_add(progress, 1);
         }
         *nviews = v + 1;
     }

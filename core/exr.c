@@ -425,7 +425,7 @@ static float sanitize(float v, float limit)
 }
 
 static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const sl_meta *meta,
-                                 sl_pixel_type type)
+                                 sl_pixel_type type, sl_exr_compression compression)
 {
     static const char *names[4][4] = {{"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
     int part = 0;
@@ -439,7 +439,10 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     exr_attr_v2f_t center;
     memset(&center, 0, sizeof center);
     rv = exr_initialize_required_attr(ctx, part, &win, &win, 1.0f, &center, 1.0f,
-                                      EXR_LINEORDER_INCREASING_Y, EXR_COMPRESSION_ZIP);
+                                      EXR_LINEORDER_INCREASING_Y,
+                                      compression == SL_EXR_PIZ    ? EXR_COMPRESSION_PIZ
+                                      : compression == SL_EXR_NONE ? EXR_COMPRESSION_NONE
+                                                                   : EXR_COMPRESSION_ZIP);
     /* Names over 31 bytes (setlight:* can be) need the long-name flag. */
     bool long_names = false;
     for (int i = 0; meta && i < meta->attr_count; i++)
@@ -491,36 +494,66 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     return rv;
 }
 
-static exr_result_t write_pixels(exr_context_t ctx, const sl_image *img, sl_pixel_type type)
+/* One chunk packed and compressed; the bytes are kept for the in-order write. */
+typedef struct exr_chunk_out {
+    int y;
+    void *bytes;
+    uint64_t size;
+    exr_result_t rv;
+} exr_chunk_out;
+
+typedef struct exr_encode_job {
+    exr_context_t ctx;
+    const sl_image *img;
+    float limit;
+    int lines;
+    int first;           /* first chunk of the batch */
+    exr_chunk_out *out;  /* per chunk of the batch */
+    float **scratch;     /* per worker: lines rows */
+} exr_encode_job;
+
+/* Keeps the compressed bytes instead of writing them (the caller writes in order). */
+static exr_result_t keep_chunk(exr_encode_pipeline_t *enc)
 {
-    int32_t lines = 1;
-    exr_result_t rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
-    if (rv != EXR_ERR_SUCCESS)
-        return rv;
-    int nc = img->channels, w = img->width;
-    float *buf = malloc((size_t)w * (size_t)lines * (size_t)nc * sizeof(float));
-    if (!buf)
+    exr_chunk_out *o = enc->encoding_user_data;
+    o->bytes = malloc(enc->compressed_bytes ? enc->compressed_bytes : 1);
+    if (!o->bytes)
         return EXR_ERR_OUT_OF_MEMORY;
-    /* Half cannot hold more than 65504: clamp rather than write Inf. */
-    float limit = type == SL_PIXEL_HALF ? 65504.0f : FLT_MAX;
-    exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-    bool initialized = false;
-    for (int y = 0; y < img->height && rv == EXR_ERR_SUCCESS; y += lines) {
+    memcpy(o->bytes, enc->compressed_buffer, enc->compressed_bytes);
+    o->size = enc->compressed_bytes;
+    return EXR_ERR_SUCCESS;
+}
+
+/* Chunks are written later, in order, so none has to wait for its turn. */
+static exr_result_t no_wait(exr_encode_pipeline_t *enc)
+{
+    (void)enc;
+    return EXR_ERR_SUCCESS;
+}
+
+static void encode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    exr_encode_job *job = ctx;
+    const sl_image *img = job->img;
+    int nc = img->channels, w = img->width;
+    float *buf = job->scratch[worker];
+    for (int64_t k = begin; k < end; k++) {
+        exr_chunk_out *o = &job->out[k];
+        o->y = (int)(job->first + k) * job->lines;
         exr_chunk_info_t cinfo;
-        rv = exr_write_scanline_chunk_info(ctx, 0, y, &cinfo);
-        if (rv != EXR_ERR_SUCCESS)
-            break;
+        exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
+        o->rv = exr_write_scanline_chunk_info(job->ctx, 0, o->y, &cinfo);
+        if (o->rv != EXR_ERR_SUCCESS)
+            continue;
         for (int j = 0; j < cinfo.height; j++) {
-            const float *src = img->data + (size_t)(y + j) * img->stride;
+            const float *src = img->data + (size_t)(o->y + j) * img->stride;
             float *dst = buf + (size_t)j * (size_t)w * (size_t)nc;
-            for (size_t k = 0; k < (size_t)w * (size_t)nc; k++)
-                dst[k] = sanitize(src[k], limit);
+            for (size_t i = 0; i < (size_t)w * (size_t)nc; i++)
+                dst[i] = sanitize(src[i], job->limit);
         }
-        rv = initialized ? exr_encoding_update(ctx, 0, &cinfo, &enc)
-                         : exr_encoding_initialize(ctx, 0, &cinfo, &enc);
-        if (rv != EXR_ERR_SUCCESS)
-            break;
-        initialized = true;
+        o->rv = exr_encoding_initialize(job->ctx, 0, &cinfo, &enc);
+        if (o->rv != EXR_ERR_SUCCESS)
+            continue;
         /* Channels come back in the file's (sorted) order: map by name. */
         static const char *order = "RGBA";
         for (int i = 0; i < enc.channel_count; i++) {
@@ -533,24 +566,76 @@ static exr_result_t write_pixels(exr_context_t ctx, const sl_image *img, sl_pixe
             ch->user_data_type = EXR_PIXEL_FLOAT;
             ch->user_bytes_per_element = sizeof(float);
         }
-        rv = exr_encoding_choose_default_routines(ctx, 0, &enc);
-        if (rv == EXR_ERR_SUCCESS)
-            rv = exr_encoding_run(ctx, 0, &enc);
+        o->rv = exr_encoding_choose_default_routines(job->ctx, 0, &enc);
+        enc.write_fn = keep_chunk;
+        enc.yield_until_ready_fn = no_wait;
+        enc.encoding_user_data = o;
+        if (o->rv == EXR_ERR_SUCCESS)
+            o->rv = exr_encoding_run(job->ctx, 0, &enc);
+        exr_encoding_destroy(job->ctx, &enc);
     }
-    if (initialized)
-        exr_encoding_destroy(ctx, &enc);
-    free(buf);
+}
+
+/* Chunks are packed and compressed in parallel (the bulk of the time for
+ * ZIP), a batch at a time, then written in order. */
+static exr_result_t write_pixels(exr_context_t ctx, const sl_image *img, sl_pixel_type type)
+{
+    int32_t lines = 1;
+    exr_result_t rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
+    if (rv != EXR_ERR_SUCCESS)
+        return rv;
+    int threads = sl_threads_get(), chunks = (img->height + lines - 1) / lines;
+    int batch = 8 * threads;
+    exr_encode_job job = {.ctx = ctx, .img = img, .lines = lines};
+    /* Half cannot hold more than 65504: clamp rather than write Inf. */
+    job.limit = type == SL_PIXEL_HALF ? 65504.0f : FLT_MAX;
+    job.out = calloc((size_t)batch, sizeof *job.out);
+    job.scratch = calloc((size_t)threads, sizeof *job.scratch);
+    if (!job.out || !job.scratch)
+        rv = EXR_ERR_OUT_OF_MEMORY;
+    for (int t = 0; t < threads && rv == EXR_ERR_SUCCESS; t++)
+        if (!(job.scratch[t] = malloc((size_t)img->width * (size_t)lines * (size_t)img->channels *
+                                      sizeof(float))))
+            rv = EXR_ERR_OUT_OF_MEMORY;
+    for (int first = 0; first < chunks && rv == EXR_ERR_SUCCESS; first += batch) {
+        int n = chunks - first < batch ? chunks - first : batch;
+        job.first = first;
+        memset(job.out, 0, (size_t)n * sizeof *job.out);
+        sl_parallel_for(n, 1, encode_chunks, &job);
+        for (int k = 0; k < n; k++) {
+            if (rv == EXR_ERR_SUCCESS)
+                rv = job.out[k].rv;
+            if (rv == EXR_ERR_SUCCESS)
+                rv = exr_write_scanline_chunk(ctx, 0, job.out[k].y, job.out[k].bytes,
+                                              job.out[k].size);
+            free(job.out[k].bytes);
+        }
+    }
+    for (int t = 0; job.scratch && t < threads; t++)
+        free(job.scratch[t]);
+    free(job.scratch);
+    free(job.out);
     return rv;
 }
 
 sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *meta,
                        sl_pixel_type type, sl_error *err)
 {
+    return sl_exr_write_compressed(path, img, meta, type, SL_EXR_ZIP, err);
+}
+
+sl_result sl_exr_write_compressed(const char *path, const sl_image *img, const sl_meta *meta,
+                                  sl_pixel_type type, sl_exr_compression compression,
+                                  sl_error *err)
+{
     if (!img || !img->data || img->width <= 0 || img->height <= 0 || img->channels < 1 ||
         img->channels > 4)
         return sl_error_set(err, SL_ERR_USAGE, "%s: no image to write", path ? path : "(null)");
     if (type != SL_PIXEL_HALF && type != SL_PIXEL_FLOAT)
         return sl_error_set(err, SL_ERR_USAGE, "%s: unknown EXR pixel type %d", path, (int)type);
+    if (compression != SL_EXR_ZIP && compression != SL_EXR_PIZ && compression != SL_EXR_NONE)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: unknown EXR compression %d", path,
+                            (int)compression);
     sl_atomic_file f;
     sl_result r = sl_atomic_begin(&f, path, err);
     if (r)
@@ -561,7 +646,7 @@ sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *met
     exr_context_t ctx = NULL;
     exr_result_t rv = exr_start_write(&ctx, f.temp_path, EXR_WRITE_FILE_DIRECTLY, &init);
     if (rv == EXR_ERR_SUCCESS)
-        rv = write_header(ctx, img, meta, type);
+        rv = write_header(ctx, img, meta, type, compression);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_write_header(ctx);
     if (rv == EXR_ERR_SUCCESS)

@@ -35,6 +35,7 @@
 #include <new>
 #include <string>
 #include <vector>
+#include <vector>
 
 namespace
 {
@@ -435,4 +436,82 @@ extern "C" sl_result sl_photo_write(const char *path, const sl_image *img, const
     } catch (...) {
         return exception_error(path, err, "unknown exception", false);
     }
+}
+
+/* ------------------------------------------------------------------ */
+/* Strips: the same opening, a few rows at a time                      */
+/* ------------------------------------------------------------------ */
+
+struct sl_photo_strips {
+    std::unique_ptr<ImageInput> in;
+    std::string path;
+    int width = 0, channels = 0;
+    std::vector<float> scratch;
+};
+
+extern "C" sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
+                                          sl_photo_strip_info *info, sl_error *err)
+{
+    *strips = nullptr;
+    std::memset(info, 0, sizeof *info);
+    try {
+        std::unique_ptr<sl_photo_strips> s(new sl_photo_strips);
+        sl_result r = open_input(path, s->in, err);
+        if (r)
+            return r;
+        const ImageSpec &spec = s->in->spec();
+        if (spec.depth > 1 || spec.nchannels < 1)
+            return sl_error_set(err, SL_ERR_INPUT, "%s: not a 2D image with colour channels", path);
+        s->path = path;
+        s->width = spec.width;
+        s->channels = spec.nchannels >= 3 ? 3 : 1;
+        info->width = spec.width;
+        info->height = spec.height;
+        info->file_channels = spec.nchannels;
+        info->is_float = spec.format.basetype == TypeDesc::FLOAT ||
+                         spec.format.basetype == TypeDesc::HALF ||
+                         spec.format.basetype == TypeDesc::DOUBLE;
+        info->bits = spec.get_int_attribute("oiio:BitsPerSample", (int)spec.format.size() * 8);
+        *strips = s.release();
+        return SL_OK;
+    } catch (const std::bad_alloc &e) {
+        return exception_error(path, err, e.what(), true);
+    } catch (const std::exception &e) {
+        return exception_error(path, err, e.what(), false);
+    }
+}
+
+extern "C" sl_result sl_photo_strips_read(sl_photo_strips *s, int y0, int y1, float *rgb,
+                                          sl_error *err)
+{
+    size_t n = (size_t)(y1 - y0) * (size_t)s->width;
+    float *dst = rgb;
+    if (s->channels == 1) {
+        try {
+            s->scratch.resize(n);
+        } catch (...) {
+            return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", s->path.c_str());
+        }
+        dst = s->scratch.data();
+    }
+    /* Some readers (TIFF) report a short strip as an error yet return true. */
+    if (!s->in->read_scanlines(0, 0, y0, y1, 0, 0, s->channels, TypeDesc::FLOAT, dst) ||
+        s->in->has_error()) {
+        std::string why = one_line(s->in->geterror());
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image at rows %d-%d (%s)",
+                            s->path.c_str(), y0, y1 - 1, why.c_str());
+    }
+    if (s->channels == 1)
+        for (size_t i = n; i-- > 0;)
+            rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = dst[i];
+    return SL_OK;
+}
+
+extern "C" void sl_photo_strips_close(sl_photo_strips *s)
+{
+    if (!s)
+        return;
+    if (s->in)
+        s->in->close();
+    delete s;
 }

@@ -45,7 +45,7 @@ static sl_result write_one(sl_rig *rig, const sl_image *env, int index, const ch
     sl_result r = sl_image_alloc(&img, tw, th, 3, err);
     if (r)
         return r;
-    rig_sum mean = {0}, wsum = {0};
+    rig_sum mean[3] = {{0}}, wsum = {0};
     for (int t = 0; t < th; t++)
         for (int s = 0; s < tw; s++) {
             double acc[3] = {0, 0, 0}, wacc = 0;
@@ -67,19 +67,27 @@ static sl_result write_one(sl_rig *rig, const sl_image *env, int index, const ch
             float *p = sl_image_pixel(&img, s, t);
             for (int k = 0; k < 3; k++)
                 p[k] = (float)(acc[k] / wacc);
-            double px[3] = {p[0], p[1], p[2]};
-            rig_sum_add(&mean, rig_luma(px) * wacc);
+            for (int k = 0; k < 3; k++)
+                rig_sum_add(&mean[k], p[k] * wacc);
             rig_sum_add(&wsum, wacc);
         }
-    double m = rig_sum_get(&mean) / rig_sum_get(&wsum);
-    if (!(m > 0)) {
+    /* The renderer (and UsdLux) multiply the texture by the light's colour,
+     * which is already the mean radiance: each channel's mean over the solid
+     * angle must be 1, or the colour counts twice (a luminance mean tinted a
+     * warm window's red up 43% and its blue down 43%). */
+    double m[3];
+    for (int k = 0; k < 3; k++)
+        m[k] = rig_sum_get(&mean[k]) / rig_sum_get(&wsum);
+    if (!(m[0] > 0 || m[1] > 0 || m[2] > 0)) {
         sl_image_free(&img);
         return SL_OK; /* nothing to show: the light stays plain */
     }
     for (int t = 0; t < th; t++)
         for (int s = 0; s < tw; s++)
-            for (int k = 0; k < 3; k++)
-                sl_image_pixel(&img, s, t)[k] = (float)(sl_image_pixel(&img, s, t)[k] / m);
+            for (int k = 0; k < 3; k++) {
+                float *p = sl_image_pixel(&img, s, t) + k;
+                *p = m[k] > 0 ? (float)(*p / m[k]) : 1.0f;
+            }
     char path[4096];
     if (snprintf(path, sizeof path, "%s_light_%02d.exr", prefix, index + 1) >= (int)sizeof path) {
         sl_image_free(&img);

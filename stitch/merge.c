@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "merge_private.h"
-#include "strip_reader.h"
+#include "warp_reader.h"
 
 enum { SAMPLE_TARGET = 65536, SAMPLE_STRIP = 64, RESPONSE_NODES = 256 };
 
@@ -22,6 +22,8 @@ void sl_merge_options_init(sl_merge_options *opt)
     opt->seed = 1;
     opt->deghost_sigma = 5;
     opt->deghost_model_error = 0.05;
+    opt->align_max_shift = 64;
+    opt->align_max_angle = 2;
 }
 
 void sl_merge_result_free(sl_merge_result *res)
@@ -66,19 +68,19 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
         sl_merge_frame *f = &res->frames[i];
         if (!(f->path = strdup(paths[i])))
             return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-        merge_strip_reader *rd;
-        merge_strip_info info;
+        sl_photo_strips *rd;
+        sl_photo_strip_info info;
         sl_meta meta;
         sl_meta_init(&meta);
         int w, h, ch;
         r = sl_photo_read_meta(paths[i], &meta, &w, &h, &ch, err);
         if (!r)
-            r = merge_strip_open(paths[i], &rd, &info, err);
+            r = sl_photo_strips_open(paths[i], &rd, &info, err);
         if (r) {
             sl_meta_free(&meta);
             break;
         }
-        merge_strip_close(rd);
+        sl_photo_strips_close(rd);
         f->exif_time = meta.exposure_time;
         f->f_number = meta.f_number;
         f->iso = meta.iso;
@@ -148,8 +150,23 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
     return SL_OK;
 }
 
+/* Registers the frames (ordered by the exposures EXIF or --times give). */
+static sl_result align_frames(const char *const *paths, int count, const sl_merge_options *opt,
+                              sl_merge_result *res, sl_error *err)
+{
+    double e[MERGE_MAX_FRAMES] = {0};
+    sl_align_transform t[MERGE_MAX_FRAMES];
+    for (int i = 0; i < count; i++)
+        e[i] = res->frames[i].exif_exposure;
+    sl_result r = sl_align_bracket(paths, count, e, opt, t, err);
+    for (int i = 0; i < count && !r; i++)
+        res->frames[i].align = t[i];
+    return r;
+}
+
 /* Sample positions: one jittered pixel per cell of a grid over the frame. */
-static sl_result choose_positions(merge_ctx *m, uint64_t seed, sl_error *err)
+static sl_result choose_positions(merge_ctx *m, const sl_merge_result *res, uint64_t seed,
+                                  sl_error *err)
 {
     int64_t pixels = (int64_t)m->width * m->height;
     int gw, gh;
@@ -174,9 +191,15 @@ static sl_result choose_positions(merge_ctx *m, uint64_t seed, sl_error *err)
             int x0 = (int)((int64_t)cx * m->width / gw), x1 = (int)((int64_t)(cx + 1) * m->width / gw);
             int x = x0 + (int)(merge_rand(&state) % (uint64_t)(x1 - x0));
             int y = y0 + (int)(merge_rand(&state) % (uint64_t)(y1 - y0));
-            m->sample_pos[n++] = (int64_t)y * m->width + x;
+            /* Where an aligned frame does not reach, its edge is repeated: no sample there. */
+            bool covered = true;
+            for (int i = 0; i < res->frame_count && covered; i++)
+                covered = merge_frame_covers(&res->frames[i].align, m->width, m->height, x, y);
+            if (covered)
+                m->sample_pos[n++] = (int64_t)y * m->width + x;
         }
     }
+    m->samples.count = n;
     /* Cells in one grid row may pick different rows: sort so strips meet them in order. */
     for (int i = 1; i < n; i++) {
         int64_t v = m->sample_pos[i];
@@ -207,16 +230,15 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
     for (int64_t i = begin; i < end; i++) {
         sl_merge_frame *f = &job->res->frames[i];
         int rank = f->rank, w = m->width;
-        merge_strip_reader *rd = NULL;
-        merge_strip_info info;
+        merge_frame_reader *rd = NULL;
         float *buf = malloc((size_t)SAMPLE_STRIP * w * 3 * sizeof *buf);
-        sl_result r = buf ? merge_strip_open(f->path, &rd, &info, &job->errs[i])
+        sl_result r = buf ? merge_frame_open(f->path, &f->align, SAMPLE_STRIP, &rd, &job->errs[i])
                           : sl_error_set(&job->errs[i], SL_ERR_NOMEM, "merge: out of memory");
         int64_t sat = 0, black = 0, white = 0;
         int s = 0;
         for (int y0 = 0; y0 < m->height && !r; y0 += SAMPLE_STRIP) {
             int y1 = y0 + SAMPLE_STRIP < m->height ? y0 + SAMPLE_STRIP : m->height;
-            if ((r = merge_strip_read(rd, y0, y1, buf, &job->errs[i])))
+            if ((r = merge_frame_read(rd, y0, y1, buf, &job->errs[i])))
                 break;
             for (int64_t p = 0; p < (int64_t)(y1 - y0) * w; p++) {
                 const float *v = buf + p * 3;
@@ -237,7 +259,7 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
                     dst[c] = isfinite(v[c]) ? v[c] : 0.0f;
             }
         }
-        merge_strip_close(rd);
+        merge_frame_close(rd);
         free(buf);
         job->results[i] = r;
         double pixels = (double)m->width * m->height;
@@ -451,8 +473,10 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         if (!m->ratio || !m->offsets || !m->log_fit || !m->prev_fit || !m->scratch)
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     }
+    if (!r && opt.align)
+        r = align_frames(paths, count, &opt, out, err);
     if (!r)
-        r = choose_positions(m, opt.seed, err);
+        r = choose_positions(m, out, opt.seed, err);
     if (!r)
         r = sample_pass(m, out, err);
     if (r)

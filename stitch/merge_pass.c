@@ -7,7 +7,7 @@
 #include <string.h>
 
 #include "merge_private.h"
-#include "strip_reader.h"
+#include "warp_reader.h"
 
 enum { STRIP = 32 };
 
@@ -21,7 +21,7 @@ typedef struct pass_ctx {
     sl_merge_result *res;
     int frames;
     double *e;              /* per rank, relative to the reference frame */
-    merge_strip_reader **rd; /* per rank */
+    merge_frame_reader **rd; /* per rank */
     float **buf;            /* per rank: STRIP rows of RGB */
     sl_error *errs;
     sl_result *results;
@@ -58,7 +58,7 @@ static void read_strips(void *ctx, int64_t begin, int64_t end, int worker)
     (void)worker;
     pass_ctx *p = ctx;
     for (int64_t r = begin; r < end; r++)
-        p->results[r] = merge_strip_read(p->rd[r], p->y0, p->y1, p->buf[r], &p->errs[r]);
+        p->results[r] = merge_frame_read(p->rd[r], p->y0, p->y1, p->buf[r], &p->errs[r]);
 }
 
 /* Weighted median of x over the entries with w > 0. */
@@ -231,12 +231,11 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_r
     for (int q = 0; q < f && !r; q++) {
         const sl_merge_frame *fr = &res->frames[m->order[q]];
         p.e[q] = fr->exposure / ref;
-        merge_strip_info info;
         p.buf[q] = malloc((size_t)STRIP * m->width * 3 * sizeof *p.buf[q]);
         if (!p.buf[q])
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
         else
-            r = merge_strip_open(fr->path, &p.rd[q], &info, err);
+            r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
     for (int y0 = 0; y0 < m->height && !r; y0 += STRIP) {
         p.y0 = y0;
@@ -267,7 +266,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_r
     }
     for (int q = 0; q < f; q++) {
         if (p.rd)
-            merge_strip_close(p.rd[q]);
+            merge_frame_close(p.rd[q]);
         if (p.buf)
             free(p.buf[q]);
     }

@@ -39,8 +39,8 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
                       : SL_ENVMAP_NONE;
     sl_result r = sl_meta_set_color_space(&meta, "lin_rec709", err);
     /* One line per frame: path, EXIF time, f-number, ISO, exposures. */
-    char *frames = NULL, *curve = NULL, line[4096 + 256];
-    size_t fl = 0, cl = 0;
+    char *frames = NULL, *curve = NULL, *align = NULL, line[4096 + 256];
+    size_t fl = 0, cl = 0, al = 0;
     bool ok = true;
     for (int i = 0; i < res->frame_count && ok; i++) {
         const sl_merge_frame *f = &res->frames[i];
@@ -49,6 +49,12 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
                  f->path, f->time, f->f_number, f->iso, f->exif_exposure, f->fitted_exposure,
                  f->exposure, f->disagreement_stops, f->disagrees ? " DISAGREES" : "");
         ok = append(&frames, &fl, line);
+        if (ok && (f->align.pixels || f->align.note[0])) {
+            snprintf(line, sizeof line, "%s dx=%.4f dy=%.4f angle_deg=%.5f%s%s\n", f->path,
+                     f->align.dx, f->align.dy, f->align.angle, f->align.note[0] ? " " : "",
+                     f->align.note);
+            ok = append(&align, &al, line);
+        }
     }
     for (int c = 0; c < 3 && ok; c++)
         for (int k = 0; k < res->response.nodes && ok; k++) {
@@ -64,6 +70,8 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
         r = sl_meta_set(&meta, "setlight:version", version, err);
     if (!r)
         r = sl_meta_set(&meta, "setlight:merge:frames", frames ? frames : "", err);
+    if (!r && align)
+        r = sl_meta_set(&meta, "setlight:merge:align", align, err);
     if (!r)
         r = sl_meta_set(&meta, "setlight:merge:response_source", res->response.source, err);
     if (!r)
@@ -88,6 +96,7 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
         r = sl_meta_set(&meta, "setlight:merge:ghost_mask", ghost_path, err);
     free(frames);
     free(curve);
+    free(align);
     const char *side_path[2] = {mask_path, ghost_path};
     const sl_image *side_img[2] = {&res->clipped, &res->ghost};
     bool written[2] = {false, false};
@@ -104,7 +113,7 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
         sl_meta_free(&mm);
     }
     if (!r)
-        r = sl_exr_write(path, &res->radiance, &meta, SL_PIXEL_FLOAT, err);
+        r = sl_exr_write_compressed(path, &res->radiance, &meta, SL_PIXEL_FLOAT, SL_EXR_PIZ, err);
     for (int i = 0; i < 2 && r; i++)
         if (written[i])
             unlink(side_path[i]); /* no half-written set */

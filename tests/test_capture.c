@@ -260,9 +260,14 @@ static void test_ingest(void)
     const char *dir = sl_test_path("ingested");
     sl_error err;
     int frames, views;
-    CHECK_OK(sl_ingest(src, dir, 10, &frames, &views, &err), &err);
+    sl_progress bar;
+    sl_progress_begin(&bar, "ingest", 0);
+    CHECK_OK(sl_ingest(src, dir, 10, &bar, &frames, &views, &err), &err);
     CHECK(frames == 20);
     CHECK(views == 3);
+    /* the bar learns the total from the scan (the readme is not a photograph) */
+    CHECK(bar.total == 20 && bar.done == 20);
+    sl_progress_end(&bar);
     char sp[4096];
     snprintf(sp, sizeof sp, "%s/session.json", dir);
     json_error_t je;
@@ -291,7 +296,7 @@ static void test_ingest(void)
         json_decref(s);
     }
     /* again into the same folder: refused, never overwritten */
-    CHECK_RESULT(sl_ingest(src, dir, 10, &frames, &views, &err), SL_ERR_USAGE, &err);
+    CHECK_RESULT(sl_ingest(src, dir, 10, NULL, &frames, &views, &err), SL_ERR_USAGE, &err);
     CHECK(strstr(err.message, dir) != NULL);
     /* no photographs at all */
     const char *none = sl_test_path("nophotos");
@@ -300,8 +305,8 @@ static void test_ingest(void)
     f = fopen(junk, "w");
     fputs("x", f);
     fclose(f);
-    CHECK_RESULT(sl_ingest(none, sl_test_path("out2"), 10, &frames, &views, &err), SL_ERR_INPUT,
-                 &err);
+    CHECK_RESULT(sl_ingest(none, sl_test_path("out2"), 10, NULL, &frames, &views, &err),
+                 SL_ERR_INPUT, &err);
     CHECK(strstr(err.message, none) != NULL);
     struct stat st;
     CHECK(stat(sl_test_path("out2"), &st) != 0);

@@ -654,7 +654,7 @@ static void test_ingest_subsecond(void)
 
     const char *dir = sl_test_path("card_session");
     int frames, views;
-    CHECK_OK(sl_ingest(card, dir, 10, &frames, &views, &err), &err);
+    CHECK_OK(sl_ingest(card, dir, 10, NULL, &frames, &views, &err), &err);
     CHECK(frames == 20 && views == 2);
     char sp[4096];
     snprintf(sp, sizeof sp, "%s/session.json", dir);
@@ -745,7 +745,7 @@ static void test_ingest_vset(void)
     fclose(f);
     const char *dir = sl_test_path("vset_session");
     int nf, nv;
-    CHECK_OK(sl_ingest(card, dir, 10, &nf, &nv, &err), &err);
+    CHECK_OK(sl_ingest(card, dir, 10, NULL, &nf, &nv, &err), &err);
     CHECK(nf == 15 && nv == 3);
     char sp[4096];
     snprintf(sp, sizeof sp, "%s/session.json", dir);

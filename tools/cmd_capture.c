@@ -385,7 +385,11 @@ int cmd_ingest(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "needs a source folder and -o DIR");
     sl_error err;
     int frames, views;
-    if (sl_ingest(argv[optind], out, gap, &frames, &views, &err))
+    sl_progress bar;
+    sl_progress_begin(&bar, "ingest", 0); /* the total is known once the source is scanned */
+    sl_result r = sl_ingest(argv[optind], out, gap, &bar, &frames, &views, &err);
+    sl_progress_end(&bar);
+    if (r)
         return cli_fail(cli, &err);
     if (cli->json) {
         json_t *j = json_pack("{s:s, s:i, s:i}", "dir", out, "frames", frames, "views", views);

@@ -29,6 +29,10 @@ static const char *merge_help =
     "                         beyond the noise model (moving people, cars, leaves); the\n"
     "                         ghost mask (Y = 1 where a frame was left out) goes to\n"
     "                         OUT_ghost.exr unless --ghost-mask PATH\n"
+    "  --align                register the frames first (translation and small rotation,\n"
+    "                         sub-pixel; shift per frame in the log, --json and the EXR)\n"
+    "  --align-max-shift PX   larger shifts are refused (default 64)\n"
+    "  --align-max-angle DEG  larger rotations are refused (default 2, at most 10)\n"
     "  --noise GAIN,FLOOR     noise model var = GAIN * y + FLOOR (default 2e-5,1e-6)\n"
     "  --saturation Z         values at or above Z (0..1) are saturated (default 0.95)\n"
     "  --black Z              values at or below Z carry no weight (default 0.004)\n"
@@ -93,27 +97,41 @@ static int parse_times(const char *s, double **times)
     return k == n ? n : -1;
 }
 
-static json_t *frames_json(const sl_merge_result *res)
+static json_t *frames_json(const sl_merge_result *res, bool aligned)
 {
     json_t *a = json_array();
     for (int i = 0; i < res->frame_count; i++) {
         const sl_merge_frame *f = &res->frames[i];
+        json_t *o;
         json_array_append_new(
-            a, json_pack("{s:s, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:b, s:i, s:f, s:f}", "path",
+            a, o = json_pack("{s:s, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:b, s:i, s:f, s:f}", "path",
                          f->path, "time", f->time, "f_number", f->f_number, "iso", f->iso,
                          "exif_exposure", f->exif_exposure, "fitted_exposure",
                          f->fitted_exposure, "exposure", f->exposure, "disagreement_stops",
                          f->disagreement_stops, "disagrees", f->disagrees, "rank", f->rank,
                          "saturated_fraction", f->saturated_fraction, "black_fraction",
                          f->black_fraction));
+        if (aligned)
+            json_object_set_new(o, "align",
+                                json_pack("{s:f, s:f, s:f, s:I, s:b, s:s}", "dx", f->align.dx, "dy",
+                                          f->align.dy, "angle_deg", f->align.angle, "pixels",
+                                          (json_int_t)f->align.pixels, "applied", f->align.applied,
+                                          "note", f->align.note));
     }
     return a;
 }
 
-static void log_frames(const sl_merge_result *res)
+static void log_frames(const sl_merge_result *res, bool aligned)
 {
     for (int i = 0; i < res->frame_count; i++) {
         const sl_merge_frame *f = &res->frames[i];
+        if (aligned && !strcmp(f->align.note, "reference"))
+            sl_log(SL_LOG_INFO, "%s: alignment reference", f->path);
+        else if (aligned)
+            sl_log(f->align.note[0] ? SL_LOG_WARN : SL_LOG_INFO,
+                   "%s: shift %+.2f, %+.2f px, rotation %+.3f deg%s%s", f->path, f->align.dx,
+                   f->align.dy, f->align.angle, f->align.note[0] ? "; not aligned: " : "",
+                   f->align.note);
         if (f->disagrees)
             sl_log(SL_LOG_WARN,
                    "%s: exposure from the pixels is %+.2f stops off what EXIF/--times says",
@@ -140,7 +158,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
 {
     enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
            OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK,
-           OPT_ABS };
+           OPT_ABS, OPT_ALIGN, OPT_ALIGN_SHIFT, OPT_ALIGN_ANGLE };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"output", required_argument, NULL, 'o'},
@@ -158,6 +176,9 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         {"deghost", no_argument, NULL, OPT_DEGHOST},
         {"ghost-mask", required_argument, NULL, OPT_GHOSTMASK},
         {"absolute", no_argument, NULL, OPT_ABS},
+        {"align", no_argument, NULL, OPT_ALIGN},
+        {"align-max-shift", required_argument, NULL, OPT_ALIGN_SHIFT},
+        {"align-max-angle", required_argument, NULL, OPT_ALIGN_ANGLE},
         {0, 0, 0, 0}};
     sl_merge_options_init(&a->opt);
     a->opt.response_mode = SL_RESPONSE_AUTO;
@@ -165,7 +186,8 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     int c, which = 0;
     while ((c = getopt_long(argc, argv, "+ho:", opts, &which)) != -1) {
         bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE ||
-                          c == OPT_DEGHOST || c == OPT_GHOSTMASK || c == OPT_ABS;
+                          c == OPT_DEGHOST || c == OPT_GHOSTMASK || c == OPT_ABS ||
+                          c == OPT_ALIGN || c == OPT_ALIGN_SHIFT || c == OPT_ALIGN_ANGLE;
         if (merge_only && !is_merge)
             return cli_usage_error(cli, "unknown option '--%s'", opts[which].name);
         switch (c) {
@@ -221,6 +243,24 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
             a->ghost_mask = optarg;
             a->opt.deghost = true;
             break;
+        case OPT_ALIGN:
+            a->opt.align = true;
+            break;
+        case OPT_ALIGN_SHIFT:
+        case OPT_ALIGN_ANGLE: {
+            double v;
+            double top = c == OPT_ALIGN_SHIFT ? 1e6 : 10;
+            if (!cli_parse_double(optarg, &v) || !(v > 0) || v > top)
+                return cli_usage_error(cli, "--%s needs a number above 0%s, not '%s'",
+                                       opts[which].name, c == OPT_ALIGN_ANGLE ? " and at most 10" : "",
+                                       optarg);
+            if (c == OPT_ALIGN_SHIFT)
+                a->opt.align_max_shift = v;
+            else
+                a->opt.align_max_angle = v;
+            a->opt.align = true;
+            break;
+        }
         case OPT_NOISE: {
             double *v = NULL;
             int n = parse_times(optarg, &v);
@@ -313,7 +353,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
         free_args(&a);
         return cli_fail(cli, &err);
     }
-    log_frames(&res);
+    log_frames(&res, a.opt.align);
     sl_log(SL_LOG_INFO,
            "%s: %d frames, response %s, %lld pixels clipped in every frame (%.4f%%), %.2f s",
            a.output, res.frame_count, res.response.source, (long long)res.clipped_pixels,
@@ -324,7 +364,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
             "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
             (json_int_t)res.ghost_pixels, "width", res.radiance.width, "height",
             res.radiance.height, "response", res.response.source, "exposures",
-            a.opt.exposures == SL_EXPOSURES_DATA ? "data" : "exif", "frames", frames_json(&res),
+            a.opt.exposures == SL_EXPOSURES_DATA ? "data" : "exif", "frames", frames_json(&res, a.opt.align),
             "reference_frame", res.reference, "clipped_pixels", (json_int_t)res.clipped_pixels,
             "clipped_samples", (json_int_t)res.clipped_samples[0],
             (json_int_t)res.clipped_samples[1], (json_int_t)res.clipped_samples[2],
@@ -365,7 +405,7 @@ int cmd_response(int argc, char **argv, const sl_cli *cli)
         free_args(&a);
         return cli_fail(cli, &err);
     }
-    log_frames(&res);
+    log_frames(&res, false);
     if (cli->json) {
         double mid[3];
         for (int c = 0; c < 3; c++)
@@ -373,7 +413,7 @@ int cmd_response(int argc, char **argv, const sl_cli *cli)
         json_t *o = json_pack("{s:s, s:s, s:i, s:[f,f,f], s:o, s:I, s:f}", "output", a.output,
                               "source", res.response.source, "nodes", res.response.nodes,
                               "linear_at_half", mid[0], mid[1], mid[2], "frames",
-                              frames_json(&res), "disagreeing_frames",
+                              frames_json(&res, false), "disagreeing_frames",
                               (json_int_t)res.disagreeing_frames, "seconds", res.seconds);
         json_dumpf(o, stdout, JSON_INDENT(2));
         fputc('\n', stdout);

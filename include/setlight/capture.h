@@ -530,9 +530,11 @@ sl_result sl_session_write(const char *dir, sl_error *err);
  * exposure and sequence, copies them into `dir` (never overwriting) and
  * writes DIR/session.json. Non-image files are listed as problems; a folder
  * with no photographs is SL_ERR_INPUT. gap_seconds: a pause longer than this
- * between two frames starts a new view (0: 10 s). */
-sl_result sl_ingest(const char *src, const char *dir, double gap_seconds, int *frames,
-                    int *views, sl_error *err);
+ * between two frames starts a new view (0: 10 s). progress (may be NULL): a
+ * bar the caller began; its total is set to the photographs found and one is
+ * added per frame copied. */
+sl_result sl_ingest(const char *src, const char *dir, double gap_seconds, sl_progress *progress,
+                    int *frames, int *views, sl_error *err);
 
 #ifdef __cplusplus
 }

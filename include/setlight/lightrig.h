@@ -140,8 +140,9 @@ sl_result sl_rig_write_json(const sl_rig *rig, const char *path, const char *dom
 char *sl_rig_json_string(const sl_rig *rig, const char *dome_file);
 /* Textured area lights: for every rect light (positioned or at infinity), the region's
  * light above the dome as seen from the capture point (column 0 at the
- * light's local +X, row 0 at +Y), normalised to a solid-angle-weighted mean
- * luminance of 1 so the power is unchanged, written as PREFIX_light_NN.exr
+ * light's local +X, row 0 at +Y), each channel normalised to a
+ * solid-angle-weighted mean of 1 (the light's colour is the mean radiance) so
+ * power and colour are unchanged, written as PREFIX_light_NN.exr
  * (float); the base name goes into light->texture. env is the map the rig
  * was extracted from. */
 sl_result sl_rig_write_textures(sl_rig *rig, const sl_image *env, const char *prefix,

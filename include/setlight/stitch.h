@@ -63,6 +63,9 @@ typedef struct sl_merge_options {
     double deghost_model_error; /* relative error added to the noise model (0.05) */
     bool absolute;              /* output in cd/m^2 from EXIF time, f-number and ISO:
                                    L = SL_MERGE_K_SAT * y * N^2 / (t * ISO) (docs/merge.md) */
+    bool align;                 /* register the frames before merging (sl_align_bracket) */
+    double align_max_shift;     /* pixels; larger shifts are refused (default 64) */
+    double align_max_angle;     /* degrees; larger rotations are refused (default 2) */
 } sl_merge_options;
 
 /* ISO 12232 saturation-based speed: a sensor saturates at H = 78 / ISO lux s,
@@ -73,6 +76,17 @@ typedef struct sl_merge_options {
 
 /* Fills the defaults above. */
 void sl_merge_options_init(sl_merge_options *opt);
+
+/* Where frame content sits relative to the reference frame: the scene point
+ * at position p of the reference (pixels, top-left corner (0, 0)) is at
+ * q = R(angle) (p - c) + c + (dx, dy) in the frame, c the image centre and
+ * R a rotation by `angle` degrees from +x towards +y (clockwise on screen). */
+typedef struct sl_align_transform {
+    double dx, dy, angle;
+    int64_t pixels;   /* pixels the estimate rests on (alignment resolution) */
+    bool applied;     /* false: left as it is (reference, or nothing to go on) */
+    char note[96];    /* why not applied, "" otherwise */
+} sl_align_transform;
 
 typedef struct sl_merge_frame {
     char *path;
@@ -86,6 +100,7 @@ typedef struct sl_merge_frame {
     int rank;                        /* 0 = shortest exposure */
     double saturated_fraction;       /* pixels with a channel at or above saturation */
     double black_fraction;           /* pixels with every channel at or below black */
+    sl_align_transform align;        /* with opt.align */
 } sl_merge_frame;
 
 typedef struct sl_merge_result {
@@ -129,6 +144,18 @@ void sl_merge_result_free(sl_merge_result *res);
 /* Recovers the response alone (Debevec-Malik) and checks the exposures. */
 sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_options *opt,
                             sl_merge_result *out, sl_error *err);
+/* Registers the frames of a bracket (median-threshold bitmaps over an image
+ * pyramid, then Gauss-Newton refinement of translation and rotation to a
+ * fraction of a pixel) on their luminance, each frame against its
+ * neighbour in exposure with the tones matched through the two frames'
+ * histograms, chained to the reference (the median exposure). Pixels
+ * saturated or black in either frame take no part, so mostly clipped or
+ * dark frames are left unaligned with a note rather than given a false
+ * shift. exposures: any positive value per frame that orders them.
+ * out[i] for frame i; opt gives black, saturation and the limits. */
+sl_result sl_align_bracket(const char *const *paths, int count, const double *exposures,
+                           const sl_merge_options *opt, sl_align_transform *out, sl_error *err);
+
 /* Writes the radiance EXR (float) with provenance attributes and, when
  * mask_path / ghost_path are not NULL, the clipped mask (RGB) and the ghost
  * mask (Y, needs a deghosted result) beside it, each atomically; on failure

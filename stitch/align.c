@@ -1,0 +1,566 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Frame registration for the merge: median-threshold bitmaps (Ward 2003)
+ * over a pyramid for the coarse translation, then Gauss-Newton on
+ * translation and rotation for the sub-pixel answer. Frames are compared
+ * on luminance with the tones of one mapped onto the other through their
+ * histograms (exposure normalisation without knowing the response). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "merge_private.h"
+
+/* Alignment works on at most this many pixels (box-averaged blocks). */
+enum { ALIGN_PIXELS = 3000000, MIN_TOP = 24, MAX_LEVELS = 8, HIST = 4096 };
+
+/* Luminance in [0, 1]; BLACK below the black level (or too dark to carry
+ * signal: a few noisy codes only give a false match), SAT at saturation. */
+#define DARK 0.05
+#define BLACK (-1.0f)
+#define SAT 2.0f
+
+typedef struct plane {
+    int w, h;
+    float *v;
+} plane;
+
+typedef struct luma {
+    int levels;
+    plane lv[MAX_LEVELS]; /* lv[0] at the alignment resolution */
+} luma;
+
+static void luma_free(luma *l)
+{
+    for (int i = 0; i < l->levels; i++)
+        free(l->lv[i].v);
+    memset(l, 0, sizeof *l);
+}
+
+/* Well-exposed pixels (in both frames) an estimate needs: 5% of the image.
+ * Fewer, in a dark or clipped frame, can still pull the match off by a
+ * pixel or more; such a frame is better left alone and said so. */
+static int64_t min_overlap(const plane *p)
+{
+    int64_t n = (int64_t)p->w * p->h / 20;
+    return n < 200 ? 200 : n;
+}
+
+static inline bool valid(float v) { return v >= 0 && v <= 1; }
+
+/* Reads a frame into block-averaged luminance; a block with any black or
+ * saturated pixel takes that state (saturation wins). */
+static sl_result read_luma(const char *path, int scale, const sl_merge_options *opt, plane *out,
+                           sl_error *err)
+{
+    sl_photo_strips *rd;
+    sl_photo_strip_info info;
+    sl_result r = sl_photo_strips_open(path, &rd, &info, err);
+    if (r)
+        return r;
+    int w = info.width / scale, h = info.height / scale, fw = info.width;
+    out->w = w;
+    out->h = h;
+    out->v = malloc((size_t)w * h * sizeof *out->v);
+    float *buf = malloc((size_t)scale * fw * 3 * sizeof *buf);
+    double *acc = malloc((size_t)w * sizeof *acc);
+    unsigned char *state = malloc((size_t)w);
+    if (!out->v || !buf || !acc || !state)
+        r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+    float black = (float)fmax(opt->black, DARK), sat = (float)opt->saturation;
+    for (int by = 0; by < h && !r; by++) {
+        if ((r = sl_photo_strips_read(rd, by * scale, (by + 1) * scale, buf, err)))
+            break;
+        memset(acc, 0, (size_t)w * sizeof *acc);
+        memset(state, 0, (size_t)w);
+        for (int j = 0; j < scale; j++)
+            for (int x = 0; x < w * scale; x++) {
+                const float *p = buf + ((size_t)j * fw + x) * 3;
+                int bx = x / scale;
+                double y = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+                if (!(p[0] < sat && p[1] < sat && p[2] < sat))
+                    state[bx] = 2; /* also NaN */
+                else if (y <= black)
+                    state[bx] = state[bx] ? state[bx] : 1;
+                acc[bx] += y;
+            }
+        float *dst = out->v + (size_t)by * w;
+        double inv = 1.0 / ((double)scale * scale);
+        for (int x = 0; x < w; x++)
+            dst[x] = state[x] == 2 ? SAT : state[x] == 1 ? BLACK : (float)fmin(acc[x] * inv, 1);
+    }
+    sl_photo_strips_close(rd);
+    free(buf);
+    free(acc);
+    free(state);
+    return r;
+}
+
+/* Halves a plane; a block is valid only when its four pixels are. */
+static sl_result halve(const plane *src, plane *dst, sl_error *err)
+{
+    dst->w = src->w / 2;
+    dst->h = src->h / 2;
+    dst->v = malloc((size_t)dst->w * dst->h * sizeof *dst->v);
+    if (!dst->v)
+        return sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
+    for (int y = 0; y < dst->h; y++)
+        for (int x = 0; x < dst->w; x++) {
+            const float *a = src->v + (size_t)(2 * y) * src->w + 2 * x, *b = a + src->w;
+            float q[4] = {a[0], a[1], b[0], b[1]}, v = 0;
+            bool ok = true;
+            for (int k = 0; k < 4; k++) {
+                ok = ok && valid(q[k]);
+                v += q[k];
+            }
+            float out = 0.25f * v;
+            if (!ok) {
+                out = BLACK;
+                for (int k = 0; k < 4; k++)
+                    out = q[k] == SAT ? SAT : out;
+            }
+            dst->v[(size_t)y * dst->w + x] = out;
+        }
+    return SL_OK;
+}
+
+static sl_result build_pyramid(luma *l, sl_error *err)
+{
+    l->levels = 1;
+    while (l->levels < MAX_LEVELS && l->lv[l->levels - 1].w / 2 >= MIN_TOP &&
+           l->lv[l->levels - 1].h / 2 >= MIN_TOP) {
+        sl_result r = halve(&l->lv[l->levels - 1], &l->lv[l->levels], err);
+        if (r)
+            return r;
+        l->levels++;
+    }
+    return SL_OK;
+}
+
+/* Tone map from b's luminance to a's: equal ranks in the two histograms
+ * (frames of one scene differ by a monotonic function of exposure).
+ * Black pixels rank lowest and saturated ones highest. */
+static void match_tones(const plane *a, const plane *b, float *map)
+{
+    double ha[HIST + 2], hb[HIST + 2];
+    double *h[2] = {ha, hb};
+    const plane *p[2] = {a, b};
+    for (int k = 0; k < 2; k++) {
+        memset(h[k], 0, (HIST + 2) * sizeof(double));
+        size_t n = (size_t)p[k]->w * p[k]->h;
+        for (size_t i = 0; i < n; i++) {
+            float v = p[k]->v[i];
+            int bin = v == BLACK ? 0 : v == SAT ? HIST + 1 : 1 + (int)fminf(v * HIST, HIST - 1);
+            h[k][bin]++;
+        }
+        for (int i = 1; i < HIST + 2; i++)
+            h[k][i] += h[k][i - 1];
+        for (int i = 0; i < HIST + 2; i++)
+            h[k][i] /= h[k][HIST + 1];
+    }
+    /* For b's bin centre: the rank's value in a (linear between bin edges). */
+    int j = 0;
+    for (int i = 1; i <= HIST; i++) {
+        double rank = 0.5 * (hb[i - 1] + hb[i]);
+        while (j < HIST + 1 && ha[j] < rank)
+            j++;
+        float v;
+        if (j == 0)
+            v = BLACK;
+        else if (j == HIST + 1)
+            v = SAT;
+        else {
+            double lo = ha[j - 1], hi = ha[j], f = hi > lo ? (rank - lo) / (hi - lo) : 0.5;
+            v = (float)((j - 1 + f) / HIST);
+        }
+        map[i - 1] = v;
+    }
+}
+
+static void apply_map(const plane *b, const float *map, plane *out)
+{
+    size_t n = (size_t)b->w * b->h;
+    for (size_t i = 0; i < n; i++) {
+        float v = b->v[i];
+        out->v[i] = valid(v) ? map[(int)fminf(v * HIST, HIST - 1)] : v;
+    }
+}
+
+/* Median of a's values that b' can also show, over pixels valid in a. */
+static float threshold(const plane *a, const plane *bm)
+{
+    float lo = 1, hi = 0;
+    size_t n = (size_t)bm->w * bm->h;
+    for (size_t i = 0; i < n; i++)
+        if (valid(bm->v[i])) {
+            lo = fminf(lo, bm->v[i]);
+            hi = fmaxf(hi, bm->v[i]);
+        }
+    int hist[HIST] = {0};
+    int64_t total = 0;
+    n = (size_t)a->w * a->h;
+    for (size_t i = 0; i < n; i++) {
+        float v = a->v[i];
+        if (valid(v) && v >= lo && v <= hi) {
+            hist[(int)fminf(v * HIST, HIST - 1)]++;
+            total++;
+        }
+    }
+    int64_t run = 0;
+    for (int i = 0; i < HIST; i++)
+        if ((run += hist[i]) * 2 >= total)
+            return (i + 0.5f) / HIST;
+    return 0.5f;
+}
+
+/* Fraction of differing bits between a and b' shifted by (sx, sy), over
+ * pixels valid in both and away from the threshold; *count gets how many. */
+static double mtb_cost(const plane *a, const plane *b, float t, float eps, int sx, int sy,
+                       int64_t *count)
+{
+    int64_t diff = 0, n = 0;
+    for (int y = 0; y < a->h; y++) {
+        int yb = y + sy;
+        if (yb < 0 || yb >= b->h)
+            continue;
+        const float *ra = a->v + (size_t)y * a->w, *rb = b->v + (size_t)yb * b->w;
+        int x0 = sx < 0 ? -sx : 0, x1 = a->w < b->w - sx ? a->w : b->w - sx;
+        for (int x = x0; x < x1; x++) {
+            float va = ra[x], vb = rb[x + sx];
+            if (!valid(va) || !valid(vb) || fabsf(va - t) < eps || fabsf(vb - t) < eps)
+                continue;
+            n++;
+            diff += (va > t) != (vb > t);
+        }
+    }
+    *count = n;
+    return n ? (double)diff / (double)n : 1;
+}
+
+typedef struct rigid {
+    double tx, ty, th; /* at level 0 of the alignment resolution, radians */
+} rigid;
+
+/* Gauss-Newton on (tx, ty, th) at one level: residual b'(T p) - a(p) with
+ * a's gradient, Huber weights. Returns pixels used in the last iteration. */
+static int64_t refine(const plane *a, const plane *b, int level, rigid *t)
+{
+    double s = ldexp(1, level), cx = 0.5 * a->w, cy = 0.5 * a->h;
+    int64_t used = 0;
+    for (int it = 0; it < 12; it++) {
+        double H[3][3] = {{0}}, g[3] = {0};
+        double c = cos(t->th), sn = sin(t->th), tx = t->tx / s, ty = t->ty / s;
+        used = 0;
+        for (int y = 1; y < a->h - 1; y++) {
+            const float *ra = a->v + (size_t)y * a->w;
+            for (int x = 1; x < a->w - 1; x++) {
+                float va = ra[x], l = ra[x - 1], rr = ra[x + 1], u = ra[x - a->w], d = ra[x + a->w];
+                if (!valid(va) || !valid(l) || !valid(rr) || !valid(u) || !valid(d))
+                    continue;
+                double px = x + 0.5 - cx, py = y + 0.5 - cy;
+                double qx = c * px - sn * py + cx + tx - 0.5, qy = sn * px + c * py + cy + ty - 0.5;
+                int ix = (int)floor(qx), iy = (int)floor(qy);
+                if (ix < 0 || iy < 0 || ix + 1 >= b->w || iy + 1 >= b->h)
+                    continue;
+                const float *q0 = b->v + (size_t)iy * b->w + ix, *q1 = q0 + b->w;
+                if (!valid(q0[0]) || !valid(q0[1]) || !valid(q1[0]) || !valid(q1[1]))
+                    continue;
+                double fx = qx - ix, fy = qy - iy;
+                double vb = (1 - fy) * ((1 - fx) * q0[0] + fx * q0[1]) + fy * ((1 - fx) * q1[0] + fx * q1[1]);
+                double r = vb - va, gx = 0.5 * (rr - l), gy = 0.5 * (d - u);
+                double J[3] = {gx, gy, gx * (-sn * px - c * py) + gy * (c * px - sn * py)};
+                double wgt = fabs(r) < 0.03 ? 1 : 0.03 / fabs(r);
+                for (int i = 0; i < 3; i++) {
+                    g[i] += wgt * J[i] * r;
+                    for (int j = 0; j < 3; j++)
+                        H[i][j] += wgt * J[i] * J[j];
+                }
+                used++;
+            }
+        }
+        if (used < min_overlap(a) / 4)
+            return used;
+        /* Gauss-Newton step: H d = -g. */
+        double m[3][4];
+        for (int i = 0; i < 3; i++) {
+            for (int j = 0; j < 3; j++)
+                m[i][j] = H[i][j] + (i == j ? 1e-9 * (H[0][0] + H[1][1]) : 0);
+            m[i][3] = -g[i];
+        }
+        bool singular = false;
+        for (int k = 0; k < 3 && !singular; k++) {
+            int piv = k;
+            for (int i = k + 1; i < 3; i++)
+                if (fabs(m[i][k]) > fabs(m[piv][k]))
+                    piv = i;
+            if (!(fabs(m[piv][k]) > 0)) {
+                singular = true;
+                break;
+            }
+            for (int j = 0; j < 4; j++) {
+                double tmp = m[k][j];
+                m[k][j] = m[piv][j];
+                m[piv][j] = tmp;
+            }
+            for (int i = 0; i < 3; i++)
+                if (i != k) {
+                    double f = m[i][k] / m[k][k];
+                    for (int j = k; j < 4; j++)
+                        m[i][j] -= f * m[k][j];
+                }
+        }
+        if (singular)
+            return 0;
+        double dx = m[0][3] / m[0][0], dy = m[1][3] / m[1][1], dth = m[2][3] / m[2][2];
+        t->tx += dx * s;
+        t->ty += dy * s;
+        t->th += dth;
+        if (fabs(dx) < 1e-4 && fabs(dy) < 1e-4 && fabs(dth) * a->w < 1e-4)
+            break;
+    }
+    return used;
+}
+
+enum { JOINT = 256 };
+
+/* The tone map again, now from pixel pairs under the current transform:
+ * per bin of b's value, the mean of a's values it meets (a histogram
+ * match is off by the content the motion brings in and out of frame). */
+static void joint_tones(const plane *a, const plane *b, const rigid *t, float *map)
+{
+    double sa[JOINT] = {0}, sb[JOINT] = {0}, n[JOINT] = {0};
+    double c = cos(t->th), sn = sin(t->th), cx = 0.5 * a->w, cy = 0.5 * a->h;
+    for (int y = 0; y < a->h; y++)
+        for (int x = 0; x < a->w; x++) {
+            float va = a->v[(size_t)y * a->w + x];
+            double px = x + 0.5 - cx, py = y + 0.5 - cy;
+            int qx = (int)floor(c * px - sn * py + cx + t->tx), qy = (int)floor(sn * px + c * py + cy + t->ty);
+            if (!valid(va) || qx < 0 || qy < 0 || qx >= b->w || qy >= b->h)
+                continue;
+            float vb = b->v[(size_t)qy * b->w + qx];
+            if (!valid(vb))
+                continue;
+            int k = (int)fminf(vb * JOINT, JOINT - 1);
+            sa[k] += va;
+            sb[k] += vb;
+            n[k]++;
+        }
+    double xs[JOINT], ys[JOINT];
+    int m = 0;
+    for (int k = 0; k < JOINT; k++)
+        if (n[k] >= 20) {
+            xs[m] = sb[k] / n[k];
+            ys[m] = m ? fmax(sa[k] / n[k], ys[m - 1]) : sa[k] / n[k];
+            m++;
+        }
+    if (m < 2)
+        return;
+    int j = 0;
+    for (int i = 0; i < HIST; i++) {
+        double v = (i + 0.5) / HIST;
+        while (j + 2 < m && xs[j + 1] < v)
+            j++;
+        double f = (v - xs[j]) / (xs[j + 1] - xs[j]);
+        map[i] = (float)(ys[j] + f * (ys[j + 1] - ys[j]));
+    }
+}
+
+/* Estimates b relative to a (both at the alignment resolution). */
+static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
+                       const sl_merge_options *opt, double scale, rigid *out, int64_t *used,
+                       char *note, size_t note_size)
+{
+    memset(out, 0, sizeof *out);
+    *used = 0;
+    match_tones(&a->lv[0], &b->lv[0], map);
+    for (int i = 0; i < bm->levels; i++)
+        apply_map(&b->lv[i], map, &bm->lv[i]);
+    float t = threshold(&a->lv[0], &bm->lv[0]), eps = 4.0f / 255;
+    int top = a->levels - 1;
+    int range = (int)ceil(opt->align_max_shift / (scale * ldexp(1, top))) + 1;
+    int sx = 0, sy = 0;
+    double best = 2;
+    int64_t n = 0;
+    for (int y = -range; y <= range; y++)
+        for (int x = -range; x <= range; x++) {
+            int64_t cnt;
+            double cost = mtb_cost(&a->lv[top], &bm->lv[top], t, eps, x, y, &cnt);
+            cost += 1e-9 * (x * x + y * y); /* ties go to the smaller shift */
+            if (cnt * 4 >= n && cost < best) {
+                best = cost;
+                sx = x;
+                sy = y;
+                n = cnt > n ? cnt : n;
+            }
+        }
+    for (int lv = top - 1; lv >= 0; lv--) {
+        int cx = 2 * sx, cy = 2 * sy;
+        best = 2;
+        for (int y = -1; y <= 1; y++)
+            for (int x = -1; x <= 1; x++) {
+                int64_t cnt;
+                double cost = mtb_cost(&a->lv[lv], &bm->lv[lv], t, eps, cx + x, cy + y, &cnt);
+                cost += 1e-9 * (x * x + y * y);
+                if (cnt > 0 && cost < best) {
+                    best = cost;
+                    sx = cx + x;
+                    sy = cy + y;
+                }
+            }
+    }
+    out->tx = sx;
+    out->ty = sy;
+    /* Refine from a level where a degree of rotation moves the corners a
+     * few pixels at most, down to full alignment resolution. */
+    int start = 0;
+    while (start + 1 < a->levels && a->lv[start].w > 256)
+        start++;
+    for (int lv = start; lv >= 0; lv--)
+        *used = refine(&a->lv[lv], &bm->lv[lv], lv, out);
+    for (int round = 0; round < 4 && *used >= min_overlap(&a->lv[0]); round++) {
+        joint_tones(&a->lv[0], &b->lv[0], out, map);
+        apply_map(&b->lv[0], map, &bm->lv[0]);
+        *used = refine(&a->lv[0], &bm->lv[0], 0, out);
+    }
+    if (*used < min_overlap(&a->lv[0])) {
+        snprintf(note, note_size, "%lld pixels well exposed in both frames (too few)",
+                 (long long)*used);
+        memset(out, 0, sizeof *out);
+    }
+}
+
+typedef struct luma_job {
+    const char *const *paths;
+    const sl_merge_options *opt;
+    int scale;
+    luma *l;
+    sl_error *errs;
+    sl_result *results;
+} luma_job;
+
+static void luma_frames(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    luma_job *job = ctx;
+    for (int64_t i = begin; i < end; i++) {
+        sl_result r = read_luma(job->paths[i], job->scale, job->opt, &job->l[i].lv[0], &job->errs[i]);
+        job->l[i].levels = 1;
+        if (!r)
+            r = build_pyramid(&job->l[i], &job->errs[i]);
+        job->results[i] = r;
+    }
+}
+
+static int cmp_exposure(const void *a, const void *b, void *ctx)
+{
+    const double *e = ctx;
+    double x = e[*(const int *)a], y = e[*(const int *)b];
+    return (x > y) - (x < y);
+}
+
+sl_result sl_align_bracket(const char *const *paths, int count, const double *exposures,
+                           const sl_merge_options *opt_in, sl_align_transform *out, sl_error *err)
+{
+    memset(out, 0, (size_t)(count > 0 ? count : 0) * sizeof *out);
+    sl_merge_options opt;
+    if (opt_in)
+        opt = *opt_in;
+    else
+        sl_merge_options_init(&opt);
+    if (count < 2 || count > MERGE_MAX_FRAMES)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: alignment needs 2 to %d frames",
+                            count > 0 ? paths[0] : "(no frames)", MERGE_MAX_FRAMES);
+    if (!(opt.align_max_shift > 0) || !(opt.align_max_angle > 0) || !(opt.align_max_angle <= 10))
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "%s: alignment limits out of range (shift > 0, 0 < angle <= 10)",
+                            paths[0]);
+    sl_photo_strips *rd;
+    sl_photo_strip_info info;
+    sl_result r = sl_photo_strips_open(paths[0], &rd, &info, err);
+    if (r)
+        return r;
+    sl_photo_strips_close(rd);
+    int scale = 1;
+    while ((double)(info.width / scale) * (info.height / scale) > ALIGN_PIXELS)
+        scale++;
+    luma *l = calloc((size_t)count, sizeof *l);
+    luma bm = {0};
+    float *map = malloc(HIST * sizeof *map);
+    int *order = malloc((size_t)count * sizeof *order);
+    sl_error *errs = calloc((size_t)count, sizeof *errs);
+    sl_result *results = calloc((size_t)count, sizeof *results);
+    if (!l || !map || !order || !errs || !results)
+        r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
+    if (!r) {
+        luma_job job = {paths, &opt, scale, l, errs, results};
+        sl_parallel_for(count, 1, luma_frames, &job);
+        for (int i = 0; i < count && !r; i++)
+            if ((r = results[i]) && err)
+                *err = errs[i];
+    }
+    for (int i = 1; i < count && !r; i++)
+        if (l[i].lv[0].w != l[0].lv[0].w || l[i].lv[0].h != l[0].lv[0].h)
+            r = sl_error_set(err, SL_ERR_INPUT, "%s: size differs from %s", paths[i], paths[0]);
+    if (!r) {
+        bm.levels = l[0].levels;
+        for (int i = 0; i < bm.levels && !r; i++) {
+            bm.lv[i] = l[0].lv[i];
+            if (!(bm.lv[i].v = malloc((size_t)bm.lv[i].w * bm.lv[i].h * sizeof(float))))
+                r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
+        }
+    }
+    if (!r) {
+        for (int i = 0; i < count; i++)
+            order[i] = i;
+        qsort_r(order, (size_t)count, sizeof *order, cmp_exposure, (void *)exposures);
+        int ref = (count - 1) / 2;
+        snprintf(out[order[ref]].note, sizeof out[order[ref]].note, "reference");
+        /* Outward from the reference, each frame against its neighbour;
+         * transforms compose: q = R(a+b) (p - c) + R(b) t_a + t_b + c. */
+        rigid chain[MERGE_MAX_FRAMES] = {{0}};
+        for (int dir = -1; dir <= 1; dir += 2)
+            for (int q = ref + dir; q >= 0 && q < count; q += dir) {
+                int fa = order[q - dir], fb = order[q];
+                sl_align_transform *o = &out[fb];
+                rigid step, prev = chain[q - dir];
+                int64_t used;
+                align_pair(&l[fa], &l[fb], map, &bm, &opt, scale, &step, &used, o->note,
+                           sizeof o->note);
+                double c = cos(step.th), s = sin(step.th);
+                chain[q].th = prev.th + step.th;
+                chain[q].tx = c * prev.tx - s * prev.ty + step.tx;
+                chain[q].ty = s * prev.tx + c * prev.ty + step.ty;
+                o->pixels = used;
+                if (fabs(step.tx * scale) > opt.align_max_shift ||
+                    fabs(step.ty * scale) > opt.align_max_shift ||
+                    fabs(step.th * 180 / M_PI) > opt.align_max_angle)
+                    snprintf(o->note, sizeof o->note, "beyond the limits (%.1f px, %.2f deg)",
+                             opt.align_max_shift, opt.align_max_angle);
+                if (o->note[0])
+                    chain[q] = prev; /* unaligned: where its neighbour sits */
+                /* To full resolution, where the centre may sit up to half a
+                 * block off the alignment image's: R (p - c') + c' + t = R
+                 * (p - c) + c + t + (I - R)(c' - c). */
+                double th = chain[q].th, ct = cos(th), st = sin(th);
+                double ex = 0.5 * l[0].lv[0].w * scale - 0.5 * info.width;
+                double ey = 0.5 * l[0].lv[0].h * scale - 0.5 * info.height;
+                o->dx = chain[q].tx * scale + ex - (ct * ex - st * ey);
+                o->dy = chain[q].ty * scale + ey - (st * ex + ct * ey);
+                o->angle = th * 180 / M_PI;
+                /* Sub-0.05 px everywhere on the frame: resampling would only blur. */
+                double reach = fabs(chain[q].th) * 0.5 * hypot(info.width, info.height);
+                o->applied = hypot(o->dx, o->dy) + reach > 0.05;
+            }
+    }
+    for (int i = 0; l && i < count; i++)
+        luma_free(&l[i]);
+    luma_free(&bm);
+    free(l);
+    free(map);
+    free(order);
+    free(errs);
+    free(results);
+    if (r)
+        memset(out, 0, (size_t)count * sizeof *out);
+    return r;
+}
