@@ -29,6 +29,10 @@ static json_t *rig_json(const sl_rig *rig, const char *dome_file)
         json_object_set_new(o, "position", L->has_position ? vec(L->position, 3) : json_null());
         json_object_set_new(o, "size", L->has_position ? vec(L->size, 2) : json_null());
         json_object_set_new(o, "texture", L->texture[0] ? json_string(L->texture) : json_null());
+        /* v2, optional for readers: the texture choice and its reason */
+        json_object_set_new(o, "textured", json_boolean(L->texture[0] != 0));
+        json_object_set_new(o, "texture_variation", json_real(L->variation));
+        json_object_set_new(o, "texture_reason", json_string(L->texture_reason));
         /* v2: the shape at infinity (degrees: full angular width along
          * axis_u, height along direction x axis_u) and the two rankings */
         json_object_set_new(o, "axis_u", vec(L->axis_u, 3));

@@ -112,17 +112,92 @@ static sl_result write_one(sl_rig *rig, const sl_image *env, int index, const ch
     return SL_OK;
 }
 
-sl_result sl_rig_write_textures(sl_rig *rig, const sl_image *env, const char *prefix,
-                                sl_error *err)
+/* Solid-angle-weighted coefficient of variation of the luminance above the
+ * dome over the region's texels at least EDGE texels inside its edge (the
+ * detector grows every region by 2 texels of soft edge; anti-aliased rims
+ * would read as variation). 0 when fewer than SL_RIG_TEXTURE_MIN_TEXELS. */
+#define EDGE 3
+static double region_variation(const sl_rig *rig, const sl_image *env, int label,
+                               int *interior)
+{
+    const int w = rig->width, h = rig->height;
+    rig_sum s0 = {0}, s1 = {0}, s2 = {0};
+    int n = 0;
+    for (int y = EDGE; y < h - EDGE; y++)
+        for (int x = 0; x < w; x++) {
+            if (rig->labels[(size_t)y * w + x] != label)
+                continue;
+            bool inside = true;
+            for (int j = -EDGE; j <= EDGE && inside; j++)
+                for (int i = -EDGE; i <= EDGE && inside; i++)
+                    inside = rig->labels[(size_t)(y + j) * w + rig_wrap_x(x + i, w)] == label;
+            if (!inside)
+                continue;
+            const float *p = sl_image_pixel(env, x, y), *q = sl_image_pixel(&rig->residual, x, y);
+            double o[3], d[3];
+            for (int c = 0; c < 3; c++) {
+                float v = p[env->channels >= 3 ? c : 0];
+                o[c] = isfinite(v) && v > 0 ? v : 0;
+                d[c] = q[c];
+            }
+            double e = rig_luma(o) - rig_luma(d);
+            e = e > 0 ? e : 0;
+            double dw = cos(M_PI * (0.5 - (y + 0.5) / h));
+            rig_sum_add(&s0, dw);
+            rig_sum_add(&s1, e * dw);
+            rig_sum_add(&s2, e * e * dw);
+            n++;
+        }
+    *interior = n;
+    double W = rig_sum_get(&s0), m = W > 0 ? rig_sum_get(&s1) / W : 0;
+    if (n < SL_RIG_TEXTURE_MIN_TEXELS || !(m > 0))
+        return 0;
+    double var = rig_sum_get(&s2) / W - m * m;
+    return var > 0 ? sqrt(var) / m : 0;
+}
+
+sl_result sl_rig_write_textures_mode(sl_rig *rig, const sl_image *env, const char *prefix,
+                                     sl_rig_texture_mode mode, sl_error *err)
 {
     if (!env || env->width != rig->width || env->height != rig->height || !rig->labels)
         return sl_error_set(err, SL_ERR_USAGE, "%s: textures need the rig's own map", prefix);
     for (int i = 0; i < rig->light_count; i++) {
-        if (rig->lights[i].shape != SL_RIG_RECT)
+        sl_rig_light *L = &rig->lights[i];
+        int n = 0;
+        L->variation = region_variation(rig, env, i + 1, &n);
+        bool graded = L->variation >= SL_RIG_TEXTURE_VARIATION;
+        char why[80];
+        if (n < SL_RIG_TEXTURE_MIN_TEXELS)
+            snprintf(why, sizeof why, "%d texels inside its edge", n);
+        else
+            snprintf(why, sizeof why, "variation %.3f %s %.2f", L->variation,
+                     graded ? ">=" : "<", SL_RIG_TEXTURE_VARIATION);
+        bool tex = mode == SL_RIG_TEXTURES_ALL || (mode == SL_RIG_TEXTURES_AUTO && graded);
+        const char *head = mode == SL_RIG_TEXTURES_NONE ? "textures off"
+                           : mode == SL_RIG_TEXTURES_ALL ? "textures forced"
+                           : graded                      ? "graded"
+                           : n < SL_RIG_TEXTURE_MIN_TEXELS ? "too small to grade"
+                                                           : "uniform";
+        char shape[96];
+        if (L->shape != SL_RIG_RECT && mode != SL_RIG_TEXTURES_NONE) {
+            /* UsdLux (and the renderer) texture rect lights only */
+            snprintf(shape, sizeof shape, "a %s: UsdLux textures rect lights only%s",
+                     sl_rig_shape_name(L->shape), tex ? ", stays uniform" : "");
+            head = shape;
+            tex = false;
+        }
+        snprintf(L->texture_reason, sizeof L->texture_reason, "%s (%s)", head, why);
+        if (!tex)
             continue;
         sl_result r = write_one(rig, env, i, prefix, err);
         if (r)
             return r;
     }
     return SL_OK;
+}
+
+sl_result sl_rig_write_textures(sl_rig *rig, const sl_image *env, const char *prefix,
+                                sl_error *err)
+{
+    return sl_rig_write_textures_mode(rig, env, prefix, SL_RIG_TEXTURES_ALL, err);
 }

@@ -220,11 +220,12 @@ static void check_json(const sl_rig *rig, const char *path)
     CHECK((int)json_array_size(lights) == rig->light_count);
     static const char *keys[] = {"type",     "direction", "solid_angle",  "radiance",
                                  "integral", "position",  "size",         "texture",
-                                 "axis_u",   "angular_size", "share",     "share_glossy"};
+                                 "axis_u",   "angular_size", "share",     "share_glossy",
+                                 "textured", "texture_variation", "texture_reason"};
     for (int i = 0; i < rig->light_count && i < (int)json_array_size(lights); i++) {
         json_t *l = json_array_get(lights, i);
-        CHECK(json_object_size(l) == 12);
-        for (int k = 0; k < 12; k++)
+        CHECK(json_object_size(l) == 15);
+        for (int k = 0; k < 15; k++)
             CHECK_MSG(json_object_get(l, keys[k]) != NULL, "light lacks %s", keys[k]);
         CHECK(!strcmp(json_string_value(json_object_get(l, "type")),
                       sl_rig_shape_name(rig->lights[i].shape)));

@@ -45,8 +45,10 @@ static const char *rig_help =
     "  --include LAT,LON     always keep the light there (degrees; grown from the\n"
     "                        brightest texel within 2 degrees if none was found)\n"
     "  --exclude LAT,LON     leave the light there in the dome (both repeatable)\n"
-    "  --textures            textured rect lights (positioned or at infinity): the\n"
-    "                        region's crop as RIG_light_NN.exr beside RIG.usda\n"
+    "  --textures            texture every rect light (positioned or at infinity):\n"
+    "                        the region's crop as RIG_light_NN.exr beside RIG.usda;\n"
+    "                        by default only graded ones are (variation >= 0.25)\n"
+    "  --no-textures         no textured lights\n"
     "  --assume-latlong      accept a 2:1 image without the envmap attribute\n"
     "  --validate[=SPP]      render the grey, chrome and shadow scenes (96 px) under\n"
     "                        the map and under the rig and report their relative\n"
@@ -95,7 +97,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
         OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
-        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_PEAK, OPT_MAXSA, OPT_VALIDATE
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_NO_TEXTURES, OPT_PEAK, OPT_MAXSA, OPT_VALIDATE
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -116,6 +118,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"include", required_argument, NULL, OPT_INCLUDE},
         {"exclude", required_argument, NULL, OPT_EXCLUDE},
         {"textures", no_argument, NULL, OPT_TEXTURES},
+        {"no-textures", no_argument, NULL, OPT_NO_TEXTURES},
         {"peak-fraction", required_argument, NULL, OPT_PEAK},
         {"max-solid-angle", required_argument, NULL, OPT_MAXSA},
         {"validate", optional_argument, NULL, OPT_VALIDATE},
@@ -123,7 +126,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     sl_rig_options opt;
     sl_rig_options_default(&opt);
     const char *out_path = NULL, *json_path = NULL, *res_path = NULL, *preview_path = NULL;
-    bool assume = false, have_height = false, max_given = false, textures = false;
+    bool assume = false, have_height = false, max_given = false;
+    sl_rig_texture_mode textures = SL_RIG_TEXTURES_AUTO;
     long long validate_spp = 0;
 
     cli_getopt_reset();
@@ -223,7 +227,11 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             assume = true;
             break;
         case OPT_TEXTURES:
-            textures = true;
+        case OPT_NO_TEXTURES:
+            if (textures != SL_RIG_TEXTURES_AUTO &&
+                textures != (c == OPT_TEXTURES ? SL_RIG_TEXTURES_ALL : SL_RIG_TEXTURES_NONE))
+                return cli_usage_error(cli, "--textures and --no-textures exclude each other");
+            textures = c == OPT_TEXTURES ? SL_RIG_TEXTURES_ALL : SL_RIG_TEXTURES_NONE;
             break;
         case OPT_INCLUDE:
         case OPT_EXCLUDE: {
@@ -358,12 +366,16 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     /* Float: half would round the dome by up to 0.05% per texel. */
     if ((r = sl_exr_write(res_path, &rig.residual, &out_meta, SL_PIXEL_FLOAT, &err)))
         goto fail;
-    if (textures) {
+    {
         /* beside the USD, named after it */
         char prefix[PATH_MAX];
         snprintf(prefix, sizeof prefix, "%.*s", (int)(strlen(out_path) - 5), out_path);
-        if ((r = sl_rig_write_textures(&rig, &env, prefix, &err)))
+        if ((r = sl_rig_write_textures_mode(&rig, &env, prefix, textures, &err)))
             goto fail;
+        for (int i = 0; i < rig.light_count; i++)
+            sl_log(SL_LOG_INFO, "light %d (%s): %s%s", i + 1,
+                   sl_rig_shape_name(rig.lights[i].shape),
+                   rig.lights[i].texture[0] ? "textured, " : "", rig.lights[i].texture_reason);
     }
     char dome_ref[2 * PATH_MAX + 2];
     dome_reference(out_path, res_path, dome_ref, sizeof dome_ref);

@@ -91,6 +91,12 @@ typedef struct sl_rig_light {
     double size[2];        /* physical width, height (disk/sphere: diameter twice) */
     int texels;            /* texels in its region */
     char texture[256];     /* texture file name (beside the USD), "" if none */
+    /* Set by sl_rig_write_textures_mode: the solid-angle-weighted coefficient
+     * of variation of the region's luminance above the dome over its fully
+     * covered texels (3 texels inside its edge; 0 when fewer than
+     * SL_RIG_TEXTURE_MIN_TEXELS), and why the light is or is not textured. */
+    double variation;
+    char texture_reason[192];
 } sl_rig_light;
 
 typedef struct sl_rig_skip {
@@ -147,6 +153,22 @@ char *sl_rig_json_string(const sl_rig *rig, const char *dome_file);
  * was extracted from. */
 sl_result sl_rig_write_textures(sl_rig *rig, const sl_image *env, const char *prefix,
                                 sl_error *err);
+/* Which lights get a texture: AUTO the rect lights whose variation (see
+ * sl_rig_light) is at least SL_RIG_TEXTURE_VARIATION (a graded window, not a
+ * uniform fixture: docs/lightrig.md has the measurements behind the
+ * threshold), ALL every rect light, NONE none. UsdLux textures rect lights
+ * only: a graded disk or sphere stays uniform and its reason says so. */
+typedef enum {
+    SL_RIG_TEXTURES_AUTO = 0,
+    SL_RIG_TEXTURES_ALL,
+    SL_RIG_TEXTURES_NONE
+} sl_rig_texture_mode;
+#define SL_RIG_TEXTURE_VARIATION 0.25
+#define SL_RIG_TEXTURE_MIN_TEXELS 16
+/* sl_rig_write_textures for the lights mode chooses; fills every light's
+ * variation and texture_reason (also the untextured ones). */
+sl_result sl_rig_write_textures_mode(sl_rig *rig, const sl_image *env, const char *prefix,
+                                     sl_rig_texture_mode mode, sl_error *err);
 /* A PNG of the map with every light outlined and numbered (1-based, as in
  * the USD and JSON order). */
 sl_result sl_rig_write_preview(const sl_rig *rig, const sl_image *env, const char *path,

@@ -26,8 +26,14 @@ def stage(x, y, w, h):
     if 300 <= x < 310 and 40 <= y < 50: return [80.0, 60.0, 40.0]
     return [0.5, 0.5, 0.5]
 pfm(t + "/stage.pfm", 512, 256, stage)
+# a panel graded 10..100 left to right (a window): variation about 0.45
+def graded(x, y, w, h):
+    if 100 <= x < 140 and 60 <= y < 80: v = 10 + 90 * (x - 100) / 39.0; return [v, v, v]
+    return [0.5, 0.5, 0.5]
+pfm(t + "/graded.pfm", 512, 256, graded)
 PY
 "$SETLIGHT" convert --float "$T/stage.pfm" "$T/stage.exr" || bad "convert stage"
+"$SETLIGHT" convert --float "$T/graded.pfm" "$T/graded.exr" || bad "convert graded"
 
 # --- help and a good run
 expect 0 "$SETLIGHT" rig --help; out_has "usage: setlight rig"; out_has "--max-lights"
@@ -41,7 +47,10 @@ json_ok "$T/out"
 json_eval "$T/out" 'd["lights"] == 2 and d["relative_error"] < 1e-3 and d["rig"]["version"] == 2'
 json_eval "$T/o/stage.json" 'd["version"] == 2 and len(d["lights"]) == 2 and d["ledger"]["relative_error"] < 1e-3'
 json_eval "$T/o/stage.json" 'set(d) == {"version", "lights", "dome", "ledger", "skipped"} and d["dome"]["file"] == "stage_residual.exr"'
-json_eval "$T/o/stage.json" 'all(set(l) == {"type","direction","solid_angle","radiance","integral","position","size","texture","axis_u","angular_size","share","share_glossy"} for l in d["lights"])'
+json_eval "$T/o/stage.json" 'all(set(l) == {"type","direction","solid_angle","radiance","integral","position","size","texture","textured","texture_variation","texture_reason","axis_u","angular_size","share","share_glossy"} for l in d["lights"])'
+# uniform panels: no texture by default, and the reason says why
+json_eval "$T/o/stage.json" 'all(not l["textured"] and l["texture"] is None and l["texture_variation"] < 0.05 and l["texture_reason"].startswith("uniform") for l in d["lights"])'
+[ -z "$(ls "$T/o" | grep _light_)" ] && ok || bad "uniform panels got textures: $(ls "$T/o")"
 json_eval "$T/o/stage.json" 'all(abs(sum(v*v for v in l["direction"]) - 1) < 1e-9 and l["position"] is None for l in d["lights"])'
 # ledger: lights + dome = original per channel
 json_eval "$T/o/stage.json" 'all(abs(d["ledger"]["lights"][c] + d["ledger"]["dome"][c] - d["ledger"]["original"][c]) <= 1e-3 * d["ledger"]["original"][c] for c in range(3))'
@@ -70,7 +79,22 @@ expect 0 "$SETLIGHT" rig "$T/stage.exr" -o "$T/o/tex.usda" --json "$T/o/tex.json
 present "$T/o/tex_light_01.exr"
 json_eval "$T/o/tex.json" 'd["lights"][0]["texture"] == "tex_light_01.exr"'
 if grep -q '@tex_light_01.exr@' "$T/o/tex.usda"; then ok; else bad "usda lacks the texture"; fi
+json_eval "$T/o/tex.json" 'all(l["textured"] and l["texture_reason"].startswith("textures forced") for l in d["lights"])'
 if grep -q 'def RectLight' "$T/o/room.usda"; then ok; else bad "room rig has no RectLight"; fi
+
+# --- automatic textures: the graded panel gets one, --no-textures turns that off
+mkdir -p "$T/g"
+expect 0 "$SETLIGHT" rig "$T/graded.exr" -o "$T/g/auto.usda" --json "$T/g/auto.json" --energy 1
+err_has "light 1 (rect): textured, graded"
+present "$T/g/auto_light_01.exr"
+json_eval "$T/g/auto.json" 'len(d["lights"]) == 1 and d["lights"][0]["textured"] and d["lights"][0]["texture"] == "auto_light_01.exr" and 0.3 < d["lights"][0]["texture_variation"] < 0.7'
+if grep -q '@auto_light_01.exr@' "$T/g/auto.usda"; then ok; else bad "usda lacks the texture"; fi
+expect 0 "$SETLIGHT" rig "$T/graded.exr" -o "$T/g/off.usda" --json "$T/g/off.json" --energy 1 --no-textures
+json_eval "$T/g/off.json" 'not d["lights"][0]["textured"] and d["lights"][0]["texture_reason"].startswith("textures off")'
+[ ! -e "$T/g/off_light_01.exr" ] && ok || bad "--no-textures wrote a texture"
+expect 2 "$SETLIGHT" rig "$T/graded.exr" -o "$T/g/x.usda" --textures --no-textures
+err_has "--no-textures"; err_one_line
+[ ! -e "$T/g/x.usda" ] && ok || bad "conflicting options wrote output"
 expect 0 "$SETLIGHT" rig --json --method mediancut --max-lights 8 "$T/stage.exr" -o "$T/o/mc.usda"
 json_eval "$T/out" 'd["lights"] == 8 and d["method"] == "mediancut" and d["relative_error"] < 1e-6'
 
