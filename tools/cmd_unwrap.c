@@ -501,7 +501,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         if ((r = sl_meta_set(&out_meta, attrs[i].name, attrs[i].value, &err)))
             goto fail;
     double t3 = sl_seconds();
-    r = sl_exr_write(out_path, &out, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF, &err);
+    r = sl_exr_write_compressed(out_path, &out, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
+                                SL_EXR_PIZ, &err);
     if (r)
         goto fail;
     double t_write = sl_seconds() - t3;
