@@ -255,6 +255,58 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
     return EXR_ERR_SUCCESS;
 }
 
+/* Chunks are decoded in parallel, each worker with its own pipeline and
+ * scratch (OpenEXR's core API allows that on one context); they land in
+ * disjoint parts of the image. */
+typedef struct exr_decode_job {
+    exr_context_t ctx;
+    const exr_pick *pick;
+    const exr_frame *fr;
+    sl_image *img;
+    bool tiled;
+    int32_t chunk_w, chunk_h, tiles_x;
+    exr_result_t *rv; /* per chunk */
+} exr_decode_job;
+
+static exr_result_t decode_one(const exr_decode_job *job, int64_t k, exr_decode_pipeline_t *dec,
+                               bool *initialized, float *scratch)
+{
+    exr_chunk_info_t cinfo;
+    const exr_frame *fr = job->fr;
+    exr_result_t rv;
+    if (!job->tiled) {
+        rv = exr_read_scanline_chunk_info(job->ctx, 0, fr->data.min.y + (int)k * job->chunk_h,
+                                          &cinfo);
+        if (rv == EXR_ERR_SUCCESS)
+            rv = decode_chunk(job->ctx, &cinfo, fr->data.min.x, cinfo.start_y, job->pick, fr, dec,
+                              initialized, scratch, job->img);
+        return rv;
+    }
+    int tx = (int)(k % job->tiles_x), ty = (int)(k / job->tiles_x);
+    rv = exr_read_tile_chunk_info(job->ctx, 0, tx, ty, 0, 0, &cinfo);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = decode_chunk(job->ctx, &cinfo, fr->data.min.x + tx * job->chunk_w,
+                          fr->data.min.y + ty * job->chunk_h, job->pick, fr, dec, initialized,
+                          scratch, job->img);
+    return rv;
+}
+
+static void decode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    exr_decode_job *job = ctx;
+    float *scratch = malloc((size_t)job->chunk_w * (size_t)job->chunk_h *
+                            (size_t)job->pick->count * sizeof(float));
+    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
+    bool initialized = false;
+    for (int64_t k = begin; k < end; k++)
+        job->rv[k] = scratch ? decode_one(job, k, &dec, &initialized, scratch)
+                             : EXR_ERR_OUT_OF_MEMORY;
+    if (initialized)
+        exr_decoding_destroy(job->ctx, &dec);
+    free(scratch);
+}
+
 static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_pick *pick,
                              const exr_frame *fr, sl_image *img, sl_error *err)
 {
@@ -290,39 +342,27 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_pick
     if (chunk_h <= 0 || chunk_h > EXR_MAX_DIM || chunk_w <= 0 || chunk_w > EXR_MAX_DIM)
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (chunk size %dx%d)",
                             path, (int)chunk_w, (int)chunk_h);
-    float *scratch =
-        malloc((size_t)chunk_w * (size_t)chunk_h * (size_t)pick->count * sizeof(float));
-    if (!scratch)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for EXR chunk", path);
-
-    exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
-    bool initialized = false;
+    int64_t chunks = storage == EXR_STORAGE_SCANLINE
+                         ? ((int64_t)fr->data.max.y - fr->data.min.y + chunk_h) / chunk_h
+                         : (int64_t)tiles_x * tiles_y;
+    exr_decode_job job = {.ctx = ctx, .pick = pick, .fr = fr, .img = img,
+                          .tiled = storage == EXR_STORAGE_TILED, .chunk_w = chunk_w,
+                          .chunk_h = chunk_h, .tiles_x = tiles_x};
+    job.rv = malloc(sizeof *job.rv * (size_t)chunks);
+    if (!job.rv)
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for EXR chunks", path);
+    /* Grain: a few MB of pixels per task. */
+    int64_t per_chunk = (int64_t)chunk_w * chunk_h * pick->count;
+    sl_parallel_for(chunks, 1 + (1 << 20) / per_chunk, decode_chunks, &job);
     sl_result r = SL_OK;
-    exr_chunk_info_t cinfo;
-    if (storage == EXR_STORAGE_SCANLINE) {
-        for (int y = fr->data.min.y; y <= fr->data.max.y && !r; y += chunk_h) {
-            rv = exr_read_scanline_chunk_info(ctx, 0, y, &cinfo);
-            if (rv == EXR_ERR_SUCCESS)
-                rv = decode_chunk(ctx, &cinfo, fr->data.min.x, cinfo.start_y, pick, fr, &dec,
-                                  &initialized, scratch, img);
-            if (rv != EXR_ERR_SUCCESS)
-                r = corrupt(err, path, rv);
+    for (int64_t k = 0; k < chunks && !r; k++)
+        if (job.rv[k] != EXR_ERR_SUCCESS) {
+            /* The first bad chunk again, here, for the library's message. */
+            exr_message[0] = 0;
+            decode_chunks(&job, k, k + 1, 0);
+            r = corrupt(err, path, job.rv[k]);
         }
-    } else {
-        for (int ty = 0; ty < tiles_y && !r; ty++)
-            for (int tx = 0; tx < tiles_x && !r; tx++) {
-                rv = exr_read_tile_chunk_info(ctx, 0, tx, ty, 0, 0, &cinfo);
-                if (rv == EXR_ERR_SUCCESS)
-                    rv = decode_chunk(ctx, &cinfo, fr->data.min.x + tx * chunk_w,
-                                      fr->data.min.y + ty * chunk_h, pick, fr, &dec, &initialized,
-                                      scratch, img);
-                if (rv != EXR_ERR_SUCCESS)
-                    r = corrupt(err, path, rv);
-            }
-    }
-    if (initialized)
-        exr_decoding_destroy(ctx, &dec);
-    free(scratch);
+    free(job.rv);
     return r;
 }
 

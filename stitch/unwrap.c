@@ -29,7 +29,7 @@
 #define ROW_GRAIN 32
 
 typedef struct unwrap_ctx {
-    const sl_image *photo; /* RGBA (A unused), finite */
+    const sl_image *photo; /* RGB, finite */
     const sl_ball_view *view;
     const sl_reflectance *refl;
     sl_image *out;
@@ -119,8 +119,9 @@ static double smaller_singular_value(const double j[2][2])
     double p = j[0][0] * j[0][0] + j[1][0] * j[1][0];
     double q = j[0][1] * j[0][1] + j[1][1] * j[1][1];
     double s = j[0][0] * j[0][1] + j[1][0] * j[1][1];
-    double tr = 0.5 * (p + q), det = p * q - s * s;
-    return sqrt(fmax(tr - sqrt(fmax(tr * tr - det, 0.0)), 0.0));
+    double tr = 0.5 * (p + q), det = p * q - s * s, disc = tr * tr - det;
+    double e = tr - sqrt(disc > 0.0 ? disc : 0.0);
+    return sqrt(e > 0.0 ? e : 0.0);
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -171,11 +172,12 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
             wsum += wt;
         }
     }
-    double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
-    conf = conf > 1.0 ? 1.0 : conf;
     for (int k = 0; k < 3; k++)
         p[k] = (float)(acc[k] / wsum);
-    p[3] = (float)(conf * seen_w / wsum);
+    if (c->out->channels == 4) {
+        double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
+        p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen_w / wsum);
+    }
 }
 
 /* Samples along a footprint axis of extent e px: spread over e - 1 px (the
@@ -189,8 +191,9 @@ static int fast_count(double extent_px)
     return n > SUB_MAX ? SUB_MAX : (int)n;
 }
 
-/* The photo is held as RGBA floats (A unused) so that a pixel is one
- * 4-wide vector. */
+/* A pixel's RGB is loaded as one 4-wide vector; with 3 channels the fourth
+ * lane is the next pixel's R (unused; that pixel exists: taps lie inside the
+ * ball, the ball inside the image). */
 typedef float v4f __attribute__((vector_size(16)));
 
 static inline v4f load4(const float *p)
@@ -207,10 +210,11 @@ static inline void bilinear(const sl_image *img, double x, double y, double out[
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
     float tx = (float)(fx - x0), ty = (float)(fy - y0);
-    const float *p0 = img->data + (size_t)y0 * img->stride + (size_t)x0 * 4;
+    size_t nc = (size_t)img->channels;
+    const float *p0 = img->data + (size_t)y0 * img->stride + (size_t)x0 * nc;
     const float *p1 = p0 + img->stride;
-    v4f top = load4(p0) * (1.0f - tx) + load4(p0 + 4) * tx;
-    v4f bot = load4(p1) * (1.0f - tx) + load4(p1 + 4) * tx;
+    v4f top = load4(p0) * (1.0f - tx) + load4(p0 + nc) * tx;
+    v4f bot = load4(p1) * (1.0f - tx) + load4(p1 + nc) * tx;
     v4f v = top * (1.0f - ty) + bot * ty;
     for (int k = 0; k < 3; k++)
         out[k] = v[k];
@@ -242,16 +246,18 @@ static inline void bicubic(const sl_image *img, double x, double y, double out[3
     float wx0 = keys_far(1.0f + tx), wx1 = keys_near(tx), wx2 = keys_near(1.0f - tx),
           wx3 = keys_far(2.0f - tx);
     float wy[4] = {keys_far(1.0f + ty), keys_near(ty), keys_near(1.0f - ty), keys_far(2.0f - ty)};
-    const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * 4;
+    size_t nc = (size_t)img->channels;
+    const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * nc;
     v4f acc = {0, 0, 0, 0};
     for (int j = 0; j < 4; j++) {
         const float *p = base + (size_t)j * img->stride;
-        acc += (load4(p) * wx0 + load4(p + 4) * wx1 + load4(p + 8) * wx2 + load4(p + 12) * wx3) *
+        acc += (load4(p) * wx0 + load4(p + nc) * wx1 + load4(p + 2 * nc) * wx2 +
+                load4(p + 3 * nc) * wx3) *
                wy[j];
     }
-    const float *a = base + img->stride + 4, *b = a + img->stride;
+    const float *a = base + img->stride + nc, *b = a + img->stride;
     for (int k = 0; k < 3; k++) {
-        float lo = a[k], hi = a[k], v[3] = {a[4 + k], b[k], b[4 + k]};
+        float lo = a[k], hi = a[k], v[3] = {a[nc + k], b[k], b[nc + k]};
         for (int i = 0; i < 3; i++) {
             lo = v[i] < lo ? v[i] : lo;
             hi = v[i] > hi ? v[i] : hi;
@@ -336,6 +342,7 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
         map_row(c, (int)begin - 1, rows[0]);
     map_row(c, (int)begin, rows[1]);
     double ref = view->centre_px_per_rad, keep = view->r - RIM_MARGIN;
+    bool confidence = c->out->channels == 4;
     for (int64_t yy = begin; yy < end; yy++) {
         int y = (int)yy;
         if (y + 1 < h)
@@ -378,7 +385,8 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
             for (int q = 0; q < 4; q++) {
                 double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
                 double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
-                far2 = fmax(far2, qx * qx + qy * qy);
+                double d2 = qx * qx + qy * qy;
+                far2 = d2 > far2 ? d2 : far2;
             }
             double far = sqrt(far2);
             bool checked = far + 1.5 > keep, cubic = far + 2.9 <= keep;
@@ -422,12 +430,14 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 if (checked)
                     seen = seen_w / wsum;
             }
-            double j[2][2] = {{du[0] / lon_step, dv[0] / lat_step},
-                              {du[1] / lon_step, dv[1] / lat_step}};
-            double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
             for (int k = 0; k < 3; k++)
                 p[k] = (float)(val[k] * inv[k]);
-            p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen);
+            if (confidence) {
+                double j[2][2] = {{du[0] / lon_step, dv[0] / lat_step},
+                                  {du[1] / lon_step, dv[1] / lat_step}};
+                double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
+                p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen);
+            }
         }
         centre *t = rows[0];
         rows[0] = rows[1];
@@ -500,6 +510,20 @@ static sl_result image_alloc_large(sl_image *img, int width, int height, int cha
     return SL_OK;
 }
 
+/* NaN/Inf among the samples the unwrap reads (RGB, or the one grey channel). */
+static int64_t count_nonfinite(const sl_image *img)
+{
+    int nc = img->channels >= 3 ? 3 : 1;
+    int64_t n = 0;
+    for (int y = 0; y < img->height; y++) {
+        const float *row = sl_image_pixel(img, 0, y);
+        for (int x = 0; x < img->width; x++)
+            for (int k = 0; k < nc; k++)
+                n += !isfinite(row[(size_t)x * (size_t)img->channels + (size_t)k]);
+    }
+    return n;
+}
+
 int unwrap_auto_width(const sl_ball_view *view)
 {
     /* One texel per photo pixel where the ball looks back at the camera. */
@@ -536,23 +560,30 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
                                     &opt->geometry, err);
     if (r)
         goto done;
-    if ((r = image_alloc_large(&rgb, photo->width, photo->height, 4, err)))
-        goto done;
-    for (int y = 0; y < photo->height; y++)
-        for (int x = 0; x < photo->width; x++) {
-            const float *s = sl_image_pixel(photo, x, y);
-            float *d = sl_image_pixel(&rgb, x, y);
-            for (int k = 0; k < 3; k++)
-                d[k] = s[photo->channels >= 3 ? k : 0];
-            d[3] = 0.0f;
-        }
-    int64_t nonfinite = sl_image_sanitize(&rgb, 0.0f);
+    /* An RGB photo without NaN/Inf is read in place; otherwise an RGB copy
+     * with them replaced by 0. */
+    int64_t nonfinite = count_nonfinite(photo);
+    const sl_image *src = photo;
+    if (photo->channels != 3 || nonfinite) {
+        if ((r = image_alloc_large(&rgb, photo->width, photo->height, 3, err)))
+            goto done;
+        for (int y = 0; y < photo->height; y++)
+            for (int x = 0; x < photo->width; x++) {
+                const float *s = sl_image_pixel(photo, x, y);
+                float *d = sl_image_pixel(&rgb, x, y);
+                for (int k = 0; k < 3; k++) {
+                    float v = s[photo->channels >= 3 ? k : 0];
+                    d[k] = isfinite(v) ? v : 0.0f;
+                }
+            }
+        src = &rgb;
+    }
 
     int width = opt->width ? opt->width : unwrap_auto_width(view);
-    if ((r = image_alloc_large(out, width, width / 2, 4, err)))
+    if ((r = image_alloc_large(out, width, width / 2, opt->no_confidence ? 3 : 4, err)))
         goto done;
 
-    unwrap_ctx c = {.photo = &rgb, .view = view, .refl = refl, .out = out};
+    unwrap_ctx c = {.photo = src, .view = view, .refl = refl, .out = out};
     double v2w[3][3];
     sl_mat3_mul(view->cam_to_world, view->view_to_cam, v2w);
     for (int i = 0; i < 3; i++)

@@ -122,6 +122,7 @@ static sl_result refine_azimuth(const sl_image *p1, const sl_image *p2,
     width = width < SEARCH_WIDTH_MIN ? SEARCH_WIDTH_MIN
                                      : (width > SEARCH_WIDTH_MAX ? SEARCH_WIDTH_MAX : width);
     o1.width = o2.width = width;
+    o1.no_confidence = o2.no_confidence = false;
     sl_image a = {0}, b = {0};
     search_ctx c = {.w = width, .h = width / 2};
     size_t n = (size_t)c.w * c.h;
@@ -271,6 +272,7 @@ sl_result sl_unwrap_pair(const sl_image *photo1, const sl_image *photo2,
         return sl_error_set(err, SL_ERR_USAGE,
                             "azimuth search must be 0-90 deg and the occluder cone 0-60 deg");
     sl_unwrap_options o[2] = {opt->views[0], opt->views[1]};
+    o[0].no_confidence = o[1].no_confidence = false;
     sl_ball_view v[2];
     const sl_image *photos[2] = {photo1, photo2};
     sl_result r;

@@ -382,6 +382,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                                                                      : SL_BALL_ORTHOGRAPHIC;
     o->geometry.camera = o2->geometry.camera = (sl_ball_camera)camera;
 
+    /* The patch is found with the confidence, the merge weighs by it. */
+    o->no_confidence = !confidence && !have_patch && nviews == 1;
     double t1 = sl_seconds(), cpu1 = cpu_seconds();
     sl_unwrap_pair_info pinfo;
     memset(&pinfo, 0, sizeof pinfo);
@@ -424,7 +426,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                "%.4f (%.4f as given) over %.1f%% of the sphere",
                views[1].path, pinfo.azimuth_deg, pinfo.azimuth_given_deg, pinfo.residual,
                pinfo.residual_given, 100.0 * pinfo.overlap_fraction);
-    if (!confidence) {
+    if (!confidence && out.channels == 4) {
         sl_image rgb;
         if ((r = sl_image_convert_channels(&out, 3, &rgb, &err)))
             goto fail;

@@ -264,6 +264,9 @@ typedef struct sl_unwrap_options {
     sl_ball_geometry geometry;
     sl_reflectance reflectance;
     int width; /* output lat-long width; 0 = matched to the ball's resolution */
+    /* RGB only (3 channels): the confidence is neither computed nor stored.
+     * sl_unwrap_pair ignores it (its merge weights are the confidences). */
+    bool no_confidence;
 } sl_unwrap_options;
 
 typedef struct sl_unwrap_info {
@@ -281,10 +284,11 @@ typedef struct sl_unwrap_info {
 /* Unwraps a linear HDR photo of a chrome ball into a lat-long of the set's
  * radiance (OpenEXR orientation), 4 channels: RGB and a confidence in [0, 1]
  * (the resolution relative to the ball's centre; 0 in the blind cone, where
- * RGB is a smooth fill from the rim, never detail). Each output texel is the
- * solid-angle-weighted average of the photo over its footprint, sampled finely
- * enough that bright sources do not alias. Pixels are divided by the
- * reflectance at their angle of incidence. info may be NULL. */
+ * RGB is a smooth fill from the rim, never detail); 3 with no_confidence.
+ * Each output texel is the solid-angle-weighted average of the photo over its
+ * footprint, sampled finely enough that bright sources do not alias. Pixels
+ * are divided by the reflectance at their angle of incidence. info may be
+ * NULL. */
 sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
                     sl_unwrap_info *info, sl_error *err);
 
