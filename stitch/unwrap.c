@@ -47,8 +47,9 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
     const sl_ball_view *v = c->view;
     const sl_image *img = c->photo;
     bool inside = true;
-    double dx = x - v->cx, dy = y - v->cy, d = sqrt(dx * dx + dy * dy), lim = v->r - RIM_CLAMP;
-    if (d > lim) {
+    double dx = x - v->cx, dy = y - v->cy, d2 = dx * dx + dy * dy, lim = v->r - RIM_CLAMP;
+    if (d2 > lim * lim) {
+        double d = sqrt(d2);
         x = v->cx + dx * lim / d;
         y = v->cy + dy * lim / d;
         inside = false;
@@ -91,7 +92,11 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
 static bool radiance(const unwrap_ctx *c, const double dir[3], double out[3])
 {
     ball_hit h;
-    ball_view_map(c->view, dir, &h);
+    const double(*m)[3] = c->world_to_view;
+    double wv[3];
+    for (int k = 0; k < 3; k++)
+        wv[k] = m[k][0] * dir[0] + m[k][1] * dir[1] + m[k][2] * dir[2];
+    ball_view_map_local(c->view, wv, &h);
     if (h.blind) {
         memcpy(out, c->blind_fill, sizeof c->blind_fill);
         return false;
@@ -158,13 +163,23 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
     int nv = sub_count(hypot(b[0] - a[0], b[1] - a[1]));
     j[0][1] = (b[0] - a[0]) / (M_PI / h);
     j[1][1] = (b[1] - a[1]) / (M_PI / h);
+    /* The sub-sample grid is separable: its trigonometry once per column
+     * and row (the same values sl_latlong_to_dir gives). */
+    double sin_lon[SUB_MAX], cos_lon[SUB_MAX];
+    for (int i = 0; i < nu; i++) {
+        double lon = M_PI * (1.0 - 2.0 * ((x + (i + 0.5) / nu) / w));
+        sin_lon[i] = sin(lon);
+        cos_lon[i] = cos(lon);
+    }
     double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
     for (int jj = 0; jj < nv; jj++) {
-        double v = (y + (jj + 0.5) / nv) / h;
-        double wt = cos(M_PI * (0.5 - v)); /* solid angle per unit (u, v) */
+        double lat = M_PI * (0.5 - (y + (jj + 0.5) / nv) / h);
+        double wt = cos(lat), sl = sin(lat); /* wt: solid angle per unit (u, v) */
         for (int i = 0; i < nu; i++) {
-            double u = (x + (i + 0.5) / nu) / w, val[3];
-            sl_latlong_to_dir(u, v, dir);
+            double val[3];
+            dir[0] = sin_lon[i] * wt;
+            dir[1] = sl;
+            dir[2] = cos_lon[i] * wt;
             if (radiance(c, dir, val))
                 seen_w += wt;
             for (int k = 0; k < 3; k++)
@@ -195,6 +210,7 @@ static int fast_count(double extent_px)
  * lane is the next pixel's R (unused; that pixel exists: taps lie inside the
  * ball, the ball inside the image). */
 typedef float v4f __attribute__((vector_size(16)));
+typedef int v4i __attribute__((vector_size(16)));
 
 static inline v4f load4(const float *p)
 {
@@ -205,7 +221,7 @@ static inline v4f load4(const float *p)
 
 /* Bilinear lookup at a point whose four taps are all ball pixels clear of
  * the rim margin (checked by the caller). */
-static inline void bilinear(const sl_image *img, double x, double y, double out[3])
+static inline v4f bilinear(const sl_image *img, double x, double y)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
@@ -215,55 +231,59 @@ static inline void bilinear(const sl_image *img, double x, double y, double out[
     const float *p1 = p0 + img->stride;
     v4f top = load4(p0) * (1.0f - tx) + load4(p0 + nc) * tx;
     v4f bot = load4(p1) * (1.0f - tx) + load4(p1 + nc) * tx;
-    v4f v = top * (1.0f - ty) + bot * ty;
-    for (int k = 0; k < 3; k++)
-        out[k] = v[k];
+    return top * (1.0f - ty) + bot * ty;
 }
 
 /* Keys' cubic convolution kernel with a = -0.75 (a little sharper than
  * Catmull-Rom's -0.5; measured on the peers' 1024 ball: front 0.182% vs
- * 0.187%), for |t| <= 1 and 1 < |t| < 2. */
+ * 0.187%): the weights of the four taps at distances 1 + t, t, 1 - t, 2 - t,
+ * the outer two from the kernel's 1 < |t| < 2 piece, all in one vector. */
 #define KEYS_A -0.75f
-static inline float keys_near(float t)
+static inline v4f keys_weights(float t)
 {
-    return ((KEYS_A + 2.0f) * t - (KEYS_A + 3.0f)) * t * t + 1.0f;
-}
-
-static inline float keys_far(float t)
-{
-    return ((KEYS_A * t - 5.0f * KEYS_A) * t + 8.0f * KEYS_A) * t - 4.0f * KEYS_A;
+    const v4f a = {KEYS_A, KEYS_A + 2.0f, KEYS_A + 2.0f, KEYS_A};
+    const v4f b = {-5.0f * KEYS_A, -(KEYS_A + 3.0f), -(KEYS_A + 3.0f), -5.0f * KEYS_A};
+    const v4f c = {8.0f * KEYS_A, 0.0f, 0.0f, 8.0f * KEYS_A};
+    const v4f d = {-4.0f * KEYS_A, 1.0f, 1.0f, -4.0f * KEYS_A};
+    v4f u = (v4f){1.0f, 0.0f, 1.0f, 2.0f} + (v4f){1.0f, 1.0f, -1.0f, -1.0f} * t;
+    return ((a * u + b) * u + c) * u + d;
 }
 
 /* Cubic lookup where the photo is magnified (sharper than the
  * bilinear tent), clamped to the range of the four nearest pixels so that
  * it never rings around a bright source. All 16 taps must be ball pixels
  * clear of the rim margin (checked by the caller). */
-static inline void bicubic(const sl_image *img, double x, double y, double out[3])
+static inline v4f vmin(v4f a, v4f b)
+{
+    v4i m = a < b;
+    return (v4f)((m & (v4i)a) | (~m & (v4i)b));
+}
+
+static inline v4f vmax(v4f a, v4f b)
+{
+    v4i m = a > b;
+    return (v4f)((m & (v4i)a) | (~m & (v4i)b));
+}
+
+static inline v4f bicubic(const sl_image *img, double x, double y)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
     float tx = (float)(fx - x0), ty = (float)(fy - y0);
-    float wx0 = keys_far(1.0f + tx), wx1 = keys_near(tx), wx2 = keys_near(1.0f - tx),
-          wx3 = keys_far(2.0f - tx);
-    float wy[4] = {keys_far(1.0f + ty), keys_near(ty), keys_near(1.0f - ty), keys_far(2.0f - ty)};
+    v4f wx = keys_weights(tx), wy = keys_weights(ty);
     size_t nc = (size_t)img->channels;
     const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * nc;
     v4f acc = {0, 0, 0, 0};
     for (int j = 0; j < 4; j++) {
         const float *p = base + (size_t)j * img->stride;
-        acc += (load4(p) * wx0 + load4(p + nc) * wx1 + load4(p + 2 * nc) * wx2 +
-                load4(p + 3 * nc) * wx3) *
+        acc += (load4(p) * wx[0] + load4(p + nc) * wx[1] + load4(p + 2 * nc) * wx[2] +
+                load4(p + 3 * nc) * wx[3]) *
                wy[j];
     }
     const float *a = base + img->stride + nc, *b = a + img->stride;
-    for (int k = 0; k < 3; k++) {
-        float lo = a[k], hi = a[k], v[3] = {a[nc + k], b[k], b[nc + k]};
-        for (int i = 0; i < 3; i++) {
-            lo = v[i] < lo ? v[i] : lo;
-            hi = v[i] > hi ? v[i] : hi;
-        }
-        out[k] = acc[k] < lo ? lo : (acc[k] > hi ? hi : acc[k]);
-    }
+    v4f a0 = load4(a), a1 = load4(a + nc), b0 = load4(b), b1 = load4(b + nc);
+    v4f lo = vmin(vmin(a0, a1), vmin(b0, b1)), hi = vmax(vmax(a0, a1), vmax(b0, b1));
+    return vmin(vmax(acc, lo), hi);
 }
 
 /* Texel centres of one lat-long row mapped to the photo. */
@@ -380,53 +400,68 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
              * corner: distance is convex), plus the lookup's reach: bilinear
              * taps lie within sqrt(2) px of the point, the cubic's within
              * 2 sqrt(2). Near the rim each sample is checked and clamped
-             * like the exact path's. */
-            double ex = ce->x - view->cx, ey = ce->y - view->cy, far2 = 0.0;
-            for (int q = 0; q < 4; q++) {
-                double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
-                double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
-                double d2 = qx * qx + qy * qy;
-                far2 = d2 > far2 ? d2 : far2;
+             * like the exact path's. Most texels are far from the rim: the
+             * triangle inequality settles them without the corners. */
+            double ex = ce->x - view->cx, ey = ce->y - view->cy, e2 = ex * ex + ey * ey;
+            double inner = keep - 2.9 - 0.5 * (eu + ev);
+            bool checked = false, cubic = true;
+            if (inner < 0.0 || e2 > inner * inner) {
+                double far2 = 0.0;
+                for (int q = 0; q < 4; q++) {
+                    double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
+                    double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
+                    double d2 = qx * qx + qy * qy;
+                    far2 = d2 > far2 ? d2 : far2;
+                }
+                double far = sqrt(far2);
+                checked = far + 1.5 > keep;
+                cubic = far + 2.9 <= keep;
             }
-            double far = sqrt(far2);
-            bool checked = far + 1.5 > keep, cubic = far + 2.9 <= keep;
-            double val[3], inv[3], seen = 1.0;
+            double inv[3], seen = 1.0;
             inv_reflectance(c, ce->cosi, inv);
+            v4f val;
             if (eu <= 1.25 && ev <= 1.25) {
                 /* The lookup's kernel is about as wide as the footprint. */
-                if (cubic)
-                    bicubic(c->photo, ce->x, ce->y, val);
-                else if (checked)
-                    seen = photo_lookup(c, ce->x, ce->y, val) ? 1.0 : 0.0;
-                else
-                    bilinear(c->photo, ce->x, ce->y, val);
+                if (cubic) {
+                    val = bicubic(c->photo, ce->x, ce->y);
+                } else if (checked) {
+                    double s[3];
+                    seen = photo_lookup(c, ce->x, ce->y, s) ? 1.0 : 0.0;
+                    val = (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+                } else {
+                    val = bilinear(c->photo, ce->x, ce->y);
+                }
             } else {
                 /* The lookup's kernel already spans about a pixel: samples
                  * cover the footprint less that pixel. */
                 int nu = fast_count(eu), nv = fast_count(ev);
                 double su = nu > 1 ? (eu - 1.0) / eu / (nu - 1) : 0.0;
                 double sv = nv > 1 ? (ev - 1.0) / ev / (nv - 1) : 0.0;
-                double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
+                v4f acc = {0, 0, 0, 0};
+                double wsum = 0.0, seen_w = 0.0;
                 for (int j = 0; j < nv; j++) {
                     double b = (j - 0.5 * (nv - 1)) * sv;
                     /* Solid angle per unit v at the sample's latitude (first order). */
                     double wt = cos_lat + sin_lat * b * lat_step;
+                    v4f row = {0, 0, 0, 0};
                     for (int i = 0; i < nu; i++) {
-                        double a = (i - 0.5 * (nu - 1)) * su, s[3];
+                        double a = (i - 0.5 * (nu - 1)) * su;
                         double sx = ce->x + a * du[0] + b * dv[0], sy = ce->y + a * du[1] + b * dv[1];
-                        if (cubic)
-                            bicubic(c->photo, sx, sy, s);
-                        else if (!checked)
-                            bilinear(c->photo, sx, sy, s);
-                        else if (photo_lookup(c, sx, sy, s))
-                            seen_w += wt;
-                        for (int k = 0; k < 3; k++)
-                            acc[k] += wt * s[k];
+                        if (cubic) {
+                            row += bicubic(c->photo, sx, sy);
+                        } else if (!checked) {
+                            row += bilinear(c->photo, sx, sy);
+                        } else {
+                            double s[3];
+                            if (photo_lookup(c, sx, sy, s))
+                                seen_w += wt;
+                            row += (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+                        }
                     }
+                    acc += row * (float)wt;
                     wsum += nu * wt;
                 }
-                for (int k = 0; k < 3; k++)
-                    val[k] = acc[k] / wsum;
+                val = acc * (float)(1.0 / wsum);
                 if (checked)
                     seen = seen_w / wsum;
             }

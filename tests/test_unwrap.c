@@ -314,6 +314,24 @@ static void test_deterministic(void)
     sl_threads_set(0);
     CHECK(a.width == b.width && a.data && b.data &&
           memcmp(a.data, b.data, sizeof(float) * a.stride * a.height) == 0);
+    /* RGB only: the same RGB; an RGBA photo (copied to RGB, not read in
+     * place) gives the same too. */
+    sl_image rgb = {0}, rgba = {0}, c = {0};
+    o.no_confidence = true;
+    CHECK_OK(sl_unwrap(&photo, &o, &rgb, NULL, NULL), NULL);
+    CHECK_OK(sl_image_convert_channels(&photo, 4, &rgba, NULL), NULL);
+    CHECK_OK(sl_unwrap(&rgba, &o, &c, NULL, NULL), NULL);
+    CHECK(rgb.channels == 3 && c.channels == 3 && rgb.width == a.width);
+    int differ = 0;
+    for (int y = 0; rgb.data && c.data && y < a.height; y++)
+        for (int x = 0; x < a.width; x++)
+            for (int k = 0; k < 3; k++)
+                differ += sl_image_pixel(&rgb, x, y)[k] != sl_image_pixel(&a, x, y)[k] ||
+                          sl_image_pixel(&c, x, y)[k] != sl_image_pixel(&a, x, y)[k];
+    CHECK(differ == 0);
+    sl_image_free(&rgb);
+    sl_image_free(&rgba);
+    sl_image_free(&c);
     sl_image_free(&photo);
     sl_image_free(&a);
     sl_image_free(&b);
