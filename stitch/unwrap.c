@@ -27,6 +27,7 @@
 #define FAST_MAX_BEND 0.5
 #define REFL_TABLE 1024
 #define ROW_GRAIN 32
+#define TILE_W 256
 
 typedef struct unwrap_ctx {
     const sl_image *photo; /* RGB, finite */
@@ -292,13 +293,16 @@ typedef struct centre {
     bool blind;
 } centre;
 
-static void map_row(const unwrap_ctx *c, int y, centre *row)
+/* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]. */
+static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
 {
     int w = c->out->width, h = c->out->height;
     double lat = M_PI * (0.5 - (y + 0.5) / h), cl = cos(lat), sl = sin(lat);
     const double(*m)[3] = c->world_to_view;
-    for (int x = 0; x < w; x++) {
-        double d[3] = {c->sin_lon[x] * cl, sl, c->cos_lon[x] * cl}, wv[3];
+    row -= x0;
+    for (int x = x0; x < x1; x++) {
+        int xw = x < 0 ? x + w : (x >= w ? x - w : x);
+        double d[3] = {c->sin_lon[xw] * cl, sl, c->cos_lon[xw] * cl}, wv[3];
         for (int k = 0; k < 3; k++)
             wv[k] = m[k][0] * d[0] + m[k][1] * d[1] + m[k][2] * d[2];
         double z = -wv[2];
@@ -337,19 +341,136 @@ static void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
         out[k] = a[k] + f * (a[k + 3] - a[k]);
 }
 
-/* Rows in chunks: each worker keeps the texel centres of the rows above and
- * below, so each centre is mapped once (plus two rows per chunk). Where the
- * footprint is clear of the blind cone and at most a few photo pixels wide,
- * the mapping is linear across the texel: sub-samples are placed with the
- * centres' differences and read bilinearly (checked against the rim only
- * when the footprint comes near it); elsewhere the texel is done exactly. */
+/* What the texels of one row share. */
+typedef struct row_geom {
+    int y;
+    bool inner_row; /* has rows above and below */
+    bool confidence;
+    double vscale, cos_lat, sin_lat, lon_step, lat_step, ref, keep;
+} row_geom;
+
+/* One texel from its centre ce, its neighbours in the row ce[-1] and ce[1],
+ * and the centres above and below. Where the footprint is clear of the
+ * blind cone and at most a few photo pixels wide, the mapping is linear
+ * across the texel: sub-samples are placed with the centres' differences
+ * (checked against the rim only when the footprint comes near it);
+ * elsewhere the texel is done exactly. */
+static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *ce,
+                  const centre *up, const centre *down, float *p)
+{
+    const centre *l = ce - 1, *r = ce + 1;
+    if (ce->blind || l->blind || r->blind || up->blind || down->blind) {
+        texel_exact(c, x, g->y, p);
+        return;
+    }
+    /* Photo pixels per texel step along u and v. */
+    double du[2] = {0.5 * (r->x - l->x), 0.5 * (r->y - l->y)};
+    double dv[2] = {g->vscale * (down->x - up->x), g->vscale * (down->y - up->y)};
+    double eu = sqrt(du[0] * du[0] + du[1] * du[1]);
+    double ev = sqrt(dv[0] * dv[0] + dv[1] * dv[1]);
+    /* Curvature of the mapping: how far the centre is from its
+     * neighbours' midpoints. */
+    double cu = fabs(r->x + l->x - 2.0 * ce->x) + fabs(r->y + l->y - 2.0 * ce->y);
+    double cv = g->inner_row ? fabs(down->x + up->x - 2.0 * ce->x) +
+                                   fabs(down->y + up->y - 2.0 * ce->y)
+                             : 0.0;
+    if (eu > FAST_MAX_EXTENT || ev > FAST_MAX_EXTENT || cu > FAST_MAX_BEND ||
+        cv > FAST_MAX_BEND) {
+        texel_exact(c, x, g->y, p);
+        return;
+    }
+    /* Farthest point of the footprint from the ball's centre (a corner:
+     * distance is convex), plus the lookup's reach: bilinear taps lie within
+     * sqrt(2) px of the point, the cubic's within 2 sqrt(2). Near the rim
+     * each sample is checked and clamped like the exact path's. Most texels
+     * are far from the rim: the triangle inequality settles them without
+     * the corners. */
+    double ex = ce->x - c->view->cx, ey = ce->y - c->view->cy, e2 = ex * ex + ey * ey;
+    double inner = g->keep - 2.9 - 0.5 * (eu + ev);
+    bool checked = false, cubic = true;
+    if (inner < 0.0 || e2 > inner * inner) {
+        double far2 = 0.0;
+        for (int q = 0; q < 4; q++) {
+            double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
+            double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
+            double d2 = qx * qx + qy * qy;
+            far2 = d2 > far2 ? d2 : far2;
+        }
+        double far = sqrt(far2);
+        checked = far + 1.5 > g->keep;
+        cubic = far + 2.9 <= g->keep;
+    }
+    double inv[3], seen = 1.0;
+    inv_reflectance(c, ce->cosi, inv);
+    v4f val;
+    if (eu <= 1.25 && ev <= 1.25) {
+        /* The lookup's kernel is about as wide as the footprint. */
+        if (cubic) {
+            val = bicubic(c->photo, ce->x, ce->y);
+        } else if (checked) {
+            double s[3];
+            seen = photo_lookup(c, ce->x, ce->y, s) ? 1.0 : 0.0;
+            val = (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+        } else {
+            val = bilinear(c->photo, ce->x, ce->y);
+        }
+    } else {
+        /* The lookup's kernel already spans about a pixel: samples
+         * cover the footprint less that pixel. */
+        int nu = fast_count(eu), nv = fast_count(ev);
+        double su = nu > 1 ? (eu - 1.0) / eu / (nu - 1) : 0.0;
+        double sv = nv > 1 ? (ev - 1.0) / ev / (nv - 1) : 0.0;
+        v4f acc = {0, 0, 0, 0};
+        double wsum = 0.0, seen_w = 0.0;
+        for (int j = 0; j < nv; j++) {
+            double b = (j - 0.5 * (nv - 1)) * sv;
+            /* Solid angle per unit v at the sample's latitude (first order). */
+            double wt = g->cos_lat + g->sin_lat * b * g->lat_step;
+            v4f row = {0, 0, 0, 0};
+            for (int i = 0; i < nu; i++) {
+                double a = (i - 0.5 * (nu - 1)) * su;
+                double sx = ce->x + a * du[0] + b * dv[0];
+                double sy = ce->y + a * du[1] + b * dv[1];
+                if (cubic) {
+                    row += bicubic(c->photo, sx, sy);
+                } else if (!checked) {
+                    row += bilinear(c->photo, sx, sy);
+                } else {
+                    double s[3];
+                    if (photo_lookup(c, sx, sy, s))
+                        seen_w += wt;
+                    row += (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+                }
+            }
+            acc += row * (float)wt;
+            wsum += nu * wt;
+        }
+        val = acc * (float)(1.0 / wsum);
+        if (checked)
+            seen = seen_w / wsum;
+    }
+    for (int k = 0; k < 3; k++)
+        p[k] = (float)(val[k] * inv[k]);
+    if (g->confidence) {
+        double j[2][2] = {{du[0] / g->lon_step, dv[0] / g->lat_step},
+                          {du[1] / g->lon_step, dv[1] / g->lat_step}};
+        double conf = g->ref > 0.0 ? smaller_singular_value(j) / g->ref : 0.0;
+        p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen);
+    }
+}
+
+/* Rows in chunks, each done in tiles TILE_W texels wide: a tile's rows
+ * read nearby photo pixels, which stay in cache from one row to the next
+ * (a whole row's path through the photo does not). The texel centres of a
+ * tile and the rows and columns around it are mapped first, so each centre
+ * is mapped once (plus a border per tile). */
 static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
     const unwrap_ctx *c = ctx;
-    const sl_ball_view *view = c->view;
     int w = c->out->width, h = c->out->height;
-    centre *buf = malloc(sizeof(centre) * 3 * (size_t)w);
+    int nrows = (int)(end - begin) + 2, tw = TILE_W + 2;
+    centre *buf = malloc(sizeof(centre) * (size_t)nrows * (size_t)tw);
     if (!buf) {
         /* No memory for the fast path: the exact one needs none. */
         for (int64_t y = begin; y < end; y++)
@@ -357,127 +478,29 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 texel_exact(c, x, (int)y, sl_image_pixel(c->out, x, (int)y));
         return;
     }
-    centre *rows[3] = {buf, buf + w, buf + 2 * (size_t)w};
-    if (begin > 0)
-        map_row(c, (int)begin - 1, rows[0]);
-    map_row(c, (int)begin, rows[1]);
-    double ref = view->centre_px_per_rad, keep = view->r - RIM_MARGIN;
-    bool confidence = c->out->channels == 4;
-    for (int64_t yy = begin; yy < end; yy++) {
-        int y = (int)yy;
-        if (y + 1 < h)
-            map_row(c, y + 1, rows[2]);
-        const centre *up = y > 0 ? rows[0] : rows[1], *down = y + 1 < h ? rows[2] : rows[1];
-        double vscale = (y > 0 && y + 1 < h) ? 0.5 : 1.0;
-        double vc = (y + 0.5) / h;
-        double cos_lat = cos(M_PI * (0.5 - vc)), sin_lat = sin(M_PI * (0.5 - vc));
-        double lon_step = 2.0 * M_PI / w * cos_lat, lat_step = M_PI / h;
-        for (int x = 0; x < w; x++) {
-            const centre *ce = &rows[1][x];
-            const centre *l = &rows[1][x > 0 ? x - 1 : w - 1], *r = &rows[1][x + 1 < w ? x + 1 : 0];
-            float *p = sl_image_pixel(c->out, x, y);
-            if (ce->blind || l->blind || r->blind || up[x].blind || down[x].blind) {
-                texel_exact(c, x, y, p);
-                continue;
-            }
-            /* Photo pixels per texel step along u and v. */
-            double du[2] = {0.5 * (r->x - l->x), 0.5 * (r->y - l->y)};
-            double dv[2] = {vscale * (down[x].x - up[x].x), vscale * (down[x].y - up[x].y)};
-            double eu = sqrt(du[0] * du[0] + du[1] * du[1]);
-            double ev = sqrt(dv[0] * dv[0] + dv[1] * dv[1]);
-            /* Curvature of the mapping: how far the centre is from its
-             * neighbours' midpoints. */
-            double cu = fabs(r->x + l->x - 2.0 * ce->x) + fabs(r->y + l->y - 2.0 * ce->y);
-            double cv = y > 0 && y + 1 < h ? fabs(down[x].x + up[x].x - 2.0 * ce->x) +
-                                                 fabs(down[x].y + up[x].y - 2.0 * ce->y)
-                                           : 0.0;
-            if (eu > FAST_MAX_EXTENT || ev > FAST_MAX_EXTENT || cu > FAST_MAX_BEND ||
-                cv > FAST_MAX_BEND) {
-                texel_exact(c, x, y, p);
-                continue;
-            }
-            /* Farthest point of the footprint from the ball's centre (a
-             * corner: distance is convex), plus the lookup's reach: bilinear
-             * taps lie within sqrt(2) px of the point, the cubic's within
-             * 2 sqrt(2). Near the rim each sample is checked and clamped
-             * like the exact path's. Most texels are far from the rim: the
-             * triangle inequality settles them without the corners. */
-            double ex = ce->x - view->cx, ey = ce->y - view->cy, e2 = ex * ex + ey * ey;
-            double inner = keep - 2.9 - 0.5 * (eu + ev);
-            bool checked = false, cubic = true;
-            if (inner < 0.0 || e2 > inner * inner) {
-                double far2 = 0.0;
-                for (int q = 0; q < 4; q++) {
-                    double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
-                    double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
-                    double d2 = qx * qx + qy * qy;
-                    far2 = d2 > far2 ? d2 : far2;
-                }
-                double far = sqrt(far2);
-                checked = far + 1.5 > keep;
-                cubic = far + 2.9 <= keep;
-            }
-            double inv[3], seen = 1.0;
-            inv_reflectance(c, ce->cosi, inv);
-            v4f val;
-            if (eu <= 1.25 && ev <= 1.25) {
-                /* The lookup's kernel is about as wide as the footprint. */
-                if (cubic) {
-                    val = bicubic(c->photo, ce->x, ce->y);
-                } else if (checked) {
-                    double s[3];
-                    seen = photo_lookup(c, ce->x, ce->y, s) ? 1.0 : 0.0;
-                    val = (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
-                } else {
-                    val = bilinear(c->photo, ce->x, ce->y);
-                }
-            } else {
-                /* The lookup's kernel already spans about a pixel: samples
-                 * cover the footprint less that pixel. */
-                int nu = fast_count(eu), nv = fast_count(ev);
-                double su = nu > 1 ? (eu - 1.0) / eu / (nu - 1) : 0.0;
-                double sv = nv > 1 ? (ev - 1.0) / ev / (nv - 1) : 0.0;
-                v4f acc = {0, 0, 0, 0};
-                double wsum = 0.0, seen_w = 0.0;
-                for (int j = 0; j < nv; j++) {
-                    double b = (j - 0.5 * (nv - 1)) * sv;
-                    /* Solid angle per unit v at the sample's latitude (first order). */
-                    double wt = cos_lat + sin_lat * b * lat_step;
-                    v4f row = {0, 0, 0, 0};
-                    for (int i = 0; i < nu; i++) {
-                        double a = (i - 0.5 * (nu - 1)) * su;
-                        double sx = ce->x + a * du[0] + b * dv[0], sy = ce->y + a * du[1] + b * dv[1];
-                        if (cubic) {
-                            row += bicubic(c->photo, sx, sy);
-                        } else if (!checked) {
-                            row += bilinear(c->photo, sx, sy);
-                        } else {
-                            double s[3];
-                            if (photo_lookup(c, sx, sy, s))
-                                seen_w += wt;
-                            row += (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
-                        }
-                    }
-                    acc += row * (float)wt;
-                    wsum += nu * wt;
-                }
-                val = acc * (float)(1.0 / wsum);
-                if (checked)
-                    seen = seen_w / wsum;
-            }
-            for (int k = 0; k < 3; k++)
-                p[k] = (float)(val[k] * inv[k]);
-            if (confidence) {
-                double j[2][2] = {{du[0] / lon_step, dv[0] / lat_step},
-                                  {du[1] / lon_step, dv[1] / lat_step}};
-                double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
-                p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen);
-            }
+    row_geom g = {.confidence = c->out->channels == 4, .lat_step = M_PI / h,
+                  .ref = c->view->centre_px_per_rad, .keep = c->view->r - RIM_MARGIN};
+    for (int xb = 0; xb < w; xb += TILE_W) {
+        int xe = xb + TILE_W < w ? xb + TILE_W : w;
+        /* buf row i holds image row begin - 1 + i, columns xb - 1 .. xe. */
+        for (int i = 0; i < nrows; i++) {
+            int y = (int)begin - 1 + i;
+            if (y >= 0 && y < h)
+                map_row(c, y, xb - 1, xe + 1, buf + (size_t)i * tw);
         }
-        centre *t = rows[0];
-        rows[0] = rows[1];
-        rows[1] = rows[2];
-        rows[2] = t;
+        for (int y = (int)begin; y < end; y++) {
+            const centre *row = buf + (size_t)(y - begin + 1) * tw + 1 - xb;
+            const centre *up = y > 0 ? row - tw : row, *down = y + 1 < h ? row + tw : row;
+            double lat = M_PI * (0.5 - (y + 0.5) / h);
+            g.y = y;
+            g.inner_row = y > 0 && y + 1 < h;
+            g.vscale = g.inner_row ? 0.5 : 1.0;
+            g.cos_lat = cos(lat);
+            g.sin_lat = sin(lat);
+            g.lon_step = 2.0 * M_PI / w * g.cos_lat;
+            for (int x = xb; x < xe; x++)
+                texel(c, &g, x, row + x, up + x, down + x, sl_image_pixel(c->out, x, y));
+        }
     }
     free(buf);
 }
