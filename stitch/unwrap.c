@@ -36,7 +36,7 @@ typedef struct unwrap_ctx {
     sl_image *out;
     double blind_fill[3];
     double world_to_view[3][3];
-    double *sin_lon, *cos_lon;  /* per output column */
+    double *column;             /* per output column: world_to_view (sin lon, 0, cos lon) */
     double inv_refl[3];         /* constant reflectance */
     double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
 } unwrap_ctx;
@@ -302,9 +302,10 @@ static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
     row -= x0;
     for (int x = x0; x < x1; x++) {
         int xw = x < 0 ? x + w : (x >= w ? x - w : x);
-        double d[3] = {c->sin_lon[xw] * cl, sl, c->cos_lon[xw] * cl}, wv[3];
+        const double *col = c->column + 3 * (size_t)xw;
+        double wv[3];
         for (int k = 0; k < 3; k++)
-            wv[k] = m[k][0] * d[0] + m[k][1] * d[1] + m[k][2] * d[2];
+            wv[k] = cl * col[k] + sl * m[k][1];
         double z = -wv[2];
         if (c->view->distance == 0.0 && z > -0.9999) {
             /* Orthographic, unit direction, away from the back: the pixel
@@ -507,18 +508,16 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
 
 static void tables_free(unwrap_ctx *c)
 {
-    free(c->sin_lon);
-    free(c->cos_lon);
+    free(c->column);
     free(c->refl_table);
 }
 
-/* Per-column trigonometry and the reflectance. */
+/* Per-column directions in the view frame and the reflectance. */
 static sl_result tables_init(unwrap_ctx *c, sl_error *err)
 {
     int w = c->out->width;
-    c->sin_lon = malloc(sizeof(double) * w);
-    c->cos_lon = malloc(sizeof(double) * w);
-    bool ok = c->sin_lon && c->cos_lon;
+    c->column = malloc(sizeof(double) * 3 * (size_t)w);
+    bool ok = c->column != NULL;
     if (ok && c->refl->kind == SL_REFLECTANCE_CONDUCTOR)
         ok = (c->refl_table = malloc(sizeof(double) * 3 * (REFL_TABLE + 1))) != NULL;
     if (!ok) {
@@ -527,8 +526,9 @@ static sl_result tables_init(unwrap_ctx *c, sl_error *err)
     }
     for (int x = 0; x < w; x++) {
         double lon = M_PI * (1.0 - 2.0 * (x + 0.5) / w);
-        c->sin_lon[x] = sin(lon);
-        c->cos_lon[x] = cos(lon);
+        double sn = sin(lon), cs = cos(lon);
+        for (int k = 0; k < 3; k++)
+            c->column[3 * x + k] = c->world_to_view[k][0] * sn + c->world_to_view[k][2] * cs;
     }
     double rf[3];
     sl_reflectance_eval(c->refl, 1.0, rf);
