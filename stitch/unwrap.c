@@ -50,9 +50,9 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
     bool inside = true;
     double dx = x - v->cx, dy = y - v->cy, d2 = dx * dx + dy * dy, lim = v->r - RIM_CLAMP;
     if (d2 > lim * lim) {
-        double d = sqrt(d2);
-        x = v->cx + dx * lim / d;
-        y = v->cy + dy * lim / d;
+        double f = lim / sqrt(d2);
+        x = v->cx + dx * f;
+        y = v->cy + dy * f;
         inside = false;
     }
     double fx = x - 0.5, fy = y - 0.5;
@@ -74,8 +74,9 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
             wsum += w;
         }
     if (wsum > 0.0) {
+        double inv = 1.0 / wsum;
         for (int k = 0; k < 3; k++)
-            out[k] = acc[k] / wsum;
+            out[k] = acc[k] * inv;
     } else {
         int xi = (int)floor(x), yi = (int)floor(y);
         xi = xi < 0 ? 0 : (xi >= img->width ? img->width - 1 : xi);
@@ -85,6 +86,39 @@ static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
             out[k] = p[k];
     }
     return inside;
+}
+
+/* A view-frame direction to the photo: ball_view_map_local, with a shorter
+ * orthographic formula away from the singular point behind the ball. */
+static inline void map_local(const unwrap_ctx *c, const double wv[3], ball_hit *hit)
+{
+    double z = -wv[2];
+    if (c->view->distance == 0.0 && z > -0.9999) {
+        /* Unit direction: the pixel offset is r sin(phi/2) / sin(phi) =
+         * r / (2 cos(phi/2)) times (wv0, wv1), cos(phi/2) = sqrt((1 + z) / 2). */
+        double ct = sqrt(0.5 * (1.0 + z)), k = c->view->r * 0.5 / ct;
+        hit->x = c->view->cx - k * wv[0];
+        hit->y = c->view->cy - k * wv[1];
+        hit->cos_incidence = ct;
+        hit->blind = false;
+        return;
+    }
+    ball_view_map_local(c->view, wv, hit);
+}
+
+static void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
+{
+    if (!c->refl_table) {
+        memcpy(out, c->inv_refl, sizeof c->inv_refl);
+        return;
+    }
+    double t = cosi * REFL_TABLE;
+    int i = (int)t;
+    i = i < 0 ? 0 : (i >= REFL_TABLE ? REFL_TABLE - 1 : i);
+    double f = t - i;
+    const double *a = c->refl_table + 3 * i;
+    for (int k = 0; k < 3; k++)
+        out[k] = a[k] + f * (a[k + 3] - a[k]);
 }
 
 /* Radiance seen in `dir`, and whether the photo really shows it. The blind
@@ -97,16 +131,16 @@ static bool radiance(const unwrap_ctx *c, const double dir[3], double out[3])
     double wv[3];
     for (int k = 0; k < 3; k++)
         wv[k] = m[k][0] * dir[0] + m[k][1] * dir[1] + m[k][2] * dir[2];
-    ball_view_map_local(c->view, wv, &h);
+    map_local(c, wv, &h);
     if (h.blind) {
         memcpy(out, c->blind_fill, sizeof c->blind_fill);
         return false;
     }
-    double refl[3];
+    double inv[3];
     bool seen = photo_lookup(c, h.x, h.y, out);
-    sl_reflectance_eval(c->refl, h.cos_incidence, refl);
+    inv_reflectance(c, h.cos_incidence, inv);
     for (int k = 0; k < 3; k++)
-        out[k] /= refl[k];
+        out[k] *= inv[k];
     return seen;
 }
 
@@ -306,40 +340,13 @@ static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
         double wv[3];
         for (int k = 0; k < 3; k++)
             wv[k] = cl * col[k] + sl * m[k][1];
-        double z = -wv[2];
-        if (c->view->distance == 0.0 && z > -0.9999) {
-            /* Orthographic, unit direction, away from the back: the pixel
-             * offset is r sin(phi/2) / sin(phi) = r / (2 cos(phi/2)) times
-             * (wv0, wv1), with cos(phi/2) = sqrt((1 + z) / 2). */
-            double ct = sqrt(0.5 * (1.0 + z)), k = c->view->r * 0.5 / ct;
-            row[x].x = c->view->cx - k * wv[0];
-            row[x].y = c->view->cy - k * wv[1];
-            row[x].cosi = ct;
-            row[x].blind = false;
-            continue;
-        }
         ball_hit hit;
-        ball_view_map_local(c->view, wv, &hit);
+        map_local(c, wv, &hit);
         row[x].x = hit.x;
         row[x].y = hit.y;
         row[x].cosi = hit.cos_incidence;
         row[x].blind = hit.blind;
     }
-}
-
-static void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
-{
-    if (!c->refl_table) {
-        memcpy(out, c->inv_refl, sizeof c->inv_refl);
-        return;
-    }
-    double t = cosi * REFL_TABLE;
-    int i = (int)t;
-    i = i < 0 ? 0 : (i >= REFL_TABLE ? REFL_TABLE - 1 : i);
-    double f = t - i;
-    const double *a = c->refl_table + 3 * i;
-    for (int k = 0; k < 3; k++)
-        out[k] = a[k] + f * (a[k + 3] - a[k]);
 }
 
 /* What the texels of one row share. */
