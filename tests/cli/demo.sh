@@ -19,7 +19,7 @@ size=small
 expect 0 "$S" demo "$T/demo" --size $size --json --quiet
 json_ok "$T/out"
 cp "$T/out" "$T/summary.json"
-json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "merge", "unwrap", "calibrate", "rig", "render"]'
+json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "ingest", "merge", "unwrap", "calibrate", "rig", "render"]'
 present "$T/demo/report.html"
 present "$T/demo/truth.png"
 present "$T/demo/capture/capture.json"
@@ -48,10 +48,12 @@ m = re.search(r"brute-force irradiance sum [0-9.e+-]+ cd/m\^2 \(([+-][0-9.]+)%",
 sys.exit(0 if m and abs(float(m.group(1))) < 1.0 else 1)
 PY
 then ok; else bad "grey-ball check missing or above 1%"; fi
-for stage in simulate truth frames merge unwrap calibrate rig render; do
+for stage in simulate truth frames ingest merge unwrap calibrate rig render; do
     if grep -q "<td>$stage</td>" "$T/demo/report.html"; then ok; else bad "report lacks stage $stage"; fi
 done
 if grep -q "EXIF read back through OpenImageIO matches the plan for 21 of 21 frames" "$T/demo/report.html"; then ok; else bad "EXIF check missing from the report"; fi
+if grep -q "21 frames in 3 views grouped from EXIF time and exposure alone; 21 of 21 planned frames in the right view, bracket and place; 42 sibling files" "$T/demo/report.html"; then ok; else bad "ingest check missing from the report"; fi
+present "$T/demo/capture/session/session.json"
 no_temp "$T/demo"
 
 before=$(md5sum "$T/demo/report.html")
