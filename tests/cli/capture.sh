@@ -157,6 +157,15 @@ check_session "$T/reconnect" 3 7
 python3 -c 'import json,sys; l=[json.loads(x) for x in open(sys.argv[1])]; k=[(e["event"],e.get("view"),e.get("index"),e.get("ok")) for e in l if e["event"] in ("error","reconnect")]; sys.exit(0 if k==[("error",1,3,None),("reconnect",1,3,True)] else print(k) or 1)' \
   "$T/reconnect/journal.jsonl" && ok || bad "reconnect not journalled"
 
+# --- the connection drops while the shutter speed is being set (4th change):
+# a lost connection, not a refusal: reconnection, 7 frames, journalled
+start_cam --drop-at-set 4
+expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --no-prompt -o "$T/dropset"
+check_session "$T/dropset" 1 7
+python3 -c 'import json,sys; l=[json.loads(x) for x in open(sys.argv[1])]; k=[(e["event"],e.get("index"),e.get("ok")) for e in l if e["event"] in ("error","reconnect")]; sys.exit(0 if len(k)==2 and k[0][0]=="error" and k[1]==("reconnect",k[0][1],True) and "shutterspeed" in [e for e in l if e["event"]=="error"][0]["message"] else print(k) or 1)' \
+  "$T/dropset/journal.jsonl" && ok || bad "drop while setting: not reconnected"
+grep -q "dropping the connection at exposure-time change 4" "$T/cam.log" && ok || bad "emulator did not drop: $(tail -3 "$T/cam.log")"
+
 # --- disconnect after frame 10 with no reconnection, then --resume: 21
 # frames, none lost or twice
 start_cam --drop-after 10
