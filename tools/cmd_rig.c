@@ -421,8 +421,10 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             goto fail;
         sl_log(SL_LOG_INFO,
                "validation (96 px, %lld spp, relative RMSE rig against map): grey %.2f%%, "
-               "chrome %.2f%%, shadow %.2f%%",
-               validate_spp, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2]);
+               "chrome %.2f%%, shadow %.2f%% (beyond the renders' noise: %.2f%%, %.2f%%, "
+               "%.2f%%)",
+               (long long)val.spp, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
+               100 * val.beyond_noise[0], 100 * val.beyond_noise[1], 100 * val.beyond_noise[2]);
         char about[4096];
         snprintf(about, sizeof about,
                  "%s: %d lights (method %s, energy share %g%s), %d candidates left in the dome, "
@@ -460,14 +462,18 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             char page[PATH_MAX + 16];
             snprintf(page, sizeof page, "%.*s.validate.html", (int)(strlen(out_path) - 5),
                      out_path);
-            json_t *vj = json_pack("{s:i, s:I, s:f, s:s, s:{}}", "width", val.width, "spp",
-                                   (json_int_t)val.spp, "seconds", val.seconds, "report", page,
-                                   "render_seconds");
+            json_t *vj = json_pack("{s:i, s:I, s:f, s:s, s:{}, s:{}, s:{}}", "width", val.width,
+                                   "spp", (json_int_t)val.spp, "seconds", val.seconds, "report",
+                                   page, "render_seconds", "noise", "beyond_noise");
             for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
                 json_object_set_new(vj, val.scene[k], json_real(val.error[k]));
                 json_object_set_new(json_object_get(vj, "render_seconds"), val.scene[k],
                                     json_pack("{s:f, s:f}", "map", val.seconds_map[k], "rig",
                                               val.seconds_rig[k]));
+                json_object_set_new(json_object_get(vj, "noise"), val.scene[k],
+                                    json_real(val.noise[k]));
+                json_object_set_new(json_object_get(vj, "beyond_noise"), val.scene[k],
+                                    json_real(val.beyond_noise[k]));
             }
             json_object_set_new(o, "validation", vj);
         }

@@ -15,7 +15,8 @@
 #include "setlight/render.h"
 
 static sl_result render_one(const char *preset, const sl_image *env, const char *rig_json,
-                            int width, int64_t spp, sl_image *out, sl_error *err)
+                            int width, int64_t spp, uint64_t seed, sl_image *out,
+                            int64_t *spp_done, sl_error *err)
 {
     sl_scene s;
     sl_scene_init(&s);
@@ -29,12 +30,15 @@ static sl_result render_one(const char *preset, const sl_image *env, const char 
         sl_render_options o;
         sl_render_options_init(&o);
         o.spp = spp;
+        o.seed = seed;
         /* one bounce: the shadow scene's ground lights the sphere's underside */
         o.bounces = 1;
         sl_render_stats st;
         r = sl_render(&s, &o, out, &st, err);
-        if (!r)
+        if (!r) {
+            *spp_done = st.spp;
             sl_render_stats_free(&st);
+        }
     }
     sl_scene_free(&s);
     return r;
@@ -48,6 +52,66 @@ void rig_validation_free(rig_validation *v)
     }
 }
 
+/* One scene: map and rig each rendered twice with half the samples and
+ * seeds 1 and 2. The rig-minus-map differences of the two seeds share
+ * their camera and BSDF samples as the final renders do, so half their
+ * difference is the Monte Carlo noise of the final difference (the map's
+ * and the rig's noise are strongly correlated: a chrome sphere's jittered
+ * pixels see nearly the same directions under both). */
+static sl_result validate_scene(rig_validation *v, int k, const sl_image *env, const char *rig_json,
+                                sl_error *err)
+{
+    sl_image a[2] = {{0}}, b[2] = {{0}};
+    int64_t half = (v->spp + 1) / 2, done[4] = {0};
+    sl_result r = SL_OK;
+    for (int s = 0; s < 2 && !r; s++) {
+        double t = sl_seconds();
+        if ((r = render_one(v->scene[k], env, NULL, v->width, half, (uint64_t)s + 1, &a[s],
+                            &done[2 * s], err)))
+            break;
+        v->seconds_map[k] += sl_seconds() - t;
+        t = sl_seconds();
+        r = render_one(v->scene[k], NULL, rig_json, v->width, half, (uint64_t)s + 1, &b[s],
+                       &done[2 * s + 1], err);
+        v->seconds_rig[k] += sl_seconds() - t;
+    }
+    if (!r && !(r = sl_image_copy(&a[0], &v->map[k], err)))
+        r = sl_image_copy(&b[0], &v->rig[k], err);
+    if (!r) {
+        v->spp_done = done[0] + done[2];
+        double num = 0, den = 0, noise = 0;
+        for (int y = 0; y < a[0].height; y++)
+            for (int x = 0; x < a[0].width; x++) {
+                const float *a0 = sl_image_pixel(&a[0], x, y), *a1 = sl_image_pixel(&a[1], x, y),
+                            *b0 = sl_image_pixel(&b[0], x, y), *b1 = sl_image_pixel(&b[1], x, y);
+                float *pa = sl_image_pixel(&v->map[k], x, y), *pb = sl_image_pixel(&v->rig[k], x, y);
+                /* Only the objects: a rig light seen directly (a rect far
+                 * away) is not the map behind them. */
+                float alpha = 0.5f * (a0[3] + a1[3]);
+                for (int c = 0; c < 3; c++) {
+                    pa[c] = alpha * 0.5f * (a0[c] + a1[c]);
+                    pb[c] = alpha * 0.5f * (b0[c] + b1[c]);
+                    double d = (double)pb[c] - pa[c];
+                    double h = 0.5 * alpha * (((double)b0[c] - a0[c]) - ((double)b1[c] - a1[c]));
+                    num += d * d;
+                    den += (double)pa[c] * pa[c];
+                    noise += h * h;
+                }
+                pa[3] = pb[3] = alpha;
+            }
+        v->error[k] = den > 0 ? sqrt(num / den) : 0;
+        v->noise[k] = den > 0 ? sqrt(noise / den) : 0;
+        /* E[error^2] = bias^2 + noise^2 */
+        double e2 = num - noise;
+        v->beyond_noise[k] = den > 0 && e2 > 0 ? sqrt(e2 / den) : 0;
+    }
+    for (int s = 0; s < 2; s++) {
+        sl_image_free(&a[s]);
+        sl_image_free(&b[s]);
+    }
+    return r;
+}
+
 sl_result rig_validate(const sl_image *env, const char *rig_json, int width, int64_t spp,
                        rig_validation *v, sl_error *err)
 {
@@ -56,33 +120,16 @@ sl_result rig_validate(const sl_image *env, const char *rig_json, int width, int
     double t0 = sl_seconds();
     v->width = width;
     v->spp = spp;
-    sl_result r = SL_OK;
-    for (int k = 0; k < RIG_VALIDATE_SCENES && !r; k++) {
-        sl_image *a = &v->map[k], *b = &v->rig[k];
+    for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
         v->scene[k] = scenes[k];
         v->error[k] = -1;
-        double t = sl_seconds();
-        if ((r = render_one(scenes[k], env, NULL, width, spp, a, err)))
-            break;
-        v->seconds_map[k] = sl_seconds() - t;
-        t = sl_seconds();
-        if ((r = render_one(scenes[k], NULL, rig_json, width, spp, b, err)))
-            break;
-        v->seconds_rig[k] = sl_seconds() - t;
-        /* Only the objects: a rig light seen directly (a rect far away) is
-         * not the map behind them. */
-        for (int y = 0; y < a->height; y++)
-            for (int x = 0; x < a->width; x++) {
-                float *pa = sl_image_pixel(a, x, y), *pb = sl_image_pixel(b, x, y);
-                for (int c = 0; c < 3; c++) {
-                    pa[c] *= pa[3];
-                    pb[c] *= pa[3];
-                }
-                pb[3] = pa[3];
-            }
-        r = sl_relative_rmse(b, a, &v->error[k], err);
     }
+    sl_result r = SL_OK;
+    for (int k = 0; k < RIG_VALIDATE_SCENES && !r; k++)
+        r = validate_scene(v, k, env, rig_json, err);
     v->seconds = sl_seconds() - t0;
+    if (!r)
+        v->spp = v->spp_done;
     return r;
 }
 
@@ -164,18 +211,21 @@ static double render_stops(const sl_image *a)
 sl_result rig_validate_report(sl_report *rep, const rig_validation *v, const char *prefix,
                               sl_error *err)
 {
-    static const char *const head[] = {"scene",         "relative RMSE (%)", "spp",
-                                       "size (px)",     "map render (s)",    "rig render (s)"};
-    sl_report_table_begin(rep, 6, head);
+    static const char *const head[] = {
+        "scene",          "relative RMSE (%)", "spp",           "size (px)",
+        "map render (s)", "rig render (s)",    "noise (%)",     "beyond noise (%)"};
+    sl_report_table_begin(rep, 8, head);
     for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
-        char c[6][48];
+        char c[8][48];
         snprintf(c[0], sizeof c[0], "%s", v->scene[k]);
         snprintf(c[1], sizeof c[1], "%.3f", 100 * v->error[k]);
         snprintf(c[2], sizeof c[2], "%lld", (long long)v->spp);
         snprintf(c[3], sizeof c[3], "%dx%d", v->map[k].width, v->map[k].height);
         snprintf(c[4], sizeof c[4], "%.2f", v->seconds_map[k]);
         snprintf(c[5], sizeof c[5], "%.2f", v->seconds_rig[k]);
-        const char *cells[6] = {c[0], c[1], c[2], c[3], c[4], c[5]};
+        snprintf(c[6], sizeof c[6], "%.3f", 100 * v->noise[k]);
+        snprintf(c[7], sizeof c[7], "%.3f", 100 * v->beyond_noise[k]);
+        const char *cells[8] = {c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]};
         sl_report_table_row(rep, cells);
     }
     sl_report_table_end(rep);
@@ -184,7 +234,12 @@ sl_result rig_validate_report(sl_report *rep, const rig_validation *v, const cha
                    "the map render's objects at 18%% grey) and their difference in false "
                    "colour: per pixel the RMS over RGB of rig - map over the map render's RMS "
                    "over the objects (the relative RMSE is the RMS of this over the objects); "
-                   "grey is the background. Monte Carlo noise at %lld spp is part of it.",
+                   "grey is the background. Monte Carlo noise at %lld spp is part of it. "
+                   "'noise': each render is the mean of two with half the samples and seeds 1 "
+                   "and 2, map and rig with the same seeds; half the difference of the two "
+                   "seeds' rig-minus-map images is the noise of the final difference (relative "
+                   "to the map render). 'beyond noise' = sqrt(RMSE^2 - noise^2): the rig's own "
+                   "error, as far as the noise lets it show.",
                    (long long)v->spp);
     char file[512], cap[256];
     sl_image bar = {0};

@@ -10,10 +10,16 @@
 
 typedef struct rig_validation {
     int width;
-    int64_t spp;
+    int64_t spp;      /* samples per pixel done (requested, rounded up to a multiple of 4) */
+    int64_t spp_done; /* the last scene's, while rendering */
     const char *scene[RIG_VALIDATE_SCENES]; /* "grey", "chrome", "shadow" */
     double error[RIG_VALIDATE_SCENES];      /* relative RMSE, rig against map */
     double seconds_map[RIG_VALIDATE_SCENES], seconds_rig[RIG_VALIDATE_SCENES];
+    /* The Monte Carlo noise of the rig-minus-map difference (relative to
+     * the map render, from two half renders with different seeds) and the
+     * error left when it is taken out: sqrt(max(0, error^2 - noise^2)). */
+    double noise[RIG_VALIDATE_SCENES];
+    double beyond_noise[RIG_VALIDATE_SCENES];
     double seconds;
     /* The renders as compared: RGBA, RGB multiplied by the map render's
      * alpha (the objects only). Freed by rig_validation_free. */
@@ -22,7 +28,7 @@ typedef struct rig_validation {
 
 /* Renders the grey, chrome and shadow presets (width pixels wide, spp
  * samples, direct light and one bounce) under the map and under the rig
- * file (rig.json, read back as the renderer reads it) with the same seed,
+ * file (rig.json, read back as the renderer reads it) with the same seeds,
  * and compares them on the objects (camera rays that miss see black).
  * Free *out with rig_validation_free, also after failure. */
 sl_result rig_validate(const sl_image *env, const char *rig_json, int width, int64_t spp,

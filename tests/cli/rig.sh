@@ -114,6 +114,10 @@ for s in ("grey", "chrome", "shadow"):
     assert m and abs(float(m.group(1)) - 100 * v[s]) <= 0.0005 + 1e-9, (s, m and m.group(1), v[s])
     assert int(m.group(2)) == spp == v["spp"], s
     assert f"relative RMSE {m.group(1)}%" in page, s
+    n = re.search(rf"<tr><td>{s}</td>(?:<td>[^<]*</td>){{5}}<td>([0-9.]+)</td><td>([0-9.]+)</td></tr>", page)
+    assert n and abs(float(n.group(1)) - 100 * v["noise"][s]) <= 0.0005 + 1e-9, s
+    assert abs(float(n.group(2)) - 100 * v["beyond_noise"][s]) <= 0.0005 + 1e-9, s
+    assert 0 < v["noise"][s] and v["beyond_noise"][s] <= v[s], s
 for s in ("grey", "chrome", "shadow"):
     for k in ("map", "rig"):
         assert open(f"{d}/{name}/{s}_{k}.exr", "rb").read(4) == b"\x76\x2f\x31\x01", (s, k)
