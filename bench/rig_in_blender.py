@@ -26,7 +26,10 @@ The same file is the Blender side: the driver runs
    under the original map (`--env`) as the dome-convention control. Each render is two
    seeds with half the samples each; the per-pixel noise (h1 - h2)^2 / 4 of both sides
    is taken out of the mean squared difference (systematic relative RMSE over the
-   sphere, 1 px rim left out); the ratio of the mean pixel values is printed too.
+   sphere, 1 px rim left out, over the reference's RMS as `setlight rig --validate`);
+   the ratio of the mean pixel values is printed too. Also the chrome sphere (a mirror
+   of reflectance 1; box-filtered pixels in both renderers, as a mirror at pixel centres
+   puts each small bright light in a few pixels or none).
 
 Conventions (docs/lightrig.md, "In Blender"): setlight (x, y, z), +Y up, maps to
 Blender (z, x, y), +Z up (a rotation; Blender's equirectangular lookup of that vector
@@ -75,6 +78,8 @@ def blender_main(argv):
     ap.add_argument("--camera", help="JSON: position, look_at, up, width (setlight coordinates)")
     ap.add_argument("--object", default="sphere", help="sphere | plane | none")
     ap.add_argument("--albedo", type=float, default=0.18)
+    ap.add_argument("--chrome", action="store_true", help="the sphere is a perfect mirror")
+    ap.add_argument("--box", action="store_true", help="box pixel filter (else pixel centres)")
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--spp", type=int, default=128)
     ap.add_argument("--seed", type=int, default=1)
@@ -175,6 +180,15 @@ def blender_main(argv):
         ob = bpy.data.objects.new("sphere", me)
         sc.collection.objects.link(ob)
         mat = diffuse("grey", a.albedo)
+        if a.chrome:
+            # a mirror of reflectance 1 (Principled metallic, base 1: Schlick F = 1)
+            nt = mat.node_tree
+            nt.nodes.clear()
+            p = nt.nodes.new("ShaderNodeBsdfPrincipled")
+            p.inputs["Base Color"].default_value = (1, 1, 1, 1)
+            p.inputs["Metallic"].default_value = 1
+            p.inputs["Roughness"].default_value = 0
+            nt.links.new(p.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
         ob.data.materials.append(mat)
         ng = bpy.data.node_groups.new("pts", "GeometryNodeTree")
         ng.inputs.new("NodeSocketGeometry", "Geometry")
@@ -213,8 +227,13 @@ def blender_main(argv):
     c.use_adaptive_sampling = False
     c.use_denoising = False
     c.seed = a.seed
-    c.pixel_filter_type = "BLACKMAN_HARRIS"
-    c.filter_width = 0.01  # pixel centres, as setlight --pixel-centers
+    if a.box:
+        # the pixel's area, as setlight's default box filter
+        c.pixel_filter_type = "BOX"
+        c.filter_width = 1.0
+    else:
+        c.pixel_filter_type = "BLACKMAN_HARRIS"
+        c.filter_width = 0.01  # pixel centres, as setlight --pixel-centers
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
     r.threads_mode = "FIXED"
     r.threads = 2
@@ -330,6 +349,7 @@ def main():
     ap.add_argument("--res", type=int, default=128)
     ap.add_argument("--spp", type=int, default=256, help="per render, split over two seeds")
     ap.add_argument("--energy", type=float, default=0.99)
+    ap.add_argument("--spheres", default="grey,chrome", help="grey (Lambert 0.18, pixel centres), chrome (mirror, box-filtered pixels)")
     ap.add_argument("--work", default="/tmp/setlight-bench/rig")
     ap.add_argument("--setlight", default=os.path.join(os.path.dirname(HERE), "..", "build", "setlight"))
     ap.add_argument("--blender", default=os.environ.get("BLENDER", "blender"))
@@ -351,7 +371,7 @@ def main():
     results = {"blender": probe["version"], "usd_import": use_usd, "res": a.res, "spp": a.spp}
 
     def both(name, rig=None, env=None, scene=None, camera=GREY_CAMERA, obj="sphere", albedo=0.18,
-             res=a.res, spp=a.spp, usda=None):
+             res=a.res, spp=a.spp, usda=None, chrome=False):
         """Blender and setlight, two seeds each with half the samples."""
         imgs = {"blender": [], "setlight": []}
         for seed in (1, 2):
@@ -361,12 +381,17 @@ def main():
             args += ["--rig", rig] if rig else []
             args += ["--env", env] if env else []
             args += ["--usda", usda] if usda else []
+            # chrome: the pixel's area (a mirror at pixel centres puts each tiny bulb in a
+            # few pixels or none, and the RMSE measures that)
+            args += ["--chrome", "--box"] if chrome else []
             blender(a, *args)
             imgs["blender"].append(load(p))
             p = W("%s_setlight_s%d.exr" % (name, seed))
-            cmd = [a.setlight, "render", "--quiet", "--scene", scene, "--width", str(res), "--pixel-centers",
+            cmd = [a.setlight, "render", "--quiet", "--scene", scene, "--width", str(res),
                    "--spp", str(spp // 2), "--seed", str(seed), "-o", p]
+            cmd += [] if chrome else ["--pixel-centers"]
             cmd += ["--rig", rig] if rig else ["--env", env]
+            cmd += ["--material", "conductor:1,1,1:0"] if chrome else []
             run(cmd)
             imgs["setlight"].append(load(p))
         return imgs
@@ -448,31 +473,36 @@ def main():
         vb = ((b_imgs[0] - b_imgs[1])[..., :3] ** 2 / 4)[mask]
         vs = ((s_imgs[0] - s_imgs[1])[..., :3] ** 2 / 4)[mask]
         d = (b - s)[mask]
-        ms = float(np.mean(s[mask]))
+        # over the reference's RMS, as sl_relative_rmse and `setlight rig --validate` (a
+        # chrome sphere's mean is far below its RMS: its reflections of the lights dominate)
+        ms = math.sqrt(float(np.mean(s[mask] ** 2)))
         mse = float(np.mean(d * d))
         return dict(rel_rmse=math.sqrt(mse) / ms,
                     systematic=math.sqrt(max(0.0, mse - float(np.mean(vb)) - float(np.mean(vs)))) / ms,
                     noise_first=math.sqrt(float(np.mean(vb))) / ms,
                     noise_second=math.sqrt(float(np.mean(vs))) / ms,
-                    mean_ratio=float(np.mean(b[mask])) / ms)
+                    mean_ratio=float(np.mean(b[mask])) / float(np.mean(s[mask])))
 
-    rows = {}
-    for name, kw in (("map", dict(env=truth)),
-                     ("rig", dict(rig=W("rig.json"), usda=W("RIG.usda") if use_usd else None))):
-        imgs = both("grey_" + name, scene="grey", **kw)
-        rows[name] = dict(imgs=imgs, **compare(imgs["blender"], imgs["setlight"]))
-    # the rig against the map, within each renderer
-    for r in ("blender", "setlight"):
-        rows["rig_vs_map_" + r] = compare(rows["rig"]["imgs"][r], rows["map"]["imgs"][r])
-    for k in rows:
-        rows[k].pop("imgs", None)
-        r = rows[k]
-        what = {"map": "Blender / setlight, under the map", "rig": "Blender / setlight, under the rig",
-                "rig_vs_map_blender": "rig / map, in Blender", "rig_vs_map_setlight": "rig / map, in setlight"}[k]
-        print("grey %-34s relative RMSE %.3f%%, systematic %.3f%% (noise %.3f%%, %.3f%%), mean ratio %.4f"
-              % (what, 100 * r["rel_rmse"], 100 * r["systematic"], 100 * r["noise_first"],
-                 100 * r["noise_second"], r["mean_ratio"]), flush=True)
-    results["grey"] = rows
+    for sphere in a.spheres.split(","):
+        rows = {}
+        spp = a.spp
+        for name, kw in (("map", dict(env=truth)),
+                         ("rig", dict(rig=W("rig.json"), usda=W("RIG.usda") if use_usd else None))):
+            imgs = both("%s_%s" % (sphere, name), scene="grey", chrome=sphere == "chrome", spp=spp, **kw)
+            rows[name] = dict(imgs=imgs, **compare(imgs["blender"], imgs["setlight"]))
+        # the rig against the map, within each renderer
+        for r in ("blender", "setlight"):
+            rows["rig_vs_map_" + r] = compare(rows["rig"]["imgs"][r], rows["map"]["imgs"][r])
+        for k in rows:
+            rows[k].pop("imgs", None)
+            r = rows[k]
+            what = {"map": "Blender / setlight, under the map", "rig": "Blender / setlight, under the rig",
+                    "rig_vs_map_blender": "rig / map, in Blender",
+                    "rig_vs_map_setlight": "rig / map, in setlight"}[k]
+            print("%-6s %-34s relative RMSE %.3f%%, systematic %.3f%% (noise %.3f%%, %.3f%%), mean ratio %.4f"
+                  % (sphere, what, 100 * r["rel_rmse"], 100 * r["systematic"], 100 * r["noise_first"],
+                     100 * r["noise_second"], r["mean_ratio"]), flush=True)
+        results[sphere] = dict(spp=spp, **rows)
     json.dump(results, open(W("results.json"), "w"), indent=1)
     print("results: " + W("results.json"))
 

@@ -462,9 +462,10 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             char page[PATH_MAX + 16];
             snprintf(page, sizeof page, "%.*s.validate.html", (int)(strlen(out_path) - 5),
                      out_path);
-            json_t *vj = json_pack("{s:i, s:I, s:f, s:s, s:{}, s:{}, s:{}}", "width", val.width,
-                                   "spp", (json_int_t)val.spp, "seconds", val.seconds, "report",
-                                   page, "render_seconds", "noise", "beyond_noise");
+            json_t *vj = json_pack("{s:i, s:I, s:f, s:f, s:s, s:{}, s:{}, s:{}}", "width",
+                                   val.width, "spp", (json_int_t)val.spp, "seconds", val.seconds,
+                                   "cpu_seconds", val.cpu_seconds, "report", page,
+                                   "render_seconds", "noise", "beyond_noise");
             for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
                 json_object_set_new(vj, val.scene[k], json_real(val.error[k]));
                 json_object_set_new(json_object_get(vj, "render_seconds"), val.scene[k],

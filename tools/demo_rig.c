@@ -133,11 +133,11 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
                    "Validation as `setlight rig --validate` does it: grey, chrome and shadow "
                    "rendered under the truth lat-long and under the rig read back from rig.json "
                    "(rig_residual.exr as the dome, %d graded light%s textured), %d px, %lld "
-                   "spp, %.1f s in all. Relative RMSE of rig against map: grey %.3f%%, chrome "
+                   "spp, %.1f s (%.1f CPU s) in all. Relative RMSE of rig against map: grey %.3f%%, chrome "
                    "%.3f%%, shadow %.3f%%; beyond the Monte Carlo noise of this sample count: "
                    "grey %.3f%%, chrome %.3f%%, shadow %.3f%%.",
                    textured, textured == 1 ? "" : "s", val.width, (long long)val.spp,
-                   val.seconds, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
+                   val.seconds, val.cpu_seconds, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
                    100 * val.beyond_noise[0], 100 * val.beyond_noise[1],
                    100 * val.beyond_noise[2]);
     if ((r = rig_validate_report(d->rep, &val, "rig_validate_", err)))

@@ -117,7 +117,7 @@ sl_result rig_validate(const sl_image *env, const char *rig_json, int width, int
 {
     static const char *const scenes[RIG_VALIDATE_SCENES] = {"grey", "chrome", "shadow"};
     memset(v, 0, sizeof *v);
-    double t0 = sl_seconds();
+    double t0 = sl_seconds(), c0 = sl_cpu_seconds();
     v->width = width;
     v->spp = spp;
     for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
@@ -128,6 +128,7 @@ sl_result rig_validate(const sl_image *env, const char *rig_json, int width, int
     for (int k = 0; k < RIG_VALIDATE_SCENES && !r; k++)
         r = validate_scene(v, k, env, rig_json, err);
     v->seconds = sl_seconds() - t0;
+    v->cpu_seconds = sl_cpu_seconds() - c0;
     if (!r)
         v->spp = v->spp_done;
     return r;

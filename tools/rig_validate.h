@@ -20,7 +20,7 @@ typedef struct rig_validation {
      * error left when it is taken out: sqrt(max(0, error^2 - noise^2)). */
     double noise[RIG_VALIDATE_SCENES];
     double beyond_noise[RIG_VALIDATE_SCENES];
-    double seconds;
+    double seconds, cpu_seconds; /* wall and process CPU time of the whole validation */
     /* The renders as compared: RGBA, RGB multiplied by the map render's
      * alpha (the objects only). Freed by rig_validation_free. */
     sl_image map[RIG_VALIDATE_SCENES], rig[RIG_VALIDATE_SCENES];
