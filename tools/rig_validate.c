@@ -4,7 +4,6 @@
 #include "rig_validate.h"
 
 #include <errno.h>
-#include <ftw.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -326,16 +325,6 @@ static sl_result report_preview(sl_report *rep, const char *dir, const char *fil
     return r;
 }
 
-static int rm_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
-{
-    (void)st;
-    (void)flag;
-    (void)ftw;
-    return remove(path);
-}
-
-static void remove_tree(const char *path) { nftw(path, rm_entry, 16, FTW_DEPTH | FTW_PHYS); }
-
 sl_result rig_validate_report_check(const char *dir, const char *name, sl_error *err)
 {
     char path[4096];
@@ -415,7 +404,7 @@ sl_result rig_validate_write_report(const char *dir, const char *name, const cha
     snprintf(tmp_sub, sizeof tmp_sub, "%s/%s", tmp, name);
     snprintf(tmp_page, sizeof tmp_page, "%s/%s.html", tmp, name);
     if ((r = build_report(tmp, name, about, v, rig, env, err))) {
-        remove_tree(tmp);
+        sl_remove_tree(tmp);
         return r;
     }
     /* Swap the folder in (an earlier one moved aside into the temporary
@@ -438,6 +427,6 @@ sl_result rig_validate_write_report(const char *dir, const char *name, const cha
         if (had_old)
             rename(old, folder);
     }
-    remove_tree(tmp);
+    sl_remove_tree(tmp);
     return r;
 }

@@ -130,6 +130,10 @@ sl_result sl_atomic_begin(sl_atomic_file *f, const char *final_path, sl_error *e
 sl_result sl_atomic_commit(sl_atomic_file *f, sl_error *err); /* fsyncs, renames */
 void sl_atomic_abort(sl_atomic_file *f);
 
+/* Removes a folder and everything in it (a temporary or replaced output
+ * folder), best effort: what cannot be removed stays. */
+void sl_remove_tree(const char *path);
+
 /* Writes a whole text/binary buffer atomically. */
 sl_result sl_write_file_atomic(const char *path, const void *data, size_t size, sl_error *err);
 
