@@ -424,6 +424,36 @@ static float sanitize(float v, float limit)
     return v > limit ? limit : v < -limit ? -limit : v;
 }
 
+/* Float to half, rounded to nearest even like OpenEXR's own conversion
+ * (F. Giesen's float_to_half_fast3_rtne); done here, branch-light, because
+ * the library's per-sample conversion cost as much as PIZ itself. */
+static uint16_t half_bits(float f)
+{
+    const uint32_t f32infty = 255u << 23, f16max = (127u + 16u) << 23;
+    const uint32_t magic_bits = ((127u - 15u) + (23u - 10u) + 1u) << 23;
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    uint32_t sign = u & 0x80000000u;
+    u ^= sign;
+    uint16_t o;
+    if (u >= f16max)
+        o = u > f32infty ? 0x7e00 : 0x7c00;
+    else if (u < (113u << 23)) {
+        /* Subnormal or zero: let the float adder round the mantissa. */
+        float v, magic;
+        memcpy(&v, &u, sizeof v);
+        memcpy(&magic, &magic_bits, sizeof magic);
+        v += magic;
+        memcpy(&u, &v, sizeof u);
+        o = (uint16_t)(u - magic_bits);
+    } else {
+        uint32_t odd = (u >> 13) & 1;
+        u += ((uint32_t)(15 - 127) << 23) + 0xfff + odd;
+        o = (uint16_t)(u >> 13);
+    }
+    return (uint16_t)(o | (sign >> 16));
+}
+
 static exr_compression_t exr_compression(sl_exr_compression c)
 {
     switch (c) {
@@ -512,6 +542,7 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
 /* One chunk packed and compressed; the bytes are kept for the in-order write. */
 typedef struct exr_chunk_out {
     int y;
+    bool zero; /* all-zero pixels, a full chunk */
     void *bytes;
     uint64_t size;
     exr_result_t rv;
@@ -526,10 +557,15 @@ struct sl_exr_stream {
     char *path;
     int width, height, channels, lines;
     float limit;
-    float *buf;          /* batch_rows rows from row0 */
+    bool half;
+    void *buf;           /* batch_rows rows from row0, float or half as the file */
     int batch_rows, row0, rows; /* rows buffered */
     int first;           /* first chunk of the batch being encoded */
     exr_chunk_out *out;  /* per chunk of a batch */
+    /* An all-zero chunk of `lines` rows compresses to the same bytes
+     * wherever it is (masks are mostly such chunks): kept once made. */
+    void *zero_bytes;
+    uint64_t zero_size;
 };
 
 /* Keeps the compressed bytes instead of writing them (the caller writes in order). */
@@ -551,6 +587,19 @@ static exr_result_t no_wait(exr_encode_pipeline_t *enc)
     return EXR_ERR_SUCCESS;
 }
 
+static bool all_zero(const uint8_t *p, size_t n)
+{
+    uint64_t acc = 0, v;
+    size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        memcpy(&v, p + i, 8);
+        acc |= v;
+    }
+    for (; i < n; i++)
+        acc |= p[i];
+    return acc == 0;
+}
+
 static void encode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
@@ -564,7 +613,17 @@ static void encode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
         o->rv = exr_write_scanline_chunk_info(s->ctx, 0, o->y, &cinfo);
         if (o->rv != EXR_ERR_SUCCESS)
             continue;
-        const float *rows = s->buf + (size_t)(o->y - s->row0) * (size_t)w * (size_t)nc;
+        size_t bytes = s->half ? 2 : 4;
+        const uint8_t *rows = (const uint8_t *)s->buf + (size_t)(o->y - s->row0) * (size_t)w * (size_t)nc * bytes;
+        o->zero = cinfo.height == s->lines &&
+                  all_zero(rows, (size_t)cinfo.height * (size_t)w * (size_t)nc * bytes);
+        if (o->zero && s->zero_bytes) {
+            if ((o->bytes = malloc(s->zero_size)))
+                memcpy(o->bytes, s->zero_bytes, s->zero_size);
+            o->size = s->zero_size;
+            o->rv = o->bytes ? EXR_ERR_SUCCESS : EXR_ERR_OUT_OF_MEMORY;
+            continue;
+        }
         o->rv = exr_encoding_initialize(s->ctx, 0, &cinfo, &enc);
         if (o->rv != EXR_ERR_SUCCESS)
             continue;
@@ -574,11 +633,11 @@ static void encode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
             exr_coding_channel_info_t *ch = &enc.channels[i];
             int c = nc <= 2 ? (ch->channel_name[0] == 'A' ? 1 : 0)
                             : (int)(strchr(order, ch->channel_name[0]) - order);
-            ch->encode_from_ptr = (const uint8_t *)(rows + c);
-            ch->user_pixel_stride = nc * (int32_t)sizeof(float);
-            ch->user_line_stride = w * nc * (int32_t)sizeof(float);
-            ch->user_data_type = EXR_PIXEL_FLOAT;
-            ch->user_bytes_per_element = sizeof(float);
+            ch->encode_from_ptr = rows + (size_t)c * bytes;
+            ch->user_pixel_stride = nc * (int32_t)bytes;
+            ch->user_line_stride = w * nc * (int32_t)bytes;
+            ch->user_data_type = s->half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
+            ch->user_bytes_per_element = (int16_t)bytes;
         }
         o->rv = exr_encoding_choose_default_routines(s->ctx, 0, &enc);
         enc.write_fn = keep_chunk;
@@ -602,6 +661,11 @@ static exr_result_t flush_batch(sl_exr_stream *s)
     for (int k = 0; k < n; k++) {
         if (rv == EXR_ERR_SUCCESS)
             rv = s->out[k].rv;
+        if (rv == EXR_ERR_SUCCESS && s->out[k].zero && !s->zero_bytes &&
+            (s->zero_bytes = malloc(s->out[k].size ? s->out[k].size : 1))) {
+            memcpy(s->zero_bytes, s->out[k].bytes, s->out[k].size);
+            s->zero_size = s->out[k].size;
+        }
         if (rv == EXR_ERR_SUCCESS)
             rv = exr_write_scanline_chunk(s->ctx, 0, s->out[k].y, s->out[k].bytes, s->out[k].size);
         free(s->out[k].bytes);
@@ -658,6 +722,7 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
     s->channels = channels;
     /* Half cannot hold more than 65504: clamp rather than write Inf. */
     s->limit = type == SL_PIXEL_HALF ? 65504.0f : FLT_MAX;
+    s->half = type == SL_PIXEL_HALF;
     exr_message[0] = 0;
     exr_context_initializer_t init = make_initializer();
     sl_image shape = {.width = width, .height = height, .channels = channels};
@@ -675,7 +740,7 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
     int batch = 8 * sl_threads_get();
     s->lines = lines;
     s->batch_rows = batch * lines < height ? batch * lines : height;
-    s->buf = malloc((size_t)s->batch_rows * (size_t)width * (size_t)channels * sizeof(float));
+    s->buf = malloc((size_t)s->batch_rows * (size_t)width * (size_t)channels * (s->half ? 2 : 4));
     s->out = calloc((size_t)batch, sizeof *s->out);
     if (!s->buf || !s->out)
         return stream_fail(s, EXR_ERR_OUT_OF_MEMORY, err);
@@ -692,9 +757,15 @@ sl_result sl_exr_stream_write(sl_exr_stream *s, const float *rows, int count, si
     size_t n = (size_t)s->width * (size_t)s->channels;
     for (int j = 0; j < count; j++) {
         const float *src = rows + (size_t)j * stride;
-        float *dst = s->buf + (size_t)s->rows * n;
-        for (size_t i = 0; i < n; i++)
-            dst[i] = sanitize(src[i], s->limit);
+        if (s->half) {
+            uint16_t *dst = (uint16_t *)s->buf + (size_t)s->rows * n;
+            for (size_t i = 0; i < n; i++)
+                dst[i] = half_bits(sanitize(src[i], s->limit));
+        } else {
+            float *dst = (float *)s->buf + (size_t)s->rows * n;
+            for (size_t i = 0; i < n; i++)
+                dst[i] = sanitize(src[i], s->limit);
+        }
         if (++s->rows == s->batch_rows || s->row0 + s->rows == s->height) {
             exr_result_t rv = flush_batch(s);
             if (rv != EXR_ERR_SUCCESS)
@@ -815,6 +886,7 @@ void sl_exr_stream_abort(sl_exr_stream *s)
     free(s->path);
     free(s->buf);
     free(s->out);
+    free(s->zero_bytes);
     free(s);
 }
 
