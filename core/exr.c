@@ -748,25 +748,48 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
     return SL_OK;
 }
 
+typedef struct convert_job {
+    sl_exr_stream *s;
+    const float *rows;
+    size_t stride;
+} convert_job;
+
+/* Sanitises rows into the batch buffer (after the rows already there). */
+static void convert_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    const convert_job *job = ctx;
+    sl_exr_stream *s = job->s;
+    size_t n = (size_t)s->width * (size_t)s->channels;
+    for (int64_t j = begin; j < end; j++) {
+        const float *src = job->rows + (size_t)j * job->stride;
+        size_t at = (size_t)(s->rows + j) * n;
+        if (s->half) {
+            uint16_t *dst = (uint16_t *)s->buf + at;
+            for (size_t i = 0; i < n; i++)
+                dst[i] = half_bits(sanitize(src[i], s->limit));
+        } else {
+            float *dst = (float *)s->buf + at;
+            for (size_t i = 0; i < n; i++)
+                dst[i] = sanitize(src[i], s->limit);
+        }
+    }
+}
+
 sl_result sl_exr_stream_write(sl_exr_stream *s, const float *rows, int count, size_t stride,
                               sl_error *err)
 {
     if (count < 0 || s->row0 + s->rows + count > s->height)
         return sl_error_set(err, SL_ERR_USAGE, "%s: %d rows more than the image's %d", s->path,
                             s->row0 + s->rows + count - s->height, s->height);
-    size_t n = (size_t)s->width * (size_t)s->channels;
-    for (int j = 0; j < count; j++) {
-        const float *src = rows + (size_t)j * stride;
-        if (s->half) {
-            uint16_t *dst = (uint16_t *)s->buf + (size_t)s->rows * n;
-            for (size_t i = 0; i < n; i++)
-                dst[i] = half_bits(sanitize(src[i], s->limit));
-        } else {
-            float *dst = (float *)s->buf + (size_t)s->rows * n;
-            for (size_t i = 0; i < n; i++)
-                dst[i] = sanitize(src[i], s->limit);
-        }
-        if (++s->rows == s->batch_rows || s->row0 + s->rows == s->height) {
+    while (count > 0) {
+        int take = s->batch_rows - s->rows < count ? s->batch_rows - s->rows : count;
+        convert_job job = {s, rows, stride};
+        sl_parallel_for(take, 4, convert_rows, &job);
+        s->rows += take;
+        rows += (size_t)take * stride;
+        count -= take;
+        if (s->rows == s->batch_rows || s->row0 + s->rows == s->height) {
             exr_result_t rv = flush_batch(s);
             if (rv != EXR_ERR_SUCCESS)
                 return stream_fail(s, rv, err);

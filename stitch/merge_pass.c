@@ -24,6 +24,8 @@ typedef struct pass_ctx {
     double *inv_e, *e2;     /* per rank: 1 / e and e^2 */
     merge_frame_reader **rd; /* per rank */
     void **buf;             /* per rank: STRIP rows of RGB, float or codes (m->codes) */
+    void **next;            /* per rank: the next strip, read while buf is merged */
+    int ny0, ny1;           /* rows of next; ny0 == ny1: nothing to read */
     sl_error *errs;
     sl_result *results;
     int y0, y1;
@@ -59,14 +61,11 @@ static double weight_base(const pass_ctx *p, int c, double z)
     return 1 / var;
 }
 
-static void read_strips(void *ctx, int64_t begin, int64_t end, int worker)
+static void read_next(pass_ctx *p, int r)
 {
-    (void)worker;
-    pass_ctx *p = ctx;
-    for (int64_t r = begin; r < end; r++)
-        p->results[r] = p->m->codes ? merge_frame_read_codes(p->rd[r], p->y0, p->y1, p->buf[r],
-                                                             &p->errs[r])
-                                    : merge_frame_read(p->rd[r], p->y0, p->y1, p->buf[r], &p->errs[r]);
+    p->results[r] = p->m->codes
+                        ? merge_frame_read_codes(p->rd[r], p->ny0, p->ny1, p->next[r], &p->errs[r])
+                        : merge_frame_read(p->rd[r], p->ny0, p->ny1, p->next[r], &p->errs[r]);
 }
 
 /* Weighted median of x over the entries with w > 0. */
@@ -358,7 +357,23 @@ static sl_result alloc_outputs(pass_ctx *p, const merge_sink *sink, sl_error *er
     return r;
 }
 
-/* Merges rows [y0, y1) (read already) and hands them to the sink. */
+/* Tasks of one step: reading the next strip of each frame (the first
+ * `frames` tasks), then merging the current strip's rows, so a thread that
+ * is done decoding merges instead of waiting for the slowest frame. */
+static void step_tasks(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    pass_ctx *p = ctx;
+    for (int64_t t = begin; t < end; t++) {
+        if (t < p->frames) {
+            if (p->ny1 > p->ny0)
+                read_next(p, (int)t);
+        } else
+            merge_rows(p, t - p->frames, t - p->frames + 1, worker);
+    }
+}
+
+/* Merges rows [y0, y1) (read already) while reading the next strip, and
+ * hands the merged rows to the sink. */
 static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
 {
     sl_merge_result *res = p->res;
@@ -375,10 +390,14 @@ static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
         if (p->ghost)
             memset(p->ghost, 0, (size_t)rows * p->ghost_stride * sizeof *p->ghost);
     }
-    sl_parallel_for(rows, 1, merge_rows, p);
-    if (!sink)
-        return SL_OK;
-    sl_result r = sl_exr_stream_write(sink->radiance, p->out, rows, p->out_stride, err);
+    sl_parallel_for(p->frames + rows, 1, step_tasks, p);
+    sl_result r = SL_OK;
+    for (int q = 0; q < p->frames && !r && p->ny1 > p->ny0; q++)
+        if ((r = p->results[q]) && err)
+            *err = p->errs[q];
+    if (r || !sink)
+        return r;
+    r = sl_exr_stream_write(sink->radiance, p->out, rows, p->out_stride, err);
     if (!r && sink->mask)
         r = sl_exr_stream_write(sink->mask, p->mask, rows, p->mask_stride, err);
     if (!r && sink->ghost)
@@ -395,7 +414,9 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     p.inv_e = calloc((size_t)f, sizeof *p.inv_e);
     p.e2 = calloc((size_t)f, sizeof *p.e2);
     p.rd = calloc((size_t)f, sizeof *p.rd);
-    p.buf = calloc((size_t)f, sizeof *p.buf);
+    void **slots = calloc((size_t)f * 2, sizeof *slots);
+    p.buf = slots;
+    p.next = slots ? slots + f : NULL;
     p.errs = calloc((size_t)f, sizeof *p.errs);
     p.results = calloc((size_t)f, sizeof *p.results);
     p.row_counts = calloc((size_t)m->height * COUNTS, sizeof *p.row_counts);
@@ -410,24 +431,33 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
         p.e[q] = fr->exposure / ref;
         p.inv_e[q] = 1 / p.e[q];
         p.e2[q] = p.e[q] * p.e[q];
-        p.buf[q] = malloc((size_t)STRIP * m->width * 3 *
-                          (m->codes ? (size_t)m->code_bytes : sizeof(float)));
-        if (!p.buf[q])
+        size_t bytes = (size_t)STRIP * m->width * 3 * (m->codes ? (size_t)m->code_bytes : sizeof(float));
+        p.buf[q] = malloc(bytes);
+        p.next[q] = malloc(bytes);
+        if (!p.buf[q] || !p.next[q])
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
         else
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
     if (!r)
         r = build_luts(&p, err);
-    for (int y0 = 0; y0 < m->height && !r; y0 += STRIP) {
-        p.y0 = y0;
-        p.y1 = y0 + STRIP < m->height ? y0 + STRIP : m->height;
-        sl_parallel_for(f, 1, read_strips, &p);
+    /* The first strip is read alone; then each step merges one and reads the next. */
+    p.ny1 = STRIP < m->height ? STRIP : m->height;
+    if (!r) {
+        sl_parallel_for(f, 1, step_tasks, &p);
         for (int q = 0; q < f && !r; q++)
             if ((r = p.results[q]) && err)
                 *err = p.errs[q];
-        if (!r)
-            r = merge_strip(&p, sink, err);
+    }
+    for (int y0 = 0; y0 < m->height && !r; y0 += STRIP) {
+        void **t = p.buf;
+        p.buf = p.next;
+        p.next = t;
+        p.y0 = p.ny0;
+        p.y1 = p.ny1;
+        p.ny0 = p.y1;
+        p.ny1 = p.y1 + STRIP < m->height ? p.y1 + STRIP : m->height;
+        r = merge_strip(&p, sink, err);
     }
     if (!r) {
         bool latlong = sl_is_latlong_shape(m->width, m->height);
@@ -449,8 +479,10 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     for (int q = 0; q < f; q++) {
         if (p.rd)
             merge_frame_close(p.rd[q]);
-        if (p.buf)
-            free(p.buf[q]);
+        if (slots) {
+            free(slots[q]);
+            free(slots[f + q]);
+        }
     }
     for (int c = 0; c < 3; c++) {
         free(p.inv[c]);
@@ -470,7 +502,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     free(p.inv_e);
     free(p.e2);
     free(p.rd);
-    free(p.buf);
+    free(slots);
     free(p.errs);
     free(p.results);
     free(p.row_counts);
