@@ -461,8 +461,6 @@ static exr_compression_t exr_compression(sl_exr_compression c)
         return EXR_COMPRESSION_PIZ;
     case SL_EXR_NONE:
         return EXR_COMPRESSION_NONE;
-    case SL_EXR_ZIPS:
-        return EXR_COMPRESSION_ZIPS;
     case SL_EXR_RLE:
         return EXR_COMPRESSION_RLE;
     case SL_EXR_ZIP:
@@ -779,9 +777,12 @@ static void convert_rows(void *ctx, int64_t begin, int64_t end, int worker)
 sl_result sl_exr_stream_write(sl_exr_stream *s, const float *rows, int count, size_t stride,
                               sl_error *err)
 {
-    if (count < 0 || s->row0 + s->rows + count > s->height)
-        return sl_error_set(err, SL_ERR_USAGE, "%s: %d rows more than the image's %d", s->path,
-                            s->row0 + s->rows + count - s->height, s->height);
+    if (count < 0 || s->row0 + s->rows + count > s->height) {
+        sl_result r = sl_error_set(err, SL_ERR_USAGE, "%s: %d rows more than the image's %d",
+                                   s->path, s->row0 + s->rows + count - s->height, s->height);
+        sl_exr_stream_abort(s);
+        return r;
+    }
     while (count > 0) {
         int take = s->batch_rows - s->rows < count ? s->batch_rows - s->rows : count;
         convert_job job = {s, rows, stride};

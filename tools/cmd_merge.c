@@ -46,7 +46,7 @@ static const char *merge_help =
     "  --half, --float        radiance samples; default: half when every value fits\n"
     "                         (below 65504) and its rounding stays under a quarter of the\n"
     "                         noise model's deviation, else float (docs/merge.md)\n"
-    "  --compression C        piz (default), zip, zips, rle or none (all lossless)\n"
+    "  --compression C        piz (default), zip, rle or none (all lossless)\n"
     "  --json                 print the result (frames, exposures, clipping) as JSON\n\n"
     "Exit codes: 0 merged, 1 runtime failure, 2 usage error, 3 bad input (frames of\n"
     "different sizes or bit depths, duplicate exposures, no exposure information,\n"
@@ -62,7 +62,7 @@ static const char *response_help =
     "  --json                 print the exposure check and curve summary as JSON\n";
 
 /* By sl_exr_compression value. */
-static const char *compression_names[5] = {"zip", "piz", "none", "zips", "rle"};
+static const char *compression_names[4] = {"zip", "piz", "none", "rle"};
 
 static bool parse_time(const char *s, double *out)
 {
@@ -216,10 +216,10 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
             break;
         case OPT_COMPRESSION: {
             int k = 0;
-            while (k < 5 && strcmp(optarg, compression_names[k]) != 0)
+            while (k < 4 && strcmp(optarg, compression_names[k]) != 0)
                 k++;
-            if (k == 5)
-                return cli_usage_error(cli, "--compression is piz, zip, zips, rle or none, not '%s'",
+            if (k == 4)
+                return cli_usage_error(cli, "--compression is piz, zip, rle or none, not '%s'",
                                        optarg);
             a->opt.compression = (sl_exr_compression)k;
             break;
