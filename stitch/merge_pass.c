@@ -63,6 +63,14 @@ static double weight_base(const pass_ctx *p, int c, double z)
 
 static void read_next(pass_ctx *p, int r)
 {
+    const merge_ctx *m = p->m;
+    const uint8_t *held = m->held ? m->held[m->order[r]] : NULL;
+    if (held) {
+        size_t row = (size_t)m->width * 3 * (size_t)m->code_bytes;
+        memcpy(p->next[r], held + (size_t)p->ny0 * row, (size_t)(p->ny1 - p->ny0) * row);
+        p->results[r] = SL_OK;
+        return;
+    }
     p->results[r] = p->m->codes
                         ? merge_frame_read_codes(p->rd[r], p->ny0, p->ny1, p->next[r], &p->errs[r])
                         : merge_frame_read(p->rd[r], p->ny0, p->ny1, p->next[r], &p->errs[r]);
@@ -436,7 +444,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
         p.next[q] = malloc(bytes);
         if (!p.buf[q] || !p.next[q])
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-        else
+        else if (!(m->held && m->held[m->order[q]]))
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
     if (!r)

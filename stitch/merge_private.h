@@ -60,6 +60,8 @@ typedef struct merge_ctx {
     int code_bytes;        /* frames' integer container: 1 or 2 bytes, 0 float */
     bool codes;            /* frames read as integer codes (integer and none warped) */
     uint8_t *code_class;   /* with codes, per code: 1 saturated, 2 black */
+    uint8_t **held;        /* per frame: its codes kept from the sample pass, or NULL */
+    int held_slots;        /* entries of held */
     int orientation;
     double black, saturation;
     int *order;            /* order[rank] = frame index, shortest exposure first */
@@ -73,9 +75,11 @@ typedef struct merge_ctx {
     double *scratch;       /* frames^2 doubles */
 } merge_ctx;
 
-/* Everything before the pixels are merged: frames, samples, response, exposure check. */
+/* Everything before the pixels are merged: frames, samples, response,
+ * exposure check. With `hold`, frames that fit opt->hold_mb keep their codes
+ * from the sample pass for the merge pass. */
 sl_result merge_prepare(const char *const *paths, int count, const sl_merge_options *opt,
-                        merge_ctx *m, sl_merge_result *out, sl_error *err);
+                        bool hold, merge_ctx *m, sl_merge_result *out, sl_error *err);
 /* Where merged strips go instead of out's images: EXR streams (mask and
  * ghost may be NULL). */
 typedef struct merge_sink {

@@ -178,7 +178,7 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
     sl_result r = ghost_path && !opt.deghost
                       ? sl_error_set(err, SL_ERR_USAGE, "%s: no ghost mask without deghost",
                                      ghost_path)
-                      : merge_prepare(paths, count, &opt, &m, out, err);
+                      : merge_prepare(paths, count, &opt, true, &m, out, err);
     if (!r)
         r = merge_output_meta(path, mask_path, ghost_path, out, &meta, err);
     const char *side_path[2] = {mask_path, ghost_path};

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* sl_merge_to_exr (strips written as merged) against sl_merge + sl_merge_write
+/* Frames held between the passes or decoded twice: the same radiance.
+ * sl_merge_to_exr (strips written as merged) against sl_merge + sl_merge_write
  * (radiance held whole) on a bracket with a sun clipped in every frame: the
  * same pixels (float: exactly; half: within its rounding), the same mask and
  * attributes (counts known only after the pass finished in place), the half
@@ -187,8 +188,54 @@ static void test_failure_leaves_nothing(void)
     mf_result_free(&truth);
 }
 
+/* Frames kept between the passes (decoded once) or decoded again give the
+ * same radiance, bit for bit, whatever the budget holds. */
+static void test_hold_budget(void)
+{
+    sl_error err;
+    mf_bracket b = {.width = 96, .height = 80, .frames = 5, .stops = 2, .curve = MF_GAMMA,
+                    .bits = 8, .ext = "jpg", .sun = true, .noise_gain = 2e-5,
+                    .noise_floor = 1e-6, .seed = 11};
+    mf_result truth;
+    CHECK_OK(mf_make_bracket(sl_test_tmpdir(), "hold", &b, &truth, &err), &err);
+    const char *paths[MF_MAX_FRAMES];
+    for (int k = 0; k < b.frames; k++)
+        paths[k] = truth.paths[k];
+    double frame_mb = 96 * 80 * 3 / 1e6;
+    const double budgets[3] = {0, 2.5 * frame_mb, 384};
+    const int expect_held[3] = {0, 2, 5};
+    sl_merge_result res[3];
+    for (int k = 0; k < 3; k++) {
+        sl_merge_options opt;
+        sl_merge_options_init(&opt);
+        opt.response_mode = SL_RESPONSE_AUTO;
+        opt.hold_mb = budgets[k];
+        CHECK_OK(sl_merge(paths, b.frames, &opt, &res[k], &err), &err);
+        CHECK_MSG(res[k].held_frames == expect_held[k], "budget %g MB: %d held", budgets[k],
+                  res[k].held_frames);
+    }
+    for (int k = 1; k < 3; k++)
+        if (res[0].radiance.data && res[k].radiance.data) {
+            size_t n = (size_t)res[0].radiance.height * res[0].radiance.stride;
+            CHECK(memcmp(res[0].radiance.data, res[k].radiance.data, n * sizeof(float)) == 0);
+            CHECK(memcmp(res[0].clipped.data, res[k].clipped.data, n * sizeof(float)) == 0);
+            CHECK(res[k].clipped_pixels == res[0].clipped_pixels);
+        }
+    /* The response alone decodes each frame once anyway: nothing held. */
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    sl_merge_result only;
+    CHECK_OK(sl_merge_response(paths, b.frames, &opt, &only, &err), &err);
+    CHECK(only.held_frames == 0);
+    sl_merge_result_free(&only);
+    for (int k = 0; k < 3; k++)
+        sl_merge_result_free(&res[k]);
+    mf_result_free(&truth);
+}
+
 int main(void)
 {
+    RUN(test_hold_budget);
     RUN(test_stream_matches_memory);
     RUN(test_encoding_choice);
     RUN(test_failure_leaves_nothing);

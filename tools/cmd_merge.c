@@ -47,6 +47,8 @@ static const char *merge_help =
     "                         (below 65504) and its rounding stays under a quarter of the\n"
     "                         noise model's deviation, else float (docs/merge.md)\n"
     "  --compression C        piz (default), zip, rle or none (all lossless)\n"
+    "  --hold-mb MB           8/16-bit frames kept decoded between the sample and merge\n"
+    "                         passes up to MB (default 384); the rest are decoded twice\n"
     "  --json                 print the result (frames, exposures, clipping) as JSON\n\n"
     "Exit codes: 0 merged, 1 runtime failure, 2 usage error, 3 bad input (frames of\n"
     "different sizes or bit depths, duplicate exposures, no exposure information,\n"
@@ -167,7 +169,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
            OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK,
            OPT_ABS, OPT_ALIGN, OPT_ALIGN_SHIFT, OPT_ALIGN_ANGLE, OPT_HALF, OPT_FLOAT,
-           OPT_COMPRESSION };
+           OPT_COMPRESSION, OPT_HOLD };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"output", required_argument, NULL, 'o'},
@@ -191,6 +193,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         {"half", no_argument, NULL, OPT_HALF},
         {"float", no_argument, NULL, OPT_FLOAT},
         {"compression", required_argument, NULL, OPT_COMPRESSION},
+        {"hold-mb", required_argument, NULL, OPT_HOLD},
         {0, 0, 0, 0}};
     sl_merge_options_init(&a->opt);
     a->opt.response_mode = SL_RESPONSE_AUTO;
@@ -200,7 +203,8 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE ||
                           c == OPT_DEGHOST || c == OPT_GHOSTMASK || c == OPT_ABS ||
                           c == OPT_ALIGN || c == OPT_ALIGN_SHIFT || c == OPT_ALIGN_ANGLE ||
-                          c == OPT_HALF || c == OPT_FLOAT || c == OPT_COMPRESSION;
+                          c == OPT_HALF || c == OPT_FLOAT || c == OPT_COMPRESSION ||
+                          c == OPT_HOLD;
         if (merge_only && !is_merge)
             return cli_usage_error(cli, "unknown option '--%s'", opts[which].name);
         switch (c) {
@@ -213,6 +217,11 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         case OPT_HALF:
         case OPT_FLOAT:
             a->opt.pixels = c == OPT_HALF ? SL_MERGE_PIXELS_HALF : SL_MERGE_PIXELS_FLOAT;
+            break;
+        case OPT_HOLD:
+            if (!cli_parse_double(optarg, &a->opt.hold_mb) || !(a->opt.hold_mb >= 0))
+                return cli_usage_error(cli, "--hold-mb needs a non-negative number, not '%s'",
+                                       optarg);
             break;
         case OPT_COMPRESSION: {
             int k = 0;
@@ -386,7 +395,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
            100 * res.clipped_fraction, res.seconds);
     if (cli->json) {
         json_t *o = json_pack(
-            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:f}",
+            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f}",
             "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
             (json_int_t)res.ghost_pixels, "width", res.width, "height",
             res.height, "response", res.response.source, "exposures",
@@ -402,7 +411,8 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
             "noise_floor", res.noise_floor, "black", res.black, "saturation", res.saturation,
             "encoding", "pixels", res.pixel_type == SL_PIXEL_HALF ? "half" : "float",
             "compression", compression_names[res.compression], "max_value", res.max_value,
-            "why", res.encoding_note, "seconds", res.seconds);
+            "why", res.encoding_note, "frames_decoded_once", res.held_frames, "seconds",
+            res.seconds);
         json_dumpf(o, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(o);

@@ -71,6 +71,9 @@ typedef struct sl_merge_options {
     double align_max_angle;     /* degrees; larger rotations are refused (default 2) */
     sl_merge_pixels pixels;     /* radiance EXR samples (default auto) */
     sl_exr_compression compression; /* radiance EXR compression (default PIZ) */
+    double hold_mb;             /* integer frames kept decoded between the sample and merge
+                                   passes, up to this many MB (default 384); the others
+                                   are decoded twice */
 } sl_merge_options;
 
 /* ISO 12232 saturation-based speed: a sensor saturates at H = 78 / ISO lux s,
@@ -140,6 +143,7 @@ typedef struct sl_merge_result {
     double max_value;           /* bound on any merged value: the brightest code of the
                                    shortest frame; 0 when unbounded (float frames) */
     char encoding_note[160];
+    int held_frames;            /* frames decoded once (kept between the passes) */
     double seconds;
 } sl_merge_result;
 
