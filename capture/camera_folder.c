@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <time.h>
 
@@ -17,6 +18,7 @@ typedef struct shot {
     char name[256];
     double when;   /* EXIF time in seconds (0 unknown) */
     long sequence; /* the number in the file name, -1 if none */
+    int rank;      /* format preference among a shot's files: raw first */
     sl_meta meta;
 } shot;
 
@@ -45,6 +47,26 @@ static long sequence_of(const char *name)
         if (*c >= '0' && *c <= '9' && (c == name || c[-1] < '0' || c[-1] > '9'))
             best = strtol(c, NULL, 10);
     return best;
+}
+
+/* A body writing RAW+JPEG (or the virtual set's JPEG, TIFF and linear TIFF)
+ * stores one shot in several files: the frame's file is the rawest, the
+ * others are its siblings. */
+static int format_rank(const char *name)
+{
+    static const char *const order[][12] = {
+        {"cr2", "cr3", "nef", "nrw", "arw", "dng", "raf", "orf", "rw2", "pef", "srw", "iiq"},
+        {"exr", "tif", "tiff"},
+        {"png"},
+    };
+    const char *dot = strrchr(name, '.');
+    if (!dot)
+        return 3;
+    for (int r = 0; r < 3; r++)
+        for (int i = 0; i < 12 && order[r][i]; i++)
+            if (!strcasecmp(dot + 1, order[r][i]))
+                return r;
+    return 3;
 }
 
 static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_error *err)
@@ -101,6 +123,7 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
         if (subsec >= 0)
             x->when += subsec;
         x->sequence = sequence_of(e->d_name);
+        x->rank = format_rank(e->d_name);
         /* a broken EXIF rational reads back as infinity: unknown */
         if (!isfinite(meta.exposure_time))
             meta.exposure_time = 0;
@@ -108,6 +131,13 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
     }
     closedir(d);
     return r;
+}
+
+/* A shot's files: rawest first, then by name. */
+static int cmp_format(const void *a, const void *b)
+{
+    const shot *x = a, *y = b;
+    return x->rank != y->rank ? (x->rank < y->rank ? -1 : 1) : strcmp(x->name, y->name);
 }
 
 /* By EXIF time (with its sub-second part when the camera writes one), then
@@ -120,7 +150,17 @@ static int cmp_shot(const void *a, const void *b)
         return x->when < y->when ? -1 : 1;
     if (x->meta.exposure_time != y->meta.exposure_time)
         return x->meta.exposure_time < y->meta.exposure_time ? -1 : 1;
-    return x->sequence < y->sequence ? -1 : x->sequence > y->sequence;
+    if (x->sequence != y->sequence)
+        return x->sequence < y->sequence ? -1 : 1;
+    return cmp_format(a, b);
+}
+
+/* Files of one shot: the same EXIF time (known), exposure and file number. */
+static bool same_shot(const shot *a, const shot *b)
+{
+    double ta = a->meta.exposure_time, tb = b->meta.exposure_time;
+    return a->when > 0 && a->when == b->when && a->sequence >= 0 &&
+           a->sequence == b->sequence && ta > 0 && tb > 0 && fabs(log2(ta / tb)) < 0.1;
 }
 
 static bool in_bracket(json_t *frames, double t)
@@ -155,6 +195,29 @@ static sl_result copy_file(const char *from, const char *to, char sha[65], sl_er
     sl_result r = sl_write_file_atomic(to, data, (size_t)n, err);
     free(data);
     return r;
+}
+
+/* Copies one file of a shot as STEM.ext (the frame's file) or STEM_N.ext
+ * (its N-th sibling); never overwrites. */
+static sl_result copy_shot_file(const shot *x, const char *dir, const char *stem, int n,
+                                char name[64], char sha[65], sl_error *err)
+{
+    const char *dot = strrchr(x->name, '.');
+    char suffix[16] = "";
+    if (n > 0)
+        snprintf(suffix, sizeof suffix, "_%d", n);
+    snprintf(name, 64, "%s%s%.8s", stem, suffix, dot ? dot : "");
+    for (char *c = name; *c; c++)
+        if (*c >= 'A' && *c <= 'Z')
+            *c = (char)(*c - 'A' + 'a');
+    char to[4096];
+    struct stat st;
+    sl_result r = sl_capture_path(to, sizeof to, dir, name, err);
+    if (r)
+        return r;
+    if (stat(to, &st) == 0)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: exists; never overwritten", to);
+    return copy_file(x->path, to, sha, err);
 }
 
 sl_result sl_ingest(const char *src, const char *dir, double gap, sl_progress *progress,
@@ -208,34 +271,54 @@ sl_result sl_ingest(const char *src, const char *dir, double gap, sl_progress *p
                     b++;
                 k = 0;
             }
-            const char *dot = strrchr(x->name, '.');
-            char name[64], to[4096], sha[65];
-            snprintf(name, sizeof name, "v%02d_b%02d_f%02d%.8s", v, b, k++, dot ? dot : "");
-            for (char *c = name; *c; c++)
-                if (*c >= 'A' && *c <= 'Z')
-                    *c = (char)(*c - 'A' + 'a');
-            if ((r = sl_capture_path(to, sizeof to, dir, name, err)))
-                break;
-            if (stat(to, &st) == 0) {
-                r = sl_error_set(err, SL_ERR_USAGE, "%s: exists; never overwritten", to);
+            /* The shot's other files follow it in the sort order. */
+            int n = 1;
+            while (i + n < s.count && same_shot(x, &s.items[i + n]))
+                n++;
+            /* Formats may round the exposure differently: order the shot's
+             * files by format here, not by their exposures. */
+            qsort(x, (size_t)n, sizeof *x, cmp_format);
+            char stem[48];
+            snprintf(stem, sizeof stem, "v%02d_b%02d_f%02d", v, b, k++);
+            json_t *f = json_object(), *siblings = json_array();
+            double t = 0, fn = 0, iso = 0;
+            for (int m = 0; m < n && !r; m++) {
+                const shot *y = &s.items[i + m];
+                char name[64], sha[65];
+                if ((r = copy_shot_file(y, dir, stem, m, name, sha, err)))
+                    break;
+                sl_progress_add(progress, 1);
+                /* OpenImageIO drops some EXIF from some formats (ISO from
+                 * TIFF): a sibling fills what the frame's file lacks. */
+                t = t > 0 ? t : y->meta.exposure_time;
+                fn = fn > 0 ? fn : y->meta.f_number;
+                iso = iso > 0 ? iso : y->meta.iso;
+                if (m == 0) {
+                    json_object_set_new(f, "file", json_string(name));
+                    json_object_set_new(f, "source", json_string(y->name));
+                    json_object_set_new(f, "sha256", json_string(sha));
+                } else {
+                    json_array_append_new(siblings,
+                                          json_pack("{s:s, s:s, s:s}", "file", name, "source",
+                                                    y->name, "sha256", sha));
+                }
+            }
+            if (r) {
+                json_decref(f);
+                json_decref(siblings);
                 break;
             }
-            if ((r = copy_file(x->path, to, sha, err)))
-                break;
-            json_t *f = json_object();
-            json_object_set_new(f, "file", json_string(name));
-            json_object_set_new(f, "source", json_string(x->name));
-            json_object_set_new(f, "exposure_time",
-                                x->meta.exposure_time > 0 ? json_real(x->meta.exposure_time)
-                                                          : json_null());
-            json_object_set_new(f, "f_number",
-                                x->meta.f_number > 0 ? json_real(x->meta.f_number) : json_null());
-            json_object_set_new(f, "iso", x->meta.iso > 0 ? json_real(x->meta.iso) : json_null());
+            json_object_set_new(f, "exposure_time", t > 0 ? json_real(t) : json_null());
+            json_object_set_new(f, "f_number", fn > 0 ? json_real(fn) : json_null());
+            json_object_set_new(f, "iso", iso > 0 ? json_real(iso) : json_null());
             json_object_set_new(f, "measured_ratio", json_null());
-            json_object_set_new(f, "sha256", json_string(sha));
+            if (json_array_size(siblings))
+                json_object_set_new(f, "siblings", siblings);
+            else
+                json_decref(siblings);
             json_array_append_new(json_object_get(bracket, "frames"), f);
+            i += n - 1;
             (*frames)++;
-            sl_progress_add(progress, 1);
         }
         *nviews = v + 1;
     }

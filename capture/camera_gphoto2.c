@@ -41,8 +41,8 @@ static bool connection_lost(int gr)
 /* A libgphoto2 failure as an sl_error naming the port; marks busy replies
  * and lost connections on the camera. The ptp2 driver reports a PTP/IP
  * socket that went away as a generic error (PTP General Error): during a
- * trigger or a download that is taken as a lost connection (`io`), while
- * setting a value it is the camera refusing it. */
+ * trigger or a download that is taken as a lost connection (`io`); while
+ * setting a value, only when the setting cannot be read back either. */
 static sl_result gp_fail_io(sl_camera *c, gp_impl *g, int gr, bool io, const char *what,
                             sl_error *err)
 {
@@ -184,9 +184,24 @@ static sl_result set_one(sl_camera *c, int kind, double value, sl_error *err)
         gr = gp_camera_set_single_config(g->camera, name, w, g->context);
     gp_widget_free(w);
     if (gr != GP_OK) {
-        char what[96];
+        char what[96], msg[sizeof g->last_error];
         snprintf(what, sizeof what, "setting %s to %g", name, value);
-        return gp_fail_on(c, g, gr, what, err);
+        snprintf(msg, sizeof msg, "%s", g->last_error);
+        /* A refusal, or a connection that went away in the middle (the ptp2
+         * driver then says "General Error" or "Property not found"): if the
+         * setting cannot even be read back, it is the latter (the capture
+         * loop then reconnects). */
+        bool gone = false;
+        if (!connection_lost(gr)) {
+            CameraWidget *probe = NULL;
+            gone = gp_camera_get_single_config(g->camera, name, &probe, g->context) != GP_OK;
+            if (probe)
+                gp_widget_free(probe);
+        }
+        snprintf(g->last_error, sizeof g->last_error, "%s", msg);
+        sl_result r = gp_fail_on(c, g, gr, what, err);
+        c->lost = c->lost || gone;
+        return r;
     }
     return SL_OK;
 }

@@ -5,7 +5,6 @@
  * into place at the end. */
 #include <dirent.h>
 #include <errno.h>
-#include <ftw.h>
 #include <jansson.h>
 #include <stdlib.h>
 #include <string.h>
@@ -137,16 +136,6 @@ static sl_result paint_ghost(const sl_image *src, double az, double lum, sl_imag
     }
     return SL_OK;
 }
-
-static int rm_entry(const char *path, const struct stat *st, int flag, struct FTW *ftw)
-{
-    (void)st;
-    (void)flag;
-    (void)ftw;
-    return remove(path);
-}
-
-static void remove_tree(const char *path) { nftw(path, rm_entry, 16, FTW_DEPTH | FTW_PHYS); }
 
 static sl_result make_dir(const char *path, sl_error *err)
 {
@@ -551,14 +540,14 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     char tmp[4096], old[4096];
     snprintf(tmp, sizeof tmp, "%s.sl-tmp-%ld", dir, (long)getpid());
     snprintf(old, sizeof old, "%s.sl-old-%ld", dir, (long)getpid());
-    remove_tree(tmp);
+    sl_remove_tree(tmp);
     char sub[4200];
     if (mkdir(tmp, 0777) != 0)
         return sl_error_set(err, SL_ERR_IO, "%s: cannot create the capture folder: %s", dir,
                             strerror(errno));
     sl_vset_scene scene;
     if ((r = sl_vset_scene_make(&o->scene, o->latlong_width, &scene, err))) {
-        remove_tree(tmp);
+        sl_remove_tree(tmp);
         return r;
     }
     snprintf(sub, sizeof sub, "%s/hdri", tmp);
@@ -661,10 +650,10 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
                 rename(old, dir);
         }
         if (!r && had_old)
-            remove_tree(old);
+            sl_remove_tree(old);
     }
     if (r) {
-        remove_tree(tmp);
+        sl_remove_tree(tmp);
         return r;
     }
     if (summary) {

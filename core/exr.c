@@ -464,6 +464,51 @@ static float sanitize(float v, float limit)
     return v > limit ? limit : v < -limit ? -limit : v;
 }
 
+/* Float to half, rounded to nearest even like OpenEXR's own conversion
+ * (F. Giesen's float_to_half_fast3_rtne); done here, branch-light, because
+ * the library's per-sample conversion cost as much as PIZ itself. */
+static uint16_t half_bits(float f)
+{
+    const uint32_t f32infty = 255u << 23, f16max = (127u + 16u) << 23;
+    const uint32_t magic_bits = ((127u - 15u) + (23u - 10u) + 1u) << 23;
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    uint32_t sign = u & 0x80000000u;
+    u ^= sign;
+    uint16_t o;
+    if (u >= f16max)
+        o = u > f32infty ? 0x7e00 : 0x7c00;
+    else if (u < (113u << 23)) {
+        /* Subnormal or zero: let the float adder round the mantissa. */
+        float v, magic;
+        memcpy(&v, &u, sizeof v);
+        memcpy(&magic, &magic_bits, sizeof magic);
+        v += magic;
+        memcpy(&u, &v, sizeof u);
+        o = (uint16_t)(u - magic_bits);
+    } else {
+        uint32_t odd = (u >> 13) & 1;
+        u += ((uint32_t)(15 - 127) << 23) + 0xfff + odd;
+        o = (uint16_t)(u >> 13);
+    }
+    return (uint16_t)(o | (sign >> 16));
+}
+
+static exr_compression_t exr_compression(sl_exr_compression c)
+{
+    switch (c) {
+    case SL_EXR_PIZ:
+        return EXR_COMPRESSION_PIZ;
+    case SL_EXR_NONE:
+        return EXR_COMPRESSION_NONE;
+    case SL_EXR_RLE:
+        return EXR_COMPRESSION_RLE;
+    case SL_EXR_ZIP:
+        break;
+    }
+    return EXR_COMPRESSION_ZIP;
+}
+
 static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const sl_meta *meta,
                                  sl_pixel_type type, sl_exr_compression compression)
 {
@@ -480,9 +525,7 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     memset(&center, 0, sizeof center);
     rv = exr_initialize_required_attr(ctx, part, &win, &win, 1.0f, &center, 1.0f,
                                       EXR_LINEORDER_INCREASING_Y,
-                                      compression == SL_EXR_PIZ    ? EXR_COMPRESSION_PIZ
-                                      : compression == SL_EXR_NONE ? EXR_COMPRESSION_NONE
-                                                                   : EXR_COMPRESSION_ZIP);
+                                      exr_compression(compression));
     /* Names over 31 bytes (setlight:* can be) need the long-name flag. */
     bool long_names = false;
     for (int i = 0; meta && i < meta->attr_count; i++)
@@ -537,20 +580,31 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
 /* One chunk packed and compressed; the bytes are kept for the in-order write. */
 typedef struct exr_chunk_out {
     int y;
+    bool zero; /* all-zero pixels, a full chunk */
     void *bytes;
     uint64_t size;
     exr_result_t rv;
 } exr_chunk_out;
 
-typedef struct exr_encode_job {
+/* An EXR written a batch of rows at a time: rows are sanitised into the
+ * batch buffer, its chunks compressed in parallel, then written in order. */
+struct sl_exr_stream {
+    sl_atomic_file f;
     exr_context_t ctx;
-    const sl_image *img;
+    sl_meta meta;        /* the header's attributes, for sl_exr_stream_finish */
+    char *path;
+    int width, height, channels, lines;
     float limit;
-    int lines;
-    int first;           /* first chunk of the batch */
-    exr_chunk_out *out;  /* per chunk of the batch */
-    float **scratch;     /* per worker: lines rows */
-} exr_encode_job;
+    bool half;
+    void *buf;           /* batch_rows rows from row0, float or half as the file */
+    int batch_rows, row0, rows; /* rows buffered */
+    int first;           /* first chunk of the batch being encoded */
+    exr_chunk_out *out;  /* per chunk of a batch */
+    /* An all-zero chunk of `lines` rows compresses to the same bytes
+     * wherever it is (masks are mostly such chunks): kept once made. */
+    void *zero_bytes;
+    uint64_t zero_size;
+};
 
 /* Keeps the compressed bytes instead of writing them (the caller writes in order). */
 static exr_result_t keep_chunk(exr_encode_pipeline_t *enc)
@@ -571,27 +625,44 @@ static exr_result_t no_wait(exr_encode_pipeline_t *enc)
     return EXR_ERR_SUCCESS;
 }
 
+static bool all_zero(const uint8_t *p, size_t n)
+{
+    uint64_t acc = 0, v;
+    size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        memcpy(&v, p + i, 8);
+        acc |= v;
+    }
+    for (; i < n; i++)
+        acc |= p[i];
+    return acc == 0;
+}
+
 static void encode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
 {
-    exr_encode_job *job = ctx;
-    const sl_image *img = job->img;
-    int nc = img->channels, w = img->width;
-    float *buf = job->scratch[worker];
+    (void)worker;
+    sl_exr_stream *s = ctx;
+    int nc = s->channels, w = s->width;
     for (int64_t k = begin; k < end; k++) {
-        exr_chunk_out *o = &job->out[k];
-        o->y = (int)(job->first + k) * job->lines;
+        exr_chunk_out *o = &s->out[k];
+        o->y = (int)(s->first + k) * s->lines;
         exr_chunk_info_t cinfo;
         exr_encode_pipeline_t enc = EXR_ENCODE_PIPELINE_INITIALIZER;
-        o->rv = exr_write_scanline_chunk_info(job->ctx, 0, o->y, &cinfo);
+        o->rv = exr_write_scanline_chunk_info(s->ctx, 0, o->y, &cinfo);
         if (o->rv != EXR_ERR_SUCCESS)
             continue;
-        for (int j = 0; j < cinfo.height; j++) {
-            const float *src = img->data + (size_t)(o->y + j) * img->stride;
-            float *dst = buf + (size_t)j * (size_t)w * (size_t)nc;
-            for (size_t i = 0; i < (size_t)w * (size_t)nc; i++)
-                dst[i] = sanitize(src[i], job->limit);
+        size_t bytes = s->half ? 2 : 4;
+        const uint8_t *rows = (const uint8_t *)s->buf + (size_t)(o->y - s->row0) * (size_t)w * (size_t)nc * bytes;
+        o->zero = cinfo.height == s->lines &&
+                  all_zero(rows, (size_t)cinfo.height * (size_t)w * (size_t)nc * bytes);
+        if (o->zero && s->zero_bytes) {
+            if ((o->bytes = malloc(s->zero_size)))
+                memcpy(o->bytes, s->zero_bytes, s->zero_size);
+            o->size = s->zero_size;
+            o->rv = o->bytes ? EXR_ERR_SUCCESS : EXR_ERR_OUT_OF_MEMORY;
+            continue;
         }
-        o->rv = exr_encoding_initialize(job->ctx, 0, &cinfo, &enc);
+        o->rv = exr_encoding_initialize(s->ctx, 0, &cinfo, &enc);
         if (o->rv != EXR_ERR_SUCCESS)
             continue;
         /* Channels come back in the file's (sorted) order: map by name. */
@@ -600,62 +671,287 @@ static void encode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
             exr_coding_channel_info_t *ch = &enc.channels[i];
             int c = nc <= 2 ? (ch->channel_name[0] == 'A' ? 1 : 0)
                             : (int)(strchr(order, ch->channel_name[0]) - order);
-            ch->encode_from_ptr = (const uint8_t *)(buf + c);
-            ch->user_pixel_stride = nc * (int32_t)sizeof(float);
-            ch->user_line_stride = w * nc * (int32_t)sizeof(float);
-            ch->user_data_type = EXR_PIXEL_FLOAT;
-            ch->user_bytes_per_element = sizeof(float);
+            ch->encode_from_ptr = rows + (size_t)c * bytes;
+            ch->user_pixel_stride = nc * (int32_t)bytes;
+            ch->user_line_stride = w * nc * (int32_t)bytes;
+            ch->user_data_type = s->half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
+            ch->user_bytes_per_element = (int16_t)bytes;
         }
-        o->rv = exr_encoding_choose_default_routines(job->ctx, 0, &enc);
+        o->rv = exr_encoding_choose_default_routines(s->ctx, 0, &enc);
         enc.write_fn = keep_chunk;
         enc.yield_until_ready_fn = no_wait;
         enc.encoding_user_data = o;
         if (o->rv == EXR_ERR_SUCCESS)
-            o->rv = exr_encoding_run(job->ctx, 0, &enc);
-        exr_encoding_destroy(job->ctx, &enc);
+            o->rv = exr_encoding_run(s->ctx, 0, &enc);
+        exr_encoding_destroy(s->ctx, &enc);
     }
 }
 
-/* Chunks are packed and compressed in parallel (the bulk of the time for
- * ZIP), a batch at a time, then written in order. */
-static exr_result_t write_pixels(exr_context_t ctx, const sl_image *img, sl_pixel_type type)
+/* Compresses the buffered rows' chunks in parallel (the bulk of the time)
+ * and writes them in order. */
+static exr_result_t flush_batch(sl_exr_stream *s)
 {
-    int32_t lines = 1;
-    exr_result_t rv = exr_get_scanlines_per_chunk(ctx, 0, &lines);
-    if (rv != EXR_ERR_SUCCESS)
-        return rv;
-    int threads = sl_threads_get(), chunks = (img->height + lines - 1) / lines;
-    int batch = 8 * threads;
-    exr_encode_job job = {.ctx = ctx, .img = img, .lines = lines};
+    int n = (s->rows + s->lines - 1) / s->lines;
+    s->first = s->row0 / s->lines;
+    memset(s->out, 0, (size_t)n * sizeof *s->out);
+    sl_parallel_for(n, 1, encode_chunks, s);
+    exr_result_t rv = EXR_ERR_SUCCESS;
+    for (int k = 0; k < n; k++) {
+        if (rv == EXR_ERR_SUCCESS)
+            rv = s->out[k].rv;
+        if (rv == EXR_ERR_SUCCESS && s->out[k].zero && !s->zero_bytes &&
+            (s->zero_bytes = malloc(s->out[k].size ? s->out[k].size : 1))) {
+            memcpy(s->zero_bytes, s->out[k].bytes, s->out[k].size);
+            s->zero_size = s->out[k].size;
+        }
+        if (rv == EXR_ERR_SUCCESS)
+            rv = exr_write_scanline_chunk(s->ctx, 0, s->out[k].y, s->out[k].bytes, s->out[k].size);
+        free(s->out[k].bytes);
+    }
+    s->row0 += s->rows;
+    s->rows = 0;
+    return rv;
+}
+
+static sl_result stream_fail(sl_exr_stream *s, exr_result_t rv, sl_error *err)
+{
+    /* Attribute problems come from the caller's meta, not the disk. */
+    bool bad_attr = rv == EXR_ERR_ATTR_TYPE_MISMATCH || rv == EXR_ERR_INVALID_ATTR ||
+                    rv == EXR_ERR_NAME_TOO_LONG || rv == EXR_ERR_INVALID_ARGUMENT;
+    sl_result r = sl_error_set(err,
+                               rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM
+                               : bad_attr                  ? SL_ERR_USAGE
+                                                           : SL_ERR_IO,
+                               "%s: cannot write EXR (%s)", s->path, exr_why(rv));
+    sl_exr_stream_abort(s);
+    return r;
+}
+
+sl_result sl_exr_stream_open(const char *path, int width, int height, int channels,
+                             const sl_meta *meta, sl_pixel_type type,
+                             sl_exr_compression compression, sl_exr_stream **out, sl_error *err)
+{
+    *out = NULL;
+    if (width <= 0 || height <= 0 || channels < 1 || channels > 4 || width > EXR_MAX_DIM ||
+        height > EXR_MAX_DIM)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no image to write", path ? path : "(null)");
+    if (type != SL_PIXEL_HALF && type != SL_PIXEL_FLOAT)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: unknown EXR pixel type %d", path, (int)type);
+    if (compression < SL_EXR_ZIP || compression > SL_EXR_RLE)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: unknown EXR compression %d", path,
+                            (int)compression);
+    sl_exr_stream *s = calloc(1, sizeof *s);
+    if (!s || !(s->path = strdup(path))) {
+        free(s);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+    }
+    sl_meta_init(&s->meta);
+    sl_result r = meta ? sl_meta_copy(meta, &s->meta, err) : SL_OK;
+    if (!r)
+        r = sl_atomic_begin(&s->f, path, err);
+    if (r) {
+        sl_meta_free(&s->meta);
+        free(s->path);
+        free(s);
+        return r;
+    }
+    s->width = width;
+    s->height = height;
+    s->channels = channels;
     /* Half cannot hold more than 65504: clamp rather than write Inf. */
-    job.limit = type == SL_PIXEL_HALF ? 65504.0f : FLT_MAX;
-    job.out = calloc((size_t)batch, sizeof *job.out);
-    job.scratch = calloc((size_t)threads, sizeof *job.scratch);
-    if (!job.out || !job.scratch)
-        rv = EXR_ERR_OUT_OF_MEMORY;
-    for (int t = 0; t < threads && rv == EXR_ERR_SUCCESS; t++)
-        if (!(job.scratch[t] = malloc((size_t)img->width * (size_t)lines * (size_t)img->channels *
-                                      sizeof(float))))
-            rv = EXR_ERR_OUT_OF_MEMORY;
-    for (int first = 0; first < chunks && rv == EXR_ERR_SUCCESS; first += batch) {
-        int n = chunks - first < batch ? chunks - first : batch;
-        job.first = first;
-        memset(job.out, 0, (size_t)n * sizeof *job.out);
-        sl_parallel_for(n, 1, encode_chunks, &job);
-        for (int k = 0; k < n; k++) {
-            if (rv == EXR_ERR_SUCCESS)
-                rv = job.out[k].rv;
-            if (rv == EXR_ERR_SUCCESS)
-                rv = exr_write_scanline_chunk(ctx, 0, job.out[k].y, job.out[k].bytes,
-                                              job.out[k].size);
-            free(job.out[k].bytes);
+    s->limit = type == SL_PIXEL_HALF ? 65504.0f : FLT_MAX;
+    s->half = type == SL_PIXEL_HALF;
+    exr_message[0] = 0;
+    exr_context_initializer_t init = make_initializer();
+    sl_image shape = {.width = width, .height = height, .channels = channels};
+    exr_result_t rv = exr_start_write(&s->ctx, s->f.temp_path, EXR_WRITE_FILE_DIRECTLY, &init);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = write_header(s->ctx, &shape, meta, type, compression);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_write_header(s->ctx);
+    int32_t lines = 1;
+    if (rv == EXR_ERR_SUCCESS)
+        rv = exr_get_scanlines_per_chunk(s->ctx, 0, &lines);
+    if (rv != EXR_ERR_SUCCESS)
+        return stream_fail(s, rv, err);
+    /* Eight chunks per thread a batch: enough to keep every thread busy. */
+    int batch = 8 * sl_threads_get();
+    s->lines = lines;
+    s->batch_rows = batch * lines < height ? batch * lines : height;
+    s->buf = malloc((size_t)s->batch_rows * (size_t)width * (size_t)channels * (s->half ? 2 : 4));
+    s->out = calloc((size_t)batch, sizeof *s->out);
+    if (!s->buf || !s->out)
+        return stream_fail(s, EXR_ERR_OUT_OF_MEMORY, err);
+    *out = s;
+    return SL_OK;
+}
+
+typedef struct convert_job {
+    sl_exr_stream *s;
+    const float *rows;
+    size_t stride;
+} convert_job;
+
+/* Sanitises rows into the batch buffer (after the rows already there). */
+static void convert_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    const convert_job *job = ctx;
+    sl_exr_stream *s = job->s;
+    size_t n = (size_t)s->width * (size_t)s->channels;
+    for (int64_t j = begin; j < end; j++) {
+        const float *src = job->rows + (size_t)j * job->stride;
+        size_t at = (size_t)(s->rows + j) * n;
+        if (s->half) {
+            uint16_t *dst = (uint16_t *)s->buf + at;
+            for (size_t i = 0; i < n; i++)
+                dst[i] = half_bits(sanitize(src[i], s->limit));
+        } else {
+            float *dst = (float *)s->buf + at;
+            for (size_t i = 0; i < n; i++)
+                dst[i] = sanitize(src[i], s->limit);
         }
     }
-    for (int t = 0; job.scratch && t < threads; t++)
-        free(job.scratch[t]);
-    free(job.scratch);
-    free(job.out);
-    return rv;
+}
+
+sl_result sl_exr_stream_write(sl_exr_stream *s, const float *rows, int count, size_t stride,
+                              sl_error *err)
+{
+    if (count < 0 || s->row0 + s->rows + count > s->height) {
+        sl_result r = sl_error_set(err, SL_ERR_USAGE, "%s: %d rows more than the image's %d",
+                                   s->path, s->row0 + s->rows + count - s->height, s->height);
+        sl_exr_stream_abort(s);
+        return r;
+    }
+    while (count > 0) {
+        int take = s->batch_rows - s->rows < count ? s->batch_rows - s->rows : count;
+        convert_job job = {s, rows, stride};
+        sl_parallel_for(take, 4, convert_rows, &job);
+        s->rows += take;
+        rows += (size_t)take * stride;
+        count -= take;
+        if (s->rows == s->batch_rows || s->row0 + s->rows == s->height) {
+            exr_result_t rv = flush_batch(s);
+            if (rv != EXR_ERR_SUCCESS)
+                return stream_fail(s, rv, err);
+        }
+    }
+    return SL_OK;
+}
+
+/* Rewrites string attributes in the finished file's header, each value
+ * the same length as the one written (the header cannot grow). */
+static sl_result patch_header(sl_exr_stream *s, const sl_meta *update, sl_error *err)
+{
+    int changed = 0;
+    for (int i = 0; i < update->attr_count; i++) {
+        const char *old = sl_meta_get(&s->meta, update->attrs[i].name);
+        if (!old || strlen(old) != strlen(update->attrs[i].value))
+            return sl_error_set(err, SL_ERR_USAGE,
+                                "%s: attribute %s can only be replaced by a value of the "
+                                "length written",
+                                s->path, update->attrs[i].name);
+        changed += strcmp(old, update->attrs[i].value) != 0;
+    }
+    if (!changed)
+        return SL_OK;
+    FILE *fp = fopen(s->f.temp_path, "r+b");
+    if (!fp)
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot reopen to finish the header", s->path);
+    /* Header: magic, version, then name\0 type\0 size value ... until an empty name. */
+    size_t cap = 1 << 16, len = 0;
+    char *h = NULL;
+    sl_result r = SL_OK;
+    long pos = 8;
+    for (;;) {
+        if (len < cap) {
+            char *t = realloc(h, cap);
+            if (!t) {
+                r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", s->path);
+                break;
+            }
+            h = t;
+            if (fseek(fp, (long)len, SEEK_SET) == 0)
+                len += fread(h + len, 1, cap - len, fp);
+        }
+        /* Parse attributes that lie whole within what was read. */
+        size_t at = (size_t)pos;
+        const char *name = h + at;
+        size_t nl = at < len ? strnlen(name, len - at) : 0;
+        if (at >= len || (nl == len - at)) {
+            if (len < cap) {
+                r = sl_error_set(err, SL_ERR_IO, "%s: header ends early", s->path);
+                break;
+            }
+            cap *= 2;
+            continue;
+        }
+        if (nl == 0)
+            break; /* end of header */
+        const char *tname = name + nl + 1;
+        size_t tl = (size_t)(tname - h) < len ? strnlen(tname, len - (size_t)(tname - h)) : 0;
+        size_t vat = (size_t)(tname - h) + tl + 1 + 4;
+        if (vat > len) {
+            if (len < cap) {
+                r = sl_error_set(err, SL_ERR_IO, "%s: header ends early", s->path);
+                break;
+            }
+            cap *= 2;
+            continue;
+        }
+        const unsigned char *sz = (const unsigned char *)h + vat - 4;
+        size_t size = (size_t)sz[0] | (size_t)sz[1] << 8 | (size_t)sz[2] << 16 | (size_t)sz[3] << 24;
+        const char *value = sl_meta_get(update, name);
+        if (value && strcmp(tname, "string") == 0 && size == strlen(value)) {
+            if (fseek(fp, (long)vat, SEEK_SET) != 0 || fwrite(value, 1, size, fp) != size) {
+                r = sl_error_set(err, SL_ERR_IO, "%s: cannot finish the header", s->path);
+                break;
+            }
+        }
+        pos = (long)(vat + size);
+    }
+    free(h);
+    if (fclose(fp) != 0 && !r)
+        r = sl_error_set(err, SL_ERR_IO, "%s: cannot finish the header", s->path);
+    return r;
+}
+
+sl_result sl_exr_stream_finish(sl_exr_stream *s, const sl_meta *update, sl_error *err)
+{
+    if (s->row0 + s->rows != s->height) {
+        sl_result r = sl_error_set(err, SL_ERR_USAGE, "%s: %d of %d rows written", s->path,
+                                   s->row0 + s->rows, s->height);
+        sl_exr_stream_abort(s);
+        return r;
+    }
+    /* exr_finish writes the chunk offset table: it can fail too. */
+    exr_result_t rv = exr_finish(&s->ctx);
+    if (rv != EXR_ERR_SUCCESS)
+        return stream_fail(s, rv, err);
+    sl_result r = update ? patch_header(s, update, err) : SL_OK;
+    if (r) {
+        sl_exr_stream_abort(s);
+        return r;
+    }
+    r = sl_atomic_commit(&s->f, err);
+    sl_exr_stream_abort(s); /* frees; the file is in place or gone */
+    return r;
+}
+
+void sl_exr_stream_abort(sl_exr_stream *s)
+{
+    if (!s)
+        return;
+    if (s->ctx)
+        exr_finish(&s->ctx);
+    if (s->f.temp_path[0])
+        sl_atomic_abort(&s->f);
+    sl_meta_free(&s->meta);
+    free(s->path);
+    free(s->buf);
+    free(s->out);
+    free(s->zero_bytes);
+    free(s);
 }
 
 sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *meta,
@@ -671,40 +967,10 @@ sl_result sl_exr_write_compressed(const char *path, const sl_image *img, const s
     if (!img || !img->data || img->width <= 0 || img->height <= 0 || img->channels < 1 ||
         img->channels > 4)
         return sl_error_set(err, SL_ERR_USAGE, "%s: no image to write", path ? path : "(null)");
-    if (type != SL_PIXEL_HALF && type != SL_PIXEL_FLOAT)
-        return sl_error_set(err, SL_ERR_USAGE, "%s: unknown EXR pixel type %d", path, (int)type);
-    if (compression != SL_EXR_ZIP && compression != SL_EXR_PIZ && compression != SL_EXR_NONE)
-        return sl_error_set(err, SL_ERR_USAGE, "%s: unknown EXR compression %d", path,
-                            (int)compression);
-    sl_atomic_file f;
-    sl_result r = sl_atomic_begin(&f, path, err);
-    if (r)
-        return r;
-
-    exr_message[0] = 0;
-    exr_context_initializer_t init = make_initializer();
-    exr_context_t ctx = NULL;
-    exr_result_t rv = exr_start_write(&ctx, f.temp_path, EXR_WRITE_FILE_DIRECTLY, &init);
-    if (rv == EXR_ERR_SUCCESS)
-        rv = write_header(ctx, img, meta, type, compression);
-    if (rv == EXR_ERR_SUCCESS)
-        rv = exr_write_header(ctx);
-    if (rv == EXR_ERR_SUCCESS)
-        rv = write_pixels(ctx, img, type);
-    /* exr_finish writes the chunk offset table: it can fail too. */
-    exr_result_t frv = exr_finish(&ctx);
-    if (rv == EXR_ERR_SUCCESS)
-        rv = frv;
-    if (rv != EXR_ERR_SUCCESS) {
-        sl_atomic_abort(&f);
-        /* Attribute problems come from the caller's meta, not the disk. */
-        bool bad_attr = rv == EXR_ERR_ATTR_TYPE_MISMATCH || rv == EXR_ERR_INVALID_ATTR ||
-                        rv == EXR_ERR_NAME_TOO_LONG || rv == EXR_ERR_INVALID_ARGUMENT;
-        return sl_error_set(err,
-                            rv == EXR_ERR_OUT_OF_MEMORY ? SL_ERR_NOMEM
-                            : bad_attr                  ? SL_ERR_USAGE
-                                                        : SL_ERR_IO,
-                            "%s: cannot write EXR (%s)", path, exr_why(rv));
-    }
-    return sl_atomic_commit(&f, err);
+    sl_exr_stream *s;
+    sl_result r = sl_exr_stream_open(path, img->width, img->height, img->channels, meta, type,
+                                     compression, &s, err);
+    if (!r)
+        r = sl_exr_stream_write(s, img->data, img->height, img->stride, err);
+    return r ? r : sl_exr_stream_finish(s, NULL, err);
 }

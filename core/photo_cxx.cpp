@@ -445,8 +445,9 @@ extern "C" sl_result sl_photo_write(const char *path, const sl_image *img, const
 struct sl_photo_strips {
     std::unique_ptr<ImageInput> in;
     std::string path;
-    int width = 0, channels = 0;
+    int width = 0, channels = 0, code_bytes = 0;
     std::vector<float> scratch;
+    std::vector<unsigned char> code_scratch;
 };
 
 extern "C" sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
@@ -472,6 +473,8 @@ extern "C" sl_result sl_photo_strips_open(const char *path, sl_photo_strips **st
                          spec.format.basetype == TypeDesc::HALF ||
                          spec.format.basetype == TypeDesc::DOUBLE;
         info->bits = spec.get_int_attribute("oiio:BitsPerSample", (int)spec.format.size() * 8);
+        if (spec.format.basetype == TypeDesc::UINT8 || spec.format.basetype == TypeDesc::UINT16)
+            s->code_bytes = info->code_bytes = (int)spec.format.size();
         *strips = s.release();
         return SL_OK;
     } catch (const std::bad_alloc &e) {
@@ -504,6 +507,36 @@ extern "C" sl_result sl_photo_strips_read(sl_photo_strips *s, int y0, int y1, fl
     if (s->channels == 1)
         for (size_t i = n; i-- > 0;)
             rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = dst[i];
+    return SL_OK;
+}
+
+extern "C" sl_result sl_photo_strips_read_codes(sl_photo_strips *s, int y0, int y1, void *rgb,
+                                                sl_error *err)
+{
+    if (!s->code_bytes)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no integer codes (float samples)",
+                            s->path.c_str());
+    size_t n = (size_t)(y1 - y0) * (size_t)s->width, b = (size_t)s->code_bytes;
+    unsigned char *dst = (unsigned char *)rgb;
+    if (s->channels == 1) {
+        try {
+            s->code_scratch.resize(n * b);
+        } catch (...) {
+            return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", s->path.c_str());
+        }
+        dst = s->code_scratch.data();
+    }
+    TypeDesc type = b == 1 ? TypeDesc::UINT8 : TypeDesc::UINT16;
+    if (!s->in->read_scanlines(0, 0, y0, y1, 0, 0, s->channels, type, dst) || s->in->has_error()) {
+        std::string why = one_line(s->in->geterror());
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image at rows %d-%d (%s)",
+                            s->path.c_str(), y0, y1 - 1, why.c_str());
+    }
+    unsigned char *out = (unsigned char *)rgb;
+    if (s->channels == 1)
+        for (size_t i = n; i-- > 0;)
+            for (int c = 0; c < 3; c++)
+                std::memcpy(out + (3 * i + (size_t)c) * b, dst + i * b, b);
     return SL_OK;
 }
 

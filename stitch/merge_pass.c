@@ -21,14 +21,22 @@ typedef struct pass_ctx {
     sl_merge_result *res;
     int frames;
     double *e;              /* per rank, relative to the reference frame */
+    double *inv_e, *e2;     /* per rank: 1 / e and e^2 */
     merge_frame_reader **rd; /* per rank */
-    float **buf;            /* per rank: STRIP rows of RGB */
+    void **buf;             /* per rank: STRIP rows of RGB, float or codes (m->codes) */
+    void **next;            /* per rank: the next strip, read while buf is merged */
+    int ny0, ny1;           /* rows of next; ny0 == ny1: nothing to read */
     sl_error *errs;
     sl_result *results;
     int y0, y1;
     int levels;             /* 2^bits for integer frames, 0 for float */
     float *inv[3], *wb[3];  /* per level: linear value and weight without exposure */
+    float *cinv[3], *cwb[3], *cfade; /* with codes, per code: the same, and the shoulder fade */
+    float *rx, *rw;         /* with 8-bit codes, per rank, channel and code: linear value
+                               on the output scale and weight with the exposure factor */
     int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
+    float *out, *mask, *ghost; /* row y0 of the outputs (ghost NULL without deghost) */
+    size_t out_stride, mask_stride, ghost_stride;
 } pass_ctx;
 
 enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
@@ -53,12 +61,19 @@ static double weight_base(const pass_ctx *p, int c, double z)
     return 1 / var;
 }
 
-static void read_strips(void *ctx, int64_t begin, int64_t end, int worker)
+static void read_next(pass_ctx *p, int r)
 {
-    (void)worker;
-    pass_ctx *p = ctx;
-    for (int64_t r = begin; r < end; r++)
-        p->results[r] = merge_frame_read(p->rd[r], p->y0, p->y1, p->buf[r], &p->errs[r]);
+    const merge_ctx *m = p->m;
+    const uint8_t *held = m->held ? m->held[m->order[r]] : NULL;
+    if (held) {
+        size_t row = (size_t)m->width * 3 * (size_t)m->code_bytes;
+        memcpy(p->next[r], held + (size_t)p->ny0 * row, (size_t)(p->ny1 - p->ny0) * row);
+        p->results[r] = SL_OK;
+        return;
+    }
+    p->results[r] = p->m->codes
+                        ? merge_frame_read_codes(p->rd[r], p->ny0, p->ny1, p->next[r], &p->errs[r])
+                        : merge_frame_read(p->rd[r], p->ny0, p->ny1, p->next[r], &p->errs[r]);
 }
 
 /* Weighted median of x over the entries with w > 0. */
@@ -85,54 +100,142 @@ static double weighted_median(const double *x, const double *w, int n)
     return k ? x[idx[k - 1]] : 0;
 }
 
+/* Linear values (on the output scale) and weights of one pixel in every
+ * frame, from integer codes through tables. */
+static inline void fill_codes(const pass_ctx *p, size_t idx, double xs[3][MERGE_MAX_FRAMES],
+                              double ws[3][MERGE_MAX_FRAMES], bool *satr)
+{
+    int cb = p->m->code_bytes;
+    for (int r = 0; r < p->frames; r++) {
+        int q[3];
+        for (int c = 0; c < 3; c++)
+            q[c] = merge_code(p->buf[r], cb, idx + c);
+        int qm = q[0] > q[1] ? q[0] : q[1];
+        qm = qm > q[2] ? qm : q[2];
+        /* The pixel is saturated as a whole, and fades out by its brightest
+         * channel (see fill_float). */
+        float fade = p->cfade[qm];
+        satr[r] = fade == 0;
+        for (int c = 0; c < 3; c++) {
+            xs[c][r] = p->cinv[c][q[c]] * p->inv_e[r];
+            ws[c][r] = (double)(p->cwb[c][q[c]] * fade) * p->e2[r];
+        }
+    }
+}
+
+/* The same from float samples (float frames, or warped integer ones). */
+static void fill_float(const pass_ctx *p, size_t idx, double xs[3][MERGE_MAX_FRAMES],
+                       double ws[3][MERGE_MAX_FRAMES], bool *satr, int64_t *cnt)
+{
+    const merge_ctx *m = p->m;
+    int f = p->frames;
+    float sat = (float)m->saturation;
+    /* A camera clips each raw channel before its colour matrix mixes
+     * them, so one saturated channel spoils the pixel's others: the
+     * pixel is saturated as a whole, and fades out by its brightest
+     * channel. */
+    double fade[MERGE_MAX_FRAMES];
+    for (int r = 0; r < f; r++) {
+        const float *v = (const float *)p->buf[r] + idx;
+        float zmax = fmaxf(v[0], fmaxf(v[1], v[2]));
+        satr[r] = zmax >= sat;
+        fade[r] = satr[r] ? 0 : fmin(1, (m->saturation - zmax) / SHOULDER);
+    }
+    for (int c = 0; c < 3; c++)
+        for (int r = 0; r < f; r++) {
+            float z = ((const float *)p->buf[r])[idx + c];
+            double y_lin, wb;
+            if (p->levels) {
+                int k = (int)(z * (float)(p->levels - 1) + 0.5f);
+                k = k < 0 ? 0 : k >= p->levels ? p->levels - 1 : k;
+                y_lin = p->inv[c][k];
+                wb = p->wb[c][k];
+            } else if (!isfinite(z)) {
+                cnt[COUNT_NONFINITE]++;
+                xs[c][r] = ws[c][r] = 0;
+                continue;
+            } else {
+                y_lin = sl_response_eval(&p->res->response, c, z);
+                wb = weight_base(p, c, z);
+            }
+            xs[c][r] = y_lin / p->e[r];
+            ws[c][r] = wb * fade[r] * p->e[r] * p->e[r];
+        }
+}
+
+/* 8-bit codes without deghost (the common case): fill_codes and the sums
+ * of merge_rows in one loop over per-rank tables. */
+static void merge_row_u8(const pass_ctx *p, int row, float *out, float *mask, int64_t *cnt)
+{
+    int w = p->m->width, f = p->frames;
+    for (int x = 0; x < w; x++) {
+        size_t idx = ((size_t)row * w + x) * 3;
+        double num[3] = {0, 0, 0}, den[3] = {0, 0, 0}, fb[3] = {0, 0, 0}, lo[3] = {0, 0, 0};
+        int nsat = 0;
+        for (int r = 0; r < f; r++) {
+            const uint8_t *q = (const uint8_t *)p->buf[r] + idx;
+            int qm = q[0] > q[1] ? q[0] : q[1];
+            qm = qm > q[2] ? qm : q[2];
+            float fade = p->cfade[qm];
+            const float *rx = p->rx + (size_t)r * 3 * 256, *rw = p->rw + (size_t)r * 3 * 256;
+            if (fade == 0) {
+                if (r == 0)
+                    for (int c = 0; c < 3; c++)
+                        lo[c] = rx[c * 256 + q[c]];
+                nsat++;
+                continue;
+            }
+            for (int c = 0; c < 3; c++) {
+                double xv = rx[c * 256 + q[c]], wv = (double)(rw[c * 256 + q[c]] * fade);
+                num[c] += wv * xv;
+                den[c] += wv;
+                fb[c] = xv; /* longest unsaturated so far */
+            }
+        }
+        bool any = nsat == f;
+        for (int c = 0; c < 3; c++) {
+            double v;
+            if (any) {
+                /* The shortest frame's value is a lower bound, never an estimate. */
+                v = lo[c];
+                mask[x * 3 + c] = 1;
+                cnt[c]++;
+            } else if (den[c] > 0) {
+                v = num[c] / den[c];
+            } else {
+                v = fb[c];
+                cnt[COUNT_UNDER]++;
+            }
+            out[x * 3 + c] = (float)v;
+        }
+        cnt[3] += any;
+    }
+}
+
 static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
     pass_ctx *p = ctx;
     const merge_ctx *m = p->m;
     int w = m->width, f = p->frames;
-    float sat = (float)m->saturation;
     double xs[3][MERGE_MAX_FRAMES], ws[3][MERGE_MAX_FRAMES];
     bool satr[MERGE_MAX_FRAMES];
     for (int64_t row = begin; row < end; row++) {
         int y = p->y0 + (int)row;
-        float *out = sl_image_pixel(&p->res->radiance, 0, y);
-        float *mask = sl_image_pixel(&p->res->clipped, 0, y);
-        float *ghost = p->res->ghost.data ? sl_image_pixel(&p->res->ghost, 0, y) : NULL;
+        float *out = p->out + row * p->out_stride;
+        float *mask = p->mask + row * p->mask_stride;
+        float *ghost = p->ghost ? p->ghost + row * p->ghost_stride : NULL;
         int64_t *cnt = p->row_counts + (size_t)y * COUNTS;
+        if (p->rx && !ghost) {
+            merge_row_u8(p, (int)row, out, mask, cnt);
+            continue;
+        }
         for (int x = 0; x < w; x++) {
             size_t idx = ((size_t)row * w + x) * 3;
-            /* A camera clips each raw channel before its colour matrix mixes
-             * them, so one saturated channel spoils the pixel's others: the
-             * pixel is saturated as a whole, and fades out by its brightest
-             * channel. */
-            double fade[MERGE_MAX_FRAMES];
-            for (int r = 0; r < f; r++) {
-                const float *v = p->buf[r] + idx;
-                float zmax = fmaxf(v[0], fmaxf(v[1], v[2]));
-                satr[r] = zmax >= sat;
-                fade[r] = satr[r] ? 0 : fmin(1, (m->saturation - zmax) / SHOULDER);
-            }
-            for (int c = 0; c < 3; c++)
-                for (int r = 0; r < f; r++) {
-                    float z = p->buf[r][idx + c];
-                    double y_lin, wb;
-                    if (p->levels) {
-                        int k = (int)(z * (float)(p->levels - 1) + 0.5f);
-                        k = k < 0 ? 0 : k >= p->levels ? p->levels - 1 : k;
-                        y_lin = p->inv[c][k];
-                        wb = p->wb[c][k];
-                    } else if (!isfinite(z)) {
-                        cnt[COUNT_NONFINITE]++;
-                        xs[c][r] = ws[c][r] = 0;
-                        continue;
-                    } else {
-                        y_lin = sl_response_eval(&p->res->response, c, z);
-                        wb = weight_base(p, c, z);
-                    }
-                    xs[c][r] = y_lin / p->e[r];
-                    ws[c][r] = wb * fade[r] * p->e[r] * p->e[r];
-                }
+            if (m->codes)
+                fill_codes(p, idx, xs, ws, satr);
+            else
+                fill_float(p, idx, xs, ws, satr, cnt);
             /* Deghost: a frame far from the weighted median (beyond the noise
              * model plus a model error) in any channel is left out. */
             bool reject[MERGE_MAX_FRAMES] = {false}, ghosted = false;
@@ -202,50 +305,167 @@ static sl_result build_luts(pass_ctx *p, sl_error *err)
             p->wb[c][k] = (float)weight_base(p, c, z);
         }
     }
+    if (!p->m->codes)
+        return SL_OK;
+    int n = p->m->code_bytes == 1 ? 256 : 65536;
+    float scale = 1.0f / (float)(n - 1);
+    if (!(p->cfade = malloc((size_t)n * sizeof *p->cfade)))
+        return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    for (int c = 0; c < 3; c++)
+        if (!(p->cinv[c] = malloc((size_t)n * sizeof *p->cinv[c])) ||
+            !(p->cwb[c] = malloc((size_t)n * sizeof *p->cwb[c])))
+            return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    /* The same quantisation to levels as fill_float's. */
+    for (int q = 0; q < n; q++) {
+        float z = (float)q * scale;
+        int k = (int)(z * (float)(p->levels - 1) + 0.5f);
+        k = k < 0 ? 0 : k >= p->levels ? p->levels - 1 : k;
+        for (int c = 0; c < 3; c++) {
+            p->cinv[c][q] = p->inv[c][k];
+            p->cwb[c][q] = p->wb[c][k];
+        }
+        p->cfade[q] = z >= (float)p->m->saturation ? 0 : (float)fmin(1, (p->m->saturation - z) / SHOULDER);
+    }
+    if (n != 256)
+        return SL_OK;
+    p->rx = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rx);
+    p->rw = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rw);
+    if (!p->rx || !p->rw)
+        return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+    for (int r = 0; r < p->frames; r++)
+        for (int c = 0; c < 3; c++)
+            for (int q = 0; q < 256; q++) {
+                p->rx[((size_t)r * 3 + c) * 256 + q] = (float)(p->cinv[c][q] * p->inv_e[r]);
+                p->rw[((size_t)r * 3 + c) * 256 + q] = (float)(p->cwb[c][q] * p->e2[r]);
+            }
     return SL_OK;
 }
 
-sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_result *res,
-                     sl_error *err)
+/* Strip buffers for a sink, or the result's images. */
+static sl_result alloc_outputs(pass_ctx *p, const merge_sink *sink, sl_error *err)
+{
+    const merge_ctx *m = p->m;
+    sl_merge_result *res = p->res;
+    int w = m->width;
+    if (sink) {
+        p->out_stride = p->mask_stride = (size_t)w * 3;
+        p->ghost_stride = (size_t)w;
+        p->out = malloc((size_t)STRIP * p->out_stride * sizeof *p->out);
+        p->mask = calloc((size_t)STRIP * p->mask_stride, sizeof *p->mask);
+        p->ghost = p->opt->deghost ? calloc((size_t)STRIP * w, sizeof *p->ghost) : NULL;
+        if (!p->out || !p->mask || (p->opt->deghost && !p->ghost))
+            return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+        return SL_OK;
+    }
+    sl_result r = sl_image_alloc(&res->radiance, w, m->height, 3, err);
+    if (!r)
+        r = sl_image_alloc(&res->clipped, w, m->height, 3, err);
+    if (!r && p->opt->deghost)
+        r = sl_image_alloc(&res->ghost, w, m->height, 1, err);
+    return r;
+}
+
+/* Tasks of one step: reading the next strip of each frame (the first
+ * `frames` tasks), then merging the current strip's rows, so a thread that
+ * is done decoding merges instead of waiting for the slowest frame. */
+static void step_tasks(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    pass_ctx *p = ctx;
+    for (int64_t t = begin; t < end; t++) {
+        if (t < p->frames) {
+            if (p->ny1 > p->ny0)
+                read_next(p, (int)t);
+        } else
+            merge_rows(p, t - p->frames, t - p->frames + 1, worker);
+    }
+}
+
+/* Merges rows [y0, y1) (read already) while reading the next strip, and
+ * hands the merged rows to the sink. */
+static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
+{
+    sl_merge_result *res = p->res;
+    int rows = p->y1 - p->y0;
+    if (!sink) {
+        p->out = sl_image_pixel(&res->radiance, 0, p->y0);
+        p->mask = sl_image_pixel(&res->clipped, 0, p->y0);
+        p->ghost = res->ghost.data ? sl_image_pixel(&res->ghost, 0, p->y0) : NULL;
+        p->out_stride = res->radiance.stride;
+        p->mask_stride = res->clipped.stride;
+        p->ghost_stride = res->ghost.stride;
+    } else {
+        memset(p->mask, 0, (size_t)rows * p->mask_stride * sizeof *p->mask);
+        if (p->ghost)
+            memset(p->ghost, 0, (size_t)rows * p->ghost_stride * sizeof *p->ghost);
+    }
+    sl_parallel_for(p->frames + rows, 1, step_tasks, p);
+    sl_result r = SL_OK;
+    for (int q = 0; q < p->frames && !r && p->ny1 > p->ny0; q++)
+        if ((r = p->results[q]) && err)
+            *err = p->errs[q];
+    if (r || !sink)
+        return r;
+    r = sl_exr_stream_write(sink->radiance, p->out, rows, p->out_stride, err);
+    if (!r && sink->mask)
+        r = sl_exr_stream_write(sink->mask, p->mask, rows, p->mask_stride, err);
+    if (!r && sink->ghost)
+        r = sl_exr_stream_write(sink->ghost, p->ghost, rows, p->ghost_stride, err);
+    return r;
+}
+
+sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merge_sink *sink,
+                     sl_merge_result *res, sl_error *err)
 {
     int f = res->frame_count;
     pass_ctx p = {.m = m, .opt = opt, .res = res, .frames = f};
     p.e = calloc((size_t)f, sizeof *p.e);
+    p.inv_e = calloc((size_t)f, sizeof *p.inv_e);
+    p.e2 = calloc((size_t)f, sizeof *p.e2);
     p.rd = calloc((size_t)f, sizeof *p.rd);
-    p.buf = calloc((size_t)f, sizeof *p.buf);
+    void **slots = calloc((size_t)f * 2, sizeof *slots);
+    p.buf = slots;
+    p.next = slots ? slots + f : NULL;
     p.errs = calloc((size_t)f, sizeof *p.errs);
     p.results = calloc((size_t)f, sizeof *p.results);
     p.row_counts = calloc((size_t)m->height * COUNTS, sizeof *p.row_counts);
     sl_result r = SL_OK;
-    if (!p.e || !p.rd || !p.buf || !p.errs || !p.results || !p.row_counts)
+    if (!p.e || !p.inv_e || !p.e2 || !p.rd || !p.buf || !p.errs || !p.results || !p.row_counts)
         r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     if (!r)
-        r = sl_image_alloc(&res->radiance, m->width, m->height, 3, err);
-    if (!r)
-        r = sl_image_alloc(&res->clipped, m->width, m->height, 3, err);
-    if (!r && opt->deghost)
-        r = sl_image_alloc(&res->ghost, m->width, m->height, 1, err);
-    if (!r)
-        r = build_luts(&p, err);
+        r = alloc_outputs(&p, sink, err);
     double ref = res->output_exposure;
     for (int q = 0; q < f && !r; q++) {
         const sl_merge_frame *fr = &res->frames[m->order[q]];
         p.e[q] = fr->exposure / ref;
-        p.buf[q] = malloc((size_t)STRIP * m->width * 3 * sizeof *p.buf[q]);
-        if (!p.buf[q])
+        p.inv_e[q] = 1 / p.e[q];
+        p.e2[q] = p.e[q] * p.e[q];
+        size_t bytes = (size_t)STRIP * m->width * 3 * (m->codes ? (size_t)m->code_bytes : sizeof(float));
+        p.buf[q] = malloc(bytes);
+        p.next[q] = malloc(bytes);
+        if (!p.buf[q] || !p.next[q])
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-        else
+        else if (!(m->held && m->held[m->order[q]]))
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
-    for (int y0 = 0; y0 < m->height && !r; y0 += STRIP) {
-        p.y0 = y0;
-        p.y1 = y0 + STRIP < m->height ? y0 + STRIP : m->height;
-        sl_parallel_for(f, 1, read_strips, &p);
+    if (!r)
+        r = build_luts(&p, err);
+    /* The first strip is read alone; then each step merges one and reads the next. */
+    p.ny1 = STRIP < m->height ? STRIP : m->height;
+    if (!r) {
+        sl_parallel_for(f, 1, step_tasks, &p);
         for (int q = 0; q < f && !r; q++)
             if ((r = p.results[q]) && err)
                 *err = p.errs[q];
-        if (!r)
-            sl_parallel_for(p.y1 - p.y0, 1, merge_rows, &p);
+    }
+    for (int y0 = 0; y0 < m->height && !r; y0 += STRIP) {
+        void **t = p.buf;
+        p.buf = p.next;
+        p.next = t;
+        p.y0 = p.ny0;
+        p.y1 = p.ny1;
+        p.ny0 = p.y1;
+        p.ny1 = p.y1 + STRIP < m->height ? p.y1 + STRIP : m->height;
+        r = merge_strip(&p, sink, err);
     }
     if (!r) {
         bool latlong = sl_is_latlong_shape(m->width, m->height);
@@ -267,16 +487,30 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_r
     for (int q = 0; q < f; q++) {
         if (p.rd)
             merge_frame_close(p.rd[q]);
-        if (p.buf)
-            free(p.buf[q]);
+        if (slots) {
+            free(slots[q]);
+            free(slots[f + q]);
+        }
     }
     for (int c = 0; c < 3; c++) {
         free(p.inv[c]);
         free(p.wb[c]);
+        free(p.cinv[c]);
+        free(p.cwb[c]);
     }
+    if (sink) {
+        free(p.out);
+        free(p.mask);
+        free(p.ghost);
+    }
+    free(p.cfade);
+    free(p.rx);
+    free(p.rw);
     free(p.e);
+    free(p.inv_e);
+    free(p.e2);
     free(p.rd);
-    free(p.buf);
+    free(slots);
     free(p.errs);
     free(p.results);
     free(p.row_counts);

@@ -57,6 +57,11 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
 typedef struct merge_ctx {
     int width, height, bits;
     bool is_float;
+    int code_bytes;        /* frames' integer container: 1 or 2 bytes, 0 float */
+    bool codes;            /* frames read as integer codes (integer and none warped) */
+    uint8_t *code_class;   /* with codes, per code: 1 saturated, 2 black */
+    uint8_t **held;        /* per frame: its codes kept from the sample pass, or NULL */
+    int held_slots;        /* entries of held */
     int orientation;
     double black, saturation;
     int *order;            /* order[rank] = frame index, shortest exposure first */
@@ -70,16 +75,38 @@ typedef struct merge_ctx {
     double *scratch;       /* frames^2 doubles */
 } merge_ctx;
 
-/* Everything before the pixels are merged: frames, samples, response, exposure check. */
+/* Everything before the pixels are merged: frames, samples, response,
+ * exposure check. With `hold`, frames that fit opt->hold_mb keep their codes
+ * from the sample pass for the merge pass. */
 sl_result merge_prepare(const char *const *paths, int count, const sl_merge_options *opt,
-                        merge_ctx *m, sl_merge_result *out, sl_error *err);
-/* Merges the frames strip by strip into out->radiance and out->clipped. */
-sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, sl_merge_result *out,
-                     sl_error *err);
+                        bool hold, merge_ctx *m, sl_merge_result *out, sl_error *err);
+/* Where merged strips go instead of out's images: EXR streams (mask and
+ * ghost may be NULL). */
+typedef struct merge_sink {
+    sl_exr_stream *radiance, *mask, *ghost;
+} merge_sink;
+/* Merges the frames strip by strip into out->radiance, out->clipped (and
+ * out->ghost with deghost), or with a sink into its streams. */
+sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merge_sink *sink,
+                     sl_merge_result *out, sl_error *err);
+/* The radiance EXR's attributes; the counts only known after the pass are
+ * written at a fixed width, so a streamed file's header can be finished in
+ * place. */
+sl_result merge_output_meta(const char *path, const char *mask_path, const char *ghost_path,
+                            const sl_merge_result *res, sl_meta *meta, sl_error *err);
+/* A mask's attributes (it names the radiance). */
+sl_result merge_mask_meta(const char *path, const sl_merge_result *res, sl_meta *meta,
+                          sl_error *err);
 void merge_ctx_free(merge_ctx *m);
 /* Units, output scale and weights as EXR attributes (setlight:merge:units,
  * output_exposure, weights). */
 sl_result merge_provenance_meta(sl_meta *meta, const sl_merge_result *res, sl_error *err);
+
+/* Sample i of a strip of integer codes (uint8_t or uint16_t). */
+static inline int merge_code(const void *buf, int bytes, size_t i)
+{
+    return bytes == 1 ? ((const uint8_t *)buf)[i] : ((const uint16_t *)buf)[i];
+}
 
 /* splitmix64: a small seeded generator for sample positions. */
 static inline uint64_t merge_rand(uint64_t *state)

@@ -27,5 +27,12 @@ sl_result merge_provenance_meta(sl_meta *meta, const sl_merge_result *res, sl_er
                  res->noise_gain, res->noise_floor, res->black, res->saturation);
         r = sl_meta_set(meta, "setlight:merge:weights", buf, err);
     }
+    if (!r) {
+        static const char *names[] = {"ZIP", "PIZ", "no", "RLE"};
+        snprintf(buf, sizeof buf, "%s, %s compression (%s)",
+                 res->pixel_type == SL_PIXEL_HALF ? "half" : "float", names[res->compression],
+                 res->encoding_note);
+        r = sl_meta_set(meta, "setlight:merge:encoding", buf, err);
+    }
     return r;
 }

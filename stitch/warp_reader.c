@@ -148,6 +148,14 @@ sl_result merge_frame_read(merge_frame_reader *fr, int y0, int y1, float *rgb, s
     return SL_OK;
 }
 
+sl_result merge_frame_read_codes(merge_frame_reader *fr, int y0, int y1, void *codes,
+                                 sl_error *err)
+{
+    if (fr->warp)
+        return sl_error_set(err, SL_ERR_INTERNAL, "merge: codes asked of a warped frame");
+    return sl_photo_strips_read_codes(fr->rd, y0, y1, codes, err);
+}
+
 void merge_frame_close(merge_frame_reader *fr)
 {
     if (!fr)

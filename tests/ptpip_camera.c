@@ -5,7 +5,7 @@
  *
  *   ptpip_camera [--port N] [--lifetime S] [--busy N] [--busy-at K]
  *                [--ignore-shutter K] [--refuse-shutter K] [--drop-after N]
- *                [--scene NAME]
+ *                [--drop-at-set K] [--scene NAME]
  *
  * Prints "PORT n" on stdout once listening (port 0 or absent: picks a free one).
  * Faults: --busy N answers the next N InitiateCapture requests from capture
@@ -14,7 +14,9 @@
  * answers the K-th exposure-time change, and every later request for that
  * value, with Invalid Device Prop Value (0x201C); --drop-after N closes
  * both connections when the trigger of frame N+1 arrives (once), then accepts
- * a new connection with the card contents kept. The program exits after
+ * a new connection with the card contents kept; --drop-at-set K does the
+ * same when the K-th exposure-time change arrives, before answering it (a
+ * cable pulled while the camera is being set). The program exits after
  * --lifetime seconds (default 120) so a crashed test never leaves it behind.
  *
  * The photographs: a horizontal ramp of radiance spanning 22 stops, exposed
@@ -171,7 +173,7 @@ typedef struct {
 } object;
 
 static struct {
-    int busy_left, busy_at, ignore_shutter, refuse_shutter, drop_after;
+    int busy_left, busy_at, ignore_shutter, refuse_shutter, drop_after, drop_at_set, shutter_requests;
     uint32_t refused; /* the exposure-time value refused since --refuse-shutter */
     sl_camera *scene; /* --scene: the virtual camera that takes the pictures */
     bool dropped;
@@ -643,6 +645,12 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
             r = send_response(RC_InvalidDevicePropValue, tid, NULL, 0);
             break;
         }
+        if (prop == DPC_ExposureTime && ++g.shutter_requests == g.drop_at_set) {
+            fprintf(stderr, "ptpip_camera: dropping the connection at exposure-time change %d\n",
+                    g.shutter_requests);
+            free(d.data);
+            return -1;
+        }
         if (prop == DPC_ExposureTime &&
             ((g.refused && v == g.refused) || g.shutter_sets + 1 == g.refuse_shutter)) {
             g.shutter_sets += v != g.refused;
@@ -836,6 +844,8 @@ int main(int argc, char **argv)
             g.refuse_shutter = atoi(v);
         else if (!strcmp(a, "--drop-after"))
             g.drop_after = atoi(v);
+        else if (!strcmp(a, "--drop-at-set"))
+            g.drop_at_set = atoi(v);
         else {
             fprintf(stderr, "ptpip_camera: unknown option %s\n", a);
             return 2;

@@ -207,7 +207,9 @@ int main(void)
 {
     if (getenv("SETLIGHT_SANITIZED")) {
         W_UNRESOLVED = 512;
-        SPHERE_SPP = 256;
+        /* fewer pixels, not fewer samples: at 256 spp the grey sphere's noise
+         * alone is 1.2%, above the 1% the test asserts */
+        SPHERE_PX = 12;
     }
     RUN(test_stage);
     RUN(test_exterior);

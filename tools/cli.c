@@ -72,3 +72,24 @@ bool cli_parse_view(const char *s, double *az, double *el)
     return sscanf(s, "%lf,%lf%c", az, el, &tail) == 2 && isfinite(*az) && isfinite(*el) &&
            fabs(*el) <= 90;
 }
+
+bool cli_parse_list(const char *s, double *v, int n)
+{
+    char buf[512];
+    if (strlen(s) >= sizeof buf)
+        return false;
+    strcpy(buf, s);
+    char *p = buf;
+    for (int i = 0; i < n; i++) {
+        char *comma = strchr(p, ',');
+        if ((comma == NULL) != (i == n - 1))
+            return false;
+        if (comma)
+            *comma = 0;
+        if (!cli_parse_double(p, &v[i]))
+            return false;
+        if (comma)
+            p = comma + 1;
+    }
+    return true;
+}

@@ -28,6 +28,9 @@ void cli_getopt_reset(void);
 /* Parses a whole positive int / finite double; false on junk. */
 bool cli_parse_int(const char *s, int *out);
 bool cli_parse_double(const char *s, double *out);
+/* Exactly n comma-separated finite numbers ("1,2.5,3"); false on junk,
+ * empty fields or a different count. */
+bool cli_parse_list(const char *s, double *v, int n);
 /* "AZ,EL" in degrees with |EL| <= 90 (render and converge --view). */
 bool cli_parse_view(const char *s, double *az, double *el);
 

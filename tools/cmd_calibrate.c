@@ -12,6 +12,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "ball_camera_opts.h"
 #include "cli.h"
 #include "setlight/render.h"
 #include "setlight/stitch.h"
@@ -75,19 +76,6 @@ static const char *calibrate_help =
     "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
     "sphere, no sphere found or none in the circle, a grey photo whose exposure\n"
     "contradicts the HDRI's), 1 other failures. See docs/calibrate.md.\n";
-
-static bool parse_list(const char *s, double *v, int n)
-{
-    char buf[512];
-    if (strlen(s) >= sizeof buf)
-        return false;
-    strcpy(buf, s);
-    char *save = NULL, *tok = strtok_r(buf, ",", &save);
-    for (int i = 0; i < n; i++, tok = strtok_r(NULL, ",", &save))
-        if (!tok || !cli_parse_double(tok, &v[i]))
-            return false;
-    return tok == NULL;
-}
 
 static bool is_ldr_path(const char *path)
 {
@@ -210,8 +198,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                *report_dir = NULL, *out_cs = "lin_rec709", *chart_cs = NULL, *grey_cs = NULL,
                *ref_path = NULL, *mask_path = NULL;
     double corners[4][2], clip = -1, view[2] = {0, 0}, exp_tol = 1;
-    double focal_mm = 0, sensor_mm = 0, fov = 0, dist_mm = 0, diam_mm = 0, v;
-    int camera = -1; /* -1: perspective when anything gives the geometry */
+    ball_camera_opts bc;
+    ball_camera_opts_init(&bc);
     bool have_corners = false, have_circle = false, use_float = false, hdri_in_chart = true,
          sun_repair = true, absolute = true;
     sl_sun_options sopt;
@@ -238,7 +226,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             chart_path = optarg;
             break;
         case OPT_CORNERS:
-            if (!parse_list(optarg, &corners[0][0], 8))
+            if (!cli_parse_list(optarg, &corners[0][0], 8))
                 return cli_usage_error(cli, "--chart-corners needs 8 numbers, not '%s'", optarg);
             have_corners = true;
             break;
@@ -283,7 +271,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             grey_path = optarg;
             break;
         case OPT_CIRCLE:
-            if (!parse_list(optarg, gopt.circle, 3) || !(gopt.circle[2] > 0))
+            if (!cli_parse_list(optarg, gopt.circle, 3) || !(gopt.circle[2] > 0))
                 return cli_usage_error(cli, "--grey-circle needs CX,CY,R with R > 0, not '%s'",
                                        optarg);
             have_circle = true;
@@ -294,32 +282,20 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                        optarg);
             break;
         case OPT_VIEW:
-            if (!parse_list(optarg, view, 2))
+            if (!cli_parse_list(optarg, view, 2))
                 return cli_usage_error(cli, "--grey-view needs AZ,EL in degrees, not '%s'", optarg);
             break;
         case OPT_CAMERA:
-            if (!strcmp(optarg, "ortho") || !strcmp(optarg, "orthographic"))
-                camera = SL_BALL_ORTHOGRAPHIC;
-            else if (!strcmp(optarg, "perspective"))
-                camera = SL_BALL_PERSPECTIVE;
-            else
-                return cli_usage_error(cli, "--camera is ortho or perspective, not '%s'", optarg);
-            break;
         case OPT_FOCAL:
         case OPT_SENSOR:
         case OPT_FOV:
         case OPT_DIST:
-        case OPT_DIAM:
-            if (!cli_parse_double(optarg, &v) || !(v > 0) || (c == OPT_FOV && !(v < 180)))
-                return cli_usage_error(cli, "%s needs a positive number%s, not '%s'",
-                                       argv[optind - 1] ? argv[optind - 1] : "option",
-                                       c == OPT_FOV ? " of degrees below 180" : "", optarg);
-            *(c == OPT_FOCAL    ? &focal_mm
-              : c == OPT_SENSOR ? &sensor_mm
-              : c == OPT_FOV    ? &fov
-              : c == OPT_DIST   ? &dist_mm
-                                : &diam_mm) = v;
+        case OPT_DIAM: {
+            int rc = ball_camera_opts_parse(cli, &bc, c - OPT_CAMERA, optarg);
+            if (rc)
+                return rc;
             break;
+        }
         case OPT_SPP: {
             int spp;
             if (!cli_parse_int(optarg, &spp) || spp < 1)
@@ -359,15 +335,9 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "needs --chart, --grey or both");
     if (have_corners && !chart_path)
         return cli_usage_error(cli, "--chart-corners needs --chart");
-    if ((dist_mm > 0) != (diam_mm > 0))
-        return cli_usage_error(cli, "--distance and --ball-diameter go together");
-    if (dist_mm > 0 && !(dist_mm > 0.5 * diam_mm))
-        return cli_usage_error(cli, "--distance %g mm puts the camera inside a %g mm ball",
-                               dist_mm, diam_mm);
-    if (focal_mm > 0 && fov > 0)
-        return cli_usage_error(cli, "give --focal-mm or --fov, not both");
-    if (focal_mm > 0 && sensor_mm == 0)
-        return cli_usage_error(cli, "--focal-mm needs --sensor-mm (the sensor width)");
+    int rc = ball_camera_opts_check(cli, &bc);
+    if (rc)
+        return rc;
     gopt.azimuth_deg = view[0];
     gopt.elevation_deg = view[1];
 
@@ -527,16 +497,11 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         /* The photo's camera, as unwrap takes it: focal length in pixels of
          * this image from the lens (EXIF when only the sensor is given) or
          * the field of view; distance in sphere radii. */
-        double fmm = focal_mm > 0 || sensor_mm == 0 ? focal_mm : gmeta.focal_length_mm;
-        if (fmm > 0 && sensor_mm > 0)
-            gopt.focal_px = fmm * grey.width / sensor_mm;
-        else if (fov > 0)
-            gopt.focal_px = 0.5 * grey.width / tan(0.5 * fov * M_PI / 180.0);
-        if (dist_mm > 0)
-            gopt.distance = dist_mm / (0.5 * diam_mm);
-        if (camera == SL_BALL_ORTHOGRAPHIC)
+        ball_camera_opts_geometry(&bc, grey.width, gmeta.focal_length_mm, &gopt.focal_px,
+                                  &gopt.distance);
+        if (bc.camera == SL_BALL_ORTHOGRAPHIC)
             gopt.focal_px = gopt.distance = 0;
-        else if (camera == SL_BALL_PERSPECTIVE && gopt.focal_px == 0 && gopt.distance == 0) {
+        else if (bc.camera == SL_BALL_PERSPECTIVE && gopt.focal_px == 0 && gopt.distance == 0) {
             r = sl_error_set(&err, SL_ERR_USAGE,
                              "%s: --camera perspective needs the focal length (--focal-mm and "
                              "--sensor-mm, EXIF, or --fov) or --distance", grey_path);

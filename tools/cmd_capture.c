@@ -3,6 +3,7 @@
  * libgphoto2, folder ingest, camera detection (docs/capture.md). */
 #include <jansson.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -109,6 +110,10 @@ static void on_frame(void *ctx, const sl_capture_report *r)
 
 int cmd_capture(int argc, char **argv, const sl_cli *cli)
 {
+    /* A network camera that drops mid-request leaves libgphoto2 writing to
+     * a closed socket: that must be an I/O error to recover from (the
+     * journal, reconnection), not SIGPIPE killing the session. */
+    signal(SIGPIPE, SIG_IGN);
     enum { OPT_CAMERA = 1000, OPT_BRACKET, OPT_CENTER, OPT_APERTURE, OPT_ISO, OPT_VIEWS, OPT_STEP,
            OPT_NOPROMPT, OPT_ATTEMPTS, OPT_RESUME, OPT_RECONNECT };
     static const struct option opts[] = {

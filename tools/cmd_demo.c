@@ -177,6 +177,61 @@ static sl_result stage_frames(demo *d, char *note, size_t n, sl_error *err)
 }
 
 
+/* The capture folder ingested as a card would be: the shots (each a JPEG,
+ * a 16-bit TIFF and a linear TIFF) grouped into views and brackets from
+ * their EXIF alone, checked against the plan. */
+static sl_result stage_ingest(demo *d, char *note, size_t n, sl_error *err)
+{
+    char src[4200], dst[4200];
+    snprintf(src, sizeof src, "%s/hdri", d->capture);
+    /* inside the capture folder, which a forced demo replaces whole */
+    snprintf(dst, sizeof dst, "%s/session", d->capture);
+    int frames = 0, views = 0;
+    sl_result r = sl_ingest(src, dst, 0, NULL, &frames, &views, err);
+    if (r)
+        return r;
+    json_t *cap = demo_load_json(d->capture, "capture.json", err);
+    json_t *ses = cap ? demo_load_json(dst, "session.json", err) : NULL;
+    if (!ses) {
+        json_decref(cap);
+        return err ? err->code : SL_ERR_INPUT;
+    }
+    /* frame i of view v in the session must be the plan's, by file name */
+    json_t *plan = json_object_get(cap, "frames"), *sv = json_object_get(ses, "views");
+    int planned = (int)json_array_size(plan), right = 0, siblings = 0;
+    for (int i = 0; i < planned; i++) {
+        json_t *f = json_array_get(plan, i);
+        int v = (int)json_integer_value(json_object_get(f, "view"));
+        int b = (int)json_integer_value(json_object_get(f, "bracket"));
+        json_t *bs = json_object_get(json_array_get(sv, (size_t)v), "brackets");
+        json_t *got = json_array_get(json_object_get(json_array_get(bs, 0), "frames"), (size_t)b);
+        const char *source = json_string_value(json_object_get(got, "source"));
+        const char *name = json_string_value(json_object_get(f, "name"));
+        if (json_array_size(bs) == 1 && source && name &&
+            !strncmp(source, name, strlen(name)) && source[strlen(name)] == '.')
+            right++;
+        siblings += (int)json_array_size(json_object_get(got, "siblings"));
+    }
+    int planned_views = (int)json_integer_value(json_object_get(cap, "views")) +
+                        (json_is_true(json_object_get(cap, "zenith")) ? 1 : 0);
+    json_decref(cap);
+    json_decref(ses);
+    sl_report_section(d->rep, "Ingest");
+    sl_report_text(d->rep,
+                   "The capture's hdri folder ingested as a card (setlight ingest, capture/session/): "
+                   "%d frames in %d views grouped from EXIF time and exposure alone; %d of %d "
+                   "planned frames in the right view, bracket and place; %d sibling files "
+                   "(each shot's linear TIFF and JPEG beside its 16-bit TIFF).",
+                   frames, views, right, planned, siblings);
+    snprintf(note, n, "%d frames in %d views, %d of %d where the plan put them", frames, views,
+             right, planned);
+    if (frames != planned || views != planned_views || right != planned)
+        return sl_error_set(err, SL_ERR_INTERNAL,
+                            "%s: ingest grouped %d frames in %d views, %d of %d as planned", src,
+                            frames, views, right, planned);
+    return SL_OK;
+}
+
 /* True inverse response from truth/camera.json: x with curve(x) = z. */
 static double true_inverse(json_t *curve, double z)
 {
@@ -361,6 +416,8 @@ static const struct {
     {"simulate", "virtual set photographed: brackets, EXIF, ground truth", stage_simulate},
     {"truth", "ground-truth lat-long and light list read back", stage_truth},
     {"frames", "frames and EXIF read back and checked against the plan", stage_frames},
+    {"ingest", "capture folder ingested as a card: views and brackets from EXIF, against the plan",
+     stage_ingest},
     {"merge", "one view's bracket merged to HDR, response scored against the truth", stage_merge},
     {"unwrap", "chrome-ball bracket merged, ball found, unwrapped, scored against the truth",
      demo_stage_unwrap},

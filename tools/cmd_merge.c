@@ -13,7 +13,8 @@
 static const char *merge_help =
     "usage: setlight merge [options] -o OUT.exr FRAME...\n\n"
     "Merges a bracket of exposures (any order, any format OpenImageIO reads) into one\n"
-    "float EXR of relative radiance, scaled like the middle exposure.\n\n"
+    "EXR of relative radiance, scaled like the middle exposure, written strip by strip\n"
+    "as it is merged.\n\n"
     "  -o, --output OUT.exr   the radiance image (required)\n"
     "  --times T1,T2,...      exposure times in seconds (e.g. 1/30,1/250), in frame order;\n"
     "                         default: EXIF ExposureTime (with FNumber and ISO when every\n"
@@ -42,6 +43,12 @@ static const char *merge_help =
     "  --absolute             output in cd/m^2 from EXIF time, f-number and ISO:\n"
     "                         L = 120 y N^2 / (t ISO), y linear with 1 = saturation (ISO\n"
     "                         12232 saturation speed, lens factor 0.65); default relative\n"
+    "  --half, --float        radiance samples; default: half when every value fits\n"
+    "                         (below 65504) and its rounding stays under a quarter of the\n"
+    "                         noise model's deviation, else float (docs/merge.md)\n"
+    "  --compression C        piz (default), zip, rle or none (all lossless)\n"
+    "  --hold-mb MB           8/16-bit frames kept decoded between the sample and merge\n"
+    "                         passes up to MB (default 384); the rest are decoded twice\n"
     "  --json                 print the result (frames, exposures, clipping) as JSON\n\n"
     "Exit codes: 0 merged, 1 runtime failure, 2 usage error, 3 bad input (frames of\n"
     "different sizes or bit depths, duplicate exposures, no exposure information,\n"
@@ -55,6 +62,9 @@ static const char *response_help =
     "  --times, --exposures, --saturation, --black, --samples, --smoothness,\n"
     "  --tolerance            as for setlight merge\n"
     "  --json                 print the exposure check and curve summary as JSON\n";
+
+/* By sl_exr_compression value. */
+static const char *compression_names[4] = {"zip", "piz", "none", "rle"};
 
 static bool parse_time(const char *s, double *out)
 {
@@ -158,7 +168,8 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
 {
     enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
            OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK,
-           OPT_ABS, OPT_ALIGN, OPT_ALIGN_SHIFT, OPT_ALIGN_ANGLE };
+           OPT_ABS, OPT_ALIGN, OPT_ALIGN_SHIFT, OPT_ALIGN_ANGLE, OPT_HALF, OPT_FLOAT,
+           OPT_COMPRESSION, OPT_HOLD };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"output", required_argument, NULL, 'o'},
@@ -179,6 +190,10 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         {"align", no_argument, NULL, OPT_ALIGN},
         {"align-max-shift", required_argument, NULL, OPT_ALIGN_SHIFT},
         {"align-max-angle", required_argument, NULL, OPT_ALIGN_ANGLE},
+        {"half", no_argument, NULL, OPT_HALF},
+        {"float", no_argument, NULL, OPT_FLOAT},
+        {"compression", required_argument, NULL, OPT_COMPRESSION},
+        {"hold-mb", required_argument, NULL, OPT_HOLD},
         {0, 0, 0, 0}};
     sl_merge_options_init(&a->opt);
     a->opt.response_mode = SL_RESPONSE_AUTO;
@@ -187,7 +202,9 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     while ((c = getopt_long(argc, argv, "+ho:", opts, &which)) != -1) {
         bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE ||
                           c == OPT_DEGHOST || c == OPT_GHOSTMASK || c == OPT_ABS ||
-                          c == OPT_ALIGN || c == OPT_ALIGN_SHIFT || c == OPT_ALIGN_ANGLE;
+                          c == OPT_ALIGN || c == OPT_ALIGN_SHIFT || c == OPT_ALIGN_ANGLE ||
+                          c == OPT_HALF || c == OPT_FLOAT || c == OPT_COMPRESSION ||
+                          c == OPT_HOLD;
         if (merge_only && !is_merge)
             return cli_usage_error(cli, "unknown option '--%s'", opts[which].name);
         switch (c) {
@@ -197,6 +214,25 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         case 'o':
             a->output = optarg;
             break;
+        case OPT_HALF:
+        case OPT_FLOAT:
+            a->opt.pixels = c == OPT_HALF ? SL_MERGE_PIXELS_HALF : SL_MERGE_PIXELS_FLOAT;
+            break;
+        case OPT_HOLD:
+            if (!cli_parse_double(optarg, &a->opt.hold_mb) || !(a->opt.hold_mb >= 0))
+                return cli_usage_error(cli, "--hold-mb needs a non-negative number, not '%s'",
+                                       optarg);
+            break;
+        case OPT_COMPRESSION: {
+            int k = 0;
+            while (k < 4 && strcmp(optarg, compression_names[k]) != 0)
+                k++;
+            if (k == 4)
+                return cli_usage_error(cli, "--compression is piz, zip, rle or none, not '%s'",
+                                       optarg);
+            a->opt.compression = (sl_exr_compression)k;
+            break;
+        }
         case OPT_TIMES:
             free(a->times);
             if ((a->time_count = parse_times(optarg, &a->times)) < 0)
@@ -341,11 +377,10 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
     sl_merge_result res;
     char *mask = a.no_mask ? NULL : a.mask ? strdup(a.mask) : sidecar_path(a.output, "clipped");
     char *ghost = !a.opt.deghost ? NULL : a.ghost_mask ? strdup(a.ghost_mask) : sidecar_path(a.output, "ghost");
-    sl_result r = sl_merge((const char *const *)argv + optind, argc - optind, &a.opt, &res, &err);
-    if (!r && ((!a.no_mask && !mask) || (a.opt.deghost && !ghost)))
-        r = sl_error_set(&err, SL_ERR_NOMEM, "out of memory");
-    if (!r)
-        r = sl_merge_write(a.output, mask, ghost, &res, &err);
+    sl_result r = (!a.no_mask && !mask) || (a.opt.deghost && !ghost)
+                      ? sl_error_set(&err, SL_ERR_NOMEM, "out of memory")
+                      : sl_merge_to_exr((const char *const *)argv + optind, argc - optind,
+                                        &a.opt, a.output, mask, ghost, &res, &err);
     if (r) {
         free(mask);
         free(ghost);
@@ -360,10 +395,10 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
            100 * res.clipped_fraction, res.seconds);
     if (cli->json) {
         json_t *o = json_pack(
-            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:f}",
+            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f}",
             "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
-            (json_int_t)res.ghost_pixels, "width", res.radiance.width, "height",
-            res.radiance.height, "response", res.response.source, "exposures",
+            (json_int_t)res.ghost_pixels, "width", res.width, "height",
+            res.height, "response", res.response.source, "exposures",
             a.opt.exposures == SL_EXPOSURES_DATA ? "data" : "exif", "frames", frames_json(&res, a.opt.align),
             "reference_frame", res.reference, "clipped_pixels", (json_int_t)res.clipped_pixels,
             "clipped_samples", (json_int_t)res.clipped_samples[0],
@@ -374,7 +409,10 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
             (json_int_t)res.nonfinite_samples, "units", res.absolute ? "cd/m^2" : "relative",
             "output_exposure", res.output_exposure, "weights", "noise_gain", res.noise_gain,
             "noise_floor", res.noise_floor, "black", res.black, "saturation", res.saturation,
-            "seconds", res.seconds);
+            "encoding", "pixels", res.pixel_type == SL_PIXEL_HALF ? "half" : "float",
+            "compression", compression_names[res.compression], "max_value", res.max_value,
+            "why", res.encoding_note, "frames_decoded_once", res.held_frames, "seconds",
+            res.seconds);
         json_dumpf(o, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(o);

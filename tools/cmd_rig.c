@@ -52,7 +52,9 @@ static const char *rig_help =
     "  --assume-latlong      accept a 2:1 image without the envmap attribute\n"
     "  --validate[=SPP]      render the grey, chrome and shadow scenes (96 px) under\n"
     "                        the map and under the rig and report their relative\n"
-    "                        RMSE (SPP samples per pixel, default 64)\n\n"
+    "                        RMSE (SPP samples per pixel, default 64); the report\n"
+    "                        with the images is RIG.validate.html, its files in\n"
+    "                        RIG.validate/ beside RIG.usda\n\n"
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
     "(missing, corrupt, not a lat-long), 1 could not write. See docs/lightrig.md.\n";
@@ -298,6 +300,21 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     for (int k = 0; k < 4; k++)
         if (outs[k] && !out_dir_ok(outs[k]))
             return cli_usage_error(cli, "%s: output folder missing", outs[k]);
+    /* The validation report: RIG.validate.html and RIG.validate/ beside the USD. */
+    char rep_dir[PATH_MAX], rep_name[PATH_MAX];
+    {
+        char a[PATH_MAX], b[PATH_MAX];
+        snprintf(a, sizeof a, "%s", out_path);
+        snprintf(b, sizeof b, "%s", out_path);
+        snprintf(rep_dir, sizeof rep_dir, "%s", dirname(a));
+        const char *base = basename(b);
+        snprintf(rep_name, sizeof rep_name, "%.*s.validate", (int)(strlen(base) - 5), base);
+    }
+    if (validate_spp > 0) {
+        sl_error e;
+        if (rig_validate_report_check(rep_dir, rep_name, &e))
+            return cli_usage_error(cli, "%s", e.message);
+    }
     double t0 = sl_seconds();
 
     sl_image env = {0};
@@ -305,6 +322,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     sl_meta_init(&meta);
     sl_meta_init(&out_meta);
     sl_rig rig = {0};
+    rig_validation val = {0};
     sl_error err;
     sl_result r = sl_check_input_file(in_path, &err);
     if (r || (r = sl_image_read(in_path, &env, &meta, &err)))
@@ -385,7 +403,6 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         goto fail;
     if (preview_path && (r = sl_rig_write_preview(&rig, &env, preview_path, &err)))
         goto fail;
-    rig_validation val = {0};
     if (validate_spp > 0) {
         /* The renderer reads the rig as a file: rig.json when written, else
          * a temporary one beside the USD (the dome reference is relative to it). */
@@ -404,8 +421,27 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             goto fail;
         sl_log(SL_LOG_INFO,
                "validation (96 px, %lld spp, relative RMSE rig against map): grey %.2f%%, "
-               "chrome %.2f%%, shadow %.2f%%",
-               validate_spp, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2]);
+               "chrome %.2f%%, shadow %.2f%% (beyond the renders' noise: %.2f%%, %.2f%%, "
+               "%.2f%%)",
+               (long long)val.spp, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
+               100 * val.beyond_noise[0], 100 * val.beyond_noise[1], 100 * val.beyond_noise[2]);
+        char about[4096];
+        snprintf(about, sizeof about,
+                 "%s: %d lights (method %s, energy share %g%s), %d candidates left in the dome, "
+                 "ledger closure error %.1e. Written as %s. Renders %d px wide, %lld spp, "
+                 "direct light and one bounce, the map's and the rig's with the same seed; "
+                 "compared on the objects (relative RMSE of rig against map). setlight %s.",
+                 in_path, rig.light_count,
+                 opt.method == SL_RIG_METHOD_MEDIANCUT ? "mediancut" : "regions", opt.energy,
+                 textures == SL_RIG_TEXTURES_ALL    ? ", every rect textured"
+                 : textures == SL_RIG_TEXTURES_NONE ? ", no textures"
+                                                    : "",
+                 rig.skipped_count, rig.relative_error, out_path, val.width,
+                 (long long)val.spp, sl_version());
+        if ((r = rig_validate_write_report(rep_dir, rep_name, about, &val, &rig, &env, &err)))
+            goto fail;
+        sl_log(SL_LOG_INFO, "validation report: %.*s.validate.html",
+               (int)(strlen(out_path) - 5), out_path);
     }
 
     if (cli->json) {
@@ -423,10 +459,23 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             rig.threshold_luminance, "relative_error", rig.relative_error, "black", black,
             "seconds", sl_seconds() - t0, "rig", rj);
         if (validate_spp > 0) {
-            json_t *vj = json_pack("{s:i, s:I, s:f}", "width", val.width, "spp",
-                                   (json_int_t)val.spp, "seconds", val.seconds);
-            for (int k = 0; k < RIG_VALIDATE_SCENES; k++)
+            char page[PATH_MAX + 16];
+            snprintf(page, sizeof page, "%.*s.validate.html", (int)(strlen(out_path) - 5),
+                     out_path);
+            json_t *vj = json_pack("{s:i, s:I, s:f, s:f, s:s, s:{}, s:{}, s:{}}", "width",
+                                   val.width, "spp", (json_int_t)val.spp, "seconds", val.seconds,
+                                   "cpu_seconds", val.cpu_seconds, "report", page,
+                                   "render_seconds", "noise", "beyond_noise");
+            for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
                 json_object_set_new(vj, val.scene[k], json_real(val.error[k]));
+                json_object_set_new(json_object_get(vj, "render_seconds"), val.scene[k],
+                                    json_pack("{s:f, s:f}", "map", val.seconds_map[k], "rig",
+                                              val.seconds_rig[k]));
+                json_object_set_new(json_object_get(vj, "noise"), val.scene[k],
+                                    json_real(val.noise[k]));
+                json_object_set_new(json_object_get(vj, "beyond_noise"), val.scene[k],
+                                    json_real(val.beyond_noise[k]));
+            }
             json_object_set_new(o, "validation", vj);
         }
         json_dumpf(o, stdout, JSON_INDENT(2) | JSON_REAL_PRECISION(10));
@@ -436,6 +485,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_INFO, "%s: %d lights, %d skipped, ledger error %.2g", out_path,
                rig.light_count, rig.skipped_count, rig.relative_error);
     }
+    rig_validation_free(&val);
     sl_rig_free(&rig);
     sl_image_free(&env);
     sl_meta_free(&meta);
@@ -443,6 +493,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     return 0;
 
 fail:
+    rig_validation_free(&val);
     sl_rig_free(&rig);
     sl_image_free(&env);
     sl_meta_free(&meta);

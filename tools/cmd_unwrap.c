@@ -7,6 +7,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "ball_camera_opts.h"
 #include "cli.h"
 #include "setlight/stitch.h"
 
@@ -64,26 +65,6 @@ static const char *unwrap_help =
     "reflectance patch not seen).\n"
     "See docs/unwrap.md.\n";
 
-static bool parse_list(const char *s, double *v, int n)
-{
-    char buf[256];
-    if (strlen(s) >= sizeof buf)
-        return false;
-    strcpy(buf, s);
-    char *p = buf;
-    for (int i = 0; i < n; i++) {
-        char *comma = strchr(p, ',');
-        if ((comma == NULL) != (i == n - 1))
-            return false;
-        if (comma)
-            *comma = 0;
-        if (!cli_parse_double(p, &v[i]))
-            return false;
-        p = comma + 1;
-    }
-    return true;
-}
-
 static void reflectance_text(const sl_reflectance *r, char *buf, size_t size)
 {
     if (r->kind == SL_REFLECTANCE_CONDUCTOR)
@@ -103,8 +84,8 @@ typedef struct view_in {
     int64_t nonfinite;
 } view_in;
 
-static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle, double focal_mm,
-                           double sensor_mm, double fov, sl_error *err)
+static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
+                           const ball_camera_opts *bc, sl_error *err)
 {
     sl_result r = sl_image_read(v->path, &v->photo, &v->meta, err);
     if (r)
@@ -119,14 +100,10 @@ static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle, d
             v->photo.data[i] = sl_srgb_to_linear(v->photo.data[i]);
     }
     /* Geometry: focal length in pixels of this image, from the lens or the field of view. */
-    if (focal_mm == 0 && sensor_mm > 0 && v->meta.focal_length_mm > 0)
-        focal_mm = v->meta.focal_length_mm;
-    if (focal_mm > 0 && sensor_mm == 0)
-        return sl_error_set(err, SL_ERR_USAGE, "--focal-mm needs --sensor-mm (the sensor width)");
-    if (focal_mm > 0)
-        o->geometry.focal_px = focal_mm * v->photo.width / sensor_mm;
-    else if (fov > 0)
-        o->geometry.focal_px = 0.5 * v->photo.width / tan(0.5 * fov * M_PI / 180.0);
+    double focal_px, distance;
+    ball_camera_opts_geometry(bc, v->photo.width, v->meta.focal_length_mm, &focal_px, &distance);
+    if (focal_px > 0)
+        o->geometry.focal_px = focal_px;
     v->detected = !have_circle;
     if (have_circle) {
         const sl_ball_circle *c = &o->circle;
@@ -209,8 +186,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     bool have_circle = false, have_circle2 = false, confidence = true, use_float = false;
     bool have_refl = false, have_patch = false, have[3] = {false, false, false};
     double cam2[3] = {0, 0, 0}, patch[6] = {0};
-    int camera = -1;
-    double focal_mm = 0, sensor_mm = 0, fov = 0, dist_mm = 0, diam_mm = 0;
+    ball_camera_opts bc;
+    ball_camera_opts_init(&bc);
 
     cli_getopt_reset();
     int c;
@@ -226,7 +203,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         case OPT_CIRCLE:
         case OPT_CIRCLE2: {
             double xyz[3];
-            if (!parse_list(optarg, xyz, 3) || !(xyz[2] > 0))
+            if (!cli_parse_list(optarg, xyz, 3) || !(xyz[2] > 0))
                 return cli_usage_error(cli, "%s needs CX,CY,R with R > 0, not '%s'",
                                        c == OPT_CIRCLE ? "--circle" : "--circle2", optarg);
             sl_ball_circle *ci = c == OPT_CIRCLE ? &o->circle : &o2->circle;
@@ -237,28 +214,16 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             break;
         }
         case OPT_CAMERA:
-            if (!strcmp(optarg, "ortho") || !strcmp(optarg, "orthographic"))
-                camera = SL_BALL_ORTHOGRAPHIC;
-            else if (!strcmp(optarg, "perspective"))
-                camera = SL_BALL_PERSPECTIVE;
-            else
-                return cli_usage_error(cli, "--camera is ortho or perspective, not '%s'", optarg);
-            break;
         case OPT_FOCAL:
         case OPT_SENSOR:
         case OPT_FOV:
         case OPT_DIST:
-        case OPT_DIAM:
-            if (!cli_parse_double(optarg, &v) || !(v > 0) || (c == OPT_FOV && !(v < 180)))
-                return cli_usage_error(cli, "%s needs a positive number%s, not '%s'",
-                                       argv[optind - 1] ? argv[optind - 1] : "option",
-                                       c == OPT_FOV ? " of degrees below 180" : "", optarg);
-            *(c == OPT_FOCAL    ? &focal_mm
-              : c == OPT_SENSOR ? &sensor_mm
-              : c == OPT_FOV    ? &fov
-              : c == OPT_DIST   ? &dist_mm
-                                : &diam_mm) = v;
+        case OPT_DIAM: {
+            int rc = ball_camera_opts_parse(cli, &bc, c - OPT_CAMERA, optarg);
+            if (rc)
+                return rc;
             break;
+        }
         case OPT_AZ:
         case OPT_EL:
         case OPT_ROLL:
@@ -292,9 +257,9 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             have_refl = true;
             if (!strcmp(optarg, "chrome"))
                 sl_reflectance_chrome(&o->reflectance);
-            else if (parse_list(optarg, rgb, 1) && rgb[0] > 0 && rgb[0] <= 1)
+            else if (cli_parse_list(optarg, rgb, 1) && rgb[0] > 0 && rgb[0] <= 1)
                 sl_reflectance_constant(&o->reflectance, rgb[0], rgb[0], rgb[0]);
-            else if (parse_list(optarg, rgb, 3) && rgb[0] > 0 && rgb[1] > 0 && rgb[2] > 0 &&
+            else if (cli_parse_list(optarg, rgb, 3) && rgb[0] > 0 && rgb[1] > 0 && rgb[2] > 0 &&
                      rgb[0] <= 1 && rgb[1] <= 1 && rgb[2] <= 1)
                 sl_reflectance_constant(&o->reflectance, rgb[0], rgb[1], rgb[2]);
             else
@@ -303,9 +268,9 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             break;
         }
         case OPT_PATCH:
-            if (parse_list(optarg, patch, 4)) {
+            if (cli_parse_list(optarg, patch, 4)) {
                 patch[4] = patch[5] = patch[3];
-            } else if (!parse_list(optarg, patch, 6)) {
+            } else if (!cli_parse_list(optarg, patch, 6)) {
                 return cli_usage_error(cli, "--reflectance-patch needs AZ,EL,RADIUS,L or "
                                             "AZ,EL,RADIUS,R,G,B, not '%s'", optarg);
             }
@@ -337,13 +302,9 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "needs a ball photo");
     if (nviews > 2)
         return cli_usage_error(cli, "one or two ball photos, not %d", nviews);
-    if ((dist_mm > 0) != (diam_mm > 0))
-        return cli_usage_error(cli, "--distance and --ball-diameter go together");
-    if (dist_mm > 0 && !(dist_mm > 0.5 * diam_mm))
-        return cli_usage_error(cli, "--distance %g mm puts the camera inside a %g mm ball",
-                               dist_mm, diam_mm);
-    if (focal_mm > 0 && fov > 0)
-        return cli_usage_error(cli, "give --focal-mm or --fov, not both");
+    int rc = ball_camera_opts_check(cli, &bc);
+    if (rc)
+        return rc;
     if (have_patch && have_refl)
         return cli_usage_error(cli, "give --reflectance or --reflectance-patch, not both");
     if (nviews == 1 && (have_circle2 || have[0] || have[1] || have[2]))
@@ -360,9 +321,9 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     sl_error err;
     sl_result r;
 
-    if (dist_mm > 0)
-        o->geometry.distance = dist_mm / (0.5 * diam_mm);
-    if ((r = load_view(&views[0], o, have_circle, focal_mm, sensor_mm, fov, &err)))
+    if (bc.distance_mm > 0)
+        o->geometry.distance = bc.distance_mm / (0.5 * bc.diameter_mm);
+    if ((r = load_view(&views[0], o, have_circle, &bc, &err)))
         goto fail;
     if (nviews == 2) {
         o2->geometry = o->geometry;
@@ -374,9 +335,10 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             o2->geometry.roll_deg = cam2[2];
         o2->reflectance = o->reflectance;
         o2->width = o->width;
-        if ((r = load_view(&views[1], o2, have_circle2, focal_mm, sensor_mm, fov, &err)))
+        if ((r = load_view(&views[1], o2, have_circle2, &bc, &err)))
             goto fail;
     }
+    int camera = bc.camera;
     if (camera < 0)
         camera = o->geometry.focal_px > 0 || o->geometry.distance > 0 ? SL_BALL_PERSPECTIVE
                                                                      : SL_BALL_ORTHOGRAPHIC;

@@ -1,12 +1,14 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* `setlight demo` rig stage: area lights and a residual dome extracted from
  * the truth lat-long, each truth light matched to the rig light nearest in
- * direction, and the energy ledger. */
+ * direction, the energy ledger, and the validation renders under map and
+ * rig. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "demo.h"
+#include "rig_validate.h"
 #include "setlight/lightrig.h"
 
 static double luma(const double v[3]) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
@@ -17,6 +19,8 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     sl_rig rig;
     memset(&rig, 0, sizeof rig);
     json_t *lights = NULL;
+    rig_validation val;
+    memset(&val, 0, sizeof val);
     sl_result r = demo_truth_latlong(d, &ll, err);
     if (r)
         return r;
@@ -29,8 +33,16 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
         goto done;
     double secs = sl_seconds() - t0;
     char path[4300];
+    /* The rig as `setlight rig` writes it (dome, textures of graded rect
+     * lights, rig.json naming them), so the renderer reads it back whole. */
+    snprintf(path, sizeof path, "%s/rig_residual.exr", d->dir);
+    if ((r = sl_exr_write(path, &rig.residual, NULL, SL_PIXEL_FLOAT, err)))
+        goto done;
+    snprintf(path, sizeof path, "%s/rig", d->dir);
+    if ((r = sl_rig_write_textures_mode(&rig, &ll, path, SL_RIG_TEXTURES_AUTO, err)))
+        goto done;
     snprintf(path, sizeof path, "%s/rig.json", d->dir);
-    if ((r = sl_rig_write_json(&rig, path, NULL, err)))
+    if ((r = sl_rig_write_json(&rig, path, "rig_residual.exr", err)))
         goto done;
     snprintf(path, sizeof path, "%s/rig_preview.png", d->dir);
     if ((r = sl_rig_write_preview(&rig, &ll, path, err)))
@@ -109,9 +121,34 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     sl_image_free(&prev);
     if (r)
         goto done;
-    snprintf(note, n, "%d lights; %d of %zu truth lights matched (worst %.2f deg); ledger %.1e",
-             rig.light_count, matched, json_array_size(arr), worst_angle, rig.relative_error);
+    /* The validation, small enough to keep the demo quick. */
+    bool tiny = d->size == SL_VSET_SIZE_TINY;
+    int textured = 0;
+    for (int k = 0; k < rig.light_count; k++)
+        textured += rig.lights[k].texture[0] != 0;
+    snprintf(path, sizeof path, "%s/rig.json", d->dir);
+    if ((r = rig_validate(&ll, path, tiny ? 32 : 64, tiny ? 16 : 64, &val, err)))
+        goto done;
+    sl_report_text(d->rep,
+                   "Validation as `setlight rig --validate` does it: grey, chrome and shadow "
+                   "rendered under the truth lat-long and under the rig read back from rig.json "
+                   "(rig_residual.exr as the dome, %d graded light%s textured), %d px, %lld "
+                   "spp, %.1f s (%.1f CPU s) in all. Relative RMSE of rig against map: grey %.3f%%, chrome "
+                   "%.3f%%, shadow %.3f%%; beyond the Monte Carlo noise of this sample count: "
+                   "grey %.3f%%, chrome %.3f%%, shadow %.3f%%.",
+                   textured, textured == 1 ? "" : "s", val.width, (long long)val.spp,
+                   val.seconds, val.cpu_seconds, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
+                   100 * val.beyond_noise[0], 100 * val.beyond_noise[1],
+                   100 * val.beyond_noise[2]);
+    if ((r = rig_validate_report(d->rep, &val, "rig_validate_", err)))
+        goto done;
+    snprintf(note, n,
+             "%d lights; %d of %zu truth lights matched (worst %.2f deg); ledger %.1e; rig "
+             "against map beyond noise: grey %.2f%%, chrome %.2f%%, shadow %.2f%%",
+             rig.light_count, matched, json_array_size(arr), worst_angle, rig.relative_error,
+             100 * val.beyond_noise[0], 100 * val.beyond_noise[1], 100 * val.beyond_noise[2]);
 done:
+    rig_validation_free(&val);
     json_decref(lights);
     sl_rig_free(&rig);
     sl_image_free(&ll);

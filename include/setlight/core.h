@@ -130,6 +130,10 @@ sl_result sl_atomic_begin(sl_atomic_file *f, const char *final_path, sl_error *e
 sl_result sl_atomic_commit(sl_atomic_file *f, sl_error *err); /* fsyncs, renames */
 void sl_atomic_abort(sl_atomic_file *f);
 
+/* Removes a folder and everything in it (a temporary or replaced output
+ * folder), best effort: what cannot be removed stays. */
+void sl_remove_tree(const char *path);
+
 /* Writes a whole text/binary buffer atomically. */
 sl_result sl_write_file_atomic(const char *path, const void *data, size_t size, sl_error *err);
 
@@ -248,11 +252,37 @@ sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *met
                        sl_pixel_type type, sl_error *err);
 /* Lossless EXR compressions; sl_exr_write uses ZIP. PIZ is about three
  * times faster than ZIP on noisy float data and smaller (docs/merge.md). */
-typedef enum { SL_EXR_ZIP = 0, SL_EXR_PIZ = 1, SL_EXR_NONE = 2 } sl_exr_compression;
+typedef enum {
+    SL_EXR_ZIP = 0,
+    SL_EXR_PIZ = 1,
+    SL_EXR_NONE = 2,
+    SL_EXR_RLE = 3
+} sl_exr_compression;
+/* (No ZIPS: OpenEXR 3.1.5's C decoder misreads half ZIPS files that its
+ * C++ library reads correctly; test_exr_stream found it.) */
 /* sl_exr_write with a chosen compression; chunks are compressed in parallel. */
 sl_result sl_exr_write_compressed(const char *path, const sl_image *img, const sl_meta *meta,
                                   sl_pixel_type type, sl_exr_compression compression,
                                   sl_error *err);
+/* The same written a few rows at a time (no whole image held): rows in
+ * order, buffered until a batch of chunks is compressed in parallel and
+ * written. Nothing is at `path` before sl_exr_stream_finish; any failure
+ * aborts the stream (it must not be used again). */
+typedef struct sl_exr_stream sl_exr_stream;
+sl_result sl_exr_stream_open(const char *path, int width, int height, int channels,
+                             const sl_meta *meta, sl_pixel_type type,
+                             sl_exr_compression compression, sl_exr_stream **stream,
+                             sl_error *err);
+/* The next `count` rows, width * channels floats each, `stride` floats apart. */
+sl_result sl_exr_stream_write(sl_exr_stream *stream, const float *rows, int count, size_t stride,
+                              sl_error *err);
+/* After the last row: replaces the values of `update`'s attributes (each
+ * one of meta's, same length: e.g. counts known only at the end, written
+ * first as fixed-width placeholders) and moves the file into place. Frees
+ * the stream. update may be NULL. */
+sl_result sl_exr_stream_finish(sl_exr_stream *stream, const sl_meta *update, sl_error *err);
+/* Removes the partial file and frees the stream (NULL is fine). */
+void sl_exr_stream_abort(sl_exr_stream *stream);
 
 /* Camera and photo formats through OpenImageIO (JPEG, PNG, TIFF, HDR, DNG,
  * camera raw via LibRaw). Integer formats come back scaled to [0, 1] with no
@@ -278,10 +308,16 @@ typedef struct sl_photo_strip_info {
     int file_channels;
     int bits;      /* bits per sample in the file */
     bool is_float; /* float or half samples */
+    int code_bytes; /* integer samples: 1 (uint8) or 2 (uint16) container; else 0 */
 } sl_photo_strip_info;
 sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
                                sl_photo_strip_info *info, sl_error *err);
 sl_result sl_photo_strips_read(sl_photo_strips *strips, int y0, int y1, float *rgb, sl_error *err);
+/* The same rows as the file's integer codes, uint8_t or uint16_t by
+ * info.code_bytes (code / 255 or / 65535 is what sl_photo_strips_read
+ * gives); no conversion to float, which costs more than a JPEG's decoding. */
+sl_result sl_photo_strips_read_codes(sl_photo_strips *strips, int y0, int y1, void *rgb,
+                                     sl_error *err);
 void sl_photo_strips_close(sl_photo_strips *strips);
 
 /* Any image: EXR through sl_exr_read, anything else through sl_photo_read.

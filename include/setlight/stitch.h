@@ -44,6 +44,9 @@ typedef enum {
     SL_RESPONSE_ROBERTSON
 } sl_response_mode;
 typedef enum { SL_EXPOSURES_EXIF = 0, SL_EXPOSURES_DATA } sl_exposure_source;
+/* Samples of the radiance EXR: auto is half where half loses nothing the
+ * noise model would notice (docs/merge.md, "Output encoding"), else float. */
+typedef enum { SL_MERGE_PIXELS_AUTO = 0, SL_MERGE_PIXELS_HALF, SL_MERGE_PIXELS_FLOAT } sl_merge_pixels;
 
 typedef struct sl_merge_options {
     const double *times;        /* seconds per frame in the given order; NULL: EXIF */
@@ -66,6 +69,11 @@ typedef struct sl_merge_options {
     bool align;                 /* register the frames before merging (sl_align_bracket) */
     double align_max_shift;     /* pixels; larger shifts are refused (default 64) */
     double align_max_angle;     /* degrees; larger rotations are refused (default 2) */
+    sl_merge_pixels pixels;     /* radiance EXR samples (default auto) */
+    sl_exr_compression compression; /* radiance EXR compression (default PIZ) */
+    double hold_mb;             /* integer frames kept decoded between the sample and merge
+                                   passes, up to this many MB (default 384); the others
+                                   are decoded twice */
 } sl_merge_options;
 
 /* ISO 12232 saturation-based speed: a sensor saturates at H = 78 / ISO lux s,
@@ -128,6 +136,14 @@ typedef struct sl_merge_result {
     bool absolute;              /* radiance in cd/m^2 (green = luminance for a camera whose
                                    green is luminance); else relative */
     double noise_gain, noise_floor, black, saturation;
+    int width, height;          /* of the frames and the radiance */
+    /* Radiance EXR encoding: samples and compression, and why. */
+    sl_pixel_type pixel_type;
+    sl_exr_compression compression;
+    double max_value;           /* bound on any merged value: the brightest code of the
+                                   shortest frame; 0 when unbounded (float frames) */
+    char encoding_note[160];
+    int held_frames;            /* frames decoded once (kept between the passes) */
     double seconds;
 } sl_merge_result;
 
@@ -156,12 +172,19 @@ sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_
 sl_result sl_align_bracket(const char *const *paths, int count, const double *exposures,
                            const sl_merge_options *opt, sl_align_transform *out, sl_error *err);
 
-/* Writes the radiance EXR (float) with provenance attributes and, when
+/* Writes the radiance EXR (res->pixel_type, res->compression) with provenance attributes and, when
  * mask_path / ghost_path are not NULL, the clipped mask (RGB) and the ghost
  * mask (Y, needs a deghosted result) beside it, each atomically; on failure
  * none of them is left. */
 sl_result sl_merge_write(const char *path, const char *mask_path, const char *ghost_path,
                          const sl_merge_result *res, sl_error *err);
+/* sl_merge and sl_merge_write in one pass: each strip is written as soon
+ * as it is merged, so memory is a strip per frame, not the radiance;
+ * out->radiance, clipped and ghost stay empty. The same pixels and
+ * attributes as the two calls. */
+sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_options *opt,
+                          const char *path, const char *mask_path, const char *ghost_path,
+                          sl_merge_result *out, sl_error *err);
 
 /* ================================================================== */
 /* Unwrap: chrome ball to lat-long                                     */

@@ -49,6 +49,44 @@ assert len(ing["problems"]) == 1 and "notes.txt" in ing["problems"][0]
 EOF
 then ok; else bad "ingest of the virtual capture"; fi
 
+# --- ingest of a virtual-set capture folder: every shot is a JPEG, a 16-bit
+# TIFF and a linear TIFF (as RAW+JPEG on a card), renumbered at random but
+# alike for a shot's files: 21 frames, the TIFF the frame's file, the other
+# two its siblings, ISO (which TIFF EXIF loses) taken from the JPEG
+expect 0 "$SETLIGHT" simulate --scene stage --size tiny --out "$T/sim"
+mkdir -p "$T/simcard/DCIM/100VSET"
+python3 - "$T/sim" "$T/simcard/DCIM/100VSET" <<'EOF'
+import json, random, shutil, sys
+cap = json.load(open(sys.argv[1] + "/capture.json"))
+numbers = random.Random(7).sample(range(1000, 9999), len(cap["frames"]))
+for f, n in zip(cap["frames"], numbers):
+    for suffix in (".jpg", ".tif", "_linear.tif"):
+        shutil.copy(f"{sys.argv[1]}/hdri/{f['name']}{suffix}", f"{sys.argv[2]}/DSC_{n}{suffix}")
+EOF
+expect 0 "$SETLIGHT" ingest --json "$T/simcard" -o "$T/simingest"
+json_eval "$T/out" 'd["frames"] == 21 and d["views"] == 3'
+if python3 - "$T/sim" "$T/simingest" <<'EOF'
+import hashlib, json, sys
+cap = json.load(open(sys.argv[1] + "/capture.json"))
+ing = json.load(open(sys.argv[2] + "/session.json"))
+sha = lambda p: hashlib.sha256(open(p, "rb").read()).hexdigest()
+want = {}
+for f in cap["frames"]:
+    want.setdefault(f["view"], []).append(sha(f"{sys.argv[1]}/hdri/{f['name']}.tif"))
+assert [len(v["brackets"]) for v in ing["views"]] == [1, 1, 1]
+got = {v["view"]: [f["sha256"] for f in v["brackets"][0]["frames"]] for v in ing["views"]}
+assert got == want, "frames grouped differently from the plan"
+for v in ing["views"]:
+    for f in v["brackets"][0]["frames"]:
+        assert f["file"].endswith(".tif") and f["iso"] == 100.0, f
+        sib = f["siblings"]
+        assert len(sib) == 2 and sib[0]["source"].endswith("_linear.tif"), sib
+        assert sib[1]["file"].endswith("_2.jpg"), sib
+        assert sha(sys.argv[2] + "/" + sib[1]["file"]) == sib[1]["sha256"]
+assert ing["problems"] == []
+EOF
+then ok; else bad "ingest of a virtual-set folder (JPEG, TIFF and linear TIFF per shot)"; fi
+
 # --- progress for people: a bar on a terminal, nothing with --quiet
 if script -qec "true" /dev/null >/dev/null 2>&1; then
   script -qec "'$SETLIGHT' capture --camera virtual:stage --bracket 1/250,1/30,1/4 --views 2 --no-prompt -o '$T/tty'" \

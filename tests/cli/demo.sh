@@ -19,7 +19,7 @@ size=small
 expect 0 "$S" demo "$T/demo" --size $size --json --quiet
 json_ok "$T/out"
 cp "$T/out" "$T/summary.json"
-json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "merge", "unwrap", "calibrate", "rig", "render"]'
+json_eval "$T/summary.json" '[s["name"] for s in d["stages"]] == ["simulate", "truth", "frames", "ingest", "merge", "unwrap", "calibrate", "rig", "render"]'
 present "$T/demo/report.html"
 present "$T/demo/truth.png"
 present "$T/demo/capture/capture.json"
@@ -48,10 +48,51 @@ m = re.search(r"brute-force irradiance sum [0-9.e+-]+ cd/m\^2 \(([+-][0-9.]+)%",
 sys.exit(0 if m and abs(float(m.group(1))) < 1.0 else 1)
 PY
 then ok; else bad "grey-ball check missing or above 1%"; fi
-for stage in simulate truth frames merge unwrap calibrate rig render; do
+for stage in simulate truth frames ingest merge unwrap calibrate rig render; do
     if grep -q "<td>$stage</td>" "$T/demo/report.html"; then ok; else bad "report lacks stage $stage"; fi
 done
+# the rig's validation renders (grey, chrome, shadow under map and rig, differences):
+# whole PNGs of the render size (small 64 px, tiny 32 px), linked from the page, with
+# the numbers; the rig renders read rig.json with its dome
+px=64; [ "$size" = tiny ] && px=32
+if python3 - "$T/demo" $px <<'PY'
+import re, struct, sys, zlib
+d, px = sys.argv[1], int(sys.argv[2])
+page = open(d + "/report.html").read()
+def png_size(path):
+    b = open(path, "rb").read()
+    assert b[:8] == b"\x89PNG\r\n\x1a\n" and b[-8:-4] == b"IEND", path
+    idat, i = b"", 8
+    while i < len(b):
+        n, kind = struct.unpack(">I4s", b[i:i + 8])
+        if kind == b"IHDR":
+            w, h = struct.unpack(">II", b[i + 8:i + 16])
+        if kind == b"IDAT":
+            idat += b[i + 8:i + 8 + n]
+        i += 12 + n
+    assert len(zlib.decompress(idat)) == h * (1 + 3 * w), path
+    return w, h
+for s in ("grey", "chrome", "shadow"):
+    for k in ("map", "rig", "diff"):
+        f = f"rig_validate_{s}_{k}.png"
+        assert f'<img src="{f}">' in page, f
+        assert png_size(f"{d}/{f}") == ((px, px * 3 // 4) if s == "shadow" else (px, px)), f
+    m = re.search(rf"<tr><td>{s}</td><td>([0-9.]+)</td><td>([0-9]+)</td><td>{px}x", page)
+    assert m and float(m.group(1)) < (20 if px == 64 else 50), s
+m = re.search(r"Relative RMSE of rig against map: grey ([0-9.]+)%, chrome ([0-9.]+)%, shadow ([0-9.]+)%; beyond the Monte Carlo noise of this sample count: grey ([0-9.]+)%, chrome ([0-9.]+)%, shadow ([0-9.]+)%", page)
+assert m, "validation text"
+e = [float(x) for x in m.groups()]
+# the rig's own error (beyond noise) is what the rig tests bound: grey 1%, glossy 5%
+# (on the small 1024x512 truth map; the tiny one, 256x128, gives a cruder rig)
+assert all(e[i + 3] <= e[i] for i in range(3)), e
+assert px < 64 or (e[3] < 1.5 and e[4] < 5 and e[5] < 2), e
+PY
+then ok; else bad "rig validation images or numbers missing or off"; fi
+present "$T/demo/rig_residual.exr"
+json_eval "$T/demo/rig.json" 'd["dome"]["file"] == "rig_residual.exr"'
 if grep -q "EXIF read back through OpenImageIO matches the plan for 21 of 21 frames" "$T/demo/report.html"; then ok; else bad "EXIF check missing from the report"; fi
+if grep -q "21 frames in 3 views grouped from EXIF time and exposure alone; 21 of 21 planned frames in the right view, bracket and place; 42 sibling files" "$T/demo/report.html"; then ok; else bad "ingest check missing from the report"; fi
+present "$T/demo/capture/session/session.json"
 no_temp "$T/demo"
 
 before=$(md5sum "$T/demo/report.html")

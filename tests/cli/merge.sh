@@ -66,6 +66,31 @@ expect 0 "$SETLIGHT" info --json "$T/out.exr"
 json_eval "$T/out" 'd["files"][0]["nan_count"] == 0 and d["files"][0]["inf_count"] == 0 and d["files"][0]["negative_count"] == 0'
 json_eval "$T/out" 'd["files"][0]["envmap"] == "latlong"'
 
+mkdir -p "$T/h1" "$T/h0"
+# --- output encoding: half PIZ by default for 8-bit frames (values bounded
+# by the shortest frame's white), --float / --half / --compression forced,
+# recorded in --json and the EXR; the same pixels within half's rounding
+expect 0 "$SETLIGHT" merge --json --response linear -o "$T/enc.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["encoding"]["pixels"] == "half" and d["encoding"]["compression"] == "piz" and abs(d["encoding"]["max_value"] - 4) < 1e-9'
+expect 0 "$SETLIGHT" info --json "$T/enc.exr"
+json_eval "$T/out" 'd["files"][0]["attributes"]["setlight:merge:encoding"].startswith("half, PIZ compression (half: values up to 4;")'
+# a noise model too fine for half's rounding: float
+expect 0 "$SETLIGHT" merge --json --noise 1e-9,1e-12 -o "$T/encn.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["encoding"]["pixels"] == "float" and "above a quarter" in d["encoding"]["why"]'
+expect 0 "$SETLIGHT" merge --json --float --compression zip -o "$T/encf.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["encoding"]["pixels"] == "float" and d["encoding"]["compression"] == "zip" and d["encoding"]["why"] == "float as asked"'
+expect 0 "$SETLIGHT" merge --json -o "$T/h1/enc.exr" --times $TIMES "${F[@]}"
+expect 0 "$SETLIGHT" merge --json --half --compression rle -o "$T/ench.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["encoding"]["pixels"] == "half" and d["encoding"]["compression"] == "rle"'
+json_eval "$T/out" 'd["frames_decoded_once"] == 3'
+expect 0 "$SETLIGHT" merge --json --hold-mb 0 -o "$T/h0/enc.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["frames_decoded_once"] == 0'
+# frames held or decoded twice: the same file but for the mask path's h0/h1
+[ "$(cmp -l "$T/h0/enc.exr" "$T/h1/enc.exr" | wc -l)" -le 1 ] && ok || bad "held and decoded-twice merges differ"
+expect 2 "$SETLIGHT" merge --hold-mb -1 -o "$T/x.exr" --times $TIMES "${F[@]}"; err_has "--hold-mb"
+expect 2 "$SETLIGHT" merge --compression lzw -o "$T/x.exr" --times $TIMES "${F[@]}"; err_has "piz, zip, rle or none"; err_one_line
+absent "$T/x.exr"; no_temp "$T"
+
 # --- linear response, no mask; frames in any order give the same answer
 expect 0 "$SETLIGHT" merge --json --response linear --no-mask -o "$T/lin.exr" --times 1,1/16,1/4 "${F[2]}" "${F[0]}" "${F[1]}"
 json_eval "$T/out" 'd["response"] == "linear" and d["mask"] is None and [f["rank"] for f in d["frames"]] == [2, 0, 1]'

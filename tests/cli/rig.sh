@@ -64,11 +64,86 @@ json_eval "$T/out" 'd["files"][0]["channel_stats"][0]["max"] < 5'
 # --- validation renders (the two panels are uniform rects: the rig is close to the map)
 mkdir -p "$T/v"
 expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/v/stage.usda" --energy 1 --validate=16
-json_eval "$T/out" 'd["validation"]["spp"] == 16 and d["validation"]["width"] == 96 and all(0 <= d["validation"][k] < 0.2 for k in ("grey", "chrome", "shadow"))'
-# the temporary rig.json for the renderer is gone
-if [ -z "$(ls "$T/v" | grep -v '^stage.usda$\|^stage_residual.exr$')" ]; then ok; else bad "validate left files: $(ls "$T/v")"; fi
+cp "$T/out" "$T/v.json"
+json_eval "$T/v.json" 'd["validation"]["spp"] == 16 and d["validation"]["width"] == 96 and all(0 <= d["validation"][k] < 0.2 for k in ("grey", "chrome", "shadow"))'
+json_eval "$T/v.json" 'd["validation"]["report"].endswith("/v/stage.validate.html") and all(d["validation"]["render_seconds"][k]["map"] > 0 and d["validation"]["render_seconds"][k]["rig"] > 0 for k in ("grey", "chrome", "shadow"))'
+err_has "validation report: $T/v/stage.validate.html"
+# the temporary rig.json for the renderer is gone; the report is the page and its folder
+if [ "$(ls -A "$T/v" | tr '\n' ' ')" = "stage.usda stage.validate stage.validate.html stage_residual.exr " ]; then ok
+else bad "validate left files: $(ls -A "$T/v")"; fi
+# check_report DIR NAME SPP JSON: every image of the page exists and is a whole PNG of the
+# right size (renders 96x96, shadow 96x72, the preview the map's 512x256); the numbers in
+# the page are those in the --json summary; the renders are kept as EXR.
+check_report() {
+  python3 - "$@" <<'PY'
+import json, re, struct, sys, zlib
+d, name, spp, summary = sys.argv[1], sys.argv[2], int(sys.argv[3]), json.load(open(sys.argv[4]))
+page = open(f"{d}/{name}.html").read()
+def png_size(path):
+    b = open(path, "rb").read()
+    assert b[:8] == b"\x89PNG\r\n\x1a\n", path
+    i, idat, size = 8, b"", None
+    while i < len(b):
+        n, kind = struct.unpack(">I4s", b[i:i + 8])
+        body = b[i + 8:i + 8 + n]
+        assert zlib.crc32(kind + body) == struct.unpack(">I", b[i + 8 + n:i + 12 + n])[0], path
+        if kind == b"IHDR":
+            size = struct.unpack(">II", body[:8])
+            depth, colour = body[8], body[9]
+        elif kind == b"IDAT":
+            idat += body
+        i += 12 + n
+        if kind == b"IEND":
+            break
+    assert kind == b"IEND" and i == len(b), path
+    channels = {0: 1, 2: 3, 4: 2, 6: 4}[colour]
+    w, h = size
+    assert len(zlib.decompress(idat)) == h * (1 + w * channels * depth // 8), path
+    return size
+want = {"diff_scale": (256, 16), "preview": (512, 256)}
+for s in ("grey", "chrome", "shadow"):
+    for k in ("map", "rig", "diff"):
+        want[f"{s}_{k}"] = (96, 72) if s == "shadow" else (96, 96)
+srcs = re.findall(r'<img src="([^"]+)"', page)
+assert sorted(srcs) == sorted(f"{name}/{k}.png" for k in want), srcs
+for k, size in want.items():
+    assert png_size(f"{d}/{name}/{k}.png") == size, (k, png_size(f"{d}/{name}/{k}.png"))
+v = summary["validation"]
+for s in ("grey", "chrome", "shadow"):
+    m = re.search(rf"<tr><td>{s}</td><td>([0-9.]+)</td><td>([0-9]+)</td><td>(\d+)x(\d+)</td>", page)
+    assert m and abs(float(m.group(1)) - 100 * v[s]) <= 0.0005 + 1e-9, (s, m and m.group(1), v[s])
+    assert int(m.group(2)) == spp == v["spp"], s
+    assert f"relative RMSE {m.group(1)}%" in page, s
+    n = re.search(rf"<tr><td>{s}</td>(?:<td>[^<]*</td>){{5}}<td>([0-9.]+)</td><td>([0-9.]+)</td></tr>", page)
+    assert n and abs(float(n.group(1)) - 100 * v["noise"][s]) <= 0.0005 + 1e-9, s
+    assert abs(float(n.group(2)) - 100 * v["beyond_noise"][s]) <= 0.0005 + 1e-9, s
+    assert 0 < v["noise"][s] and v["beyond_noise"][s] <= v[s], s
+for s in ("grey", "chrome", "shadow"):
+    for k in ("map", "rig"):
+        assert open(f"{d}/{name}/{s}_{k}.exr", "rb").read(4) == b"\x76\x2f\x31\x01", (s, k)
+PY
+}
+if check_report "$T/v" stage.validate 16 "$T/v.json"; then ok; else bad "validation report"; fi
+expect 0 "$SETLIGHT" info --json "$T/v/stage.validate/shadow_rig.exr"
+json_eval "$T/out" 'd["files"][0]["width"] == 96 and d["files"][0]["height"] == 72 and d["files"][0]["nan_count"] == 0'
+# a second run replaces the report whole (its old folder and page gone, nothing temporary)
+touch "$T/v/stage.validate/stale.png"
+expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/v/stage.usda" --energy 1 --validate=8
+cp "$T/out" "$T/v.json"
+if check_report "$T/v" stage.validate 8 "$T/v.json"; then ok; else bad "replaced validation report"; fi
+absent "$T/v/stage.validate/stale.png"; no_temp "$T/v"
+if [ "$(ls -A "$T/v" | tr '\n' ' ')" = "stage.usda stage.validate stage.validate.html stage_residual.exr " ]; then ok
+else bad "second validate left files: $(ls -A "$T/v")"; fi
 expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/v/x.usda" --validate=0
 [ ! -e "$T/v/x.usda" ] && ok || bad "--validate=0 wrote output"
+# the report cannot replace a file named like its folder (or a folder named like its
+# page): exit 2 before anything is written
+mkdir -p "$T/vb" "$T/vc/r.validate.html"
+echo keep >"$T/vb/r.validate"
+expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/vb/r.usda" --validate=8; err_has "r.validate"; err_one_line
+[ "$(ls -A "$T/vb")" = "r.validate" ] && ok || bad "blocked report left files: $(ls -A "$T/vb")"
+expect 2 "$SETLIGHT" rig "$T/stage.exr" -o "$T/vc/r.usda" --validate=8; err_has "r.validate.html"
+[ "$(ls -A "$T/vc")" = "r.validate.html" ] && ok || bad "blocked report left files: $(ls -A "$T/vc")"
 
 # --- positions in a room; median cut
 expect 0 "$SETLIGHT" rig --json "$T/stage.exr" -o "$T/o/room.usda" --json "$T/o/room.json" \
