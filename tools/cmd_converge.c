@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "render_opts.h"
 #include "setlight/render.h"
 
 static void help(FILE *out)
@@ -44,9 +45,11 @@ int cmd_converge(int argc, char **argv, const sl_cli *cli)
         {"help", no_argument, 0, 'h'},                {0, 0, 0, 0}};
     const char *env = NULL, *rig = NULL, *scene_arg = "refs", *ref_path = NULL, *svg = NULL,
                *table = NULL;
-    int width = 128, bounces = 0, seed = 1, spp = 256, ref_spp = 0;
-    double az = 0, el = 0, target = 0;
-    bool view = false, bg_env = false, centers = false;
+    int spp = 256, ref_spp = 0;
+    double target = 0;
+    bool centers = false;
+    render_opts ro;
+    render_opts_init(&ro, 128);
     cli_getopt_reset();
     int c;
     while ((c = getopt_long(argc, argv, ":h", opts, NULL)) != -1) {
@@ -60,27 +63,15 @@ int cmd_converge(int argc, char **argv, const sl_cli *cli)
         case O_TABLE: table = optarg; break;
         case O_CENTERS: centers = true; break;
         case O_WIDTH:
-            if (!cli_parse_int(optarg, &width) || width < 1 || width > 65536)
-                return cli_usage_error(cli, "--width needs a whole number from 1 to 65536");
-            break;
         case O_VIEW:
-            if (!cli_parse_view(optarg, &az, &el))
-                return cli_usage_error(cli, "--view needs AZ,EL in degrees (|EL| <= 90)");
-            view = true;
-            break;
         case O_BG:
-            if (strcmp(optarg, "env") && strcmp(optarg, "black"))
-                return cli_usage_error(cli, "--background is env or black");
-            bg_env = !strcmp(optarg, "env");
-            break;
         case O_BOUNCES:
-            if (!cli_parse_int(optarg, &bounces) || bounces < 0 || bounces > 64)
-                return cli_usage_error(cli, "--bounces needs a whole number from 0 to 64");
+        case O_SEED: {
+            int rc = render_opts_parse(cli, &ro, c - O_WIDTH, optarg);
+            if (rc)
+                return rc;
             break;
-        case O_SEED:
-            if (!cli_parse_int(optarg, &seed) || seed < 0)
-                return cli_usage_error(cli, "--seed needs a whole number >= 0");
-            break;
+        }
         case O_SPP:
             if (!cli_parse_int(optarg, &spp) || spp < 2)
                 return cli_usage_error(cli, "--spp needs a whole number >= 2");
@@ -113,28 +104,17 @@ int cmd_converge(int argc, char **argv, const sl_cli *cli)
     sl_image ref = {0};
     sl_converge_report rep = {0};
     sl_scene_init(&scene);
-    sl_result r = sl_scene_load(&scene, scene_arg, width, env, 0, 1, rig, &err);
+    sl_result r = sl_scene_load(&scene, scene_arg, ro.width, env, 0, 1, rig, &err);
     if (r)
         goto fail;
-    if (view) {
-        sl_camera *cam = &scene.camera;
-        sl_camera_validation(cam, cam->width, cam->height, cam->ortho_width, az, el);
-    }
-    scene.background_env = scene.background_env || bg_env;
-    if (ref_path) {
-        if ((r = sl_image_read(ref_path, &ref, NULL, &err)))
-            goto fail;
-        if (ref.width != scene.camera.width || ref.height != scene.camera.height || ref.channels < 3) {
-            r = sl_error_set(&err, SL_ERR_INPUT, "%s: reference is %dx%d, the render %dx%d (RGB needed)",
-                             ref_path, ref.width, ref.height, scene.camera.width, scene.camera.height);
-            goto fail;
-        }
-    }
+    render_opts_apply(&ro, &scene);
+    if (ref_path && (r = render_opts_read_reference(ref_path, &scene, &ref, &err)))
+        goto fail;
     sl_render_options o;
     sl_render_options_init(&o);
     o.spp = spp;
-    o.bounces = bounces;
-    o.seed = (uint64_t)seed;
+    o.bounces = ro.bounces;
+    o.seed = (uint64_t)ro.seed;
     o.pixel_centers = centers;
     if ((r = sl_converge_run(&scene, &o, ref_path ? &ref : NULL, ref_spp, &rep, &err)))
         goto fail;

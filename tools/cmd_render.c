@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "render_opts.h"
 #include "setlight/render.h"
 
 static void help(FILE *out)
@@ -99,8 +100,8 @@ static void show_pass(void *ctx, const sl_render_pass *p)
 
 int cmd_render(int argc, char **argv, const sl_cli *cli)
 {
-    enum { O_ENV = 256, O_ROT, O_INT, O_SCENE, O_MAT, O_WIDTH, O_VIEW, O_BG, O_SPP, O_TIME,
-           O_TERR, O_BOUNCES, O_STRAT, O_SAMPLER, O_SEED, O_REF, O_STATS, O_RIG, O_CENTERS };
+    enum { O_ENV = 256, O_ROT, O_INT, O_SCENE, O_MAT, O_WIDTH, O_VIEW, O_BG, O_BOUNCES, O_SEED,
+           O_SPP, O_TIME, O_TERR, O_STRAT, O_SAMPLER, O_REF, O_STATS, O_RIG, O_CENTERS };
     static const struct option opts[] = {
         {"env", required_argument, 0, O_ENV},         {"rotate", required_argument, 0, O_ROT},
         {"intensity", required_argument, 0, O_INT},   {"scene", required_argument, 0, O_SCENE},
@@ -116,9 +117,10 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         {0, 0, 0, 0}};
     const char *rig_path = NULL, *env_path = NULL, *scene_arg = "grey", *mat_spec = NULL, *ref_path = NULL,
                *stats_path = NULL, *out_path = NULL;
-    double rotate = 0, intensity = 1, az = 0, el = 0;
-    bool view = false, bg_env = false, spp_given = false;
-    int width = 512, bounces = 0, seed = 1;
+    double rotate = 0, intensity = 1;
+    bool spp_given = false;
+    render_opts ro;
+    render_opts_init(&ro, 512);
     sl_render_options o;
     sl_render_options_init(&o);
     cli_getopt_reset();
@@ -145,19 +147,15 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                 return cli_usage_error(cli, "--intensity needs a number >= 0");
             break;
         case O_WIDTH:
-            if (!cli_parse_int(optarg, &width) || width < 1 || width > 65536)
-                return cli_usage_error(cli, "--width needs a whole number from 1 to 65536");
-            break;
         case O_VIEW:
-            if (!cli_parse_view(optarg, &az, &el))
-                return cli_usage_error(cli, "--view needs AZ,EL in degrees (|EL| <= 90)");
-            view = true;
-            break;
         case O_BG:
-            if (strcmp(optarg, "env") && strcmp(optarg, "black"))
-                return cli_usage_error(cli, "--background is env or black");
-            bg_env = !strcmp(optarg, "env");
+        case O_BOUNCES:
+        case O_SEED: {
+            int rc = render_opts_parse(cli, &ro, c - O_WIDTH, optarg);
+            if (rc)
+                return rc;
             break;
+        }
         case O_SPP: {
             int n;
             if (!cli_parse_int(optarg, &n) || n < 1)
@@ -174,11 +172,6 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
             if (!cli_parse_double(optarg, &o.target_error) || o.target_error <= 0)
                 return cli_usage_error(cli, "--target-error needs a number > 0");
             break;
-        case O_BOUNCES:
-            if (!cli_parse_int(optarg, &bounces) || bounces < 0 || bounces > 64)
-                return cli_usage_error(cli, "--bounces needs a whole number from 0 to 64");
-            o.bounces = bounces;
-            break;
         case O_STRAT: {
             int s = sl_strategy_from_name(optarg);
             if (s < 0)
@@ -191,11 +184,6 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
             if (strcmp(optarg, "sobol") && strcmp(optarg, "random"))
                 return cli_usage_error(cli, "--sampler is sobol or random");
             o.low_discrepancy = !strcmp(optarg, "sobol");
-            break;
-        case O_SEED:
-            if (!cli_parse_int(optarg, &seed) || seed < 0)
-                return cli_usage_error(cli, "--seed needs a whole number >= 0");
-            o.seed = (uint64_t)seed;
             break;
         case ':': return cli_usage_error(cli, "%s needs a value", argv[optind - 1]);
         default: return cli_usage_error(cli, "unknown option %s", argv[optind - 1]);
@@ -222,20 +210,19 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
     sl_scene_init(&scene);
     sl_result r;
     bool preset = !sl_scene_arg_is_file(scene_arg);
-    if ((r = sl_scene_load(&scene, scene_arg, width, env_path, rotate, intensity, rig_path, &err)))
+    o.bounces = ro.bounces;
+    o.seed = (uint64_t)ro.seed;
+    if ((r = sl_scene_load(&scene, scene_arg, ro.width, env_path, rotate, intensity, rig_path, &err)))
         goto fail;
-    if (view) {
+    if (ro.view) {
         if (!preset) {
             sl_error_set(&err, SL_ERR_USAGE, "--view turns a preset's validation camera; "
                                              "scene files set their own camera");
             r = SL_ERR_USAGE;
             goto fail;
         }
-        sl_camera *cam = &scene.camera;
-        sl_camera_validation(cam, cam->width, cam->height, cam->ortho_width, az, el);
     }
-    if (bg_env)
-        scene.background_env = true;
+    render_opts_apply(&ro, &scene);
     if (mat_spec) {
         int idx;
         if ((r = sl_scene_add_material(&scene, &mat, &idx, &err)))
@@ -248,13 +235,8 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_WARN, "%s: %lld NaN, Inf or negative samples set to 0", light_src,
                (long long)scene.dome.bad_texels);
     if (ref_path) {
-        if ((r = sl_image_read(ref_path, &ref, NULL, &err)))
+        if ((r = render_opts_read_reference(ref_path, &scene, &ref, &err)))
             goto fail;
-        if (ref.width != scene.camera.width || ref.height != scene.camera.height || ref.channels < 3) {
-            r = sl_error_set(&err, SL_ERR_INPUT, "%s: reference is %dx%d, the render %dx%d (RGB needed)",
-                             ref_path, ref.width, ref.height, scene.camera.width, scene.camera.height);
-            goto fail;
-        }
         o.reference = &ref;
     }
     bool progress = !cli->quiet && isatty(2);
