@@ -93,3 +93,22 @@ bool cli_parse_list(const char *s, double *v, int n)
     }
     return true;
 }
+
+/* By sl_exr_compression value. */
+static const char *const compression_names[] = {"zip", "piz", "none", "rle"};
+#define COMPRESSIONS (int)(sizeof compression_names / sizeof compression_names[0])
+
+const char *cli_compression_name(sl_exr_compression c)
+{
+    return (int)c >= 0 && (int)c < COMPRESSIONS ? compression_names[c] : "unknown";
+}
+
+bool cli_parse_compression(const char *s, sl_exr_compression *out)
+{
+    for (int k = 0; k < COMPRESSIONS; k++)
+        if (!strcmp(s, compression_names[k])) {
+            *out = (sl_exr_compression)k;
+            return true;
+        }
+    return false;
+}

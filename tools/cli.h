@@ -31,6 +31,10 @@ bool cli_parse_double(const char *s, double *out);
 /* Exactly n comma-separated finite numbers ("1,2.5,3"); false on junk,
  * empty fields or a different count. */
 bool cli_parse_list(const char *s, double *v, int n);
+/* EXR compression names as the options take them: zip, piz, none, rle.
+ * cli_parse_compression is false for any other name. */
+const char *cli_compression_name(sl_exr_compression c);
+bool cli_parse_compression(const char *s, sl_exr_compression *out);
 /* "AZ,EL" in degrees with |EL| <= 90 (render and converge --view). */
 bool cli_parse_view(const char *s, double *az, double *el);
 

@@ -63,8 +63,6 @@ static const char *response_help =
     "  --tolerance            as for setlight merge\n"
     "  --json                 print the exposure check and curve summary as JSON\n";
 
-/* By sl_exr_compression value. */
-static const char *compression_names[4] = {"zip", "piz", "none", "rle"};
 
 static bool parse_time(const char *s, double *out)
 {
@@ -223,16 +221,11 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
                 return cli_usage_error(cli, "--hold-mb needs a non-negative number, not '%s'",
                                        optarg);
             break;
-        case OPT_COMPRESSION: {
-            int k = 0;
-            while (k < 4 && strcmp(optarg, compression_names[k]) != 0)
-                k++;
-            if (k == 4)
+        case OPT_COMPRESSION:
+            if (!cli_parse_compression(optarg, &a->opt.compression))
                 return cli_usage_error(cli, "--compression is piz, zip, rle or none, not '%s'",
                                        optarg);
-            a->opt.compression = (sl_exr_compression)k;
             break;
-        }
         case OPT_TIMES:
             free(a->times);
             if ((a->time_count = parse_times(optarg, &a->times)) < 0)
@@ -410,7 +403,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
             "output_exposure", res.output_exposure, "weights", "noise_gain", res.noise_gain,
             "noise_floor", res.noise_floor, "black", res.black, "saturation", res.saturation,
             "encoding", "pixels", res.pixel_type == SL_PIXEL_HALF ? "half" : "float",
-            "compression", compression_names[res.compression], "max_value", res.max_value,
+            "compression", cli_compression_name(res.compression), "max_value", res.max_value,
             "why", res.encoding_note, "frames_decoded_once", res.held_frames, "seconds",
             res.seconds);
         json_dumpf(o, stdout, JSON_INDENT(2));

@@ -55,6 +55,7 @@ static const char *unwrap_help =
     "                         where the ball faces the camera)\n"
     "  --no-confidence        write RGB only\n"
     "  --float                32-bit float EXR instead of half\n"
+    "  --compression C        piz (default), zip, rle or none (all lossless)\n"
     "  --json                 print the result as JSON on stdout\n\n"
     "The A channel is the confidence: resolution relative to the ball's centre, 0 in\n"
     "the blind cone behind the ball (filled flat with the rim's median). An 8-bit\n"
@@ -150,7 +151,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_CIRCLE = 1000, OPT_CAMERA, OPT_FOCAL, OPT_SENSOR, OPT_FOV, OPT_DIST, OPT_DIAM,
         OPT_AZ, OPT_EL, OPT_ROLL, OPT_REFL, OPT_WIDTH, OPT_NOCONF, OPT_FLOAT, OPT_PATCH,
-        OPT_CIRCLE2, OPT_AZ2, OPT_EL2, OPT_ROLL2, OPT_SEARCH, OPT_OCCLUDER
+        OPT_CIRCLE2, OPT_AZ2, OPT_EL2, OPT_ROLL2, OPT_SEARCH, OPT_OCCLUDER, OPT_COMPRESSION
     };
     static const struct option opts[] = {{"help", no_argument, NULL, 'h'},
                                          {"output", required_argument, NULL, 'o'},
@@ -169,6 +170,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                                          {"width", required_argument, NULL, OPT_WIDTH},
                                          {"no-confidence", no_argument, NULL, OPT_NOCONF},
                                          {"float", no_argument, NULL, OPT_FLOAT},
+                                         {"compression", required_argument, NULL, OPT_COMPRESSION},
                                          {"circle2", required_argument, NULL, OPT_CIRCLE2},
                                          {"camera2-azimuth", required_argument, NULL, OPT_AZ2},
                                          {"camera2-elevation", required_argument, NULL, OPT_EL2},
@@ -184,6 +186,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     po.search_deg = 20;
     po.occluder_deg = 20;
     bool have_circle = false, have_circle2 = false, confidence = true, use_float = false;
+    sl_exr_compression compression = SL_EXR_PIZ;
     bool have_refl = false, have_patch = false, have[3] = {false, false, false};
     double cam2[3] = {0, 0, 0}, patch[6] = {0};
     ball_camera_opts bc;
@@ -290,6 +293,11 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             break;
         case OPT_FLOAT:
             use_float = true;
+            break;
+        case OPT_COMPRESSION:
+            if (!cli_parse_compression(optarg, &compression))
+                return cli_usage_error(cli, "--compression is piz, zip, rle or none, not '%s'",
+                                       optarg);
             break;
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);
@@ -466,7 +474,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             goto fail;
     double t3 = sl_seconds();
     r = sl_exr_write_compressed(out_path, &out, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
-                                SL_EXR_PIZ, &err);
+                                compression, &err);
     if (r)
         goto fail;
     double t_write = sl_seconds() - t3;
@@ -485,6 +493,9 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             (json_int_t)(pinfo.views[0].nonfinite + pinfo.views[1].nonfinite), "ldr_linearised",
             views[0].ldr || views[1].ldr, "seconds", sl_seconds() - t0, "timing", "read_detect",
             t1 - t0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap, "write", t_write);
+        json_object_set_new(j, "encoding",
+                            json_pack("{s:s, s:s}", "pixel", use_float ? "float" : "half",
+                                      "compression", cli_compression_name(compression)));
         if (have_patch)
             json_object_set_new(j, "reflectance_patch",
                                 json_pack("{s:[f, f, f], s:[f, f, f]}", "radiance", patch[3],
