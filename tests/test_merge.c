@@ -364,20 +364,14 @@ static void test_bad_inputs(void)
 
     /* corrupt middle frame: the good file cut in half */
     snprintf(p[1], sizeof p[1], "%s/cut.tif", d);
-    FILE *in = fopen(t.paths[1], "rb"), *out = fopen(p[1], "wb");
-    if (in && out) {
-        fseek(in, 0, SEEK_END);
-        long size = ftell(in);
-        fseek(in, 0, SEEK_SET);
-        char *buf = malloc((size_t)size);
-        if (buf && fread(buf, 1, (size_t)size, in) == (size_t)size)
-            fwrite(buf, 1, (size_t)size / 2, out);
-        free(buf);
-    }
-    if (in)
-        fclose(in);
+    size_t size = 0;
+    char *whole = sl_test_read_file(t.paths[1], &size);
+    FILE *out = fopen(p[1], "wb");
+    if (whole && out)
+        fwrite(whole, 1, size / 2, out);
     if (out)
         fclose(out);
+    free(whole);
     const char *cut[3] = {t.paths[0], p[1], t.paths[2]};
     expect_fail("corrupt middle", cut, 3, times, SL_ERR_INPUT, p[1]);
 

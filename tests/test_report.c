@@ -6,23 +6,6 @@
 
 #include "testing.h"
 
-static char *slurp(const char *path)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *s = calloc((size_t)n + 1, 1);
-    if (s && fread(s, 1, (size_t)n, f) != (size_t)n) {
-        free(s);
-        s = NULL;
-    }
-    fclose(f);
-    return s;
-}
-
 static void test_report_page(void)
 {
     sl_report *rep;
@@ -47,7 +30,7 @@ static void test_report_page(void)
     sl_image_free(&img);
     CHECK_OK(sl_report_finish(rep, &err), &err);
 
-    char *html = slurp(sl_test_path("report.html"));
+    char *html = sl_test_read_file(sl_test_path("report.html"), NULL);
     CHECK(html != NULL);
     if (html) {
         CHECK(strstr(html, "Demo &lt;stage&gt;") != NULL);
@@ -58,7 +41,7 @@ static void test_report_page(void)
         CHECK(strstr(html, "</html>") != NULL);
         free(html);
     }
-    char *svg = slurp(sl_test_path("conv.svg"));
+    char *svg = sl_test_read_file(sl_test_path("conv.svg"), NULL);
     CHECK(svg != NULL);
     if (svg) {
         CHECK(strstr(svg, "<svg") != NULL && strstr(svg, "</svg>") != NULL);

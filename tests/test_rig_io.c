@@ -103,28 +103,9 @@ static int parse_usda(char *text, prim *prims, int max)
     return depth == 0 ? n : -1;
 }
 
-static char *slurp(const char *path)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *s = malloc((size_t)n + 1);
-    if (s && fread(s, 1, (size_t)n, f) != (size_t)n) {
-        free(s);
-        s = NULL;
-    }
-    if (s)
-        s[n] = 0;
-    fclose(f);
-    return s;
-}
-
 static void check_usda(const sl_rig *rig, const char *path)
 {
-    char *text = slurp(path);
+    char *text = sl_test_read_file(path, NULL);
     CHECK(text != NULL);
     if (!text)
         return;

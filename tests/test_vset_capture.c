@@ -115,28 +115,10 @@ static void check_probes(const char *dir, const sl_vset_capture_opts *o)
     json_decref(truth);
 }
 
-static char *slurp(const char *path, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *b = malloc((size_t)n + 1);
-    if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
-        free(b);
-        b = NULL;
-    }
-    fclose(f);
-    *size = (size_t)n;
-    return b;
-}
-
 static int same_file(const char *a, const char *b)
 {
     size_t na, nb;
-    char *x = slurp(a, &na), *y = slurp(b, &nb);
+    char *x = sl_test_read_file(a, &na), *y = sl_test_read_file(b, &nb);
     int same = x && y && na == nb && memcmp(x, y, na) == 0;
     free(x);
     free(y);
@@ -263,21 +245,21 @@ static void test_refusals(void)
     char path[4096];
     snprintf(path, sizeof path, "%s/capture.json", d);
     size_t n0;
-    char *before = slurp(path, &n0);
+    char *before = sl_test_read_file(path, &n0);
     /* A capture is there: refused, untouched, no temporary left. */
     o.seed = 4;
     o.brackets = 3;
     CHECK_RESULT(sl_vset_capture_write(&o, d, NULL, &err), SL_ERR_USAGE, &err);
     CHECK(strstr(err.message, d) && strstr(err.message, "--force"));
     size_t n1;
-    char *after = slurp(path, &n1);
+    char *after = sl_test_read_file(path, &n1);
     CHECK(before && after && n0 == n1 && memcmp(before, after, n0) == 0);
     free(after);
     CHECK(sl_test_count_files(top) == 1);
     /* --force replaces it. */
     o.force = true;
     CHECK_OK(sl_vset_capture_write(&o, d, NULL, &err), &err);
-    after = slurp(path, &n1);
+    after = sl_test_read_file(path, &n1);
     CHECK(after && (n0 != n1 || memcmp(before, after, n0) != 0));
     snprintf(path, sizeof path, "%s/hdri", d);
     CHECK(sl_test_count_files(path) == 9);
