@@ -267,22 +267,6 @@ static void v_close(void *impl)
 static const sl_camera_ops k_ops = {"virtual", v_shutter_speeds, v_set,       v_get,
                                     v_capture, v_aim,            v_reconnect, v_close};
 
-/* Log-average luminance over the sphere: what a meter reads. */
-static double log_average(const sl_image *ll)
-{
-    double acc = 0, wsum = 0;
-    for (int y = 0; y < ll->height; y++) {
-        double dw = sl_latlong_texel_solid_angle(y, ll->width, ll->height);
-        for (int x = 0; x < ll->width; x++) {
-            const float *p = sl_image_pixel(ll, x, y);
-            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-            acc += dw * log(l > 1e-6 ? l : 1e-6);
-            wsum += dw;
-        }
-    }
-    return exp(acc / wsum);
-}
-
 sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_error *err)
 {
     vcam *v = calloc(1, sizeof *v);
@@ -329,7 +313,7 @@ sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_erro
     sl_vset_lens_fisheye8(&v->lens);
     v->f_number = nearest(k_fnumbers, COUNT(k_fnumbers), d.f_number);
     v->iso = nearest(k_isos, COUNT(k_isos), d.iso);
-    double lavg = log_average(&v->scene.latlong);
+    double lavg = sl_vset_log_average(&v->scene.latlong);
     v->shutter = nearest(k_speeds, COUNT(k_speeds),
                          0.12 * v->f_number * v->f_number / (lavg * v->body.k * v->iso / 100.0));
     v->actual_shutter = v->shutter;

@@ -72,11 +72,8 @@ static const double shutter[] = {1.0 / 8000, 1.0 / 4000, 1.0 / 2000, 1.0 / 1000,
                                  4,          8,          15,         30};
 #define SHUTTER_COUNT ((int)(sizeof shutter / sizeof shutter[0]))
 
-/* Returns the metered log-average luminance. */
-static double plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera *cam,
-                             const sl_image *latlong, double *times)
+double sl_vset_log_average(const sl_image *latlong)
 {
-    /* Meter the log-average luminance to 12% of raw saturation. */
     double acc = 0, wsum = 0;
     for (int y = 0; y < latlong->height; y++) {
         double dw = sl_latlong_texel_solid_angle(y, latlong->width, latlong->height);
@@ -87,7 +84,15 @@ static double plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera
             wsum += dw;
         }
     }
-    double lavg = exp(acc / wsum);
+    return exp(acc / wsum);
+}
+
+/* Returns the metered log-average luminance. */
+static double plan_exposures(const sl_vset_capture_opts *o, const sl_vset_camera *cam,
+                             const sl_image *latlong, double *times)
+{
+    /* Meter the log-average luminance to 12% of raw saturation. */
+    double lavg = sl_vset_log_average(latlong);
     double t = 0.12 * o->f_number * o->f_number / (lavg * cam->k * o->iso / 100.0);
     int centre = 0, step = (int)o->stops;
     for (int i = 1; i < SHUTTER_COUNT; i++)

@@ -28,17 +28,7 @@ static void scene_settings(const char *scene, double *n, double *iso, double *ke
 static void plan(const vb_spec *s, const sl_vset_camera *cam, const sl_image *ll, double n,
                  double iso, double *times)
 {
-    double acc = 0, wsum = 0;
-    for (int y = 0; y < ll->height; y++) {
-        double dw = sl_latlong_texel_solid_angle(y, ll->width, ll->height);
-        for (int x = 0; x < ll->width; x++) {
-            const float *p = sl_image_pixel(ll, x, y);
-            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-            acc += dw * log(l > 1e-6 ? l : 1e-6);
-            wsum += dw;
-        }
-    }
-    double t = 0.12 * n * n / (exp(acc / wsum) * cam->k * iso / 100.0);
+    double t = 0.12 * n * n / (sl_vset_log_average(ll) * cam->k * iso / 100.0);
     int centre = 0;
     for (int i = 1; i < SHUTTERS; i++)
         if (fabs(log(shutter[i] / t)) < fabs(log(shutter[centre] / t)))

@@ -58,19 +58,7 @@ static sl_result stage_truth(demo *d, char *note, size_t n, sl_error *err)
     sl_meta_free(&meta);
     if (r)
         return r;
-    double acc = 0, wsum = 0;
-    for (int y = 0; y < ll.height; y++) {
-        double lat0 = M_PI * (0.5 - (double)y / ll.height);
-        double lat1 = M_PI * (0.5 - (double)(y + 1) / ll.height);
-        double dw = sin(lat0) - sin(lat1);
-        for (int x = 0; x < ll.width; x++) {
-            const float *p = sl_image_pixel(&ll, x, y);
-            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-            acc += dw * log(l > 1e-6 ? l : 1e-6);
-            wsum += dw;
-        }
-    }
-    d->lavg = exp(acc / wsum);
+    d->lavg = sl_vset_log_average(&ll);
     sl_report_section(d->rep, "Ground truth");
     sl_report_text(d->rep, "The set's HDR lat-long (%dx%d, log-average luminance %.3g cd/m^2), "
                            "shown with its log-average at 18%% grey.",

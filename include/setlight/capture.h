@@ -98,6 +98,10 @@ sl_result sl_vset_desc_validate(const sl_vset_desc *desc, sl_error *err);
 sl_result sl_vset_scene_make(const sl_vset_desc *desc, int width, sl_vset_scene *scene,
                              sl_error *err);
 void sl_vset_scene_free(sl_vset_scene *scene);
+/* The lat-long's solid-angle-weighted log-average Rec.709 luminance (each
+ * texel floored at 1e-6): what a meter reads, and the exposure the virtual
+ * camera centres its bracket on. */
+double sl_vset_log_average(const sl_image *latlong);
 /* One light alone on black, as it appears in the scene's lat-long of
  * `width`: for checking integrals and as a ground-truth mask. */
 sl_result sl_vset_light_image(const sl_vset_desc *desc, int index, int width, sl_image *out,
