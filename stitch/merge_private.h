@@ -42,6 +42,13 @@ sl_result merge_fit_robertson(const merge_samples *s, const double *log_exposure
                               int max_samples, double black, double saturation, uint64_t seed,
                               sl_response *out, sl_error *err);
 
+/* Finishes a fitted inverse response: inv[0 .. nodes) (inv holds 3 x nodes)
+ * made increasing from 0 (noise at the ends must not fold it) and 1 at
+ * the top, copied to all three channels (one curve for the three: the
+ * samples of every channel fit it), and handed to out with its source
+ * name; out owns inv. */
+void merge_response_finish(double *inv, int nodes, const char *source, sl_response *out);
+
 /* Up to max_samples positions for channel c, spread over a crude log
  * radiance and over the frame; returns how many (-1 out of memory). */
 int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,

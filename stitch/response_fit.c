@@ -103,6 +103,23 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
     return m;
 }
 
+void merge_response_finish(double *inv, int nodes, const char *source, sl_response *out)
+{
+    inv[0] = 0;
+    for (int k = 1; k < nodes; k++)
+        if (!(inv[k] > inv[k - 1]))
+            inv[k] = inv[k - 1] * (1 + 1e-9) + 1e-300;
+    double top = inv[nodes - 1];
+    for (int k = 0; k < nodes; k++)
+        inv[k] /= top;
+    for (int c = 1; c < 3; c++)
+        memcpy(inv + (size_t)c * nodes, inv, (size_t)nodes * sizeof *inv);
+    out->channels = 3;
+    out->nodes = nodes;
+    out->inverse = inv;
+    snprintf(out->source, sizeof out->source, "%s", source);
+}
+
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
                              uint64_t seed, sl_response *out, sl_error *err)
@@ -214,25 +231,10 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                              "system); give --response linear or a curve file");
     }
     if (!r) {
-        double *row = inv;
-        row[0] = 0;
-        for (int k = 1; k < nodes; k++) {
-            double v = exp(b[k]);
-            /* A response is increasing; noise at the ends must not fold it. */
-            row[k] = v > row[k - 1] ? v : row[k - 1] * (1 + 1e-9) + 1e-300;
-        }
-        double top = row[nodes - 1];
-        for (int k = 0; k < nodes; k++)
-            row[k] /= top;
-        for (int c = 1; c < 3; c++)
-            memcpy(inv + (size_t)c * nodes, row, (size_t)nodes * sizeof *row);
-    }
-    if (!r) {
-        out->channels = 3;
-        out->nodes = nodes;
-        out->inverse = inv;
+        for (int k = 1; k < nodes; k++)
+            inv[k] = exp(b[k]);
+        merge_response_finish(inv, nodes, "debevec-malik", out);
         inv = NULL;
-        snprintf(out->source, sizeof out->source, "debevec-malik");
     }
 done:
     free(a);

@@ -129,20 +129,8 @@ sl_result merge_fit_robertson(const merge_samples *s, const double *log_exposure
     double slope = (g[last] - g[below]) / (last - below);
     for (int k = last + 1; k < nodes; k++)
         g[k] = g[last] + slope * (k - last);
-    g[0] = 0;
-    for (int k = 1; k < nodes; k++)
-        if (!(g[k] > g[k - 1]))
-            g[k] = g[k - 1] * (1 + 1e-9) + 1e-300;
-    double top = g[nodes - 1];
-    for (int k = 0; k < nodes; k++)
-        g[k] /= top;
-    for (int c = 1; c < 3; c++)
-        memcpy(inv + (size_t)c * nodes, g, (size_t)nodes * sizeof *g);
-    out->channels = 3;
-    out->nodes = nodes;
-    out->inverse = inv;
+    merge_response_finish(inv, nodes, "robertson", out);
     inv = NULL;
-    snprintf(out->source, sizeof out->source, "robertson");
 done:
     free(chosen);
     free(o);
