@@ -11,6 +11,8 @@
 
 #include "setlight/core.h"
 #include "setlight/lightrig.h"
+#include "setlight/render.h"
+#include "testing.h"
 
 typedef struct scene_light {
     double dir[3];
@@ -83,13 +85,42 @@ static inline void sc_background(sl_image *img, double sky, bool walls)
         }
 }
 
-/* Adds a source: inside(dir) tested on 16x16 sub-texels. Rect: half-sides
- * a, b (tangent units) along u and v = dir x u; disk: angular radius a. */
-static inline void sc_add(sl_image *img, scene_light *L, double lat, double lon, double roll_deg,
-                          double a, double b, bool rect, const double rgb[3])
+/* The grey sphere (or, glossy, a GGX 0.3 conductor) `width` pixels wide,
+ * direct light only, pixel centres, lit by the map env or by the rig file
+ * (rig.json, read as the renderer reads it); objects only. */
+static inline void sc_render_sphere(const sl_image *env, const char *rig_json, bool glossy,
+                                    int width, int64_t spp, sl_image *out)
 {
-    int w = img->width, h = img->height;
-    double d[3], up[3] = {0, 1, 0}, e1[3], e2[3];
+    sl_scene s;
+    sl_scene_init(&s);
+    sl_error err = {0};
+    CHECK_OK(sl_scene_preset(&s, "grey", width, &err), &err);
+    if (glossy) {
+        const double f0[3] = {0.9, 0.9, 0.9}, tint[3] = {0.95, 0.95, 0.95};
+        sl_material_conductor(&s.materials[0], f0, tint, 0.3);
+    }
+    if (env)
+        CHECK_OK(sl_scene_set_dome(&s, env, 0, 1, "map", &err), &err);
+    else
+        CHECK_OK(sl_scene_read_rig(&s, rig_json, &err), &err);
+    s.background_env = false;
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = spp;
+    o.pixel_centers = true;
+    o.bounces = 0;
+    sl_render_stats st;
+    CHECK_OK(sl_render(&s, &o, out, &st, &err), &err);
+    sl_render_stats_free(&st);
+    sl_scene_free(&s);
+}
+
+/* The frame of a source at (lat, lon) rolled by roll_deg: its direction d
+ * and the unit axes u, v = d x u across it. */
+static inline void sc_frame(double lat, double lon, double roll_deg, double d[3], double u[3],
+                            double v[3])
+{
+    double up[3] = {0, 1, 0}, e1[3], e2[3];
     sc_dir(lat, lon, d);
     if (fabs(d[1]) > 0.9) {
         up[0] = 1;
@@ -104,11 +135,21 @@ static inline void sc_add(sl_image *img, scene_light *L, double lat, double lon,
     e2[0] = d[1] * e1[2] - d[2] * e1[1];
     e2[1] = d[2] * e1[0] - d[0] * e1[2];
     e2[2] = d[0] * e1[1] - d[1] * e1[0];
-    double r = roll_deg * M_PI / 180, u[3], v[3];
+    double r = roll_deg * M_PI / 180;
     for (int i = 0; i < 3; i++) {
         u[i] = cos(r) * e1[i] + sin(r) * e2[i];
         v[i] = -sin(r) * e1[i] + cos(r) * e2[i];
     }
+}
+
+/* Adds a source: inside(dir) tested on 16x16 sub-texels. Rect: half-sides
+ * a, b (tangent units) along u and v = dir x u; disk: angular radius a. */
+static inline void sc_add(sl_image *img, scene_light *L, double lat, double lon, double roll_deg,
+                          double a, double b, bool rect, const double rgb[3])
+{
+    int w = img->width, h = img->height;
+    double d[3], u[3], v[3];
+    sc_frame(lat, lon, roll_deg, d, u, v);
     double reach = rect ? atan(hypot(a, b)) : a;
     double diag = hypot(2 * M_PI / w, M_PI / h);
     /* sub-texels fine enough that the coverage error is well under 0.1% */

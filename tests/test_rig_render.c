@@ -15,32 +15,6 @@
 static int W = 24;
 static int64_t SPP = 512;
 
-static void render(const char *what, const sl_image *env, const char *rig, bool glossy,
-                   sl_image *out)
-{
-    sl_scene s;
-    sl_scene_init(&s);
-    sl_error err = {0};
-    CHECK_OK(sl_scene_preset(&s, "grey", W, &err), &err);
-    if (glossy) {
-        const double f0[3] = {0.9, 0.9, 0.9}, tint[3] = {0.95, 0.95, 0.95};
-        sl_material_conductor(&s.materials[0], f0, tint, 0.3);
-    }
-    if (env)
-        CHECK_OK(sl_scene_set_dome(&s, env, 0, 1, what, &err), &err);
-    else
-        CHECK_OK(sl_scene_read_rig(&s, rig, &err), &err);
-    sl_render_options o;
-    sl_render_options_init(&o);
-    o.spp = SPP;
-    o.pixel_centers = true;
-    o.bounces = 0;
-    sl_render_stats st;
-    CHECK_OK(sl_render(&s, &o, out, &st, &err), &err);
-    sl_render_stats_free(&st);
-    sl_scene_free(&s);
-}
-
 static void write_rig(const sl_image *env, sl_rig_method method, int max_lights,
                       const char *name, int *count)
 {
@@ -83,9 +57,9 @@ int main(void)
     const double bound[2] = {0.01, 0.05};
     for (int g = 0; g < 2; g++) {
         sl_image ref, a, b;
-        render("map", &env, NULL, g, &ref);
-        render("rig", NULL, rigs[0], g, &a);
-        render("mediancut", NULL, rigs[1], g, &b);
+        sc_render_sphere(&env, NULL, g, W, SPP, &ref);
+        sc_render_sphere(NULL, rigs[0], g, W, SPP, &a);
+        sc_render_sphere(NULL, rigs[1], g, W, SPP, &b);
         double e_rig = 1, e_mc = 1;
         CHECK_OK(sl_relative_rmse(&a, &ref, &e_rig, NULL), NULL);
         CHECK_OK(sl_relative_rmse(&b, &ref, &e_mc, NULL), NULL);

@@ -57,31 +57,6 @@ static void paint(sl_image *img, const double d[3], const double u[3], const dou
         }
 }
 
-static void render(const sl_image *env, const char *rig, bool glossy, sl_image *out)
-{
-    sl_scene s;
-    sl_scene_init(&s);
-    sl_error err = {0};
-    CHECK_OK(sl_scene_preset(&s, "grey", 16, &err), &err);
-    if (glossy) {
-        const double f0[3] = {0.9, 0.9, 0.9}, tint[3] = {0.95, 0.95, 0.95};
-        sl_material_conductor(&s.materials[0], f0, tint, 0.3);
-    }
-    if (env)
-        CHECK_OK(sl_scene_set_dome(&s, env, 0, 1, "map", &err), &err);
-    else
-        CHECK_OK(sl_scene_read_rig(&s, rig, &err), &err);
-    sl_render_options o;
-    sl_render_options_init(&o);
-    o.spp = 256;
-    o.pixel_centers = true;
-    o.bounces = 0;
-    sl_render_stats st;
-    CHECK_OK(sl_render(&s, &o, out, &st, &err), &err);
-    sl_render_stats_free(&st);
-    sl_scene_free(&s);
-}
-
 int main(void)
 {
     const int w = 256, h = 128;
@@ -92,22 +67,8 @@ int main(void)
             for (int k = 0; k < 3; k++)
                 sl_image_pixel(&env, x, y)[k] = 0.05f;
     /* rolled, off the axes, so that a swap or a flip of either side shows */
-    double d[3], up[3] = {0, 1, 0}, e1[3], e2[3], u[3], v[3];
-    sc_dir(25, 40, d);
-    e1[0] = up[1] * d[2] - up[2] * d[1];
-    e1[1] = up[2] * d[0] - up[0] * d[2];
-    e1[2] = up[0] * d[1] - up[1] * d[0];
-    double l = sqrt(sc_dot(e1, e1));
-    for (int i = 0; i < 3; i++)
-        e1[i] /= l;
-    e2[0] = d[1] * e1[2] - d[2] * e1[1];
-    e2[1] = d[2] * e1[0] - d[0] * e1[2];
-    e2[2] = d[0] * e1[1] - d[1] * e1[0];
-    const double roll = 0.3;
-    for (int i = 0; i < 3; i++) {
-        u[i] = cos(roll) * e1[i] + sin(roll) * e2[i];
-        v[i] = -sin(roll) * e1[i] + cos(roll) * e2[i];
-    }
+    double d[3], u[3], v[3];
+    sc_frame(25, 40, 0.3 * 180 / M_PI, d, u, v);
     bool *edge = calloc((size_t)w * h, sizeof *edge);
     CHECK(edge != NULL);
     paint(&env, d, u, v, edge);
@@ -187,8 +148,8 @@ int main(void)
     const double bound[2] = {0.025, 0.045};
     for (int g = 0; g < 2; g++) {
         sl_image ref, a;
-        render(&env, NULL, g, &ref);
-        render(NULL, json, g, &a);
+        sc_render_sphere(&env, NULL, g, 16, 256, &ref);
+        sc_render_sphere(NULL, json, g, 16, 256, &a);
         double e = 1;
         CHECK_OK(sl_relative_rmse(&a, &ref, &e, NULL), NULL);
         printf("  %s: relative RMSE textured rig %.4f\n", g ? "glossy GGX 0.3" : "grey", e);

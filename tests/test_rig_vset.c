@@ -114,35 +114,6 @@ static void run_scene(const char *name, int width, double *worst)
 
 static double worst[3];
 
-/* Grey sphere (bounces 0: the issue compares direct light) or the glossy
- * one (GGX 0.3), under the map or under the rig file; objects only. */
-static void render_sphere(const sl_image *env, const char *rig, bool glossy, int width,
-                          int64_t spp, sl_image *out)
-{
-    sl_scene s;
-    sl_scene_init(&s);
-    sl_error err = {0};
-    CHECK_OK(sl_scene_preset(&s, "grey", width, &err), &err);
-    if (glossy) {
-        const double f0[3] = {0.9, 0.9, 0.9}, tint[3] = {0.95, 0.95, 0.95};
-        sl_material_conductor(&s.materials[0], f0, tint, 0.3);
-    }
-    if (env)
-        CHECK_OK(sl_scene_set_dome(&s, env, 0, 1, "map", &err), &err);
-    else
-        CHECK_OK(sl_scene_read_rig(&s, rig, &err), &err);
-    s.background_env = false;
-    sl_render_options o;
-    sl_render_options_init(&o);
-    o.spp = spp;
-    o.pixel_centers = true;
-    o.bounces = 0;
-    sl_render_stats st;
-    CHECK_OK(sl_render(&s, &o, out, &st, &err), &err);
-    sl_render_stats_free(&st);
-    sl_scene_free(&s);
-}
-
 static int RENDER_W = 1024, SPHERE_PX = 24;
 static int64_t SPHERE_SPP = 1024;
 
@@ -177,8 +148,8 @@ static void test_stage_render(void)
     const double bound[2] = {0.01, 0.05};
     for (int g = 0; g < 2; g++) {
         sl_image ref, a;
-        render_sphere(&sc.latlong, NULL, g, SPHERE_PX, SPHERE_SPP, &ref);
-        render_sphere(NULL, json, g, SPHERE_PX, SPHERE_SPP, &a);
+        sc_render_sphere(&sc.latlong, NULL, g, SPHERE_PX, SPHERE_SPP, &ref);
+        sc_render_sphere(NULL, json, g, SPHERE_PX, SPHERE_SPP, &a);
         for (int y = 0; y < ref.height; y++)
             for (int x = 0; x < ref.width; x++) {
                 float *pa = sl_image_pixel(&ref, x, y), *pb = sl_image_pixel(&a, x, y);
