@@ -24,36 +24,6 @@ static double rng_uniform(void)
     return (double)(z >> 11) * 0x1.0p-53;
 }
 
-/* Pearson chi-square of observed counts against expected counts, pooling
- * neighbouring bins until each pooled bin expects at least 5. A count in a
- * bin that expects nothing is an outright failure (p = 0). */
-static double chi2_test(const double *obs, const double *expct, int n, int *dof_out)
-{
-    double stat = 0.0, po = 0.0, pe = 0.0, last_o = 0.0, last_e = 0.0;
-    int bins = 0;
-    for (int i = 0; i < n; i++) {
-        if (expct[i] == 0.0 && obs[i] > 0.0)
-            return 0.0;
-        po += obs[i];
-        pe += expct[i];
-        if (pe >= 5.0) {
-            stat += (po - pe) * (po - pe) / pe;
-            bins++;
-            last_o = po;
-            last_e = pe;
-            po = pe = 0.0;
-        }
-    }
-    if (pe > 0.0 && bins > 0) { /* a remainder under 5 joins the last pooled bin */
-        stat -= (last_o - last_e) * (last_o - last_e) / last_e;
-        last_o += po;
-        last_e += pe;
-        stat += (last_o - last_e) * (last_o - last_e) / last_e;
-    }
-    *dof_out = bins - 1;
-    return sl_chi2_pvalue(stat, bins - 1);
-}
-
 static void test_chi2_pvalue(void)
 {
     /* Closed forms: Q(1/2, x) = erfc(sqrt x), Q(1, x) = exp(-x),
@@ -164,9 +134,9 @@ static void test_1d_fit(void)
     for (int b = 0; b < HB; b++)
         wrong[b] *= S / wsum;
     int dof;
-    double p = chi2_test(obs, expct, HB, &dof);
+    double p = sl_test_chi2(obs, expct, HB, &dof);
     int wdof;
-    double pw = chi2_test(obs, wrong, HB, &wdof);
+    double pw = sl_test_chi2(obs, wrong, HB, &wdof);
     printf("  1D: %d samples, p = %.4f (dof %d); wrong pdf p = %.3g\n", S, p, dof, pw);
     CHECK(p > 0.01);
     CHECK(pw < 1e-6);
@@ -181,7 +151,7 @@ static void test_1d_fit(void)
     }
     for (int i = 0; i < N; i++)
         expct[i] = S * f[i] / sum;
-    p = chi2_test(obs, expct, N, &dof);
+    p = sl_test_chi2(obs, expct, N, &dof);
     printf("  1D discrete: p = %.4f (dof %d)\n", p, dof);
     CHECK(p > 0.01);
 
@@ -354,8 +324,8 @@ static void test_2d_fit(void)
             wrong[hv * HU + hu] = S * (mu / sum) * (mv / sum) / ((HU / NU) * (HV / NV));
         }
     int dof, wdof;
-    double p = chi2_test(obs, expct, HU * HV, &dof);
-    double pw = chi2_test(obs, wrong, HU * HV, &wdof);
+    double p = sl_test_chi2(obs, expct, HU * HV, &dof);
+    double pw = sl_test_chi2(obs, wrong, HU * HV, &wdof);
     printf("  2D: %d samples, p = %.4f (dof %d); independent-marginals pdf p = %.3g\n", S, p,
            dof, pw);
     CHECK(p > 0.01);
@@ -421,8 +391,8 @@ static void test_envmap_sampling(void)
     for (int i = 0; i < W * H; i++)
         wrong[i] *= S / wsum;
     int dof, wdof;
-    double p = chi2_test(obs, expct, W * H, &dof);
-    double pw = chi2_test(obs, wrong, W * H, &wdof);
+    double p = sl_test_chi2(obs, expct, W * H, &dof);
+    double pw = sl_test_chi2(obs, wrong, W * H, &wdof);
     printf("  envmap: p = %.4f (dof %d); luminance-only pdf p = %.3g; "
            "MC power %.6g vs %.6g (rel %.3g)\n",
            p, dof, pw, est, power, est / power - 1);

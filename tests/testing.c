@@ -156,3 +156,30 @@ int sl_test_finish(void)
 }
 
 const char *sl_test_errmsg(const sl_error *err) { return err ? err->message : ""; }
+
+double sl_test_chi2(const double *obs, const double *expct, int n, int *dof_out)
+{
+    double stat = 0.0, po = 0.0, pe = 0.0, last_o = 0.0, last_e = 0.0;
+    int bins = 0;
+    for (int i = 0; i < n; i++) {
+        if (expct[i] == 0.0 && obs[i] > 0.0)
+            return 0.0;
+        po += obs[i];
+        pe += expct[i];
+        if (pe >= 5.0) {
+            stat += (po - pe) * (po - pe) / pe;
+            bins++;
+            last_o = po;
+            last_e = pe;
+            po = pe = 0.0;
+        }
+    }
+    if (pe > 0.0 && bins > 0) { /* a remainder under 5 joins the last pooled bin */
+        stat -= (last_o - last_e) * (last_o - last_e) / last_e;
+        last_o += po;
+        last_e += pe;
+        stat += (last_o - last_e) * (last_o - last_e) / last_e;
+    }
+    *dof_out = bins - 1;
+    return sl_chi2_pvalue(stat, bins - 1);
+}

@@ -86,6 +86,11 @@ int sl_test_count_files(const char *dir);
 /* The whole file, NUL-terminated (for text), malloc'd; size may be NULL.
  * NULL when it cannot be read. */
 char *sl_test_read_file(const char *path, size_t *size);
+/* Pearson chi-square p-value of observed counts against expected counts
+ * (same total), pooling neighbouring bins until each pooled bin expects at
+ * least 5; *dof gets the degrees of freedom. A count in a bin that expects
+ * nothing is an outright failure (p = 0). */
+double sl_test_chi2(const double *obs, const double *expct, int n, int *dof);
 /* splitmix64 on a caller's state: the same numbers on every platform. */
 uint64_t sl_test_rand(uint64_t *state);
 /* Uniform in [0, 1) with 53 bits. */
