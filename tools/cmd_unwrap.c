@@ -100,11 +100,14 @@ static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
         for (size_t i = 0; i < v->photo.stride * (size_t)v->photo.height; i++)
             v->photo.data[i] = sl_srgb_to_linear(v->photo.data[i]);
     }
-    /* Geometry: focal length in pixels of this image, from the lens or the field of view. */
+    /* Geometry: focal length in pixels of this image (lens or field of view),
+     * distance in ball radii. */
     double focal_px, distance;
     ball_camera_opts_geometry(bc, v->photo.width, v->meta.focal_length_mm, &focal_px, &distance);
     if (focal_px > 0)
         o->geometry.focal_px = focal_px;
+    if (distance > 0)
+        o->geometry.distance = distance;
     v->detected = !have_circle;
     if (have_circle) {
         const sl_ball_circle *c = &o->circle;
@@ -329,8 +332,6 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     sl_error err;
     sl_result r;
 
-    if (bc.distance_mm > 0)
-        o->geometry.distance = bc.distance_mm / (0.5 * bc.diameter_mm);
     if ((r = load_view(&views[0], o, have_circle, &bc, &err)))
         goto fail;
     if (nviews == 2) {
