@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* Textured rect lights: the region's crop, resampled on the light's plane. */
 #include <math.h>
+#include <stdlib.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -112,20 +113,26 @@ static sl_result write_one(sl_rig *rig, const sl_image *env, int index, const ch
     return SL_OK;
 }
 
-/* Solid-angle-weighted coefficient of variation of the luminance above the
- * dome over the region's texels at least EDGE texels inside its edge (the
- * detector grows every region by 2 texels of soft edge; anti-aliased rims
- * would read as variation). 0 when fewer than SL_RIG_TEXTURE_MIN_TEXELS. */
+/* Per light: the solid-angle-weighted coefficient of variation of the
+ * luminance above the dome over its region's texels at least EDGE texels
+ * inside the edge (the detector grows every region by 2 texels of soft
+ * edge; anti-aliased rims would read as variation), and how many texels
+ * that is; the variation is 0 when fewer than SL_RIG_TEXTURE_MIN_TEXELS.
+ * One pass over the map for all lights. */
 #define EDGE 3
-static double region_variation(const sl_rig *rig, const sl_image *env, int label,
-                               int *interior)
+static sl_result region_variations(const sl_rig *rig, const sl_image *env, double *variation,
+                                   int *interior, sl_error *err)
 {
-    const int w = rig->width, h = rig->height;
-    rig_sum s0 = {0}, s1 = {0}, s2 = {0};
-    int n = 0;
-    for (int y = EDGE; y < h - EDGE; y++)
+    const int w = rig->width, h = rig->height, n = rig->light_count;
+    rig_sum *sums = calloc((size_t)3 * (n > 0 ? n : 1), sizeof *sums);
+    if (!sums)
+        return sl_error_set(err, SL_ERR_NOMEM, "rig textures: out of memory");
+    memset(interior, 0, (size_t)n * sizeof *interior);
+    for (int y = EDGE; y < h - EDGE; y++) {
+        double dw = cos(M_PI * (0.5 - (y + 0.5) / h));
         for (int x = 0; x < w; x++) {
-            if (rig->labels[(size_t)y * w + x] != label)
+            int label = rig->labels[(size_t)y * w + x];
+            if (label < 1 || label > n)
                 continue;
             bool inside = true;
             for (int j = -EDGE; j <= EDGE && inside; j++)
@@ -142,18 +149,21 @@ static double region_variation(const sl_rig *rig, const sl_image *env, int label
             }
             double e = rig_luma(o) - rig_luma(d);
             e = e > 0 ? e : 0;
-            double dw = cos(M_PI * (0.5 - (y + 0.5) / h));
-            rig_sum_add(&s0, dw);
-            rig_sum_add(&s1, e * dw);
-            rig_sum_add(&s2, e * e * dw);
-            n++;
+            rig_sum *s = &sums[3 * (label - 1)];
+            rig_sum_add(&s[0], dw);
+            rig_sum_add(&s[1], e * dw);
+            rig_sum_add(&s[2], e * e * dw);
+            interior[label - 1]++;
         }
-    *interior = n;
-    double W = rig_sum_get(&s0), m = W > 0 ? rig_sum_get(&s1) / W : 0;
-    if (n < SL_RIG_TEXTURE_MIN_TEXELS || !(m > 0))
-        return 0;
-    double var = rig_sum_get(&s2) / W - m * m;
-    return var > 0 ? sqrt(var) / m : 0;
+    }
+    for (int k = 0; k < n; k++) {
+        const rig_sum *s = &sums[3 * k];
+        double W = rig_sum_get(&s[0]), m = W > 0 ? rig_sum_get(&s[1]) / W : 0;
+        double var = m > 0 ? rig_sum_get(&s[2]) / W - m * m : 0;
+        variation[k] = interior[k] >= SL_RIG_TEXTURE_MIN_TEXELS && var > 0 ? sqrt(var) / m : 0;
+    }
+    free(sums);
+    return SL_OK;
 }
 
 sl_result sl_rig_write_textures_mode(sl_rig *rig, const sl_image *env, const char *prefix,
@@ -161,10 +171,16 @@ sl_result sl_rig_write_textures_mode(sl_rig *rig, const sl_image *env, const cha
 {
     if (!env || env->width != rig->width || env->height != rig->height || !rig->labels)
         return sl_error_set(err, SL_ERR_USAGE, "%s: textures need the rig's own map", prefix);
-    for (int i = 0; i < rig->light_count; i++) {
+    int count = rig->light_count > 0 ? rig->light_count : 1;
+    double *variation = malloc((size_t)count * sizeof *variation);
+    int *interior = malloc((size_t)count * sizeof *interior);
+    sl_result r = variation && interior
+                      ? region_variations(rig, env, variation, interior, err)
+                      : sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", prefix);
+    for (int i = 0; !r && i < rig->light_count; i++) {
         sl_rig_light *L = &rig->lights[i];
-        int n = 0;
-        L->variation = region_variation(rig, env, i + 1, &n);
+        int n = interior[i];
+        L->variation = variation[i];
         bool graded = L->variation >= SL_RIG_TEXTURE_VARIATION;
         char why[80];
         if (n < SL_RIG_TEXTURE_MIN_TEXELS)
@@ -187,13 +203,12 @@ sl_result sl_rig_write_textures_mode(sl_rig *rig, const sl_image *env, const cha
             tex = false;
         }
         snprintf(L->texture_reason, sizeof L->texture_reason, "%s (%s)", head, why);
-        if (!tex)
-            continue;
-        sl_result r = write_one(rig, env, i, prefix, err);
-        if (r)
-            return r;
+        if (tex)
+            r = write_one(rig, env, i, prefix, err);
     }
-    return SL_OK;
+    free(variation);
+    free(interior);
+    return r;
 }
 
 sl_result sl_rig_write_textures(sl_rig *rig, const sl_image *env, const char *prefix,
