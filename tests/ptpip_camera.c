@@ -423,15 +423,17 @@ static object *scene_picture(double t, double n, double iso)
     if (g.object_count == (int)(sizeof g.objects / sizeof g.objects[0]))
         return NULL;
     sl_camera_settings s = {t, n, iso};
-    sl_camera_file f;
+    sl_camera_shot f;
     sl_error err;
     if (sl_camera_set(g.scene, &s, &err) || sl_camera_capture(g.scene, &f, &err)) {
         fprintf(stderr, "ptpip_camera: %s\n", err.message);
         return NULL;
     }
     object *o = new_object();
-    o->jpeg = f.data;
-    o->size = f.size;
+    o->jpeg = f.files[0].data;
+    o->size = f.files[0].size;
+    f.files[0].data = NULL;
+    sl_camera_shot_free(&f);
     g.object_count++;
     g.captures++;
     return o;

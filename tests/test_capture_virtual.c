@@ -231,12 +231,14 @@ static void test_camera_interface(void)
     CHECK_OK(sl_camera_get(cam, &now, &err), &err);
     CHECK_NEAR(now.exposure_time, 1.0 / 125, 1e-12);
     CHECK(now.f_number == 8 && now.iso == 400);
-    sl_camera_file file;
-    CHECK_OK(sl_camera_capture(cam, &file, &err), &err);
-    CHECK(!strcmp(file.source, "/DCIM/100VSET/IMG_0001.JPG") && file.busy_retries == 0);
+    sl_camera_shot shot;
+    CHECK_OK(sl_camera_capture(cam, &shot, &err), &err);
+    sl_camera_file *file = &shot.files[0];
+    CHECK(shot.count == 1 && shot.expected == 1 && shot.busy_retries == 0);
+    CHECK(!strcmp(file->source, "/DCIM/100VSET/IMG_0001.JPG"));
     const char *path = sl_test_path("one.jpg");
-    CHECK_OK(sl_write_file_atomic(path, file.data, file.size, &err), &err);
-    sl_camera_file_free(&file);
+    CHECK_OK(sl_write_file_atomic(path, file->data, file->size, &err), &err);
+    sl_camera_shot_free(&shot);
     sl_image img;
     sl_meta meta;
     CHECK_OK(sl_photo_read(path, &img, &meta, &err), &err);
@@ -615,9 +617,10 @@ static void test_ingest_subsecond(void)
         for (int b = 0; b < brackets[v]; b++)
             for (int k = 0; k < 5; k++) {
                 sl_camera_settings s = {speeds[k], 0, 0};
-                sl_camera_file f;
+                sl_camera_shot shot;
                 CHECK_OK(sl_camera_set(cam, &s, &err), &err);
-                CHECK_OK(sl_camera_capture(cam, &f, &err), &err);
+                CHECK_OK(sl_camera_capture(cam, &shot, &err), &err);
+                const sl_camera_file f = shot.files[0];
                 char path[4096];
                 snprintf(path, sizeof path, "%s/X%04d.JPG", card, names[n]);
                 CHECK_OK(sl_write_file_atomic(path, f.data, f.size, &err), &err);
@@ -626,7 +629,7 @@ static void test_ingest_subsecond(void)
                 r->bracket = b;
                 r->index = k;
                 sl_sha256_hex(f.data, f.size, r->sha);
-                sl_camera_file_free(&f);
+                sl_camera_shot_free(&shot);
                 sl_meta meta;
                 int w, h, c;
                 if (!sl_photo_read_meta(path, &meta, &w, &h, &c, &err)) {
