@@ -287,7 +287,7 @@ done:
     json_t *session = json_load_file(sp, 0, NULL);
     json_t *jformat = json_object_get(json_object_get(session, "camera"), "format");
     json_t *jlabel = json_object_get(json_object_get(session, "camera"), "format_label");
-    if (json_string_value(jlabel) && *json_string_value(jlabel) && !cli->quiet && !cli->json)
+    if (!r && json_string_value(jlabel) && *json_string_value(jlabel) && !cli->quiet && !cli->json)
         sl_log(SL_LOG_INFO, "image format %s: the camera's '%s'", json_string_value(jformat),
                json_string_value(jlabel));
     if (cli->json) {
