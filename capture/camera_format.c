@@ -177,21 +177,22 @@ sl_result sl_camera_set_format(sl_camera *camera, sl_image_format format, char *
         snprintf(label, 64, "%s", ch.labels[i]);
     char want[64];
     snprintf(want, sizeof want, "%s", ch.labels[i]);
-    for (int attempt = 0; strcmp(ch.current, want) != 0; attempt++) {
+    /* written even when it already reads right: a body can read back a
+     * format it does not shoot */
+    for (int attempt = 0;; attempt++) {
         camera->busy = false;
         r = camera->ops->set_format(camera, want, err);
-        if (r && camera->busy && attempt < 8) {
-            sl_camera_backoff(attempt);
-            continue;
-        }
-        if (r || (r = read_choices(camera, &ch, err)))
-            return r;
-        if (strcmp(ch.current, want) != 0)
-            return sl_error_set(err, SL_ERR_CAMERA,
-                                "%s: the camera ignored the image format change: it reads '%s' "
-                                "after being set to '%s'",
-                                camera->port, ch.current, want);
+        if (!r || !camera->busy || attempt >= 8)
+            break;
+        sl_camera_backoff(attempt);
     }
+    if (r || (r = read_choices(camera, &ch, err)))
+        return r;
+    if (strcmp(ch.current, want) != 0)
+        return sl_error_set(err, SL_ERR_CAMERA,
+                            "%s: the camera ignored the image format change: it reads '%s' "
+                            "after being set to '%s'",
+                            camera->port, ch.current, want);
     remember(camera, format);
     return SL_OK;
 }

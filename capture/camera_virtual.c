@@ -49,6 +49,7 @@ typedef struct vcam {
     double f_number, iso;
     int shutter_changes;
     int format;        /* index into k_formats: what the body writes */
+    int format_shown;  /* what its setting reads */
     int format_changes;
     int delivered; /* frames on the card */
     int busy_left, down_left;
@@ -179,7 +180,7 @@ static sl_result v_format_choices(sl_camera *c, char (*labels)[64], int max, int
     *count = 0;
     for (int i = 0; i < COUNT(k_formats) && i < max; i++)
         snprintf(labels[(*count)++], 64, "%s", k_formats[i]);
-    snprintf(current, 64, "%s", k_formats[v->format]);
+    snprintf(current, 64, "%s", k_formats[v->format_shown]);
     return SL_OK;
 }
 
@@ -190,9 +191,13 @@ static sl_result v_set_format(sl_camera *c, const char *label, sl_error *err)
         return lost(c, err);
     for (int i = 0; i < COUNT(k_formats); i++)
         if (!strcmp(label, k_formats[i])) {
-            /* the k-th change is acknowledged, not applied */
-            if (i != v->format && ++v->format_changes != v->o.ignore_format)
+            /* the k-th change is acknowledged, not applied (a body that
+             * lies even reads back the new format) */
+            bool ignored = i != v->format && ++v->format_changes == v->o.ignore_format;
+            if (!ignored)
                 v->format = i;
+            if (!ignored || v->o.format_lies)
+                v->format_shown = i;
             return SL_OK;
         }
     return sl_error_set(err, SL_ERR_CAMERA, "%s: setting imagequality to '%s' failed: no such value",

@@ -431,6 +431,7 @@ typedef struct sl_virtual_camera_opts {
     int drop_after;           /* the connection drops at the trigger of frame N+1 */
     int down_attempts;        /* reconnections refused after the drop (-1: all) */
     int ignore_format;        /* the k-th image-format change is acknowledged, not applied */
+    bool format_lies;         /* ...and the setting reads back as changed */
     int drop_before_raw;      /* raw+jpeg: the connection drops after frame N's JPEG */
 } sl_virtual_camera_opts;
 sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
