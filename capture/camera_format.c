@@ -89,9 +89,9 @@ sl_image_format sl_image_format_of_label(const char *label, int *rank)
                    ? 0
                : has_word(l, "medium") || has_word(l, "m1") || has_word(l, "m2") ? 1
                                                                                  : 2;
+    int raw_rank = !raw ? 0 : small_raw ? 0 : lossy_raw ? 1 : 2;
     if (rank)
-        *rank = (raw ? (small_raw ? 0 : lossy_raw ? 1 : 2) : 0) * 100 + quality * 10 + size * 2 -
-                (strchr(l, '*') != NULL);
+        *rank = raw_rank * 100 + quality * 10 + size * 2 - (strchr(l, '*') != NULL);
     return raw && jpeg ? SL_FORMAT_RAW_JPEG : raw ? SL_FORMAT_RAW : jpeg ? SL_FORMAT_JPEG
                                                                          : SL_FORMAT_KEEP;
 }
@@ -146,35 +146,37 @@ static void remember(sl_camera *c, sl_image_format format)
     c->files_per_shot = format == SL_FORMAT_RAW_JPEG ? 2 : 1;
 }
 
-sl_result sl_camera_format_choice(sl_camera *camera, sl_image_format format, char *label,
-                                  sl_error *err)
+/* The camera's choices and the index of the best for `format`; `label`
+ * (may be NULL) gets it. */
+static sl_result pick(sl_camera *c, sl_image_format format, choices *ch, int *index, char *label,
+                      sl_error *err)
 {
     if (label)
         label[0] = 0;
+    sl_result r = read_choices(c, ch, err);
+    if (!r)
+        r = choose(c, ch, format, index, err);
+    if (!r && label)
+        snprintf(label, 64, "%s", ch->labels[*index]);
+    return r;
+}
+
+sl_result sl_camera_format_choice(sl_camera *camera, sl_image_format format, char *label,
+                                  sl_error *err)
+{
     choices ch;
     int i;
-    sl_result r = read_choices(camera, &ch, err);
-    if (!r)
-        r = choose(camera, &ch, format, &i, err);
-    if (!r && label)
-        snprintf(label, 64, "%s", ch.labels[i]);
-    return r;
+    return pick(camera, format, &ch, &i, label, err);
 }
 
 sl_result sl_camera_set_format(sl_camera *camera, sl_image_format format, char *label,
                                sl_error *err)
 {
-    if (label)
-        label[0] = 0;
     choices ch;
     int i;
-    sl_result r = read_choices(camera, &ch, err);
-    if (!r)
-        r = choose(camera, &ch, format, &i, err);
+    sl_result r = pick(camera, format, &ch, &i, label, err);
     if (r)
         return r;
-    if (label)
-        snprintf(label, 64, "%s", ch.labels[i]);
     char want[64];
     snprintf(want, sizeof want, "%s", ch.labels[i]);
     /* written even when it already reads right: a body can read back a

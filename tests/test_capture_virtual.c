@@ -296,9 +296,10 @@ static void test_full_capture(void)
     sl_camera_close(cam);
 }
 
-/* Runs a 1 x 7 session with these faults; returns the journal. */
-static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result want,
-                        sl_error *err, double **times_out)
+/* Runs a 1 x 7 session in `format` with these faults, reconnecting for
+ * `reconnect` seconds; returns the journal. */
+static json_t *run_format(const char *name, sl_virtual_camera_opts *vo, sl_image_format format,
+                          double reconnect, sl_result want, sl_error *err, double **times_out)
 {
     sl_camera *cam = open_virtual(vo);
     if (!cam)
@@ -306,6 +307,8 @@ static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result 
     double *times;
     int n = plan(cam, &times);
     sl_capture_options o = options(sl_test_path(name), times, n, 1);
+    o.format = format;
+    o.reconnect_seconds = reconnect;
     CHECK_RESULT(sl_capture_run(cam, &o, err), want, err);
     sl_camera_close(cam);
     if (want == SL_OK)
@@ -315,6 +318,13 @@ static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result 
     else
         free(times);
     return journal(o.dir);
+}
+
+/* The same in the camera's format, reconnecting for 5 s. */
+static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result want,
+                        sl_error *err, double **times_out)
+{
+    return run_format(name, vo, SL_FORMAT_KEEP, 5, want, err, times_out);
 }
 
 static void test_ignored_shutter(void)
@@ -586,26 +596,6 @@ static void test_disconnect_and_resume(void)
     free(times);
 }
 
-/* Runs a 1 x 7 session in `format` with these faults; returns the journal. */
-static json_t *run_format(const char *name, sl_virtual_camera_opts *vo, sl_image_format format,
-                          sl_result want, sl_error *err, double **times_out)
-{
-    sl_camera *cam = open_virtual(vo);
-    if (!cam)
-        return json_array();
-    double *times;
-    int n = plan(cam, &times);
-    sl_capture_options o = options(sl_test_path(name), times, n, 1);
-    o.format = format;
-    o.reconnect_seconds = -1;
-    CHECK_RESULT(sl_capture_run(cam, &o, err), want, err);
-    sl_camera_close(cam);
-    if (want == SL_OK)
-        check_session(o.dir, 1, n, times);
-    *times_out = times;
-    return journal(o.dir);
-}
-
 /* Every accepted frame of `dir` is a DNG with one JPEG sibling, both on
  * disk with their journalled SHA-256; session.json lists the siblings and
  * the format with the camera's label. */
@@ -653,7 +643,7 @@ static void test_raw_jpeg(void)
     double *times;
     vopts(&vo);
     double t0 = sl_seconds();
-    json_t *j = run_format("rawjpeg", &vo, SL_FORMAT_RAW_JPEG, SL_OK, &err, &times);
+    json_t *j = run_format("rawjpeg", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
     printf("1x7 raw+jpeg with the virtual camera: %.2f s\n", sl_seconds() - t0);
     check_raw_jpeg(sl_test_path("rawjpeg"), 7);
     CHECK(sl_test_count_files(sl_test_path("rawjpeg")) == 14 + 2);
@@ -665,7 +655,7 @@ static void test_raw_jpeg(void)
 
     /* raw alone: the DNG is decoded, so its pixels are measured too */
     vopts(&vo);
-    j = run_format("rawonly", &vo, SL_FORMAT_RAW, SL_OK, &err, &times);
+    j = run_format("rawonly", &vo, SL_FORMAT_RAW, 5, SL_OK, &err, &times);
     json_t *acc = events(j, "frame", 1);
     size_t i;
     json_t *e;
@@ -690,7 +680,7 @@ static void test_format_ignored(void)
     /* the change is ignored and reads back unchanged: set again */
     vopts(&vo);
     vo.ignore_format = 1;
-    json_t *j = run_format("fmt_ignored", &vo, SL_FORMAT_RAW_JPEG, SL_OK, &err, &times);
+    json_t *j = run_format("fmt_ignored", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
     json_t *fmt = events(j, "format", -1);
     CHECK(json_array_size(fmt) == 2);
     CHECK(json_is_false(json_object_get(json_array_get(fmt, 0), "ok")) &&
@@ -706,7 +696,7 @@ static void test_format_ignored(void)
     vopts(&vo);
     vo.ignore_format = 1;
     vo.format_lies = true;
-    j = run_format("fmt_lies", &vo, SL_FORMAT_RAW_JPEG, SL_OK, &err, &times);
+    j = run_format("fmt_lies", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
     json_t *rej = events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
     json_t *r = json_array_get(rej, 0);
@@ -728,7 +718,7 @@ static void test_drop_between_files(void)
     double *times;
     vopts(&vo);
     vo.drop_before_raw = 3;
-    json_t *j = run_format("fmt_drop", &vo, SL_FORMAT_RAW_JPEG, SL_ERR_CAMERA, &err, &times);
+    json_t *j = run_format("fmt_drop", &vo, SL_FORMAT_RAW_JPEG, -1, SL_ERR_CAMERA, &err, &times);
     const char *dir = sl_test_path("fmt_drop");
     json_t *rej = events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
