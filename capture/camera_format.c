@@ -42,7 +42,7 @@ sl_image_format sl_image_format_of_file(const char *name)
         if (!strcasecmp(dot + 1, k_raw_ext[i]))
             return SL_FORMAT_RAW;
     return !strcasecmp(dot + 1, "jpg") || !strcasecmp(dot + 1, "jpeg") ? SL_FORMAT_JPEG
-                                                                          : SL_FORMAT_KEEP;
+                                                                       : SL_FORMAT_KEEP;
 }
 
 /* Whole words only: "Fine" is not in "Finest", "RAW" not in "Drawing". */
@@ -84,16 +84,17 @@ sl_image_format sl_image_format_of_label(const char *label, int *rank)
     bool jpeg = has_word(l, "jpeg") || has_word(l, "jpg") || quality > 0;
     if (jpeg && quality == 0)
         quality = 2;
-    int size = has_word(l, "small") || has_word(l, "s1") || has_word(l, "s2") ||
-                       has_word(l, "s3")
+    int size = has_word(l, "small") || has_word(l, "s1") || has_word(l, "s2") || has_word(l, "s3")
                    ? 0
                : has_word(l, "medium") || has_word(l, "m1") || has_word(l, "m2") ? 1
                                                                                  : 2;
     int raw_rank = !raw ? 0 : small_raw ? 0 : lossy_raw ? 1 : 2;
     if (rank)
         *rank = raw_rank * 100 + quality * 10 + size * 2 - (strchr(l, '*') != NULL);
-    return raw && jpeg ? SL_FORMAT_RAW_JPEG : raw ? SL_FORMAT_RAW : jpeg ? SL_FORMAT_JPEG
-                                                                         : SL_FORMAT_KEEP;
+    return raw && jpeg ? SL_FORMAT_RAW_JPEG
+           : raw       ? SL_FORMAT_RAW
+           : jpeg      ? SL_FORMAT_JPEG
+                       : SL_FORMAT_KEEP;
 }
 
 #define MAX_CHOICES 64
@@ -137,8 +138,9 @@ static sl_result choose(sl_camera *c, const choices *ch, sl_image_format format,
         size_t n = strlen(list);
         snprintf(list + n, sizeof list - n, "%s'%s'", i ? ", " : "", ch->labels[i]);
     }
-    return sl_error_set(err, SL_ERR_USAGE, "%s: the camera offers no %s image format (its choices: %s)",
-                        c->port, sl_image_format_name(format), ch->count ? list : "none");
+    return sl_error_set(err, SL_ERR_USAGE,
+                        "%s: the camera offers no %s image format (its choices: %s)", c->port,
+                        sl_image_format_name(format), ch->count ? list : "none");
 }
 
 static void remember(sl_camera *c, sl_image_format format)

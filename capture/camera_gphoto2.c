@@ -326,8 +326,7 @@ static sl_result download(sl_camera *c, const CameraFilePath *path, sl_camera_fi
 }
 
 /* Downloads the next file of the shot. */
-static sl_result take(sl_camera *c, const CameraFilePath *path, sl_camera_shot *shot,
-                      sl_error *err)
+static sl_result take(sl_camera *c, const CameraFilePath *path, sl_camera_shot *shot, sl_error *err)
 {
     sl_result r = download(c, path, &shot->files[shot->count], err);
     if (!r)
@@ -413,10 +412,9 @@ static void gp_close(void *impl)
     free(g);
 }
 
-static const sl_camera_ops k_ops = {"gphoto2",         gp_shutter_speeds, gp_set,
-                                    gp_get,            gp_format_choices, gp_set_format,
-                                    gp_capture,        NULL,              gp_reconnect,
-                                    gp_close};
+static const sl_camera_ops k_ops = {"gphoto2",         gp_shutter_speeds, gp_set,     gp_get,
+                                    gp_format_choices, gp_set_format,     gp_capture, NULL,
+                                    gp_reconnect,      gp_close};
 
 static sl_result autodetect(GPContext *ctx, CameraList **list, sl_error *err)
 {

@@ -48,8 +48,8 @@ typedef struct vcam {
     double actual_shutter; /* what it exposes with */
     double f_number, iso;
     int shutter_changes;
-    int format;        /* index into k_formats: what the body writes */
-    int format_shown;  /* what its setting reads */
+    int format;       /* index into k_formats: what the body writes */
+    int format_shown; /* what its setting reads */
     int format_changes;
     int delivered; /* frames on the card */
     int busy_left, down_left;
@@ -200,8 +200,8 @@ static sl_result v_set_format(sl_camera *c, const char *label, sl_error *err)
                 v->format_shown = i;
             return SL_OK;
         }
-    return sl_error_set(err, SL_ERR_CAMERA, "%s: setting imagequality to '%s' failed: no such value",
-                        c->port, label);
+    return sl_error_set(err, SL_ERR_CAMERA,
+                        "%s: setting imagequality to '%s' failed: no such value", c->port, label);
 }
 
 /* The EXIF the body writes for the frame it is about to deliver. */
@@ -232,8 +232,8 @@ static void deliver(sl_camera_shot *shot, unsigned char *data, size_t size, int 
 
 /* The in-camera JPEG (sRGB-encoded) and/or the raw (a DNG of the linear
  * output) of one exposure, as the image format says. */
-static sl_result write_files(sl_camera *c, const sl_vset_shot *img, int frame,
-                             sl_camera_shot *shot, sl_error *err)
+static sl_result write_files(sl_camera *c, const sl_vset_shot *img, int frame, sl_camera_shot *shot,
+                             sl_error *err)
 {
     vcam *v = c->impl;
     sl_meta meta;
@@ -334,9 +334,9 @@ static void v_close(void *impl)
     free(v);
 }
 
-static const sl_camera_ops k_ops = {
-    "virtual", v_shutter_speeds, v_set, v_get, v_format_choices, v_set_format,
-    v_capture, v_aim,            v_reconnect, v_close};
+static const sl_camera_ops k_ops = {"virtual",        v_shutter_speeds, v_set,     v_get,
+                                    v_format_choices, v_set_format,     v_capture, v_aim,
+                                    v_reconnect,      v_close};
 
 sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_error *err)
 {

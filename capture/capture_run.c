@@ -162,8 +162,8 @@ static void order_files(sl_camera_shot *shot)
 }
 
 /* Writes every file of the shot atomically with its SHA-256. */
-static sl_result save_shot(const run_state *s, int v, int i, sl_camera_shot *shot,
-                           saved_file *out, sl_error *err)
+static sl_result save_shot(const run_state *s, int v, int i, sl_camera_shot *shot, saved_file *out,
+                           sl_error *err)
 {
     order_files(shot);
     sl_result r = shot_names(s, v, i, shot, out, err);
@@ -282,8 +282,7 @@ static bool verify(run_state *s, int v, const char *path, sl_image_format kind, 
         bool off = rep->configured > 0 && fabs(log2(rep->configured / planned)) > tol;
         if (off)
             snprintf(rep->reason, sizeof rep->reason,
-                     "the camera's setting reads %.6g s, planned %.6g s", rep->configured,
-                     planned);
+                     "the camera's setting reads %.6g s, planned %.6g s", rep->configured, planned);
         return false;
     }
     if (!readable) {
@@ -299,9 +298,9 @@ static bool verify(run_state *s, int v, const char *path, sl_image_format kind, 
         rep->expected_ratio = planned / s->prev_time;
     }
     bool exif_bad = rep->reported > 0 && fabs(log2(rep->reported / planned)) > tol;
-    bool pixels_bad = rep->measured_ratio > 0 && fabs(log2(rep->measured_ratio /
-                                                           rep->expected_ratio)) >
-                                                     (tol > 0.5 ? tol : 0.5);
+    bool pixels_bad =
+        rep->measured_ratio > 0 &&
+        fabs(log2(rep->measured_ratio / rep->expected_ratio)) > (tol > 0.5 ? tol : 0.5);
     json_object_set_new(ev, "exif_ok", rep->reported > 0 ? json_boolean(!exif_bad) : json_null());
     json_object_set_new(ev, "pixels_ok",
                         rep->measured_ratio > 0 ? json_boolean(!pixels_bad) : json_null());
@@ -750,8 +749,8 @@ static sl_result check_intact(const char *dir, json_t *frame, size_t line, sl_er
         const char *file = json_string_value(json_object_get(f, "file"));
         const char *sha = json_string_value(json_object_get(f, "sha256"));
         if (!file || !sha)
-            return sl_error_set(err, SL_ERR_INPUT, "%s: corrupt journal: bad frame event %zu",
-                                dir, line + 1);
+            return sl_error_set(err, SL_ERR_INPUT, "%s: corrupt journal: bad frame event %zu", dir,
+                                line + 1);
         char path[4096], hex[65];
         sl_result r = sl_capture_path(path, sizeof path, dir, file, err);
         if (r)

@@ -432,29 +432,29 @@ sl_result sl_dng_encode(const sl_image *linear, const sl_meta *meta, int subsec_
     /* camera RGB is linear Rec.709: ColorMatrix1 is XYZ (D65) to Rec.709 */
     static const long xyz_to_rgb[9] = {32406, -15372, -4986, -9689, 18758, 415, 557, -2040, 10570};
     static const long neutral[3] = {1, 1, 1};
-    long1(&ifd0[n0++], 0x00FE, 0);        /* NewSubFileType: the main image */
+    long1(&ifd0[n0++], 0x00FE, 0); /* NewSubFileType: the main image */
     long1(&ifd0[n0++], 0x0100, w);
     long1(&ifd0[n0++], 0x0101, h);
     shorts(&ifd0[n0++], 0x0102, bits, 3);
-    short1(&ifd0[n0++], 0x0103, 1);       /* uncompressed */
-    short1(&ifd0[n0++], 0x0106, 34892);   /* LinearRaw */
+    short1(&ifd0[n0++], 0x0103, 1);     /* uncompressed */
+    short1(&ifd0[n0++], 0x0106, 34892); /* LinearRaw */
     ascii(&ifd0[n0++], 0x010F, meta->make);
     ascii(&ifd0[n0++], 0x0110, meta->model);
     entry *strip = &ifd0[n0];
-    long1(&ifd0[n0++], 0x0111, 0);        /* StripOffsets, filled below */
+    long1(&ifd0[n0++], 0x0111, 0); /* StripOffsets, filled below */
     short1(&ifd0[n0++], 0x0112, 1);
     short1(&ifd0[n0++], 0x0115, 3);
     long1(&ifd0[n0++], 0x0116, h);
     long1(&ifd0[n0++], 0x0117, w * h * 6);
-    short1(&ifd0[n0++], 0x011C, 1);       /* chunky */
+    short1(&ifd0[n0++], 0x011C, 1); /* chunky */
     ascii(&ifd0[n0++], 0x0132, meta->datetime);
     entry *link = &ifd0[n0];
-    long1(&ifd0[n0++], 0x8769, 0);        /* Exif IFD, filled below */
+    long1(&ifd0[n0++], 0x8769, 0);                                     /* Exif IFD, filled below */
     bytes4(&ifd0[n0++], 0xC612, (const unsigned char[4]){1, 4, 0, 0}); /* DNGVersion */
-    ascii(&ifd0[n0++], 0xC614, meta->model); /* UniqueCameraModel */
-    long1(&ifd0[n0++], 0xC61D, 65535);                       /* WhiteLevel */
-    rationals(&ifd0[n0++], 0xC621, 10, xyz_to_rgb, 9, 10000); /* ColorMatrix1 */
-    rationals(&ifd0[n0++], 0xC628, 5, neutral, 3, 1);        /* AsShotNeutral */
+    ascii(&ifd0[n0++], 0xC614, meta->model);                           /* UniqueCameraModel */
+    long1(&ifd0[n0++], 0xC61D, 65535);                                 /* WhiteLevel */
+    rationals(&ifd0[n0++], 0xC621, 10, xyz_to_rgb, 9, 10000);          /* ColorMatrix1 */
+    rationals(&ifd0[n0++], 0xC628, 5, neutral, 3, 1);                  /* AsShotNeutral */
     /* WhiteLevel 65535 and BlackLevel 0 are the defaults for 16 bits;
      * CalibrationIlluminant1 must follow AsShotNeutral in tag order. */
     short1(&ifd0[n0++], 0xC65A, 21); /* D65 */

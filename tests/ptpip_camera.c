@@ -962,8 +962,7 @@ int main(int argc, char **argv)
             g_quality_count = 0;
             for (const char *c = v; *c && g_quality_count < 8; c += strcspn(c, ","), c += !!*c)
                 g_qualities[g_quality_count++] = (uint8_t)atoi(c);
-        }
-        else {
+        } else {
             fprintf(stderr, "ptpip_camera: unknown option %s\n", a);
             return 2;
         }

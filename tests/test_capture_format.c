@@ -119,8 +119,8 @@ static void test_dng(void)
         CHECK_NEAR(got.f_number, 8, 1e-6);
         /* linear: ratio 4 between 1/8 and 1/2 */
         float a = sl_image_pixel(&back, 29, 8)[1], b = sl_image_pixel(&back, 125, 8)[1];
-        printf("dng (%s): %.5f at 1/8, %.5f at 1/2 (ratio %.4f), %.5f at 1\n", got.format, a, b, b / a,
-               sl_image_pixel(&back, 253, 8)[1]);
+        printf("dng (%s): %.5f at 1/8, %.5f at 1/2 (ratio %.4f), %.5f at 1\n", got.format, a, b,
+               b / a, sl_image_pixel(&back, 253, 8)[1]);
         CHECK_NEAR(b / a, 4.0, 0.02);
         /* saturation is where the decoder puts it (LibRaw: about 2.22), the
          * scale is the same everywhere: verification measures ratios */

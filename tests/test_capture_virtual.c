@@ -321,8 +321,8 @@ static json_t *run_format(const char *name, sl_virtual_camera_opts *vo, sl_image
 }
 
 /* The same in the camera's format, reconnecting for 5 s. */
-static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result want,
-                        sl_error *err, double **times_out)
+static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result want, sl_error *err,
+                        double **times_out)
 {
     return run_format(name, vo, SL_FORMAT_KEEP, 5, want, err, times_out);
 }
@@ -608,8 +608,8 @@ static void check_raw_jpeg(const char *dir, int count)
     json_array_foreach(acc, i, e)
     {
         json_t *sib = json_object_get(e, "siblings");
-        CHECK_MSG(strstr(str(e, "file"), ".dng") && json_array_size(sib) == 1,
-                  "%s: %zu siblings", str(e, "file"), json_array_size(sib));
+        CHECK_MSG(strstr(str(e, "file"), ".dng") && json_array_size(sib) == 1, "%s: %zu siblings",
+                  str(e, "file"), json_array_size(sib));
         json_t *f = json_array_get(sib, 0);
         CHECK(strstr(str(f, "file"), ".jpg") && strstr(str(f, "source"), ".JPG"));
         CHECK(!strcmp(str(e, "verified_on"), str(f, "file")));
@@ -626,9 +626,11 @@ static void check_raw_jpeg(const char *dir, int count)
     snprintf(sp, sizeof sp, "%s/session.json", dir);
     json_t *s = json_load_file(sp, 0, NULL);
     json_t *cam = json_object_get(s, "camera");
-    CHECK(!strcmp(str(cam, "format"), "raw+jpeg") && !strcmp(str(cam, "format_label"), "RAW + JPEG Fine"));
+    CHECK(!strcmp(str(cam, "format"), "raw+jpeg") &&
+          !strcmp(str(cam, "format_label"), "RAW + JPEG Fine"));
     json_t *fr = json_object_get(
-        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"), 0),
+        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
+                       0),
         "frames");
     int with = 0;
     json_array_foreach(fr, i, e) with += json_array_size(json_object_get(e, "siblings")) == 1;
@@ -700,7 +702,8 @@ static void test_format_ignored(void)
     json_t *rej = events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
     json_t *r = json_array_get(rej, 0);
-    CHECK(ival(r, "index") == 0 && strstr(str(r, "reason"), "delivered jpeg, the plan is raw+jpeg") &&
+    CHECK(ival(r, "index") == 0 &&
+          strstr(str(r, "reason"), "delivered jpeg, the plan is raw+jpeg") &&
           !strcmp(str(r, "file"), "v00_f00.jpg"));
     check_raw_jpeg(sl_test_path("fmt_lies"), 7);
     json_decref(rej);
@@ -740,7 +743,8 @@ static void test_drop_between_files(void)
     char *before = sl_test_read_file(sl_test_path("fmt_drop/journal.jsonl"), NULL);
     ro.format = SL_FORMAT_JPEG;
     CHECK_RESULT(sl_capture_resume(cam, &ro, dir, &err), SL_ERR_USAGE, &err);
-    CHECK(strstr(err.message, dir) && strstr(err.message, "raw+jpeg") && strstr(err.message, "jpeg"));
+    CHECK(strstr(err.message, dir) && strstr(err.message, "raw+jpeg") &&
+          strstr(err.message, "jpeg"));
     char *same = sl_test_read_file(sl_test_path("fmt_drop/journal.jsonl"), NULL);
     CHECK(before && same && !strcmp(before, same));
     free(before);

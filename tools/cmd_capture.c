@@ -229,7 +229,8 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
     if ((r = sl_camera_open(port, &camera, &err)))
         return cli_fail(cli, &err);
     sl_capture_options o = {.dir = out, .views = views, .f_number = aperture, .iso = iso,
-                            .format = format, .max_attempts = attempts, .reconnect_seconds = reconnect > 0 ? reconnect : -1,
+                            .format = format, .max_attempts = attempts,
+                            .reconnect_seconds = reconnect > 0 ? reconnect : -1,
                             .step = step, .on_frame = on_frame, .ctx = &sc};
     json_t *snaps = json_array();
     if (resume) {
