@@ -6,7 +6,7 @@
  *   ptpip_camera [--port N] [--lifetime S] [--busy N] [--busy-at K]
  *                [--ignore-shutter K] [--refuse-shutter K] [--drop-after N]
  *                [--drop-at-set K] [--scene NAME] [--qualities LIST]
- *                [--ignore-format K] [--drop-before-raw N]
+ *                [--ignore-format K] [--drop-before-raw N] [--quality V]
  *
  * Prints "PORT n" on stdout once listening (port 0 or absent: picks a free one).
  * Faults: --busy N answers the next N InitiateCapture requests from capture
@@ -25,7 +25,7 @@
  * labels them ("imagequality": 0 JPEG Basic, 1 JPEG Normal, 2 JPEG Fine,
  * 4 NEF (Raw), 5 NEF+Basic, 6 NEF+Normal, 7 NEF+Fine; default JPEG Fine).
  * --qualities LIST offers only those values (e.g. 0,1,2: a body without
- * raw). In a raw mode a trigger adds the raw (a linear DNG, IMG_nnnn.DNG,
+ * raw); --quality V starts at V (as set on the body before the session). In a raw mode a trigger adds the raw (a linear DNG, IMG_nnnn.DNG,
  * ObjectFormat TIFF/EP) after the JPEG (or alone for NEF (Raw)): two
  * ObjectAdded events, then CaptureComplete. --ignore-format K acks the K-th
  * quality change without applying it; --drop-before-raw N closes the
@@ -921,7 +921,7 @@ out:
 
 int main(int argc, char **argv)
 {
-    int port = 0;
+    int port = 0, start_quality = 2; /* JPEG Fine */
     double lifetime = 120;
     g.busy_at = 1;
     for (int i = 1; i < argc; i++) {
@@ -958,6 +958,8 @@ int main(int argc, char **argv)
             g.ignore_format = atoi(v);
         else if (!strcmp(a, "--drop-before-raw"))
             g.drop_before_raw = atoi(v);
+        else if (!strcmp(a, "--quality"))
+            start_quality = atoi(v);
         else if (!strcmp(a, "--qualities")) {
             g_quality_count = 0;
             for (const char *c = v; *c && g_quality_count < 8; c += strcspn(c, ","), c += !!*c)
@@ -981,8 +983,8 @@ int main(int argc, char **argv)
     g.iso = 100;
     g.quality = g_qualities[0];
     for (int i = 0; i < g_quality_count; i++)
-        if (g_qualities[i] == 2) /* JPEG Fine when offered */
-            g.quality = 2;
+        if (g_qualities[i] == start_quality)
+            g.quality = (uint32_t)start_quality;
     g_debug = getenv("PTPIP_CAMERA_DEBUG") != NULL;
     signal(SIGPIPE, SIG_IGN);
     int lfd = socket(AF_INET, SOCK_STREAM, 0);

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # setlight capture --format through the real libgphoto2 and the PTP/IP
 # emulator (CompressionSetting 0x5004, labelled by ptp2 as a Nikon body's
-# "imagequality"): raw+jpeg shots with both files and siblings, raw alone,
+# "imagequality"): raw+jpeg shots with both files and siblings, a body left
+# in raw+jpeg (keep), raw alone,
 # a format change the camera ignores, a format it does not offer, a drop
 # between a shot's JPEG and raw then --resume, another --format on resume.
 . "$(dirname "$0")/lib.bash"
@@ -40,12 +41,22 @@ check_pairs "$T/pair" 21 "NEF+Fine"
 json_eval "$T/out" 'd["format"] == "raw+jpeg" and d["format_label"] == "NEF+Fine" and d["frames"] == 21'
 n=$(ls "$T/pair" | wc -l)
 if [ "$n" -eq 44 ]; then ok; else bad "$n files in the raw+jpeg session, want 42 + 2"; fi
-expect 0 cap --quiet --camera "ptpip:127.0.0.1:$PORT" --format jpeg --bracket 7x3 --center 1/30 --views 3 --no-prompt -o "$T/jpeg"
 t2=$(date +%s.%N)
+expect 0 cap --quiet --camera "ptpip:127.0.0.1:$PORT" --format jpeg --bracket 7x3 --center 1/30 --views 3 --no-prompt -o "$T/jpeg"
+t3=$(date +%s.%N)
 check_session "$T/jpeg" 3 7
 python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); f=[f for v in s["views"] for b in v["brackets"] for f in b["frames"]]; sys.exit(0 if s["camera"]["format_label"]=="JPEG Fine" and all(x["file"].endswith(".jpg") and "siblings" not in x for x in f) else 1)' \
   "$T/jpeg/session.json" && ok || bad "jpeg session"
-awk -v a="$t0" -v b="$t1" -v c="$t2" 'BEGIN { printf "3x7 over PTP/IP: raw+jpeg %.2f s (%.0f ms a shot), jpeg %.2f s (%.0f ms a shot)\n", b - a, (b - a) * 1000 / 21, c - b, (c - b) * 1000 / 21 }'
+awk -v a="$t0" -v b="$t1" -v c="$t2" -v d="$t3" 'BEGIN { printf "3x7 over PTP/IP: raw+jpeg %.2f s (%.0f ms a shot), jpeg %.2f s (%.0f ms a shot)\n", b - a, (b - a) * 1000 / 21, d - c, (d - c) * 1000 / 21 }'
+
+# --- --format left out (keep) on a body already set to NEF+Fine: both files
+# of each trigger are taken, the session records the camera's label
+start_cam --quality 7
+expect 0 cap --quiet --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --no-prompt -o "$T/keep"
+check_session "$T/keep" 1 7
+python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); f=[f for v in s["views"] for b in v["brackets"] for f in b["frames"]]; sys.exit(0 if s["camera"]["format"]=="keep" and s["camera"]["format_label"]=="NEF+Fine" and all(x["file"].endswith(".dng") and len(x["siblings"])==1 for x in f) else 1)' \
+  "$T/keep/session.json" && ok || bad "keep on a raw+jpeg body"
+start_cam
 
 # --- raw alone: DNGs only, verified on their own pixels (OpenImageIO reads them)
 expect 0 cap --quiet --camera "ptpip:127.0.0.1:$PORT" --format raw --bracket 7x3 --center 1/30 --no-prompt -o "$T/raw"
