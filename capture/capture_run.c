@@ -68,8 +68,10 @@ static float max_of(const sl_image *img)
 
 /* Median of cur/prev over pixels well exposed in both (0 when too few):
  * between 0.005 and 0.85 of white. White is 1, except for camera raw,
- * which decoders scale (OpenImageIO's LibRaw puts saturation at 2.22):
- * there the brightest value of the two frames, when above 1. */
+ * where the decoder may scale (OpenImageIO 2.4 multiplies raw by 1/0.45 =
+ * 2.22 once raw:apply_scene_linear_scale is set at all, even to 0, as
+ * core's reader does): there the brightest value of the two frames, when
+ * above 1. */
 static double measure_ratio(const sl_image *prev, const sl_image *cur, bool raw)
 {
     if (!prev->data || prev->width != cur->width || prev->height != cur->height ||
