@@ -334,6 +334,36 @@ static sl_result take(sl_camera *c, const CameraFilePath *path, sl_camera_shot *
     return r;
 }
 
+/* Waits up to timeout_ms for one event of the trigger: a new file is
+ * downloaded into the shot (a shot already full is an error), a capture
+ * complete after its first file sets *complete, no event at all *quiet. */
+static sl_result next_event(sl_camera *c, sl_camera_shot *shot, int timeout_ms, bool *complete,
+                            bool *quiet, sl_error *err)
+{
+    gp_impl *g = c->impl;
+    CameraEventType type;
+    void *data = NULL;
+    g->last_error[0] = 0;
+    int gr = gp_camera_wait_for_event(g->camera, timeout_ms, &type, &data, g->context);
+    if (gr != GP_OK) {
+        free(data);
+        return gp_fail_io(c, g, gr, true, "waiting for the new file", err);
+    }
+    if (type == GP_EVENT_FILE_ADDED && data) {
+        CameraFilePath path = *(CameraFilePath *)data;
+        free(data);
+        if (shot->count == SL_SHOT_MAX_FILES)
+            return sl_error_set(err, SL_ERR_CAMERA, "%s: more than %d files from one trigger",
+                                g->port, SL_SHOT_MAX_FILES);
+        return take(c, &path, shot, err);
+    }
+    /* every other event's data is ours to free too */
+    free(data);
+    *complete = type == GP_EVENT_CAPTURE_COMPLETE && shot->count > 0;
+    *quiet = type == GP_EVENT_TIMEOUT;
+    return SL_OK;
+}
+
 static sl_result gp_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
 {
     gp_impl *g = c->impl;
@@ -356,35 +386,33 @@ static sl_result gp_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
      * files than its format says: the capture loop rejects the frame); one
      * left over from the previous trigger comes before any file and is
      * skipped. */
+    bool complete = false, quiet = false;
     double deadline = sl_seconds() + 60.0;
-    while (shot->count < shot->expected && shot->count < SL_SHOT_MAX_FILES &&
-           sl_seconds() < deadline) {
-        CameraEventType type;
-        void *data = NULL;
-        g->last_error[0] = 0;
-        gr = gp_camera_wait_for_event(g->camera, 1000, &type, &data, g->context);
-        if (gr != GP_OK) {
-            free(data);
-            return gp_fail_io(c, g, gr, true, "waiting for the new file", err);
-        }
-        if (type == GP_EVENT_FILE_ADDED && data) {
-            CameraFilePath path = *(CameraFilePath *)data;
-            free(data);
-            sl_result r = take(c, &path, shot, err);
-            if (r)
-                return r;
+    while (!complete && shot->count < shot->expected && sl_seconds() < deadline) {
+        int before = shot->count;
+        sl_result r = next_event(c, shot, 1000, &complete, &quiet, err);
+        if (r)
+            return r;
+        if (shot->count > before)
             deadline = sl_seconds() + 15.0;
-            continue;
-        }
-        /* every other event's data is ours to free too */
-        free(data);
-        if (type == GP_EVENT_CAPTURE_COMPLETE && shot->count > 0)
-            return SL_OK;
     }
-    if (shot->count > 0)
-        return SL_OK;
-    c->lost = true;
-    return sl_error_set(err, SL_ERR_CAMERA, "%s: no new file 60 s after the trigger", g->port);
+    if (shot->count == 0) {
+        c->lost = true;
+        return sl_error_set(err, SL_ERR_CAMERA, "%s: no new file 60 s after the trigger",
+                            g->port);
+    }
+    /* More files than the format said (a mode whose label setlight cannot
+     * read) come before the capture complete: taken too, so that none is
+     * mistaken for the next trigger's. At most 1 s, and 100 ms of quiet
+     * ends it (bodies that send no capture complete). */
+    deadline = sl_seconds() + 1.0;
+    quiet = false;
+    while (!complete && !quiet && sl_seconds() < deadline) {
+        sl_result r = next_event(c, shot, 100, &complete, &quiet, err);
+        if (r)
+            return r;
+    }
+    return SL_OK;
 }
 
 static sl_result gp_reconnect(sl_camera *c, sl_error *err)

@@ -25,7 +25,8 @@
  * labels them ("imagequality": 0 JPEG Basic, 1 JPEG Normal, 2 JPEG Fine,
  * 4 NEF (Raw), 5 NEF+Basic, 6 NEF+Normal, 7 NEF+Fine; default JPEG Fine).
  * --qualities LIST offers only those values (e.g. 0,1,2: a body without
- * raw); --quality V starts at V (as set on the body before the session). In a raw mode a trigger adds the raw (a linear DNG, IMG_nnnn.DNG,
+ * raw); --quality V starts at V (as set on the body before the session;
+ * 3, which ptp2 cannot name, writes raw + JPEG). In a raw mode a trigger adds the raw (a linear DNG, IMG_nnnn.DNG,
  * ObjectFormat TIFF/EP) after the JPEG (or alone for NEF (Raw)): two
  * ObjectAdded events, then CaptureComplete. --ignore-format K acks the K-th
  * quality change without applying it; --drop-before-raw N closes the
@@ -477,9 +478,11 @@ static bool add_object(const char *ext, uint16_t format, uint8_t *data, size_t s
     return true;
 }
 
+/* 3 is no Nikon value (ptp2 shows "Unknown value 0003"): here a raw+JPEG
+ * mode whose label nobody can read. */
 static bool quality_raw(void)
 {
-    return g.quality >= QUALITY_RAW;
+    return g.quality >= QUALITY_RAW || g.quality == 3;
 }
 static bool quality_jpeg(void)
 {

@@ -56,6 +56,14 @@ expect 0 cap --quiet --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/3
 check_session "$T/keep" 1 7
 python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); f=[f for v in s["views"] for b in v["brackets"] for f in b["frames"]]; sys.exit(0 if s["camera"]["format"]=="keep" and s["camera"]["format_label"]=="NEF+Fine" and all(x["file"].endswith(".dng") and len(x["siblings"])==1 for x in f) else 1)' \
   "$T/keep/session.json" && ok || bad "keep on a raw+jpeg body"
+# ... and in a raw+JPEG mode whose label ptp2 cannot name ("Unknown value
+# 0003"): one file expected, the second taken before the capture complete,
+# never mistaken for the next trigger's
+start_cam --qualities 0,1,2,3 --quality 3
+expect 0 cap --quiet --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --no-prompt -o "$T/unnamed"
+check_session "$T/unnamed" 1 7
+python3 -c 'import json,sys; s=json.load(open(sys.argv[1])); f=[f for v in s["views"] for b in v["brackets"] for f in b["frames"]]; sys.exit(0 if s["camera"]["format_label"]=="Unknown value 0003" and all(x["file"].endswith(".dng") and x["source"][-8:-4]==x["siblings"][0]["source"][-8:-4] for x in f) else 1)' \
+  "$T/unnamed/session.json" && ok || bad "unnamed raw+jpeg mode: files mixed up between triggers"
 start_cam
 
 # --- raw alone: DNGs only, verified on their own pixels (OpenImageIO reads them)
