@@ -90,7 +90,7 @@ sl_result sl_camera_shutter_speeds(sl_camera *camera, double **speeds, int *coun
 }
 
 /* Busy: the camera is still writing the last frame. 20 ms doubling to 640 ms. */
-static void backoff(int attempt)
+void sl_camera_backoff(int attempt)
 {
     int ms = 20 << (attempt < 5 ? attempt : 5);
     struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
@@ -105,7 +105,7 @@ sl_result sl_camera_set(sl_camera *camera, const sl_camera_settings *settings, s
         r = camera->ops->set(camera, settings, err);
         if (!r || !camera->busy || attempt >= 8)
             break;
-        backoff(attempt);
+        sl_camera_backoff(attempt);
     }
     return r;
 }
@@ -116,19 +116,20 @@ sl_result sl_camera_get(sl_camera *camera, sl_camera_settings *settings, sl_erro
     return camera->ops->get(camera, settings, err);
 }
 
-sl_result sl_camera_capture(sl_camera *camera, sl_camera_file *file, sl_error *err)
+sl_result sl_camera_capture(sl_camera *camera, sl_camera_shot *shot, sl_error *err)
 {
-    memset(file, 0, sizeof *file);
+    memset(shot, 0, sizeof *shot);
+    shot->expected = camera->files_per_shot > 0 ? camera->files_per_shot : 1;
     sl_result r;
     int busy = 0;
     for (;; busy++) {
         camera->busy = false;
-        r = camera->ops->capture(camera, file, err);
+        r = camera->ops->capture(camera, shot, err);
         if (!r || !camera->busy || busy >= 10)
             break;
-        backoff(busy);
+        sl_camera_backoff(busy);
     }
-    file->busy_retries = busy;
+    shot->busy_retries = busy;
     return r;
 }
 
@@ -146,12 +147,11 @@ sl_result sl_camera_reconnect(sl_camera *camera, sl_error *err)
     return r;
 }
 
-void sl_camera_file_free(sl_camera_file *file)
+void sl_camera_shot_free(sl_camera_shot *shot)
 {
-    if (!file)
+    if (!shot)
         return;
-    free(file->data);
-    file->data = NULL;
-    file->size = 0;
-    file->busy_retries = 0;
+    for (int i = 0; i < shot->count; i++)
+        free(shot->files[i].data);
+    memset(shot, 0, sizeof *shot);
 }

@@ -13,8 +13,14 @@ typedef struct sl_camera_ops {
     sl_result (*shutter_speeds)(sl_camera *c, double **speeds, int *count, sl_error *err);
     sl_result (*set)(sl_camera *c, const sl_camera_settings *s, sl_error *err);
     sl_result (*get)(sl_camera *c, sl_camera_settings *s, sl_error *err);
-    /* One trigger, the wait for the new file and its download. */
-    sl_result (*capture)(sl_camera *c, sl_camera_file *file, sl_error *err);
+    /* The image-format setting: its choice labels (at most `max`) and the
+     * current label. NULL when the camera has no such setting. */
+    sl_result (*format_choices)(sl_camera *c, char (*labels)[64], int max, int *count,
+                                char current[64], sl_error *err);
+    sl_result (*set_format)(sl_camera *c, const char *label, sl_error *err);
+    /* One trigger, the wait for its c->files_per_shot new files (fewer when
+     * the camera reports the capture complete first) and their download. */
+    sl_result (*capture)(sl_camera *c, sl_camera_shot *shot, sl_error *err);
     /* The nodal head now points at view `view` of `views` (NULL: the
      * head is outside the camera's reach, as with real bodies). */
     void (*aim)(sl_camera *c, int view, int views);
@@ -30,6 +36,7 @@ struct sl_camera {
     char port[128];
     bool busy; /* the last failure was a busy reply */
     bool lost; /* the connection is gone until reconnect succeeds */
+    int files_per_shot; /* what the image format writes per trigger (0: 1) */
 };
 
 /* libgphoto2 (camera_gphoto2.c). */
@@ -38,6 +45,8 @@ sl_result sl_gphoto2_list(sl_camera_entry **list, int *count, sl_error *err);
 /* The virtual set's camera (camera_virtual.c). */
 sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *camera, sl_error *err);
 
+/* The wait before retrying a busy camera: 20 ms doubling to 640 ms. */
+void sl_camera_backoff(int attempt);
 /* Reopens a lost connection; clears camera->lost on success. */
 sl_result sl_camera_reconnect(sl_camera *camera, sl_error *err);
 

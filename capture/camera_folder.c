@@ -54,18 +54,13 @@ static long sequence_of(const char *name)
  * others are its siblings. */
 static int format_rank(const char *name)
 {
-    static const char *const order[][12] = {
-        {"cr2", "cr3", "nef", "nrw", "arw", "dng", "raf", "orf", "rw2", "pef", "srw", "iiq"},
-        {"exr", "tif", "tiff"},
-        {"png"},
-    };
+    static const char *const order[] = {"exr", "tif", "tiff", "png"};
+    if (sl_image_format_of_file(name) == SL_FORMAT_RAW)
+        return 0;
     const char *dot = strrchr(name, '.');
-    if (!dot)
-        return 3;
-    for (int r = 0; r < 3; r++)
-        for (int i = 0; i < 12 && order[r][i]; i++)
-            if (!strcasecmp(dot + 1, order[r][i]))
-                return r;
+    for (int i = 0; dot && i < 4; i++)
+        if (!strcasecmp(dot + 1, order[i]))
+            return i < 3 ? 1 : 2;
     return 3;
 }
 

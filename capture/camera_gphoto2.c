@@ -68,8 +68,11 @@ static sl_result gp_fail(gp_impl *g, int gr, const char *what, sl_error *err)
 static const char *const k_shutter_names[] = {"shutterspeed", "shutterspeed2", "exptime", NULL};
 static const char *const k_fnumber_names[] = {"f-number", "aperture", "fnumber", NULL};
 static const char *const k_iso_names[] = {"iso", "isospeed", "exposureindex", NULL};
+/* ptp2: "imageformat" (Canon EOS), "imagequality" (PTP CompressionSetting
+ * 0x5004: Nikon, Sony, Fuji), "imgquality" (older drivers). */
+static const char *const k_format_names[] = {"imageformat", "imagequality", "imgquality", NULL};
 
-enum { SET_SHUTTER, SET_FNUMBER, SET_ISO };
+enum { SET_SHUTTER, SET_FNUMBER, SET_ISO, SET_FORMAT };
 
 /* "0.0323s", "1/30", "f/4", "f4", "ISO 100", "100" -> number; 0 if not one. */
 static double choice_value(int kind, const char *text)
@@ -93,7 +96,8 @@ static sl_result find_widget(sl_camera *c, int kind, CameraWidget **widget, cons
     gp_impl *g = c->impl;
     const char *const *names = kind == SET_SHUTTER   ? k_shutter_names
                                : kind == SET_FNUMBER ? k_fnumber_names
-                                                     : k_iso_names;
+                               : kind == SET_ISO     ? k_iso_names
+                                                     : k_format_names;
     *widget = NULL;
     for (int i = 0; names[i]; i++) {
         g->last_error[0] = 0;
@@ -108,7 +112,8 @@ static sl_result find_widget(sl_camera *c, int kind, CameraWidget **widget, cons
     return sl_error_set(err, SL_ERR_CAMERA, "%s: the camera has no %s setting", g->port,
                         kind == SET_SHUTTER   ? "shutter speed"
                         : kind == SET_FNUMBER ? "aperture"
-                                              : "ISO");
+                        : kind == SET_ISO     ? "ISO"
+                                              : "image format");
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -152,6 +157,37 @@ static sl_result gp_shutter_speeds(sl_camera *c, double **speeds, int *count, sl
     return SL_OK;
 }
 
+/* Writes `value` to widget `w` (named `name`) and frees it. */
+static sl_result write_widget(sl_camera *c, CameraWidget *w, const char *name, const char *value,
+                              const char *what, sl_error *err)
+{
+    gp_impl *g = c->impl;
+    g->last_error[0] = 0;
+    int gr = gp_widget_set_value(w, value);
+    if (gr == GP_OK)
+        gr = gp_camera_set_single_config(g->camera, name, w, g->context);
+    gp_widget_free(w);
+    if (gr == GP_OK)
+        return SL_OK;
+    char msg[sizeof g->last_error];
+    snprintf(msg, sizeof msg, "%s", g->last_error);
+    /* A refusal, or a connection that went away in the middle (the ptp2
+     * driver then says "General Error" or "Property not found"): if the
+     * setting cannot even be read back, it is the latter (the capture loop
+     * then reconnects). */
+    bool gone = false;
+    if (!connection_lost(gr)) {
+        CameraWidget *probe = NULL;
+        gone = gp_camera_get_single_config(g->camera, name, &probe, g->context) != GP_OK;
+        if (probe)
+            gp_widget_free(probe);
+    }
+    snprintf(g->last_error, sizeof g->last_error, "%s", msg);
+    sl_result r = gp_fail_on(c, g, gr, what, err);
+    c->lost = c->lost || gone;
+    return r;
+}
+
 /* Sets one setting to the offered choice nearest `value` (in stops). */
 static sl_result set_one(sl_camera *c, int kind, double value, sl_error *err)
 {
@@ -178,32 +214,40 @@ static sl_result set_one(sl_camera *c, int kind, double value, sl_error *err)
         gp_widget_free(w);
         return sl_error_set(err, SL_ERR_CAMERA, "%s: setting %s offers no values", g->port, name);
     }
-    g->last_error[0] = 0;
-    int gr = gp_widget_set_value(w, best);
-    if (gr == GP_OK)
-        gr = gp_camera_set_single_config(g->camera, name, w, g->context);
-    gp_widget_free(w);
-    if (gr != GP_OK) {
-        char what[96], msg[sizeof g->last_error];
-        snprintf(what, sizeof what, "setting %s to %g", name, value);
-        snprintf(msg, sizeof msg, "%s", g->last_error);
-        /* A refusal, or a connection that went away in the middle (the ptp2
-         * driver then says "General Error" or "Property not found"): if the
-         * setting cannot even be read back, it is the latter (the capture
-         * loop then reconnects). */
-        bool gone = false;
-        if (!connection_lost(gr)) {
-            CameraWidget *probe = NULL;
-            gone = gp_camera_get_single_config(g->camera, name, &probe, g->context) != GP_OK;
-            if (probe)
-                gp_widget_free(probe);
-        }
-        snprintf(g->last_error, sizeof g->last_error, "%s", msg);
-        sl_result r = gp_fail_on(c, g, gr, what, err);
-        c->lost = c->lost || gone;
+    char what[96];
+    snprintf(what, sizeof what, "setting %s to %g", name, value);
+    return write_widget(c, w, name, best, what, err);
+}
+
+static sl_result gp_format_choices(sl_camera *c, char (*labels)[64], int max, int *count,
+                                   char current[64], sl_error *err)
+{
+    CameraWidget *w;
+    const char *name, *value = NULL;
+    sl_result r = find_widget(c, SET_FORMAT, &w, &name, err);
+    if (r)
         return r;
+    *count = 0;
+    for (int i = 0; i < gp_widget_count_choices(w) && *count < max; i++) {
+        const char *label = NULL;
+        if (gp_widget_get_choice(w, i, &label) == GP_OK && label)
+            snprintf(labels[(*count)++], 64, "%s", label);
     }
+    snprintf(current, 64, "%s", gp_widget_get_value(w, &value) == GP_OK && value ? value : "");
+    gp_widget_free(w);
     return SL_OK;
+}
+
+static sl_result gp_set_format(sl_camera *c, const char *label, sl_error *err)
+{
+    CameraWidget *w;
+    const char *name;
+    sl_result r = find_widget(c, SET_FORMAT, &w, &name, err);
+    if (r)
+        return r;
+    char what[128];
+    snprintf(what, sizeof what, "setting %s to '%.60s'", name, label);
+    return write_widget(c, w, name, label, what, err);
 }
 
 static sl_result gp_set(sl_camera *c, const sl_camera_settings *s, sl_error *err)
@@ -274,13 +318,53 @@ static sl_result download(sl_camera *c, const CameraFilePath *path, sl_camera_fi
              strcmp(path->folder, "/") ? "/" : "", path->name);
     gp_file_unref(f);
     if (size == 0) {
-        sl_camera_file_free(file);
+        free(file->data);
+        memset(file, 0, sizeof *file);
         return sl_error_set(err, SL_ERR_CAMERA, "%s: %s is empty", g->port, path->name);
     }
     return SL_OK;
 }
 
-static sl_result gp_capture(sl_camera *c, sl_camera_file *file, sl_error *err)
+/* Downloads the next file of the shot. */
+static sl_result take(sl_camera *c, const CameraFilePath *path, sl_camera_shot *shot, sl_error *err)
+{
+    sl_result r = download(c, path, &shot->files[shot->count], err);
+    if (!r)
+        shot->count++;
+    return r;
+}
+
+/* Waits up to timeout_ms for one event of the trigger: a new file is
+ * downloaded into the shot (a shot already full is an error), a capture
+ * complete after its first file sets *complete, no event at all *quiet. */
+static sl_result next_event(sl_camera *c, sl_camera_shot *shot, int timeout_ms, bool *complete,
+                            bool *quiet, sl_error *err)
+{
+    gp_impl *g = c->impl;
+    CameraEventType type;
+    void *data = NULL;
+    g->last_error[0] = 0;
+    int gr = gp_camera_wait_for_event(g->camera, timeout_ms, &type, &data, g->context);
+    if (gr != GP_OK) {
+        free(data);
+        return gp_fail_io(c, g, gr, true, "waiting for the new file", err);
+    }
+    if (type == GP_EVENT_FILE_ADDED && data) {
+        CameraFilePath path = *(CameraFilePath *)data;
+        free(data);
+        if (shot->count == SL_SHOT_MAX_FILES)
+            return sl_error_set(err, SL_ERR_CAMERA, "%s: more than %d files from one trigger",
+                                g->port, SL_SHOT_MAX_FILES);
+        return take(c, &path, shot, err);
+    }
+    /* every other event's data is ours to free too */
+    free(data);
+    *complete = type == GP_EVENT_CAPTURE_COMPLETE && shot->count > 0;
+    *quiet = type == GP_EVENT_TIMEOUT;
+    return SL_OK;
+}
+
+static sl_result gp_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
 {
     gp_impl *g = c->impl;
     g->last_error[0] = 0;
@@ -292,31 +376,43 @@ static sl_result gp_capture(sl_camera *c, sl_camera_file *file, sl_error *err)
         gr = gp_camera_capture(g->camera, GP_CAPTURE_IMAGE, &path, g->context);
         if (gr != GP_OK)
             return gp_fail_io(c, g, gr, true, "capture", err);
-        return download(c, &path, file, err);
+        return take(c, &path, shot, err);
     }
     if (gr != GP_OK)
         return gp_fail_io(c, g, gr, true, "trigger", err);
-    /* Wait for the new file; long exposures and slow cards get 60 s. */
+    /* Wait for the trigger's files: long exposures and slow cards get 60 s
+     * for the first, a raw written after its JPEG 15 s more. A capture
+     * complete before all arrived ends the wait (a body that writes fewer
+     * files than its format says: the capture loop rejects the frame); one
+     * left over from the previous trigger comes before any file and is
+     * skipped. */
+    bool complete = false, quiet = false;
     double deadline = sl_seconds() + 60.0;
-    while (sl_seconds() < deadline) {
-        CameraEventType type;
-        void *data = NULL;
-        g->last_error[0] = 0;
-        gr = gp_camera_wait_for_event(g->camera, 1000, &type, &data, g->context);
-        if (gr != GP_OK) {
-            free(data);
-            return gp_fail_io(c, g, gr, true, "waiting for the new file", err);
-        }
-        if (type == GP_EVENT_FILE_ADDED && data) {
-            CameraFilePath path = *(CameraFilePath *)data;
-            free(data);
-            return download(c, &path, file, err);
-        }
-        /* every other event's data is ours to free too */
-        free(data);
+    while (!complete && shot->count < shot->expected && sl_seconds() < deadline) {
+        int before = shot->count;
+        sl_result r = next_event(c, shot, 1000, &complete, &quiet, err);
+        if (r)
+            return r;
+        if (shot->count > before)
+            deadline = sl_seconds() + 15.0;
     }
-    c->lost = true;
-    return sl_error_set(err, SL_ERR_CAMERA, "%s: no new file 60 s after the trigger", g->port);
+    if (shot->count == 0) {
+        c->lost = true;
+        return sl_error_set(err, SL_ERR_CAMERA, "%s: no new file 60 s after the trigger",
+                            g->port);
+    }
+    /* More files than the format said (a mode whose label setlight cannot
+     * read) come before the capture complete: taken too, so that none is
+     * mistaken for the next trigger's. At most 1 s, and 100 ms of quiet
+     * ends it (bodies that send no capture complete). */
+    deadline = sl_seconds() + 1.0;
+    quiet = false;
+    while (!complete && !quiet && sl_seconds() < deadline) {
+        sl_result r = next_event(c, shot, 100, &complete, &quiet, err);
+        if (r)
+            return r;
+    }
+    return SL_OK;
 }
 
 static sl_result gp_reconnect(sl_camera *c, sl_error *err)
@@ -344,8 +440,9 @@ static void gp_close(void *impl)
     free(g);
 }
 
-static const sl_camera_ops k_ops = {"gphoto2", gp_shutter_speeds, gp_set,       gp_get,
-                                    gp_capture, NULL,              gp_reconnect, gp_close};
+static const sl_camera_ops k_ops = {"gphoto2",         gp_shutter_speeds, gp_set,     gp_get,
+                                    gp_format_choices, gp_set_format,     gp_capture, NULL,
+                                    gp_reconnect,      gp_close};
 
 static sl_result autodetect(GPContext *ctx, CameraList **list, sl_error *err)
 {

@@ -27,6 +27,8 @@ static const double k_speeds[] = {
     10,         13,         15,         20,         25,         30};
 static const double k_fnumbers[] = {2.8, 4, 5.6, 8, 11, 16, 22};
 static const double k_isos[] = {100, 200, 400, 800, 1600, 3200};
+/* Image quality labels as a body's menu shows them; the raw is a DNG. */
+static const char *const k_formats[] = {"JPEG Fine", "RAW", "RAW + JPEG Fine"};
 #define COUNT(a) ((int)(sizeof(a) / sizeof(a)[0]))
 
 /* The shoot day of the virtual clock: 2026-05-14 10:00:00 UTC. */
@@ -46,6 +48,9 @@ typedef struct vcam {
     double actual_shutter; /* what it exposes with */
     double f_number, iso;
     int shutter_changes;
+    int format;       /* index into k_formats: what the body writes */
+    int format_shown; /* what its setting reads */
+    int format_changes;
     int delivered; /* frames on the card */
     int busy_left, down_left;
     bool dropped, lost;
@@ -166,7 +171,95 @@ static sl_result encode(sl_camera *c, const sl_image *img, unsigned char **data,
     return SL_OK;
 }
 
-static sl_result v_capture(sl_camera *c, sl_camera_file *file, sl_error *err)
+static sl_result v_format_choices(sl_camera *c, char (*labels)[64], int max, int *count,
+                                  char current[64], sl_error *err)
+{
+    vcam *v = c->impl;
+    if (v->lost)
+        return lost(c, err);
+    *count = 0;
+    for (int i = 0; i < COUNT(k_formats) && i < max; i++)
+        snprintf(labels[(*count)++], 64, "%s", k_formats[i]);
+    snprintf(current, 64, "%s", k_formats[v->format_shown]);
+    return SL_OK;
+}
+
+static sl_result v_set_format(sl_camera *c, const char *label, sl_error *err)
+{
+    vcam *v = c->impl;
+    if (v->lost)
+        return lost(c, err);
+    for (int i = 0; i < COUNT(k_formats); i++)
+        if (!strcmp(label, k_formats[i])) {
+            /* the k-th change is acknowledged, not applied (a body that
+             * lies even reads back the new format) */
+            bool ignored = i != v->format && ++v->format_changes == v->o.ignore_format;
+            if (!ignored)
+                v->format = i;
+            if (!ignored || v->o.format_lies)
+                v->format_shown = i;
+            return SL_OK;
+        }
+    return sl_error_set(err, SL_ERR_CAMERA,
+                        "%s: setting imagequality to '%s' failed: no such value", c->port, label);
+}
+
+/* The EXIF the body writes for the frame it is about to deliver. */
+static void frame_meta(const vcam *v, sl_meta *meta, int *subsec_ms)
+{
+    sl_meta_init(meta);
+    meta->exposure_time = v->shutter; /* what the body believes it used */
+    meta->f_number = v->f_number;
+    meta->iso = v->iso;
+    meta->focal_length_mm = v->lens.focal_mm;
+    snprintf(meta->make, sizeof meta->make, "%s", v->body.make);
+    snprintf(meta->model, sizeof meta->model, "%s", v->body.model);
+    time_t when = (time_t)(CLOCK_EPOCH + floor(v->clock));
+    struct tm tm;
+    gmtime_r(&when, &tm);
+    strftime(meta->datetime, sizeof meta->datetime, "%Y:%m:%d %H:%M:%S", &tm);
+    *subsec_ms = (int)floor((v->clock - floor(v->clock)) * 1000.0);
+}
+
+static void deliver(sl_camera_shot *shot, unsigned char *data, size_t size, int frame,
+                    const char *ext)
+{
+    sl_camera_file *f = &shot->files[shot->count++];
+    f->data = data;
+    f->size = size;
+    snprintf(f->source, sizeof f->source, "/DCIM/100VSET/IMG_%04d.%s", frame, ext);
+}
+
+/* The in-camera JPEG (sRGB-encoded) and/or the raw (a DNG of the linear
+ * output) of one exposure, as the image format says. */
+static sl_result write_files(sl_camera *c, const sl_vset_shot *img, int frame, sl_camera_shot *shot,
+                             sl_error *err)
+{
+    vcam *v = c->impl;
+    sl_meta meta;
+    int ms;
+    frame_meta(v, &meta, &ms);
+    unsigned char *data = NULL;
+    size_t size = 0;
+    sl_result r = SL_OK;
+    if (v->format != 1) {
+        r = encode(c, &img->encoded, &data, &size, err);
+        if (!r && (r = sl_jpeg_set_exif(&data, &size, &meta, ms, err)))
+            free(data);
+        if (!r)
+            deliver(shot, data, size, frame, "JPG");
+    }
+    if (!r && v->format == 2 && v->o.drop_before_raw == frame) {
+        v->lost = true;
+        r = lost(c, err);
+    }
+    if (!r && v->format != 0 && !(r = sl_dng_encode(&img->linear, &meta, ms, &data, &size, err)))
+        deliver(shot, data, size, frame, "DNG");
+    sl_meta_free(&meta);
+    return r;
+}
+
+static sl_result v_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
 {
     vcam *v = c->impl;
     if (v->lost)
@@ -192,41 +285,18 @@ static sl_result v_capture(sl_camera *c, sl_camera_file *file, sl_error *err)
             return r;
     }
     sl_vset_exposure e = {v->actual_shutter, v->f_number, v->iso};
-    sl_vset_shot shot;
+    sl_vset_shot img;
     if ((r = sl_vset_camera_shoot(&v->body, &e, &v->radiance, mix64(v->o.seed ^ (uint64_t)frame),
-                                  &shot, err)))
+                                  &img, err)))
         return r;
-    unsigned char *data = NULL;
-    size_t size = 0;
-    r = encode(c, &shot.encoded, &data, &size, err);
-    sl_vset_shot_free(&shot);
-    if (r)
-        return r;
-    sl_meta meta;
-    sl_meta_init(&meta);
-    meta.exposure_time = v->shutter; /* what the body believes it used */
-    meta.f_number = v->f_number;
-    meta.iso = v->iso;
-    meta.focal_length_mm = v->lens.focal_mm;
-    snprintf(meta.make, sizeof meta.make, "%s", v->body.make);
-    snprintf(meta.model, sizeof meta.model, "%s", v->body.model);
-    time_t when = (time_t)(CLOCK_EPOCH + floor(v->clock));
-    struct tm tm;
-    gmtime_r(&when, &tm);
-    strftime(meta.datetime, sizeof meta.datetime, "%Y:%m:%d %H:%M:%S", &tm);
-    int ms = (int)floor((v->clock - floor(v->clock)) * 1000.0);
-    r = sl_jpeg_set_exif(&data, &size, &meta, ms, err);
-    sl_meta_free(&meta);
-    if (r) {
-        free(data);
-        return r;
+    r = write_files(c, &img, frame, shot, err);
+    sl_vset_shot_free(&img);
+    /* the card holds what was written, also when the link then dropped */
+    if (shot->count > 0) {
+        v->clock += v->actual_shutter + FRAME_GAP_S;
+        v->delivered = frame;
     }
-    v->clock += v->actual_shutter + FRAME_GAP_S;
-    v->delivered = frame;
-    file->data = data;
-    file->size = size;
-    snprintf(file->source, sizeof file->source, "/DCIM/100VSET/IMG_%04d.JPG", frame);
-    return SL_OK;
+    return r;
 }
 
 static void v_aim(sl_camera *c, int view, int views)
@@ -264,8 +334,9 @@ static void v_close(void *impl)
     free(v);
 }
 
-static const sl_camera_ops k_ops = {"virtual", v_shutter_speeds, v_set,       v_get,
-                                    v_capture, v_aim,            v_reconnect, v_close};
+static const sl_camera_ops k_ops = {"virtual",        v_shutter_speeds, v_set,     v_get,
+                                    v_format_choices, v_set_format,     v_capture, v_aim,
+                                    v_reconnect,      v_close};
 
 sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_error *err)
 {

@@ -193,7 +193,7 @@ static void w32(out *o, unsigned long v)
 typedef struct entry {
     unsigned tag, type;
     unsigned long count;
-    unsigned char value[64]; /* little-endian bytes */
+    unsigned char value[80]; /* little-endian bytes */
 } entry;
 
 static void ascii(entry *e, unsigned tag, const char *s)
@@ -234,7 +234,28 @@ static void short1(entry *e, unsigned tag, unsigned v)
 
 static size_t entry_bytes(const entry *e)
 {
-    return e->type == 5 ? 8 * e->count : e->type == 3 ? 2 * e->count : e->count;
+    static const size_t size[] = {0, 1, 1, 2, 4, 8, 1, 1, 2, 4, 8, 4, 8};
+    return (e->type < 13 ? size[e->type] : 1) * e->count;
+}
+
+/* Bytes of an IFD with its out-of-line values. */
+static size_t ifd_bytes(const entry *e, int n)
+{
+    size_t total = 2 + 12 * (size_t)n + 4;
+    for (int i = 0; i < n; i++) {
+        size_t b = entry_bytes(&e[i]);
+        if (b > 4)
+            total += b + (b & 1);
+    }
+    return total;
+}
+
+static void long1(entry *e, unsigned tag, unsigned long v)
+{
+    e->tag = tag;
+    e->type = 4;
+    e->count = 1;
+    le32(e->value, v);
 }
 
 /* One IFD at TIFF offset `at` with its out-of-line values after it; returns
@@ -284,6 +305,25 @@ static void exposure_rational(double t, unsigned long *num, unsigned long *den)
     }
 }
 
+/* The Exif IFD (6 entries, in tag order): exposure time, f-number, ISO,
+ * DateTimeOriginal, focal length, SubSecTimeOriginal. */
+static int exif_entries(const sl_meta *meta, int subsec_ms, entry exif[6])
+{
+    int n = 0;
+    memset(exif, 0, 6 * sizeof *exif);
+    unsigned long num, den;
+    exposure_rational(meta->exposure_time, &num, &den);
+    rational(&exif[n++], 0x829A, num, den);
+    rational(&exif[n++], 0x829D, (unsigned long)round(meta->f_number * 10), 10);
+    short1(&exif[n++], 0x8827, (unsigned)lround(meta->iso));
+    ascii(&exif[n++], 0x9003, meta->datetime);
+    rational(&exif[n++], 0x920A, (unsigned long)round(meta->focal_length_mm * 10), 10);
+    char ss[8];
+    snprintf(ss, sizeof ss, "%03d", subsec_ms < 0 ? 0 : subsec_ms % 1000);
+    ascii(&exif[n++], 0x9291, ss);
+    return n;
+}
+
 sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *meta,
                            int subsec_ms, sl_error *err)
 {
@@ -292,9 +332,8 @@ sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *me
     if (n < 4 || src[0] != 0xFF || src[1] != 0xD8)
         return sl_error_set(err, SL_ERR_INTERNAL, "EXIF: not a JPEG stream");
     entry ifd0[5], exif[6];
-    int n0 = 0, n1 = 0;
+    int n0 = 0, n1 = exif_entries(meta, subsec_ms, exif);
     memset(ifd0, 0, sizeof ifd0);
-    memset(exif, 0, sizeof exif);
     ascii(&ifd0[n0++], 0x010F, meta->make);
     ascii(&ifd0[n0++], 0x0110, meta->model);
     short1(&ifd0[n0++], 0x0112, 1);
@@ -303,29 +342,9 @@ sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *me
     link->tag = 0x8769;
     link->type = 4;
     link->count = 1;
-    unsigned long num, den;
-    exposure_rational(meta->exposure_time, &num, &den);
-    rational(&exif[n1++], 0x829A, num, den);
-    rational(&exif[n1++], 0x829D, (unsigned long)round(meta->f_number * 10), 10);
-    short1(&exif[n1++], 0x8827, (unsigned)lround(meta->iso));
-    ascii(&exif[n1++], 0x9003, meta->datetime);
-    char ss[8];
-    snprintf(ss, sizeof ss, "%03d", subsec_ms < 0 ? 0 : subsec_ms % 1000);
-    ascii(&exif[n1++], 0x9291, ss);
-    rational(&exif[n1++], 0x920A, (unsigned long)round(meta->focal_length_mm * 10), 10);
-    /* focal length's tag sorts before SubSecTimeOriginal */
-    entry tmp = exif[4];
-    exif[4] = exif[5];
-    exif[5] = tmp;
 
     /* TIFF: header, IFD0 and its values, then the Exif IFD. */
-    size_t ifd0_size = 2 + 12 * (size_t)n0 + 4;
-    for (int i = 0; i < n0; i++) {
-        size_t b = entry_bytes(&ifd0[i]);
-        if (b > 4)
-            ifd0_size += b + (b & 1);
-    }
-    le32(link->value, (unsigned long)(8 + ifd0_size));
+    le32(link->value, (unsigned long)(8 + ifd_bytes(ifd0, n0)));
     out t = {0};
     w8(&t, "II*\0", 4);
     w32(&t, 8);
@@ -363,5 +382,101 @@ sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *me
     free(src);
     *jpeg = j.p;
     *size = j.n;
+    return SL_OK;
+}
+
+static void bytes4(entry *e, unsigned tag, const unsigned char v[4])
+{
+    e->tag = tag;
+    e->type = 1;
+    e->count = 4;
+    memcpy(e->value, v, 4);
+}
+
+static void shorts(entry *e, unsigned tag, const unsigned *v, int n)
+{
+    e->tag = tag;
+    e->type = 3;
+    e->count = (unsigned long)n;
+    for (int i = 0; i < n; i++) {
+        e->value[2 * i] = (unsigned char)v[i];
+        e->value[2 * i + 1] = (unsigned char)(v[i] >> 8);
+    }
+}
+
+/* n (signed) rationals of v[i] / den. */
+static void rationals(entry *e, unsigned tag, unsigned type, const long *v, int n, long den)
+{
+    e->tag = tag;
+    e->type = type;
+    e->count = (unsigned long)n;
+    for (int i = 0; i < n; i++) {
+        le32(e->value + 8 * i, (unsigned long)v[i]);
+        le32(e->value + 8 * i + 4, (unsigned long)den);
+    }
+}
+
+sl_result sl_dng_encode(const sl_image *linear, const sl_meta *meta, int subsec_ms,
+                        unsigned char **data, size_t *size, sl_error *err)
+{
+    *data = NULL;
+    *size = 0;
+    if (linear->channels != 3)
+        return sl_error_set(err, SL_ERR_INTERNAL, "DNG: needs RGB, not %d channels",
+                            linear->channels);
+    entry ifd0[24], exif[6];
+    int n0 = 0, n1 = exif_entries(meta, subsec_ms, exif);
+    memset(ifd0, 0, sizeof ifd0);
+    unsigned long w = (unsigned long)linear->width, h = (unsigned long)linear->height;
+    const unsigned bits[3] = {16, 16, 16};
+    /* camera RGB is linear Rec.709: ColorMatrix1 is XYZ (D65) to Rec.709 */
+    static const long xyz_to_rgb[9] = {32406, -15372, -4986, -9689, 18758, 415, 557, -2040, 10570};
+    static const long neutral[3] = {1, 1, 1};
+    long1(&ifd0[n0++], 0x00FE, 0); /* NewSubFileType: the main image */
+    long1(&ifd0[n0++], 0x0100, w);
+    long1(&ifd0[n0++], 0x0101, h);
+    shorts(&ifd0[n0++], 0x0102, bits, 3);
+    short1(&ifd0[n0++], 0x0103, 1);     /* uncompressed */
+    short1(&ifd0[n0++], 0x0106, 34892); /* LinearRaw */
+    ascii(&ifd0[n0++], 0x010F, meta->make);
+    ascii(&ifd0[n0++], 0x0110, meta->model);
+    entry *strip = &ifd0[n0];
+    long1(&ifd0[n0++], 0x0111, 0); /* StripOffsets, filled below */
+    short1(&ifd0[n0++], 0x0112, 1);
+    short1(&ifd0[n0++], 0x0115, 3);
+    long1(&ifd0[n0++], 0x0116, h);
+    long1(&ifd0[n0++], 0x0117, w * h * 6);
+    short1(&ifd0[n0++], 0x011C, 1); /* chunky */
+    ascii(&ifd0[n0++], 0x0132, meta->datetime);
+    entry *link = &ifd0[n0];
+    long1(&ifd0[n0++], 0x8769, 0);                                     /* Exif IFD, filled below */
+    bytes4(&ifd0[n0++], 0xC612, (const unsigned char[4]){1, 4, 0, 0}); /* DNGVersion */
+    ascii(&ifd0[n0++], 0xC614, meta->model);                           /* UniqueCameraModel */
+    long1(&ifd0[n0++], 0xC61D, 65535);                                 /* WhiteLevel */
+    rationals(&ifd0[n0++], 0xC621, 10, xyz_to_rgb, 9, 10000);          /* ColorMatrix1 */
+    rationals(&ifd0[n0++], 0xC628, 5, neutral, 3, 1);                  /* AsShotNeutral */
+    /* WhiteLevel 65535 and BlackLevel 0 are the defaults for 16 bits;
+     * CalibrationIlluminant1 must follow AsShotNeutral in tag order. */
+    short1(&ifd0[n0++], 0xC65A, 21); /* D65 */
+    size_t exif_at = 8 + ifd_bytes(ifd0, n0);
+    size_t pixels_at = exif_at + ifd_bytes(exif, n1);
+    le32(link->value, (unsigned long)exif_at);
+    le32(strip->value, (unsigned long)pixels_at);
+    out t = {0};
+    w8(&t, "II*\0", 4);
+    w32(&t, 8);
+    write_ifd(&t, 8, ifd0, n0);
+    write_ifd(&t, exif_at, exif, n1);
+    size_t n = (size_t)w * h * 3;
+    for (size_t i = 0; i < n && !t.failed; i++) {
+        float v = linear->data[i];
+        w16(&t, (unsigned)lround((v > 1 ? 1 : v > 0 ? v : 0) * 65535.0));
+    }
+    if (t.failed) {
+        free(t.p);
+        return sl_error_set(err, SL_ERR_NOMEM, "DNG: out of memory");
+    }
+    *data = t.p;
+    *size = t.n;
     return SL_OK;
 }

@@ -78,7 +78,13 @@ sl_result sl_session_write(const char *dir, sl_error *err)
         return r;
     json_t *start = json_array_get(events, 0);
     json_t *camera = json_deep_copy(json_object_get(start, "camera"));
-    int nviews = (int)json_integer_value(json_object_get(json_object_get(start, "plan"), "views"));
+    json_t *plan = json_object_get(start, "plan");
+    int nviews = (int)json_integer_value(json_object_get(plan, "views"));
+    /* the image format asked for and the camera's label for it */
+    if (camera && json_object_get(plan, "format")) {
+        json_object_set(camera, "format", json_object_get(plan, "format"));
+        json_object_set(camera, "format_label", json_object_get(plan, "format_label"));
+    }
     json_t *views = json_array(), *problems = json_array();
     for (int v = 0; v < nviews; v++) {
         json_t *view = json_object(), *bracket = json_object();
@@ -104,6 +110,8 @@ sl_result sl_session_write(const char *dir, sl_error *err)
                 json_t *value = json_object_get(e, keys[k]);
                 json_object_set(frame, keys[k], value ? value : json_null());
             }
+            if (json_object_get(e, "siblings"))
+                json_object_set(frame, "siblings", json_object_get(e, "siblings"));
             json_t *bracket =
                 json_array_get(json_object_get(json_array_get(views, (size_t)v), "brackets"), 0);
             json_array_append_new(json_object_get(bracket, "frames"), frame);

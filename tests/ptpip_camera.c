@@ -5,7 +5,8 @@
  *
  *   ptpip_camera [--port N] [--lifetime S] [--busy N] [--busy-at K]
  *                [--ignore-shutter K] [--refuse-shutter K] [--drop-after N]
- *                [--drop-at-set K] [--scene NAME]
+ *                [--drop-at-set K] [--scene NAME] [--qualities LIST]
+ *                [--ignore-format K] [--drop-before-raw N] [--quality V]
  *
  * Prints "PORT n" on stdout once listening (port 0 or absent: picks a free one).
  * Faults: --busy N answers the next N InitiateCapture requests from capture
@@ -18,6 +19,18 @@
  * same when the K-th exposure-time change arrives, before answering it (a
  * cable pulled while the camera is being set). The program exits after
  * --lifetime seconds (default 120) so a crashed test never leaves it behind.
+ *
+ * Image quality: CompressionSetting 0x5004 (UINT8 enumeration) with Nikon's
+ * values, the vendor this camera reports so that libgphoto2's ptp2 driver
+ * labels them ("imagequality": 0 JPEG Basic, 1 JPEG Normal, 2 JPEG Fine,
+ * 4 NEF (Raw), 5 NEF+Basic, 6 NEF+Normal, 7 NEF+Fine; default JPEG Fine).
+ * --qualities LIST offers only those values (e.g. 0,1,2: a body without
+ * raw); --quality V starts at V (as set on the body before the session;
+ * 3, which ptp2 cannot name, writes raw + JPEG). In a raw mode a trigger adds the raw (a linear DNG, IMG_nnnn.DNG,
+ * ObjectFormat TIFF/EP) after the JPEG (or alone for NEF (Raw)): two
+ * ObjectAdded events, then CaptureComplete. --ignore-format K acks the K-th
+ * quality change without applying it; --drop-before-raw N closes the
+ * connection when the raw of frame N is asked for (its JPEG was fetched).
  *
  * The photographs: a horizontal ramp of radiance spanning 22 stops, exposed
  * with the set exposure time, f-number and ISO (linear, then sRGB-encoded),
@@ -84,7 +97,14 @@ enum {
     RC_SessionAlreadyOpen = 0x201E
 };
 enum { EC_ObjectAdded = 0x4002, EC_CaptureComplete = 0x400D };
-enum { DPC_FNumber = 0x5007, DPC_ExposureTime = 0x500D, DPC_ExposureIndex = 0x500F };
+enum {
+    DPC_CompressionSetting = 0x5004,
+    DPC_FNumber = 0x5007,
+    DPC_ExposureTime = 0x500D,
+    DPC_ExposureIndex = 0x500F
+};
+enum { OFC_JPEG = 0x3801, OFC_TIFF_EP = 0x3802 };
+#define VENDOR_NIKON 0x0000000Au
 #define STORAGE_ID 0x00010001u
 
 static const uint16_t k_ops[] = {OC_GetDeviceInfo,     OC_OpenSession,       OC_CloseSession,
@@ -93,7 +113,8 @@ static const uint16_t k_ops[] = {OC_GetDeviceInfo,     OC_OpenSession,       OC_
                                  OC_InitiateCapture,   OC_GetDevicePropDesc, OC_GetDevicePropValue,
                                  OC_SetDevicePropValue};
 static const uint16_t k_events[] = {EC_ObjectAdded, EC_CaptureComplete};
-static const uint16_t k_props[] = {DPC_FNumber, DPC_ExposureTime, DPC_ExposureIndex};
+static const uint16_t k_props[] = {DPC_CompressionSetting, DPC_FNumber, DPC_ExposureTime,
+                                   DPC_ExposureIndex};
 
 /* Offered values: exposure time in 1/10000 s (third stops from 1/10000 s to
  * 30 s, as PTP's unit allows), f-number in 1/100, ISO. */
@@ -101,6 +122,10 @@ static uint32_t g_shutters[64];
 static int g_shutter_count;
 static const uint16_t k_fnumbers[] = {280, 400, 560, 800, 1100, 1600};
 static const uint16_t k_isos[] = {100, 200, 400, 800, 1600};
+/* CompressionSetting values offered (--qualities), Nikon's numbering. */
+static uint8_t g_qualities[8] = {0, 1, 2, 4, 5, 6, 7};
+static int g_quality_count = 7;
+#define QUALITY_RAW 4 /* 4: raw alone, 5..7: raw + JPEG */
 
 typedef struct {
     uint8_t *data;
@@ -167,7 +192,9 @@ static uint16_t get16(const uint8_t *p)
 typedef struct {
     uint32_t handle;
     char name[32];
-    uint8_t *jpeg;
+    uint16_t format; /* ObjectFormat */
+    int frame;       /* the trigger that made it, from 1 */
+    uint8_t *data;
     size_t size;
     char date[32]; /* PTP "YYYYMMDDThhmmss" */
 } object;
@@ -177,8 +204,10 @@ static struct {
     uint32_t refused; /* the exposure-time value refused since --refuse-shutter */
     sl_camera *scene; /* --scene: the virtual camera that takes the pictures */
     bool dropped;
-    uint32_t shutter, fnumber, iso;
+    uint32_t shutter, fnumber, iso, quality;
     int shutter_sets;
+    int ignore_format, format_sets, drop_before_raw;
+    bool dropped_raw;
     int captures; /* frames taken */
     object objects[1024];
     int object_count;
@@ -327,16 +356,19 @@ static int recv_data(buf *out)
 static void device_info(buf *b)
 {
     put16(b, 100); /* standard version 1.00 */
-    put32(b, 0);   /* no vendor extension: the plain PTP property set */
+    /* Nikon's extension ID, so that ptp2 labels CompressionSetting as a
+     * Nikon body's menu does; no Nikon operation is offered, so the driver
+     * keeps to the plain PTP property set and InitiateCapture. */
+    put32(b, VENDOR_NIKON);
     put16(b, 100);
     putstr(b, "");
     put16(b, 0); /* functional mode */
     put16array(b, k_ops, (int)(sizeof k_ops / sizeof k_ops[0]));
     put16array(b, k_events, 2);
-    put16array(b, k_props, 3);
-    const uint16_t jpeg = 0x3801;
-    put16array(b, &jpeg, 1); /* capture formats */
-    put16array(b, &jpeg, 1); /* image formats */
+    put16array(b, k_props, 4);
+    const uint16_t formats[2] = {OFC_JPEG, OFC_TIFF_EP};
+    put16array(b, formats, 2); /* capture formats */
+    put16array(b, formats, 2); /* image formats */
     putstr(b, "setlight");
     putstr(b, "PTP-IP test camera");
     putstr(b, "1.0");
@@ -345,7 +377,9 @@ static void device_info(buf *b)
 
 static void prop_value(buf *b, uint16_t prop)
 {
-    if (prop == DPC_ExposureTime)
+    if (prop == DPC_CompressionSetting)
+        put8(b, (uint8_t)g.quality);
+    else if (prop == DPC_ExposureTime)
         put32(b, g.shutter);
     else if (prop == DPC_FNumber)
         put16(b, (uint16_t)g.fnumber);
@@ -356,13 +390,17 @@ static void prop_value(buf *b, uint16_t prop)
 static void prop_desc(buf *b, uint16_t prop)
 {
     put16(b, prop);
-    bool u32 = prop == DPC_ExposureTime;
-    put16(b, u32 ? 0x0006 : 0x0004); /* UINT32 / UINT16 */
+    bool u32 = prop == DPC_ExposureTime, u8 = prop == DPC_CompressionSetting;
+    put16(b, u32 ? 0x0006 : u8 ? 0x0002 : 0x0004); /* UINT32 / UINT8 / UINT16 */
     put8(b, 1);                      /* get/set */
     prop_value(b, prop);             /* factory default: whatever is current */
     prop_value(b, prop);
     put8(b, 2); /* enumeration form */
-    if (prop == DPC_ExposureTime) {
+    if (prop == DPC_CompressionSetting) {
+        put16(b, (uint16_t)g_quality_count);
+        for (int i = 0; i < g_quality_count; i++)
+            put8(b, g_qualities[i]);
+    } else if (prop == DPC_ExposureTime) {
         put16(b, (uint16_t)g_shutter_count);
         for (int i = 0; i < g_shutter_count; i++)
             put32(b, g_shutters[i]);
@@ -379,7 +417,11 @@ static void prop_desc(buf *b, uint16_t prop)
 
 static bool offered(uint16_t prop, uint32_t v)
 {
-    if (prop == DPC_ExposureTime) {
+    if (prop == DPC_CompressionSetting) {
+        for (int i = 0; i < g_quality_count; i++)
+            if (g_qualities[i] == v)
+                return true;
+    } else if (prop == DPC_ExposureTime) {
         for (int i = 0; i < g_shutter_count; i++)
             if (g_shutters[i] == v)
                 return true;
@@ -395,6 +437,14 @@ static bool offered(uint16_t prop, uint32_t v)
     return false;
 }
 
+static bool is_prop(uint32_t prop)
+{
+    for (size_t i = 0; i < sizeof k_props / sizeof k_props[0]; i++)
+        if (k_props[i] == prop)
+            return true;
+    return false;
+}
+
 static object *find_object(uint32_t h)
 {
     for (int i = 0; i < g.object_count; i++)
@@ -403,115 +453,163 @@ static object *find_object(uint32_t h)
     return NULL;
 }
 
-/* Takes a picture with the current settings; returns the new object or NULL. */
-static object *new_object(void)
+/* Adds one file of the trigger being taken (frame g.captures + 1) to the
+ * card: IMG_nnnn.EXT, its JPEG and raw sharing the number. Takes `data`. */
+static bool add_object(const char *ext, uint16_t format, uint8_t *data, size_t size)
 {
+    if (!data || g.object_count == (int)(sizeof g.objects / sizeof g.objects[0])) {
+        free(data);
+        return false;
+    }
     object *o = &g.objects[g.object_count];
     memset(o, 0, sizeof *o);
     o->handle = 0x1000u + (uint32_t)g.object_count;
-    snprintf(o->name, sizeof o->name, "IMG_%04d.JPG", g.object_count + 1);
+    o->frame = g.captures + 1;
+    o->format = format;
+    o->data = data;
+    o->size = size;
+    snprintf(o->name, sizeof o->name, "IMG_%04d.%s", o->frame, ext);
     /* A fixed clock, one second per frame, so runs are reproducible. */
-    time_t when = 1767268800 + g.object_count; /* 2026-01-01 12:00:00 UTC */
+    time_t when = 1767268800 + o->frame - 1; /* 2026-01-01 12:00:00 UTC */
     struct tm tm;
     gmtime_r(&when, &tm);
     strftime(o->date, sizeof o->date, "%Y%m%dT%H%M%S", &tm);
-    return o;
-}
-
-static object *scene_picture(double t, double n, double iso)
-{
-    if (g.object_count == (int)(sizeof g.objects / sizeof g.objects[0]))
-        return NULL;
-    sl_camera_settings s = {t, n, iso};
-    sl_camera_file f;
-    sl_error err;
-    if (sl_camera_set(g.scene, &s, &err) || sl_camera_capture(g.scene, &f, &err)) {
-        fprintf(stderr, "ptpip_camera: %s\n", err.message);
-        return NULL;
-    }
-    object *o = new_object();
-    o->jpeg = f.data;
-    o->size = f.size;
     g.object_count++;
-    g.captures++;
-    return o;
+    return true;
 }
 
-static object *take_picture(void)
+/* 3 is no Nikon value (ptp2 shows "Unknown value 0003"): here a raw+JPEG
+ * mode whose label nobody can read. */
+static bool quality_raw(void)
 {
-    if (g.object_count == (int)(sizeof g.objects / sizeof g.objects[0]))
-        return NULL;
-    const int w = 256, h = 64;
-    double t = g.shutter / 10000.0, n = g.fnumber / 100.0, iso = g.iso;
-    if (g.scene)
-        return scene_picture(t, n, iso);
-    /* Exposure scale: a radiance of 1 at 1/30 s, f/4, ISO 100 gives 0.18. */
-    double k = 0.18 * 30.0 * 16.0 * t * iso / 100.0 / (n * n);
-    sl_image img;
+    return g.quality >= QUALITY_RAW || g.quality == 3;
+}
+static bool quality_jpeg(void)
+{
+    return g.quality != QUALITY_RAW;
+}
+
+/* The virtual camera's photographs, in the format the quality asks for. */
+static bool scene_picture(double t, double n, double iso)
+{
+    sl_camera_settings s = {t, n, iso};
+    sl_image_format format = !quality_raw()   ? SL_FORMAT_JPEG
+                             : quality_jpeg() ? SL_FORMAT_RAW_JPEG
+                                              : SL_FORMAT_RAW;
+    sl_camera_shot f;
     sl_error err;
-    if (sl_image_alloc(&img, w, h, 3, &err))
-        return NULL;
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            double stops = -11.0 + 22.0 * (x + 0.5) / w;
-            double radiance = exp2(stops) * (1.0 + 0.1 * sin(0.3 * y));
-            float *p = sl_image_pixel(&img, x, y);
-            for (int c = 0; c < 3; c++) {
-                double v = radiance * k * (c == 0 ? 1.0 : c == 1 ? 0.9 : 0.8);
-                p[c] = sl_linear_to_srgb((float)(v > 1.0 ? 1.0 : v));
-            }
-        }
-    object *o = new_object();
-    time_t when = 1767268800 + g.object_count;
-    struct tm tm;
-    gmtime_r(&when, &tm);
-    sl_meta meta;
-    sl_meta_init(&meta);
-    meta.exposure_time = t;
-    meta.f_number = n;
-    meta.iso = iso;
-    meta.focal_length_mm = 8.0;
-    snprintf(meta.make, sizeof meta.make, "setlight");
-    snprintf(meta.model, sizeof meta.model, "PTP-IP test camera");
-    strftime(meta.datetime, sizeof meta.datetime, "%Y:%m:%d %H:%M:%S", &tm);
-    /* sl_photo_write wants a path: a private folder, removed right after. */
+    if (sl_camera_set_format(g.scene, format, NULL, &err) || sl_camera_set(g.scene, &s, &err) ||
+        sl_camera_capture(g.scene, &f, &err)) {
+        fprintf(stderr, "ptpip_camera: %s\n", err.message);
+        return false;
+    }
+    bool ok = true;
+    for (int i = 0; i < f.count && ok; i++) {
+        bool raw = sl_image_format_of_file(f.files[i].source) == SL_FORMAT_RAW;
+        ok = add_object(raw ? "DNG" : "JPG", raw ? OFC_TIFF_EP : OFC_JPEG, f.files[i].data,
+                        f.files[i].size);
+        f.files[i].data = NULL;
+    }
+    sl_camera_shot_free(&f);
+    return ok;
+}
+
+/* An sRGB-encoded JPEG with EXIF, through sl_photo_write (which wants a
+ * path: a private folder, removed right after). */
+static uint8_t *jpeg_bytes(const sl_image *srgb, const sl_meta *meta, size_t *size)
+{
     char dir[64] = "/tmp/ptpip_camera.XXXXXX", path[128];
+    sl_error err;
     sl_result r = mkdtemp(dir) ? SL_OK : sl_error_set(&err, SL_ERR_IO, "%s: mkdtemp", dir);
-    snprintf(path, sizeof path, "%s/%s", dir, o->name);
+    snprintf(path, sizeof path, "%s/frame.jpg", dir);
     if (!r)
-        r = sl_photo_write(path, &img, &meta, 8, &err);
-    sl_meta_free(&meta);
-    sl_image_free(&img);
+        r = sl_photo_write(path, srgb, meta, 8, &err);
     FILE *f = r ? NULL : fopen(path, "rb");
-    if (!f) {
-        fprintf(stderr, "ptpip_camera: %s\n", r ? err.message : path);
-        rmdir(dir);
-        return NULL;
-    }
-    fseek(f, 0, SEEK_END);
-    long size = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    o->jpeg = malloc((size_t)size);
-    if (!o->jpeg || fread(o->jpeg, 1, (size_t)size, f) != (size_t)size) {
+    uint8_t *data = NULL;
+    if (f) {
+        fseek(f, 0, SEEK_END);
+        long n = ftell(f);
+        fseek(f, 0, SEEK_SET);
+        data = n > 0 ? malloc((size_t)n) : NULL;
+        if (data && fread(data, 1, (size_t)n, f) != (size_t)n) {
+            free(data);
+            data = NULL;
+        }
+        *size = data ? (size_t)n : 0;
         fclose(f);
-        free(o->jpeg);
-        remove(path);
-        rmdir(dir);
-        return NULL;
-    }
-    fclose(f);
+    } else
+        fprintf(stderr, "ptpip_camera: %s\n", r ? err.message : path);
     remove(path);
     rmdir(dir);
-    o->size = (size_t)size;
-    g.object_count++;
-    g.captures++;
-    return o;
+    return data;
+}
+
+/* Takes a picture with the current settings: its JPEG and/or raw go on
+ * the card. False when that failed. */
+static bool take_picture(void)
+{
+    const int w = 256, h = 64;
+    double t = g.shutter / 10000.0, n = g.fnumber / 100.0, iso = g.iso;
+    bool ok;
+    if (g.scene)
+        ok = scene_picture(t, n, iso);
+    else {
+        /* Exposure scale: a radiance of 1 at 1/30 s, f/4, ISO 100 gives 0.18. */
+        double k = 0.18 * 30.0 * 16.0 * t * iso / 100.0 / (n * n);
+        sl_image lin, srgb;
+        sl_error err;
+        if (sl_image_alloc(&lin, w, h, 3, &err))
+            return false;
+        if (sl_image_alloc(&srgb, w, h, 3, &err)) {
+            sl_image_free(&lin);
+            return false;
+        }
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                double stops = -11.0 + 22.0 * (x + 0.5) / w;
+                double radiance = exp2(stops) * (1.0 + 0.1 * sin(0.3 * y));
+                float *p = sl_image_pixel(&lin, x, y), *q = sl_image_pixel(&srgb, x, y);
+                for (int c = 0; c < 3; c++) {
+                    double v = radiance * k * (c == 0 ? 1.0 : c == 1 ? 0.9 : 0.8);
+                    p[c] = (float)(v > 1.0 ? 1.0 : v);
+                    q[c] = sl_linear_to_srgb(p[c]);
+                }
+            }
+        time_t when = 1767268800 + g.captures;
+        struct tm tm;
+        gmtime_r(&when, &tm);
+        sl_meta meta;
+        sl_meta_init(&meta);
+        meta.exposure_time = t;
+        meta.f_number = n;
+        meta.iso = iso;
+        meta.focal_length_mm = 8.0;
+        snprintf(meta.make, sizeof meta.make, "setlight");
+        snprintf(meta.model, sizeof meta.model, "PTP-IP test camera");
+        strftime(meta.datetime, sizeof meta.datetime, "%Y:%m:%d %H:%M:%S", &tm);
+        size_t size = 0;
+        ok = true;
+        if (quality_jpeg()) {
+            uint8_t *jpeg = jpeg_bytes(&srgb, &meta, &size);
+            ok = add_object("JPG", OFC_JPEG, jpeg, size);
+        }
+        unsigned char *dng = NULL;
+        if (ok && quality_raw())
+            ok = !sl_dng_encode(&lin, &meta, 0, &dng, &size, &err) &&
+                 add_object("DNG", OFC_TIFF_EP, dng, size);
+        sl_meta_free(&meta);
+        sl_image_free(&lin);
+        sl_image_free(&srgb);
+    }
+    if (ok)
+        g.captures++;
+    return ok;
 }
 
 static void object_info(buf *b, const object *o)
 {
     put32(b, STORAGE_ID);
-    put16(b, 0x3801);
+    put16(b, o->format);
     put16(b, 0);
     put32(b, (uint32_t)o->size);
     put16(b, 0);
@@ -611,16 +709,21 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
         if (code == OC_GetObjectInfo) {
             object_info(&d, o);
             r = send_data(tid, d.data, d.size);
+        } else if (code == OC_GetObject && o->format == OFC_TIFF_EP &&
+                   o->frame == g.drop_before_raw && !g.dropped_raw) {
+            g.dropped_raw = true;
+            fprintf(stderr, "ptpip_camera: dropping the connection before the raw of frame %d\n",
+                    o->frame);
+            return -1;
         } else
-            r = send_data(tid, o->jpeg, o->size);
+            r = send_data(tid, o->data, o->size);
         if (!r)
             r = send_response(RC_OK, tid, NULL, 0);
         break;
     }
     case OC_GetDevicePropDesc:
     case OC_GetDevicePropValue:
-        if (np < 1 ||
-            (p[0] != DPC_ExposureTime && p[0] != DPC_FNumber && p[0] != DPC_ExposureIndex)) {
+        if (np < 1 || !is_prop(p[0])) {
             r = send_response(RC_DevicePropNotSupported, tid, NULL, 0);
             break;
         }
@@ -636,8 +739,11 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
         if (recv_data(&d))
             return -1;
         uint16_t prop = np >= 1 ? (uint16_t)p[0] : 0;
-        uint32_t v = d.size >= 4 ? get32(d.data) : d.size >= 2 ? get16(d.data) : 0;
-        if (prop != DPC_ExposureTime && prop != DPC_FNumber && prop != DPC_ExposureIndex) {
+        uint32_t v = d.size >= 4   ? get32(d.data)
+                     : d.size >= 2 ? get16(d.data)
+                     : d.size >= 1 ? d.data[0]
+                                   : 0;
+        if (!is_prop(prop)) {
             r = send_response(RC_DevicePropNotSupported, tid, NULL, 0);
             break;
         }
@@ -659,7 +765,12 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
             r = send_response(RC_InvalidDevicePropValue, tid, NULL, 0);
             break;
         }
-        if (prop == DPC_ExposureTime) {
+        if (prop == DPC_CompressionSetting) {
+            if (v != g.quality && ++g.format_sets == g.ignore_format)
+                fprintf(stderr, "ptpip_camera: ignoring image quality change %d\n", g.format_sets);
+            else
+                g.quality = v;
+        } else if (prop == DPC_ExposureTime) {
             g.shutter_sets++;
             if (g.shutter_sets != g.ignore_shutter)
                 g.shutter = v;
@@ -686,14 +797,14 @@ static int operation(uint16_t code, uint32_t tid, const uint32_t *p, int np)
             r = send_response(RC_DeviceBusy, tid, NULL, 0);
             break;
         }
-        object *o = take_picture();
-        if (!o) {
+        int first = g.object_count;
+        if (!take_picture()) {
             r = send_response(RC_GeneralError, tid, NULL, 0);
             break;
         }
         r = send_response(RC_OK, tid, NULL, 0);
-        if (!r)
-            r = send_event(EC_ObjectAdded, tid, o->handle);
+        for (int i = first; i < g.object_count && !r; i++)
+            r = send_event(EC_ObjectAdded, tid, g.objects[i].handle);
         if (!r)
             r = send_event(EC_CaptureComplete, tid, 0);
         break;
@@ -813,7 +924,7 @@ out:
 
 int main(int argc, char **argv)
 {
-    int port = 0;
+    int port = 0, start_quality = 2; /* JPEG Fine */
     double lifetime = 120;
     g.busy_at = 1;
     for (int i = 1; i < argc; i++) {
@@ -846,7 +957,17 @@ int main(int argc, char **argv)
             g.drop_after = atoi(v);
         else if (!strcmp(a, "--drop-at-set"))
             g.drop_at_set = atoi(v);
-        else {
+        else if (!strcmp(a, "--ignore-format"))
+            g.ignore_format = atoi(v);
+        else if (!strcmp(a, "--drop-before-raw"))
+            g.drop_before_raw = atoi(v);
+        else if (!strcmp(a, "--quality"))
+            start_quality = atoi(v);
+        else if (!strcmp(a, "--qualities")) {
+            g_quality_count = 0;
+            for (const char *c = v; *c && g_quality_count < 8; c += strcspn(c, ","), c += !!*c)
+                g_qualities[g_quality_count++] = (uint8_t)atoi(c);
+        } else {
             fprintf(stderr, "ptpip_camera: unknown option %s\n", a);
             return 2;
         }
@@ -863,6 +984,10 @@ int main(int argc, char **argv)
             g.shutter = g_shutters[i];
     g.fnumber = 400;
     g.iso = 100;
+    g.quality = g_qualities[0];
+    for (int i = 0; i < g_quality_count; i++)
+        if (g_qualities[i] == start_quality)
+            g.quality = (uint32_t)start_quality;
     g_debug = getenv("PTPIP_CAMERA_DEBUG") != NULL;
     signal(SIGPIPE, SIG_IGN);
     int lfd = socket(AF_INET, SOCK_STREAM, 0);

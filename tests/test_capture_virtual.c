@@ -5,8 +5,11 @@
  * change ignored, caught by EXIF and by pixels independently; busy replies;
  * a refused setting; a disconnect with reconnection and one without, then
  * --resume; a resume folder that is not a session or has a corrupt journal),
- * and ingest of virtual-set frames in shuffled names, including frames shot
- * less than a second apart. */
+ * image formats (raw+jpeg shots with siblings, raw alone verified on the
+ * DNG, a format change ignored and caught, a link dropped between a shot's
+ * JPEG and raw, then --resume; another --format refused), and ingest of
+ * virtual-set frames in shuffled names, including frames shot less than a
+ * second apart. */
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
@@ -231,12 +234,14 @@ static void test_camera_interface(void)
     CHECK_OK(sl_camera_get(cam, &now, &err), &err);
     CHECK_NEAR(now.exposure_time, 1.0 / 125, 1e-12);
     CHECK(now.f_number == 8 && now.iso == 400);
-    sl_camera_file file;
-    CHECK_OK(sl_camera_capture(cam, &file, &err), &err);
-    CHECK(!strcmp(file.source, "/DCIM/100VSET/IMG_0001.JPG") && file.busy_retries == 0);
+    sl_camera_shot shot;
+    CHECK_OK(sl_camera_capture(cam, &shot, &err), &err);
+    sl_camera_file *file = &shot.files[0];
+    CHECK(shot.count == 1 && shot.expected == 1 && shot.busy_retries == 0);
+    CHECK(!strcmp(file->source, "/DCIM/100VSET/IMG_0001.JPG"));
     const char *path = sl_test_path("one.jpg");
-    CHECK_OK(sl_write_file_atomic(path, file.data, file.size, &err), &err);
-    sl_camera_file_free(&file);
+    CHECK_OK(sl_write_file_atomic(path, file->data, file->size, &err), &err);
+    sl_camera_shot_free(&shot);
     sl_image img;
     sl_meta meta;
     CHECK_OK(sl_photo_read(path, &img, &meta, &err), &err);
@@ -291,16 +296,21 @@ static void test_full_capture(void)
     sl_camera_close(cam);
 }
 
-/* Runs a 1 x 7 session with these faults; returns the journal. */
-static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result want,
-                        sl_error *err, double **times_out)
+/* Runs a 1 x N session of plan `spec` (NxS around 1/125 s) in `format`
+ * with these faults, reconnecting for `reconnect` seconds; returns the
+ * journal. */
+static json_t *run_format(const char *name, const char *spec, sl_virtual_camera_opts *vo,
+                          sl_image_format format, double reconnect, sl_result want, sl_error *err,
+                          double **times_out)
 {
     sl_camera *cam = open_virtual(vo);
     if (!cam)
         return json_array();
     double *times;
-    int n = plan(cam, &times);
+    int n = plan_of(cam, spec, 1.0 / 125, &times);
     sl_capture_options o = options(sl_test_path(name), times, n, 1);
+    o.format = format;
+    o.reconnect_seconds = reconnect;
     CHECK_RESULT(sl_capture_run(cam, &o, err), want, err);
     sl_camera_close(cam);
     if (want == SL_OK)
@@ -310,6 +320,13 @@ static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result 
     else
         free(times);
     return journal(o.dir);
+}
+
+/* 1 x 7, 2 stops apart, in the camera's format, reconnecting for 5 s. */
+static json_t *run_with(const char *name, sl_virtual_camera_opts *vo, sl_result want, sl_error *err,
+                        double **times_out)
+{
+    return run_format(name, "7x2", vo, SL_FORMAT_KEEP, 5, want, err, times_out);
 }
 
 static void test_ignored_shutter(void)
@@ -581,6 +598,179 @@ static void test_disconnect_and_resume(void)
     free(times);
 }
 
+/* Every accepted frame of `dir` is a DNG with one JPEG sibling, both on
+ * disk with their journalled SHA-256; session.json lists the siblings and
+ * the format with the camera's label. */
+static void check_raw_jpeg(const char *dir, int count)
+{
+    json_t *j = journal(dir);
+    json_t *acc = events(j, "frame", 1);
+    size_t i;
+    json_t *e;
+    json_array_foreach(acc, i, e)
+    {
+        json_t *sib = json_object_get(e, "siblings");
+        CHECK_MSG(strstr(str(e, "file"), ".dng") && json_array_size(sib) == 1, "%s: %zu siblings",
+                  str(e, "file"), json_array_size(sib));
+        json_t *f = json_array_get(sib, 0);
+        CHECK(strstr(str(f, "file"), ".jpg") && strstr(str(f, "source"), ".JPG"));
+        CHECK(!strcmp(str(e, "verified_on"), str(f, "file")));
+        char path[4096], hex[65];
+        sl_error err;
+        snprintf(path, sizeof path, "%s/%s", dir, str(f, "file"));
+        CHECK_OK(sl_sha256_file(path, hex, &err), &err);
+        CHECK_MSG(!strcmp(hex, str(f, "sha256")), "%s: checksum differs", path);
+    }
+    CHECK((int)json_array_size(acc) == count);
+    json_decref(acc);
+    json_decref(j);
+    char sp[4096];
+    snprintf(sp, sizeof sp, "%s/session.json", dir);
+    json_t *s = json_load_file(sp, 0, NULL);
+    json_t *cam = json_object_get(s, "camera");
+    CHECK(!strcmp(str(cam, "format"), "raw+jpeg") &&
+          !strcmp(str(cam, "format_label"), "RAW + JPEG Fine"));
+    json_t *fr = json_object_get(
+        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
+                       0),
+        "frames");
+    int with = 0;
+    json_array_foreach(fr, i, e) with += json_array_size(json_object_get(e, "siblings")) == 1;
+    CHECK_MSG(with == count, "%d of %d frames list their JPEG", with, count);
+    json_decref(s);
+}
+
+static void test_raw_jpeg(void)
+{
+    sl_virtual_camera_opts vo;
+    sl_error err;
+    double *times;
+    vopts(&vo);
+    double t0 = sl_seconds();
+    json_t *j = run_format("rawjpeg", "7x2", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
+    printf("1x7 raw+jpeg with the virtual camera: %.2f s\n", sl_seconds() - t0);
+    check_raw_jpeg(sl_test_path("rawjpeg"), 7);
+    CHECK(sl_test_count_files(sl_test_path("rawjpeg")) == 14 + 2);
+    json_t *fmt = events(j, "format", -1);
+    CHECK(json_array_size(fmt) == 1 && json_is_true(json_object_get(json_array_get(fmt, 0), "ok")));
+    json_decref(fmt);
+    json_decref(j);
+    free(times);
+
+    /* raw alone: the DNG is decoded, so its pixels are measured too */
+    vopts(&vo);
+    j = run_format("rawonly", "3x3", &vo, SL_FORMAT_RAW, 5, SL_OK, &err, &times);
+    json_t *acc = events(j, "frame", 1);
+    size_t i;
+    json_t *e;
+    int measured = 0;
+    json_array_foreach(acc, i, e)
+    {
+        CHECK(strstr(str(e, "file"), ".dng") && !json_object_get(e, "siblings"));
+        measured += json_is_true(json_object_get(e, "pixels_ok"));
+    }
+    CHECK_MSG(measured == 2, "%d raw frames measured", measured);
+    CHECK(sl_test_count_files(sl_test_path("rawonly")) == 3 + 2);
+    json_decref(acc);
+    json_decref(j);
+    free(times);
+}
+
+static void test_format_ignored(void)
+{
+    sl_virtual_camera_opts vo;
+    sl_error err;
+    double *times;
+    /* the change is ignored and reads back unchanged: set again */
+    vopts(&vo);
+    vo.ignore_format = 1;
+    json_t *j = run_format("fmt_ignored", "3x3", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
+    json_t *fmt = events(j, "format", -1);
+    CHECK(json_array_size(fmt) == 2);
+    CHECK(json_is_false(json_object_get(json_array_get(fmt, 0), "ok")) &&
+          strstr(str(json_array_get(fmt, 0), "message"), "ignored the image format change"));
+    CHECK(json_is_true(json_object_get(json_array_get(fmt, 1), "ok")));
+    check_raw_jpeg(sl_test_path("fmt_ignored"), 3);
+    json_decref(fmt);
+    json_decref(j);
+    free(times);
+
+    /* it even reads back as changed: the first frame's files give it away,
+     * the frame is rejected (kept, journalled) and shot again */
+    vopts(&vo);
+    vo.ignore_format = 1;
+    vo.format_lies = true;
+    j = run_format("fmt_lies", "3x3", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
+    json_t *rej = events(j, "frame", 0);
+    CHECK(json_array_size(rej) == 1);
+    json_t *r = json_array_get(rej, 0);
+    CHECK(ival(r, "index") == 0 &&
+          strstr(str(r, "reason"), "delivered jpeg, the plan is raw+jpeg") &&
+          !strcmp(str(r, "file"), "v00_f00.jpg"));
+    check_raw_jpeg(sl_test_path("fmt_lies"), 3);
+    json_decref(rej);
+    json_decref(j);
+    free(times);
+}
+
+/* The link drops after frame 3's JPEG landed, before its raw: the JPEG is
+ * kept and journalled incomplete; resume shoots frame 3 again under new
+ * names and finishes; another format is refused. */
+static void test_drop_between_files(void)
+{
+    sl_virtual_camera_opts vo;
+    sl_error err;
+    double *times;
+    vopts(&vo);
+    vo.drop_before_raw = 3;
+    json_t *j =
+        run_format("fmt_drop", "3x3", &vo, SL_FORMAT_RAW_JPEG, -1, SL_ERR_CAMERA, &err, &times);
+    const char *dir = sl_test_path("fmt_drop");
+    json_t *rej = events(j, "frame", 0);
+    CHECK(json_array_size(rej) == 1);
+    json_t *r = json_array_get(rej, 0);
+    CHECK(ival(r, "index") == 2 && json_is_true(json_object_get(r, "incomplete")) &&
+          !strcmp(str(r, "file"), "v00_f02.jpg") && strstr(str(r, "reason"), "1 of 2 files"));
+    char landed[65] = "";
+    snprintf(landed, sizeof landed, "%s", str(r, "sha256"));
+    json_decref(rej);
+    json_decref(j);
+    CHECK(sl_test_count_files(dir) == 2 * 2 + 1 + 2); /* frames 1, 2, the JPEG of 3 */
+
+    vopts(&vo);
+    sl_camera *cam = open_virtual(&vo);
+    if (!cam)
+        return;
+    sl_capture_options ro;
+    memset(&ro, 0, sizeof ro);
+    char *before = sl_test_read_file(sl_test_path("fmt_drop/journal.jsonl"), NULL);
+    ro.format = SL_FORMAT_JPEG;
+    CHECK_RESULT(sl_capture_resume(cam, &ro, dir, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, dir) && strstr(err.message, "raw+jpeg") &&
+          strstr(err.message, "jpeg"));
+    char *same = sl_test_read_file(sl_test_path("fmt_drop/journal.jsonl"), NULL);
+    CHECK(before && same && !strcmp(before, same));
+    free(before);
+    free(same);
+    ro.format = SL_FORMAT_KEEP; /* the session's format */
+    CHECK_OK(sl_capture_resume(cam, &ro, dir, &err), &err);
+    sl_camera_close(cam);
+    check_session(dir, 1, 3, times);
+    check_raw_jpeg(dir, 3);
+    CHECK(sl_test_count_files(dir) == 3 * 2 + 1 + 2);
+    char path[4096], hex[65];
+    snprintf(path, sizeof path, "%s/v00_f02.jpg", dir);
+    CHECK_OK(sl_sha256_file(path, hex, &err), &err);
+    CHECK_MSG(!strcmp(hex, landed), "%s: the landed JPEG was overwritten", path);
+    j = journal(dir);
+    json_t *acc = events(j, "frame", 1);
+    json_t *f2 = json_array_get(acc, 2);
+    CHECK(ival(f2, "index") == 2 && !strcmp(str(f2, "file"), "v00_f02_r2.dng"));
+    json_decref(acc);
+    json_decref(j);
+    free(times);
+}
+
 typedef struct shot_rec {
     int view, bracket, index;
     double time;    /* EXIF exposure time */
@@ -615,9 +805,10 @@ static void test_ingest_subsecond(void)
         for (int b = 0; b < brackets[v]; b++)
             for (int k = 0; k < 5; k++) {
                 sl_camera_settings s = {speeds[k], 0, 0};
-                sl_camera_file f;
+                sl_camera_shot shot;
                 CHECK_OK(sl_camera_set(cam, &s, &err), &err);
-                CHECK_OK(sl_camera_capture(cam, &f, &err), &err);
+                CHECK_OK(sl_camera_capture(cam, &shot, &err), &err);
+                const sl_camera_file f = shot.files[0];
                 char path[4096];
                 snprintf(path, sizeof path, "%s/X%04d.JPG", card, names[n]);
                 CHECK_OK(sl_write_file_atomic(path, f.data, f.size, &err), &err);
@@ -626,7 +817,7 @@ static void test_ingest_subsecond(void)
                 r->bracket = b;
                 r->index = k;
                 sl_sha256_hex(f.data, f.size, r->sha);
-                sl_camera_file_free(&f);
+                sl_camera_shot_free(&shot);
                 sl_meta meta;
                 int w, h, c;
                 if (!sl_photo_read_meta(path, &meta, &w, &h, &c, &err)) {
@@ -782,6 +973,9 @@ int main(void)
     RUN(test_refused_setting);
     RUN(test_reconnect);
     RUN(test_disconnect_and_resume);
+    RUN(test_raw_jpeg);
+    RUN(test_format_ignored);
+    RUN(test_drop_between_files);
     RUN(test_ingest_subsecond);
     RUN(test_ingest_vset);
     return sl_test_finish();

@@ -35,6 +35,9 @@ static const char *capture_help =
     "  --center SPEED       centre shutter speed, e.g. 1/30 (default: the camera's setting)\n"
     "  --aperture F         set the f-number first (default: leave it)\n"
     "  --iso N              set the ISO first (default: leave it)\n"
+    "  --format FORMAT      raw, jpeg or raw+jpeg: set the camera's image format to its\n"
+    "                       best matching choice (reported); keep (default): leave it.\n"
+    "                       A format the camera does not offer is a usage error (exit 2)\n"
     "  --views N            directions on the nodal head (default 1)\n"
     "  --step-command CMD   run CMD (sh -c, SETLIGHT_VIEW set) between views to turn the head\n"
     "  --no-prompt          do not wait for Enter between views\n"
@@ -43,8 +46,10 @@ static const char *capture_help =
     "                       0: stop at once, --resume continues)\n"
     "  -o, --output DIR     new session folder\n"
     "  --resume DIR         continue the session in DIR from its next missing frame\n"
+    "                       (a --format other than the session's is refused, exit 2)\n"
     "  --json               print the result as JSON on stdout (dir, ok, camera,\n"
-    "                       frames shot in this run, plan with its snapping, error)\n\n"
+    "                       format and the camera's label for it, frames shot in this\n"
+    "                       run, plan with its snapping, error)\n\n"
     "Plans are snapped to the camera's shutter speeds (reported); a speed more than\n"
     "one stop outside the camera's range is a usage error (exit 2).\n";
 
@@ -115,7 +120,7 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
      * journal, reconnection), not SIGPIPE killing the session. */
     signal(SIGPIPE, SIG_IGN);
     enum { OPT_CAMERA = 1000, OPT_BRACKET, OPT_CENTER, OPT_APERTURE, OPT_ISO, OPT_VIEWS, OPT_STEP,
-           OPT_NOPROMPT, OPT_ATTEMPTS, OPT_RESUME, OPT_RECONNECT };
+           OPT_NOPROMPT, OPT_ATTEMPTS, OPT_RESUME, OPT_RECONNECT, OPT_FORMAT };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"camera", required_argument, NULL, OPT_CAMERA},
@@ -130,10 +135,12 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
         {"output", required_argument, NULL, 'o'},
         {"resume", required_argument, NULL, OPT_RESUME},
         {"reconnect", required_argument, NULL, OPT_RECONNECT},
+        {"format", required_argument, NULL, OPT_FORMAT},
         {0, 0, 0, 0}};
     const char *port = "auto", *bracket = "7x3", *out = NULL, *resume = NULL;
     double center = 0, aperture = 0, iso = 0, reconnect = 10;
     int views = 1, attempts = 3;
+    sl_image_format format = SL_FORMAT_KEEP;
     step_ctx sc = {.cli = cli, .prompt = true};
     cli_getopt_reset();
     int c;
@@ -183,6 +190,12 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
         case OPT_RESUME:
             resume = optarg;
             break;
+        case OPT_FORMAT: {
+            sl_error e;
+            if (sl_image_format_parse(optarg, &format, &e))
+                return cli_usage_error(cli, "--format: %s", e.message);
+            break;
+        }
         case OPT_RECONNECT:
             if (!cli_parse_double(optarg, &reconnect) || reconnect < 0 || reconnect > 3600)
                 return cli_usage_error(cli, "--reconnect needs 0 to 3600 seconds, not '%s'",
@@ -216,7 +229,8 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
     if ((r = sl_camera_open(port, &camera, &err)))
         return cli_fail(cli, &err);
     sl_capture_options o = {.dir = out, .views = views, .f_number = aperture, .iso = iso,
-                            .max_attempts = attempts, .reconnect_seconds = reconnect > 0 ? reconnect : -1,
+                            .format = format, .max_attempts = attempts,
+                            .reconnect_seconds = reconnect > 0 ? reconnect : -1,
                             .step = step, .on_frame = on_frame, .ctx = &sc};
     json_t *snaps = json_array();
     if (resume) {
@@ -268,6 +282,15 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
 done:
     if (sc.progress.label)
         sl_progress_end(&sc.progress);
+    /* the image format and the camera's label for it, as the session holds them */
+    char sp[4096];
+    snprintf(sp, sizeof sp, "%s/session.json", resume ? resume : out);
+    json_t *session = json_load_file(sp, 0, NULL);
+    json_t *jformat = json_object_get(json_object_get(session, "camera"), "format");
+    json_t *jlabel = json_object_get(json_object_get(session, "camera"), "format_label");
+    if (!r && json_string_value(jlabel) && *json_string_value(jlabel) && !cli->quiet && !cli->json)
+        sl_log(SL_LOG_INFO, "image format %s: the camera's '%s'", json_string_value(jformat),
+               json_string_value(jlabel));
     if (cli->json) {
         json_t *j = json_object();
         json_object_set_new(j, "dir", json_string(resume ? resume : out));
@@ -276,6 +299,8 @@ done:
                             json_pack("{s:s, s:s, s:s}", "model", sl_camera_model(camera), "port",
                                       sl_camera_port(camera), "backend",
                                       sl_camera_backend(camera)));
+        json_object_set_new(j, "format", jformat ? json_incref(jformat) : json_null());
+        json_object_set_new(j, "format_label", jlabel ? json_incref(jlabel) : json_null());
         json_object_set_new(j, "frames", json_integer(sc.accepted));
         json_object_set_new(j, "plan", snaps);
         json_object_set_new(j, "seconds", json_real(sl_seconds() - t0));
@@ -288,6 +313,7 @@ done:
         json_decref(j);
     } else
         json_decref(snaps);
+    json_decref(session);
     sl_camera_close(camera);
     free(times);
     free(moved);

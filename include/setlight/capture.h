@@ -430,6 +430,9 @@ typedef struct sl_virtual_camera_opts {
     double refuse_shutter;    /* a shutter speed (s) the camera refuses to set */
     int drop_after;           /* the connection drops at the trigger of frame N+1 */
     int down_attempts;        /* reconnections refused after the drop (-1: all) */
+    int ignore_format;        /* the k-th image-format change is acknowledged, not applied */
+    bool format_lies;         /* ...and the setting reads back as changed */
+    int drop_before_raw;      /* raw+jpeg: the connection drops after frame N's JPEG */
 } sl_virtual_camera_opts;
 sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
                                  sl_error *err);
@@ -447,22 +450,78 @@ sl_result sl_camera_set(sl_camera *camera, const sl_camera_settings *settings, s
 /* What the camera reports it is set to. */
 sl_result sl_camera_get(sl_camera *camera, sl_camera_settings *settings, sl_error *err);
 
+/* The files one trigger writes. KEEP leaves the camera's setting alone. */
+typedef enum {
+    SL_FORMAT_KEEP = 0,
+    SL_FORMAT_JPEG,
+    SL_FORMAT_RAW,
+    SL_FORMAT_RAW_JPEG
+} sl_image_format;
+
+/* "keep", "jpeg", "raw", "raw+jpeg". */
+const char *sl_image_format_name(sl_image_format format);
+/* The names above; SL_ERR_USAGE naming the text otherwise. */
+sl_result sl_image_format_parse(const char *text, sl_image_format *format, sl_error *err);
+/* What a camera's image-format choice label means ("NEF+Fine", "RAW + Large
+ * Fine JPEG", "JPEG Fine", "cRAW", "Standard"...): JPEG, RAW, RAW_JPEG, or
+ * KEEP for a label that is neither (TIFF, HEIF, unknown). *rank (may be
+ * NULL) orders labels of one kind: full-size raw before mRAW/sRAW/cRAW,
+ * then JPEG quality (extra fine, fine, normal, basic), then size. */
+sl_image_format sl_image_format_of_label(const char *label, int *rank);
+/* A file's kind from its name: RAW (.cr2 .cr3 .nef .nrw .arw .dng .raf
+ * .orf .rw2 .pef .srw .iiq), JPEG (.jpg .jpeg), else KEEP. */
+sl_image_format sl_image_format_of_file(const char *name);
+
+/* The label of the best choice the camera offers for `format` (64 bytes),
+ * without changing anything. SL_ERR_USAGE when it offers none (a plan the
+ * camera cannot do; the message lists its choices), SL_ERR_CAMERA when it
+ * has no image-format setting. */
+sl_result sl_camera_format_choice(sl_camera *camera, sl_image_format format, char *label,
+                                  sl_error *err);
+/* Sets that choice (busy replies retried with backoff) and reads it back;
+ * `label` (may be NULL) gets it. SL_ERR_CAMERA when the camera refuses or
+ * still reads another choice after the change (it ignored it). */
+sl_result sl_camera_set_format(sl_camera *camera, sl_image_format format, char *label,
+                               sl_error *err);
+/* What the camera is set to (KEEP when it cannot tell) and its label. */
+sl_result sl_camera_get_format(sl_camera *camera, sl_image_format *format, char *label,
+                               sl_error *err);
+
 typedef struct sl_camera_file {
     unsigned char *data;
     size_t size;
     char source[256]; /* name on the card, e.g. "/store_00010001/IMG_0001.JPG" */
-    int busy_retries; /* busy replies retried before the trigger was taken */
 } sl_camera_file;
 
-/* Triggers one exposure, waits for the camera's file-added event and
- * downloads that file (never deleted from the card). Busy replies are
- * retried with backoff; a lost connection is SL_ERR_CAMERA. */
-sl_result sl_camera_capture(sl_camera *camera, sl_camera_file *file, sl_error *err);
-void sl_camera_file_free(sl_camera_file *file);
+#define SL_SHOT_MAX_FILES 4
+
+/* What one trigger delivered: RAW+JPEG bodies write two files. */
+typedef struct sl_camera_shot {
+    sl_camera_file files[SL_SHOT_MAX_FILES];
+    int count;        /* files downloaded */
+    int expected;     /* files the camera's format makes per trigger */
+    int busy_retries; /* busy replies retried before the trigger was taken */
+} sl_camera_shot;
+
+/* Triggers one exposure, waits for the camera's file-added events of that
+ * trigger (as many as its image format writes, or until it reports the
+ * capture complete) and downloads each file (never deleted from the card).
+ * Busy replies are retried with backoff; a lost connection is
+ * SL_ERR_CAMERA, with the files downloaded before it kept in `shot`. */
+sl_result sl_camera_capture(sl_camera *camera, sl_camera_shot *shot, sl_error *err);
+void sl_camera_shot_free(sl_camera_shot *shot);
 /* The nodal head now points at view `view` of `views`: turns the virtual
  * camera's head; real bodies cannot be aimed (the step command or the
  * wrangler turns the head), so for them it does nothing. */
 void sl_camera_aim(sl_camera *camera, int view, int views);
+
+/* A camera raw for the virtual and test cameras: a DNG (LinearRaw, 16-bit
+ * RGB, uncompressed, camera RGB = linear Rec.709, as-shot neutral white)
+ * of `linear` (RGB, clipped to [0,1]) with the EXIF of sl_jpeg_set_exif.
+ * OpenImageIO (LibRaw) reads it back linear, so the capture verification
+ * measures its pixels like a real camera's raw. *data is malloc'd. */
+sl_result sl_dng_encode(const sl_image *linear, const sl_meta *meta, int subsec_ms,
+                        unsigned char **data, size_t *size, sl_error *err);
 
 /* --- SHA-256 (FIPS 180-4) --- */
 
@@ -490,9 +549,11 @@ typedef struct sl_capture_report {
     double measured_ratio;  /* pixel ratio to the previous accepted frame, 0 if none */
     double expected_ratio;  /* what the EXIF exposures say that ratio should be */
     int busy_retries;       /* busy replies to this frame's trigger */
-    char file[256];         /* name inside the session folder */
+    int files;              /* files the trigger delivered (2 for RAW+JPEG) */
+    char file[256];         /* name inside the session folder (the rawest file) */
     char source[256];
     char reason[256];       /* why a frame was rejected */
+    char note[128];         /* e.g. "not measured: raw only" */
 } sl_capture_report;
 
 /* Called between views (before view `next_view`, from 1): move the nodal
@@ -506,6 +567,7 @@ typedef struct sl_capture_options {
     int count;
     int views;                  /* >= 1 */
     double f_number, iso;       /* 0 = leave the camera's setting */
+    sl_image_format format;     /* KEEP = leave the camera's setting */
     int max_attempts;           /* per frame (default 3) */
     double reconnect_seconds;   /* after a lost connection, keep reconnecting with
                                    backoff this long (0: 10 s; < 0: give up at once) */
@@ -523,8 +585,9 @@ typedef struct sl_capture_options {
 sl_result sl_capture_run(sl_camera *camera, const sl_capture_options *options, sl_error *err);
 /* Continues the session in `dir` with its journalled plan from the next
  * missing frame. SL_ERR_INPUT when dir is not a session or its journal is
- * corrupt (nothing is touched then). options->dir, times, count and views
- * are ignored (taken from the journal). */
+ * corrupt (nothing is touched then); SL_ERR_USAGE when options->format is
+ * not KEEP and differs from the session's. options->dir, times, count and
+ * views are ignored (taken from the journal). */
 sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *options,
                             const char *dir, sl_error *err);
 /* Rewrites DIR/session.json (version 1) from the journal. */

@@ -1,7 +1,8 @@
 # Shared by the capture CLI tests (sourced after lib.bash, not run).
 
-# check_session DIR VIEWS COUNT: frames on disk, journal complete, checksums,
-# EXIF exposures as planned, session.json grouping.
+# check_session DIR VIEWS COUNT: frames on disk (with their siblings),
+# journal complete, checksums, EXIF exposures as planned, session.json
+# grouping.
 check_session() {
   local dir=$1 views=$2 count=$3
   local files
@@ -24,9 +25,13 @@ keys = [(e["view"], e["index"]) for e in acc]
 assert len(keys) == views * count, ("accepted frames", len(keys))
 assert len(set(keys)) == len(keys), "a frame was accepted twice"
 assert any(e["event"] == "session_end" for e in lines), "no session_end"
+# a frame's files: its own and its siblings' (RAW+JPEG), each checksummed
+def files(e):
+    return [e] + e.get("siblings", [])
 for e in [e for e in lines if e["event"] == "frame"]:
-    data = open(d + "/" + e["file"], "rb").read()
-    assert hashlib.sha256(data).hexdigest() == e["sha256"], e["file"]
+    for f in files(e):
+        data = open(d + "/" + f["file"], "rb").read()
+        assert hashlib.sha256(data).hexdigest() == f["sha256"], f["file"]
 for e in acc:
     exif = info[e["file"]]["exif"]["exposure_time"]
     assert abs(math.log2(exif / plan[e["index"]])) < 1 / 6, (e["file"], exif, plan[e["index"]])
@@ -45,7 +50,7 @@ for v, view in enumerate(s["views"]):
     # ratios between neighbours: every frame after the first was measured
     assert all(f["measured_ratio"] for f in fr[1:])
 # every file on disk is in the journal, none is a leftover temporary
-named = {e["file"] for e in lines if e["event"] == "frame"}
+named = {f["file"] for e in lines if e["event"] == "frame" for f in files(e)}
 for name in os.listdir(d):
     if name not in ("journal.jsonl", "session.json"):
         assert name in named, ("stray file", name)
