@@ -741,6 +741,26 @@ static sl_result plan_format(const char *dir, json_t *plan, sl_image_format aske
     return SL_OK;
 }
 
+/* An aperture or ISO asked for on resume that differs from the session's
+ * (or that the session left to the camera) could mix exposures within its
+ * brackets: refused. */
+static sl_result plan_setting(const char *dir, json_t *plan, const char *key, const char *option,
+                              double asked, sl_error *err)
+{
+    double planned = json_number_value(json_object_get(plan, key));
+    if (asked <= 0 || (planned > 0 && fabs(asked / planned - 1) < 0.01))
+        return SL_OK;
+    if (planned <= 0)
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "%s: the session left the %s to the camera; %s %g could mix "
+                            "exposures (leave %s out)",
+                            dir, option + 2, option, asked, option);
+    return sl_error_set(err, SL_ERR_USAGE,
+                        "%s: the session is shot at %s %g; %s %g would mix exposures (leave %s "
+                        "out to continue at %g)",
+                        dir, option + 2, planned, option, asked, option, planned);
+}
+
 /* Every file of a journalled frame (its siblings too) still has its
  * journalled SHA-256. */
 static sl_result check_intact(const char *dir, json_t *frame, size_t line, sl_error *err)
@@ -795,7 +815,9 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
         r = sl_error_set(err, SL_ERR_INPUT, "%s: the journal's plan is not valid", dir);
         goto out;
     }
-    if ((r = plan_format(dir, plan, o->format, &s, err)))
+    if ((r = plan_format(dir, plan, o->format, &s, err)) ||
+        (r = plan_setting(dir, plan, "f_number", "--aperture", o->f_number, err)) ||
+        (r = plan_setting(dir, plan, "iso", "--iso", o->iso, err)))
         goto out;
     if ((r = state_alloc(&s, err)))
         goto out;

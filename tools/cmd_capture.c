@@ -46,7 +46,9 @@ static const char *capture_help =
     "                       0: stop at once, --resume continues)\n"
     "  -o, --output DIR     new session folder\n"
     "  --resume DIR         continue the session in DIR from its next missing frame\n"
-    "                       (a --format other than the session's is refused, exit 2)\n"
+    "                       with its own plan (--bracket, --center, --views unused);\n"
+    "                       a --format, --aperture or --iso other than the session's\n"
+    "                       is refused, exit 2\n"
     "  --json               print the result as JSON on stdout (dir, ok, camera,\n"
     "                       format and the camera's label for it, frames shot in this\n"
     "                       run, plan with its snapping, error)\n\n"
@@ -140,6 +142,7 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
     const char *port = "auto", *bracket = "7x3", *out = NULL, *resume = NULL;
     double center = 0, aperture = 0, iso = 0, reconnect = 10;
     int views = 1, attempts = 3;
+    const char *plan_option = NULL; /* a plan option given (ignored on --resume) */
     sl_image_format format = SL_FORMAT_KEEP;
     step_ctx sc = {.cli = cli, .prompt = true};
     cli_getopt_reset();
@@ -154,11 +157,13 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
             break;
         case OPT_BRACKET:
             bracket = optarg;
+            plan_option = "--bracket";
             break;
         case OPT_CENTER:
             if (!((center = sl_shutter_parse(optarg)) > 0))
                 return cli_usage_error(cli, "--center needs a shutter speed such as 1/30, not '%s'",
                                        optarg);
+            plan_option = "--center";
             break;
         case OPT_APERTURE:
             if (!cli_parse_double(optarg, &aperture) || aperture <= 0)
@@ -173,6 +178,7 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
             if (!cli_parse_int(optarg, &views) || views < 1 || views > 360)
                 return cli_usage_error(cli, "--views needs a whole number from 1 to 360, not '%s'",
                                        optarg);
+            plan_option = "--views";
             break;
         case OPT_STEP:
             sc.command = optarg;
@@ -209,6 +215,9 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "unexpected argument '%s'", argv[optind]);
     if (!out == !resume)
         return cli_usage_error(cli, "needs either -o DIR (new session) or --resume DIR");
+    if (resume && plan_option)
+        sl_log(SL_LOG_WARN, "%s is not used with --resume: the session's own plan continues",
+               plan_option);
     double t0 = sl_seconds();
     sl_error err;
     sl_camera *camera = NULL;

@@ -92,6 +92,13 @@ mkdir -p "$T/notsession"; echo keep >"$T/notsession/a.txt"
 expect 3 cap --camera "ptpip:127.0.0.1:$PORT" --no-prompt --resume "$T/notsession"
 err_has "not a capture session"; err_one_line
 if [ "$(ls "$T/notsession")" = "a.txt" ]; then ok; else bad "resume touched a non-session folder"; fi
+# an aperture or ISO other than the session's on --resume: refused, nothing written
+cp "$T/scene/journal.jsonl" "$T/scene.before"
+expect 2 cap --camera "ptpip:127.0.0.1:$PORT" --aperture 8 --no-prompt --resume "$T/scene"
+err_has "the session is shot at aperture 16; --aperture 8 would mix exposures"; err_one_line
+expect 2 cap --camera "ptpip:127.0.0.1:$PORT" --iso 400 --no-prompt --resume "$T/scene"
+err_has "left the iso to the camera; --iso 400"
+cmp -s "$T/scene.before" "$T/scene/journal.jsonl" && ok || bad "journal changed by a refused resume"
 cp -r "$T/full" "$T/corrupt"
 printf '{"event": "frame", "view": 2, "ind\n' >>"$T/corrupt/journal.jsonl"
 cp "$T/corrupt/journal.jsonl" "$T/corrupt.before"

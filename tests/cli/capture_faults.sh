@@ -76,7 +76,9 @@ EOF
 then ok; else bad "journal does not show the gap and the resume"; fi
 # resuming a complete session shoots nothing and journals nothing
 lines=$(wc -l <"$T/drop/journal.jsonl")
-expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --no-prompt --resume "$T/drop"
+# (the same command line as the first run: its plan options are not used, and it says so)
+expect 0 cap --camera "ptpip:127.0.0.1:$PORT" --bracket 7x3 --center 1/30 --views 3 --no-prompt --resume "$T/drop"
+err_has "is not used with --resume"
 if [ "$(wc -l <"$T/drop/journal.jsonl")" -eq "$lines" ]; then ok; else bad "complete session journalled again"; fi
 
 # --- disk full: a 48 KiB tmpfs in a private mount namespace
