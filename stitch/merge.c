@@ -462,6 +462,29 @@ static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_o
         double a = 0, g = 1;
         if (n >= 2)
             robust_line(lx, m->log_fit + q, n, fit_slope, &a, &g, m->scratch);
+        /* The frames this line names are outliers: the line is fitted again
+         * without them, so a lie does not tilt it (a median of pairwise
+         * slopes still leans towards the slopes the lying frame is in). If
+         * the new line names a frame the first one kept, the data were
+         * noisy rather than one frame lying: the first line stays. */
+        double tol = opt->tolerance_stops * log(2), ky[MERGE_MAX_FRAMES], kx[MERGE_MAX_FRAMES];
+        int kept = 0;
+        for (int k = q; k <= end && n >= 2; k++)
+            if (fabs((m->log_fit[k] - a) / g - lx[k - q]) <= tol) {
+                ky[kept] = m->log_fit[k];
+                kx[kept++] = lx[k - q];
+            }
+        if (kept >= 2 && kept < n) {
+            double a2, g2;
+            robust_line(kx, ky, kept, fit_slope, &a2, &g2, m->scratch);
+            bool same = true;
+            for (int k = 0; k < kept; k++)
+                same = same && fabs((ky[k] - a2) / g2 - kx[k]) <= tol;
+            if (same) {
+                a = a2;
+                g = g2;
+            }
+        }
         for (int k = q; k <= end; k++) {
             sl_merge_frame *f = &res->frames[m->order[k]];
             if (n < 2) {
@@ -487,7 +510,9 @@ static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_o
 
 /* Marks each frame's samples whose JPEG block is spoilt by a clipped pixel
  * (merge_block_spoilt), judged through resp and the exposures (fitted ones
- * when asked and known), for the exposure check. */
+ * when asked and known), for the exposure check and the response fit. The
+ * first curve is fitted before any is known, from every sample; the later
+ * rounds leave the spoilt ones out. */
 static void mark_spoilt(merge_ctx *m, const sl_merge_result *res, const sl_response *resp,
                         bool use_fitted)
 {
@@ -677,6 +702,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
          round++) {
         for (int i = 0; i < count; i++)
             m->prev_fit[i] = out->frames[i].fitted_exposure;
+        mark_spoilt(m, out, &out->response, true);
         if ((r = recover_response(m, out, &opt, true, err)))
             return r;
         mark_spoilt(m, out, &out->response, true);

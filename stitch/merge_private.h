@@ -13,7 +13,7 @@ enum { MERGE_MAX_FRAMES = 64 };
 /* Pixel values at sample positions: z[(i * frames + r) * 3 + c] for
  * position i and frame rank r (shortest exposure first); spoilt[i * frames
  * + r] is 1 where that frame's JPEG block is spoilt by a clipped pixel
- * (merge_block_spoilt; set for the exposure check). */
+ * (merge_block_spoilt; for the exposure check and the response fit). */
 typedef struct merge_samples {
     int count;
     int frames;

@@ -152,6 +152,14 @@ static void true_response(const vb_bracket *b, sl_response *out)
     snprintf(out->source, sizeof out->source, "virtual camera");
 }
 
+/* The recovered curve is within 2% on the stage's 7x3 JPEGs too (the
+ * exposure check and the response samples leave out JPEG blocks spoilt by
+ * its lamps); the 5x2 one's is 2.5% and its radiance p99 is JPEG's. */
+static bool response_goal(const vb_spec *spec, mode md)
+{
+    return md == MODE_SELF && strcmp(spec->scene, "stage") == 0 && spec->frames == 7;
+}
+
 /* Merges one bracket and scores it; the goal bounds are asserted for
  * `strict` cases, no frame named (EXIF is true) for `truthful` ones, and
  * always: clean output, the clipped pixels. */
@@ -201,7 +209,7 @@ static void merge_case(const vb_spec *spec, mode md, bool strict, bool truthful)
             double re = response_error(&res.response, &b.cam.response, zlo, 0.9, &wz);
             printf("    response error %.2f%% (worst at z %.3f) over z [%.3f, 0.9]\n", 100 * re,
                    wz, zlo);
-            if (strict)
+            if (strict || response_goal(spec, md))
                 CHECK_MSG(re <= 0.02, "%s response error %.4f", name, re);
         }
         if (strict) {
