@@ -86,6 +86,21 @@ sl_result open_input(const char *path, std::unique_ptr<ImageInput> &in, sl_error
     return SL_OK;
 }
 
+/* A JPEG's MCU from its sampling factors ("4:2:0" and so on, as
+ * OpenImageIO reports them): 8 pixels times the largest factor each way;
+ * a grey JPEG (no chroma) has 8x8. */
+void jpeg_block(const ImageSpec &spec, int *w, int *h)
+{
+    std::string s = spec.get_string_attribute("jpeg:subsampling");
+    *w = *h = 8;
+    if (s == "4:2:0")
+        *w = *h = 16;
+    else if (s == "4:2:2")
+        *w = 16;
+    else if (s == "4:1:1")
+        *w = 32;
+}
+
 double number(const ImageSpec &spec, const char *name)
 {
     const OIIO::ParamValue *p = spec.find_attribute(name);
@@ -475,6 +490,8 @@ extern "C" sl_result sl_photo_strips_open(const char *path, sl_photo_strips **st
         info->bits = spec.get_int_attribute("oiio:BitsPerSample", (int)spec.format.size() * 8);
         if (spec.format.basetype == TypeDesc::UINT8 || spec.format.basetype == TypeDesc::UINT16)
             s->code_bytes = info->code_bytes = (int)spec.format.size();
+        if (std::strcmp(s->in->format_name(), "jpeg") == 0)
+            jpeg_block(spec, &info->block_w, &info->block_h);
         *strips = s.release();
         return SL_OK;
     } catch (const std::bad_alloc &e) {

@@ -62,7 +62,8 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
                             paths[count - 1], count, MERGE_MAX_FRAMES);
     res->frames = calloc((size_t)count, sizeof *res->frames);
     m->order = calloc((size_t)count, sizeof *m->order);
-    if (!res->frames || !m->order)
+    m->block = calloc((size_t)count * 2, sizeof *m->block);
+    if (!res->frames || !m->order || !m->block)
         return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     res->frame_count = count;
     bool all_n_iso = true;
@@ -84,6 +85,8 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
             break;
         }
         sl_photo_strips_close(rd);
+        m->block[2 * i] = info.block_w;
+        m->block[2 * i + 1] = info.block_h;
         f->exif_time = meta.exposure_time;
         f->f_number = meta.f_number;
         f->iso = meta.iso;
@@ -286,6 +289,8 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
                           : sl_error_set(&job->errs[i], SL_ERR_NOMEM, "merge: out of memory");
         int64_t sat = 0, black = 0, white = 0;
         int s = 0;
+        float *bmax = m->block_max[i];
+        int bw = m->block[2 * i], bh = m->block[2 * i + 1], nbx = bw ? (w + bw - 1) / bw : 0;
         for (int y0 = 0; y0 < m->height && !r; y0 += SAMPLE_STRIP) {
             int y1 = y0 + SAMPLE_STRIP < m->height ? y0 + SAMPLE_STRIP : m->height;
             r = cb ? merge_frame_read_codes(rd, y0, y1, buf, &job->errs[i])
@@ -317,6 +322,10 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
                     white += all & 1;
                     black += all >> 1;
                 }
+            /* SAMPLE_STRIP is a multiple of every JPEG block height: strips start on a block row. */
+            if (bmax)
+                merge_block_max(buf, cb, cb == 1 ? 255 : 65535, w, y1 - y0, bw, bh,
+                                bmax + (size_t)(y0 / bh) * nbx);
             int64_t end_pos = (int64_t)y1 * w;
             for (; s < m->samples.count && m->sample_pos[s] < end_pos; s++) {
                 size_t at = (size_t)(m->sample_pos[s] - (int64_t)y0 * w) * 3;
@@ -343,11 +352,24 @@ static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
     int count = res->frame_count;
     m->samples.frames = count;
     m->samples.z = calloc((size_t)m->samples.count * count * 3, sizeof *m->samples.z);
+    m->samples.spoilt = calloc((size_t)m->samples.count * count, 1);
     m->white_pixels = calloc((size_t)count, sizeof *m->white_pixels);
+    m->block_max = calloc((size_t)count, sizeof *m->block_max);
+    for (int i = 0; i < count && m->block_max; i++) {
+        /* A moved frame's blocks are not on the output grid: not judged. */
+        int bw = m->block[2 * i], bh = m->block[2 * i + 1];
+        if (bw && !res->frames[i].align.applied &&
+            !(m->block_max[i] = malloc((size_t)((m->width + bw - 1) / bw) *
+                                       (size_t)((m->height + bh - 1) / bh) * sizeof(float))))
+            break;
+    }
     sl_error *errs = calloc((size_t)count, sizeof *errs);
     sl_result *results = calloc((size_t)count, sizeof *results);
     sl_result r = SL_OK;
-    if (!m->samples.z || !m->white_pixels || !errs || !results)
+    bool blocks = m->block_max != NULL;
+    for (int i = 0; i < count && blocks; i++)
+        blocks = !m->block[2 * i] || res->frames[i].align.applied || m->block_max[i];
+    if (!m->samples.z || !m->samples.spoilt || !m->white_pixels || !blocks || !errs || !results)
         r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     if (!r) {
         sample_job job = {m, res, errs, results};
@@ -440,6 +462,29 @@ static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_o
         double a = 0, g = 1;
         if (n >= 2)
             robust_line(lx, m->log_fit + q, n, fit_slope, &a, &g, m->scratch);
+        /* The frames this line names are outliers: the line is fitted again
+         * without them, so a lie does not tilt it (a median of pairwise
+         * slopes still leans towards the slopes the lying frame is in). If
+         * the new line names a frame the first one kept, the data were
+         * noisy rather than one frame lying: the first line stays. */
+        double tol = opt->tolerance_stops * log(2), ky[MERGE_MAX_FRAMES], kx[MERGE_MAX_FRAMES];
+        int kept = 0;
+        for (int k = q; k <= end && n >= 2; k++)
+            if (fabs((m->log_fit[k] - a) / g - lx[k - q]) <= tol) {
+                ky[kept] = m->log_fit[k];
+                kx[kept++] = lx[k - q];
+            }
+        if (kept >= 2 && kept < n) {
+            double a2, g2;
+            robust_line(kx, ky, kept, fit_slope, &a2, &g2, m->scratch);
+            bool same = true;
+            for (int k = 0; k < kept; k++)
+                same = same && fabs((ky[k] - a2) / g2 - kx[k]) <= tol;
+            if (same) {
+                a = a2;
+                g = g2;
+            }
+        }
         for (int k = q; k <= end; k++) {
             sl_merge_frame *f = &res->frames[m->order[k]];
             if (n < 2) {
@@ -461,6 +506,30 @@ static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_o
                           ? f->fitted_exposure
                           : f->exif_exposure;
     }
+}
+
+/* Marks each frame's samples whose JPEG block is spoilt by a clipped pixel
+ * (merge_block_spoilt), judged through resp and the exposures (fitted ones
+ * when asked and known), for the exposure check and the response fit. The
+ * first curve is fitted before any is known, from every sample; the later
+ * rounds leave the spoilt ones out. */
+static void mark_spoilt(merge_ctx *m, const sl_merge_result *res, const sl_response *resp,
+                        bool use_fitted)
+{
+    int f = res->frame_count;
+    bool any = false;
+    double loge[MERGE_MAX_FRAMES];
+    for (int q = 0; q < f; q++) {
+        const sl_merge_frame *fr = &res->frames[m->order[q]];
+        loge[q] = log(use_fitted && fr->fitted_exposure > 0 ? fr->fitted_exposure : fr->exif_exposure);
+        any = any || m->block_max[m->order[q]];
+    }
+    if (!any)
+        return;
+    for (int i = 0; i < m->samples.count; i++)
+        for (int q = 0; q < f; q++)
+            m->samples.spoilt[(size_t)i * f + q] =
+                merge_block_spoilt(m, resp, loge, q, m->sample_pos[i]);
 }
 
 static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,
@@ -541,6 +610,11 @@ void merge_ctx_free(merge_ctx *m)
     free(m->held);
     free(m->sample_pos);
     free(m->samples.z);
+    free(m->samples.spoilt);
+    for (int i = 0; m->block_max && i < m->samples.frames; i++)
+        free(m->block_max[i]);
+    free(m->block_max);
+    free(m->block);
     free(m->white_pixels);
     free(m->ratio);
     free(m->offsets);
@@ -618,6 +692,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     }
     if (r)
         return r;
+    mark_spoilt(m, out, &out->response, false);
     check_exposures(m, out, &opt);
     /* A recovered curve bends to fit whatever exposures it was given, so a
      * lying frame would hide in it: alternate curve and measured exposures
@@ -627,8 +702,10 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
          round++) {
         for (int i = 0; i < count; i++)
             m->prev_fit[i] = out->frames[i].fitted_exposure;
+        mark_spoilt(m, out, &out->response, true);
         if ((r = recover_response(m, out, &opt, true, err)))
             return r;
+        mark_spoilt(m, out, &out->response, true);
         check_exposures(m, out, &opt);
         double moved = 0;
         for (int i = 0; i < count; i++)

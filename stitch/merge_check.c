@@ -48,17 +48,22 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
         ratio[q] = 0;
         if (!r)
             continue;
+        /* A step seen only in spoilt JPEG blocks (a dark frame's lamps) is
+         * not measured: their pairs are biased by tens of percent. */
         int n = 0;
-        for (int i = 0; i < s->count; i++)
+        for (int i = 0; i < s->count; i++) {
+            if (!merge_usable(s, i, q, hi) || !merge_usable(s, i, q + 1, hi))
+                continue;
             for (int c = 0; c < 3; c++) {
                 double z0 = s->z[((size_t)i * f + q) * 3 + c];
                 double z1 = s->z[((size_t)i * f + q + 1) * 3 + c];
-                if (!(z0 > lo && z1 > lo && merge_zmax(s, i, q) < hi && merge_zmax(s, i, q + 1) < hi))
+                if (!(z0 > lo && z1 > lo))
                     continue;
                 double y0 = sl_response_eval(resp, c, z0), y1 = sl_response_eval(resp, c, z1);
                 if (y0 > ylo && y1 > ylo)
                     r[n++] = y1 / y0;
             }
+        }
         if (n < MIN_PAIRS)
             continue;
         double upper = select_kth(r, n, n / 2);

@@ -11,11 +11,14 @@
 enum { MERGE_MAX_FRAMES = 64 };
 
 /* Pixel values at sample positions: z[(i * frames + r) * 3 + c] for
- * position i and frame rank r (shortest exposure first). */
+ * position i and frame rank r (shortest exposure first); spoilt[i * frames
+ * + r] is 1 where that frame's JPEG block is spoilt by a clipped pixel
+ * (merge_block_spoilt; for the exposure check and the response fit). */
 typedef struct merge_samples {
     int count;
     int frames;
     float *z;
+    uint8_t *spoilt;
 } merge_samples;
 
 /* The brightest channel of position i in frame rank r. A camera clips each
@@ -26,6 +29,20 @@ static inline float merge_zmax(const merge_samples *s, int i, int r)
     const float *v = s->z + ((size_t)i * s->frames + r) * 3;
     return fmaxf(v[0], fmaxf(v[1], v[2]));
 }
+
+/* Position i in frame rank r below `limit` and its JPEG block not spoilt
+ * by a clipped pixel (merge_block_spoilt). */
+static inline bool merge_usable(const merge_samples *s, int i, int r, double limit)
+{
+    return merge_zmax(s, i, r) < limit && !s->spoilt[(size_t)i * s->frames + r];
+}
+
+/* The brightest channel of every block of a strip of `rows` rows (starting
+ * on a block row): out[(y / bh) * ceil(width / bw) + x / bw] for y
+ * relative to the strip, on the 0..1 code scale. buf holds RGB codes
+ * (code_bytes 1 or 2, full scale `top`) or floats (code_bytes 0). */
+void merge_block_max(const void *buf, int code_bytes, double top, int width, int rows, int bw,
+                     int bh, float *out);
 
 /* Debevec-Malik: the log inverse response g(z) on `nodes` nodes such that
  * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
@@ -70,6 +87,8 @@ typedef struct merge_ctx {
     uint8_t **held;        /* per frame: its codes kept from the sample pass, or NULL */
     int held_slots;        /* entries of held */
     int orientation;
+    int *block;            /* per frame: JPEG block width and height (2 ints), 0 0 none */
+    float **block_max;     /* per frame: its blocks' brightest code (merge_block_max), or NULL */
     double black, saturation;
     int *order;            /* order[rank] = frame index, shortest exposure first */
     int64_t *sample_pos;   /* y * width + x, increasing */
@@ -81,6 +100,19 @@ typedef struct merge_ctx {
     double *prev_fit;      /* per frame: fitted exposure of the previous round */
     double *scratch;       /* frames^2 doubles */
 } merge_ctx;
+
+/* Whether frame rank r's JPEG block at pixel pos (y * width + x) is
+ * spoilt: a pixel in it saturated, by more than a little. How far a block
+ * is overexposed comes from the next shorter frame's same block: its
+ * brightest linear value (through resp) times the exposure step, over the
+ * linear value of the saturation code. The energy the clip removed, spread
+ * by the block's DCT and chroma averaging, is what biases the block's other
+ * pixels; a sky clipped by a fraction of a stop barely moves them, a lamp
+ * clipped by seven stops moves its neighbours by tens of percent. With no
+ * shorter frame (or that one saturated there too) any saturated pixel
+ * spoils the block. loge: log exposure per rank. */
+bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const double *loge, int r,
+                        int64_t pos);
 
 /* Everything before the pixels are merged: frames, samples, response,
  * exposure check. With `hold`, frames that fit opt->hold_mb keep their codes

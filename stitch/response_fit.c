@@ -8,11 +8,26 @@
 
 enum { BINS = 64 };
 
+/* Codes within this of saturation fade out of the fit. */
+#define SHOULDER 0.05
+
 static double hat(double z, double black, double saturation)
 {
     if (z <= black || z >= saturation)
         return 0;
     return z < 0.5 ? z : 1 - z;
+}
+
+/* A sample's weight. One code step moves ln g(z) by about 1 / z for a
+ * gamma-like curve, so codes below mid-grey count in proportion to z (the
+ * hat's rising half); above it they are measured as well as mid-grey, and
+ * only the last SHOULDER below saturation fades out (as in the merge),
+ * where the hat would discount the upper codes that pin the curve's top. */
+static double sample_weight(double z, double black, double saturation)
+{
+    if (z <= black || z >= saturation)
+        return 0;
+    return fmin(z, 0.5) * fmin(1, (saturation - z) / SHOULDER);
 }
 
 /* Cholesky of the symmetric positive definite n x n matrix a (lower part
@@ -69,7 +84,7 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
         double best = 2, k = NAN;
         for (int r = 0; r < f; r++) {
             double z = s->z[((size_t)i * f + r) * 3 + c];
-            if (z > black && merge_zmax(s, i, r) < saturation && fabs(z - 0.5) < best) {
+            if (z > black && merge_usable(s, i, r, saturation) && fabs(z - 0.5) < best) {
                 best = fabs(z - 0.5);
                 k = log(z) - log_exposure[r];
             }
@@ -159,7 +174,7 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
             double d = 0, sb = 0;
             for (int q = 0; q < f; q++) {
                 double z = zi[q * 3 + c];
-                double w = merge_zmax(s, ch[t], q) < saturation ? hat(z, black, saturation) : 0;
+                double w = merge_usable(s, ch[t], q, saturation) ? sample_weight(z, black, saturation) : 0;
                 if (w <= 0)
                     continue;
                 double w2 = w * w, p = z * (nodes - 1);

@@ -56,7 +56,7 @@ sl_result merge_fit_robertson(const merge_samples *s, const double *log_exposure
         for (int t = 0; t < m; t++, samples++)
             for (int q = 0; q < f; q++) {
                 double z = s->z[((size_t)chosen[t] * f + q) * 3 + c];
-                double w = merge_zmax(s, chosen[t], q) < saturation ? weight(z, black, saturation) : 0;
+                double w = merge_usable(s, chosen[t], q, saturation) ? weight(z, black, saturation) : 0;
                 if (w <= 0)
                     continue;
                 int k = (int)lround(z * (nodes - 1));

@@ -152,10 +152,18 @@ static void true_response(const vb_bracket *b, sl_response *out)
     snprintf(out->source, sizeof out->source, "virtual camera");
 }
 
+/* The recovered curve is within 2% on the stage's 7x3 JPEGs too (the
+ * exposure check and the response samples leave out JPEG blocks spoilt by
+ * its lamps); the 5x2 one's is 2.5% and its radiance p99 is JPEG's. */
+static bool response_goal(const vb_spec *spec, mode md)
+{
+    return md == MODE_SELF && strcmp(spec->scene, "stage") == 0 && spec->frames == 7;
+}
+
 /* Merges one bracket and scores it; the goal bounds are asserted for
- * `strict` cases, and always: clean output, the clipped pixels, no frame
- * named when EXIF is true. */
-static void merge_case(const vb_spec *spec, mode md, bool strict)
+ * `strict` cases, no frame named (EXIF is true) for `truthful` ones, and
+ * always: clean output, the clipped pixels. */
+static void merge_case(const vb_spec *spec, mode md, bool strict, bool truthful)
 {
     static const char *const mode_name[] = {"linear", "true curve", "self-calibrated",
                                             "Robertson"};
@@ -201,14 +209,16 @@ static void merge_case(const vb_spec *spec, mode md, bool strict)
             double re = response_error(&res.response, &b.cam.response, zlo, 0.9, &wz);
             printf("    response error %.2f%% (worst at z %.3f) over z [%.3f, 0.9]\n", 100 * re,
                    wz, zlo);
-            if (strict)
+            if (strict || response_goal(spec, md))
                 CHECK_MSG(re <= 0.02, "%s response error %.4f", name, re);
         }
         if (strict) {
             CHECK_MSG(bl.median <= 0.01, "%s block median %.4f", name, bl.median);
             CHECK_MSG(bl.p99 <= 0.05, "%s block p99 %.4f", name, bl.p99);
-            CHECK(res.disagreeing_frames == 0);
         }
+        if (strict || truthful)
+            CHECK_MSG(res.disagreeing_frames == 0, "%s: %d frames named", name,
+                      (int)res.disagreeing_frames);
         CHECK(bl.n > 100);
         CHECK_MSG(wrong == 0, "%s: %lld clipped flags differ", name, (long long)wrong);
         check_clean(&res.radiance);
@@ -237,6 +247,14 @@ static bool meets_goal(const char *scene, mode md)
     return md != MODE_ROBERTSON && strcmp(scene, "exterior") == 0;
 }
 
+/* The exposure check names no frame of these (EXIF is true): the stage's
+ * lamps spoil the JPEG blocks around them, which the check leaves out; the
+ * night set's noise still moves a 5x2 JPEG step by a quarter stop. */
+static bool names_none(const char *scene)
+{
+    return strcmp(scene, "night") != 0;
+}
+
 static void run_scenes(bool jpeg, mode md)
 {
     static const char *const scenes[] = {"exterior", "stage", "night"};
@@ -244,8 +262,8 @@ static void run_scenes(bool jpeg, mode md)
         if (sanitized() && strcmp(scenes[i], "exterior") != 0)
             continue;
         vb_spec a = spec(scenes[i], 7, 3, jpeg), b = spec(scenes[i], 5, 2, jpeg);
-        merge_case(&a, md, meets_goal(scenes[i], md));
-        merge_case(&b, md, meets_goal(scenes[i], md));
+        merge_case(&a, md, meets_goal(scenes[i], md), names_none(scenes[i]));
+        merge_case(&b, md, meets_goal(scenes[i], md), names_none(scenes[i]));
     }
 }
 
@@ -390,8 +408,32 @@ static void test_absolute(void)
     vb_free(&b);
 }
 
+/* The JPEG's block (MCU) the merge judges clipping over: 16x16 for the
+ * simulated camera's 4:2:0 chroma, none for a TIFF. */
+static void test_jpeg_blocks(void)
+{
+    vb_spec sp = spec("exterior", 2, 2, true);
+    sp.width = 32;
+    vb_bracket b;
+    sl_error err;
+    CHECK_OK(vb_make(sl_test_tmpdir(), "blocks", &sp, &b, &err), &err);
+    sl_photo_strips *rd = NULL;
+    sl_photo_strip_info info;
+    CHECK_OK(sl_photo_strips_open(b.paths[0], &rd, &info, &err), &err);
+    CHECK(info.block_w == 16 && info.block_h == 16);
+    sl_photo_strips_close(rd);
+    vb_free(&b);
+    sp.jpeg = false;
+    CHECK_OK(vb_make(sl_test_tmpdir(), "blocks", &sp, &b, &err), &err);
+    CHECK_OK(sl_photo_strips_open(b.paths[0], &rd, &info, &err), &err);
+    CHECK(info.block_w == 0 && info.block_h == 0);
+    sl_photo_strips_close(rd);
+    vb_free(&b);
+}
+
 int main(void)
 {
+    RUN(test_jpeg_blocks);
     RUN(test_linear);
     RUN(test_jpeg_true_curve);
     RUN(test_jpeg_self_calibrated);

@@ -309,6 +309,10 @@ typedef struct sl_photo_strip_info {
     int bits;      /* bits per sample in the file */
     bool is_float; /* float or half samples */
     int code_bytes; /* integer samples: 1 (uint8) or 2 (uint16) container; else 0 */
+    /* JPEG: its MCU in pixels (8x8 blocks; 16x16 with 4:2:0 chroma, 16x8
+     * with 4:2:2), aligned to the image origin: DCT ringing and chroma bleed
+     * stay inside it. 0 for formats without lossy blocks. */
+    int block_w, block_h;
 } sl_photo_strip_info;
 sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
                                sl_photo_strip_info *info, sl_error *err);
