@@ -25,7 +25,6 @@ typedef struct run_state {
     bool *stepped;    /* views: head moved for this view */
     sl_image prev;    /* the previous accepted frame of the view, linear */
     double prev_time; /* its EXIF exposure time */
-    bool prev_raw;    /* it is camera raw */
     int prev_view;
     sl_image_format format; /* the plan's (KEEP: the camera's, untouched) */
     char format_label[64];  /* the camera's label for it */
@@ -57,33 +56,15 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static float max_of(const sl_image *img)
-{
-    size_t n = (size_t)img->width * (size_t)img->height * (size_t)img->channels;
-    float m = 0;
-    for (size_t i = 0; i < n; i++)
-        m = img->data[i] > m ? img->data[i] : m;
-    return m;
-}
-
 /* Median of cur/prev over pixels well exposed in both (0 when too few):
- * between 0.005 and 0.85 of white. White is 1, except for camera raw,
- * where the decoder may scale (OpenImageIO 2.4 multiplies raw by 1/0.45 =
- * 2.22 once raw:apply_scene_linear_scale is set at all, even to 0, as
- * core's reader does): there the brightest value of the two frames, when
- * above 1. */
-static double measure_ratio(const sl_image *prev, const sl_image *cur, bool raw)
+ * between 0.005 and 0.85 of white (1, camera raw included: core reads it
+ * relative to the white level). */
+static double measure_ratio(const sl_image *prev, const sl_image *cur)
 {
     if (!prev->data || prev->width != cur->width || prev->height != cur->height ||
         prev->channels != cur->channels)
         return 0;
-    float white = 1;
-    if (raw) {
-        float a = max_of(prev), b = max_of(cur);
-        white = a > white ? a : white;
-        white = b > white ? b : white;
-    }
-    float lo = 0.005f * white, hi = 0.85f * white;
+    const float lo = 0.005f, hi = 0.85f;
     size_t n = (size_t)cur->width * (size_t)cur->height, k = 0;
     double *r = malloc(n * sizeof *r);
     if (!r)
@@ -296,7 +277,7 @@ static bool verify(run_state *s, int v, const char *path, sl_image_format kind, 
     linearize(img, meta);
     if (s->prev.data && s->prev_view == v && s->prev_time > 0) {
         rep->measured_ratio =
-            measure_ratio(&s->prev, img, s->prev_raw && !strcmp(meta->format, "raw"));
+            measure_ratio(&s->prev, img);
         rep->expected_ratio = planned / s->prev_time;
     }
     bool exif_bad = rep->reported > 0 && fabs(log2(rep->reported / planned)) > tol;
@@ -422,13 +403,11 @@ static sl_result shoot(run_state *s, int v, int i, int attempt, bool *accepted, 
         json_object_set_new(ev, "reason", json_string(rep.reason));
     r = sl_journal_event(s->dir, ev, err);
     json_decref(ev);
-    bool raw = !strcmp(meta.format, "raw");
     sl_meta_free(&meta);
     if (!r && rep.accepted && readable) {
         sl_image_free(&s->prev);
         s->prev = img;
         s->prev_time = rep.reported > 0 ? rep.reported : planned;
-        s->prev_raw = raw;
         s->prev_view = v;
         img.data = NULL;
     }
@@ -458,7 +437,6 @@ static void load_prev(run_state *s, int v, json_t *frame)
     sl_image_free(&s->prev);
     s->prev = img;
     s->prev_time = isfinite(meta.exposure_time) ? meta.exposure_time : 0;
-    s->prev_raw = !strcmp(meta.format, "raw");
     s->prev_view = v;
     sl_meta_free(&meta);
 }

@@ -14,10 +14,12 @@
  * tone curve), raw:use_camera_wb 1 (as-shot white balance), raw:auto_bright 0
  * (no exposure guess, so brackets keep their ratios), raw:HighlightMode 0
  * (clip: saturated photosites stay at the white level, where a merge can
- * discard them), raw:apply_scene_linear_scale 0 (values stay relative to the
- * white level, 1.0 = sensor saturation), raw:user_flip 0 (pixels in sensor
+ * discard them), raw:user_flip 0 (pixels in sensor
  * order, like every other format here), raw:Demosaic "AHD" (LibRaw's default,
- * said explicitly).
+ * said explicitly). raw:apply_scene_linear_scale is never set: OpenImageIO
+ * 2.4 scales by 2.22 and returns float whenever the attribute is present,
+ * even at 0; without it values stay relative to the white level (1.0 =
+ * sensor saturation; test_capture_format reads a DNG's white at 1.0).
  *
  * Writing: what survives is what OIIO 2.4 writes per format. JPEG keeps all
  * the EXIF fields; TIFF all but ISO; PNG only the text ones (make, model,
@@ -66,7 +68,6 @@ ImageSpec read_config()
     config.attribute("raw:use_camera_wb", 1);
     config.attribute("raw:auto_bright", 0);
     config.attribute("raw:HighlightMode", 0);
-    config.attribute("raw:apply_scene_linear_scale", 0);
     config.attribute("raw:user_flip", 0);
     config.attribute("raw:Demosaic", "AHD");
     return config;
