@@ -28,18 +28,29 @@
 #define REFL_TABLE 1024
 #define ROW_GRAIN 32
 #define TILE_W 256
+/* Rows handed to a sink at a time: a few row chunks per thread, so that a
+ * strip keeps the threads busy to its end. */
+#define STRIP_ROWS 512
 
 typedef struct unwrap_ctx {
     const sl_image *photo; /* RGB, finite */
     const sl_ball_view *view;
     const sl_reflectance *refl;
-    sl_image *out;
+    int width, height, channels; /* the whole lat-long */
+    float *rows;                 /* output rows row0 .. row0 + row_count - 1 */
+    size_t stride;
+    int row0, row_count;
     double blind_fill[3];
     double world_to_view[3][3];
     double *column;             /* per output column: world_to_view (sin lon, 0, cos lon) */
     double inv_refl[3];         /* constant reflectance */
     double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
 } unwrap_ctx;
+
+static inline float *out_pixel(const unwrap_ctx *c, int x, int y)
+{
+    return c->rows + (size_t)(y - c->row0) * c->stride + (size_t)x * (size_t)c->channels;
+}
 
 /* Bilinear lookup of the ball's own pixels; returns false when the point had
  * to be pulled inside the rim margin. */
@@ -180,7 +191,7 @@ static int sub_count(double extent_px)
  * cone handled per sample. */
 static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
 {
-    int w = c->out->width, h = c->out->height;
+    int w = c->width, h = c->height;
     double ref = c->view->centre_px_per_rad;
     double uc = (x + 0.5) / w, vc = (y + 0.5) / h, dir[3];
     /* The texel's footprint in the photo: its extent sets the sampling, and
@@ -224,7 +235,7 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
     }
     for (int k = 0; k < 3; k++)
         p[k] = (float)(acc[k] / wsum);
-    if (c->out->channels == 4) {
+    if (c->channels == 4) {
         double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
         p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen_w / wsum);
     }
@@ -330,7 +341,7 @@ typedef struct centre {
 /* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]. */
 static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
 {
-    int w = c->out->width, h = c->out->height;
+    int w = c->width, h = c->height;
     double lat = M_PI * (0.5 - (y + 0.5) / h), cl = cos(lat), sl = sin(lat);
     const double(*m)[3] = c->world_to_view;
     row -= x0;
@@ -472,21 +483,22 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
  * (a whole row's path through the photo does not). The texel centres of a
  * tile and the rows and columns around it are mapped first, so each centre
  * is mapped once (plus a border per tile). */
-static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
+static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
 {
     (void)worker;
     const unwrap_ctx *c = ctx;
-    int w = c->out->width, h = c->out->height;
+    int w = c->width, h = c->height;
+    int64_t begin = c->row0 + first, end = c->row0 + last;
     int nrows = (int)(end - begin) + 2, tw = TILE_W + 2;
     centre *buf = malloc(sizeof(centre) * (size_t)nrows * (size_t)tw);
     if (!buf) {
         /* No memory for the fast path: the exact one needs none. */
         for (int64_t y = begin; y < end; y++)
             for (int x = 0; x < w; x++)
-                texel_exact(c, x, (int)y, sl_image_pixel(c->out, x, (int)y));
+                texel_exact(c, x, (int)y, out_pixel(c, x, (int)y));
         return;
     }
-    row_geom g = {.confidence = c->out->channels == 4, .lat_step = M_PI / h,
+    row_geom g = {.confidence = c->channels == 4, .lat_step = M_PI / h,
                   .ref = c->view->centre_px_per_rad, .keep = c->view->r - RIM_MARGIN};
     for (int xb = 0; xb < w; xb += TILE_W) {
         int xe = xb + TILE_W < w ? xb + TILE_W : w;
@@ -507,7 +519,7 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
             g.sin_lat = sin(lat);
             g.lon_step = 2.0 * M_PI / w * g.cos_lat;
             for (int x = xb; x < xe; x++)
-                texel(c, &g, x, row + x, up + x, down + x, sl_image_pixel(c->out, x, y));
+                texel(c, &g, x, row + x, up + x, down + x, out_pixel(c, x, y));
         }
     }
     free(buf);
@@ -522,7 +534,7 @@ static void tables_free(unwrap_ctx *c)
 /* Per-column directions in the view frame and the reflectance. */
 static sl_result tables_init(unwrap_ctx *c, sl_error *err)
 {
-    int w = c->out->width;
+    int w = c->width;
     c->column = malloc(sizeof(double) * 3 * (size_t)w);
     bool ok = c->column != NULL;
     if (ok && c->refl->kind == SL_REFLECTANCE_CONDUCTOR)
@@ -596,10 +608,25 @@ int unwrap_auto_width(const sl_ball_view *view)
     return width < 16 ? 16 : (width > 65536 ? 65536 : width);
 }
 
-sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
-                    sl_unwrap_info *info, sl_error *err)
+/* An unwrap under way: the geometry, the photo as read, the tables. */
+typedef struct unwrap_run {
+    unwrap_ctx c;
+    sl_ball_view *view;
+    sl_image rgb; /* the photo's RGB copy when it needs one */
+} unwrap_run;
+
+static void unwrap_stop(unwrap_run *u)
 {
-    memset(out, 0, sizeof *out);
+    tables_free(&u->c);
+    sl_image_free(&u->rgb);
+    free(u->view);
+}
+
+/* Everything but the rows; fills info (may be NULL). */
+static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *opt,
+                              unwrap_run *u, sl_unwrap_info *info, sl_error *err)
+{
+    memset(u, 0, sizeof *u);
     if (info)
         memset(info, 0, sizeof *info);
     if (!photo || !photo->data || !opt)
@@ -617,47 +644,50 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
     if (opt->width != 0 && (opt->width < 8 || opt->width > 65536 || opt->width % 2))
         return sl_error_set(err, SL_ERR_USAGE,
                             "lat-long width must be even, from 8 to 65536, not %d", opt->width);
-    sl_ball_view *view = malloc(sizeof *view);
+    sl_ball_view *view = u->view = malloc(sizeof *view);
     if (!view)
         return sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
-    sl_image rgb = {0};
     sl_result r = sl_ball_view_init(view, photo->width, photo->height, &opt->circle,
                                     &opt->geometry, err);
     if (r)
-        goto done;
+        goto fail;
     /* An RGB photo without NaN/Inf is read in place; otherwise an RGB copy
      * with them replaced by 0. */
     int64_t nonfinite = count_nonfinite(photo);
     const sl_image *src = photo;
     if (photo->channels != 3 || nonfinite) {
-        if ((r = image_alloc_large(&rgb, photo->width, photo->height, 3, err)))
-            goto done;
+        sl_image *rgb = &u->rgb;
+        if ((r = image_alloc_large(rgb, photo->width, photo->height, 3, err)))
+            goto fail;
         for (int y = 0; y < photo->height; y++)
             for (int x = 0; x < photo->width; x++) {
                 const float *s = sl_image_pixel(photo, x, y);
-                float *d = sl_image_pixel(&rgb, x, y);
+                float *d = sl_image_pixel(rgb, x, y);
                 for (int k = 0; k < 3; k++) {
                     float v = s[photo->channels >= 3 ? k : 0];
                     d[k] = isfinite(v) ? v : 0.0f;
                 }
             }
-        src = &rgb;
+        src = rgb;
     }
 
     int width = opt->width ? opt->width : unwrap_auto_width(view);
-    if ((r = image_alloc_large(out, width, width / 2, opt->no_confidence ? 3 : 4, err)))
-        goto done;
-
-    unwrap_ctx c = {.photo = src, .view = view, .refl = refl, .out = out};
+    unwrap_ctx *c = &u->c;
+    c->photo = src;
+    c->view = view;
+    c->refl = refl;
+    c->width = width;
+    c->height = width / 2;
+    c->channels = opt->no_confidence ? 3 : 4;
     double v2w[3][3];
     sl_mat3_mul(view->cam_to_world, view->view_to_cam, v2w);
     for (int i = 0; i < 3; i++)
         for (int k = 0; k < 3; k++)
-            c.world_to_view[i][k] = v2w[k][i];
+            c->world_to_view[i][k] = v2w[k][i];
     double *ring = malloc(sizeof(double) * 3 * RING_SAMPLES);
     if (!ring) {
         r = sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
-        goto done;
+        goto fail;
     }
     for (int i = 0; i < RING_SAMPLES; i++) {
         /* The edge of the visible range, where the blind cone starts. */
@@ -672,25 +702,23 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
         ball_hit h;
         double val[3], rf[3];
         ball_view_map(view, dw, &h);
-        photo_lookup(&c, h.x, h.y, val);
+        photo_lookup(c, h.x, h.y, val);
         sl_reflectance_eval(refl, h.cos_incidence, rf);
         for (int k = 0; k < 3; k++)
             ring[k * RING_SAMPLES + i] = val[k] / rf[k];
     }
     for (int k = 0; k < 3; k++) {
         qsort(ring + k * RING_SAMPLES, RING_SAMPLES, sizeof(double), cmp_double);
-        c.blind_fill[k] = 0.5 * (ring[k * RING_SAMPLES + RING_SAMPLES / 2 - 1] +
-                                 ring[k * RING_SAMPLES + RING_SAMPLES / 2]);
+        c->blind_fill[k] = 0.5 * (ring[k * RING_SAMPLES + RING_SAMPLES / 2 - 1] +
+                                  ring[k * RING_SAMPLES + RING_SAMPLES / 2]);
     }
     free(ring);
-    if ((r = tables_init(&c, err)))
-        goto done;
-    sl_parallel_for(out->height, ROW_GRAIN, unwrap_rows, &c);
-    tables_free(&c);
+    if ((r = tables_init(c, err)))
+        goto fail;
 
     if (info) {
-        info->width = out->width;
-        info->height = out->height;
+        info->width = c->width;
+        info->height = c->height;
         info->distance = view->distance;
         info->focal_px = view->focal_px;
         info->ball_angle_deg = view->ball_angle * 180.0 / M_PI;
@@ -700,10 +728,58 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
         info->blind_fraction = 0.5 * (1.0 - cos(view->ball_angle));
         info->nonfinite = nonfinite;
     }
-done:
+    return SL_OK;
+fail:
+    unwrap_stop(u);
+    if (info)
+        memset(info, 0, sizeof *info);
+    return r;
+}
+
+/* Rows y0 .. y1 - 1 into `rows` (stride floats apart). */
+static void unwrap_strip(unwrap_run *u, float *rows, size_t stride, int y0, int y1)
+{
+    u->c.rows = rows;
+    u->c.stride = stride;
+    u->c.row0 = y0;
+    sl_parallel_for(y1 - y0, ROW_GRAIN, unwrap_rows, &u->c);
+}
+
+sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
+                    sl_unwrap_info *info, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    unwrap_run u;
+    sl_result r = unwrap_start(photo, opt, &u, info, err);
     if (r)
-        sl_image_free(out);
-    sl_image_free(&rgb);
-    free(view);
+        return r;
+    r = image_alloc_large(out, u.c.width, u.c.height, u.c.channels, err);
+    if (!r)
+        unwrap_strip(&u, out->data, out->stride, 0, out->height);
+    unwrap_stop(&u);
+    return r;
+}
+
+sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
+                           const sl_unwrap_sink *sink, sl_unwrap_info *info, sl_error *err)
+{
+    sl_unwrap_info own;
+    if (!info)
+        info = &own;
+    unwrap_run u;
+    sl_result r = unwrap_start(photo, opt, &u, info, err);
+    if (r)
+        return r;
+    sl_image strip = {0};
+    int h = u.c.height, rows = h < STRIP_ROWS ? h : STRIP_ROWS;
+    if (!(r = sink->begin(sink->user, info, u.c.channels, err)))
+        r = image_alloc_large(&strip, u.c.width, rows, u.c.channels, err);
+    for (int y = 0; y < h && !r; y += rows) {
+        int n = h - y < rows ? h - y : rows;
+        unwrap_strip(&u, strip.data, strip.stride, y, y + n);
+        r = sink->rows(sink->user, strip.data, n, strip.stride, err);
+    }
+    sl_image_free(&strip);
+    unwrap_stop(&u);
     return r;
 }
