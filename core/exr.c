@@ -699,6 +699,32 @@ static uint16_t half_bits(float f)
     return (uint16_t)(o | (sign >> 16));
 }
 
+/* sanitize and half_bits for four samples at a time: the same bits (after
+ * the clamp to +-65504 no sample takes the Inf/NaN branch). */
+typedef float v4f_t __attribute__((vector_size(16)));
+typedef uint32_t v4u_t __attribute__((vector_size(16)));
+typedef int32_t v4i_t __attribute__((vector_size(16)));
+
+static void half_bits4(const float *src, uint16_t *dst)
+{
+    const v4f_t limit = {65504.0f, 65504.0f, 65504.0f, 65504.0f};
+    const uint32_t magic_bits = ((127u - 15u) + (23u - 10u) + 1u) << 23;
+    v4f_t f;
+    memcpy(&f, src, sizeof f);
+    f = (v4f_t)((v4i_t)f & (f == f)); /* NaN -> 0 */
+    v4i_t hi = f > limit, lo = f < -limit;
+    f = (v4f_t)((hi & (v4i_t)limit) | (lo & (v4i_t)-limit) | (~(hi | lo) & (v4i_t)f));
+    v4u_t u = (v4u_t)f, sign = u & 0x80000000u;
+    u ^= sign;
+    v4u_t normal = (u + (uint32_t)((15 - 127) * (1 << 23)) + 0xfffu + ((u >> 13) & 1u)) >> 13;
+    v4f_t magic = (v4f_t)((v4u_t){0, 0, 0, 0} + magic_bits);
+    v4u_t subnormal = (v4u_t)((v4f_t)u + magic) - magic_bits;
+    v4u_t small = (v4u_t)(u < (113u << 23));
+    v4u_t o = ((small & subnormal) | (~small & normal)) | (sign >> 16);
+    for (int i = 0; i < 4; i++)
+        dst[i] = (uint16_t)o[i];
+}
+
 static exr_compression_t exr_compression(sl_exr_compression c)
 {
     switch (c) {
@@ -1009,7 +1035,10 @@ static void convert_rows(void *ctx, int64_t begin, int64_t end, int worker)
         size_t at = (size_t)(s->rows + j) * n;
         if (s->half) {
             uint16_t *dst = (uint16_t *)s->buf + at;
-            for (size_t i = 0; i < n; i++)
+            size_t i = 0;
+            for (; i + 4 <= n; i += 4)
+                half_bits4(src + i, dst + i);
+            for (; i < n; i++)
                 dst[i] = half_bits(sanitize(src[i], s->limit));
         } else {
             float *dst = (float *)s->buf + at;
