@@ -55,51 +55,67 @@ static inline float *out_pixel(const unwrap_ctx *c, int x, int y)
     return c->rows + (size_t)(y - c->row0) * c->stride + (size_t)x * (size_t)c->channels;
 }
 
-/* Bilinear lookup of the ball's own pixels; returns false when the point had
- * to be pulled inside the rim margin. */
-static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
+/* A pixel's RGB is loaded as one 4-wide vector; with 3 channels the fourth
+ * lane is the next pixel's R (unused; that pixel exists: taps lie inside the
+ * ball, the ball inside the image). */
+typedef float v4f __attribute__((vector_size(16)));
+typedef int v4i __attribute__((vector_size(16)));
+
+static inline v4f load4(const float *p)
+{
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* Exactly one pixel (the rim lookups may touch the image's last pixel). */
+static inline v4f load3(const float *p)
+{
+    v4f v = {0, 0, 0, 0};
+    memcpy(&v, p, 3 * sizeof(float));
+    return v;
+}
+
+/* Bilinear lookup of the ball's own pixels, taps closer than the rim
+ * margin to the outline left out; *inside is false when the point had to
+ * be pulled inside the rim margin. The point then lies on a circle around
+ * the centre inside the image, so every tap does too. */
+static v4f photo_lookup(const unwrap_ctx *c, double x, double y, bool *inside)
 {
     const sl_ball_view *v = c->view;
     const sl_image *img = c->photo;
-    bool inside = true;
     double dx = x - v->cx, dy = y - v->cy, d2 = dx * dx + dy * dy, lim = v->r - RIM_CLAMP;
+    *inside = true;
     if (d2 > lim * lim) {
         double f = lim / sqrt(d2);
         x = v->cx + dx * f;
         y = v->cy + dy * f;
-        inside = false;
+        *inside = false;
     }
     double fx = x - 0.5, fy = y - 0.5;
     double x0 = floor(fx), y0 = floor(fy);
-    double tx = fx - x0, ty = fy - y0;
-    double acc[3] = {0, 0, 0}, wsum = 0.0, keep = v->r - RIM_MARGIN;
+    float tx = (float)(fx - x0), ty = (float)(fy - y0);
+    double keep = v->r - RIM_MARGIN, ex = x0 + 0.5 - v->cx, ey = y0 + 0.5 - v->cy;
+    const float *p = img->data + (size_t)y0 * img->stride + (size_t)x0 * 3;
+    v4f w = {(1.0f - tx) * (1.0f - ty), tx * (1.0f - ty), (1.0f - tx) * ty, tx * ty};
+    /* Keep the taps whose centres are inside the margin. */
+    float use[4];
     for (int j = 0; j < 2; j++)
         for (int i = 0; i < 2; i++) {
-            int xi = (int)x0 + i, yi = (int)y0 + j;
-            double w = (i ? tx : 1.0 - tx) * (j ? ty : 1.0 - ty);
-            if (w == 0.0 || xi < 0 || yi < 0 || xi >= img->width || yi >= img->height)
-                continue;
-            double ex = xi + 0.5 - v->cx, ey = yi + 0.5 - v->cy;
-            if (ex * ex + ey * ey > keep * keep)
-                continue;
-            const float *p = sl_image_pixel(img, xi, yi);
-            for (int k = 0; k < 3; k++)
-                acc[k] += w * p[k];
-            wsum += w;
+            double qx = ex + i, qy = ey + j;
+            use[2 * j + i] = qx * qx + qy * qy <= keep * keep ? 1.0f : 0.0f;
         }
-    if (wsum > 0.0) {
-        double inv = 1.0 / wsum;
-        for (int k = 0; k < 3; k++)
-            out[k] = acc[k] * inv;
-    } else {
-        int xi = (int)floor(x), yi = (int)floor(y);
-        xi = xi < 0 ? 0 : (xi >= img->width ? img->width - 1 : xi);
-        yi = yi < 0 ? 0 : (yi >= img->height ? img->height - 1 : yi);
-        const float *p = sl_image_pixel(img, xi, yi);
-        for (int k = 0; k < 3; k++)
-            out[k] = p[k];
-    }
-    return inside;
+    w *= (v4f){use[0], use[1], use[2], use[3]};
+    float wsum = w[0] + w[1] + w[2] + w[3];
+    if (wsum > 0.0f)
+        return (load3(p) * w[0] + load3(p + 3) * w[1] + load3(p + img->stride) * w[2] +
+                load3(p + img->stride + 3) * w[3]) *
+               (1.0f / wsum);
+    /* No tap inside: the pixel under the point. */
+    int xi = (int)floor(x), yi = (int)floor(y);
+    xi = xi < 0 ? 0 : (xi >= img->width ? img->width - 1 : xi);
+    yi = yi < 0 ? 0 : (yi >= img->height ? img->height - 1 : yi);
+    return load3(sl_image_pixel(img, xi, yi));
 }
 
 /* A view-frame direction to the photo: ball_view_map_local, with a shorter
@@ -135,26 +151,24 @@ static void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
         out[k] = a[k] + f * (a[k + 3] - a[k]);
 }
 
-/* Radiance seen in `dir`, and whether the photo really shows it. The blind
- * cone gets the median of the rim, flat: a rim pixel next to a bright source
- * must not be stretched over the whole cone, and no detail is invented. */
-static bool radiance(const unwrap_ctx *c, const double dir[3], double out[3])
+/* Radiance seen in the view-frame direction wv, and whether the photo
+ * really shows it. The blind cone gets the median of the rim, flat: a rim
+ * pixel next to a bright source must not be stretched over the whole cone,
+ * and no detail is invented. */
+static bool radiance(const unwrap_ctx *c, const double wv[3], double out[3])
 {
     ball_hit h;
-    const double(*m)[3] = c->world_to_view;
-    double wv[3];
-    for (int k = 0; k < 3; k++)
-        wv[k] = m[k][0] * dir[0] + m[k][1] * dir[1] + m[k][2] * dir[2];
     map_local(c, wv, &h);
     if (h.blind) {
         memcpy(out, c->blind_fill, sizeof c->blind_fill);
         return false;
     }
     double inv[3];
-    bool seen = photo_lookup(c, h.x, h.y, out);
+    bool seen;
+    v4f val = photo_lookup(c, h.x, h.y, &seen);
     inv_reflectance(c, h.cos_incidence, inv);
     for (int k = 0; k < 3; k++)
-        out[k] *= inv[k];
+        out[k] = val[k] * inv[k];
     return seen;
 }
 
@@ -196,7 +210,7 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
 {
     int w = c->width, h = c->height;
     double ref = c->view->centre_px_per_rad;
-    double uc = (x + 0.5) / w, vc = (y + 0.5) / h, dir[3];
+    double uc = (x + 0.5) / w, vc = (y + 0.5) / h;
     /* The texel's footprint in the photo: its extent sets the sampling, and
      * per radian (longitude and latitude steps are orthogonal on the
      * sphere) it is the mapping's Jacobian. */
@@ -214,22 +228,23 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
     j[1][1] = (b[1] - a[1]) / (M_PI / h);
     /* The sub-sample grid is separable: its trigonometry once per column
      * and row (the same values sl_latlong_to_dir gives). */
-    double sin_lon[SUB_MAX], cos_lon[SUB_MAX];
+    const double(*m)[3] = c->world_to_view;
+    double col[SUB_MAX][3]; /* world_to_view (sin lon, 0, cos lon) per sub-column */
     for (int i = 0; i < nu; i++) {
         double lon = M_PI * (1.0 - 2.0 * ((x + (i + 0.5) / nu) / w));
-        sin_lon[i] = sin(lon);
-        cos_lon[i] = cos(lon);
+        double sn = sin(lon), cs = cos(lon);
+        for (int k = 0; k < 3; k++)
+            col[i][k] = m[k][0] * sn + m[k][2] * cs;
     }
     double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
     for (int jj = 0; jj < nv; jj++) {
         double lat = M_PI * (0.5 - (y + (jj + 0.5) / nv) / h);
         double wt = cos(lat), sl = sin(lat); /* wt: solid angle per unit (u, v) */
         for (int i = 0; i < nu; i++) {
-            double val[3];
-            dir[0] = sin_lon[i] * wt;
-            dir[1] = sl;
-            dir[2] = cos_lon[i] * wt;
-            if (radiance(c, dir, val))
+            double val[3], wv[3];
+            for (int k = 0; k < 3; k++)
+                wv[k] = wt * col[i][k] + sl * m[k][1];
+            if (radiance(c, wv, val))
                 seen_w += wt;
             for (int k = 0; k < 3; k++)
                 acc[k] += wt * val[k];
@@ -253,19 +268,6 @@ static int fast_count(double extent_px)
 {
     double n = extent_px <= 1.25 ? 1.0 : ceil((extent_px - 1.0) / 1.25) + 1.0;
     return n > SUB_MAX ? SUB_MAX : (int)n;
-}
-
-/* A pixel's RGB is loaded as one 4-wide vector; with 3 channels the fourth
- * lane is the next pixel's R (unused; that pixel exists: taps lie inside the
- * ball, the ball inside the image). */
-typedef float v4f __attribute__((vector_size(16)));
-typedef int v4i __attribute__((vector_size(16)));
-
-static inline v4f load4(const float *p)
-{
-    v4f v;
-    memcpy(&v, p, sizeof v);
-    return v;
 }
 
 /* The photo the fast path reads is RGB (read in place or copied so). */
@@ -446,9 +448,9 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
         if (cubic) {
             val = bicubic(c->photo, ce->x, ce->y);
         } else if (checked) {
-            double s[3];
-            seen = photo_lookup(c, ce->x, ce->y, s) ? 1.0 : 0.0;
-            val = (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+            bool in;
+            val = photo_lookup(c, ce->x, ce->y, &in);
+            seen = in ? 1.0 : 0.0;
         } else {
             val = bilinear(c->photo, ce->x, ce->y);
         }
@@ -474,10 +476,9 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
                 } else if (!checked) {
                     row += bilinear(c->photo, sx, sy);
                 } else {
-                    double s[3];
-                    if (photo_lookup(c, sx, sy, s))
-                        seen_w += wt;
-                    row += (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+                    bool in;
+                    row += photo_lookup(c, sx, sy, &in);
+                    seen_w += in ? wt : 0.0;
                 }
             }
             acc += row * (float)wt;
@@ -719,9 +720,10 @@ static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *op
             dw[k] = view->cam_to_world[k][0] * dc[0] + view->cam_to_world[k][1] * dc[1] +
                     view->cam_to_world[k][2] * dc[2];
         ball_hit h;
-        double val[3], rf[3];
+        double rf[3];
+        bool in;
         ball_view_map(view, dw, &h);
-        photo_lookup(c, h.x, h.y, val);
+        v4f val = photo_lookup(c, h.x, h.y, &in);
         sl_reflectance_eval(refl, h.cos_incidence, rf);
         for (int k = 0; k < 3; k++)
             ring[k * RING_SAMPLES + i] = val[k] / rf[k];
