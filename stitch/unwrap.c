@@ -607,18 +607,59 @@ static sl_result image_alloc_large(sl_image *img, int width, int height, int cha
     return SL_OK;
 }
 
-/* NaN/Inf among the samples the unwrap reads (RGB, or the one grey channel). */
-static int64_t count_nonfinite(const sl_image *img)
+/* NaN/Inf among the samples the unwrap reads (RGB, or the one grey
+ * channel), counted per row in parallel (a whole photo is a few hundred MB). */
+typedef struct nonfinite_job {
+    const sl_image *img;
+    int64_t *rows;
+} nonfinite_job;
+
+static void count_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
+    (void)worker;
+    const nonfinite_job *j = ctx;
+    const sl_image *img = j->img;
     int nc = img->channels >= 3 ? 3 : 1;
-    int64_t n = 0;
-    for (int y = 0; y < img->height; y++) {
-        const float *row = sl_image_pixel(img, 0, y);
+    for (int64_t y = begin; y < end; y++) {
+        const float *row = sl_image_pixel(img, 0, (int)y);
+        int64_t n = 0;
         for (int x = 0; x < img->width; x++)
             for (int k = 0; k < nc; k++)
                 n += !isfinite(row[(size_t)x * (size_t)img->channels + (size_t)k]);
+        j->rows[y] = n;
     }
+}
+
+static int64_t count_nonfinite(const sl_image *img, sl_error *err)
+{
+    nonfinite_job j = {img, malloc(sizeof(int64_t) * (size_t)img->height)};
+    if (!j.rows) {
+        sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
+        return -1;
+    }
+    sl_parallel_for(img->height, 64, count_rows, &j);
+    int64_t n = 0;
+    for (int y = 0; y < img->height; y++)
+        n += j.rows[y];
+    free(j.rows);
     return n;
+}
+
+/* Rows of pair[0] into the RGB image pair[1], NaN/Inf as 0. */
+static void copy_rgb_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    const sl_image *const *pair = ctx;
+    const sl_image *photo = pair[0], *rgb = pair[1];
+    for (int64_t y = begin; y < end; y++)
+        for (int x = 0; x < photo->width; x++) {
+            const float *s = sl_image_pixel(photo, x, (int)y);
+            float *d = sl_image_pixel(rgb, x, (int)y);
+            for (int k = 0; k < 3; k++) {
+                float v = s[photo->channels >= 3 ? k : 0];
+                d[k] = isfinite(v) ? v : 0.0f;
+            }
+        }
 }
 
 int unwrap_auto_width(const sl_ball_view *view)
@@ -673,22 +714,18 @@ static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *op
         goto fail;
     /* An RGB photo without NaN/Inf is read in place; otherwise an RGB copy
      * with them replaced by 0. */
-    int64_t nonfinite = count_nonfinite(photo);
+    int64_t nonfinite = count_nonfinite(photo, err);
+    if (nonfinite < 0) {
+        r = SL_ERR_NOMEM;
+        goto fail;
+    }
     const sl_image *src = photo;
     if (photo->channels != 3 || nonfinite) {
-        sl_image *rgb = &u->rgb;
-        if ((r = image_alloc_large(rgb, photo->width, photo->height, 3, err)))
+        if ((r = image_alloc_large(&u->rgb, photo->width, photo->height, 3, err)))
             goto fail;
-        for (int y = 0; y < photo->height; y++)
-            for (int x = 0; x < photo->width; x++) {
-                const float *s = sl_image_pixel(photo, x, y);
-                float *d = sl_image_pixel(rgb, x, y);
-                for (int k = 0; k < 3; k++) {
-                    float v = s[photo->channels >= 3 ? k : 0];
-                    d[k] = isfinite(v) ? v : 0.0f;
-                }
-            }
-        src = rgb;
+        const sl_image *pair[2] = {photo, &u->rgb};
+        sl_parallel_for(photo->height, 64, copy_rgb_rows, pair);
+        src = &u->rgb;
     }
 
     int width = opt->width ? opt->width : unwrap_auto_width(view);
