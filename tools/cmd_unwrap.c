@@ -450,7 +450,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "give --reflectance or --reflectance-patch, not both");
     if (nviews == 1 && (have_circle2 || have[0] || have[1] || have[2]))
         return cli_usage_error(cli, "--circle2 and --camera2-* need a second ball photo");
-    double t0 = sl_seconds();
+    double t0 = sl_seconds(), cpu0 = cpu_seconds();
 
     view_in views[2];
     memset(views, 0, sizeof views);
@@ -575,7 +575,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     if (cli->json) {
         json_t *j = json_pack(
             "{s:s, s:s, s:o, s:s, s:f, s:f, s:f, s:f, s:f, s:i, s:i, s:s, s:f, s:I, s:b, s:f, "
-            "s:{s:f, s:f, s:f, s:f, s:f, s:b}}",
+            "s:{s:f, s:f, s:f, s:f, s:f, s:f, s:b}}",
             "input", views[0].path, "output", out_path, "circle",
             circle_json(&o->circle, views[0].detected), "camera",
             camera == SL_BALL_PERSPECTIVE ? "perspective" : "orthographic", "focal_px",
@@ -585,7 +585,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             refl, "blind_fraction", info->blind_fraction, "nonfinite_replaced",
             (json_int_t)(pinfo.views[0].nonfinite + pinfo.views[1].nonfinite), "ldr_linearised",
             views[0].ldr || views[1].ldr, "seconds", sl_seconds() - t0, "timing", "read_detect",
-            t1 - t0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap, "write", job.write_s,
+            t1 - t0, "read_detect_cpu", cpu1 - cpu0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap, "write", job.write_s,
             "write_cpu", job.write_cpu, "streamed", streamed);
         json_object_set_new(j, "encoding",
                             json_pack("{s:s, s:s}", "pixel", use_float ? "float" : "half",
