@@ -40,9 +40,9 @@ typedef struct unwrap_ctx {
     const sl_ball_view *view;
     const sl_reflectance *refl;
     int width, height, channels; /* the whole lat-long */
-    float *rows;                 /* output rows row0 .. row0 + row_count - 1 */
+    float *rows;                 /* the output rows being done, from row0 */
     size_t stride;
-    int row0, row_count;
+    int row0;
     double blind_fill[3];
     double world_to_view[3][3];
     double *column;             /* per output column: world_to_view (sin lon, 0, cos lon) */

@@ -585,8 +585,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             refl, "blind_fraction", info->blind_fraction, "nonfinite_replaced",
             (json_int_t)(pinfo.views[0].nonfinite + pinfo.views[1].nonfinite), "ldr_linearised",
             views[0].ldr || views[1].ldr, "seconds", sl_seconds() - t0, "timing", "read_detect",
-            t1 - t0, "read_detect_cpu", cpu1 - cpu0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap, "write", job.write_s,
-            "write_cpu", job.write_cpu, "streamed", streamed);
+            t1 - t0, "read_detect_cpu", cpu1 - cpu0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap,
+            "write", job.write_s, "write_cpu", job.write_cpu, "streamed", streamed);
         json_object_set_new(j, "encoding",
                             json_pack("{s:s, s:s}", "pixel", use_float ? "float" : "half",
                                       "compression", cli_compression_name(compression)));
