@@ -8,6 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#ifdef __SSE__
+#include <xmmintrin.h>
+#endif
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -28,12 +31,18 @@
 #define REFL_TABLE 1024
 #define ROW_GRAIN 32
 #define TILE_W 256
+/* Rows handed to a sink at a time: a few row chunks per thread, so that a
+ * strip keeps the threads busy to its end. */
+#define STRIP_ROWS 512
 
 typedef struct unwrap_ctx {
     const sl_image *photo; /* RGB, finite */
     const sl_ball_view *view;
     const sl_reflectance *refl;
-    sl_image *out;
+    int width, height, channels; /* the whole lat-long */
+    float *rows;                 /* the output rows being done, from row0 */
+    size_t stride;
+    int row0;
     double blind_fill[3];
     double world_to_view[3][3];
     double *column;             /* per output column: world_to_view (sin lon, 0, cos lon) */
@@ -41,51 +50,72 @@ typedef struct unwrap_ctx {
     double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
 } unwrap_ctx;
 
-/* Bilinear lookup of the ball's own pixels; returns false when the point had
- * to be pulled inside the rim margin. */
-static bool photo_lookup(const unwrap_ctx *c, double x, double y, double out[3])
+static inline float *out_pixel(const unwrap_ctx *c, int x, int y)
+{
+    return c->rows + (size_t)(y - c->row0) * c->stride + (size_t)x * (size_t)c->channels;
+}
+
+/* A pixel's RGB is loaded as one 4-wide vector; with 3 channels the fourth
+ * lane is the next pixel's R (unused; that pixel exists: taps lie inside the
+ * ball, the ball inside the image). */
+typedef float v4f __attribute__((vector_size(16)));
+typedef int v4i __attribute__((vector_size(16)));
+
+static inline v4f load4(const float *p)
+{
+    v4f v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* Exactly one pixel (the rim lookups may touch the image's last pixel). */
+static inline v4f load3(const float *p)
+{
+    v4f v = {0, 0, 0, 0};
+    memcpy(&v, p, 3 * sizeof(float));
+    return v;
+}
+
+/* Bilinear lookup of the ball's own pixels, taps closer than the rim
+ * margin to the outline left out; *inside is false when the point had to
+ * be pulled inside the rim margin. The point then lies on a circle around
+ * the centre inside the image, so every tap does too. */
+static v4f photo_lookup(const unwrap_ctx *c, double x, double y, bool *inside)
 {
     const sl_ball_view *v = c->view;
     const sl_image *img = c->photo;
-    bool inside = true;
     double dx = x - v->cx, dy = y - v->cy, d2 = dx * dx + dy * dy, lim = v->r - RIM_CLAMP;
+    *inside = true;
     if (d2 > lim * lim) {
         double f = lim / sqrt(d2);
         x = v->cx + dx * f;
         y = v->cy + dy * f;
-        inside = false;
+        *inside = false;
     }
     double fx = x - 0.5, fy = y - 0.5;
     double x0 = floor(fx), y0 = floor(fy);
-    double tx = fx - x0, ty = fy - y0;
-    double acc[3] = {0, 0, 0}, wsum = 0.0, keep = v->r - RIM_MARGIN;
+    float tx = (float)(fx - x0), ty = (float)(fy - y0);
+    double keep = v->r - RIM_MARGIN, ex = x0 + 0.5 - v->cx, ey = y0 + 0.5 - v->cy;
+    const float *p = img->data + (size_t)y0 * img->stride + (size_t)x0 * 3;
+    v4f w = {(1.0f - tx) * (1.0f - ty), tx * (1.0f - ty), (1.0f - tx) * ty, tx * ty};
+    /* Keep the taps whose centres are inside the margin. */
+    float use[4];
     for (int j = 0; j < 2; j++)
         for (int i = 0; i < 2; i++) {
-            int xi = (int)x0 + i, yi = (int)y0 + j;
-            double w = (i ? tx : 1.0 - tx) * (j ? ty : 1.0 - ty);
-            if (w == 0.0 || xi < 0 || yi < 0 || xi >= img->width || yi >= img->height)
-                continue;
-            double ex = xi + 0.5 - v->cx, ey = yi + 0.5 - v->cy;
-            if (ex * ex + ey * ey > keep * keep)
-                continue;
-            const float *p = sl_image_pixel(img, xi, yi);
-            for (int k = 0; k < 3; k++)
-                acc[k] += w * p[k];
-            wsum += w;
+            double qx = ex + i, qy = ey + j;
+            use[2 * j + i] = qx * qx + qy * qy <= keep * keep ? 1.0f : 0.0f;
         }
-    if (wsum > 0.0) {
-        double inv = 1.0 / wsum;
-        for (int k = 0; k < 3; k++)
-            out[k] = acc[k] * inv;
-    } else {
-        int xi = (int)floor(x), yi = (int)floor(y);
-        xi = xi < 0 ? 0 : (xi >= img->width ? img->width - 1 : xi);
-        yi = yi < 0 ? 0 : (yi >= img->height ? img->height - 1 : yi);
-        const float *p = sl_image_pixel(img, xi, yi);
-        for (int k = 0; k < 3; k++)
-            out[k] = p[k];
-    }
-    return inside;
+    w *= (v4f){use[0], use[1], use[2], use[3]};
+    float wsum = w[0] + w[1] + w[2] + w[3];
+    if (wsum > 0.0f)
+        return (load3(p) * w[0] + load3(p + 3) * w[1] + load3(p + img->stride) * w[2] +
+                load3(p + img->stride + 3) * w[3]) *
+               (1.0f / wsum);
+    /* No tap inside: the pixel under the point. */
+    int xi = (int)floor(x), yi = (int)floor(y);
+    xi = xi < 0 ? 0 : (xi >= img->width ? img->width - 1 : xi);
+    yi = yi < 0 ? 0 : (yi >= img->height ? img->height - 1 : yi);
+    return load3(sl_image_pixel(img, xi, yi));
 }
 
 /* A view-frame direction to the photo: ball_view_map_local, with a shorter
@@ -121,26 +151,24 @@ static void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
         out[k] = a[k] + f * (a[k + 3] - a[k]);
 }
 
-/* Radiance seen in `dir`, and whether the photo really shows it. The blind
- * cone gets the median of the rim, flat: a rim pixel next to a bright source
- * must not be stretched over the whole cone, and no detail is invented. */
-static bool radiance(const unwrap_ctx *c, const double dir[3], double out[3])
+/* Radiance seen in the view-frame direction wv, and whether the photo
+ * really shows it. The blind cone gets the median of the rim, flat: a rim
+ * pixel next to a bright source must not be stretched over the whole cone,
+ * and no detail is invented. */
+static bool radiance(const unwrap_ctx *c, const double wv[3], double out[3])
 {
     ball_hit h;
-    const double(*m)[3] = c->world_to_view;
-    double wv[3];
-    for (int k = 0; k < 3; k++)
-        wv[k] = m[k][0] * dir[0] + m[k][1] * dir[1] + m[k][2] * dir[2];
     map_local(c, wv, &h);
     if (h.blind) {
         memcpy(out, c->blind_fill, sizeof c->blind_fill);
         return false;
     }
     double inv[3];
-    bool seen = photo_lookup(c, h.x, h.y, out);
+    bool seen;
+    v4f val = photo_lookup(c, h.x, h.y, &seen);
     inv_reflectance(c, h.cos_incidence, inv);
     for (int k = 0; k < 3; k++)
-        out[k] *= inv[k];
+        out[k] = val[k] * inv[k];
     return seen;
 }
 
@@ -180,9 +208,9 @@ static int sub_count(double extent_px)
  * cone handled per sample. */
 static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
 {
-    int w = c->out->width, h = c->out->height;
+    int w = c->width, h = c->height;
     double ref = c->view->centre_px_per_rad;
-    double uc = (x + 0.5) / w, vc = (y + 0.5) / h, dir[3];
+    double uc = (x + 0.5) / w, vc = (y + 0.5) / h;
     /* The texel's footprint in the photo: its extent sets the sampling, and
      * per radian (longitude and latitude steps are orthogonal on the
      * sphere) it is the mapping's Jacobian. */
@@ -200,22 +228,23 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
     j[1][1] = (b[1] - a[1]) / (M_PI / h);
     /* The sub-sample grid is separable: its trigonometry once per column
      * and row (the same values sl_latlong_to_dir gives). */
-    double sin_lon[SUB_MAX], cos_lon[SUB_MAX];
+    const double(*m)[3] = c->world_to_view;
+    double col[SUB_MAX][3]; /* world_to_view (sin lon, 0, cos lon) per sub-column */
     for (int i = 0; i < nu; i++) {
         double lon = M_PI * (1.0 - 2.0 * ((x + (i + 0.5) / nu) / w));
-        sin_lon[i] = sin(lon);
-        cos_lon[i] = cos(lon);
+        double sn = sin(lon), cs = cos(lon);
+        for (int k = 0; k < 3; k++)
+            col[i][k] = m[k][0] * sn + m[k][2] * cs;
     }
     double acc[3] = {0, 0, 0}, wsum = 0.0, seen_w = 0.0;
     for (int jj = 0; jj < nv; jj++) {
         double lat = M_PI * (0.5 - (y + (jj + 0.5) / nv) / h);
         double wt = cos(lat), sl = sin(lat); /* wt: solid angle per unit (u, v) */
         for (int i = 0; i < nu; i++) {
-            double val[3];
-            dir[0] = sin_lon[i] * wt;
-            dir[1] = sl;
-            dir[2] = cos_lon[i] * wt;
-            if (radiance(c, dir, val))
+            double val[3], wv[3];
+            for (int k = 0; k < 3; k++)
+                wv[k] = wt * col[i][k] + sl * m[k][1];
+            if (radiance(c, wv, val))
                 seen_w += wt;
             for (int k = 0; k < 3; k++)
                 acc[k] += wt * val[k];
@@ -224,7 +253,7 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
     }
     for (int k = 0; k < 3; k++)
         p[k] = (float)(acc[k] / wsum);
-    if (c->out->channels == 4) {
+    if (c->channels == 4) {
         double conf = ref > 0.0 ? smaller_singular_value(j) / ref : 0.0;
         p[3] = (float)((conf > 1.0 ? 1.0 : conf) * seen_w / wsum);
     }
@@ -241,17 +270,12 @@ static int fast_count(double extent_px)
     return n > SUB_MAX ? SUB_MAX : (int)n;
 }
 
-/* A pixel's RGB is loaded as one 4-wide vector; with 3 channels the fourth
- * lane is the next pixel's R (unused; that pixel exists: taps lie inside the
- * ball, the ball inside the image). */
-typedef float v4f __attribute__((vector_size(16)));
-typedef int v4i __attribute__((vector_size(16)));
+/* The photo the fast path reads is RGB (read in place or copied so). */
+#define NC 3
 
-static inline v4f load4(const float *p)
+static inline v4f splat(v4f v, int i)
 {
-    v4f v;
-    memcpy(&v, p, sizeof v);
-    return v;
+    return __builtin_shuffle(v, (v4i){i, i, i, i});
 }
 
 /* Bilinear lookup at a point whose four taps are all ball pixels clear of
@@ -261,11 +285,10 @@ static inline v4f bilinear(const sl_image *img, double x, double y)
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
     float tx = (float)(fx - x0), ty = (float)(fy - y0);
-    size_t nc = (size_t)img->channels;
-    const float *p0 = img->data + (size_t)y0 * img->stride + (size_t)x0 * nc;
+    const float *p0 = img->data + (size_t)y0 * img->stride + (size_t)x0 * NC;
     const float *p1 = p0 + img->stride;
-    v4f top = load4(p0) * (1.0f - tx) + load4(p0 + nc) * tx;
-    v4f bot = load4(p1) * (1.0f - tx) + load4(p1 + nc) * tx;
+    v4f top = load4(p0) * (1.0f - tx) + load4(p0 + NC) * tx;
+    v4f bot = load4(p1) * (1.0f - tx) + load4(p1 + NC) * tx;
     return top * (1.0f - ty) + bot * ty;
 }
 
@@ -284,40 +307,49 @@ static inline v4f keys_weights(float t)
     return ((a * u + b) * u + c) * u + d;
 }
 
-/* Cubic lookup where the photo is magnified (sharper than the
- * bilinear tent), clamped to the range of the four nearest pixels so that
- * it never rings around a bright source. All 16 taps must be ball pixels
- * clear of the rim margin (checked by the caller). */
+/* minps/maxps where there is SSE (the masks cost four instructions). */
 static inline v4f vmin(v4f a, v4f b)
 {
+#ifdef __SSE__
+    return (v4f)_mm_min_ps((__m128)a, (__m128)b);
+#else
     v4i m = a < b;
     return (v4f)((m & (v4i)a) | (~m & (v4i)b));
+#endif
 }
 
 static inline v4f vmax(v4f a, v4f b)
 {
+#ifdef __SSE__
+    return (v4f)_mm_max_ps((__m128)a, (__m128)b);
+#else
     v4i m = a > b;
     return (v4f)((m & (v4i)a) | (~m & (v4i)b));
+#endif
 }
 
+/* Cubic lookup where the photo is magnified (sharper than the
+ * bilinear tent), clamped to the range of the four nearest pixels so that
+ * it never rings around a bright source. All 16 taps must be ball pixels
+ * clear of the rim margin (checked by the caller). Written out row by row
+ * (the rows are independent; the inner four taps are the clamp's too). */
 static inline v4f bicubic(const sl_image *img, double x, double y)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
     float tx = (float)(fx - x0), ty = (float)(fy - y0);
     v4f wx = keys_weights(tx), wy = keys_weights(ty);
-    size_t nc = (size_t)img->channels;
-    const float *base = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * nc;
-    v4f acc = {0, 0, 0, 0};
-    for (int j = 0; j < 4; j++) {
-        const float *p = base + (size_t)j * img->stride;
-        acc += (load4(p) * wx[0] + load4(p + nc) * wx[1] + load4(p + 2 * nc) * wx[2] +
-                load4(p + 3 * nc) * wx[3]) *
-               wy[j];
-    }
-    const float *a = base + img->stride + nc, *b = a + img->stride;
-    v4f a0 = load4(a), a1 = load4(a + nc), b0 = load4(b), b1 = load4(b + nc);
-    v4f lo = vmin(vmin(a0, a1), vmin(b0, b1)), hi = vmax(vmax(a0, a1), vmax(b0, b1));
+    v4f w0 = splat(wx, 0), w1 = splat(wx, 1), w2 = splat(wx, 2), w3 = splat(wx, 3);
+    size_t st = img->stride;
+    const float *p = img->data + (size_t)(y0 - 1) * st + (size_t)(x0 - 1) * NC;
+    const float *q = p + st, *r = q + st, *s = r + st;
+    v4f q1 = load4(q + NC), q2 = load4(q + 2 * NC), r1 = load4(r + NC), r2 = load4(r + 2 * NC);
+    v4f rp = load4(p) * w0 + load4(p + NC) * w1 + load4(p + 2 * NC) * w2 + load4(p + 3 * NC) * w3;
+    v4f rq = load4(q) * w0 + q1 * w1 + q2 * w2 + load4(q + 3 * NC) * w3;
+    v4f rr = load4(r) * w0 + r1 * w1 + r2 * w2 + load4(r + 3 * NC) * w3;
+    v4f rs = load4(s) * w0 + load4(s + NC) * w1 + load4(s + 2 * NC) * w2 + load4(s + 3 * NC) * w3;
+    v4f acc = rp * splat(wy, 0) + rq * splat(wy, 1) + rr * splat(wy, 2) + rs * splat(wy, 3);
+    v4f lo = vmin(vmin(q1, q2), vmin(r1, r2)), hi = vmax(vmax(q1, q2), vmax(r1, r2));
     return vmin(vmax(acc, lo), hi);
 }
 
@@ -330,7 +362,7 @@ typedef struct centre {
 /* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]. */
 static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
 {
-    int w = c->out->width, h = c->out->height;
+    int w = c->width, h = c->height;
     double lat = M_PI * (0.5 - (y + 0.5) / h), cl = cos(lat), sl = sin(lat);
     const double(*m)[3] = c->world_to_view;
     row -= x0;
@@ -416,9 +448,9 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
         if (cubic) {
             val = bicubic(c->photo, ce->x, ce->y);
         } else if (checked) {
-            double s[3];
-            seen = photo_lookup(c, ce->x, ce->y, s) ? 1.0 : 0.0;
-            val = (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+            bool in;
+            val = photo_lookup(c, ce->x, ce->y, &in);
+            seen = in ? 1.0 : 0.0;
         } else {
             val = bilinear(c->photo, ce->x, ce->y);
         }
@@ -444,10 +476,9 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
                 } else if (!checked) {
                     row += bilinear(c->photo, sx, sy);
                 } else {
-                    double s[3];
-                    if (photo_lookup(c, sx, sy, s))
-                        seen_w += wt;
-                    row += (v4f){(float)s[0], (float)s[1], (float)s[2], 0.0f};
+                    bool in;
+                    row += photo_lookup(c, sx, sy, &in);
+                    seen_w += in ? wt : 0.0;
                 }
             }
             acc += row * (float)wt;
@@ -472,21 +503,22 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
  * (a whole row's path through the photo does not). The texel centres of a
  * tile and the rows and columns around it are mapped first, so each centre
  * is mapped once (plus a border per tile). */
-static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
+static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
 {
     (void)worker;
     const unwrap_ctx *c = ctx;
-    int w = c->out->width, h = c->out->height;
+    int w = c->width, h = c->height;
+    int64_t begin = c->row0 + first, end = c->row0 + last;
     int nrows = (int)(end - begin) + 2, tw = TILE_W + 2;
     centre *buf = malloc(sizeof(centre) * (size_t)nrows * (size_t)tw);
     if (!buf) {
         /* No memory for the fast path: the exact one needs none. */
         for (int64_t y = begin; y < end; y++)
             for (int x = 0; x < w; x++)
-                texel_exact(c, x, (int)y, sl_image_pixel(c->out, x, (int)y));
+                texel_exact(c, x, (int)y, out_pixel(c, x, (int)y));
         return;
     }
-    row_geom g = {.confidence = c->out->channels == 4, .lat_step = M_PI / h,
+    row_geom g = {.confidence = c->channels == 4, .lat_step = M_PI / h,
                   .ref = c->view->centre_px_per_rad, .keep = c->view->r - RIM_MARGIN};
     for (int xb = 0; xb < w; xb += TILE_W) {
         int xe = xb + TILE_W < w ? xb + TILE_W : w;
@@ -507,7 +539,7 @@ static void unwrap_rows(void *ctx, int64_t begin, int64_t end, int worker)
             g.sin_lat = sin(lat);
             g.lon_step = 2.0 * M_PI / w * g.cos_lat;
             for (int x = xb; x < xe; x++)
-                texel(c, &g, x, row + x, up + x, down + x, sl_image_pixel(c->out, x, y));
+                texel(c, &g, x, row + x, up + x, down + x, out_pixel(c, x, y));
         }
     }
     free(buf);
@@ -522,7 +554,7 @@ static void tables_free(unwrap_ctx *c)
 /* Per-column directions in the view frame and the reflectance. */
 static sl_result tables_init(unwrap_ctx *c, sl_error *err)
 {
-    int w = c->out->width;
+    int w = c->width;
     c->column = malloc(sizeof(double) * 3 * (size_t)w);
     bool ok = c->column != NULL;
     if (ok && c->refl->kind == SL_REFLECTANCE_CONDUCTOR)
@@ -575,18 +607,59 @@ static sl_result image_alloc_large(sl_image *img, int width, int height, int cha
     return SL_OK;
 }
 
-/* NaN/Inf among the samples the unwrap reads (RGB, or the one grey channel). */
-static int64_t count_nonfinite(const sl_image *img)
+/* NaN/Inf among the samples the unwrap reads (RGB, or the one grey
+ * channel), counted per row in parallel (a whole photo is a few hundred MB). */
+typedef struct nonfinite_job {
+    const sl_image *img;
+    int64_t *rows;
+} nonfinite_job;
+
+static void count_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
+    (void)worker;
+    const nonfinite_job *j = ctx;
+    const sl_image *img = j->img;
     int nc = img->channels >= 3 ? 3 : 1;
-    int64_t n = 0;
-    for (int y = 0; y < img->height; y++) {
-        const float *row = sl_image_pixel(img, 0, y);
+    for (int64_t y = begin; y < end; y++) {
+        const float *row = sl_image_pixel(img, 0, (int)y);
+        int64_t n = 0;
         for (int x = 0; x < img->width; x++)
             for (int k = 0; k < nc; k++)
                 n += !isfinite(row[(size_t)x * (size_t)img->channels + (size_t)k]);
+        j->rows[y] = n;
     }
+}
+
+static int64_t count_nonfinite(const sl_image *img, sl_error *err)
+{
+    nonfinite_job j = {img, malloc(sizeof(int64_t) * (size_t)img->height)};
+    if (!j.rows) {
+        sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
+        return -1;
+    }
+    sl_parallel_for(img->height, 64, count_rows, &j);
+    int64_t n = 0;
+    for (int y = 0; y < img->height; y++)
+        n += j.rows[y];
+    free(j.rows);
     return n;
+}
+
+/* Rows of pair[0] into the RGB image pair[1], NaN/Inf as 0. */
+static void copy_rgb_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    const sl_image *const *pair = ctx;
+    const sl_image *photo = pair[0], *rgb = pair[1];
+    for (int64_t y = begin; y < end; y++)
+        for (int x = 0; x < photo->width; x++) {
+            const float *s = sl_image_pixel(photo, x, (int)y);
+            float *d = sl_image_pixel(rgb, x, (int)y);
+            for (int k = 0; k < 3; k++) {
+                float v = s[photo->channels >= 3 ? k : 0];
+                d[k] = isfinite(v) ? v : 0.0f;
+            }
+        }
 }
 
 int unwrap_auto_width(const sl_ball_view *view)
@@ -596,10 +669,25 @@ int unwrap_auto_width(const sl_ball_view *view)
     return width < 16 ? 16 : (width > 65536 ? 65536 : width);
 }
 
-sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
-                    sl_unwrap_info *info, sl_error *err)
+/* An unwrap under way: the geometry, the photo as read, the tables. */
+typedef struct unwrap_run {
+    unwrap_ctx c;
+    sl_ball_view *view;
+    sl_image rgb; /* the photo's RGB copy when it needs one */
+} unwrap_run;
+
+static void unwrap_stop(unwrap_run *u)
 {
-    memset(out, 0, sizeof *out);
+    tables_free(&u->c);
+    sl_image_free(&u->rgb);
+    free(u->view);
+}
+
+/* Everything but the rows; fills info (may be NULL). */
+static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *opt,
+                              unwrap_run *u, sl_unwrap_info *info, sl_error *err)
+{
+    memset(u, 0, sizeof *u);
     if (info)
         memset(info, 0, sizeof *info);
     if (!photo || !photo->data || !opt)
@@ -617,47 +705,46 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
     if (opt->width != 0 && (opt->width < 8 || opt->width > 65536 || opt->width % 2))
         return sl_error_set(err, SL_ERR_USAGE,
                             "lat-long width must be even, from 8 to 65536, not %d", opt->width);
-    sl_ball_view *view = malloc(sizeof *view);
+    sl_ball_view *view = u->view = malloc(sizeof *view);
     if (!view)
         return sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
-    sl_image rgb = {0};
     sl_result r = sl_ball_view_init(view, photo->width, photo->height, &opt->circle,
                                     &opt->geometry, err);
     if (r)
-        goto done;
+        goto fail;
     /* An RGB photo without NaN/Inf is read in place; otherwise an RGB copy
      * with them replaced by 0. */
-    int64_t nonfinite = count_nonfinite(photo);
+    int64_t nonfinite = count_nonfinite(photo, err);
+    if (nonfinite < 0) {
+        r = SL_ERR_NOMEM;
+        goto fail;
+    }
     const sl_image *src = photo;
     if (photo->channels != 3 || nonfinite) {
-        if ((r = image_alloc_large(&rgb, photo->width, photo->height, 3, err)))
-            goto done;
-        for (int y = 0; y < photo->height; y++)
-            for (int x = 0; x < photo->width; x++) {
-                const float *s = sl_image_pixel(photo, x, y);
-                float *d = sl_image_pixel(&rgb, x, y);
-                for (int k = 0; k < 3; k++) {
-                    float v = s[photo->channels >= 3 ? k : 0];
-                    d[k] = isfinite(v) ? v : 0.0f;
-                }
-            }
-        src = &rgb;
+        if ((r = image_alloc_large(&u->rgb, photo->width, photo->height, 3, err)))
+            goto fail;
+        const sl_image *pair[2] = {photo, &u->rgb};
+        sl_parallel_for(photo->height, 64, copy_rgb_rows, pair);
+        src = &u->rgb;
     }
 
     int width = opt->width ? opt->width : unwrap_auto_width(view);
-    if ((r = image_alloc_large(out, width, width / 2, opt->no_confidence ? 3 : 4, err)))
-        goto done;
-
-    unwrap_ctx c = {.photo = src, .view = view, .refl = refl, .out = out};
+    unwrap_ctx *c = &u->c;
+    c->photo = src;
+    c->view = view;
+    c->refl = refl;
+    c->width = width;
+    c->height = width / 2;
+    c->channels = opt->no_confidence ? 3 : 4;
     double v2w[3][3];
     sl_mat3_mul(view->cam_to_world, view->view_to_cam, v2w);
     for (int i = 0; i < 3; i++)
         for (int k = 0; k < 3; k++)
-            c.world_to_view[i][k] = v2w[k][i];
+            c->world_to_view[i][k] = v2w[k][i];
     double *ring = malloc(sizeof(double) * 3 * RING_SAMPLES);
     if (!ring) {
         r = sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory");
-        goto done;
+        goto fail;
     }
     for (int i = 0; i < RING_SAMPLES; i++) {
         /* The edge of the visible range, where the blind cone starts. */
@@ -670,27 +757,26 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
             dw[k] = view->cam_to_world[k][0] * dc[0] + view->cam_to_world[k][1] * dc[1] +
                     view->cam_to_world[k][2] * dc[2];
         ball_hit h;
-        double val[3], rf[3];
+        double rf[3];
+        bool in;
         ball_view_map(view, dw, &h);
-        photo_lookup(&c, h.x, h.y, val);
+        v4f val = photo_lookup(c, h.x, h.y, &in);
         sl_reflectance_eval(refl, h.cos_incidence, rf);
         for (int k = 0; k < 3; k++)
             ring[k * RING_SAMPLES + i] = val[k] / rf[k];
     }
     for (int k = 0; k < 3; k++) {
         qsort(ring + k * RING_SAMPLES, RING_SAMPLES, sizeof(double), cmp_double);
-        c.blind_fill[k] = 0.5 * (ring[k * RING_SAMPLES + RING_SAMPLES / 2 - 1] +
-                                 ring[k * RING_SAMPLES + RING_SAMPLES / 2]);
+        c->blind_fill[k] = 0.5 * (ring[k * RING_SAMPLES + RING_SAMPLES / 2 - 1] +
+                                  ring[k * RING_SAMPLES + RING_SAMPLES / 2]);
     }
     free(ring);
-    if ((r = tables_init(&c, err)))
-        goto done;
-    sl_parallel_for(out->height, ROW_GRAIN, unwrap_rows, &c);
-    tables_free(&c);
+    if ((r = tables_init(c, err)))
+        goto fail;
 
     if (info) {
-        info->width = out->width;
-        info->height = out->height;
+        info->width = c->width;
+        info->height = c->height;
         info->distance = view->distance;
         info->focal_px = view->focal_px;
         info->ball_angle_deg = view->ball_angle * 180.0 / M_PI;
@@ -700,10 +786,58 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
         info->blind_fraction = 0.5 * (1.0 - cos(view->ball_angle));
         info->nonfinite = nonfinite;
     }
-done:
+    return SL_OK;
+fail:
+    unwrap_stop(u);
+    if (info)
+        memset(info, 0, sizeof *info);
+    return r;
+}
+
+/* Rows y0 .. y1 - 1 into `rows` (stride floats apart). */
+static void unwrap_strip(unwrap_run *u, float *rows, size_t stride, int y0, int y1)
+{
+    u->c.rows = rows;
+    u->c.stride = stride;
+    u->c.row0 = y0;
+    sl_parallel_for(y1 - y0, ROW_GRAIN, unwrap_rows, &u->c);
+}
+
+sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
+                    sl_unwrap_info *info, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    unwrap_run u;
+    sl_result r = unwrap_start(photo, opt, &u, info, err);
     if (r)
-        sl_image_free(out);
-    sl_image_free(&rgb);
-    free(view);
+        return r;
+    r = image_alloc_large(out, u.c.width, u.c.height, u.c.channels, err);
+    if (!r)
+        unwrap_strip(&u, out->data, out->stride, 0, out->height);
+    unwrap_stop(&u);
+    return r;
+}
+
+sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
+                           const sl_unwrap_sink *sink, sl_unwrap_info *info, sl_error *err)
+{
+    sl_unwrap_info own;
+    if (!info)
+        info = &own;
+    unwrap_run u;
+    sl_result r = unwrap_start(photo, opt, &u, info, err);
+    if (r)
+        return r;
+    sl_image strip = {0};
+    int h = u.c.height, rows = h < STRIP_ROWS ? h : STRIP_ROWS;
+    if (!(r = sink->begin(sink->user, info, u.c.channels, err)))
+        r = image_alloc_large(&strip, u.c.width, rows, u.c.channels, err);
+    for (int y = 0; y < h && !r; y += rows) {
+        int n = h - y < rows ? h - y : rows;
+        unwrap_strip(&u, strip.data, strip.stride, y, y + n);
+        r = sink->rows(sink->user, strip.data, n, strip.stride, err);
+    }
+    sl_image_free(&strip);
+    unwrap_stop(&u);
     return r;
 }

@@ -5,6 +5,7 @@
  * checked against OpenImageIO, and corrupt input. */
 #include <dirent.h>
 #include <float.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -93,6 +94,9 @@ static exr_result_t encode_chunk(exr_context_t ctx, const test_exr_spec *s, exr_
     return rv ? rv : exr_encoding_run(ctx, 0, enc);
 }
 
+/* The compression write_test_exr uses. */
+static exr_compression_t test_compression = EXR_COMPRESSION_ZIP;
+
 static bool write_test_exr(const char *path, const test_exr_spec *s)
 {
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
@@ -106,7 +110,7 @@ static bool write_test_exr(const char *path, const test_exr_spec *s)
     rv = exr_add_part(ctx, "test", s->storage, &part);
     if (!rv)
         rv = exr_initialize_required_attr(ctx, part, &s->display, &s->data, 1.0f, &center, 1.0f,
-                                          EXR_LINEORDER_INCREASING_Y, EXR_COMPRESSION_ZIP);
+                                          EXR_LINEORDER_INCREASING_Y, test_compression);
     for (int c = 0; c < s->nch && !rv; c++)
         rv = exr_add_channel(ctx, part, s->names[c], s->types[c], EXR_PERCEPTUALLY_LOGARITHMIC, 1,
                              1);
@@ -450,6 +454,64 @@ static void test_windows_tiles_types(void)
     CHECK(message_names(&err, path) && img.data == NULL && meta.attrs == NULL);
 }
 
+/* Scanline ZIP, ZIPS and uncompressed files are decoded by core itself
+ * (libdeflate): mixed half/float channels with unpicked ones between them
+ * (a uint among them), offset windows; RLE goes through OpenEXR's pipeline
+ * for comparison. Then every finite half value through both decoders. */
+static void test_own_decoder(void)
+{
+    sl_error err;
+    sl_image img;
+    static const int rgb_order[4] = {0, 1, 2, 3};
+    static const exr_compression_t comps[] = {EXR_COMPRESSION_NONE, EXR_COMPRESSION_ZIP,
+                                             EXR_COMPRESSION_ZIPS, EXR_COMPRESSION_RLE};
+    test_exr_spec s = {EXR_STORAGE_SCANLINE,
+                       EXR_TILE_ONE_LEVEL,
+                       0,
+                       box(-3, 2, 70, 41),
+                       box(1, -5, 66, 44),
+                       5,
+                       {"R", "G", "B", "N", "Z"},
+                       {EXR_PIXEL_HALF, EXR_PIXEL_FLOAT, EXR_PIXEL_HALF, EXR_PIXEL_FLOAT,
+                        EXR_PIXEL_UINT}};
+    for (size_t i = 0; i < sizeof comps / sizeof comps[0]; i++) {
+        test_compression = comps[i];
+        const char *path = sl_test_path("own_decoder.exr");
+        CHECK(write_test_exr(path, &s));
+        CHECK_OK(sl_exr_read(path, &img, NULL, &err), &err);
+        CHECK(img.channels == 3);
+        check_known(&img, &s, rgb_order);
+        sl_image_free(&img);
+    }
+    test_compression = EXR_COMPRESSION_ZIP;
+
+    /* All 63488 finite halves, as exact floats from their definition. */
+    sl_image all;
+    CHECK_OK(sl_image_alloc(&all, 256, 248, 1, &err), &err);
+    int n = 0;
+    for (int h = 0; h < 65536 && all.data; h++) {
+        int e = (h >> 10) & 31, m = h & 1023;
+        if (e == 31)
+            continue;
+        double v = e ? ldexp(1024 + m, e - 25) : ldexp(m, -24);
+        all.data[n++] = (float)(h & 0x8000 ? -v : v);
+    }
+    CHECK(n == 256 * 248);
+    static const sl_exr_compression write_with[2] = {SL_EXR_ZIP, SL_EXR_PIZ};
+    for (int k = 0; k < 2 && all.data; k++) {
+        const char *path = sl_test_path("all_halves.exr");
+        CHECK_OK(sl_exr_write_compressed(path, &all, NULL, SL_PIXEL_HALF, write_with[k], &err),
+                 &err);
+        CHECK_OK(sl_exr_read(path, &img, NULL, &err), &err);
+        int bad = 0;
+        for (int i = 0; img.data && i < n; i++)
+            bad += memcmp(&img.data[i], &all.data[i], sizeof(float)) != 0;
+        CHECK_MSG(img.data && bad == 0, "%s: %d of %d halves differ", k ? "PIZ" : "ZIP", bad, n);
+        sl_image_free(&img);
+    }
+    sl_image_free(&all);
+}
+
 /* Every EXR in the shared data reads and matches OpenImageIO's reading. */
 static void check_against_oiio(const char *path)
 {
@@ -665,6 +727,7 @@ int main(void)
     RUN(test_roundtrip);
     RUN(test_write_clamps);
     RUN(test_windows_tiles_types);
+    RUN(test_own_decoder);
     RUN(test_real_files);
     RUN(test_bad_input);
     RUN(test_write_failures);

@@ -337,6 +337,70 @@ static void test_deterministic(void)
     sl_image_free(&b);
 }
 
+/* A sink that stacks the rows into an image and can fail on call `fail_at`. */
+typedef struct stack_sink {
+    sl_image img;
+    int rows_done, calls, fail_at, channels;
+    sl_unwrap_info info;
+} stack_sink;
+
+static sl_result stack_begin(void *user, const sl_unwrap_info *info, int channels, sl_error *err)
+{
+    stack_sink *s = user;
+    s->info = *info;
+    s->channels = channels;
+    return sl_image_alloc(&s->img, info->width, info->height, channels, err);
+}
+
+static sl_result stack_rows(void *user, const float *rows, int count, size_t stride,
+                            sl_error *err)
+{
+    stack_sink *s = user;
+    if (++s->calls == s->fail_at)
+        return sl_error_set(err, SL_ERR_IO, "sink: disk full");
+    for (int i = 0; i < count; i++)
+        memcpy(sl_image_pixel(&s->img, 0, s->rows_done + i), rows + (size_t)i * stride,
+               sizeof(float) * s->img.stride);
+    s->rows_done += count;
+    return SL_OK;
+}
+
+/* Streamed strip by strip (more than one strip: 1200 x 600), the rows are
+ * the same bytes as the whole unwrap's, with and without the confidence;
+ * a failing sink stops it and its error comes back. */
+static void test_stream(void)
+{
+    ball_fixture f;
+    ball_fixture_init(&f, 96, 80);
+    f.ss = 1;
+    sl_image photo = {0}, whole = {0};
+    CHECK_OK(ball_fixture_render(&f, &photo, NULL), NULL);
+    sl_unwrap_options o = {.width = 1200};
+    ball_fixture_circle(&f, 0, &o.circle);
+    sl_reflectance_chrome(&o.reflectance);
+    for (int noconf = 0; noconf < 2; noconf++) {
+        o.no_confidence = noconf;
+        sl_unwrap_info info;
+        CHECK_OK(sl_unwrap(&photo, &o, &whole, &info, NULL), NULL);
+        stack_sink s = {.fail_at = -1};
+        sl_unwrap_sink sink = {stack_begin, stack_rows, &s};
+        sl_error err;
+        CHECK_OK(sl_unwrap_stream(&photo, &o, &sink, NULL, &err), &err);
+        CHECK(s.channels == 4 - noconf && s.rows_done == 600 && s.calls == 2);
+        CHECK(s.info.width == info.width && s.info.blind_angle_deg == info.blind_angle_deg);
+        CHECK(whole.data && s.img.data &&
+              memcmp(whole.data, s.img.data, sizeof(float) * whole.stride * whole.height) == 0);
+        sl_image_free(&s.img);
+        sl_image_free(&whole);
+        stack_sink bad = {.fail_at = 1};
+        sink.user = &bad;
+        CHECK_RESULT(sl_unwrap_stream(&photo, &o, &sink, NULL, &err), SL_ERR_IO, &err);
+        CHECK(strstr(err.message, "disk full") != NULL && bad.calls == 1);
+        sl_image_free(&bad.img);
+    }
+    sl_image_free(&photo);
+}
+
 int main(void)
 {
     RUN(test_ortho_matches_core);
@@ -347,5 +411,6 @@ int main(void)
     RUN(test_unwrap_core_ball);
     RUN(test_bad_options);
     RUN(test_deterministic);
+    RUN(test_stream);
     return sl_test_finish();
 }

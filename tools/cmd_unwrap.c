@@ -149,6 +149,136 @@ static json_t *circle_json(const sl_ball_circle *c, bool detected)
                      detected);
 }
 
+/* The output: its header from everything known before the pixels, and
+ * the stream the rows go to when they are written as they are done. */
+typedef struct out_job {
+    const char *path;
+    const view_in *views;
+    int nviews;
+    const sl_unwrap_pair_options *po;
+    const sl_unwrap_pair_info *pinfo;
+    int camera;
+    bool confidence, have_patch;
+    const double *patch;
+    sl_pixel_type type;
+    sl_exr_compression compression;
+    sl_meta *meta;
+    sl_exr_stream *stream;
+    double write_s, write_cpu; /* time in the rows' conversion, encoding and writing */
+} out_job;
+
+/* The reflectance as the header and the JSON give it. */
+static void reflectance_desc(const out_job *j, char *buf, size_t size)
+{
+    reflectance_text(&j->po->views[0].reflectance, buf, size);
+    if (j->have_patch) {
+        size_t len = strlen(buf);
+        snprintf(buf + len, size - len, " (from a patch at %g,%g, %g deg)", j->patch[0],
+                 j->patch[1], j->patch[2]);
+    }
+}
+
+static sl_result output_meta(const out_job *j, sl_error *err)
+{
+    const view_in *views = j->views;
+    const sl_unwrap_pair_options *po = j->po;
+    const sl_unwrap_pair_info *pinfo = j->pinfo;
+    int nviews = j->nviews;
+    j->meta->envmap = SL_ENVMAP_LATLONG;
+    char buf[1024], refl[160];
+    reflectance_desc(j, refl, sizeof refl);
+    const char *cs = sl_meta_color_space(&views[0].meta);
+    if (!cs || !strcmp(cs, "srgb"))
+        cs = "lin_rec709";
+    struct {
+        const char *name;
+        char value[256];
+    } attrs[16];
+    int na = 0;
+    for (int i = 0; i < nviews; i++) {
+        const sl_unwrap_options *oi = &po->views[i];
+        const sl_unwrap_info *ii = &pinfo->views[i];
+        snprintf(attrs[na].value, sizeof attrs[na].value, "%.4f,%.4f,%.4f", oi->circle.cx,
+                 oi->circle.cy, oi->circle.r);
+        attrs[na++].name = i ? "setlight:ball2_circle" : "setlight:ball_circle";
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "%s, fit residual %.3f px, %d edge points",
+                 views[i].detected ? "detected" : "given", oi->circle.residual,
+                 oi->circle.edge_points);
+        attrs[na++].name = i ? "setlight:ball2_circle_source" : "setlight:ball_circle_source";
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "%s, focal %.3f px, distance %.4f ball radii, ball %.3f deg, off axis %.3f deg",
+                 j->camera == SL_BALL_PERSPECTIVE ? "perspective" : "orthographic", ii->focal_px,
+                 ii->distance, ii->ball_angle_deg, ii->off_axis_deg);
+        attrs[na++].name = i ? "setlight:ball2_camera" : "setlight:ball_camera";
+        snprintf(attrs[na].value, sizeof attrs[na].value, "azimuth %g, elevation %g, roll %g deg",
+                 i ? pinfo->azimuth_deg : oi->geometry.azimuth_deg, oi->geometry.elevation_deg,
+                 oi->geometry.roll_deg);
+        attrs[na++].name = i ? "setlight:camera2_orientation" : "setlight:camera_orientation";
+    }
+    if (nviews == 2) {
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "view 2 azimuth %.3f deg (given %.3f, searched +-%g), median |log| luminance "
+                 "difference %.4f (%.4f as given), overlap %.3f of the sphere, occluder cones "
+                 "%g deg",
+                 pinfo->azimuth_deg, pinfo->azimuth_given_deg, po->search_deg, pinfo->residual,
+                 pinfo->residual_given, pinfo->overlap_fraction, po->occluder_deg);
+        attrs[na++].name = "setlight:two_views";
+    }
+    snprintf(attrs[na].value, sizeof attrs[na].value, "%s", refl);
+    attrs[na++].name = "setlight:ball_reflectance";
+    snprintf(attrs[na].value, sizeof attrs[na].value, "%.3f", pinfo->views[0].blind_angle_deg);
+    attrs[na++].name = "setlight:blind_cone_deg";
+    if (j->confidence) {
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "confidence: resolution relative to the ball centre, 0 where unseen");
+        attrs[na++].name = "setlight:alpha";
+    }
+    if (views[0].ldr || views[1].ldr) {
+        snprintf(attrs[na].value, sizeof attrs[na].value, "8-bit sRGB input linearised");
+        attrs[na++].name = "setlight:input_note";
+    }
+    snprintf(buf, sizeof buf, "setlight %s unwrap", sl_version());
+    sl_result r;
+    if ((r = sl_meta_set(j->meta, "setlight:command", buf, err)) ||
+        (r = sl_meta_set(j->meta, "setlight:source", views[0].path, err)) ||
+        (nviews == 2 && (r = sl_meta_set(j->meta, "setlight:source2", views[1].path, err))) ||
+        (r = sl_meta_set_color_space(j->meta, cs, err)))
+        return r;
+    for (int i = 0; i < na; i++)
+        if ((r = sl_meta_set(j->meta, attrs[i].name, attrs[i].value, err)))
+            return r;
+    return SL_OK;
+}
+
+/* sl_unwrap_sink: the header once the geometry is known, then the rows. */
+static sl_result stream_begin(void *user, const sl_unwrap_info *info, int channels,
+                              sl_error *err)
+{
+    out_job *j = user;
+    double t = sl_seconds(), c = cpu_seconds();
+    sl_result r = output_meta(j, err);
+    if (!r)
+        r = sl_exr_stream_open(j->path, info->width, info->height, channels, j->meta, j->type,
+                               j->compression, &j->stream, err);
+    j->write_s += sl_seconds() - t;
+    j->write_cpu += cpu_seconds() - c;
+    return r;
+}
+
+static sl_result stream_rows(void *user, const float *rows, int count, size_t stride,
+                             sl_error *err)
+{
+    out_job *j = user;
+    double t = sl_seconds(), c = cpu_seconds();
+    sl_result r = sl_exr_stream_write(j->stream, rows, count, stride, err);
+    if (r)
+        j->stream = NULL; /* a failed write aborts the stream */
+    j->write_s += sl_seconds() - t;
+    j->write_cpu += cpu_seconds() - c;
+    return r;
+}
+
 int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
 {
     enum {
@@ -320,7 +450,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "give --reflectance or --reflectance-patch, not both");
     if (nviews == 1 && (have_circle2 || have[0] || have[1] || have[2]))
         return cli_usage_error(cli, "--circle2 and --camera2-* need a second ball photo");
-    double t0 = sl_seconds();
+    double t0 = sl_seconds(), cpu0 = cpu_seconds();
 
     view_in views[2];
     memset(views, 0, sizeof views);
@@ -329,6 +459,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     sl_image out = {0};
     sl_meta out_meta;
     sl_meta_init(&out_meta);
+    out_job job;
+    memset(&job, 0, sizeof job);
     sl_error err;
     sl_result r;
 
@@ -359,13 +491,35 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     sl_unwrap_pair_info pinfo;
     memset(&pinfo, 0, sizeof pinfo);
     sl_unwrap_info *info = &pinfo.views[0];
-    if (nviews == 2)
-        r = sl_unwrap_pair(&views[0].photo, &views[1].photo, &po, &out, &pinfo, &err);
-    else
-        r = sl_unwrap(&views[0].photo, o, &out, info, &err);
-    if (r)
-        goto fail;
     double refl_patch[3] = {0, 0, 0};
+    job = (out_job){.path = out_path, .views = views, .nviews = nviews, .po = &po,
+                    .pinfo = &pinfo, .camera = camera, .confidence = confidence,
+                    .have_patch = have_patch, .patch = patch,
+                    .type = use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
+                    .compression = compression, .meta = &out_meta};
+    /* One photo, nothing to do after the unwrap: rows go to the file as
+     * they are done (no whole lat-long in memory, encoding strip by strip). */
+    bool streamed = nviews == 1 && !have_patch;
+    if (streamed) {
+        sl_unwrap_sink sink = {stream_begin, stream_rows, &job};
+        r = sl_unwrap_stream(&views[0].photo, o, &sink, info, &err);
+        if (!r) {
+            double ts = sl_seconds(), cs = cpu_seconds();
+            r = sl_exr_stream_finish(job.stream, NULL, &err);
+            job.stream = NULL;
+            job.write_s += sl_seconds() - ts;
+            job.write_cpu += cpu_seconds() - cs;
+        }
+        if (r)
+            goto fail;
+    } else {
+        if (nviews == 2)
+            r = sl_unwrap_pair(&views[0].photo, &views[1].photo, &po, &out, &pinfo, &err);
+        else
+            r = sl_unwrap(&views[0].photo, o, &out, info, &err);
+        if (r)
+            goto fail;
+    }
     if (have_patch) {
         double az = patch[0] * M_PI / 180.0, el = patch[1] * M_PI / 180.0;
         double dir[3] = {sin(az) * cos(el), sin(el), cos(az) * cos(el)};
@@ -386,7 +540,9 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_INFO, "ball reflectance from the patch: %.4f, %.4f, %.4f", refl_patch[0],
                refl_patch[1], refl_patch[2]);
     }
-    double t_unwrap = sl_seconds() - t1, cpu_unwrap = cpu_seconds() - cpu1;
+    /* The streamed unwrap's time excludes its rows' writing (job.write_*). */
+    double t_unwrap = sl_seconds() - t1 - job.write_s;
+    double cpu_unwrap = cpu_seconds() - cpu1 - job.write_cpu;
     for (int i = 0; i < nviews; i++)
         if (pinfo.views[i].nonfinite)
             sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples replaced by 0", views[i].path,
@@ -397,103 +553,40 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                "%.4f (%.4f as given) over %.1f%% of the sphere",
                views[1].path, pinfo.azimuth_deg, pinfo.azimuth_given_deg, pinfo.residual,
                pinfo.residual_given, 100.0 * pinfo.overlap_fraction);
-    if (!confidence && out.channels == 4) {
-        sl_image rgb;
-        if ((r = sl_image_convert_channels(&out, 3, &rgb, &err)))
+    if (!streamed) {
+        if (!confidence && out.channels == 4) {
+            sl_image rgb;
+            if ((r = sl_image_convert_channels(&out, 3, &rgb, &err)))
+                goto fail;
+            sl_image_free(&out);
+            out = rgb;
+        }
+        double t3 = sl_seconds(), c3 = cpu_seconds();
+        if ((r = output_meta(&job, &err)) ||
+            (r = sl_exr_write_compressed(out_path, &out, &out_meta, job.type, compression, &err)))
             goto fail;
-        sl_image_free(&out);
-        out = rgb;
+        job.write_s = sl_seconds() - t3;
+        job.write_cpu = cpu_seconds() - c3;
     }
-
-    out_meta.envmap = SL_ENVMAP_LATLONG;
-    char buf[1024], refl[160];
-    reflectance_text(&o->reflectance, refl, sizeof refl);
-    if (have_patch) {
-        size_t len = strlen(refl);
-        snprintf(refl + len, sizeof refl - len, " (from a patch at %g,%g, %g deg)", patch[0],
-                 patch[1], patch[2]);
-    }
-    const char *cs = sl_meta_color_space(&views[0].meta);
-    if (!cs || !strcmp(cs, "srgb"))
-        cs = "lin_rec709";
-    struct {
-        const char *name;
-        char value[256];
-    } attrs[16];
-    int na = 0;
-    for (int i = 0; i < nviews; i++) {
-        const sl_unwrap_options *oi = &po.views[i];
-        const sl_unwrap_info *ii = &pinfo.views[i];
-        snprintf(attrs[na].value, sizeof attrs[na].value, "%.4f,%.4f,%.4f", oi->circle.cx,
-                 oi->circle.cy, oi->circle.r);
-        attrs[na++].name = i ? "setlight:ball2_circle" : "setlight:ball_circle";
-        snprintf(attrs[na].value, sizeof attrs[na].value,
-                 "%s, fit residual %.3f px, %d edge points",
-                 views[i].detected ? "detected" : "given", oi->circle.residual,
-                 oi->circle.edge_points);
-        attrs[na++].name = i ? "setlight:ball2_circle_source" : "setlight:ball_circle_source";
-        snprintf(attrs[na].value, sizeof attrs[na].value,
-                 "%s, focal %.3f px, distance %.4f ball radii, ball %.3f deg, off axis %.3f deg",
-                 camera == SL_BALL_PERSPECTIVE ? "perspective" : "orthographic", ii->focal_px,
-                 ii->distance, ii->ball_angle_deg, ii->off_axis_deg);
-        attrs[na++].name = i ? "setlight:ball2_camera" : "setlight:ball_camera";
-        snprintf(attrs[na].value, sizeof attrs[na].value, "azimuth %g, elevation %g, roll %g deg",
-                 i ? pinfo.azimuth_deg : oi->geometry.azimuth_deg, oi->geometry.elevation_deg,
-                 oi->geometry.roll_deg);
-        attrs[na++].name = i ? "setlight:camera2_orientation" : "setlight:camera_orientation";
-    }
-    if (nviews == 2) {
-        snprintf(attrs[na].value, sizeof attrs[na].value,
-                 "view 2 azimuth %.3f deg (given %.3f, searched +-%g), median |log| luminance "
-                 "difference %.4f (%.4f as given), overlap %.3f of the sphere, occluder cones "
-                 "%g deg",
-                 pinfo.azimuth_deg, pinfo.azimuth_given_deg, po.search_deg, pinfo.residual,
-                 pinfo.residual_given, pinfo.overlap_fraction, po.occluder_deg);
-        attrs[na++].name = "setlight:two_views";
-    }
-    snprintf(attrs[na].value, sizeof attrs[na].value, "%s", refl);
-    attrs[na++].name = "setlight:ball_reflectance";
-    snprintf(attrs[na].value, sizeof attrs[na].value, "%.3f", info->blind_angle_deg);
-    attrs[na++].name = "setlight:blind_cone_deg";
-    if (confidence) {
-        snprintf(attrs[na].value, sizeof attrs[na].value,
-                 "confidence: resolution relative to the ball centre, 0 where unseen");
-        attrs[na++].name = "setlight:alpha";
-    }
-    if (views[0].ldr || views[1].ldr) {
-        snprintf(attrs[na].value, sizeof attrs[na].value, "8-bit sRGB input linearised");
-        attrs[na++].name = "setlight:input_note";
-    }
-    snprintf(buf, sizeof buf, "setlight %s unwrap", sl_version());
-    if ((r = sl_meta_set(&out_meta, "setlight:command", buf, &err)) ||
-        (r = sl_meta_set(&out_meta, "setlight:source", views[0].path, &err)) ||
-        (nviews == 2 && (r = sl_meta_set(&out_meta, "setlight:source2", views[1].path, &err))) ||
-        (r = sl_meta_set_color_space(&out_meta, cs, &err)))
-        goto fail;
-    for (int i = 0; i < na; i++)
-        if ((r = sl_meta_set(&out_meta, attrs[i].name, attrs[i].value, &err)))
-            goto fail;
-    double t3 = sl_seconds();
-    r = sl_exr_write_compressed(out_path, &out, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
-                                compression, &err);
-    if (r)
-        goto fail;
-    double t_write = sl_seconds() - t3;
+    char refl[160];
+    reflectance_desc(&job, refl, sizeof refl);
+    int out_w = streamed ? info->width : out.width, out_h = streamed ? info->height : out.height;
 
     if (cli->json) {
         json_t *j = json_pack(
             "{s:s, s:s, s:o, s:s, s:f, s:f, s:f, s:f, s:f, s:i, s:i, s:s, s:f, s:I, s:b, s:f, "
-            "s:{s:f, s:f, s:f, s:f}}",
+            "s:{s:f, s:f, s:f, s:f, s:f, s:f, s:b}}",
             "input", views[0].path, "output", out_path, "circle",
             circle_json(&o->circle, views[0].detected), "camera",
             camera == SL_BALL_PERSPECTIVE ? "perspective" : "orthographic", "focal_px",
             info->focal_px, "distance_radii", info->distance, "ball_angle_deg",
             info->ball_angle_deg, "off_axis_deg", info->off_axis_deg, "centre_px_per_rad",
-            info->centre_px_per_rad, "width", out.width, "height", out.height, "reflectance",
+            info->centre_px_per_rad, "width", out_w, "height", out_h, "reflectance",
             refl, "blind_fraction", info->blind_fraction, "nonfinite_replaced",
             (json_int_t)(pinfo.views[0].nonfinite + pinfo.views[1].nonfinite), "ldr_linearised",
             views[0].ldr || views[1].ldr, "seconds", sl_seconds() - t0, "timing", "read_detect",
-            t1 - t0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap, "write", t_write);
+            t1 - t0, "read_detect_cpu", cpu1 - cpu0, "unwrap", t_unwrap, "unwrap_cpu", cpu_unwrap,
+            "write", job.write_s, "write_cpu", job.write_cpu, "streamed", streamed);
         json_object_set_new(j, "encoding",
                             json_pack("{s:s, s:s}", "pixel", use_float ? "float" : "half",
                                       "compression", cli_compression_name(compression)));
@@ -524,6 +617,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     return 0;
 
 fail:
+    sl_exr_stream_abort(job.stream);
     view_free(&views[0]);
     view_free(&views[1]);
     sl_image_free(&out);

@@ -315,6 +315,23 @@ typedef struct sl_unwrap_info {
 sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
                     sl_unwrap_info *info, sl_error *err);
 
+/* Where sl_unwrap_stream hands the lat-long over. */
+typedef struct sl_unwrap_sink {
+    /* Once, before any row: the size and geometry (info), and the channels
+     * per texel (3, or 4 with the confidence). */
+    sl_result (*begin)(void *user, const sl_unwrap_info *info, int channels, sl_error *err);
+    /* The next `count` rows in order, width * channels floats each,
+     * `stride` floats apart; valid during the call only. */
+    sl_result (*rows)(void *user, const float *rows, int count, size_t stride, sl_error *err);
+    void *user;
+} sl_unwrap_sink;
+
+/* sl_unwrap a strip of rows at a time into a sink (e.g. an sl_exr_stream):
+ * the same texels, without the whole lat-long in memory. A sink's failure
+ * stops the unwrap and is returned. */
+sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
+                           const sl_unwrap_sink *sink, sl_unwrap_info *info, sl_error *err);
+
 /* Two photos of the same ball from different places (about 90 degrees
  * apart around the ball is best). */
 typedef struct sl_unwrap_pair_options {
