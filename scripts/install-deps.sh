@@ -4,7 +4,7 @@
 set -euo pipefail
 packages=(
   build-essential cmake pkg-config git
-  libopenexr-dev libimath-dev openexr
+  libopenexr-dev libimath-dev openexr libdeflate-dev
   libopenimageio-dev openimageio-tools
   libopencv-dev libopencv-contrib-dev
   libgphoto2-dev gphoto2
