@@ -364,8 +364,10 @@ static exr_result_t zip_scanlines(const exr_decode_job *job, const exr_chunk_inf
                                   own_scratch *s)
 {
     size_t n = (size_t)ci->unpacked_size;
+    /* stored as is: uncompressed files, and chunks compression did not shrink */
+    bool stored = job->comp == EXR_COMPRESSION_NONE || ci->packed_size == n;
     if (ci->height <= 0 || n != job->line_bytes * (size_t)ci->height ||
-        ci->packed_size > n + (n >> 3) + 1024)
+        ci->packed_size > n + (n >> 3) + 1024 || (stored && ci->packed_size != n))
         return EXR_ERR_CORRUPT_CHUNK;
     if (!grow(&s->packed, &s->packed_cap, ci->packed_size ? ci->packed_size : 1) ||
         !grow(&s->raw, &s->raw_cap, n))
@@ -374,7 +376,7 @@ static exr_result_t zip_scanlines(const exr_decode_job *job, const exr_chunk_inf
     if (rv != EXR_ERR_SUCCESS)
         return rv;
     const uint8_t *lines = s->packed;
-    if (job->comp != EXR_COMPRESSION_NONE && ci->packed_size != n) {
+    if (!stored) {
         size_t got = 0;
         if (!s->inflater && !(s->inflater = libdeflate_alloc_decompressor()))
             return EXR_ERR_OUT_OF_MEMORY;
