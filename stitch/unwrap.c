@@ -667,25 +667,6 @@ static sl_result image_alloc_large(sl_image *img, int width, int height, int cha
     return SL_OK;
 }
 
-/* Linux 6.1's synchronous collapse, newer than Debian 12's glibc headers;
- * older kernels refuse it (EINVAL), harmlessly. */
-#if defined(__linux__) && !defined(MADV_COLLAPSE)
-#define MADV_COLLAPSE 25
-#endif
-
-/* The photo's whole 2 MB pages (read in place) collapsed into huge pages. */
-static void photo_huge_pages(const sl_image *img)
-{
-#ifdef MADV_COLLAPSE
-    uintptr_t a = (uintptr_t)img->data, e = a + (size_t)img->height * img->stride * sizeof(float);
-    uintptr_t align = (uintptr_t)2 << 20, b = (a + align - 1) & ~(align - 1), f = e & ~(align - 1);
-    if (f > b)
-        madvise((void *)b, f - b, MADV_COLLAPSE);
-#else
-    (void)img;
-#endif
-}
-
 /* NaN/Inf among the samples the unwrap reads (RGB, or the one grey
  * channel), counted per row in parallel (a whole photo is a few hundred MB). */
 typedef struct nonfinite_job {
@@ -799,7 +780,6 @@ static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *op
         goto fail;
     }
     const sl_image *src = photo;
-    photo_huge_pages(photo);
     if (photo->channels != 3 || nonfinite) {
         if ((r = image_alloc_large(&u->rgb, photo->width, photo->height, 3, err)))
             goto fail;
