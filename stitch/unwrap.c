@@ -11,6 +11,9 @@
 #ifdef __SSE__
 #include <xmmintrin.h>
 #endif
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -35,6 +38,10 @@
  * strip keeps the threads busy to its end. */
 #define STRIP_ROWS 512
 
+typedef float v4f __attribute__((vector_size(16)));
+typedef int v4i __attribute__((vector_size(16)));
+typedef double v2d __attribute__((vector_size(16)));
+
 typedef struct unwrap_ctx {
     const sl_image *photo; /* RGB, finite */
     const sl_ball_view *view;
@@ -47,6 +54,7 @@ typedef struct unwrap_ctx {
     double world_to_view[3][3];
     double *column;             /* per output column: world_to_view (sin lon, 0, cos lon) */
     double inv_refl[3];         /* constant reflectance */
+    v4f inv_refl_f;             /* the same in float */
     double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
 } unwrap_ctx;
 
@@ -58,8 +66,6 @@ static inline float *out_pixel(const unwrap_ctx *c, int x, int y)
 /* A pixel's RGB is loaded as one 4-wide vector; with 3 channels the fourth
  * lane is the next pixel's R (unused; that pixel exists: taps lie inside the
  * ball, the ball inside the image). */
-typedef float v4f __attribute__((vector_size(16)));
-typedef int v4i __attribute__((vector_size(16)));
 
 static inline v4f load4(const float *p)
 {
@@ -68,12 +74,27 @@ static inline v4f load4(const float *p)
     return v;
 }
 
-/* Exactly one pixel (the rim lookups may touch the image's last pixel). */
+/* Exactly one pixel (the rim lookups may touch the image's last pixel).
+ * Built in registers: through memory, the 12-byte copy and the 16-byte
+ * load stall store forwarding (half the rim lookups' time). */
 static inline v4f load3(const float *p)
 {
-    v4f v = {0, 0, 0, 0};
-    memcpy(&v, p, 3 * sizeof(float));
-    return v;
+#ifdef __SSE__
+    __m128 lo = _mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)p);
+    return (v4f)_mm_movelh_ps(lo, _mm_load_ss(p + 2));
+#else
+    return (v4f){p[0], p[1], p[2], 0.0f};
+#endif
+}
+
+static inline void store3(float *p, v4f v)
+{
+#ifdef __SSE__
+    _mm_storel_pi((__m64 *)p, (__m128)v);
+    _mm_store_ss(p + 2, _mm_movehl_ps((__m128)v, (__m128)v));
+#else
+    memcpy(p, &v, 3 * sizeof(float));
+#endif
 }
 
 /* Bilinear lookup of the ball's own pixels, taps closer than the rim
@@ -333,7 +354,8 @@ static inline v4f vmax(v4f a, v4f b)
  * it never rings around a bright source. All 16 taps must be ball pixels
  * clear of the rim margin (checked by the caller). Written out row by row
  * (the rows are independent; the inner four taps are the clamp's too). */
-static inline v4f bicubic(const sl_image *img, double x, double y)
+static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, double x,
+                                                         double y)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
@@ -366,7 +388,33 @@ static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
     double lat = M_PI * (0.5 - (y + 0.5) / h), cl = cos(lat), sl = sin(lat);
     const double(*m)[3] = c->world_to_view;
     row -= x0;
-    for (int x = x0; x < x1; x++) {
+    int x = x0;
+#ifdef __SSE2__
+    /* Orthographic, away from the singular point: map_local's short formula
+     * for two centres at a time (the square root and the division are the
+     * row's cost; packed, they cost about what one does). */
+    const sl_ball_view *v = c->view;
+    if (v->distance == 0.0 && x0 >= 0 && x1 <= w) {
+        const v2d one = {1.0, 1.0}, half = {0.5, 0.5}, rk = {0.5 * v->r, 0.5 * v->r};
+        for (; x + 1 < x1; x += 2) {
+            const double *c0 = c->column + 3 * (size_t)x, *c1 = c0 + 3;
+            v2d w0 = {cl * c0[0] + sl * m[0][1], cl * c1[0] + sl * m[0][1]};
+            v2d w1 = {cl * c0[1] + sl * m[1][1], cl * c1[1] + sl * m[1][1]};
+            v2d z = {-(cl * c0[2] + sl * m[2][1]), -(cl * c1[2] + sl * m[2][1])};
+            if (!(z[0] > -0.9999 && z[1] > -0.9999))
+                break;
+            v2d ct = (v2d)_mm_sqrt_pd((__m128d)(half * (one + z))), k = rk / ct;
+            v2d px = v->cx - k * w0, py = v->cy - k * w1;
+            for (int i = 0; i < 2; i++) {
+                row[x + i].x = px[i];
+                row[x + i].y = py[i];
+                row[x + i].cosi = ct[i];
+                row[x + i].blind = false;
+            }
+        }
+    }
+#endif
+    for (; x < x1; x++) {
         int xw = x < 0 ? x + w : (x >= w ? x - w : x);
         const double *col = c->column + 3 * (size_t)xw;
         double wv[3];
@@ -387,6 +435,7 @@ typedef struct row_geom {
     bool inner_row; /* has rows above and below */
     bool confidence;
     double vscale, cos_lat, sin_lat, lon_step, lat_step, ref, keep;
+    double inner_any; /* keep less the lookup's reach and the largest fast footprint */
 } row_geom;
 
 /* One texel from its centre ce, its neighbours in the row ce[-1] and ce[1],
@@ -406,16 +455,15 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
     /* Photo pixels per texel step along u and v. */
     double du[2] = {0.5 * (r->x - l->x), 0.5 * (r->y - l->y)};
     double dv[2] = {g->vscale * (down->x - up->x), g->vscale * (down->y - up->y)};
-    double eu = sqrt(du[0] * du[0] + du[1] * du[1]);
-    double ev = sqrt(dv[0] * dv[0] + dv[1] * dv[1]);
+    double eu2 = du[0] * du[0] + du[1] * du[1], ev2 = dv[0] * dv[0] + dv[1] * dv[1];
     /* Curvature of the mapping: how far the centre is from its
      * neighbours' midpoints. */
     double cu = fabs(r->x + l->x - 2.0 * ce->x) + fabs(r->y + l->y - 2.0 * ce->y);
     double cv = g->inner_row ? fabs(down->x + up->x - 2.0 * ce->x) +
                                    fabs(down->y + up->y - 2.0 * ce->y)
                              : 0.0;
-    if (eu > FAST_MAX_EXTENT || ev > FAST_MAX_EXTENT || cu > FAST_MAX_BEND ||
-        cv > FAST_MAX_BEND) {
+    if (eu2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT || ev2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT ||
+        cu > FAST_MAX_BEND || cv > FAST_MAX_BEND) {
         texel_exact(c, x, g->y, p);
         return;
     }
@@ -424,10 +472,13 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
      * sqrt(2) px of the point, the cubic's within 2 sqrt(2). Near the rim
      * each sample is checked and clamped like the exact path's. Most texels
      * are far from the rim: the triangle inequality settles them without
-     * the corners. */
+     * the corners, most of them even with the largest footprint (no square
+     * roots). */
     double ex = ce->x - c->view->cx, ey = ce->y - c->view->cy, e2 = ex * ex + ey * ey;
-    double inner = g->keep - 2.9 - 0.5 * (eu + ev);
     bool checked = false, cubic = true;
+    double inner = g->inner_any;
+    if (inner < 0.0 || e2 > inner * inner)
+        inner = g->keep - 2.9 - 0.5 * (sqrt(eu2) + sqrt(ev2));
     if (inner < 0.0 || e2 > inner * inner) {
         double far2 = 0.0;
         for (int q = 0; q < 4; q++) {
@@ -440,10 +491,9 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
         checked = far + 1.5 > g->keep;
         cubic = far + 2.9 <= g->keep;
     }
-    double inv[3], seen = 1.0;
-    inv_reflectance(c, ce->cosi, inv);
+    double seen = 1.0;
     v4f val;
-    if (eu <= 1.25 && ev <= 1.25) {
+    if (eu2 <= 1.25 * 1.25 && ev2 <= 1.25 * 1.25) {
         /* The lookup's kernel is about as wide as the footprint. */
         if (cubic) {
             val = bicubic(c->photo, ce->x, ce->y);
@@ -457,6 +507,7 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
     } else {
         /* The lookup's kernel already spans about a pixel: samples
          * cover the footprint less that pixel. */
+        double eu = sqrt(eu2), ev = sqrt(ev2);
         int nu = fast_count(eu), nv = fast_count(ev);
         double su = nu > 1 ? (eu - 1.0) / eu / (nu - 1) : 0.0;
         double sv = nv > 1 ? (ev - 1.0) / ev / (nv - 1) : 0.0;
@@ -488,8 +539,15 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
         if (checked)
             seen = seen_w / wsum;
     }
-    for (int k = 0; k < 3; k++)
-        p[k] = (float)(val[k] * inv[k]);
+    if (c->refl_table) {
+        double inv[3];
+        inv_reflectance(c, ce->cosi, inv);
+        for (int k = 0; k < 3; k++)
+            p[k] = (float)(val[k] * inv[k]);
+    } else {
+        /* Exact in float too when the reflectance is 1 (the default). */
+        store3(p, val * c->inv_refl_f);
+    }
     if (g->confidence) {
         double j[2][2] = {{du[0] / g->lon_step, dv[0] / g->lat_step},
                           {du[1] / g->lon_step, dv[1] / g->lat_step}};
@@ -520,6 +578,7 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
     }
     row_geom g = {.confidence = c->channels == 4, .lat_step = M_PI / h,
                   .ref = c->view->centre_px_per_rad, .keep = c->view->r - RIM_MARGIN};
+    g.inner_any = g.keep - 2.9 - FAST_MAX_EXTENT;
     for (int xb = 0; xb < w; xb += TILE_W) {
         int xe = xb + TILE_W < w ? xb + TILE_W : w;
         /* buf row i holds image row begin - 1 + i, columns xb - 1 .. xe. */
@@ -573,6 +632,7 @@ static sl_result tables_init(unwrap_ctx *c, sl_error *err)
     sl_reflectance_eval(c->refl, 1.0, rf);
     for (int k = 0; k < 3; k++)
         c->inv_refl[k] = 1.0 / rf[k];
+    c->inv_refl_f = (v4f){(float)c->inv_refl[0], (float)c->inv_refl[1], (float)c->inv_refl[2], 0};
     for (int i = 0; c->refl_table && i <= REFL_TABLE; i++) {
         sl_reflectance_eval(c->refl, (double)i / REFL_TABLE, rf);
         for (int k = 0; k < 3; k++)
