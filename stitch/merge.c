@@ -302,15 +302,28 @@ static int64_t count_classes_u8(const uint8_t *q, int64_t n, const uint8_t *cls,
     if (s > 255 || b < 0)
         return 0;
     const __m128i vs = _mm_set1_epi8((char)s), vb = _mm_set1_epi8((char)b);
-    const int first = 0x1249; /* bytes 0, 3, 6, 9, 12: each pixel's first channel */
+    /* Byte counters at each pixel's first channel (0, 3, 6, 9, 12), summed
+     * out before they can overflow. */
+    const __m128i first = _mm_setr_epi8(1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 0);
     int64_t ns = 0, nw = 0, nb = 0;
-    for (; p * 3 + 16 <= n * 3; p += 5, q += 15) {
-        __m128i v = _mm_loadu_si128((const __m128i *)q), v1 = _mm_srli_si128(v, 1),
-                v2 = _mm_srli_si128(v, 2);
-        __m128i hi = _mm_max_epu8(v, _mm_max_epu8(v1, v2)), lo = _mm_min_epu8(v, _mm_min_epu8(v1, v2));
-        ns += __builtin_popcount(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_max_epu8(hi, vs), hi)) & first);
-        nw += __builtin_popcount(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_max_epu8(lo, vs), lo)) & first);
-        nb += __builtin_popcount(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_min_epu8(hi, vb), hi)) & first);
+    while (p * 3 + 16 <= n * 3) {
+        __m128i cs = _mm_setzero_si128(), cw = cs, cb = cs;
+        for (int k = 0; k < 255 && p * 3 + 16 <= n * 3; k++, p += 5, q += 15) {
+            __m128i v = _mm_loadu_si128((const __m128i *)q), v1 = _mm_srli_si128(v, 1),
+                    v2 = _mm_srli_si128(v, 2);
+            __m128i hi = _mm_max_epu8(v, _mm_max_epu8(v1, v2)),
+                    lo = _mm_min_epu8(v, _mm_min_epu8(v1, v2));
+            cs = _mm_add_epi8(cs, _mm_and_si128(_mm_cmpeq_epi8(_mm_max_epu8(hi, vs), hi), first));
+            cw = _mm_add_epi8(cw, _mm_and_si128(_mm_cmpeq_epi8(_mm_max_epu8(lo, vs), lo), first));
+            cb = _mm_add_epi8(cb, _mm_and_si128(_mm_cmpeq_epi8(_mm_min_epu8(hi, vb), hi), first));
+        }
+        __m128i zero = _mm_setzero_si128(), t;
+        t = _mm_sad_epu8(cs, zero);
+        ns += _mm_cvtsi128_si32(t) + _mm_cvtsi128_si32(_mm_srli_si128(t, 8));
+        t = _mm_sad_epu8(cw, zero);
+        nw += _mm_cvtsi128_si32(t) + _mm_cvtsi128_si32(_mm_srli_si128(t, 8));
+        t = _mm_sad_epu8(cb, zero);
+        nb += _mm_cvtsi128_si32(t) + _mm_cvtsi128_si32(_mm_srli_si128(t, 8));
     }
     *sat += ns;
     *white += nw;
