@@ -66,8 +66,9 @@ static void read_next(pass_ctx *p, int r)
     const merge_ctx *m = p->m;
     const uint8_t *held = m->held ? m->held[m->order[r]] : NULL;
     if (held) {
+        /* Merged in place: the strip's rows of the held frame. */
         size_t row = (size_t)m->width * 3 * (size_t)m->code_bytes;
-        memcpy(p->next[r], held + (size_t)p->ny0 * row, (size_t)(p->ny1 - p->ny0) * row);
+        p->next[r] = (void *)(held + (size_t)p->ny0 * row);
         p->results[r] = SL_OK;
         return;
     }
@@ -439,12 +440,14 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
         p.e[q] = fr->exposure / ref;
         p.inv_e[q] = 1 / p.e[q];
         p.e2[q] = p.e[q] * p.e[q];
+        if (m->held && m->held[m->order[q]])
+            continue; /* its strips are views of the held frame */
         size_t bytes = (size_t)STRIP * m->width * 3 * (m->codes ? (size_t)m->code_bytes : sizeof(float));
         p.buf[q] = malloc(bytes);
         p.next[q] = malloc(bytes);
         if (!p.buf[q] || !p.next[q])
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-        else if (!(m->held && m->held[m->order[q]]))
+        else
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
     if (!r)
@@ -487,7 +490,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     for (int q = 0; q < f; q++) {
         if (p.rd)
             merge_frame_close(p.rd[q]);
-        if (slots) {
+        if (slots && !(m->held && m->held[m->order[q]])) {
             free(slots[q]);
             free(slots[f + q]);
         }

@@ -549,6 +549,72 @@ static void test_deghost(void)
     mf_result_free(&truth);
 }
 
+/* Each frame's saturated and black fractions (counted five pixels at a
+ * time from 8-bit codes, the rest one by one) against a pattern with a
+ * known count: per pixel one of white, one channel clipped, black, one
+ * channel above black, mid grey; 37 columns so strips end off the stride. */
+static void test_frame_fractions(void)
+{
+    static const float pattern[5][3] = {
+        {1, 1, 1}, {0.5f, 1, 0.5f}, {0, 0, 0}, {0, 0, 0.5f}, {0.5f, 0.5f, 0.5f}};
+    const int w = 37, h = 9;
+    double times[3] = {0.25, 1, 4};
+    char p[3][512];
+    const char *paths[3];
+    sl_error err;
+    int64_t sat = 0, black = 0;
+    for (int i = 0; i < 3; i++) {
+        char name[32];
+        snprintf(name, sizeof name, "frac%d.tif", i);
+        snprintf(p[i], sizeof p[i], "%s", sl_test_path(name));
+        paths[i] = p[i];
+        sl_image img = {0};
+        CHECK_OK(sl_image_alloc(&img, w, h, 3, &err), &err);
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++) {
+                /* Frame 1 shifts the pattern, frame 2 is mid grey. */
+                int k = (y * w + x + i * 2) % 7;
+                float *px = sl_image_pixel(&img, x, y);
+                for (int c = 0; c < 3; c++)
+                    px[c] = i == 2 || k >= 5 ? 0.5f : pattern[k][c];
+                if (i == 0) {
+                    sat += k < 2;
+                    black += k == 2;
+                }
+            }
+        sl_meta meta;
+        sl_meta_init(&meta);
+        CHECK_OK(sl_photo_write(p[i], &img, &meta, 8, &err), &err);
+        sl_meta_free(&meta);
+        sl_image_free(&img);
+    }
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.times = times;
+    opt.response_mode = SL_RESPONSE_LINEAR;
+    sl_merge_result res;
+    CHECK_OK(sl_merge(paths, 3, &opt, &res, &err), &err);
+    double n = (double)w * h;
+    /* Frame 1 holds the same pattern shifted: the same counts up to the
+     * pixels the shift moves across the image's end. */
+    int64_t sat1 = 0, black1 = 0;
+    for (int j = 0; j < w * h; j++) {
+        int k = (j + 2) % 7;
+        sat1 += k < 2;
+        black1 += k == 2;
+    }
+    for (int i = 0; i < 3 && res.frame_count == 3; i++) {
+        const sl_merge_frame *f = &res.frames[i];
+        double es = i == 0 ? (double)sat / n : i == 1 ? (double)sat1 / n : 0;
+        double eb = i == 0 ? (double)black / n : i == 1 ? (double)black1 / n : 0;
+        CHECK_MSG(f->saturated_fraction == es, "frame %d: saturated %.6f, expected %.6f", i,
+                  f->saturated_fraction, es);
+        CHECK_MSG(f->black_fraction == eb, "frame %d: black %.6f, expected %.6f", i,
+                  f->black_fraction, eb);
+    }
+    sl_merge_result_free(&res);
+}
+
 int main(void)
 {
     RUN(test_jpeg_gamma_7x3);
@@ -561,6 +627,7 @@ int main(void)
     RUN(test_response_file);
     RUN(test_deterministic);
     RUN(test_bad_inputs);
+    RUN(test_frame_fractions);
     RUN(test_real_brackets);
     return sl_test_finish();
 }
