@@ -90,24 +90,58 @@ sl_result sl_camera_shutter_speeds(sl_camera *camera, double **speeds, int *coun
 }
 
 /* Busy: the camera is still writing the last frame. 20 ms doubling to 640 ms. */
-void sl_camera_backoff(int attempt)
+static void backoff(int attempt)
 {
     int ms = 20 << (attempt < 5 ? attempt : 5);
     struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
     nanosleep(&ts, NULL);
 }
 
-sl_result sl_camera_set(sl_camera *camera, const sl_camera_settings *settings, sl_error *err)
+/* One backend op, retried with backoff while the camera answers busy, at
+ * most `max` times; *retries (may be NULL) gets how many retries it took. */
+typedef sl_result (*camera_op)(sl_camera *c, void *arg, sl_error *err);
+
+static sl_result retry_busy(sl_camera *c, camera_op op, void *arg, int max, int *retries,
+                            sl_error *err)
 {
     sl_result r;
-    for (int attempt = 0;; attempt++) {
-        camera->busy = false;
-        r = camera->ops->set(camera, settings, err);
-        if (!r || !camera->busy || attempt >= 8)
+    int n = 0;
+    for (;; n++) {
+        c->busy = false;
+        r = op(c, arg, err);
+        if (!r || !c->busy || n >= max)
             break;
-        sl_camera_backoff(attempt);
+        backoff(n);
     }
+    if (retries)
+        *retries = n;
     return r;
+}
+
+/* The ops through one signature; the void * is the op's own argument. */
+static sl_result op_set(sl_camera *c, void *arg, sl_error *err)
+{
+    return c->ops->set(c, arg, err);
+}
+
+static sl_result op_set_format(sl_camera *c, void *arg, sl_error *err)
+{
+    return c->ops->set_format(c, arg, err);
+}
+
+static sl_result op_capture(sl_camera *c, void *arg, sl_error *err)
+{
+    return c->ops->capture(c, arg, err);
+}
+
+sl_result sl_camera_set(sl_camera *camera, const sl_camera_settings *settings, sl_error *err)
+{
+    return retry_busy(camera, op_set, (void *)settings, 8, NULL, err);
+}
+
+sl_result sl_camera_set_label(sl_camera *camera, const char *label, sl_error *err)
+{
+    return retry_busy(camera, op_set_format, (void *)label, 8, NULL, err);
 }
 
 sl_result sl_camera_get(sl_camera *camera, sl_camera_settings *settings, sl_error *err)
@@ -120,17 +154,7 @@ sl_result sl_camera_capture(sl_camera *camera, sl_camera_shot *shot, sl_error *e
 {
     memset(shot, 0, sizeof *shot);
     shot->expected = camera->files_per_shot > 0 ? camera->files_per_shot : 1;
-    sl_result r;
-    int busy = 0;
-    for (;; busy++) {
-        camera->busy = false;
-        r = camera->ops->capture(camera, shot, err);
-        if (!r || !camera->busy || busy >= 10)
-            break;
-        sl_camera_backoff(busy);
-    }
-    shot->busy_retries = busy;
-    return r;
+    return retry_busy(camera, op_capture, shot, 10, &shot->busy_retries, err);
 }
 
 void sl_camera_aim(sl_camera *camera, int view, int views)

@@ -45,8 +45,9 @@ sl_result sl_gphoto2_list(sl_camera_entry **list, int *count, sl_error *err);
 /* The virtual set's camera (camera_virtual.c). */
 sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *camera, sl_error *err);
 
-/* The wait before retrying a busy camera: 20 ms doubling to 640 ms. */
-void sl_camera_backoff(int attempt);
+/* Sets the image-format choice `label`, busy replies retried with backoff
+ * like every other setting. */
+sl_result sl_camera_set_label(sl_camera *camera, const char *label, sl_error *err);
 /* Reopens a lost connection; clears camera->lost on success. */
 sl_result sl_camera_reconnect(sl_camera *camera, sl_error *err);
 

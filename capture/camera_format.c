@@ -183,14 +183,7 @@ sl_result sl_camera_set_format(sl_camera *camera, sl_image_format format, char *
     snprintf(want, sizeof want, "%s", ch.labels[i]);
     /* written even when it already reads right: a body can read back a
      * format it does not shoot */
-    for (int attempt = 0;; attempt++) {
-        camera->busy = false;
-        r = camera->ops->set_format(camera, want, err);
-        if (!r || !camera->busy || attempt >= 8)
-            break;
-        sl_camera_backoff(attempt);
-    }
-    if (r || (r = read_choices(camera, &ch, err)))
+    if ((r = sl_camera_set_label(camera, want, err)) || (r = read_choices(camera, &ch, err)))
         return r;
     if (strcmp(ch.current, want) != 0)
         return sl_error_set(err, SL_ERR_CAMERA,
