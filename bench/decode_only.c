@@ -37,13 +37,6 @@ static void decode(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
-static double cpu_seconds(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 int main(int argc, char **argv)
 {
     if (argc < 2) {
@@ -56,9 +49,9 @@ int main(int argc, char **argv)
     if (n > 256)
         n = 256;
     job j = {argv + 1, results, errs};
-    double w0 = sl_seconds(), c0 = cpu_seconds();
+    double w0 = sl_seconds(), c0 = sl_cpu_seconds();
     sl_parallel_for(n, 1, decode, &j);
-    double w1 = sl_seconds(), c1 = cpu_seconds();
+    double w1 = sl_seconds(), c1 = sl_cpu_seconds();
     for (int i = 0; i < n; i++)
         if (results[i]) {
             fprintf(stderr, "bench_decode: %s\n", errs[i].message);

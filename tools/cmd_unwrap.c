@@ -126,16 +126,6 @@ static void view_free(view_in *v)
     sl_meta_free(&v->meta);
 }
 
-/* CPU seconds of the whole process (all threads): on a shared machine the
- * wall time of a stage says little. */
-static double cpu_seconds(void)
-{
-    struct timespec ts;
-    if (clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts))
-        return 0.0;
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
 /* NaN (not measured) as null. */
 static json_t *number(double v)
 {
@@ -251,18 +241,24 @@ static sl_result output_meta(const out_job *j, sl_error *err)
     return SL_OK;
 }
 
+/* Adds the wall and CPU time since t, c to the output's writing time. */
+static void writing_took(out_job *j, double t, double c)
+{
+    j->write_s += sl_seconds() - t;
+    j->write_cpu += sl_cpu_seconds() - c;
+}
+
 /* sl_unwrap_sink: the header once the geometry is known, then the rows. */
 static sl_result stream_begin(void *user, const sl_unwrap_info *info, int channels,
                               sl_error *err)
 {
     out_job *j = user;
-    double t = sl_seconds(), c = cpu_seconds();
+    double t = sl_seconds(), c = sl_cpu_seconds();
     sl_result r = output_meta(j, err);
     if (!r)
         r = sl_exr_stream_open(j->path, info->width, info->height, channels, j->meta, j->type,
                                j->compression, &j->stream, err);
-    j->write_s += sl_seconds() - t;
-    j->write_cpu += cpu_seconds() - c;
+    writing_took(j, t, c);
     return r;
 }
 
@@ -270,12 +266,11 @@ static sl_result stream_rows(void *user, const float *rows, int count, size_t st
                              sl_error *err)
 {
     out_job *j = user;
-    double t = sl_seconds(), c = cpu_seconds();
+    double t = sl_seconds(), c = sl_cpu_seconds();
     sl_result r = sl_exr_stream_write(j->stream, rows, count, stride, err);
     if (r)
         j->stream = NULL; /* a failed write aborts the stream */
-    j->write_s += sl_seconds() - t;
-    j->write_cpu += cpu_seconds() - c;
+    writing_took(j, t, c);
     return r;
 }
 
@@ -450,7 +445,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         return cli_usage_error(cli, "give --reflectance or --reflectance-patch, not both");
     if (nviews == 1 && (have_circle2 || have[0] || have[1] || have[2]))
         return cli_usage_error(cli, "--circle2 and --camera2-* need a second ball photo");
-    double t0 = sl_seconds(), cpu0 = cpu_seconds();
+    double t0 = sl_seconds(), cpu0 = sl_cpu_seconds();
 
     view_in views[2];
     memset(views, 0, sizeof views);
@@ -487,7 +482,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
 
     /* The patch is found with the confidence, the merge weighs by it. */
     o->no_confidence = !confidence && !have_patch && nviews == 1;
-    double t1 = sl_seconds(), cpu1 = cpu_seconds();
+    double t1 = sl_seconds(), cpu1 = sl_cpu_seconds();
     sl_unwrap_pair_info pinfo;
     memset(&pinfo, 0, sizeof pinfo);
     sl_unwrap_info *info = &pinfo.views[0];
@@ -504,11 +499,10 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         sl_unwrap_sink sink = {stream_begin, stream_rows, &job};
         r = sl_unwrap_stream(&views[0].photo, o, &sink, info, &err);
         if (!r) {
-            double ts = sl_seconds(), cs = cpu_seconds();
+            double ts = sl_seconds(), cs = sl_cpu_seconds();
             r = sl_exr_stream_finish(job.stream, NULL, &err);
             job.stream = NULL;
-            job.write_s += sl_seconds() - ts;
-            job.write_cpu += cpu_seconds() - cs;
+            writing_took(&job, ts, cs);
         }
         if (r)
             goto fail;
@@ -542,7 +536,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     }
     /* The streamed unwrap's time excludes its rows' writing (job.write_*). */
     double t_unwrap = sl_seconds() - t1 - job.write_s;
-    double cpu_unwrap = cpu_seconds() - cpu1 - job.write_cpu;
+    double cpu_unwrap = sl_cpu_seconds() - cpu1 - job.write_cpu;
     for (int i = 0; i < nviews; i++)
         if (pinfo.views[i].nonfinite)
             sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples replaced by 0", views[i].path,
@@ -561,12 +555,11 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
             sl_image_free(&out);
             out = rgb;
         }
-        double t3 = sl_seconds(), c3 = cpu_seconds();
+        double t3 = sl_seconds(), c3 = sl_cpu_seconds();
         if ((r = output_meta(&job, &err)) ||
             (r = sl_exr_write_compressed(out_path, &out, &out_meta, job.type, compression, &err)))
             goto fail;
-        job.write_s = sl_seconds() - t3;
-        job.write_cpu = cpu_seconds() - c3;
+        writing_took(&job, t3, c3);
     }
     char refl[160];
     reflectance_desc(&job, refl, sizeof refl);
