@@ -282,8 +282,6 @@ typedef struct sample_job {
     sl_result *results;
 } sample_job;
 
-/* One frame: reads it strip by strip, keeps the sample positions' values
- * and counts saturated, black and white pixels. */
 /* sample_frame's counts over 8-bit codes (cls: code_class, thresholds on
  * the code: saturated from one code up, black up to one), five pixels per
  * 16-byte load: the brightest and darkest channel of each pixel compared
@@ -334,6 +332,8 @@ static int64_t count_classes_u8(const uint8_t *q, int64_t n, const uint8_t *cls,
     return p;
 }
 
+/* One frame: reads it strip by strip, keeps the sample positions' values
+ * and counts saturated, black and white pixels. */
 static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
@@ -692,11 +692,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
 {
     memset(out, 0, sizeof *out);
     memset(m, 0, sizeof *m);
-    sl_merge_options opt;
-    if (opt_in)
-        opt = *opt_in;
-    else
-        sl_merge_options_init(&opt);
+    sl_merge_options opt = merge_options_or_default(opt_in);
     m->black = opt.black;
     m->saturation = opt.saturation;
     if (!(opt.saturation > opt.black + 0.1) || !(opt.black >= 0) || !(opt.saturation <= 1) ||
@@ -808,11 +804,7 @@ sl_result sl_merge(const char *const *paths, int count, const sl_merge_options *
                    sl_merge_result *out, sl_error *err)
 {
     double t0 = sl_seconds();
-    sl_merge_options opt;
-    if (opt_in)
-        opt = *opt_in;
-    else
-        sl_merge_options_init(&opt);
+    sl_merge_options opt = merge_options_or_default(opt_in);
     merge_ctx m;
     sl_result r = merge_prepare(paths, count, &opt, true, &m, out, err);
     if (!r)

@@ -114,6 +114,17 @@ typedef struct merge_ctx {
 bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const double *loge, int r,
                         int64_t pos);
 
+/* The caller's options, or the defaults when it gives none. */
+static inline sl_merge_options merge_options_or_default(const sl_merge_options *opt)
+{
+    sl_merge_options o;
+    if (opt)
+        o = *opt;
+    else
+        sl_merge_options_init(&o);
+    return o;
+}
+
 /* Everything before the pixels are merged: frames, samples, response,
  * exposure check. With `hold`, frames that fit opt->hold_mb keep their codes
  * from the sample pass for the merge pass. */

@@ -163,11 +163,7 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
                           sl_merge_result *out, sl_error *err)
 {
     double t0 = sl_seconds();
-    sl_merge_options opt;
-    if (opt_in)
-        opt = *opt_in;
-    else
-        sl_merge_options_init(&opt);
+    sl_merge_options opt = merge_options_or_default(opt_in);
     merge_ctx m;
     memset(&m, 0, sizeof m);
     memset(out, 0, sizeof *out);
