@@ -49,10 +49,7 @@ static long sequence_of(const char *name)
     return best;
 }
 
-/* A body writing RAW+JPEG (or the virtual set's JPEG, TIFF and linear TIFF)
- * stores one shot in several files: the frame's file is the rawest, the
- * others are its siblings. */
-static int format_rank(const char *name)
+int sl_capture_file_rank(const char *name)
 {
     static const char *const order[] = {"exr", "tif", "tiff", "png"};
     if (sl_image_format_of_file(name) == SL_FORMAT_RAW)
@@ -118,7 +115,7 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
         if (subsec >= 0)
             x->when += subsec;
         x->sequence = sequence_of(e->d_name);
-        x->rank = format_rank(e->d_name);
+        x->rank = sl_capture_file_rank(e->d_name);
         /* a broken EXIF rational reads back as infinity: unknown */
         if (!isfinite(meta.exposure_time))
             meta.exposure_time = 0;

@@ -23,6 +23,12 @@ sl_result sl_capture_path(char *buf, size_t size, const char *dir, const char *n
 sl_result sl_session_write_json(const char *dir, json_t *camera, json_t *views, json_t *problems,
                                 sl_error *err);
 
+/* Where a file stands among a shot's files (a body writing RAW+JPEG, or
+ * the virtual set's JPEG, TIFF and linear TIFF, stores one shot in several):
+ * 0 raw, 1 EXR or TIFF, 2 PNG, 3 the rest (JPEG). The frame's file is the
+ * rawest, the others are its siblings. */
+int sl_capture_file_rank(const char *name);
+
 /* EXIF SubSecTimeOriginal (else SubSecTime) of a JPEG or TIFF as a fraction
  * of a second; -1 when absent. */
 double sl_exif_subsec(const unsigned char *data, size_t size);

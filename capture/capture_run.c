@@ -130,13 +130,13 @@ static sl_result shot_names(const run_state *s, int v, int i, const sl_camera_sh
     return sl_error_set(err, SL_ERR_IO, "%s: no free name for view %d frame %d", s->dir, v, i);
 }
 
-/* The rawest file first (raw, then the rest in the camera's order), as
- * ingest orders a shot's files. */
+/* The rawest file first, as ingest orders a shot's files (files of one
+ * rank stay in the camera's order). */
 static void order_files(sl_camera_shot *shot)
 {
     for (int k = 1; k < shot->count; k++)
-        for (int j = k; j > 0 && sl_image_format_of_file(shot->files[j].source) == SL_FORMAT_RAW &&
-                        sl_image_format_of_file(shot->files[j - 1].source) != SL_FORMAT_RAW;
+        for (int j = k; j > 0 && sl_capture_file_rank(shot->files[j].source) <
+                                     sl_capture_file_rank(shot->files[j - 1].source);
              j--) {
             sl_camera_file t = shot->files[j];
             shot->files[j] = shot->files[j - 1];
