@@ -22,6 +22,8 @@ typedef struct vb_spec {
     int shift;            /* the whole bracket this many shutter steps longer than metered */
     int lie_frame;        /* this rank's EXIF time is off by lie_stops (0: none) */
     double lie_stops;
+    bool noise_free;      /* the camera's expected value (no shot or read noise), still
+                             quantised to 14 bits and, for JPEG, to 8-bit codes */
 } vb_spec;
 
 typedef struct vb_bracket {
@@ -39,6 +41,10 @@ typedef struct vb_bracket {
     sl_image margin;  /* 1 where noise could move a channel across a threshold that matters */
     sl_image best;    /* noise-free output-linear value in the longest frame that leaves the
                          pixel unsaturated (0 when every frame saturates it) */
+    sl_image oracle;  /* the ideal estimator's merge of the written frames: the camera's true
+                         curve, exposures and noise model (inverse-variance weights from the
+                         noise-free value), frames used only where the truth leaves them
+                         unclipped; its error is the floor set by the frames' noise */
 } vb_bracket;
 
 /* Writes DIR/PREFIX_<rank>.{jpg,tif}. */
