@@ -69,6 +69,39 @@ static void develop(const sl_vset_camera *cam, const float *rgb, double scale, d
     }
 }
 
+/* vb_bracket.code_lo, code_hi (night: the whole scene sits in a few codes
+ * above the floor even at 30 s, so the curve above them is extrapolated),
+ * the percentile from a histogram of 1024 code bins. */
+enum { CODE_BINS = 1024 };
+
+static void exposed_codes(vb_bracket *b, const sl_image *ll, double sat_lin)
+{
+    int64_t hist[CODE_BINS] = {0}, n = 0;
+    for (int k = 0; k < b->frames; k++) {
+        sl_vset_exposure e = {b->times[k], b->f_number, b->iso};
+        double sk = sl_vset_exposure_scale(&b->cam, &e);
+        for (int y = 0; y < ll->height; y++)
+            for (int x = 0; x < ll->width; x++) {
+                double o[3], bal;
+                develop(&b->cam, sl_image_pixel(ll, x, y), sk, o, &bal);
+                if (fmax(o[0], fmax(o[1], o[2])) >= sat_lin || bal >= 1)
+                    continue;
+                for (int c = 0; c < 3; c++)
+                    if (o[c] >= 0.02) {
+                        double z = sl_vset_response_apply(&b->cam.response, o[c]);
+                        hist[(int)fmin(z * CODE_BINS, CODE_BINS - 1)]++;
+                        n++;
+                    }
+            }
+    }
+    b->code_lo = sl_vset_response_apply(&b->cam.response, 0.02);
+    int64_t below = 0;
+    int bin = 0;
+    while (bin < CODE_BINS - 1 && (below += hist[bin]) < (int64_t)(0.999 * (double)n))
+        bin++;
+    b->code_hi = fmax(b->code_lo, fmin(0.9, (bin + 1.0) / CODE_BINS));
+}
+
 /* Running sums of the oracle merge: per channel sum of w x, sum of w, and
  * the shortest frame's value (where no frame is usable: a lower bound). */
 typedef struct oracle_sums {
@@ -158,6 +191,14 @@ static sl_result oracle_make(vb_bracket *b, const sl_image *ll, sl_error *err)
     return r;
 }
 
+sl_result vb_scene(const char *name, int width, sl_vset_scene *out, sl_error *err)
+{
+    sl_vset_desc desc;
+    memset(out, 0, sizeof *out);
+    sl_result r = sl_vset_preset(name, &desc, err);
+    return r ? r : sl_vset_scene_make(&desc, width, out, err);
+}
+
 sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_bracket *out,
                   sl_error *err)
 {
@@ -165,19 +206,16 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
     out->spec = *spec;
     if (spec->frames < 2 || spec->frames > VB_MAX_FRAMES)
         return sl_error_set(err, SL_ERR_USAGE, "vset bracket: 2..%d frames", VB_MAX_FRAMES);
-    sl_vset_desc desc;
     double kelvin;
-    sl_result r = sl_vset_preset(spec->scene, &desc, err);
-    if (r)
-        return r;
+    sl_result r;
     scene_settings(spec->scene, &out->f_number, &out->iso, &kelvin);
     sl_vset_camera_default(&out->cam, kelvin);
     if ((r = sl_vset_response_preset(spec->curve, &out->cam.response, err)))
         return r;
-    sl_vset_scene scene;
-    if ((r = sl_vset_scene_make(&desc, spec->width, &scene, err)))
+    sl_vset_scene scene = {0};
+    if (!spec->latlong && (r = vb_scene(spec->scene, spec->width, &scene, err)))
         return r;
-    const sl_image *ll = &scene.latlong;
+    const sl_image *ll = spec->latlong ? spec->latlong : &scene.latlong;
     int w = ll->width, h = ll->height;
     out->frames = spec->frames;
     out->reference = (spec->frames - 1) / 2;
@@ -251,7 +289,7 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
         meta.f_number = out->f_number;
         meta.iso = out->iso;
         snprintf(out->paths[k], sizeof out->paths[k], "%s/%s_%d.%s", dir, prefix, k,
-                 spec->jpeg ? "jpg" : "tif");
+                 spec->jpeg && !spec->lossless ? "jpg" : "tif");
         if (spec->jpeg)
             r = sl_photo_write(out->paths[k], &shot.encoded, &meta, 8, err);
         else {
@@ -261,6 +299,8 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
         sl_meta_free(&meta);
         sl_vset_shot_free(&shot);
     }
+    if (!r)
+        exposed_codes(out, ll, sat_lin);
     if (!r)
         r = oracle_make(out, ll, err);
     sl_vset_scene_free(&scene);
