@@ -267,7 +267,6 @@ done:
 typedef struct scored_merge {
     stats px, bl;  /* per pixel and 4x4 blocks */
     double curve;  /* response error (self-calibrated), else 0 */
-    int named;
     bool ok;
     sl_image radiance; /* the merge's, for p99_breakdown (the caller frees it) */
 } scored_merge;
@@ -340,7 +339,7 @@ static scored_merge merge_case(const vb_bracket *b, mode md, bool strict, bool t
         CHECK(bl.n > 100);
         CHECK_MSG(wrong == 0, "%s: %lld clipped flags differ", name, (long long)wrong);
         check_clean(&res.radiance);
-        sm = (scored_merge){px, bl, sm.curve, (int)res.disagreeing_frames, true, res.radiance};
+        sm = (scored_merge){px, bl, sm.curve, true, res.radiance};
         res.radiance = (sl_image){0};
     }
     sl_merge_result_free(&res);

@@ -299,10 +299,10 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
         sl_meta_free(&meta);
         sl_vset_shot_free(&shot);
     }
-    if (!r)
+    if (!r) {
         exposed_codes(out, ll, sat_lin);
-    if (!r)
         r = oracle_make(out, ll, err);
+    }
     sl_vset_scene_free(&scene);
     return r;
 }

@@ -23,9 +23,9 @@ typedef struct vb_spec {
     int lie_frame;        /* this rank's EXIF time is off by lie_stops (0: none) */
     double lie_stops;
     bool lossless;        /* with jpeg: the same 8-bit codes in a TIFF (no JPEG loss) */
-    bool noise_free;
-    const sl_image *latlong; /* the scene's lat-long (vb_scene), or NULL: made from scene, width */      /* the camera's expected value (no shot or read noise), still
+    bool noise_free;      /* the camera's expected value (no shot or read noise), still
                              quantised to 14 bits and, for JPEG, to 8-bit codes */
+    const sl_image *latlong; /* the scene's lat-long (vb_scene), or NULL: made from scene, width */
 } vb_spec;
 
 typedef struct vb_bracket {
