@@ -462,11 +462,7 @@ sl_result sl_align_bracket(const char *const *paths, int count, const double *ex
                            const sl_merge_options *opt_in, sl_align_transform *out, sl_error *err)
 {
     memset(out, 0, (size_t)(count > 0 ? count : 0) * sizeof *out);
-    sl_merge_options opt;
-    if (opt_in)
-        opt = *opt_in;
-    else
-        sl_merge_options_init(&opt);
+    sl_merge_options opt = merge_options_or_default(opt_in);
     if (count < 2 || count > MERGE_MAX_FRAMES)
         return sl_error_set(err, SL_ERR_USAGE, "%s: alignment needs 2 to %d frames",
                             count > 0 ? paths[0] : "(no frames)", MERGE_MAX_FRAMES);

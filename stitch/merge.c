@@ -21,7 +21,6 @@ void sl_merge_options_init(sl_merge_options *opt)
     opt->samples = 4000;
     opt->noise_gain = 2e-5;
     opt->noise_floor = 1e-6;
-    opt->saturation = 0.95;
     opt->black = 0.004;
     opt->tolerance_stops = 0.2;
     opt->seed = 1;

@@ -114,7 +114,17 @@ typedef struct merge_ctx {
 bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const double *loge, int r,
                         int64_t pos);
 
-/* The caller's options, or the defaults when it gives none. */
+/* Saturation when the options leave it 0: frames through a curve (JPEG)
+ * ring a few codes below white inside clipped areas; linear frames (raw,
+ * linear TIFF) clip at their white level, and a lower threshold throws away
+ * the best-exposed values of every pixel near it (on the virtual set's
+ * 2-stop linear brackets, a third more noise than the ideal estimator's at
+ * 0.95, 2% more at 0.98). */
+#define MERGE_SATURATION_CURVE 0.95
+#define MERGE_SATURATION_LINEAR 0.98
+
+/* The caller's options, or the defaults when it gives none, with the
+ * saturation resolved. */
 static inline sl_merge_options merge_options_or_default(const sl_merge_options *opt)
 {
     sl_merge_options o;
@@ -122,6 +132,9 @@ static inline sl_merge_options merge_options_or_default(const sl_merge_options *
         o = *opt;
     else
         sl_merge_options_init(&o);
+    if (o.saturation == 0)
+        o.saturation = o.response_mode == SL_RESPONSE_LINEAR ? MERGE_SATURATION_LINEAR
+                                                             : MERGE_SATURATION_CURVE;
     return o;
 }
 

@@ -3,6 +3,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* The full-stop shutter speeds the virtual camera writes to EXIF (as in
@@ -68,6 +69,136 @@ static void develop(const sl_vset_camera *cam, const float *rgb, double scale, d
     }
 }
 
+/* vb_bracket.code_lo, code_hi (night: the whole scene sits in a few codes
+ * above the floor even at 30 s, so the curve above them is extrapolated),
+ * the percentile from a histogram of 1024 code bins. */
+enum { CODE_BINS = 1024 };
+
+static void exposed_codes(vb_bracket *b, const sl_image *ll, double sat_lin)
+{
+    int64_t hist[CODE_BINS] = {0}, n = 0;
+    for (int k = 0; k < b->frames; k++) {
+        sl_vset_exposure e = {b->times[k], b->f_number, b->iso};
+        double sk = sl_vset_exposure_scale(&b->cam, &e);
+        for (int y = 0; y < ll->height; y++)
+            for (int x = 0; x < ll->width; x++) {
+                double o[3], bal;
+                develop(&b->cam, sl_image_pixel(ll, x, y), sk, o, &bal);
+                if (fmax(o[0], fmax(o[1], o[2])) >= sat_lin || bal >= 1)
+                    continue;
+                for (int c = 0; c < 3; c++)
+                    if (o[c] >= 0.02) {
+                        double z = sl_vset_response_apply(&b->cam.response, o[c]);
+                        hist[(int)fmin(z * CODE_BINS, CODE_BINS - 1)]++;
+                        n++;
+                    }
+            }
+    }
+    b->code_lo = sl_vset_response_apply(&b->cam.response, 0.02);
+    int64_t below = 0;
+    int bin = 0;
+    while (bin < CODE_BINS - 1 && (below += hist[bin]) < (int64_t)(0.999 * (double)n))
+        bin++;
+    b->code_hi = fmax(b->code_lo, fmin(0.9, (bin + 1.0) / CODE_BINS));
+}
+
+/* Running sums of the oracle merge: per channel sum of w x, sum of w, and
+ * the shortest frame's value (where no frame is usable: a lower bound). */
+typedef struct oracle_sums {
+    double *num, *den, *low;
+} oracle_sums;
+
+/* Adds frame k (as written, read back) to the oracle: each channel
+ * linearised with the true curve, scaled to the reference exposure and
+ * weighted by the inverse of its variance under the camera's model (shot
+ * and read noise of the raw channels through white balance and colour
+ * matrix, 14-bit and 8-bit quantisation) at the noise-free value; a frame
+ * is left out of a pixel where the noise-free value is within 3 sigma of
+ * a clip (raw, balanced or output, or near code 1 for JPEG). */
+static sl_result oracle_add(const vb_bracket *b, const sl_image *ll, int k, oracle_sums *o,
+                            sl_error *err)
+{
+    sl_image f = {0};
+    sl_result r = sl_photo_read(b->paths[k], &f, NULL, err);
+    if (r)
+        return r;
+    const sl_vset_camera *cam = &b->cam;
+    sl_vset_exposure e = {b->times[k], b->f_number, b->iso};
+    double sk = sl_vset_exposure_scale(cam, &e), to_ref = b->ref_scale / sk;
+    double q = 1.0 / ((1u << cam->raw_bits) - 1u), qvar = q * q / 12;
+    for (int y = 0; y < f.height; y++)
+        for (int x = 0; x < f.width; x++) {
+            double raw[3], var_raw[3], out[3], var[3];
+            const float *l = sl_image_pixel(ll, x, y);
+            double lv[3] = {l[0], l[1], l[2]};
+            sl_mat3_apply(cam->cam_from_rec709, lv, raw);
+            bool usable = true;
+            for (int j = 0; j < 3; j++) {
+                raw[j] *= sk;
+                double sd = b->spec.noise_free ? 0 : sl_vset_sensor_noise_std(cam, b->iso, raw[j]);
+                var_raw[j] = sd * sd + qvar;
+                usable = usable && cam->wb[j] * (raw[j] + 3 * sqrt(var_raw[j])) < 1;
+            }
+            for (int c = 0; c < 3; c++) {
+                out[c] = var[c] = 0;
+                for (int j = 0; j < 3; j++) {
+                    double m = cam->ccm[c][j] * cam->wb[j];
+                    out[c] += m * raw[j];
+                    var[c] += m * m * var_raw[j];
+                }
+                var[c] += qvar; /* the output's own 14 bits */
+                double top = out[c] + 3 * sqrt(var[c]);
+                usable = usable && (b->spec.jpeg ? sl_vset_response_apply(&cam->response, top) < 0.98
+                                                 : top < 1);
+            }
+            const float *z = sl_image_pixel(&f, x, y);
+            size_t i = ((size_t)y * f.width + x) * 3;
+            for (int c = 0; c < 3; c++) {
+                double v = z[c], vv = var[c];
+                if (b->spec.jpeg) {
+                    v = sl_vset_response_invert(&cam->response, z[c]);
+                    double step = 1 / (255 * fmax(sl_vset_response_slope(&cam->response,
+                                                                           fmax(out[c], 0)), 1e-3));
+                    vv += step * step / 12;
+                }
+                if (k == 0)
+                    o->low[i + c] = v * to_ref;
+                if (usable) {
+                    double w = 1 / (vv * to_ref * to_ref);
+                    o->num[i + c] += w * v * to_ref;
+                    o->den[i + c] += w;
+                }
+            }
+        }
+    sl_image_free(&f);
+    return SL_OK;
+}
+
+static sl_result oracle_make(vb_bracket *b, const sl_image *ll, sl_error *err)
+{
+    size_t n = (size_t)ll->width * ll->height * 3;
+    oracle_sums o = {calloc(n, sizeof(double)), calloc(n, sizeof(double)),
+                     calloc(n, sizeof(double))};
+    sl_result r = o.num && o.den && o.low ? sl_image_alloc(&b->oracle, ll->width, ll->height, 3, err)
+                                          : sl_error_set(err, SL_ERR_NOMEM, "oracle: out of memory");
+    for (int k = 0; k < b->frames && !r; k++)
+        r = oracle_add(b, ll, k, &o, err);
+    for (size_t i = 0; i < n && !r; i++)
+        b->oracle.data[i] = (float)(o.den[i] > 0 ? o.num[i] / o.den[i] : o.low[i]);
+    free(o.num);
+    free(o.den);
+    free(o.low);
+    return r;
+}
+
+sl_result vb_scene(const char *name, int width, sl_vset_scene *out, sl_error *err)
+{
+    sl_vset_desc desc;
+    memset(out, 0, sizeof *out);
+    sl_result r = sl_vset_preset(name, &desc, err);
+    return r ? r : sl_vset_scene_make(&desc, width, out, err);
+}
+
 sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_bracket *out,
                   sl_error *err)
 {
@@ -75,19 +206,16 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
     out->spec = *spec;
     if (spec->frames < 2 || spec->frames > VB_MAX_FRAMES)
         return sl_error_set(err, SL_ERR_USAGE, "vset bracket: 2..%d frames", VB_MAX_FRAMES);
-    sl_vset_desc desc;
     double kelvin;
-    sl_result r = sl_vset_preset(spec->scene, &desc, err);
-    if (r)
-        return r;
+    sl_result r;
     scene_settings(spec->scene, &out->f_number, &out->iso, &kelvin);
     sl_vset_camera_default(&out->cam, kelvin);
     if ((r = sl_vset_response_preset(spec->curve, &out->cam.response, err)))
         return r;
-    sl_vset_scene scene;
-    if ((r = sl_vset_scene_make(&desc, spec->width, &scene, err)))
+    sl_vset_scene scene = {0};
+    if (!spec->latlong && (r = vb_scene(spec->scene, spec->width, &scene, err)))
         return r;
-    const sl_image *ll = &scene.latlong;
+    const sl_image *ll = spec->latlong ? spec->latlong : &scene.latlong;
     int w = ll->width, h = ll->height;
     out->frames = spec->frames;
     out->reference = (spec->frames - 1) / 2;
@@ -144,10 +272,15 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
                 sl_image_pixel(&out->margin, x, y)[c] = near ? 1.0f : 0.0f;
             }
         }
+    /* Noise-free: a well so deep that shot noise is below a 14-bit step and
+     * no read noise; the sensor's expected value, quantised as before. */
+    sl_vset_camera body = out->cam;
+    if (spec->noise_free)
+        body.full_well_e = 1e12, body.read_noise_pre_e = body.read_noise_post_e = 0;
     for (int k = 0; k < spec->frames && !r; k++) {
         sl_vset_exposure e = {out->times[k], out->f_number, out->iso};
         sl_vset_shot shot;
-        if ((r = sl_vset_camera_shoot(&out->cam, &e, ll, spec->seed * 131 + (uint64_t)k, &shot,
+        if ((r = sl_vset_camera_shoot(&body, &e, ll, spec->seed * 131 + (uint64_t)k, &shot,
                                       err)))
             break;
         sl_meta meta;
@@ -156,7 +289,7 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
         meta.f_number = out->f_number;
         meta.iso = out->iso;
         snprintf(out->paths[k], sizeof out->paths[k], "%s/%s_%d.%s", dir, prefix, k,
-                 spec->jpeg ? "jpg" : "tif");
+                 spec->jpeg && !spec->lossless ? "jpg" : "tif");
         if (spec->jpeg)
             r = sl_photo_write(out->paths[k], &shot.encoded, &meta, 8, err);
         else {
@@ -165,6 +298,10 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
         }
         sl_meta_free(&meta);
         sl_vset_shot_free(&shot);
+    }
+    if (!r) {
+        exposed_codes(out, ll, sat_lin);
+        r = oracle_make(out, ll, err);
     }
     sl_vset_scene_free(&scene);
     return r;
@@ -176,4 +313,5 @@ void vb_free(vb_bracket *b)
     sl_image_free(&b->clipped);
     sl_image_free(&b->margin);
     sl_image_free(&b->best);
+    sl_image_free(&b->oracle);
 }

@@ -22,6 +22,10 @@ typedef struct vb_spec {
     int shift;            /* the whole bracket this many shutter steps longer than metered */
     int lie_frame;        /* this rank's EXIF time is off by lie_stops (0: none) */
     double lie_stops;
+    bool lossless;        /* with jpeg: the same 8-bit codes in a TIFF (no JPEG loss) */
+    bool noise_free;      /* the camera's expected value (no shot or read noise), still
+                             quantised to 14 bits and, for JPEG, to 8-bit codes */
+    const sl_image *latlong; /* the scene's lat-long (vb_scene), or NULL: made from scene, width */
 } vb_spec;
 
 typedef struct vb_bracket {
@@ -39,8 +43,18 @@ typedef struct vb_bracket {
     sl_image margin;  /* 1 where noise could move a channel across a threshold that matters */
     sl_image best;    /* noise-free output-linear value in the longest frame that leaves the
                          pixel unsaturated (0 when every frame saturates it) */
+    double code_lo, code_hi; /* codes the bracket exposes (the response is scored over them):
+                                from 2% of white (the scored floor) to the 99.9th percentile
+                                of the codes of channels at least that bright in frames that
+                                leave their pixel unsaturated, at most 0.9 */
+    sl_image oracle;  /* the ideal estimator's merge of the written frames: the camera's true
+                         curve, exposures and noise model (inverse-variance weights from the
+                         noise-free value), frames used only where the truth leaves them
+                         unclipped; its error is the floor set by the frames' noise */
 } vb_bracket;
 
+/* The scene's lat-long, to share between brackets (vb_spec.latlong). */
+sl_result vb_scene(const char *name, int width, sl_vset_scene *out, sl_error *err);
 /* Writes DIR/PREFIX_<rank>.{jpg,tif}. */
 sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_bracket *out,
                   sl_error *err);
