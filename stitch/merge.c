@@ -280,6 +280,7 @@ typedef struct sample_job {
     sl_merge_result *res;
     sl_error *errs;
     sl_result *results;
+    double *task_cpu; /* per worker and phase: CPU seconds of its tasks */
 } sample_job;
 
 /* sample_frame's counts over 8-bit codes (cls: code_class, thresholds on
@@ -336,8 +337,9 @@ static int64_t count_classes_u8(const uint8_t *q, int64_t n, const uint8_t *cls,
  * and counts saturated, black and white pixels. */
 static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
 {
-    (void)worker;
     sample_job *job = ctx;
+    double *task_cpu = job->task_cpu + (size_t)worker * SL_MERGE_PHASES, t0 = merge_thread_cpu();
+    double decode = 0;
     merge_ctx *m = job->m;
     int cb = m->codes ? m->code_bytes : 0;
     float code_scale = cb ? 1.0f / (cb == 1 ? 255.0f : 65535.0f) : 0;
@@ -357,8 +359,10 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
             int y1 = y0 + SAMPLE_STRIP < m->height ? y0 + SAMPLE_STRIP : m->height;
             /* A held frame is decoded straight into its place. */
             void *strip = m->held && m->held[i] ? m->held[i] + (size_t)y0 * w * 3 * cb : buf;
+            double t = merge_thread_cpu();
             r = cb ? merge_frame_read_codes(rd, y0, y1, strip, &job->errs[i])
                    : merge_frame_read(rd, y0, y1, strip, &job->errs[i]);
+            decode += merge_thread_cpu() - t;
             if (r)
                 break;
             int64_t n = (int64_t)(y1 - y0) * w;
@@ -408,6 +412,8 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
         f->black_fraction = black / pixels;
         m->white_pixels[i] = white;
     }
+    task_cpu[SL_MERGE_DECODE] += decode;
+    task_cpu[SL_MERGE_SAMPLE] += merge_thread_cpu() - t0 - decode;
 }
 
 static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
@@ -428,21 +434,27 @@ static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
     }
     sl_error *errs = calloc((size_t)count, sizeof *errs);
     sl_result *results = calloc((size_t)count, sizeof *results);
+    int threads = sl_threads_get();
+    double *task_cpu = calloc((size_t)threads * SL_MERGE_PHASES, sizeof *task_cpu);
     sl_result r = SL_OK;
     bool blocks = m->block_max != NULL;
     for (int i = 0; i < count && blocks; i++)
         blocks = !m->block[2 * i] || res->frames[i].align.applied || m->block_max[i];
-    if (!m->samples.z || !m->samples.spoilt || !m->white_pixels || !blocks || !errs || !results)
+    if (!m->samples.z || !m->samples.spoilt || !m->white_pixels || !blocks || !errs || !results ||
+        !task_cpu)
         r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     if (!r) {
-        sample_job job = {m, res, errs, results};
+        sample_job job = {m, res, errs, results, task_cpu};
+        merge_clock clock = merge_clock_start();
         sl_parallel_for(count, 1, sample_frame, &job);
+        merge_clock_split(&res->timing, clock, task_cpu, threads);
         for (int i = 0; i < count && !r; i++)
             if ((r = results[i]) && err)
                 *err = errs[i];
     }
     free(errs);
     free(results);
+    free(task_cpu);
     if (r)
         return r;
     bool all_black = true, all_white = true;
@@ -730,6 +742,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         r = sample_pass(m, out, err);
     if (r)
         return r;
+    merge_clock fit = merge_clock_start();
     switch (opt.response_mode) {
     case SL_RESPONSE_LINEAR:
         r = sl_response_linear(&out->response, RESPONSE_NODES, err);
@@ -784,26 +797,27 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     out->width = m->width;
     out->height = m->height;
     choose_encoding(m, out, &opt);
+    merge_clock_charge(&out->timing, fit, SL_MERGE_FIT);
     return SL_OK;
 }
 
 sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_options *opt,
                             sl_merge_result *out, sl_error *err)
 {
-    double t0 = sl_seconds();
+    merge_clock t0 = merge_clock_start();
     merge_ctx m;
     sl_result r = merge_prepare(paths, count, opt, false, &m, out, err);
     merge_ctx_free(&m);
     if (r)
         sl_merge_result_free(out);
-    out->seconds = sl_seconds() - t0;
+    merge_clock_finish(out, t0);
     return r;
 }
 
 sl_result sl_merge(const char *const *paths, int count, const sl_merge_options *opt_in,
                    sl_merge_result *out, sl_error *err)
 {
-    double t0 = sl_seconds();
+    merge_clock t0 = merge_clock_start();
     sl_merge_options opt = merge_options_or_default(opt_in);
     merge_ctx m;
     sl_result r = merge_prepare(paths, count, &opt, true, &m, out, err);
@@ -812,6 +826,6 @@ sl_result sl_merge(const char *const *paths, int count, const sl_merge_options *
     merge_ctx_free(&m);
     if (r)
         sl_merge_result_free(out);
-    out->seconds = sl_seconds() - t0;
+    merge_clock_finish(out, t0);
     return r;
 }

@@ -37,6 +37,8 @@ typedef struct pass_ctx {
     int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
     float *out, *mask, *ghost; /* row y0 of the outputs (ghost NULL without deghost) */
     size_t out_stride, mask_stride, ghost_stride;
+    double *task_cpu;       /* per worker and phase: CPU seconds of its tasks */
+    int workers;
 } pass_ctx;
 
 enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
@@ -372,12 +374,17 @@ static sl_result alloc_outputs(pass_ctx *p, const merge_sink *sink, sl_error *er
 static void step_tasks(void *ctx, int64_t begin, int64_t end, int worker)
 {
     pass_ctx *p = ctx;
+    double *task_cpu = p->task_cpu + (size_t)worker * SL_MERGE_PHASES;
     for (int64_t t = begin; t < end; t++) {
+        double t0 = merge_thread_cpu();
         if (t < p->frames) {
             if (p->ny1 > p->ny0)
                 read_next(p, (int)t);
-        } else
+            task_cpu[SL_MERGE_DECODE] += merge_thread_cpu() - t0;
+        } else {
             merge_rows(p, t - p->frames, t - p->frames + 1, worker);
+            task_cpu[SL_MERGE_PIXELS] += merge_thread_cpu() - t0;
+        }
     }
 }
 
@@ -399,7 +406,9 @@ static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
         if (p->ghost)
             memset(p->ghost, 0, (size_t)rows * p->ghost_stride * sizeof *p->ghost);
     }
+    merge_clock clock = merge_clock_start();
     sl_parallel_for(p->frames + rows, 1, step_tasks, p);
+    clock = merge_clock_split(&res->timing, clock, p->task_cpu, p->workers);
     sl_result r = SL_OK;
     for (int q = 0; q < p->frames && !r && p->ny1 > p->ny0; q++)
         if ((r = p->results[q]) && err)
@@ -411,6 +420,7 @@ static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
         r = sl_exr_stream_write(sink->mask, p->mask, rows, p->mask_stride, err);
     if (!r && sink->ghost)
         r = sl_exr_stream_write(sink->ghost, p->ghost, rows, p->ghost_stride, err);
+    merge_clock_charge(&res->timing, clock, SL_MERGE_WRITE);
     return r;
 }
 
@@ -429,8 +439,11 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     p.errs = calloc((size_t)f, sizeof *p.errs);
     p.results = calloc((size_t)f, sizeof *p.results);
     p.row_counts = calloc((size_t)m->height * COUNTS, sizeof *p.row_counts);
+    p.workers = sl_threads_get();
+    p.task_cpu = calloc((size_t)p.workers * SL_MERGE_PHASES, sizeof *p.task_cpu);
     sl_result r = SL_OK;
-    if (!p.e || !p.inv_e || !p.e2 || !p.rd || !p.buf || !p.errs || !p.results || !p.row_counts)
+    if (!p.e || !p.inv_e || !p.e2 || !p.rd || !p.buf || !p.errs || !p.results || !p.row_counts ||
+        !p.task_cpu)
         r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     if (!r)
         r = alloc_outputs(&p, sink, err);
@@ -450,12 +463,16 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
         else
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
+    merge_clock tables = merge_clock_start();
     if (!r)
         r = build_luts(&p, err);
+    merge_clock_charge(&res->timing, tables, SL_MERGE_PIXELS);
     /* The first strip is read alone; then each step merges one and reads the next. */
     p.ny1 = STRIP < m->height ? STRIP : m->height;
     if (!r) {
+        merge_clock clock = merge_clock_start();
         sl_parallel_for(f, 1, step_tasks, &p);
+        merge_clock_split(&res->timing, clock, p.task_cpu, p.workers);
         for (int q = 0; q < f && !r; q++)
             if ((r = p.results[q]) && err)
                 *err = p.errs[q];
@@ -517,5 +534,6 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     free(p.errs);
     free(p.results);
     free(p.row_counts);
+    free(p.task_cpu);
     return r;
 }
