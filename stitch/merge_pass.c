@@ -15,6 +15,10 @@ enum { STRIP = 32 };
  * so noise around the threshold does not switch a frame in and out. */
 #define SHOULDER 0.05
 
+/* A frame's terms of a pixel's weighted sum: {weight times value, weight},
+ * added as one pair (one SSE2 add on x86-64). */
+typedef double merge_term __attribute__((vector_size(16)));
+
 typedef struct pass_ctx {
     const merge_ctx *m;
     const sl_merge_options *opt;
@@ -34,6 +38,8 @@ typedef struct pass_ctx {
     float *cinv[3], *cwb[3], *cfade; /* with codes, per code: the same, and the shoulder fade */
     float *rx, *rw;         /* with 8-bit codes, per rank, channel and code: linear value
                                on the output scale and weight with the exposure factor */
+    merge_term *terms;      /* the same as the terms of the sums (code_terms) */
+    uint8_t *fade_class;    /* with 8-bit codes, per code: FULL, SHOULDER_FADE or SATURATED */
     int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
     float *out, *mask, *ghost; /* row y0 of the outputs (ghost NULL without deghost) */
     size_t out_stride, mask_stride, ghost_stride;
@@ -42,6 +48,10 @@ typedef struct pass_ctx {
 } pass_ctx;
 
 enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
+
+/* How a pixel's brightest code weighs it: fully, faded in the shoulder, or
+ * not at all. */
+enum { FULL = 0, SHOULDER_FADE = 1, SATURATED = 2 };
 
 /* Inverse variance of a linearised value, before the exposure factor and
  * the pixel's shoulder fade. */
@@ -167,46 +177,64 @@ static void fill_float(const pass_ctx *p, size_t idx, double xs[3][MERGE_MAX_FRA
 }
 
 /* 8-bit codes without deghost (the common case): fill_codes and the sums
- * of merge_rows in one loop over per-rank tables. */
+ * of merge_rows in one loop. A fully weighted frame adds its terms
+ * (weight * value, weight: exact in double, so the same sums bit for bit)
+ * from per-rank tables: one 16-byte load and add per channel, which the
+ * compiler pairs into one SSE2 add. The longest unsaturated frame's value
+ * (the fallback) and the shortest one's (the lower bound where all are
+ * saturated) are looked up only when needed. */
 static void merge_row_u8(const pass_ctx *p, int row, float *out, float *mask, int64_t *cnt)
 {
     int w = p->m->width, f = p->frames;
+    const uint8_t *src[MERGE_MAX_FRAMES];
+    for (int r = 0; r < f; r++)
+        src[r] = (const uint8_t *)p->buf[r] + (size_t)row * w * 3;
     for (int x = 0; x < w; x++) {
-        size_t idx = ((size_t)row * w + x) * 3;
-        double num[3] = {0, 0, 0}, den[3] = {0, 0, 0}, fb[3] = {0, 0, 0}, lo[3] = {0, 0, 0};
-        int nsat = 0;
+        merge_term s0 = {0, 0}, s1 = s0, s2 = s0;
+        int nsat = 0, last = 0;
         for (int r = 0; r < f; r++) {
-            const uint8_t *q = (const uint8_t *)p->buf[r] + idx;
+            const uint8_t *q = src[r] + (size_t)x * 3;
             int qm = q[0] > q[1] ? q[0] : q[1];
             qm = qm > q[2] ? qm : q[2];
-            float fade = p->cfade[qm];
-            const float *rx = p->rx + (size_t)r * 3 * 256, *rw = p->rw + (size_t)r * 3 * 256;
-            if (fade == 0) {
-                if (r == 0)
-                    for (int c = 0; c < 3; c++)
-                        lo[c] = rx[c * 256 + q[c]];
+            int cls = p->fade_class[qm];
+            if (cls == SATURATED) {
                 nsat++;
                 continue;
             }
+            last = r;
+            const merge_term *t = p->terms + (size_t)r * 3 * 256;
+            if (cls == FULL) {
+                s0 += t[q[0]];
+                s1 += t[256 + q[1]];
+                s2 += t[512 + q[2]];
+                continue;
+            }
+            /* In the shoulder: the weight faded in float, as fill_codes does. */
+            float fade = p->cfade[qm];
+            const float *rx = p->rx + (size_t)r * 3 * 256, *rw = p->rw + (size_t)r * 3 * 256;
+            merge_term faded[3];
             for (int c = 0; c < 3; c++) {
                 double xv = rx[c * 256 + q[c]], wv = (double)(rw[c * 256 + q[c]] * fade);
-                num[c] += wv * xv;
-                den[c] += wv;
-                fb[c] = xv; /* longest unsaturated so far */
+                faded[c] = (merge_term){wv * xv, wv};
             }
+            s0 += faded[0];
+            s1 += faded[1];
+            s2 += faded[2];
         }
+        merge_term sum[3] = {s0, s1, s2};
         bool any = nsat == f;
         for (int c = 0; c < 3; c++) {
             double v;
             if (any) {
                 /* The shortest frame's value is a lower bound, never an estimate. */
-                v = lo[c];
+                v = p->rx[c * 256 + src[0][(size_t)x * 3 + c]];
                 mask[x * 3 + c] = 1;
                 cnt[c]++;
-            } else if (den[c] > 0) {
-                v = num[c] / den[c];
+            } else if (sum[c][1] > 0) {
+                v = sum[c][0] / sum[c][1];
             } else {
-                v = fb[c];
+                /* No weight: the longest unsaturated frame's value. */
+                v = p->rx[((size_t)last * 3 + c) * 256 + src[last][(size_t)x * 3 + c]];
                 cnt[COUNT_UNDER]++;
             }
             out[x * 3 + c] = (float)v;
@@ -333,13 +361,19 @@ static sl_result build_luts(pass_ctx *p, sl_error *err)
         return SL_OK;
     p->rx = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rx);
     p->rw = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rw);
-    if (!p->rx || !p->rw)
+    p->terms = aligned_alloc(16, (size_t)p->frames * 3 * 256 * sizeof *p->terms);
+    p->fade_class = malloc(256);
+    if (!p->rx || !p->rw || !p->terms || !p->fade_class)
         return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-    for (int r = 0; r < p->frames; r++)
-        for (int c = 0; c < 3; c++)
-            for (int q = 0; q < 256; q++) {
-                p->rx[((size_t)r * 3 + c) * 256 + q] = (float)(p->cinv[c][q] * p->inv_e[r]);
-                p->rw[((size_t)r * 3 + c) * 256 + q] = (float)(p->cwb[c][q] * p->e2[r]);
+    for (int q = 0; q < 256; q++)
+        p->fade_class[q] = p->cfade[q] == 1 ? FULL : p->cfade[q] > 0 ? SHOULDER_FADE : SATURATED;
+    for (size_t r = 0; r < (size_t)p->frames; r++)
+        for (size_t c = 0; c < 3; c++)
+            for (size_t q = 0; q < 256; q++) {
+                size_t k = (r * 3 + c) * 256 + q;
+                p->rx[k] = (float)(p->cinv[c][q] * p->inv_e[r]);
+                p->rw[k] = (float)(p->cwb[c][q] * p->e2[r]);
+                p->terms[k] = (merge_term){(double)p->rw[k] * p->rx[k], p->rw[k]};
             }
     return SL_OK;
 }
@@ -526,6 +560,8 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     free(p.cfade);
     free(p.rx);
     free(p.rw);
+    free(p.terms);
+    free(p.fade_class);
     free(p.e);
     free(p.inv_e);
     free(p.e2);
