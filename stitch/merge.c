@@ -196,25 +196,19 @@ static sl_result choose_codes(merge_ctx *m, const sl_merge_result *res, sl_error
     return SL_OK;
 }
 
-/* Integer frames (read as codes) kept from the sample pass for the merge
- * pass within the budget, shortest exposures first: whole, as many as fit
- * (384 MB holds five 24-megapixel 8-bit frames, within 0.6 GB), then the
- * longer 8-bit ones without their saturated pixels (merge_packed) in what
- * is left, each reserving all of it until keep_packed trims them. The
- * merge decodes only the others again. */
+/* Integer frames (read as codes) kept whole from the sample pass for the
+ * merge pass, as many as fit the budget: the merge then decodes only the
+ * others. 384 MB holds five 24-megapixel 8-bit frames, within 0.6 GB. */
 static sl_result hold_frames(merge_ctx *m, sl_merge_result *res, double budget_mb, sl_error *err)
 {
     if (!m->codes || !(budget_mb > 0))
         return SL_OK;
-    m->held = calloc((size_t)res->frame_count, sizeof *m->held);
-    m->packed = calloc((size_t)res->frame_count, sizeof *m->packed);
-    if (!m->held || !m->packed)
+    if (!(m->held = calloc((size_t)res->frame_count, sizeof *m->held)))
         return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     m->held_slots = res->frame_count;
     size_t frame = (size_t)m->width * (size_t)m->height * 3 * (size_t)m->code_bytes;
     double left = budget_mb * 1e6;
-    int q = 0;
-    for (; q < res->frame_count && left >= (double)frame; q++) {
+    for (int i = 0; i < res->frame_count && left >= (double)frame; i++) {
         /* Not fitting in memory after all is no failure: that frame is decoded
          * twice. Huge pages: faulting the held frames in 4 kB pages cost the
          * kernel about 0.2 CPU s. */
@@ -225,34 +219,11 @@ static sl_result hold_frames(merge_ctx *m, sl_merge_result *res, double budget_m
 #ifdef MADV_HUGEPAGE
         madvise(held, bytes, MADV_HUGEPAGE);
 #endif
-        m->held[m->order[q]] = held;
+        m->held[i] = held;
         left -= (double)frame;
         res->held_frames++;
     }
-    m->pack_budget = left;
-    while (m->sat_code < 255 && !(m->code_class[m->sat_code] & 1))
-        m->sat_code++;
-    for (q = q > 1 ? q : 1; q < res->frame_count && m->code_bytes == 1 && left >= 1; q++)
-        merge_packed_init(&m->packed[m->order[q]], m->height, (size_t)left); /* none: decoded twice */
     return SL_OK;
-}
-
-/* The packed frames that fit the budget together, shortest exposures
- * first; the others are given up (decoded again). */
-static void keep_packed(merge_ctx *m, sl_merge_result *res)
-{
-    double left = m->pack_budget;
-    for (int q = 0; m->packed && q < res->frame_count; q++) {
-        merge_packed *pk = &m->packed[m->order[q]];
-        if (!pk->data)
-            continue;
-        double bytes = pk->rows ? (double)pk->row_end[pk->rows - 1] : 0;
-        if (pk->rows == m->height && bytes <= left) {
-            left -= bytes;
-            res->packed_frames++;
-        } else
-            merge_packed_free(pk);
-    }
 }
 
 /* Sample positions: one jittered pixel per cell of a grid over the frame. */
@@ -422,8 +393,6 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
             if (bmax)
                 merge_block_max(strip, cb, cb == 1 ? 255 : 65535, w, y1 - y0, bw, bh,
                                 bmax + (size_t)(y0 / bh) * nbx);
-            if (m->packed && m->packed[i].data)
-                merge_pack_rows(&m->packed[i], strip, w, y1 - y0, m->sat_code);
             int64_t end_pos = (int64_t)y1 * w;
             for (; s < m->samples.count && m->sample_pos[s] < end_pos; s++) {
                 size_t at = (size_t)(m->sample_pos[s] - (int64_t)y0 * w) * 3;
@@ -488,7 +457,6 @@ static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
     free(task_cpu);
     if (r)
         return r;
-    keep_packed(m, res);
     bool all_black = true, all_white = true;
     for (int i = 0; i < count; i++) {
         all_black = all_black && res->frames[i].black_fraction >= 1;
@@ -728,12 +696,9 @@ void merge_ctx_free(merge_ctx *m)
 {
     free(m->order);
     free(m->code_class);
-    for (int i = 0; i < m->held_slots; i++) {
+    for (int i = 0; i < m->held_slots; i++)
         free(m->held[i]);
-        merge_packed_free(&m->packed[i]);
-    }
     free(m->held);
-    free(m->packed);
     release_samples(m);
     free(m->block);
     free(m->white_pixels);

@@ -77,16 +77,11 @@ static void read_next(pass_ctx *p, int r)
 {
     const merge_ctx *m = p->m;
     const uint8_t *held = m->held ? m->held[m->order[r]] : NULL;
-    const merge_packed *pk = m->packed ? &m->packed[m->order[r]] : NULL;
-    p->results[r] = SL_OK;
     if (held) {
         /* Merged in place: the strip's rows of the held frame. */
         size_t row = (size_t)m->width * 3 * (size_t)m->code_bytes;
         p->next[r] = (void *)(held + (size_t)p->ny0 * row);
-        return;
-    }
-    if (pk && pk->data) {
-        merge_unpack_rows(pk, m->width, p->ny0, p->ny1, p->next[r]);
+        p->results[r] = SL_OK;
         return;
     }
     p->results[r] = p->m->codes
@@ -499,7 +494,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
         p.next[q] = malloc(bytes);
         if (!p.buf[q] || !p.next[q])
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-        else if (!(m->packed && m->packed[m->order[q]].data))
+        else
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
     merge_clock tables = merge_clock_start();

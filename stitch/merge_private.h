@@ -95,26 +95,6 @@ merge_clock merge_clock_split(sl_merge_timing *t, merge_clock since, double *tas
  * phase claimed, so the phases add up to them. */
 void merge_clock_finish(sl_merge_result *res, merge_clock start);
 
-/* A frame kept between the passes without its saturated pixels
- * (merge_pack.c), row by row: a bitmap of the pixels whose brightest code
- * is saturated, then the codes of the others. Only for ranks above 0: the
- * merge reads no saturated pixel's codes there. */
-typedef struct merge_packed {
-    uint8_t *data;   /* NULL: not packed (or given up: decoded again) */
-    size_t cap;      /* bytes it may take */
-    size_t *row_end; /* per row packed: its end in data */
-    int rows;
-} merge_packed;
-/* Reserves cap bytes for a frame of `height` rows; SL_ERR_NOMEM. */
-sl_result merge_packed_init(merge_packed *pk, int height, size_t cap);
-void merge_packed_free(merge_packed *pk);
-/* Appends `rows` rows of 8-bit RGB codes; a pixel with a code at or above
- * sat_code is saturated. Beyond the cap the frame is given up (freed):
- * false. */
-bool merge_pack_rows(merge_packed *pk, const uint8_t *codes, int width, int rows, int sat_code);
-/* Rows [y0, y1) back as codes, saturated pixels as 255. */
-void merge_unpack_rows(const merge_packed *pk, int width, int y0, int y1, uint8_t *codes);
-
 /* State shared by the merge stages (merge.c, merge_pass.c). */
 typedef struct merge_ctx {
     int width, height, bits;
@@ -123,10 +103,7 @@ typedef struct merge_ctx {
     bool codes;            /* frames read as integer codes (integer and none warped) */
     uint8_t *code_class;   /* with codes, per code: 1 saturated, 2 black */
     uint8_t **held;        /* per frame: its codes kept from the sample pass, or NULL */
-    merge_packed *packed;  /* per frame (held_slots): kept without its saturated pixels */
-    int held_slots;        /* entries of held and packed */
-    double pack_budget;    /* bytes of the hold budget left for packed frames */
-    int sat_code;          /* the lowest saturated 8-bit code */
+    int held_slots;        /* entries of held */
     int orientation;
     int *block;            /* per frame: JPEG block width and height (2 ints), 0 0 none */
     float **block_max;     /* per frame: its blocks' brightest code (merge_block_max), or NULL */

@@ -1,6 +1,5 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Frames held between the passes (whole or without their saturated pixels)
- * or decoded twice: the same radiance.
+/* Frames held between the passes or decoded twice: the same radiance.
  * sl_merge_to_exr (strips written as merged) against sl_merge + sl_merge_write
  * (radiance held whole) on a bracket with a sun clipped in every frame: the
  * same pixels (float: exactly; half: within its rounding), the same mask and
@@ -205,10 +204,6 @@ static void test_hold_budget(void)
     double frame_mb = 96 * 80 * 3 / 1e6;
     const double budgets[3] = {0, 2.5 * frame_mb, 384};
     const int expect_held[3] = {0, 2, 5};
-    /* What 2 whole frames leave (half a frame) takes the longest frame
-     * without its saturated pixels (57% of them: a bit per pixel plus 43% of
-     * the codes), not the next (47%) as well. */
-    const int expect_packed[3] = {0, 1, 0};
     sl_merge_result res[3];
     for (int k = 0; k < 3; k++) {
         sl_merge_options opt;
@@ -218,8 +213,6 @@ static void test_hold_budget(void)
         CHECK_OK(sl_merge(paths, b.frames, &opt, &res[k], &err), &err);
         CHECK_MSG(res[k].held_frames == expect_held[k], "budget %g MB: %d held", budgets[k],
                   res[k].held_frames);
-        CHECK_MSG(res[k].packed_frames == expect_packed[k], "budget %g MB: %d packed",
-                  budgets[k], res[k].packed_frames);
     }
     /* The phases add up to the totals, and each frame was decoded and merged. */
     for (int k = 0; k < 3; k++) {
@@ -244,26 +237,6 @@ static void test_hold_budget(void)
             CHECK(memcmp(res[0].clipped.data, res[k].clipped.data, n * sizeof(float)) == 0);
             CHECK(res[k].clipped_pixels == res[0].clipped_pixels);
         }
-    /* Deghosting reads the frames through fill_codes: a packed frame's
-     * saturated pixels (codes 255 there) change nothing either. */
-    sl_merge_result dg[2];
-    for (int k = 0; k < 2; k++) {
-        sl_merge_options opt;
-        sl_merge_options_init(&opt);
-        opt.deghost = true;
-        opt.hold_mb = budgets[k];
-        CHECK_OK(sl_merge(paths, b.frames, &opt, &dg[k], &err), &err);
-    }
-    CHECK(dg[1].packed_frames == 1);
-    if (dg[0].radiance.data && dg[1].radiance.data) {
-        size_t n = (size_t)dg[0].radiance.height * dg[0].radiance.stride;
-        CHECK(memcmp(dg[0].radiance.data, dg[1].radiance.data, n * sizeof(float)) == 0);
-        CHECK(memcmp(dg[0].ghost.data, dg[1].ghost.data,
-                     (size_t)dg[0].ghost.height * dg[0].ghost.stride * sizeof(float)) == 0);
-        CHECK(dg[0].ghost_pixels == dg[1].ghost_pixels);
-    }
-    for (int k = 0; k < 2; k++)
-        sl_merge_result_free(&dg[k]);
     /* The response alone decodes each frame once anyway: nothing held. */
     sl_merge_options opt;
     sl_merge_options_init(&opt);

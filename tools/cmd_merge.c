@@ -419,9 +419,8 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
             "noise_floor", res.noise_floor, "black", res.black, "saturation", res.saturation,
             "encoding", "pixels", res.pixel_type == SL_PIXEL_HALF ? "half" : "float",
             "compression", cli_compression_name(res.compression), "max_value", res.max_value,
-            "why", res.encoding_note, "frames_decoded_once", res.held_frames + res.packed_frames, "seconds",
+            "why", res.encoding_note, "frames_decoded_once", res.held_frames, "seconds",
             res.seconds, "timing", timing_json(&res));
-        json_object_set_new(o, "frames_packed", json_integer(res.packed_frames));
         json_dumpf(o, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(o);

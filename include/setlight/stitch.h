@@ -166,9 +166,7 @@ typedef struct sl_merge_result {
     double max_value;           /* bound on any merged value: the brightest code of the
                                    shortest frame; 0 when unbounded (float frames) */
     char encoding_note[160];
-    int held_frames;            /* frames decoded once, kept whole between the passes */
-    int packed_frames;          /* frames decoded once, kept without their saturated
-                                   pixels (8-bit, not the shortest) */
+    int held_frames;            /* frames decoded once (kept between the passes) */
     double seconds;             /* wall */
     double cpu_seconds;         /* CPU of every thread */
     sl_merge_timing timing;
