@@ -2,11 +2,13 @@
 """The merge against only decoding its frames (issue 5: "the merge itself within 1.2x of the
 time it takes only to decode the frames"), on the 6000x4000x7 JPEG bracket.
 
-  /usr/bin/python3 bench/merge_vs_decode.py [--runs 5] [--frames DIR] [--setlight BIN]
+  /usr/bin/python3 bench/merge_vs_decode.py [--runs 5] [--frames DIR] [--setlight BIN]...
 
 Runs `setlight merge --json` (default options: half PIZ radiance and mask) and
 `build/bench/bench_decode` (the same reader, every frame once, the same threads) in turn,
---runs times, and prints medians: the merge's phases (its --json "timing": wall and CPU of
+--runs times, and prints medians (with --setlight given more than once, e.g. the build
+before a change and after, each build in turn in every round, a column each; the ratios
+are the last build's): the merge's phases (its --json "timing": wall and CPU of
 every thread per phase), both commands as processes (CPU = user + sys from wait4, peak RSS),
 and the ratios:
   (a) the whole merge command against the whole decode-only command (both start the process
@@ -44,23 +46,24 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--frames", default="/tmp/setlight-bench-merge/work/data/synth6k/7x3")
-    ap.add_argument("--setlight", default=os.path.join(HERE, "..", "build", "setlight"))
+    ap.add_argument("--setlight", action="append", default=None)
     ap.add_argument("--decode", default=os.path.join(HERE, "..", "build", "bench", "bench_decode"))
     ap.add_argument("--work", default="/tmp/setlight-bench-merge-decode")
     a = ap.parse_args()
+    builds = a.setlight or [os.path.join(HERE, "..", "build", "setlight")]
     frames = sorted(glob.glob(os.path.join(a.frames, "jpg", "img_*.jpg")))
     if not frames:
         sys.exit("%s: no jpg/img_*.jpg (run bench/merge_vs_peers.py --big first)" % a.frames)
     times = ",".join(x.strip() for x in open(os.path.join(a.frames, "times.txt")) if x.strip())
     os.makedirs(a.work, exist_ok=True)
     out, js, dec = os.path.join(a.work, "out.exr"), os.path.join(a.work, "merge.json"), os.path.join(a.work, "decode.txt")
-    merge_cmd = [a.setlight, "merge", "--json", "--times", times, "-o", out] + frames
     decode_cmd = [a.decode] + frames
-    m, d = [], []
+    runs, d = [[] for _ in builds], []
     for _ in range(a.runs):
-        wall, cpu, mb = run(merge_cmd, js)
-        t = json.load(open(js))["timing"]
-        m.append({"wall": wall, "cpu": cpu, "mb": mb, "t": t})
+        for b, build in enumerate(builds):
+            wall, cpu, mb = run([build, "merge", "--json", "--times", times, "-o", out] + frames, js)
+            t = json.load(open(js))["timing"]
+            runs[b].append({"wall": wall, "cpu": cpu, "mb": mb, "t": t})
         wall, cpu, mb = run(decode_cmd, dec)
         words = open(dec).read().split()
         # "module load: wall W s, CPU C s" then "decode only: N frames, wall W s, CPU C s".
@@ -69,11 +72,14 @@ def main():
                   "dec_wall": nums[2], "dec_cpu": nums[3]})
     med = lambda rows, f: statistics.median(f(r) for r in rows)
     print("6000x4000x7 JPEG, %d runs each (interleaved), medians; CPU = all threads" % a.runs)
-    print("| merge phase | CPU s | wall s |")
-    print("|---|---|---|")
-    for ph in PHASES:
-        print("| %s | %.2f | %.2f |" % (ph, med(m, lambda r: r["t"][ph]["cpu"]), med(m, lambda r: r["t"][ph]["wall"])))
-    print("| merge total | %.2f | %.2f |" % (med(m, lambda r: r["t"]["total"]["cpu"]), med(m, lambda r: r["t"]["total"]["wall"])))
+    print("| merge phase, CPU / wall s | %s |" % " | ".join(builds))
+    print("|---|%s" % ("---|" * len(builds)))
+    for ph in PHASES + ["total"]:
+        print("| %s | %s |" % (ph, " | ".join("%.2f / %.2f" % (med(m, lambda r: r["t"][ph]["cpu"]), med(m, lambda r: r["t"][ph]["wall"]))
+                                             for m in runs)))
+    print("| process | %s |" % " | ".join("%.2f / %.2f, %.0f MB" % (med(m, lambda r: r["cpu"]), med(m, lambda r: r["wall"]), med(m, lambda r: r["mb"]))
+                                        for m in runs))
+    m = runs[-1]
     mc, mw, mm = med(m, lambda r: r["cpu"]), med(m, lambda r: r["wall"]), med(m, lambda r: r["mb"])
     mc_nw = med(m, lambda r: r["cpu"] - r["t"]["write"]["cpu"])
     mw_nw = med(m, lambda r: r["wall"] - r["t"]["write"]["wall"])
