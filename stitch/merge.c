@@ -677,7 +677,7 @@ static void choose_encoding(const merge_ctx *m, sl_merge_result *res, const sl_m
 }
 
 /* What only the fit needed, freed before the merge pass (its peak memory):
- * 17 MB on a 24-megapixel bracket of 7. */
+ * 17 MB on a 24-megapixel bracket of 7 (peak 546 -> 538 MB). */
 static void release_samples(merge_ctx *m)
 {
     free(m->sample_pos);

@@ -38,7 +38,7 @@ typedef struct pass_ctx {
     float *cinv[3], *cwb[3], *cfade; /* with codes, per code: the same, and the shoulder fade */
     float *rx, *rw;         /* with 8-bit codes, per rank, channel and code: linear value
                                on the output scale and weight with the exposure factor */
-    merge_term *terms;      /* the same as the terms of the sums (code_terms) */
+    merge_term *terms;      /* the same as the sums' terms: {rw * rx, rw}, exact in double */
     uint8_t *fade_class;    /* with 8-bit codes, per code: FULL, SHOULDER_FADE or SATURATED */
     int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
     float *out, *mask, *ghost; /* row y0 of the outputs (ghost NULL without deghost) */
