@@ -39,7 +39,8 @@ typedef struct pass_ctx {
     float *rx, *rw;         /* with 8-bit codes, per rank, channel and code: linear value
                                on the output scale and weight with the exposure factor */
     merge_term *terms;      /* the same as the sums' terms: {rw * rx, rw}, exact in double */
-    uint8_t *fade_class;    /* with 8-bit codes, per code: FULL, SHOULDER_FADE or SATURATED */
+    int shoulder_from, saturated_from; /* with 8-bit codes: the first code whose fade is
+                                          below 1, and the first at 0 (the fade falls) */
     int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
     float *out, *mask, *ghost; /* row y0 of the outputs (ghost NULL without deghost) */
     size_t out_stride, mask_stride, ghost_stride;
@@ -48,10 +49,6 @@ typedef struct pass_ctx {
 } pass_ctx;
 
 enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
-
-/* How a pixel's brightest code weighs it: fully, faded in the shoulder, or
- * not at all. */
-enum { FULL = 0, SHOULDER_FADE = 1, SATURATED = 2 };
 
 /* Inverse variance of a linearised value, before the exposure factor and
  * the pixel's shoulder fade. */
@@ -196,14 +193,13 @@ static void merge_row_u8(const pass_ctx *p, int row, float *out, float *mask, in
             const uint8_t *q = src[r] + (size_t)x * 3;
             int qm = q[0] > q[1] ? q[0] : q[1];
             qm = qm > q[2] ? qm : q[2];
-            int cls = p->fade_class[qm];
-            if (cls == SATURATED) {
+            if (qm >= p->saturated_from) {
                 nsat++;
                 continue;
             }
             last = r;
             const merge_term *t = p->terms + (size_t)r * 3 * 256;
-            if (cls == FULL) {
+            if (qm < p->shoulder_from) {
                 s0 += t[q[0]];
                 s1 += t[256 + q[1]];
                 s2 += t[512 + q[2]];
@@ -362,11 +358,13 @@ static sl_result build_luts(pass_ctx *p, sl_error *err)
     p->rx = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rx);
     p->rw = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rw);
     p->terms = aligned_alloc(16, (size_t)p->frames * 3 * 256 * sizeof *p->terms);
-    p->fade_class = malloc(256);
-    if (!p->rx || !p->rw || !p->terms || !p->fade_class)
+    if (!p->rx || !p->rw || !p->terms)
         return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-    for (int q = 0; q < 256; q++)
-        p->fade_class[q] = p->cfade[q] == 1 ? FULL : p->cfade[q] > 0 ? SHOULDER_FADE : SATURATED;
+    while (p->shoulder_from < 256 && p->cfade[p->shoulder_from] == 1)
+        p->shoulder_from++;
+    p->saturated_from = p->shoulder_from;
+    while (p->saturated_from < 256 && p->cfade[p->saturated_from] > 0)
+        p->saturated_from++;
     for (size_t r = 0; r < (size_t)p->frames; r++)
         for (size_t c = 0; c < 3; c++)
             for (size_t q = 0; q < 256; q++) {
@@ -561,7 +559,6 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     free(p.rx);
     free(p.rw);
     free(p.terms);
-    free(p.fade_class);
     free(p.e);
     free(p.inv_e);
     free(p.e2);
