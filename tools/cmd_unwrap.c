@@ -55,7 +55,7 @@ static const char *unwrap_help =
     "                         where the ball faces the camera)\n"
     "  --no-confidence        write RGB only\n"
     "  --float                32-bit float EXR instead of half\n"
-    "  --compression C        piz (default), zip, rle or none (all lossless)\n"
+    "  --compression C        zip (default), piz, rle or none (all lossless)\n"
     "  --json                 print the result as JSON on stdout\n\n"
     "The A channel is the confidence: resolution relative to the ball's centre, 0 in\n"
     "the blind cone behind the ball (filled flat with the rim's median). An 8-bit\n"
@@ -314,7 +314,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     po.search_deg = 20;
     po.occluder_deg = 20;
     bool have_circle = false, have_circle2 = false, confidence = true, use_float = false;
-    sl_exr_compression compression = SL_EXR_PIZ;
+    sl_exr_compression compression = SL_EXR_ZIP;
     bool have_refl = false, have_patch = false, have[3] = {false, false, false};
     double cam2[3] = {0, 0, 0}, patch[6] = {0};
     ball_camera_opts bc;
