@@ -1063,12 +1063,28 @@ static void convert_rows(void *ctx, int64_t begin, int64_t end, int worker)
     size_t w = (size_t)s->width, nc = (size_t)s->channels;
     for (int64_t j = begin; j < end; j++) {
         const float *src = job->rows + (size_t)j * job->stride;
-        size_t at = (size_t)(s->rows + j) * w * nc;
+        size_t at = (size_t)(s->rows + j) * w * nc, done = 0;
+        if (s->half && nc == 3) {
+            /* RGB: four pixels' three vectors shuffled into R, G and B. */
+            uint16_t *dst = (uint16_t *)s->buf + at;
+            for (; done + 4 <= w; done += 4) {
+                v4f_t a, b, c;
+                memcpy(&a, src + 3 * done, sizeof a);
+                memcpy(&b, src + 3 * done + 4, sizeof b);
+                memcpy(&c, src + 3 * done + 8, sizeof c);
+                v4f_t r = __builtin_shuffle(a, b, (v4i_t){0, 3, 6, 6});
+                v4f_t g = __builtin_shuffle(a, b, (v4i_t){1, 4, 7, 7});
+                v4f_t bl = __builtin_shuffle(a, b, (v4i_t){2, 5, 5, 5});
+                half_bits4(__builtin_shuffle(bl, c, (v4i_t){0, 1, 4, 7}), dst + done);
+                half_bits4(__builtin_shuffle(g, c, (v4i_t){0, 1, 2, 6}), dst + w + done);
+                half_bits4(__builtin_shuffle(r, c, (v4i_t){0, 1, 2, 5}), dst + 2 * w + done);
+            }
+        }
         for (size_t f = 0; f < nc; f++) {
-            const float *p = src + (nc - 1 - f);
+            const float *p = src + done * nc + (nc - 1 - f);
             if (s->half) {
                 uint16_t *dst = (uint16_t *)s->buf + at + f * w;
-                size_t x = 0;
+                size_t x = done;
                 for (; x + 4 <= w; x += 4, p += 4 * nc)
                     half_bits4((v4f_t){p[0], p[nc], p[2 * nc], p[3 * nc]}, dst + x);
                 for (; x < w; x++, p += nc)

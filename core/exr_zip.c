@@ -2,7 +2,7 @@
 /* OpenEXR ZIP chunks compressed here rather than by zlib: after OpenEXR's
  * byte split and predictor, the low bytes of half and float samples are
  * nearly noise, which LZ77 match finding (zlib, libdeflate) spends most of
- * its time failing on. So: Huffman codes per 32 KB block, and runs of one
+ * its time failing on. So: Huffman codes per 64 KB block, and runs of one
  * byte as matches at distance 1 (smooth and black areas). Any inflater
  * reads it (RFC 1950/1951); the split halves get blocks, and so codes, of
  * their own. */
@@ -15,7 +15,7 @@
 #include <emmintrin.h>
 #endif
 
-#define BLOCK (1 << 15)
+#define BLOCK (1 << 16)
 #define LIT_SYMS 286 /* literals, end of block, 29 lengths */
 #define MIN_RUN 3
 #define MAX_RUN 258
