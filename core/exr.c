@@ -708,7 +708,7 @@ typedef float v4f_t __attribute__((vector_size(16)));
 typedef uint32_t v4u_t __attribute__((vector_size(16)));
 typedef int32_t v4i_t __attribute__((vector_size(16)));
 
-static void half_bits4(v4f_t f, uint16_t *dst)
+static inline __attribute__((always_inline)) void half_bits4(v4f_t f, uint16_t *dst)
 {
     const v4f_t limit = {65504.0f, 65504.0f, 65504.0f, 65504.0f};
     const uint32_t magic_bits = ((127u - 15u) + (23u - 10u) + 1u) << 23;

@@ -81,25 +81,40 @@ typedef struct bits {
     int n;
 } bits;
 
+/* Eight bytes of v, least significant first. */
+static inline void store8(uint8_t *p, uint64_t v)
+{
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    memcpy(p, &v, 8);
+#else
+    for (int i = 0; i < 8; i++)
+        p[i] = (uint8_t)(v >> (8 * i));
+#endif
+}
+
 /* Whole bytes out at once, 8 stored (the spare ones are overwritten
- * later) while that fits; leaves fewer than 8 bits held. */
+ * later); leaves fewer than 8 bits held. The caller made sure of room. */
+static inline void drain_unchecked(bits *b)
+{
+    store8(b->out + b->at, b->buf);
+    b->at += (size_t)(b->n >> 3);
+    b->buf >>= b->n & ~7;
+    b->n &= 7;
+}
+
+/* The same where the buffer may run out. */
 static inline void drain(bits *b)
 {
     if (b->cap - b->at >= 8) {
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-        memcpy(b->out + b->at, &b->buf, 8);
-#else
-        for (int i = 0; i < 8; i++)
-            b->out[b->at + i] = (uint8_t)(b->buf >> (8 * i));
-#endif
+        drain_unchecked(b);
     } else {
         for (int i = 0; i < b->n / 8 && b->at + (size_t)i < b->cap; i++)
             b->out[b->at + i] = (uint8_t)(b->buf >> (8 * i));
+        size_t whole = (size_t)(b->n >> 3);
+        b->at = b->cap - b->at > whole ? b->at + whole : b->cap;
+        b->buf >>= b->n & ~7;
+        b->n &= 7;
     }
-    size_t whole = (size_t)(b->n >> 3);
-    b->at = b->cap - b->at > whole ? b->at + whole : b->cap;
-    b->buf >>= b->n & ~7;
-    b->n &= 7;
 }
 
 /* Bits added without draining: at most 56 may be held. */
@@ -277,8 +292,17 @@ static size_t tokenize(const uint8_t *d, size_t n, uint16_t *tok, uint32_t *freq
         } else
 #endif
             tok[nt] = d[i];
-        for (int k = 0; k < lits; k++)
-            lit[k & 3][d[i + (size_t)k]]++;
+        if (lits == 16) {
+            for (int k = 0; k < 16; k += 4) {
+                lit[0][d[i + (size_t)k]]++;
+                lit[1][d[i + (size_t)k + 1]]++;
+                lit[2][d[i + (size_t)k + 2]]++;
+                lit[3][d[i + (size_t)k + 3]]++;
+            }
+        } else {
+            for (int k = 0; k < lits; k++)
+                lit[k & 3][d[i + (size_t)k]]++;
+        }
         nt += (size_t)lits;
         i += (size_t)lits;
         uint8_t v = d[i - 1];
@@ -304,6 +328,25 @@ static size_t tokenize(const uint8_t *d, size_t n, uint16_t *tok, uint32_t *freq
     for (int k = 0; k < 256; k++)
         freq[k] = lit[0][k] + lit[1][k] + lit[2][k] + lit[3][k];
     return nt;
+}
+
+/* The tokens' bits, two tokens (at most 42 bits) per drain; `room`: the
+ * buffer holds the worst case (21 bits a token), no checks needed. */
+static inline __attribute__((always_inline)) void put_tokens(bits *w, const uint16_t *tok,
+                                                             size_t nt, const uint32_t *bits_of,
+                                                             const uint8_t *len_of, bool room)
+{
+    size_t i = 0;
+    for (; i + 2 <= nt; i += 2) {
+        add(w, bits_of[tok[i]], len_of[tok[i]]);
+        add(w, bits_of[tok[i + 1]], len_of[tok[i + 1]]);
+        if (room)
+            drain_unchecked(w);
+        else
+            drain(w);
+    }
+    for (; i < nt; i++)
+        put(w, bits_of[tok[i]], len_of[tok[i]]);
 }
 
 /* d[0 .. n) as one dynamic-Huffman block: literals, and runs of the
@@ -362,15 +405,10 @@ static void write_block(bits *b, const uint8_t *d, size_t n, uint16_t *tok, bool
         len_of[256 + run] = (uint8_t)(l + len_extra[s] + 1);
     }
     bits w = *b; /* in registers: the stores could alias it otherwise */
-    /* Two tokens (at most 42 bits) per drain. */
-    size_t i = 0;
-    for (; i + 2 <= nt; i += 2) {
-        add(&w, bits_of[tok[i]], len_of[tok[i]]);
-        add(&w, bits_of[tok[i + 1]], len_of[tok[i + 1]]);
-        drain(&w);
-    }
-    for (; i < nt; i++)
-        put(&w, bits_of[tok[i]], len_of[tok[i]]);
+    if (w.cap - w.at >= nt / 8 * 21 + 32)
+        put_tokens(&w, tok, nt, bits_of, len_of, true);
+    else
+        put_tokens(&w, tok, nt, bits_of, len_of, false);
     put(&w, code[256], lens[256]);
     *b = w;
 }
