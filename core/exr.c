@@ -722,8 +722,15 @@ static inline __attribute__((always_inline)) void half_bits4(v4f_t f, uint16_t *
     v4u_t subnormal = (v4u_t)((v4f_t)u + magic) - magic_bits;
     v4u_t small = (v4u_t)(u < (113u << 23));
     v4u_t o = ((small & subnormal) | (~small & normal)) | (sign >> 16);
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    /* The low halves of the four lanes, stored at once. */
+    typedef uint16_t v8h_t __attribute__((vector_size(16)));
+    v8h_t h = __builtin_shuffle((v8h_t)o, (v8h_t){0, 2, 4, 6, 0, 2, 4, 6});
+    memcpy(dst, &h, 4 * sizeof *dst);
+#else
     for (int i = 0; i < 4; i++)
         dst[i] = (uint16_t)o[i];
+#endif
 }
 
 static exr_compression_t exr_compression(sl_exr_compression c)
