@@ -5,6 +5,7 @@
 #include "unwrap_private.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -35,8 +36,9 @@
 #define ROW_GRAIN 32
 #define TILE_W 256
 /* Rows handed to a sink at a time: a few row chunks per thread, so that a
- * strip keeps the threads busy to its end. */
-#define STRIP_ROWS 512
+ * strip keeps the threads busy to its end. Two strips are in memory: one
+ * being unwrapped, one with the sink. */
+#define STRIP_ROWS 256
 
 typedef float v4f __attribute__((vector_size(16)));
 typedef int v4i __attribute__((vector_size(16)));
@@ -911,6 +913,70 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
     return r;
 }
 
+/* Strips go to the sink from a thread of its own while the next strip is
+ * unwrapped: the sink's work (e.g. compressing and writing) fills the
+ * cores where a strip's parallel loop runs out of rows, and vice versa.
+ * With one thread, the strips go to the sink in turn. */
+typedef struct strip_handoff {
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+    bool threaded;
+    const sl_unwrap_sink *sink;
+    sl_error *err;
+    sl_image buf[2];
+    int rows[2]; /* rows in buf[i] waiting for the sink; 0: free */
+    bool done;   /* no more strips */
+    sl_result r; /* the sink's first failure */
+} strip_handoff;
+
+static void *strip_writer(void *arg)
+{
+    strip_handoff *h = arg;
+    pthread_mutex_lock(&h->lock);
+    for (int b = 0;; b = 1 - b) {
+        while (!h->rows[b] && !h->done)
+            pthread_cond_wait(&h->cond, &h->lock);
+        if (!h->rows[b])
+            break;
+        sl_result r = h->r;
+        pthread_mutex_unlock(&h->lock);
+        /* After a failure the strips are dropped, so the unwrap never waits. */
+        if (!r)
+            r = h->sink->rows(h->sink->user, h->buf[b].data, h->rows[b], h->buf[b].stride, h->err);
+        pthread_mutex_lock(&h->lock);
+        h->r = r;
+        h->rows[b] = 0;
+        pthread_cond_broadcast(&h->cond);
+    }
+    pthread_mutex_unlock(&h->lock);
+    return NULL;
+}
+
+/* Waits until buffer b is free; the sink's failure, if any. */
+static sl_result strip_wait(strip_handoff *h, int b)
+{
+    if (!h->threaded)
+        return h->r;
+    pthread_mutex_lock(&h->lock);
+    while (h->rows[b] && !h->r)
+        pthread_cond_wait(&h->cond, &h->lock);
+    sl_result r = h->r;
+    pthread_mutex_unlock(&h->lock);
+    return r;
+}
+
+static void strip_ready(strip_handoff *h, int b, int rows)
+{
+    if (!h->threaded) {
+        h->r = h->sink->rows(h->sink->user, h->buf[b].data, rows, h->buf[b].stride, h->err);
+        return;
+    }
+    pthread_mutex_lock(&h->lock);
+    h->rows[b] = rows;
+    pthread_cond_broadcast(&h->cond);
+    pthread_mutex_unlock(&h->lock);
+}
+
 sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
                            const sl_unwrap_sink *sink, sl_unwrap_info *info, sl_error *err)
 {
@@ -921,16 +987,47 @@ sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
     sl_result r = unwrap_start(photo, opt, &u, info, err);
     if (r)
         return r;
-    sl_image strip = {0};
+    strip_handoff hand;
+    memset(&hand, 0, sizeof hand);
+    hand.sink = sink;
+    hand.err = err;
     int h = u.c.height, rows = h < STRIP_ROWS ? h : STRIP_ROWS;
+    bool overlap = h > rows && sl_threads_get() > 1;
     if (!(r = sink->begin(sink->user, info, u.c.channels, err)))
-        r = image_alloc_large(&strip, u.c.width, rows, u.c.channels, err);
-    for (int y = 0; y < h && !r; y += rows) {
-        int n = h - y < rows ? h - y : rows;
-        unwrap_strip(&u, strip.data, strip.stride, y, y + n);
-        r = sink->rows(sink->user, strip.data, n, strip.stride, err);
+        r = image_alloc_large(&hand.buf[0], u.c.width, rows, u.c.channels, err);
+    if (!r && overlap)
+        r = image_alloc_large(&hand.buf[1], u.c.width, rows, u.c.channels, err);
+    pthread_t writer;
+    if (!r && overlap) {
+        pthread_mutex_init(&hand.lock, NULL);
+        pthread_cond_init(&hand.cond, NULL);
+        hand.threaded = pthread_create(&writer, NULL, strip_writer, &hand) == 0;
+        if (!hand.threaded) {
+            pthread_cond_destroy(&hand.cond);
+            pthread_mutex_destroy(&hand.lock);
+        }
     }
-    sl_image_free(&strip);
+    /* Without the writer thread, one buffer in turn. */
+    for (int y = 0, b = 0; y < h && !r; y += rows, b = hand.threaded ? 1 - b : 0) {
+        int n = h - y < rows ? h - y : rows;
+        if ((r = strip_wait(&hand, b)))
+            break;
+        unwrap_strip(&u, hand.buf[b].data, hand.buf[b].stride, y, y + n);
+        strip_ready(&hand, b, n);
+    }
+    if (hand.threaded) {
+        pthread_mutex_lock(&hand.lock);
+        hand.done = true;
+        pthread_cond_broadcast(&hand.cond);
+        pthread_mutex_unlock(&hand.lock);
+        pthread_join(writer, NULL);
+        pthread_cond_destroy(&hand.cond);
+        pthread_mutex_destroy(&hand.lock);
+    }
+    if (!r)
+        r = hand.r;
+    sl_image_free(&hand.buf[0]);
+    sl_image_free(&hand.buf[1]);
     unwrap_stop(&u);
     return r;
 }

@@ -262,15 +262,15 @@ static sl_result stream_begin(void *user, const sl_unwrap_info *info, int channe
     return r;
 }
 
+/* Called while the next rows are unwrapped (sl_unwrap_stream overlaps
+ * the two): its time is the unwrap stage's, not the writing's. */
 static sl_result stream_rows(void *user, const float *rows, int count, size_t stride,
                              sl_error *err)
 {
     out_job *j = user;
-    double t = sl_seconds(), c = sl_cpu_seconds();
     sl_result r = sl_exr_stream_write(j->stream, rows, count, stride, err);
     if (r)
         j->stream = NULL; /* a failed write aborts the stream */
-    writing_took(j, t, c);
     return r;
 }
 
@@ -534,7 +534,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_INFO, "ball reflectance from the patch: %.4f, %.4f, %.4f", refl_patch[0],
                refl_patch[1], refl_patch[2]);
     }
-    /* The streamed unwrap's time excludes its rows' writing (job.write_*). */
+    /* The streamed unwrap's time includes its rows' conversion, encoding
+     * and writing (overlapped with it), not the file's opening and finish. */
     double t_unwrap = sl_seconds() - t1 - job.write_s;
     double cpu_unwrap = sl_cpu_seconds() - cpu1 - job.write_cpu;
     for (int i = 0; i < nviews; i++)
