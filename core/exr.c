@@ -713,8 +713,12 @@ static inline __attribute__((always_inline)) void half_bits4(v4f_t f, uint16_t *
     const v4f_t limit = {65504.0f, 65504.0f, 65504.0f, 65504.0f};
     const uint32_t magic_bits = ((127u - 15u) + (23u - 10u) + 1u) << 23;
     f = (v4f_t)((v4i_t)f & (f == f)); /* NaN -> 0 */
+#ifdef __SSE2__
+    f = (v4f_t)_mm_max_ps(_mm_min_ps((__m128)f, (__m128)limit), (__m128)-limit);
+#else
     v4i_t hi = f > limit, lo = f < -limit;
     f = (v4f_t)((hi & (v4i_t)limit) | (lo & (v4i_t)-limit) | (~(hi | lo) & (v4i_t)f));
+#endif
     v4u_t u = (v4u_t)f, sign = u & 0x80000000u;
     u ^= sign;
     v4u_t normal = (u + (uint32_t)((15 - 127) * (1 << 23)) + 0xfffu + ((u >> 13) & 1u)) >> 13;
@@ -722,11 +726,12 @@ static inline __attribute__((always_inline)) void half_bits4(v4f_t f, uint16_t *
     v4u_t subnormal = (v4u_t)((v4f_t)u + magic) - magic_bits;
     v4u_t small = (v4u_t)(u < (113u << 23));
     v4u_t o = ((small & subnormal) | (~small & normal)) | (sign >> 16);
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-    /* The low halves of the four lanes, stored at once. */
-    typedef uint16_t v8h_t __attribute__((vector_size(16)));
-    v8h_t h = __builtin_shuffle((v8h_t)o, (v8h_t){0, 2, 4, 6, 0, 2, 4, 6});
-    memcpy(dst, &h, 4 * sizeof *dst);
+#ifdef __SSE2__
+    /* The four 16-bit values packed at once: shifted into the signed
+     * range for the saturating pack, shifted back after. */
+    __m128i t = _mm_sub_epi32((__m128i)o, _mm_set1_epi32(0x8000));
+    t = _mm_xor_si128(_mm_packs_epi32(t, t), _mm_set1_epi16((short)0x8000));
+    _mm_storel_epi64((__m128i *)dst, t);
 #else
     for (int i = 0; i < 4; i++)
         dst[i] = (uint16_t)o[i];
