@@ -27,6 +27,11 @@
 #include <emmintrin.h>
 #endif
 
+/* Four samples at a time (GCC/Clang vector extensions). */
+typedef float v4f_t __attribute__((vector_size(16)));
+typedef uint32_t v4u_t __attribute__((vector_size(16)));
+typedef int32_t v4i_t __attribute__((vector_size(16)));
+
 /* Same limits as sl_image_alloc: a corrupt header must not allocate wildly. */
 #define EXR_MAX_DIM 65536
 
@@ -401,9 +406,29 @@ static exr_result_t zip_scanlines(const exr_decode_job *job, const exr_chunk_inf
             continue;
         const uint8_t *line = lines + (size_t)y * job->line_bytes;
         float *dst = sl_image_pixel(job->img, x0 - fr->display.min.x, fy - fr->display.min.y);
+        int done = 0; /* pixels already interleaved */
+        if (nc == 3 && !job->half[0] && !job->half[1] && !job->half[2]) {
+            /* Float RGB: four pixels of the three planes shuffled at once. */
+            size_t at = 4 * (size_t)(x0 - fr->data.min.x);
+            const uint8_t *pr = line + job->offset[0] + at, *pg = line + job->offset[1] + at,
+                          *pb = line + job->offset[2] + at;
+            for (; done + 4 <= x1 - x0 + 1; done += 4) {
+                v4f_t r, g, b;
+                memcpy(&r, pr + 4 * (size_t)done, sizeof r);
+                memcpy(&g, pg + 4 * (size_t)done, sizeof g);
+                memcpy(&b, pb + 4 * (size_t)done, sizeof b);
+                v4f_t rg = __builtin_shuffle(r, g, (v4i_t){0, 4, 1, 5});
+                v4f_t gb = __builtin_shuffle(g, b, (v4i_t){1, 5, 2, 6});
+                v4f_t rg3 = __builtin_shuffle(r, g, (v4i_t){3, 7, 3, 7});
+                v4f_t out[3] = {__builtin_shuffle(rg, b, (v4i_t){0, 1, 4, 2}),
+                                __builtin_shuffle(gb, r, (v4i_t){0, 1, 6, 2}),
+                                __builtin_shuffle(rg3, b, (v4i_t){6, 0, 1, 7})};
+                memcpy(dst + 3 * (size_t)done, out, sizeof out);
+            }
+        }
         for (int c = 0; c < nc; c++) {
             const uint8_t *src = line + job->offset[c];
-            float *d = dst + c;
+            float *d = dst + c + (size_t)done * (size_t)nc;
             if (job->half[c]) {
                 for (int x = x0; x <= x1; x++, d += nc) {
                     uint16_t h;
@@ -411,7 +436,7 @@ static exr_result_t zip_scanlines(const exr_decode_job *job, const exr_chunk_inf
                     *d = half_to_float(h);
                 }
             } else {
-                for (int x = x0; x <= x1; x++, d += nc)
+                for (int x = x0 + done; x <= x1; x++, d += nc)
                     memcpy(d, src + 4 * (size_t)(x - fr->data.min.x), 4);
             }
         }
@@ -704,9 +729,6 @@ static uint16_t half_bits(float f)
 
 /* sanitize and half_bits for four samples at a time: the same bits (after
  * the clamp to +-65504 no sample takes the Inf/NaN branch). */
-typedef float v4f_t __attribute__((vector_size(16)));
-typedef uint32_t v4u_t __attribute__((vector_size(16)));
-typedef int32_t v4i_t __attribute__((vector_size(16)));
 
 static inline __attribute__((always_inline)) void half_bits4(v4f_t f, uint16_t *dst)
 {
