@@ -615,8 +615,9 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
             g.cos_lat = cos(lat);
             g.sin_lat = sin(lat);
             g.lon_step = 2.0 * M_PI / w * g.cos_lat;
-            for (int x = xb; x < xe; x++)
-                texel(c, &g, x, row + x, up + x, down + x, out_pixel(c, x, y));
+            float *p = out_pixel(c, xb, y);
+            for (int x = xb; x < xe; x++, p += c->channels)
+                texel(c, &g, x, row + x, up + x, down + x, p);
         }
     }
     free(buf);
