@@ -43,6 +43,7 @@
 typedef float v4f __attribute__((vector_size(16)));
 typedef int v4i __attribute__((vector_size(16)));
 typedef double v2d __attribute__((vector_size(16)));
+typedef long long v2l __attribute__((vector_size(16)));
 
 typedef struct unwrap_ctx {
     const sl_image *photo; /* RGB, finite */
@@ -135,16 +136,15 @@ static inline __attribute__((always_inline)) v4f photo_lookup(const unwrap_ctx *
     double x0 = floor_coord(fx), y0 = floor_coord(fy);
     float tx = (float)(fx - x0), ty = (float)(fy - y0);
     double keep = v->r - RIM_MARGIN, ex = x0 + 0.5 - v->cx, ey = y0 + 0.5 - v->cy;
-    const float *p = img->data + (size_t)y0 * img->stride + (size_t)x0 * 3;
+    /* Through int64_t: a double's conversion to size_t takes a branch. */
+    const float *p = img->data + (int64_t)y0 * (int64_t)img->stride + (int64_t)x0 * 3;
     v4f w = {(1.0f - tx) * (1.0f - ty), tx * (1.0f - ty), (1.0f - tx) * ty, tx * ty};
-    /* Keep the taps whose centres are inside the margin. */
-    float use[4];
-    for (int j = 0; j < 2; j++)
-        for (int i = 0; i < 2; i++) {
-            double qx = ex + i, qy = ey + j;
-            use[2 * j + i] = qx * qx + qy * qy <= keep * keep ? 1.0f : 0.0f;
-        }
-    w *= (v4f){use[0], use[1], use[2], use[3]};
+    /* Keep the taps whose centres are inside the margin: both columns'
+     * squared offsets at once, their masks clearing the other weights. */
+    v2d qx = {ex, ex + 1.0}, k2 = {keep * keep, keep * keep};
+    qx *= qx;
+    v2l in0 = qx + ey * ey <= k2, in1 = qx + (ey + 1.0) * (ey + 1.0) <= k2;
+    w = (v4f)((v4i)w & __builtin_shuffle((v4i)in0, (v4i)in1, (v4i){0, 2, 4, 6}));
     float wsum = w[0] + w[1] + w[2] + w[3];
     if (wsum > 0.0f)
         return (load3(p) * w[0] + load3(p + 3) * w[1] + load3(p + img->stride) * w[2] +
