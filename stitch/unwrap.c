@@ -399,9 +399,11 @@ typedef struct centre {
     bool blind;
 } centre;
 
-/* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]. */
-static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
+/* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]; whether
+ * any of them is blind. */
+static bool map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
 {
+    bool any_blind = false;
     int w = c->width, h = c->height;
     double lat = M_PI * (0.5 - (y + 0.5) / h), cl = cos(lat), sl = sin(lat);
     const double(*m)[3] = c->world_to_view;
@@ -444,13 +446,16 @@ static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
         row[x].y = hit.y;
         row[x].cosi = hit.cos_incidence;
         row[x].blind = hit.blind;
+        any_blind |= hit.blind;
     }
+    return any_blind;
 }
 
 /* What the texels of one row share. */
 typedef struct row_geom {
     int y;
-    bool inner_row; /* has rows above and below */
+    bool inner_row;   /* has rows above and below */
+    bool maybe_blind; /* a centre of the row or those next to it is blind */
     bool confidence;
     double vscale, cos_lat, sin_lat, lon_step, lat_step, ref, keep;
     double inner_any; /* keep less the lookup's reach and the largest fast footprint */
@@ -466,7 +471,7 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
                   const centre *up, const centre *down, float *p)
 {
     const centre *l = ce - 1, *r = ce + 1;
-    if (ce->blind || l->blind || r->blind || up->blind || down->blind) {
+    if (g->maybe_blind && (ce->blind || l->blind || r->blind || up->blind || down->blind)) {
         texel_exact(c, x, g->y, p);
         return;
     }
@@ -587,7 +592,10 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
     int64_t begin = c->row0 + first, end = c->row0 + last;
     int nrows = (int)(end - begin) + 2, tw = TILE_W + 2;
     centre *buf = malloc(sizeof(centre) * (size_t)nrows * (size_t)tw);
-    if (!buf) {
+    bool *blind = calloc((size_t)nrows, sizeof *blind); /* per buf row */
+    if (!buf || !blind) {
+        free(buf);
+        free(blind);
         /* No memory for the fast path: the exact one needs none. */
         for (int64_t y = begin; y < end; y++)
             for (int x = 0; x < w; x++)
@@ -603,7 +611,7 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
         for (int i = 0; i < nrows; i++) {
             int y = (int)begin - 1 + i;
             if (y >= 0 && y < h)
-                map_row(c, y, xb - 1, xe + 1, buf + (size_t)i * tw);
+                blind[i] = map_row(c, y, xb - 1, xe + 1, buf + (size_t)i * tw);
         }
         for (int y = (int)begin; y < end; y++) {
             const centre *row = buf + (size_t)(y - begin + 1) * tw + 1 - xb;
@@ -611,6 +619,7 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
             double lat = M_PI * (0.5 - (y + 0.5) / h);
             g.y = y;
             g.inner_row = y > 0 && y + 1 < h;
+            g.maybe_blind = blind[y - begin] || blind[y - begin + 1] || blind[y - begin + 2];
             g.vscale = g.inner_row ? 0.5 : 1.0;
             g.cos_lat = cos(lat);
             g.sin_lat = sin(lat);
@@ -621,6 +630,7 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
         }
     }
     free(buf);
+    free(blind);
 }
 
 static void tables_free(unwrap_ctx *c)
