@@ -729,7 +729,6 @@ static uint16_t half_bits(float f)
 
 /* sanitize and half_bits for four samples at a time: the same bits (after
  * the clamp to +-65504 no sample takes the Inf/NaN branch). */
-
 static inline __attribute__((always_inline)) void half_bits4(v4f_t f, uint16_t *dst)
 {
     const v4f_t limit = {65504.0f, 65504.0f, 65504.0f, 65504.0f};

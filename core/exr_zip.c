@@ -21,8 +21,9 @@
 #define MAX_RUN 258
 
 /* Deflate's length codes: first length and extra bits of symbols 257.. */
-static const uint16_t len_base[29] = {3,  4,  5,  6,  7,  8,  9,  10, 11,  13,  15,  17,  19,  23, 27,
-                                      31, 35, 43, 51, 59, 67, 83, 99, 115, 131, 163, 195, 227, 258};
+static const uint16_t len_base[29] = {3,  4,  5,  6,  7,  8,   9,   10,  11,  13,
+                                      15, 17, 19, 23, 27, 31,  35,  43,  51,  59,
+                                      67, 83, 99, 115, 131, 163, 195, 227, 258};
 static const uint8_t len_extra[29] = {0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2,
                                       2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 0};
 
@@ -374,7 +375,8 @@ static void write_block(bits *b, const uint8_t *d, size_t n, uint16_t *tok, bool
         cl_freq[sym[i]]++;
     code_lengths(cl_freq, 19, 7, cl_len);
     canonical_codes(cl_len, 19, cl_code);
-    static const uint8_t order[19] = {16, 17, 18, 0, 8, 7, 9, 6, 10, 5, 11, 4, 12, 3, 13, 2, 14, 1, 15};
+    static const uint8_t order[19] = {16, 17, 18, 0, 8,  7, 9,  6, 10, 5,
+                                      11, 4,  12, 3, 13, 2, 14, 1, 15};
     int hclen = 19;
     while (hclen > 4 && !cl_len[order[hclen - 1]])
         hclen--;

@@ -120,7 +120,8 @@ static inline double ceil_coord(double v)
  * margin to the outline left out; *inside is false when the point had to
  * be pulled inside the rim margin. The point then lies on a circle around
  * the centre inside the image, so every tap does too. */
-static inline __attribute__((always_inline)) v4f photo_lookup(const unwrap_ctx *c, double x, double y, bool *inside)
+static inline __attribute__((always_inline)) v4f photo_lookup(const unwrap_ctx *c, double x,
+                                                              double y, bool *inside)
 {
     const sl_ball_view *v = c->view;
     const sl_image *img = c->photo;
