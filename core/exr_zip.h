@@ -15,10 +15,11 @@ typedef struct exr_zip_scratch {
 } exr_zip_scratch;
 
 /* The n raw bytes of a chunk (per line, per channel in file order, samples
- * little-endian) as OpenEXR's ZIP stores them: bytes split and
- * delta-predicted, then a zlib stream, written to out (n bytes). *size is
- * the stream's length, or 0 when it would not be shorter than n (OpenEXR
- * then stores the chunk as it is). False when out of memory. */
+ * little-endian; n even: samples are 2 or 4 bytes) as OpenEXR's ZIP stores
+ * them: bytes split and delta-predicted, then a zlib stream, written to out
+ * (n bytes). *size is the stream's length, or 0 when it would not be
+ * shorter than n (OpenEXR then stores the chunk as it is). False when out
+ * of memory. */
 bool exr_zip_chunk(const uint8_t *raw, size_t n, exr_zip_scratch *s, uint8_t *out, size_t *size);
 void exr_zip_free(exr_zip_scratch *s);
 
