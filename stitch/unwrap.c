@@ -373,17 +373,25 @@ static inline v4f vmax(v4f a, v4f b)
  * it never rings around a bright source. All 16 taps must be ball pixels
  * clear of the rim margin (checked by the caller). Written out row by row
  * (the rows are independent; the inner four taps are the clamp's too). */
-static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, double x,
-                                                         double y)
+/* The 4x4 taps' top-left pixel for the point (x, y), and the weights of
+ * the tap columns (wx) and rows (wy). */
+static inline __attribute__((always_inline)) const float *
+cubic_taps(const sl_image *img, double x, double y, v4f *wx, v4f *wy)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
-    float tx = (float)(fx - x0), ty = (float)(fy - y0);
-    v4f wx = keys_weights(tx), wy = keys_weights(ty);
+    *wx = keys_weights((float)(fx - x0));
+    *wy = keys_weights((float)(fy - y0));
+    return img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * NC;
+}
+
+static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, double x,
+                                                         double y)
+{
+    v4f wx, wy;
+    const float *p = cubic_taps(img, x, y, &wx, &wy);
     v4f w0 = splat(wx, 0), w1 = splat(wx, 1), w2 = splat(wx, 2), w3 = splat(wx, 3);
-    size_t st = img->stride;
-    const float *p = img->data + (size_t)(y0 - 1) * st + (size_t)(x0 - 1) * NC;
-    const float *q = p + st, *r = q + st, *s = r + st;
+    const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v4f q1 = load4(q + NC), q2 = load4(q + 2 * NC), r1 = load4(r + NC), r2 = load4(r + 2 * NC);
     v4f rp = load4(p) * w0 + load4(p + NC) * w1 + load4(p + 2 * NC) * w2 + load4(p + 3 * NC) * w3;
     v4f rq = load4(q) * w0 + q1 * w1 + q2 * w2 + load4(q + 3 * NC) * w3;
@@ -411,14 +419,10 @@ typedef float v8f __attribute__((vector_size(32)));
 static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, double x,
                                                           double y)
 {
-    double fx = x - 0.5, fy = y - 0.5;
-    int x0 = (int)fx, y0 = (int)fy;
-    float tx = (float)(fx - x0), ty = (float)(fy - y0);
-    v4f wx = keys_weights(tx), wy = keys_weights(ty);
+    v4f wx, wy;
+    const float *p = cubic_taps(img, x, y, &wx, &wy);
     v8f w0 = SPLAT8(wx, 0), w1 = SPLAT8(wx, 1), w2 = SPLAT8(wx, 2), w3 = SPLAT8(wx, 3);
-    size_t st = img->stride;
-    const float *p = img->data + (size_t)(y0 - 1) * st + (size_t)(x0 - 1) * NC;
-    const float *q = p + st, *r = q + st, *s = r + st;
+    const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v8f pq1 = LOAD4X2(p + NC, q + NC), pq2 = LOAD4X2(p + 2 * NC, q + 2 * NC);
     v8f rs1 = LOAD4X2(r + NC, s + NC), rs2 = LOAD4X2(r + 2 * NC, s + 2 * NC);
     v8f pq = LOAD4X2(p, q) * w0 + pq1 * w1 + pq2 * w2 + LOAD4X2(p + 3 * NC, q + 3 * NC) * w3;
