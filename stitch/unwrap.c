@@ -5,6 +5,7 @@
 #include "unwrap_private.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
@@ -35,12 +36,14 @@
 #define ROW_GRAIN 32
 #define TILE_W 256
 /* Rows handed to a sink at a time: a few row chunks per thread, so that a
- * strip keeps the threads busy to its end. */
-#define STRIP_ROWS 512
+ * strip keeps the threads busy to its end. Two strips are in memory: one
+ * being unwrapped, one with the sink. */
+#define STRIP_ROWS 256
 
 typedef float v4f __attribute__((vector_size(16)));
 typedef int v4i __attribute__((vector_size(16)));
 typedef double v2d __attribute__((vector_size(16)));
+typedef long long v2l __attribute__((vector_size(16)));
 
 typedef struct unwrap_ctx {
     const sl_image *photo; /* RGB, finite */
@@ -97,11 +100,28 @@ static inline void store3(float *p, v4f v)
 #endif
 }
 
+/* floor() and ceil() for coordinates and counts (|v| < 2^63): the same
+ * values, without the general routines' cost (without SSE4.1 each is a
+ * long sequence; the exact texels behind the ball take two floors per
+ * sub-sample, every multi-sample texel two ceils of extents up to 16). */
+static inline double floor_coord(double v)
+{
+    double t = (double)(int64_t)v;
+    return t > v ? t - 1.0 : t;
+}
+
+static inline double ceil_coord(double v)
+{
+    double t = (double)(int64_t)v;
+    return t < v ? t + 1.0 : t;
+}
+
 /* Bilinear lookup of the ball's own pixels, taps closer than the rim
  * margin to the outline left out; *inside is false when the point had to
  * be pulled inside the rim margin. The point then lies on a circle around
  * the centre inside the image, so every tap does too. */
-static v4f photo_lookup(const unwrap_ctx *c, double x, double y, bool *inside)
+static inline __attribute__((always_inline)) v4f photo_lookup(const unwrap_ctx *c, double x,
+                                                              double y, bool *inside)
 {
     const sl_ball_view *v = c->view;
     const sl_image *img = c->photo;
@@ -114,19 +134,18 @@ static v4f photo_lookup(const unwrap_ctx *c, double x, double y, bool *inside)
         *inside = false;
     }
     double fx = x - 0.5, fy = y - 0.5;
-    double x0 = floor(fx), y0 = floor(fy);
+    double x0 = floor_coord(fx), y0 = floor_coord(fy);
     float tx = (float)(fx - x0), ty = (float)(fy - y0);
     double keep = v->r - RIM_MARGIN, ex = x0 + 0.5 - v->cx, ey = y0 + 0.5 - v->cy;
-    const float *p = img->data + (size_t)y0 * img->stride + (size_t)x0 * 3;
+    /* Through int64_t: a double's conversion to size_t takes a branch. */
+    const float *p = img->data + (int64_t)y0 * (int64_t)img->stride + (int64_t)x0 * 3;
     v4f w = {(1.0f - tx) * (1.0f - ty), tx * (1.0f - ty), (1.0f - tx) * ty, tx * ty};
-    /* Keep the taps whose centres are inside the margin. */
-    float use[4];
-    for (int j = 0; j < 2; j++)
-        for (int i = 0; i < 2; i++) {
-            double qx = ex + i, qy = ey + j;
-            use[2 * j + i] = qx * qx + qy * qy <= keep * keep ? 1.0f : 0.0f;
-        }
-    w *= (v4f){use[0], use[1], use[2], use[3]};
+    /* Keep the taps whose centres are inside the margin: both columns'
+     * squared offsets at once, their masks clearing the other weights. */
+    v2d qx = {ex, ex + 1.0}, k2 = {keep * keep, keep * keep};
+    qx *= qx;
+    v2l in0 = qx + ey * ey <= k2, in1 = qx + (ey + 1.0) * (ey + 1.0) <= k2;
+    w = (v4f)((v4i)w & __builtin_shuffle((v4i)in0, (v4i)in1, (v4i){0, 2, 4, 6}));
     float wsum = w[0] + w[1] + w[2] + w[3];
     if (wsum > 0.0f)
         return (load3(p) * w[0] + load3(p + 3) * w[1] + load3(p + img->stride) * w[2] +
@@ -157,7 +176,7 @@ static inline void map_local(const unwrap_ctx *c, const double wv[3], ball_hit *
     ball_view_map_local(c->view, wv, hit);
 }
 
-static void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
+static inline void inv_reflectance(const unwrap_ctx *c, double cosi, double out[3])
 {
     if (!c->refl_table) {
         memcpy(out, c->inv_refl, sizeof c->inv_refl);
@@ -287,7 +306,7 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
  * lookups. */
 static int fast_count(double extent_px)
 {
-    double n = extent_px <= 1.25 ? 1.0 : ceil((extent_px - 1.0) / 1.25) + 1.0;
+    double n = extent_px <= 1.25 ? 1.0 : ceil_coord((extent_px - 1.0) / 1.25) + 1.0;
     return n > SUB_MAX ? SUB_MAX : (int)n;
 }
 
@@ -354,17 +373,25 @@ static inline v4f vmax(v4f a, v4f b)
  * it never rings around a bright source. All 16 taps must be ball pixels
  * clear of the rim margin (checked by the caller). Written out row by row
  * (the rows are independent; the inner four taps are the clamp's too). */
-static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, double x,
-                                                         double y)
+/* The 4x4 taps' top-left pixel for the point (x, y), and the weights of
+ * the tap columns (wx) and rows (wy). */
+static inline __attribute__((always_inline)) const float *
+cubic_taps(const sl_image *img, double x, double y, v4f *wx, v4f *wy)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
-    float tx = (float)(fx - x0), ty = (float)(fy - y0);
-    v4f wx = keys_weights(tx), wy = keys_weights(ty);
+    *wx = keys_weights((float)(fx - x0));
+    *wy = keys_weights((float)(fy - y0));
+    return img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * NC;
+}
+
+static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, double x,
+                                                         double y)
+{
+    v4f wx, wy;
+    const float *p = cubic_taps(img, x, y, &wx, &wy);
     v4f w0 = splat(wx, 0), w1 = splat(wx, 1), w2 = splat(wx, 2), w3 = splat(wx, 3);
-    size_t st = img->stride;
-    const float *p = img->data + (size_t)(y0 - 1) * st + (size_t)(x0 - 1) * NC;
-    const float *q = p + st, *r = q + st, *s = r + st;
+    const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v4f q1 = load4(q + NC), q2 = load4(q + 2 * NC), r1 = load4(r + NC), r2 = load4(r + 2 * NC);
     v4f rp = load4(p) * w0 + load4(p + NC) * w1 + load4(p + 2 * NC) * w2 + load4(p + 3 * NC) * w3;
     v4f rq = load4(q) * w0 + q1 * w1 + q2 * w2 + load4(q + 3 * NC) * w3;
@@ -375,15 +402,62 @@ static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, do
     return vmin(vmax(acc, lo), hi);
 }
 
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__clang__) || __GNUC__ >= 12)
+#define HAVE_ROWS_AVX 1
+/* bicubic() with two rows per 8-wide vector (the row above in the low
+ * half): the same products summed in the same order, so the same bits;
+ * half the arithmetic instructions where the row loop is built for AVX. */
+typedef float v8f __attribute__((vector_size(32)));
+
+/* Rows a|b of one tap column: the two 4-wide loads joined. */
+#define LOAD4X2(a, b) __builtin_shufflevector(load4(a), load4(b), 0, 1, 2, 3, 4, 5, 6, 7)
+#define LOW4(v) __builtin_shufflevector((v), (v), 0, 1, 2, 3)
+#define HIGH4(v) __builtin_shufflevector((v), (v), 4, 5, 6, 7)
+#define SPLAT8(v, i) __builtin_shufflevector((v), (v), i, i, i, i, i, i, i, i)
+#define SPLAT44(v, i, j) __builtin_shufflevector((v), (v), i, i, i, i, j, j, j, j)
+
+static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, double x,
+                                                          double y)
+{
+    v4f wx, wy;
+    const float *p = cubic_taps(img, x, y, &wx, &wy);
+    v8f w0 = SPLAT8(wx, 0), w1 = SPLAT8(wx, 1), w2 = SPLAT8(wx, 2), w3 = SPLAT8(wx, 3);
+    const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
+    v8f pq1 = LOAD4X2(p + NC, q + NC), pq2 = LOAD4X2(p + 2 * NC, q + 2 * NC);
+    v8f rs1 = LOAD4X2(r + NC, s + NC), rs2 = LOAD4X2(r + 2 * NC, s + 2 * NC);
+    v8f pq = LOAD4X2(p, q) * w0 + pq1 * w1 + pq2 * w2 + LOAD4X2(p + 3 * NC, q + 3 * NC) * w3;
+    v8f rs = LOAD4X2(r, s) * w0 + rs1 * w1 + rs2 * w2 + LOAD4X2(r + 3 * NC, s + 3 * NC) * w3;
+    v8f a = pq * SPLAT44(wy, 0, 1), b = rs * SPLAT44(wy, 2, 3);
+    v4f acc = LOW4(a) + HIGH4(a) + LOW4(b) + HIGH4(b);
+    v4f q1 = HIGH4(pq1), q2 = HIGH4(pq2), r1 = LOW4(rs1), r2 = LOW4(rs2);
+    v4f lo = vmin(vmin(q1, q2), vmin(r1, r2)), hi = vmax(vmax(q1, q2), vmax(r1, r2));
+    return vmin(vmax(acc, lo), hi);
+}
+#endif
+
+/* The cubic lookup, 8 wide in the row loop built for AVX. */
+static inline __attribute__((always_inline)) v4f cubic_lookup(const sl_image *img, double x,
+                                                              double y, bool wide)
+{
+#ifdef HAVE_ROWS_AVX
+    if (wide)
+        return bicubic8(img, x, y);
+#endif
+    (void)wide;
+    return bicubic(img, x, y);
+}
+
 /* Texel centres of one lat-long row mapped to the photo. */
 typedef struct centre {
     double x, y, cosi;
     bool blind;
 } centre;
 
-/* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]. */
-static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
+/* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]; whether
+ * any of them is blind. */
+static bool map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
 {
+    bool any_blind = false;
     int w = c->width, h = c->height;
     double lat = M_PI * (0.5 - (y + 0.5) / h), cl = cos(lat), sl = sin(lat);
     const double(*m)[3] = c->world_to_view;
@@ -426,13 +500,16 @@ static void map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
         row[x].y = hit.y;
         row[x].cosi = hit.cos_incidence;
         row[x].blind = hit.blind;
+        any_blind |= hit.blind;
     }
+    return any_blind;
 }
 
 /* What the texels of one row share. */
 typedef struct row_geom {
     int y;
-    bool inner_row; /* has rows above and below */
+    bool inner_row;   /* has rows above and below */
+    bool maybe_blind; /* a centre of the row or those next to it is blind */
     bool confidence;
     double vscale, cos_lat, sin_lat, lon_step, lat_step, ref, keep;
     double inner_any; /* keep less the lookup's reach and the largest fast footprint */
@@ -444,11 +521,13 @@ typedef struct row_geom {
  * across the texel: sub-samples are placed with the centres' differences
  * (checked against the rim only when the footprint comes near it);
  * elsewhere the texel is done exactly. */
-static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *ce,
-                  const centre *up, const centre *down, float *p)
+static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, const row_geom *g,
+                                                         int x, const centre *ce,
+                                                         const centre *up, const centre *down,
+                                                         float *p, bool wide)
 {
     const centre *l = ce - 1, *r = ce + 1;
-    if (ce->blind || l->blind || r->blind || up->blind || down->blind) {
+    if (g->maybe_blind && (ce->blind || l->blind || r->blind || up->blind || down->blind)) {
         texel_exact(c, x, g->y, p);
         return;
     }
@@ -496,7 +575,7 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
     if (eu2 <= 1.25 * 1.25 && ev2 <= 1.25 * 1.25) {
         /* The lookup's kernel is about as wide as the footprint. */
         if (cubic) {
-            val = bicubic(c->photo, ce->x, ce->y);
+            val = cubic_lookup(c->photo, ce->x, ce->y, wide);
         } else if (checked) {
             bool in;
             val = photo_lookup(c, ce->x, ce->y, &in);
@@ -523,7 +602,7 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
                 double sx = ce->x + a * du[0] + b * dv[0];
                 double sy = ce->y + a * du[1] + b * dv[1];
                 if (cubic) {
-                    row += bicubic(c->photo, sx, sy);
+                    row += cubic_lookup(c->photo, sx, sy, wide);
                 } else if (!checked) {
                     row += bilinear(c->photo, sx, sy);
                 } else {
@@ -561,15 +640,17 @@ static void texel(const unwrap_ctx *c, const row_geom *g, int x, const centre *c
  * (a whole row's path through the photo does not). The texel centres of a
  * tile and the rows and columns around it are mapped first, so each centre
  * is mapped once (plus a border per tile). */
-static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
+static inline __attribute__((always_inline)) void rows_body(const unwrap_ctx *c, int64_t first,
+                                                             int64_t last, bool wide)
 {
-    (void)worker;
-    const unwrap_ctx *c = ctx;
     int w = c->width, h = c->height;
     int64_t begin = c->row0 + first, end = c->row0 + last;
     int nrows = (int)(end - begin) + 2, tw = TILE_W + 2;
     centre *buf = malloc(sizeof(centre) * (size_t)nrows * (size_t)tw);
-    if (!buf) {
+    bool *blind = calloc((size_t)nrows, sizeof *blind); /* per buf row */
+    if (!buf || !blind) {
+        free(buf);
+        free(blind);
         /* No memory for the fast path: the exact one needs none. */
         for (int64_t y = begin; y < end; y++)
             for (int x = 0; x < w; x++)
@@ -585,7 +666,7 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
         for (int i = 0; i < nrows; i++) {
             int y = (int)begin - 1 + i;
             if (y >= 0 && y < h)
-                map_row(c, y, xb - 1, xe + 1, buf + (size_t)i * tw);
+                blind[i] = map_row(c, y, xb - 1, xe + 1, buf + (size_t)i * tw);
         }
         for (int y = (int)begin; y < end; y++) {
             const centre *row = buf + (size_t)(y - begin + 1) * tw + 1 - xb;
@@ -593,16 +674,36 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
             double lat = M_PI * (0.5 - (y + 0.5) / h);
             g.y = y;
             g.inner_row = y > 0 && y + 1 < h;
+            g.maybe_blind = blind[y - begin] || blind[y - begin + 1] || blind[y - begin + 2];
             g.vscale = g.inner_row ? 0.5 : 1.0;
             g.cos_lat = cos(lat);
             g.sin_lat = sin(lat);
             g.lon_step = 2.0 * M_PI / w * g.cos_lat;
-            for (int x = xb; x < xe; x++)
-                texel(c, &g, x, row + x, up + x, down + x, out_pixel(c, x, y));
+            float *p = out_pixel(c, xb, y);
+            for (int x = xb; x < xe; x++, p += c->channels)
+                texel(c, &g, x, row + x, up + x, down + x, p, wide);
         }
     }
     free(buf);
+    free(blind);
 }
+
+static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
+{
+    (void)worker;
+    rows_body(ctx, first, last, false);
+}
+
+#ifdef HAVE_ROWS_AVX
+/* The same rows built for AVX (no FMA: every sum rounds as before), used
+ * where the processor has it: the same bytes either way. */
+__attribute__((target("avx"))) static void unwrap_rows_avx(void *ctx, int64_t first,
+                                                            int64_t last, int worker)
+{
+    (void)worker;
+    rows_body(ctx, first, last, true);
+}
+#endif
 
 static void tables_free(unwrap_ctx *c)
 {
@@ -683,6 +784,23 @@ static void count_rows(void *ctx, int64_t begin, int64_t end, int worker)
     for (int64_t y = begin; y < end; y++) {
         const float *row = sl_image_pixel(img, 0, (int)y);
         int64_t n = 0;
+        if (img->channels == nc) {
+            /* Every sample: NaN and Inf are the all-ones exponent, tested
+             * on the bits four at a time. */
+            size_t count = (size_t)img->width * (size_t)nc, i = 0;
+            v4i acc = {0, 0, 0, 0};
+            const v4i expo = {0x7f800000, 0x7f800000, 0x7f800000, 0x7f800000};
+            for (; i + 4 <= count; i += 4) {
+                v4i b;
+                memcpy(&b, row + i, sizeof b);
+                acc -= (b & expo) == expo;
+            }
+            n = (int64_t)acc[0] + acc[1] + acc[2] + acc[3];
+            for (; i < count; i++)
+                n += !isfinite(row[i]);
+            j->rows[y] = n;
+            continue;
+        }
         for (int x = 0; x < img->width; x++)
             for (int k = 0; k < nc; k++)
                 n += !isfinite(row[(size_t)x * (size_t)img->channels + (size_t)k]);
@@ -860,7 +978,12 @@ static void unwrap_strip(unwrap_run *u, float *rows, size_t stride, int y0, int 
     u->c.rows = rows;
     u->c.stride = stride;
     u->c.row0 = y0;
-    sl_parallel_for(y1 - y0, ROW_GRAIN, unwrap_rows, &u->c);
+    sl_range_fn rows_fn = unwrap_rows;
+#ifdef HAVE_ROWS_AVX
+    if (__builtin_cpu_supports("avx"))
+        rows_fn = unwrap_rows_avx;
+#endif
+    sl_parallel_for(y1 - y0, ROW_GRAIN, rows_fn, &u->c);
 }
 
 sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_image *out,
@@ -878,6 +1001,70 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
     return r;
 }
 
+/* Strips go to the sink from a thread of its own while the next strip is
+ * unwrapped: the sink's work (e.g. compressing and writing) fills the
+ * cores where a strip's parallel loop runs out of rows, and vice versa.
+ * With one thread, the strips go to the sink in turn. */
+typedef struct strip_handoff {
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+    bool threaded;
+    const sl_unwrap_sink *sink;
+    sl_error *err;
+    sl_image buf[2];
+    int rows[2]; /* rows in buf[i] waiting for the sink; 0: free */
+    bool done;   /* no more strips */
+    sl_result r; /* the sink's first failure */
+} strip_handoff;
+
+static void *strip_writer(void *arg)
+{
+    strip_handoff *h = arg;
+    pthread_mutex_lock(&h->lock);
+    for (int b = 0;; b = 1 - b) {
+        while (!h->rows[b] && !h->done)
+            pthread_cond_wait(&h->cond, &h->lock);
+        if (!h->rows[b])
+            break;
+        sl_result r = h->r;
+        pthread_mutex_unlock(&h->lock);
+        /* After a failure the strips are dropped, so the unwrap never waits. */
+        if (!r)
+            r = h->sink->rows(h->sink->user, h->buf[b].data, h->rows[b], h->buf[b].stride, h->err);
+        pthread_mutex_lock(&h->lock);
+        h->r = r;
+        h->rows[b] = 0;
+        pthread_cond_broadcast(&h->cond);
+    }
+    pthread_mutex_unlock(&h->lock);
+    return NULL;
+}
+
+/* Waits until buffer b is free; the sink's failure, if any. */
+static sl_result strip_wait(strip_handoff *h, int b)
+{
+    if (!h->threaded)
+        return h->r;
+    pthread_mutex_lock(&h->lock);
+    while (h->rows[b] && !h->r)
+        pthread_cond_wait(&h->cond, &h->lock);
+    sl_result r = h->r;
+    pthread_mutex_unlock(&h->lock);
+    return r;
+}
+
+static void strip_ready(strip_handoff *h, int b, int rows)
+{
+    if (!h->threaded) {
+        h->r = h->sink->rows(h->sink->user, h->buf[b].data, rows, h->buf[b].stride, h->err);
+        return;
+    }
+    pthread_mutex_lock(&h->lock);
+    h->rows[b] = rows;
+    pthread_cond_broadcast(&h->cond);
+    pthread_mutex_unlock(&h->lock);
+}
+
 sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
                            const sl_unwrap_sink *sink, sl_unwrap_info *info, sl_error *err)
 {
@@ -888,16 +1075,47 @@ sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
     sl_result r = unwrap_start(photo, opt, &u, info, err);
     if (r)
         return r;
-    sl_image strip = {0};
+    strip_handoff hand;
+    memset(&hand, 0, sizeof hand);
+    hand.sink = sink;
+    hand.err = err;
     int h = u.c.height, rows = h < STRIP_ROWS ? h : STRIP_ROWS;
+    bool overlap = h > rows && sl_threads_get() > 1;
     if (!(r = sink->begin(sink->user, info, u.c.channels, err)))
-        r = image_alloc_large(&strip, u.c.width, rows, u.c.channels, err);
-    for (int y = 0; y < h && !r; y += rows) {
-        int n = h - y < rows ? h - y : rows;
-        unwrap_strip(&u, strip.data, strip.stride, y, y + n);
-        r = sink->rows(sink->user, strip.data, n, strip.stride, err);
+        r = image_alloc_large(&hand.buf[0], u.c.width, rows, u.c.channels, err);
+    if (!r && overlap)
+        r = image_alloc_large(&hand.buf[1], u.c.width, rows, u.c.channels, err);
+    pthread_t writer;
+    if (!r && overlap) {
+        pthread_mutex_init(&hand.lock, NULL);
+        pthread_cond_init(&hand.cond, NULL);
+        hand.threaded = pthread_create(&writer, NULL, strip_writer, &hand) == 0;
+        if (!hand.threaded) {
+            pthread_cond_destroy(&hand.cond);
+            pthread_mutex_destroy(&hand.lock);
+        }
     }
-    sl_image_free(&strip);
+    /* Without the writer thread, one buffer in turn. */
+    for (int y = 0, b = 0; y < h && !r; y += rows, b = hand.threaded ? 1 - b : 0) {
+        int n = h - y < rows ? h - y : rows;
+        if ((r = strip_wait(&hand, b)))
+            break;
+        unwrap_strip(&u, hand.buf[b].data, hand.buf[b].stride, y, y + n);
+        strip_ready(&hand, b, n);
+    }
+    if (hand.threaded) {
+        pthread_mutex_lock(&hand.lock);
+        hand.done = true;
+        pthread_cond_broadcast(&hand.cond);
+        pthread_mutex_unlock(&hand.lock);
+        pthread_join(writer, NULL);
+        pthread_cond_destroy(&hand.cond);
+        pthread_mutex_destroy(&hand.lock);
+    }
+    if (!r)
+        r = hand.r;
+    sl_image_free(&hand.buf[0]);
+    sl_image_free(&hand.buf[1]);
     unwrap_stop(&u);
     return r;
 }

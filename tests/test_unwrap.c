@@ -365,9 +365,11 @@ static sl_result stack_rows(void *user, const float *rows, int count, size_t str
     return SL_OK;
 }
 
-/* Streamed strip by strip (more than one strip: 1200 x 600), the rows are
- * the same bytes as the whole unwrap's, with and without the confidence;
- * a failing sink stops it and its error comes back. */
+/* Streamed strip by strip (more than one strip: 1200 x 600 is three of 256
+ * rows), the rows are the same bytes as the whole unwrap's, with and
+ * without the confidence, on one thread (strips to the sink in turn) and
+ * two (the sink on a thread of its own); a failing sink stops it and its
+ * error comes back. */
 static void test_stream(void)
 {
     ball_fixture f;
@@ -378,7 +380,9 @@ static void test_stream(void)
     sl_unwrap_options o = {.width = 1200};
     ball_fixture_circle(&f, 0, &o.circle);
     sl_reflectance_chrome(&o.reflectance);
-    for (int noconf = 0; noconf < 2; noconf++) {
+    for (int run = 0; run < 4; run++) {
+        int noconf = run & 1;
+        sl_threads_set(run < 2 ? 1 : 2);
         o.no_confidence = noconf;
         sl_unwrap_info info;
         CHECK_OK(sl_unwrap(&photo, &o, &whole, &info, NULL), NULL);
@@ -386,18 +390,21 @@ static void test_stream(void)
         sl_unwrap_sink sink = {stack_begin, stack_rows, &s};
         sl_error err;
         CHECK_OK(sl_unwrap_stream(&photo, &o, &sink, NULL, &err), &err);
-        CHECK(s.channels == 4 - noconf && s.rows_done == 600 && s.calls == 2);
+        CHECK(s.channels == 4 - noconf && s.rows_done == 600 && s.calls == 3);
         CHECK(s.info.width == info.width && s.info.blind_angle_deg == info.blind_angle_deg);
         CHECK(whole.data && s.img.data &&
               memcmp(whole.data, s.img.data, sizeof(float) * whole.stride * whole.height) == 0);
         sl_image_free(&s.img);
         sl_image_free(&whole);
-        stack_sink bad = {.fail_at = 1};
+        /* The first call fails, or (two threads) the second, while the
+         * third strip is unwrapped. */
+        stack_sink bad = {.fail_at = 1 + run / 2};
         sink.user = &bad;
         CHECK_RESULT(sl_unwrap_stream(&photo, &o, &sink, NULL, &err), SL_ERR_IO, &err);
-        CHECK(strstr(err.message, "disk full") != NULL && bad.calls == 1);
+        CHECK(strstr(err.message, "disk full") != NULL && bad.calls == bad.fail_at);
         sl_image_free(&bad.img);
     }
+    sl_threads_set(0);
     sl_image_free(&photo);
 }
 

@@ -55,7 +55,7 @@ static const char *unwrap_help =
     "                         where the ball faces the camera)\n"
     "  --no-confidence        write RGB only\n"
     "  --float                32-bit float EXR instead of half\n"
-    "  --compression C        piz (default), zip, rle or none (all lossless)\n"
+    "  --compression C        zip (default), piz, rle or none (all lossless)\n"
     "  --json                 print the result as JSON on stdout\n\n"
     "The A channel is the confidence: resolution relative to the ball's centre, 0 in\n"
     "the blind cone behind the ball (filled flat with the rim's median). An 8-bit\n"
@@ -262,15 +262,15 @@ static sl_result stream_begin(void *user, const sl_unwrap_info *info, int channe
     return r;
 }
 
+/* Called while the next rows are unwrapped (sl_unwrap_stream overlaps
+ * the two): its time is the unwrap stage's, not the writing's. */
 static sl_result stream_rows(void *user, const float *rows, int count, size_t stride,
                              sl_error *err)
 {
     out_job *j = user;
-    double t = sl_seconds(), c = sl_cpu_seconds();
     sl_result r = sl_exr_stream_write(j->stream, rows, count, stride, err);
     if (r)
         j->stream = NULL; /* a failed write aborts the stream */
-    writing_took(j, t, c);
     return r;
 }
 
@@ -314,7 +314,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     po.search_deg = 20;
     po.occluder_deg = 20;
     bool have_circle = false, have_circle2 = false, confidence = true, use_float = false;
-    sl_exr_compression compression = SL_EXR_PIZ;
+    sl_exr_compression compression = SL_EXR_ZIP;
     bool have_refl = false, have_patch = false, have[3] = {false, false, false};
     double cam2[3] = {0, 0, 0}, patch[6] = {0};
     ball_camera_opts bc;
@@ -534,7 +534,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_INFO, "ball reflectance from the patch: %.4f, %.4f, %.4f", refl_patch[0],
                refl_patch[1], refl_patch[2]);
     }
-    /* The streamed unwrap's time excludes its rows' writing (job.write_*). */
+    /* The streamed unwrap's time includes its rows' conversion, encoding
+     * and writing (overlapped with it), not the file's opening and finish. */
     double t_unwrap = sl_seconds() - t1 - job.write_s;
     double cpu_unwrap = sl_cpu_seconds() - cpu1 - job.write_cpu;
     for (int i = 0; i < nviews; i++)

@@ -31,12 +31,12 @@ out_has "setlight:ball_reflectance conductor"
 expect 0 "$SETLIGHT" unwrap --json --circle 104.33,86.37,46.47 --camera ortho --width 64 \
   --no-confidence -o "$T/ortho.exr" "$T/ball.exr"
 json_eval "$T/out" 'not d["circle"]["detected"] and d["camera"] == "orthographic" and d["width"] == 64'
-json_eval "$T/out" 'd["encoding"] == {"pixel": "half", "compression": "piz"}'
+json_eval "$T/out" 'd["encoding"] == {"pixel": "half", "compression": "zip"}'
 expect 0 "$SETLIGHT" info --json "$T/ortho.exr"
 json_eval "$T/out" 'd["files"][0]["channels"] == 3'
 cp "$T/out" "$T/ortho_info.json"
 # the other lossless compressions: the same pixels, a different file
-for comp in zip rle none; do
+for comp in piz rle none; do
   expect 0 "$SETLIGHT" unwrap --json --circle 104.33,86.37,46.47 --camera ortho --width 64 \
     --no-confidence --compression $comp -o "$T/ortho_$comp.exr" "$T/ball.exr"
   json_eval "$T/out" "d['encoding']['compression'] == '$comp'"
@@ -44,7 +44,7 @@ for comp in zip rle none; do
   if python3 -c 'import json,sys; a,b=(json.load(open(p))["files"][0]["channel_stats"] for p in sys.argv[1:]); sys.exit(a != b)' \
     "$T/ortho_info.json" "$T/out"; then ok; else bad "--compression $comp changed the pixels"; fi
 done
-cmp -s "$T/ortho.exr" "$T/ortho_none.exr" && bad "--compression none wrote the PIZ file" || ok
+cmp -s "$T/ortho.exr" "$T/ortho_none.exr" && bad "--compression none wrote the ZIP file" || ok
 expect 2 "$SETLIGHT" unwrap --circle 104.33,86.37,46.47 --compression zips -o "$T/zips.exr" "$T/ball.exr"
 err_has "--compression"; err_one_line; absent "$T/zips.exr"
 
