@@ -15,6 +15,10 @@ enum { STRIP = 32 };
  * so noise around the threshold does not switch a frame in and out. */
 #define SHOULDER 0.05
 
+/* A frame's terms of a pixel's weighted sum: {weight times value, weight},
+ * added as one pair (one SSE2 add on x86-64). */
+typedef double merge_term __attribute__((vector_size(16)));
+
 typedef struct pass_ctx {
     const merge_ctx *m;
     const sl_merge_options *opt;
@@ -34,9 +38,14 @@ typedef struct pass_ctx {
     float *cinv[3], *cwb[3], *cfade; /* with codes, per code: the same, and the shoulder fade */
     float *rx, *rw;         /* with 8-bit codes, per rank, channel and code: linear value
                                on the output scale and weight with the exposure factor */
+    merge_term *terms;      /* the same as the sums' terms: {rw * rx, rw}, exact in double */
+    int shoulder_from, saturated_from; /* with 8-bit codes: the first code whose fade is
+                                          below 1, and the first at 0 (the fade falls) */
     int64_t *row_counts;    /* per row: clipped R, G, B, any; underexposed; nonfinite */
     float *out, *mask, *ghost; /* row y0 of the outputs (ghost NULL without deghost) */
     size_t out_stride, mask_stride, ghost_stride;
+    double *task_cpu;       /* per worker and phase: CPU seconds of its tasks */
+    int workers;
 } pass_ctx;
 
 enum { COUNT_UNDER = 4, COUNT_NONFINITE = 5, COUNT_GHOST = 6, COUNTS = 7 };
@@ -165,46 +174,63 @@ static void fill_float(const pass_ctx *p, size_t idx, double xs[3][MERGE_MAX_FRA
 }
 
 /* 8-bit codes without deghost (the common case): fill_codes and the sums
- * of merge_rows in one loop over per-rank tables. */
+ * of merge_rows in one loop. A fully weighted frame adds its terms
+ * (weight * value, weight: exact in double, so the same sums bit for bit)
+ * from per-rank tables: one 16-byte load and add per channel, which the
+ * compiler pairs into one SSE2 add. The longest unsaturated frame's value
+ * (the fallback) and the shortest one's (the lower bound where all are
+ * saturated) are looked up only when needed. */
 static void merge_row_u8(const pass_ctx *p, int row, float *out, float *mask, int64_t *cnt)
 {
     int w = p->m->width, f = p->frames;
+    const uint8_t *src[MERGE_MAX_FRAMES];
+    for (int r = 0; r < f; r++)
+        src[r] = (const uint8_t *)p->buf[r] + (size_t)row * w * 3;
     for (int x = 0; x < w; x++) {
-        size_t idx = ((size_t)row * w + x) * 3;
-        double num[3] = {0, 0, 0}, den[3] = {0, 0, 0}, fb[3] = {0, 0, 0}, lo[3] = {0, 0, 0};
-        int nsat = 0;
+        merge_term s0 = {0, 0}, s1 = s0, s2 = s0;
+        int nsat = 0, last = 0;
         for (int r = 0; r < f; r++) {
-            const uint8_t *q = (const uint8_t *)p->buf[r] + idx;
+            const uint8_t *q = src[r] + (size_t)x * 3;
             int qm = q[0] > q[1] ? q[0] : q[1];
             qm = qm > q[2] ? qm : q[2];
-            float fade = p->cfade[qm];
-            const float *rx = p->rx + (size_t)r * 3 * 256, *rw = p->rw + (size_t)r * 3 * 256;
-            if (fade == 0) {
-                if (r == 0)
-                    for (int c = 0; c < 3; c++)
-                        lo[c] = rx[c * 256 + q[c]];
+            if (qm >= p->saturated_from) {
                 nsat++;
                 continue;
             }
+            last = r;
+            const merge_term *t = p->terms + (size_t)r * 3 * 256;
+            if (qm < p->shoulder_from) {
+                s0 += t[q[0]];
+                s1 += t[256 + q[1]];
+                s2 += t[512 + q[2]];
+                continue;
+            }
+            /* In the shoulder: the weight faded in float, as fill_codes does. */
+            float fade = p->cfade[qm];
+            const float *rx = p->rx + (size_t)r * 3 * 256, *rw = p->rw + (size_t)r * 3 * 256;
+            merge_term faded[3];
             for (int c = 0; c < 3; c++) {
                 double xv = rx[c * 256 + q[c]], wv = (double)(rw[c * 256 + q[c]] * fade);
-                num[c] += wv * xv;
-                den[c] += wv;
-                fb[c] = xv; /* longest unsaturated so far */
+                faded[c] = (merge_term){wv * xv, wv};
             }
+            s0 += faded[0];
+            s1 += faded[1];
+            s2 += faded[2];
         }
+        merge_term sum[3] = {s0, s1, s2};
         bool any = nsat == f;
         for (int c = 0; c < 3; c++) {
             double v;
             if (any) {
                 /* The shortest frame's value is a lower bound, never an estimate. */
-                v = lo[c];
+                v = p->rx[c * 256 + src[0][(size_t)x * 3 + c]];
                 mask[x * 3 + c] = 1;
                 cnt[c]++;
-            } else if (den[c] > 0) {
-                v = num[c] / den[c];
+            } else if (sum[c][1] > 0) {
+                v = sum[c][0] / sum[c][1];
             } else {
-                v = fb[c];
+                /* No weight: the longest unsaturated frame's value. */
+                v = p->rx[((size_t)last * 3 + c) * 256 + src[last][(size_t)x * 3 + c]];
                 cnt[COUNT_UNDER]++;
             }
             out[x * 3 + c] = (float)v;
@@ -331,13 +357,21 @@ static sl_result build_luts(pass_ctx *p, sl_error *err)
         return SL_OK;
     p->rx = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rx);
     p->rw = malloc((size_t)p->frames * 3 * 256 * sizeof *p->rw);
-    if (!p->rx || !p->rw)
+    p->terms = aligned_alloc(16, (size_t)p->frames * 3 * 256 * sizeof *p->terms);
+    if (!p->rx || !p->rw || !p->terms)
         return sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
-    for (int r = 0; r < p->frames; r++)
-        for (int c = 0; c < 3; c++)
-            for (int q = 0; q < 256; q++) {
-                p->rx[((size_t)r * 3 + c) * 256 + q] = (float)(p->cinv[c][q] * p->inv_e[r]);
-                p->rw[((size_t)r * 3 + c) * 256 + q] = (float)(p->cwb[c][q] * p->e2[r]);
+    while (p->shoulder_from < 256 && p->cfade[p->shoulder_from] == 1)
+        p->shoulder_from++;
+    p->saturated_from = p->shoulder_from;
+    while (p->saturated_from < 256 && p->cfade[p->saturated_from] > 0)
+        p->saturated_from++;
+    for (size_t r = 0; r < (size_t)p->frames; r++)
+        for (size_t c = 0; c < 3; c++)
+            for (size_t q = 0; q < 256; q++) {
+                size_t k = (r * 3 + c) * 256 + q;
+                p->rx[k] = (float)(p->cinv[c][q] * p->inv_e[r]);
+                p->rw[k] = (float)(p->cwb[c][q] * p->e2[r]);
+                p->terms[k] = (merge_term){(double)p->rw[k] * p->rx[k], p->rw[k]};
             }
     return SL_OK;
 }
@@ -372,12 +406,17 @@ static sl_result alloc_outputs(pass_ctx *p, const merge_sink *sink, sl_error *er
 static void step_tasks(void *ctx, int64_t begin, int64_t end, int worker)
 {
     pass_ctx *p = ctx;
+    double *task_cpu = p->task_cpu + (size_t)worker * SL_MERGE_PHASES;
     for (int64_t t = begin; t < end; t++) {
+        double t0 = merge_thread_cpu();
         if (t < p->frames) {
             if (p->ny1 > p->ny0)
                 read_next(p, (int)t);
-        } else
+            task_cpu[SL_MERGE_DECODE] += merge_thread_cpu() - t0;
+        } else {
             merge_rows(p, t - p->frames, t - p->frames + 1, worker);
+            task_cpu[SL_MERGE_PIXELS] += merge_thread_cpu() - t0;
+        }
     }
 }
 
@@ -399,7 +438,9 @@ static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
         if (p->ghost)
             memset(p->ghost, 0, (size_t)rows * p->ghost_stride * sizeof *p->ghost);
     }
+    merge_clock clock = merge_clock_start();
     sl_parallel_for(p->frames + rows, 1, step_tasks, p);
+    clock = merge_clock_split(&res->timing, clock, p->task_cpu, p->workers);
     sl_result r = SL_OK;
     for (int q = 0; q < p->frames && !r && p->ny1 > p->ny0; q++)
         if ((r = p->results[q]) && err)
@@ -411,6 +452,7 @@ static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
         r = sl_exr_stream_write(sink->mask, p->mask, rows, p->mask_stride, err);
     if (!r && sink->ghost)
         r = sl_exr_stream_write(sink->ghost, p->ghost, rows, p->ghost_stride, err);
+    merge_clock_charge(&res->timing, clock, SL_MERGE_WRITE);
     return r;
 }
 
@@ -429,8 +471,11 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     p.errs = calloc((size_t)f, sizeof *p.errs);
     p.results = calloc((size_t)f, sizeof *p.results);
     p.row_counts = calloc((size_t)m->height * COUNTS, sizeof *p.row_counts);
+    p.workers = sl_threads_get();
+    p.task_cpu = calloc((size_t)p.workers * SL_MERGE_PHASES, sizeof *p.task_cpu);
     sl_result r = SL_OK;
-    if (!p.e || !p.inv_e || !p.e2 || !p.rd || !p.buf || !p.errs || !p.results || !p.row_counts)
+    if (!p.e || !p.inv_e || !p.e2 || !p.rd || !p.buf || !p.errs || !p.results || !p.row_counts ||
+        !p.task_cpu)
         r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     if (!r)
         r = alloc_outputs(&p, sink, err);
@@ -450,12 +495,16 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
         else
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
+    merge_clock tables = merge_clock_start();
     if (!r)
         r = build_luts(&p, err);
+    merge_clock_charge(&res->timing, tables, SL_MERGE_PIXELS);
     /* The first strip is read alone; then each step merges one and reads the next. */
     p.ny1 = STRIP < m->height ? STRIP : m->height;
     if (!r) {
+        merge_clock clock = merge_clock_start();
         sl_parallel_for(f, 1, step_tasks, &p);
+        merge_clock_split(&res->timing, clock, p.task_cpu, p.workers);
         for (int q = 0; q < f && !r; q++)
             if ((r = p.results[q]) && err)
                 *err = p.errs[q];
@@ -509,6 +558,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     free(p.cfade);
     free(p.rx);
     free(p.rw);
+    free(p.terms);
     free(p.e);
     free(p.inv_e);
     free(p.e2);
@@ -517,5 +567,6 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merg
     free(p.errs);
     free(p.results);
     free(p.row_counts);
+    free(p.task_cpu);
     return r;
 }

@@ -77,6 +77,24 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
 int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double black,
                      double saturation, double *ratio);
 
+/* Timing by phase (merge_clock.c): a stretch starts at a clock (wall and
+ * process CPU); charging it to a phase returns the clock for the next. */
+typedef struct merge_clock {
+    double wall, cpu;
+} merge_clock;
+merge_clock merge_clock_start(void);
+/* CPU seconds of the calling thread, for the tasks of parallel loops. */
+double merge_thread_cpu(void);
+merge_clock merge_clock_charge(sl_merge_timing *t, merge_clock since, sl_merge_phase phase);
+/* A parallel stretch: task[w * SL_MERGE_PHASES + phase] is the CPU the
+ * tasks of worker w (of `workers`) measured per phase, zeroed here for the
+ * next stretch; the rest of its CPU is other's, and its wall is split by
+ * CPU shares. */
+merge_clock merge_clock_split(sl_merge_timing *t, merge_clock since, double *task, int workers);
+/* The totals since start (res->seconds, cpu_seconds); other gets what no
+ * phase claimed, so the phases add up to them. */
+void merge_clock_finish(sl_merge_result *res, merge_clock start);
+
 /* State shared by the merge stages (merge.c, merge_pass.c). */
 typedef struct merge_ctx {
     int width, height, bits;

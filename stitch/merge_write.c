@@ -162,7 +162,7 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
                           const char *path, const char *mask_path, const char *ghost_path,
                           sl_merge_result *out, sl_error *err)
 {
-    double t0 = sl_seconds();
+    merge_clock t0 = merge_clock_start();
     sl_merge_options opt = merge_options_or_default(opt_in);
     merge_ctx m;
     memset(&m, 0, sizeof m);
@@ -196,6 +196,7 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
         r = merge_pass(&m, &opt, &sink, out, err);
     if (!r)
         r = merge_output_meta(path, mask_path, ghost_path, out, &final, err);
+    merge_clock finish = merge_clock_start();
     /* Masks first, then the radiance; a failure removes them all. */
     bool written[2] = {false, false};
     for (int i = 0; i < 2; i++) {
@@ -214,11 +215,12 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
     for (int i = 0; i < 2 && r; i++)
         if (written[i])
             unlink(side_path[i]);
+    merge_clock_charge(&out->timing, finish, SL_MERGE_WRITE);
     sl_meta_free(&meta);
     sl_meta_free(&final);
     merge_ctx_free(&m);
     if (r)
         sl_merge_result_free(out);
-    out->seconds = sl_seconds() - t0;
+    merge_clock_finish(out, t0);
     return r;
 }

@@ -214,6 +214,22 @@ static void test_hold_budget(void)
         CHECK_MSG(res[k].held_frames == expect_held[k], "budget %g MB: %d held", budgets[k],
                   res[k].held_frames);
     }
+    /* The phases add up to the totals, and each frame was decoded and merged. */
+    for (int k = 0; k < 3; k++) {
+        double wall = 0, cpu = 0;
+        for (int q = 0; q < SL_MERGE_PHASES; q++) {
+            wall += res[k].timing.wall[q];
+            cpu += res[k].timing.cpu[q];
+            CHECK_MSG(res[k].timing.cpu[q] >= -1e-9 && res[k].timing.wall[q] >= -1e-9,
+                      "%s: %g s wall, %g s CPU", sl_merge_phase_name((sl_merge_phase)q),
+                      res[k].timing.wall[q], res[k].timing.cpu[q]);
+        }
+        CHECK_NEAR(wall, res[k].seconds, 1e-9);
+        CHECK_NEAR(cpu, res[k].cpu_seconds, 1e-9);
+        CHECK(res[k].timing.cpu[SL_MERGE_DECODE] > 0 && res[k].timing.cpu[SL_MERGE_PIXELS] > 0);
+        CHECK(res[k].timing.cpu[SL_MERGE_WRITE] == 0); /* sl_merge writes nothing */
+    }
+    CHECK(strcmp(sl_merge_phase_name(SL_MERGE_PIXELS), "merge") == 0);
     for (int k = 1; k < 3; k++)
         if (res[0].radiance.data && res[k].radiance.data) {
             size_t n = (size_t)res[0].radiance.height * res[0].radiance.stride;

@@ -130,6 +130,21 @@ static json_t *frames_json(const sl_merge_result *res, bool aligned)
     return a;
 }
 
+/* Wall and CPU seconds per phase and in all; "process_cpu" adds the
+ * process's start-up (loading the libraries) to the merge's CPU. */
+static json_t *timing_json(const sl_merge_result *res)
+{
+    json_t *o = json_object();
+    for (int p = 0; p < SL_MERGE_PHASES; p++)
+        json_object_set_new(o, sl_merge_phase_name((sl_merge_phase)p),
+                            json_pack("{s:f, s:f}", "wall", res->timing.wall[p], "cpu",
+                                      res->timing.cpu[p]));
+    json_object_set_new(o, "total",
+                        json_pack("{s:f, s:f}", "wall", res->seconds, "cpu", res->cpu_seconds));
+    json_object_set_new(o, "process_cpu", json_real(sl_cpu_seconds()));
+    return o;
+}
+
 static void log_frames(const sl_merge_result *res, bool aligned)
 {
     for (int i = 0; i < res->frame_count; i++) {
@@ -389,7 +404,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
            100 * res.clipped_fraction, res.seconds);
     if (cli->json) {
         json_t *o = json_pack(
-            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f}",
+            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f, s:o}",
             "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
             (json_int_t)res.ghost_pixels, "width", res.width, "height",
             res.height, "response", res.response.source, "exposures",
@@ -406,7 +421,7 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
             "encoding", "pixels", res.pixel_type == SL_PIXEL_HALF ? "half" : "float",
             "compression", cli_compression_name(res.compression), "max_value", res.max_value,
             "why", res.encoding_note, "frames_decoded_once", res.held_frames, "seconds",
-            res.seconds);
+            res.seconds, "timing", timing_json(&res));
         json_dumpf(o, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(o);
@@ -442,11 +457,12 @@ int cmd_response(int argc, char **argv, const sl_cli *cli)
         double mid[3];
         for (int c = 0; c < 3; c++)
             mid[c] = sl_response_eval(&res.response, c, 0.5);
-        json_t *o = json_pack("{s:s, s:s, s:i, s:[f,f,f], s:o, s:I, s:f}", "output", a.output,
+        json_t *o = json_pack("{s:s, s:s, s:i, s:[f,f,f], s:o, s:I, s:f, s:o}", "output", a.output,
                               "source", res.response.source, "nodes", res.response.nodes,
                               "linear_at_half", mid[0], mid[1], mid[2], "frames",
                               frames_json(&res, false), "disagreeing_frames",
-                              (json_int_t)res.disagreeing_frames, "seconds", res.seconds);
+                              (json_int_t)res.disagreeing_frames, "seconds", res.seconds,
+                              "timing", timing_json(&res));
         json_dumpf(o, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
         json_decref(o);

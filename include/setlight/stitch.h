@@ -113,6 +113,29 @@ typedef struct sl_merge_frame {
     sl_align_transform align;        /* with opt.align */
 } sl_merge_frame;
 
+/* Where a merge's time went. Each phase has wall seconds and CPU seconds
+ * of every thread (per-thread CPU clocks around each task); where threads
+ * do two phases at once (decoding the next strip while merging this one)
+ * the wall is split by their CPU shares. The phases add up to `seconds`
+ * and to the process CPU time the merge took: what no phase claims
+ * (opening files, thread start-up, waiting) is "other". */
+typedef enum sl_merge_phase {
+    SL_MERGE_DECODE,  /* reading and decoding the frames */
+    SL_MERGE_SAMPLE,  /* the sample pass's own work: counts, block maxima, samples */
+    SL_MERGE_FIT,     /* response, exposure check, encoding choice */
+    SL_MERGE_PIXELS,  /* the merge arithmetic: tables and weighted sums */
+    SL_MERGE_WRITE,   /* converting, compressing and writing the EXRs */
+    SL_MERGE_OTHER,
+    SL_MERGE_PHASES
+} sl_merge_phase;
+
+typedef struct sl_merge_timing {
+    double wall[SL_MERGE_PHASES], cpu[SL_MERGE_PHASES];
+} sl_merge_timing;
+
+/* Phase names for reports: "decode", "sample", "fit", "merge", "write", "other". */
+const char *sl_merge_phase_name(sl_merge_phase phase);
+
 typedef struct sl_merge_result {
     sl_image radiance;          /* RGB, relative radiance (the reference frame's scale), or
                                    absolute (cd/m^2) with options.absolute */
@@ -146,7 +169,9 @@ typedef struct sl_merge_result {
                                    shortest frame; 0 when unbounded (float frames) */
     char encoding_note[160];
     int held_frames;            /* frames decoded once (kept between the passes) */
-    double seconds;
+    double seconds;             /* wall */
+    double cpu_seconds;         /* CPU of every thread */
+    sl_merge_timing timing;
 } sl_merge_result;
 
 /* Merges a bracket of frames (any order, same size and bit depth, at most
