@@ -434,12 +434,11 @@ static bool names_none(const char *scene)
 
 /* The merge's error over the ideal estimator's on the same noisy frames
  * (vb_bracket.oracle), per pixel and in 4x4 blocks, median and p99, is at
- * most this (measured 0.96-1.17) except where the frames mislead the merge
- * and not the oracle, which knows the truth: the stage's JPEG p99 (a lamp
- * clipped in a frame whose 4:2:0 chroma pulls its codes below the
- * saturation code; p99_breakdown) and the stage 5x2 self-calibrated median
- * (its curve 2.5% off, from JPEG coding: 0.4% from the same codes in a
- * lossless TIFF). */
+ * most this (measured 0.96-1.17; the stage JPEGs' p99, where a frame hides
+ * a clip below the saturation code, 0.98-1.03 since the merge leaves out
+ * frames a shorter one predicts clipped) except the stage 5x2
+ * self-calibrated 4x4 median (its curve 2.5% off, from JPEG coding: 0.4%
+ * from the same codes in a lossless TIFF). */
 #define FLOOR_FACTOR 1.2
 
 /* One bracket merged as shot (noisy) and noise-free, next to the ideal
@@ -487,7 +486,7 @@ static void scene_case(const char *scene, int frames, int stops, bool jpeg, mode
         }
         static const char *const what[] = {"median", "p99", "4x4 median", "4x4 p99"};
         for (int i = 0; i < 4 && !robertson; i++) {
-            bool misled = stage && jpeg && (i % 2 == 1 || (md == MODE_SELF && frames == 5));
+            bool misled = stage && jpeg && md == MODE_SELF && frames == 5 && i == 2;
             if (!misled)
                 CHECK_MSG(r[i] <= FLOOR_FACTOR, "%s %dx%d %s %s: merge / ideal %.3f (%s)", scene,
                           frames, stops, jpeg ? "jpg" : "lin14", mode_name[md], r[i], what[i]);
