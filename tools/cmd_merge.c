@@ -47,7 +47,7 @@ static const char *merge_help =
     "  --half, --float        radiance samples; default: half when every value fits\n"
     "                         (below 65504) and its rounding stays under a quarter of the\n"
     "                         noise model's deviation, else float (docs/merge.md)\n"
-    "  --compression C        piz (default), zip, rle or none (all lossless)\n"
+    "  --compression C        zip (default), piz, rle or none (all lossless)\n"
     "  --hold-mb MB           8/16-bit frames kept decoded between the sample and merge\n"
     "                         passes up to MB (default 384); the rest are decoded twice\n"
     "  --json                 print the result (frames, exposures, clipping) as JSON\n\n"

@@ -72,7 +72,7 @@ typedef struct sl_merge_options {
     double align_max_shift;     /* pixels; larger shifts are refused (default 64) */
     double align_max_angle;     /* degrees; larger rotations are refused (default 2) */
     sl_merge_pixels pixels;     /* radiance EXR samples (default auto) */
-    sl_exr_compression compression; /* radiance EXR compression (default PIZ) */
+    sl_exr_compression compression; /* radiance EXR compression (default ZIP) */
     double hold_mb;             /* integer frames kept decoded between the sample and merge
                                    passes, up to this many MB (default 384); the others
                                    are decoded twice */

@@ -67,18 +67,18 @@ json_eval "$T/out" 'd["files"][0]["nan_count"] == 0 and d["files"][0]["inf_count
 json_eval "$T/out" 'd["files"][0]["envmap"] == "latlong"'
 
 mkdir -p "$T/h1" "$T/h0"
-# --- output encoding: half PIZ by default for 8-bit frames (values bounded
+# --- output encoding: half ZIP by default for 8-bit frames (values bounded
 # by the shortest frame's white), --float / --half / --compression forced,
 # recorded in --json and the EXR; the same pixels within half's rounding
 expect 0 "$SETLIGHT" merge --json --response linear -o "$T/enc.exr" --times $TIMES "${F[@]}"
-json_eval "$T/out" 'd["encoding"]["pixels"] == "half" and d["encoding"]["compression"] == "piz" and abs(d["encoding"]["max_value"] - 4) < 1e-9'
+json_eval "$T/out" 'd["encoding"]["pixels"] == "half" and d["encoding"]["compression"] == "zip" and abs(d["encoding"]["max_value"] - 4) < 1e-9'
 expect 0 "$SETLIGHT" info --json "$T/enc.exr"
-json_eval "$T/out" 'd["files"][0]["attributes"]["setlight:merge:encoding"].startswith("half, PIZ compression (half: values up to 4;")'
+json_eval "$T/out" 'd["files"][0]["attributes"]["setlight:merge:encoding"].startswith("half, ZIP compression (half: values up to 4;")'
 # a noise model too fine for half's rounding: float
 expect 0 "$SETLIGHT" merge --json --noise 1e-9,1e-12 -o "$T/encn.exr" --times $TIMES "${F[@]}"
 json_eval "$T/out" 'd["encoding"]["pixels"] == "float" and "above a quarter" in d["encoding"]["why"]'
-expect 0 "$SETLIGHT" merge --json --float --compression zip -o "$T/encf.exr" --times $TIMES "${F[@]}"
-json_eval "$T/out" 'd["encoding"]["pixels"] == "float" and d["encoding"]["compression"] == "zip" and d["encoding"]["why"] == "float as asked"'
+expect 0 "$SETLIGHT" merge --json --float --compression piz -o "$T/encf.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["encoding"]["pixels"] == "float" and d["encoding"]["compression"] == "piz" and d["encoding"]["why"] == "float as asked"'
 expect 0 "$SETLIGHT" merge --json -o "$T/h1/enc.exr" --times $TIMES "${F[@]}"
 expect 0 "$SETLIGHT" merge --json --half --compression rle -o "$T/ench.exr" --times $TIMES "${F[@]}"
 json_eval "$T/out" 'd["encoding"]["pixels"] == "half" and d["encoding"]["compression"] == "rle"'
