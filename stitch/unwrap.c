@@ -419,15 +419,28 @@ typedef float v8f __attribute__((vector_size(32)));
 static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, double x,
                                                           double y)
 {
-    v4f wx, wy;
-    const float *p = cubic_taps(img, x, y, &wx, &wy);
-    v8f w0 = SPLAT8(wx, 0), w1 = SPLAT8(wx, 1), w2 = SPLAT8(wx, 2), w3 = SPLAT8(wx, 3);
+    double fx = x - 0.5, fy = y - 0.5;
+    int x0 = (int)fx, y0 = (int)fy;
+    /* keys_weights() of the x fraction in the low half, of the y fraction
+     * in the high half: the same operations per lane, so the same bits. */
+#define K8(a, b, c, d) {a, b, c, d, a, b, c, d}
+    const v8f ka = K8(KEYS_A, KEYS_A + 2.0f, KEYS_A + 2.0f, KEYS_A);
+    const v8f kb = K8(-5.0f * KEYS_A, -(KEYS_A + 3.0f), -(KEYS_A + 3.0f), -5.0f * KEYS_A);
+    const v8f kc = K8(8.0f * KEYS_A, 0.0f, 0.0f, 8.0f * KEYS_A);
+    const v8f kd = K8(-4.0f * KEYS_A, 1.0f, 1.0f, -4.0f * KEYS_A);
+    const v8f u0 = K8(1.0f, 0.0f, 1.0f, 2.0f), us = K8(1.0f, 1.0f, -1.0f, -1.0f);
+#undef K8
+    float tx = (float)(fx - x0), ty = (float)(fy - y0);
+    v8f u = u0 + us * (v8f){tx, tx, tx, tx, ty, ty, ty, ty};
+    v8f wxy = ((ka * u + kb) * u + kc) * u + kd;
+    const float *p = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * NC;
+    v8f w0 = SPLAT8(wxy, 0), w1 = SPLAT8(wxy, 1), w2 = SPLAT8(wxy, 2), w3 = SPLAT8(wxy, 3);
     const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v8f pq1 = LOAD4X2(p + NC, q + NC), pq2 = LOAD4X2(p + 2 * NC, q + 2 * NC);
     v8f rs1 = LOAD4X2(r + NC, s + NC), rs2 = LOAD4X2(r + 2 * NC, s + 2 * NC);
     v8f pq = LOAD4X2(p, q) * w0 + pq1 * w1 + pq2 * w2 + LOAD4X2(p + 3 * NC, q + 3 * NC) * w3;
     v8f rs = LOAD4X2(r, s) * w0 + rs1 * w1 + rs2 * w2 + LOAD4X2(r + 3 * NC, s + 3 * NC) * w3;
-    v8f a = pq * SPLAT44(wy, 0, 1), b = rs * SPLAT44(wy, 2, 3);
+    v8f a = pq * SPLAT44(wxy, 4, 5), b = rs * SPLAT44(wxy, 6, 7);
     v4f acc = LOW4(a) + HIGH4(a) + LOW4(b) + HIGH4(b);
     v4f q1 = HIGH4(pq1), q2 = HIGH4(pq2), r1 = LOW4(rs1), r2 = LOW4(rs2);
     v4f lo = vmin(vmin(q1, q2), vmin(r1, r2)), hi = vmax(vmax(q1, q2), vmax(r1, r2));
