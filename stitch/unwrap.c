@@ -598,34 +598,60 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
         }
     } else {
         /* The lookup's kernel already spans about a pixel: samples
-         * cover the footprint less that pixel. */
-        double eu = sqrt(eu2), ev = sqrt(ev2);
-        int nu = fast_count(eu), nv = fast_count(ev);
-        double su = nu > 1 ? (eu - 1.0) / eu / (nu - 1) : 0.0;
-        double sv = nv > 1 ? (ev - 1.0) / ev / (nv - 1) : 0.0;
+         * cover the footprint less that pixel, along its principal axes
+         * (the singular vectors of the texel's Jacobian [du dv]). Near the
+         * singular point behind the ball the footprints are long and thin
+         * and slanted to the texel grid: samples along their length only,
+         * where a grid along u and v would fill the parallelogram's box.
+         * Along the grid (du, dv orthogonal) the samples are the grid's. */
+        double s = du[0] * dv[0] + du[1] * dv[1], hd = 0.5 * (eu2 - ev2);
+        double disc = sqrt(hd * hd + s * s), tr = 0.5 * (eu2 + ev2);
+        double l2 = tr - disc;
+        double e1 = sqrt(tr + disc), e2 = l2 > 0.0 ? sqrt(l2) : 0.0;
+        /* Unit eigenvector of J^T J for the larger eigenvalue, in texel
+         * units (a along u, b along v), from its better-conditioned row. */
+        double va = hd >= 0.0 ? hd + disc : s, vb = hd >= 0.0 ? s : disc - hd;
+        double vn = va * va + vb * vb;
+        if (vn > 0.0) {
+            vn = 1.0 / sqrt(vn);
+            va *= vn;
+            vb *= vn;
+        } else {
+            va = 1.0;
+            vb = 0.0;
+        }
+        /* Photo offsets per unit along the axes (lengths e1, e2). */
+        double p0x = va * du[0] + vb * dv[0], p0y = va * du[1] + vb * dv[1];
+        double p1x = va * dv[0] - vb * du[0], p1y = va * dv[1] - vb * du[1];
+        int n1 = fast_count(e1), n2 = fast_count(e2);
+        double s1 = n1 > 1 ? (e1 - 1.0) / e1 / (n1 - 1) : 0.0;
+        double s2 = n2 > 1 ? (e2 - 1.0) / e2 / (n2 - 1) : 0.0;
         v4f acc = {0, 0, 0, 0};
         double wsum = 0.0, seen_w = 0.0;
-        for (int j = 0; j < nv; j++) {
-            double b = (j - 0.5 * (nv - 1)) * sv;
-            /* Solid angle per unit v at the sample's latitude (first order). */
-            double wt = g->cos_lat + g->sin_lat * b * g->lat_step;
-            v4f row = {0, 0, 0, 0};
-            for (int i = 0; i < nu; i++) {
-                double a = (i - 0.5 * (nu - 1)) * su;
-                double sx = ce->x + a * du[0] + b * dv[0];
-                double sy = ce->y + a * du[1] + b * dv[1];
+        /* Solid angle per unit v at the sample's latitude (first order):
+         * linear in the sample's b. */
+        double wb = g->sin_lat * g->lat_step;
+        for (int j = 0; j < n2; j++) {
+            double t2 = (j - 0.5 * (n2 - 1)) * s2;
+            double rx = ce->x + t2 * p1x, ry = ce->y + t2 * p1y;
+            double rb = g->cos_lat + wb * (t2 * va);
+            for (int i = 0; i < n1; i++) {
+                double t1 = (i - 0.5 * (n1 - 1)) * s1;
+                double sx = rx + t1 * p0x, sy = ry + t1 * p0y;
+                double wt = rb + wb * (t1 * vb);
+                v4f v;
                 if (cubic) {
-                    row += cubic_lookup(c->photo, sx, sy, wide);
+                    v = cubic_lookup(c->photo, sx, sy, wide);
                 } else if (!checked) {
-                    row += bilinear(c->photo, sx, sy);
+                    v = bilinear(c->photo, sx, sy);
                 } else {
                     bool in;
-                    row += photo_lookup(c, sx, sy, &in);
+                    v = photo_lookup(c, sx, sy, &in);
                     seen_w += in ? wt : 0.0;
                 }
+                acc += v * (float)wt;
+                wsum += wt;
             }
-            acc += row * (float)wt;
-            wsum += nu * wt;
         }
         val = acc * (float)(1.0 / wsum);
         if (checked)
