@@ -27,9 +27,12 @@
 #define RIM_MARGIN 0.7
 /* Sample points are kept this far inside the outline. */
 #define RIM_CLAMP 0.7
-/* Footprints up to this many photo pixels per texel are sampled with the
- * mapping taken as linear across the texel. */
-#define FAST_MAX_EXTENT 16.0
+/* Footprints up to this many photo pixels per texel (along u, v and their
+ * longer principal axis) are sampled with the mapping taken as linear
+ * across the texel, with at most FAST_MAX_SAMPLES samples along an axis
+ * (1.21 px apart at the longest). */
+#define FAST_MAX_EXTENT 24.0
+#define FAST_MAX_SAMPLES 20
 /* ... and bending less than this many pixels over two texels. */
 #define FAST_MAX_BEND 0.5
 #define REFL_TABLE 1024
@@ -307,7 +310,7 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
 static int fast_count(double extent_px)
 {
     double n = extent_px <= 1.25 ? 1.0 : ceil_coord((extent_px - 1.0) / 1.25) + 1.0;
-    return n > SUB_MAX ? SUB_MAX : (int)n;
+    return n > FAST_MAX_SAMPLES ? FAST_MAX_SAMPLES : (int)n;
 }
 
 /* The photo the fast path reads is RGB (read in place or copied so). */
@@ -608,6 +611,10 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
         double disc = sqrt(hd * hd + s * s), tr = 0.5 * (eu2 + ev2);
         double l2 = tr - disc;
         double e1 = sqrt(tr + disc), e2 = l2 > 0.0 ? sqrt(l2) : 0.0;
+        if (e1 > FAST_MAX_EXTENT) {
+            texel_exact(c, x, g->y, p);
+            return;
+        }
         /* Unit eigenvector of J^T J for the larger eigenvalue, in texel
          * units (a along u, b along v), from its better-conditioned row. */
         double va = hd >= 0.0 ? hd + disc : s, vb = hd >= 0.0 ? s : disc - hd;
