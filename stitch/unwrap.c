@@ -31,8 +31,8 @@
  * longer principal axis) are sampled with the mapping taken as linear
  * across the texel, with at most FAST_MAX_SAMPLES samples along an axis
  * (1.21 px apart at the longest). */
-#define FAST_MAX_EXTENT 24.0
-#define FAST_MAX_SAMPLES 20
+#define FAST_MAX_EXTENT 48.0
+#define FAST_MAX_SAMPLES 40
 /* ... and bending less than this many pixels over two texels. */
 #define FAST_MAX_BEND 0.5
 #define REFL_TABLE 1024
