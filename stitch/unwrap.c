@@ -27,9 +27,12 @@
 #define RIM_MARGIN 0.7
 /* Sample points are kept this far inside the outline. */
 #define RIM_CLAMP 0.7
-/* Footprints up to this many photo pixels per texel are sampled with the
- * mapping taken as linear across the texel. */
-#define FAST_MAX_EXTENT 16.0
+/* Footprints up to this many photo pixels per texel (along u, v and their
+ * longer principal axis) are sampled with the mapping taken as linear
+ * across the texel, with at most FAST_MAX_SAMPLES samples along an axis
+ * (1.21 px apart at the longest). */
+#define FAST_MAX_EXTENT 48.0
+#define FAST_MAX_SAMPLES 40
 /* ... and bending less than this many pixels over two texels. */
 #define FAST_MAX_BEND 0.5
 #define REFL_TABLE 1024
@@ -307,7 +310,7 @@ static void texel_exact(const unwrap_ctx *c, int x, int y, float *p)
 static int fast_count(double extent_px)
 {
     double n = extent_px <= 1.25 ? 1.0 : ceil_coord((extent_px - 1.0) / 1.25) + 1.0;
-    return n > SUB_MAX ? SUB_MAX : (int)n;
+    return n > FAST_MAX_SAMPLES ? FAST_MAX_SAMPLES : (int)n;
 }
 
 /* The photo the fast path reads is RGB (read in place or copied so). */
@@ -419,15 +422,28 @@ typedef float v8f __attribute__((vector_size(32)));
 static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, double x,
                                                           double y)
 {
-    v4f wx, wy;
-    const float *p = cubic_taps(img, x, y, &wx, &wy);
-    v8f w0 = SPLAT8(wx, 0), w1 = SPLAT8(wx, 1), w2 = SPLAT8(wx, 2), w3 = SPLAT8(wx, 3);
+    double fx = x - 0.5, fy = y - 0.5;
+    int x0 = (int)fx, y0 = (int)fy;
+    /* keys_weights() of the x fraction in the low half, of the y fraction
+     * in the high half: the same operations per lane, so the same bits. */
+#define K8(a, b, c, d) {a, b, c, d, a, b, c, d}
+    const v8f ka = K8(KEYS_A, KEYS_A + 2.0f, KEYS_A + 2.0f, KEYS_A);
+    const v8f kb = K8(-5.0f * KEYS_A, -(KEYS_A + 3.0f), -(KEYS_A + 3.0f), -5.0f * KEYS_A);
+    const v8f kc = K8(8.0f * KEYS_A, 0.0f, 0.0f, 8.0f * KEYS_A);
+    const v8f kd = K8(-4.0f * KEYS_A, 1.0f, 1.0f, -4.0f * KEYS_A);
+    const v8f u0 = K8(1.0f, 0.0f, 1.0f, 2.0f), us = K8(1.0f, 1.0f, -1.0f, -1.0f);
+#undef K8
+    float tx = (float)(fx - x0), ty = (float)(fy - y0);
+    v8f u = u0 + us * (v8f){tx, tx, tx, tx, ty, ty, ty, ty};
+    v8f wxy = ((ka * u + kb) * u + kc) * u + kd;
+    const float *p = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * NC;
+    v8f w0 = SPLAT8(wxy, 0), w1 = SPLAT8(wxy, 1), w2 = SPLAT8(wxy, 2), w3 = SPLAT8(wxy, 3);
     const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v8f pq1 = LOAD4X2(p + NC, q + NC), pq2 = LOAD4X2(p + 2 * NC, q + 2 * NC);
     v8f rs1 = LOAD4X2(r + NC, s + NC), rs2 = LOAD4X2(r + 2 * NC, s + 2 * NC);
     v8f pq = LOAD4X2(p, q) * w0 + pq1 * w1 + pq2 * w2 + LOAD4X2(p + 3 * NC, q + 3 * NC) * w3;
     v8f rs = LOAD4X2(r, s) * w0 + rs1 * w1 + rs2 * w2 + LOAD4X2(r + 3 * NC, s + 3 * NC) * w3;
-    v8f a = pq * SPLAT44(wy, 0, 1), b = rs * SPLAT44(wy, 2, 3);
+    v8f a = pq * SPLAT44(wxy, 4, 5), b = rs * SPLAT44(wxy, 6, 7);
     v4f acc = LOW4(a) + HIGH4(a) + LOW4(b) + HIGH4(b);
     v4f q1 = HIGH4(pq1), q2 = HIGH4(pq2), r1 = LOW4(rs1), r2 = LOW4(rs2);
     v4f lo = vmin(vmin(q1, q2), vmin(r1, r2)), hi = vmax(vmax(q1, q2), vmax(r1, r2));
@@ -585,34 +601,64 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
         }
     } else {
         /* The lookup's kernel already spans about a pixel: samples
-         * cover the footprint less that pixel. */
-        double eu = sqrt(eu2), ev = sqrt(ev2);
-        int nu = fast_count(eu), nv = fast_count(ev);
-        double su = nu > 1 ? (eu - 1.0) / eu / (nu - 1) : 0.0;
-        double sv = nv > 1 ? (ev - 1.0) / ev / (nv - 1) : 0.0;
+         * cover the footprint less that pixel, along its principal axes
+         * (the singular vectors of the texel's Jacobian [du dv]). Near the
+         * singular point behind the ball the footprints are long and thin
+         * and slanted to the texel grid: samples along their length only,
+         * where a grid along u and v would fill the parallelogram's box.
+         * Along the grid (du, dv orthogonal) the samples are the grid's. */
+        double s = du[0] * dv[0] + du[1] * dv[1], hd = 0.5 * (eu2 - ev2);
+        double disc = sqrt(hd * hd + s * s), tr = 0.5 * (eu2 + ev2);
+        double l2 = tr - disc;
+        double e1 = sqrt(tr + disc), e2 = l2 > 0.0 ? sqrt(l2) : 0.0;
+        if (e1 > FAST_MAX_EXTENT) {
+            texel_exact(c, x, g->y, p);
+            return;
+        }
+        /* Unit eigenvector of J^T J for the larger eigenvalue, in texel
+         * units (a along u, b along v), from its better-conditioned row. */
+        double va = hd >= 0.0 ? hd + disc : s, vb = hd >= 0.0 ? s : disc - hd;
+        double vn = va * va + vb * vb;
+        if (vn > 0.0) {
+            vn = 1.0 / sqrt(vn);
+            va *= vn;
+            vb *= vn;
+        } else {
+            va = 1.0;
+            vb = 0.0;
+        }
+        /* Photo offsets per unit along the axes (lengths e1, e2). */
+        double p0x = va * du[0] + vb * dv[0], p0y = va * du[1] + vb * dv[1];
+        double p1x = va * dv[0] - vb * du[0], p1y = va * dv[1] - vb * du[1];
+        int n1 = fast_count(e1), n2 = fast_count(e2);
+        double s1 = n1 > 1 ? (e1 - 1.0) / e1 / (n1 - 1) : 0.0;
+        double s2 = n2 > 1 ? (e2 - 1.0) / e2 / (n2 - 1) : 0.0;
         v4f acc = {0, 0, 0, 0};
         double wsum = 0.0, seen_w = 0.0;
-        for (int j = 0; j < nv; j++) {
-            double b = (j - 0.5 * (nv - 1)) * sv;
-            /* Solid angle per unit v at the sample's latitude (first order). */
-            double wt = g->cos_lat + g->sin_lat * b * g->lat_step;
-            v4f row = {0, 0, 0, 0};
-            for (int i = 0; i < nu; i++) {
-                double a = (i - 0.5 * (nu - 1)) * su;
-                double sx = ce->x + a * du[0] + b * dv[0];
-                double sy = ce->y + a * du[1] + b * dv[1];
+        /* Solid angle per unit v at the sample's latitude (first order):
+         * linear in the sample's b. */
+        double wb = g->sin_lat * g->lat_step;
+        for (int j = 0; j < n2; j++) {
+            double t2 = (j - 0.5 * (n2 - 1)) * s2;
+            double rx = ce->x + t2 * p1x, ry = ce->y + t2 * p1y;
+            double rb = g->cos_lat + wb * (t2 * va);
+            for (int i = 0; i < n1; i++) {
+                double t1 = (i - 0.5 * (n1 - 1)) * s1;
+                double sx = rx + t1 * p0x, sy = ry + t1 * p0y;
+                double wt = rb + wb * (t1 * vb);
+                v4f v;
                 if (cubic) {
-                    row += cubic_lookup(c->photo, sx, sy, wide);
+                    v = cubic_lookup(c->photo, sx, sy, wide);
                 } else if (!checked) {
-                    row += bilinear(c->photo, sx, sy);
+                    v = bilinear(c->photo, sx, sy);
                 } else {
                     bool in;
-                    row += photo_lookup(c, sx, sy, &in);
+                    v = photo_lookup(c, sx, sy, &in);
                     seen_w += in ? wt : 0.0;
                 }
+                acc += v * (float)wt;
+                wsum += wt;
             }
-            acc += row * (float)wt;
-            wsum += nu * wt;
         }
         val = acc * (float)(1.0 / wsum);
         if (checked)
