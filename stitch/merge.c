@@ -337,7 +337,7 @@ static int64_t count_classes_u8(const uint8_t *q, int64_t n, const uint8_t *cls,
 static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
 {
     sample_job *job = ctx;
-    double *task_cpu = job->task_cpu + (size_t)worker * SL_MERGE_PHASES, t0 = merge_thread_cpu();
+    double *task_cpu = job->task_cpu + (size_t)worker * SL_MERGE_PHASES, t0 = sl_thread_cpu_seconds();
     double decode = 0;
     merge_ctx *m = job->m;
     int cb = m->codes ? m->code_bytes : 0;
@@ -358,10 +358,10 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
             int y1 = y0 + SAMPLE_STRIP < m->height ? y0 + SAMPLE_STRIP : m->height;
             /* A held frame is decoded straight into its place. */
             void *strip = m->held && m->held[i] ? m->held[i] + (size_t)y0 * w * 3 * cb : buf;
-            double t = merge_thread_cpu();
+            double t = sl_thread_cpu_seconds();
             r = cb ? merge_frame_read_codes(rd, y0, y1, strip, &job->errs[i])
                    : merge_frame_read(rd, y0, y1, strip, &job->errs[i]);
-            decode += merge_thread_cpu() - t;
+            decode += sl_thread_cpu_seconds() - t;
             if (r)
                 break;
             int64_t n = (int64_t)(y1 - y0) * w;
@@ -412,7 +412,7 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
         m->white_pixels[i] = white;
     }
     task_cpu[SL_MERGE_DECODE] += decode;
-    task_cpu[SL_MERGE_SAMPLE] += merge_thread_cpu() - t0 - decode;
+    task_cpu[SL_MERGE_SAMPLE] += sl_thread_cpu_seconds() - t0 - decode;
 }
 
 static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)

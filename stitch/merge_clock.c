@@ -2,8 +2,6 @@
 /* The merge's timing by phase (sl_merge_timing): stretches of the command
  * charged to one phase, or split between phases by the CPU time their
  * tasks measured on their own threads. */
-#include <time.h>
-
 #include "merge_private.h"
 
 const char *sl_merge_phase_name(sl_merge_phase phase)
@@ -14,13 +12,6 @@ const char *sl_merge_phase_name(sl_merge_phase phase)
 }
 
 merge_clock merge_clock_start(void) { return (merge_clock){sl_seconds(), sl_cpu_seconds()}; }
-
-double merge_thread_cpu(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 merge_clock merge_clock_charge(sl_merge_timing *t, merge_clock since, sl_merge_phase phase)
 {

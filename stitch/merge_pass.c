@@ -562,14 +562,14 @@ static void step_tasks(void *ctx, int64_t begin, int64_t end, int worker)
     pass_ctx *p = ctx;
     double *task_cpu = p->task_cpu + (size_t)worker * SL_MERGE_PHASES;
     for (int64_t t = begin; t < end; t++) {
-        double t0 = merge_thread_cpu();
+        double t0 = sl_thread_cpu_seconds();
         if (t < p->frames) {
             if (p->ny1 > p->ny0)
                 read_next(p, (int)t);
-            task_cpu[SL_MERGE_DECODE] += merge_thread_cpu() - t0;
+            task_cpu[SL_MERGE_DECODE] += sl_thread_cpu_seconds() - t0;
         } else {
             merge_rows(p, t - p->frames, t - p->frames + 1, worker);
-            task_cpu[SL_MERGE_PIXELS] += merge_thread_cpu() - t0;
+            task_cpu[SL_MERGE_PIXELS] += sl_thread_cpu_seconds() - t0;
         }
     }
 }

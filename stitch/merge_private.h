@@ -83,8 +83,6 @@ typedef struct merge_clock {
     double wall, cpu;
 } merge_clock;
 merge_clock merge_clock_start(void);
-/* CPU seconds of the calling thread, for the tasks of parallel loops. */
-double merge_thread_cpu(void);
 merge_clock merge_clock_charge(sl_merge_timing *t, merge_clock since, sl_merge_phase phase);
 /* A parallel stretch: task[w * SL_MERGE_PHASES + phase] is the CPU the
  * tasks of worker w (of `workers`) measured per phase, zeroed here for the

@@ -96,9 +96,11 @@ void sl_progress_begin(sl_progress *p, const char *label, int64_t total);
 void sl_progress_add(sl_progress *p, int64_t amount); /* thread-safe */
 void sl_progress_end(sl_progress *p);
 
-/* Monotonic wall clock and process CPU time, in seconds. */
+/* Monotonic wall clock, process CPU time and the calling thread's CPU
+ * time, in seconds. */
 double sl_seconds(void);
 double sl_cpu_seconds(void);
+double sl_thread_cpu_seconds(void);
 
 /* ------------------------------------------------------------------ */
 /* Threads: deterministic parallel loops                               */
