@@ -225,16 +225,6 @@ static void pixel_of(const unwrap_ctx *c, double u, double v, double xy[2])
     xy[1] = h.y;
 }
 
-static double smaller_singular_value(const double j[2][2])
-{
-    double p = j[0][0] * j[0][0] + j[1][0] * j[1][0];
-    double q = j[0][1] * j[0][1] + j[1][1] * j[1][1];
-    double s = j[0][0] * j[0][1] + j[1][0] * j[1][1];
-    double tr = 0.5 * (p + q), det = p * q - s * s, disc = tr * tr - det;
-    double e = tr - sqrt(disc > 0.0 ? disc : 0.0);
-    return sqrt(e > 0.0 ? e : 0.0);
-}
-
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;

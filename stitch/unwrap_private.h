@@ -5,6 +5,8 @@
 
 #include "setlight/stitch.h"
 
+#include <math.h>
+
 /* One set direction on the ball: photo pixel and cosine of incidence.
  * blind: the direction is farther than phi_max from the view axis's reverse
  * (0 = straight back at the camera), beyond what the ball shows; the pixel
@@ -28,5 +30,17 @@ int unwrap_auto_width(const sl_ball_view *view);
  * -1 when OpenCV failed. */
 int ball_hough_cxx(const unsigned char *gray, int width, int height, double min_radius,
                    double max_radius, double min_dist, float *out, int max_out);
+
+/* The smaller singular value of a 2x2 Jacobian (photo pixels per unit of
+ * the two directions): how little the mapping stretches any direction. */
+static inline double smaller_singular_value(const double j[2][2])
+{
+    double p = j[0][0] * j[0][0] + j[1][0] * j[1][0];
+    double q = j[0][1] * j[0][1] + j[1][1] * j[1][1];
+    double s = j[0][0] * j[0][1] + j[1][0] * j[1][1];
+    double tr = 0.5 * (p + q), det = p * q - s * s, disc = tr * tr - det;
+    double e = tr - sqrt(disc > 0.0 ? disc : 0.0);
+    return sqrt(e > 0.0 ? e : 0.0);
+}
 
 #endif

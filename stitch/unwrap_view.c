@@ -198,13 +198,7 @@ double sl_ball_view_resolution(const sl_ball_view *v, const double dir[3])
         j[0][k] = (ha.x - hb.x) / (2.0 * step);
         j[1][k] = (ha.y - hb.y) / (2.0 * step);
     }
-    /* Smaller singular value of the 2x2 Jacobian. */
-    double p = j[0][0] * j[0][0] + j[1][0] * j[1][0];
-    double q = j[0][1] * j[0][1] + j[1][1] * j[1][1];
-    double s = j[0][0] * j[0][1] + j[1][0] * j[1][1];
-    double tr = 0.5 * (p + q), det = p * q - s * s;
-    double disc = sqrt(fmax(tr * tr - det, 0.0));
-    return sqrt(fmax(tr - disc, 0.0));
+    return smaller_singular_value(j);
 }
 
 /* Projected ellipse of a ball of angular radius alpha whose centre is beta
