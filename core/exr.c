@@ -1079,6 +1079,40 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
     return SL_OK;
 }
 
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__clang__) || __GNUC__ >= 12)
+#define HAVE_F16C_ROWS 1
+#include <immintrin.h>
+/* One RGB row's pixels 0 .. w - w % 4 into half planes B, G, R (w apart)
+ * with the processor's conversion (F16C): the same bits as half_bits4()
+ * (round to nearest even; checked over every finite float), a fifth of its
+ * instructions. Returns the pixels done. */
+__attribute__((target("f16c"))) static size_t rgb_row_f16c(const float *src, uint16_t *dst,
+                                                           size_t w)
+{
+    const __m128 limit = _mm_set1_ps(65504.0f), neg = _mm_set1_ps(-65504.0f);
+    size_t done = 0;
+    for (; done + 4 <= w; done += 4) {
+        v4f_t a, b, c;
+        memcpy(&a, src + 3 * done, sizeof a);
+        memcpy(&b, src + 3 * done + 4, sizeof b);
+        memcpy(&c, src + 3 * done + 8, sizeof c);
+        v4f_t r = __builtin_shuffle(a, b, (v4i_t){0, 3, 6, 6});
+        v4f_t g = __builtin_shuffle(a, b, (v4i_t){1, 4, 7, 7});
+        v4f_t bl = __builtin_shuffle(a, b, (v4i_t){2, 5, 5, 5});
+        v4f_t plane[3] = {__builtin_shuffle(bl, c, (v4i_t){0, 1, 4, 7}),
+                          __builtin_shuffle(g, c, (v4i_t){0, 1, 2, 6}),
+                          __builtin_shuffle(r, c, (v4i_t){0, 1, 2, 5})};
+        for (int k = 0; k < 3; k++) {
+            v4f_t f = (v4f_t)((v4i_t)plane[k] & (plane[k] == plane[k])); /* NaN -> 0 */
+            __m128 v = _mm_max_ps(_mm_min_ps((__m128)f, limit), neg);
+            _mm_storel_epi64((__m128i *)(dst + (size_t)k * w + done),
+                             _mm_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
+        }
+    }
+    return done;
+}
+#endif
+
 typedef struct convert_job {
     sl_exr_stream *s;
     const float *rows;
@@ -1097,7 +1131,11 @@ static void convert_rows(void *ctx, int64_t begin, int64_t end, int worker)
     for (int64_t j = begin; j < end; j++) {
         const float *src = job->rows + (size_t)j * job->stride;
         size_t at = (size_t)(s->rows + j) * w * nc, done = 0;
-        if (s->half && nc == 3) {
+#ifdef HAVE_F16C_ROWS
+        if (s->half && nc == 3 && __builtin_cpu_supports("f16c"))
+            done = rgb_row_f16c(src, (uint16_t *)s->buf + at, w);
+#endif
+        if (s->half && nc == 3 && done == 0) {
             /* RGB: four pixels' three vectors shuffled into R, G and B. */
             uint16_t *dst = (uint16_t *)s->buf + at;
             for (; done + 4 <= w; done += 4) {

@@ -275,6 +275,61 @@ static void test_roundtrip(void)
         }
 }
 
+/* Half rounding: every float written as half must come back as the half
+ * nearest to it, ties to even (OpenEXR's rule), whichever conversion the
+ * writer picked (the processor's F16C or the portable one): normal and
+ * subnormal halves, values exactly halfway between two halves, either sign,
+ * through RGB rows whose width is not a multiple of four. */
+static double nearest_half(double v)
+{
+    double a = fabs(v);
+    if (a >= 65504.0)
+        return v < 0 ? -65504.0 : 65504.0;
+    int e;
+    frexp(a, &e); /* a = m 2^e, 0.5 <= m < 1 */
+    double step = ldexp(1.0, (e - 1 < -14 ? -14 : e - 1) - 10);
+    double q = nearbyint(a / step) * step; /* default rounding: to even */
+    return v < 0 ? -q : q;
+}
+
+static void test_half_rounding(void)
+{
+    sl_error err;
+    sl_image img, back;
+    const int w = 1023, h = 96; /* w % 4 == 3 */
+    CHECK_OK(sl_image_alloc(&img, w, h, 3, &err), &err);
+    size_t n = (size_t)w * h * 3;
+    uint32_t state = 12345u;
+    for (size_t i = 0; i < n; i++) {
+        state = state * 1664525u + 1013904223u;
+        double mag = ldexp(1.0, (int)(state >> 27) - 26); /* 2^-26 .. 2^5 */
+        double frac = (double)((state >> 8) & 0x7ffff) / 0x80000;
+        double v = mag * (1.0 + frac);
+        if (i % 3 == 1) { /* a tie: halfway between two halves */
+            double lo = nearest_half(v), step = fabs(nearest_half(v * (1 + 1e-3)) - lo);
+            v = lo + 0.5 * (step > 0 ? step : ldexp(1.0, -24));
+        }
+        img.data[i] = (float)((state & 1) ? -v : v);
+    }
+    img.data[0] = 65519.0f; /* rounds to 65504 */
+    img.data[1] = 3.0e-8f;  /* under half the smallest subnormal: 0 */
+    const char *path = sl_test_path("half_rounding.exr");
+    CHECK_OK(sl_exr_write(path, &img, NULL, SL_PIXEL_HALF, &err), &err);
+    CHECK_OK(sl_exr_read(path, &back, NULL, &err), &err);
+    size_t wrong = 0, ties = 0;
+    if (back.data)
+        for (size_t i = 0; i < n; i++) {
+            double want = nearest_half(img.data[i]);
+            wrong += back.data[i] != (float)want;
+            ties += i % 3 == 1;
+        }
+    printf("    half rounding: %zu of %zu samples (%zu ties) not the nearest half\n", wrong, n,
+           ties);
+    CHECK(back.data && wrong == 0);
+    sl_image_free(&back);
+    sl_image_free(&img);
+}
+
 /* Out-of-range and non-finite values: half clamps to +-65504, NaN becomes 0. */
 static void test_write_clamps(void)
 {
@@ -906,6 +961,7 @@ int main(void)
 {
     RUN(test_roundtrip);
     RUN(test_write_clamps);
+    RUN(test_half_rounding);
     RUN(test_windows_tiles_types);
     RUN(test_own_decoder);
     RUN(test_own_zip_encoder);
