@@ -305,7 +305,9 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
             for (int q = 0; q < f; q++) {
                 size_t e = base[c] + (size_t)t * f + q;
                 double z = s->z[((size_t)i * f + q) * 3 + c];
-                wt[e] = merge_usable(s, i, q, saturation) ? (float)sample_weight(z, black, saturation) : 0;
+                wt[e] = merge_usable(s, i, q, saturation)
+                            ? (float)sample_weight(z, black, saturation)
+                            : 0;
                 rw[e] = 1;
             }
         }
