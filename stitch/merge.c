@@ -419,6 +419,8 @@ static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
 {
     int count = res->frame_count;
     m->samples.frames = count;
+    m->samples.code_step =
+        m->is_float || m->bits < 1 || m->bits > 16 ? 0 : 1.0 / ((1 << m->bits) - 1);
     m->samples.z = calloc((size_t)m->samples.count * count * 3, sizeof *m->samples.z);
     m->samples.spoilt = calloc((size_t)m->samples.count * count, 1);
     m->white_pixels = calloc((size_t)count, sizeof *m->white_pixels);

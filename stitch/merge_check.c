@@ -8,8 +8,7 @@
 /* Fewer usable pixel pairs than this and a ratio is not trusted. */
 enum { MIN_PAIRS = 32 };
 
-/* The k-th smallest of v[0..n) (Hoare's selection; reorders v). */
-static double select_kth(double *v, int n, int k)
+double merge_select_kth(double *v, int n, int k)
 {
     int lo = 0, hi = n - 1;
     while (lo < hi) {
@@ -66,8 +65,8 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
         }
         if (n < MIN_PAIRS)
             continue;
-        double upper = select_kth(r, n, n / 2);
-        ratio[q] = n % 2 ? upper : 0.5 * (upper + select_kth(r, n / 2, n / 2 - 1));
+        double upper = merge_select_kth(r, n, n / 2);
+        ratio[q] = n % 2 ? upper : 0.5 * (upper + merge_select_kth(r, n / 2, n / 2 - 1));
         fitted++;
     }
     free(r);

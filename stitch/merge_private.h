@@ -17,6 +17,7 @@ enum { MERGE_MAX_FRAMES = 64 };
 typedef struct merge_samples {
     int count;
     int frames;
+    double code_step; /* the frames' code step on the 0..1 scale (0: float frames) */
     float *z;
     uint8_t *spoilt;
 } merge_samples;
@@ -70,6 +71,9 @@ void merge_response_finish(double *inv, int nodes, const char *source, sl_respon
  * radiance and over the frame; returns how many (-1 out of memory). */
 int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,
                          double saturation, int max_samples, uint64_t seed, int *chosen);
+
+/* The k-th smallest of v[0..n) (Hoare's selection; reorders v). */
+double merge_select_kth(double *v, int n, int k);
 
 /* Exposure ratio between neighbouring ranks from pixels well exposed in
  * both (median of linearised ratios); ratio[r] = e[r+1] / e[r], 0 when too

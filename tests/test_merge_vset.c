@@ -152,17 +152,16 @@ static void true_response(const vb_bracket *b, sl_response *out)
     snprintf(out->source, sizeof out->source, "virtual camera");
 }
 
-/* The recovered curve is within 2% on the stage's 7x3 JPEGs too (the
- * exposure check and the response samples leave out JPEG blocks spoilt by
- * its lamps), and on the night set's over the few codes it exposes (its
- * pixels sit at 2-3% of white even at 30 s: the curve above is
- * extrapolated); the stage 5x2 one's is 2.5% (JPEG coding: 0.4% on the
- * same codes in a lossless TIFF) and its radiance p99 is JPEG's. */
+/* The recovered curve is within 2% on the stage's JPEGs too (the exposure
+ * check and the response samples leave out JPEG blocks spoilt by its
+ * lamps, and the fit's reweighting rounds the pixels JPEG coding moved by
+ * many codes near them: the 5x2 curve was 2.5% off without), and on the
+ * night set's over the few codes it exposes (its pixels sit at 2-3% of
+ * white even at 30 s: the curve above is extrapolated). */
 static bool response_goal(const vb_spec *spec, mode md)
 {
     return md == MODE_SELF &&
-           ((strcmp(spec->scene, "stage") == 0 && spec->frames == 7) ||
-            strcmp(spec->scene, "night") == 0);
+           (strcmp(spec->scene, "stage") == 0 || strcmp(spec->scene, "night") == 0);
 }
 
 /* Chebyshev distance (capped at LAMP_FAR) from each pixel to the nearest
@@ -434,11 +433,10 @@ static bool names_none(const char *scene)
 
 /* The merge's error over the ideal estimator's on the same noisy frames
  * (vb_bracket.oracle), per pixel and in 4x4 blocks, median and p99, is at
- * most this (measured 0.96-1.17; the stage JPEGs' p99, where a frame hides
+ * most this (measured 0.96-1.13; the stage JPEGs' p99, where a frame hides
  * a clip below the saturation code, 0.98-1.03 since the merge leaves out
- * frames a shorter one predicts clipped) except the stage 5x2
- * self-calibrated 4x4 median (its curve 2.5% off, from JPEG coding: 0.4%
- * from the same codes in a lossless TIFF). */
+ * frames a shorter one predicts clipped; the stage 5x2 self-calibrated
+ * 4x4 median 1.03, 1.33 while its curve was 2.5% off). */
 #define FLOOR_FACTOR 1.2
 
 /* One bracket merged as shot (noisy) and noise-free, next to the ideal
@@ -485,12 +483,9 @@ static void scene_case(const char *scene, int frames, int stops, bool jpeg, mode
             free(dist);
         }
         static const char *const what[] = {"median", "p99", "4x4 median", "4x4 p99"};
-        for (int i = 0; i < 4 && !robertson; i++) {
-            bool misled = stage && jpeg && md == MODE_SELF && frames == 5 && i == 2;
-            if (!misled)
-                CHECK_MSG(r[i] <= FLOOR_FACTOR, "%s %dx%d %s %s: merge / ideal %.3f (%s)", scene,
-                          frames, stops, jpeg ? "jpg" : "lin14", mode_name[md], r[i], what[i]);
-        }
+        for (int i = 0; i < 4 && !robertson; i++)
+            CHECK_MSG(r[i] <= FLOOR_FACTOR, "%s %dx%d %s %s: merge / ideal %.3f (%s)", scene,
+                      frames, stops, jpeg ? "jpg" : "lin14", mode_name[md], r[i], what[i]);
         if (!jpeg)
             CHECK_MSG(c.px.median <= 0.01 && c.px.p99 <= 0.05, "%s %dx%d noise-free: %.4f / %.4f",
                       scene, frames, stops, c.px.median, c.px.p99);
