@@ -4,6 +4,7 @@
  * the ball's reflectance, with a confidence from the mapping's resolution. */
 #include "unwrap_private.h"
 
+#include <assert.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -511,6 +512,22 @@ static bool map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
     return any_blind;
 }
 
+/* A texel's radiance val written to p (RGB): the ball's reflectance at
+ * incidence cosi divided out. */
+static inline __attribute__((always_inline)) void store_radiance(const unwrap_ctx *c,
+                                                                  double cosi, v4f val, float *p)
+{
+    if (c->refl_table) {
+        double inv[3];
+        inv_reflectance(c, cosi, inv);
+        for (int k = 0; k < 3; k++)
+            p[k] = (float)(val[k] * inv[k]);
+    } else {
+        /* Exact in float too when the reflectance is 1 (the default). */
+        store3(p, val * c->inv_refl_f);
+    }
+}
+
 /* What the texels of one row share. */
 typedef struct row_geom {
     int y;
@@ -519,7 +536,36 @@ typedef struct row_geom {
     bool confidence;
     double vscale, cos_lat, sin_lat, lon_step, lat_step, ref, keep;
     double inner_any; /* keep less the lookup's reach and the largest fast footprint */
+    double single2;   /* squared photo radius inside which a texel is one lookup, or -1 */
 } row_geom;
+
+/* The disc of the photo (squared radius from the ball's centre, px^2) inside
+ * which every texel's footprint is certain to pass the fast path's tests
+ * as one cubic lookup, so that texel() need not compute them; -1 where
+ * this is not shown (perspective ball, confidence wanted, coarse output).
+ * Orthographic ball of radius R: a direction at angle t from the view axis
+ * lands at r = R sin(t/2), and the mapping stretches by at most
+ * R / (2 cos(t/2)) px per radian (tangentially). A texel step is at most
+ * 2 pi / W radians along u and v, so both footprint extents stay within
+ * 1.25 px while R / (2 cos(t/2)) 2 pi / W <= 1.25 / 1.05 (5% for the
+ * central differences and rounding), i.e. (r/R)^2 <= 1 - q^2 with
+ * q = 1.05 pi R / (1.25 W). Kept to r <= 0.8 R (cos(t/2) >= 0.6) and to
+ * W >= 1024, where the bend over two texels (of order R (2 pi / W)^2 /
+ * cos^3(t/2) < 0.05 px) is far under FAST_MAX_BEND, and inside inner_any
+ * (far from the rim). Debug builds check every such texel against the
+ * full tests (assert in texel()). */
+static double single_lookup_disc(const unwrap_ctx *c, double inner_any)
+{
+    const sl_ball_view *v = c->view;
+    if (v->distance != 0.0 || c->channels == 4 || c->width < 1024 || inner_any <= 0.0)
+        return -1.0;
+    double q = 1.05 * M_PI * v->r / (1.25 * c->width);
+    if (q >= 1.0)
+        return -1.0;
+    double rho2 = fmin(1.0 - q * q, 0.8 * 0.8);
+    double r2 = rho2 * v->r * v->r;
+    return fmin(r2, inner_any * inner_any);
+}
 
 /* One texel from its centre ce, its neighbours in the row ce[-1] and ce[1],
  * and the centres above and below. Where the footprint is clear of the
@@ -533,7 +579,16 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
                                                          float *p, bool wide)
 {
     const centre *l = ce - 1, *r = ce + 1;
+    double ex = ce->x - c->view->cx, ey = ce->y - c->view->cy, e2 = ex * ex + ey * ey;
+    bool single = e2 <= g->single2;
+#ifdef NDEBUG
+    if (single) {
+        store_radiance(c, ce->cosi, cubic_lookup(c->photo, ce->x, ce->y, wide), p);
+        return;
+    }
+#endif
     if (g->maybe_blind && (ce->blind || l->blind || r->blind || up->blind || down->blind)) {
+        assert(!single);
         texel_exact(c, x, g->y, p);
         return;
     }
@@ -549,6 +604,7 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
                              : 0.0;
     if (eu2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT || ev2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT ||
         cu > FAST_MAX_BEND || cv > FAST_MAX_BEND) {
+        assert(!single);
         texel_exact(c, x, g->y, p);
         return;
     }
@@ -559,7 +615,6 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
      * are far from the rim: the triangle inequality settles them without
      * the corners, most of them even with the largest footprint (no square
      * roots). */
-    double ex = ce->x - c->view->cx, ey = ce->y - c->view->cy, e2 = ex * ex + ey * ey;
     bool checked = false, cubic = true;
     double inner = g->inner_any;
     if (inner < 0.0 || e2 > inner * inner)
@@ -580,6 +635,7 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
     v4f val;
     if (eu2 <= 1.25 * 1.25 && ev2 <= 1.25 * 1.25) {
         /* The lookup's kernel is about as wide as the footprint. */
+        assert(cubic || !single);
         if (cubic) {
             val = cubic_lookup(c->photo, ce->x, ce->y, wide);
         } else if (checked) {
@@ -597,6 +653,7 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
          * and slanted to the texel grid: samples along their length only,
          * where a grid along u and v would fill the parallelogram's box.
          * Along the grid (du, dv orthogonal) the samples are the grid's. */
+        assert(!single);
         double s = du[0] * dv[0] + du[1] * dv[1], hd = 0.5 * (eu2 - ev2);
         double disc = sqrt(hd * hd + s * s), tr = 0.5 * (eu2 + ev2);
         double l2 = tr - disc;
@@ -654,15 +711,7 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
         if (checked)
             seen = seen_w / wsum;
     }
-    if (c->refl_table) {
-        double inv[3];
-        inv_reflectance(c, ce->cosi, inv);
-        for (int k = 0; k < 3; k++)
-            p[k] = (float)(val[k] * inv[k]);
-    } else {
-        /* Exact in float too when the reflectance is 1 (the default). */
-        store3(p, val * c->inv_refl_f);
-    }
+    store_radiance(c, ce->cosi, val, p);
     if (g->confidence) {
         double j[2][2] = {{du[0] / g->lon_step, dv[0] / g->lat_step},
                           {du[1] / g->lon_step, dv[1] / g->lat_step}};
@@ -696,6 +745,7 @@ static inline __attribute__((always_inline)) void rows_body(const unwrap_ctx *c,
     row_geom g = {.confidence = c->channels == 4, .lat_step = M_PI / h,
                   .ref = c->view->centre_px_per_rad, .keep = c->view->r - RIM_MARGIN};
     g.inner_any = g.keep - 2.9 - FAST_MAX_EXTENT;
+    g.single2 = single_lookup_disc(c, g.inner_any);
     for (int xb = 0; xb < w; xb += TILE_W) {
         int xe = xb + TILE_W < w ? xb + TILE_W : w;
         /* buf row i holds image row begin - 1 + i, columns xb - 1 .. xe. */

@@ -337,6 +337,50 @@ static void test_deterministic(void)
     sl_image_free(&b);
 }
 
+/* The orthographic fast path takes the texels inside a disc of the photo as
+ * one cubic lookup each without computing their footprint tests (the disc
+ * is derived from the mapping's largest stretch). The RGB must be the
+ * texels the full tests give: the unwrap with the confidence (which always
+ * runs the tests) against the one without, bit for bit, at the smallest
+ * output width the disc applies to and at twice it; debug builds also assert in
+ * place that every texel of the disc passes the tests. */
+static void test_single_lookup_disc(void)
+{
+    ball_fixture f;
+    ball_fixture_init(&f, 320, 320);
+    f.balls[0].px = 160;
+    f.balls[0].py = 160;
+    f.balls[0].r = 150;
+    f.ss = 2;
+    f.azimuth_deg = 31;
+    f.elevation_deg = 12;
+    f.roll_deg = 7;
+    sl_image photo = {0};
+    CHECK_OK(ball_fixture_render(&f, &photo, NULL), NULL);
+    const int widths[] = {1024, 2048};
+    for (int i = 0; i < 2 && photo.data; i++) {
+        sl_unwrap_options o = {.width = widths[i],
+                               .geometry = {.azimuth_deg = 31, .elevation_deg = 12,
+                                            .roll_deg = 7}};
+        ball_fixture_circle(&f, 0, &o.circle);
+        sl_reflectance_constant(&o.reflectance, 1, 1, 1);
+        sl_image full = {0}, fast = {0};
+        CHECK_OK(sl_unwrap(&photo, &o, &full, NULL, NULL), NULL);
+        o.no_confidence = true;
+        CHECK_OK(sl_unwrap(&photo, &o, &fast, NULL, NULL), NULL);
+        long differ = 0;
+        for (int y = 0; full.data && fast.data && y < full.height; y++)
+            for (int x = 0; x < full.width; x++)
+                for (int k = 0; k < 3; k++)
+                    differ += sl_image_pixel(&full, x, y)[k] != sl_image_pixel(&fast, x, y)[k];
+        CHECK_MSG(full.data && fast.data && differ == 0, "width %d: %ld samples differ",
+                  widths[i], differ);
+        sl_image_free(&full);
+        sl_image_free(&fast);
+    }
+    sl_image_free(&photo);
+}
+
 /* A sink that stacks the rows into an image and can fail on call `fail_at`. */
 typedef struct stack_sink {
     sl_image img;
@@ -471,6 +515,7 @@ int main(void)
     RUN(test_energy_behind_ball);
     RUN(test_bad_options);
     RUN(test_deterministic);
+    RUN(test_single_lookup_disc);
     RUN(test_stream);
     return sl_test_finish();
 }
