@@ -1079,6 +1079,21 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
     return SL_OK;
 }
 
+/* Four RGB pixels (12 floats at src) as their B, G and R planes. */
+static inline __attribute__((always_inline)) void rgb4_planes(const float *src, v4f_t plane[3])
+{
+    v4f_t a, b, c;
+    memcpy(&a, src, sizeof a);
+    memcpy(&b, src + 4, sizeof b);
+    memcpy(&c, src + 8, sizeof c);
+    v4f_t r = __builtin_shuffle(a, b, (v4i_t){0, 3, 6, 6});
+    v4f_t g = __builtin_shuffle(a, b, (v4i_t){1, 4, 7, 7});
+    v4f_t bl = __builtin_shuffle(a, b, (v4i_t){2, 5, 5, 5});
+    plane[0] = __builtin_shuffle(bl, c, (v4i_t){0, 1, 4, 7});
+    plane[1] = __builtin_shuffle(g, c, (v4i_t){0, 1, 2, 6});
+    plane[2] = __builtin_shuffle(r, c, (v4i_t){0, 1, 2, 5});
+}
+
 #if (defined(__x86_64__) || defined(__i386__)) && (defined(__clang__) || __GNUC__ >= 12)
 #define HAVE_F16C_ROWS 1
 #include <immintrin.h>
@@ -1092,16 +1107,8 @@ __attribute__((target("f16c"))) static size_t rgb_row_f16c(const float *src, uin
     const __m128 limit = _mm_set1_ps(65504.0f), neg = _mm_set1_ps(-65504.0f);
     size_t done = 0;
     for (; done + 4 <= w; done += 4) {
-        v4f_t a, b, c;
-        memcpy(&a, src + 3 * done, sizeof a);
-        memcpy(&b, src + 3 * done + 4, sizeof b);
-        memcpy(&c, src + 3 * done + 8, sizeof c);
-        v4f_t r = __builtin_shuffle(a, b, (v4i_t){0, 3, 6, 6});
-        v4f_t g = __builtin_shuffle(a, b, (v4i_t){1, 4, 7, 7});
-        v4f_t bl = __builtin_shuffle(a, b, (v4i_t){2, 5, 5, 5});
-        v4f_t plane[3] = {__builtin_shuffle(bl, c, (v4i_t){0, 1, 4, 7}),
-                          __builtin_shuffle(g, c, (v4i_t){0, 1, 2, 6}),
-                          __builtin_shuffle(r, c, (v4i_t){0, 1, 2, 5})};
+        v4f_t plane[3];
+        rgb4_planes(src + 3 * done, plane);
         for (int k = 0; k < 3; k++) {
             v4f_t f = (v4f_t)((v4i_t)plane[k] & (plane[k] == plane[k])); /* NaN -> 0 */
             __m128 v = _mm_max_ps(_mm_min_ps((__m128)f, limit), neg);
@@ -1139,16 +1146,10 @@ static void convert_rows(void *ctx, int64_t begin, int64_t end, int worker)
             /* RGB: four pixels' three vectors shuffled into R, G and B. */
             uint16_t *dst = (uint16_t *)s->buf + at;
             for (; done + 4 <= w; done += 4) {
-                v4f_t a, b, c;
-                memcpy(&a, src + 3 * done, sizeof a);
-                memcpy(&b, src + 3 * done + 4, sizeof b);
-                memcpy(&c, src + 3 * done + 8, sizeof c);
-                v4f_t r = __builtin_shuffle(a, b, (v4i_t){0, 3, 6, 6});
-                v4f_t g = __builtin_shuffle(a, b, (v4i_t){1, 4, 7, 7});
-                v4f_t bl = __builtin_shuffle(a, b, (v4i_t){2, 5, 5, 5});
-                half_bits4(__builtin_shuffle(bl, c, (v4i_t){0, 1, 4, 7}), dst + done);
-                half_bits4(__builtin_shuffle(g, c, (v4i_t){0, 1, 2, 6}), dst + w + done);
-                half_bits4(__builtin_shuffle(r, c, (v4i_t){0, 1, 2, 5}), dst + 2 * w + done);
+                v4f_t plane[3];
+                rgb4_planes(src + 3 * done, plane);
+                for (int k = 0; k < 3; k++)
+                    half_bits4(plane[k], dst + (size_t)k * w + done);
             }
         }
         for (size_t f = 0; f < nc; f++) {

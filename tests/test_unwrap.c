@@ -342,8 +342,8 @@ static void test_deterministic(void)
  * is derived from the mapping's largest stretch). The RGB must be the
  * texels the full tests give: the unwrap with the confidence (which always
  * runs the tests) against the one without, bit for bit, at the smallest
- * output width the disc applies to and at twice it; debug builds also assert in
- * place that every texel of the disc passes the tests. */
+ * output width the disc applies to and at twice it; debug builds also
+ * assert in place that every texel of the disc passes the tests. */
 static void test_single_lookup_disc(void)
 {
     ball_fixture f;
