@@ -461,8 +461,10 @@ typedef struct centre {
 } centre;
 
 /* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]; whether
- * any of them is blind. */
-static bool map_row(const unwrap_ctx *c, int y, int x0, int x1, centre *row)
+ * any of them is blind. Inlined into the row loop, so that the loop built
+ * for AVX maps with AVX too (1.4% fewer instructions at 1024). */
+static inline __attribute__((always_inline)) bool map_row(const unwrap_ctx *c, int y, int x0,
+                                                          int x1, centre *row)
 {
     bool any_blind = false;
     int w = c->width, h = c->height;
