@@ -367,23 +367,24 @@ static inline v4f vmax(v4f a, v4f b)
  * it never rings around a bright source. All 16 taps must be ball pixels
  * clear of the rim margin (checked by the caller). Written out row by row
  * (the rows are independent; the inner four taps are the clamp's too). */
-/* The 4x4 taps' top-left pixel for the point (x, y), and the weights of
- * the tap columns (wx) and rows (wy). */
+/* The 4x4 taps' top-left pixel for the point (x, y), and the point's
+ * offsets (tx, ty) from the pixel centre above and left of it. */
 static inline __attribute__((always_inline)) const float *
-cubic_taps(const sl_image *img, double x, double y, v4f *wx, v4f *wy)
+cubic_taps(const sl_image *img, double x, double y, float *tx, float *ty)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int x0 = (int)fx, y0 = (int)fy;
-    *wx = keys_weights((float)(fx - x0));
-    *wy = keys_weights((float)(fy - y0));
+    *tx = (float)(fx - x0);
+    *ty = (float)(fy - y0);
     return img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * NC;
 }
 
 static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, double x,
                                                          double y)
 {
-    v4f wx, wy;
-    const float *p = cubic_taps(img, x, y, &wx, &wy);
+    float tx, ty;
+    const float *p = cubic_taps(img, x, y, &tx, &ty);
+    v4f wx = keys_weights(tx), wy = keys_weights(ty);
     v4f w0 = splat(wx, 0), w1 = splat(wx, 1), w2 = splat(wx, 2), w3 = splat(wx, 3);
     const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v4f q1 = load4(q + NC), q2 = load4(q + 2 * NC), r1 = load4(r + NC), r2 = load4(r + 2 * NC);
@@ -413,8 +414,8 @@ typedef float v8f __attribute__((vector_size(32)));
 static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, double x,
                                                           double y)
 {
-    double fx = x - 0.5, fy = y - 0.5;
-    int x0 = (int)fx, y0 = (int)fy;
+    float tx, ty;
+    const float *p = cubic_taps(img, x, y, &tx, &ty);
     /* keys_weights() of the x fraction in the low half, of the y fraction
      * in the high half: the same operations per lane, so the same bits. */
 #define K8(a, b, c, d) {a, b, c, d, a, b, c, d}
@@ -424,10 +425,8 @@ static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, d
     const v8f kd = K8(-4.0f * KEYS_A, 1.0f, 1.0f, -4.0f * KEYS_A);
     const v8f u0 = K8(1.0f, 0.0f, 1.0f, 2.0f), us = K8(1.0f, 1.0f, -1.0f, -1.0f);
 #undef K8
-    float tx = (float)(fx - x0), ty = (float)(fy - y0);
     v8f u = u0 + us * (v8f){tx, tx, tx, tx, ty, ty, ty, ty};
     v8f wxy = ((ka * u + kb) * u + kc) * u + kd;
-    const float *p = img->data + (size_t)(y0 - 1) * img->stride + (size_t)(x0 - 1) * NC;
     v8f w0 = SPLAT8(wxy, 0), w1 = SPLAT8(wxy, 1), w2 = SPLAT8(wxy, 2), w3 = SPLAT8(wxy, 3);
     const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v8f pq1 = LOAD4X2(p + NC, q + NC), pq2 = LOAD4X2(p + 2 * NC, q + 2 * NC);
