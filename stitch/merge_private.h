@@ -60,6 +60,18 @@ sl_result merge_fit_robertson(const merge_samples *s, const double *log_exposure
                               int max_samples, double black, double saturation, uint64_t seed,
                               sl_response *out, sl_error *err);
 
+/* The curve node at or below code z (0 <= z <= 1) of a response with
+ * `nodes` nodes, and z's offset from it in node steps (*frac, 0 .. 1). */
+static inline int merge_response_node(double z, int nodes, double *frac)
+{
+    double p = z * (nodes - 1);
+    int k = (int)p;
+    if (k >= nodes - 1)
+        k = nodes - 2;
+    *frac = p - k;
+    return k;
+}
+
 /* Finishes a fitted inverse response: inv[0 .. nodes) (inv holds 3 x nodes)
  * made increasing from 0 (noise at the ends must not fold it) and 1 at
  * the top, copied to all three channels (one curve for the three: the

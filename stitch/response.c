@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "merge_private.h"
 #include "setlight/stitch.h"
 
 static sl_result response_alloc(sl_response *resp, int nodes, sl_error *err)
@@ -47,11 +48,8 @@ double sl_response_eval(const sl_response *resp, int channel, double z)
         return row[0];
     if (z >= 1)
         return row[resp->nodes - 1];
-    double p = z * (resp->nodes - 1);
-    int k = (int)p;
-    if (k >= resp->nodes - 1)
-        k = resp->nodes - 2;
-    double a = p - k;
+    double a;
+    int k = merge_response_node(z, resp->nodes, &a);
     return row[k] * (1 - a) + row[k + 1] * a;
 }
 

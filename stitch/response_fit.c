@@ -157,17 +157,6 @@ enum { ROBUST_ROUNDS = 4 };
 #define TUKEY_CUT 6.0
 #define CUT_STEPS 8.0
 
-/* The node below code z and z's offset from it. */
-static int node_of(double z, int nodes, double *frac)
-{
-    double p = z * (nodes - 1);
-    int k = (int)p;
-    if (k >= nodes - 1)
-        k = nodes - 2;
-    *frac = p - k;
-    return k;
-}
-
 /* Adds one channel's samples (positions ch[0..m)) to the normal equations
  * a, b with the per-sample unknowns eliminated (Schur complement): frame
  * q of sample t weighted by w[t * f + q]^2 rw[t * f + q]. Adds the robust
@@ -187,7 +176,7 @@ static void add_samples(const merge_samples *s, int c, const int *ch, int m, con
             double w2 = (double)w[e] * w[e] * rw[e], al;
             if (w2 <= 0)
                 continue;
-            int k = node_of(zi[q * 3 + c], nodes, &al);
+            int k = merge_response_node(zi[q * 3 + c], nodes, &al);
             int ks[2] = {k, k + 1};
             double cs[2] = {1 - al, al};
             for (int j = 0; j < 2; j++) {
@@ -230,7 +219,7 @@ static int sample_residuals(const merge_samples *s, int c, const int *ch, int m,
         for (int q = 0; q < f; q++)
             if (wt[q] > 0) {
                 double al;
-                int k = node_of(zi[q * 3 + c], nodes, &al);
+                int k = merge_response_node(zi[q * 3 + c], nodes, &al);
                 v[q] = g[k] + al * (g[k + 1] - g[k]) - log_exposure[q];
                 slope[q] = (g[k + 1] - g[k]) * (nodes - 1);
                 used++;
