@@ -2,8 +2,10 @@
 #include "setlight/core.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 
 /* Refuse images beyond 64k x 64k or 16 GiB of floats: a corrupt header
  * must not turn into a huge allocation. */
@@ -21,9 +23,22 @@ sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_
         (size_t)width * (size_t)height * (size_t)channels > SL_MAX_FLOATS)
         return sl_error_set(err, SL_ERR_INPUT, "image size %dx%d is too large", width, height);
     size_t stride = (size_t)width * (size_t)channels;
+    size_t bytes = stride * (size_t)height * sizeof(float);
     float *data = calloc(stride * (size_t)height, sizeof(float));
     if (!data)
         return sl_error_set(err, SL_ERR_NOMEM, "out of memory for a %dx%d image", width, height);
+#ifdef MADV_HUGEPAGE
+    /* A large image (a 4096^2 photo is 200 MB) is faulted in 2 MB pages
+     * where the system allows it: 100 page faults instead of 50 000. Only
+     * the whole 2 MB pages inside the block are advised. */
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    if (bytes >= 16 * huge) {
+        uintptr_t a = ((uintptr_t)data + huge - 1) & ~(huge - 1);
+        uintptr_t b = ((uintptr_t)data + bytes) & ~(huge - 1);
+        if (b > a)
+            madvise((void *)a, b - a, MADV_HUGEPAGE);
+    }
+#endif
     img->width = width;
     img->height = height;
     img->channels = channels;
