@@ -284,9 +284,13 @@ typedef struct exr_decode_job {
     exr_compression_t comp;
     size_t line_bytes, offset[4];
     bool half[4];
+    struct own_scratch *scratch; /* per worker, kept from task to task */
+    int workers;
 } exr_decode_job;
 
-/* A worker's buffers for zip_scanlines. */
+/* A worker's buffers for zip_scanlines (a chunk of a 4096-wide float RGB
+ * image is 800 KB: made once per worker, not per task, they are not
+ * faulted in again and again). */
 typedef struct own_scratch {
     struct libdeflate_decompressor *inflater;
     uint8_t *packed, *raw, *lines;
@@ -501,29 +505,37 @@ static exr_result_t decode_one(const exr_decode_job *job, int64_t k, exr_decode_
 }
 
 /* Chunks begin .. end - 1 through zip_scanlines. */
-static void own_chunks(exr_decode_job *job, int64_t begin, int64_t end)
+static void own_chunks(exr_decode_job *job, int64_t begin, int64_t end, own_scratch *s)
 {
-    own_scratch s;
-    memset(&s, 0, sizeof s);
     for (int64_t k = begin; k < end; k++) {
         exr_chunk_info_t cinfo;
         exr_result_t rv = exr_read_scanline_chunk_info(
             job->ctx, 0, job->fr->data.min.y + (int)k * job->chunk_h, &cinfo);
-        job->rv[k] = rv == EXR_ERR_SUCCESS ? zip_scanlines(job, &cinfo, &s) : rv;
+        job->rv[k] = rv == EXR_ERR_SUCCESS ? zip_scanlines(job, &cinfo, s) : rv;
     }
-    if (s.inflater)
-        libdeflate_free_decompressor(s.inflater);
-    free(s.packed);
-    free(s.raw);
-    free(s.lines);
+}
+
+static void own_scratch_free(own_scratch *s)
+{
+    if (s->inflater)
+        libdeflate_free_decompressor(s->inflater);
+    free(s->packed);
+    free(s->raw);
+    free(s->lines);
+    memset(s, 0, sizeof *s);
 }
 
 static void decode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
 {
-    (void)worker;
     exr_decode_job *job = ctx;
     if (job->own) {
-        own_chunks(job, begin, end);
+        if (worker < job->workers) {
+            own_chunks(job, begin, end, &job->scratch[worker]);
+        } else {
+            own_scratch one = {0};
+            own_chunks(job, begin, end, &one);
+            own_scratch_free(&one);
+        }
         return;
     }
     float *scratch = malloc((size_t)job->chunk_w * (size_t)job->chunk_h *
@@ -581,9 +593,15 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_attr
                           .tiled = storage == EXR_STORAGE_TILED, .chunk_w = chunk_w,
                           .chunk_h = chunk_h, .tiles_x = tiles_x};
     job.own = own_decoder(ctx, cl, &job);
+    int workers = sl_threads_get();
     job.rv = malloc(sizeof *job.rv * (size_t)chunks);
-    if (!job.rv)
+    job.scratch = calloc((size_t)workers, sizeof *job.scratch);
+    job.workers = workers;
+    if (!job.rv || !job.scratch) {
+        free(job.rv);
+        free(job.scratch);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for EXR chunks", path);
+    }
     /* Grain: a few MB of pixels per task. */
     int64_t per_chunk = (int64_t)chunk_w * chunk_h * pick->count;
     sl_parallel_for(chunks, 1 + (1 << 20) / per_chunk, decode_chunks, &job);
@@ -595,6 +613,9 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_attr
             decode_chunks(&job, k, k + 1, 0);
             r = corrupt(err, path, job.rv[k]);
         }
+    for (int i = 0; i < workers; i++)
+        own_scratch_free(&job.scratch[i]);
+    free(job.scratch);
     free(job.rv);
     return r;
 }
@@ -842,14 +863,32 @@ static exr_result_t write_header(exr_context_t ctx, const sl_image *img, const s
     return rv;
 }
 
-/* One chunk packed and compressed; the bytes are kept for the in-order write. */
+/* One chunk packed and compressed; the bytes are kept for the in-order write.
+ * The buffer stays with the slot from batch to batch (a chunk of an
+ * 8192-wide image is 800 KB: not faulted in anew for every chunk). */
 typedef struct exr_chunk_out {
     int y;
     bool zero; /* all-zero pixels, a full chunk */
     void *bytes;
+    size_t cap;
     uint64_t size;
     exr_result_t rv;
 } exr_chunk_out;
+
+/* Room for n bytes in the slot's buffer. */
+static bool chunk_room(exr_chunk_out *o, size_t n)
+{
+    if (!n)
+        n = 1;
+    if (n <= o->cap)
+        return true;
+    free(o->bytes);
+    o->cap = 0;
+    if (!(o->bytes = malloc(n)))
+        return false;
+    o->cap = n;
+    return true;
+}
 
 /* An EXR written a batch of rows at a time: rows are sanitised into the
  * batch buffer in the file's layout (per line, per channel in file order),
@@ -868,6 +907,7 @@ struct sl_exr_stream {
     int batch_rows, row0, rows; /* rows buffered */
     int first;           /* first chunk of the batch being encoded */
     exr_chunk_out *out;  /* per chunk of a batch */
+    int batch_chunks;    /* out's length */
     /* An all-zero chunk of `lines` rows compresses to the same bytes
      * wherever it is (masks are mostly such chunks): kept once made. */
     void *zero_bytes;
@@ -881,8 +921,7 @@ struct sl_exr_stream {
 static exr_result_t keep_chunk(exr_encode_pipeline_t *enc)
 {
     exr_chunk_out *o = enc->encoding_user_data;
-    o->bytes = malloc(enc->compressed_bytes ? enc->compressed_bytes : 1);
-    if (!o->bytes)
+    if (!chunk_room(o, enc->compressed_bytes))
         return EXR_ERR_OUT_OF_MEMORY;
     memcpy(o->bytes, enc->compressed_buffer, enc->compressed_bytes);
     o->size = enc->compressed_bytes;
@@ -917,7 +956,7 @@ static exr_result_t own_zip_chunk(sl_exr_stream *s, const uint8_t *rows, size_t 
     exr_zip_scratch one, *z = worker < s->workers ? &s->zip[worker] : &one;
     memset(&one, 0, sizeof one);
     size_t size = 0;
-    if (!(o->bytes = malloc(n ? n : 1)) || !exr_zip_chunk(rows, n, z, o->bytes, &size)) {
+    if (!chunk_room(o, n) || !exr_zip_chunk(rows, n, z, o->bytes, &size)) {
         exr_zip_free(&one);
         return EXR_ERR_OUT_OF_MEMORY;
     }
@@ -944,10 +983,11 @@ static void encode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
         const uint8_t *rows = (const uint8_t *)s->buf + (size_t)(o->y - s->row0) * line;
         o->zero = cinfo.height == s->lines && all_zero(rows, (size_t)cinfo.height * line);
         if (o->zero && s->zero_bytes) {
-            if ((o->bytes = malloc(s->zero_size)))
+            bool room = chunk_room(o, s->zero_size);
+            if (room)
                 memcpy(o->bytes, s->zero_bytes, s->zero_size);
             o->size = s->zero_size;
-            o->rv = o->bytes ? EXR_ERR_SUCCESS : EXR_ERR_OUT_OF_MEMORY;
+            o->rv = room ? EXR_ERR_SUCCESS : EXR_ERR_OUT_OF_MEMORY;
             continue;
         }
         if (s->own_zip) {
@@ -983,7 +1023,11 @@ static exr_result_t flush_batch(sl_exr_stream *s)
 {
     int n = (s->rows + s->lines - 1) / s->lines;
     s->first = s->row0 / s->lines;
-    memset(s->out, 0, (size_t)n * sizeof *s->out);
+    for (int k = 0; k < n; k++) {
+        s->out[k].zero = false;
+        s->out[k].size = 0;
+        s->out[k].rv = EXR_ERR_SUCCESS;
+    }
     sl_parallel_for(n, 1, encode_chunks, s);
     exr_result_t rv = EXR_ERR_SUCCESS;
     for (int k = 0; k < n; k++) {
@@ -996,7 +1040,6 @@ static exr_result_t flush_batch(sl_exr_stream *s)
         }
         if (rv == EXR_ERR_SUCCESS)
             rv = exr_write_scanline_chunk(s->ctx, 0, s->out[k].y, s->out[k].bytes, s->out[k].size);
-        free(s->out[k].bytes);
     }
     s->row0 += s->rows;
     s->rows = 0;
@@ -1070,6 +1113,7 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
     s->batch_rows = batch * lines < height ? batch * lines : height;
     s->buf = malloc((size_t)s->batch_rows * (size_t)width * (size_t)channels * (s->half ? 2 : 4));
     s->out = calloc((size_t)batch, sizeof *s->out);
+    s->batch_chunks = s->out ? batch : 0;
     s->own_zip = compression == SL_EXR_ZIP;
     s->workers = sl_threads_get();
     s->zip = calloc((size_t)s->workers, sizeof *s->zip);
@@ -1305,6 +1349,8 @@ void sl_exr_stream_abort(sl_exr_stream *s)
     sl_meta_free(&s->meta);
     free(s->path);
     free(s->buf);
+    for (int k = 0; s->out && k < s->batch_chunks; k++)
+        free(s->out[k].bytes);
     free(s->out);
     free(s->zero_bytes);
     for (int i = 0; s->zip && i < s->workers; i++)
