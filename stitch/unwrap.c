@@ -16,6 +16,9 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#endif
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -94,14 +97,14 @@ static inline v4f load3(const float *p)
 #endif
 }
 
+/* Three float stores: a wider store through a may-alias type (__m64,
+ * memcpy) would make the compiler reload the photo's pointer and stride
+ * and the view after every texel. */
 static inline void store3(float *p, v4f v)
 {
-#ifdef __SSE__
-    _mm_storel_pi((__m64 *)p, (__m128)v);
-    _mm_store_ss(p + 2, _mm_movehl_ps((__m128)v, (__m128)v));
-#else
-    memcpy(p, &v, 3 * sizeof(float));
-#endif
+    p[0] = v[0];
+    p[1] = v[1];
+    p[2] = v[2];
 }
 
 /* floor() and ceil() for coordinates and counts (|v| < 2^63): the same
@@ -397,27 +400,33 @@ static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, do
     return vmin(vmax(acc, lo), hi);
 }
 
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__clang__) || __GNUC__ >= 12)
-#define HAVE_ROWS_AVX 1
+#if (defined(__x86_64__) || defined(__i386__)) && defined(__SSE2__) && \
+    (defined(__clang__) || __GNUC__ >= 12)
+#define HAVE_ROWS_WIDE 1
 /* bicubic() with two rows per 8-wide vector (the row above in the low
- * half): the same products summed in the same order, so the same bits;
- * half the arithmetic instructions where the row loop is built for AVX. */
+ * half) and fused multiply-adds, where the processor has AVX2 and FMA:
+ * the same weights and taps, each sum rounded once instead of twice (within
+ * a few float ulps of bicubic(); test_unwrap compares the two). */
 typedef float v8f __attribute__((vector_size(32)));
 
 /* Rows a|b of one tap column: the two 4-wide loads joined. */
 #define LOAD4X2(a, b) __builtin_shufflevector(load4(a), load4(b), 0, 1, 2, 3, 4, 5, 6, 7)
 #define LOW4(v) __builtin_shufflevector((v), (v), 0, 1, 2, 3)
 #define HIGH4(v) __builtin_shufflevector((v), (v), 4, 5, 6, 7)
-#define SPLAT8(v, i) __builtin_shufflevector((v), (v), i, i, i, i, i, i, i, i)
-#define SPLAT44(v, i, j) __builtin_shufflevector((v), (v), i, i, i, i, j, j, j, j)
+#define PERM8(v, ...) __builtin_shufflevector((v), (v), __VA_ARGS__)
 
 static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, double x,
                                                           double y)
 {
-    float tx, ty;
-    const float *p = cubic_taps(img, x, y, &tx, &ty);
+    /* cubic_taps() for x and y at once (coordinates are positive: the
+     * truncation is the floor). */
+    __m128d f = _mm_sub_pd(_mm_set_pd(y, x), _mm_set1_pd(0.5));
+    __m128i i0 = _mm_cvttpd_epi32(f);
+    __m128 t = _mm_cvtpd_ps(_mm_sub_pd(f, _mm_cvtepi32_pd(i0)));
+    int x0 = ((v4i)i0)[0], y0 = ((v4i)i0)[1];
+    const float *p = img->data + (ptrdiff_t)(y0 - 1) * (ptrdiff_t)img->stride + (x0 - 1) * NC;
     /* keys_weights() of the x fraction in the low half, of the y fraction
-     * in the high half: the same operations per lane, so the same bits. */
+     * in the high half. */
 #define K8(a, b, c, d) {a, b, c, d, a, b, c, d}
     const v8f ka = K8(KEYS_A, KEYS_A + 2.0f, KEYS_A + 2.0f, KEYS_A);
     const v8f kb = K8(-5.0f * KEYS_A, -(KEYS_A + 3.0f), -(KEYS_A + 3.0f), -5.0f * KEYS_A);
@@ -425,27 +434,30 @@ static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, d
     const v8f kd = K8(-4.0f * KEYS_A, 1.0f, 1.0f, -4.0f * KEYS_A);
     const v8f u0 = K8(1.0f, 0.0f, 1.0f, 2.0f), us = K8(1.0f, 1.0f, -1.0f, -1.0f);
 #undef K8
-    v8f u = u0 + us * (v8f){tx, tx, tx, tx, ty, ty, ty, ty};
+    v8f u = us * __builtin_shufflevector((v4f)t, (v4f)t, 0, 0, 0, 0, 1, 1, 1, 1) + u0;
     v8f wxy = ((ka * u + kb) * u + kc) * u + kd;
-    v8f w0 = SPLAT8(wxy, 0), w1 = SPLAT8(wxy, 1), w2 = SPLAT8(wxy, 2), w3 = SPLAT8(wxy, 3);
+    v8f w0 = PERM8(wxy, 0, 0, 0, 0, 0, 0, 0, 0), w1 = PERM8(wxy, 1, 1, 1, 1, 1, 1, 1, 1);
+    v8f w2 = PERM8(wxy, 2, 2, 2, 2, 2, 2, 2, 2), w3 = PERM8(wxy, 3, 3, 3, 3, 3, 3, 3, 3);
     const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
     v8f pq1 = LOAD4X2(p + NC, q + NC), pq2 = LOAD4X2(p + 2 * NC, q + 2 * NC);
     v8f rs1 = LOAD4X2(r + NC, s + NC), rs2 = LOAD4X2(r + 2 * NC, s + 2 * NC);
-    v8f pq = LOAD4X2(p, q) * w0 + pq1 * w1 + pq2 * w2 + LOAD4X2(p + 3 * NC, q + 3 * NC) * w3;
-    v8f rs = LOAD4X2(r, s) * w0 + rs1 * w1 + rs2 * w2 + LOAD4X2(r + 3 * NC, s + 3 * NC) * w3;
-    v8f a = pq * SPLAT44(wxy, 4, 5), b = rs * SPLAT44(wxy, 6, 7);
-    v4f acc = LOW4(a) + HIGH4(a) + LOW4(b) + HIGH4(b);
+    v8f pq = ((LOAD4X2(p, q) * w0 + pq1 * w1) + pq2 * w2) + LOAD4X2(p + 3 * NC, q + 3 * NC) * w3;
+    v8f rs = ((LOAD4X2(r, s) * w0 + rs1 * w1) + rs2 * w2) + LOAD4X2(r + 3 * NC, s + 3 * NC) * w3;
+    v8f a = pq * PERM8(wxy, 4, 4, 4, 4, 5, 5, 5, 5) + rs * PERM8(wxy, 6, 6, 6, 6, 7, 7, 7, 7);
+    v4f acc = LOW4(a) + HIGH4(a);
+    /* The clamp's range: the inner taps. */
     v4f q1 = HIGH4(pq1), q2 = HIGH4(pq2), r1 = LOW4(rs1), r2 = LOW4(rs2);
     v4f lo = vmin(vmin(q1, q2), vmin(r1, r2)), hi = vmax(vmax(q1, q2), vmax(r1, r2));
     return vmin(vmax(acc, lo), hi);
 }
+#undef PERM8
 #endif
 
-/* The cubic lookup, 8 wide in the row loop built for AVX. */
+/* The cubic lookup, 8 wide in the row loop built for AVX2 and FMA. */
 static inline __attribute__((always_inline)) v4f cubic_lookup(const sl_image *img, double x,
                                                               double y, bool wide)
 {
-#ifdef HAVE_ROWS_AVX
+#ifdef HAVE_ROWS_WIDE
     if (wide)
         return bicubic8(img, x, y);
 #endif
@@ -461,7 +473,7 @@ typedef struct centre {
 
 /* Columns x0 .. x1 - 1 of row y (x wraps around) into row[0 ..]; whether
  * any of them is blind. Inlined into the row loop, so that the loop built
- * for AVX maps with AVX too (1.4% fewer instructions at 1024). */
+ * for AVX2 maps with AVX2 too. */
 static inline __attribute__((always_inline)) bool map_row(const unwrap_ctx *c, int y, int x0,
                                                           int x1, centre *row)
 {
@@ -781,11 +793,11 @@ static void unwrap_rows(void *ctx, int64_t first, int64_t last, int worker)
     rows_body(ctx, first, last, false);
 }
 
-#ifdef HAVE_ROWS_AVX
-/* The same rows built for AVX (no FMA: every sum rounds as before), used
- * where the processor has it: the same bytes either way. */
-__attribute__((target("avx"))) static void unwrap_rows_avx(void *ctx, int64_t first,
-                                                            int64_t last, int worker)
+#ifdef HAVE_ROWS_WIDE
+/* The same rows built for AVX2 and FMA, used where the processor has them
+ * (the cubic lookups 8 wide with fused multiply-adds). */
+__attribute__((target("avx2,fma"))) static void unwrap_rows_wide(void *ctx, int64_t first,
+                                                                 int64_t last, int worker)
 {
     (void)worker;
     rows_body(ctx, first, last, true);
@@ -1059,6 +1071,13 @@ fail:
     return r;
 }
 
+static bool portable_rows_only;
+
+void unwrap_use_portable_rows(bool on)
+{
+    portable_rows_only = on;
+}
+
 /* Rows y0 .. y1 - 1 into `rows` (stride floats apart). */
 static void unwrap_strip(unwrap_run *u, float *rows, size_t stride, int y0, int y1)
 {
@@ -1066,9 +1085,9 @@ static void unwrap_strip(unwrap_run *u, float *rows, size_t stride, int y0, int 
     u->c.stride = stride;
     u->c.row0 = y0;
     sl_range_fn rows_fn = unwrap_rows;
-#ifdef HAVE_ROWS_AVX
-    if (__builtin_cpu_supports("avx"))
-        rows_fn = unwrap_rows_avx;
+#ifdef HAVE_ROWS_WIDE
+    if (!portable_rows_only && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
+        rows_fn = unwrap_rows_wide;
 #endif
     sl_parallel_for(y1 - y0, ROW_GRAIN, rows_fn, &u->c);
 }

@@ -21,6 +21,11 @@ void ball_view_map(const sl_ball_view *view, const double dir[3], ball_hit *hit)
 /* The same for a direction already in the view frame (unit). */
 void ball_view_map_local(const sl_ball_view *view, const double wv[3], ball_hit *hit);
 
+/* For tests: true makes the unwrap take its portable row loop even where
+ * the processor has AVX2 and FMA (the row loop built for them is used
+ * otherwise). Not thread-safe; false by default. */
+void unwrap_use_portable_rows(bool on);
+
 /* The default lat-long width for a view: one texel per photo pixel where
  * the ball looks back at the camera. */
 int unwrap_auto_width(const sl_ball_view *view);
