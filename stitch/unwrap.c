@@ -403,14 +403,21 @@ static inline __attribute__((always_inline)) v4f bicubic(const sl_image *img, do
 #if (defined(__x86_64__) || defined(__i386__)) && defined(__SSE2__) && \
     (defined(__clang__) || __GNUC__ >= 12)
 #define HAVE_ROWS_WIDE 1
-/* bicubic() with two rows per 8-wide vector (the row above in the low
- * half) and fused multiply-adds, where the processor has AVX2 and FMA:
- * the same weights and taps, each sum rounded once instead of twice (within
- * a few float ulps of bicubic(); test_unwrap compares the two). */
+/* bicubic() where the processor has AVX2 and FMA, rows first: a tap row's
+ * four RGB pixels are 12 contiguous floats, loaded as 8 + 4 and summed over
+ * the four rows with the y weights (fused multiply-adds), then weighted
+ * along x and folded to RGB. The same weights and taps as bicubic(),
+ * summed in another order (within a few float ulps; test_unwrap compares
+ * the two). */
 typedef float v8f __attribute__((vector_size(32)));
 
-/* Rows a|b of one tap column: the two 4-wide loads joined. */
-#define LOAD4X2(a, b) __builtin_shufflevector(load4(a), load4(b), 0, 1, 2, 3, 4, 5, 6, 7)
+/* Eight floats (through a pointer: a 32-byte vector returned by value
+ * would change the ABI where AVX is not enabled). */
+static inline void load8(v8f *v, const float *p)
+{
+    memcpy(v, p, sizeof *v);
+}
+
 #define LOW4(v) __builtin_shufflevector((v), (v), 0, 1, 2, 3)
 #define HIGH4(v) __builtin_shufflevector((v), (v), 4, 5, 6, 7)
 #define PERM8(v, ...) __builtin_shufflevector((v), (v), __VA_ARGS__)
@@ -436,19 +443,30 @@ static inline __attribute__((always_inline)) v4f bicubic8(const sl_image *img, d
 #undef K8
     v8f u = us * __builtin_shufflevector((v4f)t, (v4f)t, 0, 0, 0, 0, 1, 1, 1, 1) + u0;
     v8f wxy = ((ka * u + kb) * u + kc) * u + kd;
-    v8f w0 = PERM8(wxy, 0, 0, 0, 0, 0, 0, 0, 0), w1 = PERM8(wxy, 1, 1, 1, 1, 1, 1, 1, 1);
-    v8f w2 = PERM8(wxy, 2, 2, 2, 2, 2, 2, 2, 2), w3 = PERM8(wxy, 3, 3, 3, 3, 3, 3, 3, 3);
     const float *q = p + img->stride, *r = q + img->stride, *s = r + img->stride;
-    v8f pq1 = LOAD4X2(p + NC, q + NC), pq2 = LOAD4X2(p + 2 * NC, q + 2 * NC);
-    v8f rs1 = LOAD4X2(r + NC, s + NC), rs2 = LOAD4X2(r + 2 * NC, s + 2 * NC);
-    v8f pq = ((LOAD4X2(p, q) * w0 + pq1 * w1) + pq2 * w2) + LOAD4X2(p + 3 * NC, q + 3 * NC) * w3;
-    v8f rs = ((LOAD4X2(r, s) * w0 + rs1 * w1) + rs2 * w2) + LOAD4X2(r + 3 * NC, s + 3 * NC) * w3;
-    v8f a = pq * PERM8(wxy, 4, 4, 4, 4, 5, 5, 5, 5) + rs * PERM8(wxy, 6, 6, 6, 6, 7, 7, 7, 7);
-    v4f acc = LOW4(a) + HIGH4(a);
-    /* The clamp's range: the inner taps. */
-    v4f q1 = HIGH4(pq1), q2 = HIGH4(pq2), r1 = LOW4(rs1), r2 = LOW4(rs2);
-    v4f lo = vmin(vmin(q1, q2), vmin(r1, r2)), hi = vmax(vmax(q1, q2), vmax(r1, r2));
-    return vmin(vmax(acc, lo), hi);
+    v8f wy0 = PERM8(wxy, 4, 4, 4, 4, 4, 4, 4, 4), wy1 = PERM8(wxy, 5, 5, 5, 5, 5, 5, 5, 5);
+    v8f wy2 = PERM8(wxy, 6, 6, 6, 6, 6, 6, 6, 6), wy3 = PERM8(wxy, 7, 7, 7, 7, 7, 7, 7, 7);
+    /* Floats 0-7 (R0 G0 B0 R1 G1 B1 R2 G2) and 8-11 (B2 R3 G3 B3) of the
+     * rows, summed over the rows. */
+    v8f lp, lq, lr, ls;
+    load8(&lp, p);
+    load8(&lq, q);
+    load8(&lr, r);
+    load8(&ls, s);
+    v8f a8 = ((lp * wy0 + lq * wy1) + lr * wy2) + ls * wy3;
+    v4f a4 = ((load4(p + 8) * LOW4(wy0) + load4(q + 8) * LOW4(wy1)) + load4(r + 8) * LOW4(wy2)) +
+             load4(s + 8) * LOW4(wy3);
+    v8f h8 = a8 * PERM8(wxy, 0, 0, 0, 1, 1, 1, 2, 2);
+    v4f h4 = a4 * __builtin_shufflevector(wxy, wxy, 2, 3, 3, 3);
+    /* (R0 G0 B0 .) + (R1 G1 B1 .) + (R2 G2 B2 .) + (R3 G3 B3 .) */
+    v4f c0 = LOW4(h8), hi = HIGH4(h8);
+    v4f c1 = __builtin_shufflevector(c0, hi, 3, 4, 5, 6);
+    v4f c2 = __builtin_shufflevector(hi, h4, 2, 3, 4, 5);
+    v4f c3 = __builtin_shufflevector(h4, h4, 1, 2, 3, 3);
+    v4f acc = (c0 + c1) + (c2 + c3);
+    v4f q1 = load4(q + NC), q2 = load4(q + 2 * NC), r1 = load4(r + NC), r2 = load4(r + 2 * NC);
+    v4f lo = vmin(vmin(q1, q2), vmin(r1, r2)), hi4 = vmax(vmax(q1, q2), vmax(r1, r2));
+    return vmin(vmax(acc, lo), hi4);
 }
 #undef PERM8
 #endif
