@@ -343,7 +343,10 @@ static void unzip_bytes(uint8_t *t, size_t n, uint8_t *out)
         v = _mm_add_epi8(v, _mm_slli_si128(v, 8));
         v = _mm_add_epi8(v, carry);
         _mm_storeu_si128((__m128i *)(t + i), v);
-        carry = _mm_set1_epi8((char)t[i + 15]);
+        /* The last byte to every lane, in registers (through memory the
+         * next block waits on the store). */
+        __m128i hi = _mm_shufflehi_epi16(_mm_unpackhi_epi8(v, v), 0xff);
+        carry = _mm_unpackhi_epi64(hi, hi);
     }
 #endif
     for (; i < n; i++)
