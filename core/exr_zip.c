@@ -14,9 +14,15 @@
 #ifdef __SSE2__
 #include <emmintrin.h>
 #endif
+/* The predictor, the equal-byte scan and the block's loops built for AVX2
+ * and BMI2 too (shifts by a register count in one instruction), used
+ * where the processor has them: the same bytes either way. */
+#if (defined(__x86_64__) || defined(__i386__)) && (defined(__clang__) || __GNUC__ >= 12)
+#define HAVE_AVX2 1
+#include <immintrin.h>
+#endif
 
-/* Inlined everywhere: the block's loops are built twice, once for AVX2
- * and BMI2 (shifts by a register count in one instruction). */
+/* Inlined everywhere: the block's loops are built twice. */
 #define INLINE static inline __attribute__((always_inline))
 
 #define BLOCK (1 << 16)
@@ -76,6 +82,42 @@ static void split_predict(const uint8_t *raw, size_t n, uint8_t *d)
         d[half] = (uint8_t)(raw[1] - raw[n - 2] + 128);
     }
 }
+
+#ifdef HAVE_AVX2
+__attribute__((target("avx2"))) static void split_predict_avx2(const uint8_t *raw, size_t n,
+                                                              uint8_t *d)
+{
+    size_t half = n / 2, j = 0;
+    const __m256i low = _mm256_set1_epi16(0xff), bias = _mm256_set1_epi8((char)0x80);
+    __m256i prev_e = _mm256_setzero_si256(), prev_o = _mm256_setzero_si256();
+    for (; j + 32 <= half; j += 32) {
+        __m256i a = _mm256_loadu_si256((const __m256i *)(raw + 2 * j));
+        __m256i b = _mm256_loadu_si256((const __m256i *)(raw + 2 * j + 32));
+        /* Packing works per 128-bit lane: the quarters back in order. */
+        __m256i e = _mm256_permute4x64_epi64(
+            _mm256_packus_epi16(_mm256_and_si256(a, low), _mm256_and_si256(b, low)), 0xd8);
+        __m256i o = _mm256_permute4x64_epi64(
+            _mm256_packus_epi16(_mm256_srli_epi16(a, 8), _mm256_srli_epi16(b, 8)), 0xd8);
+        /* Each byte's predecessor: the vector one byte up, the last of the
+         * previous vector first. */
+        __m256i pe = _mm256_alignr_epi8(e, _mm256_permute2x128_si256(prev_e, e, 0x21), 15);
+        __m256i po = _mm256_alignr_epi8(o, _mm256_permute2x128_si256(prev_o, o, 0x21), 15);
+        _mm256_storeu_si256((__m256i *)(d + j), _mm256_add_epi8(_mm256_sub_epi8(e, pe), bias));
+        _mm256_storeu_si256((__m256i *)(d + half + j),
+                            _mm256_add_epi8(_mm256_sub_epi8(o, po), bias));
+        prev_e = e;
+        prev_o = o;
+    }
+    for (; j < half; j++) {
+        d[j] = (uint8_t)(raw[2 * j] - (j ? raw[2 * j - 2] : 0) + 128);
+        d[half + j] = (uint8_t)(raw[2 * j + 1] - (j ? raw[2 * j - 1] : 0) + 128);
+    }
+    if (half) {
+        d[0] = raw[0];
+        d[half] = (uint8_t)(raw[1] - raw[n - 2] + 128);
+    }
+}
+#endif
 
 /* Bits into the stream, least significant first, fewer than 8 held back;
  * past the end of the buffer they are dropped (the chunk is then stored). */
@@ -187,56 +229,57 @@ static void sort_by_weight(node *t, int m)
 }
 
 /* Huffman code lengths of at most `limit` bits for the symbols with a
- * frequency (frequencies halved until the code fits: rare); at least two
- * symbols get one, so that the code is complete. */
+ * frequency; at least two symbols get one, so that the code is complete.
+ * Depths past the limit are cut to it and the code made whole again as
+ * miniz does (a longest code dropped and a shorter one split, until the
+ * Kraft sum is 1); the shortest codes go to the most frequent symbols. */
 static void code_lengths(const uint32_t *freq, int count, int limit, uint8_t *len)
 {
-    uint32_t f[LIT_SYMS];
     node t[2 * LIT_SYMS];
-    int used = 0;
+    int used = 0, m = 0;
     for (int i = 0; i < count; i++)
-        used += (f[i] = freq[i]) > 0;
-    for (int i = 0; used < 2; i++)
-        if (!f[i]) {
-            f[i] = 1;
-            used++;
-        }
-    for (;;) {
-        int m = 0;
-        for (int i = 0; i < count; i++)
-            if (f[i])
-                t[m++] = (node){f[i], (int16_t)i, -1};
-        sort_by_weight(t, m);
-        /* Two queues: leaves by weight, then internal nodes as made (their
-         * weights never decrease). */
-        int leaf = 0, inner = m, made = m;
-        for (int k = 0; k < m - 1; k++) {
-            int pick[2];
-            for (int q = 0; q < 2; q++)
-                pick[q] = leaf < m && (inner == made || t[leaf].weight <= t[inner].weight)
-                              ? leaf++
-                              : inner++;
-            t[made] = (node){t[pick[0]].weight + t[pick[1]].weight, -1, -1};
-            t[pick[0]].parent = t[pick[1]].parent = (int16_t)made;
-            made++;
-        }
-        /* Depths from the root (the last node made) down. */
-        uint8_t depth[2 * LIT_SYMS];
-        depth[made - 1] = 0;
-        int deepest = 0;
-        for (int k = made - 2; k >= 0; k--) {
-            depth[k] = (uint8_t)(depth[t[k].parent] + 1);
-            deepest = depth[k] > deepest ? depth[k] : deepest;
-        }
-        if (deepest <= limit) {
-            memset(len, 0, (size_t)count);
-            for (int k = 0; k < m; k++)
-                len[t[k].symbol] = depth[k];
-            return;
-        }
-        for (int i = 0; i < count; i++)
-            f[i] = f[i] ? (f[i] + 1) / 2 : 0;
+        used += freq[i] > 0;
+    for (int i = 0; i < count; i++)
+        if (freq[i] || (used < 2 && !freq[i] && ++used))
+            t[m++] = (node){freq[i] ? freq[i] : 1, (int16_t)i, -1};
+    sort_by_weight(t, m);
+    /* Two queues: leaves by weight, then internal nodes as made (their
+     * weights never decrease). */
+    int leaf = 0, inner = m, made = m;
+    for (int k = 0; k < m - 1; k++) {
+        int pick[2];
+        for (int q = 0; q < 2; q++)
+            pick[q] = leaf < m && (inner == made || t[leaf].weight <= t[inner].weight) ? leaf++
+                                                                                       : inner++;
+        t[made] = (node){t[pick[0]].weight + t[pick[1]].weight, -1, -1};
+        t[pick[0]].parent = t[pick[1]].parent = (int16_t)made;
+        made++;
     }
+    /* Depths from the root (the last node made) down; leaves per depth. */
+    uint8_t depth[2 * LIT_SYMS];
+    int per_len[16] = {0};
+    depth[made - 1] = 0;
+    for (int k = made - 2; k >= 0; k--) {
+        depth[k] = (uint8_t)(depth[t[k].parent] + 1);
+        if (k < m)
+            per_len[depth[k] < limit ? depth[k] : limit]++;
+    }
+    uint32_t kraft = 0;
+    for (int b = 1; b <= limit; b++)
+        kraft += (uint32_t)per_len[b] << (limit - b);
+    for (; kraft > 1u << limit; kraft--) {
+        per_len[limit]--;
+        for (int b = limit - 1; b > 0; b--)
+            if (per_len[b]) {
+                per_len[b]--;
+                per_len[b + 1] += 2;
+                break;
+            }
+    }
+    memset(len, 0, (size_t)count);
+    for (int b = 1, k = m - 1; b <= limit; b++)
+        for (int c = per_len[b]; c > 0; c--)
+            len[t[k--].symbol] = (uint8_t)b;
 }
 
 /* Bytes with their bits in reverse order. */
@@ -319,9 +362,33 @@ INLINE uint64_t load8(const uint8_t *p)
 /* Bit p of eq (64 to a word): d[p] == d[p + 1]; zero from bit n - 1 on,
  * and one more word of zeros. Then bit p of starts: d[p] is followed by
  * 3 copies of it, and one more word of zeros. */
-INLINE void equal_next(const uint8_t *d, size_t n, uint64_t *eq, uint64_t *starts)
+#ifdef HAVE_AVX2
+__attribute__((target("avx2"))) static void equal_words_avx2(const uint8_t *d, size_t words,
+                                                            uint64_t *eq)
+{
+    for (size_t w = 0; w < words; w++) {
+        const uint8_t *p = d + 64 * w;
+        __m256i a = _mm256_loadu_si256((const __m256i *)p);
+        __m256i b = _mm256_loadu_si256((const __m256i *)(p + 1));
+        __m256i c = _mm256_loadu_si256((const __m256i *)(p + 32));
+        __m256i e = _mm256_loadu_si256((const __m256i *)(p + 33));
+        eq[w] = (uint32_t)_mm256_movemask_epi8(_mm256_cmpeq_epi8(a, b)) |
+                (uint64_t)(uint32_t)_mm256_movemask_epi8(_mm256_cmpeq_epi8(c, e)) << 32;
+    }
+}
+#endif
+
+INLINE void equal_next(const uint8_t *d, size_t n, uint64_t *eq, uint64_t *starts, bool wide)
 {
     size_t words = (n + 63) / 64, w = 0;
+#ifdef HAVE_AVX2
+    if (wide) {
+        w = n ? (n - 1) / 64 : 0; /* whole words with the byte after them */
+        equal_words_avx2(d, w, eq);
+    }
+#else
+    (void)wide;
+#endif
 #ifdef __SSE2__
     for (; (w + 1) * 64 < n; w++) {
         const uint8_t *p = d + 64 * w;
@@ -534,11 +601,11 @@ static void block_codes(bits *b, const uint32_t *freq, bool last, uint32_t *bits
 
 /* d[0 .. n) as one dynamic-Huffman block: literals, and runs of the
  * previous byte as matches at distance 1. */
-INLINE void block(bits *b, const uint8_t *d, size_t n, exr_zip_scratch *s, bool last)
+INLINE void block(bits *b, const uint8_t *d, size_t n, exr_zip_scratch *s, bool last, bool wide)
 {
     uint32_t freq[LIT_SYMS] = {0};
     uint64_t *eq = s->equal, *starts = s->equal + BLOCK / 64 + 1;
-    equal_next(d, n, eq, starts);
+    equal_next(d, n, eq, starts, wide);
     size_t nr = tokenize(d, n, eq, starts, s->runs, freq);
     freq[256] = 1;
     uint32_t bits_of[256 + MAX_RUN + 1];
@@ -554,16 +621,15 @@ INLINE void block(bits *b, const uint8_t *d, size_t n, exr_zip_scratch *s, bool 
 
 static void write_block(bits *b, const uint8_t *d, size_t n, exr_zip_scratch *s, bool last)
 {
-    block(b, d, n, s, last);
+    block(b, d, n, s, last, false);
 }
 
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__clang__) || __GNUC__ >= 12)
-#define HAVE_BLOCK_AVX2 1
+#ifdef HAVE_AVX2
 __attribute__((target("avx2,bmi,bmi2"))) static void write_block_avx2(bits *b, const uint8_t *d,
                                                                     size_t n, exr_zip_scratch *s,
                                                                     bool last)
 {
-    block(b, d, n, s, last);
+    block(b, d, n, s, last, true);
 }
 #endif
 
@@ -582,19 +648,22 @@ bool exr_zip_chunk(const uint8_t *raw, size_t n, exr_zip_scratch *s, uint8_t *ou
     if (!s->runs && !(s->runs = malloc(sizeof(uint32_t) * (BLOCK / MIN_RUN + 1))))
         return false;
     uint8_t *d = s->bytes;
-    split_predict(raw, n, d);
+#ifdef HAVE_AVX2
+    bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2");
+    if (avx2)
+        split_predict_avx2(raw, n, d);
+    else
+#endif
+        split_predict(raw, n, d);
     bits b = {out, 0, n, 0, 0};
     put(&b, 0x78, 8); /* zlib header: deflate, 32 KB window, check bits */
     put(&b, 0x01, 8);
     /* Blocks never straddle the halves: their statistics differ. */
     size_t half = n / 2;
-#ifdef HAVE_BLOCK_AVX2
-    bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2");
-#endif
     for (size_t at = 0; at < n;) {
         size_t end = at < half ? half : n;
         size_t len = end - at < BLOCK ? end - at : BLOCK;
-#ifdef HAVE_BLOCK_AVX2
+#ifdef HAVE_AVX2
         if (avx2)
             write_block_avx2(&b, d + at, len, s, at + len == n);
         else
