@@ -456,8 +456,32 @@ INLINE void count_bytes(const uint8_t *d, size_t n, uint32_t (*lit)[256])
         lit[2][d[i + 6]]++;
         lit[3][d[i + 7]]++;
     }
-    for (; i < n; i++)
+    /* The last up to 7 (most segments between runs are short). */
+    switch (n - i) {
+    case 7:
+        lit[2][d[i + 6]]++;
+        __attribute__((fallthrough));
+    case 6:
+        lit[1][d[i + 5]]++;
+        __attribute__((fallthrough));
+    case 5:
+        lit[0][d[i + 4]]++;
+        __attribute__((fallthrough));
+    case 4:
+        lit[3][d[i + 3]]++;
+        __attribute__((fallthrough));
+    case 3:
+        lit[2][d[i + 2]]++;
+        __attribute__((fallthrough));
+    case 2:
+        lit[1][d[i + 1]]++;
+        __attribute__((fallthrough));
+    case 1:
         lit[0][d[i]]++;
+        break;
+    default:
+        break;
+    }
 }
 
 /* The runs of d[0 .. n) into runs (start << 9 | length), counted into
@@ -497,12 +521,78 @@ INLINE size_t tokenize(const uint8_t *d, size_t n, const uint64_t *eq, const uin
     return nr;
 }
 
+/* Two literals' codes in one: the first byte in the low 8 bits of the
+ * index. */
+struct pair_codes {
+    uint32_t code[1 << 16];
+    uint8_t len[1 << 16];
+};
+
+#ifdef HAVE_AVX2
+__attribute__((target("avx2"))) static void pair_codes_avx2(const uint32_t *code,
+                                                           const uint8_t *len, pair_codes *pc)
+{
+    /* Eight first symbols at a time against every second one. */
+    for (int a = 0; a < 256; a += 8) {
+        __m256i first = _mm256_loadu_si256((const __m256i *)(code + a));
+        __m256i shift = _mm256_cvtepu8_epi32(_mm_loadl_epi64((const __m128i *)(len + a)));
+        for (int b = 0; b < 256; b += 2) {
+            __m256i s0 = _mm256_set1_epi32((int)code[b]), s1 = _mm256_set1_epi32((int)code[b + 1]);
+            _mm256_storeu_si256((__m256i *)(pc->code + 256 * b + a),
+                                _mm256_or_si256(first, _mm256_sllv_epi32(s0, shift)));
+            _mm256_storeu_si256((__m256i *)(pc->code + 256 * (b + 1) + a),
+                                _mm256_or_si256(first, _mm256_sllv_epi32(s1, shift)));
+        }
+    }
+    for (int b = 0; b < 256; b++) {
+        __m256i second = _mm256_set1_epi8((char)len[b]);
+        for (int a = 0; a < 256; a += 32)
+            _mm256_storeu_si256(
+                (__m256i *)(pc->len + 256 * b + a),
+                _mm256_add_epi8(_mm256_loadu_si256((const __m256i *)(len + a)), second));
+    }
+}
+#endif
+
 /* Literals d[i .. end), four (at most 56 bits) per drain; up to two are
  * left held, with room for a run (at most 20 bits) before the next drain.
  * `room`: the buffer holds the worst case, no checks needed. */
 INLINE void put_literals(bits *w, const uint8_t *d, size_t i, size_t end, const uint32_t *code,
-                         const uint8_t *len, bool room)
+                         const uint8_t *len, const pair_codes *pc, bool room)
 {
+    /* Pairs read as 16-bit words: only where pair codes are made (x86,
+     * little-endian). */
+    for (; pc && i + 8 <= end; i += 8) {
+        uint16_t p[4];
+        memcpy(&p[0], d + i, 2);
+        memcpy(&p[1], d + i + 2, 2);
+        memcpy(&p[2], d + i + 4, 2);
+        memcpy(&p[3], d + i + 6, 2);
+        add(w, pc->code[p[0]], pc->len[p[0]]);
+        add(w, pc->code[p[1]], pc->len[p[1]]);
+        if (room)
+            drain_unchecked(w);
+        else
+            drain(w);
+        add(w, pc->code[p[2]], pc->len[p[2]]);
+        add(w, pc->code[p[3]], pc->len[p[3]]);
+        if (room)
+            drain_unchecked(w);
+        else
+            drain(w);
+    }
+    if (pc && i + 4 <= end) {
+        uint16_t p[2];
+        memcpy(&p[0], d + i, 2);
+        memcpy(&p[1], d + i + 2, 2);
+        add(w, pc->code[p[0]], pc->len[p[0]]);
+        add(w, pc->code[p[1]], pc->len[p[1]]);
+        if (room)
+            drain_unchecked(w);
+        else
+            drain(w);
+        i += 4;
+    }
     for (; i + 4 <= end; i += 4) {
         add(w, code[d[i]], len[d[i]]);
         add(w, code[d[i + 1]], len[d[i + 1]]);
@@ -526,12 +616,13 @@ INLINE void put_literals(bits *w, const uint8_t *d, size_t i, size_t end, const 
 
 /* The block's literals and runs, then the end of block. */
 INLINE void put_tokens(bits *w, const uint8_t *d, size_t n, const uint32_t *runs, size_t nr,
-                       const uint32_t *bits_of, const uint8_t *len_of, bool room)
+                       const uint32_t *bits_of, const uint8_t *len_of, const pair_codes *pc,
+                       bool room)
 {
     size_t i = 0;
     for (size_t k = 0; k < nr; k++) {
         size_t at = runs[k] >> 9, run = runs[k] & 511;
-        put_literals(w, d, i, at, bits_of, len_of, room);
+        put_literals(w, d, i, at, bits_of, len_of, pc, room);
         add(w, bits_of[256 + run], len_of[256 + run]);
         if (room)
             drain_unchecked(w);
@@ -539,7 +630,7 @@ INLINE void put_tokens(bits *w, const uint8_t *d, size_t n, const uint32_t *runs
             drain(w);
         i = at + run;
     }
-    put_literals(w, d, i, n, bits_of, len_of, room);
+    put_literals(w, d, i, n, bits_of, len_of, pc, room);
     put(w, bits_of[256], len_of[256]);
 }
 
@@ -611,11 +702,30 @@ INLINE void block(bits *b, const uint8_t *d, size_t n, exr_zip_scratch *s, bool 
     uint32_t bits_of[256 + MAX_RUN + 1];
     uint8_t len_of[256 + MAX_RUN + 1];
     block_codes(b, freq, last, bits_of, len_of);
+    pair_codes *pc = NULL;
+#ifdef HAVE_AVX2
+    /* Literals in pairs where there are enough of them to pay for the
+     * table (65536 codes, a fifth of a block's instructions). */
+    size_t lits = 0;
+    for (int k = 0; k < 256; k++)
+        lits += freq[k];
+    if (wide && lits >= BLOCK / 4 && (s->pairs || (s->pairs = malloc(sizeof *s->pairs)))) {
+        pc = s->pairs;
+        pair_codes_avx2(bits_of, len_of, pc);
+    }
+#endif
     bits w = *b; /* in registers: the stores could alias it otherwise */
-    if (w.cap - w.at >= 2 * n + 32)
-        put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, true);
-    else
-        put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, false);
+    if (pc) {
+        if (w.cap - w.at >= 2 * n + 32)
+            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, pc, true);
+        else
+            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, pc, false);
+    } else {
+        if (w.cap - w.at >= 2 * n + 32)
+            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, NULL, true);
+        else
+            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, NULL, false);
+    }
     *b = w;
 }
 
@@ -688,5 +798,6 @@ void exr_zip_free(exr_zip_scratch *s)
     free(s->bytes);
     free(s->equal);
     free(s->runs);
+    free(s->pairs);
     memset(s, 0, sizeof *s);
 }
