@@ -779,7 +779,8 @@ bool exr_zip_chunk(const uint8_t *raw, size_t n, exr_zip_scratch *s, uint8_t *ou
         return false;
     uint8_t *d = s->bytes;
 #ifdef HAVE_AVX2
-    bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2");
+    bool avx2 =
+        !s->portable && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2");
     if (avx2)
         split_predict_avx2(raw, n, d);
     else
