@@ -559,6 +559,14 @@ __attribute__((target("avx2"))) static void pair_codes_avx2(const uint32_t *code
 }
 #endif
 
+INLINE void drain_if(bits *b, bool room)
+{
+    if (room)
+        drain_unchecked(b);
+    else
+        drain(b);
+}
+
 /* Literals d[i .. end), four (at most 56 bits) per drain; up to two are
  * left held, with room for a run (at most 20 bits) before the next drain.
  * `room`: the buffer holds the worst case, no checks needed. */
@@ -575,47 +583,35 @@ INLINE void put_literals(bits *w, const uint8_t *d, size_t i, size_t end, const 
         memcpy(&p[3], d + i + 6, 2);
         add(w, pc->code[p[0]], pc->len[p[0]]);
         add(w, pc->code[p[1]], pc->len[p[1]]);
-        if (room)
-            drain_unchecked(w);
-        else
-            drain(w);
+        drain_if(w, room);
         add(w, pc->code[p[2]], pc->len[p[2]]);
         add(w, pc->code[p[3]], pc->len[p[3]]);
-        if (room)
-            drain_unchecked(w);
-        else
-            drain(w);
-    }
-    if (pc && i + 4 <= end) {
-        uint16_t p[2];
-        memcpy(&p[0], d + i, 2);
-        memcpy(&p[1], d + i + 2, 2);
-        add(w, pc->code[p[0]], pc->len[p[0]]);
-        add(w, pc->code[p[1]], pc->len[p[1]]);
-        if (room)
-            drain_unchecked(w);
-        else
-            drain(w);
-        i += 4;
+        drain_if(w, room);
     }
     for (; i + 4 <= end; i += 4) {
-        add(w, code[d[i]], len[d[i]]);
-        add(w, code[d[i + 1]], len[d[i + 1]]);
-        add(w, code[d[i + 2]], len[d[i + 2]]);
-        add(w, code[d[i + 3]], len[d[i + 3]]);
-        if (room)
-            drain_unchecked(w);
-        else
-            drain(w);
+        if (pc) {
+            uint16_t p[2];
+            memcpy(&p[0], d + i, 2);
+            memcpy(&p[1], d + i + 2, 2);
+            add(w, pc->code[p[0]], pc->len[p[0]]);
+            add(w, pc->code[p[1]], pc->len[p[1]]);
+        } else {
+            add(w, code[d[i]], len[d[i]]);
+            add(w, code[d[i + 1]], len[d[i + 1]]);
+            add(w, code[d[i + 2]], len[d[i + 2]]);
+            add(w, code[d[i + 3]], len[d[i + 3]]);
+        }
+        drain_if(w, room);
     }
-    size_t left = end - i;
-    for (; i < end; i++)
+    if (i < end) {
         add(w, code[d[i]], len[d[i]]);
-    if (left == 3) {
-        if (room)
-            drain_unchecked(w);
-        else
-            drain(w);
+        if (i + 1 < end) {
+            add(w, code[d[i + 1]], len[d[i + 1]]);
+            if (i + 2 < end) {
+                add(w, code[d[i + 2]], len[d[i + 2]]);
+                drain_if(w, room);
+            }
+        }
     }
 }
 
@@ -637,10 +633,7 @@ INLINE void put_tokens(bits *w, const uint8_t *d, size_t n, const uint32_t *runs
             put_literals(w, d, i, at, bits_of, len_of, pc, room);
         }
         add(w, bits_of[256 + run], len_of[256 + run]);
-        if (room)
-            drain_unchecked(w);
-        else
-            drain(w);
+        drain_if(w, room);
         i = at + run;
     }
     put_literals(w, d, i, n, bits_of, len_of, pc, room);
