@@ -53,6 +53,22 @@ INLINE int len_symbol(int len)
     return 4 * e + (v >> e);
 }
 
+/* split_predict from pair j on (the vector loops' tail), and the first
+ * byte of each half: the stream's first is stored as is, the odd half's
+ * first follows the last even byte. */
+static void predict_rest(const uint8_t *raw, size_t n, size_t j, uint8_t *d)
+{
+    size_t half = n / 2;
+    for (; j < half; j++) {
+        d[j] = (uint8_t)(raw[2 * j] - (j ? raw[2 * j - 2] : 0) + 128);
+        d[half + j] = (uint8_t)(raw[2 * j + 1] - (j ? raw[2 * j - 1] : 0) + 128);
+    }
+    if (half) {
+        d[0] = raw[0];
+        d[half] = (uint8_t)(raw[1] - raw[n - 2] + 128);
+    }
+}
+
 /* The bytes as OpenEXR's ZIP predicts them: even bytes, then odd bytes,
  * each stored as its difference to the one before, plus 128. */
 static void split_predict(const uint8_t *raw, size_t n, uint8_t *d)
@@ -74,16 +90,7 @@ static void split_predict(const uint8_t *raw, size_t n, uint8_t *d)
         prev_o = o;
     }
 #endif
-    for (; j < half; j++) {
-        d[j] = (uint8_t)(raw[2 * j] - (j ? raw[2 * j - 2] : 0) + 128);
-        d[half + j] = (uint8_t)(raw[2 * j + 1] - (j ? raw[2 * j - 1] : 0) + 128);
-    }
-    /* The first byte of each half: the stream's first is stored as is, the
-     * odd half's first follows the last even byte. */
-    if (half) {
-        d[0] = raw[0];
-        d[half] = (uint8_t)(raw[1] - raw[n - 2] + 128);
-    }
+    predict_rest(raw, n, j, d);
 }
 
 #ifdef HAVE_AVX2
@@ -111,14 +118,7 @@ __attribute__((target("avx2"))) static void split_predict_avx2(const uint8_t *ra
         prev_e = e;
         prev_o = o;
     }
-    for (; j < half; j++) {
-        d[j] = (uint8_t)(raw[2 * j] - (j ? raw[2 * j - 2] : 0) + 128);
-        d[half + j] = (uint8_t)(raw[2 * j + 1] - (j ? raw[2 * j - 1] : 0) + 128);
-    }
-    if (half) {
-        d[0] = raw[0];
-        d[half] = (uint8_t)(raw[1] - raw[n - 2] + 128);
-    }
+    predict_rest(raw, n, j, d);
 }
 #endif
 
@@ -167,7 +167,7 @@ INLINE void drain(bits *b)
     }
 }
 
-/* Bits added without draining: at most 56 may be held. */
+/* Bits added without draining: at most 64 may be held. */
 INLINE void add(bits *b, uint32_t v, size_t n)
 {
     b->buf |= (uint64_t)v << b->n;
@@ -242,9 +242,15 @@ static void code_lengths(const uint32_t *freq, int count, int limit, uint8_t *le
     int used = 0, m = 0;
     for (int i = 0; i < count; i++)
         used += freq[i] > 0;
-    for (int i = 0; i < count; i++)
-        if (freq[i] || (used < 2 && !freq[i] && ++used))
-            t[m++] = (node){freq[i] ? freq[i] : 1, (int16_t)i, -1};
+    for (int i = 0; i < count; i++) {
+        uint32_t f = freq[i];
+        if (!f && used < 2) {
+            f = 1;
+            used++;
+        }
+        if (f)
+            t[m++] = (node){f, (int16_t)i, -1};
+    }
     sort_by_weight(t, m);
     /* Two queues: leaves by weight, then internal nodes as made (their
      * weights never decrease). */
@@ -362,10 +368,8 @@ INLINE uint64_t load8(const uint8_t *p)
     return v;
 }
 
-/* Bit p of eq (64 to a word): d[p] == d[p + 1]; zero from bit n - 1 on,
- * and one more word of zeros. Then bit p of starts: d[p] is followed by
- * 3 copies of it, and one more word of zeros. */
 #ifdef HAVE_AVX2
+/* equal_next's first `words` words. */
 __attribute__((target("avx2"))) static void equal_words_avx2(const uint8_t *d, size_t words,
                                                             uint64_t *eq)
 {
@@ -381,6 +385,9 @@ __attribute__((target("avx2"))) static void equal_words_avx2(const uint8_t *d, s
 }
 #endif
 
+/* Bit p of eq (64 to a word): d[p] == d[p + 1]; zero from bit n - 1 on,
+ * and one more word of zeros. Then bit p of starts: d[p] is followed by
+ * 3 copies of it, and one more word of zeros. */
 INLINE void equal_next(const uint8_t *d, size_t n, uint64_t *eq, uint64_t *starts, bool wide)
 {
     size_t words = (n + 63) / 64, w = 0;
@@ -728,17 +735,16 @@ INLINE void block(bits *b, const uint8_t *d, size_t n, exr_zip_scratch *s, bool 
     }
 #endif
     bits w = *b; /* in registers: the stores could alias it otherwise */
-    if (pc) {
-        if (w.cap - w.at >= size / 8 + 16)
-            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, pc, true);
-        else
-            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, pc, false);
-    } else {
-        if (w.cap - w.at >= size / 8 + 16)
-            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, NULL, true);
-        else
-            put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, NULL, false);
-    }
+    /* Room for the block's bits, the held ones and a drain's 8-byte store. */
+    bool room = w.cap - w.at >= size / 8 + 16;
+    if (pc && room)
+        put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, pc, true);
+    else if (pc)
+        put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, pc, false);
+    else if (room)
+        put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, NULL, true);
+    else
+        put_tokens(&w, d, n, s->runs, nr, bits_of, len_of, NULL, false);
     *b = w;
 }
 
