@@ -7,11 +7,16 @@
 #include <stddef.h>
 #include <stdint.h>
 
+typedef struct pair_codes pair_codes;
+
 /* One thread's buffers, kept from chunk to chunk; start zeroed. */
 typedef struct exr_zip_scratch {
     uint8_t *bytes; /* the chunk split and predicted */
     size_t bytes_cap;
-    uint16_t *tokens; /* one block's literals and runs */
+    uint64_t *equal;   /* one block's "byte equals the next" bits, then run starts */
+    uint32_t *runs;    /* one block's runs: start << 9 | length */
+    pair_codes *pairs; /* codes of two literals at once */
+    bool portable;     /* set: not the loops built for AVX2 (tests compare the two) */
 } exr_zip_scratch;
 
 /* The n raw bytes of a chunk (per line, per channel in file order, samples

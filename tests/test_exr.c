@@ -628,7 +628,9 @@ static float random_half(uint32_t r)
  * zero rows and columns (runs, the reused all-zero chunk), smooth ramps
  * (runs of one difference), noise (literals; float noise does not
  * compress, so those chunks are stored), a partial last chunk, odd widths
- * and several Huffman blocks per chunk. */
+ * and several Huffman blocks per chunk; 4096 wide, two blocks a half with
+ * enough noise literals for the pair codes (tests/test_exr_zip.c covers
+ * the encoder's paths one by one). */
 static void test_own_zip_encoder(void)
 {
     static const char *names[4][4] = {{"Y"}, {"Y", "A"}, {"R", "G", "B"}, {"R", "G", "B", "A"}};
@@ -638,7 +640,7 @@ static void test_own_zip_encoder(void)
         bool noise; /* noise only, but for the zero rows */
     } cases[] = {{1031, 37, 3, SL_PIXEL_HALF, false}, {67, 21, 4, SL_PIXEL_FLOAT, true},
                  {2051, 17, 1, SL_PIXEL_HALF, false}, {9, 40, 2, SL_PIXEL_HALF, false},
-                 {515, 33, 3, SL_PIXEL_FLOAT, false}};
+                 {515, 33, 3, SL_PIXEL_FLOAT, false}, {4096, 17, 3, SL_PIXEL_HALF, false}};
     sl_error err;
     uint32_t seed = 12345;
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
@@ -656,7 +658,7 @@ static void test_own_zip_encoder(void)
                     else if (x < w / 3 && !cases[k].noise)
                         v = x < w / 6 ? 0.0f : 1.0f + c;
                     else if (x < 2 * w / 3 && !cases[k].noise)
-                        v = (float)(x + 3 * y + c) * 0.25f;
+                        v = (float)((x + 3 * y + c) % 2048) * 0.25f; /* exact in half */
                     else if (half)
                         v = random_half(seed >> 8);
                     else {
