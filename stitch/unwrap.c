@@ -575,6 +575,7 @@ typedef struct row_geom {
     double vscale, cos_lat, sin_lat, lon_step, lat_step, ref, keep;
     double inner_any; /* keep less the lookup's reach and the largest fast footprint */
     double single2;   /* squared photo radius inside which a texel is one lookup, or -1 */
+    double smooth2;   /* squared photo radius inside which the tests are passed, or -1 */
 } row_geom;
 
 /* The disc of the photo (squared radius from the ball's centre, px^2) inside
@@ -605,6 +606,36 @@ static double single_lookup_disc(const unwrap_ctx *c, double inner_any)
     return fmin(r2, inner_any * inner_any);
 }
 
+/* The disc of the photo (squared radius, px^2) inside which every texel is
+ * certain to pass the fast path's extent and bend tests and to lie far
+ * enough from the rim for unchecked cubic lookups, so that texel() need
+ * only compute its footprint's extents (one lookup or several); -1 where
+ * this is not shown (as single_lookup_disc). Orthographic ball of radius R,
+ * c = cos(t/2) = sqrt(1 - (r/R)^2) at photo radius r: the mapping
+ * stretches by at most R / (2c) px per radian, so a texel step (at most
+ * 2 pi / W radians) spans at most R / (2c) 2 pi / W px; the second
+ * difference over one texel step each side (the bend test) is at most
+ * R (2 pi / W)^2 (1.125 / c + 0.5 / c^2 + 0.25 / c^3) (the mapping's
+ * second derivative along the lat-long's circles). Kept to extents under
+ * half of FAST_MAX_EXTENT, bends under a fifth of FAST_MAX_BEND, r <= 0.97 R
+ * and inside inner_any. Debug builds check every such texel against the
+ * full tests (assert in texel()). */
+static double smooth_disc(const unwrap_ctx *c, double inner_any)
+{
+    const sl_ball_view *v = c->view;
+    if (v->distance != 0.0 || c->channels == 4 || c->width < 1024 || inner_any <= 0.0)
+        return -1.0;
+    double step = 2.0 * M_PI / c->width;
+    for (double rho = 0.97; rho > 0.0; rho -= 0.01) {
+        double cc = sqrt(1.0 - rho * rho);
+        double extent = v->r / (2.0 * cc) * step * 1.05;
+        double bend = v->r * step * step * (1.125 / cc + 0.5 / (cc * cc) + 0.25 / (cc * cc * cc));
+        if (extent <= 0.5 * FAST_MAX_EXTENT && bend <= 0.2 * FAST_MAX_BEND)
+            return fmin(rho * rho * v->r * v->r, inner_any * inner_any);
+    }
+    return -1.0;
+}
+
 /* One texel from its centre ce, its neighbours in the row ce[-1] and ce[1],
  * and the centres above and below. Where the footprint is clear of the
  * blind cone and at most a few photo pixels wide, the mapping is linear
@@ -625,49 +656,59 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
         return;
     }
 #endif
-    if (g->maybe_blind && (ce->blind || l->blind || r->blind || up->blind || down->blind)) {
-        assert(!single);
-        texel_exact(c, x, g->y, p);
-        return;
-    }
+    bool smooth = e2 <= g->smooth2;
     /* Photo pixels per texel step along u and v. */
     double du[2] = {0.5 * (r->x - l->x), 0.5 * (r->y - l->y)};
     double dv[2] = {g->vscale * (down->x - up->x), g->vscale * (down->y - up->y)};
     double eu2 = du[0] * du[0] + du[1] * du[1], ev2 = dv[0] * dv[0] + dv[1] * dv[1];
-    /* Curvature of the mapping: how far the centre is from its
-     * neighbours' midpoints. */
-    double cu = fabs(r->x + l->x - 2.0 * ce->x) + fabs(r->y + l->y - 2.0 * ce->y);
-    double cv = g->inner_row ? fabs(down->x + up->x - 2.0 * ce->x) +
-                                   fabs(down->y + up->y - 2.0 * ce->y)
-                             : 0.0;
-    if (eu2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT || ev2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT ||
-        cu > FAST_MAX_BEND || cv > FAST_MAX_BEND) {
-        assert(!single);
-        texel_exact(c, x, g->y, p);
-        return;
-    }
-    /* Farthest point of the footprint from the ball's centre (a corner:
-     * distance is convex), plus the lookup's reach: bilinear taps lie within
-     * sqrt(2) px of the point, the cubic's within 2 sqrt(2). Near the rim
-     * each sample is checked and clamped like the exact path's. Most texels
-     * are far from the rim: the triangle inequality settles them without
-     * the corners, most of them even with the largest footprint (no square
-     * roots). */
     bool checked = false, cubic = true;
-    double inner = g->inner_any;
-    if (inner < 0.0 || e2 > inner * inner)
-        inner = g->keep - 2.9 - 0.5 * (sqrt(eu2) + sqrt(ev2));
-    if (inner < 0.0 || e2 > inner * inner) {
-        double far2 = 0.0;
-        for (int q = 0; q < 4; q++) {
-            double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
-            double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
-            double d2 = qx * qx + qy * qy;
-            far2 = d2 > far2 ? d2 : far2;
+#ifdef NDEBUG
+    if (!smooth) {
+#else
+    {
+#endif
+        if (g->maybe_blind &&
+            (ce->blind || l->blind || r->blind || up->blind || down->blind)) {
+            assert(!single && !smooth);
+            texel_exact(c, x, g->y, p);
+            return;
         }
-        double far = sqrt(far2);
-        checked = far + 1.5 > g->keep;
-        cubic = far + 2.9 <= g->keep;
+        /* Curvature of the mapping: how far the centre is from its
+         * neighbours' midpoints. */
+        double cu = fabs(r->x + l->x - 2.0 * ce->x) + fabs(r->y + l->y - 2.0 * ce->y);
+        double cv = g->inner_row ? fabs(down->x + up->x - 2.0 * ce->x) +
+                                       fabs(down->y + up->y - 2.0 * ce->y)
+                                 : 0.0;
+        if (eu2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT ||
+            ev2 > FAST_MAX_EXTENT * FAST_MAX_EXTENT || cu > FAST_MAX_BEND ||
+            cv > FAST_MAX_BEND) {
+            assert(!single && !smooth);
+            texel_exact(c, x, g->y, p);
+            return;
+        }
+        /* Farthest point of the footprint from the ball's centre (a corner:
+         * distance is convex), plus the lookup's reach: bilinear taps lie
+         * within sqrt(2) px of the point, the cubic's within 2 sqrt(2). Near
+         * the rim each sample is checked and clamped like the exact path's.
+         * Most texels are far from the rim: the triangle inequality settles
+         * them without the corners, most of them even with the largest
+         * footprint (no square roots). */
+        double inner = g->inner_any;
+        if (inner < 0.0 || e2 > inner * inner)
+            inner = g->keep - 2.9 - 0.5 * (sqrt(eu2) + sqrt(ev2));
+        if (inner < 0.0 || e2 > inner * inner) {
+            double far2 = 0.0;
+            for (int q = 0; q < 4; q++) {
+                double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
+                double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
+                double d2 = qx * qx + qy * qy;
+                far2 = d2 > far2 ? d2 : far2;
+            }
+            double far = sqrt(far2);
+            checked = far + 1.5 > g->keep;
+            cubic = far + 2.9 <= g->keep;
+        }
+        assert(!smooth || (cubic && !checked));
     }
     double seen = 1.0;
     v4f val;
@@ -799,6 +840,7 @@ static inline __attribute__((always_inline)) void rows_body(const unwrap_ctx *c,
                   .ref = c->view->centre_px_per_rad, .keep = c->view->r - RIM_MARGIN};
     g.inner_any = g.keep - 2.9 - FAST_MAX_EXTENT;
     g.single2 = single_lookup_disc(c, g.inner_any);
+    g.smooth2 = smooth_disc(c, g.inner_any);
     for (int xb = x0; xb < x1; xb += TILE_W) {
         int xe = xb + TILE_W < x1 ? xb + TILE_W : x1;
         /* buf row i holds image row begin - 1 + i, columns xb - 1 .. xe. */

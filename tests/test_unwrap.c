@@ -340,28 +340,34 @@ static void test_deterministic(void)
 }
 
 /* The orthographic fast path takes the texels inside a disc of the photo as
- * one cubic lookup each without computing their footprint tests (the disc
- * is derived from the mapping's largest stretch). The RGB must be the
+ * one cubic lookup each without computing their footprint tests, and those
+ * inside a wider disc without the bend, extent and rim tests (both discs
+ * derived from the mapping's largest stretch and bend). The RGB must be the
  * texels the full tests give: the unwrap with the confidence (which always
  * runs the tests) against the one without, bit for bit, at the smallest
- * output width the disc applies to and at twice it; debug builds also
- * assert in place that every texel of the disc passes the tests. */
+ * output width the discs apply to and at twice it, and with a ball large
+ * enough (340 px) that the wider disc reaches past the first (the 150 px
+ * ball's rim margin keeps it inside); debug builds also assert in place
+ * that every texel of the discs passes the tests. */
 static void test_single_lookup_disc(void)
 {
-    ball_fixture f;
-    ball_fixture_init(&f, 320, 320);
-    f.balls[0].px = 160;
-    f.balls[0].py = 160;
-    f.balls[0].r = 150;
-    f.ss = 2;
-    f.azimuth_deg = 31;
-    f.elevation_deg = 12;
-    f.roll_deg = 7;
-    sl_image photo = {0};
-    CHECK_OK(ball_fixture_render(&f, &photo, NULL), NULL);
-    const int widths[] = {1024, 2048};
-    for (int i = 0; i < 2 && photo.data; i++) {
-        sl_unwrap_options o = {.width = widths[i],
+    const struct {
+        int size, width;
+        double r;
+    } cases[] = {{320, 1024, 150}, {320, 2048, 150}, {720, 1024, 340}};
+    for (int i = 0; i < 3; i++) {
+        ball_fixture f;
+        ball_fixture_init(&f, cases[i].size, cases[i].size);
+        f.balls[0].px = 0.5 * cases[i].size;
+        f.balls[0].py = 0.5 * cases[i].size;
+        f.balls[0].r = cases[i].r;
+        f.ss = 2;
+        f.azimuth_deg = 31;
+        f.elevation_deg = 12;
+        f.roll_deg = 7;
+        sl_image photo = {0};
+        CHECK_OK(ball_fixture_render(&f, &photo, NULL), NULL);
+        sl_unwrap_options o = {.width = cases[i].width,
                                .geometry = {.azimuth_deg = 31, .elevation_deg = 12,
                                             .roll_deg = 7}};
         ball_fixture_circle(&f, 0, &o.circle);
@@ -375,12 +381,12 @@ static void test_single_lookup_disc(void)
             for (int x = 0; x < full.width; x++)
                 for (int k = 0; k < 3; k++)
                     differ += sl_image_pixel(&full, x, y)[k] != sl_image_pixel(&fast, x, y)[k];
-        CHECK_MSG(full.data && fast.data && differ == 0, "width %d: %ld samples differ",
-                  widths[i], differ);
+        CHECK_MSG(full.data && fast.data && differ == 0, "ball %g px, width %d: %ld samples differ",
+                  cases[i].r, cases[i].width, differ);
         sl_image_free(&full);
         sl_image_free(&fast);
+        sl_image_free(&photo);
     }
-    sl_image_free(&photo);
 }
 
 /* Where the processor has AVX2 and FMA the row loop is built for them (the
