@@ -59,6 +59,9 @@ typedef int v4i __attribute__((vector_size(16)));
 typedef double v2d __attribute__((vector_size(16)));
 typedef long long v2l __attribute__((vector_size(16)));
 
+/* Test switches (unwrap_private.h). */
+static bool portable_rows_only, rim_table_off;
+
 typedef struct unwrap_ctx {
     const sl_image *photo; /* RGB, finite */
     const sl_ball_view *view;
@@ -73,6 +76,8 @@ typedef struct unwrap_ctx {
     double inv_refl[3];         /* constant reflectance */
     v4f inv_refl_f;             /* the same in float */
     double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
+    float *rim;                 /* photo_lookup() on the clamp circle, RGB per entry (rim_lookup) */
+    int rim_n;                  /* entries, a multiple of 4, plus one repeating the first */
 } unwrap_ctx;
 
 static inline float *out_pixel(const unwrap_ctx *c, int x, int y)
@@ -130,6 +135,43 @@ static inline double ceil_coord(double v)
     return t < v ? t + 1.0 : t;
 }
 
+/* A point's "diamond angle" around the ball's centre, 0 to 4 (a quarter
+ * turn per unit, monotonic in the angle, no trigonometry), from its offset. */
+static inline double diamond_angle(double dx, double dy)
+{
+    double s = fabs(dx) + fabs(dy);
+    if (dy >= 0.0)
+        return dx >= 0.0 ? dy / s : 1.0 - dx / s;
+    return dx < 0.0 ? 2.0 - dy / s : 3.0 + dx / s;
+}
+
+/* The offset (unnormalised) of diamond angle a. */
+static inline void diamond_offset(double a, double *dx, double *dy)
+{
+    int q = (int)a;
+    double f = a - q;
+    const double ox[4] = {1.0 - f, -f, f - 1.0, f}, oy[4] = {f, 1.0 - f, -f, f - 1.0};
+    q &= 3;
+    *dx = ox[q];
+    *dy = oy[q];
+}
+
+/* photo_lookup() of a point pulled onto the clamp circle, from the table
+ * of it around the circle (at most 1/8 px apart along it), linearly
+ * interpolated: the samples of the texels around the point behind the ball
+ * all land there (each through the clamp's square root, division and the
+ * masked bilinear lookup before). */
+static inline v4f rim_lookup(const unwrap_ctx *c, double dx, double dy)
+{
+    double t = diamond_angle(dx, dy) * (0.25 * c->rim_n);
+    int i = (int)t;
+    i = i < c->rim_n ? i : c->rim_n - 1;
+    float f = (float)(t - i);
+    const float *p = c->rim + 3 * (size_t)i;
+    v4f a = load3(p);
+    return a + (load3(p + 3) - a) * f;
+}
+
 /* Bilinear lookup of the ball's own pixels, taps closer than the rim
  * margin to the outline left out; *inside is false when the point had to
  * be pulled inside the rim margin. The point then lies on a circle around
@@ -142,6 +184,10 @@ static inline __attribute__((always_inline)) v4f photo_lookup(const unwrap_ctx *
     double dx = x - v->cx, dy = y - v->cy, d2 = dx * dx + dy * dy, lim = v->r - RIM_CLAMP;
     *inside = true;
     if (d2 > lim * lim) {
+        if (c->rim) {
+            *inside = false;
+            return rim_lookup(c, dx, dy);
+        }
         double f = lim / sqrt(d2);
         x = v->cx + dx * f;
         y = v->cy + dy * f;
@@ -903,6 +949,36 @@ static void tables_free(unwrap_ctx *c)
 {
     free(c->column);
     free(c->refl_table);
+    free(c->rim);
+}
+
+/* The clamp circle's table for rim_lookup(): photo_lookup() at rim_n
+ * diamond angles (entries 1/8 px apart along the circle at most: a diamond
+ * angle step turns by at most twice a quarter turn's average). Without
+ * memory for it, photo_lookup() clamps each point itself. */
+static void rim_init(unwrap_ctx *c)
+{
+    double lim = c->view->r - RIM_CLAMP;
+    if (!(lim > 1.0) || rim_table_off)
+        return;
+    double n = 4.0 * ceil(16.0 * lim);
+    if (n > 1 << 24)
+        return;
+    int rim_n = (int)n;
+    float *rim = malloc(sizeof(float) * 3 * ((size_t)rim_n + 1) + sizeof(float));
+    if (!rim)
+        return;
+    for (int i = 0; i <= rim_n; i++) {
+        double dx, dy, a = 4.0 * (i % rim_n) / rim_n;
+        diamond_offset(a, &dx, &dy);
+        double k = lim / sqrt(dx * dx + dy * dy);
+        bool in;
+        v4f v = photo_lookup(c, c->view->cx + k * dx, c->view->cy + k * dy, &in);
+        for (int j = 0; j < 3; j++)
+            rim[3 * (size_t)i + (size_t)j] = v[j];
+    }
+    c->rim = rim;
+    c->rim_n = rim_n;
 }
 
 /* Per-column directions in the view frame and the reflectance. */
@@ -1145,6 +1221,7 @@ static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *op
     free(ring);
     if ((r = tables_init(c, err)))
         goto fail;
+    rim_init(c);
 
     if (info) {
         info->width = c->width;
@@ -1166,7 +1243,10 @@ fail:
     return r;
 }
 
-static bool portable_rows_only;
+void unwrap_use_rim_table(bool on)
+{
+    rim_table_off = !on;
+}
 
 void unwrap_use_portable_rows(bool on)
 {

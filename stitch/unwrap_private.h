@@ -26,6 +26,11 @@ void ball_view_map_local(const sl_ball_view *view, const double wv[3], ball_hit 
  * otherwise). Not thread-safe; false by default. */
 void unwrap_use_portable_rows(bool on);
 
+/* For tests: false makes each point pulled onto the rim clamp circle look
+ * the photo up itself instead of through the circle's table (true by
+ * default). Not thread-safe. */
+void unwrap_use_rim_table(bool on);
+
 /* The default lat-long width for a view: one texel per photo pixel where
  * the ball looks back at the camera. */
 int unwrap_auto_width(const sl_ball_view *view);

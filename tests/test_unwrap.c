@@ -10,7 +10,7 @@
 
 #include "ball_fixture.h"
 #include "setlight/stitch.h"
-#include "../stitch/unwrap_private.h" /* unwrap_use_portable_rows */
+#include "../stitch/unwrap_private.h" /* unwrap_use_portable_rows, unwrap_use_rim_table */
 #include "testing.h"
 
 #ifndef M_PI
@@ -389,6 +389,56 @@ static void test_single_lookup_disc(void)
     }
 }
 
+/* Points pulled onto the rim's clamp circle (the samples of the texels
+ * around the point behind the ball) are looked up in a table of the circle
+ * (1/8 px apart, linearly interpolated) instead of each on its own. On a
+ * photo whose every pixel varies with its angle around the centre (three
+ * harmonics, a phase per channel), unwrapped small enough that most
+ * texels behind the ball average rim samples: every texel within 1% of the
+ * direct lookups, and their mean within 0.05%. */
+static void test_rim_table(void)
+{
+    const int size = 320;
+    const double r = 150.0;
+    sl_image photo = {0};
+    CHECK_OK(sl_image_alloc(&photo, size, size, 3, NULL), NULL);
+    for (int y = 0; photo.data && y < size; y++)
+        for (int x = 0; x < size; x++) {
+            double psi = atan2(y + 0.5 - 160.0, x + 0.5 - 160.0);
+            for (int k = 0; k < 3; k++)
+                sl_image_pixel(&photo, x, y)[k] =
+                    (float)(1.0 + 0.5 * sin(3.0 * psi + k) + 0.3 * cos(7.0 * psi + 2.0 * k));
+        }
+    sl_unwrap_options o = {.circle = {.cx = 160, .cy = 160, .r = r}, .width = 256,
+                           .no_confidence = true,
+                           .geometry = {.azimuth_deg = 40, .elevation_deg = 25}};
+    sl_reflectance_constant(&o.reflectance, 1, 1, 1);
+    sl_image table = {0}, direct = {0};
+    CHECK_OK(sl_unwrap(&photo, &o, &table, NULL, NULL), NULL);
+    unwrap_use_rim_table(false);
+    CHECK_OK(sl_unwrap(&photo, &o, &direct, NULL, NULL), NULL);
+    unwrap_use_rim_table(true);
+    double worst = 0.0, sum = 0.0;
+    long n = 0, differ = 0;
+    for (int y = 0; table.data && direct.data && y < table.height; y++)
+        for (int x = 0; x < table.width; x++)
+            for (int k = 0; k < 3; k++, n++) {
+                double a = sl_image_pixel(&table, x, y)[k], b = sl_image_pixel(&direct, x, y)[k];
+                double rel = fabs(a - b) / fabs(b);
+                differ += a != b;
+                sum += rel;
+                worst = rel > worst ? rel : worst;
+            }
+    double mean = n ? sum / (double)n : 0.0;
+    printf("rim table vs direct lookups: %ld of %ld samples differ, largest %.2g, mean %.2g\n",
+           differ, n, worst, mean);
+    CHECK_MSG(table.data && direct.data && differ > 0 && worst <= 0.01 && mean <= 5e-4,
+              "largest %.3g, mean %.3g", worst, mean);
+    sl_image_free(&table);
+    sl_image_free(&direct);
+    sl_image_free(&photo);
+}
+
 /* Where the processor has AVX2 and FMA the row loop is built for them (the
  * cubic lookups 8 wide with fused multiply-adds); the portable loop is the
  * reference. The two must agree to float rounding (relative to the
@@ -591,6 +641,7 @@ int main(void)
     RUN(test_deterministic);
     RUN(test_single_lookup_disc);
     RUN(test_wide_rows_match_portable);
+    RUN(test_rim_table);
     RUN(test_stream);
     return sl_test_finish();
 }
