@@ -539,6 +539,7 @@ static inline __attribute__((always_inline)) v4f cubic_lookup(const sl_image *im
 /* Texel centres of one lat-long row mapped to the photo. */
 typedef struct centre {
     double x, y, cosi;
+    float e2; /* squared distance from the ball's centre, px^2 (the discs' test) */
     bool blind;
 } centre;
 
@@ -570,10 +571,12 @@ static inline __attribute__((always_inline)) bool map_row(const unwrap_ctx *c, i
                 break;
             v2d ct = (v2d)_mm_sqrt_pd((__m128d)(half * (one + z))), k = rk / ct;
             v2d px = v->cx - k * w0, py = v->cy - k * w1;
+            v2d e2 = k * k * (w0 * w0 + w1 * w1);
             for (int i = 0; i < 2; i++) {
                 row[x + i].x = px[i];
                 row[x + i].y = py[i];
                 row[x + i].cosi = ct[i];
+                row[x + i].e2 = (float)e2[i];
                 row[x + i].blind = false;
             }
         }
@@ -590,6 +593,8 @@ static inline __attribute__((always_inline)) bool map_row(const unwrap_ctx *c, i
         row[x].x = hit.x;
         row[x].y = hit.y;
         row[x].cosi = hit.cos_incidence;
+        double ex = hit.x - c->view->cx, ey = hit.y - c->view->cy;
+        row[x].e2 = (float)(ex * ex + ey * ey);
         row[x].blind = hit.blind;
         any_blind |= hit.blind;
     }
@@ -694,7 +699,7 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
                                                          float *p, bool wide)
 {
     const centre *l = ce - 1, *r = ce + 1;
-    double ex = ce->x - c->view->cx, ey = ce->y - c->view->cy, e2 = ex * ex + ey * ey;
+    double e2 = ce->e2;
     bool single = e2 <= g->single2;
 #ifdef NDEBUG
     if (single) {
@@ -743,7 +748,7 @@ static inline __attribute__((always_inline)) void texel(const unwrap_ctx *c, con
         if (inner < 0.0 || e2 > inner * inner)
             inner = g->keep - 2.9 - 0.5 * (sqrt(eu2) + sqrt(ev2));
         if (inner < 0.0 || e2 > inner * inner) {
-            double far2 = 0.0;
+            double far2 = 0.0, ex = ce->x - c->view->cx, ey = ce->y - c->view->cy;
             for (int q = 0; q < 4; q++) {
                 double a = q & 1 ? 0.5 : -0.5, b = q & 2 ? 0.5 : -0.5;
                 double qx = ex + a * du[0] + b * dv[0], qy = ey + a * du[1] + b * dv[1];
