@@ -78,6 +78,7 @@ typedef struct unwrap_ctx {
     double *refl_table;         /* conductor: 1 / R at cos = i / REFL_TABLE, 3 per entry */
     float *rim;                 /* photo_lookup() on the clamp circle, RGB per entry (rim_lookup) */
     int rim_n;                  /* entries, a multiple of 4, plus one repeating the first */
+    double rim_z;               /* orthographic: directions with -wv[2] below it are clamped */
 } unwrap_ctx;
 
 static inline float *out_pixel(const unwrap_ctx *c, int x, int y)
@@ -140,6 +141,8 @@ static inline double ceil_coord(double v)
 static inline double diamond_angle(double dx, double dy)
 {
     double s = fabs(dx) + fabs(dy);
+    if (!(s > 0.0))
+        return 0.0;
     if (dy >= 0.0)
         return dx >= 0.0 ? dy / s : 1.0 - dx / s;
     return dx < 0.0 ? 2.0 - dy / s : 3.0 + dx / s;
@@ -257,6 +260,18 @@ static inline void inv_reflectance(const unwrap_ctx *c, double cosi, double out[
  * and no detail is invented. */
 static bool radiance(const unwrap_ctx *c, const double wv[3], double out[3])
 {
+    if (c->rim && c->view->distance == 0.0 && -wv[2] < c->rim_z) {
+        /* Orthographic, landing past the clamp circle (sin^2(t/2) = (1 - z)
+         * / 2 > (lim / R)^2): the circle's table at the direction's angle,
+         * without mapping it (the texels around the point behind the ball
+         * are all such samples). */
+        double inv[3];
+        v4f val = rim_lookup(c, -wv[0], -wv[1]);
+        inv_reflectance(c, sqrt(0.5 * (1.0 - wv[2])), inv);
+        for (int k = 0; k < 3; k++)
+            out[k] = val[k] * inv[k];
+        return false;
+    }
     ball_hit h;
     map_local(c, wv, &h);
     if (h.blind) {
@@ -984,6 +999,8 @@ static void rim_init(unwrap_ctx *c)
     }
     c->rim = rim;
     c->rim_n = rim_n;
+    double q = lim / c->view->r;
+    c->rim_z = 1.0 - 2.0 * q * q;
 }
 
 /* Per-column directions in the view frame and the reflectance. */
