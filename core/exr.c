@@ -938,6 +938,9 @@ static exr_result_t no_wait(exr_encode_pipeline_t *enc)
     return EXR_ERR_SUCCESS;
 }
 
+/* Whether n bytes are all zero; stops at the first 256-byte stretch that is
+ * not (an image's chunks mostly are not: scanning each to its end was a
+ * pass over the whole output). */
 static bool all_zero(const uint8_t *p, size_t n)
 {
     uint64_t acc = 0, v;
@@ -945,6 +948,8 @@ static bool all_zero(const uint8_t *p, size_t n)
     for (; i + 8 <= n; i += 8) {
         memcpy(&v, p + i, 8);
         acc |= v;
+        if ((i & 255) == 248 && acc)
+            return false;
     }
     for (; i < n; i++)
         acc |= p[i];
