@@ -28,11 +28,11 @@ sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_
     if (!data)
         return sl_error_set(err, SL_ERR_NOMEM, "out of memory for a %dx%d image", width, height);
 #ifdef MADV_HUGEPAGE
-    /* A large image (a 4096^2 photo is 200 MB) is faulted in 2 MB pages
-     * where the system allows it: 100 page faults instead of 50 000. Only
-     * the whole 2 MB pages inside the block are advised. */
+    /* An image of a few MB or more (a 4096^2 photo is 200 MB) is faulted
+     * in 2 MB pages where the system allows it: 100 page faults instead of
+     * 50 000. Only the whole 2 MB pages inside the block are advised. */
     const uintptr_t huge = (uintptr_t)2 << 20;
-    if (bytes >= 16 * huge) {
+    if (bytes >= 2 * huge) {
         uintptr_t a = ((uintptr_t)data + huge - 1) & ~(huge - 1);
         uintptr_t b = ((uintptr_t)data + bytes) & ~(huge - 1);
         if (b > a)

@@ -9,7 +9,6 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 #ifdef __SSE__
 #include <xmmintrin.h>
 #endif
@@ -79,6 +78,7 @@ typedef struct unwrap_ctx {
     float *rim;                 /* photo_lookup() on the clamp circle, RGB per entry (rim_lookup) */
     int rim_n;                  /* entries, a multiple of 4, plus one repeating the first */
     double rim_z;               /* orthographic: directions with -wv[2] below it are clamped */
+    double single2, smooth2;    /* the discs' squared photo radii, or -1 (discs_init) */
 } unwrap_ctx;
 
 static inline float *out_pixel(const unwrap_ctx *c, int x, int y)
@@ -646,8 +646,8 @@ typedef struct row_geom {
 
 /* The disc of the photo (squared radius from the ball's centre, px^2) inside
  * which every texel's footprint is certain to pass the fast path's tests
- * as one cubic lookup, so that texel() need not compute them; -1 where
- * this is not shown (perspective ball, confidence wanted, coarse output).
+ * as one cubic lookup, so that texel() need not compute them (where
+ * discs_init() allows; -1 where the bound does not hold).
  * Orthographic ball of radius R: a direction at angle t from the view axis
  * lands at r = R sin(t/2), and the mapping stretches by at most
  * R / (2 cos(t/2)) px per radian (tangentially). A texel step is at most
@@ -662,8 +662,6 @@ typedef struct row_geom {
 static double single_lookup_disc(const unwrap_ctx *c, double inner_any)
 {
     const sl_ball_view *v = c->view;
-    if (v->distance != 0.0 || c->channels == 4 || c->width < 1024 || inner_any <= 0.0)
-        return -1.0;
     double q = 1.05 * M_PI * v->r / (1.25 * c->width);
     if (q >= 1.0)
         return -1.0;
@@ -676,7 +674,7 @@ static double single_lookup_disc(const unwrap_ctx *c, double inner_any)
  * certain to pass the fast path's extent and bend tests and to lie far
  * enough from the rim for unchecked cubic lookups, so that texel() need
  * only compute its footprint's extents (one lookup or several); -1 where
- * this is not shown (as single_lookup_disc). Orthographic ball of radius R,
+ * no radius passes. Orthographic ball of radius R,
  * c = cos(t/2) = sqrt(1 - (r/R)^2) at photo radius r: the mapping
  * stretches by at most R / (2c) px per radian, so a texel step (at most
  * 2 pi / W radians) spans at most R / (2c) 2 pi / W px; the second
@@ -689,8 +687,6 @@ static double single_lookup_disc(const unwrap_ctx *c, double inner_any)
 static double smooth_disc(const unwrap_ctx *c, double inner_any)
 {
     const sl_ball_view *v = c->view;
-    if (v->distance != 0.0 || c->channels == 4 || c->width < 1024 || inner_any <= 0.0)
-        return -1.0;
     double step = 2.0 * M_PI / c->width;
     for (double rho = 0.97; rho > 0.0; rho -= 0.01) {
         double cc = sqrt(1.0 - rho * rho);
@@ -700,6 +696,26 @@ static double smooth_disc(const unwrap_ctx *c, double inner_any)
             return fmin(rho * rho * v->r * v->r, inner_any * inner_any);
     }
     return -1.0;
+}
+
+/* Both discs, once per unwrap: only for an orthographic ball, without the
+ * confidence channel (it needs every texel's extents), at 1024 texels wide
+ * or more, and with room inside the rim for the largest fast footprint. */
+static void discs_init(unwrap_ctx *c)
+{
+    double inner_any = c->view->r - RIM_MARGIN - 2.9 - FAST_MAX_EXTENT;
+    c->single2 = c->smooth2 = -1.0;
+    if (c->view->distance != 0.0 || c->channels == 4 || c->width < 1024 || inner_any <= 0.0)
+        return;
+    c->single2 = single_lookup_disc(c, inner_any);
+    c->smooth2 = smooth_disc(c, inner_any);
+}
+
+/* Column groups of a row chunk: the units across the lat-long. */
+static int unit_columns(const unwrap_ctx *c)
+{
+    int group_w = TILE_W * TILES_PER_UNIT;
+    return (c->width + group_w - 1) / group_w;
 }
 
 /* One texel from its centre ce, its neighbours in the row ce[-1] and ce[1],
@@ -905,8 +921,8 @@ static inline __attribute__((always_inline)) void rows_body(const unwrap_ctx *c,
     row_geom g = {.confidence = c->channels == 4, .lat_step = M_PI / h,
                   .ref = c->view->centre_px_per_rad, .keep = c->view->r - RIM_MARGIN};
     g.inner_any = g.keep - 2.9 - FAST_MAX_EXTENT;
-    g.single2 = single_lookup_disc(c, g.inner_any);
-    g.smooth2 = smooth_disc(c, g.inner_any);
+    g.single2 = c->single2;
+    g.smooth2 = c->smooth2;
     for (int xb = x0; xb < x1; xb += TILE_W) {
         int xe = xb + TILE_W < x1 ? xb + TILE_W : x1;
         /* buf row i holds image row begin - 1 + i, columns xb - 1 .. xe. */
@@ -939,7 +955,7 @@ static inline __attribute__((always_inline)) void rows_body(const unwrap_ctx *c,
 static inline __attribute__((always_inline)) void units_body(const unwrap_ctx *c, int64_t first,
                                                               int64_t last, bool wide)
 {
-    int group_w = TILE_W * TILES_PER_UNIT, groups = (c->width + group_w - 1) / group_w;
+    int group_w = TILE_W * TILES_PER_UNIT, groups = unit_columns(c);
     for (int64_t k = first; k < last; k++) {
         int64_t r0 = k / groups * ROW_GRAIN, r1 = r0 + ROW_GRAIN;
         int x0 = (int)(k % groups) * group_w, x1 = x0 + group_w;
@@ -985,7 +1001,7 @@ static void rim_init(unwrap_ctx *c)
     if (n > 1 << 24)
         return;
     int rim_n = (int)n;
-    float *rim = malloc(sizeof(float) * 3 * ((size_t)rim_n + 1) + sizeof(float));
+    float *rim = malloc(sizeof(float) * 3 * ((size_t)rim_n + 1));
     if (!rim)
         return;
     for (int i = 0; i <= rim_n; i++) {
@@ -1037,29 +1053,6 @@ static sl_result tables_init(unwrap_ctx *c, sl_error *err)
 /* An image in memory the kernel may back with huge pages: lookups that
  * follow curves through a large photo otherwise miss the TLB on almost
  * every row. Freed by sl_image_free (free). */
-static sl_result image_alloc_large(sl_image *img, int width, int height, int channels,
-                                   sl_error *err)
-{
-    memset(img, 0, sizeof *img);
-    size_t bytes = (size_t)width * (size_t)height * (size_t)channels * sizeof(float);
-    size_t align = (size_t)2 << 20;
-    void *p = NULL;
-    if (bytes < align)
-        return sl_image_alloc(img, width, height, channels, err);
-    if (posix_memalign(&p, align, (bytes + align - 1) / align * align))
-        return sl_error_set(err, SL_ERR_NOMEM, "unwrap: out of memory for a %dx%d image",
-                            width, height);
-#ifdef MADV_HUGEPAGE
-    madvise(p, (bytes + align - 1) / align * align, MADV_HUGEPAGE);
-#endif
-    img->width = width;
-    img->height = height;
-    img->channels = channels;
-    img->stride = (size_t)width * (size_t)channels;
-    img->data = p;
-    return SL_OK;
-}
-
 /* NaN/Inf among the samples the unwrap reads (RGB, or the one grey
  * channel), counted per row in parallel (a whole photo is a few hundred MB). */
 typedef struct nonfinite_job {
@@ -1191,7 +1184,7 @@ static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *op
     }
     const sl_image *src = photo;
     if (photo->channels != 3 || nonfinite) {
-        if ((r = image_alloc_large(&u->rgb, photo->width, photo->height, 3, err)))
+        if ((r = sl_image_alloc(&u->rgb, photo->width, photo->height, 3, err)))
             goto fail;
         const sl_image *pair[2] = {photo, &u->rgb};
         sl_parallel_for(photo->height, 64, copy_rgb_rows, pair);
@@ -1244,6 +1237,7 @@ static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *op
     if ((r = tables_init(c, err)))
         goto fail;
     rim_init(c);
+    discs_init(c);
 
     if (info) {
         info->width = c->width;
@@ -1287,9 +1281,7 @@ static void unwrap_strip(unwrap_run *u, float *rows, size_t stride, int y0, int 
     if (!portable_rows_only && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
         rows_fn = unwrap_rows_wide;
 #endif
-    int group_w = TILE_W * TILES_PER_UNIT;
-    int64_t units = (int64_t)(y1 - y0 + ROW_GRAIN - 1) / ROW_GRAIN *
-                    ((u->c.width + group_w - 1) / group_w);
+    int64_t units = (int64_t)(y1 - y0 + ROW_GRAIN - 1) / ROW_GRAIN * unit_columns(&u->c);
     sl_parallel_for(units, 1, rows_fn, &u->c);
 }
 
@@ -1301,7 +1293,7 @@ sl_result sl_unwrap(const sl_image *photo, const sl_unwrap_options *opt, sl_imag
     sl_result r = unwrap_start(photo, opt, &u, info, err);
     if (r)
         return r;
-    r = image_alloc_large(out, u.c.width, u.c.height, u.c.channels, err);
+    r = sl_image_alloc(out, u.c.width, u.c.height, u.c.channels, err);
     if (!r)
         unwrap_strip(&u, out->data, out->stride, 0, out->height);
     unwrap_stop(&u);
@@ -1389,9 +1381,9 @@ sl_result sl_unwrap_stream(const sl_image *photo, const sl_unwrap_options *opt,
     int h = u.c.height, rows = h < STRIP_ROWS ? h : STRIP_ROWS;
     bool overlap = h > rows && sl_threads_get() > 1;
     if (!(r = sink->begin(sink->user, info, u.c.channels, err)))
-        r = image_alloc_large(&hand.buf[0], u.c.width, rows, u.c.channels, err);
+        r = sl_image_alloc(&hand.buf[0], u.c.width, rows, u.c.channels, err);
     if (!r && overlap)
-        r = image_alloc_large(&hand.buf[1], u.c.width, rows, u.c.channels, err);
+        r = sl_image_alloc(&hand.buf[1], u.c.width, rows, u.c.channels, err);
     pthread_t writer;
     if (!r && overlap) {
         pthread_mutex_init(&hand.lock, NULL);
