@@ -211,7 +211,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
 
     cli_getopt_reset();
     int c;
-    while ((c = getopt_long(argc, argv, "+ho:", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "ho:", opts, NULL)) != -1) {
         switch (c) {
         case 'h':
             fputs(calibrate_help, stdout);

@@ -147,7 +147,7 @@ int cmd_capture(int argc, char **argv, const sl_cli *cli)
     step_ctx sc = {.cli = cli, .prompt = true};
     cli_getopt_reset();
     int c;
-    while ((c = getopt_long(argc, argv, "+ho:", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "ho:", opts, NULL)) != -1) {
         switch (c) {
         case 'h':
             fputs(capture_help, stdout);
@@ -345,7 +345,7 @@ int cmd_cameras(int argc, char **argv, const sl_cli *cli)
     static const struct option opts[] = {{"help", no_argument, NULL, 'h'}, {0, 0, 0, 0}};
     cli_getopt_reset();
     int c;
-    while ((c = getopt_long(argc, argv, "+h", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
         if (c == 'h') {
             fputs(cameras_help, stdout);
             return 0;

@@ -69,7 +69,7 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
 
     cli_getopt_reset();
     int c;
-    while ((c = getopt_long(argc, argv, "+h", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "h", opts, NULL)) != -1) {
         switch (c) {
         case 'h':
             fputs(convert_help, stdout);

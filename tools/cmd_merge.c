@@ -213,7 +213,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     a->opt.response_mode = SL_RESPONSE_AUTO;
     cli_getopt_reset();
     int c, which = 0;
-    while ((c = getopt_long(argc, argv, "+ho:", opts, &which)) != -1) {
+    while ((c = getopt_long(argc, argv, "ho:", opts, &which)) != -1) {
         bool merge_only = c == OPT_RESP || c == OPT_MASK || c == OPT_NOMASK || c == OPT_NOISE ||
                           c == OPT_DEGHOST || c == OPT_GHOSTMASK || c == OPT_ABS ||
                           c == OPT_ALIGN || c == OPT_ALIGN_SHIFT || c == OPT_ALIGN_ANGLE ||

@@ -322,7 +322,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
 
     cli_getopt_reset();
     int c;
-    while ((c = getopt_long(argc, argv, "+ho:", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "ho:", opts, NULL)) != -1) {
         double v = 0;
         switch (c) {
         case 'h':

@@ -55,6 +55,11 @@ expect 0 "$SETLIGHT" info --json "$T/back_cubemap.exr"
 json_eval "$T/out" 'abs(d["files"][0]["channel_stats"][0]["mean"] - 0.6) < 0.01'
 expect 0 "$SETLIGHT" info --json "$T/env_cubemap.exr"
 json_eval "$T/out" 'd["files"][0]["envmap"] == "cube" and d["files"][0]["height"] == 6 * d["files"][0]["width"]'
+# GNU order: options after the file names
+expect 0 "$SETLIGHT" convert "$T/env.exr" "$T/late_mb.exr" --to mirrorball --json
+expect 0 "$SETLIGHT" info --json "$T/late_mb.exr"
+json_eval "$T/out" 'd["files"][0]["width"] == 32 and d["files"][0]["height"] == 32'
+expect 0 "$SETLIGHT" info "$T/env.exr" --json; json_ok "$T/out"
 # rotation and colour space
 expect 0 "$SETLIGHT" convert --rotate 90 --colorspace acescg "$T/env.exr" "$T/rot.exr"
 expect 0 "$SETLIGHT" info --json "$T/rot.exr"

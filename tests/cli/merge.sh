@@ -56,6 +56,11 @@ json_eval "$T/out" 'd["width"] == 64 and d["height"] == 32 and len(d["frames"]) 
 json_eval "$T/out" 'd["disagreeing_frames"] == 0 and d["mask"].endswith("out_clipped.exr")'
 present "$T/out.exr"; present "$T/out_clipped.exr"; no_temp "$T"
 json_eval "$T/out" 'd["units"] == "relative" and d["weights"]["saturation"] == 0.95 and d["weights"]["noise_gain"] == 2e-5'
+# GNU order: options after and among the frames give the same merge; '--' ends options
+expect 0 "$SETLIGHT" merge -o "$T/late.exr" "${F[@]}" --times $TIMES --json
+json_eval "$T/out" 'len(d["frames"]) == 3 and d["disagreeing_frames"] == 0'; present "$T/late.exr"
+expect 0 "$SETLIGHT" merge "${F[0]}" --times $TIMES "${F[1]}" -o "$T/among.exr" -- "${F[2]}"
+present "$T/among.exr"
 expect 0 "$SETLIGHT" merge --json --response robertson -o "$T/rob.exr" --times $TIMES "${F[@]}"
 json_eval "$T/out" 'd["response"] == "robertson" and d["disagreeing_frames"] == 0'
 # Absolute units need EXIF f-number and ISO on every frame (PNG has none).

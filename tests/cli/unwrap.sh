@@ -35,6 +35,11 @@ json_eval "$T/out" 'd["encoding"] == {"pixel": "half", "compression": "zip"}'
 expect 0 "$SETLIGHT" info --json "$T/ortho.exr"
 json_eval "$T/out" 'd["files"][0]["channels"] == 3'
 cp "$T/out" "$T/ortho_info.json"
+# GNU order: the same unwrap with the options after the photo
+expect 0 "$SETLIGHT" unwrap -o "$T/ortho_late.exr" "$T/ball.exr" --circle 104.33,86.37,46.47 \
+  --camera ortho --width 64 --no-confidence --json
+json_eval "$T/out" 'd["camera"] == "orthographic" and d["width"] == 64'
+if cmp -s "$T/ortho.exr" "$T/ortho_late.exr"; then ok; else bad "options after the photo changed the unwrap"; fi
 # the other lossless compressions: the same pixels, a different file
 for comp in piz rle none; do
   expect 0 "$SETLIGHT" unwrap --json --circle 104.33,86.37,46.47 --camera ortho --width 64 \
