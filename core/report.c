@@ -4,9 +4,12 @@
 #include "setlight/core.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+
+#define REPORT_MIN_WIDTH 256
 
 struct sl_report {
     char dir[2048];
@@ -15,6 +18,9 @@ struct sl_report {
     size_t len, cap;
     bool failed; /* out of memory while building: finish reports it */
     int table_columns;
+    size_t top;       /* where the summary goes: after the title and intro */
+    size_t top_start; /* start of the summary being written, or SIZE_MAX */
+    bool sectioned;   /* a section has begun: the summary's place is fixed */
 };
 
 static void append(sl_report *rep, const char *s, size_t n)
@@ -86,6 +92,8 @@ sl_result sl_report_new(sl_report **out, const char *dir, const char *name, cons
     append(rep, head2, sizeof head2 - 1);
     append_escaped(rep, title);
     append_lit(rep, "</h1>\n");
+    rep->top = rep->len;
+    rep->top_start = SIZE_MAX;
     if (rep->failed) {
         sl_report_free(rep);
         return sl_error_set(err, SL_ERR_NOMEM, "out of memory for a report");
@@ -118,8 +126,32 @@ sl_result sl_report_finish(sl_report *rep, sl_error *err)
     return r;
 }
 
+void sl_report_top_begin(sl_report *rep) { rep->top_start = rep->len; }
+
+void sl_report_top_end(sl_report *rep)
+{
+    if (rep->failed || rep->top_start == SIZE_MAX || rep->top_start < rep->top)
+        return;
+    size_t n = rep->len - rep->top_start;
+    char *chunk = malloc(n + 1);
+    if (!chunk) {
+        rep->failed = true;
+        return;
+    }
+    memcpy(chunk, rep->html + rep->top_start, n);
+    memmove(rep->html + rep->top + n, rep->html + rep->top, rep->top_start - rep->top);
+    memcpy(rep->html + rep->top, chunk, n);
+    free(chunk);
+    rep->top += n;
+    rep->top_start = SIZE_MAX;
+}
+
 void sl_report_section(sl_report *rep, const char *title)
 {
+    /* the summary goes after the title and the text before the first section */
+    if (!rep->sectioned && rep->top_start == SIZE_MAX)
+        rep->top = rep->len;
+    rep->sectioned = true;
     append_lit(rep, "<h2>");
     append_escaped(rep, title);
     append_lit(rep, "</h2>\n");
@@ -140,14 +172,19 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
 sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
                           const char *caption, sl_error *err)
 {
+    /* Small images are enlarged (whole pixels, no blur) so a person can
+     * judge them: at least REPORT_MIN_WIDTH wide. */
+    int k = img->width > 0 && img->width < REPORT_MIN_WIDTH
+                ? (REPORT_MIN_WIDTH + img->width - 1) / img->width
+                : 1;
     sl_image png;
-    sl_result r = sl_image_alloc(&png, img->width, img->height, 3, err);
+    sl_result r = sl_image_alloc(&png, img->width * k, img->height * k, 3, err);
     if (r)
         return r;
     float scale = (float)exp2(stops);
-    for (int y = 0; y < img->height; y++)
-        for (int x = 0; x < img->width; x++) {
-            const float *s = sl_image_pixel(img, x, y);
+    for (int y = 0; y < png.height; y++)
+        for (int x = 0; x < png.width; x++) {
+            const float *s = sl_image_pixel(img, x / k, y / k);
             float *d = sl_image_pixel(&png, x, y);
             for (int c = 0; c < 3; c++) {
                 float v = (img->channels >= 3 ? s[c] : s[0]) * scale;
@@ -321,5 +358,117 @@ sl_result sl_report_plot(sl_report *rep, const char *file, const char *title, co
     append_lit(rep, "\"><figcaption>");
     append_escaped(rep, title);
     append_lit(rep, "</figcaption></figure>\n");
+    return SL_OK;
+}
+
+/* --- SVG bar charts ----------------------------------------------------- */
+
+static void svg_bars(sl_report *svg, const char *title, const char *ylabel,
+                     const char *const *labels, const char *const *notes, int count,
+                     const sl_bar_series *series, int n)
+{
+    static const char *const colours[] = {"#9aa7b4", "#1f77b4", "#d62728", "#2ca02c"};
+    const double L = 60, R = 150, T = 40, B = 70, ph = 300;
+    double group = n * 10.0 + 8, pw = group * count, W = L + pw + R, H = T + ph + B;
+    double hi = 0;
+    for (int s = 0; s < n; s++)
+        for (int i = 0; i < count; i++)
+            if (isfinite(series[s].values[i]) && series[s].values[i] > hi)
+                hi = series[s].values[i];
+    /* a round top: 1, 2 or 5 times a power of ten */
+    double step = hi > 0 ? pow(10, floor(log10(hi / 5))) : 1;
+    while (hi / step > 5)
+        step *= hi / step > 10 ? 5 : 2;
+    double top = step * ceil((hi > 0 ? hi : 1) / step);
+    appendf(svg, "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%g\" height=\"%g\" "
+                 "font-family=\"sans-serif\" font-size=\"12\">\n", W, H);
+    appendf(svg, "<text x=\"%g\" y=\"24\" text-anchor=\"middle\" font-size=\"14\">", L + pw / 2);
+    append_escaped(svg, title);
+    append_lit(svg, "</text>\n");
+    appendf(svg, "<text x=\"16\" y=\"%g\" text-anchor=\"middle\" transform=\"rotate(-90 16 %g)\">",
+            T + ph / 2, T + ph / 2);
+    append_escaped(svg, ylabel);
+    append_lit(svg, "</text>\n");
+    for (double v = 0; v <= top * (1 + 1e-9); v += step) {
+        double y = T + ph * (1 - v / top);
+        appendf(svg, "<line x1=\"%g\" y1=\"%.1f\" x2=\"%g\" y2=\"%.1f\" stroke=\"#ddd\"/>"
+                     "<text x=\"%g\" y=\"%.1f\" text-anchor=\"end\">%.3g</text>\n",
+                L, y, L + pw, y, L - 4, y + 4, v);
+    }
+    for (int i = 0; i < count; i++) {
+        double x0 = L + group * i + 4;
+        bool excluded = notes && notes[i] && notes[i][0];
+        for (int s = 0; s < n; s++) {
+            double v = series[s].values[i];
+            if (!isfinite(v) || v < 0)
+                continue;
+            double h = ph * fmin(v, top) / top;
+            appendf(svg, "<rect x=\"%.1f\" y=\"%.1f\" width=\"9\" height=\"%.1f\" fill=\"%s\"%s>"
+                         "<title>",
+                    x0 + 10.0 * s, T + ph - h, h, colours[s % 4],
+                    excluded ? " fill-opacity=\"0.35\"" : "");
+            append_escaped(svg, labels[i]);
+            appendf(svg, ": %.3g", v);
+            append_lit(svg, "</title></rect>\n");
+        }
+        double cx = x0 + 5.0 * n;
+        appendf(svg, "<text x=\"%.1f\" y=\"%g\" text-anchor=\"end\" transform=\"rotate(-60 %.1f %g)\"%s>",
+                cx, T + ph + 12, cx, T + ph + 12, excluded ? " fill=\"#a00\"" : "");
+        append_escaped(svg, labels[i]);
+        if (excluded)
+            append_lit(svg, " \xc3\x97"); /* a multiplication sign marks it excluded */
+        append_lit(svg, "</text>\n");
+    }
+    appendf(svg, "<line x1=\"%g\" y1=\"%g\" x2=\"%g\" y2=\"%g\" stroke=\"#444\"/>\n", L, T + ph,
+            L + pw, T + ph);
+    for (int s = 0; s < n; s++) {
+        appendf(svg, "<rect x=\"%g\" y=\"%g\" width=\"12\" height=\"12\" fill=\"%s\"/>"
+                     "<text x=\"%g\" y=\"%g\">",
+                W - R + 10, T + 18.0 * s, colours[s % 4], W - R + 28, T + 10 + 18.0 * s);
+        append_escaped(svg, series[s].label ? series[s].label : "");
+        append_lit(svg, "</text>\n");
+    }
+    if (notes)
+        for (int i = 0; i < count; i++)
+            if (notes[i] && notes[i][0]) {
+                appendf(svg, "<text x=\"%g\" y=\"%g\" fill=\"#a00\">\xc3\x97 excluded</text>\n",
+                        W - R + 10, T + 18.0 * n + 6);
+                break;
+            }
+    append_lit(svg, "</svg>\n");
+}
+
+sl_result sl_report_bars(sl_report *rep, const char *file, const char *title, const char *ylabel,
+                         const char *const *labels, const char *const *notes, int count,
+                         const sl_bar_series *series, int series_count, sl_error *err)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", rep->dir, file);
+    sl_report svg;
+    memset(&svg, 0, sizeof svg);
+    svg_bars(&svg, title, ylabel, labels, notes, count, series, series_count);
+    sl_result r = svg.failed ? sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path)
+                             : sl_write_file_atomic(path, svg.html, svg.len, err);
+    free(svg.html);
+    if (r)
+        return r;
+    append_lit(rep, "<figure><img src=\"");
+    append_escaped(rep, file);
+    append_lit(rep, "\"><figcaption>");
+    append_escaped(rep, title);
+    append_lit(rep, "</figcaption>");
+    /* the excluded entries and why, beside the chart */
+    bool any = false;
+    for (int i = 0; notes && i < count; i++)
+        if (notes[i] && notes[i][0]) {
+            append_lit(rep, any ? "<br>" : "<figcaption>Excluded: ");
+            append_escaped(rep, labels[i]);
+            append_lit(rep, ": ");
+            append_escaped(rep, notes[i]);
+            any = true;
+        }
+    if (any)
+        append_lit(rep, "</figcaption>");
+    append_lit(rep, "</figure>\n");
     return SL_OK;
 }

@@ -13,6 +13,7 @@ packages=(
   libjansson-dev
   libssl-dev
   python3
+  chromium-headless-shell   # the tests open the HTML reports in a real browser
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -21,6 +21,24 @@ sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart
                        chart->m[0][0], chart->m[0][1], chart->m[0][2], chart->m[1][0],
                        chart->m[1][1], chart->m[1][2], chart->m[2][0], chart->m[2][1],
                        chart->m[2][2], chart->gain);
+        /* ΔE per patch as bars, each excluded patch marked with why. */
+        double before[24], after[24];
+        const char *why[24];
+        for (int p = 0; p < 24; p++) {
+            before[p] = chart->de_before[p] < 0 ? NAN : chart->de_before[p];
+            after[p] = chart->de_after[p] < 0 ? NAN : chart->de_after[p];
+            why[p] = chart->used_patch[p] ? NULL
+                     : chart->outlier[p]  ? "lit differently from the rest (outlier)"
+                     : !patches[p].valid  ? "clipped or not uniform in the photo"
+                                          : "left out of the fit";
+        }
+        const sl_bar_series bars[2] = {{"before", before}, {"after the matrix", after}};
+        char bars_file[256];
+        snprintf(bars_file, sizeof bars_file, "%sdelta_e.svg", prefix);
+        sl_result rb = sl_report_bars(rep, bars_file, "CIEDE2000 per patch", "ΔE00",
+                                      SL_COLORCHECKER_NAMES, why, 24, bars, 2, err);
+        if (rb)
+            return rb;
         static const char *const head[] = {"patch", "name", "pixels", "clipped",
                                            "used", "ΔE before", "ΔE after"};
         sl_report_table_begin(rep, 7, head);

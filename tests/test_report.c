@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* HTML reports and SVG plots: content escaped, files written atomically,
  * images written as PNG beside the page. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -59,8 +60,60 @@ static void test_report_page(void)
     CHECK_OK(sl_image_read(sl_test_path("grey.png"), &back, &meta, &err), &err);
     /* 0.18 * 2 = 0.36 linear -> sRGB 0.63424 -> 162/255 */
     CHECK_NEAR(sl_image_pixel(&back, 3, 2)[1], 162.0 / 255.0, 0.5 / 255.0);
+    /* the 8 px image is enlarged by whole pixels to at least 256 px */
+    CHECK(back.width == 256 && back.height == 128);
     sl_image_free(&back);
     sl_meta_free(&meta);
+}
+
+/* The summary written last stands first, right after the title; a bar chart
+ * marks its excluded entries and lists why beside it. */
+static void test_report_summary_and_bars(void)
+{
+    sl_report *rep;
+    sl_error err;
+    CHECK_OK(sl_report_new(&rep, sl_test_tmpdir(), "bars", "Calibration", &err), &err);
+    sl_report_text(rep, "intro");
+    sl_report_section(rep, "Details");
+    const char *labels[3] = {"dark skin", "white", "black"};
+    const char *notes[3] = {NULL, "clipped in the photo", NULL};
+    double before[3] = {4.5, 2.0, 7.25}, after[3] = {0.5, NAN, 1.0};
+    sl_bar_series series[2] = {{"before", before}, {"after", after}};
+    CHECK_OK(sl_report_bars(rep, "de.svg", "CIEDE2000 per patch", "dE00", labels, notes, 3,
+                            series, 2, &err),
+             &err);
+    sl_report_top_begin(rep);
+    sl_report_section(rep, "Summary");
+    sl_report_text(rep, "mean dE00 4.6 -> 0.75");
+    sl_report_top_end(rep);
+    CHECK_OK(sl_report_finish(rep, &err), &err);
+    char *html = sl_test_read_file(sl_test_path("bars.html"), NULL);
+    CHECK(html != NULL);
+    if (html) {
+        const char *title = strstr(html, "<h1>"), *summary = strstr(html, "<h2>Summary");
+        const char *details = strstr(html, "<h2>Details");
+        const char *intro = strstr(html, "<p>intro");
+        CHECK(title && intro && summary && details && title < intro && intro < summary &&
+              summary < details);
+        CHECK(strstr(html, "white: clipped in the photo") != NULL);
+        CHECK(strstr(html, "</html>") != NULL);
+        free(html);
+    }
+    char *svg = sl_test_read_file(sl_test_path("de.svg"), NULL);
+    CHECK(svg != NULL);
+    if (svg) {
+        int bars = 0, faint = 0;
+        for (const char *p = svg; (p = strstr(p, "<rect x=")); p++)
+            bars++;
+        for (const char *p = svg; (p = strstr(p, "fill-opacity")); p++)
+            faint++;
+        /* five bars (the NaN has none) and two legend boxes; the excluded
+         * patch's one bar drawn faint */
+        CHECK_MSG(bars == 7, "%d rects", bars);
+        CHECK(faint == 1);
+        CHECK(strstr(svg, "nan") == NULL && strstr(svg, "white") != NULL);
+        free(svg);
+    }
 }
 
 static void test_report_bad_dir(void)
@@ -76,5 +129,6 @@ int main(void)
 {
     RUN(test_report_page);
     RUN(test_report_bad_dir);
+    RUN(test_report_summary_and_bars);
     return sl_test_finish();
 }

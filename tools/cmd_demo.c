@@ -301,6 +301,22 @@ static sl_result stage_merge(demo *d, char *note, size_t n, sl_error *err)
                            "disagree: %lld. Pixels clipped in every frame: %.4f%%.",
                    count, res.seconds, 100 * worst, (long long)res.disagreeing_frames,
                    100 * res.clipped_fraction);
+    {
+        /* The recovered curve against the true one, both at the free scale
+         * the fit above removed (the median ratio). */
+        double zs[81], got[81], want[81];
+        for (int i = 0; i <= 80; i++) {
+            zs[i] = 0.1 + 0.01 * i;
+            want[i] = true_inverse(curve, zs[i]);
+            got[i] = sl_response_eval(&res.response, 1, zs[i]) / sorted[40];
+        }
+        const sl_plot_series curves[2] = {{"true (camera model)", zs, want, 81},
+                                          {"recovered (self-calibrated)", zs, got, 81}};
+        if ((r = sl_report_plot(d->rep, "merge_response.svg",
+                                "inverse response, green: recovered vs true", "code (0-1)",
+                                "relative exposure", false, true, curves, 2, err)))
+            goto done;
+    }
     r = sl_report_image(d->rep, "merge_view0.png", &res.radiance,
                         log2(0.18 / (d->lavg * ref_exposure > 0 ? d->lavg * ref_exposure : 1)) + 3,
                         "merge_view0.exr (camera RGB, relative radiance)", err);
@@ -365,6 +381,19 @@ static sl_result stage_render(demo *d, char *note, size_t n, sl_error *err)
     if ((r = sl_report_image(d->rep, "render_refs.png", &img, log2(0.18 / d->lavg),
                              "refs under truth/latlong.exr", err)))
         goto done;
+    if (st.pass_count > 1) {
+        double t[64], e[64];
+        int m = st.pass_count < 64 ? st.pass_count : 64;
+        for (int i = 0; i < m; i++) {
+            t[i] = st.passes[i].seconds;
+            e[i] = st.passes[i].est_rel_rmse;
+        }
+        const sl_plot_series conv = {"refs under the truth", t, e, m};
+        if ((r = sl_report_plot(d->rep, "render_convergence.svg",
+                                "render convergence: estimated relative RMSE", "seconds",
+                                "relative RMSE", true, true, &conv, 1, err)))
+            goto done;
+    }
     /* The grey ball alone, its centre pixel against the irradiance sum. */
     sl_scene_free(&scene);
     sl_scene_init(&scene);
@@ -517,7 +546,15 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli)
         sl_report_free(d.rep);
         return cli_fail(cli, &err);
     }
-    sl_report_section(d.rep, "Stages");
+    /* The summary is written last but stands at the top of the page. */
+    sl_report_top_begin(d.rep);
+    sl_report_section(d.rep, "Summary");
+    double total = 0;
+    for (int i = 0; i < count; i++)
+        total += secs[i];
+    sl_report_text(d.rep, "Every stage ran (%d stages, %.1f s in all); each one's headline number "
+                          "against the ground truth is below, its details further down.",
+                   count, total);
     static const char *const head[] = {"stage", "what", "result", "seconds"};
     sl_report_table_begin(d.rep, 4, head);
     for (int i = 0; i < count; i++) {
@@ -527,6 +564,7 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli)
         sl_report_table_row(d.rep, cells);
     }
     sl_report_table_end(d.rep);
+    sl_report_top_end(d.rep);
     if ((r = sl_report_finish(d.rep, &err)))
         return cli_fail(cli, &err);
     if (cli->json) {

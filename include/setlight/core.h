@@ -491,7 +491,8 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
 #endif
     ;
 /* A PNG of a linear image: scaled by 2^stops, sRGB-encoded, clamped. Written
- * as DIR/FILE (e.g. "merge.png") and shown with its caption. */
+ * as DIR/FILE (e.g. "merge.png") and shown with its caption; an image under
+ * 256 px wide is enlarged by whole pixels to at least that. */
 sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
                           const char *caption, sl_error *err);
 /* A table: header then rows, every cell text (escaped). */
@@ -510,6 +511,24 @@ typedef struct sl_plot_series {
 sl_result sl_report_plot(sl_report *rep, const char *file, const char *title, const char *xlabel,
                          const char *ylabel, bool log_x, bool log_y, const sl_plot_series *series,
                          int series_count, sl_error *err);
+/* One series of a bar chart: a value for each label (NaN: no bar). */
+typedef struct sl_bar_series {
+    const char *label;
+    const double *values;
+} sl_bar_series;
+
+/* An SVG bar chart written as DIR/FILE and shown in the page: one group of
+ * bars (one a series) for each of COUNT labels. Where notes[i] is set, the
+ * group is drawn faint and marked excluded, and the note (why) is listed
+ * beside the chart. notes may be NULL. */
+sl_result sl_report_bars(sl_report *rep, const char *file, const char *title, const char *ylabel,
+                         const char *const *labels, const char *const *notes, int count,
+                         const sl_bar_series *series, int series_count, sl_error *err);
+/* The summary at the top of the page: what is written between these two
+ * calls goes after the title and the text before the first section, above
+ * the sections written before it. */
+void sl_report_top_begin(sl_report *rep);
+void sl_report_top_end(sl_report *rep);
 /* Writes an SVG plot file without a report (for commands like converge). */
 sl_result sl_plot_write_svg(const char *path, const char *title, const char *xlabel,
                             const char *ylabel, bool log_x, bool log_y,

@@ -146,6 +146,8 @@ expect 0 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" \
     --report "$T/rep"
 present "$T/rep/calibrate.html"; present "$T/rep/grey_error.png"; present "$T/rep/grey_render.png"
 grep -q "bluish green" "$T/rep/calibrate.html" && ok || bad "report lacks the patch table"
+grep -q '<img src="delta_e.svg">' "$T/rep/calibrate.html" && ok || bad "report lacks the dE bars"
+browser_check "$T/rep/calibrate.html" 4
 json_ok "$T/rep/calibrate.json"
 json_eval "$T/rep/calibrate.json" 'abs(d["scale"] / 2 - 1) < 0.01'
 

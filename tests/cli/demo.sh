@@ -76,7 +76,9 @@ for s in ("grey", "chrome", "shadow"):
     for k in ("map", "rig", "diff"):
         f = f"rig_validate_{s}_{k}.png"
         assert f'<img src="{f}">' in page, f
-        assert png_size(f"{d}/{f}") == ((px, px * 3 // 4) if s == "shadow" else (px, px)), f
+        # the report enlarges small renders by whole pixels to >= 256 px wide
+        k = -(-256 // px)
+        assert png_size(f"{d}/{f}") == ((k * px, k * (px * 3 // 4)) if s == "shadow" else (k * px, k * px)), f
     m = re.search(rf"<tr><td>{s}</td><td>([0-9.]+)</td><td>([0-9]+)</td><td>{px}x", page)
     assert m and float(m.group(1)) < (20 if px == 64 else 50), s
 m = re.search(r"Relative RMSE of rig against map: grey ([0-9.]+)%, chrome ([0-9.]+)%, shadow ([0-9.]+)%; beyond the Monte Carlo noise of this sample count: grey ([0-9.]+)%, chrome ([0-9.]+)%, shadow ([0-9.]+)%", page)
@@ -94,6 +96,20 @@ if grep -q "EXIF read back through OpenImageIO matches the plan for 21 of 21 fra
 if grep -q "21 frames in 3 views grouped from EXIF time and exposure alone; 21 of 21 planned frames in the right view, bracket and place; 42 sibling files" "$T/demo/report.html"; then ok; else bad "ingest check missing from the report"; fi
 present "$T/demo/capture/session/session.json"
 no_temp "$T/demo"
+# the report: the summary first, plots where a person would rather look than
+# read (response curve, dE per patch, render convergence), and the page loads
+# in a real browser with every image
+if python3 - "$T/demo" <<'PY'
+import sys
+d = sys.argv[1]
+page = open(d + "/report.html").read()
+assert page.index("<h2>Summary") < page.index("<h2>Ground truth"), "summary not at the top"
+for f in ("merge_response.svg", "calibrate_delta_e.svg", "render_convergence.svg"):
+    assert f'<img src="{f}">' in page, f
+    assert "<svg" in open(f"{d}/{f}").read(), f
+PY
+then ok; else bad "report summary or plots missing"; fi
+browser_check "$T/demo/report.html" 20
 
 before=$(md5sum "$T/demo/report.html")
 expect 2 "$S" demo "$T/demo" --size tiny

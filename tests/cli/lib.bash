@@ -41,3 +41,35 @@ finish() {
   echo "$passed passed, $failed failed, $skipped skipped"
   [ "$failed" -eq 0 ]
 }
+# browser_check PAGE.html MIN_IMAGES: the page opens in a real browser
+# (headless Chromium) with at least MIN_IMAGES images and plots, none of them
+# missing or unreadable, and its screenshot is a real picture.
+browser_check() {
+  local page=$1 min=$2 browser
+  browser=$(command -v chromium-headless-shell || command -v chromium || true)
+  if [ -z "$browser" ]; then skip "browser check of $page (no chromium-headless-shell)"; return; fi
+  local probe
+  probe="$(dirname "$page")/.browser_check_$$.html"
+  { cat "$page"
+    echo '<script>window.addEventListener("load",()=>{const i=[...document.images];'
+    echo 'const b=i.filter(e=>!e.complete||!e.naturalWidth).map(e=>e.getAttribute("src"));'
+    echo 'document.body.insertAdjacentHTML("beforeend","<pre id=\"sl-check\">images="+i.length+" broken="+b.join(",")+";</pre>")});</script>'
+  } >"$probe"
+  local flags=(--no-sandbox --disable-gpu --allow-file-access-from-files --virtual-time-budget=10000)
+  local dom
+  dom=$(timeout 120 "$browser" "${flags[@]}" --dump-dom "file://$(realpath "$probe")" 2>/dev/null)
+  timeout 120 "$browser" "${flags[@]}" --window-size=1100,1400 --screenshot="$T/browser_shot.png" \
+    "file://$(realpath "$page")" >/dev/null 2>&1
+  rm -f "$probe"
+  local line n broken
+  line=$(printf '%s' "$dom" | grep -o 'images=[0-9]* broken=[^;]*;' | tail -1)
+  n=$(printf '%s' "$line" | sed 's/images=\([0-9]*\).*/\1/')
+  broken=$(printf '%s' "$line" | sed 's/.*broken=\([^;]*\);/\1/')
+  if [ -z "$line" ]; then bad "$page did not load in the browser"
+  elif [ -n "$broken" ]; then bad "$page: images missing in the browser: $broken"
+  elif [ "$n" -lt "$min" ]; then bad "$page shows $n images, want at least $min"
+  else ok; fi
+  # a blank page compresses to almost nothing
+  if [ -s "$T/browser_shot.png" ] && [ "$(stat -c %s "$T/browser_shot.png")" -gt 20000 ]; then ok
+  else bad "$page: the browser's screenshot is missing or blank"; fi
+}
