@@ -11,19 +11,10 @@ sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart
 {
     sl_report_section(rep, "Calibration");
     if (patches && chart) {
-        sl_report_text(rep,
-                       "Chart: %d of 24 patches in the colour fit. CIEDE2000 mean %.2f (max %.2f) "
-                       "before, %.2f (max %.2f) after.",
-                       chart->used, chart->de_before_mean, chart->de_before_max,
-                       chart->de_after_mean, chart->de_after_max);
-        sl_report_text(rep, "Matrix (working RGB = M camera RGB): [%.5f %.5f %.5f; %.5f %.5f %.5f; "
-                            "%.5f %.5f %.5f], gain %.5f.",
-                       chart->m[0][0], chart->m[0][1], chart->m[0][2], chart->m[1][0],
-                       chart->m[1][1], chart->m[1][2], chart->m[2][0], chart->m[2][1],
-                       chart->m[2][2], chart->gain);
-        /* ΔE per patch as bars, each excluded patch marked with why. */
         double before[24], after[24];
         const char *why[24];
+        char excluded[1024] = "";
+        size_t len = 0;
         for (int p = 0; p < 24; p++) {
             before[p] = chart->de_before[p] < 0 ? NAN : chart->de_before[p];
             after[p] = chart->de_after[p] < 0 ? NAN : chart->de_after[p];
@@ -31,7 +22,24 @@ sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart
                      : chart->outlier[p]  ? "lit differently from the rest (outlier)"
                      : !patches[p].valid  ? "clipped or not uniform in the photo"
                                           : "left out of the fit";
+            if (why[p] && len < sizeof excluded)
+                len += (size_t)snprintf(excluded + len, sizeof excluded - len, "%s%s: %s",
+                                        len ? "; " : " Excluded: ", SL_COLORCHECKER_NAMES[p],
+                                        why[p]);
         }
+        if (len && len < sizeof excluded)
+            snprintf(excluded + len, sizeof excluded - len, ".");
+        sl_report_text(rep,
+                       "Chart: %d of 24 patches in the colour fit. CIEDE2000 mean %.2f (max %.2f) "
+                       "before, %.2f (max %.2f) after.%s",
+                       chart->used, chart->de_before_mean, chart->de_before_max,
+                       chart->de_after_mean, chart->de_after_max, excluded);
+        sl_report_text(rep, "Matrix (working RGB = M camera RGB): [%.5f %.5f %.5f; %.5f %.5f %.5f; "
+                            "%.5f %.5f %.5f], gain %.5f.",
+                       chart->m[0][0], chart->m[0][1], chart->m[0][2], chart->m[1][0],
+                       chart->m[1][1], chart->m[1][2], chart->m[2][0], chart->m[2][1],
+                       chart->m[2][2], chart->gain);
+        /* ΔE per patch as bars, each excluded patch marked with why. */
         const sl_bar_series bars[2] = {{"before", before}, {"after the matrix", after}};
         char bars_file[256];
         snprintf(bars_file, sizeof bars_file, "%sdelta_e.svg", prefix);
