@@ -41,7 +41,7 @@ static double hash01(uint32_t x, uint32_t y, uint32_t k)
 
 /* A 1024 x 512 lat-long with detail at every scale down to the texel (value
  * noise, octaves of equal amplitude, as real HDRIs have: edges and texture
- * at the texel), a dynamic range of about 1000 and a small bright lamp. */
+ * at the texel), log-normal, and a small bright lamp. */
 static sl_result detailed_env(sl_image *env, sl_error *err)
 {
     const int w = 1024, h = 512;
