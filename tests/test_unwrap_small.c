@@ -17,26 +17,16 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static double lum(const float *p)
 {
     return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
 }
 
+/* A uniform value in [0, 1) for a noise lattice point of octave k. */
 static double hash01(uint32_t x, uint32_t y, uint32_t k)
 {
-    uint32_t h = x * 0x8da6b343u ^ y * 0xd8163841u ^ k * 0xcb1ab31fu;
-    h ^= h >> 15;
-    h *= 0x2c1b3c6du;
-    h ^= h >> 12;
-    h *= 0x297a2d39u;
-    h ^= h >> 15;
-    return (h >> 8) * (1.0 / 16777216.0);
+    uint64_t state = (uint64_t)x << 42 ^ (uint64_t)y << 21 ^ k;
+    return sl_test_uniform(&state);
 }
 
 /* A 1024 x 512 lat-long with detail at every scale down to the texel (value
@@ -129,8 +119,7 @@ static double median_error(const sl_image *est, const sl_image *truth, const dou
             double lt = lum(sl_image_pixel(truth, x, y));
             rel[n++] = fabs(lum(sl_image_pixel(est, x, y)) - lt) / lt;
         }
-    qsort(rel, (size_t)n, sizeof(double), cmp_double);
-    double m = n ? rel[n / 2] : NAN;
+    double m = sl_test_median(rel, (size_t)n);
     free(rel);
     return m;
 }
