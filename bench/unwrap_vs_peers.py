@@ -2,6 +2,7 @@
 """Chrome-ball unwrap: setlight vs pfspanoramic and Hugin nona, same inputs, one run.
 
   /usr/bin/python3 bench/unwrap_vs_peers.py [--big] [--repeats N] [--setlight build/setlight]
+  /usr/bin/python3 bench/unwrap_vs_peers.py --small [--env LATLONG]
 
 Inputs (made once under --work, default /tmp/setlight-bench/unwrap): the synthetic 2048x1024
 ground-truth lat-long of ../shared/peers/merge (make_scene, seed 1: sky, sun, lamps) and ideal
@@ -17,6 +18,16 @@ Error: ../shared/peers/merge/evaluate_unwrap.py's score(): median relative lumin
 region by angle from +Z (front < 90, side 90-150, back > 150 deg); peers' mirrored outputs are
 flipped back (the lower front error wins, as there). 8192x4096 outputs are area-averaged 4x4 to
 the 2048x1024 ground truth first. Ratios are setlight / peer.
+
+--small: the small-ball case instead (docs/unwrap.md, "Small balls"): ideal orthographic balls
+256, 512 and 1024 px across filling the frame (render_ball.py, 8x8 supersampled) of --env (a
+lat-long; default the ground truth above), each unwrapped by setlight to N x N/2 and by a plain
+bicubic remap (ref_unwrap.py's maps, one cv2.remap INTER_CUBIC lookup per texel centre); median
+relative luminance error within 110 deg of +Z (the direction back at the camera) against two
+references: the texel means of the environment the balls were rendered from (its bilinear
+surface, 8x8 solid-angle-weighted samples per output texel), and the lat-long's own texels
+averaged k x k to the output's size (k = env width / N; for k = 1 or 2 these are point values of
+that surface at the output's texel centres, not texel means).
 """
 import argparse
 import json
@@ -54,6 +65,9 @@ def main():
     ap.add_argument("--work", default="/tmp/setlight-bench/unwrap")
     ap.add_argument("--tools", default="setlight,pfspanoramic,nona_bilinear,nona_cubic",
                     help="comma-separated subset to run")
+    ap.add_argument("--small", action="store_true",
+                    help="256/512/1024 px balls to N x N/2 against a bicubic remap instead")
+    ap.add_argument("--env", default=None, help="--small: the lat-long to render (default gt.exr)")
     a = ap.parse_args()
     if not os.path.isdir(a.peers):
         a.peers = "/work/shared/peers/merge"
@@ -73,6 +87,9 @@ def main():
         cv2.imwrite(os.path.join(w, "labels.png"), lab)
     gt = read_hdr(gt_path)
     lab = cv2.imread(os.path.join(w, "labels.png"), cv2.IMREAD_UNCHANGED)
+    if a.small:
+        small(a, setlight, read_hdr(a.env) if a.env else gt, render_ball, write_exr, read_hdr, cv2)
+        return
     cases = [] if a.only_big else [(1024, 2048, 8)]
     if a.big or a.only_big:
         cases.append((4096, 8192, 2))
@@ -143,6 +160,63 @@ def main():
             print("%s setlight/%s: wall %.3f, CPU %.3f, error front %.2f side %.2f back %.2f"
                   % (case, r["tool"], mine["wall"] / r["wall"], mine["cpu"] / r["cpu"],
                      mine["front"] / r["front"], mine["side"] / r["side"], mine["back"] / r["back"]))
+
+
+def texel_means(env, n, sub=8):
+    """Solid-angle-weighted means over each texel of an n x n/2 lat-long of env's bilinear surface
+    (the surface render_ball.py reflects)."""
+    from common import sample_latlong_bilinear
+    h0, w0 = env.shape[:2]
+    h = n // 2
+    acc = np.zeros((h, n, 3))
+    wsum = np.zeros((h, 1, 1))
+    for j in range(sub):
+        v = (np.arange(h) + (j + 0.5) / sub) / h
+        wt = np.cos(np.pi * (0.5 - v))[:, None, None]
+        for i in range(sub):
+            u = (np.arange(n) + (i + 0.5) / sub) / n
+            px = np.broadcast_to((u * w0 - 0.5)[None, :], (h, n))
+            py = np.broadcast_to((v * h0 - 0.5)[:, None], (h, n))
+            acc += wt * sample_latlong_bilinear(env, px, py)
+            wsum += wt
+    return acc / wsum
+
+
+def small(a, setlight, env, render_ball, write_exr, read_hdr, cv2):
+    from common import latlong_dirs, luminance
+    from evaluate_unwrap import area_down
+    from ref_unwrap import maps
+    w0 = env.shape[1]
+    tag = os.path.splitext(os.path.basename(a.env or "gt"))[0]
+    print("| ball | output | reference | setlight | bicubic remap | ratio |")
+    print("|---|---|---|---|---|---|")
+    for n in (256, 512, 1024):
+        ball = os.path.join(a.work, "small_%s_%d.exr" % (tag, n))
+        if not os.path.exists(ball):
+            write_exr(ball, render_ball.render_ball(env, n, 8))
+        photo = read_hdr(ball)
+        out = os.path.join(a.work, "small_%s_%d_setlight.exr" % (tag, n))
+        subprocess.run([setlight, "unwrap", "--circle", "%g,%g,%g" % (n / 2, n / 2, n / 2),
+                        "--camera", "ortho", "--camera-azimuth", "180", "--width", str(n),
+                        "--no-confidence", "--float", "-o", out, ball], check=True)
+        est = read_hdr(out)
+        (mx, my), = maps(n, n, n // 2, 1)
+        cubic = cv2.remap(photo, mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+        d = latlong_dirs(n, n // 2)
+        front = np.degrees(np.arccos(np.clip(d[..., 2], -1, 1))) < 110
+        k = w0 // n
+        sa = np.cos(np.pi * (0.5 - (np.arange(env.shape[0]) + 0.5) / env.shape[0]))
+        sa = np.broadcast_to(sa[:, None, None], env.shape[:2] + (1,))
+        refs = (("texel means", texel_means(env, n)),
+                ("texels %dx%d" % (k, k), area_down(env * sa, k) / area_down(sa, k)))
+        for name, ref in refs:
+            y = luminance(ref).astype(np.float64)
+
+            def err(e):
+                return float(np.median((np.abs(luminance(e) - y) / y)[front]))
+            es, eb = err(est), err(cubic)
+            print("| %d | %dx%d | %s | %.3f%% | %.3f%% | %.3f |"
+                  % (n, n, n // 2, name, 100 * es, 100 * eb, es / eb), flush=True)
 
 
 if __name__ == "__main__":

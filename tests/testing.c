@@ -149,6 +149,20 @@ void sl_test_shuffle(int *a, int n, uint64_t *state)
     }
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+double sl_test_median(double *v, size_t n)
+{
+    if (n == 0)
+        return NAN;
+    qsort(v, n, sizeof *v, cmp_double);
+    return v[n / 2];
+}
+
 int sl_test_finish(void)
 {
     printf("%d passed, %d failed, %d skipped\n", sl_test_passed, sl_test_failed, sl_test_skipped);

@@ -97,6 +97,8 @@ uint64_t sl_test_rand(uint64_t *state);
 double sl_test_uniform(uint64_t *state);
 /* Fisher-Yates shuffle of n ints. */
 void sl_test_shuffle(int *a, int n, uint64_t *state);
+/* The median of v[0 .. n-1] (the upper one for even n), sorting v in place; NaN when n is 0. */
+double sl_test_median(double *v, size_t n);
 int sl_test_finish(void);
 
 #endif
