@@ -13,95 +13,6 @@
 
 static bool sanitized(void) { return getenv("SETLIGHT_SANITIZED") != NULL; }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-/* Channels scored: not clipped in every frame (truth) and at least 2% of
- * white in the longest frame that leaves the pixel unsaturated (darker ones
- * are a few codes of noise in every frame). */
-static bool scored(const vb_bracket *b, int x, int y, int c)
-{
-    return sl_image_pixel(&b->clipped, x, y)[c] == 0 &&
-           sl_image_pixel(&b->best, x, y)[c] >= 0.02;
-}
-
-typedef struct stats {
-    int64_t n;
-    double median, p99, scale;
-} stats;
-
-/* Relative error of merged vs truth over `block` x `block` means of scored
- * channels (blocks with every channel scored): block 1 is per pixel, noise
- * included; block 4 averages 16 pixels, which leaves what the merge itself
- * gets wrong (curve, exposures, weights) above a quarter of the noise. With
- * fit_scale after the median ratio (a self-calibrated curve knows radiance
- * only up to a factor). */
-static stats compare(const sl_image *merged, const vb_bracket *b, int block, bool fit_scale)
-{
-    stats st = {0, NAN, NAN, 1};
-    size_t cap = (size_t)merged->width * merged->height * 3;
-    double *e = malloc(cap * sizeof *e);
-    if (!e)
-        return st;
-    size_t m = 0;
-    for (int by = 0; by + block <= merged->height; by += block)
-        for (int bx = 0; bx + block <= merged->width; bx += block)
-            for (int c = 0; c < 3; c++) {
-                double sm = 0, st_ = 0;
-                bool ok = true;
-                for (int y = by; y < by + block && ok; y++)
-                    for (int x = bx; x < bx + block; x++) {
-                        ok = ok && scored(b, x, y, c);
-                        sm += sl_image_pixel(merged, x, y)[c];
-                        st_ += sl_image_pixel(&b->truth, x, y)[c];
-                    }
-                if (ok)
-                    e[m++] = sm / st_;
-            }
-    if (m) {
-        if (fit_scale) {
-            qsort(e, m, sizeof *e, cmp_double);
-            st.scale = e[m / 2];
-        }
-        for (size_t i = 0; i < m; i++)
-            e[i] = fabs(e[i] / st.scale - 1);
-        qsort(e, m, sizeof *e, cmp_double);
-        st.median = e[m / 2];
-        st.p99 = e[(size_t)(0.99 * (double)(m - 1))];
-    }
-    st.n = (int64_t)m;
-    free(e);
-    return st;
-}
-
-/* Worst error of the recovered inverse response after one free scale (the
- * median ratio), over codes [zlo, zhi]: the codes whose linear value the
- * bracket exposes (vb_bracket.code_lo, code_hi). */
-static double response_error(const sl_response *resp, const sl_vset_response *truth,
-                             double zlo, double zhi, double *worst_z)
-{
-    double worst = 0;
-    for (int c = 0; c < 3; c++) {
-        double ratio[256];
-        int n = 0;
-        for (double z = zlo; z <= zhi + 1e-9 && n < 256; z += 1.0 / 255)
-            ratio[n++] = sl_response_eval(resp, c, z) / sl_vset_response_invert(truth, z);
-        double sorted[256];
-        memcpy(sorted, ratio, (size_t)n * sizeof *ratio);
-        qsort(sorted, (size_t)n, sizeof *sorted, cmp_double);
-        double s = sorted[n / 2];
-        for (int i = 0; i < n; i++)
-            if (fabs(ratio[i] / s - 1) > worst) {
-                worst = fabs(ratio[i] / s - 1);
-                *worst_z = zlo + i / 255.0;
-            }
-    }
-    return worst;
-}
-
 /* Pixels whose clipped flag differs from the truth's, away from the
  * noise margin of the saturation threshold. */
 static int64_t mask_mismatch(const sl_image *got, const vb_bracket *b, int64_t *flagged,
@@ -224,7 +135,7 @@ static void p99_breakdown(const char *what, const sl_image *img, const vb_bracke
     for (int y = 0; y < img->height; y++)
         for (int x = 0; x < img->width; x++)
             for (int c = 0; c < 3; c++)
-                if (scored(b, x, y, c)) {
+                if (vb_scored(b, x, y, c)) {
                     double v = fabs(sl_image_pixel(img, x, y)[c] / scale /
                                     sl_image_pixel(&b->truth, x, y)[c] - 1);
                     de[n] = dist[y * img->width + x];
@@ -238,7 +149,7 @@ static void p99_breakdown(const char *what, const sl_image *img, const vb_bracke
     if (!copy)
         goto done;
     memcpy(copy, e, n * sizeof *e);
-    qsort(copy, n, sizeof *copy, cmp_double);
+    qsort(copy, n, sizeof *copy, vb_cmp_double);
     double p99 = copy[(size_t)(0.99 * (double)(n - 1))];
     free(copy);
     size_t worst = 0, wn = 0, wf = 0, an = 0, af = 0;
@@ -251,7 +162,7 @@ static void p99_breakdown(const char *what, const sl_image *img, const vb_bracke
             wf += de[i] < LAMP_FAR;
         }
     }
-    qsort(far, nf, sizeof *far, cmp_double);
+    qsort(far, nf, sizeof *far, vb_cmp_double);
     printf("    %s per pixel p99 %.2f%%: of its worst 1%%, %.0f%% within %d px of a lamp (%.0f%% "
            "of all scored), %.0f%% within %d px (%.0f%%); p99 beyond %d px %.2f%%\n",
            what, 100 * p99, 100.0 * wn / (double)(worst ? worst : 1), LAMP_NEAR,
@@ -264,7 +175,7 @@ done:
 }
 
 typedef struct scored_merge {
-    stats px, bl;  /* per pixel and 4x4 blocks */
+    vb_stats px, bl;  /* per pixel and 4x4 blocks */
     double curve;  /* response error (self-calibrated), else 0 */
     bool ok;
     sl_image radiance; /* the merge's, for p99_breakdown (the caller frees it) */
@@ -284,9 +195,6 @@ static scored_merge merge_case(const vb_bracket *b, mode md, bool strict, bool t
              spec->stops, spec->jpeg ? (spec->lossless ? "tif8" : "jpg") : "lin14",
              spec->noise_free ? "_noise_free" : "");
     sl_error err;
-    const char *paths[VB_MAX_FRAMES];
-    for (int k = 0; k < b->frames; k++)
-        paths[k] = b->paths[b->frames - 1 - k];
     sl_merge_options opt;
     sl_merge_options_init(&opt);
     sl_response given = {0};
@@ -299,10 +207,10 @@ static scored_merge merge_case(const vb_bracket *b, mode md, bool strict, bool t
         opt.response = &given;
     }
     sl_merge_result res;
-    CHECK_OK(sl_merge(paths, b->frames, &opt, &res, &err), &err);
+    CHECK_OK(vb_merge(b, &opt, &res, &err), &err);
     if (res.radiance.data) {
         bool fit = md == MODE_SELF || md == MODE_ROBERTSON;
-        stats px = compare(&res.radiance, b, 1, fit), bl = compare(&res.radiance, b, 4, fit);
+        vb_stats px = vb_compare(&res.radiance, b, 1, fit), bl = vb_compare(&res.radiance, b, 4, fit);
         int64_t flagged, truth_flagged, wrong = mask_mismatch(&res.clipped, b, &flagged, &truth_flagged);
         printf("  %s (%s): per pixel median %.2f%% p99 %.2f%%; 4x4 blocks median %.2f%% p99 "
                "%.2f%% (%lld); scale %.4f; clipped %lld px (truth %lld, %lld off the margin "
@@ -317,8 +225,8 @@ static scored_merge merge_case(const vb_bracket *b, mode md, bool strict, bool t
                        res.frames[i].disagreement_stops);
         if (fit) {
             double wz = 0, wall = 0, zlo = b->code_lo;
-            double all = response_error(&res.response, &b->cam.response, zlo, 0.9, &wall);
-            sm.curve = response_error(&res.response, &b->cam.response, zlo, b->code_hi, &wz);
+            double all = vb_response_error(&res.response, &b->cam.response, zlo, 0.9, &wall);
+            sm.curve = vb_response_error(&res.response, &b->cam.response, zlo, b->code_hi, &wz);
             printf("    response error %.2f%% (worst at z %.3f) over z [%.3f, 0.9]", 100 * all,
                    wall, zlo);
             if (b->code_hi < 0.9)
@@ -459,8 +367,8 @@ static void scene_case(const char *scene, int frames, int stops, bool jpeg, mode
     scored_merge c = robertson ? (scored_merge){0} : merge_case(clean, md, false, true);
     bool stage = strcmp(scene, "stage") == 0;
     if (n.ok && (c.ok || robertson)) {
-        stats opx = compare(&noisy->oracle, noisy, 1, false);
-        stats obl = compare(&noisy->oracle, noisy, 4, false);
+        vb_stats opx = vb_compare(&noisy->oracle, noisy, 1, false);
+        vb_stats obl = vb_compare(&noisy->oracle, noisy, 4, false);
         double r[4] = {n.px.median / opx.median, n.px.p99 / opx.p99, n.bl.median / obl.median,
                        n.bl.p99 / obl.p99};
         printf("    ideal estimator per pixel %.2f / %.2f%%, 4x4 %.2f / %.2f%%; merge / ideal "
@@ -468,7 +376,7 @@ static void scene_case(const char *scene, int frames, int stops, bool jpeg, mode
                100 * opx.median, 100 * opx.p99, 100 * obl.median, 100 * obl.p99, r[0], r[1],
                r[2], r[3]);
         if (c.ok) {
-            stats cpx = compare(&clean->oracle, clean, 1, false);
+            vb_stats cpx = vb_compare(&clean->oracle, clean, 1, false);
             printf("; noise-free per pixel: merge %.2f / %.2f%%, ideal %.2f / %.2f%%",
                    100 * c.px.median, 100 * c.px.p99, 100 * cpx.median, 100 * cpx.p99);
             if (md == MODE_SELF)
@@ -569,7 +477,7 @@ static void lie_case(bool jpeg)
         CHECK_OK(sl_merge(paths, b.frames, &opt, &res, &err), &err);
         if (!res.radiance.data)
             continue;
-        stats bl = compare(&res.radiance, &b, 4, jpeg);
+        vb_stats bl = vb_compare(&res.radiance, &b, 4, jpeg);
         printf("  %s, exposures %s: frame 2 %+.3f stops%s, %d named; 4x4 blocks median %.2f%% "
                "p99 %.2f%%\n",
                name, data ? "data" : "exif", res.frames[2].disagreement_stops,
@@ -636,7 +544,7 @@ static void absolute_case(const char *scene, int frames, int stops, int shift)
         /* Compare with truth / ref_scale: scale the merge by ref_scale instead. */
         for (size_t i = 0; i < (size_t)res.radiance.width * res.radiance.height * 3; i++)
             res.radiance.data[i] *= (float)b.ref_scale;
-        stats bl = compare(&res.radiance, &b, 4, true);
+        vb_stats bl = vb_compare(&res.radiance, &b, 4, true);
         printf("  %s: f/%g ISO %g, reference %.6g s: absolute / truth = %.4f, 4x4 median "
                "%.2f%%\n",
                name, b.f_number, b.iso, b.times[b.reference], bl.scale, 100 * bl.median);

@@ -210,8 +210,15 @@ sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_b
     sl_result r;
     scene_settings(spec->scene, &out->f_number, &out->iso, &kelvin);
     sl_vset_camera_default(&out->cam, kelvin);
-    if ((r = sl_vset_response_preset(spec->curve, &out->cam.response, err)))
+    if (spec->response)
+        out->cam.response = *spec->response;
+    else if ((r = sl_vset_response_preset(spec->curve, &out->cam.response, err)))
         return r;
+    if (spec->full_well_e > 0) {
+        out->cam.full_well_e = spec->full_well_e;
+        out->cam.read_noise_pre_e = spec->read_noise_e;
+        out->cam.read_noise_post_e = 0;
+    }
     sl_vset_scene scene = {0};
     if (!spec->latlong && (r = vb_scene(spec->scene, spec->width, &scene, err)))
         return r;
@@ -314,4 +321,120 @@ void vb_free(vb_bracket *b)
     sl_image_free(&b->margin);
     sl_image_free(&b->best);
     sl_image_free(&b->oracle);
+}
+int vb_cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Channels scored: not clipped in every frame (truth) and at least 2% of
+ * white in the longest frame that leaves the pixel unsaturated (darker ones
+ * are a few codes of noise in every frame). */
+bool vb_scored(const vb_bracket *b, int x, int y, int c)
+{
+    return sl_image_pixel(&b->clipped, x, y)[c] == 0 &&
+           sl_image_pixel(&b->best, x, y)[c] >= 0.02;
+}
+
+/* Relative error of merged vs truth over `block` x `block` means of scored
+ * channels (blocks with every channel scored): block 1 is per pixel, noise
+ * included; block 4 averages 16 pixels, which leaves what the merge itself
+ * gets wrong (curve, exposures, weights) above a quarter of the noise. With
+ * fit_scale after the median ratio (a self-calibrated curve knows radiance
+ * only up to a factor). */
+vb_stats vb_compare(const sl_image *merged, const vb_bracket *b, int block, bool fit_scale)
+{
+    vb_stats st = {0, NAN, NAN, 1};
+    size_t cap = (size_t)merged->width * merged->height * 3;
+    double *e = malloc(cap * sizeof *e);
+    if (!e)
+        return st;
+    size_t m = 0;
+    for (int by = 0; by + block <= merged->height; by += block)
+        for (int bx = 0; bx + block <= merged->width; bx += block)
+            for (int c = 0; c < 3; c++) {
+                double sm = 0, st_ = 0;
+                bool ok = true;
+                for (int y = by; y < by + block && ok; y++)
+                    for (int x = bx; x < bx + block; x++) {
+                        ok = ok && vb_scored(b, x, y, c);
+                        sm += sl_image_pixel(merged, x, y)[c];
+                        st_ += sl_image_pixel(&b->truth, x, y)[c];
+                    }
+                if (ok)
+                    e[m++] = sm / st_;
+            }
+    if (m) {
+        if (fit_scale) {
+            qsort(e, m, sizeof *e, vb_cmp_double);
+            st.scale = e[m / 2];
+        }
+        for (size_t i = 0; i < m; i++)
+            e[i] = fabs(e[i] / st.scale - 1);
+        qsort(e, m, sizeof *e, vb_cmp_double);
+        st.median = e[m / 2];
+        st.p99 = e[(size_t)(0.99 * (double)(m - 1))];
+    }
+    st.n = (int64_t)m;
+    free(e);
+    return st;
+}
+
+/* Worst error of the recovered inverse response after one free scale (the
+ * median ratio), over codes [zlo, zhi]: the codes whose linear value the
+ * bracket exposes (vb_bracket.code_lo, code_hi). */
+double vb_response_error(const sl_response *resp, const sl_vset_response *truth,
+                             double zlo, double zhi, double *worst_z)
+{
+    double worst = 0;
+    for (int c = 0; c < 3; c++) {
+        double ratio[256];
+        int n = 0;
+        for (double z = zlo; z <= zhi + 1e-9 && n < 256; z += 1.0 / 255)
+            ratio[n++] = sl_response_eval(resp, c, z) / sl_vset_response_invert(truth, z);
+        double sorted[256];
+        memcpy(sorted, ratio, (size_t)n * sizeof *ratio);
+        qsort(sorted, (size_t)n, sizeof *sorted, vb_cmp_double);
+        double s = sorted[n / 2];
+        for (int i = 0; i < n; i++)
+            if (fabs(ratio[i] / s - 1) > worst) {
+                worst = fabs(ratio[i] / s - 1);
+                *worst_z = zlo + i / 255.0;
+            }
+    }
+    return worst;
+}
+
+
+int vb_dorf_names(const char *path, char (*names)[128], int max)
+{
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return -1;
+    /* Each curve is six lines: name, type, "I =", samples, "B =", samples;
+     * lines are long (1024 samples), so read them in pieces. */
+    char buf[4096];
+    int n = 0, line = 0;
+    bool at_start = true;
+    while (fgets(buf, sizeof buf, f)) {
+        size_t len = strlen(buf);
+        if (at_start && line % 6 == 0 && n < max) {
+            buf[strcspn(buf, "\r\n")] = 0;
+            snprintf(names[n++], 128, "%s", buf);
+        }
+        at_start = len > 0 && buf[len - 1] == '\n';
+        line += at_start;
+    }
+    fclose(f);
+    return n;
+}
+
+sl_result vb_merge(const vb_bracket *b, const sl_merge_options *opt, sl_merge_result *res,
+                   sl_error *err)
+{
+    const char *paths[VB_MAX_FRAMES];
+    for (int k = 0; k < b->frames; k++)
+        paths[k] = b->paths[b->frames - 1 - k];
+    return sl_merge(paths, b->frames, opt, res, err);
 }

@@ -7,12 +7,18 @@
 #define SETLIGHT_TESTS_VSET_BRACKET_H
 
 #include "setlight/capture.h"
+#include "setlight/stitch.h"
 
 enum { VB_MAX_FRAMES = 16 };
 
 typedef struct vb_spec {
     const char *scene;    /* "exterior", "stage", "night" */
     const char *curve;    /* camera response preset ("canon", "srgb", "filmic") */
+    const sl_vset_response *response; /* or any curve (e.g. sl_vset_response_load from the
+                                         DoRF file); NULL: the preset `curve` */
+    double full_well_e;   /* the sensor's electrons at raw saturation; 0: the camera's 64000 */
+    double read_noise_e;  /* with full_well_e: read noise in electrons (all before the ISO
+                             gain); else the camera's 2.5 before and 25.5 after it */
     int frames;           /* 7 or 5 */
     int stops;            /* 3 or 2, on the camera's full-stop shutter scale */
     bool jpeg;            /* 8-bit JPEG through the curve, else 14-bit linear in a 16-bit TIFF */
@@ -59,5 +65,34 @@ sl_result vb_scene(const char *name, int width, sl_vset_scene *out, sl_error *er
 sl_result vb_make(const char *dir, const char *prefix, const vb_spec *spec, vb_bracket *out,
                   sl_error *err);
 void vb_free(vb_bracket *b);
+
+/* sl_merge of the bracket's frames (named longest first, as a wrangler's
+ * folder might list them). */
+sl_result vb_merge(const vb_bracket *b, const sl_merge_options *opt, sl_merge_result *res,
+                   sl_error *err);
+/* qsort's comparison of doubles, ascending. */
+int vb_cmp_double(const void *a, const void *b);
+/* Channels scored: not clipped in every frame (truth) and at least 2% of
+ * white in the longest frame that leaves the pixel unsaturated. */
+bool vb_scored(const vb_bracket *b, int x, int y, int c);
+
+typedef struct vb_stats {
+    int64_t n;
+    double median, p99, scale;
+} vb_stats;
+
+/* Relative error of merged vs b's truth over block x block means of scored
+ * channels (block 1: per pixel), median and p99; with fit_scale after the
+ * median ratio (a self-calibrated curve knows radiance up to a factor). */
+vb_stats vb_compare(const sl_image *merged, const vb_bracket *b, int block, bool fit_scale);
+/* Worst error of a recovered inverse response against the true curve after
+ * one free scale (the median ratio), over codes [zlo, zhi]; *worst_z gets
+ * where. */
+double vb_response_error(const sl_response *resp, const sl_vset_response *truth, double zlo,
+                         double zhi, double *worst_z);
+
+/* The curve names of a DoRF database file (six lines a curve)
+ * in file order, at most max; -1 when it cannot be read. */
+int vb_dorf_names(const char *path, char (*names)[128], int max);
 
 #endif

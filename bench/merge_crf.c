@@ -1,0 +1,192 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The self-calibrated merge across real camera curves: for each curve of
+ * the DoRF database (../shared/data/crf/dorfCurves.txt, 201 measured
+ * camera and film responses), a 7x3-stop bracket of the virtual set's
+ * exterior through that curve (8-bit codes in lossless TIFFs, Poisson noise
+ * of a small sensor, read noise) merged self-calibrated and with the true
+ * curve, against the ideal estimator (tests/vset_bracket.c: true curve,
+ * exposures and noise model). Prints per curve the per-pixel median and p99
+ * errors, their ratios to the ideal estimator's and the recovered curve's
+ * error; then the median ratios and the worst curve.
+ *
+ *   ./build/bench/bench_merge_crf [--width 1024] [--curves all|I,J,..] [--seed 3]
+ *                                 [--well 4000] [--read 3] [--scene exterior]
+ *                                 [--smoothness L] [--noise-free]
+ */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "setlight/stitch.h"
+#include "testing.h"
+#include "vset_bracket.h"
+
+enum { MAX_CURVES = 256 };
+
+typedef struct result {
+    double self_median, self_p99, true_median, true_p99, ideal_median, ideal_p99, curve;
+} result;
+
+static double smoothness; /* --smoothness: the merge's lambda (0: its default) */
+
+static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve)
+{
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.response_mode = given ? SL_RESPONSE_GIVEN : SL_RESPONSE_AUTO;
+    opt.response = given;
+    opt.smoothness = smoothness;
+    sl_merge_result res;
+    sl_error err;
+    if (vb_merge(b, &opt, &res, &err)) {
+        fprintf(stderr, "merge: %s\n", err.message);
+        return 1;
+    }
+    *px = vb_compare(&res.radiance, b, 1, true);
+    double wz;
+    if (curve)
+        *curve = vb_response_error(&res.response, &b->cam.response, b->code_lo, b->code_hi, &wz);
+    sl_merge_result_free(&res);
+    return 0;
+}
+
+static int run_curve(const char *dorf, const char *name, const vb_spec *base, const char *dir,
+                     result *out)
+{
+    sl_error err;
+    sl_vset_response resp;
+    if (sl_vset_response_load(dorf, name, &resp, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
+    }
+    vb_spec sp = *base;
+    sp.response = &resp;
+    vb_bracket b;
+    if (vb_make(dir, "crf", &sp, &b, &err)) {
+        fprintf(stderr, "%s: %s\n", name, err.message);
+        vb_free(&b);
+        return 1;
+    }
+    sl_response truth = {0};
+    int rc = sl_response_linear(&truth, 256, &err) != SL_OK;
+    for (int c = 0; c < 3 && !rc; c++)
+        for (int k = 0; k < 256; k++)
+            truth.inverse[c * 256 + k] = sl_vset_response_invert(&resp, k / 255.0);
+    vb_stats self, tru, ideal = vb_compare(&b.oracle, &b, 1, false);
+    rc = rc || merge_score(&b, NULL, &self, &out->curve) || merge_score(&b, &truth, &tru, NULL);
+    *out = (result){self.median, self.p99, tru.median, tru.p99, ideal.median, ideal.p99,
+                    out->curve};
+    sl_response_free(&truth);
+    vb_free(&b);
+    return rc;
+}
+
+static double median_of(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, vb_cmp_double);
+    return n ? v[n / 2] : NAN;
+}
+
+int main(int argc, char **argv)
+{
+    vb_spec sp = {.scene = "exterior", .frames = 7, .stops = 3, .jpeg = true, .lossless = true,
+                  .width = 1024, .saturation = 0.95, .seed = 3, .full_well_e = 4000,
+                  .read_noise_e = 3};
+    const char *curves = "all";
+    static const struct option longs[] = {{"width", 1, 0, 'w'}, {"curves", 1, 0, 'c'},
+                                          {"seed", 1, 0, 's'},  {"well", 1, 0, 'f'},
+                                          {"read", 1, 0, 'r'},  {"scene", 1, 0, 'S'},
+                                          {"smoothness", 1, 0, 'L'}, {"noise-free", 0, 0, 'N'},
+                                          {0, 0, 0, 0}};
+    for (int o; (o = getopt_long(argc, argv, "", longs, NULL)) != -1;) {
+        if (o == 'w')
+            sp.width = atoi(optarg);
+        else if (o == 'c')
+            curves = optarg;
+        else if (o == 's')
+            sp.seed = strtoull(optarg, NULL, 10);
+        else if (o == 'f')
+            sp.full_well_e = atof(optarg);
+        else if (o == 'r')
+            sp.read_noise_e = atof(optarg);
+        else if (o == 'S')
+            sp.scene = optarg;
+        else if (o == 'L')
+            smoothness = atof(optarg);
+        else if (o == 'N')
+            sp.noise_free = true;
+        else
+            return 2;
+    }
+    char dorf[1024];
+    snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
+    static char names[MAX_CURVES][128];
+    int count = vb_dorf_names(dorf, names, MAX_CURVES);
+    if (count <= 0) {
+        fprintf(stderr, "bench_merge_crf: %s: cannot read the DoRF curves\n", dorf);
+        return 1;
+    }
+    int pick[MAX_CURVES], n = 0;
+    if (strcmp(curves, "all") == 0)
+        for (int i = 0; i < count; i++)
+            pick[n++] = i;
+    else
+        for (char *s = (char *)curves; *s && n < MAX_CURVES; s += *s == ',') {
+            char *end;
+            long i = strtol(s, &end, 10);
+            if (end == s || i < 0 || i >= count)
+                return 2;
+            pick[n++] = (int)i;
+            s = end;
+        }
+    sl_vset_scene scene;
+    sl_error err;
+    if (vb_scene(sp.scene, sp.width, &scene, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
+    }
+    sp.latlong = &scene.latlong;
+    char dir[] = "/tmp/bench_merge_crf_XXXXXX";
+    if (!mkdtemp(dir))
+        return 1;
+    printf("# %s %dx%d, %d x %d stops, 8-bit lossless, well %.0f e, read %.1f e, seed %llu\n",
+           sp.scene, sp.width, sp.width / 2, sp.frames, sp.stops, sp.full_well_e,
+           sp.read_noise_e, (unsigned long long)sp.seed);
+    printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal; "
+           "self / ideal median, p99; curve error %%\n");
+    static double rmed[MAX_CURVES], rp99[MAX_CURVES];
+    double worst = 0;
+    int worst_i = -1, done = 0, failed = 0;
+    for (int j = 0; j < n; j++) {
+        result r;
+        if (run_curve(dorf, names[pick[j]], &sp, dir, &r)) {
+            failed++;
+            continue;
+        }
+        double m = r.self_median / r.ideal_median, p = r.self_p99 / r.ideal_p99;
+        rmed[done] = m;
+        rp99[done++] = p;
+        printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.3f %.3f  %.2f\n", pick[j],
+               names[pick[j]], 100 * r.self_median, 100 * r.self_p99, 100 * r.true_median,
+               100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99, m, p, 100 * r.curve);
+        fflush(stdout);
+        /* The worst curve: furthest over the goal (1.1x median, 1.2x p99). */
+        double over = fmax(m / 1.1, p / 1.2);
+        if (over > worst)
+            worst = over, worst_i = pick[j];
+    }
+    double maxm = 0, maxp = 0;
+    for (int i = 0; i < done; i++)
+        maxm = fmax(maxm, rmed[i]), maxp = fmax(maxp, rp99[i]);
+    printf("# %d curves (%d failed): self / ideal median ratio: median %.3f, max %.3f; p99 "
+           "ratio: median %.3f, max %.3f\n",
+           done, failed, median_of(rmed, done), maxm, median_of(rp99, done), maxp);
+    if (worst_i >= 0)
+        printf("# worst curve: %d %s (%.3f of the goal)\n", worst_i, names[worst_i], worst);
+    sl_vset_scene_free(&scene);
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    return system(cmd) == 0 && !failed ? 0 : 1;
+}
