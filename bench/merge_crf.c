@@ -11,7 +11,7 @@
  *
  *   ./build/bench/bench_merge_crf [--width 1024] [--curves all|I,J,..] [--seed 3]
  *                                 [--well 4000] [--read 3] [--scene exterior]
- *                                 [--smoothness L] [--noise-free]
+ *                                 [--smoothness L] [--samples N] [--noise-free]
  */
 #include <getopt.h>
 #include <math.h>
@@ -27,17 +27,22 @@ enum { MAX_CURVES = 256 };
 
 typedef struct result {
     double self_median, self_p99, true_median, true_p99, ideal_median, ideal_p99, curve;
+    int named; /* frames the self-calibrated merge's exposure check names (EXIF is true) */
 } result;
 
 static double smoothness; /* --smoothness: the merge's lambda (0: its default) */
+static int samples;       /* --samples: response samples per channel (0: its default) */
 
-static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve)
+static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve,
+                       int *named)
 {
     sl_merge_options opt;
     sl_merge_options_init(&opt);
     opt.response_mode = given ? SL_RESPONSE_GIVEN : SL_RESPONSE_AUTO;
     opt.response = given;
     opt.smoothness = smoothness;
+    if (samples > 0)
+        opt.samples = samples;
     sl_merge_result res;
     sl_error err;
     if (vb_merge(b, &opt, &res, &err)) {
@@ -45,6 +50,7 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
         return 1;
     }
     *px = vb_compare(&res.radiance, b, 1, true);
+    *named = res.disagreeing_frames;
     double wz;
     if (curve)
         *curve = vb_response_error(&res.response, &b->cam.response, b->code_lo, b->code_hi, &wz);
@@ -75,9 +81,11 @@ static int run_curve(const char *dorf, const char *name, const vb_spec *base, co
         for (int k = 0; k < 256; k++)
             truth.inverse[c * 256 + k] = sl_vset_response_invert(&resp, k / 255.0);
     vb_stats self, tru, ideal = vb_compare(&b.oracle, &b, 1, false);
-    rc = rc || merge_score(&b, NULL, &self, &out->curve) || merge_score(&b, &truth, &tru, NULL);
+    int named = 0, named_true;
+    rc = rc || merge_score(&b, NULL, &self, &out->curve, &named) ||
+         merge_score(&b, &truth, &tru, NULL, &named_true);
     *out = (result){self.median, self.p99, tru.median, tru.p99, ideal.median, ideal.p99,
-                    out->curve};
+                    out->curve, named};
     sl_response_free(&truth);
     vb_free(&b);
     return rc;
@@ -99,6 +107,7 @@ int main(int argc, char **argv)
                                           {"seed", 1, 0, 's'},  {"well", 1, 0, 'f'},
                                           {"read", 1, 0, 'r'},  {"scene", 1, 0, 'S'},
                                           {"smoothness", 1, 0, 'L'}, {"noise-free", 0, 0, 'N'},
+                                          {"samples", 1, 0, 'n'},
                                           {0, 0, 0, 0}};
     for (int o; (o = getopt_long(argc, argv, "", longs, NULL)) != -1;) {
         if (o == 'w')
@@ -115,6 +124,8 @@ int main(int argc, char **argv)
             sp.scene = optarg;
         else if (o == 'L')
             smoothness = atof(optarg);
+        else if (o == 'n')
+            samples = atoi(optarg);
         else if (o == 'N')
             sp.noise_free = true;
         else
@@ -155,7 +166,7 @@ int main(int argc, char **argv)
            sp.scene, sp.width, sp.width / 2, sp.frames, sp.stops, sp.full_well_e,
            sp.read_noise_e, (unsigned long long)sp.seed);
     printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal; "
-           "self / ideal median, p99; curve error %%\n");
+           "self / ideal median, p99; curve error %%; frames named\n");
     static double rmed[MAX_CURVES], rp99[MAX_CURVES];
     double worst = 0;
     int worst_i = -1, done = 0, failed = 0;
@@ -168,9 +179,10 @@ int main(int argc, char **argv)
         double m = r.self_median / r.ideal_median, p = r.self_p99 / r.ideal_p99;
         rmed[done] = m;
         rp99[done++] = p;
-        printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.3f %.3f  %.2f\n", pick[j],
-               names[pick[j]], 100 * r.self_median, 100 * r.self_p99, 100 * r.true_median,
-               100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99, m, p, 100 * r.curve);
+        printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.3f %.3f  %.2f  %d\n",
+               pick[j], names[pick[j]], 100 * r.self_median, 100 * r.self_p99,
+               100 * r.true_median, 100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99, m,
+               p, 100 * r.curve, r.named);
         fflush(stdout);
         /* The worst curve: furthest over the goal (1.1x median, 1.2x p99). */
         double over = fmax(m / 1.1, p / 1.2);

@@ -1,0 +1,167 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The self-calibrated merge across real camera curves: brackets of the
+ * virtual set's exterior made through a dozen of the DoRF database's 201
+ * measured responses (../shared/data/crf/dorfCurves.txt; skipped when it is
+ * absent), 7x3 stops, 8-bit codes in lossless TIFFs, the noise of a small
+ * sensor (4000-electron well, 3 electrons of read noise). The merge's
+ * per-pixel median and p99 error, with the true curve and self-calibrated,
+ * against the ideal estimator's on the same frames (true curve, exposures
+ * and noise model: tests/vset_bracket.c).
+ * bench/merge_crf.c runs all 201 at 1024x512 (docs/merge.md). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "setlight/stitch.h"
+#include "testing.h"
+#include "vset_bracket.h"
+
+enum { MAX_CURVES = 256, PICKED = 12 };
+
+/* The merge with the true curve and the sensor's noise model over the ideal
+ * estimator, per pixel: measured 0.91-1.28 (median) and 1.00-1.35 (p99),
+ * the steep pushed film the worst; the ideal estimator weights and drops
+ * frames by the noise-free value, which no merge of the frames has. The
+ * goal (1.1 / 1.2) is the self-calibrated merge's; what stands between it
+ * and the ideal estimator even with the true curve is this. */
+#define TRUE_MEDIAN_FACTOR 1.3
+#define TRUE_P99_FACTOR 1.4
+/* Self-calibrated (goal not met, docs/merge.md "Real camera curves"): the
+ * median over the dozen of the median ratio (measured 1.42) and of the p99
+ * ratio (1.03) guarded against getting worse. */
+#define SELF_MEDIAN_GUARD 1.5
+#define SELF_P99_GUARD 1.1
+
+typedef struct keyed {
+    double key;
+    int index;
+} keyed;
+
+static int cmp_keyed(const void *a, const void *b)
+{
+    double x = ((const keyed *)a)->key, y = ((const keyed *)b)->key;
+    return (x > y) - (x < y);
+}
+
+/* The dozen: the curves ranked by the code they give 18% grey (0.03 for
+ * "gamma+2.6" to 0.87 for a pushed film), every (n-1)/11-th rank, so they
+ * span the set's gammas from one end to the other. */
+static int pick_curves(const char *dorf, char (*names)[128], int count,
+                       sl_vset_response *picked)
+{
+    keyed *k = malloc((size_t)count * sizeof *k);
+    if (!k)
+        return 0;
+    int n = 0;
+    for (int i = 0; i < count; i++) {
+        sl_error err;
+        sl_vset_response r;
+        if (sl_vset_response_load(dorf, names[i], &r, &err) == SL_OK)
+            k[n++] = (keyed){sl_vset_response_apply(&r, 0.18), i};
+    }
+    qsort(k, (size_t)n, sizeof *k, cmp_keyed);
+    int m = 0;
+    for (int j = 0; j < PICKED && n >= PICKED; j++) {
+        sl_error err;
+        int i = k[(int)lround((double)j * (n - 1) / (PICKED - 1))].index;
+        CHECK_OK(sl_vset_response_load(dorf, names[i], &picked[m], &err), &err);
+        m++;
+    }
+    free(k);
+    return m;
+}
+
+static void check_clean(const sl_image *img)
+{
+    sl_image_stats st;
+    sl_image_stats_compute(img, &st);
+    CHECK(st.nan_count == 0 && st.inf_count == 0 && st.negative_count == 0);
+}
+
+static void test_dorf_curves(void)
+{
+    char dorf[1024];
+    snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
+    static char names[MAX_CURVES][128];
+    int count = vb_dorf_names(dorf, names, MAX_CURVES);
+    if (count <= 0) {
+        printf("  skipped: %s absent\n", dorf);
+        return;
+    }
+    CHECK(count == 201);
+    static sl_vset_response curves[PICKED];
+    int m = pick_curves(dorf, names, count, curves);
+    CHECK(m == PICKED);
+    sl_error err;
+    sl_vset_scene scene;
+    CHECK_OK(vb_scene("exterior", 256, &scene, &err), &err);
+    if (!scene.latlong.data)
+        return;
+    double self_median[PICKED], self_p99[PICKED];
+    int scored = 0;
+    for (int i = 0; i < m; i++) {
+        vb_spec sp = {.scene = "exterior", .response = &curves[i], .frames = 7, .stops = 3,
+                      .jpeg = true, .lossless = true, .width = 256, .saturation = 0.95,
+                      .seed = 3, .full_well_e = 4000, .read_noise_e = 3,
+                      .latlong = &scene.latlong};
+        vb_bracket b;
+        CHECK_OK(vb_make(sl_test_tmpdir(), "crf", &sp, &b, &err), &err);
+        sl_response truth = {0};
+        CHECK_OK(sl_response_linear(&truth, 256, &err), &err);
+        for (int c = 0; c < 3 && truth.inverse; c++)
+            for (int k = 0; k < 256; k++)
+                truth.inverse[c * 256 + k] = sl_vset_response_invert(&curves[i], k / 255.0);
+        sl_merge_options opt;
+        sl_merge_options_init(&opt);
+        sl_merge_result self, given;
+        opt.response_mode = SL_RESPONSE_AUTO;
+        CHECK_OK(vb_merge(&b, &opt, &self, &err), &err);
+        /* With the true curve, also the sensor's noise model (what --noise
+         * gives): the merge's default is a 50000-electron well's. */
+        opt.response_mode = SL_RESPONSE_GIVEN;
+        opt.response = &truth;
+        opt.noise_gain = 1 / sp.full_well_e;
+        opt.noise_floor = (sp.read_noise_e / sp.full_well_e) * (sp.read_noise_e / sp.full_well_e);
+        CHECK_OK(vb_merge(&b, &opt, &given, &err), &err);
+        if (self.radiance.data && given.radiance.data && b.oracle.data) {
+            vb_stats got = vb_compare(&self.radiance, &b, 1, true);
+            vb_stats tru = vb_compare(&given.radiance, &b, 1, false);
+            vb_stats ideal = vb_compare(&b.oracle, &b, 1, false);
+            double wz, curve = vb_response_error(&self.response, &curves[i], b.code_lo, b.code_hi, &wz);
+            double rm = got.median / ideal.median, rp = got.p99 / ideal.p99;
+            double tm = tru.median / ideal.median, tp = tru.p99 / ideal.p99;
+            printf("  %-30s grey code %.3f: ideal %.2f / %.2f%%; true curve / ideal %.3f / %.3f; "
+                   "self-calibrated / ideal %.3f / %.3f, curve within %.2f%% (worst at z %.3f), "
+                   "%d frames named\n",
+                   curves[i].name, sl_vset_response_apply(&curves[i], 0.18), 100 * ideal.median,
+                   100 * ideal.p99, tm, tp, rm, rp, 100 * curve, wz, (int)self.disagreeing_frames);
+            CHECK_MSG(tm <= TRUE_MEDIAN_FACTOR, "%s: true curve median %.3f x the ideal", curves[i].name, tm);
+            CHECK_MSG(tp <= TRUE_P99_FACTOR, "%s: true curve p99 %.3f x the ideal", curves[i].name, tp);
+            check_clean(&self.radiance);
+            self_median[scored] = rm;
+            self_p99[scored++] = rp;
+        }
+        sl_merge_result_free(&self);
+        sl_merge_result_free(&given);
+        sl_response_free(&truth);
+        vb_free(&b);
+    }
+    CHECK(scored == PICKED);
+    qsort(self_median, (size_t)scored, sizeof(double), vb_cmp_double);
+    qsort(self_p99, (size_t)scored, sizeof(double), vb_cmp_double);
+    if (scored) {
+        double mm = self_median[scored / 2], mp = self_p99[scored / 2];
+        printf("  self-calibrated over the ideal estimator, median of %d curves: median %.3f "
+               "(worst %.3f), p99 %.3f (worst %.3f)\n",
+               scored, mm, self_median[scored - 1], mp, self_p99[scored - 1]);
+        CHECK_MSG(mm <= SELF_MEDIAN_GUARD, "self-calibrated median ratio %.3f", mm);
+        CHECK_MSG(mp <= SELF_P99_GUARD, "self-calibrated p99 ratio %.3f", mp);
+    }
+    sl_vset_scene_free(&scene);
+}
+
+int main(void)
+{
+    RUN(test_dorf_curves);
+    return sl_test_finish();
+}
