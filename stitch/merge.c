@@ -423,6 +423,8 @@ static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
         m->is_float || m->bits < 1 || m->bits > 16 ? 0 : 1.0 / ((1 << m->bits) - 1);
     m->samples.z = calloc((size_t)m->samples.count * count * 3, sizeof *m->samples.z);
     m->samples.spoilt = calloc((size_t)m->samples.count * count, 1);
+    for (int i = 0; i < count; i++)
+        m->samples.coded = m->samples.coded || m->block[2 * i];
     m->white_pixels = calloc((size_t)count, sizeof *m->white_pixels);
     m->block_max = calloc((size_t)count, sizeof *m->block_max);
     for (int i = 0; i < count && m->block_max; i++) {
@@ -518,7 +520,11 @@ static void check_exposures(merge_ctx *m, sl_merge_result *res, const sl_merge_o
 {
     int count = res->frame_count;
     double *ratio = m->ratio;
-    res->fitted_ratios = merge_fit_ratios(&m->samples, &res->response, m->black, m->saturation, ratio);
+    double log_exif[MERGE_MAX_FRAMES] = {0};
+    for (int k = 0; k < count; k++)
+        log_exif[k] = log(res->frames[m->order[k]].exif_exposure);
+    res->fitted_ratios = merge_fit_ratios(&m->samples, &res->response, m->black, m->saturation,
+                                          log_exif, ratio);
     res->disagreeing_frames = 0;
     bool fit_slope = opt->response_mode == SL_RESPONSE_AUTO ||
                      opt->response_mode == SL_RESPONSE_ROBERTSON;
@@ -629,8 +635,9 @@ static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_m
                       ? merge_fit_robertson(&m->samples, loge, RESPONSE_NODES, opt->samples,
                                             m->black, m->saturation, opt->seed, &fitted, err)
                       : merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda,
-                                           opt->samples, m->black, m->saturation, opt->seed,
-                                           &fitted, err);
+                                           opt->samples, m->black, m->saturation,
+                                           opt->noise_gain, opt->noise_floor, opt->seed, &fitted,
+                                           err);
     if (r)
         return r;
     sl_response_free(&res->response);

@@ -36,11 +36,18 @@ double merge_select_kth(double *v, int n, int k)
 }
 
 int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double black,
-                     double saturation, double *ratio)
+                     double saturation, const double *log_exif, double *ratio)
 {
     int f = s->frames, fitted = 0;
     /* Well exposed: above 1% of full scale in linear terms (dark codes are
-     * few and noisy) and clear of the shoulder. */
+     * few and noisy) and clear of the shoulder. For lossless frames the
+     * floor is judged in the longer frame only, at 1% times the EXIF step:
+     * picking pairs by the shorter frame's own noisy value keeps those that
+     * noise pushed up, which biases the ratio (a 4000-electron sensor: honest
+     * steps measured 0.3-1.2 stops off, and the curve fitted to them). JPEG
+     * frames keep the floor in both: their dark codes carry DCT error the
+     * median does not average out (the night set's 5x2 JPEGs named a frame
+     * at +0.34 stops). */
     double lo = fmax(2 * black, 0.02), hi = saturation - 0.04, ylo = 0.01;
     double *r = malloc((size_t)s->count * 3 * sizeof *r);
     for (int q = 0; q + 1 < f; q++) {
@@ -50,16 +57,18 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
         /* A step seen only in spoilt JPEG blocks (a dark frame's lamps) is
          * not measured: their pairs are biased by tens of percent. */
         int n = 0;
+        double y0lo = s->coded ? ylo : 0, z0lo = s->coded ? lo : 0;
+        double y1lo = s->coded ? ylo : ylo * exp(log_exif[q + 1] - log_exif[q]);
         for (int i = 0; i < s->count; i++) {
             if (!merge_usable(s, i, q, hi) || !merge_usable(s, i, q + 1, hi))
                 continue;
             for (int c = 0; c < 3; c++) {
                 double z0 = s->z[((size_t)i * f + q) * 3 + c];
                 double z1 = s->z[((size_t)i * f + q + 1) * 3 + c];
-                if (!(z0 > lo && z1 > lo))
+                if (!(z0 > z0lo && z1 > lo))
                     continue;
                 double y0 = sl_response_eval(resp, c, z0), y1 = sl_response_eval(resp, c, z1);
-                if (y0 > ylo && y1 > ylo)
+                if (y0 > y0lo && y1 > y1lo)
                     r[n++] = y1 / y0;
             }
         }

@@ -18,6 +18,8 @@ typedef struct merge_samples {
     int count;
     int frames;
     double code_step; /* the frames' code step on the 0..1 scale (0: float frames) */
+    bool coded;       /* some frame is block-coded (JPEG): its coding error, often many
+                         codes near an edge, is in no noise model */
     float *z;
     uint8_t *spoilt;
 } merge_samples;
@@ -52,7 +54,8 @@ void merge_block_max(const void *buf, int code_bytes, double top, int width, int
  * per-sample unknowns (a dense nodes x nodes Cholesky). */
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
-                             uint64_t seed, sl_response *out, sl_error *err);
+                             double noise_gain, double noise_floor, uint64_t seed,
+                             sl_response *out, sl_error *err);
 
 /* Robertson-Borman-Stevenson: the same curve from the same samples by
  * alternating irradiance and per-code estimates (response_robertson.c). */
@@ -89,9 +92,10 @@ double merge_select_kth(double *v, int n, int k);
 
 /* Exposure ratio between neighbouring ranks from pixels well exposed in
  * both (median of linearised ratios); ratio[r] = e[r+1] / e[r], 0 when too
- * few pixels are usable. Returns how many ratios could be fitted. */
+ * few pixels are usable; log_exif[r] the ranks' EXIF exposures (where the
+ * longer frame's floor is). Returns how many ratios could be fitted. */
 int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double black,
-                     double saturation, double *ratio);
+                     double saturation, const double *log_exif, double *ratio);
 
 /* Timing by phase (merge_clock.c): a stretch starts at a clock (wall and
  * process CPU); charging it to a phase returns the clock for the next. */

@@ -26,11 +26,13 @@ enum { MAX_CURVES = 256, PICKED = 12 };
  * and the ideal estimator even with the true curve is this. */
 #define TRUE_MEDIAN_FACTOR 1.3
 #define TRUE_P99_FACTOR 1.4
-/* Self-calibrated (goal not met, docs/merge.md "Real camera curves"): the
- * median over the dozen of the median ratio (measured 1.42) and of the p99
- * ratio (1.03) guarded against getting worse. */
-#define SELF_MEDIAN_GUARD 1.5
-#define SELF_P99_GUARD 1.1
+/* Self-calibrated (goal not met, docs/merge.md "Real camera curves"): over
+ * the dozen, the median of the median ratios (measured 1.48), the worst
+ * (1.91; 6.62 before the fit's forward rounds and the check's floor in the
+ * longer frame) and the median of the p99 ratios (1.07). */
+#define SELF_MEDIAN_GUARD 1.6
+#define SELF_WORST_GUARD 2.2
+#define SELF_P99_GUARD 1.15
 
 typedef struct keyed {
     double key;
@@ -155,6 +157,8 @@ static void test_dorf_curves(void)
                "(worst %.3f), p99 %.3f (worst %.3f)\n",
                scored, mm, self_median[scored - 1], mp, self_p99[scored - 1]);
         CHECK_MSG(mm <= SELF_MEDIAN_GUARD, "self-calibrated median ratio %.3f", mm);
+        CHECK_MSG(self_median[scored - 1] <= SELF_WORST_GUARD,
+                  "self-calibrated worst median ratio %.3f", self_median[scored - 1]);
         CHECK_MSG(mp <= SELF_P99_GUARD, "self-calibrated p99 ratio %.3f", mp);
     }
     sl_vset_scene_free(&scene);
