@@ -25,7 +25,7 @@ sl_result sl_scene_load(sl_scene *scene, const char *scene_arg, int width, const
     if (rig)
         return sl_scene_read_rig(scene, rig, err);
     sl_image img;
-    if ((r = sl_image_read(env, &img, NULL, err)))
+    if ((r = sl_latlong_read(env, NULL, &img, NULL, NULL, err)))
         return r;
     r = sl_scene_set_dome(scene, &img, env_rotation_deg, env_intensity, env, err);
     sl_image_free(&img);

@@ -58,9 +58,10 @@ static const char *unwrap_help =
     "  --compression C        zip (default), piz, rle or none (all lossless)\n"
     "  --json                 print the result as JSON on stdout\n\n"
     "The A channel is the confidence: resolution relative to the ball's centre, 0 in\n"
-    "the blind cone behind the ball (filled flat with the rim's median). An 8-bit\n"
-    "photo (JPEG, PNG) is taken as sRGB, linearised with a warning: its highlights\n"
-    "are clipped, so bright sources come out too dark.\n"
+    "the blind cone behind the ball (filled flat with the rim's median). An 8/16-bit\n"
+    "photo (JPEG, PNG, TIFF) is converted to scene-linear through OpenColorIO from its\n"
+    "colour space (sRGB unless the file says otherwise), with a warning: its\n"
+    "highlights are clipped, so bright sources come out too dark (docs/color.md).\n"
     "Exit codes: 0 done, 1 failure, 2 usage error (bad option, circle outside the\n"
     "image), 3 bad input (unreadable, no ball, two balls, ball cut by the frame,\n"
     "reflectance patch not seen).\n"
@@ -75,31 +76,27 @@ static void reflectance_text(const sl_reflectance *r, char *buf, size_t size)
         snprintf(buf, size, "%g,%g,%g", r->value[0], r->value[1], r->value[2]);
 }
 
-/* One photo: read (an 8-bit one linearised with a warning), its circle
+/* One photo: read as scene-linear (an 8/16-bit one linearised with a
+ * warning, as every command reads), its circle
  * given or detected, and its focal length in pixels. */
 typedef struct view_in {
     const char *path;
     sl_image photo;
     sl_meta meta;
-    bool ldr, detected;
+    bool ldr, detected; /* ldr: 8/16-bit, linearised from input_space */
+    char input_space[64];
     int64_t nonfinite;
 } view_in;
 
 static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
                            const ball_camera_opts *bc, sl_error *err)
 {
-    sl_result r = sl_image_read(v->path, &v->photo, &v->meta, err);
+    sl_read_info info;
+    sl_result r = sl_image_read_linear(v->path, NULL, &v->photo, &v->meta, &info, err);
     if (r)
         return r;
-    v->ldr = !v->meta.is_float;
-    if (v->ldr) {
-        sl_log(SL_LOG_WARN,
-               "%s: %d-bit %s, not HDR: taken as sRGB and linearised; clipped highlights make "
-               "bright sources too dark",
-               v->path, v->meta.bits_per_sample, v->meta.format);
-        for (size_t i = 0; i < v->photo.stride * (size_t)v->photo.height; i++)
-            v->photo.data[i] = sl_srgb_to_linear(v->photo.data[i]);
-    }
+    v->ldr = info.converted && !v->meta.is_float;
+    snprintf(v->input_space, sizeof v->input_space, "%s", info.colorspace);
     /* Geometry: focal length in pixels of this image (lens or field of view),
      * distance in ball radii. */
     double focal_px, distance;
@@ -225,7 +222,9 @@ static sl_result output_meta(const out_job *j, sl_error *err)
         attrs[na++].name = "setlight:alpha";
     }
     if (views[0].ldr || views[1].ldr) {
-        snprintf(attrs[na].value, sizeof attrs[na].value, "8-bit sRGB input linearised");
+        const view_in *v = views[0].ldr ? &views[0] : &views[1];
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "8/16-bit input linearised from %s through OpenColorIO", v->input_space);
         attrs[na++].name = "setlight:input_note";
     }
     snprintf(buf, sizeof buf, "setlight %s unwrap", sl_version());
