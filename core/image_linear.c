@@ -3,7 +3,7 @@
  * way for every command: the file's colour space (named, or assumed from
  * its samples) converted through OpenColorIO, and a 2:1 image without an
  * envmap attribute taken as a lat-long. Each thing done to the pixels is
- * one line on sl_log, worded here once so every command says the same. */
+ * one note (sl_log_note), worded here once so every command says the same. */
 #include "setlight/core.h"
 
 #include <math.h>
@@ -137,7 +137,7 @@ sl_result sl_image_linearize(sl_image *img, sl_meta *meta, const char *path, con
     info->encoded = encoding && strcmp(encoding, "scene-linear") != 0;
     /* Not HDR when the samples are integers: a warning, not a note. */
     bool ldr = !meta->is_float && strcmp(meta->format, "raw") != 0;
-    sl_log(ldr ? SL_LOG_WARN : SL_LOG_INFO, "%s: %s in %s, converted to scene-linear %s through %s%s",
+    sl_log_note(ldr ? SL_LOG_WARN : SL_LOG_INFO, "%s: %s in %s, converted to scene-linear %s through %s%s",
            path, samples, space, SL_WORKING_SPACE, cs ? "OpenColorIO" : "a 3x3 matrix (Bradford)",
            ldr ? "; not HDR: clipped highlights make bright sources too dark" : "");
     return sl_meta_set_color_space(meta, SL_WORKING_SPACE, err);
@@ -173,7 +173,7 @@ sl_result sl_env_read(const char *path, const char *from, sl_image *img, sl_meta
     if (m->envmap == SL_ENVMAP_NONE && sl_is_latlong_shape(img->width, img->height)) {
         m->envmap = SL_ENVMAP_LATLONG;
         info->latlong_assumed = true;
-        sl_log(SL_LOG_INFO, "%s: no envmap attribute; %dx%d is 2:1, taken as a lat-long", path,
+        sl_log_note(SL_LOG_INFO, "%s: no envmap attribute; %dx%d is 2:1, taken as a lat-long", path,
                img->width, img->height);
     }
     if (!meta)

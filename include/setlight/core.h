@@ -82,6 +82,18 @@ void sl_log(sl_log_level level, const char *fmt, ...)
 #endif
     ;
 
+/* A note on how an input was taken (linearised, assumed a lat-long): logged
+ * at once, or, while notes are held (the CLI holds them for a run), kept,
+ * each text once, until sl_log_release_notes prints them (the run
+ * succeeded) or drops them (a refusal stays one line on stderr). */
+void sl_log_note(sl_log_level level, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+void sl_log_hold_notes(bool hold);
+void sl_log_release_notes(bool print);
+
 /* A progress bar drawn on stderr only when stderr is a terminal and not quiet. */
 typedef struct sl_progress {
     const char *label;
@@ -410,8 +422,8 @@ const char *sl_file_color_space(const sl_meta *meta, bool *assumed);
  * the working space: through OpenColorIO from its colour space (`from` when
  * not NULL, else sl_file_color_space), or by the 3x3 matrix of its EXR
  * chromaticities when they match no named space. A one- or two-channel
- * image needing conversion becomes RGB(A). When the pixels change, one line
- * on sl_log says so (a warning for 8/16-bit files: not HDR, clipped
+ * image needing conversion becomes RGB(A). When the pixels change, one note
+ * (sl_log_note) says so (a warning for 8/16-bit files: not HDR, clipped
  * highlights), and meta then names the working space. A named space the
  * config does not know: SL_ERR_INPUT naming the file (`from` unknown:
  * SL_ERR_USAGE). info may be NULL. */
@@ -422,7 +434,7 @@ sl_result sl_image_read_linear(const char *path, const char *from, sl_image *img
                                sl_read_info *info, sl_error *err);
 /* An environment map: sl_image_read_linear, and meta->envmap decided: the
  * file's envmap attribute when it has one, else a 2:1 image is a lat-long
- * (one line on sl_log says so), else SL_ENVMAP_NONE. */
+ * (a note says so), else SL_ENVMAP_NONE. */
 sl_result sl_env_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
                       sl_read_info *info, sl_error *err);
 /* A lat-long: sl_env_read, and SL_ERR_INPUT naming the file when it is a cube
