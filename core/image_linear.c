@@ -143,58 +143,33 @@ sl_result sl_image_linearize(sl_image *img, sl_meta *meta, const char *path, con
     return sl_meta_set_color_space(meta, SL_WORKING_SPACE, err);
 }
 
-sl_result sl_image_read_linear(const char *path, const char *from, sl_image *img, sl_meta *meta,
-                               sl_read_info *info, sl_error *err)
-{
-    sl_meta local;
-    sl_meta *m = meta ? meta : &local;
-    sl_result r = sl_image_read(path, img, m, err);
-    if (!r)
-        r = sl_image_linearize(img, m, path, from, info, err);
-    if (r || !meta)
-        sl_meta_free(m);
-    if (r)
-        sl_image_free(img);
-    return r;
-}
+typedef enum { READ_IMAGE, READ_ENV, READ_LATLONG } read_kind;
 
-sl_result sl_env_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
-                      sl_read_info *info, sl_error *err)
+static sl_result read_as(const char *path, const char *from, read_kind kind, sl_image *img,
+                         sl_meta *meta, sl_read_info *info, sl_error *err)
 {
     sl_meta local;
     sl_meta *m = meta ? meta : &local;
     sl_read_info local_info;
     if (!info)
         info = &local_info;
-    sl_result r = sl_image_read_linear(path, from, img, m, info, err);
-    if (r)
-        return r;
+    sl_result r = sl_image_read(path, img, m, err);
+    if (!r)
+        r = sl_image_linearize(img, m, path, from, info, err);
     /* Published HDRIs (.hdr, most EXRs) carry no envmap attribute. */
-    if (m->envmap == SL_ENVMAP_NONE && sl_is_latlong_shape(img->width, img->height)) {
+    if (!r && kind != READ_IMAGE && m->envmap == SL_ENVMAP_NONE &&
+        sl_is_latlong_shape(img->width, img->height)) {
         m->envmap = SL_ENVMAP_LATLONG;
         info->latlong_assumed = true;
-        sl_log_note(SL_LOG_INFO, "%s: no envmap attribute; %dx%d is 2:1, taken as a lat-long", path,
-               img->width, img->height);
+        sl_log_note(SL_LOG_INFO, "%s: no envmap attribute; %dx%d is 2:1, taken as a lat-long",
+                    path, img->width, img->height);
     }
-    if (!meta)
-        sl_meta_free(m);
-    return SL_OK;
-}
-
-sl_result sl_latlong_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
-                          sl_read_info *info, sl_error *err)
-{
-    sl_meta local;
-    sl_meta *m = meta ? meta : &local;
-    sl_result r = sl_env_read(path, from, img, m, info, err);
-    if (r)
-        return r;
-    if (m->envmap == SL_ENVMAP_CUBE)
+    if (!r && kind == READ_LATLONG && m->envmap == SL_ENVMAP_CUBE)
         r = sl_error_set(err, SL_ERR_INPUT,
                          "%s: a cube map (envmap attribute), not a lat-long: convert it first "
                          "(setlight convert --to latlong)",
                          path);
-    else if (!sl_is_latlong_shape(img->width, img->height))
+    else if (!r && kind == READ_LATLONG && !sl_is_latlong_shape(img->width, img->height))
         r = sl_error_set(err, SL_ERR_INPUT, "%s: not a lat-long: %dx%d is not 2:1", path,
                          img->width, img->height);
     if (r || !meta)
@@ -202,4 +177,22 @@ sl_result sl_latlong_read(const char *path, const char *from, sl_image *img, sl_
     if (r)
         sl_image_free(img);
     return r;
+}
+
+sl_result sl_image_read_linear(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                               sl_read_info *info, sl_error *err)
+{
+    return read_as(path, from, READ_IMAGE, img, meta, info, err);
+}
+
+sl_result sl_env_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                      sl_read_info *info, sl_error *err)
+{
+    return read_as(path, from, READ_ENV, img, meta, info, err);
+}
+
+sl_result sl_latlong_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                          sl_read_info *info, sl_error *err)
+{
+    return read_as(path, from, READ_LATLONG, img, meta, info, err);
 }

@@ -38,51 +38,53 @@ static void write_line(sl_log_level level, const char *text)
     }
 }
 
-void sl_log(sl_log_level level, const char *fmt, ...)
-{
-    if (!shown(level))
-        return;
-    char text[2048];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(text, sizeof text, fmt, ap);
-    va_end(ap);
-    pthread_mutex_lock(&log_lock);
-    write_line(level, text);
-    pthread_mutex_unlock(&log_lock);
-}
-
 /* Notes held for the end of a run: a refusal stays one line. */
 #define NOTES_MAX 32
+#define LINE_MAX_CHARS 2048
 static bool notes_held;
 static int note_count;
 static struct {
     sl_log_level level;
-    char text[1024];
+    char text[LINE_MAX_CHARS];
 } notes[NOTES_MAX];
 
 void sl_log_hold_notes(bool hold) { notes_held = hold; }
 
-void sl_log_note(sl_log_level level, const char *fmt, ...)
+static void log_line(sl_log_level level, bool note, const char *fmt, va_list ap)
 {
     if (!shown(level))
         return;
-    char text[1024];
-    va_list ap;
-    va_start(ap, fmt);
+    char text[LINE_MAX_CHARS];
     vsnprintf(text, sizeof text, fmt, ap);
-    va_end(ap);
     pthread_mutex_lock(&log_lock);
-    bool seen = false;
-    for (int i = 0; i < note_count && !seen; i++)
-        seen = strcmp(notes[i].text, text) == 0;
-    if (!notes_held)
+    if (!note || !notes_held) {
         write_line(level, text);
-    else if (!seen && note_count < NOTES_MAX) {
-        notes[note_count].level = level;
-        memcpy(notes[note_count++].text, text, sizeof text);
+    } else {
+        bool seen = false;
+        for (int i = 0; i < note_count && !seen; i++)
+            seen = strcmp(notes[i].text, text) == 0;
+        if (!seen && note_count < NOTES_MAX) {
+            notes[note_count].level = level;
+            memcpy(notes[note_count++].text, text, sizeof text);
+        }
     }
     pthread_mutex_unlock(&log_lock);
+}
+
+void sl_log(sl_log_level level, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    log_line(level, false, fmt, ap);
+    va_end(ap);
+}
+
+void sl_log_note(sl_log_level level, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    log_line(level, true, fmt, ap);
+    va_end(ap);
 }
 
 void sl_log_release_notes(bool print)

@@ -214,22 +214,24 @@ const char *sl_color_config_path(void)
     return SETLIGHT_OCIO_CONFIG_DEFAULT;
 }
 
-const char *sl_color_space_name(const char *name)
+// A space's canonical name or its encoding (a field of loaded_config).
+static const char *space_field(const char *name, std::vector<std::string> loaded_config::*field)
 {
     loaded_config *lc = get_config(nullptr);
     if (!lc)
         return nullptr;
     long i = find_space(*lc, name);
-    return i < 0 ? nullptr : lc->names[(size_t)i].c_str();
+    return i < 0 ? nullptr : ((*lc).*field)[(size_t)i].c_str();
+}
+
+const char *sl_color_space_name(const char *name)
+{
+    return space_field(name, &loaded_config::names);
 }
 
 const char *sl_color_space_encoding(const char *name)
 {
-    loaded_config *lc = get_config(nullptr);
-    if (!lc)
-        return nullptr;
-    long i = find_space(*lc, name);
-    return i < 0 ? nullptr : lc->encodings[(size_t)i].c_str();
+    return space_field(name, &loaded_config::encodings);
 }
 
 const char *const *sl_color_space_list(void)
