@@ -2,7 +2,9 @@
 /* The one way images are read as scene-linear radiance (core/image_linear.c):
  * known codes through the sRGB and gamma curves, linear files left alone,
  * other primaries converted, and what is a lat-long. */
+#include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "testing.h"
 
@@ -250,6 +252,38 @@ static void test_real_hdr(void)
     sl_image_free(&img);
 }
 
+/* Held notes: printed once each when the run succeeds, dropped when it
+ * fails (the refusal stays one line); not held: printed at once. */
+static void test_notes_held(void)
+{
+    const char *path = sl_test_path("notes.txt");
+    fflush(stderr);
+    int saved = dup(STDERR_FILENO);
+    CHECK(freopen(path, "w", stderr) != NULL);
+    sl_log_set_quiet(false);
+    sl_log_hold_notes(true);
+    sl_log_note(SL_LOG_INFO, "dropped %d", 1);
+    sl_log_release_notes(false);
+    sl_log_note(SL_LOG_WARN, "kept %d", 2);
+    sl_log_note(SL_LOG_WARN, "kept %d", 2);
+    sl_log(SL_LOG_INFO, "at once");
+    sl_log_release_notes(true);
+    sl_log_hold_notes(false);
+    sl_log_note(SL_LOG_INFO, "unheld");
+    sl_log_set_quiet(true);
+    fflush(stderr);
+    dup2(saved, STDERR_FILENO);
+    close(saved);
+    FILE *f = fopen(path, "r");
+    char text[512] = "";
+    size_t n = f ? fread(text, 1, sizeof text - 1, f) : 0;
+    text[n] = 0;
+    if (f)
+        fclose(f);
+    CHECK_MSG(!strcmp(text, "setlight: at once\nsetlight: warning: kept 2\nsetlight: unheld\n"),
+              "stderr was '%s'", text);
+}
+
 int main(void)
 {
     sl_log_set_quiet(true);
@@ -260,5 +294,6 @@ int main(void)
     RUN(test_other_primaries);
     RUN(test_latlong);
     RUN(test_real_hdr);
+    RUN(test_notes_held);
     return sl_test_finish();
 }
