@@ -170,8 +170,14 @@ static sl_result read_as(const char *path, const char *from, read_kind kind, sl_
                          "(setlight convert --to latlong)",
                          path);
     else if (!r && kind == READ_LATLONG && !sl_is_latlong_shape(img->width, img->height))
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: not a lat-long: %dx%d is not 2:1", path,
-                         img->width, img->height);
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: not a lat-long: %dx%d is not 2:1%s", path,
+                         img->width, img->height,
+                         img->width == img->height
+                             ? " (a mirror ball or angular map? setlight convert --from "
+                               "mirrorball or angular makes a lat-long)"
+                         : img->height == 6 * img->width
+                             ? " (a cube map? setlight convert --from cubemap makes a lat-long)"
+                             : "");
     if (r || !meta)
         sl_meta_free(m);
     if (r)

@@ -227,6 +227,10 @@ static void test_latlong(void)
     CHECK(meta.envmap == SL_ENVMAP_NONE && !info.latlong_assumed);
     sl_image_free(&img);
     sl_meta_free(&meta);
+    /* A square image: probably a probe, and the way to a lat-long. */
+    path = write_flat("square.exr", 8, 8, 3, 1.0f, 32, SL_ENVMAP_NONE, NULL);
+    CHECK_RESULT(sl_latlong_read(path, NULL, &img, NULL, &info, &err), SL_ERR_INPUT, &err);
+    CHECK(strstr(err.message, "8x8 is not 2:1 (a mirror ball or angular map?"));
     /* A cube map says so, even when 2:1 would fit another reading. */
     path = write_flat("cube.exr", 4, 24, 3, 1.0f, 32, SL_ENVMAP_CUBE, NULL);
     CHECK_RESULT(sl_latlong_read(path, NULL, &img, NULL, &info, &err), SL_ERR_INPUT, &err);

@@ -99,6 +99,13 @@ fi
 mkdir -p "$T/bad"
 expect 3 "$SETLIGHT" rig "$T/wide.exr" -o "$T/bad/a.usda"
 err_has "wide.exr: not a lat-long: 96x32 is not 2:1"; err_one_line
+if [ -f "${SETLIGHT_SHARED_DATA:-}/probes/grace_probe_angular.hdr" ]; then
+  expect 3 "$SETLIGHT" rig "$SETLIGHT_SHARED_DATA/probes/grace_probe_angular.hdr" -o "$T/bad/a.usda"
+  err_has "grace_probe_angular.hdr: not a lat-long: 1000x1000 is not 2:1 (a mirror ball or angular map?"
+  err_one_line
+else
+  skip "shared data absent: angular probe"
+fi
 expect 3 "$SETLIGHT" rig "$T/cube.exr" -o "$T/bad/a.usda"
 err_has "cube.exr: a cube map (envmap attribute), not a lat-long"; err_one_line
 expect 3 "$SETLIGHT" render --env "$T/wide.exr" --width 16 -o "$T/bad/r.exr"
