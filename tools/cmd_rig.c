@@ -53,6 +53,8 @@ static const char *rig_help =
     "                        the region's crop as RIG_light_NN.exr beside RIG.usda;\n"
     "                        by default only graded ones are (variation >= 0.25)\n"
     "  --no-textures         no textured lights\n"
+    "  --input-colorspace NAME  the map's colour space (OCIO name), instead of the one\n"
+    "                        the file names or the default (srgb for 8/16-bit)\n"
     "  --assume-latlong      no effect (kept for old scripts): a 2:1 image without\n"
     "                        the envmap attribute is taken as a lat-long, with a note\n"
     "  --validate[=SPP]      render the grey, chrome and shadow scenes (96 px) under\n"
@@ -104,7 +106,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
         OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
-        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_NO_TEXTURES, OPT_PEAK, OPT_MAXSA, OPT_VALIDATE
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_NO_TEXTURES, OPT_PEAK, OPT_MAXSA, OPT_VALIDATE,
+        OPT_INCS
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -129,10 +132,12 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"peak-fraction", required_argument, NULL, OPT_PEAK},
         {"max-solid-angle", required_argument, NULL, OPT_MAXSA},
         {"validate", optional_argument, NULL, OPT_VALIDATE},
+        {"input-colorspace", required_argument, NULL, OPT_INCS},
         {0, 0, 0, 0}};
     sl_rig_options opt;
     sl_rig_options_default(&opt);
     const char *out_path = NULL, *json_path = NULL, *res_path = NULL, *preview_path = NULL;
+    const char *in_cs = NULL;
     bool have_height = false, max_given = false;
     sl_rig_texture_mode textures = SL_RIG_TEXTURES_AUTO;
     long long validate_spp = 0;
@@ -232,6 +237,10 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             break;
         case OPT_ASSUME: /* the default now: a 2:1 image is a lat-long */
             break;
+        case OPT_INCS:
+            if (!(in_cs = sl_color_space_name(optarg)))
+                return cli_usage_error(cli, "unknown colour space '%s' (see docs/color.md)", optarg);
+            break;
         case OPT_TEXTURES:
         case OPT_NO_TEXTURES:
             if (textures != SL_RIG_TEXTURES_AUTO &&
@@ -329,7 +338,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     rig_validation val = {0};
     sl_error err;
     sl_result r = sl_check_input_file(in_path, &err);
-    if (r || (r = sl_latlong_read(in_path, NULL, &env, &meta, NULL, &err)))
+    if (r || (r = sl_latlong_read(in_path, in_cs, &env, &meta, NULL, &err)))
         goto fail;
     if ((r = sl_rig_extract(&env, &opt, &rig, &err))) {
         /* library messages name the stage; name the file too */

@@ -50,6 +50,18 @@ expect 0 "$SETLIGHT" render --env "$T/c128.png" --scene grey --width 32 --spp 64
 "$SETLIGHT" info --json "$T/grey_mis.exr" >"$T/info" 2>/dev/null
 json_eval "$T/info" "abs(d['files'][0]['channel_stats'][0]['mean'] / ($G * 3.14159265 / 4) - 1) < 0.05"
 
+# --input-colorspace overrides what the file says: codes taken as linear light
+# light the ball at 0.18 x 128/255, with no linearising note
+expect 0 "$SETLIGHT" render --env "$T/c128.png" --input-colorspace lin_rec709 --scene grey \
+    --width 32 --spp 16 --strategy cosine -o "$T/grey_lin.exr"
+if grep -qF "converted to scene-linear" "$T/err"; then bad "override still linearised"; else ok; fi
+max_near "$T/grey_lin.exr" 0.090352941 2e-4
+for cmd in "render --env" rig unwrap; do
+  expect 2 "$SETLIGHT" $cmd "$T/c128.png" --input-colorspace nosuch -o "$T/bad_cs.exr"
+  err_has "unknown colour space 'nosuch'"; err_one_line
+done
+absent "$T/bad_cs.exr"
+
 # --- the same notes, worded the same, from rig, convert and calibrate
 expect 0 "$SETLIGHT" rig "$T/c128.png" -o "$T/rig128.usda"
 notes c128.png rig
