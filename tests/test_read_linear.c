@@ -134,6 +134,20 @@ static void test_declared_spaces(void)
         sl_image_free(&img);
         sl_meta_free(&meta);
     }
+    /* Camera raw (LibRaw, linear) and a PNG whose gAMA says linear: not
+     * sRGB, whatever their integer samples. */
+    const char *formats[] = {"raw", "png"}, *declared[] = {"", "GammaCorrected1"};
+    for (int i = 0; i < 2; i++) {
+        bool assumed;
+        sl_meta_init(&meta);
+        snprintf(meta.format, sizeof meta.format, "%s", formats[i]);
+        snprintf(meta.colorspace, sizeof meta.colorspace, "%s", declared[i]);
+        meta.bits_per_sample = 16;
+        const char *cs = sl_file_color_space(&meta, &assumed);
+        CHECK_MSG(cs && !strcmp(cs, "lin_rec709") && assumed == (i == 0), "%s: %s", formats[i],
+                  cs ? cs : "NULL");
+        sl_meta_free(&meta);
+    }
     /* OpenImageIO's "Rec709" for Netpbm: PPM codes BT.709-encoded, PFM linear. */
     for (int is_float = 0; is_float < 2; is_float++) {
         CHECK_OK(sl_image_alloc(&img, 4, 2, 3, &err), &err);
