@@ -76,9 +76,10 @@ static sl_result ensure_rgb(sl_image *img, const char *path, sl_error *err)
     if (img->channels >= 3)
         return SL_OK;
     sl_image rgb;
-    sl_result r = sl_image_convert_channels(img, img->channels == 2 ? 4 : 3, &rgb, err);
+    sl_error why;
+    sl_result r = sl_image_convert_channels(img, img->channels == 2 ? 4 : 3, &rgb, &why);
     if (r)
-        return sl_error_set(err, r, "%s: %s", path, err ? err->message : "");
+        return sl_error_set(err, r, "%s: %s", path, why.message);
     sl_image_free(img);
     *img = rgb;
     return SL_OK;
@@ -137,9 +138,10 @@ sl_result sl_image_linearize(sl_image *img, sl_meta *meta, const char *path, con
     info->encoded = encoding && strcmp(encoding, "scene-linear") != 0;
     /* Not HDR when the samples are integers: a warning, not a note. */
     bool ldr = !meta->is_float && strcmp(meta->format, "raw") != 0;
-    sl_log_note(ldr ? SL_LOG_WARN : SL_LOG_INFO, "%s: %s in %s, converted to scene-linear %s through %s%s",
-           path, samples, space, SL_WORKING_SPACE, cs ? "OpenColorIO" : "a 3x3 matrix (Bradford)",
-           ldr ? "; not HDR: clipped highlights make bright sources too dark" : "");
+    sl_log_note(ldr ? SL_LOG_WARN : SL_LOG_INFO,
+                "%s: %s in %s, converted to scene-linear %s through %s%s", path, samples, space,
+                SL_WORKING_SPACE, cs ? "OpenColorIO" : "a 3x3 matrix (Bradford)",
+                ldr ? "; not HDR: clipped highlights make bright sources too dark" : "");
     return sl_meta_set_color_space(meta, SL_WORKING_SPACE, err);
 }
 
