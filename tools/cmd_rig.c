@@ -351,8 +351,10 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples counted, set to 0 and left out", in_path,
                (long long)rig.nonfinite);
     if (rig.negative)
-        sl_log(SL_LOG_WARN, "%s: %lld negative samples (lossy compression?) set to 0", in_path,
-               (long long)rig.negative);
+        sl_log(SL_LOG_WARN,
+               "%s: %lld negative samples (outside Rec.709's gamut, or lossy compression) set "
+               "to 0",
+               in_path, (long long)rig.negative);
     bool black = !(rig.original[0] > 0 || rig.original[1] > 0 || rig.original[2] > 0);
     if (black)
         sl_log(SL_LOG_WARN, "%s: the map is black: the rig is empty (no lights, black dome)",
