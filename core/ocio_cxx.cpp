@@ -30,6 +30,7 @@ struct loaded_config {
     std::string path;
     OCIO::ConstConfigRcPtr config;
     std::vector<std::string> names;         // canonical names, config order
+    std::vector<std::string> encodings;     // per name: OCIO encoding, "data" for data spaces
     std::vector<const char *> list;         // names as C strings, NULL-terminated
     std::vector<std::pair<std::string, size_t>> lookup; // name, alias or role -> names index
     std::mutex processors_lock;
@@ -64,6 +65,8 @@ void index_config(loaded_config &lc)
         const char *name = cfg.getColorSpaceNameByIndex(OCIO::SEARCH_REFERENCE_SPACE_ALL,
                                                         OCIO::COLORSPACE_ALL, i);
         lc.names.emplace_back(name);
+        OCIO::ConstColorSpaceRcPtr cs = cfg.getColorSpace(name);
+        lc.encodings.emplace_back(!cs ? "" : cs->isData() ? "data" : cs->getEncoding());
     }
     for (size_t i = 0; i < lc.names.size(); i++) {
         lc.lookup.emplace_back(lc.names[i], i);
@@ -211,13 +214,24 @@ const char *sl_color_config_path(void)
     return SETLIGHT_OCIO_CONFIG_DEFAULT;
 }
 
-const char *sl_color_space_name(const char *name)
+// A space's canonical name or its encoding (a field of loaded_config).
+static const char *space_field(const char *name, std::vector<std::string> loaded_config::*field)
 {
     loaded_config *lc = get_config(nullptr);
     if (!lc)
         return nullptr;
     long i = find_space(*lc, name);
-    return i < 0 ? nullptr : lc->names[(size_t)i].c_str();
+    return i < 0 ? nullptr : ((*lc).*field)[(size_t)i].c_str();
+}
+
+const char *sl_color_space_name(const char *name)
+{
+    return space_field(name, &loaded_config::names);
+}
+
+const char *sl_color_space_encoding(const char *name)
+{
+    return space_field(name, &loaded_config::encodings);
 }
 
 const char *const *sl_color_space_list(void)

@@ -8,6 +8,8 @@
  *                 byte by byte (setlight's own writers never write NaN)
  *       wide      a 3:1 image with no envmap attribute
  *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr)
+ *       plain     the latlong one without the envmap attribute
+ *       code128   8-bit code 128 everywhere, no envmap (OUT .png, .jpg or .tif)
  *       ball...   chrome-ball photos, see ball_fixture.h */
 #include <math.h>
 #include <stdio.h>
@@ -98,7 +100,9 @@ int main(int argc, char **argv)
         sl_image_pixel(&img, 2, 1)[1] = INFINITY;
         sl_image_pixel(&img, 3, 2)[2] = -INFINITY;
     }
-    if (strcmp(kind, "wide") != 0)
+    if (!strcmp(kind, "code128"))
+        sl_image_fill(&img, 128.0f / 255.0f);
+    if (strcmp(kind, "wide") != 0 && strcmp(kind, "plain") != 0 && strcmp(kind, "code128") != 0)
         meta.envmap = SL_ENVMAP_LATLONG;
     sl_meta_set_rec709(&meta);
     sl_result r;
@@ -109,6 +113,8 @@ int main(int argc, char **argv)
         r = sl_photo_write(tmp, &img, &meta, 8, &err);
         if (!r && rename(tmp, out) != 0)
             r = sl_error_set(&err, SL_ERR_IO, "%s: rename failed", out);
+    } else if (!strcmp(kind, "code128")) {
+        r = sl_photo_write(out, &img, NULL, 8, &err);
     } else if (!strcmp(kind, "nan"))
         r = write_pfm(out, &img, &err);
     else

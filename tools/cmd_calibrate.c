@@ -28,9 +28,12 @@ static const char *calibrate_help =
     "clipped mask) is repaired from the grey sphere first. With EXIF exposure on the\n"
     "grey photo the result is in cd/m^2. Transform in the output's metadata. At least\n"
     "one of --chart, --grey.\n\n"
-    "  --hdri FILE           the lat-long to calibrate (linear)\n"
+    "  --hdri FILE           the lat-long to calibrate (read as every command reads an\n"
+    "                        environment: scene-linear through OpenColorIO, a 2:1\n"
+    "                        image without envmap attribute taken as a lat-long)\n"
     "  -o, --output FILE     the calibrated lat-long (EXR, half unless --float)\n"
-    "  --chart FILE          chart photo: EXR is read as linear, other formats as sRGB;\n"
+    "  --chart FILE          chart photo, converted to linear from its colour space\n"
+    "                        (8/16-bit: sRGB unless the file names one; docs/color.md);\n"
     "                        the chart is found automatically (OpenCV mcc)\n"
     "  --chart-corners X1,Y1,X2,Y2,X3,Y3,X4,Y4\n"
     "                        centres of patches 1 (dark skin), 6 (bluish green),\n"
@@ -40,8 +43,8 @@ static const char *calibrate_help =
     "                        Rec.709; docs/calibrate.md)\n"
     "  --white-preserving    the neutral patch maps exactly to its reference\n"
     "  --clip LEVEL          chart/grey pixels at or above are clipped (default: none\n"
-    "                        for EXR, 0.999 for 8/16-bit photos)\n"
-    "  --grey FILE           grey-sphere photo (EXR linear, other formats sRGB)\n"
+    "                        for float files, 0.999 for 8/16-bit photos)\n"
+    "  --grey FILE           grey-sphere photo (read as the chart photo)\n"
     "  --grey-colorspace NAME  its colour space (default as for the chart photo)\n"
     "  --hdri-in SPACE       chart: the HDRI is in the chart camera's RGB and goes\n"
     "                        through P (default); working: it is already linear\n"
@@ -67,8 +70,8 @@ static const char *calibrate_help =
     "  --ball-diameter MM    the grey sphere's diameter\n"
     "  --spp N               samples per pixel of the virtual sphere (default 256)\n"
     "  --colorspace NAME     output colour space (OCIO name, default lin_rec709)\n"
-    "  --chart-colorspace NAME  the chart photo's colour space (default: srgb for\n"
-    "                        8/16-bit photos, the file's own or lin_rec709 for EXR)\n"
+    "  --chart-colorspace NAME  the chart photo's colour space (default: the one the\n"
+    "                        file names, else srgb for 8/16-bit, lin_rec709 for float)\n"
     "  --float               write 32-bit float\n"
     "  --report DIR          write DIR/calibrate.html (chart table, grey sphere photo,\n"
     "                        render and error images) and DIR/calibrate.json\n"
@@ -76,12 +79,6 @@ static const char *calibrate_help =
     "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
     "sphere, no sphere found or none in the circle, a grey photo whose exposure\n"
     "contradicts the HDRI's), 1 other failures. See docs/calibrate.md.\n";
-
-static bool is_ldr_path(const char *path)
-{
-    const char *dot = strrchr(path, '.');
-    return dot && strcasecmp(dot, ".exr") != 0 && strcasecmp(dot, ".hdr") != 0;
-}
 
 static void mat_apply(const double m[3][3], float *v)
 {
@@ -99,20 +96,16 @@ static void apply_image(sl_image *img, const double m[3][3])
             mat_apply(m, img->data + (size_t)y * img->stride + (size_t)x * img->channels);
 }
 
-/* Brings a photo into the working space (linear Rec.709) through OCIO from
- * `cs` (NULL: sRGB for 8/16-bit formats, else the file's own space or
- * lin_rec709). Clipping is judged on the file's values before the
- * conversion (*level: the --clip level, < 0 for the default: 0.999 for
- * 8/16-bit photos, none for EXR); clipped pixels then carry `marker` and
- * *level becomes what the later stages test against. */
-static sl_result to_working(sl_image *img, const char *path, const sl_meta *meta, const char *cs,
+/* Brings a photo into the working space (linear Rec.709) as every command
+ * does (sl_image_linearize: from `cs`, or NULL for the file's own space,
+ * sRGB for 8/16-bit photos that name none). Clipping is judged on the
+ * file's values before the conversion (*level: the --clip level, < 0 for
+ * the default: 0.999 for 8/16-bit photos, none for float); clipped pixels
+ * then carry `marker` and *level becomes what the later stages test against. */
+static sl_result to_working(sl_image *img, const char *path, sl_meta *meta, const char *cs,
                             double *level, float marker, sl_error *err)
 {
-    if (!cs)
-        cs = is_ldr_path(path)              ? "srgb"
-             : sl_meta_color_space(meta) ? sl_meta_color_space(meta)
-                                         : "lin_rec709";
-    if (*level < 0 && is_ldr_path(path))
+    if (*level < 0 && !meta->is_float)
         *level = 0.999;
     unsigned char *clipped = NULL;
     if (*level > 0) {
@@ -126,8 +119,8 @@ static sl_result to_working(sl_image *img, const char *path, const sl_meta *meta
                     v[0] >= *level || v[1] >= *level || v[2] >= *level;
             }
     }
-    sl_result r = SL_OK;
-    if (strcmp(cs, "lin_rec709") != 0 && (r = sl_color_convert(img, cs, "lin_rec709", err))) {
+    sl_result r = sl_image_linearize(img, meta, path, cs, NULL, err);
+    if (r) {
         free(clipped);
         return r;
     }
@@ -364,9 +357,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     memcpy(reference, SL_COLORCHECKER_LINEAR, sizeof(reference));
     if (ref_path && (r = sl_chart_reference_read(ref_path, reference, NULL, &err)))
         goto fail;
-    if ((r = sl_image_read(hdri_path, &hdri, &hmeta, &err)))
+    /* Scene-linear Rec.709, as every command reads a lat-long. */
+    if ((r = sl_latlong_read(hdri_path, NULL, &hdri, &hmeta, NULL, &err)))
         goto fail;
-    if (!sl_is_latlong_shape(hdri.width, hdri.height) || hdri.channels < 3) {
+    if (hdri.channels < 3) {
         r = sl_error_set(&err, SL_ERR_INPUT, "%s: not an RGB lat-long (%dx%d, %d channels)",
                          hdri_path, hdri.width, hdri.height, hdri.channels);
         goto fail;
@@ -379,12 +373,6 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                    (long long)st.nan_count, (long long)st.inf_count);
             sl_image_sanitize(&hdri, 0.0f);
         }
-        /* The working space is linear Rec.709: an HDRI that says it is in
-         * another space comes in through OCIO. */
-        const char *hcs = sl_meta_color_space(&hmeta);
-        if (hcs && strcmp(hcs, "lin_rec709") != 0 &&
-            (r = sl_color_convert(&hdri, hcs, "lin_rec709", &err)))
-            goto fail;
     }
     if (chart_path) {
         if ((r = sl_image_read(chart_path, &chart, &cmeta, &err)))

@@ -14,13 +14,16 @@ static const char *convert_help =
     "axis, resizes it and changes its colour space. OUT's extension picks the format:\n"
     ".exr (half float unless --float), or .png/.jpg/.tif for previews (sRGB-encoded).\n\n"
     "  --from P            input projection: latlong, mirrorball, angular, cubemap\n"
-    "                      (default: the file's envmap attribute, else latlong)\n"
+    "                      (default: the file's envmap attribute, else latlong; a 2:1\n"
+    "                      image without one is taken as a lat-long with a note)\n"
     "  --to P              output projection (default latlong)\n"
     "  --width N           output lat-long-equivalent width (default: from the input;\n"
     "                      mirrorball/angular are N/2 square, cube faces N/4)\n"
     "  --rotate DEG        turn the environment about +Y; positive turns +Z toward +X\n"
     "  --colorspace NAME   output colour space (OCIO name, e.g. lin_rec709, acescg)\n"
-    "  --input-colorspace NAME  override the input's colour space\n"
+    "  --input-colorspace NAME  override the input's colour space (default: the one\n"
+    "                      the file names, else srgb for 8/16-bit, linear for float;\n"
+    "                      docs/color.md)\n"
     "  --float             write 32-bit float EXR instead of half\n"
     "  --strict            NaN/Inf input pixels are an error (exit 3) instead of being\n"
     "                      counted, reported and replaced by 0\n"
@@ -123,7 +126,11 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
     sl_meta meta, out_meta;
     sl_meta_init(&out_meta);
     sl_error err;
-    sl_result r = sl_image_read(in_path, &src, &meta, &err);
+    /* Scene-linear in the working space, as every command reads; the
+     * envmap decided unless --from says. */
+    sl_read_info info;
+    sl_result r = from < 0 ? sl_env_read(in_path, in_cs, &src, &meta, &info, &err)
+                           : sl_image_read_linear(in_path, in_cs, &src, &meta, &info, &err);
     if (r)
         return cli_fail(cli, &err);
     cli_warn_format_mismatch(in_path, &meta);
@@ -161,16 +168,13 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
         sl_image_sanitize(&src, 0.0f);
     }
 
-    /* Colour: from the input's space (or scene-linear Rec.709) to the output's. */
-    const char *src_cs = in_cs ? in_cs : sl_meta_color_space(&meta);
-    if (!src_cs)
-        src_cs = "lin_rec709";
+    /* Colour: reprojected in the working space; out in --colorspace, else the
+     * input's own when it is scene-linear (an ACEScg EXR stays ACEScg). */
+    const char *in_space = sl_color_space_encoding(info.colorspace);
+    const char *src_cs = in_space && !strcmp(in_space, "scene-linear") ? info.colorspace
+                                                                         : SL_WORKING_SPACE;
     const char *dst_cs = out_cs ? out_cs : (is_ldr_path(out_path) ? "srgb" : src_cs);
-    /* Reproject in linear light; encode at the end. */
-    bool src_encoded = strcmp(src_cs, "srgb") == 0;
-    if (src_encoded && (r = sl_color_convert(&src, src_cs, "lin_rec709", &err)))
-        goto fail;
-    const char *work_cs = src_encoded ? "lin_rec709" : src_cs;
+    const char *work_cs = SL_WORKING_SPACE;
 
     double rot[3][3];
     sl_rotation_y(rotate, rot);

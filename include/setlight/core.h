@@ -82,6 +82,18 @@ void sl_log(sl_log_level level, const char *fmt, ...)
 #endif
     ;
 
+/* A note on how an input was taken (linearised, assumed a lat-long): logged
+ * at once, or, while notes are held (the CLI holds them for a run), kept,
+ * each text once, until sl_log_release_notes prints them (the run
+ * succeeded) or drops them (a refusal stays one line on stderr). */
+void sl_log_note(sl_log_level level, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+void sl_log_hold_notes(bool hold);
+void sl_log_release_notes(bool print);
+
 /* A progress bar drawn on stderr only when stderr is a terminal and not quiet. */
 typedef struct sl_progress {
     const char *label;
@@ -346,6 +358,9 @@ float sl_linear_to_srgb(float v);
 /* Linear Rec.709 (D65) <-> CIE XYZ (Y of white = 1). */
 void sl_rec709_to_xyz(const double rgb[3], double xyz[3]);
 void sl_xyz_to_rec709(const double xyz[3], double rgb[3]);
+/* Linear RGB with these EXR chromaticities (red, green, blue, white xy) ->
+ * linear Rec.709 D65: through XYZ, the white adapted by Bradford. */
+void sl_chromaticities_to_rec709(const float xy[8], double m[3][3]);
 /* Bradford chromatic adaptation matrix from one white (XYZ) to another. */
 void sl_bradford(const double src_white_xyz[3], const double dst_white_xyz[3], double m[3][3]);
 extern const double SL_WHITE_D65[3];
@@ -365,6 +380,10 @@ const char *const *sl_color_space_list(void);
 /* Converts RGB(A) pixels in place through OpenColorIO. Alpha untouched.
  * SL_ERR_USAGE naming the space when either name is unknown. */
 sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_error *err);
+/* How a colour space encodes light: "scene-linear", "sdr-video", "log", ...
+ * (OCIO's encoding), "data" for data spaces, "" when the config says
+ * nothing; NULL when the name is unknown. Static. */
+const char *sl_color_space_encoding(const char *name);
 /* The EXR chromaticities (red, green, blue, white xy) of a colour space
  * (name or alias); false when it has none (raw) or is unknown. */
 bool sl_color_space_chromaticities(const char *name, float xy[8]);
@@ -374,6 +393,54 @@ bool sl_color_space_chromaticities(const char *name, float xy[8]);
 const char *sl_meta_color_space(const sl_meta *meta);
 /* Sets meta->colorspace, setlight:colorspace and matching chromaticities. */
 sl_result sl_meta_set_color_space(sl_meta *meta, const char *name, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Images as scene-linear radiance: the one way every command reads    */
+/* ------------------------------------------------------------------ */
+
+/* setlight's working space: scene-linear Rec.709 primaries, D65. */
+#define SL_WORKING_SPACE "lin_rec709"
+
+/* What reading did to a file (docs/color.md). */
+typedef struct sl_read_info {
+    char colorspace[64];     /* the file's colour space (OCIO name), or "chromaticities" */
+    bool colorspace_assumed; /* the file names none: taken from its sample type */
+    bool converted;          /* the pixels were converted to the working space */
+    bool encoded;            /* ... from a non-linear encoding (sRGB, gamma, log) */
+    bool latlong_assumed;    /* a 2:1 image without envmap attribute, taken as a lat-long */
+} sl_read_info;
+
+/* The colour space an image file's pixels are in: the one it names
+ * (sl_meta_color_space, or OpenImageIO's oiio:ColorSpace: "sRGB" for JPEG and
+ * PNG, "GammaCorrected2.2" for a PNG gAMA), else from its samples: sRGB for
+ * 8/16-bit integer photos, the working space for float samples and camera
+ * raw (*assumed set). NULL when the file names a space the config does not
+ * know or has chromaticities of no known space. */
+const char *sl_file_color_space(const sl_meta *meta, bool *assumed);
+
+/* Converts an image just read (img and meta from sl_image_read of `path`) to
+ * the working space: through OpenColorIO from its colour space (`from` when
+ * not NULL, else sl_file_color_space), or by the 3x3 matrix of its EXR
+ * chromaticities when they match no named space. A one- or two-channel
+ * image needing conversion becomes RGB(A). When the pixels change, one note
+ * (sl_log_note) says so (a warning for 8/16-bit files: not HDR, clipped
+ * highlights), and meta then names the working space. A named space the
+ * config does not know: SL_ERR_INPUT naming the file (`from` unknown:
+ * SL_ERR_USAGE). info may be NULL. */
+sl_result sl_image_linearize(sl_image *img, sl_meta *meta, const char *path, const char *from,
+                             sl_read_info *info, sl_error *err);
+/* sl_image_read then sl_image_linearize. meta and info may be NULL. */
+sl_result sl_image_read_linear(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                               sl_read_info *info, sl_error *err);
+/* An environment map: sl_image_read_linear, and meta->envmap decided: the
+ * file's envmap attribute when it has one, else a 2:1 image is a lat-long
+ * (a note says so), else SL_ENVMAP_NONE. */
+sl_result sl_env_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                      sl_read_info *info, sl_error *err);
+/* A lat-long: sl_env_read, and SL_ERR_INPUT naming the file when it is a cube
+ * map or not 2:1 (nothing is returned then). */
+sl_result sl_latlong_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                          sl_read_info *info, sl_error *err);
 
 /* ------------------------------------------------------------------ */
 /* Geometry: lat-long and projections                                  */

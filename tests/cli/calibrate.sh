@@ -210,7 +210,7 @@ expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" \
 expect 3 "$SETLIGHT" calibrate --hdri "$T/missing.exr" --grey "$T/grey.exr" \
     --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "missing.exr"; err_one_line
 expect 3 "$SETLIGHT" calibrate --hdri "$T/grey.exr" --grey "$T/grey.exr" \
-    --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "not an RGB lat-long"
+    --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "grey.exr: not a lat-long: 48x48 is not 2:1"
 # A circle on empty background: no sphere there.
 expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/chart.exr" \
     --grey-circle 120,150,10 -o "$T/keep.exr"; err_has "chart.exr"; err_one_line

@@ -183,12 +183,14 @@ expect 2 "$SETLIGHT" rig --exclude 10 "$T/stage.exr" -o "$T/bad/a.usda"; err_has
 expect 0 "$SETLIGHT" rig --json "$T/sun.exr" -o "$T/o/sun.usda"
 json_eval "$T/out" 'd["lights"] == 1 and d["rig"]["lights"][0]["type"] == "distant"'
 
-# --- black map: empty rig, clear message, exit 0
-expect 0 "$SETLIGHT" rig --json --assume-latlong "$T/black.pfm" -o "$T/o/black.usda"
+# --- black map: empty rig, clear message, exit 0 (a PFM has no envmap attribute:
+# 2:1, taken as a lat-long with a note)
+expect 0 "$SETLIGHT" rig --json "$T/black.pfm" -o "$T/o/black.usda"
+err_has "black.pfm: no envmap attribute; 64x32 is 2:1, taken as a lat-long"
 err_has "black"; json_eval "$T/out" 'd["lights"] == 0 and d["black"]'
 present "$T/o/black.usda"
 
-# --- NaN/Inf: counted, excluded, reported
+# --- NaN/Inf: counted, excluded, reported (--assume-latlong: accepted, no effect)
 expect 0 "$SETLIGHT" rig --json --assume-latlong "$T/nan.pfm" -o "$T/o/nan.usda"
 err_has "nan.pfm"; err_has "3 NaN/Inf"; json_eval "$T/out" 'd["nonfinite"] == 3'
 
@@ -196,7 +198,6 @@ err_has "nan.pfm"; err_has "3 NaN/Inf"; json_eval "$T/out" 'd["nonfinite"] == 3'
 mkdir -p "$T/bad"
 expect 3 "$SETLIGHT" rig "$T/missing.exr" -o "$T/bad/a.usda"; err_has "missing.exr"; err_one_line
 expect 3 "$SETLIGHT" rig "$T/wide.exr" -o "$T/bad/a.usda"; err_has "wide.exr"; err_has "2:1"; err_one_line
-expect 3 "$SETLIGHT" rig "$T/black.pfm" -o "$T/bad/a.usda"; err_has "black.pfm"; err_has "--assume-latlong"; err_one_line
 expect 2 "$SETLIGHT" rig --max-lights 0 "$T/stage.exr" -o "$T/bad/a.usda"; err_has "--max-lights"; err_one_line
 expect 2 "$SETLIGHT" rig --room 8,6,2 --capture-height 2.5 "$T/stage.exr" -o "$T/bad/a.usda"
 err_has "does not contain the capture point"; err_one_line
