@@ -72,7 +72,8 @@ err_has "validation report: $T/v/stage.validate.html"
 if [ "$(ls -A "$T/v" | tr '\n' ' ')" = "stage.usda stage.validate stage.validate.html stage_residual.exr " ]; then ok
 else bad "validate left files: $(ls -A "$T/v")"; fi
 # check_report DIR NAME SPP JSON: every image of the page exists and is a whole PNG of the
-# right size (renders 96x96, shadow 96x72, the preview the map's 512x256); the numbers in
+# right size (renders 96x96, shadow 96x72, the preview the map's 512x256, enlarged to
+# >= 256 px wide); the numbers in
 # the page are those in the --json summary; the renders are kept as EXR.
 check_report() {
   python3 - "$@" <<'PY'
@@ -106,6 +107,8 @@ for s in ("grey", "chrome", "shadow"):
         want[f"{s}_{k}"] = (96, 72) if s == "shadow" else (96, 96)
 srcs = re.findall(r'<img src="([^"]+)"', page)
 assert sorted(srcs) == sorted(f"{name}/{k}.png" for k in want), srcs
+# the report enlarges images under 256 px wide by whole pixels to >= 256
+want = {k: (w * -(-256 // w), h * -(-256 // w)) for k, (w, h) in want.items()}
 for k, size in want.items():
     assert png_size(f"{d}/{name}/{k}.png") == size, (k, png_size(f"{d}/{name}/{k}.png"))
 v = summary["validation"]
