@@ -395,7 +395,8 @@ typedef enum {
     SL_PROJ_LATLONG = 0,
     SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z
                            (+Y up, image right -X): centre reflects -Z, rim +Z */
-    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map of that same view: centre -Z */
+    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map, same image axes (right -X,
+                           up +Y): centre +Z (forward), angle from it pi r, rim -Z */
     SL_PROJ_CUBEMAP,    /* OpenEXR's cube map: six square faces stacked vertically
                            (width w, height 6w) in the order +X -X +Y -Y +Z -Z */
     SL_PROJ_COUNT
