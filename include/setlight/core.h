@@ -365,6 +365,15 @@ const char *const *sl_color_space_list(void);
 /* Converts RGB(A) pixels in place through OpenColorIO. Alpha untouched.
  * SL_ERR_USAGE naming the space when either name is unknown. */
 sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_error *err);
+/* Converts RGB(A) pixels in place from a colour space to a display's view
+ * (OCIO's DisplayViewTransform; the shipped config has display sRGB with
+ * views Standard and Raw). display/view NULL: the config's default display
+ * and that display's default view; names match case-insensitively. Alpha
+ * untouched. `applied` (may be NULL) gets "display/view". SL_ERR_USAGE
+ * listing the known ones when the display or view is unknown. */
+sl_result sl_color_display_view(sl_image *img, const char *from, const char *display,
+                                const char *view, char *applied, size_t applied_size,
+                                sl_error *err);
 /* The EXR chromaticities (red, green, blue, white xy) of a colour space
  * (name or alias); false when it has none (raw) or is unknown. */
 bool sl_color_space_chromaticities(const char *name, float xy[8]);
@@ -374,6 +383,35 @@ bool sl_color_space_chromaticities(const char *name, float xy[8]);
 const char *sl_meta_color_space(const sl_meta *meta);
 /* Sets meta->colorspace, setlight:colorspace and matching chromaticities. */
 sl_result sl_meta_set_color_space(sl_meta *meta, const char *name, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Previews: scene-linear images as 8-bit pictures for people          */
+/* ------------------------------------------------------------------ */
+
+/* Auto exposure puts the median luminance here (scene-linear mid grey). */
+#define SL_PREVIEW_MID_GREY 0.18
+
+typedef struct sl_preview_options {
+    const char *colorspace; /* the image's colour space; NULL: lin_rec709 */
+    bool auto_exposure;     /* median luminance of the non-black texels -> mid grey */
+    double exposure_stops;  /* otherwise: pixels times 2^stops */
+    const char *view;       /* view of the default display; NULL: its default */
+} sl_preview_options;
+
+typedef struct sl_preview_result {
+    double exposure_stops;   /* applied */
+    double median_luminance; /* auto: of the texels with luminance > 0 (lin_rec709) */
+    char view[128];          /* "display/view" applied */
+} sl_preview_result;
+
+/* The picture: RGB only (grey repeated; an alpha, confidence or mask channel
+ * is never copied), converted to lin_rec709, scaled by 2^stops, through the
+ * display view, clamped to [0, 1]. */
+sl_result sl_preview_image(const sl_image *img, const sl_preview_options *opt, sl_image *out,
+                           sl_preview_result *res, sl_error *err);
+/* sl_preview_image written atomically as 8-bit PNG, JPEG or TIFF (by extension). */
+sl_result sl_preview_write(const char *path, const sl_image *img, const sl_meta *meta,
+                           const sl_preview_options *opt, sl_preview_result *res, sl_error *err);
 
 /* ------------------------------------------------------------------ */
 /* Geometry: lat-long and projections                                  */
