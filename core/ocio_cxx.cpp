@@ -292,20 +292,33 @@ const char *const *sl_color_space_list(void)
     return lc ? lc->list.data() : empty_list;
 }
 
+// What every conversion starts with: the pixels checked (unless img is
+// NULL), the config, the index of the source space; NULL with err set.
+static loaded_config *open_conversion(const sl_image *img, const char *from, long *src,
+                                      sl_error *err)
+{
+    if (img && check_pixels(img, err))
+        return nullptr;
+    loaded_config *lc = get_config(err);
+    if (!lc)
+        return nullptr;
+    *src = find_space(*lc, from);
+    if (*src < 0) {
+        unknown_space(*lc, from, err);
+        return nullptr;
+    }
+    return lc;
+}
+
 sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_error *err)
 {
     sl_error local; // the helpers report through err; its code is the result
     if (!err)
         err = &local;
-    sl_result r = check_pixels(img, err);
-    if (r)
-        return r;
-    loaded_config *lc = get_config(err);
+    long src;
+    loaded_config *lc = open_conversion(img, from, &src, err);
     if (!lc)
         return err->code;
-    long src = find_space(*lc, from);
-    if (src < 0)
-        return unknown_space(*lc, from, err);
     long dst = find_space(*lc, to);
     if (dst < 0)
         return unknown_space(*lc, to, err);
@@ -329,20 +342,18 @@ sl_result sl_color_display_view(sl_image *img, const char *from, const char *dis
     sl_error local;
     if (!err)
         err = &local;
-    sl_result r = check_pixels(img, err);
-    if (r)
-        return r;
-    loaded_config *lc = get_config(err);
+    long src;
+    loaded_config *lc = open_conversion(img, from, &src, err);
     if (!lc)
         return err->code;
-    long src = find_space(*lc, from);
-    if (src < 0)
-        return unknown_space(*lc, from, err);
     std::string disp_name, view_name;
+    sl_result r;
     if ((r = find_display_view(*lc, display, view, disp_name, view_name, err)))
         return r;
     if (applied && applied_size)
         snprintf(applied, applied_size, "%s/%s", disp_name.c_str(), view_name.c_str());
+    if (!img)
+        return SL_OK;
     OCIO::ConstCPUProcessorRcPtr cpu;
     try {
         OCIO::DisplayViewTransformRcPtr t = OCIO::DisplayViewTransform::Create();

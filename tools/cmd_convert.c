@@ -185,6 +185,8 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
     sl_meta meta, out_meta;
     sl_meta_init(&out_meta);
     sl_error err;
+    if (preview.view && sl_color_display_view(NULL, "lin_rec709", NULL, preview.view, NULL, 0, &err))
+        return cli_fail(cli, &err);
     sl_result r = sl_image_read(in_path, &src, &meta, &err);
     if (r)
         return cli_fail(cli, &err);

@@ -370,7 +370,8 @@ sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_e
  * views Standard and Raw). display/view NULL: the config's default display
  * and that display's default view; names match case-insensitively. Alpha
  * untouched. `applied` (may be NULL) gets "display/view". SL_ERR_USAGE
- * listing the known ones when the display or view is unknown. */
+ * listing the known ones when the display or view is unknown. img NULL:
+ * only checks the names. */
 sl_result sl_color_display_view(sl_image *img, const char *from, const char *display,
                                 const char *view, char *applied, size_t applied_size,
                                 sl_error *err);
