@@ -140,25 +140,12 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
 sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
                           const char *caption, sl_error *err)
 {
-    sl_image png;
-    sl_result r = sl_image_alloc(&png, img->width, img->height, 3, err);
-    if (r)
-        return r;
-    float scale = (float)exp2(stops);
-    for (int y = 0; y < img->height; y++)
-        for (int x = 0; x < img->width; x++) {
-            const float *s = sl_image_pixel(img, x, y);
-            float *d = sl_image_pixel(&png, x, y);
-            for (int c = 0; c < 3; c++) {
-                float v = (img->channels >= 3 ? s[c] : s[0]) * scale;
-                v = isfinite(v) ? (v < 0 ? 0 : v > 1 ? 1 : v) : 0;
-                d[c] = sl_linear_to_srgb(v);
-            }
-        }
+    /* The same picture as a convert preview at that exposure (default view). */
+    sl_preview_options opt = {.exposure_stops = stops};
+    sl_preview_result shown;
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", rep->dir, file);
-    r = sl_photo_write(path, &png, NULL, 8, err);
-    sl_image_free(&png);
+    sl_result r = sl_preview_write(path, img, NULL, &opt, &shown, err);
     if (r)
         return r;
     append_lit(rep, "<figure><img src=\"");

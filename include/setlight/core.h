@@ -530,8 +530,9 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)))
 #endif
     ;
-/* A PNG of a linear image: scaled by 2^stops, sRGB-encoded, clamped. Written
- * as DIR/FILE (e.g. "merge.png") and shown with its caption. */
+/* A PNG of a lin_rec709 image: sl_preview_write at 2^stops through the
+ * default view (sRGB). Written as DIR/FILE (e.g. "merge.png") and shown
+ * with its caption. */
 sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
                           const char *caption, sl_error *err);
 /* A table: header then rows, every cell text (escaped). */
