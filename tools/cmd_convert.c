@@ -34,7 +34,9 @@ static const char *convert_help =
     "  --strict            NaN/Inf input pixels are an error (exit 3) instead of being\n"
     "                      counted, reported and replaced by 0\n"
     "  --json              print the result as JSON on stdout\n\n"
-    "Projections follow OpenEXR's lat-long orientation; see docs/geometry.md.\n";
+    "Projections follow OpenEXR's lat-long orientation; an angular map (Debevec's\n"
+    "light probes) has its centre, the forward direction, at the lat-long's centre\n"
+    "column, unmirrored; see docs/geometry.md.\n";
 
 static int output_width_default(sl_projection from, const sl_image *img)
 {
