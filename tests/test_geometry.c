@@ -608,8 +608,10 @@ static void test_angular_probe_real(void)
             }
         double as_is = latlong_log_correlation(lref, lconv, w, h, false, 0);
         printf("  Grace probe -> lat-long vs Grace_Cathedral_500x250: log-luminance correlation "
-               "%.4f as is; best turn %d columns; mirrored: best %.4f (turned %d columns)\n",
-               as_is, best_shift[0], best[1], best_shift[1]);
+               "%.4f as is; best turn %d columns; mirrored (u -> 1 - u): %.4f, best %.4f "
+               "(turned %d columns)\n",
+               as_is, best_shift[0], latlong_log_correlation(lref, lconv, w, h, true, 0), best[1],
+               best_shift[1]);
         CHECK(as_is > 0.99);
         CHECK(best_shift[0] == 0);
         CHECK(best[1] < 0.7);
