@@ -177,25 +177,23 @@ sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img,
     int k = img->width > 0 && img->width < REPORT_MIN_WIDTH
                 ? (REPORT_MIN_WIDTH + img->width - 1) / img->width
                 : 1;
-    sl_image png;
-    sl_result r = sl_image_alloc(&png, img->width * k, img->height * k, 3, err);
-    if (r)
-        return r;
-    float scale = (float)exp2(stops);
-    for (int y = 0; y < png.height; y++)
-        for (int x = 0; x < png.width; x++) {
-            const float *s = sl_image_pixel(img, x / k, y / k);
-            float *d = sl_image_pixel(&png, x, y);
-            for (int c = 0; c < 3; c++) {
-                float v = (img->channels >= 3 ? s[c] : s[0]) * scale;
-                v = isfinite(v) ? (v < 0 ? 0 : v > 1 ? 1 : v) : 0;
-                d[c] = sl_linear_to_srgb(v);
-            }
-        }
+    sl_image big = {0};
+    if (k > 1) {
+        sl_result ra = sl_image_alloc(&big, img->width * k, img->height * k, img->channels, err);
+        if (ra)
+            return ra;
+        for (int y = 0; y < big.height; y++)
+            for (int x = 0; x < big.width; x++)
+                memcpy(sl_image_pixel(&big, x, y), sl_image_pixel(img, x / k, y / k),
+                       sizeof(float) * (size_t)img->channels);
+    }
+    /* The same picture as a convert preview at that exposure (default view). */
+    sl_preview_options opt = {.exposure_stops = stops};
+    sl_preview_result shown;
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", rep->dir, file);
-    r = sl_photo_write(path, &png, NULL, 8, err);
-    sl_image_free(&png);
+    sl_result r = sl_preview_write(path, k > 1 ? &big : img, NULL, &opt, &shown, err);
+    sl_image_free(&big);
     if (r)
         return r;
     append_lit(rep, "<figure><img src=\"");

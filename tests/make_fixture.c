@@ -7,6 +7,9 @@
  *       nan       lat-long with NaN and Inf samples, as a PFM file written here
  *                 byte by byte (setlight's own writers never write NaN)
  *       wide      a 3:1 image with no envmap attribute
+ *       wideenv   the same with the envmap attribute saying lat-long
+ *       conf      a 3:2 grey of 3.7 with a confidence ramp (0 to 1 across) as
+ *                 its fourth channel, no envmap attribute
  *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr)
  *       plain     the latlong one without the envmap attribute
  *       code128   8-bit code 128 everywhere, no envmap (OUT .png, .jpg or .tif)
@@ -66,13 +69,16 @@ int main(int argc, char **argv)
         return rr ? 1 : 0;
     }
     int w = argc > 3 ? atoi(argv[3]) : 64, h = argc > 4 ? atoi(argv[4]) : w / 2;
-    if (!strcmp(kind, "wide"))
+    bool conf = !strcmp(kind, "conf");
+    if (!strcmp(kind, "wide") || !strcmp(kind, "wideenv"))
         h = w / 3;
+    if (conf)
+        h = 2 * w / 3;
     sl_image img;
     sl_meta meta;
     sl_error err;
     sl_meta_init(&meta);
-    if (sl_image_alloc(&img, w, h, 3, &err)) {
+    if (sl_image_alloc(&img, w, h, conf ? 4 : 3, &err)) {
         fprintf(stderr, "%s\n", err.message);
         return 1;
     }
@@ -83,6 +89,10 @@ int main(int argc, char **argv)
             p[0] = (float)(0.2 + 0.8 * u);
             p[1] = (float)(0.2 + 0.8 * v);
             p[2] = (float)(0.5 + 0.4 * sin(6.283185307179586 * u));
+            if (conf) {
+                p[0] = p[1] = p[2] = 3.7f;
+                p[3] = (float)x / (float)(w > 1 ? w - 1 : 1);
+            }
         }
     if (!strcmp(kind, "sun") || !strcmp(kind, "sunclip") || !strcmp(kind, "sunmask")) {
         /* sunclip: the sun clipped at 100 as a merge leaves it, naming its
@@ -102,7 +112,8 @@ int main(int argc, char **argv)
     }
     if (!strcmp(kind, "code128"))
         sl_image_fill(&img, 128.0f / 255.0f);
-    if (strcmp(kind, "wide") != 0 && strcmp(kind, "plain") != 0 && strcmp(kind, "code128") != 0)
+    if (strcmp(kind, "wide") != 0 && strcmp(kind, "plain") != 0 && strcmp(kind, "code128") != 0 &&
+        !conf)
         meta.envmap = SL_ENVMAP_LATLONG;
     sl_meta_set_rec709(&meta);
     sl_result r;

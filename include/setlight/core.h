@@ -384,6 +384,16 @@ sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_e
  * (OCIO's encoding), "data" for data spaces, "" when the config says
  * nothing; NULL when the name is unknown. Static. */
 const char *sl_color_space_encoding(const char *name);
+/* Converts RGB(A) pixels in place from a colour space to a display's view
+ * (OCIO's DisplayViewTransform; the shipped config has display sRGB with
+ * views Standard and Raw). display/view NULL: the config's default display
+ * and that display's default view; names match case-insensitively. Alpha
+ * untouched. `applied` (may be NULL) gets "display/view". SL_ERR_USAGE
+ * listing the known ones when the display or view is unknown. img NULL:
+ * only checks the names. */
+sl_result sl_color_display_view(sl_image *img, const char *from, const char *display,
+                                const char *view, char *applied, size_t applied_size,
+                                sl_error *err);
 /* The EXR chromaticities (red, green, blue, white xy) of a colour space
  * (name or alias); false when it has none (raw) or is unknown. */
 bool sl_color_space_chromaticities(const char *name, float xy[8]);
@@ -443,6 +453,35 @@ sl_result sl_latlong_read(const char *path, const char *from, sl_image *img, sl_
                           sl_read_info *info, sl_error *err);
 
 /* ------------------------------------------------------------------ */
+/* Previews: scene-linear images as 8-bit pictures for people          */
+/* ------------------------------------------------------------------ */
+
+/* Auto exposure puts the median luminance here (scene-linear mid grey). */
+#define SL_PREVIEW_MID_GREY 0.18
+
+typedef struct sl_preview_options {
+    const char *colorspace; /* the image's colour space; NULL: lin_rec709 */
+    bool auto_exposure;     /* median luminance of the non-black texels -> mid grey */
+    double exposure_stops;  /* otherwise: pixels times 2^stops */
+    const char *view;       /* view of the default display; NULL: its default */
+} sl_preview_options;
+
+typedef struct sl_preview_result {
+    double exposure_stops;   /* applied */
+    double median_luminance; /* auto: of the texels with luminance > 0 (lin_rec709) */
+    char view[128];          /* "display/view" applied */
+} sl_preview_result;
+
+/* The picture: RGB only (grey repeated; an alpha, confidence or mask channel
+ * is never copied), converted to lin_rec709, scaled by 2^stops, through the
+ * display view, clamped to [0, 1]. */
+sl_result sl_preview_image(const sl_image *img, const sl_preview_options *opt, sl_image *out,
+                           sl_preview_result *res, sl_error *err);
+/* sl_preview_image written atomically as 8-bit PNG, JPEG or TIFF (by extension). */
+sl_result sl_preview_write(const char *path, const sl_image *img, const sl_meta *meta,
+                           const sl_preview_options *opt, sl_preview_result *res, sl_error *err);
+
+/* ------------------------------------------------------------------ */
 /* Geometry: lat-long and projections                                  */
 /* ------------------------------------------------------------------ */
 
@@ -462,7 +501,8 @@ typedef enum {
     SL_PROJ_LATLONG = 0,
     SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z
                            (+Y up, image right -X): centre reflects -Z, rim +Z */
-    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map of that same view: centre -Z */
+    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map, same image axes (right -X,
+                           up +Y): centre +Z (forward), angle from it pi r, rim -Z */
     SL_PROJ_CUBEMAP,    /* OpenEXR's cube map: six square faces stacked vertically
                            (width w, height 6w) in the order +X -X +Y -Y +Z -Z */
     SL_PROJ_COUNT
@@ -557,9 +597,10 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)))
 #endif
     ;
-/* A PNG of a linear image: scaled by 2^stops, sRGB-encoded, clamped. Written
- * as DIR/FILE (e.g. "merge.png") and shown with its caption; an image under
- * 256 px wide is enlarged by whole pixels to at least that. */
+/* A PNG of a lin_rec709 image: sl_preview_write at 2^stops through the
+ * default view (sRGB). Written as DIR/FILE (e.g. "merge.png") and shown
+ * with its caption; an image under 256 px wide is enlarged by whole pixels
+ * to at least that. */
 sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
                           const char *caption, sl_error *err);
 /* A table: header then rows, every cell text (escaped). */
