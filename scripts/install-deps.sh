@@ -10,9 +10,11 @@ packages=(
   libgphoto2-dev gphoto2
   libopencolorio-dev
   libraw-dev
+  libpng-dev
   libjansson-dev
   libssl-dev
   python3
+  python3-numpy python3-opencv
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -287,8 +287,9 @@ sl_result sl_exr_stream_finish(sl_exr_stream *stream, const sl_meta *update, sl_
 /* Removes the partial file and frees the stream (NULL is fine). */
 void sl_exr_stream_abort(sl_exr_stream *stream);
 
-/* Camera and photo formats through OpenImageIO (JPEG, PNG, TIFF, HDR, DNG,
- * camera raw via LibRaw). Integer formats come back scaled to [0, 1] with no
+/* Camera and photo formats: PNG through libpng, the others (JPEG, TIFF, HDR,
+ * DNG, camera raw via LibRaw) through OpenImageIO, loaded on first use
+ * (docs/performance.md). Integer formats come back scaled to [0, 1] with no
  * transfer function removed: a JPEG stays sRGB-encoded, camera raw is read
  * linear (no tone curve, camera white balance, Rec.709 output). */
 sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
