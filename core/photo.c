@@ -21,11 +21,16 @@ static void codes_to_float(const void *codes, int code_bytes, size_t n, float *d
     }
 }
 
-/* The PNG reader for path, or NULL with *declined or an error. */
+/* The PNG reader for path, or NULL with *declined or an error. A missing or
+ * empty file is refused here: OpenImageIO would not be loaded to say so. */
 static sl_result png_open(const char *path, sl_png_reader **r, sl_meta *meta, bool *declined,
                           sl_error *err)
 {
     *r = NULL;
+    *declined = false;
+    sl_result res = sl_check_input_file(path, err);
+    if (res)
+        return res;
     *declined = !sl_png_is_png(path);
     if (*declined)
         return SL_OK;

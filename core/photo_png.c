@@ -194,9 +194,6 @@ sl_result sl_png_open(const char *path, sl_png_reader **reader, sl_meta *meta, b
 {
     *reader = NULL;
     *declined = false;
-    sl_result res = sl_check_input_file(path, err);
-    if (res)
-        return res;
     sl_png_reader *r = calloc(1, sizeof *r);
     if (!r)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
@@ -216,7 +213,7 @@ sl_result sl_png_open(const char *path, sl_png_reader **reader, sl_meta *meta, b
         sl_png_close(r);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
     }
-    res = read_header(r, declined, err);
+    sl_result res = read_header(r, declined, err);
     if (!res && !*declined && meta)
         res = fill_meta(r, meta, err);
     if (res || *declined) {

@@ -38,7 +38,8 @@ void sl_oiio_strips_close(sl_oiio_strips *strips);
 typedef struct sl_png_reader sl_png_reader;
 /* Whether the file starts with PNG's signature (false when unreadable). */
 bool sl_png_is_png(const char *path);
-/* Opens and reads the header; meta may be NULL. */
+/* Opens and reads the header of a file sl_check_input_file passed; meta
+ * may be NULL. */
 sl_result sl_png_open(const char *path, sl_png_reader **reader, sl_meta *meta, bool *declined,
                       sl_error *err);
 void sl_png_size(const sl_png_reader *reader, int *width, int *height, int *channels,

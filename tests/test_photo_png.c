@@ -180,6 +180,13 @@ static void test_png_does_not_start_oiio(void)
         CHECK(same_meta(variants[i].name, &m, &native_meta[i]));
         sl_meta_free(&m);
     }
+    /* Nor does refusing a missing or empty file. */
+    sl_image none;
+    CHECK_RESULT(sl_photo_read(sl_test_path("missing.png"), &none, NULL, &err), SL_ERR_NOT_FOUND,
+                 &err);
+    const char *empty = sl_test_path("empty.jpg");
+    CHECK_OK(sl_write_file_atomic(empty, "", 0, &err), &err);
+    CHECK_RESULT(sl_photo_read_meta(empty, NULL, NULL, NULL, NULL, &err), SL_ERR_INPUT, &err);
     CHECK_MSG(sl_oiio_start_count() == 0, "reading PNGs started OpenImageIO");
 
     /* Known answers: palette 0 is red at alpha 128; 1-bit grey expands to 0 / 1. */
