@@ -72,25 +72,26 @@ sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error
 sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *width, int *height,
                              int *channels, sl_error *err)
 {
-    sl_png_reader *r;
-    bool declined;
+    int size[3] = {0, 0, 0}, code_bytes;
+    int *out[3] = {width, height, channels};
+    for (int i = 0; i < 3; i++)
+        if (out[i])
+            *out[i] = 0;
     if (meta)
         sl_meta_init(meta);
-    int w = 0, h = 0, ch = 0, b = 0;
+    sl_png_reader *r;
+    bool declined;
     sl_result res = png_open(path, &r, meta, &declined, err);
     if (declined)
         return sl_oiio_read_meta(path, meta, width, height, channels, err);
     if (!res)
-        sl_png_size(r, &w, &h, &ch, &b);
+        sl_png_size(r, &size[0], &size[1], &size[2], &code_bytes);
     sl_png_close(r);
     if (res && meta)
         sl_meta_free(meta);
-    if (width)
-        *width = w;
-    if (height)
-        *height = h;
-    if (channels)
-        *channels = ch;
+    for (int i = 0; i < 3; i++)
+        if (out[i])
+            *out[i] = size[i];
     return res;
 }
 

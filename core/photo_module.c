@@ -19,7 +19,7 @@
 #include <unistd.h>
 #endif
 
-static struct {
+typedef struct oiio_api {
     sl_result (*read)(const char *, sl_image *, sl_meta *, sl_error *);
     sl_result (*read_meta)(const char *, sl_meta *, int *, int *, int *, sl_error *);
     sl_result (*write)(const char *, const sl_image *, const sl_meta *, int, sl_error *);
@@ -29,7 +29,8 @@ static struct {
     sl_result (*strips_read)(sl_oiio_strips *, int, int, float *, sl_error *);
     sl_result (*strips_read_codes)(sl_oiio_strips *, int, int, void *, sl_error *);
     void (*strips_close)(sl_oiio_strips *);
-} api;
+} oiio_api;
+static oiio_api api;
 static char load_error[512];
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 static int start_count;
@@ -115,15 +116,13 @@ void sl_oiio_module_strips_close(sl_oiio_strips *);
 
 static void load(void)
 {
+    static const oiio_api linked = {
+        sl_oiio_module_read,        sl_oiio_module_read_meta,   sl_oiio_module_write,
+        sl_oiio_module_exr_pixels,  sl_oiio_module_strips_open, sl_oiio_module_strips_read,
+        sl_oiio_module_strips_read_codes, sl_oiio_module_strips_close,
+    };
     start_count++;
-    api.read = sl_oiio_module_read;
-    api.read_meta = sl_oiio_module_read_meta;
-    api.write = sl_oiio_module_write;
-    api.exr_pixels = sl_oiio_module_exr_pixels;
-    api.strips_open = sl_oiio_module_strips_open;
-    api.strips_read = sl_oiio_module_strips_read;
-    api.strips_read_codes = sl_oiio_module_strips_read_codes;
-    api.strips_close = sl_oiio_module_strips_close;
+    api = linked;
 }
 
 #endif
@@ -152,17 +151,9 @@ sl_result sl_oiio_read(const char *path, sl_image *img, sl_meta *meta, sl_error 
 sl_result sl_oiio_read_meta(const char *path, sl_meta *meta, int *width, int *height,
                              int *channels, sl_error *err)
 {
-    if (loaded(path, err))
-        return api.read_meta(path, meta, width, height, channels, err);
-    if (meta)
-        sl_meta_init(meta);
-    if (width)
-        *width = 0;
-    if (height)
-        *height = 0;
-    if (channels)
-        *channels = 0;
-    return SL_ERR_UNSUPPORTED;
+    /* Unloaded, the outputs stay as core/photo.c set them: nothing read. */
+    return loaded(path, err) ? api.read_meta(path, meta, width, height, channels, err)
+                             : SL_ERR_UNSUPPORTED;
 }
 
 sl_result sl_oiio_write(const char *path, const sl_image *img, const sl_meta *meta, int bits,
