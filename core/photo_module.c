@@ -16,7 +16,6 @@
 
 #ifdef SETLIGHT_OIIO_MODULE
 #include <dlfcn.h>
-#include <unistd.h>
 #endif
 
 typedef struct oiio_api {
@@ -50,34 +49,11 @@ __attribute__((used)) static const void *const module_needs[] = {
     (const void *)sl_meta_set,
 };
 
-/* The module next to the executable (a build tree or an install moved as a
- * whole: setlight in build/, tests in build/tests/), else where it was built. */
-static void *open_module(void)
-{
-    const char *base = strrchr(SETLIGHT_OIIO_MODULE, '/');
-    base = base ? base + 1 : SETLIGHT_OIIO_MODULE;
-    char exe[4096];
-    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    char *slash = n > 0 ? (exe[n] = 0, strrchr(exe, '/')) : NULL;
-    if (slash) {
-        *slash = 0;
-        const char *const rel[] = {"", "/.."};
-        for (int i = 0; i < 2; i++) {
-            char path[4400];
-            snprintf(path, sizeof path, "%s%s/%s", exe, rel[i], base);
-            void *h = access(path, R_OK) == 0 ? dlopen(path, RTLD_NOW | RTLD_LOCAL) : NULL;
-            if (h)
-                return h;
-        }
-    }
-    return dlopen(SETLIGHT_OIIO_MODULE, RTLD_NOW | RTLD_LOCAL);
-}
-
 static void load(void)
 {
     start_count++;
     sl_log(SL_LOG_DEBUG, "starting OpenImageIO (%s)", SETLIGHT_OIIO_MODULE);
-    void *h = open_module();
+    void *h = sl_module_open(SETLIGHT_OIIO_MODULE);
     if (!h) {
         const char *why = dlerror();
         snprintf(load_error, sizeof load_error, "%s", why ? why : SETLIGHT_OIIO_MODULE);

@@ -139,6 +139,12 @@ void sl_remove_tree(const char *path);
 /* Writes a whole text/binary buffer atomically. */
 sl_result sl_write_file_atomic(const char *path, const void *data, size_t size, sl_error *err);
 
+/* A module (shared object) this build made, dlopen'd: looked for next to
+ * the executable, then one folder up (a build tree or an install moved as a
+ * whole: setlight in build/, tests in build/tests/), then at built_path.
+ * NULL when it cannot be loaded (dlerror() says why). */
+void *sl_module_open(const char *built_path);
+
 /* Checks that `path` names an existing, readable, non-empty regular file.
  * SL_ERR_NOT_FOUND for missing or a directory, SL_ERR_INPUT for empty. */
 sl_result sl_check_input_file(const char *path, sl_error *err);

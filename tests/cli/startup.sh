@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # Start-up work is done only when needed: commands that read PNG or EXR files
-# never load OpenImageIO (its ~260 libraries cost a process ~0.3 s of CPU);
-# one that reads a TIFF does, which shows the check can see it. The loader's
-# own trace (LD_DEBUG=files) says which libraries a process opened. Speed is
-# measured by bench/startup_vs_opencv.py, never here.
+# never load OpenImageIO (its ~260 libraries cost a process ~0.35 s of CPU)
+# nor OpenCV (ball and chart detection only; ~11 ms); one that reads a TIFF
+# loads OpenImageIO, which shows the check can see it. The loader's own trace
+# (LD_DEBUG=files) says which libraries a process opened. Speed is measured
+# by bench/startup_vs_opencv.py, never here.
 . "$(dirname "$0")/lib.bash"
 
-if ldd "$SETLIGHT" | grep -q libOpenImageIO; then
-  skip "OpenImageIO is linked in (sanitizer build): nothing to check"
+# Sanitizer builds link OpenImageIO and OpenCV in (CMakeLists.txt).
+if ldd "$SETLIGHT" | grep -q 'libasan'; then
+  skip "sanitizer build: OpenImageIO and OpenCV are linked in"
   finish
   exit
 fi
@@ -16,21 +18,22 @@ fi
 "$MAKE_FIXTURE" png "$T/env.png" 64 32 || bad "fixture"
 "$SETLIGHT" convert "$T/env.exr" "$T/env.tif" 2>/dev/null || bad "fixture"
 
-# loads_oiio CMD...: runs CMD (exit 0 expected) under the loader's trace;
-# $T/libs lists the shared objects it opened.
-loads_oiio() {
+# trace CMD...: runs CMD (exit 0 expected) under the loader's trace; $T/libs
+# lists the shared objects it opened.
+trace() {
   expect 0 env LD_DEBUG=files LD_DEBUG_OUTPUT="$T/ld" "$@"
   cat "$T"/ld.* >"$T/libs" 2>/dev/null
   rm -f "$T"/ld.*
-  grep -q 'file=.*libOpenImageIO' "$T/libs"
 }
-# not_loaded WHAT, loaded WHAT: the last loads_oiio's verdict.
-not_loaded() { if [ "$1" -ne 0 ]; then ok; else bad "$2 loaded OpenImageIO"; fi; }
-loaded() { if [ "$1" -eq 0 ]; then ok; else bad "$2 did not load OpenImageIO (is the trace working?)"; fi; }
+# lean WHAT: the last traced command loaded neither OpenImageIO nor OpenCV.
+lean() {
+  if grep -q 'file=.*libOpenImageIO' "$T/libs"; then bad "$1 loaded OpenImageIO"; else ok; fi
+  if grep -q 'file=.*libopencv' "$T/libs"; then bad "$1 loaded OpenCV"; else ok; fi
+}
 
-loads_oiio "$SETLIGHT" info "$T/env.exr"; not_loaded $? "info on an EXR"
-loads_oiio "$SETLIGHT" info "$T/env.png"; not_loaded $? "info on a PNG"
-loads_oiio "$SETLIGHT" --version; not_loaded $? "--version"
+trace "$SETLIGHT" info "$T/env.exr"; lean "info on an EXR"
+trace "$SETLIGHT" info "$T/env.png"; lean "info on a PNG"
+trace "$SETLIGHT" --version; lean "--version"
 # A 3-frame 8-bit PNG bracket, 2 stops apart, through a 1/2.2 gamma.
 python3 - "$T" <<'PY' || bad "fixture"
 import struct, sys, zlib
@@ -44,8 +47,14 @@ for k in range(3):
     open("%s/b%d.png" % (sys.argv[1], k), "wb").write(
         b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", hdr) + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
 PY
-loads_oiio "$SETLIGHT" merge --quiet --no-mask --times 1/16,1/4,1 -o "$T/m.exr" "$T/b0.png" "$T/b1.png" "$T/b2.png"
-not_loaded $? "merge of a PNG bracket"
-loads_oiio "$SETLIGHT" info "$T/env.tif"; loaded $? "info on a TIFF"
+trace "$SETLIGHT" merge --quiet --no-mask --times 1/16,1/4,1 -o "$T/m.exr" "$T/b0.png" "$T/b1.png" "$T/b2.png"
+lean "merge of a PNG bracket"
+trace "$SETLIGHT" info "$T/env.tif"
+if grep -q 'file=.*libOpenImageIO' "$T/libs"; then ok; else bad "info on a TIFF did not load OpenImageIO (is the trace working?)"; fi
+# Ball detection loads OpenCV (and still finds the ball through the module).
+"$MAKE_FIXTURE" ball "$T/ball.exr" || bad "fixture"
+trace "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 -o "$T/u.exr" "$T/ball.exr"
+json_eval "$T/out" 'd["circle"]["detected"] and abs(d["circle"]["r"] - 46.5) < 0.5'
+if grep -q 'file=.*libopencv' "$T/libs"; then ok; else bad "ball detection did not load OpenCV"; fi
 
 finish
