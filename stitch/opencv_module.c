@@ -45,7 +45,8 @@ int ball_hough_cxx(const unsigned char *gray, int width, int height, double min_
 {
     pthread_once(&load_once, load);
     if (!hough) {
-        sl_log(SL_LOG_WARN, "%s", load_error);
+        /* The caller's one line says OpenCV failed; the reason is logged at debug level. */
+        sl_log(SL_LOG_DEBUG, "%s", load_error);
         return -1;
     }
     return hough(gray, width, height, min_radius, max_radius, min_dist, out, max_out);
