@@ -151,6 +151,12 @@ void sl_remove_tree(const char *path);
 /* Writes a whole text/binary buffer atomically. */
 sl_result sl_write_file_atomic(const char *path, const void *data, size_t size, sl_error *err);
 
+/* A module (shared object) this build made, dlopen'd: looked for next to
+ * the executable, then one folder up (a build tree or an install moved as a
+ * whole: setlight in build/, tests in build/tests/), then at built_path.
+ * NULL when it cannot be loaded (dlerror() says why). */
+void *sl_module_open(const char *built_path);
+
 /* Checks that `path` names an existing, readable, non-empty regular file.
  * SL_ERR_NOT_FOUND for missing or a directory, SL_ERR_INPUT for empty. */
 sl_result sl_check_input_file(const char *path, sl_error *err);
@@ -299,8 +305,9 @@ sl_result sl_exr_stream_finish(sl_exr_stream *stream, const sl_meta *update, sl_
 /* Removes the partial file and frees the stream (NULL is fine). */
 void sl_exr_stream_abort(sl_exr_stream *stream);
 
-/* Camera and photo formats through OpenImageIO (JPEG, PNG, TIFF, HDR, DNG,
- * camera raw via LibRaw). Integer formats come back scaled to [0, 1] with no
+/* Camera and photo formats: PNG through libpng, the others (JPEG, TIFF, HDR,
+ * DNG, camera raw via LibRaw) through OpenImageIO, loaded on first use
+ * (docs/performance.md). Integer formats come back scaled to [0, 1] with no
  * transfer function removed: a JPEG stays sRGB-encoded, camera raw is read
  * linear (no tone curve, camera white balance, Rec.709 output). */
 sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
