@@ -523,7 +523,7 @@ void sl_camera_aim(sl_camera *camera, int view, int views);
 sl_result sl_dng_encode(const sl_image *linear, const sl_meta *meta, int subsec_ms,
                         unsigned char **data, size_t *size, sl_error *err);
 
-/* --- SHA-256 (FIPS 180-4) --- */
+/* --- SHA-256 (FIPS 180-4, through OpenSSL's EVP) --- */
 
 void sl_sha256(const void *data, size_t size, unsigned char digest[32]);
 /* 64 lowercase hex digits and a terminator. */
