@@ -387,11 +387,16 @@ static const char *ingest_help =
     "usage: setlight ingest [options] SRC -o DIR\n\n"
     "Groups the photographs in SRC (a card or a folder, searched 4 levels deep) into\n"
     "views and brackets by EXIF time, exposure and sequence, copies them into DIR\n"
-    "(never overwriting) and writes DIR/session.json. Files that are not photographs\n"
-    "are skipped and listed as problems.\n\n"
+    "(never overwriting) and writes DIR/session.json. Frames of different setups\n"
+    "(camera make, model or serial, lens, focal length, image size, orientation,\n"
+    "file format or bit depth) are never grouped together: one warning line per two\n"
+    "setups kept apart says why (also in session.json 'splits'). Files that are not\n"
+    "photographs, brackets of one frame and frames without an EXIF exposure time\n"
+    "are listed as problems in session.json.\n\n"
     "  -o, --output DIR   session folder to create\n"
     "  --gap SECONDS      a pause longer than this starts a new view (default 10)\n"
-    "  --json             print the result as JSON on stdout\n";
+    "  --json             print the result as JSON on stdout (dir, frames, views,\n"
+    "                     splits, problems)\n";
 
 int cmd_ingest(int argc, char **argv, const sl_cli *cli)
 {
