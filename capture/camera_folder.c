@@ -10,6 +10,7 @@
 #include <strings.h>
 #include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "capture_private.h"
 
@@ -352,10 +353,10 @@ static void start_view(setup_group *g, json_t *views, int v)
     g->b = 0;
 }
 
-/* Copies a shot's files as STEM and STEM_N (siblings) and returns its frame
- * entry. */
+/* Copies a shot's files as STEM and STEM_N (siblings), their names added to
+ * `written`, and returns its frame entry. */
 static sl_result copy_shot(const photo *files, int n, const char *dir, const char *stem,
-                           sl_progress *progress, json_t **frame, sl_error *err)
+                           sl_progress *progress, json_t *written, json_t **frame, sl_error *err)
 {
     json_t *f = json_object(), *siblings = json_array();
     double t = 0, fn = 0, iso = 0;
@@ -365,6 +366,7 @@ static sl_result copy_shot(const photo *files, int n, const char *dir, const cha
         char name[64], sha[65];
         if ((r = copy_shot_file(y, dir, stem, m, name, sha, err)))
             break;
+        json_array_append_new(written, json_string(name));
         sl_progress_add(progress, 1);
         /* OpenImageIO drops some EXIF from some formats (ISO from
          * TIFF): a sibling fills what the frame's file lacks. */
@@ -402,7 +404,8 @@ static sl_result copy_shot(const photo *files, int n, const char *dir, const cha
  * by their first shot's time, whatever their setup. */
 static sl_result group_and_copy(const photos *s, const shot *shots, int n, setup_group *groups,
                                 double gap, const char *dir, sl_progress *progress,
-                                json_t *views, int *frames, int *nviews, sl_error *err)
+                                json_t *views, json_t *written, int *frames, int *nviews,
+                                sl_error *err)
 {
     sl_result r = SL_OK;
     for (int j = 0; j < n && !r; j++) {
@@ -423,7 +426,7 @@ static sl_result group_and_copy(const photos *s, const shot *shots, int n, setup
         char stem[48];
         snprintf(stem, sizeof stem, "v%02d_b%02d_f%02d", g->v, g->b, g->k++);
         json_t *frame;
-        if ((r = copy_shot(x, shots[j].count, dir, stem, progress, &frame, err)))
+        if ((r = copy_shot(x, shots[j].count, dir, stem, progress, written, &frame, err)))
             break;
         json_array_append_new(json_object_get(g->bracket, "frames"), frame);
         (*frames)++;
@@ -475,6 +478,22 @@ static void note_unmergeable(json_t *views, json_t *problems, double gap)
     }
 }
 
+/* A failed ingest takes back what it copied (the frames stay on the card),
+ * and the folder when it made it. */
+static void remove_written(const char *dir, json_t *written, bool made_dir)
+{
+    size_t i;
+    json_t *name;
+    json_array_foreach(written, i, name)
+    {
+        char path[4096];
+        if (!sl_capture_path(path, sizeof path, dir, json_string_value(name), NULL))
+            unlink(path);
+    }
+    if (made_dir)
+        rmdir(dir);
+}
+
 sl_result sl_ingest(const char *src, const char *dir, double gap, sl_progress *progress,
                     int *frames, int *nviews, sl_error *err)
 {
@@ -505,33 +524,43 @@ sl_result sl_ingest(const char *src, const char *dir, double gap, sl_progress *p
         r = group_by_setup(&s, shots, nshots, &groups, &ngroups, err);
     if (!r)
         r = split_lines(&s, shots, nshots, groups, ngroups, splits, err);
-    if (!r && stat(dir, &st) != 0 && mkdir(dir, 0755) != 0)
-        r = sl_error_set(err, SL_ERR_IO, "%s: cannot create: %s", dir, strerror(errno));
+    bool made_dir = false;
+    if (!r && stat(dir, &st) != 0) {
+        if (mkdir(dir, 0755) != 0)
+            r = sl_error_set(err, SL_ERR_IO, "%s: cannot create: %s", dir, strerror(errno));
+        made_dir = !r;
+    }
+    json_t *written = json_array();
     if (!r) {
         if (progress)
             progress->total = s.count;
-        r = group_and_copy(&s, shots, nshots, groups, gap, dir, progress, views, frames, nviews,
-                           err);
+        r = group_and_copy(&s, shots, nshots, groups, gap, dir, progress, views, written, frames,
+                           nviews, err);
     }
     for (int i = 0; i < s.count; i++)
         sl_meta_free(&s.items[i].meta);
     free(s.items);
     free(shots);
     free(groups);
-    if (r) {
+    if (!r) {
+        size_t i;
+        json_t *line;
+        json_array_foreach(splits, i, line)
+            sl_log(SL_LOG_WARN, "%s: %s", src, json_string_value(line));
+        note_unmergeable(views, s.problems, gap);
+        json_t *camera = json_object();
+        json_object_set_new(camera, "backend", json_string("folder"));
+        json_object_set_new(camera, "port", json_string(src));
+        r = sl_session_write_json(dir, camera, views, s.problems, splits, err);
+    } else {
         json_decref(views);
         json_decref(splits);
         json_decref(s.problems);
-        *frames = *nviews = 0;
-        return r;
     }
-    size_t i;
-    json_t *line;
-    json_array_foreach(splits, i, line)
-        sl_log(SL_LOG_WARN, "%s: %s", src, json_string_value(line));
-    note_unmergeable(views, s.problems, gap);
-    json_t *camera = json_object();
-    json_object_set_new(camera, "backend", json_string("folder"));
-    json_object_set_new(camera, "port", json_string(src));
-    return sl_session_write_json(dir, camera, views, s.problems, splits, err);
+    if (r) {
+        remove_written(dir, written, made_dir);
+        *frames = *nviews = 0;
+    }
+    json_decref(written);
+    return r;
 }

@@ -247,6 +247,35 @@ static void test_one_setup(void)
     json_decref(j);
 }
 
+/* A session folder already holding a file the ingest would write: refused
+ * when it gets there, and the frames it copied before are taken back; the
+ * file that was there stays, and so does the folder it did not make. */
+static void test_takes_back(void)
+{
+    const char *card = sl_test_path("taken");
+    mkdir(card, 0755);
+    const setup s = {"Alpha", NULL, 32, 8, 1};
+    for (int i = 0; i < 5; i++)
+        write_shot(card, &s, 500 + i, speeds[i], i);
+    const char *out = sl_test_path("taken.out");
+    mkdir(out, 0755);
+    char there[4096];
+    snprintf(there, sizeof there, "%s/v00_b00_f02.jpg", out);
+    FILE *f = fopen(there, "w");
+    fputs("mine", f);
+    fclose(f);
+    sl_error err;
+    int frames, views;
+    CHECK_RESULT(sl_ingest(card, out, 10, NULL, &frames, &views, &err), SL_ERR_USAGE, &err);
+    CHECK(strstr(err.message, "v00_b00_f02.jpg: exists; never overwritten") != NULL);
+    CHECK(frames == 0 && views == 0);
+    CHECK_MSG(sl_test_count_files(out) == 1, "%d files left in %s", sl_test_count_files(out),
+              out);
+    char *text = sl_test_read_file(there, NULL);
+    CHECK(text && !strcmp(text, "mine"));
+    free(text);
+}
+
 /* The real sets on one card. Their dates are years apart, so a gap as long
  * as that is what leaves only the setups to keep them apart (a card whose
  * clock was never set). */
@@ -310,6 +339,7 @@ int main(void)
 {
     RUN(test_setups_apart);
     RUN(test_one_setup);
+    RUN(test_takes_back);
     RUN(test_real_sets);
     return sl_test_finish();
 }

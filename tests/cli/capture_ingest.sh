@@ -37,6 +37,15 @@ json_ok "$T/out"
 json_eval "$T/out" 'd["frames"] == 26 and d["views"] == 3 and len(d["splits"]) == 2 and len(d["problems"]) == 1'
 json_eval "$T/out" 'd["splits"] == json.load(open(sys.argv[1].replace("/out", "/ing2/session.json")))["splits"]'
 
+# a folder that already holds a file the ingest would write: exit 2 when it
+# gets there, one line, and the frames copied before it are taken back
+mkdir -p "$T/ing4"; echo mine >"$T/ing4/v01_b00_f01.jpg"
+expect 2 "$SETLIGHT" ingest --quiet --gap 1e9 "$T/card" -o "$T/ing4"
+err_has "setlight ingest: $T/ing4/v01_b00_f01.jpg: exists; never overwritten"
+err_one_line
+if [ "$(ls "$T/ing4")" = "v01_b00_f01.jpg" ]; then ok; else bad "left in ing4: $(ls "$T/ing4" | head)"; fi
+no_temp "$T/ing4"
+
 # with the default gap the stack_room frames, shot 15 to 22 s apart, are
 # views of one frame each: each is a problem, not a silent bracket
 expect 0 "$SETLIGHT" ingest --json "$T/card" -o "$T/ing3"
