@@ -458,12 +458,16 @@ static void note_unmergeable(json_t *views, json_t *problems, double gap)
             }
             char msg[512];
             if (json_array_size(fr) == 1) {
-                snprintf(msg, sizeof msg,
-                         "view %d bracket %d: one frame (%s): nothing to merge; a pause "
-                         "longer than the gap (%g s) may have cut its bracket",
+                char alone[160] = "";
+                if (json_array_size(json_object_get(view, "brackets")) == 1)
+                    snprintf(alone, sizeof alone,
+                             " (alone in its view: kept apart by its setup, or by a pause "
+                             "longer than the gap, %g s)",
+                             gap);
+                snprintf(msg, sizeof msg, "view %d bracket %d: one frame (%s): nothing to merge%s",
                          (int)json_integer_value(json_object_get(view, "view")), (int)bi,
                          json_string_value(json_object_get(json_array_get(fr, 0), "source")),
-                         gap);
+                         alone);
                 json_array_append_new(problems, json_string(msg));
             }
             if (!missing)
