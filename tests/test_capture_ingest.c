@@ -223,15 +223,23 @@ static void test_setups_apart(void)
                "image size 32x8 vs 8x32 (one turned in camera); EXIF orientation 1 vs 6");
 }
 
-/* One setup's brackets, one frame without an exposure and one alone: no
- * split, and the problems name the bracket a merge cannot take as it is. */
+/* A new card `name` with one 5-frame bracket of setup s, frames
+ * numbered from `number`, shot a second apart. */
+static const char *bracket_card(const char *name, int number, const setup *s)
+{
+    const char *card = sl_test_path(name);
+    mkdir(card, 0755);
+    for (int i = 0; i < 5; i++)
+        write_shot(card, s, number + i, speeds[i], i);
+    return card;
+}
+
+/* One setup's bracket and a lone frame: no split, and the problems name
+ * the bracket a merge cannot take. */
 static void test_one_setup(void)
 {
-    const char *card = sl_test_path("single");
-    mkdir(card, 0755);
     const setup s = {"Alpha", NULL, 32, 8, 1};
-    for (int i = 0; i < 5; i++)
-        write_shot(card, &s, 300 + i, speeds[i], i);
+    const char *card = bracket_card("single", 300, &s);
     write_shot(card, &s, 400, speeds[2], 100); /* a lone frame 95 s later */
     sl_error err;
     int frames, views;
@@ -295,11 +303,8 @@ static void test_exif_cuts(void)
  * file that was there stays, and so does the folder it did not make. */
 static void test_takes_back(void)
 {
-    const char *card = sl_test_path("taken");
-    mkdir(card, 0755);
     const setup s = {"Alpha", NULL, 32, 8, 1};
-    for (int i = 0; i < 5; i++)
-        write_shot(card, &s, 500 + i, speeds[i], i);
+    const char *card = bracket_card("taken", 500, &s);
     const char *out = sl_test_path("taken.out");
     mkdir(out, 0755);
     char there[4096];

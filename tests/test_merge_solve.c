@@ -9,7 +9,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "../stitch/merge_private.h" /* merge_cholesky_solve, merge_fit_system_hook */
 #include "merge_fixture.h"
@@ -64,13 +63,6 @@ static double residual(const double *a, const double *b, const double *x, int n)
     return sqrt(num / den);
 }
 
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
 static int cmp_double(const void *x, const void *y)
 {
     double a = *(const double *)x, b = *(const double *)y;
@@ -86,9 +78,9 @@ static double time_solver(bool (*solve)(double *, double *, int), const double *
     for (int r = 0; r < repeats; r++) {
         memcpy(a, a0, (size_t)n * n * sizeof *a);
         memcpy(x, b0, (size_t)n * sizeof *x);
-        double t0 = now();
+        double t0 = sl_seconds();
         *ok = solve(a, x, n);
-        t[r] = now() - t0;
+        t[r] = sl_seconds() - t0;
     }
     free(a);
     qsort(t, (size_t)repeats, sizeof t[0], cmp_double);
