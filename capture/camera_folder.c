@@ -137,18 +137,16 @@ static int cmp_format(const void *a, const void *b)
     return x->rank != y->rank ? (x->rank < y->rank ? -1 : 1) : strcmp(x->name, y->name);
 }
 
-/* The body that took a photograph. */
-static int cmp_body(const photo *x, const photo *y)
+/* The camera model that took a photograph (make, model). */
+static int cmp_camera(const photo *x, const photo *y)
 {
     int c = strcasecmp(x->setup.make, y->setup.make);
-    if (!c)
-        c = strcasecmp(x->setup.model, y->setup.model);
-    return c ? c : strcmp(x->setup.serial, y->setup.serial);
+    return c ? c : strcasecmp(x->setup.model, y->setup.model);
 }
 
 /* By EXIF time (with its sub-second part when the camera writes one), then
  * exposure (a bracket is shot within a second or two), then the sequence
- * number, then the body (two cameras may share a second and a number). */
+ * number, then the camera (two may share a second and a number). */
 static int cmp_photo(const void *a, const void *b)
 {
     const photo *x = a, *y = b;
@@ -158,18 +156,21 @@ static int cmp_photo(const void *a, const void *b)
         return x->meta.exposure_time < y->meta.exposure_time ? -1 : 1;
     if (x->sequence != y->sequence)
         return x->sequence < y->sequence ? -1 : 1;
-    int c = cmp_body(x, y);
+    int c = cmp_camera(x, y);
     return c ? c : cmp_format(a, b);
 }
 
-/* Files of one shot: the same body, EXIF time (known), exposure and file
- * number. */
+/* Files of one shot: the same camera, EXIF time (known), exposure and file
+ * number, and the same body serial where both files tell it (the reader
+ * finds none in some raw formats, CR3 among them, that the JPEG beside
+ * them has). */
 static bool same_shot(const photo *a, const photo *b)
 {
     double ta = a->meta.exposure_time, tb = b->meta.exposure_time;
+    const char *sa = a->setup.serial, *sb = b->setup.serial;
     return a->when > 0 && a->when == b->when && a->sequence >= 0 &&
            a->sequence == b->sequence && ta > 0 && tb > 0 && fabs(log2(ta / tb)) < 0.1 &&
-           !cmp_body(a, b);
+           !cmp_camera(a, b) && (!sa[0] || !sb[0] || !strcmp(sa, sb));
 }
 
 static bool in_bracket(json_t *frames, double t)

@@ -298,6 +298,32 @@ static void test_exif_cuts(void)
         check_cuts(canon6d, "158052003961", "8mm");
 }
 
+/* Shots of two files where only one tells the body serial (as a CR3, where
+ * the EXIF reader finds none, beside its JPEG): each shot is still one
+ * frame, its JPEG the sibling of its TIFF. */
+static void test_siblings_one_serial(void)
+{
+    const setup tiff = {"Gamma", "77", 32, 8, 1}, jpeg = {"Gamma", NULL, 32, 8, 1};
+    const char *card = bracket_card("pairs", 600, &tiff);
+    for (int i = 0; i < 5; i++)
+        write_shot(card, &jpeg, 600 + i, speeds[i], i);
+    const char *out = sl_test_path("pairs.out");
+    sl_error err;
+    int frames, views;
+    CHECK_OK(sl_ingest(card, out, 10, NULL, &frames, &views, &err), &err);
+    CHECK_MSG(frames == 5 && views == 1, "%d frames in %d views", frames, views);
+    json_t *s = load_session(out);
+    json_t *fr = json_object_get(
+        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
+                       0),
+        "frames");
+    int paired = 0;
+    for (size_t i = 0; i < json_array_size(fr); i++)
+        paired += json_array_size(json_object_get(json_array_get(fr, i), "siblings")) == 1;
+    CHECK_MSG(paired == 5, "%d of 5 frames have their JPEG as sibling", paired);
+    json_decref(s);
+}
+
 /* A session folder already holding a file the ingest would write: refused
  * when it gets there, and the frames it copied before are taken back; the
  * file that was there stays, and so does the folder it did not make. */
@@ -387,6 +413,7 @@ int main(void)
 {
     RUN(test_setups_apart);
     RUN(test_one_setup);
+    RUN(test_siblings_one_serial);
     RUN(test_takes_back);
     RUN(test_exif_cuts);
     RUN(test_real_sets);
