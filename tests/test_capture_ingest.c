@@ -16,19 +16,6 @@
 #include "setlight/capture.h"
 #include "testing.h"
 
-/* Under LeakSanitizer: libgphoto2's USB port driver keeps the device list it
- * gets from libusb_get_device_list when it loads (outside setlight). */
-const char *__lsan_default_suppressions(void);
-const char *__lsan_default_suppressions(void)
-{
-    return "leak:libusb_get_device_list\n";
-}
-const char *__lsan_default_options(void);
-const char *__lsan_default_options(void)
-{
-    return "print_suppressions=0";
-}
-
 /* What a fake camera writes. A serial makes it a hand-written TIFF (the
  * image writer has no serial-number field), else a JPEG. */
 typedef struct setup {
@@ -125,7 +112,7 @@ static void write_tiff(const char *path, const setup *s, double t, const char *d
 /* Frame `number` of a setup, exposed t seconds at `when` seconds. */
 static void write_shot(const char *dir, const setup *s, int number, double t, int when)
 {
-    char path[4096], date[20];
+    char path[4096], date[32];
     snprintf(date, sizeof date, "2026:03:04 10:%02d:%02d", when / 60, when % 60);
     snprintf(path, sizeof path, "%s/IMG_%04d.%s", dir, number, s->serial ? "TIF" : "JPG");
     if (s->serial) {
