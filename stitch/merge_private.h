@@ -49,10 +49,18 @@ void merge_block_max(const void *buf, int code_bytes, double top, int width, int
  * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
  * second derivative of g against ln z, and samples chosen stratified over
  * scene intensity. Solved in double through the Schur complement of the
- * per-sample unknowns (a dense nodes x nodes Cholesky). */
+ * per-sample unknowns (a dense nodes x nodes Cholesky, merge_cholesky_solve). */
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
                              uint64_t seed, sl_response *out, sl_error *err);
+
+/* Cholesky of the symmetric positive definite n x n matrix a (row-major;
+ * its lower part overwritten by the factor), then solves a x = b in place
+ * (b gets x). False when a is not positive definite. */
+bool merge_cholesky_solve(double *a, double *b, int n);
+/* For the solver's test and measurement (test_merge_solve): when set, the
+ * Debevec-Malik fit shows it each round's system before solving it. */
+extern void (*merge_fit_system_hook)(const double *a, const double *b, int n);
 
 /* Robertson-Borman-Stevenson: the same curve from the same samples by
  * alternating irradiance and per-code estimates (response_robertson.c). */
