@@ -45,7 +45,7 @@ TIMES=1/16,1/4,1
 expect 2 "$SETLIGHT" merge --align-max-shift -3 -o "$T/x.exr" --times $TIMES "${F[@]}"; err_has "--align-max-shift"; err_one_line
 expect 2 "$SETLIGHT" merge --align-max-shift many -o "$T/x.exr" --times $TIMES "${F[@]}"; err_has "'many'"
 expect 2 "$SETLIGHT" merge --align-max-angle 30 -o "$T/x.exr" --times $TIMES "${F[@]}"; err_has "at most 10"
-expect 2 "$SETLIGHT" response --align -o "$T/x.json" --times $TIMES "${F[@]}"; err_has "--align"
+expect 2 "$SETLIGHT" response --align=never -o "$T/x.json" --times $TIMES "${F[@]}"; err_has "--align is auto, on or off"; err_one_line
 absent "$T/x.exr"; absent "$T/x.json"
 
 # --- the shift is found and reported
