@@ -247,7 +247,8 @@ typedef struct rigid {
 /* Gauss-Newton on (tx, ty, th) at one level: residual b'(T p) - a(p) with
  * a's gradient, Huber weights. Returns pixels used in the last iteration.
  * spread[0] gets the shift the fit's typical residual amounts to (rms
- * residual over rms gradient, level-0 pixels), spread[1] the angle (over
+ * residual over rms gradient in its weakest direction, level-0 pixels),
+ * spread[1] the angle (over
  * the rms derivative by the angle, radians): a tone map off by that
  * residual in smooth content moves the estimate by about as much, whatever
  * the pixel count, so a smaller motion is not believed. */
@@ -290,7 +291,11 @@ static int64_t refine(const plane *a, const plane *b, int level, double tol, rig
         }
         if (used < min_overlap(a) / 4)
             return used;
-        spread[0] = H[0][0] + H[1][1] > 0 ? s * sqrt(rss / (H[0][0] + H[1][1])) : INFINITY;
+        /* The shift's weakest direction: a ramp (gradients all one way)
+         * leaves a shift along it free to stand in for a tone error. */
+        double tr = H[0][0] + H[1][1], dif = H[0][0] - H[1][1];
+        double weakest = 0.5 * (tr - sqrt(dif * dif + 4 * H[0][1] * H[0][1]));
+        spread[0] = weakest > 0 ? s * sqrt(rss / weakest) : INFINITY;
         spread[1] = H[2][2] > 0 ? sqrt(rss / H[2][2]) : INFINITY;
         /* Gauss-Newton step: H d = -g. */
         double m[3][4];

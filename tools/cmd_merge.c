@@ -183,7 +183,7 @@ static json_t *timing_json(const sl_merge_result *res)
     return o;
 }
 
-static void log_frames(const sl_merge_result *res, bool aligned)
+static void log_frames(const sl_merge_result *res, bool aligned, double auto_px)
 {
     for (int i = 0; i < res->frame_count; i++) {
         const sl_merge_frame *f = &res->frames[i];
@@ -208,8 +208,9 @@ static void log_frames(const sl_merge_result *res, bool aligned)
     if (res->align_mode == SL_ALIGN_AUTO && res->aligned)
         sl_log(SL_LOG_WARN, "frames registered before merging: %s (--align=off merges them as shot)",
                res->align_note);
-    else if (res->align_mode == SL_ALIGN_AUTO && res->misalignment_px < 0)
-        sl_log(SL_LOG_WARN, "%s", res->align_note);
+    else if (res->align_mode == SL_ALIGN_AUTO &&
+             (res->misalignment_px < 0 || res->misalignment_px > auto_px))
+        sl_log(SL_LOG_WARN, "%s (--align=on registers them anyway)", res->align_note);
 }
 
 typedef struct merge_args {
@@ -464,13 +465,13 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli)
         return cli_fail(cli, &err);
     }
     bool measured = res.align_mode != SL_ALIGN_OFF;
-    log_frames(&res, measured);
+    log_frames(&res, measured, a.opt.align_auto_px);
     char shifts[64 * 24] = "";
     if (measured)
         shifts_text(&res, shifts, sizeof shifts);
     sl_log(SL_LOG_INFO,
            "%s: %d frames, response %s, %lld pixels clipped in every frame (%.4f%%), "
-           "shifts px %s (%s), %.2f s",
+           "shifts (px) %s (%s), %.2f s",
            a.output, res.frame_count, res.response.source, (long long)res.clipped_pixels,
            100 * res.clipped_fraction, measured ? shifts : "not measured",
            res.aligned ? "aligned" : "merged as shot", res.seconds);
@@ -524,7 +525,7 @@ int cmd_response(int argc, char **argv, const sl_cli *cli)
         free_args(&a);
         return cli_fail(cli, &err);
     }
-    log_frames(&res, res.align_mode != SL_ALIGN_OFF);
+    log_frames(&res, res.align_mode != SL_ALIGN_OFF, a.opt.align_auto_px);
     if (cli->json) {
         double mid[3];
         for (int c = 0; c < 3; c++)
