@@ -646,7 +646,9 @@ sl_result align_plane_init(align_plane *p, int width, int height, sl_error *err)
     p->h = height / p->scale;
     p->v = calloc((size_t)p->w * p->h, sizeof *p->v);
     p->state = calloc((size_t)p->w * p->h, 1);
-    if (!p->v || !p->state) {
+    p->row = malloc((size_t)width * sizeof *p->row);
+    p->row_flag = malloc((size_t)width);
+    if (!p->v || !p->state || !p->row || !p->row_flag) {
         align_plane_free(p);
         return sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
     }
@@ -657,7 +659,50 @@ void align_plane_free(align_plane *p)
 {
     free(p->v);
     free(p->state);
+    free(p->row);
+    free(p->row_flag);
     memset(p, 0, sizeof *p);
+}
+
+/* From 4x4 blocks up every other row of a block is enough for the
+ * measurement (the same rows in every frame, so no shift between them):
+ * half the cost of adding up. */
+static inline bool row_used(int y, int scale) { return scale < 4 || (y % scale) % 2 == 0; }
+static inline int rows_used(int scale) { return scale < 4 ? scale : (scale + 1) / 2; }
+
+/* 8-bit rows: luminance as 54 R + 183 G + 19 B (out of 256 * 255) and a
+ * flag per pixel (2 saturated, 1 dark) in a loop the compiler vectorises,
+ * then summed per block; the float path cost 9 ns a pixel, 1.4 s on a
+ * 24-megapixel bracket of 7. */
+static void add_rows_u8(align_plane *p, const uint8_t *strip, int width, int y0, int y1,
+                        float black, float sat, uint16_t *lum, uint8_t *flag)
+{
+    int xs = p->w * p->scale, sat_code = (int)ceilf(sat * 255);
+    int black_lum = (int)floorf(black * 256 * 255);
+    for (int y = y0; y < y1 && y / p->scale < p->h; y++) {
+        if (!row_used(y, p->scale))
+            continue;
+        const uint8_t *q = strip + (size_t)(y - y0) * width * 3;
+        for (int x = 0; x < xs; x++) {
+            int r = q[3 * x], g = q[3 * x + 1], b = q[3 * x + 2];
+            int l = 54 * r + 183 * g + 19 * b, hi = r > g ? r : g;
+            hi = hi > b ? hi : b;
+            lum[x] = (uint16_t)l;
+            flag[x] = hi >= sat_code ? 2 : l <= black_lum ? 1 : 0;
+        }
+        float *sum = p->v + (size_t)(y / p->scale) * p->w;
+        uint8_t *state = p->state + (size_t)(y / p->scale) * p->w;
+        for (int bx = 0, x = 0; bx < p->w; bx++) {
+            uint32_t acc = 0;
+            uint8_t st = state[bx];
+            for (int j = 0; j < p->scale; j++, x++) {
+                acc += lum[x];
+                st = flag[x] > st ? flag[x] : st;
+            }
+            sum[bx] += (float)acc * (1.0f / (256 * 255));
+            state[bx] = st;
+        }
+    }
 }
 
 /* As read_luma, a row at a time: sums of luminance per block, a block's
@@ -666,8 +711,14 @@ void align_plane_add(align_plane *p, const void *strip, int code_bytes, int widt
                      double black_in, double saturation)
 {
     float black = (float)fmax(black_in, DARK), sat = (float)(saturation - SAT_MARGIN);
-    float unit = code_bytes == 1 ? 1.0f / 255 : code_bytes == 2 ? 1.0f / 65535 : 1;
+    if (code_bytes == 1 && p->row) {
+        add_rows_u8(p, strip, width, y0, y1, black, sat, p->row, p->row_flag);
+        return;
+    }
+    float unit = code_bytes == 2 ? 1.0f / 65535 : 1;
     for (int y = y0; y < y1 && y / p->scale < p->h; y++) {
+        if (!row_used(y, p->scale))
+            continue;
         float *sum = p->v + (size_t)(y / p->scale) * p->w;
         uint8_t *state = p->state + (size_t)(y / p->scale) * p->w;
         size_t at = (size_t)(y - y0) * width * 3;
@@ -703,7 +754,7 @@ sl_result align_measure(align_plane *planes, int count, const char *const *paths
         r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
     for (int i = 0; i < count && !r; i++) {
         align_plane *p = &planes[i];
-        float inv = 1.0f / (float)(p->scale * p->scale);
+        float inv = 1.0f / (float)(p->scale * rows_used(p->scale));
         for (size_t k = 0; k < (size_t)p->w * p->h; k++)
             p->v[k] = p->state[k] == 2 ? SAT : p->state[k] == 1 ? BLACK : fminf(p->v[k] * inv, 1);
         /* The pyramid takes the plane over. */

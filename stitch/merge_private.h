@@ -116,6 +116,8 @@ typedef struct align_plane {
     int w, h, scale;
     float *v;       /* per block: luminance sum */
     uint8_t *state; /* per block: 2 a pixel saturated, 1 a pixel dark, 0 usable */
+    uint16_t *row;  /* scratch for 8-bit rows: luminance and flag per pixel */
+    uint8_t *row_flag;
 } align_plane;
 sl_result align_plane_init(align_plane *p, int width, int height, sl_error *err);
 /* Adds rows y0 .. y1 of a strip (codes of code_bytes, or floats with 0). */
