@@ -239,6 +239,23 @@ static void test_dark_frame(void)
     CHECK(corner_error(&out[2], &t[2], s.w, s.h) <= 0.25);
 }
 
+/* Median relative error of a merge's green against the scene as the
+ * reference frame sees it, away from the border moved frames miss. */
+static double median_error(const sl_merge_result *res, const scene *s, const double *l2)
+{
+    double *e = malloc((size_t)s->w * s->h * sizeof *e);
+    size_t n = 0;
+    for (int y = 30; y < s->h - 30; y++)
+        for (int x = 30; x < s->w - 30; x++) {
+            double truth = exp2(l2[(size_t)y * s->w + x] - 3);
+            e[n++] = fabs(sl_image_pixel(&res->radiance, x, y)[1] / truth - 1);
+        }
+    qsort(e, n, sizeof *e, cmp_double);
+    double m = e[n / 2];
+    free(e);
+    return m;
+}
+
 /* The merge with align: the warped bracket comes out as accurate as the
  * same bracket taken without moving the camera. */
 static void test_merge_aligned(void)
@@ -265,24 +282,9 @@ static void test_merge_aligned(void)
     CHECK_OK(sl_merge(bm.ptr, 5, &opt, &ru, &err), &err);
     opt.align = true; /* the former bool: on */
     CHECK_OK(sl_merge(bm.ptr, 5, &opt, &rm, &err), &err);
-    /* Median relative error against the scene as the reference frame sees
-     * it, away from the border the moved frames do not cover. */
     double *l2 = malloc((size_t)s.w * s.h * sizeof *l2);
     render_stops(&s, &still[0], l2);
-    const sl_merge_result *res[3] = {&rs, &rm, &ru};
-    double med[3];
-    for (int k = 0; k < 3; k++) {
-        double *e = malloc((size_t)s.w * s.h * sizeof *e);
-        size_t n = 0;
-        for (int y = 30; y < s.h - 30; y++)
-            for (int x = 30; x < s.w - 30; x++) {
-                double truth = exp2(l2[(size_t)y * s.w + x] - 3);
-                e[n++] = fabs(sl_image_pixel(&res[k]->radiance, x, y)[1] / truth - 1);
-            }
-        qsort(e, n, sizeof *e, cmp_double);
-        med[k] = e[n / 2];
-        free(e);
-    }
+    double med[3] = {median_error(&rs, &s, l2), median_error(&rm, &s, l2), median_error(&ru, &s, l2)};
     free(l2);
     printf("  median relative error: still %.4f, moved and aligned %.4f, moved unaligned %.4f\n",
            med[0], med[1], med[2]);
@@ -300,23 +302,6 @@ static void test_merge_aligned(void)
     sl_merge_result_free(&ru);
 }
 
-
-/* Median relative error of a merge's green against the scene as the
- * reference frame sees it, away from the border moved frames miss. */
-static double median_error(const sl_merge_result *res, const scene *s, const double *l2)
-{
-    double *e = malloc((size_t)s->w * s->h * sizeof *e);
-    size_t n = 0;
-    for (int y = 30; y < s->h - 30; y++)
-        for (int x = 30; x < s->w - 30; x++) {
-            double truth = exp2(l2[(size_t)y * s->w + x] - 3);
-            e[n++] = fabs(sl_image_pixel(&res->radiance, x, y)[1] / truth - 1);
-        }
-    qsort(e, n, sizeof *e, cmp_double);
-    double m = e[n / 2];
-    free(e);
-    return m;
-}
 
 /* The recovered curve against the camera's (gamma, 1 at white): the
  * largest |ln ratio| over the codes the bracket exposes well. */
