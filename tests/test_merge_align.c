@@ -321,7 +321,9 @@ static void test_auto_alignment(void)
 {
     sl_error err;
     scene s;
-    make_scene(&s, size(360), size(270), 3);
+    /* Two thirds under sanitizers: at half size the longest frame keeps too
+     * few usable pixels to be measured. */
+    make_scene(&s, size_still(360), size_still(270), 3);
     const warp moved[5] = {{3, -2, 0}, {-1.5, 0.75, 0}, {0, 0, 0}, {0.25, -1.5, 0}, {-4, 1.25, 0}};
     warp still[5];
     memset(still, 0, sizeof still);
