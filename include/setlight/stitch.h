@@ -47,6 +47,12 @@ typedef enum { SL_EXPOSURES_EXIF = 0, SL_EXPOSURES_DATA } sl_exposure_source;
 /* Samples of the radiance EXR: auto is half where half loses nothing the
  * noise model would notice (docs/merge.md, "Output encoding"), else float. */
 typedef enum { SL_MERGE_PIXELS_AUTO = 0, SL_MERGE_PIXELS_HALF, SL_MERGE_PIXELS_FLOAT } sl_merge_pixels;
+/* Frame registration: OFF merges the frames as shot; ON registers them
+ * (sl_align_bracket); AUTO (the default) measures the misalignment during
+ * the sample pass on a reduced luminance image and registers the frames
+ * when one moved by more than align_auto_px anywhere on the frame. ON is 1
+ * so that code setting the former `bool align` to true still aligns. */
+typedef enum { SL_ALIGN_OFF = 0, SL_ALIGN_ON = 1, SL_ALIGN_AUTO = 2 } sl_align_mode;
 
 typedef struct sl_merge_options {
     const double *times;        /* seconds per frame in the given order; NULL: EXIF */
@@ -68,7 +74,8 @@ typedef struct sl_merge_options {
     double deghost_model_error; /* relative error added to the noise model (0.05) */
     bool absolute;              /* output in cd/m^2 from EXIF time, f-number and ISO:
                                    L = SL_MERGE_K_SAT * y * N^2 / (t * ISO) (docs/merge.md) */
-    bool align;                 /* register the frames before merging (sl_align_bracket) */
+    sl_align_mode align;        /* default SL_ALIGN_AUTO */
+    double align_auto_px;       /* AUTO aligns beyond this displacement (default 0.5 px) */
     double align_max_shift;     /* pixels; larger shifts are refused (default 64) */
     double align_max_angle;     /* degrees; larger rotations are refused (default 2) */
     sl_merge_pixels pixels;     /* radiance EXR samples (default auto) */
@@ -94,7 +101,12 @@ void sl_merge_options_init(sl_merge_options *opt);
 typedef struct sl_align_transform {
     double dx, dy, angle;
     int64_t pixels;   /* pixels the estimate rests on (alignment resolution) */
-    bool applied;     /* false: left as it is (reference, or nothing to go on) */
+    bool applied;     /* false: left as it is (reference, nothing to go on, or not needed) */
+    bool refused;     /* no estimate: too few usable pixels or beyond the limits (note) */
+    /* The shift and angle the fits' typical residuals amount to (rms residual
+     * over rms derivative, chained from the reference): smooth content or a
+     * poor tone match make them large; motion within twice them is doubtful. */
+    double shift_spread_px, angle_spread_deg;
     char note[96];    /* why not applied, "" otherwise */
 } sl_align_transform;
 
@@ -110,7 +122,7 @@ typedef struct sl_merge_frame {
     int rank;                        /* 0 = shortest exposure */
     double saturated_fraction;       /* pixels with a channel at or above saturation */
     double black_fraction;           /* pixels with every channel at or below black */
-    sl_align_transform align;        /* with opt.align */
+    sl_align_transform align;        /* measured or registered (not with SL_ALIGN_OFF) */
 } sl_merge_frame;
 
 /* Where a merge's time went. Each phase has wall seconds and CPU seconds
@@ -125,6 +137,8 @@ typedef enum sl_merge_phase {
     SL_MERGE_FIT,     /* response, exposure check, encoding choice */
     SL_MERGE_PIXELS,  /* the merge arithmetic: tables and weighted sums */
     SL_MERGE_WRITE,   /* converting, compressing and writing the EXRs */
+    SL_MERGE_ALIGN,   /* measuring and estimating the frames' misalignment (not the
+                         decoding the sample pass does anyway) */
     SL_MERGE_OTHER,
     SL_MERGE_PHASES
 } sl_merge_phase;
@@ -133,7 +147,8 @@ typedef struct sl_merge_timing {
     double wall[SL_MERGE_PHASES], cpu[SL_MERGE_PHASES];
 } sl_merge_timing;
 
-/* Phase names for reports: "decode", "sample", "fit", "merge", "write", "other". */
+/* Phase names for reports: "decode", "sample", "fit", "merge", "write", "align",
+ * "other". */
 const char *sl_merge_phase_name(sl_merge_phase phase);
 
 typedef struct sl_merge_result {
@@ -169,6 +184,15 @@ typedef struct sl_merge_result {
                                    shortest frame; 0 when unbounded (float frames) */
     char encoding_note[160];
     int held_frames;            /* frames decoded once (kept between the passes) */
+    /* Alignment: the mode asked for, the largest displacement of any frame
+     * against the reference anywhere on the frame (px; -1 when not
+     * measured), whether the frames were registered, and why in words. */
+    sl_align_mode align_mode;
+    double misalignment_px;
+    bool aligned;
+    char align_note[160];
+    double align_measure_cpu;   /* CPU seconds of the measurement alone (AUTO): adding up
+                                   luminance in the sample pass and the estimate */
     double seconds;             /* wall */
     double cpu_seconds;         /* CPU of every thread */
     sl_merge_timing timing;
@@ -198,6 +222,13 @@ sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_
  * out[i] for frame i; opt gives black, saturation and the limits. */
 sl_result sl_align_bracket(const char *const *paths, int count, const double *exposures,
                            const sl_merge_options *opt, sl_align_transform *out, sl_error *err);
+/* How far a transform moves the farthest point of a width x height frame
+ * (px): the shift plus the rotation's reach at the corners. */
+double sl_align_displacement(const sl_align_transform *t, int width, int height);
+/* The same counting only the motion beyond twice its spread: the shift if
+ * |shift| > 2 shift_spread_px, the rotation's reach if |angle| > 2
+ * angle_spread_deg (what SL_ALIGN_AUTO compares with align_auto_px). */
+double sl_align_sure_displacement(const sl_align_transform *t, int width, int height);
 
 /* Writes the radiance EXR (res->pixel_type, res->compression) with provenance attributes and, when
  * mask_path / ghost_path are not NULL, the clipped mask (RGB) and the ghost
