@@ -8,13 +8,15 @@
  *                 byte by byte (setlight's own writers never write NaN)
  *       wide      a 3:1 image with no envmap attribute
  *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr)
- *       ball...   chrome-ball photos, see ball_fixture.h */
+ *       ball...   chrome-ball photos, see ball_fixture.h
+ *       chart...  chart photos and walls that are not one, see chart_fixture.h */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ball_fixture.h"
+#include "chart_fixture.h"
 #include "setlight/core.h"
 
 /* Portable float map: header, then little-endian float rows bottom to top. */
@@ -38,6 +40,8 @@ int main(int argc, char **argv)
     const char *kind = argv[1], *out = argv[2];
     if (!strncmp(kind, "ball", 4))
         return ball_fixture_main(kind, out);
+    if (!strncmp(kind, "chart", 5))
+        return chart_fixture_main(kind, out);
     if (!strcmp(kind, "exif")) {
         /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata. */
         if (argc < 7) {

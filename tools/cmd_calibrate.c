@@ -154,6 +154,16 @@ static json_t *json_matrix(const double m[3][3])
     return a;
 }
 
+static json_t *judgement_json(const sl_chart_judgement *j)
+{
+    return json_pack("{s:b, s:s, s:i, s:i, s:i, s:f, s:i, s:f, s:f, s:i, s:f, s:f}", "plausible",
+                     j->plausible, "reasons", j->text, "patches_used", j->used, "neutrals_used",
+                     j->neutrals_used, "order_breaks", j->order_breaks, "neutral_slope",
+                     j->neutral_slope, "colours_usable", j->colours_usable, "colour_chroma",
+                     j->colour_chroma, "neutral_chroma", j->neutral_chroma, "hue_turns",
+                     j->hue_turns, "condition", j->condition, "delta_e_limit", j->de_limit);
+}
+
 int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
 {
     enum {
@@ -360,6 +370,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     char mask_buf[4096];
     sl_chart_patch p[24];
     sl_ccm_fit fit;
+    sl_chart_judgement judgement;
+    bool chart_sampled = false;
+    memset(&fit, 0, sizeof(fit));
+    memset(&judgement, 0, sizeof(judgement));
 
     memcpy(reference, SL_COLORCHECKER_LINEAR, sizeof(reference));
     if (ref_path && (r = sl_chart_reference_read(ref_path, reference, NULL, &err)))
@@ -419,12 +433,18 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         } else {
             if ((r = sl_chart_sample(&chart, (const double(*)[2])centers, 0, level, p, &err)))
                 goto fail;
+            chart_sampled = true;
             if ((r = sl_ccm_fit_chart(p, (const double(*)[3])reference, &copt, &fit, &err))) {
-                sl_error_set(&err, r, "%s: %s", chart_path, err.message);
-                goto fail;
+                if (r != SL_ERR_INPUT || !grey_path) {
+                    sl_error_set(&err, r, "%s: %s", chart_path, err.message);
+                    goto fail;
+                }
+                /* Too few patches for any matrix: judged as such below. */
+                snprintf(judgement.text, sizeof judgement.text, "%.600s", err.message);
+                judgement.reasons = SL_CHART_FEW_PATCHES;
+            } else {
+                sl_chart_judge(p, &fit, (const double(*)[3])reference, &judgement);
             }
-            sl_ccm_plate_matrix(p, &fit, plate);
-            chart_used = true;
             json_t *jp = json_array();
             int invalid = 0;
             for (int q = 0; q < 24; q++) {
@@ -437,16 +457,6 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                   fit.outlier[q], "used", fit.used_patch[q], "delta_e_before",
                                   fit.de_before[q], "delta_e_after", fit.de_after[q]));
             }
-            if (invalid)
-                sl_log(SL_LOG_WARN,
-                       "%s: %d patches excluded as clipped, non-uniform (a shadow edge or glare "
-                       "across them) or too small",
-                       chart_path, invalid);
-            if (fit.outliers)
-                sl_log(SL_LOG_WARN,
-                       "%s: %d patches excluded as lit differently from the rest (part of the "
-                       "chart in shadow?)",
-                       chart_path, fit.outliers);
             json_object_set_new(jc, "patches", jp);
             json_object_set_new(jc, "matrix", json_matrix(fit.m));
             json_object_set_new(jc, "patches_used", json_integer(fit.used));
@@ -456,6 +466,26 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             json_object_set_new(jc, "delta_e_before_max", json_real(fit.de_before_max));
             json_object_set_new(jc, "delta_e_after_mean", json_real(fit.de_after_mean));
             json_object_set_new(jc, "delta_e_after_max", json_real(fit.de_after_max));
+            json_object_set_new(jc, "judgement", judgement_json(&judgement));
+            if (!judgement.plausible) {
+                /* Not a ColorChecker, or not one a matrix can be trusted from. */
+                if (!grey_path) {
+                    r = sl_error_set(&err, SL_ERR_INPUT, "%s: not a usable ColorChecker: %s",
+                                     chart_path, judgement.text);
+                    goto fail;
+                }
+                sl_log(SL_LOG_WARN, "%s: not a usable ColorChecker (%s); calibrating with the "
+                       "grey sphere alone", chart_path, judgement.text);
+            } else {
+                sl_ccm_plate_matrix(p, &fit, plate);
+                chart_used = true;
+                sl_log(SL_LOG_INFO,
+                       "%s: ColorChecker, %d of 24 patches used (%d excluded, %d lit "
+                       "differently); CIEDE2000 mean %.2f -> %.2f, max %.2f -> %.2f",
+                       chart_path, fit.used, invalid, fit.outliers, fit.de_before_mean,
+                       fit.de_after_mean, fit.de_before_max, fit.de_after_max);
+            }
+            json_object_set_new(jc, "used", json_boolean(chart_used));
         }
     }
     if (chart_used && (hdri_in_chart || !grey_path)) {
@@ -678,6 +708,19 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     if (strcmp(out_cs, "lin_rec709") != 0 &&
         (r = sl_color_convert(&hdri, "lin_rec709", out_cs, &err)))
         goto fail;
+    {
+        /* Never negative radiance: colours outside the working gamut and
+         * noise round black come out of a matrix below zero. */
+        double neg_fraction;
+        int64_t neg = sl_calibrate_clamp_negative(&hdri, &neg_fraction);
+        if (neg)
+            sl_log(SL_LOG_WARN, "%s: %lld samples below zero after calibration (colours outside "
+                   "the output's gamut, noise round black) set to 0: %.3g%% of the light",
+                   hdri_path, (long long)neg, 100 * neg_fraction);
+        json_object_set_new(js, "negative_clamped",
+                            json_pack("{s:I, s:f}", "samples", (json_int_t)neg, "fraction",
+                                      neg_fraction));
+    }
     out_meta.envmap = SL_ENVMAP_LATLONG;
     if ((r = sl_image_write(out_path, &hdri, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
                             &err)))
@@ -718,7 +761,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             sl_report_text(rep, "Absolute: %.6g cd/m^2 per unit of the grey photo (%s).",
                            abs_scale, abs_from);
         if ((r = sl_calibrate_report(rep, "", chart_used ? p : NULL, chart_used ? &fit : NULL,
-                                     grey_path ? &gfit : NULL, &err))) {
+                                     grey_path ? &gfit : NULL, &err)) ||
+            (chart_sampled &&
+             (r = sl_calibrate_report_chart(rep, "chart_patches.png", &chart, p, &fit, &judgement,
+                                            &err)))) {
             sl_report_free(rep);
             goto fail;
         }
