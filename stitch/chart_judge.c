@@ -136,7 +136,7 @@ void sl_chart_judge(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
     }
     j->neutrals_used = n;
     if (n < 3) {
-        say(j, SL_CHART_NEUTRALS, "only %d of the 6 neutral patches usable (at least 3)", n);
+        say(j, SL_CHART_NEUTRALS, "only %d of the 6 neutral patches in the fit (at least 3)", n);
     } else {
         /* d log(measured) / d log(reference): 1 for a linear camera; flare
          * lowers it, a tone curve bends it, a flat wall makes it 0. */
@@ -148,7 +148,7 @@ void sl_chart_judge(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
         j->neutral_slope = isfinite(mx) ? sxy / syy : 0;
         if (j->order_breaks)
             say(j, SL_CHART_NEUTRALS, "the neutral row does not darken step by step from white "
-                "to black (%d reversals)", j->order_breaks);
+                "to black (%d steps not darker)", j->order_breaks);
         else if (!(j->neutral_slope >= 1 / SL_CHART_MAX_CONTRAST_ERROR &&
                    j->neutral_slope <= SL_CHART_MAX_CONTRAST_ERROR))
             say(j, SL_CHART_NEUTRALS, "the neutral row's contrast is %.2f times the chart's in "

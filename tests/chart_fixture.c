@@ -133,30 +133,38 @@ sl_result chart_fixture_render(const chart_fixture *f, sl_image *img, sl_error *
     return SL_OK;
 }
 
-int chart_fixture_main(const char *kind, const char *out)
+bool chart_fixture_kind(chart_fixture *f, const char *kind)
 {
-    chart_fixture f;
-    chart_fixture_init(&f);
+    chart_fixture_init(f);
     if (!strcmp(kind, "chartsquares")) {
-        f.squares = 5;
+        f->squares = 5;
     } else if (!strcmp(kind, "chartshuffled")) {
-        f.chart = true;
+        f->chart = true;
         /* Every patch elsewhere: the chart's colours, not its layout. */
         static const int shuffled[24] = {16, 3, 22, 9, 18, 0, 13, 20, 6, 11, 1, 23,
                                          4, 19, 8, 15, 2, 21, 10, 7, 14, 5, 17, 12};
-        memcpy(f.order, shuffled, sizeof(shuffled));
+        memcpy(f->order, shuffled, sizeof(shuffled));
     } else if (!strcmp(kind, "chartok")) {
-        f.chart = true;
+        f->chart = true;
     } else if (!strcmp(kind, "charttiny")) {
-        f.chart = true;
-        f.pitch = 6;
+        f->chart = true;
+        f->pitch = 6;
     } else if (!strcmp(kind, "chartcut")) {
-        f.chart = true;
-        f.center[0] = 590; /* columns 5 and 6 past the right edge */
+        f->chart = true;
+        f->center[0] = 590; /* columns 5 and 6 past the right edge */
     } else if (!strcmp(kind, "chartclipped")) {
-        f.chart = true;
-        f.exposure *= pow(2, 1.6);
+        f->chart = true;
+        f->exposure *= pow(2, 1.6);
     } else if (strcmp(kind, "chartwall") != 0) {
+        return false;
+    }
+    return true;
+}
+
+int chart_fixture_main(const char *kind, const char *out)
+{
+    chart_fixture f;
+    if (!chart_fixture_kind(&f, kind)) {
         fprintf(stderr, "make_fixture: unknown chart kind %s\n", kind);
         return 2;
     }

@@ -38,6 +38,9 @@ sl_result chart_fixture_render(const chart_fixture *f, sl_image *img, sl_error *
 /* The centre of place p (0..23, chart order) in the photo. */
 void chart_fixture_center(const chart_fixture *f, int p, double xy[2]);
 
+/* Sets f up as make_fixture's kind (below); false for an unknown one. */
+bool chart_fixture_kind(chart_fixture *f, const char *kind);
+
 /* make_fixture's chart kinds; OUT ending in .jpg is written as an 8-bit
  * sRGB JPEG, else a linear EXR:
  *   chartwall      the white brick wall alone
@@ -47,7 +50,7 @@ void chart_fixture_center(const chart_fixture *f, int p, double xy[2]);
  *   chartok        a ColorChecker on the wall (pitch 40 px)
  *   charttiny      a ColorChecker 36 px across (pitch 6 px)
  *   chartcut       a ColorChecker with its right two columns out of frame
- *   chartclipped   a ColorChecker overexposed 1.6 stops (white and neutral 8 clip) */
+ *   chartclipped   a ColorChecker overexposed 1.6 stops (11 patches clip) */
 int chart_fixture_main(const char *kind, const char *out);
 
 #endif

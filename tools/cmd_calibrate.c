@@ -31,7 +31,14 @@ static const char *calibrate_help =
     "  --hdri FILE           the lat-long to calibrate (linear)\n"
     "  -o, --output FILE     the calibrated lat-long (EXR, half unless --float)\n"
     "  --chart FILE          chart photo: EXR is read as linear, other formats as sRGB;\n"
-    "                        the chart is found automatically (OpenCV mcc)\n"
+    "                        the chart is found automatically (OpenCV mcc), then judged:\n"
+    "                        most patches under one light, the neutral row darkening\n"
+    "                        step by step with the chart's contrast, the colour patches\n"
+    "                        saturated and in hue order, a camera's matrix, CIEDE2000\n"
+    "                        after the fit below the patches' own spacing. A chart that\n"
+    "                        fails is not used: the grey sphere alone calibrates, or\n"
+    "                        exit 3 with every reason. On success one line on stderr:\n"
+    "                        patches used, CIEDE2000 before and after\n"
     "  --chart-corners X1,Y1,X2,Y2,X3,Y3,X4,Y4\n"
     "                        centres of patches 1 (dark skin), 6 (bluish green),\n"
     "                        24 (black), 19 (white) in pixels, instead of detection\n"
@@ -70,12 +77,17 @@ static const char *calibrate_help =
     "  --chart-colorspace NAME  the chart photo's colour space (default: srgb for\n"
     "                        8/16-bit photos, the file's own or lin_rec709 for EXR)\n"
     "  --float               write 32-bit float\n"
-    "  --report DIR          write DIR/calibrate.html (chart table, grey sphere photo,\n"
-    "                        render and error images) and DIR/calibrate.json\n"
+    "  --report DIR          write DIR/calibrate.html (chart table, where the patches\n"
+    "                        were found with each excluded one's reason, the chart's\n"
+    "                        verdict, grey sphere photo, render and error images) and\n"
+    "                        DIR/calibrate.json\n"
     "  --json                print the result as JSON on stdout\n\n"
-    "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
-    "sphere, no sphere found or none in the circle, a grey photo whose exposure\n"
-    "contradicts the HDRI's), 1 other failures. See docs/calibrate.md.\n";
+    "Output samples a matrix sends below zero are set to 0 (counted on stderr and in\n"
+    "the JSON's negative_clamped).\n\n"
+    "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found, or not a\n"
+    "usable ColorChecker, and no grey sphere; no sphere found or none in the circle;\n"
+    "a grey photo whose exposure contradicts the HDRI's), 1 other failures. See\n"
+    "docs/calibrate.md.\n";
 
 static bool is_ldr_path(const char *path)
 {
