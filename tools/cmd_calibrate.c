@@ -452,6 +452,7 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                     goto fail;
                 }
                 /* Too few patches for any matrix: judged as such below. */
+                memset(&fit, 0, sizeof(fit));
                 snprintf(judgement.text, sizeof judgement.text, "%.600s", err.message);
                 judgement.reasons = SL_CHART_FEW_PATCHES;
             } else {
