@@ -245,6 +245,27 @@ static void test_overlay(void)
     sl_image_free(&img);
 }
 
+/* A camera that saturated at 1.0: the overexposed chart's float file holds
+ * the level in many pixels; a render with noise holds its top in one. */
+static void test_pinned_maximum(void)
+{
+    chart_fixture f;
+    CHECK(chart_fixture_kind(&f, "chartclipped"));
+    sl_image img = {0};
+    sl_error err;
+    CHECK_OK(chart_fixture_render(&f, &img, &err), &err);
+    double level[3];
+    int64_t n = sl_pinned_maximum(&img, level);
+    printf("  overexposed chart: %lld pixels pinned at %g %g %g\n", (long long)n, level[0],
+           level[1], level[2]);
+    CHECK(level[0] == 1 && level[1] == 1 && level[2] == 1 && n > 1000);
+    uint64_t state = 3;
+    for (int i = 0; i < img.width * img.height * 3; i++)
+        img.data[i] = (float)(0.5 + 0.1 * sl_test_uniform(&state));
+    CHECK(sl_pinned_maximum(&img, level) == 0 && level[0] == 0 && level[1] == 0 && level[2] == 0);
+    sl_image_free(&img);
+}
+
 static void test_clamp_negative(void)
 {
     sl_image img = {0};
@@ -265,6 +286,7 @@ int main(void)
     RUN(test_not_a_chart);
     RUN(test_charts_pass);
     RUN(test_overlay);
+    RUN(test_pinned_maximum);
     RUN(test_clamp_negative);
     return sl_test_finish();
 }

@@ -126,16 +126,25 @@ static sl_result to_working(sl_image *img, const char *path, const sl_meta *meta
                                          : "lin_rec709";
     if (*level < 0 && is_ldr_path(path))
         *level = 0.999;
+    /* No level given for a float file: values pinned at its top are clipped. */
+    double pinned[3] = {0, 0, 0};
+    int64_t pinned_count = *level < 0 ? sl_pinned_maximum(img, pinned) : 0;
+    if (pinned_count)
+        sl_log(SL_LOG_WARN, "%s: %lld pixels pinned at the image's maximum (%g %g %g per "
+               "channel, 0: none) taken as clipped (--clip LEVEL sets the level)", path,
+               (long long)pinned_count, pinned[0], pinned[1], pinned[2]);
     unsigned char *clipped = NULL;
-    if (*level > 0) {
+    if (*level > 0 || pinned_count) {
         clipped = calloc((size_t)img->width * img->height, 1);
         if (!clipped)
             return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
         for (int y = 0; y < img->height; y++)
             for (int x = 0; x < img->width; x++) {
                 const float *v = img->data + (size_t)y * img->stride + (size_t)x * img->channels;
-                clipped[(size_t)y * img->width + x] =
-                    v[0] >= *level || v[1] >= *level || v[2] >= *level;
+                bool over = *level > 0 && (v[0] >= *level || v[1] >= *level || v[2] >= *level);
+                for (int c = 0; c < 3; c++)
+                    over = over || (pinned[c] > 0 && v[c] >= pinned[c]);
+                clipped[(size_t)y * img->width + x] = over;
             }
     }
     sl_result r = SL_OK;

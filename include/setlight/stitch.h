@@ -437,6 +437,12 @@ typedef struct sl_chart_patch {
 sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], double radius_px,
                           double clip_level, sl_chart_patch patches[24], sl_error *err);
 
+/* A clip level the file does not state: per channel (RGB), the image's
+ * largest finite value when at least 16 pixels (and 0.1% of them) hold
+ * exactly it, as a saturated sensor or a merge's clipped bound leaves
+ * them; else 0. Returns the pixels at or above a found level. */
+int64_t sl_pinned_maximum(const sl_image *img, double level[3]);
+
 typedef struct sl_ccm_options {
     /* Constrain the fit so that the neutral patch maps exactly onto its
      * reference: neutrals stay neutral. */

@@ -203,6 +203,10 @@ expect 0 mcc "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chartc
 json_eval "$T/out" 'd["chart"]["used"] and d["chart"]["patches_invalid"] >= 4 and not d["chart"]["patches"][18]["used"]'
 expect 0 "$SETLIGHT" info --json "$T/cal_clip.exr"
 json_eval "$T/out" 'd["files"][0]["negative_count"] == 0'
+# As a float file the clipped values are only seen pinned at the top: left out too.
+expect 0 mcc "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chartclipped.exr" -o "$T/cal_clip2.exr"
+err_has "pixels pinned at the image's maximum"
+json_eval "$T/out" 'd["chart"]["used"] and not d["chart"]["patches"][18]["used"] and d["chart"]["delta_e_after_mean"] < 0.5'
 
 # --- colour spaces: ACEScg out (recorded), an sRGB PNG chart in; unknown names refused
 expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --grey "$T/grey.exr" \
