@@ -13,13 +13,16 @@
  *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr)
  *       plain     the latlong one without the envmap attribute
  *       code128   8-bit code 128 everywhere, no envmap (OUT .png, .jpg or .tif)
- *       ball...   chrome-ball photos, see ball_fixture.h */
+ *       ball...   chrome-ball photos, see ball_fixture.h
+
+ *       chart...  chart photos and walls that are not one, see chart_fixture.h */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ball_fixture.h"
+#include "chart_fixture.h"
 #include "setlight/core.h"
 
 /* Portable float map: header, then little-endian float rows bottom to top. */
@@ -43,6 +46,8 @@ int main(int argc, char **argv)
     const char *kind = argv[1], *out = argv[2];
     if (!strncmp(kind, "ball", 4))
         return ball_fixture_main(kind, out);
+    if (!strncmp(kind, "chart", 5))
+        return chart_fixture_main(kind, out);
     if (!strcmp(kind, "exif")) {
         /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata. */
         if (argc < 7) {

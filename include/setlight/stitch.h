@@ -468,6 +468,12 @@ typedef struct sl_chart_patch {
 sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], double radius_px,
                           double clip_level, sl_chart_patch patches[24], sl_error *err);
 
+/* A clip level the file does not state: per channel (RGB), the image's
+ * largest finite value when at least 16 pixels (and 0.1% of them) hold
+ * exactly it, as a saturated sensor or a merge's clipped bound leaves
+ * them; else 0. Returns the pixels at or above a found level. */
+int64_t sl_pinned_maximum(const sl_image *img, double level[3]);
+
 typedef struct sl_ccm_options {
     /* Constrain the fit so that the neutral patch maps exactly onto its
      * reference: neutrals stay neutral. */
@@ -547,6 +553,55 @@ typedef struct sl_chart_detection {
  * matrix is kept. SL_ERR_INPUT "no chart found" when there is none. */
 sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *source,
                           sl_chart_detection *out, sl_error *err);
+
+/* Judging a chart fit (sl_chart_judge): what a ColorChecker in one light,
+ * photographed by a camera, must look like. */
+#define SL_CHART_MIN_USED 12          /* patches under one light: most of the chart */
+#define SL_CHART_MAX_CONTRAST_ERROR 2.0 /* neutral row's log contrast vs the reference's */
+#define SL_CHART_MIN_CHROMA_RATIO 3.0 /* colour patches' saturation over the neutrals' */
+#define SL_CHART_MAX_CONDITION 50.0   /* the colour matrix's sigma_max / sigma_min */
+
+enum {
+    SL_CHART_FEW_PATCHES = 1 << 0, /* fewer than SL_CHART_MIN_USED patches in the fit */
+    SL_CHART_NEUTRALS = 1 << 1,    /* neutral row unusable, out of order or of the wrong contrast */
+    SL_CHART_COLOURS = 1 << 2,     /* colour patches grey, unusable or out of hue order */
+    SL_CHART_MATRIX = 1 << 3,      /* no camera's matrix: swaps colours, ill-conditioned */
+    SL_CHART_DELTA_E = 1 << 4      /* far from the reference even after the fit */
+};
+
+typedef struct sl_chart_judgement {
+    bool plausible;        /* no reason below */
+    unsigned reasons;      /* SL_CHART_* bits */
+    int used;              /* patches in the fit */
+    int neutrals_used;     /* of patches 19..24 */
+    int order_breaks;      /* neutral steps that do not get darker */
+    double neutral_slope;  /* d log(measured) / d log(reference) over the used neutrals */
+    int colours_usable;    /* of patches 13..18 */
+    double colour_chroma;  /* the least saturation among them, white-balanced on the neutrals */
+    double neutral_chroma; /* the median among the used neutrals */
+    int hue_turns;         /* their hues in the reference's order go round this often (1) */
+    double condition;      /* of the fitted matrix */
+    double de_after_mean;
+    double de_limit;       /* sl_chart_identity_delta_e of the reference */
+    char text[640];        /* every reason, "; "-separated; empty when plausible */
+} sl_chart_judgement;
+
+/* Judges a chart fit (patches as sampled, the fit, its reference): refuses
+ * it when fewer than SL_CHART_MIN_USED patches share one light, fewer than
+ * 3 neutrals are used or they do not darken patch by patch from white to
+ * black, their log contrast is off the reference's by more than
+ * SL_CHART_MAX_CONTRAST_ERROR either way, the colour patches 13..18
+ * (white-balanced on the neutrals) are not SL_CHART_MIN_CHROMA_RATIO times
+ * as saturated as the neutrals or not in the reference's hue order, the
+ * matrix has determinant <= 0, condition above SL_CHART_MAX_CONDITION or
+ * sends white below zero, or the mean CIEDE2000 after the fit exceeds sl_chart_identity_delta_e.
+ * Every reason is listed in text. */
+/* The median over the reference's patches of the CIEDE2000 to the nearest
+ * other patch (13.1 for the ColorChecker Classic): a fit no closer than
+ * that has not told the patches apart. */
+double sl_chart_identity_delta_e(const double reference[24][3]);
+void sl_chart_judge(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                    const double reference[24][3], sl_chart_judgement *j);
 
 typedef struct sl_grey_options {
     double albedo;          /* the photographed sphere's albedo (0.18) */
@@ -649,6 +704,27 @@ sl_result sl_sun_repair_fit(sl_image *hdri, const sl_image *mask, const sl_image
  * part may be NULL. Image files are prefixed with `prefix`. */
 sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart_patch *patches,
                               const sl_ccm_fit *chart, const sl_grey_fit *grey, sl_error *err);
+
+/* Where the patches were found: the photo (linear) cropped to the patches
+ * and two pitches round them, scaled to `width` pixels, the brightest
+ * patch at 0.85; each sampled disc outlined and labelled with its number,
+ * green when used, orange "L" when left out as lit differently, red when
+ * excluded with its reason (C clipped, S not uniform, N too few pixels).
+ * fit may be NULL (every patch red). */
+sl_result sl_chart_overlay(const sl_image *photo, const sl_chart_patch patches[24],
+                           const sl_ccm_fit *fit, int width, sl_image *out, sl_error *err);
+
+/* Adds the chart's verdict (a ColorChecker, or the reasons it was refused)
+ * and the overlay (768 px wide) as `file` to a report. */
+sl_result sl_calibrate_report_chart(sl_report *rep, const char *file, const sl_image *photo,
+                                    const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                                    const sl_chart_judgement *judgement, sl_error *err);
+
+/* Sets every negative sample of the colour channels to 0 (a colour matrix
+ * sends colours outside the working gamut, and noise round black, below
+ * zero) and returns how many; *fraction (may be NULL) gets their share of
+ * the image's summed absolute values. */
+int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction);
 
 #ifdef __cplusplus
 }
