@@ -37,10 +37,6 @@ typedef struct det_image {
     float *logl; /* log(lum + eps) */
 } det_image;
 
-typedef struct edge_pt {
-    double x, y;
-} edge_pt;
-
 typedef struct fit {
     double cx, cy, r, rms;
     int inliers;
@@ -73,9 +69,7 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* Geometric circle fit (Gauss-Newton from the algebraic Kasa fit) of the
- * points flagged in use[]. */
-static bool circle_fit(const edge_pt *p, const bool *use, int n, double c[3])
+bool ball_circle_fit(const ball_point *p, const bool *use, int n, double c[3])
 {
     double s[3][4] = {{0}};
     int m = 0;
@@ -164,7 +158,7 @@ static bool circle_fit(const edge_pt *p, const bool *use, int n, double c[3])
 
 /* Sub-pixel edge along one ray, searched in [r - win, r + win]. */
 static bool ray_edge(const det_image *im, double cx, double cy, double r, double win, double dx,
-                     double dy, edge_pt *out)
+                     double dy, ball_point *out)
 {
     double lo = r - win, hi = r + win;
     if (lo < 1.0)
@@ -221,7 +215,7 @@ static bool refine(const det_image *im, double cx, double cy, double r, double w
     memset(f, 0, sizeof *f);
     int n = (int)lround(2.0 * M_PI * r / 1.5);
     n = n < 48 ? 48 : (n > max_rays ? max_rays : n);
-    edge_pt *pts = malloc((size_t)n * sizeof *pts);
+    ball_point *pts = malloc((size_t)n * sizeof *pts);
     bool *use = malloc((size_t)n * sizeof *use);
     double *res = malloc((size_t)n * sizeof *res);
     bool ok = false;
@@ -237,7 +231,7 @@ static bool refine(const det_image *im, double cx, double cy, double r, double w
     for (int i = 0; i < m; i++)
         use[i] = true;
     for (int pass = 0; pass < 4; pass++) {
-        if (!circle_fit(pts, use, m, c))
+        if (!ball_circle_fit(pts, use, m, c))
             goto done;
         for (int i = 0; i < m; i++)
             res[i] = fabs(hypot(pts[i].x - c[0], pts[i].y - c[1]) - c[2]);

@@ -41,6 +41,16 @@ int unwrap_auto_width(const sl_ball_view *view);
 int ball_hough_cxx(const unsigned char *gray, int width, int height, double min_radius,
                    double max_radius, double min_dist, float *out, int max_out);
 
+/* A point of an outline (pixels). */
+typedef struct ball_point {
+    double x, y;
+} ball_point;
+
+/* Geometric least-squares circle (Gauss-Newton from the algebraic Kasa fit)
+ * through the points flagged in use[]; c holds a start (cx, cy, r) and gets
+ * the fit. False with fewer than 8 points or a degenerate fit. */
+bool ball_circle_fit(const ball_point *p, const bool *use, int n, double c[3]);
+
 /* The smaller singular value of a 2x2 Jacobian (photo pixels per unit of
  * the two directions): how little the mapping stretches any direction. */
 static inline double smaller_singular_value(const double j[2][2])

@@ -311,6 +311,40 @@ void ball_fixture_circle(const ball_fixture *f, int i, sl_ball_circle *c)
     c->r = 0.5 * (0.5 * (hi - lo) + perp);
 }
 
+sl_result ball_fixture_fisheye(int width, int height, double radius, sl_image *photo,
+                               sl_error *err)
+{
+    sl_result r = sl_image_alloc(photo, width, height, 3, err);
+    if (r)
+        return r;
+    for (int y = 0; y < height; y++)
+        for (int x = 0; x < width; x++) {
+            float *p = sl_image_pixel(photo, x, y);
+            double acc[3] = {0, 0, 0};
+            for (int j = 0; j < 2; j++)
+                for (int i = 0; i < 2; i++) {
+                    double dx = (x + 0.25 + 0.5 * i - 0.5 * width) / radius;
+                    double dy = (0.5 * height - y - 0.25 - 0.5 * j) / radius;
+                    double rho = hypot(dx, dy), rgb[3] = {0, 0, 0};
+                    if (rho < 1.0) {
+                        /* equisolid: rho = sin(theta / 2) / sin(45 deg) */
+                        double theta = 2.0 * asin(rho * sin(M_PI / 4.0));
+                        double s = rho > 0.0 ? sin(theta) / rho : 0.0;
+                        double dir[3] = {-dx * s, dy * s, cos(theta)};
+                        ball_fixture_env(dir, rgb);
+                        for (int k = 0; k < 3; k++)
+                            rgb[k] *= 1.0 - 0.4 * rho * rho;
+                    }
+                    for (int k = 0; k < 3; k++)
+                        acc[k] += 0.25 * rgb[k];
+                }
+            double noise = 0.002 * (1.0 + hash01((uint32_t)x, (uint32_t)y));
+            for (int k = 0; k < 3; k++)
+                p[k] = (float)(acc[k] + noise);
+        }
+    return SL_OK;
+}
+
 int ball_fixture_main(const char *kind, const char *out)
 {
     ball_fixture f;
@@ -335,7 +369,8 @@ int ball_fixture_main(const char *kind, const char *out)
     } else if (!strcmp(kind, "ball90")) {
         f.azimuth_deg = 90; /* the same ball from a quarter turn around it */
         f.balls[0].px = 96;
-    } else if (strcmp(kind, "ball") != 0 && strcmp(kind, "balljpg") != 0) {
+    } else if (strcmp(kind, "ball") != 0 && strcmp(kind, "balljpg") != 0 &&
+               strcmp(kind, "ballfisheye") != 0) {
         fprintf(stderr, "make_fixture: unknown ball kind %s\n", kind);
         return 2;
     }
@@ -343,7 +378,8 @@ int ball_fixture_main(const char *kind, const char *out)
     sl_meta meta;
     sl_error err;
     sl_meta_init(&meta);
-    sl_result r = ball_fixture_render(&f, &img, &err);
+    sl_result r = !strcmp(kind, "ballfisheye") ? ball_fixture_fisheye(300, 200, 90, &img, &err)
+                                               : ball_fixture_render(&f, &img, &err);
     if (!r && !strcmp(kind, "balljpg")) {
         for (size_t i = 0; i < img.stride * (size_t)img.height; i++)
             img.data[i] = sl_linear_to_srgb(img.data[i] > 1.0f ? 1.0f : img.data[i]);

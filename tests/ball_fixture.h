@@ -61,9 +61,17 @@ void ball_fixture_circle(const ball_fixture *f, int i, sl_ball_circle *c);
 bool ball_fixture_trace(const ball_fixture *f, int i, double x, double y, double dir[3],
                         double *cos_incidence);
 
+/* A circular fisheye photo of the procedural environment (equisolid,
+ * 180 degrees, looking along +Z, image circle of `radius` px at the frame
+ * centre, light falling off by 40% toward its edge) on a black frame with
+ * a little sensor noise: what unwrap and convert must not take for a ball. */
+sl_result ball_fixture_fisheye(int width, int height, double radius, sl_image *photo,
+                               sl_error *err);
+
 /* make_fixture's ball kinds (200x160 perspective chrome ball, focal 180 px):
- * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone, and ball90
- * (the same set from azimuth 90, for two-view merging). */
+ * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone, ball90
+ * (the same set from azimuth 90, for two-view merging), and ballfisheye
+ * (a 300x200 circular fisheye photo, radius 90 px, not a ball). */
 int ball_fixture_main(const char *kind, const char *out);
 
 #endif

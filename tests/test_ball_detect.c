@@ -133,8 +133,82 @@ static void test_real_probes(void)
     }
 }
 
+static void expect_fisheye(const sl_image *img, bool srgb, const char *what, bool fisheye)
+{
+    sl_fisheye_evidence ev;
+    sl_error err;
+    sl_result r = sl_fisheye_check(img, srgb, what, &ev, &err);
+    printf("  %s: border %.3g, round %d (%.1f,%.1f r %.1f), dark outside %.3f, margin %.3f, rim "
+           "%.2f: %s\n",
+           what, ev.border_level, ev.round, ev.cx, ev.cy, ev.r, ev.dark_outside, ev.margin,
+           ev.rim_ratio, r ? err.message : "not a fisheye");
+    CHECK_MSG(ev.fisheye == fisheye, "%s: taken for %s", what, ev.fisheye ? "a fisheye" : "no fisheye");
+    CHECK(r == (fisheye ? SL_ERR_INPUT : SL_OK));
+    if (r) {
+        CHECK(strncmp(err.message, what, strlen(what)) == 0);
+        CHECK(strstr(err.message, "circular fisheye") && strstr(err.message, "'setlight stitch'"));
+    }
+}
+
+/* A circular fisheye is told from a ball photo and from the angular and
+ * mirror-ball maps of the same environment, which are dark outside too. */
+static void test_fisheye(void)
+{
+    sl_image img = {0}, ll = {0}, map = {0};
+    sl_error err;
+    CHECK_OK(ball_fixture_fisheye(300, 200, 90, &img, &err), &err);
+    expect_fisheye(&img, false, "fisheye.exr", true);
+    sl_image_free(&img);
+    /* cropped square around its circle, still with a black band */
+    CHECK_OK(ball_fixture_fisheye(200, 200, 94, &img, &err), &err);
+    expect_fisheye(&img, false, "fisheye_square.exr", true);
+    sl_image_free(&img);
+
+    ball_fixture f;
+    ball_fixture_init(&f, 256, 8);
+    CHECK_OK(ball_fixture_truth(&f, 256, 2, &ll, &err), &err);
+    CHECK_OK(sl_reproject(&ll, SL_PROJ_LATLONG, SL_PROJ_ANGULAR, 512, NULL, &map, &err), &err);
+    expect_fisheye(&map, false, "angular.exr", false);
+    sl_image_free(&map);
+    CHECK_OK(sl_reproject(&ll, SL_PROJ_LATLONG, SL_PROJ_MIRRORBALL, 512, NULL, &map, &err), &err);
+    expect_fisheye(&map, false, "mirrorball.exr", false);
+    sl_image_free(&map);
+    sl_image_free(&ll);
+
+    ball_fixture_init(&f, 240, 180);
+    f.ss = 1;
+    CHECK_OK(ball_fixture_render(&f, &img, &err), &err);
+    expect_fisheye(&img, false, "ball.exr", false);
+    sl_image_free(&img);
+    f.clutter = false; /* a ball on a dark backdrop: its rim and the backdrop */
+    CHECK_OK(ball_fixture_render(&f, &img, &err), &err);
+    expect_fisheye(&img, false, "ball_dark.exr", false);
+    sl_image_free(&img);
+
+    /* Real photos when present: the Sigma 8 mm fisheyes, the iPhone ball
+     * crops, Debevec's angular Grace probe. */
+    static const struct {
+        const char *name;
+        bool fisheye;
+    } real[] = {{"fisheye/sigma8mm_canon6d/IMG_2843.JPG", true},
+                {"fisheye/sigma8mm_canon6d/IMG_2938.JPG", true},
+                {"probes/chromeball_iphone7/160.JPG", false},
+                {"probes/grace_probe_angular.hdr", false}};
+    for (size_t i = 0; i < sizeof real / sizeof real[0]; i++) {
+        const char *path = sl_test_data(real[i].name);
+        if (!path)
+            continue;
+        sl_meta meta;
+        CHECK_OK(sl_image_read(path, &img, &meta, &err), &err);
+        expect_fisheye(&img, !meta.is_float, path, real[i].fisheye);
+        sl_meta_free(&meta);
+        sl_image_free(&img);
+    }
+}
+
 int main(void)
 {
+    RUN(test_fisheye);
     RUN(test_synthetic);
     RUN(test_refusals);
     RUN(test_real_probes);

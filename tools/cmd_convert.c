@@ -7,6 +7,7 @@
 #include <strings.h>
 
 #include "cli.h"
+#include "setlight/stitch.h"
 
 static const char *convert_help =
     "usage: setlight convert [options] IN OUT\n\n"
@@ -127,6 +128,12 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
     if (r)
         return cli_fail(cli, &err);
     cli_warn_format_mismatch(in_path, &meta);
+    /* A circular fisheye photo is no ball or angular map: refused, not swirled. */
+    if (from == SL_PROJ_MIRRORBALL || from == SL_PROJ_ANGULAR) {
+        sl_fisheye_evidence fisheye;
+        if ((r = sl_fisheye_check(&src, !meta.is_float, in_path, &fisheye, &err)))
+            goto fail;
+    }
 
     if (from < 0)
         from = meta.envmap == SL_ENVMAP_CUBE ? SL_PROJ_CUBEMAP : SL_PROJ_LATLONG;

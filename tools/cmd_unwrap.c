@@ -92,14 +92,18 @@ static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
     if (r)
         return r;
     v->ldr = !v->meta.is_float;
-    if (v->ldr) {
+    if (v->ldr)
+        for (size_t i = 0; i < v->photo.stride * (size_t)v->photo.height; i++)
+            v->photo.data[i] = sl_srgb_to_linear(v->photo.data[i]);
+    /* A fisheye is refused before any warning about it: one line. */
+    sl_fisheye_evidence fisheye;
+    if ((r = sl_fisheye_check(&v->photo, false, v->path, &fisheye, err)))
+        return r;
+    if (v->ldr)
         sl_log(SL_LOG_WARN,
                "%s: %d-bit %s, not HDR: taken as sRGB and linearised; clipped highlights make "
                "bright sources too dark",
                v->path, v->meta.bits_per_sample, v->meta.format);
-        for (size_t i = 0; i < v->photo.stride * (size_t)v->photo.height; i++)
-            v->photo.data[i] = sl_srgb_to_linear(v->photo.data[i]);
-    }
     /* Geometry: focal length in pixels of this image (lens or field of view),
      * distance in ball radii. */
     double focal_px, distance;

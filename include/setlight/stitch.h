@@ -235,6 +235,27 @@ typedef struct sl_ball_circle {
 sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle *circle,
                          sl_error *err);
 
+/* What tells a circular fisheye photo from a chrome ball or an angular map:
+ * a fisheye's image circle sits on a black frame with a dark band on every
+ * side and its light falls off toward the edge; a ball sits in the set (the
+ * frame around it is the scene) with a bright Fresnel rim; angular and
+ * mirror-ball maps are dark outside but fill their square frame. */
+typedef struct sl_fisheye_evidence {
+    double border_level; /* frame border's 90th percentile / the centre's median */
+    bool round;          /* a bright disc on a dark frame was found */
+    double cx, cy, r;    /* its outline (px), when round */
+    double dark_outside; /* fraction of the frame beyond the disc that is dark */
+    double margin;       /* narrowest dark band between the disc and a frame side, in radii */
+    double rim_ratio;    /* luminance at 0.95-0.985 radii over that at 0.80-0.90 */
+    bool fisheye;
+} sl_fisheye_evidence;
+
+/* Fills ev; SL_ERR_INPUT ("NAME: looks like a circular fisheye image ...;
+ * use 'setlight stitch'") when the photo is a circular fisheye's. srgb: the
+ * pixels are sRGB-encoded (linearised for the measurement). */
+sl_result sl_fisheye_check(const sl_image *photo, bool srgb, const char *name,
+                           sl_fisheye_evidence *ev, sl_error *err);
+
 typedef enum {
     SL_BALL_ORTHOGRAPHIC = 0, /* camera infinitely far: the classic mirror-ball map */
     SL_BALL_PERSPECTIVE       /* pinhole camera at a finite distance */
