@@ -167,6 +167,40 @@ static void background(const ball_fixture *f, double x, double y, double rgb[3])
     }
 }
 
+/* A dial: white face, a dark bezel, twelve tick marks and two hands. */
+static double dial(const ball_thing *t, double dx, double dy)
+{
+    double rho = hypot(dx, dy) / t->r, a = atan2(dy, dx);
+    if (rho > 0.92)
+        return 0.03;
+    double tick = fmod(a / (2.0 * M_PI) * 12.0 + 12.5, 1.0) - 0.5; /* turns from a tick */
+    if (rho > 0.78 && fabs(tick) * 2.0 * M_PI / 12.0 * rho * t->r < 0.02 * t->r)
+        return 0.03;
+    const double hands[2][2] = {{0.3, 0.75}, {1.9, 0.55}}; /* angle (rad), length */
+    for (int h = 0; h < 2; h++) {
+        double ux = cos(hands[h][0]), uy = sin(hands[h][0]);
+        double along = (dx * ux + dy * uy) / t->r, across = fabs(-dx * uy + dy * ux) / t->r;
+        if (along > 0.0 && along < hands[h][1] && across < 0.025)
+            return 0.03;
+    }
+    return t->value;
+}
+
+/* The topmost round thing at (x, y), if any. */
+static bool thing_at(const ball_fixture *f, double x, double y, double rgb[3])
+{
+    for (int i = f->thing_count - 1; i >= 0; i--) {
+        const ball_thing *t = &f->things[i];
+        double dx = x - t->x, dy = y - t->y, d = hypot(dx, dy);
+        if (d > t->r || (t->kind == BALL_THING_RING && d < t->inner))
+            continue;
+        double v = t->kind == BALL_THING_DIAL ? dial(t, dx, dy) : t->value;
+        rgb[0] = rgb[1] = rgb[2] = v;
+        return true;
+    }
+    return false;
+}
+
 sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *err)
 {
     sl_result r = sl_image_alloc(photo, f->width, f->height, 3, err);
@@ -179,9 +213,14 @@ sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *
         for (int x = 0; x < f->width; x++) {
             /* Only pixels near a ball need supersampling (it is what is measured). */
             int ss = 1;
-            for (int b = 0; b < f->ball_count; b++)
-                if (hypot(x + 0.5 - circles[b].cx, y + 0.5 - circles[b].cy) <
-                    1.1 * circles[b].r + 3.0)
+            for (int b = 0; b < f->ball_count; b++) {
+                double d = hypot(x + 0.5 - circles[b].cx, y + 0.5 - circles[b].cy);
+                if (f->ss_rim_only ? fabs(d - circles[b].r) < 2.0 : d < 1.1 * circles[b].r + 3.0)
+                    ss = f->ss > 0 ? f->ss : 1;
+            }
+            for (int t = 0; t < f->thing_count; t++)
+                if (fabs(hypot(x + 0.5 - f->things[t].x, y + 0.5 - f->things[t].y) -
+                         f->things[t].r) < 2.0)
                     ss = f->ss > 0 ? f->ss : 1;
             double acc[3] = {0, 0, 0};
             for (int j = 0; j < ss; j++)
@@ -207,7 +246,7 @@ sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *
                             hit = true;
                         }
                     }
-                    if (!hit)
+                    if (!hit && !thing_at(f, sx, sy, rgb))
                         background(f, sx, sy, rgb);
                     for (int k = 0; k < 3; k++)
                         acc[k] += rgb[k];

@@ -22,6 +22,18 @@ typedef struct ball_fixture_ball {
     double distance; /* perspective */
 } ball_fixture_ball;
 
+/* Round things in the background that are not balls. */
+typedef enum { BALL_THING_DISC, BALL_THING_RING, BALL_THING_DIAL } ball_thing_kind;
+
+typedef struct ball_thing {
+    ball_thing_kind kind;
+    double x, y, r; /* outline (px) */
+    double inner;   /* ring: inner radius (px) */
+    double value;   /* grey level */
+} ball_thing;
+
+#define BALL_FIXTURE_THINGS 8
+
 typedef struct ball_fixture {
     int width, height;
     bool perspective;
@@ -33,6 +45,9 @@ typedef struct ball_fixture {
     const sl_image *env; /* lat-long to reflect; NULL for the procedural one */
     int ss;              /* sub-samples per pixel axis, near the balls (1 elsewhere) */
     bool clutter;        /* textured background instead of a flat 0.05 */
+    bool ss_rim_only;    /* supersample only within 2 px of an outline (fast big frames) */
+    int thing_count;
+    ball_thing things[BALL_FIXTURE_THINGS]; /* drawn over the background */
 } ball_fixture;
 
 /* A fixture with the defaults: orthographic, 1 ball, reflectance 1, ss 4, clutter. */
