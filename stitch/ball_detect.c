@@ -11,6 +11,7 @@
  * shares its centre (a ring and its hole); circles inside a ball are its
  * reflections. The ball's outline is then fitted again on the full image,
  * with the standard error of its centre and radius. */
+#include "merge_private.h" /* merge_select_kth */
 #include "unwrap_private.h"
 
 #include <math.h>
@@ -377,34 +378,6 @@ done:
 }
 
 
-/* The k-th smallest of v[0..n) (Hoare's selection; v is reordered). */
-static float select_kth(float *v, int n, int k)
-{
-    int lo = 0, hi = n - 1;
-    while (lo < hi) {
-        float pivot = v[(lo + hi) / 2];
-        int i = lo, j = hi;
-        while (i <= j) {
-            while (v[i] < pivot)
-                i++;
-            while (v[j] > pivot)
-                j--;
-            if (i <= j) {
-                float t = v[i];
-                v[i++] = v[j];
-                v[j--] = t;
-            }
-        }
-        if (k <= j)
-            hi = j;
-        else if (k >= i)
-            lo = i;
-        else
-            break;
-    }
-    return v[k];
-}
-
 static int radius_search(const det_image *im, double cx, double cy, double rmin, double rmax,
                          double out[3])
 {
@@ -414,7 +387,7 @@ static int radius_search(const det_image *im, double cx, double cy, double rmin,
     if (nr < 3)
         return 0;
     float *g = malloc(sizeof(float) * RAYS * (size_t)nr);
-    float *col = malloc(sizeof(float) * RAYS);
+    double *col = malloc(sizeof(double) * RAYS);
     double *score = malloc(sizeof(double) * (size_t)nr);
     float *prof = malloc(sizeof(float) * ((size_t)nr + 2));
     float *steps = malloc(sizeof(float) * (size_t)nr);
@@ -457,7 +430,7 @@ static int radius_search(const det_image *im, double cx, double cy, double rmin,
             score[j] = 0.0;
             continue;
         }
-        score[j] = select_kth(col, m, m / 2);
+        score[j] = merge_select_kth(col, m, m / 2);
     }
     for (int pick = 0; pick < 3; pick++) {
         int best = -1;

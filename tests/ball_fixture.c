@@ -405,11 +405,17 @@ int ball_fixture_main(const char *kind, const char *out)
         f.balls[1].px = 150;
     } else if (!strcmp(kind, "ballclip")) {
         f.balls[0].px = 160; /* 6.5 px cut off on the right */
+    } else if (!strcmp(kind, "ballfill")) {
+        ball_fixture_init(&f, 256, 256); /* a tight crop: the outline touches all four sides */
+        f.ss = 3;
+        f.ss_rim_only = true;
+        f.balls[0].px = f.balls[0].py = f.balls[0].r = 128;
+        sl_reflectance_chrome(&f.reflectance);
     } else if (!strcmp(kind, "ball90")) {
         f.azimuth_deg = 90; /* the same ball from a quarter turn around it */
         f.balls[0].px = 96;
     } else if (strcmp(kind, "ball") != 0 && strcmp(kind, "balljpg") != 0 &&
-               strcmp(kind, "ballfisheye") != 0) {
+               strcmp(kind, "ballfisheye") != 0 && strcmp(kind, "ballfill") != 0) {
         fprintf(stderr, "make_fixture: unknown ball kind %s\n", kind);
         return 2;
     }

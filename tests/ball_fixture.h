@@ -85,7 +85,8 @@ sl_result ball_fixture_fisheye(int width, int height, double radius, sl_image *p
 
 /* make_fixture's ball kinds (200x160 perspective chrome ball, focal 180 px):
  * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone, ball90
- * (the same set from azimuth 90, for two-view merging), and ballfisheye
+ * (the same set from azimuth 90, for two-view merging), ballfill (an
+ * orthographic chrome ball filling a 256x256 frame, r 128) and ballfisheye
  * (a 300x200 circular fisheye photo, radius 90 px, not a ball). */
 int ball_fixture_main(const char *kind, const char *out);
 

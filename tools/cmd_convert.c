@@ -26,7 +26,9 @@ static const char *convert_help =
     "  --strict            NaN/Inf input pixels are an error (exit 3) instead of being\n"
     "                      counted, reported and replaced by 0\n"
     "  --json              print the result as JSON on stdout\n\n"
-    "Projections follow OpenEXR's lat-long orientation; see docs/geometry.md.\n";
+    "Projections follow OpenEXR's lat-long orientation; see docs/geometry.md.\n"
+    "A circular fisheye photo given as angular or mirrorball is refused (exit 3):\n"
+    "use 'setlight stitch'.\n";
 
 static int output_width_default(sl_projection from, const sl_image *img)
 {

@@ -61,9 +61,14 @@ static const char *unwrap_help =
     "the blind cone behind the ball (filled flat with the rim's median). An 8-bit\n"
     "photo (JPEG, PNG) is taken as sRGB, linearised with a warning: its highlights\n"
     "are clipped, so bright sources come out too dark.\n"
+    "The ball is found on tight crops (its outline touching the frame) and among\n"
+    "clutter; discs, rings and clock faces are not balls, the largest ball is\n"
+    "taken over ones under 0.7 of its radius, and the fit's standard error is\n"
+    "reported (circle.uncertainty in --json).\n"
     "Exit codes: 0 done, 1 failure, 2 usage error (bad option, circle outside the\n"
-    "image), 3 bad input (unreadable, no ball, two balls, ball cut by the frame,\n"
-    "reflectance patch not seen).\n"
+    "image), 3 bad input (unreadable, a circular fisheye photo (use 'setlight\n"
+    "stitch'), no ball, two balls, ball cut by the frame, outline fitted too\n"
+    "weakly (give --circle), reflectance patch not seen).\n"
     "See docs/unwrap.md.\n";
 
 static void reflectance_text(const sl_reflectance *r, char *buf, size_t size)
@@ -138,9 +143,9 @@ static json_t *number(double v)
 
 static json_t *circle_json(const sl_ball_circle *c, bool detected)
 {
-    return json_pack("{s:f, s:f, s:f, s:f, s:i, s:b}", "cx", c->cx, "cy", c->cy, "r", c->r,
-                     "residual", c->residual, "edge_points", c->edge_points, "detected",
-                     detected);
+    return json_pack("{s:f, s:f, s:f, s:f, s:f, s:i, s:b}", "cx", c->cx, "cy", c->cy, "r", c->r,
+                     "residual", c->residual, "uncertainty", c->uncertainty, "edge_points",
+                     c->edge_points, "detected", detected);
 }
 
 /* The output: its header from everything known before the pixels, and
@@ -196,9 +201,9 @@ static sl_result output_meta(const out_job *j, sl_error *err)
                  oi->circle.cy, oi->circle.r);
         attrs[na++].name = i ? "setlight:ball2_circle" : "setlight:ball_circle";
         snprintf(attrs[na].value, sizeof attrs[na].value,
-                 "%s, fit residual %.3f px, %d edge points",
+                 "%s, fit residual %.3f px, standard error %.3f px, %d edge points",
                  views[i].detected ? "detected" : "given", oi->circle.residual,
-                 oi->circle.edge_points);
+                 oi->circle.uncertainty, oi->circle.edge_points);
         attrs[na++].name = i ? "setlight:ball2_circle_source" : "setlight:ball_circle_source";
         snprintf(attrs[na].value, sizeof attrs[na].value,
                  "%s, focal %.3f px, distance %.4f ball radii, ball %.3f deg, off axis %.3f deg",

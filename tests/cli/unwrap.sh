@@ -5,7 +5,7 @@
 # an 8-bit JPEG (warned and linearised), a circle outside the image.
 . "$(dirname "$0")/lib.bash"
 
-for k in ball ball90 balltwo ballclip ballnone ballfisheye; do
+for k in ball ball90 balltwo ballclip ballnone ballfisheye ballfill; do
   "$MAKE_FIXTURE" "$k" "$T/$k.exr" || bad "fixture $k"
 done
 "$MAKE_FIXTURE" balljpg "$T/ball.jpg" || bad "fixture balljpg"
@@ -19,6 +19,10 @@ expect 0 "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 --reflectance ch
 json_ok "$T/out"
 json_eval "$T/out" 'd["circle"]["detected"] and abs(d["circle"]["cx"] - 104.3) < 0.5 and abs(d["circle"]["r"] - 46.5) < 0.5'
 json_eval "$T/out" 'd["camera"] == "perspective" and abs(d["distance_radii"] - 4.0) < 0.05'
+json_eval "$T/out" '0 < d["circle"]["uncertainty"] < 0.25'
+# --- a tight crop: the ball's outline touches the four sides of the frame
+expect 0 "$SETLIGHT" unwrap --json -o "$T/fill.exr" "$T/ballfill.exr"
+json_eval "$T/out" 'abs(d["circle"]["cx"] - 128) < 0.3 and abs(d["circle"]["cy"] - 128) < 0.3 and abs(d["circle"]["r"] - 128) < 0.3'
 json_eval "$T/out" 'd["width"] == 2 * d["height"] and d["width"] % 4 == 0'
 present "$T/env.exr"; no_temp "$T"
 expect 0 "$SETLIGHT" info --json "$T/env.exr"
