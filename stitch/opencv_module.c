@@ -15,7 +15,8 @@
 #error "SETLIGHT_OPENCV_MODULE: path of the setlight_opencv module"
 #endif
 
-static int (*hough)(const unsigned char *, int, int, double, double, double, float *, int);
+static int (*hough)(const unsigned char *, int, int, double, double, double, int, double, float *,
+                    int);
 static int (*mcc)(const unsigned char *, int, int, double[4][2], double *, char *, size_t);
 static char load_error[512];
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
@@ -41,7 +42,8 @@ static void load(void)
 }
 
 int ball_hough_cxx(const unsigned char *gray, int width, int height, double min_radius,
-                   double max_radius, double min_dist, float *out, int max_out)
+                   double max_radius, double min_dist, int kinds, double edge_threshold,
+                   float *out, int max_out)
 {
     pthread_once(&load_once, load);
     if (!hough) {
@@ -49,7 +51,8 @@ int ball_hough_cxx(const unsigned char *gray, int width, int height, double min_
         sl_log(SL_LOG_DEBUG, "%s", load_error);
         return -1;
     }
-    return hough(gray, width, height, min_radius, max_radius, min_dist, out, max_out);
+    return hough(gray, width, height, min_radius, max_radius, min_dist, kinds, edge_threshold, out,
+                 max_out);
 }
 
 int sl_cal_mcc_detect(const unsigned char *bgr, int width, int height, double box[4][2],

@@ -7,6 +7,7 @@
 #include <strings.h>
 
 #include "cli.h"
+#include "setlight/stitch.h"
 
 static const char *convert_help =
     "usage: setlight convert [options] IN OUT\n\n"
@@ -39,7 +40,9 @@ static const char *convert_help =
     "  --json              print the result as JSON on stdout\n\n"
     "Projections follow OpenEXR's lat-long orientation; an angular map (Debevec's\n"
     "light probes) has its centre, the forward direction, at the lat-long's centre\n"
-    "column, unmirrored; see docs/geometry.md.\n";
+    "column, unmirrored; see docs/geometry.md.\n"
+    "A circular fisheye photo given as angular or mirrorball is refused (exit 3):\n"
+    "use 'setlight stitch'.\n";
 
 static int output_width_default(sl_projection from, const sl_image *img)
 {
@@ -200,6 +203,12 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
     if (r)
         return cli_fail(cli, &err);
     cli_warn_format_mismatch(in_path, &meta);
+    /* A circular fisheye photo is no ball or angular map: refused, not swirled. */
+    if (from == SL_PROJ_MIRRORBALL || from == SL_PROJ_ANGULAR) {
+        sl_fisheye_evidence fisheye;
+        if ((r = sl_fisheye_check(&src, false, in_path, &fisheye, &err)))
+            goto fail;
+    }
 
     /* Not a known environment projection: converted as an image. */
     bool is_env = from >= 0 || meta.envmap != SL_ENVMAP_NONE ||

@@ -64,9 +64,14 @@ static const char *unwrap_help =
     "photo (JPEG, PNG, TIFF) is converted to scene-linear through OpenColorIO from its\n"
     "colour space (sRGB unless the file says otherwise), with a warning: its\n"
     "highlights are clipped, so bright sources come out too dark (docs/color.md).\n"
+    "The ball is found on tight crops (its outline touching the frame) and among\n"
+    "clutter; discs, rings and clock faces are not balls, the largest ball is\n"
+    "taken over ones under 0.7 of its radius, and the fit's standard error is\n"
+    "reported (circle.uncertainty in --json).\n"
     "Exit codes: 0 done, 1 failure, 2 usage error (bad option, circle outside the\n"
-    "image), 3 bad input (unreadable, no ball, two balls, ball cut by the frame,\n"
-    "reflectance patch not seen).\n"
+    "image), 3 bad input (unreadable, a circular fisheye photo (use 'setlight\n"
+    "stitch'), no ball, two balls, ball cut by the frame, outline fitted too\n"
+    "weakly (give --circle), reflectance patch not seen).\n"
     "See docs/unwrap.md.\n";
 
 static void reflectance_text(const sl_reflectance *r, char *buf, size_t size)
@@ -100,6 +105,10 @@ static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
         return r;
     v->ldr = info.converted && !v->meta.is_float;
     snprintf(v->input_space, sizeof v->input_space, "%s", info.colorspace);
+    /* A fisheye is refused in one line (the reading's notes are dropped then). */
+    sl_fisheye_evidence fisheye;
+    if ((r = sl_fisheye_check(&v->photo, false, v->path, &fisheye, err)))
+        return r;
     /* Geometry: focal length in pixels of this image (lens or field of view),
      * distance in ball radii. */
     double focal_px, distance;
@@ -134,9 +143,9 @@ static json_t *number(double v)
 
 static json_t *circle_json(const sl_ball_circle *c, bool detected)
 {
-    return json_pack("{s:f, s:f, s:f, s:f, s:i, s:b}", "cx", c->cx, "cy", c->cy, "r", c->r,
-                     "residual", c->residual, "edge_points", c->edge_points, "detected",
-                     detected);
+    return json_pack("{s:f, s:f, s:f, s:f, s:f, s:i, s:b}", "cx", c->cx, "cy", c->cy, "r", c->r,
+                     "residual", c->residual, "uncertainty", c->uncertainty, "edge_points",
+                     c->edge_points, "detected", detected);
 }
 
 /* The output: its header from everything known before the pixels, and
@@ -192,9 +201,9 @@ static sl_result output_meta(const out_job *j, sl_error *err)
                  oi->circle.cy, oi->circle.r);
         attrs[na++].name = i ? "setlight:ball2_circle" : "setlight:ball_circle";
         snprintf(attrs[na].value, sizeof attrs[na].value,
-                 "%s, fit residual %.3f px, %d edge points",
+                 "%s, fit residual %.3f px, standard error %.3f px, %d edge points",
                  views[i].detected ? "detected" : "given", oi->circle.residual,
-                 oi->circle.edge_points);
+                 oi->circle.uncertainty, oi->circle.edge_points);
         attrs[na++].name = i ? "setlight:ball2_circle_source" : "setlight:ball_circle_source";
         snprintf(attrs[na].value, sizeof attrs[na].value,
                  "%s, focal %.3f px, distance %.4f ball radii, ball %.3f deg, off axis %.3f deg",

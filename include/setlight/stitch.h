@@ -255,16 +255,44 @@ typedef struct sl_ball_circle {
     double cx, cy, r;
     double residual;  /* RMS distance (px) of the edge points to the circle; 0 if given */
     int edge_points;  /* sub-pixel edge points the fit used; 0 if given */
+    double uncertainty; /* largest standard error (px) of cx, cy and r; 0 if given */
 } sl_ball_circle;
 
-/* Finds one chrome ball: circle candidates from OpenCV's Hough transform on
- * a log-tonemapped copy, then sub-pixel edge points on the HDR image along
- * rays from each candidate's centre and a robust least-squares circle fit.
- * SL_ERR_INPUT when no ball is found, when two or more are, or when the ball
- * is cut by the frame edge (circle then holds the clipped ball's outline);
+/* Finds one chrome ball: circle candidates on a copy at most 640 px across
+ * (the frame itself, for a tight crop, and OpenCV's Hough transform on a
+ * log-tonemapped copy), sub-pixel edge points along rays from each
+ * candidate's centre and a robust least-squares circle fit; outlines with a
+ * flat inside (discs, dials) or a circle on the same centre (rings) are not
+ * balls, circles inside a ball are its reflections, and the largest ball is
+ * taken when the others are under 0.7 of its radius. The ball's outline is
+ * fitted again on the full image. SL_ERR_INPUT when no ball is found, when
+ * two or more similar ones are, when the ball is cut by the frame edge
+ * (circle then holds the clipped ball's outline) or when its outline is
+ * measured too weakly (standard error over 0.25 px and 0.1% of the radius);
  * `name` (a file name) starts the message. */
 sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle *circle,
                          sl_error *err);
+
+/* What tells a circular fisheye photo from a chrome ball or an angular map:
+ * a fisheye's image circle sits on a black frame with a dark band on every
+ * side and its light falls off toward the edge; a ball sits in the set (the
+ * frame around it is the scene) with a bright Fresnel rim; angular and
+ * mirror-ball maps are dark outside but fill their square frame. */
+typedef struct sl_fisheye_evidence {
+    double border_level; /* frame border's 90th percentile / the centre's median */
+    bool round;          /* a bright disc on a dark frame was found */
+    double cx, cy, r;    /* its outline (px), when round */
+    double dark_outside; /* fraction of the frame beyond the disc that is dark */
+    double margin;       /* narrowest dark band between the disc and a frame side, in radii */
+    double rim_ratio;    /* luminance at 0.95-0.985 radii over that at 0.80-0.90 */
+    bool fisheye;
+} sl_fisheye_evidence;
+
+/* Fills ev; SL_ERR_INPUT ("NAME: looks like a circular fisheye image ...;
+ * use 'setlight stitch'") when the photo is a circular fisheye's. srgb: the
+ * pixels are sRGB-encoded (linearised for the measurement). */
+sl_result sl_fisheye_check(const sl_image *photo, bool srgb, const char *name,
+                           sl_fisheye_evidence *ev, sl_error *err);
 
 typedef enum {
     SL_BALL_ORTHOGRAPHIC = 0, /* camera infinitely far: the classic mirror-ball map */
