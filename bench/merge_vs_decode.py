@@ -27,7 +27,7 @@ import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-PHASES = ["decode", "sample", "fit", "merge", "write", "other"]
+PHASES = ["decode", "sample", "fit", "merge", "write", "align", "other"]
 
 
 def run(cmd, out):

@@ -10,23 +10,26 @@
 #include <strings.h>
 #include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "capture_private.h"
 
-typedef struct shot {
+/* One file found in the source. */
+typedef struct photo {
     char path[4096];
     char name[256];
     double when;   /* EXIF time in seconds (0 unknown) */
     long sequence; /* the number in the file name, -1 if none */
     int rank;      /* format preference among a shot's files: raw first */
     sl_meta meta;
-} shot;
+    sl_frame_setup setup;
+} photo;
 
-typedef struct shots {
-    shot *items;
+typedef struct photos {
+    photo *items;
     int count, cap;
     json_t *problems;
-} shots;
+} photos;
 
 static double exif_seconds(const char *dt)
 {
@@ -61,7 +64,7 @@ int sl_capture_file_rank(const char *name)
     return 3;
 }
 
-static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_error *err)
+static sl_result scan(const char *dir, const char *rel, photos *s, int depth, sl_error *err)
 {
     DIR *d = opendir(dir);
     if (!d)
@@ -96,7 +99,7 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
         }
         if (s->count == s->cap) {
             int cap = s->cap ? 2 * s->cap : 64;
-            shot *n = realloc(s->items, (size_t)cap * sizeof *n);
+            photo *n = realloc(s->items, (size_t)cap * sizeof *n);
             if (!n) {
                 sl_meta_free(&meta);
                 r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", dir);
@@ -105,15 +108,17 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
             s->items = n;
             s->cap = cap;
         }
-        shot *x = &s->items[s->count++];
+        photo *x = &s->items[s->count++];
         snprintf(x->path, sizeof x->path, "%s", path);
         snprintf(x->name, sizeof x->name, "%s", name);
         x->when = exif_seconds(meta.datetime);
+        sl_exif_extra extra;
+        sl_exif_extra_file(path, &extra);
         /* Bodies in continuous drive shoot several frames a second: the
          * EXIF sub-second field orders them (else exposure and sequence). */
-        double subsec = x->when > 0 ? sl_exif_subsec_file(path) : -1;
-        if (subsec >= 0)
-            x->when += subsec;
+        if (x->when > 0 && extra.subsec >= 0)
+            x->when += extra.subsec;
+        sl_frame_setup_fill(&x->setup, &meta, &extra, w, h);
         x->sequence = sequence_of(e->d_name);
         x->rank = sl_capture_file_rank(e->d_name);
         /* a broken EXIF rational reads back as infinity: unknown */
@@ -128,31 +133,44 @@ static sl_result scan(const char *dir, const char *rel, shots *s, int depth, sl_
 /* A shot's files: rawest first, then by name. */
 static int cmp_format(const void *a, const void *b)
 {
-    const shot *x = a, *y = b;
+    const photo *x = a, *y = b;
     return x->rank != y->rank ? (x->rank < y->rank ? -1 : 1) : strcmp(x->name, y->name);
+}
+
+/* The camera model that took a photograph (make, model). */
+static int cmp_camera(const photo *x, const photo *y)
+{
+    int c = strcasecmp(x->setup.make, y->setup.make);
+    return c ? c : strcasecmp(x->setup.model, y->setup.model);
 }
 
 /* By EXIF time (with its sub-second part when the camera writes one), then
  * exposure (a bracket is shot within a second or two), then the sequence
- * number. */
-static int cmp_shot(const void *a, const void *b)
+ * number, then the camera (two may share a second and a number). */
+static int cmp_photo(const void *a, const void *b)
 {
-    const shot *x = a, *y = b;
+    const photo *x = a, *y = b;
     if (x->when != y->when)
         return x->when < y->when ? -1 : 1;
     if (x->meta.exposure_time != y->meta.exposure_time)
         return x->meta.exposure_time < y->meta.exposure_time ? -1 : 1;
     if (x->sequence != y->sequence)
         return x->sequence < y->sequence ? -1 : 1;
-    return cmp_format(a, b);
+    int c = cmp_camera(x, y);
+    return c ? c : cmp_format(a, b);
 }
 
-/* Files of one shot: the same EXIF time (known), exposure and file number. */
-static bool same_shot(const shot *a, const shot *b)
+/* Files of one shot: the same camera, EXIF time (known), exposure and file
+ * number, and the same body serial where both files tell it (the reader
+ * finds none in some raw formats, CR3 among them, that the JPEG beside
+ * them has). */
+static bool same_shot(const photo *a, const photo *b)
 {
     double ta = a->meta.exposure_time, tb = b->meta.exposure_time;
+    const char *sa = a->setup.serial, *sb = b->setup.serial;
     return a->when > 0 && a->when == b->when && a->sequence >= 0 &&
-           a->sequence == b->sequence && ta > 0 && tb > 0 && fabs(log2(ta / tb)) < 0.1;
+           a->sequence == b->sequence && ta > 0 && tb > 0 && fabs(log2(ta / tb)) < 0.1 &&
+           !cmp_camera(a, b) && (!sa[0] || !sb[0] || !strcmp(sa, sb));
 }
 
 static bool in_bracket(json_t *frames, double t)
@@ -191,7 +209,7 @@ static sl_result copy_file(const char *from, const char *to, char sha[65], sl_er
 
 /* Copies one file of a shot as STEM.ext (the frame's file) or STEM_N.ext
  * (its N-th sibling); never overwrites. */
-static sl_result copy_shot_file(const shot *x, const char *dir, const char *stem, int n,
+static sl_result copy_shot_file(const photo *x, const char *dir, const char *stem, int n,
                                 char name[64], char sha[65], sl_error *err)
 {
     const char *dot = strrchr(x->name, '.');
@@ -212,6 +230,275 @@ static sl_result copy_shot_file(const shot *x, const char *dir, const char *stem
     return copy_file(x->path, to, sha, err);
 }
 
+/* A shot: files [first, first + count) of the sorted photographs, the
+ * rawest first; its setup is that file's. */
+typedef struct shot {
+    int first, count;
+    int group;
+} shot;
+
+/* The shots of one setup, grouped into views and brackets as they come. */
+typedef struct setup_group {
+    const sl_frame_setup *setup;
+    int frames, first_shot, last_shot;
+    json_t *view, *brackets, *bracket; /* the current ones, borrowed */
+    int v, b, k;                       /* their numbers, and the next frame's */
+    double last_when;                  /* of the group's previous shot */
+} setup_group;
+
+/* Sorts the photographs and cuts them into shots. */
+static sl_result find_shots(photos *s, shot **out, int *count, sl_error *err)
+{
+    qsort(s->items, (size_t)s->count, sizeof *s->items, cmp_photo);
+    shot *shots = malloc((size_t)s->count * sizeof *shots);
+    if (!shots)
+        return sl_error_set(err, SL_ERR_NOMEM, "ingest: out of memory");
+    int n = 0;
+    for (int i = 0; i < s->count;) {
+        int m = 1;
+        while (i + m < s->count && same_shot(&s->items[i], &s->items[i + m]))
+            m++;
+        /* Formats may round the exposure differently: order the shot's
+         * files by format here, not by their exposures. */
+        qsort(&s->items[i], (size_t)m, sizeof *s->items, cmp_format);
+        shots[n++] = (shot){i, m, -1};
+        i += m;
+    }
+    *out = shots;
+    *count = n;
+    return SL_OK;
+}
+
+/* Puts each shot in the group of its setup, a new group for a new setup. */
+static sl_result group_by_setup(const photos *s, shot *shots, int n, setup_group **out,
+                                int *count, sl_error *err)
+{
+    setup_group *g = NULL;
+    int ng = 0;
+    char why[8];
+    for (int j = 0; j < n; j++) {
+        const sl_frame_setup *setup = &s->items[shots[j].first].setup;
+        int k = 0;
+        while (k < ng && sl_frame_setup_differs(g[k].setup, setup, why, sizeof why))
+            k++;
+        if (k == ng) {
+            setup_group *more = realloc(g, (size_t)(ng + 1) * sizeof *g);
+            if (!more) {
+                free(g);
+                return sl_error_set(err, SL_ERR_NOMEM, "ingest: out of memory");
+            }
+            g = more;
+            g[ng++] = (setup_group){.setup = setup, .first_shot = j};
+        }
+        shots[j].group = k;
+        g[k].frames++;
+        g[k].last_shot = j;
+    }
+    *out = g;
+    *count = ng;
+    return SL_OK;
+}
+
+/* "first..last (N frames)" of a group, by the names in the source. */
+static void group_name(const photos *s, const shot *shots, const setup_group *g, char *buf,
+                       size_t size)
+{
+    const char *first = s->items[shots[g->first_shot].first].name;
+    const char *last = s->items[shots[g->last_shot].first].name;
+    if (g->frames == 1)
+        snprintf(buf, size, "%s (1 frame)", first);
+    else
+        snprintf(buf, size, "%s..%s (%d frames)", first, last, g->frames);
+}
+
+/* One line for each two setups whose shots follow each other in time:
+ * what was kept apart and why. */
+static sl_result split_lines(const photos *s, const shot *shots, int n, const setup_group *g,
+                             int ng, json_t *lines, sl_error *err)
+{
+    bool *told = calloc((size_t)ng * (size_t)ng, sizeof *told);
+    if (!told)
+        return sl_error_set(err, SL_ERR_NOMEM, "ingest: out of memory");
+    for (int j = 1; j < n; j++) {
+        int a = shots[j - 1].group, b = shots[j].group;
+        if (a > b) {
+            int t = a;
+            a = b;
+            b = t;
+        }
+        if (a == b || told[a * ng + b])
+            continue;
+        told[a * ng + b] = true;
+        char why[1024], first[600], second[600], line[2400];
+        sl_frame_setup_differs(g[a].setup, g[b].setup, why, sizeof why);
+        group_name(s, shots, &g[a], first, sizeof first);
+        group_name(s, shots, &g[b], second, sizeof second);
+        snprintf(line, sizeof line, "%s and %s not grouped together: %s", first, second, why);
+        json_array_append_new(lines, json_string(line));
+    }
+    free(told);
+    return SL_OK;
+}
+
+/* A view of a group's setup numbered `v`, appended to `views`. */
+static void start_view(setup_group *g, json_t *views, int v)
+{
+    g->view = json_object();
+    g->brackets = json_array();
+    json_object_set_new(g->view, "view", json_integer(v));
+    json_object_set_new(g->view, "camera", sl_frame_setup_json(g->setup));
+    json_object_set_new(g->view, "brackets", g->brackets);
+    json_array_append_new(views, g->view);
+    g->bracket = NULL;
+    g->v = v;
+    g->b = 0;
+}
+
+/* Copies a shot's files as STEM and STEM_N (siblings), their names added to
+ * `written`, and returns its frame entry. */
+static sl_result copy_shot(const photo *files, int n, const char *dir, const char *stem,
+                           sl_progress *progress, json_t *written, json_t **frame, sl_error *err)
+{
+    json_t *f = json_object(), *siblings = json_array();
+    double t = 0, fn = 0, iso = 0;
+    sl_result r = SL_OK;
+    for (int m = 0; m < n && !r; m++) {
+        const photo *y = &files[m];
+        char name[64], sha[65];
+        if ((r = copy_shot_file(y, dir, stem, m, name, sha, err)))
+            break;
+        json_array_append_new(written, json_string(name));
+        sl_progress_add(progress, 1);
+        /* OpenImageIO drops some EXIF from some formats (ISO from
+         * TIFF): a sibling fills what the frame's file lacks. */
+        t = t > 0 ? t : y->meta.exposure_time;
+        fn = fn > 0 ? fn : y->meta.f_number;
+        iso = iso > 0 ? iso : y->meta.iso;
+        if (m == 0) {
+            json_object_set_new(f, "file", json_string(name));
+            json_object_set_new(f, "source", json_string(y->name));
+            json_object_set_new(f, "sha256", json_string(sha));
+        } else {
+            json_array_append_new(siblings, json_pack("{s:s, s:s, s:s}", "file", name, "source",
+                                                      y->name, "sha256", sha));
+        }
+    }
+    if (r) {
+        json_decref(f);
+        json_decref(siblings);
+        return r;
+    }
+    json_object_set_new(f, "exposure_time", t > 0 ? json_real(t) : json_null());
+    json_object_set_new(f, "f_number", fn > 0 ? json_real(fn) : json_null());
+    json_object_set_new(f, "iso", iso > 0 ? json_real(iso) : json_null());
+    json_object_set_new(f, "measured_ratio", json_null());
+    if (json_array_size(siblings))
+        json_object_set_new(f, "siblings", siblings);
+    else
+        json_decref(siblings);
+    *frame = f;
+    return SL_OK;
+}
+
+/* Within each setup's shots in time order: a pause longer than `gap`
+ * starts a new view, a repeated exposure a new bracket. Views are numbered
+ * by their first shot's time, whatever their setup. */
+static sl_result group_and_copy(const photos *s, const shot *shots, int n, setup_group *groups,
+                                double gap, const char *dir, sl_progress *progress,
+                                json_t *views, json_t *written, int *frames, int *nviews,
+                                sl_error *err)
+{
+    sl_result r = SL_OK;
+    for (int j = 0; j < n && !r; j++) {
+        const photo *x = &s->items[shots[j].first];
+        setup_group *g = &groups[shots[j].group];
+        if (!g->view || (x->when > 0 && g->last_when > 0 && x->when - g->last_when > gap))
+            start_view(g, views, (*nviews)++);
+        g->last_when = x->when;
+        /* A repeated exposure starts the next bracket. */
+        if (!g->bracket ||
+            in_bracket(json_object_get(g->bracket, "frames"), x->meta.exposure_time)) {
+            g->bracket = json_object();
+            json_object_set_new(g->bracket, "frames", json_array());
+            json_array_append_new(g->brackets, g->bracket);
+            g->b = (int)json_array_size(g->brackets) - 1;
+            g->k = 0;
+        }
+        char stem[48];
+        snprintf(stem, sizeof stem, "v%02d_b%02d_f%02d", g->v, g->b, g->k++);
+        json_t *frame;
+        if ((r = copy_shot(x, shots[j].count, dir, stem, progress, written, &frame, err)))
+            break;
+        json_array_append_new(json_object_get(g->bracket, "frames"), frame);
+        (*frames)++;
+    }
+    return r;
+}
+
+/* One problem line for each bracket a merge cannot take as it is: frames
+ * with no EXIF exposure time (grouped by time and name alone; a merge needs
+ * their times given), or a single frame (nothing to merge: often a bracket
+ * shot slower than --gap). */
+static void note_unmergeable(json_t *views, json_t *problems, double gap)
+{
+    size_t vi, bi, fi;
+    json_t *view, *bracket, *frame;
+    json_array_foreach(views, vi, view)
+    {
+        json_array_foreach(json_object_get(view, "brackets"), bi, bracket)
+        {
+            json_t *fr = json_object_get(bracket, "frames");
+            int missing = 0;
+            const char *first = NULL;
+            json_array_foreach(fr, fi, frame)
+            {
+                if (!json_is_number(json_object_get(frame, "exposure_time"))) {
+                    missing++;
+                    first = first ? first : json_string_value(json_object_get(frame, "source"));
+                }
+            }
+            char msg[512];
+            if (json_array_size(fr) == 1) {
+                char alone[160] = "";
+                if (json_array_size(json_object_get(view, "brackets")) == 1)
+                    snprintf(alone, sizeof alone,
+                             " (alone in its view: kept apart by its setup, or by a pause "
+                             "longer than the gap, %g s)",
+                             gap);
+                snprintf(msg, sizeof msg, "view %d bracket %d: one frame (%s): nothing to merge%s",
+                         (int)json_integer_value(json_object_get(view, "view")), (int)bi,
+                         json_string_value(json_object_get(json_array_get(fr, 0), "source")),
+                         alone);
+                json_array_append_new(problems, json_string(msg));
+            }
+            if (!missing)
+                continue;
+            snprintf(msg, sizeof msg,
+                     "view %d bracket %d: %d of %zu frames (%s%s) have no EXIF exposure time: "
+                     "grouped by time and name only; merge needs their times (--times)",
+                     (int)json_integer_value(json_object_get(view, "view")), (int)bi, missing,
+                     json_array_size(fr), first ? first : "?", missing > 1 ? ", ..." : "");
+            json_array_append_new(problems, json_string(msg));
+        }
+    }
+}
+
+/* A failed ingest takes back what it copied (the frames stay on the card),
+ * and the folder when it made it. */
+static void remove_written(const char *dir, json_t *written, bool made_dir)
+{
+    size_t i;
+    json_t *name;
+    json_array_foreach(written, i, name)
+    {
+        char path[4096];
+        if (!sl_capture_path(path, sizeof path, dir, json_string_value(name), NULL))
+            unlink(path);
+    }
+    if (made_dir)
+        rmdir(dir);
+}
+
 sl_result sl_ingest(const char *src, const char *dir, double gap, sl_progress *progress,
                     int *frames, int *nviews, sl_error *err)
 {
@@ -228,103 +515,57 @@ sl_result sl_ingest(const char *src, const char *dir, double gap, sl_progress *p
     if (stat(jp, &st) == 0)
         return sl_error_set(err, SL_ERR_USAGE, "%s: already holds a session; never overwritten",
                             dir);
-    shots s = {.problems = json_array()};
+    photos s = {.problems = json_array()};
     r = scan(src, "", &s, 0, err);
     if (!r && s.count == 0)
         r = sl_error_set(err, SL_ERR_INPUT, "%s: no photographs found", src);
-    if (!r && stat(dir, &st) != 0 && mkdir(dir, 0755) != 0)
-        r = sl_error_set(err, SL_ERR_IO, "%s: cannot create: %s", dir, strerror(errno));
-    json_t *views = json_array();
+    shot *shots = NULL;
+    setup_group *groups = NULL;
+    int nshots = 0, ngroups = 0;
+    json_t *views = json_array(), *splits = json_array();
+    if (!r)
+        r = find_shots(&s, &shots, &nshots, err);
+    if (!r)
+        r = group_by_setup(&s, shots, nshots, &groups, &ngroups, err);
+    if (!r)
+        r = split_lines(&s, shots, nshots, groups, ngroups, splits, err);
+    bool made_dir = false;
+    if (!r && stat(dir, &st) != 0) {
+        if (mkdir(dir, 0755) != 0)
+            r = sl_error_set(err, SL_ERR_IO, "%s: cannot create: %s", dir, strerror(errno));
+        made_dir = !r;
+    }
+    json_t *written = json_array();
     if (!r) {
-        qsort(s.items, (size_t)s.count, sizeof *s.items, cmp_shot);
         if (progress)
             progress->total = s.count;
-        json_t *view = NULL, *brackets = NULL, *bracket = NULL;
-        int v = -1, b = 0, k = 0;
-        for (int i = 0; i < s.count && !r; i++) {
-            shot *x = &s.items[i];
-            bool new_view = !view || (x->when > 0 && s.items[i - 1].when > 0 &&
-                                      x->when - s.items[i - 1].when > gap);
-            if (new_view) {
-                view = json_object();
-                brackets = json_array();
-                json_object_set_new(view, "view", json_integer(++v));
-                json_object_set_new(view, "brackets", brackets);
-                json_array_append_new(views, view);
-                bracket = NULL;
-                b = 0;
-            }
-            /* A repeated exposure starts the next bracket. */
-            if (!bracket || in_bracket(json_object_get(bracket, "frames"), x->meta.exposure_time)) {
-                bracket = json_object();
-                json_object_set_new(bracket, "frames", json_array());
-                json_array_append_new(brackets, bracket);
-                if (json_array_size(brackets) > 1)
-                    b++;
-                k = 0;
-            }
-            /* The shot's other files follow it in the sort order. */
-            int n = 1;
-            while (i + n < s.count && same_shot(x, &s.items[i + n]))
-                n++;
-            /* Formats may round the exposure differently: order the shot's
-             * files by format here, not by their exposures. */
-            qsort(x, (size_t)n, sizeof *x, cmp_format);
-            char stem[48];
-            snprintf(stem, sizeof stem, "v%02d_b%02d_f%02d", v, b, k++);
-            json_t *f = json_object(), *siblings = json_array();
-            double t = 0, fn = 0, iso = 0;
-            for (int m = 0; m < n && !r; m++) {
-                const shot *y = &s.items[i + m];
-                char name[64], sha[65];
-                if ((r = copy_shot_file(y, dir, stem, m, name, sha, err)))
-                    break;
-                sl_progress_add(progress, 1);
-                /* OpenImageIO drops some EXIF from some formats (ISO from
-                 * TIFF): a sibling fills what the frame's file lacks. */
-                t = t > 0 ? t : y->meta.exposure_time;
-                fn = fn > 0 ? fn : y->meta.f_number;
-                iso = iso > 0 ? iso : y->meta.iso;
-                if (m == 0) {
-                    json_object_set_new(f, "file", json_string(name));
-                    json_object_set_new(f, "source", json_string(y->name));
-                    json_object_set_new(f, "sha256", json_string(sha));
-                } else {
-                    json_array_append_new(siblings,
-                                          json_pack("{s:s, s:s, s:s}", "file", name, "source",
-                                                    y->name, "sha256", sha));
-                }
-            }
-            if (r) {
-                json_decref(f);
-                json_decref(siblings);
-                break;
-            }
-            json_object_set_new(f, "exposure_time", t > 0 ? json_real(t) : json_null());
-            json_object_set_new(f, "f_number", fn > 0 ? json_real(fn) : json_null());
-            json_object_set_new(f, "iso", iso > 0 ? json_real(iso) : json_null());
-            json_object_set_new(f, "measured_ratio", json_null());
-            if (json_array_size(siblings))
-                json_object_set_new(f, "siblings", siblings);
-            else
-                json_decref(siblings);
-            json_array_append_new(json_object_get(bracket, "frames"), f);
-            i += n - 1;
-            (*frames)++;
-        }
-        *nviews = v + 1;
+        r = group_and_copy(&s, shots, nshots, groups, gap, dir, progress, views, written, frames,
+                           nviews, err);
     }
     for (int i = 0; i < s.count; i++)
         sl_meta_free(&s.items[i].meta);
     free(s.items);
-    if (r) {
+    free(shots);
+    free(groups);
+    if (!r) {
+        size_t i;
+        json_t *line;
+        json_array_foreach(splits, i, line)
+            sl_log(SL_LOG_WARN, "%s: %s", src, json_string_value(line));
+        note_unmergeable(views, s.problems, gap);
+        json_t *camera = json_object();
+        json_object_set_new(camera, "backend", json_string("folder"));
+        json_object_set_new(camera, "port", json_string(src));
+        r = sl_session_write_json(dir, camera, views, s.problems, splits, err);
+    } else {
         json_decref(views);
+        json_decref(splits);
         json_decref(s.problems);
-        *frames = *nviews = 0;
-        return r;
     }
-    json_t *camera = json_object();
-    json_object_set_new(camera, "backend", json_string("folder"));
-    json_object_set_new(camera, "port", json_string(src));
-    return sl_session_write_json(dir, camera, views, s.problems, err);
+    if (r) {
+        remove_written(dir, written, made_dir);
+        *frames = *nviews = 0;
+    }
+    json_decref(written);
+    return r;
 }

@@ -19,9 +19,10 @@ sl_result sl_journal_read(const char *dir, json_t **events, sl_error *err);
 /* dir + "/" + name into buf; SL_ERR_USAGE when too long. */
 sl_result sl_capture_path(char *buf, size_t size, const char *dir, const char *name, sl_error *err);
 /* Writes session.json from a version, a camera object and views built by the
- * caller (steals the references). */
+ * caller (steals the references); `splits` (ingest's, may be NULL: left out)
+ * says which frames were kept apart and why. */
 sl_result sl_session_write_json(const char *dir, json_t *camera, json_t *views, json_t *problems,
-                                sl_error *err);
+                                json_t *splits, sl_error *err);
 
 /* Where a file stands among a shot's files (a body writing RAW+JPEG, or
  * the virtual set's JPEG, TIFF and linear TIFF, stores one shot in several):
@@ -29,10 +30,40 @@ sl_result sl_session_write_json(const char *dir, json_t *camera, json_t *views, 
  * rawest, the others are its siblings. */
 int sl_capture_file_rank(const char *name);
 
-/* EXIF SubSecTimeOriginal (else SubSecTime) of a JPEG or TIFF as a fraction
- * of a second; -1 when absent. */
-double sl_exif_subsec(const unsigned char *data, size_t size);
-double sl_exif_subsec_file(const char *path);
+/* What ingest needs from a JPEG's or TIFF's (TIFF-based raw's) EXIF that
+ * OpenImageIO's sl_meta lacks; "" or -1 when absent. */
+typedef struct sl_exif_extra {
+    double subsec;        /* SubSecTimeOriginal (else SubSecTime), in seconds */
+    char serial[64];      /* BodySerialNumber, DNG CameraSerialNumber, or the
+                             Canon or Nikon maker note's */
+    char lens[128];       /* LensModel, else the Canon maker note's */
+    char lens_serial[64]; /* LensSerialNumber */
+} sl_exif_extra;
+void sl_exif_extra_read(const unsigned char *data, size_t size, sl_exif_extra *extra);
+void sl_exif_extra_file(const char *path, sl_exif_extra *extra);
+/* What the frames of one merge must share (ingest never groups frames of
+ * two setups): make, model and serial of the body, lens, its serial and
+ * focal length, stored size, EXIF orientation, file format and samples. */
+typedef struct sl_frame_setup {
+    char make[64], model[64], serial[64];
+    char lens[128], lens_serial[64];
+    double focal_mm; /* 0 unknown */
+    int width, height, orientation;
+    char format[32];
+    int bits;
+    bool is_float;
+} sl_frame_setup;
+void sl_frame_setup_fill(sl_frame_setup *setup, const sl_meta *meta, const sl_exif_extra *extra,
+                         int width, int height);
+/* True when a and b cannot share a bracket; `why` gets what differs, as
+ * "image size 900x600 vs 640x427; lens 'EF-S18-55mm' vs none". An unknown
+ * serial or lens differs from a known one (a bracket's frames come from one
+ * body that writes the same tags); an unknown focal length does not. */
+bool sl_frame_setup_differs(const sl_frame_setup *a, const sl_frame_setup *b, char *why,
+                            size_t size);
+/* The setup as a JSON object (unknown strings null). */
+json_t *sl_frame_setup_json(const sl_frame_setup *setup);
+
 /* Replaces a JPEG stream's APP0/APP1 segments with a camera's EXIF: make,
  * model, date, exposure time, f-number, ISO, focal length and
  * SubSecTimeOriginal (milliseconds). *jpeg is realloc'd. */

@@ -1,11 +1,13 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* The few EXIF bits capture needs that OIIO's metadata does not carry:
- * SubSecTimeOriginal (frames shot less than a second apart) for ingest, and
- * a camera-style APP1 segment for the virtual camera's JPEGs. */
+ * SubSecTimeOriginal (frames shot less than a second apart), the body's
+ * serial number and the lens for ingest, and a camera-style APP1 segment
+ * for the virtual camera's JPEGs. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "capture_private.h"
 
@@ -90,60 +92,123 @@ static double subsec_value(const tiff *t, unsigned long ifd, unsigned tag)
     return digits ? v : -1;
 }
 
-static double tiff_subsec(const unsigned char *p, size_t n)
+/* An ASCII tag's text, trailing spaces and NULs dropped; "" when absent. */
+static void ascii_value(const tiff *t, unsigned long ifd, unsigned tag, char *buf, size_t size)
 {
-    tiff t = {p, n, false};
-    if (n < 8)
-        return -1;
-    if (!memcmp(p, "MM\0*", 4))
-        t.big = true;
-    else if (memcmp(p, "II*\0", 4))
-        return -1;
+    unsigned type;
+    unsigned long count;
+    size_t at;
+    buf[0] = 0;
+    if (!find_tag(t, ifd, tag, &type, &count, &at) || (type != 2 && type != 7))
+        return;
+    size_t n = 0;
+    for (unsigned long i = 0; i < count && n + 1 < size; i++) {
+        unsigned char c = t->p[at + i];
+        if (c == 0)
+            break;
+        buf[n++] = c >= 32 && c < 127 ? (char)c : '?';
+    }
+    while (n > 0 && buf[n - 1] == ' ')
+        n--;
+    buf[n] = 0;
+}
+
+static bool tiff_header(const unsigned char *p, size_t n, tiff *t, unsigned long *ifd0)
+{
+    if (n < 8 || (memcmp(p, "MM\0*", 4) && memcmp(p, "II*\0", 4)))
+        return false;
+    *t = (tiff){p, n, p[0] == 'M'};
+    return rd32(t, 4, ifd0);
+}
+
+/* Body serial and lens from the maker note of a Canon (a bare IFD with
+ * offsets from the TIFF header: 0x000C serial number, 0x0095 lens model)
+ * or a Nikon ("Nikon\0", version, then a TIFF of its own: 0x001D serial). */
+static void maker_note_ids(const tiff *t, unsigned long exif, const char *make,
+                           sl_exif_extra *x)
+{
+    unsigned type;
+    unsigned long count;
+    size_t note, at;
+    if (!find_tag(t, exif, 0x927C, &type, &count, &note))
+        return;
+    if (!strncasecmp(make, "Canon", 5)) {
+        unsigned long serial;
+        if (!x->serial[0] && find_tag(t, note, 0x000C, &type, &count, &at) && type == 4 &&
+            rd32(t, at, &serial) && serial)
+            snprintf(x->serial, sizeof x->serial, "%lu", serial);
+        if (!x->lens[0])
+            ascii_value(t, note, 0x0095, x->lens, sizeof x->lens);
+    } else if (!strncasecmp(make, "Nikon", 5) && count > 18 && note + 18 <= t->n &&
+               !memcmp(t->p + note, "Nikon\0", 6)) {
+        tiff nt;
+        unsigned long ifd;
+        if (!x->serial[0] && tiff_header(t->p + note + 10, t->n - note - 10, &nt, &ifd))
+            ascii_value(&nt, ifd, 0x001D, x->serial, sizeof x->serial);
+    }
+}
+
+static void tiff_extra(const unsigned char *p, size_t n, sl_exif_extra *x)
+{
+    tiff t;
     unsigned long ifd0, exif;
     unsigned type;
     unsigned long count;
     size_t at;
-    if (!rd32(&t, 4, &ifd0) || !find_tag(&t, ifd0, 0x8769, &type, &count, &at) ||
-        !rd32(&t, at, &exif))
-        return -1;
-    double s = subsec_value(&t, exif, 0x9291); /* SubSecTimeOriginal */
-    if (s < 0)
-        s = subsec_value(&t, exif, 0x9290); /* SubSecTime */
-    return s;
+    if (!tiff_header(p, n, &t, &ifd0))
+        return;
+    ascii_value(&t, ifd0, 0xC62F, x->serial, sizeof x->serial); /* DNG CameraSerialNumber */
+    if (!find_tag(&t, ifd0, 0x8769, &type, &count, &at) || !rd32(&t, at, &exif))
+        return;
+    x->subsec = subsec_value(&t, exif, 0x9291); /* SubSecTimeOriginal */
+    if (x->subsec < 0)
+        x->subsec = subsec_value(&t, exif, 0x9290); /* SubSecTime */
+    char serial[64];
+    ascii_value(&t, exif, 0xA431, serial, sizeof serial); /* BodySerialNumber */
+    if (serial[0])
+        snprintf(x->serial, sizeof x->serial, "%s", serial);
+    ascii_value(&t, exif, 0xA434, x->lens, sizeof x->lens);               /* LensModel */
+    ascii_value(&t, exif, 0xA435, x->lens_serial, sizeof x->lens_serial); /* LensSerialNumber */
+    char make[64];
+    ascii_value(&t, ifd0, 0x010F, make, sizeof make);
+    maker_note_ids(&t, exif, make, x);
 }
 
-double sl_exif_subsec(const unsigned char *data, size_t size)
+void sl_exif_extra_read(const unsigned char *data, size_t size, sl_exif_extra *x)
 {
-    if (size >= 4 && (!memcmp(data, "II*\0", 4) || !memcmp(data, "MM\0*", 4)))
-        return tiff_subsec(data, size);
+    memset(x, 0, sizeof *x);
+    x->subsec = -1;
+    if (size >= 4 && (!memcmp(data, "II*\0", 4) || !memcmp(data, "MM\0*", 4))) {
+        tiff_extra(data, size, x);
+        return;
+    }
     if (size < 4 || data[0] != 0xFF || data[1] != 0xD8)
-        return -1;
+        return;
     size_t i = 2;
     while (i + 4 <= size && data[i] == 0xFF) {
         unsigned marker = data[i + 1];
         size_t len = (size_t)data[i + 2] << 8 | data[i + 3];
         if (marker == 0xDA || len < 2 || i + 2 + len > size)
             break; /* the EXIF segment comes before the scan */
-        if (marker == 0xE1 && len >= 8 && !memcmp(data + i + 4, "Exif\0\0", 6))
-            return tiff_subsec(data + i + 10, len - 8);
+        if (marker == 0xE1 && len >= 8 && !memcmp(data + i + 4, "Exif\0\0", 6)) {
+            tiff_extra(data + i + 10, len - 8, x);
+            return;
+        }
         i += 2 + len;
     }
-    return -1;
 }
 
-double sl_exif_subsec_file(const char *path)
+void sl_exif_extra_file(const char *path, sl_exif_extra *x)
 {
     /* EXIF lives in the first 64 KiB of a JPEG (one APP1 segment) and, in
-     * camera TIFFs, near the start. */
+     * camera TIFFs and TIFF-based raws, near the start. */
     FILE *f = fopen(path, "rb");
-    if (!f)
-        return -1;
-    unsigned char *buf = malloc(1 << 17);
+    unsigned char *buf = f ? malloc(1 << 17) : NULL;
     size_t n = buf ? fread(buf, 1, 1 << 17, f) : 0;
-    fclose(f);
-    double s = buf ? sl_exif_subsec(buf, n) : -1;
+    if (f)
+        fclose(f);
+    sl_exif_extra_read(buf ? buf : (const unsigned char *)"", n, x);
     free(buf);
-    return s;
 }
 
 /* ---- writing ------------------------------------------------------- */

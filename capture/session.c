@@ -41,7 +41,7 @@ static void sort_brackets(json_t *views)
 }
 
 sl_result sl_session_write_json(const char *dir, json_t *camera, json_t *views, json_t *problems,
-                                sl_error *err)
+                                json_t *splits, sl_error *err)
 {
     sort_brackets(views);
     json_t *root = json_object();
@@ -49,6 +49,8 @@ sl_result sl_session_write_json(const char *dir, json_t *camera, json_t *views, 
     json_object_set_new(root, "camera", camera ? camera : json_object());
     json_object_set_new(root, "views", views);
     json_object_set_new(root, "problems", problems ? problems : json_array());
+    if (splits)
+        json_object_set_new(root, "splits", splits);
     char *text = json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(10));
     json_decref(root);
     if (!text)
@@ -130,5 +132,5 @@ sl_result sl_session_write(const char *dir, sl_error *err)
         }
     }
     json_decref(events);
-    return sl_session_write_json(dir, camera, views, problems, err);
+    return sl_session_write_json(dir, camera, views, problems, NULL, err);
 }

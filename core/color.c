@@ -63,6 +63,18 @@ static void rec709_init(void)
    sl_mat3_invert(rec709_to_xyz_m, xyz_to_rec709_m);
 }
 
+void sl_chromaticities_to_rec709(const float xy[8], double m[3][3])
+{
+    const double p[4][2] = {{xy[0], xy[1]}, {xy[2], xy[3]}, {xy[4], xy[5]}, {xy[6], xy[7]}};
+    const double white[3] = {xy[6] / xy[7], 1.0, (1.0 - xy[6] - xy[7]) / xy[7]};
+    double to_xyz[3][3], adapt[3][3];
+    pthread_once(&rec709_once, rec709_init);
+    rgb_to_xyz_from_xy(p, to_xyz);
+    sl_bradford(white, SL_WHITE_D65, adapt);
+    sl_mat3_mul(adapt, to_xyz, m);
+    sl_mat3_mul(xyz_to_rec709_m, m, m);
+}
+
 void sl_rec709_to_xyz(const double rgb[3], double xyz[3])
 {
     pthread_once(&rec709_once, rec709_init);

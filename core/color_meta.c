@@ -17,6 +17,9 @@ typedef struct space_xy {
 static const space_xy spaces[] = {
     {"lin_rec709", {0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f}},
     {"srgb", {0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f}},
+    {"gamma22_rec709", {0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f}},
+    {"gamma18_rec709", {0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f}},
+    {"rec709_camera", {0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f}},
     {"acescg", {0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f}},
     {"acescct", {0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f}},
     {"aces2065-1", {0.7347f, 0.2653f, 0.0f, 1.0f, 0.0001f, -0.077f, 0.32168f, 0.33767f}},
@@ -46,7 +49,8 @@ const char *sl_meta_color_space(const sl_meta *meta)
     if (meta->has_chromaticities)
         /* Linear spaces only: chromaticities do not say whether a curve was applied. */
         for (size_t i = 0; i < sizeof spaces / sizeof spaces[0]; i++) {
-            if (!strcmp(spaces[i].name, "srgb") || !strcmp(spaces[i].name, "acescct"))
+            const char *encoding = sl_color_space_encoding(spaces[i].name);
+            if (!encoding || strcmp(encoding, "scene-linear") != 0)
                 continue;
             bool same = true;
             for (int k = 0; k < 8; k++)

@@ -5,6 +5,7 @@
 
 #include <pthread.h>
 #include <stdarg.h>
+#include <string.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -19,27 +20,79 @@ void sl_log_set_level(sl_log_level level) { min_level = level; }
 void sl_log_set_quiet(bool q) { quiet = q; }
 bool sl_log_is_quiet(void) { return quiet; }
 
-void sl_log(sl_log_level level, const char *fmt, ...)
+static bool shown(sl_log_level level)
+{
+    return level >= min_level && !(quiet && level < SL_LOG_WARN);
+}
+
+/* One line; the caller holds log_lock. */
+static void write_line(sl_log_level level, const char *text)
 {
     static const char *const prefix[] = {"debug: ", "", "warning: ", "error: "};
-    if (level < min_level)
-        return;
-    if (quiet && level < SL_LOG_WARN)
-        return;
-    va_list ap;
-    pthread_mutex_lock(&log_lock);
     if (active_bar)
         fputs("\r\033[K", stderr);
-    fputs("setlight: ", stderr);
-    fputs(prefix[level], stderr);
-    va_start(ap, fmt);
-    vfprintf(stderr, fmt, ap);
-    va_end(ap);
-    fputc('\n', stderr);
+    fprintf(stderr, "setlight: %s%s\n", prefix[level], text);
     if (active_bar) {
         active_bar->last_draw_seconds = 0;
         progress_draw(active_bar, false);
     }
+}
+
+/* Notes held for the end of a run: a refusal stays one line. */
+#define NOTES_MAX 32
+#define LINE_MAX_CHARS 2048
+static bool notes_held;
+static int note_count;
+static struct {
+    sl_log_level level;
+    char text[LINE_MAX_CHARS];
+} notes[NOTES_MAX];
+
+void sl_log_hold_notes(bool hold) { notes_held = hold; }
+
+static void log_line(sl_log_level level, bool note, const char *fmt, va_list ap)
+{
+    if (!shown(level))
+        return;
+    char text[LINE_MAX_CHARS];
+    vsnprintf(text, sizeof text, fmt, ap);
+    pthread_mutex_lock(&log_lock);
+    if (!note || !notes_held) {
+        write_line(level, text);
+    } else {
+        bool seen = false;
+        for (int i = 0; i < note_count && !seen; i++)
+            seen = strcmp(notes[i].text, text) == 0;
+        if (!seen && note_count < NOTES_MAX) {
+            notes[note_count].level = level;
+            memcpy(notes[note_count++].text, text, sizeof text);
+        }
+    }
+    pthread_mutex_unlock(&log_lock);
+}
+
+void sl_log(sl_log_level level, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    log_line(level, false, fmt, ap);
+    va_end(ap);
+}
+
+void sl_log_note(sl_log_level level, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    log_line(level, true, fmt, ap);
+    va_end(ap);
+}
+
+void sl_log_release_notes(bool print)
+{
+    pthread_mutex_lock(&log_lock);
+    for (int i = 0; print && i < note_count; i++)
+        write_line(notes[i].level, notes[i].text);
+    note_count = 0;
     pthread_mutex_unlock(&log_lock);
 }
 

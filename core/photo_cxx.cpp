@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* Camera and photo formats through OpenImageIO 2.4, behind the C API in
- * core.h. No exception crosses into C.
+ * core.h (under photo_private.h's sl_oiio_* names: core/photo.c reads PNG
+ * itself). No exception crosses into C.
  *
  * Reading returns subimage 0, mip level 0, the data window, the first (up to)
  * four channels, as float: integer formats scaled to [0, 1] with no transfer

@@ -1,36 +1,42 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* The photo calls (sl_photo_*, DWA EXR pixels) forward to the OpenImageIO
- * module (core/photo_cxx.cpp built as setlight_oiio), loaded on the first
- * call: linked in, OpenImageIO's ~260 libraries cost every process ~0.3 s
- * of CPU at start-up binding their symbols, whether it reads a photo or
- * not. The module calls back into core through the executable's exported
- * symbols. */
+/* OpenImageIO's photo calls (photo_private.h's sl_oiio_*, and DWA EXR
+ * pixels) forward to core/photo_cxx.cpp, built as the setlight_oiio module
+ * and loaded on the first call: linked in, OpenImageIO's ~260 libraries
+ * cost every process ~0.3 s of CPU at start-up binding their symbols,
+ * whether it reads a photo or not. The module calls back into core through
+ * the executable's exported symbols. Sanitizer builds link photo_cxx.cpp
+ * in (SETLIGHT_OIIO_MODULE undefined): the same calls, no loading. */
 #include "setlight/core.h"
 #include "exr_oiio.h"
+#include "photo_private.h"
 
-#include <dlfcn.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <string.h>
-#include <unistd.h>
 
-#ifndef SETLIGHT_OIIO_MODULE
-#error "SETLIGHT_OIIO_MODULE: path of the setlight_oiio module"
+#ifdef SETLIGHT_OIIO_MODULE
+#include <dlfcn.h>
 #endif
 
-static struct {
+typedef struct oiio_api {
     sl_result (*read)(const char *, sl_image *, sl_meta *, sl_error *);
     sl_result (*read_meta)(const char *, sl_meta *, int *, int *, int *, sl_error *);
     sl_result (*write)(const char *, const sl_image *, const sl_meta *, int, sl_error *);
     sl_result (*exr_pixels)(const char *, const char *const *, int, int, int, sl_image *,
                             sl_error *);
-    sl_result (*strips_open)(const char *, sl_photo_strips **, sl_photo_strip_info *, sl_error *);
-    sl_result (*strips_read)(sl_photo_strips *, int, int, float *, sl_error *);
-    sl_result (*strips_read_codes)(sl_photo_strips *, int, int, void *, sl_error *);
-    void (*strips_close)(sl_photo_strips *);
-} api;
+    sl_result (*strips_open)(const char *, sl_oiio_strips **, sl_photo_strip_info *, sl_error *);
+    sl_result (*strips_read)(sl_oiio_strips *, int, int, float *, sl_error *);
+    sl_result (*strips_read_codes)(sl_oiio_strips *, int, int, void *, sl_error *);
+    void (*strips_close)(sl_oiio_strips *);
+} oiio_api;
+static oiio_api api;
 static char load_error[512];
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
+static int start_count;
+
+int sl_oiio_start_count(void) { return start_count; }
+
+#ifdef SETLIGHT_OIIO_MODULE
 
 /* What the module uses from core, so that every executable that can load
  * it has (and exports) these. */
@@ -43,32 +49,11 @@ __attribute__((used)) static const void *const module_needs[] = {
     (const void *)sl_meta_set,
 };
 
-/* The module next to the executable (a build tree or an install moved as a
- * whole: setlight in build/, tests in build/tests/), else where it was built. */
-static void *open_module(void)
-{
-    const char *base = strrchr(SETLIGHT_OIIO_MODULE, '/');
-    base = base ? base + 1 : SETLIGHT_OIIO_MODULE;
-    char exe[4096];
-    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    char *slash = n > 0 ? (exe[n] = 0, strrchr(exe, '/')) : NULL;
-    if (slash) {
-        *slash = 0;
-        const char *const rel[] = {"", "/.."};
-        for (int i = 0; i < 2; i++) {
-            char path[4400];
-            snprintf(path, sizeof path, "%s%s/%s", exe, rel[i], base);
-            void *h = access(path, R_OK) == 0 ? dlopen(path, RTLD_NOW | RTLD_LOCAL) : NULL;
-            if (h)
-                return h;
-        }
-    }
-    return dlopen(SETLIGHT_OIIO_MODULE, RTLD_NOW | RTLD_LOCAL);
-}
-
 static void load(void)
 {
-    void *h = open_module();
+    start_count++;
+    sl_log(SL_LOG_DEBUG, "starting OpenImageIO (%s)", SETLIGHT_OIIO_MODULE);
+    void *h = sl_module_open(SETLIGHT_OIIO_MODULE);
     if (!h) {
         const char *why = dlerror();
         snprintf(load_error, sizeof load_error, "%s", why ? why : SETLIGHT_OIIO_MODULE);
@@ -76,14 +61,14 @@ static void load(void)
     }
     /* dlsym returns void *; POSIX guarantees it converts to a function pointer. */
 #define SYM(field, name) *(void **)&api.field = dlsym(h, name)
-    SYM(read, "sl_oiio_photo_read");
-    SYM(read_meta, "sl_oiio_photo_read_meta");
-    SYM(write, "sl_oiio_photo_write");
-    SYM(exr_pixels, "sl_oiio_exr_read_pixels");
-    SYM(strips_open, "sl_oiio_strips_open");
-    SYM(strips_read, "sl_oiio_strips_read");
-    SYM(strips_read_codes, "sl_oiio_strips_read_codes");
-    SYM(strips_close, "sl_oiio_strips_close");
+    SYM(read, "sl_oiio_module_read");
+    SYM(read_meta, "sl_oiio_module_read_meta");
+    SYM(write, "sl_oiio_module_write");
+    SYM(exr_pixels, "sl_oiio_module_exr_pixels");
+    SYM(strips_open, "sl_oiio_module_strips_open");
+    SYM(strips_read, "sl_oiio_module_strips_read");
+    SYM(strips_read_codes, "sl_oiio_module_strips_read_codes");
+    SYM(strips_close, "sl_oiio_module_strips_close");
 #undef SYM
     if (!api.read || !api.read_meta || !api.write || !api.exr_pixels || !api.strips_open ||
         !api.strips_read || !api.strips_read_codes || !api.strips_close) {
@@ -91,6 +76,32 @@ static void load(void)
         memset(&api, 0, sizeof api);
     }
 }
+
+#else /* photo_cxx.cpp linked in, under these names (CMakeLists.txt) */
+
+sl_result sl_oiio_module_read(const char *, sl_image *, sl_meta *, sl_error *);
+sl_result sl_oiio_module_read_meta(const char *, sl_meta *, int *, int *, int *, sl_error *);
+sl_result sl_oiio_module_write(const char *, const sl_image *, const sl_meta *, int, sl_error *);
+sl_result sl_oiio_module_exr_pixels(const char *, const char *const *, int, int, int, sl_image *,
+                                    sl_error *);
+sl_result sl_oiio_module_strips_open(const char *, sl_oiio_strips **, sl_photo_strip_info *,
+                                     sl_error *);
+sl_result sl_oiio_module_strips_read(sl_oiio_strips *, int, int, float *, sl_error *);
+sl_result sl_oiio_module_strips_read_codes(sl_oiio_strips *, int, int, void *, sl_error *);
+void sl_oiio_module_strips_close(sl_oiio_strips *);
+
+static void load(void)
+{
+    static const oiio_api linked = {
+        sl_oiio_module_read,        sl_oiio_module_read_meta,   sl_oiio_module_write,
+        sl_oiio_module_exr_pixels,  sl_oiio_module_strips_open, sl_oiio_module_strips_read,
+        sl_oiio_module_strips_read_codes, sl_oiio_module_strips_close,
+    };
+    start_count++;
+    api = linked;
+}
+
+#endif
 
 /* Loads the module once; false with err set when it cannot be. */
 static bool loaded(const char *path, sl_error *err)
@@ -103,7 +114,7 @@ static bool loaded(const char *path, sl_error *err)
     return false;
 }
 
-sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
+sl_result sl_oiio_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
 {
     if (loaded(path, err))
         return api.read(path, img, meta, err);
@@ -113,23 +124,15 @@ sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error
     return SL_ERR_UNSUPPORTED;
 }
 
-sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *width, int *height,
+sl_result sl_oiio_read_meta(const char *path, sl_meta *meta, int *width, int *height,
                              int *channels, sl_error *err)
 {
-    if (loaded(path, err))
-        return api.read_meta(path, meta, width, height, channels, err);
-    if (meta)
-        sl_meta_init(meta);
-    if (width)
-        *width = 0;
-    if (height)
-        *height = 0;
-    if (channels)
-        *channels = 0;
-    return SL_ERR_UNSUPPORTED;
+    /* Unloaded, the outputs stay as core/photo.c set them: nothing read. */
+    return loaded(path, err) ? api.read_meta(path, meta, width, height, channels, err)
+                             : SL_ERR_UNSUPPORTED;
 }
 
-sl_result sl_photo_write(const char *path, const sl_image *img, const sl_meta *meta, int bits,
+sl_result sl_oiio_write(const char *path, const sl_image *img, const sl_meta *meta, int bits,
                          sl_error *err)
 {
     return loaded(path, err) ? api.write(path, img, meta, bits, err) : SL_ERR_UNSUPPORTED;
@@ -142,7 +145,7 @@ sl_result sl_exr_read_pixels_oiio(const char *path, const char *const *names, in
                              : SL_ERR_UNSUPPORTED;
 }
 
-sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
+sl_result sl_oiio_strips_open(const char *path, sl_oiio_strips **strips,
                                sl_photo_strip_info *info, sl_error *err)
 {
     if (loaded(path, err))
@@ -153,18 +156,18 @@ sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
 }
 
 /* Strips exist only once the module is loaded. */
-sl_result sl_photo_strips_read(sl_photo_strips *strips, int y0, int y1, float *rgb, sl_error *err)
+sl_result sl_oiio_strips_read(sl_oiio_strips *strips, int y0, int y1, float *rgb, sl_error *err)
 {
     return api.strips_read(strips, y0, y1, rgb, err);
 }
 
-sl_result sl_photo_strips_read_codes(sl_photo_strips *strips, int y0, int y1, void *rgb,
+sl_result sl_oiio_strips_read_codes(sl_oiio_strips *strips, int y0, int y1, void *rgb,
                                      sl_error *err)
 {
     return api.strips_read_codes(strips, y0, y1, rgb, err);
 }
 
-void sl_photo_strips_close(sl_photo_strips *strips)
+void sl_oiio_strips_close(sl_oiio_strips *strips)
 {
     if (strips)
         api.strips_close(strips);

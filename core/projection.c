@@ -51,10 +51,13 @@ void sl_projection_size(sl_projection p, int latlong_width, int *width, int *hei
 }
 
 /* Mirror ball and angular map share the same disc: image point (px, py) in
- * [-1,1] with py up; the camera looks along +Z with +Y up, so image right is
- * world -X and the disc centre shows -Z (back toward the camera). Both are the
- * same picture up to the radial law: angle from -Z is 2 asin(r) for the ball
- * and pi r for the angular map. */
+ * [-1,1] with py up, image right world -X, image up +Y (the view of a camera
+ * looking along +Z with +Y up). The ball's centre reflects -Z (back toward
+ * the camera) at angle 2 asin(r) from it. The angular map is Debevec's light
+ * probe: its centre is the camera's forward direction +Z, at angle pi r from
+ * it, its rim -Z; seen from inside it is an unmirrored view, as his
+ * definition (centre forward, image right the viewer's right) and the
+ * lat-longs other tools make from his probes have it (docs/geometry.md). */
 static bool disc_to_dir(bool angular, double px, double py, double dir[3])
 {
     double r2 = px * px + py * py;
@@ -68,7 +71,7 @@ static bool disc_to_dir(bool angular, double px, double py, double dir[3])
         double s = r > 0.0 ? sin(theta) / r : M_PI;
         dir[0] = -px * s;
         dir[1] = py * s;
-        dir[2] = -cos(theta);
+        dir[2] = cos(theta);
     } else {
         /* Reflect the view vector (0,0,1) about the normal (-px, py, -sqrt(1-r^2)). */
         double nz = sqrt(1.0 - r2);
@@ -82,13 +85,15 @@ static bool disc_to_dir(bool angular, double px, double py, double dir[3])
 static void dir_to_disc(bool angular, const double dir[3], double *px, double *py)
 {
     double rho = hypot(dir[0], dir[1]);
-    double theta = atan2(rho, -dir[2]); /* angle from -Z, stable everywhere */
+    /* Angle from the disc's centre (+Z angular, -Z ball), stable everywhere. */
+    double theta = atan2(rho, angular ? dir[2] : -dir[2]);
     double r = angular ? theta / M_PI : sin(0.5 * theta);
     if (rho > 0.0) {
         *px = -dir[0] / rho * r;
         *py = dir[1] / rho * r;
     } else {
-        /* Straight at -Z is the centre; straight at +Z is the whole rim: pick its right end. */
+        /* Straight at the centre direction is the centre; straight away from it
+         * is the whole rim: pick its right end. */
         *px = r;
         *py = 0.0;
     }

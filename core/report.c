@@ -169,6 +169,17 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
     append_lit(rep, "</p>\n");
 }
 
+/* "<figure><img src=FILE><figcaption>CAPTION</figcaption>", left open for
+ * more captions. */
+static void figure_begin(sl_report *rep, const char *file, const char *caption)
+{
+    append_lit(rep, "<figure><img src=\"");
+    append_escaped(rep, file);
+    append_lit(rep, "\"><figcaption>");
+    append_escaped(rep, caption);
+    append_lit(rep, "</figcaption>");
+}
+
 sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
                           const char *caption, sl_error *err)
 {
@@ -177,32 +188,27 @@ sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img,
     int k = img->width > 0 && img->width < REPORT_MIN_WIDTH
                 ? (REPORT_MIN_WIDTH + img->width - 1) / img->width
                 : 1;
-    sl_image png;
-    sl_result r = sl_image_alloc(&png, img->width * k, img->height * k, 3, err);
-    if (r)
-        return r;
-    float scale = (float)exp2(stops);
-    for (int y = 0; y < png.height; y++)
-        for (int x = 0; x < png.width; x++) {
-            const float *s = sl_image_pixel(img, x / k, y / k);
-            float *d = sl_image_pixel(&png, x, y);
-            for (int c = 0; c < 3; c++) {
-                float v = (img->channels >= 3 ? s[c] : s[0]) * scale;
-                v = isfinite(v) ? (v < 0 ? 0 : v > 1 ? 1 : v) : 0;
-                d[c] = sl_linear_to_srgb(v);
-            }
-        }
+    sl_image big = {0};
+    if (k > 1) {
+        sl_result ra = sl_image_alloc(&big, img->width * k, img->height * k, img->channels, err);
+        if (ra)
+            return ra;
+        for (int y = 0; y < big.height; y++)
+            for (int x = 0; x < big.width; x++)
+                memcpy(sl_image_pixel(&big, x, y), sl_image_pixel(img, x / k, y / k),
+                       sizeof(float) * (size_t)img->channels);
+    }
+    /* The same picture as a convert preview at that exposure (default view). */
+    sl_preview_options opt = {.exposure_stops = stops};
+    sl_preview_result shown;
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", rep->dir, file);
-    r = sl_photo_write(path, &png, NULL, 8, err);
-    sl_image_free(&png);
+    sl_result r = sl_preview_write(path, k > 1 ? &big : img, NULL, &opt, &shown, err);
+    sl_image_free(&big);
     if (r)
         return r;
-    append_lit(rep, "<figure><img src=\"");
-    append_escaped(rep, file);
-    append_lit(rep, "\"><figcaption>");
-    append_escaped(rep, caption ? caption : file);
-    append_lit(rep, "</figcaption></figure>\n");
+    figure_begin(rep, file, caption ? caption : file);
+    append_lit(rep, "</figure>\n");
     return SL_OK;
 }
 
@@ -330,6 +336,15 @@ static void svg_build(sl_report *svg, const char *title, const char *xlabel, con
     append_lit(svg, "</svg>\n");
 }
 
+/* Writes a built SVG atomically and frees it. */
+static sl_result svg_write(sl_report *svg, const char *path, sl_error *err)
+{
+    sl_result r = svg->failed ? sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path)
+                              : sl_write_file_atomic(path, svg->html, svg->len, err);
+    free(svg->html);
+    return r;
+}
+
 sl_result sl_plot_write_svg(const char *path, const char *title, const char *xlabel,
                             const char *ylabel, bool log_x, bool log_y,
                             const sl_plot_series *series, int series_count, sl_error *err)
@@ -337,10 +352,7 @@ sl_result sl_plot_write_svg(const char *path, const char *title, const char *xla
     sl_report svg;
     memset(&svg, 0, sizeof svg);
     svg_build(&svg, title, xlabel, ylabel, log_x, log_y, series, series_count);
-    sl_result r = svg.failed ? sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path)
-                             : sl_write_file_atomic(path, svg.html, svg.len, err);
-    free(svg.html);
-    return r;
+    return svg_write(&svg, path, err);
 }
 
 sl_result sl_report_plot(sl_report *rep, const char *file, const char *title, const char *xlabel,
@@ -353,11 +365,8 @@ sl_result sl_report_plot(sl_report *rep, const char *file, const char *title, co
                                     series_count, err);
     if (r)
         return r;
-    append_lit(rep, "<figure><img src=\"");
-    append_escaped(rep, file);
-    append_lit(rep, "\"><figcaption>");
-    append_escaped(rep, title);
-    append_lit(rep, "</figcaption></figure>\n");
+    figure_begin(rep, file, title);
+    append_lit(rep, "</figure>\n");
     return SL_OK;
 }
 
@@ -447,16 +456,10 @@ sl_result sl_report_bars(sl_report *rep, const char *file, const char *title, co
     sl_report svg;
     memset(&svg, 0, sizeof svg);
     svg_bars(&svg, title, ylabel, labels, notes, count, series, series_count);
-    sl_result r = svg.failed ? sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path)
-                             : sl_write_file_atomic(path, svg.html, svg.len, err);
-    free(svg.html);
+    sl_result r = svg_write(&svg, path, err);
     if (r)
         return r;
-    append_lit(rep, "<figure><img src=\"");
-    append_escaped(rep, file);
-    append_lit(rep, "\"><figcaption>");
-    append_escaped(rep, title);
-    append_lit(rep, "</figcaption>");
+    figure_begin(rep, file, title);
     /* the excluded entries and why, beside the chart */
     bool any = false;
     for (int i = 0; notes && i < count; i++)

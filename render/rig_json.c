@@ -40,7 +40,7 @@ static sl_result read_image(const char *path, const char *field, const char *fil
     char full[4096];
     resolve(path, file, full, sizeof full);
     sl_error ierr = {0};
-    if (sl_image_read(full, img, NULL, &ierr))
+    if (sl_image_read_linear(full, NULL, img, NULL, NULL, &ierr))
         return sl_error_set(err, SL_ERR_INPUT, "%s: %s: %s", path, field, ierr.message);
     return SL_OK;
 }

@@ -13,8 +13,8 @@ bool sl_scene_arg_is_file(const char *s)
 }
 
 sl_result sl_scene_load(sl_scene *scene, const char *scene_arg, int width, const char *env,
-                        double env_rotation_deg, double env_intensity, const char *rig,
-                        sl_error *err)
+                        const char *env_colorspace, double env_rotation_deg, double env_intensity,
+                        const char *rig, sl_error *err)
 {
     if (!env == !rig)
         return sl_error_set(err, SL_ERR_USAGE, "give exactly one of an environment and a rig");
@@ -25,7 +25,7 @@ sl_result sl_scene_load(sl_scene *scene, const char *scene_arg, int width, const
     if (rig)
         return sl_scene_read_rig(scene, rig, err);
     sl_image img;
-    if ((r = sl_image_read(env, &img, NULL, err)))
+    if ((r = sl_latlong_read(env, env_colorspace, &img, NULL, NULL, err)))
         return r;
     r = sl_scene_set_dome(scene, &img, env_rotation_deg, env_intensity, env, err);
     sl_image_free(&img);

@@ -10,10 +10,12 @@ packages=(
   libgphoto2-dev gphoto2
   libopencolorio-dev
   libraw-dev
+  libpng-dev
   libjansson-dev
   libssl-dev
   python3
   chromium-headless-shell   # the tests open the HTML reports in a real browser
+  python3-numpy python3-opencv
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -11,26 +11,29 @@ extern "C" {
 }
 
 extern "C" int ball_hough_cxx(const unsigned char *gray, int width, int height,
-                              double min_radius, double max_radius, double min_dist, float *out,
-                              int max_out)
+                              double min_radius, double max_radius, double min_dist, int kinds,
+                              double edge_threshold, float *out, int max_out)
 {
     try {
         cv::Mat img(height, width, CV_8UC1, const_cast<unsigned char *>(gray));
         cv::Mat blurred;
         cv::GaussianBlur(img, blurred, cv::Size(0, 0), 1.5);
-        // Three lists, interleaved so a cap on the count starves none: the
-        // accurate variant (few well-supported circles), the classic one with
-        // centres at least a ball radius apart (one per region), and the
-        // classic one with dense centres (a clutter peak next to the ball must
-        // not hide it). Low thresholds on purpose: false candidates are cheap,
+        // Up to three lists, interleaved so a cap on the count starves none:
+        // the accurate variant (few well-supported circles), the classic one
+        // with centres at least a ball radius apart (one per region), and
+        // the classic one with dense centres (a clutter peak next to the
+        // ball must not hide it). Low thresholds on purpose: false candidates are cheap,
         // the edge fit rejects them; a missed ball is not recoverable.
         std::vector<cv::Vec3f> lists[3], circles;
-        cv::HoughCircles(blurred, lists[0], cv::HOUGH_GRADIENT_ALT, 1.5, min_dist, 150.0, 0.5,
-                         (int)min_radius, (int)max_radius);
-        cv::HoughCircles(blurred, lists[1], cv::HOUGH_GRADIENT, 1.0, min_radius, 100.0, 18.0,
-                         (int)min_radius, (int)max_radius);
-        cv::HoughCircles(blurred, lists[2], cv::HOUGH_GRADIENT, 1.0, min_dist, 100.0, 18.0,
-                         (int)min_radius, (int)max_radius);
+        if (kinds & BALL_HOUGH_ALT)
+            cv::HoughCircles(blurred, lists[0], cv::HOUGH_GRADIENT_ALT, 1.5, min_dist, 150.0, 0.5,
+                             (int)min_radius, (int)max_radius);
+        if (kinds & BALL_HOUGH_CLASSIC) {
+            cv::HoughCircles(blurred, lists[1], cv::HOUGH_GRADIENT, 1.0, min_radius,
+                             edge_threshold, 18.0, (int)min_radius, (int)max_radius);
+            cv::HoughCircles(blurred, lists[2], cv::HOUGH_GRADIENT, 1.0, min_dist, edge_threshold,
+                             18.0, (int)min_radius, (int)max_radius);
+        }
         for (size_t i = 0; i < lists[1].size() || i < lists[2].size() || i < lists[0].size(); i++)
             for (const auto &l : lists)
                 if (i < l.size())

@@ -51,3 +51,24 @@ double sl_exposure_luminance(double time_s, double f_number, double iso)
      * lux s saturates; H = q L t / N^2 with q = 0.65. */
     return 78.0 * f_number * f_number / (0.65 * iso * time_s);
 }
+
+int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction)
+{
+    int64_t count = 0;
+    double negative = 0, total = 0;
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            float *v = sl_image_pixel(img, x, y);
+            for (int c = 0; c < 3 && c < img->channels; c++) {
+                total += fabs((double)v[c]);
+                if (v[c] < 0) {
+                    negative -= v[c];
+                    v[c] = 0;
+                    count++;
+                }
+            }
+        }
+    if (fraction)
+        *fraction = total > 0 ? negative / total : 0;
+    return count;
+}

@@ -151,3 +151,33 @@ sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], doub
     free(buf);
     return SL_OK;
 }
+
+int64_t sl_pinned_maximum(const sl_image *img, double level[3])
+{
+    double top[3] = {0, 0, 0};
+    int64_t at_top[3] = {0, 0, 0}, n = (int64_t)img->width * img->height;
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            const float *v = sl_image_pixel(img, x, y);
+            for (int c = 0; c < 3; c++) {
+                if (!isfinite(v[c]) || v[c] < top[c])
+                    continue;
+                at_top[c] = v[c] > top[c] ? 1 : at_top[c] + 1;
+                top[c] = v[c];
+            }
+        }
+    /* Measured light is never the same float in many pixels at the very
+     * top: a saturated sensor (or a merge's clipped bound) is. */
+    int64_t enough = n / 1000 > 16 ? n / 1000 : 16, pinned = 0;
+    for (int c = 0; c < 3; c++)
+        level[c] = top[c] > 0 && at_top[c] >= enough ? top[c] : 0;
+    for (int y = 0; level[0] + level[1] + level[2] > 0 && y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            const float *v = sl_image_pixel(img, x, y);
+            bool any = false;
+            for (int c = 0; c < 3; c++)
+                any = any || (level[c] > 0 && v[c] >= level[c]);
+            pinned += any;
+        }
+    return pinned;
+}

@@ -26,6 +26,8 @@ void sl_merge_options_init(sl_merge_options *opt)
     opt->seed = 1;
     opt->deghost_sigma = 5;
     opt->deghost_model_error = 0.05;
+    opt->align = SL_ALIGN_AUTO;
+    opt->align_auto_px = 0.5;
     opt->align_max_shift = 64;
     opt->align_max_angle = 2;
     opt->compression = SL_EXR_ZIP;
@@ -161,18 +163,102 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
     return SL_OK;
 }
 
-/* Registers the frames (ordered by the exposures EXIF or --times give). */
+/* Registers the frames (ordered by the exposures EXIF or --times give);
+ * the misalignment is the registered frames' largest displacement. */
 static sl_result align_frames(const char *const *paths, int count, const sl_merge_options *opt,
                               sl_merge_result *res, sl_error *err)
 {
+    merge_clock clock = merge_clock_start();
     double e[MERGE_MAX_FRAMES] = {0};
     sl_align_transform t[MERGE_MAX_FRAMES];
     for (int i = 0; i < count; i++)
         e[i] = res->frames[i].exif_exposure;
     sl_result r = sl_align_bracket(paths, count, e, opt, t, err);
-    for (int i = 0; i < count && !r; i++)
+    res->misalignment_px = 0;
+    for (int i = 0; i < count && !r; i++) {
         res->frames[i].align = t[i];
+        res->aligned = res->aligned || t[i].applied;
+        if (!t[i].refused)
+            res->misalignment_px = fmax(res->misalignment_px, sl_align_displacement(&t[i], res->width, res->height));
+    }
+    merge_clock_charge(&res->timing, clock, SL_MERGE_ALIGN);
     return r;
+}
+
+static const char *base_name(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    return slash ? slash + 1 : path;
+}
+
+/* SL_ALIGN_AUTO after the first sample pass: the misalignment measured on
+ * the planes that pass filled, and whether it calls for registration. */
+static sl_result measure_alignment(merge_ctx *m, const char *const *paths,
+                                   const sl_merge_options *opt, sl_merge_result *res,
+                                   bool *needed, sl_error *err)
+{
+    merge_clock clock = merge_clock_start();
+    int count = res->frame_count, scale = m->measure[0].scale;
+    double e[MERGE_MAX_FRAMES] = {0};
+    sl_align_transform t[MERGE_MAX_FRAMES];
+    for (int i = 0; i < count; i++)
+        e[i] = res->frames[i].exif_exposure;
+    sl_result r = align_measure(m->measure, count, paths, e, opt, m->width, m->height, t, err);
+    for (int i = 0; i < count; i++)
+        align_plane_free(&m->measure[i]);
+    free(m->measure);
+    m->measure = NULL;
+    merge_clock_charge(&res->timing, clock, SL_MERGE_ALIGN);
+    if (r)
+        return r;
+    /* A frame counts as moved by the motion beyond twice its spread only:
+     * resampling blurs, and smooth content can fake a shift (docs/merge.md,
+     * "Alignment"). worst: the largest displacement; sure: the largest
+     * counted one. */
+    int worst = -1, sure = -1;
+    double moved = -1, counted = 0;
+    for (int i = 0; i < count; i++) {
+        t[i].applied = false;
+        res->frames[i].align = t[i];
+        if (t[i].refused || i == m->order[(count - 1) / 2])
+            continue;
+        double d = sl_align_displacement(&t[i], m->width, m->height);
+        double c = sl_align_sure_displacement(&t[i], m->width, m->height);
+        if (d > moved) {
+            moved = d;
+            worst = i;
+        }
+        if (c > counted) {
+            counted = c;
+            sure = i;
+        }
+    }
+    res->misalignment_px = moved;
+    *needed = counted > opt->align_auto_px;
+    if (worst < 0)
+        snprintf(res->align_note, sizeof res->align_note,
+                 "auto: misalignment not measurable (too few pixels well exposed in "
+                 "neighbouring frames): merged as shot");
+    else if (*needed)
+        snprintf(res->align_note, sizeof res->align_note,
+                 "auto: %.40s moved %.2f px (measured at 1/%d size; above %.2g px): registered",
+                 base_name(paths[sure]), counted, scale, opt->align_auto_px);
+    else if (moved > opt->align_auto_px)
+        snprintf(res->align_note, sizeof res->align_note,
+                 "auto: %.32s seems moved %.2f px, within twice the fit's spread (%.2f px, "
+                 "%.3f deg: little texture?): merged as shot",
+                 base_name(paths[worst]), moved, t[worst].shift_spread_px,
+                 t[worst].angle_spread_deg);
+    else
+        snprintf(res->align_note, sizeof res->align_note,
+                 "auto: frames within %.2f px of the reference (measured at 1/%d size; at most "
+                 "%.2g px): merged as shot",
+                 moved, scale, opt->align_auto_px);
+    for (int i = 0; i < count && !*needed; i++)
+        if (!res->frames[i].align.note[0])
+            snprintf(res->frames[i].align.note, sizeof res->frames[i].align.note,
+                     "not resampled: bracket within %.2g px", opt->align_auto_px);
+    return SL_OK;
 }
 
 /* Integer frames that need no warp are read as codes (no float conversion),
@@ -338,7 +424,7 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
 {
     sample_job *job = ctx;
     double *task_cpu = job->task_cpu + (size_t)worker * SL_MERGE_PHASES, t0 = sl_thread_cpu_seconds();
-    double decode = 0;
+    double decode = 0, measure = 0;
     merge_ctx *m = job->m;
     int cb = m->codes ? m->code_bytes : 0;
     float code_scale = cb ? 1.0f / (cb == 1 ? 255.0f : 65535.0f) : 0;
@@ -364,6 +450,11 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
             decode += sl_thread_cpu_seconds() - t;
             if (r)
                 break;
+            if (m->measure) {
+                t = sl_thread_cpu_seconds();
+                align_plane_add(&m->measure[i], strip, cb, w, y0, y1, m->black, m->saturation);
+                measure += sl_thread_cpu_seconds() - t;
+            }
             int64_t n = (int64_t)(y1 - y0) * w;
             const uint8_t *cls = m->code_class;
             if (cb == 1) {
@@ -412,7 +503,8 @@ static void sample_frame(void *ctx, int64_t begin, int64_t end, int worker)
         m->white_pixels[i] = white;
     }
     task_cpu[SL_MERGE_DECODE] += decode;
-    task_cpu[SL_MERGE_SAMPLE] += sl_thread_cpu_seconds() - t0 - decode;
+    task_cpu[SL_MERGE_ALIGN] += measure;
+    task_cpu[SL_MERGE_SAMPLE] += sl_thread_cpu_seconds() - t0 - decode - measure;
 }
 
 static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
@@ -715,7 +807,50 @@ void merge_ctx_free(merge_ctx *m)
     free(m->log_fit);
     free(m->prev_fit);
     free(m->scratch);
+    for (int i = 0; m->measure && i < m->measure_frames; i++)
+        align_plane_free(&m->measure[i]);
+    free(m->measure);
     memset(m, 0, sizeof *m);
+}
+
+/* Undoes the sample pass (and the codes and held frames it chose) for a
+ * second pass over registered frames. */
+static void reset_sample_pass(merge_ctx *m, sl_merge_result *res)
+{
+    release_samples(m);
+    for (int i = 0; i < m->held_slots; i++)
+        free(m->held[i]);
+    free(m->held);
+    free(m->code_class);
+    free(m->white_pixels);
+    m->held = NULL;
+    m->held_slots = 0;
+    m->code_class = NULL;
+    m->white_pixels = NULL;
+    res->held_frames = 0;
+}
+
+/* The frames' codes, held frames, sample positions and sample pass; with
+ * `measure` the pass also fills the alignment measurement's planes. */
+static sl_result sample_frames(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,
+                               bool hold, bool measure, sl_error *err)
+{
+    sl_result r = choose_codes(m, res, err);
+    if (!r && hold)
+        r = hold_frames(m, res, opt->hold_mb, err);
+    if (!r)
+        r = choose_positions(m, res, opt->seed, err);
+    if (!r && measure) {
+        if (!(m->measure = calloc((size_t)res->frame_count, sizeof *m->measure)))
+            r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
+        else
+            m->measure_frames = res->frame_count;
+        for (int i = 0; i < res->frame_count && !r; i++)
+            r = align_plane_init(&m->measure[i], m->width, m->height, err);
+    }
+    if (!r)
+        r = sample_pass(m, res, err);
+    return r;
 }
 
 sl_result merge_prepare(const char *const *paths, int count, const sl_merge_options *opt_in,
@@ -729,7 +864,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     if (!(opt.saturation > opt.black + 0.1) || !(opt.black >= 0) || !(opt.saturation <= 1) ||
         !(opt.noise_gain >= 0) || !(opt.noise_floor > 0) || !(opt.smoothness >= 0) ||
         opt.samples < 16 || !(opt.tolerance_stops > 0) || !(opt.deghost_sigma > 0) ||
-        !(opt.deghost_model_error >= 0))
+        !(opt.deghost_model_error >= 0) || !(opt.align_auto_px >= 0) ||
+        (opt.align != SL_ALIGN_OFF && opt.align != SL_ALIGN_ON && opt.align != SL_ALIGN_AUTO))
         return sl_error_set(err, SL_ERR_USAGE,
                             "merge: options out of range (0 <= black < saturation - 0.1, "
                             "saturation <= 1, noise floor > 0, smoothness >= 0, samples >= 16)");
@@ -749,16 +885,36 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         if (!m->ratio || !m->offsets || !m->log_fit || !m->prev_fit || !m->scratch)
             r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     }
-    if (!r && opt.align)
+    out->align_mode = opt.align;
+    out->misalignment_px = -1;
+    out->width = m->width;
+    out->height = m->height;
+    if (!r && opt.align == SL_ALIGN_ON) {
         r = align_frames(paths, count, &opt, out, err);
+        snprintf(out->align_note, sizeof out->align_note, "on: %s", out->aligned ? "registered" : "nothing to resample");
+    } else if (opt.align == SL_ALIGN_OFF)
+        snprintf(out->align_note, sizeof out->align_note, "off: not measured, merged as shot");
     if (!r)
-        r = choose_codes(m, out, err);
-    if (!r && hold)
-        r = hold_frames(m, out, opt.hold_mb, err);
-    if (!r)
-        r = choose_positions(m, out, opt.seed, err);
-    if (!r)
-        r = sample_pass(m, out, err);
+        r = sample_frames(m, out, &opt, hold, opt.align == SL_ALIGN_AUTO, err);
+    if (!r && opt.align == SL_ALIGN_AUTO) {
+        bool needed = false;
+        r = measure_alignment(m, paths, &opt, out, &needed, err);
+        out->align_measure_cpu = out->timing.cpu[SL_MERGE_ALIGN];
+        if (!r && needed) {
+            double measured = out->misalignment_px;
+            r = align_frames(paths, count, &opt, out, err);
+            /* Resampled frames: samples, codes and held frames from them. */
+            if (!r && out->aligned) {
+                reset_sample_pass(m, out);
+                r = sample_frames(m, out, &opt, hold, false, err);
+            }
+            if (!r && !out->aligned) {
+                out->misalignment_px = measured;
+                snprintf(out->align_note, sizeof out->align_note,
+                         "auto: measured %.2f px, but registration found nothing to resample", measured);
+            }
+        }
+    }
     if (r)
         return r;
     merge_clock fit = merge_clock_start();

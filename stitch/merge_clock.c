@@ -6,8 +6,8 @@
 
 const char *sl_merge_phase_name(sl_merge_phase phase)
 {
-    static const char *const names[SL_MERGE_PHASES] = {"decode", "sample", "fit",
-                                                      "merge",  "write",  "other"};
+    static const char *const names[SL_MERGE_PHASES] = {"decode", "sample", "fit",   "merge",
+                                                      "write",  "align",  "other"};
     return phase >= 0 && phase < SL_MERGE_PHASES ? names[phase] : "?";
 }
 

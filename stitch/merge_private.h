@@ -51,11 +51,19 @@ void merge_block_max(const void *buf, int code_bytes, double top, int width, int
  * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
  * second derivative of g against ln z, and samples chosen stratified over
  * scene intensity. Solved in double through the Schur complement of the
- * per-sample unknowns (a dense nodes x nodes Cholesky). */
+ * per-sample unknowns (a dense nodes x nodes Cholesky, merge_cholesky_solve). */
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
                              double noise_gain, double noise_floor, uint64_t seed,
                              sl_response *out, sl_error *err);
+
+/* Cholesky of the symmetric positive definite n x n matrix a (row-major;
+ * its lower part overwritten by the factor), then solves a x = b in place
+ * (b gets x). False when a is not positive definite. */
+bool merge_cholesky_solve(double *a, double *b, int n);
+/* For the solver's test and measurement (test_merge_solve): when set, the
+ * Debevec-Malik fit shows it each round's system before solving it. */
+extern void (*merge_fit_system_hook)(const double *a, const double *b, int n);
 
 /* Robertson-Borman-Stevenson: the same curve from the same samples by
  * alternating irradiance and per-code estimates (response_robertson.c). */
@@ -113,6 +121,27 @@ merge_clock merge_clock_split(sl_merge_timing *t, merge_clock since, double *tas
  * phase claimed, so the phases add up to them. */
 void merge_clock_finish(sl_merge_result *res, merge_clock start);
 
+/* A frame's luminance box-averaged to the alignment measurement's
+ * resolution (at most 2^18 pixels), filled strip by strip while the sample
+ * pass decodes the frame anyway (align.c). */
+typedef struct align_plane {
+    int w, h, scale;
+    float *v;       /* per block: luminance sum */
+    uint8_t *state; /* per block: 2 a pixel saturated, 1 a pixel dark, 0 usable */
+    uint16_t *row;  /* scratch for 8-bit rows: luminance and flag per pixel */
+    uint8_t *row_flag;
+} align_plane;
+sl_result align_plane_init(align_plane *p, int width, int height, sl_error *err);
+/* Adds rows y0 .. y1 of a strip (codes of code_bytes, or floats with 0). */
+void align_plane_add(align_plane *p, const void *strip, int code_bytes, int width, int y0, int y1,
+                     double black, double saturation);
+void align_plane_free(align_plane *p);
+/* sl_align_bracket's estimate on the planes (which it consumes): out[i]
+ * for frame i, none applied yet. */
+sl_result align_measure(align_plane *planes, int count, const char *const *paths,
+                        const double *exposures, const sl_merge_options *opt, int width,
+                        int height, sl_align_transform *out, sl_error *err);
+
 /* State shared by the merge stages (merge.c, merge_pass.c). */
 typedef struct merge_ctx {
     int width, height, bits;
@@ -135,6 +164,8 @@ typedef struct merge_ctx {
     double *log_fit;       /* per rank: chained fitted log exposure */
     double *prev_fit;      /* per frame: fitted exposure of the previous round */
     double *scratch;       /* frames^2 doubles */
+    align_plane *measure;  /* per frame, filled by the sample pass (SL_ALIGN_AUTO), or NULL */
+    int measure_frames;
 } merge_ctx;
 
 /* Whether frame rank r's JPEG block at pixel pos (y * width + x) is

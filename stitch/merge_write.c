@@ -83,6 +83,15 @@ sl_result merge_output_meta(const char *path, const char *mask_path, const char 
         r = sl_meta_set(meta, "setlight:merge:frames", frames ? frames : "", err);
     if (!r && align)
         r = sl_meta_set(meta, "setlight:merge:align", align, err);
+    if (!r && res->align_note[0]) {
+        char what[256];
+        if (res->misalignment_px >= 0)
+            snprintf(what, sizeof what, "%s; largest displacement %.3f px", res->align_note,
+                     res->misalignment_px);
+        else
+            snprintf(what, sizeof what, "%s", res->align_note);
+        r = sl_meta_set(meta, "setlight:merge:alignment", what, err);
+    }
     if (!r)
         r = sl_meta_set(meta, "setlight:merge:response_source", res->response.source, err);
     if (!r)

@@ -36,10 +36,24 @@ void unwrap_use_rim_table(bool on);
 int unwrap_auto_width(const sl_ball_view *view);
 
 /* C shim over OpenCV's HoughCircles: up to max_out circles (x, y, r)
- * on an 8-bit single-channel image, strongest first. Returns the count, or
- * -1 when OpenCV failed. */
+ * on an 8-bit single-channel image, strongest first, from the kinds of
+ * transform asked for (the classic one's time grows fastest with clutter
+ * and size; edge_threshold is its Canny threshold, lower for soft edges).
+ * Returns the count, or -1 when OpenCV failed. */
+enum { BALL_HOUGH_ALT = 1, BALL_HOUGH_CLASSIC = 2 };
 int ball_hough_cxx(const unsigned char *gray, int width, int height, double min_radius,
-                   double max_radius, double min_dist, float *out, int max_out);
+                   double max_radius, double min_dist, int kinds, double edge_threshold,
+                   float *out, int max_out);
+
+/* A point of an outline (pixels). */
+typedef struct ball_point {
+    double x, y;
+} ball_point;
+
+/* Geometric least-squares circle (Gauss-Newton from the algebraic Kasa fit)
+ * through the points flagged in use[]; c holds a start (cx, cy, r) and gets
+ * the fit. False with fewer than 8 points or a degenerate fit. */
+bool ball_circle_fit(const ball_point *p, const bool *use, int n, double c[3]);
 
 /* The smaller singular value of a 2x2 Jacobian (photo pixels per unit of
  * the two directions): how little the mapping stretches any direction. */

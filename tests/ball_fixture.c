@@ -167,6 +167,40 @@ static void background(const ball_fixture *f, double x, double y, double rgb[3])
     }
 }
 
+/* A dial: white face, a dark bezel, twelve tick marks and two hands. */
+static double dial(const ball_thing *t, double dx, double dy)
+{
+    double rho = hypot(dx, dy) / t->r, a = atan2(dy, dx);
+    if (rho > 0.92)
+        return 0.03;
+    double tick = fmod(a / (2.0 * M_PI) * 12.0 + 12.5, 1.0) - 0.5; /* turns from a tick */
+    if (rho > 0.78 && fabs(tick) * 2.0 * M_PI / 12.0 * rho * t->r < 0.02 * t->r)
+        return 0.03;
+    const double hands[2][2] = {{0.3, 0.75}, {1.9, 0.55}}; /* angle (rad), length */
+    for (int h = 0; h < 2; h++) {
+        double ux = cos(hands[h][0]), uy = sin(hands[h][0]);
+        double along = (dx * ux + dy * uy) / t->r, across = fabs(-dx * uy + dy * ux) / t->r;
+        if (along > 0.0 && along < hands[h][1] && across < 0.025)
+            return 0.03;
+    }
+    return t->value;
+}
+
+/* The topmost round thing at (x, y), if any. */
+static bool thing_at(const ball_fixture *f, double x, double y, double rgb[3])
+{
+    for (int i = f->thing_count - 1; i >= 0; i--) {
+        const ball_thing *t = &f->things[i];
+        double dx = x - t->x, dy = y - t->y, d = hypot(dx, dy);
+        if (d > t->r || (t->kind == BALL_THING_RING && d < t->inner))
+            continue;
+        double v = t->kind == BALL_THING_DIAL ? dial(t, dx, dy) : t->value;
+        rgb[0] = rgb[1] = rgb[2] = v;
+        return true;
+    }
+    return false;
+}
+
 sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *err)
 {
     sl_result r = sl_image_alloc(photo, f->width, f->height, 3, err);
@@ -179,9 +213,14 @@ sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *
         for (int x = 0; x < f->width; x++) {
             /* Only pixels near a ball need supersampling (it is what is measured). */
             int ss = 1;
-            for (int b = 0; b < f->ball_count; b++)
-                if (hypot(x + 0.5 - circles[b].cx, y + 0.5 - circles[b].cy) <
-                    1.1 * circles[b].r + 3.0)
+            for (int b = 0; b < f->ball_count; b++) {
+                double d = hypot(x + 0.5 - circles[b].cx, y + 0.5 - circles[b].cy);
+                if (f->ss_rim_only ? fabs(d - circles[b].r) < 2.0 : d < 1.1 * circles[b].r + 3.0)
+                    ss = f->ss > 0 ? f->ss : 1;
+            }
+            for (int t = 0; t < f->thing_count; t++)
+                if (fabs(hypot(x + 0.5 - f->things[t].x, y + 0.5 - f->things[t].y) -
+                         f->things[t].r) < 2.0)
                     ss = f->ss > 0 ? f->ss : 1;
             double acc[3] = {0, 0, 0};
             for (int j = 0; j < ss; j++)
@@ -207,7 +246,7 @@ sl_result ball_fixture_render(const ball_fixture *f, sl_image *photo, sl_error *
                             hit = true;
                         }
                     }
-                    if (!hit)
+                    if (!hit && !thing_at(f, sx, sy, rgb))
                         background(f, sx, sy, rgb);
                     for (int k = 0; k < 3; k++)
                         acc[k] += rgb[k];
@@ -311,6 +350,40 @@ void ball_fixture_circle(const ball_fixture *f, int i, sl_ball_circle *c)
     c->r = 0.5 * (0.5 * (hi - lo) + perp);
 }
 
+sl_result ball_fixture_fisheye(int width, int height, double radius, sl_image *photo,
+                               sl_error *err)
+{
+    sl_result r = sl_image_alloc(photo, width, height, 3, err);
+    if (r)
+        return r;
+    for (int y = 0; y < height; y++)
+        for (int x = 0; x < width; x++) {
+            float *p = sl_image_pixel(photo, x, y);
+            double acc[3] = {0, 0, 0};
+            for (int j = 0; j < 2; j++)
+                for (int i = 0; i < 2; i++) {
+                    double dx = (x + 0.25 + 0.5 * i - 0.5 * width) / radius;
+                    double dy = (0.5 * height - y - 0.25 - 0.5 * j) / radius;
+                    double rho = hypot(dx, dy), rgb[3] = {0, 0, 0};
+                    if (rho < 1.0) {
+                        /* equisolid: rho = sin(theta / 2) / sin(45 deg) */
+                        double theta = 2.0 * asin(rho * sin(M_PI / 4.0));
+                        double s = rho > 0.0 ? sin(theta) / rho : 0.0;
+                        double dir[3] = {-dx * s, dy * s, cos(theta)};
+                        ball_fixture_env(dir, rgb);
+                        for (int k = 0; k < 3; k++)
+                            rgb[k] *= 1.0 - 0.4 * rho * rho;
+                    }
+                    for (int k = 0; k < 3; k++)
+                        acc[k] += 0.25 * rgb[k];
+                }
+            double noise = 0.002 * (1.0 + hash01((uint32_t)x, (uint32_t)y));
+            for (int k = 0; k < 3; k++)
+                p[k] = (float)(acc[k] + noise);
+        }
+    return SL_OK;
+}
+
 int ball_fixture_main(const char *kind, const char *out)
 {
     ball_fixture f;
@@ -332,10 +405,17 @@ int ball_fixture_main(const char *kind, const char *out)
         f.balls[1].px = 150;
     } else if (!strcmp(kind, "ballclip")) {
         f.balls[0].px = 160; /* 6.5 px cut off on the right */
+    } else if (!strcmp(kind, "ballfill")) {
+        ball_fixture_init(&f, 256, 256); /* a tight crop: the outline touches all four sides */
+        f.ss = 3;
+        f.ss_rim_only = true;
+        f.balls[0].px = f.balls[0].py = f.balls[0].r = 128;
+        sl_reflectance_chrome(&f.reflectance);
     } else if (!strcmp(kind, "ball90")) {
         f.azimuth_deg = 90; /* the same ball from a quarter turn around it */
         f.balls[0].px = 96;
-    } else if (strcmp(kind, "ball") != 0 && strcmp(kind, "balljpg") != 0) {
+    } else if (strcmp(kind, "ball") != 0 && strcmp(kind, "balljpg") != 0 &&
+               strcmp(kind, "ballfisheye") != 0 && strcmp(kind, "ballfill") != 0) {
         fprintf(stderr, "make_fixture: unknown ball kind %s\n", kind);
         return 2;
     }
@@ -343,7 +423,8 @@ int ball_fixture_main(const char *kind, const char *out)
     sl_meta meta;
     sl_error err;
     sl_meta_init(&meta);
-    sl_result r = ball_fixture_render(&f, &img, &err);
+    sl_result r = !strcmp(kind, "ballfisheye") ? ball_fixture_fisheye(300, 200, 90, &img, &err)
+                                               : ball_fixture_render(&f, &img, &err);
     if (!r && !strcmp(kind, "balljpg")) {
         for (size_t i = 0; i < img.stride * (size_t)img.height; i++)
             img.data[i] = sl_linear_to_srgb(img.data[i] > 1.0f ? 1.0f : img.data[i]);

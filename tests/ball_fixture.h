@@ -22,6 +22,18 @@ typedef struct ball_fixture_ball {
     double distance; /* perspective */
 } ball_fixture_ball;
 
+/* Round things in the background that are not balls. */
+typedef enum { BALL_THING_DISC, BALL_THING_RING, BALL_THING_DIAL } ball_thing_kind;
+
+typedef struct ball_thing {
+    ball_thing_kind kind;
+    double x, y, r; /* outline (px) */
+    double inner;   /* ring: inner radius (px) */
+    double value;   /* grey level */
+} ball_thing;
+
+#define BALL_FIXTURE_THINGS 8
+
 typedef struct ball_fixture {
     int width, height;
     bool perspective;
@@ -33,6 +45,9 @@ typedef struct ball_fixture {
     const sl_image *env; /* lat-long to reflect; NULL for the procedural one */
     int ss;              /* sub-samples per pixel axis, near the balls (1 elsewhere) */
     bool clutter;        /* textured background instead of a flat 0.05 */
+    bool ss_rim_only;    /* supersample only within 2 px of an outline (fast big frames) */
+    int thing_count;
+    ball_thing things[BALL_FIXTURE_THINGS]; /* drawn over the background */
 } ball_fixture;
 
 /* A fixture with the defaults: orthographic, 1 ball, reflectance 1, ss 4, clutter. */
@@ -61,9 +76,18 @@ void ball_fixture_circle(const ball_fixture *f, int i, sl_ball_circle *c);
 bool ball_fixture_trace(const ball_fixture *f, int i, double x, double y, double dir[3],
                         double *cos_incidence);
 
+/* A circular fisheye photo of the procedural environment (equisolid,
+ * 180 degrees, looking along +Z, image circle of `radius` px at the frame
+ * centre, light falling off by 40% toward its edge) on a black frame with
+ * a little sensor noise: what unwrap and convert must not take for a ball. */
+sl_result ball_fixture_fisheye(int width, int height, double radius, sl_image *photo,
+                               sl_error *err);
+
 /* make_fixture's ball kinds (200x160 perspective chrome ball, focal 180 px):
- * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone, and ball90
- * (the same set from azimuth 90, for two-view merging). */
+ * ball, balljpg (8-bit sRGB JPEG), balltwo, ballclip, ballnone, ball90
+ * (the same set from azimuth 90, for two-view merging), ballfill (an
+ * orthographic chrome ball filling a 256x256 frame, r 128) and ballfisheye
+ * (a 300x200 circular fisheye photo, radius 90 px, not a ball). */
 int ball_fixture_main(const char *kind, const char *out);
 
 #endif

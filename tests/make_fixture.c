@@ -7,14 +7,22 @@
  *       nan       lat-long with NaN and Inf samples, as a PFM file written here
  *                 byte by byte (setlight's own writers never write NaN)
  *       wide      a 3:1 image with no envmap attribute
+ *       wideenv   the same with the envmap attribute saying lat-long
+ *       conf      a 3:2 grey of 3.7 with a confidence ramp (0 to 1 across) as
+ *                 its fourth channel, no envmap attribute
  *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr)
- *       ball...   chrome-ball photos, see ball_fixture.h */
+ *       plain     the latlong one without the envmap attribute
+ *       code128   8-bit code 128 everywhere, no envmap (OUT .png, .jpg or .tif)
+ *       ball...   chrome-ball photos, see ball_fixture.h
+
+ *       chart...  chart photos and walls that are not one, see chart_fixture.h */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ball_fixture.h"
+#include "chart_fixture.h"
 #include "setlight/core.h"
 
 /* Portable float map: header, then little-endian float rows bottom to top. */
@@ -38,6 +46,8 @@ int main(int argc, char **argv)
     const char *kind = argv[1], *out = argv[2];
     if (!strncmp(kind, "ball", 4))
         return ball_fixture_main(kind, out);
+    if (!strncmp(kind, "chart", 5))
+        return chart_fixture_main(kind, out);
     if (!strcmp(kind, "exif")) {
         /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata. */
         if (argc < 7) {
@@ -64,13 +74,16 @@ int main(int argc, char **argv)
         return rr ? 1 : 0;
     }
     int w = argc > 3 ? atoi(argv[3]) : 64, h = argc > 4 ? atoi(argv[4]) : w / 2;
-    if (!strcmp(kind, "wide"))
+    bool conf = !strcmp(kind, "conf");
+    if (!strcmp(kind, "wide") || !strcmp(kind, "wideenv"))
         h = w / 3;
+    if (conf)
+        h = 2 * w / 3;
     sl_image img;
     sl_meta meta;
     sl_error err;
     sl_meta_init(&meta);
-    if (sl_image_alloc(&img, w, h, 3, &err)) {
+    if (sl_image_alloc(&img, w, h, conf ? 4 : 3, &err)) {
         fprintf(stderr, "%s\n", err.message);
         return 1;
     }
@@ -81,6 +94,10 @@ int main(int argc, char **argv)
             p[0] = (float)(0.2 + 0.8 * u);
             p[1] = (float)(0.2 + 0.8 * v);
             p[2] = (float)(0.5 + 0.4 * sin(6.283185307179586 * u));
+            if (conf) {
+                p[0] = p[1] = p[2] = 3.7f;
+                p[3] = (float)x / (float)(w > 1 ? w - 1 : 1);
+            }
         }
     if (!strcmp(kind, "sun") || !strcmp(kind, "sunclip") || !strcmp(kind, "sunmask")) {
         /* sunclip: the sun clipped at 100 as a merge leaves it, naming its
@@ -98,7 +115,10 @@ int main(int argc, char **argv)
         sl_image_pixel(&img, 2, 1)[1] = INFINITY;
         sl_image_pixel(&img, 3, 2)[2] = -INFINITY;
     }
-    if (strcmp(kind, "wide") != 0)
+    if (!strcmp(kind, "code128"))
+        sl_image_fill(&img, 128.0f / 255.0f);
+    if (strcmp(kind, "wide") != 0 && strcmp(kind, "plain") != 0 && strcmp(kind, "code128") != 0 &&
+        !conf)
         meta.envmap = SL_ENVMAP_LATLONG;
     sl_meta_set_rec709(&meta);
     sl_result r;
@@ -109,6 +129,8 @@ int main(int argc, char **argv)
         r = sl_photo_write(tmp, &img, &meta, 8, &err);
         if (!r && rename(tmp, out) != 0)
             r = sl_error_set(&err, SL_ERR_IO, "%s: rename failed", out);
+    } else if (!strcmp(kind, "code128")) {
+        r = sl_photo_write(out, &img, NULL, 8, &err);
     } else if (!strcmp(kind, "nan"))
         r = write_pfm(out, &img, &err);
     else

@@ -250,6 +250,10 @@ static void test_half_in_shadow(void)
     CHECK(fit.used == 12);
     CHECK(fit.de_after_mean <= 1.0 && fit.de_after_max <= 3.0);
     CHECK(worst / norm < 0.02);
+    /* Still a ColorChecker: the lit half carries it. */
+    sl_chart_judgement j;
+    sl_chart_judge(p, &fit, SL_COLORCHECKER_LINEAR, &j);
+    CHECK_MSG(j.plausible, "half in shadow refused: %s", j.text);
     /* With the outlier test off, the shadowed patches drag the fit. */
     sl_ccm_options o;
     sl_ccm_options_init(&o);

@@ -163,6 +163,13 @@ static void test_stage(void)
     printf("  worst patch %d (%s): %.3f, spread %.4f, %d px\n", worst + 1,
            SL_COLORCHECKER_NAMES[worst], fit.de_after[worst], patches[worst].spread,
            patches[worst].pixels);
+    /* The simulated camera's raw RGB of a real chart: a ColorChecker. */
+    sl_chart_judgement judged;
+    sl_chart_judge(patches, &fit, SL_COLORCHECKER_LINEAR, &judged);
+    printf("  judged: %s (neutral log contrast %.3f, matrix condition %.2f)\n",
+           judged.plausible ? "a ColorChecker" : judged.text, judged.neutral_slope,
+           judged.condition);
+    CHECK_MSG(judged.plausible, "virtual chart refused: %s", judged.text);
     CHECK(fit.used >= 22);
     CHECK(fit.de_before_mean > 10); /* the tungsten balance is visibly off */
     CHECK(fit.de_after_mean <= 1.0);

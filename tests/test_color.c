@@ -254,7 +254,7 @@ static void test_ocio_names(void)
     bool have_acescg = false;
     for (; list[n]; n++)
         have_acescg |= strcmp(list[n], "acescg") == 0;
-    CHECK(n == 7);
+    CHECK(n == 10);
     CHECK(n > 0 && strcmp(list[0], "lin_rec709") == 0);
     CHECK(have_acescg);
 

@@ -194,15 +194,6 @@ static void test_mirrorball_orientation(void)
     /* Top at py = sin 45 deg reflects +Y. */
     CHECK(sl_projection_to_dir(SL_PROJ_MIRRORBALL, 0.5, 0.5 * (1 - sqrt(0.5)), d));
     CHECK_NEAR(d[1], 1.0, 1e-12);
-    /* The angular map has the same centre, the same sides, the same rim. */
-    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.5, 0.5, d));
-    CHECK_NEAR(d[2], -1.0, 1e-15);
-    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.75, 0.5, d)); /* r = 1/2: 90 deg */
-    CHECK_NEAR(d[0], -1.0, 1e-15);
-    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.5, 0.25, d));
-    CHECK_NEAR(d[1], 1.0, 1e-15);
-    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.5, 1.0, d));
-    CHECK_NEAR(d[2], 1.0, 1e-15);
     double behind[3] = {0, 0, 1};
     CHECK(sl_dir_to_projection(SL_PROJ_MIRRORBALL, behind, &u, &v));
     CHECK_NEAR(hypot(2 * u - 1, 2 * v - 1), 1.0, 1e-15);
@@ -449,6 +440,189 @@ static void test_reproject_orientation_and_threads(void)
     sl_image_free(&src);
 }
 
+/* Debevec's angular map (Light Probe Image Gallery; HDR Toolbox's
+ * Angular2Direction): image point (px, py), py up, theta = atan2(py, px),
+ * phi = pi r; direction (cos theta sin phi, sin theta sin phi, -cos phi):
+ * centre forward -Z, image right +X, image up +Y. */
+static void debevec_angular_dir(double px, double py, double d[3])
+{
+    double r = hypot(px, py), phi = M_PI * r, theta = atan2(py, px);
+    d[0] = cos(theta) * sin(phi);
+    d[1] = sin(theta) * sin(phi);
+    d[2] = -cos(phi);
+}
+
+/* Index of the largest first-channel value. */
+static void brightest(const sl_image *img, int *bx, int *by)
+{
+    float best = -1.0f;
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++)
+            if (sl_image_pixel(img, x, y)[0] > best) {
+                best = sl_image_pixel(img, x, y)[0];
+                *bx = x;
+                *by = y;
+            }
+}
+
+static void test_angular_orientation(void)
+{
+    double d[3], u, v;
+    /* Centre +Z (forward), image right -X, image up +Y, rim -Z. */
+    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.5, 0.5, d));
+    CHECK_NEAR(d[2], 1.0, 1e-15);
+    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.75, 0.5, d)); /* r = 1/2: 90 deg */
+    CHECK_NEAR(d[0], -1.0, 1e-15);
+    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.5, 0.25, d));
+    CHECK_NEAR(d[1], 1.0, 1e-15);
+    CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.5, 1.0, d));
+    CHECK_NEAR(d[2], -1.0, 1e-15);
+    double back[3] = {0, 0, -1};
+    CHECK(sl_dir_to_projection(SL_PROJ_ANGULAR, back, &u, &v));
+    CHECK_NEAR(hypot(2 * u - 1, 2 * v - 1), 1.0, 1e-15);
+    /* The published definition turned half a turn about +Y (its forward -Z
+     * becomes OpenEXR's lat-long centre +Z): a rotation, no mirror. */
+    double worst = 0.0;
+    for (int j = 0; j < 64; j++)
+        for (int i = 0; i < 64; i++) {
+            double px = (i + 0.5) / 32 - 1, py = 1 - (j + 0.5) / 32, a[3];
+            if (px * px + py * py > 1)
+                continue;
+            CHECK(sl_projection_to_dir(SL_PROJ_ANGULAR, 0.5 * (px + 1), 0.5 * (1 - py), d));
+            debevec_angular_dir(px, py, a);
+            double turned[3] = {-a[0], a[1], -a[2]};
+            worst = fmax(worst, dir_dist(d, turned));
+        }
+    printf("  angular vs Debevec's definition turned 180 deg about Y: max %.3g\n", worst);
+    CHECK(worst < 1e-12);
+
+    /* A bright texel goes to the right place both ways. */
+    sl_error err;
+    sl_image ang, ll, ang2;
+    CHECK_OK(sl_image_alloc(&ang, 64, 64, 1, &err), &err);
+    /* image right on the horizontal line, r = 1/2: looking along -X */
+    for (int y = 31; y <= 32; y++)
+        for (int x = 47; x <= 48; x++)
+            sl_image_pixel(&ang, x, y)[0] = 1000.0f;
+    CHECK_OK(sl_reproject(&ang, SL_PROJ_ANGULAR, SL_PROJ_LATLONG, 128, NULL, &ll, &err), &err);
+    int bx = -1, by = -1;
+    brightest(&ll, &bx, &by);
+    sl_latlong_to_dir((bx + 0.5) / 128, (by + 0.5) / 64, d);
+    printf("  angular image-right texel -> lat-long (%d, %d), dir (%.3f, %.3f, %.3f)\n", bx, by,
+           d[0], d[1], d[2]);
+    CHECK(d[0] < -0.99); /* column 96 of 128: three quarters in */
+    CHECK(abs(bx - 96) <= 1 && (by == 31 || by == 32));
+    sl_image_free(&ll);
+    sl_image_free(&ang);
+
+    CHECK_OK(sl_image_alloc(&ll, 128, 64, 1, &err), &err);
+    /* +X (a quarter in, equator) and +Y 45 degrees up from +Z, weaker. */
+    sl_image_pixel(&ll, 32, 31)[0] = sl_image_pixel(&ll, 32, 32)[0] = 1000.0f;
+    sl_image_pixel(&ll, 64, 15)[0] = sl_image_pixel(&ll, 63, 15)[0] = 100.0f;
+    CHECK_OK(sl_reproject(&ll, SL_PROJ_LATLONG, SL_PROJ_ANGULAR, 128, NULL, &ang2, &err), &err);
+    brightest(&ang2, &bx, &by);
+    double px = 2.0 * (bx + 0.5) / ang2.width - 1.0, py = 1.0 - 2.0 * (by + 0.5) / ang2.height;
+    printf("  lat-long +X texel -> angular (%.3f, %.3f)\n", px, py);
+    CHECK(fabs(px + 0.5) < 0.04 && fabs(py) < 0.04); /* image left, r = 1/2 */
+    /* Mask the +X peak; the next one is the +Y-of-forward texel, straight up
+     * from the centre at r = 45/180. */
+    for (int y = 0; y < ang2.height; y++)
+        for (int x = 0; x < ang2.width / 2; x++)
+            sl_image_pixel(&ang2, x, y)[0] = 0.0f;
+    brightest(&ang2, &bx, &by);
+    px = 2.0 * (bx + 0.5) / ang2.width - 1.0;
+    py = 1.0 - 2.0 * (by + 0.5) / ang2.height;
+    printf("  lat-long texel 45 deg above +Z -> angular (%.3f, %.3f)\n", px, py);
+    CHECK(fabs(px) < 0.04 && fabs(py - 0.25) < 0.04);
+    sl_image_free(&ll);
+    sl_image_free(&ang2);
+}
+
+/* Log luminance of every texel (floor 1e-4), malloc'd. */
+static double *log_luminance(const sl_image *img)
+{
+    double *l = malloc(sizeof *l * (size_t)img->width * (size_t)img->height);
+    for (int y = 0; l && y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            const float *p = sl_image_pixel(img, x, y);
+            double lum = img->channels >= 3 ? 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] : p[0];
+            l[(size_t)y * img->width + x] = log(fmax(lum, 1e-4));
+        }
+    return l;
+}
+
+/* Solid-angle weighted normalised correlation of two w x h lat-longs' log
+ * luminances, b's columns mirrored (u -> 1 - u) when `mirror` and turned by
+ * `shift` columns. */
+static double latlong_log_correlation(const double *a, const double *b, int w, int h,
+                                      bool mirror, int shift)
+{
+    double sw = 0, sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+    for (int y = 0; y < h; y++) {
+        double wt = sl_latlong_texel_solid_angle(y, w, h);
+        for (int x = 0; x < w; x++) {
+            double la = a[(size_t)y * w + x];
+            double lb = b[(size_t)y * w + ((mirror ? w - 1 - x : x) + shift) % w];
+            sw += wt;
+            sa += wt * la;
+            sb += wt * lb;
+            saa += wt * la * la;
+            sbb += wt * lb * lb;
+            sab += wt * la * lb;
+        }
+    }
+    double ma = sa / sw, mb = sb / sw;
+    return (sab / sw - ma * mb) / sqrt((saa / sw - ma * ma) * (sbb / sw - mb * mb));
+}
+
+/* Debevec's Grace Cathedral angular probe against the lat-long of the same
+ * probe in colour-science's datasets: the conversion matches as it is, and
+ * no turn of its mirror image comes close. */
+static void test_angular_probe_real(void)
+{
+    const char *probe_path = sl_test_data("probes/grace_probe_angular.hdr");
+    const char *ref_path = sl_test_data("hdri/Grace_Cathedral_500x250.hdr");
+    if (!probe_path || !ref_path)
+        return;
+    sl_error err;
+    sl_image probe = {0}, ref = {0}, conv = {0};
+    CHECK_OK(sl_image_read(probe_path, &probe, NULL, &err), &err);
+    CHECK_OK(sl_image_read(ref_path, &ref, NULL, &err), &err);
+    CHECK_OK(sl_reproject(&probe, SL_PROJ_ANGULAR, SL_PROJ_LATLONG, ref.width, NULL, &conv, &err),
+             &err);
+    double *lref = NULL, *lconv = NULL;
+    if (!conv.data || ref.height != conv.height || !(lref = log_luminance(&ref)) ||
+        !(lconv = log_luminance(&conv))) {
+        CHECK(false);
+    } else {
+        int w = ref.width, h = ref.height;
+        double best[2] = {-2, -2};
+        int best_shift[2] = {0, 0};
+        for (int m = 0; m < 2; m++)
+            for (int s = 0; s < w; s += 2) {
+                double c = latlong_log_correlation(lref, lconv, w, h, m, s);
+                if (c > best[m]) {
+                    best[m] = c;
+                    best_shift[m] = s;
+                }
+            }
+        double as_is = latlong_log_correlation(lref, lconv, w, h, false, 0);
+        printf("  Grace probe -> lat-long vs Grace_Cathedral_500x250: log-luminance correlation "
+               "%.4f as is; best turn %d columns; mirrored (u -> 1 - u): %.4f, best %.4f "
+               "(turned %d columns)\n",
+               as_is, best_shift[0], latlong_log_correlation(lref, lconv, w, h, true, 0), best[1],
+               best_shift[1]);
+        CHECK(as_is > 0.99);
+        CHECK(best_shift[0] == 0);
+        CHECK(best[1] < 0.7);
+    }
+    free(lref);
+    free(lconv);
+    sl_image_free(&probe);
+    sl_image_free(&ref);
+    sl_image_free(&conv);
+}
+
 int main(void)
 {
     RUN(test_latlong_orientation);
@@ -462,5 +636,7 @@ int main(void)
     RUN(test_reproject_round_trip);
     RUN(test_reproject_rotation);
     RUN(test_reproject_orientation_and_threads);
+    RUN(test_angular_orientation);
+    RUN(test_angular_probe_real);
     return sl_test_finish();
 }

@@ -28,10 +28,20 @@ static const char *calibrate_help =
     "clipped mask) is repaired from the grey sphere first. With EXIF exposure on the\n"
     "grey photo the result is in cd/m^2. Transform in the output's metadata. At least\n"
     "one of --chart, --grey.\n\n"
-    "  --hdri FILE           the lat-long to calibrate (linear)\n"
+    "  --hdri FILE           the lat-long to calibrate (read as every command reads an\n"
+    "                        environment: scene-linear through OpenColorIO, a 2:1\n"
+    "                        image without envmap attribute taken as a lat-long)\n"
     "  -o, --output FILE     the calibrated lat-long (EXR, half unless --float)\n"
-    "  --chart FILE          chart photo: EXR is read as linear, other formats as sRGB;\n"
-    "                        the chart is found automatically (OpenCV mcc)\n"
+    "  --chart FILE          chart photo, converted to linear from its colour space\n"
+    "                        (8/16-bit: sRGB unless the file names one; docs/color.md);\n"
+    "                        the chart is found automatically (OpenCV mcc), then judged:\n"
+    "                        most patches under one light, the neutral row darkening\n"
+    "                        step by step with the chart's contrast, the colour patches\n"
+    "                        saturated and in hue order, a camera's matrix, CIEDE2000\n"
+    "                        after the fit below the patches' own spacing. A chart that\n"
+    "                        fails is not used: the grey sphere alone calibrates, or\n"
+    "                        exit 3 with every reason. On success one line on stderr:\n"
+    "                        patches used, CIEDE2000 before and after\n"
     "  --chart-corners X1,Y1,X2,Y2,X3,Y3,X4,Y4\n"
     "                        centres of patches 1 (dark skin), 6 (bluish green),\n"
     "                        24 (black), 19 (white) in pixels, instead of detection\n"
@@ -40,8 +50,8 @@ static const char *calibrate_help =
     "                        Rec.709; docs/calibrate.md)\n"
     "  --white-preserving    the neutral patch maps exactly to its reference\n"
     "  --clip LEVEL          chart/grey pixels at or above are clipped (default: none\n"
-    "                        for EXR, 0.999 for 8/16-bit photos)\n"
-    "  --grey FILE           grey-sphere photo (EXR linear, other formats sRGB)\n"
+    "                        for float files, 0.999 for 8/16-bit photos)\n"
+    "  --grey FILE           grey-sphere photo (read as the chart photo)\n"
     "  --grey-colorspace NAME  its colour space (default as for the chart photo)\n"
     "  --hdri-in SPACE       chart: the HDRI is in the chart camera's RGB and goes\n"
     "                        through P (default); working: it is already linear\n"
@@ -67,21 +77,20 @@ static const char *calibrate_help =
     "  --ball-diameter MM    the grey sphere's diameter\n"
     "  --spp N               samples per pixel of the virtual sphere (default 256)\n"
     "  --colorspace NAME     output colour space (OCIO name, default lin_rec709)\n"
-    "  --chart-colorspace NAME  the chart photo's colour space (default: srgb for\n"
-    "                        8/16-bit photos, the file's own or lin_rec709 for EXR)\n"
+    "  --chart-colorspace NAME  the chart photo's colour space (default: the one the\n"
+    "                        file names, else srgb for 8/16-bit, lin_rec709 for float)\n"
     "  --float               write 32-bit float\n"
-    "  --report DIR          write DIR/calibrate.html (chart table, grey sphere photo,\n"
-    "                        render and error images) and DIR/calibrate.json\n"
+    "  --report DIR          write DIR/calibrate.html (chart table, where the patches\n"
+    "                        were found with each excluded one's reason, the chart's\n"
+    "                        verdict, grey sphere photo, render and error images) and\n"
+    "                        DIR/calibrate.json\n"
     "  --json                print the result as JSON on stdout\n\n"
-    "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found and no grey\n"
-    "sphere, no sphere found or none in the circle, a grey photo whose exposure\n"
-    "contradicts the HDRI's), 1 other failures. See docs/calibrate.md.\n";
-
-static bool is_ldr_path(const char *path)
-{
-    const char *dot = strrchr(path, '.');
-    return dot && strcasecmp(dot, ".exr") != 0 && strcasecmp(dot, ".hdr") != 0;
-}
+    "Output samples a matrix sends below zero are set to 0 (counted on stderr and in\n"
+    "the JSON's negative_clamped).\n\n"
+    "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found, or not a\n"
+    "usable ColorChecker, and no grey sphere; no sphere found or none in the circle;\n"
+    "a grey photo whose exposure contradicts the HDRI's), 1 other failures. See\n"
+    "docs/calibrate.md.\n";
 
 static void mat_apply(const double m[3][3], float *v)
 {
@@ -99,35 +108,40 @@ static void apply_image(sl_image *img, const double m[3][3])
             mat_apply(m, img->data + (size_t)y * img->stride + (size_t)x * img->channels);
 }
 
-/* Brings a photo into the working space (linear Rec.709) through OCIO from
- * `cs` (NULL: sRGB for 8/16-bit formats, else the file's own space or
- * lin_rec709). Clipping is judged on the file's values before the
- * conversion (*level: the --clip level, < 0 for the default: 0.999 for
- * 8/16-bit photos, none for EXR); clipped pixels then carry `marker` and
- * *level becomes what the later stages test against. */
-static sl_result to_working(sl_image *img, const char *path, const sl_meta *meta, const char *cs,
+/* Brings a photo into the working space (linear Rec.709) as every command
+ * does (sl_image_linearize: from `cs`, or NULL for the file's own space,
+ * sRGB for 8/16-bit photos that name none). Clipping is judged on the
+ * file's values before the conversion (*level: the --clip level, < 0 for
+ * the default: 0.999 for 8/16-bit photos, none for float); clipped pixels
+ * then carry `marker` and *level becomes what the later stages test against. */
+static sl_result to_working(sl_image *img, const char *path, sl_meta *meta, const char *cs,
                             double *level, float marker, sl_error *err)
 {
-    if (!cs)
-        cs = is_ldr_path(path)              ? "srgb"
-             : sl_meta_color_space(meta) ? sl_meta_color_space(meta)
-                                         : "lin_rec709";
-    if (*level < 0 && is_ldr_path(path))
+    if (*level < 0 && !meta->is_float)
         *level = 0.999;
+    /* No level given for a float file: values pinned at its top are clipped. */
+    double pinned[3] = {0, 0, 0};
+    int64_t pinned_count = *level < 0 ? sl_pinned_maximum(img, pinned) : 0;
+    if (pinned_count)
+        sl_log(SL_LOG_WARN, "%s: %lld pixels pinned at the image's maximum (%g %g %g per "
+               "channel, 0: none) taken as clipped (--clip LEVEL sets the level)", path,
+               (long long)pinned_count, pinned[0], pinned[1], pinned[2]);
     unsigned char *clipped = NULL;
-    if (*level > 0) {
+    if (*level > 0 || pinned_count) {
         clipped = calloc((size_t)img->width * img->height, 1);
         if (!clipped)
             return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
         for (int y = 0; y < img->height; y++)
             for (int x = 0; x < img->width; x++) {
                 const float *v = img->data + (size_t)y * img->stride + (size_t)x * img->channels;
-                clipped[(size_t)y * img->width + x] =
-                    v[0] >= *level || v[1] >= *level || v[2] >= *level;
+                bool over = *level > 0 && (v[0] >= *level || v[1] >= *level || v[2] >= *level);
+                for (int c = 0; c < 3; c++)
+                    over = over || (pinned[c] > 0 && v[c] >= pinned[c]);
+                clipped[(size_t)y * img->width + x] = over;
             }
     }
-    sl_result r = SL_OK;
-    if (strcmp(cs, "lin_rec709") != 0 && (r = sl_color_convert(img, cs, "lin_rec709", err))) {
+    sl_result r = sl_image_linearize(img, meta, path, cs, NULL, err);
+    if (r) {
         free(clipped);
         return r;
     }
@@ -152,6 +166,16 @@ static json_t *json_matrix(const double m[3][3])
     for (int i = 0; i < 3; i++)
         json_array_append_new(a, json_pack("[f,f,f]", m[i][0], m[i][1], m[i][2]));
     return a;
+}
+
+static json_t *judgement_json(const sl_chart_judgement *j)
+{
+    return json_pack("{s:b, s:s, s:i, s:i, s:i, s:f, s:i, s:f, s:f, s:i, s:f, s:f}", "plausible",
+                     j->plausible, "reasons", j->text, "patches_used", j->used, "neutrals_used",
+                     j->neutrals_used, "order_breaks", j->order_breaks, "neutral_slope",
+                     j->neutral_slope, "colours_usable", j->colours_usable, "colour_chroma",
+                     j->colour_chroma, "neutral_chroma", j->neutral_chroma, "hue_turns",
+                     j->hue_turns, "condition", j->condition, "delta_e_limit", j->de_limit);
 }
 
 int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
@@ -360,13 +384,18 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     char mask_buf[4096];
     sl_chart_patch p[24];
     sl_ccm_fit fit;
+    sl_chart_judgement judgement;
+    bool chart_sampled = false;
+    memset(&fit, 0, sizeof(fit));
+    memset(&judgement, 0, sizeof(judgement));
 
     memcpy(reference, SL_COLORCHECKER_LINEAR, sizeof(reference));
     if (ref_path && (r = sl_chart_reference_read(ref_path, reference, NULL, &err)))
         goto fail;
-    if ((r = sl_image_read(hdri_path, &hdri, &hmeta, &err)))
+    /* Scene-linear Rec.709, as every command reads a lat-long. */
+    if ((r = sl_latlong_read(hdri_path, NULL, &hdri, &hmeta, NULL, &err)))
         goto fail;
-    if (!sl_is_latlong_shape(hdri.width, hdri.height) || hdri.channels < 3) {
+    if (hdri.channels < 3) {
         r = sl_error_set(&err, SL_ERR_INPUT, "%s: not an RGB lat-long (%dx%d, %d channels)",
                          hdri_path, hdri.width, hdri.height, hdri.channels);
         goto fail;
@@ -379,12 +408,6 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                    (long long)st.nan_count, (long long)st.inf_count);
             sl_image_sanitize(&hdri, 0.0f);
         }
-        /* The working space is linear Rec.709: an HDRI that says it is in
-         * another space comes in through OCIO. */
-        const char *hcs = sl_meta_color_space(&hmeta);
-        if (hcs && strcmp(hcs, "lin_rec709") != 0 &&
-            (r = sl_color_convert(&hdri, hcs, "lin_rec709", &err)))
-            goto fail;
     }
     if (chart_path) {
         if ((r = sl_image_read(chart_path, &chart, &cmeta, &err)))
@@ -419,12 +442,19 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         } else {
             if ((r = sl_chart_sample(&chart, (const double(*)[2])centers, 0, level, p, &err)))
                 goto fail;
+            chart_sampled = true;
             if ((r = sl_ccm_fit_chart(p, (const double(*)[3])reference, &copt, &fit, &err))) {
-                sl_error_set(&err, r, "%s: %s", chart_path, err.message);
-                goto fail;
+                if (r != SL_ERR_INPUT || !grey_path) {
+                    sl_error_set(&err, r, "%s: %s", chart_path, err.message);
+                    goto fail;
+                }
+                /* Too few patches for any matrix: judged as such below. */
+                memset(&fit, 0, sizeof(fit));
+                snprintf(judgement.text, sizeof judgement.text, "%.600s", err.message);
+                judgement.reasons = SL_CHART_FEW_PATCHES;
+            } else {
+                sl_chart_judge(p, &fit, (const double(*)[3])reference, &judgement);
             }
-            sl_ccm_plate_matrix(p, &fit, plate);
-            chart_used = true;
             json_t *jp = json_array();
             int invalid = 0;
             for (int q = 0; q < 24; q++) {
@@ -437,16 +467,6 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                   fit.outlier[q], "used", fit.used_patch[q], "delta_e_before",
                                   fit.de_before[q], "delta_e_after", fit.de_after[q]));
             }
-            if (invalid)
-                sl_log(SL_LOG_WARN,
-                       "%s: %d patches excluded as clipped, non-uniform (a shadow edge or glare "
-                       "across them) or too small",
-                       chart_path, invalid);
-            if (fit.outliers)
-                sl_log(SL_LOG_WARN,
-                       "%s: %d patches excluded as lit differently from the rest (part of the "
-                       "chart in shadow?)",
-                       chart_path, fit.outliers);
             json_object_set_new(jc, "patches", jp);
             json_object_set_new(jc, "matrix", json_matrix(fit.m));
             json_object_set_new(jc, "patches_used", json_integer(fit.used));
@@ -456,6 +476,26 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             json_object_set_new(jc, "delta_e_before_max", json_real(fit.de_before_max));
             json_object_set_new(jc, "delta_e_after_mean", json_real(fit.de_after_mean));
             json_object_set_new(jc, "delta_e_after_max", json_real(fit.de_after_max));
+            json_object_set_new(jc, "judgement", judgement_json(&judgement));
+            if (!judgement.plausible) {
+                /* Not a ColorChecker, or not one a matrix can be trusted from. */
+                if (!grey_path) {
+                    r = sl_error_set(&err, SL_ERR_INPUT, "%s: not a usable ColorChecker: %s",
+                                     chart_path, judgement.text);
+                    goto fail;
+                }
+                sl_log(SL_LOG_WARN, "%s: not a usable ColorChecker (%s); calibrating with the "
+                       "grey sphere alone", chart_path, judgement.text);
+            } else {
+                sl_ccm_plate_matrix(p, &fit, plate);
+                chart_used = true;
+                sl_log(SL_LOG_INFO,
+                       "%s: ColorChecker, %d of 24 patches used (%d excluded, %d lit "
+                       "differently); CIEDE2000 mean %.2f -> %.2f, max %.2f -> %.2f",
+                       chart_path, fit.used, invalid, fit.outliers, fit.de_before_mean,
+                       fit.de_after_mean, fit.de_before_max, fit.de_after_max);
+            }
+            json_object_set_new(jc, "used", json_boolean(chart_used));
         }
     }
     if (chart_used && (hdri_in_chart || !grey_path)) {
@@ -678,6 +718,19 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     if (strcmp(out_cs, "lin_rec709") != 0 &&
         (r = sl_color_convert(&hdri, "lin_rec709", out_cs, &err)))
         goto fail;
+    {
+        /* Never negative radiance: colours outside the working gamut and
+         * noise round black come out of a matrix below zero. */
+        double neg_fraction;
+        int64_t neg = sl_calibrate_clamp_negative(&hdri, &neg_fraction);
+        if (neg)
+            sl_log(SL_LOG_WARN, "%s: %lld samples below zero after calibration (colours outside "
+                   "the output's gamut, noise round black) set to 0: %.3g%% of the light",
+                   hdri_path, (long long)neg, 100 * neg_fraction);
+        json_object_set_new(js, "negative_clamped",
+                            json_pack("{s:I, s:f}", "samples", (json_int_t)neg, "fraction",
+                                      neg_fraction));
+    }
     out_meta.envmap = SL_ENVMAP_LATLONG;
     if ((r = sl_image_write(out_path, &hdri, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
                             &err)))
@@ -718,7 +771,10 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
             sl_report_text(rep, "Absolute: %.6g cd/m^2 per unit of the grey photo (%s).",
                            abs_scale, abs_from);
         if ((r = sl_calibrate_report(rep, "", chart_used ? p : NULL, chart_used ? &fit : NULL,
-                                     grey_path ? &gfit : NULL, &err))) {
+                                     grey_path ? &gfit : NULL, &err)) ||
+            (chart_sampled &&
+             (r = sl_calibrate_report_chart(rep, "chart_patches.png", &chart, p, &fit, &judgement,
+                                            &err)))) {
             sl_report_free(rep);
             goto fail;
         }

@@ -387,11 +387,16 @@ static const char *ingest_help =
     "usage: setlight ingest [options] SRC -o DIR\n\n"
     "Groups the photographs in SRC (a card or a folder, searched 4 levels deep) into\n"
     "views and brackets by EXIF time, exposure and sequence, copies them into DIR\n"
-    "(never overwriting) and writes DIR/session.json. Files that are not photographs\n"
-    "are skipped and listed as problems.\n\n"
+    "(never overwriting) and writes DIR/session.json. Frames of different setups\n"
+    "(camera make, model or serial, lens, focal length, image size, orientation,\n"
+    "file format or bit depth) are never grouped together: one warning line per two\n"
+    "setups kept apart says why (also in session.json 'splits'). Files that are not\n"
+    "photographs, brackets of one frame and frames without an EXIF exposure time\n"
+    "are listed as problems in session.json.\n\n"
     "  -o, --output DIR   session folder to create\n"
     "  --gap SECONDS      a pause longer than this starts a new view (default 10)\n"
-    "  --json             print the result as JSON on stdout\n";
+    "  --json             print the result as JSON on stdout (dir, frames, views,\n"
+    "                     splits, problems)\n";
 
 int cmd_ingest(int argc, char **argv, const sl_cli *cli)
 {
@@ -431,14 +436,29 @@ int cmd_ingest(int argc, char **argv, const sl_cli *cli)
     sl_progress_end(&bar);
     if (r)
         return cli_fail(cli, &err);
+    /* what was kept apart and what a merge cannot take, as the session says */
+    char sp[4096];
+    snprintf(sp, sizeof sp, "%s/session.json", out);
+    json_t *session = json_load_file(sp, 0, NULL);
+    json_t *splits = json_object_get(session, "splits");
+    json_t *problems = json_object_get(session, "problems");
     if (cli->json) {
-        json_t *j = json_pack("{s:s, s:i, s:i}", "dir", out, "frames", frames, "views", views);
+        json_t *j = json_pack("{s:s, s:i, s:i, s:O, s:O}", "dir", out, "frames", frames, "views",
+                              views, "splits", splits ? splits : json_array(), "problems",
+                              problems ? problems : json_array());
         char *text = j ? json_dumps(j, JSON_INDENT(2) | JSON_PRESERVE_ORDER) : NULL;
         if (text)
             printf("%s\n", text);
         free(text);
         json_decref(j);
-    } else
-        sl_log(SL_LOG_INFO, "%s: %d frames in %d views", out, frames, views);
+    } else {
+        size_t np = json_array_size(problems);
+        if (np)
+            sl_log(SL_LOG_INFO, "%s: %d frames in %d views; %zu problem%s listed in %s", out,
+                   frames, views, np, np > 1 ? "s" : "", sp);
+        else
+            sl_log(SL_LOG_INFO, "%s: %d frames in %d views", out, frames, views);
+    }
+    json_decref(session);
     return 0;
 }

@@ -104,7 +104,7 @@ int cmd_converge(int argc, char **argv, const sl_cli *cli)
     sl_image ref = {0};
     sl_converge_report rep = {0};
     sl_scene_init(&scene);
-    sl_result r = sl_scene_load(&scene, scene_arg, ro.width, env, 0, 1, rig, &err);
+    sl_result r = sl_scene_load(&scene, scene_arg, ro.width, env, NULL, 0, 1, rig, &err);
     if (r)
         goto fail;
     render_opts_apply(&ro, &scene);

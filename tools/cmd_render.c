@@ -17,7 +17,12 @@ static void help(FILE *out)
             "                       -o OUT.exr\n\n"
             "Renders validation references (grey ball, chrome ball, Macbeth chart...) lit by an\n"
             "HDR lat-long or a light rig, progressively, with an error estimate after each pass.\n\n"
-            "  --env FILE          lat-long environment (EXR, HDR or any image; width = 2 x height)\n"
+            "  --env FILE          lat-long environment (EXR, HDR or any image; width = 2 x height;\n"
+            "                      an 8/16-bit one is converted to scene-linear through\n"
+            "                      OpenColorIO from its colour space, sRGB unless it names\n"
+            "                      one, with a warning; docs/color.md)\n"
+            "  --input-colorspace NAME  the --env map's colour space (OCIO name), instead of\n"
+            "                      the one the file names or the default\n"
             "  --rig FILE          light rig JSON: rect/disk/sphere/distant lights and an optional\n"
             "                      dome (docs/render.md)\n"
             "  --rotate DEG        turn the environment about +Y (default 0; --env only)\n"
@@ -101,7 +106,7 @@ static void show_pass(void *ctx, const sl_render_pass *p)
 int cmd_render(int argc, char **argv, const sl_cli *cli)
 {
     enum { O_ENV = 256, O_ROT, O_INT, O_SCENE, O_MAT, O_WIDTH, O_VIEW, O_BG, O_BOUNCES, O_SEED,
-           O_SPP, O_TIME, O_TERR, O_STRAT, O_SAMPLER, O_REF, O_STATS, O_RIG, O_CENTERS };
+           O_SPP, O_TIME, O_TERR, O_STRAT, O_SAMPLER, O_REF, O_STATS, O_RIG, O_CENTERS, O_INCS };
     static const struct option opts[] = {
         {"env", required_argument, 0, O_ENV},         {"rotate", required_argument, 0, O_ROT},
         {"intensity", required_argument, 0, O_INT},   {"scene", required_argument, 0, O_SCENE},
@@ -113,10 +118,11 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         {"sampler", required_argument, 0, O_SAMPLER}, {"seed", required_argument, 0, O_SEED},
         {"rig", required_argument, 0, O_RIG},         {"reference", required_argument, 0, O_REF},   {"stats", required_argument, 0, O_STATS},
         {"pixel-centers", no_argument, 0, O_CENTERS},
+        {"input-colorspace", required_argument, 0, O_INCS},
         {"output", required_argument, 0, 'o'},        {"help", no_argument, 0, 'h'},
         {0, 0, 0, 0}};
     const char *rig_path = NULL, *env_path = NULL, *scene_arg = "grey", *mat_spec = NULL, *ref_path = NULL,
-               *stats_path = NULL, *out_path = NULL;
+               *stats_path = NULL, *out_path = NULL, *in_cs = NULL;
     double rotate = 0, intensity = 1;
     bool spp_given = false;
     render_opts ro;
@@ -132,6 +138,10 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
             return 0;
         case 'o': out_path = optarg; break;
         case O_ENV: env_path = optarg; break;
+        case O_INCS:
+            if (!(in_cs = sl_color_space_name(optarg)))
+                return cli_usage_error(cli, "unknown colour space '%s' (see docs/color.md)", optarg);
+            break;
         case O_RIG: rig_path = optarg; break;
         case O_SCENE: scene_arg = optarg; break;
         case O_MAT: mat_spec = optarg; break;
@@ -212,7 +222,8 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
     bool preset = !sl_scene_arg_is_file(scene_arg);
     o.bounces = ro.bounces;
     o.seed = (uint64_t)ro.seed;
-    if ((r = sl_scene_load(&scene, scene_arg, ro.width, env_path, rotate, intensity, rig_path, &err)))
+    if ((r = sl_scene_load(&scene, scene_arg, ro.width, env_path, in_cs, rotate, intensity, rig_path,
+                           &err)))
         goto fail;
     if (ro.view) {
         if (!preset) {

@@ -19,7 +19,11 @@ static const char *rig_help =
     "                    [--residual RES.exr] [--preview PREVIEW.png]\n\n"
     "Extracts the bright regions of a lat-long HDRI into area lights and paints them\n"
     "out of a residual dome, so that lights + dome carry exactly the map's energy.\n"
-    "Writes USD (UsdLux), optionally the same rig as JSON and a preview PNG.\n\n"
+    "Writes USD (UsdLux), optionally the same rig as JSON and a preview PNG.\n"
+    "ENV is read as every command reads an environment (docs/color.md): converted to\n"
+    "scene-linear Rec.709 through OpenColorIO from its colour space (an 8/16-bit\n"
+    "JPEG/PNG/TIFF is sRGB unless it says otherwise; a warning says so), and taken as\n"
+    "a lat-long when 2:1 without an envmap attribute (a note says so).\n\n"
     "  -o, --output FILE     the rig as USD ASCII (.usda)\n"
     "  --json [FILE.json]    print a summary as JSON on stdout; when followed by a\n"
     "                        name ending in .json, also write rig.json there\n"
@@ -49,7 +53,10 @@ static const char *rig_help =
     "                        the region's crop as RIG_light_NN.exr beside RIG.usda;\n"
     "                        by default only graded ones are (variation >= 0.25)\n"
     "  --no-textures         no textured lights\n"
-    "  --assume-latlong      accept a 2:1 image without the envmap attribute\n"
+    "  --input-colorspace NAME  the map's colour space (OCIO name), instead of the one\n"
+    "                        the file names or the default (srgb for 8/16-bit)\n"
+    "  --assume-latlong      no effect (kept for old scripts): a 2:1 image without\n"
+    "                        the envmap attribute is taken as a lat-long, with a note\n"
     "  --validate[=SPP]      render the grey, chrome and shadow scenes (96 px) under\n"
     "                        the map and under the rig and report their relative\n"
     "                        RMSE (SPP samples per pixel, default 64); the report\n"
@@ -99,7 +106,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_RESIDUAL = 1000, OPT_PREVIEW, OPT_ENERGY, OPT_MAX, OPT_THRESHOLD, OPT_MERGE,
         OPT_UNRESOLVED, OPT_DISTANCE, OPT_ROOM, OPT_HEIGHT, OPT_METHOD, OPT_ASSUME, OPT_JSONFILE,
-        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_NO_TEXTURES, OPT_PEAK, OPT_MAXSA, OPT_VALIDATE
+        OPT_INCLUDE, OPT_EXCLUDE, OPT_TEXTURES, OPT_NO_TEXTURES, OPT_PEAK, OPT_MAXSA, OPT_VALIDATE,
+        OPT_INCS
     };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
@@ -124,11 +132,13 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         {"peak-fraction", required_argument, NULL, OPT_PEAK},
         {"max-solid-angle", required_argument, NULL, OPT_MAXSA},
         {"validate", optional_argument, NULL, OPT_VALIDATE},
+        {"input-colorspace", required_argument, NULL, OPT_INCS},
         {0, 0, 0, 0}};
     sl_rig_options opt;
     sl_rig_options_default(&opt);
     const char *out_path = NULL, *json_path = NULL, *res_path = NULL, *preview_path = NULL;
-    bool assume = false, have_height = false, max_given = false;
+    const char *in_cs = NULL;
+    bool have_height = false, max_given = false;
     sl_rig_texture_mode textures = SL_RIG_TEXTURES_AUTO;
     long long validate_spp = 0;
 
@@ -225,8 +235,11 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
             else
                 return cli_usage_error(cli, "unknown method '%s' (regions, mediancut)", optarg);
             break;
-        case OPT_ASSUME:
-            assume = true;
+        case OPT_ASSUME: /* the default now: a 2:1 image is a lat-long */
+            break;
+        case OPT_INCS:
+            if (!(in_cs = sl_color_space_name(optarg)))
+                return cli_usage_error(cli, "unknown colour space '%s' (see docs/color.md)", optarg);
             break;
         case OPT_TEXTURES:
         case OPT_NO_TEXTURES:
@@ -325,20 +338,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     rig_validation val = {0};
     sl_error err;
     sl_result r = sl_check_input_file(in_path, &err);
-    if (r || (r = sl_image_read(in_path, &env, &meta, &err)))
+    if (r || (r = sl_latlong_read(in_path, in_cs, &env, &meta, NULL, &err)))
         goto fail;
-    if (!sl_is_latlong_shape(env.width, env.height)) {
-        sl_error_set(&err, SL_ERR_INPUT, "%s: not a lat-long: %dx%d is not 2:1%s", in_path,
-                     env.width, env.height,
-                     meta.envmap == SL_ENVMAP_CUBE ? " (a cube map: convert it first)" : "");
-        goto fail;
-    }
-    if (meta.envmap != SL_ENVMAP_LATLONG && !assume) {
-        sl_error_set(&err, SL_ERR_INPUT,
-                     "%s: no envmap attribute saying it is a lat-long (give --assume-latlong)",
-                     in_path);
-        goto fail;
-    }
     if ((r = sl_rig_extract(&env, &opt, &rig, &err))) {
         /* library messages name the stage; name the file too */
         sl_error e2;
@@ -350,8 +351,10 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples counted, set to 0 and left out", in_path,
                (long long)rig.nonfinite);
     if (rig.negative)
-        sl_log(SL_LOG_WARN, "%s: %lld negative samples (lossy compression?) set to 0", in_path,
-               (long long)rig.negative);
+        sl_log(SL_LOG_WARN,
+               "%s: %lld negative samples (outside Rec.709's gamut, or lossy compression) set "
+               "to 0",
+               in_path, (long long)rig.negative);
     bool black = !(rig.original[0] > 0 || rig.original[1] > 0 || rig.original[2] > 0);
     if (black)
         sl_log(SL_LOG_WARN, "%s: the map is black: the rig is empty (no lights, black dome)",

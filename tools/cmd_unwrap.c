@@ -56,14 +56,22 @@ static const char *unwrap_help =
     "  --no-confidence        write RGB only\n"
     "  --float                32-bit float EXR instead of half\n"
     "  --compression C        zip (default), piz, rle or none (all lossless)\n"
+    "  --input-colorspace NAME  the photos' colour space (OCIO name), instead of the\n"
+    "                         one the file names or the default (srgb for 8/16-bit)\n"
     "  --json                 print the result as JSON on stdout\n\n"
     "The A channel is the confidence: resolution relative to the ball's centre, 0 in\n"
-    "the blind cone behind the ball (filled flat with the rim's median). An 8-bit\n"
-    "photo (JPEG, PNG) is taken as sRGB, linearised with a warning: its highlights\n"
-    "are clipped, so bright sources come out too dark.\n"
+    "the blind cone behind the ball (filled flat with the rim's median). An 8/16-bit\n"
+    "photo (JPEG, PNG, TIFF) is converted to scene-linear through OpenColorIO from its\n"
+    "colour space (sRGB unless the file says otherwise), with a warning: its\n"
+    "highlights are clipped, so bright sources come out too dark (docs/color.md).\n"
+    "The ball is found on tight crops (its outline touching the frame) and among\n"
+    "clutter; discs, rings and clock faces are not balls, the largest ball is\n"
+    "taken over ones under 0.7 of its radius, and the fit's standard error is\n"
+    "reported (circle.uncertainty in --json).\n"
     "Exit codes: 0 done, 1 failure, 2 usage error (bad option, circle outside the\n"
-    "image), 3 bad input (unreadable, no ball, two balls, ball cut by the frame,\n"
-    "reflectance patch not seen).\n"
+    "image), 3 bad input (unreadable, a circular fisheye photo (use 'setlight\n"
+    "stitch'), no ball, two balls, ball cut by the frame, outline fitted too\n"
+    "weakly (give --circle), reflectance patch not seen).\n"
     "See docs/unwrap.md.\n";
 
 static void reflectance_text(const sl_reflectance *r, char *buf, size_t size)
@@ -75,31 +83,32 @@ static void reflectance_text(const sl_reflectance *r, char *buf, size_t size)
         snprintf(buf, size, "%g,%g,%g", r->value[0], r->value[1], r->value[2]);
 }
 
-/* One photo: read (an 8-bit one linearised with a warning), its circle
+/* One photo: read as scene-linear (an 8/16-bit one linearised with a
+ * warning, as every command reads), its circle
  * given or detected, and its focal length in pixels. */
 typedef struct view_in {
     const char *path;
+    const char *colorspace; /* --input-colorspace, NULL: the file's */
     sl_image photo;
     sl_meta meta;
-    bool ldr, detected;
+    bool ldr, detected; /* ldr: 8/16-bit, linearised from input_space */
+    char input_space[64];
     int64_t nonfinite;
 } view_in;
 
 static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
                            const ball_camera_opts *bc, sl_error *err)
 {
-    sl_result r = sl_image_read(v->path, &v->photo, &v->meta, err);
+    sl_read_info info;
+    sl_result r = sl_image_read_linear(v->path, v->colorspace, &v->photo, &v->meta, &info, err);
     if (r)
         return r;
-    v->ldr = !v->meta.is_float;
-    if (v->ldr) {
-        sl_log(SL_LOG_WARN,
-               "%s: %d-bit %s, not HDR: taken as sRGB and linearised; clipped highlights make "
-               "bright sources too dark",
-               v->path, v->meta.bits_per_sample, v->meta.format);
-        for (size_t i = 0; i < v->photo.stride * (size_t)v->photo.height; i++)
-            v->photo.data[i] = sl_srgb_to_linear(v->photo.data[i]);
-    }
+    v->ldr = info.converted && !v->meta.is_float;
+    snprintf(v->input_space, sizeof v->input_space, "%s", info.colorspace);
+    /* A fisheye is refused in one line (the reading's notes are dropped then). */
+    sl_fisheye_evidence fisheye;
+    if ((r = sl_fisheye_check(&v->photo, false, v->path, &fisheye, err)))
+        return r;
     /* Geometry: focal length in pixels of this image (lens or field of view),
      * distance in ball radii. */
     double focal_px, distance;
@@ -134,9 +143,9 @@ static json_t *number(double v)
 
 static json_t *circle_json(const sl_ball_circle *c, bool detected)
 {
-    return json_pack("{s:f, s:f, s:f, s:f, s:i, s:b}", "cx", c->cx, "cy", c->cy, "r", c->r,
-                     "residual", c->residual, "edge_points", c->edge_points, "detected",
-                     detected);
+    return json_pack("{s:f, s:f, s:f, s:f, s:f, s:i, s:b}", "cx", c->cx, "cy", c->cy, "r", c->r,
+                     "residual", c->residual, "uncertainty", c->uncertainty, "edge_points",
+                     c->edge_points, "detected", detected);
 }
 
 /* The output: its header from everything known before the pixels, and
@@ -192,9 +201,9 @@ static sl_result output_meta(const out_job *j, sl_error *err)
                  oi->circle.cy, oi->circle.r);
         attrs[na++].name = i ? "setlight:ball2_circle" : "setlight:ball_circle";
         snprintf(attrs[na].value, sizeof attrs[na].value,
-                 "%s, fit residual %.3f px, %d edge points",
+                 "%s, fit residual %.3f px, standard error %.3f px, %d edge points",
                  views[i].detected ? "detected" : "given", oi->circle.residual,
-                 oi->circle.edge_points);
+                 oi->circle.uncertainty, oi->circle.edge_points);
         attrs[na++].name = i ? "setlight:ball2_circle_source" : "setlight:ball_circle_source";
         snprintf(attrs[na].value, sizeof attrs[na].value,
                  "%s, focal %.3f px, distance %.4f ball radii, ball %.3f deg, off axis %.3f deg",
@@ -225,7 +234,9 @@ static sl_result output_meta(const out_job *j, sl_error *err)
         attrs[na++].name = "setlight:alpha";
     }
     if (views[0].ldr || views[1].ldr) {
-        snprintf(attrs[na].value, sizeof attrs[na].value, "8-bit sRGB input linearised");
+        const view_in *v = views[0].ldr ? &views[0] : &views[1];
+        snprintf(attrs[na].value, sizeof attrs[na].value,
+                 "8/16-bit input linearised from %s through OpenColorIO", v->input_space);
         attrs[na++].name = "setlight:input_note";
     }
     snprintf(buf, sizeof buf, "setlight %s unwrap", sl_version());
@@ -279,7 +290,8 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_CIRCLE = 1000, OPT_CAMERA, OPT_FOCAL, OPT_SENSOR, OPT_FOV, OPT_DIST, OPT_DIAM,
         OPT_AZ, OPT_EL, OPT_ROLL, OPT_REFL, OPT_WIDTH, OPT_NOCONF, OPT_FLOAT, OPT_PATCH,
-        OPT_CIRCLE2, OPT_AZ2, OPT_EL2, OPT_ROLL2, OPT_SEARCH, OPT_OCCLUDER, OPT_COMPRESSION
+        OPT_CIRCLE2, OPT_AZ2, OPT_EL2, OPT_ROLL2, OPT_SEARCH, OPT_OCCLUDER, OPT_COMPRESSION,
+        OPT_INCS
     };
     static const struct option opts[] = {{"help", no_argument, NULL, 'h'},
                                          {"output", required_argument, NULL, 'o'},
@@ -299,6 +311,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                                          {"no-confidence", no_argument, NULL, OPT_NOCONF},
                                          {"float", no_argument, NULL, OPT_FLOAT},
                                          {"compression", required_argument, NULL, OPT_COMPRESSION},
+                                         {"input-colorspace", required_argument, NULL, OPT_INCS},
                                          {"circle2", required_argument, NULL, OPT_CIRCLE2},
                                          {"camera2-azimuth", required_argument, NULL, OPT_AZ2},
                                          {"camera2-elevation", required_argument, NULL, OPT_EL2},
@@ -306,7 +319,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                                          {"search", required_argument, NULL, OPT_SEARCH},
                                          {"occluder", required_argument, NULL, OPT_OCCLUDER},
                                          {0, 0, 0, 0}};
-    const char *out_path = NULL;
+    const char *out_path = NULL, *in_cs = NULL;
     sl_unwrap_pair_options po;
     memset(&po, 0, sizeof po);
     sl_unwrap_options *o = &po.views[0], *o2 = &po.views[1];
@@ -416,6 +429,10 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
                 return cli_usage_error(cli, "--width needs an even number from 8 to 65536, not "
                                             "'%s'", optarg);
             break;
+        case OPT_INCS:
+            if (!(in_cs = sl_color_space_name(optarg)))
+                return cli_usage_error(cli, "unknown colour space '%s' (see docs/color.md)", optarg);
+            break;
         case OPT_NOCONF:
             confidence = false;
             break;
@@ -449,6 +466,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
 
     view_in views[2];
     memset(views, 0, sizeof views);
+    views[0].colorspace = views[1].colorspace = in_cs;
     views[0].path = argv[optind];
     views[1].path = nviews == 2 ? argv[optind + 1] : NULL;
     sl_image out = {0};

@@ -51,7 +51,7 @@ void render_opts_apply(const render_opts *ro, sl_scene *scene)
 sl_result render_opts_read_reference(const char *path, const sl_scene *scene, sl_image *ref,
                                      sl_error *err)
 {
-    sl_result r = sl_image_read(path, ref, NULL, err);
+    sl_result r = sl_image_read_linear(path, NULL, ref, NULL, NULL, err);
     if (r)
         return r;
     if (ref->width != scene->camera.width || ref->height != scene->camera.height ||

@@ -104,7 +104,9 @@ int main(int argc, char **argv)
     args[n] = NULL;
     sl_log_set_quiet(cli.quiet);
     sl_threads_set(cli.threads);
+    sl_log_hold_notes(true);
     int rc = cmd->fn(n, args, &cli);
+    sl_log_release_notes(rc == 0);
     free(args);
     fflush(stdout);
     return rc;

@@ -523,7 +523,7 @@ void sl_camera_aim(sl_camera *camera, int view, int views);
 sl_result sl_dng_encode(const sl_image *linear, const sl_meta *meta, int subsec_ms,
                         unsigned char **data, size_t *size, sl_error *err);
 
-/* --- SHA-256 (FIPS 180-4) --- */
+/* --- SHA-256 (FIPS 180-4, through OpenSSL's EVP) --- */
 
 void sl_sha256(const void *data, size_t size, unsigned char digest[32]);
 /* 64 lowercase hex digits and a terminator. */
@@ -595,9 +595,14 @@ sl_result sl_session_write(const char *dir, sl_error *err);
 
 /* Groups the photographs in `src` into brackets and views by EXIF time,
  * exposure and sequence, copies them into `dir` (never overwriting) and
- * writes DIR/session.json. Non-image files are listed as problems; a folder
+ * writes DIR/session.json. Frames of different setups (camera make, model,
+ * serial; lens, its serial and focal length; stored size, EXIF orientation,
+ * file format, samples) are grouped apart: session.json's "splits" has one
+ * line per two setups kept apart saying why, each also logged as a warning,
+ * and each view its "camera" setup. Non-image files, one-frame brackets and
+ * frames without an EXIF exposure time are listed as problems; a folder
  * with no photographs is SL_ERR_INPUT. gap_seconds: a pause longer than this
- * between two frames starts a new view (0: 10 s). progress (may be NULL): a
+ * between two frames of one setup starts a new view (0: 10 s). progress (may be NULL): a
  * bar the caller began; its total is set to the photographs found and one is
  * added per frame copied. */
 sl_result sl_ingest(const char *src, const char *dir, double gap_seconds, sl_progress *progress,

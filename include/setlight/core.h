@@ -82,6 +82,18 @@ void sl_log(sl_log_level level, const char *fmt, ...)
 #endif
     ;
 
+/* A note on how an input was taken (linearised, assumed a lat-long): logged
+ * at once, or, while notes are held (the CLI holds them for a run), kept,
+ * each text once, until sl_log_release_notes prints them (the run
+ * succeeded) or drops them (a refusal stays one line on stderr). */
+void sl_log_note(sl_log_level level, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+void sl_log_hold_notes(bool hold);
+void sl_log_release_notes(bool print);
+
 /* A progress bar drawn on stderr only when stderr is a terminal and not quiet. */
 typedef struct sl_progress {
     const char *label;
@@ -138,6 +150,12 @@ void sl_remove_tree(const char *path);
 
 /* Writes a whole text/binary buffer atomically. */
 sl_result sl_write_file_atomic(const char *path, const void *data, size_t size, sl_error *err);
+
+/* A module (shared object) this build made, dlopen'd: looked for next to
+ * the executable, then one folder up (a build tree or an install moved as a
+ * whole: setlight in build/, tests in build/tests/), then at built_path.
+ * NULL when it cannot be loaded (dlerror() says why). */
+void *sl_module_open(const char *built_path);
 
 /* Checks that `path` names an existing, readable, non-empty regular file.
  * SL_ERR_NOT_FOUND for missing or a directory, SL_ERR_INPUT for empty. */
@@ -287,8 +305,9 @@ sl_result sl_exr_stream_finish(sl_exr_stream *stream, const sl_meta *update, sl_
 /* Removes the partial file and frees the stream (NULL is fine). */
 void sl_exr_stream_abort(sl_exr_stream *stream);
 
-/* Camera and photo formats through OpenImageIO (JPEG, PNG, TIFF, HDR, DNG,
- * camera raw via LibRaw). Integer formats come back scaled to [0, 1] with no
+/* Camera and photo formats: PNG through libpng, the others (JPEG, TIFF, HDR,
+ * DNG, camera raw via LibRaw) through OpenImageIO, loaded on first use
+ * (docs/performance.md). Integer formats come back scaled to [0, 1] with no
  * transfer function removed: a JPEG stays sRGB-encoded, camera raw is read
  * linear (no tone curve, camera white balance, Rec.709 output). */
 sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
@@ -346,6 +365,9 @@ float sl_linear_to_srgb(float v);
 /* Linear Rec.709 (D65) <-> CIE XYZ (Y of white = 1). */
 void sl_rec709_to_xyz(const double rgb[3], double xyz[3]);
 void sl_xyz_to_rec709(const double xyz[3], double rgb[3]);
+/* Linear RGB with these EXR chromaticities (red, green, blue, white xy) ->
+ * linear Rec.709 D65: through XYZ, the white adapted by Bradford. */
+void sl_chromaticities_to_rec709(const float xy[8], double m[3][3]);
 /* Bradford chromatic adaptation matrix from one white (XYZ) to another. */
 void sl_bradford(const double src_white_xyz[3], const double dst_white_xyz[3], double m[3][3]);
 extern const double SL_WHITE_D65[3];
@@ -365,6 +387,20 @@ const char *const *sl_color_space_list(void);
 /* Converts RGB(A) pixels in place through OpenColorIO. Alpha untouched.
  * SL_ERR_USAGE naming the space when either name is unknown. */
 sl_result sl_color_convert(sl_image *img, const char *from, const char *to, sl_error *err);
+/* How a colour space encodes light: "scene-linear", "sdr-video", "log", ...
+ * (OCIO's encoding), "data" for data spaces, "" when the config says
+ * nothing; NULL when the name is unknown. Static. */
+const char *sl_color_space_encoding(const char *name);
+/* Converts RGB(A) pixels in place from a colour space to a display's view
+ * (OCIO's DisplayViewTransform; the shipped config has display sRGB with
+ * views Standard and Raw). display/view NULL: the config's default display
+ * and that display's default view; names match case-insensitively. Alpha
+ * untouched. `applied` (may be NULL) gets "display/view". SL_ERR_USAGE
+ * listing the known ones when the display or view is unknown. img NULL:
+ * only checks the names. */
+sl_result sl_color_display_view(sl_image *img, const char *from, const char *display,
+                                const char *view, char *applied, size_t applied_size,
+                                sl_error *err);
 /* The EXR chromaticities (red, green, blue, white xy) of a colour space
  * (name or alias); false when it has none (raw) or is unknown. */
 bool sl_color_space_chromaticities(const char *name, float xy[8]);
@@ -374,6 +410,83 @@ bool sl_color_space_chromaticities(const char *name, float xy[8]);
 const char *sl_meta_color_space(const sl_meta *meta);
 /* Sets meta->colorspace, setlight:colorspace and matching chromaticities. */
 sl_result sl_meta_set_color_space(sl_meta *meta, const char *name, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Images as scene-linear radiance: the one way every command reads    */
+/* ------------------------------------------------------------------ */
+
+/* setlight's working space: scene-linear Rec.709 primaries, D65. */
+#define SL_WORKING_SPACE "lin_rec709"
+
+/* What reading did to a file (docs/color.md). */
+typedef struct sl_read_info {
+    char colorspace[64];     /* the file's colour space (OCIO name), or "chromaticities" */
+    bool colorspace_assumed; /* the file names none: taken from its sample type */
+    bool converted;          /* the pixels were converted to the working space */
+    bool encoded;            /* ... from a non-linear encoding (sRGB, gamma, log) */
+    bool latlong_assumed;    /* a 2:1 image without envmap attribute, taken as a lat-long */
+} sl_read_info;
+
+/* The colour space an image file's pixels are in: the one it names
+ * (sl_meta_color_space, or OpenImageIO's oiio:ColorSpace: "sRGB" for JPEG and
+ * PNG, "GammaCorrected2.2" for a PNG gAMA), else from its samples: sRGB for
+ * 8/16-bit integer photos, the working space for float samples and camera
+ * raw (*assumed set). NULL when the file names a space the config does not
+ * know or has chromaticities of no known space. */
+const char *sl_file_color_space(const sl_meta *meta, bool *assumed);
+
+/* Converts an image just read (img and meta from sl_image_read of `path`) to
+ * the working space: through OpenColorIO from its colour space (`from` when
+ * not NULL, else sl_file_color_space), or by the 3x3 matrix of its EXR
+ * chromaticities when they match no named space. A one- or two-channel
+ * image needing conversion becomes RGB(A). When the pixels change, one note
+ * (sl_log_note) says so (a warning for 8/16-bit files: not HDR, clipped
+ * highlights), and meta then names the working space. A named space the
+ * config does not know: SL_ERR_INPUT naming the file (`from` unknown:
+ * SL_ERR_USAGE). info may be NULL. */
+sl_result sl_image_linearize(sl_image *img, sl_meta *meta, const char *path, const char *from,
+                             sl_read_info *info, sl_error *err);
+/* sl_image_read then sl_image_linearize. meta and info may be NULL. */
+sl_result sl_image_read_linear(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                               sl_read_info *info, sl_error *err);
+/* An environment map: sl_image_read_linear, and meta->envmap decided: the
+ * file's envmap attribute when it has one, else a 2:1 image is a lat-long
+ * (a note says so), else SL_ENVMAP_NONE. */
+sl_result sl_env_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                      sl_read_info *info, sl_error *err);
+/* A lat-long: sl_env_read, and SL_ERR_INPUT naming the file when it is a cube
+ * map or not 2:1 (nothing is returned then). */
+sl_result sl_latlong_read(const char *path, const char *from, sl_image *img, sl_meta *meta,
+                          sl_read_info *info, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Previews: scene-linear images as 8-bit pictures for people          */
+/* ------------------------------------------------------------------ */
+
+/* Auto exposure puts the median luminance here (scene-linear mid grey). */
+#define SL_PREVIEW_MID_GREY 0.18
+
+typedef struct sl_preview_options {
+    const char *colorspace; /* the image's colour space; NULL: lin_rec709 */
+    bool auto_exposure;     /* median luminance of the non-black texels -> mid grey */
+    double exposure_stops;  /* otherwise: pixels times 2^stops */
+    const char *view;       /* view of the default display; NULL: its default */
+} sl_preview_options;
+
+typedef struct sl_preview_result {
+    double exposure_stops;   /* applied */
+    double median_luminance; /* auto: of the texels with luminance > 0 (lin_rec709) */
+    char view[128];          /* "display/view" applied */
+} sl_preview_result;
+
+/* The picture: RGB only (grey repeated; an alpha, confidence or mask channel
+ * is never copied), converted to lin_rec709, scaled by 2^stops, through the
+ * display view, clamped to [0, 1]. */
+sl_result sl_preview_image(const sl_image *img, const sl_preview_options *opt, sl_image *out,
+                           sl_preview_result *res, sl_error *err);
+/* sl_preview_image written atomically as 8-bit PNG, JPEG or TIFF (by extension). */
+sl_result sl_preview_write(const char *path, const sl_image *img, const sl_meta *meta,
+                           const sl_preview_options *opt, sl_preview_result *res, sl_error *err);
 
 /* ------------------------------------------------------------------ */
 /* Geometry: lat-long and projections                                  */
@@ -395,7 +508,8 @@ typedef enum {
     SL_PROJ_LATLONG = 0,
     SL_PROJ_MIRRORBALL, /* orthographic view of a mirror sphere, camera looking along +Z
                            (+Y up, image right -X): centre reflects -Z, rim +Z */
-    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map of that same view: centre -Z */
+    SL_PROJ_ANGULAR,    /* Debevec light-probe angular map, same image axes (right -X,
+                           up +Y): centre +Z (forward), angle from it pi r, rim -Z */
     SL_PROJ_CUBEMAP,    /* OpenEXR's cube map: six square faces stacked vertically
                            (width w, height 6w) in the order +X -X +Y -Y +Z -Z */
     SL_PROJ_COUNT
@@ -490,9 +604,10 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)))
 #endif
     ;
-/* A PNG of a linear image: scaled by 2^stops, sRGB-encoded, clamped. Written
- * as DIR/FILE (e.g. "merge.png") and shown with its caption; an image under
- * 256 px wide is enlarged by whole pixels to at least that. */
+/* A PNG of a lin_rec709 image: sl_preview_write at 2^stops through the
+ * default view (sRGB). Written as DIR/FILE (e.g. "merge.png") and shown
+ * with its caption; an image under 256 px wide is enlarged by whole pixels
+ * to at least that. */
 sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img, double stops,
                           const char *caption, sl_error *err);
 /* A table: header then rows, every cell text (escaped). */

@@ -237,10 +237,12 @@ sl_result sl_scene_read_json(sl_scene *scene, const char *path, int width, sl_er
 
 /* What the commands do to set up a scene: scene_arg names a preset or, when
  * it is an existing path or ends in .json, a scene file; then the lighting
- * from exactly one of env (a lat-long image, turned and scaled) and rig. */
+ * from exactly one of env (a lat-long image read by sl_latlong_read: from
+ * env_colorspace, or the file's colour space when NULL; turned and scaled)
+ * and rig. */
 sl_result sl_scene_load(sl_scene *scene, const char *scene_arg, int width, const char *env,
-                        double env_rotation_deg, double env_intensity, const char *rig,
-                        sl_error *err);
+                        const char *env_colorspace, double env_rotation_deg, double env_intensity,
+                        const char *rig, sl_error *err);
 /* True when sl_scene_load would read scene_arg as a file. */
 bool sl_scene_arg_is_file(const char *scene_arg);
 

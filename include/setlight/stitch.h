@@ -47,6 +47,12 @@ typedef enum { SL_EXPOSURES_EXIF = 0, SL_EXPOSURES_DATA } sl_exposure_source;
 /* Samples of the radiance EXR: auto is half where half loses nothing the
  * noise model would notice (docs/merge.md, "Output encoding"), else float. */
 typedef enum { SL_MERGE_PIXELS_AUTO = 0, SL_MERGE_PIXELS_HALF, SL_MERGE_PIXELS_FLOAT } sl_merge_pixels;
+/* Frame registration: OFF merges the frames as shot; ON registers them
+ * (sl_align_bracket); AUTO (the default) measures the misalignment during
+ * the sample pass on a reduced luminance image and registers the frames
+ * when one moved by more than align_auto_px anywhere on the frame. ON is 1
+ * so that code setting the former `bool align` to true still aligns. */
+typedef enum { SL_ALIGN_OFF = 0, SL_ALIGN_ON = 1, SL_ALIGN_AUTO = 2 } sl_align_mode;
 
 typedef struct sl_merge_options {
     const double *times;        /* seconds per frame in the given order; NULL: EXIF */
@@ -68,7 +74,8 @@ typedef struct sl_merge_options {
     double deghost_model_error; /* relative error added to the noise model (0.05) */
     bool absolute;              /* output in cd/m^2 from EXIF time, f-number and ISO:
                                    L = SL_MERGE_K_SAT * y * N^2 / (t * ISO) (docs/merge.md) */
-    bool align;                 /* register the frames before merging (sl_align_bracket) */
+    sl_align_mode align;        /* default SL_ALIGN_AUTO */
+    double align_auto_px;       /* AUTO aligns beyond this displacement (default 0.5 px) */
     double align_max_shift;     /* pixels; larger shifts are refused (default 64) */
     double align_max_angle;     /* degrees; larger rotations are refused (default 2) */
     sl_merge_pixels pixels;     /* radiance EXR samples (default auto) */
@@ -94,7 +101,12 @@ void sl_merge_options_init(sl_merge_options *opt);
 typedef struct sl_align_transform {
     double dx, dy, angle;
     int64_t pixels;   /* pixels the estimate rests on (alignment resolution) */
-    bool applied;     /* false: left as it is (reference, or nothing to go on) */
+    bool applied;     /* false: left as it is (reference, nothing to go on, or not needed) */
+    bool refused;     /* no estimate: too few usable pixels or beyond the limits (note) */
+    /* The shift and angle the fits' typical residuals amount to (rms residual
+     * over rms derivative, chained from the reference): smooth content or a
+     * poor tone match make them large; motion within twice them is doubtful. */
+    double shift_spread_px, angle_spread_deg;
     char note[96];    /* why not applied, "" otherwise */
 } sl_align_transform;
 
@@ -110,7 +122,7 @@ typedef struct sl_merge_frame {
     int rank;                        /* 0 = shortest exposure */
     double saturated_fraction;       /* pixels with a channel at or above saturation */
     double black_fraction;           /* pixels with every channel at or below black */
-    sl_align_transform align;        /* with opt.align */
+    sl_align_transform align;        /* measured or registered (not with SL_ALIGN_OFF) */
 } sl_merge_frame;
 
 /* Where a merge's time went. Each phase has wall seconds and CPU seconds
@@ -125,6 +137,8 @@ typedef enum sl_merge_phase {
     SL_MERGE_FIT,     /* response, exposure check, encoding choice */
     SL_MERGE_PIXELS,  /* the merge arithmetic: tables and weighted sums */
     SL_MERGE_WRITE,   /* converting, compressing and writing the EXRs */
+    SL_MERGE_ALIGN,   /* measuring and estimating the frames' misalignment (not the
+                         decoding the sample pass does anyway) */
     SL_MERGE_OTHER,
     SL_MERGE_PHASES
 } sl_merge_phase;
@@ -133,7 +147,8 @@ typedef struct sl_merge_timing {
     double wall[SL_MERGE_PHASES], cpu[SL_MERGE_PHASES];
 } sl_merge_timing;
 
-/* Phase names for reports: "decode", "sample", "fit", "merge", "write", "other". */
+/* Phase names for reports: "decode", "sample", "fit", "merge", "write", "align",
+ * "other". */
 const char *sl_merge_phase_name(sl_merge_phase phase);
 
 typedef struct sl_merge_result {
@@ -169,6 +184,15 @@ typedef struct sl_merge_result {
                                    shortest frame; 0 when unbounded (float frames) */
     char encoding_note[160];
     int held_frames;            /* frames decoded once (kept between the passes) */
+    /* Alignment: the mode asked for, the largest displacement of any frame
+     * against the reference anywhere on the frame (px; -1 when not
+     * measured), whether the frames were registered, and why in words. */
+    sl_align_mode align_mode;
+    double misalignment_px;
+    bool aligned;
+    char align_note[160];
+    double align_measure_cpu;   /* CPU seconds of the measurement alone (AUTO): adding up
+                                   luminance in the sample pass and the estimate */
     double seconds;             /* wall */
     double cpu_seconds;         /* CPU of every thread */
     sl_merge_timing timing;
@@ -198,6 +222,13 @@ sl_result sl_merge_response(const char *const *paths, int count, const sl_merge_
  * out[i] for frame i; opt gives black, saturation and the limits. */
 sl_result sl_align_bracket(const char *const *paths, int count, const double *exposures,
                            const sl_merge_options *opt, sl_align_transform *out, sl_error *err);
+/* How far a transform moves the farthest point of a width x height frame
+ * (px): the shift plus the rotation's reach at the corners. */
+double sl_align_displacement(const sl_align_transform *t, int width, int height);
+/* The same counting only the motion beyond twice its spread: the shift if
+ * |shift| > 2 shift_spread_px, the rotation's reach if |angle| > 2
+ * angle_spread_deg (what SL_ALIGN_AUTO compares with align_auto_px). */
+double sl_align_sure_displacement(const sl_align_transform *t, int width, int height);
 
 /* Writes the radiance EXR (res->pixel_type, res->compression) with provenance attributes and, when
  * mask_path / ghost_path are not NULL, the clipped mask (RGB) and the ghost
@@ -224,16 +255,44 @@ typedef struct sl_ball_circle {
     double cx, cy, r;
     double residual;  /* RMS distance (px) of the edge points to the circle; 0 if given */
     int edge_points;  /* sub-pixel edge points the fit used; 0 if given */
+    double uncertainty; /* largest standard error (px) of cx, cy and r; 0 if given */
 } sl_ball_circle;
 
-/* Finds one chrome ball: circle candidates from OpenCV's Hough transform on
- * a log-tonemapped copy, then sub-pixel edge points on the HDR image along
- * rays from each candidate's centre and a robust least-squares circle fit.
- * SL_ERR_INPUT when no ball is found, when two or more are, or when the ball
- * is cut by the frame edge (circle then holds the clipped ball's outline);
+/* Finds one chrome ball: circle candidates on a copy at most 640 px across
+ * (the frame itself, for a tight crop, and OpenCV's Hough transform on a
+ * log-tonemapped copy), sub-pixel edge points along rays from each
+ * candidate's centre and a robust least-squares circle fit; outlines with a
+ * flat inside (discs, dials) or a circle on the same centre (rings) are not
+ * balls, circles inside a ball are its reflections, and the largest ball is
+ * taken when the others are under 0.7 of its radius. The ball's outline is
+ * fitted again on the full image. SL_ERR_INPUT when no ball is found, when
+ * two or more similar ones are, when the ball is cut by the frame edge
+ * (circle then holds the clipped ball's outline) or when its outline is
+ * measured too weakly (standard error over 0.25 px and 0.1% of the radius);
  * `name` (a file name) starts the message. */
 sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle *circle,
                          sl_error *err);
+
+/* What tells a circular fisheye photo from a chrome ball or an angular map:
+ * a fisheye's image circle sits on a black frame with a dark band on every
+ * side and its light falls off toward the edge; a ball sits in the set (the
+ * frame around it is the scene) with a bright Fresnel rim; angular and
+ * mirror-ball maps are dark outside but fill their square frame. */
+typedef struct sl_fisheye_evidence {
+    double border_level; /* frame border's 90th percentile / the centre's median */
+    bool round;          /* a bright disc on a dark frame was found */
+    double cx, cy, r;    /* its outline (px), when round */
+    double dark_outside; /* fraction of the frame beyond the disc that is dark */
+    double margin;       /* narrowest dark band between the disc and a frame side, in radii */
+    double rim_ratio;    /* luminance at 0.95-0.985 radii over that at 0.80-0.90 */
+    bool fisheye;
+} sl_fisheye_evidence;
+
+/* Fills ev; SL_ERR_INPUT ("NAME: looks like a circular fisheye image ...;
+ * use 'setlight stitch'") when the photo is a circular fisheye's. srgb: the
+ * pixels are sRGB-encoded (linearised for the measurement). */
+sl_result sl_fisheye_check(const sl_image *photo, bool srgb, const char *name,
+                           sl_fisheye_evidence *ev, sl_error *err);
 
 typedef enum {
     SL_BALL_ORTHOGRAPHIC = 0, /* camera infinitely far: the classic mirror-ball map */
@@ -437,6 +496,12 @@ typedef struct sl_chart_patch {
 sl_result sl_chart_sample(const sl_image *img, const double centers[24][2], double radius_px,
                           double clip_level, sl_chart_patch patches[24], sl_error *err);
 
+/* A clip level the file does not state: per channel (RGB), the image's
+ * largest finite value when at least 16 pixels (and 0.1% of them) hold
+ * exactly it, as a saturated sensor or a merge's clipped bound leaves
+ * them; else 0. Returns the pixels at or above a found level. */
+int64_t sl_pinned_maximum(const sl_image *img, double level[3]);
+
 typedef struct sl_ccm_options {
     /* Constrain the fit so that the neutral patch maps exactly onto its
      * reference: neutrals stay neutral. */
@@ -516,6 +581,55 @@ typedef struct sl_chart_detection {
  * matrix is kept. SL_ERR_INPUT "no chart found" when there is none. */
 sl_result sl_chart_detect(const sl_image *img, double clip_level, const char *source,
                           sl_chart_detection *out, sl_error *err);
+
+/* Judging a chart fit (sl_chart_judge): what a ColorChecker in one light,
+ * photographed by a camera, must look like. */
+#define SL_CHART_MIN_USED 12          /* patches under one light: most of the chart */
+#define SL_CHART_MAX_CONTRAST_ERROR 2.0 /* neutral row's log contrast vs the reference's */
+#define SL_CHART_MIN_CHROMA_RATIO 3.0 /* colour patches' saturation over the neutrals' */
+#define SL_CHART_MAX_CONDITION 50.0   /* the colour matrix's sigma_max / sigma_min */
+
+enum {
+    SL_CHART_FEW_PATCHES = 1 << 0, /* fewer than SL_CHART_MIN_USED patches in the fit */
+    SL_CHART_NEUTRALS = 1 << 1,    /* neutral row unusable, out of order or of the wrong contrast */
+    SL_CHART_COLOURS = 1 << 2,     /* colour patches grey, unusable or out of hue order */
+    SL_CHART_MATRIX = 1 << 3,      /* no camera's matrix: swaps colours, ill-conditioned */
+    SL_CHART_DELTA_E = 1 << 4      /* far from the reference even after the fit */
+};
+
+typedef struct sl_chart_judgement {
+    bool plausible;        /* no reason below */
+    unsigned reasons;      /* SL_CHART_* bits */
+    int used;              /* patches in the fit */
+    int neutrals_used;     /* of patches 19..24 */
+    int order_breaks;      /* neutral steps that do not get darker */
+    double neutral_slope;  /* d log(measured) / d log(reference) over the used neutrals */
+    int colours_usable;    /* of patches 13..18 */
+    double colour_chroma;  /* the least saturation among them, white-balanced on the neutrals */
+    double neutral_chroma; /* the median among the used neutrals */
+    int hue_turns;         /* their hues in the reference's order go round this often (1) */
+    double condition;      /* of the fitted matrix */
+    double de_after_mean;
+    double de_limit;       /* sl_chart_identity_delta_e of the reference */
+    char text[640];        /* every reason, "; "-separated; empty when plausible */
+} sl_chart_judgement;
+
+/* Judges a chart fit (patches as sampled, the fit, its reference): refuses
+ * it when fewer than SL_CHART_MIN_USED patches share one light, fewer than
+ * 3 neutrals are used or they do not darken patch by patch from white to
+ * black, their log contrast is off the reference's by more than
+ * SL_CHART_MAX_CONTRAST_ERROR either way, the colour patches 13..18
+ * (white-balanced on the neutrals) are not SL_CHART_MIN_CHROMA_RATIO times
+ * as saturated as the neutrals or not in the reference's hue order, the
+ * matrix has determinant <= 0, condition above SL_CHART_MAX_CONDITION or
+ * sends white below zero, or the mean CIEDE2000 after the fit exceeds sl_chart_identity_delta_e.
+ * Every reason is listed in text. */
+/* The median over the reference's patches of the CIEDE2000 to the nearest
+ * other patch (13.1 for the ColorChecker Classic): a fit no closer than
+ * that has not told the patches apart. */
+double sl_chart_identity_delta_e(const double reference[24][3]);
+void sl_chart_judge(const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                    const double reference[24][3], sl_chart_judgement *j);
 
 typedef struct sl_grey_options {
     double albedo;          /* the photographed sphere's albedo (0.18) */
@@ -618,6 +732,27 @@ sl_result sl_sun_repair_fit(sl_image *hdri, const sl_image *mask, const sl_image
  * part may be NULL. Image files are prefixed with `prefix`. */
 sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart_patch *patches,
                               const sl_ccm_fit *chart, const sl_grey_fit *grey, sl_error *err);
+
+/* Where the patches were found: the photo (linear) cropped to the patches
+ * and two pitches round them, scaled to `width` pixels, the brightest
+ * patch at 0.85; each sampled disc outlined and labelled with its number,
+ * green when used, orange "L" when left out as lit differently, red when
+ * excluded with its reason (C clipped, S not uniform, N too few pixels).
+ * fit may be NULL (every patch red). */
+sl_result sl_chart_overlay(const sl_image *photo, const sl_chart_patch patches[24],
+                           const sl_ccm_fit *fit, int width, sl_image *out, sl_error *err);
+
+/* Adds the chart's verdict (a ColorChecker, or the reasons it was refused)
+ * and the overlay (768 px wide) as `file` to a report. */
+sl_result sl_calibrate_report_chart(sl_report *rep, const char *file, const sl_image *photo,
+                                    const sl_chart_patch patches[24], const sl_ccm_fit *fit,
+                                    const sl_chart_judgement *judgement, sl_error *err);
+
+/* Sets every negative sample of the colour channels to 0 (a colour matrix
+ * sends colours outside the working gamut, and noise round black, below
+ * zero) and returns how many; *fraction (may be NULL) gets their share of
+ * the image's summed absolute values. */
+int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction);
 
 #ifdef __cplusplus
 }

@@ -160,6 +160,56 @@ json_eval "$T/out" 'd["chart"]["located"] == "not found" and "grey" in d'
 expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/grey.exr" -o "$T/cal4.exr"
 err_has "grey.exr: no chart found"; err_one_line; absent "$T/cal4.exr"; no_temp "$T"
 
+# --- things that are not a ColorChecker (make_fixture chart*): the detector
+# takes the JPEG wall, squares and shuffled board for charts; the fit is
+# judged and refused with its reasons, nothing written. As EXR the wall is
+# not even an outline.
+printf 'leak:cv::fastMalloc\n' >"$T/lsan_mcc.supp"
+mcc() { env LSAN_OPTIONS="suppressions=$T/lsan_mcc.supp" "$@"; }
+for k in chartwall chartsquares chartshuffled chartok chartclipped charttiny chartcut; do
+  "$MAKE_FIXTURE" $k "$T/$k.jpg" && "$MAKE_FIXTURE" $k "$T/$k.exr" || bad "fixture $k"
+done
+for f in chartwall.jpg chartsquares.jpg chartshuffled.jpg charttiny.jpg chartcut.jpg \
+         chartwall.exr chartsquares.exr chartshuffled.exr charttiny.exr chartcut.exr; do
+  expect 3 mcc "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/$f" -o "$T/nochart.exr"
+  err_has "setlight calibrate: $T/$f: "; err_one_line; absent "$T/nochart.exr"
+done
+no_temp "$T"
+expect 3 mcc "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chartwall.jpg" -o "$T/nochart.exr"
+err_has "not a usable ColorChecker: only"; err_has "patches fit one colour matrix"
+err_has "CIEDE2000 from the chart after the best matrix"
+expect 3 mcc "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chartshuffled.exr" -o "$T/nochart.exr"
+err_has "not a usable ColorChecker"
+# Corners given by hand on the wall: judged the same.
+expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chartwall.jpg" \
+    --chart-corners 220,180,420,180,420,300,220,300 -o "$T/nochart.exr"
+err_has "chartwall.jpg: "; err_one_line; absent "$T/nochart.exr"
+# With a grey sphere: said, and the sphere alone calibrates; the report shows
+# where the patches were looked for, each with its reason.
+expect 0 mcc "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chartwall.jpg" \
+    --grey "$T/grey.exr" --grey-circle 24,24,24 --spp 64 -o "$T/cal_wall.exr" --report "$T/rep_wall"
+err_has "not a usable ColorChecker"; err_has "calibrating with the grey sphere alone"
+json_eval "$T/out" 'd["chart"]["used"] is False and not d["chart"]["judgement"]["plausible"] and "plate_matrix" not in d'
+json_eval "$T/out" 'd["matrix"][0][1] == 0 and abs(d["scale"] / 2 - 1) < 0.01'
+present "$T/rep_wall/chart_patches.png"
+grep -q "Chart refused, not used: only" "$T/rep_wall/calibrate.html" && ok || bad "report lacks the refusal"
+png_width() { python3 -c 'import struct,sys; print(struct.unpack(">I", open(sys.argv[1],"rb").read()[16:20])[0])' "$1"; }
+[ "$(png_width "$T/rep_wall/chart_patches.png")" -ge 256 ] && ok || bad "chart picture under 256 px"
+# Real charts on the wall pass, with a one-line summary; clipped patches left out.
+expect 0 mcc "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chartok.jpg" -o "$T/cal_ok.exr" \
+    --report "$T/rep_ok"
+err_has "chartok.jpg: ColorChecker, 24 of 24 patches used"; err_has "CIEDE2000 mean"
+json_eval "$T/out" 'd["chart"]["used"] and d["chart"]["judgement"]["plausible"] and d["chart"]["delta_e_after_mean"] < 1'
+[ "$(png_width "$T/rep_ok/chart_patches.png")" -ge 256 ] && ok || bad "chart picture under 256 px"
+expect 0 mcc "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chartclipped.jpg" -o "$T/cal_clip.exr"
+json_eval "$T/out" 'd["chart"]["used"] and d["chart"]["patches_invalid"] >= 4 and not d["chart"]["patches"][18]["used"]'
+expect 0 "$SETLIGHT" info --json "$T/cal_clip.exr"
+json_eval "$T/out" 'd["files"][0]["negative_count"] == 0'
+# As a float file the clipped values are only seen pinned at the top: left out too.
+expect 0 mcc "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --chart "$T/chartclipped.exr" -o "$T/cal_clip2.exr"
+err_has "pixels pinned at the image's maximum"
+json_eval "$T/out" 'd["chart"]["used"] and not d["chart"]["patches"][18]["used"] and d["chart"]["delta_e_after_mean"] < 0.5'
+
 # --- colour spaces: ACEScg out (recorded), an sRGB PNG chart in; unknown names refused
 expect 0 "$SETLIGHT" calibrate --json --hdri "$T/env.exr" --grey "$T/grey.exr" \
     --grey-circle 24,24,24 --spp 64 --colorspace acescg -o "$T/cal_aces.exr"
@@ -210,7 +260,7 @@ expect 2 "$SETLIGHT" calibrate --hdri "$T/env.exr" --chart "$T/chart.exr" \
 expect 3 "$SETLIGHT" calibrate --hdri "$T/missing.exr" --grey "$T/grey.exr" \
     --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "missing.exr"; err_one_line
 expect 3 "$SETLIGHT" calibrate --hdri "$T/grey.exr" --grey "$T/grey.exr" \
-    --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "not an RGB lat-long"
+    --grey-circle 24,24,24 -o "$T/keep.exr"; err_has "grey.exr: not a lat-long: 48x48 is not 2:1"
 # A circle on empty background: no sphere there.
 expect 3 "$SETLIGHT" calibrate --hdri "$T/env.exr" --grey "$T/chart.exr" \
     --grey-circle 120,150,10 -o "$T/keep.exr"; err_has "chart.exr"; err_one_line

@@ -7,6 +7,8 @@
 "$MAKE_FIXTURE" latlong "$T/env.exr" 64 32 || bad "fixture"
 "$MAKE_FIXTURE" nan "$T/nan.pfm" 64 32 || bad "fixture"
 "$MAKE_FIXTURE" wide "$T/wide.exr" 96 || bad "fixture"
+"$MAKE_FIXTURE" wideenv "$T/wideenv.exr" 96 || bad "fixture"
+"$MAKE_FIXTURE" conf "$T/conf.exr" 48 || bad "fixture"
 "$MAKE_FIXTURE" png "$T/png_named.exr" 64 32 || bad "fixture"
 
 # --- global behaviour
@@ -66,6 +68,39 @@ expect 0 "$SETLIGHT" info --json "$T/rot.exr"
 json_eval "$T/out" 'd["files"][0]["colorspace"] == "acescg"'
 # LDR preview
 expect 0 "$SETLIGHT" convert --to mirrorball "$T/env.exr" "$T/ball.png"; present "$T/ball.png"
+expect 0 "$SETLIGHT" info --json "$T/ball.png"
+json_eval "$T/out" 'd["files"][0]["channels"] == 3 and d["files"][0]["bits_per_sample"] == 8'
+
+# --- convert: an image that is no environment (not 2:1, no envmap, no --from)
+expect 0 "$SETLIGHT" convert --json "$T/wide.exr" "$T/wide_copy.exr"
+json_eval "$T/out" 'd["from"] == "image" and d["width"] == 96 and d["height"] == 32'
+expect 0 "$SETLIGHT" info --json "$T/wide_copy.exr"
+json_eval "$T/out" 'd["files"][0]["envmap"] == "none" and d["files"][0]["width"] == 96 and abs(d["files"][0]["channel_stats"][0]["mean"] - 0.6) < 1e-3'
+# preview: the median (3.7) to mid grey through the sRGB view, the confidence
+# channel dropped (no alpha): every pixel 118 = round(255 * srgb(0.18))
+expect 0 "$SETLIGHT" convert --json "$T/conf.exr" "$T/conf.png"
+json_eval "$T/out" 'abs(d["preview"]["exposure_stops"] - (-4.36148)) < 1e-4 and d["preview"]["view"] == "sRGB/Standard" and d["width"] == 48 and d["height"] == 32'
+expect 0 "$SETLIGHT" info --json "$T/conf.png"
+json_eval "$T/out" 'd["files"][0]["channels"] == 3 and d["files"][0]["bits_per_sample"] == 8 and all(abs(s["min"] - 118/255) < 1e-6 and abs(s["max"] - 118/255) < 1e-6 for s in d["files"][0]["channel_stats"])'
+# a given exposure and the Raw view: 3.7 * 2^-4 = 0.23125 -> 59 of 255
+expect 0 "$SETLIGHT" convert "$T/conf.exr" --exposure -4 --view Raw "$T/conf_raw.jpg"
+expect 0 "$SETLIGHT" info --json "$T/conf_raw.jpg"
+json_eval "$T/out" 'd["files"][0]["channels"] == 3 and all(abs(s["mean"] - 59/255) < 1.5/255 for s in d["files"][0]["channel_stats"])'
+# --width keeps the aspect; EXR out is a plain copy that keeps the confidence
+expect 0 "$SETLIGHT" convert --json --width 24 "$T/conf.exr" "$T/conf_small.png"
+json_eval "$T/out" 'd["width"] == 24 and d["height"] == 16'
+expect 0 "$SETLIGHT" convert "$T/conf.exr" "$T/conf_copy.exr"
+expect 0 "$SETLIGHT" info --json "$T/conf_copy.exr"
+json_eval "$T/out" 'd["files"][0]["channels"] == 4 and abs(d["files"][0]["channel_stats"][3]["max"] - 1) < 1e-3'
+# what a preview cannot do, or an image cannot be: refused, nothing written
+mkdir -p "$T/pv"
+expect 2 "$SETLIGHT" convert --view Filmic "$T/conf.exr" "$T/pv/a.png"; err_has "Filmic"; err_has "Standard, Raw"; err_one_line
+expect 2 "$SETLIGHT" convert --exposure bright "$T/conf.exr" "$T/pv/a.png"; err_has "--exposure"; err_one_line
+expect 2 "$SETLIGHT" convert --exposure 1 "$T/conf.exr" "$T/pv/a.exr"; err_has "a.exr"; err_one_line
+expect 2 "$SETLIGHT" convert --colorspace acescg "$T/conf.exr" "$T/pv/a.png"; err_has "--view"; err_one_line
+expect 3 "$SETLIGHT" convert --to mirrorball "$T/wide.exr" "$T/pv/a.png"; err_has "wide.exr: not a lat-long"; err_has "2:1"; err_one_line
+expect 3 "$SETLIGHT" convert --rotate 30 "$T/conf.exr" "$T/pv/a.exr"; err_has "conf.exr"; err_one_line
+absent "$T/pv/a.png"; absent "$T/pv/a.exr"; no_temp "$T/pv"
 
 # --- convert: NaN input is counted, reported and replaced; --strict refuses
 expect 0 "$SETLIGHT" convert --json "$T/nan.pfm" "$T/nan_out.exr"
@@ -81,7 +116,7 @@ expect 3 "$SETLIGHT" convert "$T/missing.exr" "$T/outdir/a.exr"; err_has "missin
 expect 3 "$SETLIGHT" convert "$T/adir" "$T/outdir/a.exr"; err_has "adir"
 expect 3 "$SETLIGHT" convert "$T/empty.exr" "$T/outdir/a.exr"; err_has "empty.exr"
 expect 3 "$SETLIGHT" convert "$T/truncated.exr" "$T/outdir/a.exr"; err_has "truncated.exr"
-expect 3 "$SETLIGHT" convert "$T/wide.exr" "$T/outdir/a.exr"; err_has "wide.exr"; err_has "2:1"; err_one_line
+expect 3 "$SETLIGHT" convert "$T/wideenv.exr" "$T/outdir/a.exr"; err_has "wideenv.exr"; err_has "2:1"; err_one_line
 expect 2 "$SETLIGHT" convert --colorspace nosuchspace "$T/env.exr" "$T/outdir/a.exr"; err_has "nosuchspace"; err_one_line
 expect 2 "$SETLIGHT" convert --to nosuchproj "$T/env.exr" "$T/outdir/a.exr"; err_has "nosuchproj"
 expect 2 "$SETLIGHT" convert --width -3 "$T/env.exr" "$T/outdir/a.exr"
@@ -111,6 +146,14 @@ if [ -d "$hdri" ]; then
   # a real angular light probe unwraps to a lat-long
   probe="${SETLIGHT_SHARED_DATA:-}/probes/grace_probe_angular.hdr"
   [ -e "$probe" ] && { expect 0 "$SETLIGHT" convert --from angular --width 256 "$probe" "$T/grace.exr"; present "$T/grace.exr"; }
+  # a merged view (not 2:1) previewed: same size, RGB, 8-bit
+  mem="${SETLIGHT_SHARED_DATA:-}/brackets/memorial/memorial.exr"
+  if [ -e "$mem" ]; then
+    expect 0 "$SETLIGHT" convert --json "$mem" "$T/memorial.jpg"
+    json_eval "$T/out" 'd["from"] == "image" and d["width"] == 512 and d["height"] == 768 and d["preview"]["median_luminance"] > 0'
+    expect 0 "$SETLIGHT" info --json "$T/memorial.jpg"
+    json_eval "$T/out" 'd["files"][0]["channels"] == 3 and d["files"][0]["width"] == 512'
+  fi
   echo "read $n real HDRIs"
 else
   skip "shared HDRIs absent"

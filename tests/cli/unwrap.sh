@@ -5,7 +5,7 @@
 # an 8-bit JPEG (warned and linearised), a circle outside the image.
 . "$(dirname "$0")/lib.bash"
 
-for k in ball ball90 balltwo ballclip ballnone; do
+for k in ball ball90 balltwo ballclip ballnone ballfisheye ballfill; do
   "$MAKE_FIXTURE" "$k" "$T/$k.exr" || bad "fixture $k"
 done
 "$MAKE_FIXTURE" balljpg "$T/ball.jpg" || bad "fixture balljpg"
@@ -19,6 +19,10 @@ expect 0 "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 --reflectance ch
 json_ok "$T/out"
 json_eval "$T/out" 'd["circle"]["detected"] and abs(d["circle"]["cx"] - 104.3) < 0.5 and abs(d["circle"]["r"] - 46.5) < 0.5'
 json_eval "$T/out" 'd["camera"] == "perspective" and abs(d["distance_radii"] - 4.0) < 0.05'
+json_eval "$T/out" '0 < d["circle"]["uncertainty"] < 0.25'
+# --- a tight crop: the ball's outline touches the four sides of the frame
+expect 0 "$SETLIGHT" unwrap --json -o "$T/fill.exr" "$T/ballfill.exr"
+json_eval "$T/out" 'abs(d["circle"]["cx"] - 128) < 0.3 and abs(d["circle"]["cy"] - 128) < 0.3 and abs(d["circle"]["r"] - 128) < 0.3'
 json_eval "$T/out" 'd["width"] == 2 * d["height"] and d["width"] % 4 == 0'
 present "$T/env.exr"; no_temp "$T"
 expect 0 "$SETLIGHT" info --json "$T/env.exr"
@@ -116,6 +120,36 @@ expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ball.exr" "$T/balltwo.exr";
 expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/missing.exr"; err_has "missing.exr"; err_one_line
 no_temp "$T/outdir"
 if [ "$(ls -A "$T/outdir")" = "" ]; then ok; else bad "outdir not empty: $(ls "$T/outdir")"; fi
+
+# --- a circular fisheye photo is no ball (nor an angular or mirror-ball map): refused by
+# unwrap (with or without --circle) and by convert --from angular/mirrorball, naming stitch
+expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$T/ballfisheye.exr"
+err_has "ballfisheye.exr"; err_has "circular fisheye"; err_has "'setlight stitch'"; err_one_line
+absent "$T/outdir/a.exr"
+expect 3 "$SETLIGHT" unwrap --circle 150,100,90 -o "$T/outdir/a.exr" "$T/ballfisheye.exr"
+err_has "circular fisheye"; err_one_line; absent "$T/outdir/a.exr"
+for p in angular mirrorball; do
+  expect 3 "$SETLIGHT" convert --from $p "$T/ballfisheye.exr" "$T/outdir/c.exr"
+  err_has "ballfisheye.exr"; err_has "'setlight stitch'"; err_one_line; absent "$T/outdir/c.exr"
+done
+# the angular and mirror-ball maps of a ball's unwrap still convert
+expect 0 "$SETLIGHT" convert --to angular --width 256 "$T/env.exr" "$T/env_angular.exr"
+expect 0 "$SETLIGHT" convert --from angular "$T/env_angular.exr" "$T/env_back.exr"
+expect 0 "$SETLIGHT" convert --to mirrorball --width 256 "$T/env.exr" "$T/env_ball.exr"
+expect 0 "$SETLIGHT" convert --from mirrorball "$T/env_ball.exr" "$T/env_back2.exr"
+no_temp "$T/outdir"
+F="${SETLIGHT_SHARED_DATA:-}/fisheye/sigma8mm_canon6d/IMG_2843.JPG"
+G="${SETLIGHT_SHARED_DATA:-}/probes/grace_probe_angular.hdr"
+if [ -f "$F" ] && [ -f "$G" ]; then
+  expect 3 "$SETLIGHT" unwrap -o "$T/outdir/a.exr" "$F"
+  err_has "IMG_2843.JPG: looks like a circular fisheye image"; err_has "'setlight stitch'"
+  err_one_line; absent "$T/outdir/a.exr"
+  expect 3 "$SETLIGHT" convert --from angular "$F" "$T/outdir/c.exr"
+  err_has "circular fisheye"; err_one_line; absent "$T/outdir/c.exr"
+  expect 0 "$SETLIGHT" convert --from angular "$G" "$T/grace.exr"; present "$T/grace.exr"
+else
+  skip "real fisheye and angular probe"
+fi
 
 # --- the real iPhone probes (when present): this one is whole and unwraps
 P="${SETLIGHT_SHARED_DATA:-}/probes/chromeball_iphone7/160.JPG"

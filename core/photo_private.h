@@ -1,0 +1,61 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Private: the two photo readers behind core.h's sl_photo_* calls
+ * (core/photo.c chooses). PNG is read by libpng directly (photo_png.c):
+ * loading OpenImageIO costs a process ~0.3 s of CPU binding the symbols of
+ * its ~260 libraries, more than a small bracket's whole merge. Everything
+ * else, and the PNGs photo_png.c declines, goes to OpenImageIO
+ * (photo_cxx.cpp, loaded on first use by photo_module.c). */
+#ifndef SETLIGHT_CORE_PHOTO_PRIVATE_H
+#define SETLIGHT_CORE_PHOTO_PRIVATE_H
+
+#include "setlight/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* OpenImageIO's reader and writer: the semantics core.h gives sl_photo_*. */
+typedef struct sl_oiio_strips sl_oiio_strips;
+sl_result sl_oiio_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
+sl_result sl_oiio_read_meta(const char *path, sl_meta *meta, int *width, int *height,
+                            int *channels, sl_error *err);
+sl_result sl_oiio_write(const char *path, const sl_image *img, const sl_meta *meta, int bits,
+                        sl_error *err);
+sl_result sl_oiio_strips_open(const char *path, sl_oiio_strips **strips,
+                              sl_photo_strip_info *info, sl_error *err);
+sl_result sl_oiio_strips_read(sl_oiio_strips *strips, int y0, int y1, float *rgb, sl_error *err);
+sl_result sl_oiio_strips_read_codes(sl_oiio_strips *strips, int y0, int y1, void *rgb,
+                                    sl_error *err);
+void sl_oiio_strips_close(sl_oiio_strips *strips);
+
+/* PNG through libpng, giving what OpenImageIO 2.4 gives for the same file:
+ * the same pixels (codes / 255 or / 65535, palette and low bit depths
+ * expanded, transparency as alpha, alpha unassociated) and the same sl_meta
+ * (colour space from sRGB / gAMA, text chunks as attributes, tIME as
+ * DateTime). A PNG whose reading it does not reproduce (interlaced, or
+ * with EXIF, XMP or raw-profile metadata) is declined: *declined set, err
+ * untouched, for the caller to hand to OpenImageIO. */
+typedef struct sl_png_reader sl_png_reader;
+/* Whether the file starts with PNG's signature (false when unreadable). */
+bool sl_png_is_png(const char *path);
+/* Opens and reads the header of a file sl_check_input_file passed; meta
+ * may be NULL. */
+sl_result sl_png_open(const char *path, sl_png_reader **reader, sl_meta *meta, bool *declined,
+                      sl_error *err);
+void sl_png_size(const sl_png_reader *reader, int *width, int *height, int *channels,
+                 int *code_bytes);
+/* Rows [y0, y1) after the rows read so far, as the file's codes (uint8 or
+ * uint16, native order), channels [0, keep) of each pixel kept. */
+sl_result sl_png_read_rows(sl_png_reader *reader, int y0, int y1, int keep, void *codes,
+                           sl_error *err);
+void sl_png_close(sl_png_reader *reader);
+
+/* How many times this process has started OpenImageIO (0 or 1): a test
+ * checks that reading what core reads itself never does. */
+int sl_oiio_start_count(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# Start-up work is done only when needed: commands that read PNG or EXR files
+# never load OpenImageIO (its ~260 libraries cost a process ~0.35 s of CPU)
+# nor OpenCV (ball and chart detection only; ~11 ms); one that reads a TIFF
+# loads OpenImageIO, which shows the check can see it. The loader's own trace
+# (LD_DEBUG=files) says which libraries a process opened. Speed is measured
+# by bench/startup_vs_opencv.py, never here.
+. "$(dirname "$0")/lib.bash"
+
+# Sanitizer builds link OpenImageIO and OpenCV in (CMakeLists.txt).
+if ldd "$SETLIGHT" | grep -q 'libasan'; then
+  skip "sanitizer build: OpenImageIO and OpenCV are linked in"
+  finish
+  exit
+fi
+
+"$MAKE_FIXTURE" latlong "$T/env.exr" 64 32 || bad "fixture"
+"$MAKE_FIXTURE" png "$T/env.png" 64 32 || bad "fixture"
+"$SETLIGHT" convert "$T/env.exr" "$T/env.tif" 2>/dev/null || bad "fixture"
+
+# trace CMD...: runs CMD (exit 0 expected) under the loader's trace; $T/libs
+# lists the shared objects it opened.
+trace() {
+  expect 0 env LD_DEBUG=files LD_DEBUG_OUTPUT="$T/ld" "$@"
+  cat "$T"/ld.* >"$T/libs" 2>/dev/null
+  rm -f "$T"/ld.*
+}
+# lean WHAT: the last traced command loaded neither OpenImageIO nor OpenCV.
+lean() {
+  if grep -q 'file=.*libOpenImageIO' "$T/libs"; then bad "$1 loaded OpenImageIO"; else ok; fi
+  if grep -q 'file=.*libopencv' "$T/libs"; then bad "$1 loaded OpenCV"; else ok; fi
+}
+
+trace "$SETLIGHT" info "$T/env.exr"; lean "info on an EXR"
+trace "$SETLIGHT" info "$T/env.png"; lean "info on a PNG"
+trace "$SETLIGHT" --version; lean "--version"
+# A 3-frame 8-bit PNG bracket, 2 stops apart, through a 1/2.2 gamma.
+python3 - "$T" <<'PY' || bad "fixture"
+import struct, sys, zlib
+w, h = 48, 24
+def chunk(t, d):
+    return struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d) & 0xffffffff)
+for k in range(3):
+    rows = b"".join(b"\0" + bytes(min(255, round(255 * min(1.0, 2 ** (-7 + 9 * x / w + y / h + 2 * k)) ** (1 / 2.2)))
+                                   for x in range(w) for c in range(3)) for y in range(h))
+    hdr = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
+    open("%s/b%d.png" % (sys.argv[1], k), "wb").write(
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", hdr) + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+PY
+trace "$SETLIGHT" merge --quiet --no-mask --times 1/16,1/4,1 -o "$T/m.exr" "$T/b0.png" "$T/b1.png" "$T/b2.png"
+lean "merge of a PNG bracket"
+trace "$SETLIGHT" info "$T/env.tif"
+if grep -q 'file=.*libOpenImageIO' "$T/libs"; then ok; else bad "info on a TIFF did not load OpenImageIO (is the trace working?)"; fi
+# Ball detection loads OpenCV (and still finds the ball through the module).
+"$MAKE_FIXTURE" ball "$T/ball.exr" || bad "fixture"
+trace "$SETLIGHT" unwrap --json --focal-mm 18 --sensor-mm 20 -o "$T/u.exr" "$T/ball.exr"
+json_eval "$T/out" 'd["circle"]["detected"] and abs(d["circle"]["r"] - 46.5) < 0.5'
+if grep -q 'file=.*libopencv' "$T/libs"; then ok; else bad "ball detection did not load OpenCV"; fi
+
+finish
