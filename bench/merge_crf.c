@@ -12,6 +12,7 @@
  *   ./build/bench/bench_merge_crf [--width 1024] [--curves all|I,J,..] [--seed 3]
  *                                 [--well 4000] [--read 3] [--scene exterior]
  *                                 [--smoothness L] [--samples N] [--noise-free]
+ *                                 [--sensor-noise: the merges told the sensor's noise]
  */
 #include <getopt.h>
 #include <math.h>
@@ -32,6 +33,8 @@ typedef struct result {
 
 static double smoothness; /* --smoothness: the merge's lambda (0: its default) */
 static int samples;       /* --samples: response samples per channel (0: its default) */
+static bool sensor_noise; /* --sensor-noise: the merges get the sensor's noise model */
+static double well_e, read_e;
 
 static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve,
                        int *named)
@@ -43,6 +46,10 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
     opt.smoothness = smoothness;
     if (samples > 0)
         opt.samples = samples;
+    if (sensor_noise) {
+        opt.noise_gain = 1 / well_e;
+        opt.noise_floor = (read_e / well_e) * (read_e / well_e);
+    }
     sl_merge_result res;
     sl_error err;
     if (vb_merge(b, &opt, &res, &err)) {
@@ -108,6 +115,7 @@ int main(int argc, char **argv)
                                           {"read", 1, 0, 'r'},  {"scene", 1, 0, 'S'},
                                           {"smoothness", 1, 0, 'L'}, {"noise-free", 0, 0, 'N'},
                                           {"samples", 1, 0, 'n'},
+                                          {"sensor-noise", 0, 0, 'z'},
                                           {0, 0, 0, 0}};
     for (int o; (o = getopt_long(argc, argv, "", longs, NULL)) != -1;) {
         if (o == 'w')
@@ -124,6 +132,8 @@ int main(int argc, char **argv)
             sp.scene = optarg;
         else if (o == 'L')
             smoothness = atof(optarg);
+        else if (o == 'z')
+            sensor_noise = true;
         else if (o == 'n')
             samples = atoi(optarg);
         else if (o == 'N')
@@ -159,6 +169,7 @@ int main(int argc, char **argv)
         return 1;
     }
     sp.latlong = &scene.latlong;
+    well_e = sp.full_well_e, read_e = sp.read_noise_e;
     char dir[] = "/tmp/bench_merge_crf_XXXXXX";
     if (!mkdtemp(dir))
         return 1;
