@@ -44,7 +44,8 @@ static void append(sl_report *rep, const char *s, size_t n)
     rep->html[rep->len] = 0;
 }
 
-#define append_lit(rep, lit) append((rep), (lit), sizeof(lit) - 1)
+/* lit must be a string literal (the "" makes anything else a compile error). */
+#define append_lit(rep, lit) append((rep), "" lit, sizeof("" lit) - 1)
 
 static void appendf(sl_report *rep, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 static void appendf(sl_report *rep, const char *fmt, ...)
@@ -464,7 +465,10 @@ sl_result sl_report_bars(sl_report *rep, const char *file, const char *title, co
     bool any = false;
     for (int i = 0; notes && i < count; i++)
         if (notes[i] && notes[i][0]) {
-            append_lit(rep, any ? "<br>" : "<figcaption>Excluded: ");
+            if (any)
+                append_lit(rep, "<br>");
+            else
+                append_lit(rep, "<figcaption>Excluded: ");
             append_escaped(rep, labels[i]);
             append_lit(rep, ": ");
             append_escaped(rep, notes[i]);

@@ -95,7 +95,8 @@ static void test_report_summary_and_bars(void)
         const char *intro = strstr(html, "<p>intro");
         CHECK(title && intro && summary && details && title < intro && intro < summary &&
               summary < details);
-        CHECK(strstr(html, "white: clipped in the photo") != NULL);
+        CHECK(strstr(html, "<figcaption>Excluded: white: clipped in the photo</figcaption>") !=
+              NULL);
         CHECK(strstr(html, "</html>") != NULL);
         free(html);
     }

@@ -421,7 +421,9 @@ int vb_dorf_names(const char *path, char (*names)[128], int max)
         size_t len = strlen(buf);
         if (at_start && line % 6 == 0 && n < max) {
             buf[strcspn(buf, "\r\n")] = 0;
-            snprintf(names[n++], 128, "%s", buf);
+            /* names are short; a longer line is cut to 127 characters */
+            buf[127] = 0;
+            memcpy(names[n++], buf, strlen(buf) + 1);
         }
         at_start = len > 0 && buf[len - 1] == '\n';
         line += at_start;
