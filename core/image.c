@@ -166,3 +166,17 @@ int64_t sl_image_sanitize(sl_image *img, float value)
     }
     return n;
 }
+
+sl_result sl_image_ensure_rgb(sl_image *img, const char *path, sl_error *err)
+{
+    if (img->channels >= 3)
+        return SL_OK;
+    sl_image rgb;
+    sl_error why;
+    sl_result r = sl_image_convert_channels(img, img->channels == 2 ? 4 : 3, &rgb, &why);
+    if (r)
+        return sl_error_set(err, r, "%s: %s", path, why.message);
+    sl_image_free(img);
+    *img = rgb;
+    return SL_OK;
+}

@@ -70,21 +70,6 @@ static void apply_matrix(sl_image *img, const double m[3][3])
         }
 }
 
-/* Grey needs RGB to go through a change of primaries (sl_color_convert). */
-static sl_result ensure_rgb(sl_image *img, const char *path, sl_error *err)
-{
-    if (img->channels >= 3)
-        return SL_OK;
-    sl_image rgb;
-    sl_error why;
-    sl_result r = sl_image_convert_channels(img, img->channels == 2 ? 4 : 3, &rgb, &why);
-    if (r)
-        return sl_error_set(err, r, "%s: %s", path, why.message);
-    sl_image_free(img);
-    *img = rgb;
-    return SL_OK;
-}
-
 sl_result sl_image_linearize(sl_image *img, sl_meta *meta, const char *path, const char *from,
                              sl_read_info *info, sl_error *err)
 {
@@ -116,7 +101,7 @@ sl_result sl_image_linearize(sl_image *img, sl_meta *meta, const char *path, con
 
     char samples[64], space[160];
     sample_text(meta, samples, sizeof samples);
-    sl_result r = ensure_rgb(img, path, err);
+    sl_result r = sl_image_ensure_rgb(img, path, err);
     if (r)
         return r;
     if (cs) {

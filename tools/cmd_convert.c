@@ -76,20 +76,6 @@ static enum output_kind output_kind(const char *path)
     return OUT_UNKNOWN;
 }
 
-/* Colour conversion works on RGB(A): a grey image is repeated to RGB. */
-static sl_result ensure_rgb(sl_image *img, sl_error *err)
-{
-    if (img->channels >= 3)
-        return SL_OK;
-    sl_image rgb;
-    sl_result r = sl_image_convert_channels(img, img->channels == 2 ? 4 : 3, &rgb, err);
-    if (r)
-        return r;
-    sl_image_free(img);
-    *img = rgb;
-    return SL_OK;
-}
-
 int cmd_convert(int argc, char **argv, const sl_cli *cli)
 {
     enum {
@@ -273,7 +259,8 @@ int cmd_convert(int argc, char **argv, const sl_cli *cli)
     if (r)
         goto fail;
     if (!is_preview && strcmp(work_cs, dst_cs) != 0 &&
-        ((r = ensure_rgb(&dst, &err)) || (r = sl_color_convert(&dst, work_cs, dst_cs, &err))))
+        ((r = sl_image_ensure_rgb(&dst, out_path, &err)) ||
+         (r = sl_color_convert(&dst, work_cs, dst_cs, &err))))
         goto fail;
 
     out_meta.envmap = !is_env                 ? SL_ENVMAP_NONE

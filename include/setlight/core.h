@@ -196,6 +196,10 @@ sl_result sl_image_resample(const sl_image *src, int width, int height, sl_image
  * channel to RGB, fills a missing alpha with 1. */
 sl_result sl_image_convert_channels(const sl_image *src, int channels, sl_image *dst,
                                     sl_error *err);
+/* In place: a grey image (with its alpha) becomes RGB(A), as a change of
+ * primaries (sl_color_convert) needs; RGB(A) is left as it is. Errors name
+ * `path`. */
+sl_result sl_image_ensure_rgb(sl_image *img, const char *path, sl_error *err);
 
 typedef struct sl_image_stats {
     double min[4], max[4];  /* over finite values */
