@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* Synthetic chrome-ball photos by exact ray tracing (see ball_fixture.h). */
 #include "ball_fixture.h"
+#include "testing.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -425,19 +426,5 @@ int ball_fixture_main(const char *kind, const char *out)
     sl_meta_init(&meta);
     sl_result r = !strcmp(kind, "ballfisheye") ? ball_fixture_fisheye(300, 200, 90, &img, &err)
                                                : ball_fixture_render(&f, &img, &err);
-    if (!r && !strcmp(kind, "balljpg")) {
-        for (size_t i = 0; i < img.stride * (size_t)img.height; i++)
-            img.data[i] = sl_linear_to_srgb(img.data[i] > 1.0f ? 1.0f : img.data[i]);
-        r = sl_photo_write(out, &img, &meta, 8, &err);
-    } else if (!r) {
-        sl_meta_set_rec709(&meta);
-        r = sl_exr_write(out, &img, &meta, SL_PIXEL_FLOAT, &err);
-    }
-    sl_image_free(&img);
-    sl_meta_free(&meta);
-    if (r) {
-        fprintf(stderr, "make_fixture: %s\n", err.message);
-        return 1;
-    }
-    return 0;
+    return sl_test_fixture_write(out, &img, &meta, !strcmp(kind, "balljpg"), r, &err);
 }

@@ -2,6 +2,7 @@
 /* Synthetic chart photos: a white brick wall, coloured squares, a
  * ColorChecker (see chart_fixture.h). */
 #include "chart_fixture.h"
+#include "testing.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -174,22 +175,5 @@ int chart_fixture_main(const char *kind, const char *out)
     sl_meta_init(&meta);
     sl_result r = chart_fixture_render(&f, &img, &err);
     const char *dot = strrchr(out, '.');
-    if (!r && dot && !strcmp(dot, ".jpg")) {
-        for (int y = 0; y < img.height; y++)
-            for (int x = 0; x < img.width * 3; x++) {
-                float *v = img.data + (size_t)y * img.stride + x;
-                *v = sl_linear_to_srgb(*v);
-            }
-        r = sl_photo_write(out, &img, &meta, 8, &err);
-    } else if (!r) {
-        sl_meta_set_rec709(&meta);
-        r = sl_exr_write(out, &img, &meta, SL_PIXEL_FLOAT, &err);
-    }
-    sl_image_free(&img);
-    sl_meta_free(&meta);
-    if (r) {
-        fprintf(stderr, "make_fixture: %s\n", err.message);
-        return 1;
-    }
-    return 0;
+    return sl_test_fixture_write(out, &img, &meta, dot && !strcmp(dot, ".jpg"), r, &err);
 }

@@ -197,3 +197,26 @@ double sl_test_chi2(const double *obs, const double *expct, int n, int *dof_out)
     *dof_out = bins - 1;
     return sl_chi2_pvalue(stat, bins - 1);
 }
+
+int sl_test_fixture_write(const char *out, sl_image *img, sl_meta *meta, bool jpeg, sl_result r,
+                          sl_error *err)
+{
+    if (!r && jpeg) {
+        for (int y = 0; y < img->height; y++)
+            for (int x = 0; x < img->width * img->channels; x++) {
+                float *v = img->data + (size_t)y * img->stride + x;
+                *v = sl_linear_to_srgb(*v > 1.0f ? 1.0f : *v);
+            }
+        r = sl_photo_write(out, img, meta, 8, err);
+    } else if (!r) {
+        sl_meta_set_rec709(meta);
+        r = sl_exr_write(out, img, meta, SL_PIXEL_FLOAT, err);
+    }
+    sl_image_free(img);
+    sl_meta_free(meta);
+    if (r) {
+        fprintf(stderr, "make_fixture: %s\n", err->message);
+        return 1;
+    }
+    return 0;
+}

@@ -101,4 +101,10 @@ void sl_test_shuffle(int *a, int n, uint64_t *state);
 double sl_test_median(double *v, size_t n);
 int sl_test_finish(void);
 
+/* The end of a make_fixture kind: unless r already failed, img written to
+ * OUT as an sRGB 8-bit photo (jpeg) or a float Rec.709 EXR; img and meta
+ * freed; a failure printed as "make_fixture: ...". Returns the exit code. */
+int sl_test_fixture_write(const char *out, sl_image *img, sl_meta *meta, bool jpeg, sl_result r,
+                          sl_error *err);
+
 #endif
