@@ -551,6 +551,80 @@ sl_result sl_reproject(const sl_image *src, sl_projection from, sl_projection to
                        const double rot[3][3], sl_image *dst, sl_error *err);
 
 /* ------------------------------------------------------------------ */
+/* Lenses and view poses (fisheye and rectilinear views)               */
+/* ------------------------------------------------------------------ */
+
+/* Ideal radius r0 = f g(theta) of a ray theta off the optical axis. */
+typedef enum {
+    SL_LENS_EQUISOLID = 0, /* g = 2 sin(theta/2): 8 mm circular fisheyes (Sigma 8mm) */
+    SL_LENS_EQUIDISTANT,   /* g = theta */
+    SL_LENS_STEREOGRAPHIC, /* g = 2 tan(theta/2) */
+    SL_LENS_ORTHOGRAPHIC,  /* g = sin theta (theta <= 90 deg) */
+    SL_LENS_RECTILINEAR,   /* g = tan theta (theta < 90 deg) */
+    SL_LENS_PROJECTION_COUNT
+} sl_lens_projection;
+
+/* "equisolid", "equidistant", "stereographic", "orthographic", "rectilinear";
+ * -1 if unknown. */
+int sl_lens_projection_from_name(const char *name);
+const char *sl_lens_projection_name(sl_lens_projection p);
+
+/* One lens on one camera body, in the pixels of a width x height image
+ * ((0,0) is the top-left corner of the top-left pixel). A ray theta off the
+ * axis lands at the distance r = f q (1 + k1 q^2 + k2 q^4 + k3 q^6),
+ * q = g(theta), from the optical centre, in the ray's own azimuth. The
+ * camera frame is OpenCV's: x image right, y image down, z forward (the
+ * optical axis); right-handed. */
+typedef struct sl_lens {
+    sl_lens_projection projection;
+    int width, height;
+    double focal_px;      /* f, in pixels */
+    double cx, cy;        /* optical centre in pixels (nominal: width/2, height/2) */
+    double k[3];          /* radial correction k1, k2, k3 (0: the ideal projection) */
+    double vignette[3];   /* gain V = 1 + v1 s^2 + v2 s^4 + v3 s^6, s = r / f, r the
+                             pixel's distance from the centre (0: no falloff) */
+    double max_theta_deg; /* rays further off-axis are not seen */
+    double circle_radius_px; /* image circle about (cx, cy); 0 when the image has none */
+} sl_lens;
+
+/* Nominal lens from the photo's own numbers: focal_px = focal_mm * width /
+ * sensor_width_mm, centre at the image centre, no correction, no falloff.
+ * max_theta: 90 deg for the fisheye projections, the frame's corner for a
+ * rectilinear lens; circle_radius_px: where theta = max_theta for a fisheye
+ * whose circle fits inside the frame, else 0. */
+void sl_lens_nominal(sl_lens *lens, sl_lens_projection p, int width, int height,
+                     double focal_mm, double sensor_width_mm);
+/* Distance from the centre, in pixels, of a ray theta (radians) off the axis;
+ * -1 when the lens cannot image it. */
+double sl_lens_radius(const sl_lens *lens, double theta);
+/* Inverse of sl_lens_radius; -1 outside the lens's field. */
+double sl_lens_theta(const sl_lens *lens, double radius_px);
+/* Unit ray in the camera frame seen at pixel position (x, y); false outside
+ * the image circle or the field. */
+bool sl_lens_pixel_to_ray(const sl_lens *lens, double x, double y, double ray[3]);
+/* Pixel position of a camera-frame ray (need not be unit); false when the
+ * lens does not see it (beyond max_theta or off the frame). */
+bool sl_lens_ray_to_pixel(const sl_lens *lens, const double ray[3], double *x, double *y);
+/* Vignetting gain at pixel position (x, y): the photo's radiance is the
+ * scene's times this. */
+double sl_lens_vignette(const sl_lens *lens, double x, double y);
+
+/* Where a view points: yaw (azimuth of the optical axis, 0 = +Z, 90 = +X),
+ * pitch (its elevation, up positive) and roll (about the axis; positive turns
+ * image right toward image up), all in degrees. At (0, 0, 0) image right is
+ * -X and image up +Y, so the view looks like the middle of the lat-long. */
+typedef struct sl_view_pose {
+    double yaw_deg, pitch_deg, roll_deg;
+} sl_view_pose;
+
+/* world_dir = cam_to_world * camera_ray, a rotation: the columns are the
+ * camera's right, down and forward axes in the world. */
+void sl_view_pose_matrix(const sl_view_pose *pose, double cam_to_world[3][3]);
+/* Inverse of sl_view_pose_matrix for any rotation matrix (at pitch +-90 the
+ * yaw is taken as 0). */
+void sl_view_pose_from_matrix(const double cam_to_world[3][3], sl_view_pose *pose);
+
+/* ------------------------------------------------------------------ */
 /* Sampling distributions (built in double precision)                  */
 /* ------------------------------------------------------------------ */
 

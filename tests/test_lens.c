@@ -1,0 +1,212 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The lens model: known radii of each projection, the virtual set's 8 mm
+ * fisheye reproduced exactly by the nominal lens and a view pose, pixel ->
+ * ray -> pixel round trips with a radial correction and an off-centre axis,
+ * and pose <-> matrix round trips. */
+#include "testing.h"
+
+#include "setlight/capture.h"
+
+#include <math.h>
+#include <stdint.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+static uint64_t rng_state = 0x2545F4914F6CDD1Dull;
+
+static double rng_uniform(void)
+{
+    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+
+static void mat_vec(const double m[3][3], const double v[3], double out[3])
+{
+    for (int i = 0; i < 3; i++)
+        out[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
+}
+
+static void known_radii(void)
+{
+    sl_lens lens;
+    sl_lens_nominal(&lens, SL_LENS_EQUISOLID, 1800, 1200, 8.0, 36.0);
+    CHECK_NEAR(lens.focal_px, 400.0, 1e-12);
+    CHECK_NEAR(sl_lens_radius(&lens, 0.5 * M_PI), 400.0 * sqrt(2.0), 1e-9);
+    CHECK_NEAR(lens.circle_radius_px, 400.0 * sqrt(2.0), 1e-9);
+    CHECK(sl_lens_radius(&lens, 0.5 * M_PI + 0.01) < 0); /* beyond the field */
+    const double expect[SL_LENS_PROJECTION_COUNT] = {2 * sin(0.3), 0.6, 2 * tan(0.3), sin(0.6),
+                                                     tan(0.6)};
+    for (int p = 0; p < SL_LENS_PROJECTION_COUNT; p++) {
+        sl_lens_nominal(&lens, (sl_lens_projection)p, 4000, 3000, 10.0, 40.0);
+        CHECK_NEAR(sl_lens_radius(&lens, 0.6), 1000.0 * expect[p], 1e-9);
+        CHECK_NEAR(sl_lens_theta(&lens, 1000.0 * expect[p]), 0.6, 1e-12);
+        CHECK(sl_lens_projection_from_name(sl_lens_projection_name((sl_lens_projection)p)) == p);
+    }
+    CHECK(sl_lens_projection_from_name("fisheye") == -1);
+    /* A rectilinear lens sees out to its frame's corner, and has no circle. */
+    sl_lens_nominal(&lens, SL_LENS_RECTILINEAR, 4000, 3000, 10.0, 40.0);
+    CHECK_NEAR(lens.max_theta_deg, atan(2500.0 / 1000.0) * 180 / M_PI, 1e-9);
+    CHECK(lens.circle_radius_px == 0);
+    /* A fisheye whose circle is larger than the frame (full-frame fisheye). */
+    sl_lens_nominal(&lens, SL_LENS_EQUISOLID, 6000, 4000, 16.0, 36.0);
+    CHECK(lens.circle_radius_px == 0);
+}
+
+/* The virtual set's camera: the nominal lens and the pose reproduce its
+ * pixel <-> direction map for any view. */
+static void matches_virtual_set(void)
+{
+    sl_vset_lens vl;
+    sl_vset_lens_fisheye8(&vl);
+    const int w = 900, h = 600;
+    sl_lens lens;
+    sl_lens_nominal(&lens, SL_LENS_EQUISOLID, w, h, vl.focal_mm, vl.sensor_width_mm);
+    double worst = 0;
+    int compared = 0, disagree = 0;
+    for (int v = 0; v < 20; v++) {
+        sl_vset_view view = {360 * rng_uniform() - 180, 60 * rng_uniform() - 30,
+                             20 * rng_uniform() - 10};
+        sl_view_pose pose = {view.yaw_deg, view.pitch_deg, view.roll_deg};
+        double m[3][3];
+        sl_view_pose_matrix(&pose, m);
+        for (int i = 0; i < 200; i++) {
+            double x = w * rng_uniform(), y = h * rng_uniform(), d1[3], d2[3], ray[3];
+            bool a = sl_vset_lens_to_dir(&vl, &view, w, h, x, y, d1);
+            bool b = sl_lens_pixel_to_ray(&lens, x, y, ray);
+            /* The two may disagree only on the circle's edge itself. */
+            if (a != b) {
+                disagree++;
+                continue;
+            }
+            if (!a)
+                continue;
+            mat_vec(m, ray, d2);
+            double e = fabs(d1[0] - d2[0]) + fabs(d1[1] - d2[1]) + fabs(d1[2] - d2[2]);
+            worst = e > worst ? e : worst;
+            compared++;
+            double x2, y2;
+            CHECK(sl_vset_lens_from_dir(&vl, &view, w, h, d1, &x2, &y2));
+            CHECK(sl_lens_ray_to_pixel(&lens, ray, &x2, &y2));
+            CHECK_NEAR(x2, x, 1e-7);
+            CHECK_NEAR(y2, y, 1e-7);
+        }
+    }
+    printf("virtual-set fisheye: %d pixels compared, worst direction difference %.3g, %d on "
+           "the circle's edge\n",
+           compared, worst, disagree);
+    CHECK(compared > 1500);
+    CHECK(worst < 1e-12);
+    CHECK(disagree <= 2);
+}
+
+static void round_trips(void)
+{
+    for (int p = 0; p < SL_LENS_PROJECTION_COUNT; p++) {
+        sl_lens lens;
+        sl_lens_nominal(&lens, (sl_lens_projection)p, 1600, 1200, 8.0, 24.0);
+        lens.cx += 7.5;
+        lens.cy -= 4.25;
+        lens.k[0] = 0.02;
+        lens.k[1] = -0.01;
+        lens.k[2] = 0.002;
+        if (p == SL_LENS_RECTILINEAR) {
+            sl_lens_nominal(&lens, SL_LENS_RECTILINEAR, 1600, 1200, 24.0, 36.0);
+            lens.k[0] = -0.05;
+        }
+        double worst = 0;
+        int seen = 0;
+        for (int i = 0; i < 4000; i++) {
+            double x = lens.width * rng_uniform(), y = lens.height * rng_uniform(), ray[3];
+            if (!sl_lens_pixel_to_ray(&lens, x, y, ray))
+                continue;
+            CHECK_NEAR(ray[0] * ray[0] + ray[1] * ray[1] + ray[2] * ray[2], 1.0, 1e-12);
+            double x2, y2;
+            if (!sl_lens_ray_to_pixel(&lens, ray, &x2, &y2)) {
+                CHECK_MSG(false, "%s: ray at (%g, %g) does not map back",
+                          sl_lens_projection_name((sl_lens_projection)p), x, y);
+                continue;
+            }
+            double e = hypot(x2 - x, y2 - y);
+            worst = e > worst ? e : worst;
+            seen++;
+        }
+        CHECK_MSG(worst < 1e-8, "%s: worst round trip %g px",
+                  sl_lens_projection_name((sl_lens_projection)p), worst);
+        CHECK(seen > 1000);
+    }
+    /* Rays behind a fisheye's field are refused, not wrapped. */
+    sl_lens lens;
+    sl_lens_nominal(&lens, SL_LENS_EQUIDISTANT, 1600, 1200, 8.0, 36.0);
+    double behind[3] = {0.1, 0.0, -1.0}, x, y;
+    CHECK(!sl_lens_ray_to_pixel(&lens, behind, &x, &y));
+    double on_axis[3] = {0, 0, 2.0};
+    CHECK(sl_lens_ray_to_pixel(&lens, on_axis, &x, &y));
+    CHECK_NEAR(x, 800.0, 1e-12);
+    CHECK_NEAR(y, 600.0, 1e-12);
+}
+
+static void vignette(void)
+{
+    sl_lens lens;
+    sl_lens_nominal(&lens, SL_LENS_EQUISOLID, 1000, 1000, 8.0, 36.0);
+    CHECK_NEAR(sl_lens_vignette(&lens, 500, 500), 1.0, 1e-15);
+    lens.vignette[0] = -0.2;
+    lens.vignette[1] = 0.05;
+    double s = 100.0 / lens.focal_px;
+    CHECK_NEAR(sl_lens_vignette(&lens, 600, 500), 1 - 0.2 * s * s + 0.05 * pow(s, 4), 1e-12);
+}
+
+static void poses(void)
+{
+    double worst = 0;
+    for (int i = 0; i < 500; i++) {
+        sl_view_pose a = {360 * rng_uniform() - 180, 178 * rng_uniform() - 89,
+                          360 * rng_uniform() - 180},
+                     b;
+        double m[3][3], m2[3][3];
+        sl_view_pose_matrix(&a, m);
+        /* A rotation: right x down = forward. */
+        double c[3] = {m[1][0] * m[2][1] - m[2][0] * m[1][1], m[2][0] * m[0][1] - m[0][0] * m[2][1],
+                       m[0][0] * m[1][1] - m[1][0] * m[0][1]};
+        for (int k = 0; k < 3; k++)
+            CHECK_NEAR(c[k], m[k][2], 1e-12);
+        sl_view_pose_from_matrix(m, &b);
+        sl_view_pose_matrix(&b, m2);
+        for (int r = 0; r < 3; r++)
+            for (int k = 0; k < 3; k++)
+                worst = fmax(worst, fabs(m[r][k] - m2[r][k]));
+        CHECK_NEAR(b.yaw_deg, a.yaw_deg, 1e-9);
+        CHECK_NEAR(b.pitch_deg, a.pitch_deg, 1e-9);
+        CHECK_NEAR(b.roll_deg, a.roll_deg, 1e-9);
+    }
+    CHECK(worst < 1e-12);
+    /* Straight up: the yaw folds into the roll, the matrix survives. */
+    sl_view_pose up = {40, 90, 10}, back;
+    double m[3][3], m2[3][3];
+    sl_view_pose_matrix(&up, m);
+    sl_view_pose_from_matrix(m, &back);
+    sl_view_pose_matrix(&back, m2);
+    for (int r = 0; r < 3; r++)
+        for (int k = 0; k < 3; k++)
+            CHECK_NEAR(m2[r][k], m[r][k], 1e-9);
+    CHECK_NEAR(back.yaw_deg, 0.0, 1e-12);
+    /* At yaw 0 the view looks along +Z, image right is -X, image down -Y. */
+    sl_view_pose zero = {0, 0, 0};
+    sl_view_pose_matrix(&zero, m);
+    CHECK(m[0][0] == -1 && m[1][1] == -1 && m[2][2] == 1);
+}
+
+int main(void)
+{
+    known_radii();
+    matches_virtual_set();
+    round_trips();
+    vignette();
+    poses();
+    return sl_test_finish();
+}
