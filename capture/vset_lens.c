@@ -143,3 +143,59 @@ sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
     sl_parallel_for(height, 4, lens_rows, &s);
     return SL_OK;
 }
+
+typedef struct view_ctx {
+    const sl_lens *lens;
+    double rot[3][3];
+    const sl_image *env;
+    sl_image *out;
+    int ss;
+} view_ctx;
+
+static void view_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    const view_ctx *s = ctx;
+    int w = s->out->width, n = s->ss;
+    for (int64_t y = begin; y < end; y++)
+        for (int x = 0; x < w; x++) {
+            double acc[3] = {0, 0, 0};
+            for (int j = 0; j < n; j++)
+                for (int i = 0; i < n; i++) {
+                    double px = x + (i + 0.5) / n, py = (double)y + (j + 0.5) / n, ray[3], d[3],
+                           u, v;
+                    float rgb[4];
+                    if (!sl_lens_pixel_to_ray(s->lens, px, py, ray))
+                        continue;
+                    sl_mat3_apply(s->rot, ray, d);
+                    sl_dir_to_latlong(d, &u, &v);
+                    sl_latlong_lookup(s->env, u, v, rgb);
+                    double g = sl_lens_vignette(s->lens, px, py);
+                    for (int c = 0; c < 3; c++)
+                        acc[c] += g * rgb[c];
+                }
+            float *p = sl_image_pixel(s->out, x, (int)y);
+            for (int c = 0; c < 3; c++)
+                p[c] = (float)(acc[c] / (n * n));
+        }
+}
+
+sl_result sl_vset_view_image(const sl_lens *lens, const sl_view_pose *pose,
+                             const sl_image *latlong, int ss, sl_image *out, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (latlong->channels < 3 || !sl_is_latlong_shape(latlong->width, latlong->height))
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "environment is %dx%d with %d channels, not an RGB lat-long",
+                            latlong->width, latlong->height, latlong->channels);
+    if (!(lens->focal_px > 0) || lens->width < 1 || lens->height < 1 || ss < 1 || ss > 16)
+        return sl_error_set(err, SL_ERR_USAGE,
+                            "lens focal length, image size or supersampling (%d) invalid", ss);
+    sl_result r = sl_image_alloc(out, lens->width, lens->height, 3, err);
+    if (r)
+        return r;
+    view_ctx s = {.lens = lens, .env = latlong, .out = out, .ss = ss};
+    sl_view_pose_matrix(pose, s.rot);
+    sl_parallel_for(lens->height, 4, view_rows, &s);
+    return SL_OK;
+}

@@ -249,6 +249,14 @@ sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
                              const sl_image *latlong, int width, int height, int ss,
                              sl_image *out, sl_error *err);
 
+/* Radiance image of an environment at infinity through any lens of the
+ * core model (projection, correction, off-centre axis, its vignetting
+ * gain) pointing at pose: lens->width x lens->height, ss x ss samples per
+ * pixel, bilinear lookups, black where the lens sees nothing. The stitch's
+ * tests and the fisheye views of the virtual set are made with it. */
+sl_result sl_vset_view_image(const sl_lens *lens, const sl_view_pose *pose,
+                             const sl_image *latlong, int ss, sl_image *out, sl_error *err);
+
 /* ---- probes: chrome ball, grey ball and chart ------------------------ */
 
 typedef enum {
