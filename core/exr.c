@@ -219,11 +219,11 @@ typedef struct exr_frame {
 } exr_frame;
 
 /* Decodes one chunk whose pixels start at file coordinates (x0, y0) and
- * copies the part inside the display window into img. Every channel of the
- * chunk gets a plane of the scratch (w * h 4-byte samples each, in the
- * order of dec->channels), picked or not: OpenEXR 3.1's unpackers write
- * through the pointer of a channel left NULL ("skipped" by the API's
- * documentation) for PIZ, RLE, PXR24, B44 and tiled files. */
+ * copies the part inside the display window into img. The scratch holds
+ * pick->count + 1 planes of w * h floats: one per picked channel, and one
+ * that every other channel is decoded into and overwrites (OpenEXR 3.1's
+ * unpackers write through the pointer of a channel left NULL, "skipped" by
+ * the API's documentation, for PIZ, RLE, PXR24, B44 and tiled files). */
 static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinfo, int x0, int y0,
                                  const exr_pick *pick, const exr_frame *fr,
                                  exr_decode_pipeline_t *dec, bool *initialized, float *scratch,
@@ -235,25 +235,21 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
         return rv;
     *initialized = true;
     int w = cinfo->width, h = cinfo->height, nc = pick->count;
-    const float *plane[4] = {NULL};
+    size_t plane_size = (size_t)w * (size_t)h;
     for (int i = 0; i < dec->channel_count; i++) {
         exr_coding_channel_info_t *ch = &dec->channels[i];
+        int c = 0;
+        while (c < nc && strcmp(ch->channel_name, pick->names[c]) != 0)
+            c++;
         /* Planar: OpenEXR 3.1's interleaved RGBA half fast path assumes
          * the pointers in the file's channel order (A,B,G,R) and swaps the
          * channels of interleaved RGBA output. */
-        float *p = scratch + (size_t)i * (size_t)w * (size_t)h;
-        ch->decode_to_ptr = (uint8_t *)p;
+        ch->decode_to_ptr = (uint8_t *)(scratch + (size_t)c * plane_size);
         ch->user_pixel_stride = (int32_t)sizeof(float);
         ch->user_line_stride = ch->width * (int32_t)sizeof(float);
         ch->user_data_type = EXR_PIXEL_FLOAT;
         ch->user_bytes_per_element = sizeof(float);
-        for (int c = 0; c < nc; c++)
-            if (strcmp(ch->channel_name, pick->names[c]) == 0)
-                plane[c] = p;
     }
-    for (int c = 0; c < nc; c++)
-        if (!plane[c])
-            return EXR_ERR_CORRUPT_CHUNK;
     rv = exr_decoding_choose_default_routines(ctx, 0, dec);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_decoding_run(ctx, 0, dec);
@@ -269,7 +265,7 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
                 continue;
             float *dst = sl_image_pixel(img, fx - fr->display.min.x, fy - fr->display.min.y);
             for (int c = 0; c < nc; c++)
-                dst[c] = plane[c][(size_t)y * (size_t)w + (size_t)x];
+                dst[c] = scratch[(size_t)c * plane_size + (size_t)y * (size_t)w + (size_t)x];
         }
     }
     return EXR_ERR_SUCCESS;
@@ -285,7 +281,6 @@ typedef struct exr_decode_job {
     sl_image *img;
     bool tiled;
     int32_t chunk_w, chunk_h, tiles_x;
-    int file_channels; /* every channel of the part: each gets a scratch plane */
     exr_result_t *rv; /* per chunk */
     /* Own scanline decoder (see zip_scanlines): the compression, and per
      * picked channel its byte offset in a line and its type. */
@@ -551,7 +546,7 @@ static void decode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
         return;
     }
     float *scratch = malloc((size_t)job->chunk_w * (size_t)job->chunk_h *
-                            (size_t)job->file_channels * sizeof(float));
+                            (size_t)(job->pick->count + 1) * sizeof(float));
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     bool initialized = false;
     for (int64_t k = begin; k < end; k++)
@@ -603,8 +598,7 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_attr
                          : (int64_t)tiles_x * tiles_y;
     exr_decode_job job = {.ctx = ctx, .pick = pick, .fr = fr, .img = img,
                           .tiled = storage == EXR_STORAGE_TILED, .chunk_w = chunk_w,
-                          .chunk_h = chunk_h, .tiles_x = tiles_x,
-                          .file_channels = cl->num_channels};
+                          .chunk_h = chunk_h, .tiles_x = tiles_x};
     job.own = own_decoder(ctx, cl, &job);
     int workers = sl_threads_get();
     job.rv = malloc(sizeof *job.rv * (size_t)chunks);
