@@ -18,7 +18,9 @@ typedef struct exr_layout_channel {
 } exr_layout_channel;
 
 typedef struct exr_layout {
-    int width, height; /* data window = display window, origin (0, 0) */
+    int width, height;         /* data window, from (data_x, data_y) */
+    int data_x, data_y;
+    int display_w, display_h; /* display window from (0, 0); 0: the data window */
     int compression;   /* exr_compression_t (the same numbers as Imf::Compression) */
     int tile;          /* tile side (one level), 0: scanlines */
     int nch;
@@ -32,8 +34,8 @@ typedef float (*exr_layout_value)(int c, int x, int y);
 bool exr_layout_write(const char *path, const exr_layout *l, exr_layout_value value, char *why,
                       size_t why_size);
 
-/* OpenEXR's own decoding of the full-resolution channel `name` into out
- * (width * height floats). */
+/* OpenEXR's own decoding of the full-resolution channel `name` over the
+ * data window (width x height) into out. */
 bool exr_layout_decode(const char *path, const char *name, float *out, int width, int height,
                        char *why, size_t why_size);
 

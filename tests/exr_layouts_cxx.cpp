@@ -13,16 +13,27 @@
 
 #include <cstdio>
 #include <exception>
+#include <string>
 #include <vector>
 
 #include "exr_layouts.h"
 
 namespace {
 
-void say(char *why, size_t size, const char *what)
+// Runs f; false with the library's message in why when it throws.
+template <class F> bool guarded(F f, char *why, size_t size)
 {
+    std::string what = "unknown exception";
+    try {
+        f();
+        return true;
+    } catch (const std::exception &e) {
+        what = e.what();
+    } catch (...) {
+    }
     if (why && size)
-        std::snprintf(why, size, "%s", what);
+        std::snprintf(why, size, "%s", what.c_str());
+    return false;
 }
 
 } // namespace
@@ -30,8 +41,13 @@ void say(char *why, size_t size, const char *what)
 extern "C" bool exr_layout_write(const char *path, const exr_layout *l, exr_layout_value value,
                                  char *why, size_t why_size)
 {
-    try {
-        Imf::Header header(l->width, l->height);
+    return guarded([&] {
+        Imath::Box2i data(Imath::V2i(l->data_x, l->data_y),
+                          Imath::V2i(l->data_x + l->width - 1, l->data_y + l->height - 1));
+        Imath::Box2i display = data;
+        if (l->display_w > 0)
+            display = Imath::Box2i(Imath::V2i(0, 0), Imath::V2i(l->display_w - 1, l->display_h - 1));
+        Imf::Header header(display, data);
         header.compression() = (Imf::Compression)l->compression;
         // Written from buffers of the channel's own type (OutputFile does not convert).
         std::vector<std::vector<float>> planes((size_t)l->nch);
@@ -45,15 +61,16 @@ extern "C" bool exr_layout_write(const char *path, const exr_layout *l, exr_layo
             p.resize((size_t)sw * (size_t)sh);
             for (int y = 0; y < sh; y++)
                 for (int x = 0; x < sw; x++)
-                    p[(size_t)y * (size_t)sw + (size_t)x] = value(c, x * xs, y * xs);
+                    p[(size_t)y * (size_t)sw + (size_t)x] =
+                        value(c, l->data_x + x * xs, l->data_y + y * xs);
             if (ch.type == Imf::HALF) {
                 std::vector<half> &hp = halves[(size_t)c];
                 hp.assign(p.begin(), p.end());
-                fb.insert(ch.name, Imf::Slice(Imf::HALF, (char *)hp.data(), sizeof(half),
-                                              sizeof(half) * (size_t)sw, xs, xs));
+                fb.insert(ch.name, Imf::Slice::Make(Imf::HALF, hp.data(), data, sizeof(half),
+                                                    sizeof(half) * (size_t)sw, xs, xs));
             } else {
-                fb.insert(ch.name, Imf::Slice(Imf::FLOAT, (char *)p.data(), sizeof(float),
-                                              sizeof(float) * (size_t)sw, xs, xs));
+                fb.insert(ch.name, Imf::Slice::Make(Imf::FLOAT, p.data(), data, sizeof(float),
+                                                    sizeof(float) * (size_t)sw, xs, xs));
             }
         }
         if (l->tile) {
@@ -66,30 +83,19 @@ extern "C" bool exr_layout_write(const char *path, const exr_layout *l, exr_layo
             out.setFrameBuffer(fb);
             out.writePixels(l->height);
         }
-        return true;
-    } catch (const std::exception &e) {
-        say(why, why_size, e.what());
-    } catch (...) {
-        say(why, why_size, "unknown exception");
-    }
-    return false;
+    }, why, why_size);
 }
 
 extern "C" bool exr_layout_decode(const char *path, const char *name, float *out, int width,
                                   int height, char *why, size_t why_size)
 {
-    try {
+    return guarded([&] {
         Imf::InputFile in(path);
+        const Imath::Box2i &data = in.header().dataWindow();
         Imf::FrameBuffer fb;
-        fb.insert(name, Imf::Slice(Imf::FLOAT, (char *)out, sizeof(float),
-                                   sizeof(float) * (size_t)width));
+        fb.insert(name, Imf::Slice::Make(Imf::FLOAT, out, data, sizeof(float),
+                                         sizeof(float) * (size_t)width));
         in.setFrameBuffer(fb);
-        in.readPixels(0, height - 1);
-        return true;
-    } catch (const std::exception &e) {
-        say(why, why_size, e.what());
-    } catch (...) {
-        say(why, why_size, "unknown exception");
-    }
-    return false;
+        in.readPixels(data.min.y, data.min.y + height - 1);
+    }, why, why_size);
 }

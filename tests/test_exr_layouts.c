@@ -185,6 +185,59 @@ static void test_layouts(void)
                worst[k][0], worst[k][1]);
 }
 
+/* Data windows other than the display window, through each decoder: core's
+ * own (ZIP), OpenEXR's C API (PIZ, tiled RLE) and its C++ library (float
+ * B44, a subsampled mask). The image is the display window: overscan
+ * cropped, what the data window leaves out black. */
+static void test_windows(void)
+{
+    static const struct {
+        int compression, tile, type;
+        const layout *lay;
+    } cases[] = {
+        {3, 0, HALF, &layouts[2]}, {4, 0, HALF, &layouts[2]},  {1, 16, HALF, &layouts[3]},
+        {6, 0, FLOAT, &layouts[2]}, {3, 0, HALF, &layouts[6]},
+    };
+    /* Overscan all round, then a window inside the display (origins even:
+     * the mask is sampled 2 x 2). */
+    static const int windows[2][4] = {{-4, -2, 46, 30}, {6, 4, 20, 12}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++)
+        for (int wi = 0; wi < 2; wi++) {
+            const layout *lay = cases[k].lay;
+            exr_layout l = {.width = windows[wi][2], .height = windows[wi][3],
+                            .data_x = windows[wi][0], .data_y = windows[wi][1],
+                            .display_w = 38, .display_h = 24,
+                            .compression = cases[k].compression, .tile = cases[k].tile,
+                            .nch = lay->nch};
+            for (int c = 0; c < lay->nch; c++)
+                l.channels[c] = (exr_layout_channel){lay->names[c], cases[k].type,
+                                                     lay->sampling[c]};
+            char name[64], why[256] = "";
+            snprintf(name, sizeof name, "window_%zu_%d.exr", k, wi);
+            const char *path = sl_test_path(name);
+            current = lay;
+            CHECK_MSG(exr_layout_write(path, &l, value, why, sizeof why), "%s: %s", name, why);
+            sl_error err;
+            sl_image img = {0};
+            sl_result r = sl_image_read(path, &img, NULL, &err);
+            CHECK_MSG(r == SL_OK, "%s: %s", name, sl_test_errmsg(&err));
+            if (r)
+                continue;
+            CHECK(img.width == 38 && img.height == 24 && img.channels == lay->picked_count);
+            int bad = 0;
+            for (int y = 0; y < img.height && img.width == 38 && img.height == 24; y++)
+                for (int x = 0; x < img.width; x++) {
+                    bool inside = x >= l.data_x && x < l.data_x + l.width && y >= l.data_y &&
+                                  y < l.data_y + l.height;
+                    for (int p = 0; p < img.channels; p++)
+                        bad += sl_image_pixel(&img, x, y)[p] !=
+                               (inside ? value(lay->picked[p], x, y) : 0.0f);
+                }
+            CHECK_MSG(bad == 0, "%s: %d samples differ", name, bad);
+            sl_image_free(&img);
+        }
+}
+
 /* Picked channels that are subsampled (a chroma-subsampled image) cannot be
  * read as full-resolution colour: refused with the file and channel named. */
 static void test_subsampled_colour_refused(void)
@@ -208,6 +261,7 @@ static void test_subsampled_colour_refused(void)
 int main(void)
 {
     RUN(test_layouts);
+    RUN(test_windows);
     RUN(test_subsampled_colour_refused);
     return sl_test_finish();
 }
