@@ -103,6 +103,22 @@ static float value(int c, int x, int y)
  * summary line docs/formats.md quotes. */
 static double worst[N_COMPRESSIONS][2];
 
+/* Writes l (the channels of lay) to the test folder as `name` and reads it
+ * back with sl_image_read; false, with a failed check, when either fails. */
+static bool write_read(const char *name, const exr_layout *l, const layout *lay, sl_image *img)
+{
+    char why[256] = "";
+    current = lay;
+    bool written = exr_layout_write(sl_test_path(name), l, value, why, sizeof why);
+    CHECK_MSG(written, "%s: not written: %s", name, why);
+    if (!written)
+        return false;
+    sl_error err;
+    sl_result r = sl_image_read(sl_test_path(name), img, NULL, &err);
+    CHECK_MSG(r == SL_OK, "%s: %s", name, sl_test_errmsg(&err));
+    return r == SL_OK;
+}
+
 /* Writes the layout, reads it with sl_image_read and checks its pixels. */
 static void check_one(int k, const layout *lay, bool tiled, int colour_type, int extra_type)
 {
@@ -123,19 +139,10 @@ static void check_one(int k, const layout *lay, bool tiled, int colour_type, int
     char name[96], why[256] = "";
     snprintf(name, sizeof name, "%s_%s_%s_%d%d.exr", lay->name, comp->name,
              tiled ? "tiled" : "lines", colour_type, extra_type);
-    const char *path = sl_test_path(name);
-    current = lay;
-    bool written = exr_layout_write(path, &l, value, why, sizeof why);
-    CHECK_MSG(written, "%s: not written: %s", name, why);
-    if (!written)
-        return;
-
-    sl_error err;
     sl_image img = {0};
-    sl_result r = sl_image_read(path, &img, NULL, &err);
-    CHECK_MSG(r == SL_OK, "%s: %s", name, sl_test_errmsg(&err));
-    if (r)
+    if (!write_read(name, &l, lay, &img))
         return;
+    const char *path = sl_test_path(name);
     CHECK_MSG(img.width == l.width && img.height == l.height && img.channels == lay->picked_count,
               "%s: read %dx%d, %d channels", name, img.width, img.height, img.channels);
     float *ref = malloc(sizeof *ref * (size_t)l.width * (size_t)l.height);
@@ -212,16 +219,10 @@ static void test_windows(void)
             for (int c = 0; c < lay->nch; c++)
                 l.channels[c] = (exr_layout_channel){lay->names[c], cases[k].type,
                                                      lay->sampling[c]};
-            char name[64], why[256] = "";
+            char name[64];
             snprintf(name, sizeof name, "window_%zu_%d.exr", k, wi);
-            const char *path = sl_test_path(name);
-            current = lay;
-            CHECK_MSG(exr_layout_write(path, &l, value, why, sizeof why), "%s: %s", name, why);
-            sl_error err;
             sl_image img = {0};
-            sl_result r = sl_image_read(path, &img, NULL, &err);
-            CHECK_MSG(r == SL_OK, "%s: %s", name, sl_test_errmsg(&err));
-            if (r)
+            if (!write_read(name, &l, lay, &img))
                 continue;
             CHECK(img.width == 38 && img.height == 24 && img.channels == lay->picked_count);
             int bad = 0;
