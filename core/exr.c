@@ -219,7 +219,11 @@ typedef struct exr_frame {
 } exr_frame;
 
 /* Decodes one chunk whose pixels start at file coordinates (x0, y0) and
- * copies the part inside the display window into img. */
+ * copies the part inside the display window into img. The scratch holds
+ * pick->count + 1 planes of w * h floats: one per picked channel, and one
+ * that every other channel is decoded into and overwrites (OpenEXR 3.1's
+ * unpackers write through the pointer of a channel left NULL, "skipped" by
+ * the API's documentation, for PIZ, RLE, PXR24, B44 and tiled files). */
 static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinfo, int x0, int y0,
                                  const exr_pick *pick, const exr_frame *fr,
                                  exr_decode_pipeline_t *dec, bool *initialized, float *scratch,
@@ -231,20 +235,20 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
         return rv;
     *initialized = true;
     int w = cinfo->width, h = cinfo->height, nc = pick->count;
+    size_t plane_size = (size_t)w * (size_t)h;
     for (int i = 0; i < dec->channel_count; i++) {
         exr_coding_channel_info_t *ch = &dec->channels[i];
-        ch->decode_to_ptr = NULL;
-        for (int c = 0; c < nc; c++)
-            if (strcmp(ch->channel_name, pick->names[c]) == 0) {
-                /* Planar: OpenEXR 3.1's interleaved RGBA half fast path
-                 * assumes the pointers in the file's channel order (A,B,G,R)
-                 * and swaps the channels of interleaved RGBA output. */
-                ch->decode_to_ptr = (uint8_t *)(scratch + (size_t)c * (size_t)w * (size_t)h);
-                ch->user_pixel_stride = (int32_t)sizeof(float);
-                ch->user_line_stride = w * (int32_t)sizeof(float);
-                ch->user_data_type = EXR_PIXEL_FLOAT;
-                ch->user_bytes_per_element = sizeof(float);
-            }
+        int c = 0;
+        while (c < nc && strcmp(ch->channel_name, pick->names[c]) != 0)
+            c++;
+        /* Planar: OpenEXR 3.1's interleaved RGBA half fast path assumes
+         * the pointers in the file's channel order (A,B,G,R) and swaps the
+         * channels of interleaved RGBA output. */
+        ch->decode_to_ptr = (uint8_t *)(scratch + (size_t)c * plane_size);
+        ch->user_pixel_stride = (int32_t)sizeof(float);
+        ch->user_line_stride = ch->width * (int32_t)sizeof(float);
+        ch->user_data_type = EXR_PIXEL_FLOAT;
+        ch->user_bytes_per_element = sizeof(float);
     }
     rv = exr_decoding_choose_default_routines(ctx, 0, dec);
     if (rv == EXR_ERR_SUCCESS)
@@ -261,7 +265,7 @@ static exr_result_t decode_chunk(exr_context_t ctx, const exr_chunk_info_t *cinf
                 continue;
             float *dst = sl_image_pixel(img, fx - fr->display.min.x, fy - fr->display.min.y);
             for (int c = 0; c < nc; c++)
-                dst[c] = scratch[((size_t)c * (size_t)h + (size_t)y) * (size_t)w + (size_t)x];
+                dst[c] = scratch[(size_t)c * plane_size + (size_t)y * (size_t)w + (size_t)x];
         }
     }
     return EXR_ERR_SUCCESS;
@@ -542,7 +546,7 @@ static void decode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
         return;
     }
     float *scratch = malloc((size_t)job->chunk_w * (size_t)job->chunk_h *
-                            (size_t)job->pick->count * sizeof(float));
+                            (size_t)(job->pick->count + 1) * sizeof(float));
     exr_decode_pipeline_t dec = EXR_DECODE_PIPELINE_INITIALIZER;
     bool initialized = false;
     for (int64_t k = begin; k < end; k++)
@@ -623,6 +627,24 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_attr
     return r;
 }
 
+/* Whether the part goes to OpenEXR's C++ library: the 3.1 C API has no DWA
+ * decoder, and returns wrong pixels for B44 files with float or uint
+ * channels and for files with a subsampled channel (test_exr_layouts
+ * compares with the C++ library's decoding). */
+static bool needs_cxx_decoder(const exr_attr_chlist_t *cl, exr_compression_t comp)
+{
+    if (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB)
+        return true;
+    for (int i = 0; i < cl->num_channels; i++) {
+        const exr_attr_chlist_entry_t *e = &cl->entries[i];
+        if (e->x_sampling != 1 || e->y_sampling != 1 ||
+            ((comp == EXR_COMPRESSION_B44 || comp == EXR_COMPRESSION_B44A) &&
+             e->pixel_type != EXR_PIXEL_HALF))
+            return true;
+    }
+    return false;
+}
+
 static sl_result window_size(const exr_attr_box2i_t *b, int *w, int *h)
 {
     int64_t ww = (int64_t)b->max.x - b->min.x + 1, hh = (int64_t)b->max.y - b->min.y + 1;
@@ -691,8 +713,7 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
     exr_compression_t comp = EXR_COMPRESSION_NONE;
     if (!r && (rv = exr_get_compression(ctx, 0, &comp)) != EXR_ERR_SUCCESS)
         r = corrupt(err, path, rv);
-    /* The 3.1 C API has no DWA decoder; OIIO's OpenEXR C++ library has. */
-    if (!r && (comp == EXR_COMPRESSION_DWAA || comp == EXR_COMPRESSION_DWAB))
+    if (!r && needs_cxx_decoder(cl, comp))
         r = sl_exr_read_pixels_oiio(path, pick.names, pick.count, fr.display.min.x,
                                     fr.display.min.y, img, err);
     else if (!r)

@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Private: OpenEXR pixels through OpenImageIO, for compressions the
- * OpenEXR 3.1 C API cannot decode (DWAA, DWAB). */
+/* Private: OpenEXR pixels through OpenEXR's C++ library (in the module
+ * that links OpenImageIO, which links it), for what the OpenEXR 3.1 C API
+ * cannot decode (DWAA, DWAB) or decodes wrong (B44 with float channels,
+ * subsampled channels). */
 #ifndef SETLIGHT_CORE_EXR_OIIO_H
 #define SETLIGHT_CORE_EXR_OIIO_H
 

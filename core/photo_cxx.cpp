@@ -28,8 +28,12 @@
 #include "setlight/core.h"
 #include "exr_oiio.h"
 
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cfloat>
 #include <cmath>
@@ -332,42 +336,51 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
     return sl_atomic_commit(&f, err);
 }
 
+/* OpenEXR's C++ library, which OpenImageIO links (OpenImageIO itself
+ * refuses a file with any subsampled channel), a strip of rows at a time:
+ * only the picked channels are decoded, others are skipped by the library. */
 sl_result exr_pixels_impl(const char *path, const char *const *names, int count, int x0, int y0,
-                          sl_image *img, sl_error *err)
+                          sl_image *img)
 {
-    std::unique_ptr<ImageInput> in = ImageInput::open(path);
-    if (!in)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,
-                            one_line(OIIO::geterror()).c_str());
-    const ImageSpec &spec = in->spec();
-    int index[4];
-    for (int c = 0; c < count; c++) {
-        index[c] = spec.channelindex(names[c]);
-        if (index[c] < 0)
-            return sl_error_set(err, SL_ERR_INPUT, "%s: OpenImageIO sees no channel %s", path,
-                                names[c]);
+    Imf::InputFile in(path, sl_threads_get());
+    const Imath::Box2i &dw = in.header().dataWindow();
+    int64_t w = (int64_t)dw.max.x - dw.min.x + 1;
+    /* The rows of the data window inside the display window. */
+    int first = std::max(dw.min.y, y0), last = std::min(dw.max.y, y0 + img->height - 1);
+    int strip = 64;
+    std::vector<float> rows((size_t)w * (size_t)strip * (size_t)count);
+    for (int ys = first; ys <= last; ys += strip) {
+        int ye = std::min(ys + strip - 1, last);
+        Imf::FrameBuffer fb;
+        for (int c = 0; c < count; c++)
+            fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, &rows[(size_t)c * (size_t)w * (size_t)strip],
+                                                 Imath::V2i(dw.min.x, ys), w, strip));
+        in.setFrameBuffer(fb);
+        in.readPixels(ys, ye);
+        for (int y = ys; y <= ye; y++)
+            for (int64_t x = std::max<int64_t>(dw.min.x, x0);
+                 x <= std::min<int64_t>(dw.max.x, (int64_t)x0 + img->width - 1); x++) {
+                float *dst = sl_image_pixel(img, (int)(x - x0), y - y0);
+                size_t at = (size_t)(y - ys) * (size_t)w + (size_t)(x - dw.min.x);
+                for (int c = 0; c < count; c++)
+                    dst[c] = rows[(size_t)c * (size_t)w * (size_t)strip + at];
+            }
     }
-    std::vector<float> all((size_t)spec.width * (size_t)spec.height * (size_t)spec.nchannels);
-    if (!in->read_image(0, 0, 0, spec.nchannels, TypeDesc::FLOAT, all.data()))
-        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,
-                            one_line(in->geterror()).c_str());
-    for (int y = 0; y < spec.height; y++) {
-        int iy = spec.y + y - y0;
-        if (iy < 0 || iy >= img->height)
-            continue;
-        for (int x = 0; x < spec.width; x++) {
-            int ix = spec.x + x - x0;
-            if (ix < 0 || ix >= img->width)
-                continue;
-            const float *src =
-                &all[((size_t)y * (size_t)spec.width + (size_t)x) * (size_t)spec.nchannels];
-            float *dst = sl_image_pixel(img, ix, iy);
-            for (int c = 0; c < count; c++)
-                dst[c] = src[index[c]];
-        }
-    }
-    in->close();
     return SL_OK;
+}
+
+/* The library's exceptions on a bad file are the file's problem (exit 3). */
+sl_result exr_pixels_checked(const char *path, const char *const *names, int count, int x0, int y0,
+                             sl_image *img, sl_error *err)
+{
+    try {
+        return exr_pixels_impl(path, names, count, x0, y0, img);
+    } catch (const std::bad_alloc &) {
+        throw;
+    } catch (const std::exception &e) {
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,
+                            one_line(e.what()).c_str());
+    }
 }
 
 sl_result exception_error(const char *path, sl_error *err, const char *what, bool nomem)
@@ -431,7 +444,7 @@ extern "C" sl_result sl_exr_read_pixels_oiio(const char *path, const char *const
                                              int x0, int y0, sl_image *img, sl_error *err)
 {
     try {
-        return exr_pixels_impl(path, names, count, x0, y0, img, err);
+        return exr_pixels_checked(path, names, count, x0, y0, img, err);
     } catch (const std::bad_alloc &) {
         return exception_error(path, err, "out of memory", true);
     } catch (const std::exception &e) {

@@ -189,6 +189,36 @@ static sl_result read_header(sl_png_reader *r, bool *declined, sl_error *err)
     return SL_OK;
 }
 
+/* Every row of every pass and the chunks after them, decoded and dropped.
+ * Called under check_decodes's setjmp. */
+static void decode_all(sl_png_reader *r)
+{
+    int passes = png_set_interlace_handling(r->png);
+    png_read_update_info(r->png, r->info);
+    size_t bytes = png_get_rowbytes(r->png, r->info);
+    r->row = malloc(bytes ? bytes : 1);
+    if (!r->row)
+        png_error(r->png, "out of memory for a row");
+    for (int p = 0; p < passes; p++)
+        for (int y = 0; y < r->height; y++)
+            png_read_row(r->png, r->row, NULL);
+    png_read_end(r->png, NULL);
+}
+
+/* A PNG that goes to OpenImageIO is decoded here first: OpenImageIO 2.4
+ * leaves libpng's default handler, which prints "libpng error: ..." on
+ * stderr before the error comes back, so a corrupt file must fail here,
+ * with setlight's one line. */
+static sl_result check_decodes(sl_png_reader *r, sl_error *err)
+{
+    r->height = (int)png_get_image_height(r->png, r->info);
+    if (setjmp(png_jmpbuf(r->png)))
+        return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt PNG (%s)", r->path,
+                            r->why);
+    decode_all(r);
+    return SL_OK;
+}
+
 sl_result sl_png_open(const char *path, sl_png_reader **reader, sl_meta *meta, bool *declined,
                       sl_error *err)
 {
@@ -214,6 +244,8 @@ sl_result sl_png_open(const char *path, sl_png_reader **reader, sl_meta *meta, b
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
     }
     sl_result res = read_header(r, declined, err);
+    if (!res && *declined && (res = check_decodes(r, err)) != SL_OK)
+        *declined = false;
     if (!res && !*declined && meta)
         res = fill_meta(r, meta, err);
     if (res || *declined) {

@@ -34,7 +34,9 @@ void sl_oiio_strips_close(sl_oiio_strips *strips);
  * (colour space from sRGB / gAMA, text chunks as attributes, tIME as
  * DateTime). A PNG whose reading it does not reproduce (interlaced, or
  * with EXIF, XMP or raw-profile metadata) is declined: *declined set, err
- * untouched, for the caller to hand to OpenImageIO. */
+ * untouched, for the caller to hand to OpenImageIO, once it has decoded
+ * whole here (a corrupt one is refused here, with one message: OpenImageIO
+ * lets libpng print its own). */
 typedef struct sl_png_reader sl_png_reader;
 /* Whether the file starts with PNG's signature (false when unreadable). */
 bool sl_png_is_png(const char *path);
