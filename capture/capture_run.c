@@ -774,7 +774,8 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
                    : r;
     json_t *plan = json_object_get(json_array_get(events, 0), "plan");
     json_t *jt = json_object_get(plan, "times");
-    int count = (int)json_array_size(jt);
+    size_t planned = json_array_size(jt);
+    int count = planned > SL_BRACKET_MAX_FRAMES ? SL_BRACKET_MAX_FRAMES + 1 : (int)planned;
     int views = (int)json_integer_value(json_object_get(plan, "views"));
     double *times = calloc((size_t)(count > 0 ? count : 1), sizeof *times);
     run_state s = {.camera = camera,
@@ -789,8 +790,11 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
     }
     for (int i = 0; i < count; i++)
         times[i] = json_number_value(json_array_get(jt, (size_t)i));
-    if (count < 1 || views < 1 || views > 360) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: the journal's plan is not valid", dir);
+    if (count < 1 || count > SL_BRACKET_MAX_FRAMES || views < 1 || views > 360) {
+        r = sl_error_set(err, SL_ERR_INPUT,
+                         "%s: the journal's plan is not valid (%d frames a bracket, %d views; at "
+                         "most %d and 360)",
+                         dir, count, views, SL_BRACKET_MAX_FRAMES);
         goto out;
     }
     if ((r = plan_format(dir, plan, o->format, &s, err)) ||

@@ -151,6 +151,20 @@ sl_result fill_meta(const char *path, ImageInput &in, const ImageSpec &spec, sl_
     return SL_OK;
 }
 
+/* Formats photo_claim.c does not know (camera raw, BMP, ...) are checked
+ * against the memory budget here, before their pixels are decoded. */
+sl_result check_budget(const char *path, const ImageSpec &spec, int channels, sl_error *err)
+{
+    if (spec.width <= 0 || spec.height <= 0)
+        return SL_OK; /* sl_image_alloc says what is wrong */
+    char what[96];
+    std::snprintf(what, sizeof what, "a %dx%d %s image", spec.width, spec.height,
+                  spec.format.c_str());
+    return sl_memory_check((uint64_t)spec.width * (uint64_t)spec.height * (uint64_t)channels *
+                               sizeof(float),
+                           path, what, err);
+}
+
 sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
 {
     std::unique_ptr<ImageInput> in;
@@ -161,6 +175,8 @@ sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *er
     int channels = spec.nchannels < 4 ? spec.nchannels : 4;
     if (spec.depth > 1)
         return sl_error_set(err, SL_ERR_INPUT, "%s: volume images are not supported", path);
+    if ((r = check_budget(path, spec, channels, err)) != SL_OK)
+        return r;
     r = sl_image_alloc(img, spec.width, spec.height, channels, nullptr);
     if (r)
         return sl_error_set(err, r, "%s: cannot hold a %dx%d image with %d channels", path,
@@ -347,6 +363,9 @@ sl_result exr_pixels_impl(const char *path, const char *const *names, int count,
             return sl_error_set(err, SL_ERR_INPUT, "%s: OpenImageIO sees no channel %s", path,
                                 names[c]);
     }
+    sl_result r = check_budget(path, spec, spec.nchannels, err);
+    if (r)
+        return r;
     std::vector<float> all((size_t)spec.width * (size_t)spec.height * (size_t)spec.nchannels);
     if (!in->read_image(0, 0, 0, spec.nchannels, TypeDesc::FLOAT, all.data()))
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt EXR (%s)", path,

@@ -374,6 +374,9 @@ double sl_shutter_parse(const char *text);
 /* 1/30 -> "1/30", 0.5 -> "1/2", 2.5 -> "2.5". */
 void sl_shutter_format(double seconds, char *buf, size_t size);
 
+/* The most exposures a bracket may have (a plan, a journal's plan). */
+#define SL_BRACKET_MAX_FRAMES 64
+
 /* "NxS" (N exposures S stops apart, centred on `center` seconds; N odd or
  * even) or an explicit comma list of shutter speeds ("1/1000,1/125,1/15").
  * Result ascending, malloc'd. SL_ERR_USAGE for junk, N < 1 or > 64, S <= 0. */
