@@ -436,6 +436,8 @@ typedef struct sl_virtual_camera_opts {
     int ignore_format;        /* the k-th image-format change is acknowledged, not applied */
     bool format_lies;         /* ...and the setting reads back as changed */
     int drop_before_raw;      /* raw+jpeg: the connection drops after frame N's JPEG */
+    int drop_at;              /* the connection drops at the trigger of frame N (1-based,
+                                 so also before the first; drop_after N-1 otherwise) */
 } sl_virtual_camera_opts;
 sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
                                  sl_error *err);
@@ -578,6 +580,8 @@ typedef struct sl_capture_options {
     sl_capture_step_fn step;    /* may be NULL */
     sl_capture_frame_fn on_frame; /* may be NULL */
     void *ctx;
+    int disk_full_at;           /* fault injection (tests): the Nth shot this run
+                                   saves fails as on a full disk (ENOSPC); 0: never */
 } sl_capture_options;
 
 /* A new session in an empty (or absent) folder: journals the plan, shoots
