@@ -139,11 +139,7 @@ void cap_check_session(const char *dir, int views, int count, const double *time
     json_decref(acc);
     json_decref(j);
 
-    char sp[4096];
-    snprintf(sp, sizeof sp, "%s/session.json", dir);
-    json_error_t je;
-    json_t *s = json_load_file(sp, 0, &je);
-    CHECK(s != NULL);
+    json_t *s = cap_session_json(dir);
     if (!s)
         return;
     CHECK(cap_ival(s, "version") == 1);
@@ -167,6 +163,16 @@ void cap_check_session(const char *dir, int views, int count, const double *time
         CHECK_MSG(measured >= count - 3, "view %zu: %d ratios measured", v, measured);
     }
     json_decref(s);
+}
+
+json_t *cap_session_json(const char *dir)
+{
+    char sp[4096];
+    snprintf(sp, sizeof sp, "%s/session.json", dir);
+    json_error_t je;
+    json_t *s = json_load_file(sp, 0, &je);
+    CHECK_MSG(s != NULL, "%s: %s", sp, je.text);
+    return s;
 }
 
 sl_capture_options cap_options(const char *dir, const double *times, int count, int views)

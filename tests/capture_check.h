@@ -28,6 +28,8 @@ json_t *cap_events(json_t *j, const char *kind, int accepted);
  * with its checksum, its EXIF exposure within 1/6 stop of the plan, and
  * session.json grouping views x count frames by exposure. */
 void cap_check_session(const char *dir, int views, int count, const double *times);
+/* DIR/session.json parsed (a new reference), NULL after a failed CHECK. */
+json_t *cap_session_json(const char *dir);
 sl_capture_options cap_options(const char *dir, const double *times, int count, int views);
 
 #endif

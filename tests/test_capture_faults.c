@@ -72,6 +72,14 @@ static void small_camera(sl_virtual_camera_opts *vo)
     vo->height = 64;
 }
 
+/* A working camera of that size (NULL after a failed CHECK). */
+static sl_camera *open_small(void)
+{
+    sl_virtual_camera_opts vo;
+    small_camera(&vo);
+    return cap_open_virtual(&vo);
+}
+
 /* Frame q (0-based in shooting order) meets the fault; the capture either
  * absorbs it or stops and is resumed with a camera that works. */
 static void run_fault(fault_kind kind, int q, const double *times)
@@ -117,9 +125,7 @@ static void run_fault(fault_kind kind, int q, const double *times)
         /* stopped at frame q: the frames before it kept, it not taken */
         CHECK_MSG(n == q && at == 0, "%s: %d frames accepted before the fault", name, n);
         CHECK(!strchr(err.message, '\n'));
-        small_camera(&vo);
-        cam = cap_open_virtual(&vo);
-        if (!cam)
+        if (!(cam = open_small()))
             return;
         char jp[4300];
         snprintf(jp, sizeof jp, "%s/journal.jsonl", dir);
@@ -167,9 +173,7 @@ static void run_fault(fault_kind kind, int q, const double *times)
 
 static void test_fault_matrix(void)
 {
-    sl_virtual_camera_opts vo;
-    small_camera(&vo);
-    sl_camera *cam = cap_open_virtual(&vo);
+    sl_camera *cam = open_small();
     if (!cam)
         return;
     double *times;
@@ -192,9 +196,7 @@ static void test_fault_matrix(void)
  * limit: refused before anything is allocated for it or shot. */
 static void test_journal_caps(void)
 {
-    sl_virtual_camera_opts vo;
-    small_camera(&vo);
-    sl_camera *cam = cap_open_virtual(&vo);
+    sl_camera *cam = open_small();
     if (!cam)
         return;
     const char *dir = sl_test_path("bigplan");

@@ -672,11 +672,7 @@ static void test_ingest_subsecond(void)
     int frames, views;
     CHECK_OK(sl_ingest(card, dir, 10, NULL, &frames, &views, &err), &err);
     CHECK(frames == 20 && views == 2);
-    char sp[4096];
-    snprintf(sp, sizeof sp, "%s/session.json", dir);
-    json_error_t je;
-    json_t *s = json_load_file(sp, 0, &je);
-    CHECK(s != NULL);
+    json_t *s = cap_session_json(dir);
     if (!s)
         return;
     json_t *vs = json_object_get(s, "views");
