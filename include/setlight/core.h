@@ -175,9 +175,10 @@ sl_result sl_memory_check(uint64_t bytes, const char *path, const char *what, sl
  * a journal) is refused before its parser allocates for it. */
 sl_result sl_check_input_size(const char *path, uint64_t max_bytes, const char *what,
                               sl_error *err);
-/* The largest JSON file a reader parses whole (scene, rig, session): 64 MiB,
- * some thousand times a real one. */
-#define SL_MAX_JSON_BYTES ((uint64_t)64 << 20)
+/* The largest JSON file a reader parses whole (rig, scene): 16 MiB, four
+ * times a rig of the most lights (4096 at about 1 kB each); parsing one
+ * costs about 15 times its size. */
+#define SL_MAX_JSON_BYTES ((uint64_t)16 << 20)
 
 /* Checks that `path` names an existing, readable, non-empty regular file.
  * SL_ERR_NOT_FOUND for missing or a directory, SL_ERR_INPUT for empty. */
