@@ -89,7 +89,10 @@ static bool png_claim(FILE *f, claim *c)
     return true;
 }
 
-static uint32_t tiff16(const unsigned char *p, bool le) { return le ? (uint32_t)p[1] << 8 | p[0] : be16(p); }
+static uint32_t tiff16(const unsigned char *p, bool le)
+{
+    return le ? (uint32_t)p[1] << 8 | p[0] : be16(p);
+}
 static uint32_t tiff32(const unsigned char *p, bool le)
 {
     return le ? tiff16(p + 2, le) << 16 | tiff16(p, le) : be32(p);

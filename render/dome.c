@@ -142,7 +142,8 @@ sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotatio
      * 2D distribution (20) and the lookup texels (16). */
     char what[96];
     snprintf(what, sizeof what, "a %dx%d dome with its sampling tables", env->width, env->height);
-    sl_result r = sl_memory_check((uint64_t)env->width * (uint64_t)env->height * 56, name, what, err);
+    sl_result r =
+        sl_memory_check((uint64_t)env->width * (uint64_t)env->height * 56, name, what, err);
     if (r)
         return r;
     if ((r = sl_image_alloc(&dome->image, env->width, env->height, 3, err)))

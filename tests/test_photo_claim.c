@@ -28,7 +28,8 @@ static const char *rgbe(const char *name, int w, int h, size_t payload)
 {
     const char *path = sl_test_path(name);
     char head[128];
-    int n = snprintf(head, sizeof head, "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n", h, w);
+    int n =
+        snprintf(head, sizeof head, "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n", h, w);
     char *b = calloc(1, (size_t)n + payload);
     memcpy(b, head, (size_t)n);
     write_bytes(path, b, (size_t)n + payload);

@@ -106,7 +106,8 @@ int main(int argc, char **argv)
                 free(args);
                 return cli_usage_error(&cli, "--threads needs a whole number >= 0");
             }
-        } else if (!strcmp(argv[i], "--max-memory-mb") || !strncmp(argv[i], "--max-memory-mb=", 16)) {
+        } else if (!strcmp(argv[i], "--max-memory-mb") ||
+                   !strncmp(argv[i], "--max-memory-mb=", 16)) {
             const char *v = argv[i][15] == '=' ? argv[i] + 16 : (i + 1 < argc ? argv[++i] : NULL);
             if (!v || !cli_parse_int(v, &memory_mb) || memory_mb < 1) {
                 free(args);
