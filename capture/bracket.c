@@ -71,9 +71,9 @@ sl_result sl_bracket_plan_parse(const char *spec, double center, double **times,
     char tail;
     double *t;
     if (sscanf(spec, "%dx%lf%c", &n, &stops, &tail) == 2) {
-        if (n < 1 || n > 64)
-            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: 1 to 64 exposures, not %d", spec,
-                                n);
+        if (n < 1 || n > SL_BRACKET_MAX_FRAMES)
+            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: 1 to %d exposures, not %d", spec,
+                                SL_BRACKET_MAX_FRAMES, n);
         if (!(stops > 0 && stops <= 6))
             return sl_error_set(err, SL_ERR_USAGE, "bracket %s: stops apart must be in (0, 6]",
                                 spec);
@@ -89,8 +89,9 @@ sl_result sl_bracket_plan_parse(const char *spec, double center, double **times,
         n = 1;
         for (const char *c = spec; *c; c++)
             n += *c == ',';
-        if (n > 64)
-            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: more than 64 exposures", spec);
+        if (n > SL_BRACKET_MAX_FRAMES)
+            return sl_error_set(err, SL_ERR_USAGE, "bracket %s: more than %d exposures", spec,
+                                SL_BRACKET_MAX_FRAMES);
         t = malloc((size_t)n * sizeof *t);
         char *copy = strdup(spec);
         if (!t || !copy) {

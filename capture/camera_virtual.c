@@ -265,7 +265,8 @@ static sl_result v_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
     if (v->lost)
         return lost(c, err);
     int frame = v->delivered + 1;
-    if (v->o.drop_after > 0 && !v->dropped && v->delivered == v->o.drop_after) {
+    int drop_after = v->o.drop_at > 0 ? v->o.drop_at - 1 : v->o.drop_after;
+    if ((drop_after > 0 || v->o.drop_at > 0) && !v->dropped && v->delivered == drop_after) {
         v->dropped = v->lost = true;
         v->down_left = v->o.down_attempts;
         return lost(c, err);

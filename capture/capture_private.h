@@ -8,6 +8,8 @@
 #include "setlight/capture.h"
 
 #define SL_JOURNAL_NAME "journal.jsonl"
+/* A journal is a few kB a bracket: over this it is not one (refused unread). */
+#define SL_JOURNAL_MAX_BYTES ((uint64_t)256 << 20)
 #define SL_SESSION_NAME "session.json"
 
 /* Appends a JSON object as one line (adds "time": UTC ISO 8601). */

@@ -29,6 +29,7 @@ typedef struct run_state {
     sl_image_format format; /* the plan's (KEEP: the camera's, untouched) */
     char format_label[64];  /* the camera's label for it */
     bool reset_format;      /* a frame came in another format: set it again */
+    int shots_saved;        /* this run's, for options' disk_full_at */
 } run_state;
 
 /* One file of a shot as written into the session folder. */
@@ -145,16 +146,24 @@ static void order_files(sl_camera_shot *shot)
 }
 
 /* Writes every file of the shot atomically with its SHA-256. */
-static sl_result save_shot(const run_state *s, int v, int i, sl_camera_shot *shot, saved_file *out,
+static sl_result save_shot(run_state *s, int v, int i, sl_camera_shot *shot, saved_file *out,
                            sl_error *err)
 {
     order_files(shot);
     sl_result r = shot_names(s, v, i, shot, out, err);
+    bool disk_full = !r && ++s->shots_saved == s->o->disk_full_at;
     for (int k = 0; k < shot->count && !r; k++) {
         char path[4096];
         const sl_camera_file *f = &shot->files[k];
-        if ((r = sl_capture_path(path, sizeof path, s->dir, out[k].file, err)) ||
-            (r = sl_write_file_atomic(path, f->data, f->size, err)))
+        if ((r = sl_capture_path(path, sizeof path, s->dir, out[k].file, err)))
+            break;
+        /* The injected fault fails the shot's last file as the writer
+         * does when the disk fills. */
+        if (disk_full && k == shot->count - 1) {
+            r = sl_error_set(err, SL_ERR_IO, "%s: write failed: %s", path, strerror(ENOSPC));
+            break;
+        }
+        if ((r = sl_write_file_atomic(path, f->data, f->size, err)))
             break;
         snprintf(out[k].source, sizeof out[k].source, "%s", f->source);
         sl_sha256_hex(f->data, f->size, out[k].sha);
@@ -222,7 +231,7 @@ static sl_result set_format(run_state *s, sl_error *err);
 /* A shot the connection broke in the middle of (the JPEG landed, the raw
  * did not): its files are kept and journalled as an incomplete attempt, so
  * the frame is shot again under new names. */
-static sl_result journal_incomplete(const run_state *s, int v, int i, int attempt,
+static sl_result journal_incomplete(run_state *s, int v, int i, int attempt,
                                     sl_camera_shot *shot, const sl_error *why, sl_error *err)
 {
     saved_file f[SL_SHOT_MAX_FILES];
@@ -774,7 +783,8 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
                    : r;
     json_t *plan = json_object_get(json_array_get(events, 0), "plan");
     json_t *jt = json_object_get(plan, "times");
-    int count = (int)json_array_size(jt);
+    size_t planned = json_array_size(jt);
+    int count = planned > SL_BRACKET_MAX_FRAMES ? SL_BRACKET_MAX_FRAMES + 1 : (int)planned;
     int views = (int)json_integer_value(json_object_get(plan, "views"));
     double *times = calloc((size_t)(count > 0 ? count : 1), sizeof *times);
     run_state s = {.camera = camera,
@@ -789,8 +799,11 @@ sl_result sl_capture_resume(sl_camera *camera, const sl_capture_options *o, cons
     }
     for (int i = 0; i < count; i++)
         times[i] = json_number_value(json_array_get(jt, (size_t)i));
-    if (count < 1 || views < 1 || views > 360) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: the journal's plan is not valid", dir);
+    if (count < 1 || count > SL_BRACKET_MAX_FRAMES || views < 1 || views > 360) {
+        r = sl_error_set(err, SL_ERR_INPUT,
+                         "%s: the journal's plan is not valid (%d frames a bracket, %d views; at "
+                         "most %d and 360)",
+                         dir, count, views, SL_BRACKET_MAX_FRAMES);
         goto out;
     }
     if ((r = plan_format(dir, plan, o->format, &s, err)) ||

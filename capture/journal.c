@@ -97,6 +97,14 @@ sl_result sl_journal_read(const char *dir, json_t **events, sl_error *err)
     if (!f)
         return sl_error_set(err, SL_ERR_NOT_FOUND, "%s: not a capture session (no %s)", dir,
                             SL_JOURNAL_NAME);
+    struct stat st;
+    if (fstat(fileno(f), &st) == 0 && (uint64_t)st.st_size > SL_JOURNAL_MAX_BYTES) {
+        fclose(f);
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s: %lld bytes, larger than a journal may be (%llu MB)", path,
+                            (long long)st.st_size,
+                            (unsigned long long)(SL_JOURNAL_MAX_BYTES >> 20));
+    }
     json_t *all = json_array();
     char *line = NULL;
     size_t cap = 0;

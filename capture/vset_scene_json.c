@@ -144,7 +144,7 @@ static sl_result read_light(jctx *j, json_t *o, int index, sl_vset_light *l)
 sl_result sl_vset_desc_read_json(const char *path, sl_vset_desc *d, sl_error *err)
 {
     memset(d, 0, sizeof *d);
-    sl_result r = sl_check_input_file(path, err);
+    sl_result r = sl_check_input_size(path, SL_MAX_JSON_BYTES, "scene JSON", err);
     if (r)
         return r;
     json_error_t jerr;

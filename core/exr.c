@@ -708,6 +708,15 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
                                  pick.names[c]);
         }
     }
+    /* The image covers the display window, padded with zeros the file does
+     * not store: a small data window in a huge display window is refused
+     * here when the padding is over the budget, never allocated. */
+    if (!r) {
+        char what[128];
+        snprintf(what, sizeof what, "the %dx%d display window (data window %dx%d)", w, h, dw, dh);
+        r = sl_memory_check((uint64_t)w * (uint64_t)h * (uint64_t)pick.count * sizeof(float), path,
+                            what, err);
+    }
     if (!r && (r = sl_image_alloc(img, w, h, pick.count, NULL)) != SL_OK)
         sl_error_set(err, r, "%s: cannot allocate a %dx%d EXR image", path, w, h);
     exr_compression_t comp = EXR_COMPRESSION_NONE;

@@ -23,12 +23,15 @@ static void codes_to_float(const void *codes, int code_bytes, size_t n, float *d
 
 /* The PNG reader for path, or NULL with *declined or an error. A missing or
  * empty file is refused here: OpenImageIO would not be loaded to say so. */
-static sl_result png_open(const char *path, sl_png_reader **r, sl_meta *meta, bool *declined,
-                          sl_error *err)
+static sl_result png_open(const char *path, sl_png_reader **r, sl_meta *meta, bool pixels,
+                          bool *declined, sl_error *err)
 {
     *r = NULL;
     *declined = false;
     sl_result res = sl_check_input_file(path, err);
+    /* Before any decoder (or OpenImageIO) starts: what the header claims. */
+    if (!res && pixels)
+        res = sl_photo_claim_check(path, err);
     if (res)
         return res;
     *declined = !sl_png_is_png(path);
@@ -44,7 +47,7 @@ sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error
     memset(img, 0, sizeof *img);
     if (meta)
         sl_meta_init(meta);
-    sl_result res = png_open(path, &r, meta, &declined, err);
+    sl_result res = png_open(path, &r, meta, true, &declined, err);
     if (declined)
         return sl_oiio_read(path, img, meta, err);
     int w = 0, h = 0, ch = 0, b = 0;
@@ -81,7 +84,7 @@ sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *width, int *h
         sl_meta_init(meta);
     sl_png_reader *r;
     bool declined;
-    sl_result res = png_open(path, &r, meta, &declined, err);
+    sl_result res = png_open(path, &r, meta, false, &declined, err);
     if (declined)
         return sl_oiio_read_meta(path, meta, width, height, channels, err);
     if (!res)
@@ -124,7 +127,7 @@ sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
         free(s);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
     }
-    sl_result res = png_open(path, &s->png, NULL, &declined, err);
+    sl_result res = png_open(path, &s->png, NULL, true, &declined, err);
     if (declined)
         res = sl_oiio_strips_open(path, &s->oiio, info, err);
     else if (!res) {

@@ -155,6 +155,20 @@ sl_result fill_meta(const char *path, ImageInput &in, const ImageSpec &spec, sl_
     return SL_OK;
 }
 
+/* Formats photo_claim.c does not know (camera raw, BMP, ...) are checked
+ * against the memory budget here, before their pixels are decoded. */
+sl_result check_budget(const char *path, const ImageSpec &spec, int channels, sl_error *err)
+{
+    if (spec.width <= 0 || spec.height <= 0)
+        return SL_OK; /* sl_image_alloc says what is wrong */
+    char what[96];
+    std::snprintf(what, sizeof what, "a %dx%d %s image", spec.width, spec.height,
+                  spec.format.c_str());
+    return sl_memory_check((uint64_t)spec.width * (uint64_t)spec.height * (uint64_t)channels *
+                               sizeof(float),
+                           path, what, err);
+}
+
 sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
 {
     std::unique_ptr<ImageInput> in;
@@ -165,6 +179,8 @@ sl_result read_impl(const char *path, sl_image *img, sl_meta *meta, sl_error *er
     int channels = spec.nchannels < 4 ? spec.nchannels : 4;
     if (spec.depth > 1)
         return sl_error_set(err, SL_ERR_INPUT, "%s: volume images are not supported", path);
+    if ((r = check_budget(path, spec, channels, err)) != SL_OK)
+        return r;
     r = sl_image_alloc(img, spec.width, spec.height, channels, nullptr);
     if (r)
         return sl_error_set(err, r, "%s: cannot hold a %dx%d image with %d channels", path,

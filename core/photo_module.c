@@ -46,7 +46,7 @@ __attribute__((used)) static const void *const module_needs[] = {
     (const void *)sl_color_space_name, (const void *)sl_error_set,
     (const void *)sl_image_alloc,   (const void *)sl_image_free,
     (const void *)sl_meta_free,     (const void *)sl_meta_init,
-    (const void *)sl_meta_set,
+    (const void *)sl_meta_set,      (const void *)sl_memory_check,
 };
 
 static void load(void)

@@ -52,6 +52,12 @@ sl_result sl_png_read_rows(sl_png_reader *reader, int y0, int y1, int keep, void
                            sl_error *err);
 void sl_png_close(sl_png_reader *reader);
 
+/* SL_ERR_INPUT naming the file when a JPEG, PNG, TIFF or Radiance header
+ * claims more pixels than a file of its size can hold, or an image over
+ * the memory budget (photo_claim.c); SL_OK for other files, left to their
+ * reader. Reads only the header, before any decoder is started. */
+sl_result sl_photo_claim_check(const char *path, sl_error *err);
+
 /* How many times this process has started OpenImageIO (0 or 1): a test
  * checks that reading what core reads itself never does. */
 int sl_oiio_start_count(void);

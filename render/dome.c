@@ -138,8 +138,15 @@ sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotatio
         return sl_error_set(err, SL_ERR_INPUT, "%s: dome intensity must be finite and >= 0, rotation finite",
                             name);
     sl_dome *dome = &scene->dome;
-    sl_result r = sl_image_alloc(&dome->image, env->width, env->height, 3, err);
+    /* Per texel: the dome's RGB (12 bytes), the sampling function (8), the
+     * 2D distribution (20) and the lookup texels (16). */
+    char what[96];
+    snprintf(what, sizeof what, "a %dx%d dome with its sampling tables", env->width, env->height);
+    sl_result r =
+        sl_memory_check((uint64_t)env->width * (uint64_t)env->height * 56, name, what, err);
     if (r)
+        return r;
+    if ((r = sl_image_alloc(&dome->image, env->width, env->height, 3, err)))
         return r;
     int w = env->width, h = env->height;
     for (int y = 0; y < h; y++)

@@ -168,7 +168,7 @@ static sl_result read_light(sl_scene *scene, const char *path, json_t *j, size_t
 
 sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err)
 {
-    sl_result r = sl_check_input_file(path, err);
+    sl_result r = sl_check_input_size(path, SL_MAX_JSON_BYTES, "rig JSON", err);
     if (r)
         return r;
     json_error_t jerr;
@@ -186,6 +186,11 @@ sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err)
     }
     if (!json_is_array(lights)) {
         r = sl_error_set(err, SL_ERR_INPUT, "%s: lights is not an array", path);
+        goto done;
+    }
+    if (json_array_size(lights) > SL_RENDER_MAX_LIGHTS) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: %zu lights, more than a rig may hold (%d)", path,
+                         json_array_size(lights), SL_RENDER_MAX_LIGHTS);
         goto done;
     }
     if (!json_is_object(dome) || !(json_is_null(file) || json_is_string(file))) {

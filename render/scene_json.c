@@ -208,7 +208,7 @@ static sl_result read_object(const ctx *c, sl_scene *s, json_t *o, size_t i, jso
 
 sl_result sl_scene_read_json(sl_scene *scene, const char *path, int width, sl_error *err)
 {
-    sl_result r = sl_check_input_file(path, err);
+    sl_result r = sl_check_input_size(path, SL_MAX_JSON_BYTES, "scene JSON", err);
     if (r)
         return r;
     if (width < 1)
@@ -236,6 +236,14 @@ sl_result sl_scene_read_json(sl_scene *scene, const char *path, int width, sl_er
         r = bad(&c, "materials", "must be an object of named materials");
         goto done;
     }
+    json_t *objs = json_object_get(root, "objects");
+    if (json_array_size(objs) > SL_RENDER_MAX_OBJECTS ||
+        json_object_size(mats) > SL_RENDER_MAX_OBJECTS) {
+        r = sl_error_set(err, SL_ERR_INPUT, "%s: %zu objects and %zu materials, more than a scene "
+                         "may hold (%d each)", path, json_array_size(objs),
+                         json_object_size(mats), SL_RENDER_MAX_OBJECTS);
+        goto done;
+    }
     const char *key;
     json_t *val;
     json_object_foreach(mats, key, val)
@@ -247,7 +255,6 @@ sl_result sl_scene_read_json(sl_scene *scene, const char *path, int width, sl_er
             goto done;
         json_object_set_new(names, key, json_integer(idx));
     }
-    json_t *objs = json_object_get(root, "objects");
     if (objs && !json_is_array(objs)) {
         r = bad(&c, "objects", "must be an array");
         goto done;

@@ -17,189 +17,14 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "capture_check.h"
 #include "setlight/capture.h"
 #include "testing.h"
-
-static bool sanitized(void)
-{
-    const char *s = getenv("SETLIGHT_SANITIZED");
-    return s && *s && strcmp(s, "0");
-}
-
-/* The exterior (sky and sun) builds in half the time of the stage room: the
- * fault tests use it, the full capture the stage. */
-static void vopts(sl_virtual_camera_opts *o)
-{
-    memset(o, 0, sizeof *o);
-    snprintf(o->scene, sizeof o->scene, "exterior");
-    /* smaller frames under sanitizers, same assertions */
-    o->width = sanitized() ? 160 : 240;
-    o->height = sanitized() ? 112 : 160;
-}
-
-static sl_camera *open_virtual(const sl_virtual_camera_opts *o)
-{
-    sl_camera *cam = NULL;
-    sl_error err;
-    CHECK_OK(sl_camera_open_virtual(o, &cam, &err), &err);
-    return cam;
-}
-
-/* A plan snapped to the camera's speeds; centre 0: the camera's metered
- * setting. */
-static int plan_of(sl_camera *cam, const char *spec, double centre, double **times)
-{
-    sl_error err;
-    int n = 0, k = 0;
-    double *offered = NULL;
-    *times = NULL;
-    if (centre <= 0) {
-        sl_camera_settings now;
-        CHECK_OK(sl_camera_get(cam, &now, &err), &err);
-        centre = now.exposure_time;
-    }
-    CHECK_OK(sl_bracket_plan_parse(spec, centre, times, &n, &err), &err);
-    CHECK_OK(sl_camera_shutter_speeds(cam, &offered, &k, &err), &err);
-    if (*times && offered)
-        CHECK_OK(sl_bracket_snap(*times, n, offered, k, 1.0, NULL, &err), &err);
-    free(offered);
-    return n;
-}
 
 /* The fault tests: 7 frames 2 stops apart around the metered speed. */
 static int plan(sl_camera *cam, double **times)
 {
-    return plan_of(cam, "7x2", 1.0 / 125, times);
-}
-
-static json_t *journal(const char *dir)
-{
-    char path[4096];
-    snprintf(path, sizeof path, "%s/journal.jsonl", dir);
-    json_t *a = json_array();
-    FILE *f = fopen(path, "r");
-    char line[8192];
-    while (f && fgets(line, sizeof line, f)) {
-        json_error_t je;
-        json_t *e = json_loads(line, 0, &je);
-        CHECK_MSG(e != NULL, "%s: line does not parse: %s", path, line);
-        if (e)
-            json_array_append_new(a, e);
-    }
-    if (f)
-        fclose(f);
-    return a;
-}
-
-static const char *str(json_t *e, const char *k)
-{
-    const char *s = json_string_value(json_object_get(e, k));
-    return s ? s : "";
-}
-
-static int ival(json_t *e, const char *k)
-{
-    return (int)json_integer_value(json_object_get(e, k));
-}
-
-/* The events of one kind, in order (borrowed references in a new array). */
-static json_t *events(json_t *j, const char *kind, int accepted)
-{
-    json_t *out = json_array(), *e;
-    size_t i;
-    json_array_foreach(j, i, e)
-    {
-        if (strcmp(str(e, "event"), kind))
-            continue;
-        if (accepted >= 0 && json_is_true(json_object_get(e, "accepted")) != (accepted == 1))
-            continue;
-        json_array_append(out, e);
-    }
-    return out;
-}
-
-/* Every accepted (view, index) exactly once, every journalled file on disk
- * with its checksum, its EXIF exposure within 1/6 stop of the plan, and
- * session.json grouping views x count frames by exposure. */
-static void check_session(const char *dir, int views, int count, const double *times)
-{
-    json_t *j = journal(dir);
-    CHECK(!strcmp(str(json_array_get(j, 0), "event"), "session_start"));
-    json_t *acc = events(j, "frame", 1);
-    CHECK_MSG((int)json_array_size(acc) == views * count, "%s: %zu accepted frames, want %d",
-              dir, json_array_size(acc), views * count);
-    int *seen = calloc((size_t)(views * count), sizeof *seen);
-    size_t i;
-    json_t *e;
-    json_array_foreach(acc, i, e)
-    {
-        int v = ival(e, "view"), k = ival(e, "index");
-        if (v >= 0 && v < views && k >= 0 && k < count)
-            seen[v * count + k]++;
-        char path[4096], hex[65];
-        sl_error err;
-        snprintf(path, sizeof path, "%s/%s", dir, str(e, "file"));
-        CHECK_OK(sl_sha256_file(path, hex, &err), &err);
-        CHECK_MSG(!strcmp(hex, str(e, "sha256")), "%s: checksum differs", path);
-        sl_meta meta;
-        int w, h, c;
-        if (!sl_photo_read_meta(path, &meta, &w, &h, &c, &err)) {
-            CHECK_MSG(fabs(log2(meta.exposure_time / times[k])) < 1.0 / 6,
-                      "%s: EXIF %g s, planned %g s", path, meta.exposure_time, times[k]);
-            sl_meta_free(&meta);
-        } else
-            CHECK_MSG(false, "%s", err.message);
-    }
-    for (int q = 0; q < views * count; q++)
-        CHECK_MSG(seen[q] == 1, "view %d frame %d accepted %d times", q / count, q % count,
-                  seen[q]);
-    free(seen);
-    json_t *ends = events(j, "session_end", -1);
-    CHECK(json_array_size(ends) == 1);
-    json_decref(ends);
-    json_decref(acc);
-    json_decref(j);
-
-    char sp[4096];
-    snprintf(sp, sizeof sp, "%s/session.json", dir);
-    json_error_t je;
-    json_t *s = json_load_file(sp, 0, &je);
-    CHECK(s != NULL);
-    if (!s)
-        return;
-    CHECK(ival(s, "version") == 1);
-    CHECK(!strcmp(str(json_object_get(s, "camera"), "backend"), "virtual"));
-    json_t *vs = json_object_get(s, "views");
-    CHECK((int)json_array_size(vs) == views);
-    for (size_t v = 0; v < json_array_size(vs); v++) {
-        json_t *bs = json_object_get(json_array_get(vs, v), "brackets");
-        CHECK(json_array_size(bs) == 1);
-        json_t *fr = json_object_get(json_array_get(bs, 0), "frames");
-        CHECK((int)json_array_size(fr) == count);
-        int measured = 0;
-        for (size_t k = 0; k < json_array_size(fr); k++) {
-            json_t *f = json_array_get(fr, k);
-            CHECK(fabs(log2(json_real_value(json_object_get(f, "exposure_time")) / times[k])) <
-                  1.0 / 6);
-            measured += json_real_value(json_object_get(f, "measured_ratio")) > 0;
-        }
-        /* a view's first frame has nothing to compare with; the fastest
-         * frames of a dim view share few mid-tones with their neighbour */
-        CHECK_MSG(measured >= count - 3, "view %zu: %d ratios measured", v, measured);
-    }
-    json_decref(s);
-}
-
-static sl_capture_options options(const char *dir, const double *times, int count, int views)
-{
-    sl_capture_options o;
-    memset(&o, 0, sizeof o);
-    o.dir = dir;
-    o.times = times;
-    o.count = count;
-    o.views = views;
-    o.reconnect_seconds = 5;
-    return o;
+    return cap_plan_of(cam, "7x2", 1.0 / 125, times);
 }
 
 static void test_camera_interface(void)
@@ -260,20 +85,20 @@ static void test_camera_interface(void)
 static void test_full_capture(void)
 {
     sl_virtual_camera_opts vo;
-    vopts(&vo);
+    cap_vopts(&vo);
     snprintf(vo.scene, sizeof vo.scene, "stage");
-    sl_camera *cam = open_virtual(&vo);
+    sl_camera *cam = cap_open_virtual(&vo);
     if (!cam)
         return;
     double *times;
-    int n = plan_of(cam, "7x3", 1.0 / 30, &times);
+    int n = cap_plan_of(cam, "7x3", 1.0 / 30, &times);
     const char *dir = sl_test_path("full");
-    sl_capture_options o = options(dir, times, n, 3);
+    sl_capture_options o = cap_options(dir, times, n, 3);
     sl_error err;
     double t0 = sl_seconds();
     CHECK_OK(sl_capture_run(cam, &o, &err), &err);
     printf("full 3x7 capture with the virtual camera: %.2f s\n", sl_seconds() - t0);
-    check_session(dir, 3, n, times);
+    cap_check_session(dir, 3, n, times);
     CHECK(sl_test_count_files(dir) == 21 + 2);
     /* the head turned: the views' centre frames differ */
     char a[4096], b[4096];
@@ -303,23 +128,23 @@ static json_t *run_format(const char *name, const char *spec, sl_virtual_camera_
                           sl_image_format format, double reconnect, sl_result want, sl_error *err,
                           double **times_out)
 {
-    sl_camera *cam = open_virtual(vo);
+    sl_camera *cam = cap_open_virtual(vo);
     if (!cam)
         return json_array();
     double *times;
-    int n = plan_of(cam, spec, 1.0 / 125, &times);
-    sl_capture_options o = options(sl_test_path(name), times, n, 1);
+    int n = cap_plan_of(cam, spec, 1.0 / 125, &times);
+    sl_capture_options o = cap_options(sl_test_path(name), times, n, 1);
     o.format = format;
     o.reconnect_seconds = reconnect;
     CHECK_RESULT(sl_capture_run(cam, &o, err), want, err);
     sl_camera_close(cam);
     if (want == SL_OK)
-        check_session(o.dir, 1, n, times);
+        cap_check_session(o.dir, 1, n, times);
     if (times_out)
         *times_out = times;
     else
         free(times);
-    return journal(o.dir);
+    return cap_journal(o.dir);
 }
 
 /* 1 x 7, 2 stops apart, in the camera's format, reconnecting for 5 s. */
@@ -334,36 +159,36 @@ static void test_ignored_shutter(void)
     sl_virtual_camera_opts vo;
     sl_error err;
     /* the first change (frame 0, nothing to compare pixels with): EXIF */
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.ignore_shutter = 1;
     json_t *j = run_with("ignored1", &vo, SL_OK, &err, NULL);
-    json_t *rej = events(j, "frame", 0);
+    json_t *rej = cap_events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
     json_t *r = json_array_get(rej, 0);
-    CHECK(ival(r, "index") == 0 && json_is_false(json_object_get(r, "exif_ok")) &&
+    CHECK(cap_ival(r, "index") == 0 && json_is_false(json_object_get(r, "exif_ok")) &&
           json_is_null(json_object_get(r, "pixels_ok")));
     json_decref(rej);
     json_decref(j);
 
     /* the fourth change: EXIF and pixels both see it */
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.ignore_shutter = 4;
     j = run_with("ignored4", &vo, SL_OK, &err, NULL);
-    rej = events(j, "frame", 0);
+    rej = cap_events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
     r = json_array_get(rej, 0);
-    CHECK(ival(r, "index") == 3 && ival(r, "attempt") == 1);
+    CHECK(cap_ival(r, "index") == 3 && cap_ival(r, "attempt") == 1);
     CHECK(json_is_false(json_object_get(r, "exif_ok")) &&
           json_is_false(json_object_get(r, "pixels_ok")));
-    CHECK(strstr(str(r, "reason"), "the file says") && strstr(str(r, "reason"), "pixels are"));
+    CHECK(strstr(cap_str(r, "reason"), "the file says") && strstr(cap_str(r, "reason"), "pixels are"));
     /* the pixels did not change: the old speed was used again */
     CHECK_NEAR(json_real_value(json_object_get(r, "measured_ratio")), 1.0, 0.1);
-    json_t *acc = events(j, "frame", 1);
+    json_t *acc = cap_events(j, "frame", 1);
     size_t i;
     json_t *e;
-    json_array_foreach(acc, i, e) if (ival(e, "index") == 3)
+    json_array_foreach(acc, i, e) if (cap_ival(e, "index") == 3)
     {
-        CHECK(ival(e, "attempt") == 2 && json_is_true(json_object_get(e, "pixels_ok")));
+        CHECK(cap_ival(e, "attempt") == 2 && json_is_true(json_object_get(e, "pixels_ok")));
         double ratio = json_real_value(json_object_get(e, "measured_ratio")) /
                        json_real_value(json_object_get(e, "expected_ratio"));
         CHECK_MSG(fabs(log2(ratio)) < 0.25, "retry ratio off by %g", ratio);
@@ -374,16 +199,16 @@ static void test_ignored_shutter(void)
 
     /* a stuck mechanism: EXIF and the setting say the new speed, only the
      * pixels tell */
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.ignore_shutter = 4;
     vo.exif_lies = true;
     j = run_with("lies", &vo, SL_OK, &err, NULL);
-    rej = events(j, "frame", 0);
+    rej = cap_events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
     r = json_array_get(rej, 0);
-    CHECK(ival(r, "index") == 3 && json_is_true(json_object_get(r, "exif_ok")) &&
+    CHECK(cap_ival(r, "index") == 3 && json_is_true(json_object_get(r, "exif_ok")) &&
           json_is_false(json_object_get(r, "pixels_ok")));
-    CHECK(!strstr(str(r, "reason"), "the file says") && strstr(str(r, "reason"), "pixels are"));
+    CHECK(!strstr(cap_str(r, "reason"), "the file says") && strstr(cap_str(r, "reason"), "pixels are"));
     json_decref(rej);
     json_decref(j);
 }
@@ -392,37 +217,37 @@ static void test_busy(void)
 {
     sl_virtual_camera_opts vo;
     sl_error err;
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.busy = 3;
     vo.busy_at = 5;
     json_t *j = run_with("busy", &vo, SL_OK, &err, NULL);
-    json_t *acc = events(j, "frame", 1), *e;
+    json_t *acc = cap_events(j, "frame", 1), *e;
     size_t i;
     int waited = 0;
     json_array_foreach(acc, i, e)
     {
-        int b = ival(e, "busy_retries");
+        int b = cap_ival(e, "busy_retries");
         if (b)
-            CHECK(ival(e, "index") == 4 && b == 3);
+            CHECK(cap_ival(e, "index") == 4 && b == 3);
         waited += b;
     }
     CHECK(waited == 3);
-    json_t *errs = events(j, "error", -1);
+    json_t *errs = cap_events(j, "error", -1);
     CHECK(json_array_size(errs) == 0);
     json_decref(errs);
     json_decref(acc);
     json_decref(j);
 
     /* busy past the retries: a clear failure, earlier frames kept */
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.busy = 1000;
     vo.busy_at = 3;
     j = run_with("busyforever", &vo, SL_ERR_CAMERA, &err, NULL);
     CHECK(strstr(err.message, "busy") && strstr(err.message, "virtual:exterior"));
-    acc = events(j, "frame", 1);
-    errs = events(j, "error", -1);
+    acc = cap_events(j, "frame", 1);
+    errs = cap_events(j, "error", -1);
     CHECK(json_array_size(acc) == 2);
-    CHECK(json_array_size(errs) == 1 && ival(json_array_get(errs, 0), "index") == 2);
+    CHECK(json_array_size(errs) == 1 && cap_ival(json_array_get(errs, 0), "index") == 2);
     json_decref(errs);
     json_decref(acc);
     json_decref(j);
@@ -432,16 +257,16 @@ static void test_refused_setting(void)
 {
     sl_virtual_camera_opts vo;
     sl_error err;
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.refuse_shutter = 1.0 / 125;
     double *times;
     json_t *j = run_with("refused", &vo, SL_ERR_CAMERA, &err, &times);
     CHECK(strstr(err.message, "refused") && strstr(err.message, "1/125") &&
           strstr(err.message, "virtual:exterior"));
-    json_t *acc = events(j, "frame", 1), *errs = events(j, "error", -1),
-           *rec = events(j, "reconnect", -1);
+    json_t *acc = cap_events(j, "frame", 1), *errs = cap_events(j, "error", -1),
+           *rec = cap_events(j, "reconnect", -1);
     CHECK(json_array_size(acc) == 3);
-    CHECK(json_array_size(errs) == 1 && ival(json_array_get(errs, 0), "index") == 3);
+    CHECK(json_array_size(errs) == 1 && cap_ival(json_array_get(errs, 0), "index") == 3);
     /* a refusal is not a lost connection */
     CHECK(json_array_size(rec) == 0);
     json_decref(rec);
@@ -456,46 +281,46 @@ static void test_refused_setting(void)
     CHECK(s && json_array_size(json_object_get(s, "problems")) == 1);
     json_decref(s);
     /* with a camera that takes 1/125, --resume finishes the bracket */
-    vopts(&vo);
-    sl_camera *cam = open_virtual(&vo);
+    cap_vopts(&vo);
+    sl_camera *cam = cap_open_virtual(&vo);
     sl_capture_options o;
     memset(&o, 0, sizeof o);
     if (cam) {
         CHECK_OK(sl_capture_resume(cam, &o, sl_test_path("refused"), &err), &err);
         sl_camera_close(cam);
     }
-    check_session(sl_test_path("refused"), 1, 7, times);
+    cap_check_session(sl_test_path("refused"), 1, 7, times);
     free(times);
 }
 
 static void test_reconnect(void)
 {
     sl_virtual_camera_opts vo;
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.drop_after = 10;
     vo.down_attempts = 2;
-    sl_camera *cam = open_virtual(&vo);
+    sl_camera *cam = cap_open_virtual(&vo);
     if (!cam)
         return;
     double *times;
     int n = plan(cam, &times);
     const char *dir = sl_test_path("reconnect");
-    sl_capture_options o = options(dir, times, n, 3);
+    sl_capture_options o = cap_options(dir, times, n, 3);
     sl_error err;
     CHECK_OK(sl_capture_run(cam, &o, &err), &err);
     sl_camera_close(cam);
-    check_session(dir, 3, n, times);
-    json_t *j = journal(dir);
-    json_t *errs = events(j, "error", -1), *rec = events(j, "reconnect", -1);
-    CHECK(json_array_size(errs) == 1 && ival(json_array_get(errs, 0), "view") == 1 &&
-          ival(json_array_get(errs, 0), "index") == 3);
+    cap_check_session(dir, 3, n, times);
+    json_t *j = cap_journal(dir);
+    json_t *errs = cap_events(j, "error", -1), *rec = cap_events(j, "reconnect", -1);
+    CHECK(json_array_size(errs) == 1 && cap_ival(json_array_get(errs, 0), "view") == 1 &&
+          cap_ival(json_array_get(errs, 0), "index") == 3);
     CHECK(json_array_size(rec) == 1 && json_is_true(json_object_get(json_array_get(rec, 0), "ok")) &&
-          ival(json_array_get(rec, 0), "tries") == 3);
+          cap_ival(json_array_get(rec, 0), "tries") == 3);
     /* card numbering goes on: every source once */
-    json_t *fr = events(j, "frame", -1), *e;
+    json_t *fr = cap_events(j, "frame", -1), *e;
     size_t i;
     json_array_foreach(fr, i, e) for (size_t k = 0; k < i; k++)
-        CHECK(strcmp(str(e, "source"), str(json_array_get(fr, k), "source")));
+        CHECK(strcmp(cap_str(e, "source"), cap_str(json_array_get(fr, k), "source")));
     json_decref(fr);
     json_decref(rec);
     json_decref(errs);
@@ -506,16 +331,16 @@ static void test_reconnect(void)
 static void test_disconnect_and_resume(void)
 {
     sl_virtual_camera_opts vo;
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.drop_after = 10;
     vo.down_attempts = -1;
-    sl_camera *cam = open_virtual(&vo);
+    sl_camera *cam = cap_open_virtual(&vo);
     if (!cam)
         return;
     double *times;
     int n = plan(cam, &times);
     const char *dir = sl_test_path("drop");
-    sl_capture_options o = options(dir, times, n, 3);
+    sl_capture_options o = cap_options(dir, times, n, 3);
     o.reconnect_seconds = 0.6;
     sl_error err;
     double t0 = sl_seconds();
@@ -527,8 +352,8 @@ static void test_disconnect_and_resume(void)
     CHECK(!strchr(err.message, '\n'));
     CHECK_MSG(waited < 10, "gave up after %.1f s", waited);
     CHECK(sl_test_count_files(dir) == 10 + 2);
-    json_t *j = journal(dir);
-    json_t *acc = events(j, "frame", 1), *rec = events(j, "reconnect", -1);
+    json_t *j = cap_journal(dir);
+    json_t *acc = cap_events(j, "frame", 1), *rec = cap_events(j, "reconnect", -1);
     CHECK(json_array_size(acc) == 10);
     CHECK(json_array_size(rec) == 1 && json_is_false(json_object_get(json_array_get(rec, 0), "ok")));
     json_decref(rec);
@@ -538,8 +363,8 @@ static void test_disconnect_and_resume(void)
     /* not a session, or a corrupt journal: refused, nothing written */
     const char *plain = sl_test_path("plain");
     mkdir(plain, 0755);
-    vopts(&vo);
-    cam = open_virtual(&vo);
+    cap_vopts(&vo);
+    cam = cap_open_virtual(&vo);
     if (!cam)
         return;
     sl_capture_options ro;
@@ -576,21 +401,21 @@ static void test_disconnect_and_resume(void)
     t0 = sl_seconds();
     CHECK_OK(sl_capture_resume(cam, &ro, dir, &err), &err);
     sl_camera_close(cam);
-    check_session(dir, 3, n, times);
+    cap_check_session(dir, 3, n, times);
     char *after = sl_test_read_file(sl_test_path("drop/journal.jsonl"), NULL);
     /* append-only: the old journal is a prefix of the new one */
     CHECK(before && after && !strncmp(before, after, before_size));
     free(before);
     free(after);
-    j = journal(dir);
-    json_t *res = events(j, "resume", -1);
+    j = cap_journal(dir);
+    json_t *res = cap_events(j, "resume", -1);
     CHECK(json_array_size(res) == 1);
     json_t *r = json_array_get(res, 0);
-    CHECK(ival(r, "frames_done") == 10 && ival(r, "next_view") == 1 && ival(r, "next_index") == 3);
+    CHECK(cap_ival(r, "frames_done") == 10 && cap_ival(r, "next_view") == 1 && cap_ival(r, "next_index") == 3);
     /* the first frame after the gap is measured against the last before it */
-    json_t *fr = events(j, "frame", 1);
+    json_t *fr = cap_events(j, "frame", 1);
     json_t *first = json_array_get(fr, 10);
-    CHECK(ival(first, "view") == 1 && ival(first, "index") == 3 &&
+    CHECK(cap_ival(first, "view") == 1 && cap_ival(first, "index") == 3 &&
           json_real_value(json_object_get(first, "measured_ratio")) > 0);
     json_decref(fr);
     json_decref(res);
@@ -603,23 +428,23 @@ static void test_disconnect_and_resume(void)
  * the format with the camera's label. */
 static void check_raw_jpeg(const char *dir, int count)
 {
-    json_t *j = journal(dir);
-    json_t *acc = events(j, "frame", 1);
+    json_t *j = cap_journal(dir);
+    json_t *acc = cap_events(j, "frame", 1);
     size_t i;
     json_t *e;
     json_array_foreach(acc, i, e)
     {
         json_t *sib = json_object_get(e, "siblings");
-        CHECK_MSG(strstr(str(e, "file"), ".dng") && json_array_size(sib) == 1, "%s: %zu siblings",
-                  str(e, "file"), json_array_size(sib));
+        CHECK_MSG(strstr(cap_str(e, "file"), ".dng") && json_array_size(sib) == 1, "%s: %zu siblings",
+                  cap_str(e, "file"), json_array_size(sib));
         json_t *f = json_array_get(sib, 0);
-        CHECK(strstr(str(f, "file"), ".jpg") && strstr(str(f, "source"), ".JPG"));
-        CHECK(!strcmp(str(e, "verified_on"), str(f, "file")));
+        CHECK(strstr(cap_str(f, "file"), ".jpg") && strstr(cap_str(f, "source"), ".JPG"));
+        CHECK(!strcmp(cap_str(e, "verified_on"), cap_str(f, "file")));
         char path[4096], hex[65];
         sl_error err;
-        snprintf(path, sizeof path, "%s/%s", dir, str(f, "file"));
+        snprintf(path, sizeof path, "%s/%s", dir, cap_str(f, "file"));
         CHECK_OK(sl_sha256_file(path, hex, &err), &err);
-        CHECK_MSG(!strcmp(hex, str(f, "sha256")), "%s: checksum differs", path);
+        CHECK_MSG(!strcmp(hex, cap_str(f, "sha256")), "%s: checksum differs", path);
     }
     CHECK((int)json_array_size(acc) == count);
     json_decref(acc);
@@ -628,8 +453,8 @@ static void check_raw_jpeg(const char *dir, int count)
     snprintf(sp, sizeof sp, "%s/session.json", dir);
     json_t *s = json_load_file(sp, 0, NULL);
     json_t *cam = json_object_get(s, "camera");
-    CHECK(!strcmp(str(cam, "format"), "raw+jpeg") &&
-          !strcmp(str(cam, "format_label"), "RAW + JPEG Fine"));
+    CHECK(!strcmp(cap_str(cam, "format"), "raw+jpeg") &&
+          !strcmp(cap_str(cam, "format_label"), "RAW + JPEG Fine"));
     json_t *fr = json_object_get(
         json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
                        0),
@@ -645,28 +470,28 @@ static void test_raw_jpeg(void)
     sl_virtual_camera_opts vo;
     sl_error err;
     double *times;
-    vopts(&vo);
+    cap_vopts(&vo);
     double t0 = sl_seconds();
     json_t *j = run_format("rawjpeg", "7x2", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
     printf("1x7 raw+jpeg with the virtual camera: %.2f s\n", sl_seconds() - t0);
     check_raw_jpeg(sl_test_path("rawjpeg"), 7);
     CHECK(sl_test_count_files(sl_test_path("rawjpeg")) == 14 + 2);
-    json_t *fmt = events(j, "format", -1);
+    json_t *fmt = cap_events(j, "format", -1);
     CHECK(json_array_size(fmt) == 1 && json_is_true(json_object_get(json_array_get(fmt, 0), "ok")));
     json_decref(fmt);
     json_decref(j);
     free(times);
 
     /* raw alone: the DNG is decoded, so its pixels are measured too */
-    vopts(&vo);
+    cap_vopts(&vo);
     j = run_format("rawonly", "3x3", &vo, SL_FORMAT_RAW, 5, SL_OK, &err, &times);
-    json_t *acc = events(j, "frame", 1);
+    json_t *acc = cap_events(j, "frame", 1);
     size_t i;
     json_t *e;
     int measured = 0;
     json_array_foreach(acc, i, e)
     {
-        CHECK(strstr(str(e, "file"), ".dng") && !json_object_get(e, "siblings"));
+        CHECK(strstr(cap_str(e, "file"), ".dng") && !json_object_get(e, "siblings"));
         measured += json_is_true(json_object_get(e, "pixels_ok"));
     }
     CHECK_MSG(measured == 2, "%d raw frames measured", measured);
@@ -682,13 +507,13 @@ static void test_format_ignored(void)
     sl_error err;
     double *times;
     /* the change is ignored and reads back unchanged: set again */
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.ignore_format = 1;
     json_t *j = run_format("fmt_ignored", "3x3", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
-    json_t *fmt = events(j, "format", -1);
+    json_t *fmt = cap_events(j, "format", -1);
     CHECK(json_array_size(fmt) == 2);
     CHECK(json_is_false(json_object_get(json_array_get(fmt, 0), "ok")) &&
-          strstr(str(json_array_get(fmt, 0), "message"), "ignored the image format change"));
+          strstr(cap_str(json_array_get(fmt, 0), "message"), "ignored the image format change"));
     CHECK(json_is_true(json_object_get(json_array_get(fmt, 1), "ok")));
     check_raw_jpeg(sl_test_path("fmt_ignored"), 3);
     json_decref(fmt);
@@ -697,16 +522,16 @@ static void test_format_ignored(void)
 
     /* it even reads back as changed: the first frame's files give it away,
      * the frame is rejected (kept, journalled) and shot again */
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.ignore_format = 1;
     vo.format_lies = true;
     j = run_format("fmt_lies", "3x3", &vo, SL_FORMAT_RAW_JPEG, 5, SL_OK, &err, &times);
-    json_t *rej = events(j, "frame", 0);
+    json_t *rej = cap_events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
     json_t *r = json_array_get(rej, 0);
-    CHECK(ival(r, "index") == 0 &&
-          strstr(str(r, "reason"), "delivered jpeg, the plan is raw+jpeg") &&
-          !strcmp(str(r, "file"), "v00_f00.jpg"));
+    CHECK(cap_ival(r, "index") == 0 &&
+          strstr(cap_str(r, "reason"), "delivered jpeg, the plan is raw+jpeg") &&
+          !strcmp(cap_str(r, "file"), "v00_f00.jpg"));
     check_raw_jpeg(sl_test_path("fmt_lies"), 3);
     json_decref(rej);
     json_decref(j);
@@ -721,24 +546,24 @@ static void test_drop_between_files(void)
     sl_virtual_camera_opts vo;
     sl_error err;
     double *times;
-    vopts(&vo);
+    cap_vopts(&vo);
     vo.drop_before_raw = 3;
     json_t *j =
         run_format("fmt_drop", "3x3", &vo, SL_FORMAT_RAW_JPEG, -1, SL_ERR_CAMERA, &err, &times);
     const char *dir = sl_test_path("fmt_drop");
-    json_t *rej = events(j, "frame", 0);
+    json_t *rej = cap_events(j, "frame", 0);
     CHECK(json_array_size(rej) == 1);
     json_t *r = json_array_get(rej, 0);
-    CHECK(ival(r, "index") == 2 && json_is_true(json_object_get(r, "incomplete")) &&
-          !strcmp(str(r, "file"), "v00_f02.jpg") && strstr(str(r, "reason"), "1 of 2 files"));
+    CHECK(cap_ival(r, "index") == 2 && json_is_true(json_object_get(r, "incomplete")) &&
+          !strcmp(cap_str(r, "file"), "v00_f02.jpg") && strstr(cap_str(r, "reason"), "1 of 2 files"));
     char landed[65] = "";
-    snprintf(landed, sizeof landed, "%s", str(r, "sha256"));
+    snprintf(landed, sizeof landed, "%s", cap_str(r, "sha256"));
     json_decref(rej);
     json_decref(j);
     CHECK(sl_test_count_files(dir) == 2 * 2 + 1 + 2); /* frames 1, 2, the JPEG of 3 */
 
-    vopts(&vo);
-    sl_camera *cam = open_virtual(&vo);
+    cap_vopts(&vo);
+    sl_camera *cam = cap_open_virtual(&vo);
     if (!cam)
         return;
     sl_capture_options ro;
@@ -755,17 +580,17 @@ static void test_drop_between_files(void)
     ro.format = SL_FORMAT_KEEP; /* the session's format */
     CHECK_OK(sl_capture_resume(cam, &ro, dir, &err), &err);
     sl_camera_close(cam);
-    check_session(dir, 1, 3, times);
+    cap_check_session(dir, 1, 3, times);
     check_raw_jpeg(dir, 3);
     CHECK(sl_test_count_files(dir) == 3 * 2 + 1 + 2);
     char path[4096], hex[65];
     snprintf(path, sizeof path, "%s/v00_f02.jpg", dir);
     CHECK_OK(sl_sha256_file(path, hex, &err), &err);
     CHECK_MSG(!strcmp(hex, landed), "%s: the landed JPEG was overwritten", path);
-    j = journal(dir);
-    json_t *acc = events(j, "frame", 1);
+    j = cap_journal(dir);
+    json_t *acc = cap_events(j, "frame", 1);
     json_t *f2 = json_array_get(acc, 2);
-    CHECK(ival(f2, "index") == 2 && !strcmp(str(f2, "file"), "v00_f02_r2.dng"));
+    CHECK(cap_ival(f2, "index") == 2 && !strcmp(cap_str(f2, "file"), "v00_f02_r2.dng"));
     json_decref(acc);
     json_decref(j);
     free(times);
@@ -785,8 +610,8 @@ static void test_ingest_subsecond(void)
 {
     static const double speeds[5] = {1.0 / 8000, 1.0 / 1000, 1.0 / 125, 1.0 / 15, 1.0 / 4};
     sl_virtual_camera_opts vo;
-    vopts(&vo);
-    sl_camera *cam = open_virtual(&vo);
+    cap_vopts(&vo);
+    sl_camera *cam = cap_open_virtual(&vo);
     if (!cam)
         return;
     const char *card = sl_test_path("card");
@@ -847,11 +672,7 @@ static void test_ingest_subsecond(void)
     int frames, views;
     CHECK_OK(sl_ingest(card, dir, 10, NULL, &frames, &views, &err), &err);
     CHECK(frames == 20 && views == 2);
-    char sp[4096];
-    snprintf(sp, sizeof sp, "%s/session.json", dir);
-    json_error_t je;
-    json_t *s = json_load_file(sp, 0, &je);
-    CHECK(s != NULL);
+    json_t *s = cap_session_json(dir);
     if (!s)
         return;
     json_t *vs = json_object_get(s, "views");
@@ -865,7 +686,7 @@ static void test_ingest_subsecond(void)
             CHECK(json_array_size(fr) == 5);
             for (int k = 0; k < 5 && k < (int)json_array_size(fr); k++) {
                 /* exactly the frame shot as view v, bracket b, exposure k */
-                const char *sha = str(json_array_get(fr, (size_t)k), "sha256");
+                const char *sha = cap_str(json_array_get(fr, (size_t)k), "sha256");
                 int at = -1;
                 for (int i = 0; i < n; i++)
                     if (!strcmp(shots[i].sha, sha))
@@ -918,7 +739,7 @@ static void test_ingest_vset(void)
     for (int i = 0; i < n; i++) {
         char from[4096], to[4096];
         snprintf(from, sizeof from, "%s/hdri/%s.jpg", vdir,
-                 str(json_array_get(frames, (size_t)i), "name"));
+                 cap_str(json_array_get(frames, (size_t)i), "name"));
         snprintf(to, sizeof to, "%s/F%03d.jpg", card, order[i]);
         size_t size;
         char *data = sl_test_read_file(from, &size);
@@ -949,13 +770,13 @@ static void test_ingest_vset(void)
         json_t *fr = json_object_get(json_array_get(bs, 0), "frames");
         CHECK(json_array_size(fr) == 5);
         for (size_t k = 0; k < json_array_size(fr); k++) {
-            const char *sha = str(json_array_get(fr, k), "sha256");
+            const char *sha = cap_str(json_array_get(fr, k), "sha256");
             int at = -1;
             for (int i = 0; i < n; i++)
                 if (!strcmp(shas[i], sha))
                     at = i;
             json_t *truth = json_array_get(frames, (size_t)(at >= 0 ? at : 0));
-            CHECK_MSG(at >= 0 && ival(truth, "view") == (int)v && ival(truth, "bracket") == (int)k,
+            CHECK_MSG(at >= 0 && cap_ival(truth, "view") == (int)v && cap_ival(truth, "bracket") == (int)k,
                       "ingested view %zu frame %zu is capture frame %d", v, k, at);
         }
     }

@@ -48,6 +48,9 @@ static void print_help(FILE *out)
             "  --json        print a machine-readable result on stdout\n"
             "  --quiet       no progress or information on stderr\n"
             "  --threads N   worker threads (default: all cores); results do not depend on it\n"
+            "  --max-memory-mb N\n"
+            "                memory budget for what is read (default: half the RAM;\n"
+            "                also SETLIGHT_MAX_MEMORY_MB): larger images are refused (exit 3)\n"
             "\nexit codes: 0 success, 1 runtime failure, 2 usage error, 3 invalid input data\n"
             "docs: docs/index.md\n");
 }
@@ -77,6 +80,11 @@ int main(int argc, char **argv)
 
     /* Global options may stand anywhere after the command; strip them here. */
     sl_cli cli = {.command = cmd->name};
+    /* The memory budget: --max-memory-mb, else SETLIGHT_MAX_MEMORY_MB. */
+    int memory_mb = 0;
+    const char *env_mb = getenv("SETLIGHT_MAX_MEMORY_MB");
+    if (env_mb && *env_mb && (!cli_parse_int(env_mb, &memory_mb) || memory_mb < 1))
+        return cli_usage_error(&cli, "SETLIGHT_MAX_MEMORY_MB needs a whole number of MB >= 1");
     char **args = calloc((size_t)argc + 1, sizeof *args);
     if (!args)
         return 1;
@@ -98,9 +106,18 @@ int main(int argc, char **argv)
                 free(args);
                 return cli_usage_error(&cli, "--threads needs a whole number >= 0");
             }
+        } else if (!strcmp(argv[i], "--max-memory-mb") ||
+                   !strncmp(argv[i], "--max-memory-mb=", 16)) {
+            const char *v = argv[i][15] == '=' ? argv[i] + 16 : (i + 1 < argc ? argv[++i] : NULL);
+            if (!v || !cli_parse_int(v, &memory_mb) || memory_mb < 1) {
+                free(args);
+                return cli_usage_error(&cli, "--max-memory-mb needs a whole number of MB >= 1");
+            }
         } else
             args[n++] = argv[i];
     }
+    if (memory_mb)
+        sl_memory_budget_set((uint64_t)memory_mb << 20);
     args[n] = NULL;
     sl_log_set_quiet(cli.quiet);
     sl_threads_set(cli.threads);

@@ -382,6 +382,9 @@ double sl_shutter_parse(const char *text);
 /* 1/30 -> "1/30", 0.5 -> "1/2", 2.5 -> "2.5". */
 void sl_shutter_format(double seconds, char *buf, size_t size);
 
+/* The most exposures a bracket may have (a plan, a journal's plan). */
+#define SL_BRACKET_MAX_FRAMES 64
+
 /* "NxS" (N exposures S stops apart, centred on `center` seconds; N odd or
  * even) or an explicit comma list of shutter speeds ("1/1000,1/125,1/15").
  * Result ascending, malloc'd. SL_ERR_USAGE for junk, N < 1 or > 64, S <= 0. */
@@ -441,6 +444,8 @@ typedef struct sl_virtual_camera_opts {
     int ignore_format;        /* the k-th image-format change is acknowledged, not applied */
     bool format_lies;         /* ...and the setting reads back as changed */
     int drop_before_raw;      /* raw+jpeg: the connection drops after frame N's JPEG */
+    int drop_at;              /* the connection drops at the trigger of frame N (1-based,
+                                 so also before the first; drop_after N-1 otherwise) */
 } sl_virtual_camera_opts;
 sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
                                  sl_error *err);
@@ -583,6 +588,8 @@ typedef struct sl_capture_options {
     sl_capture_step_fn step;    /* may be NULL */
     sl_capture_frame_fn on_frame; /* may be NULL */
     void *ctx;
+    int disk_full_at;           /* fault injection (tests): the Nth shot this run
+                                   saves fails as on a full disk (ENOSPC); 0: never */
 } sl_capture_options;
 
 /* A new session in an empty (or absent) folder: journals the plan, shoots

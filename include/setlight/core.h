@@ -157,6 +157,29 @@ sl_result sl_write_file_atomic(const char *path, const void *data, size_t size, 
  * NULL when it cannot be loaded (dlerror() says why). */
 void *sl_module_open(const char *built_path);
 
+/* ------------------------------------------------------------------ */
+/* Memory budget: what a header claims is checked before allocating    */
+/* ------------------------------------------------------------------ */
+
+/* The bytes a run may spend on what it reads (docs/conventions.md): set by
+ * the CLI from --max-memory-mb or SETLIGHT_MAX_MEMORY_MB; 0 restores the
+ * default, half the machine's RAM (or of a smaller cgroup limit). */
+void sl_memory_budget_set(uint64_t bytes);
+uint64_t sl_memory_budget(void);
+uint64_t sl_memory_budget_default(void);
+/* SL_ERR_INPUT naming `path`, `what` (e.g. "a 40000x20000 RGB image"), the
+ * bytes it needs and the budget, when `bytes` is over the budget. */
+sl_result sl_memory_check(uint64_t bytes, const char *path, const char *what, sl_error *err);
+/* sl_check_input_file, and SL_ERR_INPUT naming the file and `what` it is
+ * (e.g. "rig JSON") when it is over max_bytes: a file parsed whole (JSON,
+ * a journal) is refused before its parser allocates for it. */
+sl_result sl_check_input_size(const char *path, uint64_t max_bytes, const char *what,
+                              sl_error *err);
+/* The largest JSON file a reader parses whole (rig, scene): 16 MiB, four
+ * times a rig of the most lights (4096 at about 1 kB each); parsing one
+ * costs about 15 times its size. */
+#define SL_MAX_JSON_BYTES ((uint64_t)16 << 20)
+
 /* Checks that `path` names an existing, readable, non-empty regular file.
  * SL_ERR_NOT_FOUND for missing or a directory, SL_ERR_INPUT for empty. */
 sl_result sl_check_input_file(const char *path, sl_error *err);

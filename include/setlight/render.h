@@ -217,6 +217,11 @@ sl_result sl_scene_add_light(sl_scene *scene, sl_light *light, sl_error *err);
  * origin, plus the residual dome. Textures and the dome file are resolved
  * relative to the rig's folder. */
 sl_result sl_scene_read_rig(sl_scene *scene, const char *path, sl_error *err);
+/* The most lights a rig or scene file may hold, and objects and materials a
+ * scene file may hold (a real rig has tens of lights): more is SL_ERR_INPUT
+ * before any is built. Files over SL_MAX_JSON_BYTES are refused unread. */
+#define SL_RENDER_MAX_LIGHTS 4096
+#define SL_RENDER_MAX_OBJECTS 4096
 
 /* Validation scenes: "grey", "chrome", "chart", "refs", "shadow", "materials".
  * Sets shapes, materials and camera (width pixels wide); the dome is left
