@@ -199,3 +199,44 @@ sl_result sl_vset_view_image(const sl_lens *lens, const sl_view_pose *pose,
     sl_parallel_for(lens->height, 4, view_rows, &s);
     return SL_OK;
 }
+
+void sl_vset_fisheye_nominal(sl_lens *lens, int width, int height)
+{
+    sl_lens_nominal(lens, SL_LENS_EQUISOLID, width, height, SL_VSET_FISHEYE_FOCAL_MM,
+                    SL_VSET_SENSOR_WIDTH_MM);
+}
+
+void sl_vset_fisheye_true(sl_lens *lens, int width, int height)
+{
+    sl_vset_fisheye_nominal(lens, width, height);
+    /* Off its label as real glass is: the stitch's solve must find these. */
+    lens->focal_px *= 8.12 / SL_VSET_FISHEYE_FOCAL_MM;
+    lens->cx += 0.006 * width;
+    lens->cy -= 0.004 * width;
+    lens->k[0] = 0.02;
+    lens->k[1] = -0.01;
+    lens->vignette[0] = -0.034;
+    lens->vignette[1] = -0.003;
+    lens->max_theta_deg = 90.0;
+    lens->circle_radius_px = sl_lens_radius(lens, 0.5 * VSET_PI);
+}
+
+/* A signed error of size lo..hi degrees from (seed, stream, index). */
+static double head_error(uint64_t seed, uint64_t index, double lo, double hi)
+{
+    double size = lo + (hi - lo) * vset_uniform(seed, 11, 2 * index);
+    return vset_uniform(seed, 11, 2 * index + 1) < 0.5 ? -size : size;
+}
+
+void sl_vset_head_pose(uint64_t seed, int view, const sl_view_pose *plan, sl_view_pose *out)
+{
+    *out = *plan;
+    if (view == 0)
+        return;
+    uint64_t id = (uint64_t)view * 3u;
+    double pitch = head_error(seed, id + 1, 0.3, 0.5);
+    out->yaw_deg += head_error(seed, id, 0.5, 1.0);
+    /* At the zenith the head can only tilt down from it. */
+    out->pitch_deg += plan->pitch_deg >= 90.0 ? -fabs(pitch) : pitch;
+    out->roll_deg += head_error(seed, id + 2, 0.3, 0.5);
+}

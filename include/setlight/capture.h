@@ -257,6 +257,25 @@ sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
 sl_result sl_vset_view_image(const sl_lens *lens, const sl_view_pose *pose,
                              const sl_image *latlong, int ss, sl_image *out, sl_error *err);
 
+/* The HDRI fisheye of the virtual set: what its EXIF states (nominal) and
+ * what the glass really is (true), for a width x height frame on the 36 mm
+ * wide sensor. Nominal: 8 mm equisolid, centre at the frame's centre, no
+ * correction, no falloff. True: focal 8.12 mm (1.5% long), optical centre
+ * +0.6% and -0.4% of the width off the frame's centre, radial correction
+ * k1 = 0.02, k2 = -0.01, vignetting v1 = -0.034, v2 = -0.003 (a 8% falloff
+ * at the circle), max field 90 deg; circle_radius_px where theta = 90 deg. */
+#define SL_VSET_FISHEYE_NAME "8mm f/3.5 equisolid fisheye"
+#define SL_VSET_FISHEYE_FOCAL_MM 8.0
+#define SL_VSET_SENSOR_WIDTH_MM 36.0
+void sl_vset_fisheye_nominal(sl_lens *lens, int width, int height);
+void sl_vset_fisheye_true(sl_lens *lens, int width, int height);
+/* The nodal head's true pose of view `view` of a capture whose plan is
+ * `plan`: view 0 is exact (it defines the frame of the truth lat-long);
+ * every other view's yaw is off by 0.5-1 deg and its pitch and roll by
+ * 0.3-0.5 deg, signs and sizes from the seed. A zenith view (pitch 90)
+ * tilts down from the zenith. */
+void sl_vset_head_pose(uint64_t seed, int view, const sl_view_pose *plan, sl_view_pose *out);
+
 /* ---- probes: chrome ball, grey ball and chart ------------------------ */
 
 typedef enum {
