@@ -29,14 +29,33 @@ static double lum_at_pixel(const sl_image *img, int x, int y)
     return isfinite(l) && l > 0.0 ? l : 0.0;
 }
 
+/* The median of the 3 x 3 pixels round (x, y): a merge leaves hot pixels
+ * and noise speckles in the dark frame, which would end a ray early; a
+ * median keeps a step edge where it is. */
+static double lum_median3(const sl_image *img, int x, int y)
+{
+    double v[9];
+    int n = 0;
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++)
+            v[n++] = lum_at_pixel(img, x + dx, y + dy);
+    for (int i = 1; i < 9; i++) /* insertion sort of nine */
+        for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
+            double t = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = t;
+        }
+    return v[4];
+}
+
 /* Bilinear between pixel centres; (x, y) in pixel coordinates. */
 static double lum_at(const sl_image *img, double x, double y)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int ix = (int)floor(fx), iy = (int)floor(fy);
     double ax = fx - ix, ay = fy - iy;
-    return (1 - ay) * ((1 - ax) * lum_at_pixel(img, ix, iy) + ax * lum_at_pixel(img, ix + 1, iy)) +
-           ay * ((1 - ax) * lum_at_pixel(img, ix, iy + 1) + ax * lum_at_pixel(img, ix + 1, iy + 1));
+    return (1 - ay) * ((1 - ax) * lum_median3(img, ix, iy) + ax * lum_median3(img, ix + 1, iy)) +
+           ay * ((1 - ax) * lum_median3(img, ix, iy + 1) + ax * lum_median3(img, ix + 1, iy + 1));
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -154,6 +173,38 @@ static bool robust_fit(const ball_point *pts, bool *use, int n, double c[3], int
     return true;
 }
 
+/* Luminance block-averaged to at most COARSE_SIZE px across, then 3 x 3
+ * median filtered, for sl_fisheye_check's coarse disc: its walk in from the
+ * frame's edge stops at the first bright pixel, a merge's hot pixel too. */
+#define COARSE_SIZE 800
+static sl_result coarse_copy(const sl_image *img, sl_image *out, int *factor, sl_error *err)
+{
+    int big = img->width > img->height ? img->width : img->height;
+    int f = (big + COARSE_SIZE - 1) / COARSE_SIZE;
+    sl_image mean = {0};
+    sl_result r = sl_image_alloc(&mean, img->width / f, img->height / f, 1, err);
+    if (!r)
+        r = sl_image_alloc(out, mean.width, mean.height, 1, err);
+    if (r) {
+        sl_image_free(&mean);
+        return r;
+    }
+    for (int y = 0; y < mean.height; y++)
+        for (int x = 0; x < mean.width; x++) {
+            double s = 0.0;
+            for (int j = 0; j < f; j++)
+                for (int i = 0; i < f; i++)
+                    s += lum_at_pixel(img, x * f + i, y * f + j);
+            sl_image_pixel(&mean, x, y)[0] = (float)(s / (f * f));
+        }
+    for (int y = 0; y < out->height; y++)
+        for (int x = 0; x < out->width; x++)
+            sl_image_pixel(out, x, y)[0] = (float)lum_median3(&mean, x, y);
+    sl_image_free(&mean);
+    *factor = f;
+    return SL_OK;
+}
+
 sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
                                 const sl_lens *nominal, sl_stitch_circle *out, sl_error *err)
 {
@@ -165,9 +216,18 @@ sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
                             name);
     sl_fisheye_evidence ev;
     sl_error check_err;
-    sl_result r = sl_fisheye_check(radiance, false, name, &ev, &check_err);
+    sl_image coarse = {0};
+    int f = 1;
+    sl_result r = coarse_copy(radiance, &coarse, &f, err);
+    if (r)
+        return r;
+    r = sl_fisheye_check(&coarse, false, name, &ev, &check_err);
+    sl_image_free(&coarse);
     if (r && !ev.fisheye)
         return sl_error_set(err, r, "%s", check_err.message);
+    ev.cx *= f;
+    ev.cy *= f;
+    ev.r *= f;
     if (!ev.fisheye) {
         const char *why = !isfinite(ev.border_level) ? "the image is black"
                           : !ev.round ? (ev.border_level >= 0.15

@@ -150,7 +150,7 @@ static void real_sigma(void)
         if (i == 0)
             first = c;
         double moved = hypot(c.cx - first.cx, c.cy - first.cy);
-        CHECK_MSG(moved < 0.5 && fabs(c.radius - first.radius) < 0.5,
+        CHECK_MSG(moved < 1.0 && fabs(c.radius - first.radius) < 1.0,
                   "%s: circle %.2f px from the first frame's, radius %+.2f px", frames[i], moved,
                   c.radius - first.radius);
         sl_image_free(&img);
