@@ -205,9 +205,9 @@ void sl_vset_quantize(sl_image *img, int bits);
 
 /* ---- lenses --------------------------------------------------------- */
 
+/* The probes' long lens; the HDRI fisheye is an sl_lens (below). */
 typedef enum {
-    SL_VSET_LENS_RECTILINEAR = 0, /* r = f tan(theta) */
-    SL_VSET_LENS_EQUISOLID        /* fisheye, r = 2 f sin(theta / 2), theta <= 90 deg */
+    SL_VSET_LENS_RECTILINEAR = 0 /* r = f tan(theta) */
 } sl_vset_lens_type;
 
 typedef struct sl_vset_lens {
@@ -216,7 +216,7 @@ typedef struct sl_vset_lens {
     double focal_mm;
     double sensor_width_mm; /* the image's width; pixels are square */
     /* Optical vignetting: gain 1 + a rho^2 + b rho^4, rho = r / half
-     * diagonal; rectilinear lenses also get natural cos^4(theta). */
+     * diagonal, times natural cos^4(theta). */
     double vignette_a, vignette_b;
 } sl_vset_lens;
 
@@ -226,14 +226,11 @@ typedef struct sl_vset_view {
     double yaw_deg, pitch_deg, roll_deg;
 } sl_vset_view;
 
-/* 8mm equisolid fisheye on a 36 mm wide sensor (a circular 180 deg image). */
-void sl_vset_lens_fisheye8(sl_vset_lens *lens);
 /* Rectilinear lens of focal_mm on a 36 mm wide sensor. */
 void sl_vset_lens_rectilinear(sl_vset_lens *lens, double focal_mm);
 
 /* Direction seen at image position (x, y) in pixels (0,0 = top-left
- * corner of the top-left pixel) of a width x height image; false outside
- * the image circle. */
+ * corner of the top-left pixel) of a width x height image. */
 bool sl_vset_lens_to_dir(const sl_vset_lens *lens, const sl_vset_view *view, int width,
                          int height, double x, double y, double dir[3]);
 /* Inverse; false when the direction is outside the lens's field. */
@@ -242,12 +239,6 @@ bool sl_vset_lens_from_dir(const sl_vset_lens *lens, const sl_vset_view *view, i
 /* Vignetting gain at image position (x, y). */
 double sl_vset_lens_vignette(const sl_vset_lens *lens, int width, int height, double x,
                              double y);
-/* Radiance image of an environment at infinity (lat-long) through the lens:
- * ss x ss samples per pixel, bilinear lookups, vignetting applied, black
- * outside the image circle. */
-sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
-                             const sl_image *latlong, int width, int height, int ss,
-                             sl_image *out, sl_error *err);
 
 /* Radiance image of an environment at infinity through any lens of the
  * core model (projection, correction, off-centre axis, its vignetting
