@@ -49,12 +49,15 @@ int main(int argc, char **argv)
         return ball_fixture_main(kind, out);
     if (!strncmp(kind, "chart", 5))
         return chart_fixture_main(kind, out);
-    if (!strcmp(kind, "lens")) {
-        /* make_fixture lens OUT IN SECONDS LENS FOCAL-MM: IN (any image) as a
-         * 16-bit linear TIFF frame of a bracket, exposed for SECONDS (IN's
-         * brightest value at 1 s just saturates), with its EXIF. */
+    /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata.
+     * make_fixture lens OUT IN SECONDS LENS FOCAL-MM: IN (any image) as a 16-bit
+     * linear TIFF frame of a bracket, exposed for SECONDS (IN's brightest value
+     * at 1 s just saturates), with its lens and camera EXIF. */
+    bool lens = !strcmp(kind, "lens");
+    if (lens || !strcmp(kind, "exif")) {
         if (argc < 7) {
-            fprintf(stderr, "usage: make_fixture lens OUT IN SECONDS LENS FOCAL-MM\n");
+            fprintf(stderr, "usage: make_fixture %s OUT IN SECONDS %s\n", kind,
+                    lens ? "LENS FOCAL-MM" : "F-NUMBER ISO");
             return 2;
         }
         sl_image im;
@@ -66,45 +69,26 @@ int main(int argc, char **argv)
             sl_meta_free(&in);
             sl_meta_set_rec709(&md);
             md.exposure_time = atof(argv[4]);
-            snprintf(md.lens, sizeof md.lens, "%s", argv[5]);
-            md.focal_length_mm = atof(argv[6]);
-            snprintf(md.make, sizeof md.make, "Canon");
-            snprintf(md.model, sizeof md.model, "Canon EOS 5D Mark II");
-            size_t n = (size_t)im.width * im.height * im.channels;
-            float top = 0;
-            for (size_t i = 0; i < n; i++)
-                top = im.data[i] > top ? im.data[i] : top;
-            for (size_t i = 0; i < n; i++)
-                im.data[i] *= (float)(md.exposure_time / top);
-            rr = sl_photo_write(out, &im, &md, 16, &e);
+            if (lens) {
+                snprintf(md.lens, sizeof md.lens, "%s", argv[5]);
+                md.focal_length_mm = atof(argv[6]);
+                snprintf(md.make, sizeof md.make, "Canon");
+                snprintf(md.model, sizeof md.model, "Canon EOS 5D Mark II");
+                size_t n = (size_t)im.width * im.height * im.channels;
+                float top = 0;
+                for (size_t i = 0; i < n; i++)
+                    top = im.data[i] > top ? im.data[i] : top;
+                for (size_t i = 0; i < n; i++)
+                    im.data[i] *= (float)(md.exposure_time / top);
+                rr = sl_photo_write(out, &im, &md, 16, &e);
+            } else {
+                md.f_number = atof(argv[5]);
+                md.iso = atof(argv[6]);
+                rr = sl_exr_write(out, &im, &md, SL_PIXEL_FLOAT, &e);
+            }
             sl_image_free(&im);
         }
         sl_meta_free(&md);
-        if (rr)
-            fprintf(stderr, "make_fixture: %s\n", e.message);
-        return rr ? 1 : 0;
-    }
-    if (!strcmp(kind, "exif")) {
-        /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata. */
-        if (argc < 7) {
-            fprintf(stderr, "usage: make_fixture exif OUT IN SECONDS F-NUMBER ISO\n");
-            return 2;
-        }
-        sl_image im;
-        sl_meta md, in;
-        sl_error e;
-        sl_meta_init(&md);
-        sl_result rr = sl_image_read(argv[3], &im, &in, &e);
-        if (!rr) {
-            sl_meta_free(&in);
-            sl_meta_set_rec709(&md);
-            md.exposure_time = atof(argv[4]);
-            md.f_number = atof(argv[5]);
-            md.iso = atof(argv[6]);
-            rr = sl_exr_write(out, &im, &md, SL_PIXEL_FLOAT, &e);
-            sl_image_free(&im);
-            sl_meta_free(&md);
-        }
         if (rr)
             fprintf(stderr, "make_fixture: %s\n", e.message);
         return rr ? 1 : 0;
