@@ -681,6 +681,9 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
             "truth/camera.json");
         frames = NULL;
         json_object_set(root, "probes", probes);
+        /* The lens as its EXIF states it: what a wrangler knows. */
+        json_object_set_new(root, "focal_mm", json_real(SL_VSET_FISHEYE_FOCAL_MM));
+        json_object_set_new(root, "sensor_width_mm", json_real(SL_VSET_SENSOR_WIDTH_MM));
         if (o->probe_width > 0)
             json_object_set_new(json_object_get(root, "truth"), "probes", json_string("truth/probes.json"));
         snprintf(sub, sizeof sub, "%s/capture.json", tmp);

@@ -331,6 +331,7 @@ static void test_views_jitter_ghost(void)
     json_t *plan = frames_of(plain);
     CHECK(frame_num(plan, 11, "pitch_deg") == 90 && frame_num(plan, 3, "yaw_deg") == 120);
     CHECK(frame_num(plan, 4, "roll_deg") == 0);
+    CHECK(jnum(plan, "focal_mm") == 8 && jnum(plan, "sensor_width_mm") == 36);
     CHECK(json_is_null(json_object_get(json_array_get(json_object_get(plan, "frames"), 0), "ghost")));
     json_decref(plan);
     /* The head is off its plan by the documented amounts; view 0 defines the frame. */
