@@ -13,6 +13,7 @@
  *       png       an 8-bit PNG (write OUT with any name, e.g. x.exr)
  *       plain     the latlong one without the envmap attribute
  *       code128   8-bit code 128 everywhere, no envmap (OUT .png, .jpg or .tif)
+ *       lens OUT IN SECONDS LENS FOCAL-MM   IN as a linear TIFF bracket frame with EXIF
  *       ball...   chrome-ball photos, see ball_fixture.h
 
  *       chart...  chart photos and walls that are not one, see chart_fixture.h */
@@ -48,10 +49,15 @@ int main(int argc, char **argv)
         return ball_fixture_main(kind, out);
     if (!strncmp(kind, "chart", 5))
         return chart_fixture_main(kind, out);
-    if (!strcmp(kind, "exif")) {
-        /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata. */
+    /* make_fixture exif OUT IN SECONDS F-NUMBER ISO: IN (EXR) with exposure metadata.
+     * make_fixture lens OUT IN SECONDS LENS FOCAL-MM: IN (any image) as a 16-bit
+     * linear TIFF frame of a bracket, exposed for SECONDS (IN's brightest value
+     * at 1 s just saturates), with its lens and camera EXIF. */
+    bool lens = !strcmp(kind, "lens");
+    if (lens || !strcmp(kind, "exif")) {
         if (argc < 7) {
-            fprintf(stderr, "usage: make_fixture exif OUT IN SECONDS F-NUMBER ISO\n");
+            fprintf(stderr, "usage: make_fixture %s OUT IN SECONDS %s\n", kind,
+                    lens ? "LENS FOCAL-MM" : "F-NUMBER ISO");
             return 2;
         }
         sl_image im;
@@ -63,12 +69,26 @@ int main(int argc, char **argv)
             sl_meta_free(&in);
             sl_meta_set_rec709(&md);
             md.exposure_time = atof(argv[4]);
-            md.f_number = atof(argv[5]);
-            md.iso = atof(argv[6]);
-            rr = sl_exr_write(out, &im, &md, SL_PIXEL_FLOAT, &e);
+            if (lens) {
+                snprintf(md.lens, sizeof md.lens, "%s", argv[5]);
+                md.focal_length_mm = atof(argv[6]);
+                snprintf(md.make, sizeof md.make, "Canon");
+                snprintf(md.model, sizeof md.model, "Canon EOS 5D Mark II");
+                size_t n = (size_t)im.width * im.height * im.channels;
+                float top = 0;
+                for (size_t i = 0; i < n; i++)
+                    top = im.data[i] > top ? im.data[i] : top;
+                for (size_t i = 0; i < n; i++)
+                    im.data[i] *= (float)(md.exposure_time / top);
+                rr = sl_photo_write(out, &im, &md, 16, &e);
+            } else {
+                md.f_number = atof(argv[5]);
+                md.iso = atof(argv[6]);
+                rr = sl_exr_write(out, &im, &md, SL_PIXEL_FLOAT, &e);
+            }
             sl_image_free(&im);
-            sl_meta_free(&md);
         }
+        sl_meta_free(&md);
         if (rr)
             fprintf(stderr, "make_fixture: %s\n", e.message);
         return rr ? 1 : 0;
