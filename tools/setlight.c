@@ -48,12 +48,17 @@ static void print_help(FILE *out)
             "  --json        print a machine-readable result on stdout\n"
             "  --quiet       no progress or information on stderr\n"
             "  --threads N   worker threads (default: all cores); results do not depend on it\n"
-            "\nexit codes: 0 success, 1 runtime failure, 2 usage error, 3 invalid input data\n"
+            "\nexit codes: 0 success, 1 runtime failure, 2 usage error, 3 invalid input data;\n"
+            "interrupted (SIGINT, SIGTERM): ends by the signal (130, 143), no temporary or\n"
+            "partial output left, earlier outputs untouched\n"
             "docs: docs/index.md\n");
 }
 
 int main(int argc, char **argv)
 {
+    /* An interrupt removes every temporary output and never renames a
+     * partial file into place (docs/conventions.md). */
+    sl_interrupt_install();
     if (argc < 2) {
         print_help(stderr);
         return 2;
