@@ -212,7 +212,7 @@ typedef struct pending_file {
 } pending_file;
 
 static struct {
-    bool open;
+    int open; /* depth: a set begun inside another joins it */
     char **members; /* exact paths, or prefixes ending in '*' */
     int member_count;
     pending_file *pending;
@@ -244,10 +244,12 @@ sl_result sl_output_set_begin(const char *const *members, int count, sl_error *e
 {
     pthread_mutex_lock(&set_lock);
     sl_result r = SL_OK;
-    if (set.open)
-        r = sl_error_set(err, SL_ERR_INTERNAL, "an output set is already open");
-    else if (!(set.members = calloc((size_t)(count > 0 ? count : 1), sizeof *set.members)))
+    char **grown = realloc(set.members, (size_t)(set.member_count + (count > 0 ? count : 0) + 1) *
+                                            sizeof *set.members);
+    if (!grown)
         r = sl_error_set(err, SL_ERR_NOMEM, "out of memory");
+    else
+        set.members = grown;
     for (int i = 0; !r && i < count; i++) {
         if (!members[i] || !*members[i])
             continue;
@@ -256,10 +258,10 @@ sl_result sl_output_set_begin(const char *const *members, int count, sl_error *e
         else
             set.member_count++;
     }
-    if (r && !set.open)
+    if (!r)
+        set.open++;
+    else if (!set.open)
         set_clear();
-    else
-        set.open = true;
     pthread_mutex_unlock(&set_lock);
     return r;
 }
@@ -326,6 +328,11 @@ sl_result sl_output_set_commit(sl_error *err)
 {
     pthread_mutex_lock(&set_lock);
     sl_result r = SL_OK;
+    if (set.open > 1) { /* the outer set commits */
+        set.open--;
+        pthread_mutex_unlock(&set_lock);
+        return SL_OK;
+    }
     critical c;
     if (!critical_enter(&c)) {
         pthread_mutex_unlock(&set_lock);
@@ -377,11 +384,16 @@ sl_result sl_output_set_commit(sl_error *err)
 void sl_output_set_abort(void)
 {
     pthread_mutex_lock(&set_lock);
+    /* a failed part fails the whole set, also from inside a nested one */
     for (int i = 0; i < set.pending_count; i++) {
         unlink(set.pending[i].temp_path);
         slot_release(set.pending[i].slot);
     }
-    set_clear();
+    set.pending_count = 0;
+    if (set.open > 1)
+        set.open--;
+    else
+        set_clear();
     pthread_mutex_unlock(&set_lock);
 }
 

@@ -732,6 +732,13 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                       neg_fraction));
     }
     out_meta.envmap = SL_ENVMAP_LATLONG;
+    /* The HDRI and the report are one set, renamed into place together:
+     * an interrupt or a failure leaves every earlier one as it was. */
+    char report_glob[4096];
+    snprintf(report_glob, sizeof report_glob, "%s/*", report_dir ? report_dir : "");
+    const char *members[2] = {out_path, report_dir ? report_glob : NULL};
+    if ((r = sl_output_set_begin(members, 2, &err)))
+        goto fail;
     if ((r = sl_image_write(out_path, &hdri, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
                             &err)))
         goto fail;
@@ -789,6 +796,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         if (r)
             goto fail;
     }
+    if ((r = sl_output_set_commit(&err)))
+        goto fail;
     if (cli->json) {
         json_dumpf(js, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
@@ -796,6 +805,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     r = SL_OK;
 
 fail:
+    if (r)
+        sl_output_set_abort();
     json_decref(js);
     sl_grey_fit_free(&gfit);
     sl_image_free(&hdri);

@@ -168,7 +168,8 @@ void sl_temp_dir_remove(const char *path, int handle);
  * the old files back (or removes the new ones where there were none):
  * either every member is new or every member is as before. Members are
  * exact paths or prefixes ending in '*' (NULL entries are skipped); files
- * not matching commit at once. One set per process at a time. The window:
+ * not matching commit at once. A set begun while one is open joins it
+ * (its commit is the outer one's; its abort drops every pending file). The window:
  * a crash (SIGKILL, power) inside the rename loop, a few system calls
  * long, can leave some renamed and the old files beside as *.sl-tmp-*.old;
  * where hard links are not supported a failed rename cannot be undone. */
