@@ -395,7 +395,8 @@ sl_result rig_validate_write_report(const char *dir, const char *name, const cha
         return r;
     char tmp[4096], old[4200], folder[4400], page[4400], tmp_sub[4400], tmp_page[4400];
     snprintf(tmp, sizeof tmp, "%s/.%s.sl-tmp-%ld-XXXXXX", dir, name, (long)getpid());
-    if (!mkdtemp(tmp))
+    int tmp_handle = sl_temp_dir_create(tmp); /* an interrupt removes it */
+    if (tmp_handle < 0)
         return sl_error_set(err, SL_ERR_IO, "%s: cannot create a temporary folder: %s", dir,
                             strerror(errno));
     snprintf(folder, sizeof folder, "%s/%s", dir, name);
@@ -404,7 +405,7 @@ sl_result rig_validate_write_report(const char *dir, const char *name, const cha
     snprintf(tmp_sub, sizeof tmp_sub, "%s/%s", tmp, name);
     snprintf(tmp_page, sizeof tmp_page, "%s/%s.html", tmp, name);
     if ((r = build_report(tmp, name, about, v, rig, env, err))) {
-        sl_remove_tree(tmp);
+        sl_temp_dir_remove(tmp, tmp_handle);
         return r;
     }
     /* Swap the folder in (an earlier one moved aside into the temporary
@@ -427,6 +428,6 @@ sl_result rig_validate_write_report(const char *dir, const char *name, const cha
         if (had_old)
             rename(old, folder);
     }
-    sl_remove_tree(tmp);
+    sl_temp_dir_remove(tmp, tmp_handle);
     return r;
 }
