@@ -89,8 +89,9 @@ static const char *calibrate_help =
     "the JSON's negative_clamped).\n\n"
     "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found, or not a\n"
     "usable ColorChecker, and no grey sphere; no sphere found or none in the circle;\n"
-    "a grey photo whose exposure contradicts the HDRI's), 1 other failures. See\n"
-    "docs/calibrate.md.\n";
+    "a grey photo whose exposure contradicts the HDRI's), 1 other failures, 130/143\n"
+    "interrupted. The HDRI and the report's files are replaced together: a failure or\n"
+    "an interrupt leaves every earlier one as it was. See docs/calibrate.md.\n";
 
 static void mat_apply(const double m[3][3], float *v)
 {

@@ -64,7 +64,9 @@ static const char *rig_help =
     "                        RIG.validate/ beside RIG.usda\n\n"
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
-    "(missing, corrupt, not a lat-long), 1 could not write. See docs/lightrig.md.\n";
+    "(missing, corrupt, not a lat-long), 1 could not write; 130/143 interrupted.\n"
+    "The USD, JSON, residual, preview and textures are replaced together: a failure\n"
+    "or an interrupt leaves every earlier one as it was. See docs/lightrig.md.\n";
 
 /* The folder of an output exists: checked for every output before any is
  * written, so a run that fails on the last one has not written the first. */
