@@ -50,18 +50,34 @@ static void write_text(const char *path, const char *text)
     CHECK_OK(sl_write_file_atomic(path, text, strlen(text), &err), &err);
 }
 
+/* Folder `name` with OLD's files ("old a", ...), and a set of a.txt,
+ * b.txt and c.txt begun and written ("new a", ...), not committed. */
+static const char *set_of_three(const char *name, const char *old, const char *m[3])
+{
+    const char *d = fresh_dir(name);
+    static const char *const names[3] = {"a.txt", "b.txt", "c.txt"};
+    char text[16];
+    for (int i = 0; i < 3; i++) {
+        m[i] = in_dir(d, names[i]);
+        snprintf(text, sizeof text, "old %c", 'a' + i);
+        if (strchr(old, 'a' + i))
+            write_text(m[i], text);
+    }
+    sl_error err;
+    CHECK_OK(sl_output_set_begin(m, 3, &err), &err);
+    for (int i = 0; i < 3; i++) {
+        snprintf(text, sizeof text, "new %c", 'a' + i);
+        write_text(m[i], text);
+    }
+    return d;
+}
+
 static void test_commit_and_abort(void)
 {
-    const char *d = fresh_dir("set1");
-    const char *a = in_dir(d, "a.txt"), *b = in_dir(d, "b.txt"), *c = in_dir(d, "c.txt");
-    write_text(a, "old a");
-    write_text(b, "old b");
+    const char *members[3];
+    const char *d = set_of_three("set1", "ab", members);
+    const char *a = members[0], *b = members[1], *c = members[2];
     sl_error err;
-    const char *members[3] = {a, b, c};
-    CHECK_OK(sl_output_set_begin(members, 3, &err), &err);
-    write_text(a, "new a");
-    write_text(b, "new b");
-    write_text(c, "new c");
     /* nothing moved yet; the new content is readable at its temporary */
     CHECK(has_text(a, "old a") && has_text(b, "old b") && !sl_test_file_exists(c));
     const char *pending = sl_output_set_pending(b);
@@ -113,16 +129,10 @@ static void test_prefix_and_nesting(void)
 /* A rename that fails half way puts every replaced file back. */
 static void test_rollback(void)
 {
-    const char *d = fresh_dir("set3");
-    const char *a = in_dir(d, "a.txt"), *b = in_dir(d, "b.txt"), *c = in_dir(d, "c.txt");
-    write_text(a, "old a");
-    write_text(c, "old c");
+    const char *members[3];
+    const char *d = set_of_three("set3", "ac", members);
+    const char *a = members[0], *b = members[1], *c = members[2];
     sl_error err;
-    const char *members[3] = {a, b, c};
-    CHECK_OK(sl_output_set_begin(members, 3, &err), &err);
-    write_text(a, "new a");
-    write_text(b, "new b");
-    write_text(c, "new c");
     /* c becomes a folder: its rename, the last, fails */
     unlink(c);
     mkdir(c, 0777);

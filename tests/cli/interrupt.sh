@@ -65,26 +65,7 @@ interrupts rig "$T/rig" r.usda r.json r_residual.exr r.png -- \
   "$SETLIGHT" rig -q "$T/sun.exr" -o "$T/rig/r.usda" --json "$T/rig/r.json" --preview "$T/rig/r.png"
 
 # --- merge: radiance and its clipped mask
-python3 - "$T" <<'PY'
-import struct, sys, zlib
-d, w, h = sys.argv[1], 1024, 512
-def png(path, rows):
-    def chunk(t, data):
-        c = struct.pack(">I", len(data)) + t + data
-        return c + struct.pack(">I", zlib.crc32(t + data) & 0xffffffff)
-    raw = b"".join(b"\0" + r for r in rows)
-    hdr = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
-    open(path, "wb").write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", hdr) + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
-for k, gain in enumerate((0.25, 1.0, 4.0)):
-    rows = []
-    for y in range(h):
-        row = bytearray()
-        for x in range(w):
-            lin = 2 ** (-6 + 10 * (0.6 * (x + 0.5) / w + 0.4 * (y + 0.5) / h))
-            row += bytes(int(round(min(1.0, lin * gain) ** (1 / 2.2) * 255)) for c in range(3))
-        rows.append(bytes(row))
-    png("%s/br_%d.png" % (d, k), rows)
-PY
+png_bracket "$T" 1024 512 || bad "fixture"
 mkdir -p "$T/merge"
 "$SETLIGHT" merge -q --times 1/8,1/2,2 -o "$T/merge/m.exr" "$T/br_0.png" "$T/br_1.png" "$T/br_2.png" \
   >/dev/null 2>&1 || bad "merge: the old set"

@@ -66,21 +66,7 @@ mkdir -p "$T/convert"
 faults convert some "$T/convert" c.exr -- "$SETLIGHT" convert -q "$T/sun.exr" "$T/convert/c.exr"
 
 # --- merge: the strip writer, radiance and clipped mask (one set)
-python3 - "$T" <<'PY'
-import struct, sys, zlib
-d, w, h = sys.argv[1], 64, 32
-def png(path, rows):
-    def chunk(t, data):
-        c = struct.pack(">I", len(data)) + t + data
-        return c + struct.pack(">I", zlib.crc32(t + data) & 0xffffffff)
-    raw = b"".join(b"\0" + r for r in rows)
-    hdr = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
-    open(path, "wb").write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", hdr) + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
-for k, gain in enumerate((0.25, 1.0, 4.0)):
-    rows = [bytes(int(round(min(1.0, 2 ** (-6 + 10 * (0.6 * (x + 0.5) / w + 0.4 * (y + 0.5) / h)) * gain) ** (1 / 2.2) * 255))
-                  for x in range(w) for c in range(3)) for y in range(h)]
-    png("%s/br_%d.png" % (d, k), rows)
-PY
+png_bracket "$T" 64 32 || bad "fixture"
 mkdir -p "$T/merge"
 "$SETLIGHT" merge -q --align=off --times 1/8,1/2,2 -o "$T/merge/m.exr" "$T"/br_{0,1,2}.png \
   >/dev/null 2>&1 || bad "merge: the old set"
