@@ -207,8 +207,12 @@ void sl_temp_dir_remove(const char *path, int handle)
 typedef struct pending_file {
     char final_path[4096];
     char temp_path[4096];
-    char backup_path[4096]; /* a hard link to the old file during the commit */
-    int slot;
+    /* During the commit: a hard link to the old file, or the old folder
+     * moved aside (a folder cannot be linked, nor renamed over a full one). */
+    char backup_path[4096];
+    int slot;     /* -1: adopted, the caller's temporary */
+    bool folder;  /* an adopted folder */
+    bool aside;   /* the old folder is at backup_path */
 } pending_file;
 
 static struct {
@@ -303,24 +307,88 @@ static sl_result set_defer(sl_atomic_file *f, sl_error *err)
     snprintf(p->temp_path, sizeof p->temp_path, "%s", f->temp_path);
     p->backup_path[0] = 0;
     p->slot = f->slot;
+    p->folder = false;
     f->temp_path[0] = 0;
     f->slot = -1;
     pthread_mutex_unlock(&set_lock);
     return SL_OK;
 }
 
-/* Puts back what renames [0, done) replaced: the old file from its
- * backup, or no file where there was none. */
+sl_result sl_output_set_adopt(const char *final_path, const char *temp_path, sl_error *err)
+{
+    struct stat st;
+    if (lstat(temp_path, &st) != 0)
+        return sl_error_set(err, SL_ERR_INTERNAL, "%s: no temporary %s", final_path, temp_path);
+    pthread_mutex_lock(&set_lock);
+    pending_file *grown = set.open ? realloc(set.pending, (size_t)(set.pending_count + 1) *
+                                                              sizeof *grown)
+                                   : NULL;
+    if (!grown) {
+        pthread_mutex_unlock(&set_lock);
+        return sl_error_set(err, set.open ? SL_ERR_NOMEM : SL_ERR_INTERNAL,
+                            "%s: %s", final_path, set.open ? "out of memory" : "no output set");
+    }
+    set.pending = grown;
+    pending_file *p = &set.pending[set.pending_count++];
+    snprintf(p->final_path, sizeof p->final_path, "%s", final_path);
+    snprintf(p->temp_path, sizeof p->temp_path, "%s", temp_path);
+    p->backup_path[0] = 0;
+    p->slot = -1;
+    p->folder = S_ISDIR(st.st_mode);
+    pthread_mutex_unlock(&set_lock);
+    return SL_OK;
+}
+
+/* Keeps what is at a member's final path: a hard link to a file, or a
+ * folder moved aside. Inside the commit's critical section. */
+static sl_result keep_old(pending_file *p, sl_error *err)
+{
+    struct stat st;
+    p->backup_path[0] = 0;
+    p->aside = false;
+    if (lstat(p->final_path, &st) != 0 || !(p->folder ? S_ISDIR(st.st_mode) : S_ISREG(st.st_mode)))
+        return SL_OK;
+    const char *slash = strrchr(p->final_path, '/');
+    int dir_len = slash ? (int)(slash - p->final_path + 1) : 0;
+    int n = __atomic_add_fetch(&temp_counter, 1, __ATOMIC_RELAXED);
+    int len = snprintf(p->backup_path, sizeof p->backup_path, "%.*s.%s.sl-tmp-%d-%d.old", dir_len,
+                       p->final_path, p->final_path + dir_len, (int)getpid(), n);
+    if (len >= (int)sizeof p->backup_path) {
+        p->backup_path[0] = 0;
+        return p->folder ? sl_error_set(err, SL_ERR_IO, "%s: path too long", p->final_path)
+                         : SL_OK;
+    }
+    if (!p->folder) {
+        if (link(p->final_path, p->backup_path) != 0)
+            p->backup_path[0] = 0; /* no hard links here: no way back for this one */
+        return SL_OK;
+    }
+    if (rename(p->final_path, p->backup_path) != 0) {
+        int e = errno;
+        p->backup_path[0] = 0;
+        return sl_error_set(err, SL_ERR_IO, "%s: cannot move the earlier one aside: %s",
+                            p->final_path, strerror(e));
+    }
+    p->aside = true;
+    return SL_OK;
+}
+
+/* After a failure: members [0, done) were renamed into place. Puts every
+ * old file or folder back, and takes away new ones that had none. */
 static void set_roll_back(int done)
 {
-    for (int i = 0; i < done; i++) {
+    for (int i = 0; i < set.pending_count; i++) {
         pending_file *p = &set.pending[i];
-        if (p->backup_path[0]) {
-            if (rename(p->backup_path, p->final_path) == 0)
-                p->backup_path[0] = 0;
-        } else {
-            unlink(p->final_path);
+        if (i < done) {
+            if (p->folder)
+                rename(p->final_path, p->temp_path); /* the caller's, removed with it */
+            else if (!p->backup_path[0])
+                unlink(p->final_path);
+        } else if (!p->aside) {
+            continue;
         }
+        if (p->backup_path[0] && rename(p->backup_path, p->final_path) == 0)
+            p->backup_path[0] = 0;
     }
 }
 
@@ -339,38 +407,29 @@ sl_result sl_output_set_commit(sl_error *err)
         sl_output_set_abort();
         return sl_error_set(err, SL_ERR_CANCELLED, "interrupted");
     }
-    /* Every temporary is complete and fsynced; the old files are kept as
-     * hard links until every rename succeeded. */
-    for (int i = 0; i < set.pending_count; i++) {
-        pending_file *p = &set.pending[i];
-        struct stat st;
-        p->backup_path[0] = 0;
-        if (lstat(p->final_path, &st) == 0 && S_ISREG(st.st_mode)) {
-            const char *slash = strrchr(p->final_path, '/');
-            int dir_len = slash ? (int)(slash - p->final_path + 1) : 0;
-            int n = __atomic_add_fetch(&temp_counter, 1, __ATOMIC_RELAXED);
-            int len = snprintf(p->backup_path, sizeof p->backup_path, "%.*s.%s.sl-tmp-%d-%d.old",
-                               dir_len, p->final_path, p->final_path + dir_len, (int)getpid(), n);
-            if (len >= (int)sizeof p->backup_path || link(p->final_path, p->backup_path) != 0)
-                p->backup_path[0] = 0; /* no hard links here: no way back for this one */
-        }
-    }
+    /* Every temporary is complete and fsynced; the old ones are kept until
+     * every rename succeeded. */
     int done = 0;
-    for (; done < set.pending_count; done++) {
+    for (int i = 0; i < set.pending_count && !r; i++)
+        r = keep_old(&set.pending[i], err);
+    for (; !r && done < set.pending_count; done++) {
         pending_file *p = &set.pending[done];
         if (rename(p->temp_path, p->final_path) != 0) {
             int e = errno;
-            set_roll_back(done);
             r = sl_error_set(err, SL_ERR_IO, "%s: cannot rename into place: %s", p->final_path,
                              strerror(e));
             break;
         }
     }
+    if (r)
+        set_roll_back(done);
     for (int i = 0; i < set.pending_count; i++) {
         pending_file *p = &set.pending[i];
-        if (i >= done)
+        if (i >= done && p->slot >= 0)
             unlink(p->temp_path);
-        if (p->backup_path[0])
+        if (p->backup_path[0] && p->folder)
+            sl_remove_tree(p->backup_path);
+        else if (p->backup_path[0])
             unlink(p->backup_path);
         slot_release(p->slot);
     }
@@ -386,7 +445,8 @@ void sl_output_set_abort(void)
     pthread_mutex_lock(&set_lock);
     /* a failed part fails the whole set, also from inside a nested one */
     for (int i = 0; i < set.pending_count; i++) {
-        unlink(set.pending[i].temp_path);
+        if (set.pending[i].slot >= 0) /* an adopted one is the caller's */
+            unlink(set.pending[i].temp_path);
         slot_release(set.pending[i].slot);
     }
     set.pending_count = 0;

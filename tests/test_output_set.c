@@ -13,7 +13,7 @@
 
 static const char *in_dir(const char *dir, const char *name)
 {
-    static char buf[16][4096];
+    static char buf[16][8600];
     static int k;
     k = (k + 1) % 16;
     snprintf(buf[k], sizeof buf[k], "%s/%s", dir, name);
@@ -145,6 +145,59 @@ static void test_rollback(void)
     CHECK(!temps_in(d));
 }
 
+/* A report folder built in a temporary folder and adopted: it replaces the
+ * earlier folder at the commit, and a failed commit puts the earlier back. */
+static void test_adopted_folder(void)
+{
+    const char *members[3];
+    const char *d = set_of_three("set5", "c", members);
+    const char *report = in_dir(d, "report");
+    mkdir(report, 0777);
+    write_text(in_dir(report, "old.png"), "old");
+    sl_error err;
+    for (int fail = 0; fail < 2; fail++) {
+        char tmp[4200];
+        snprintf(tmp, sizeof tmp, "%s/.report.sl-tmp-XXXXXX", d);
+        int handle = sl_temp_dir_create(tmp);
+        CHECK(handle >= 0);
+        char built[4300];
+        snprintf(built, sizeof built, "%s/report", tmp);
+        mkdir(built, 0777);
+        write_text(in_dir(built, "new.png"), "new");
+        CHECK_OK(sl_output_set_adopt(report, built, &err), &err);
+        if (fail) { /* c.txt becomes a folder: the last rename fails */
+            unlink(members[2]);
+            mkdir(members[2], 0777);
+            write_text(in_dir(members[2], "inside"), "x");
+            CHECK_RESULT(sl_output_set_commit(&err), SL_ERR_IO, &err);
+            CHECK(has_text(in_dir(report, "old.png"), "old"));
+            CHECK(!sl_test_file_exists(in_dir(report, "new.png")));
+            CHECK(!sl_test_file_exists(members[0]) && !sl_test_file_exists(members[1]));
+            sl_temp_dir_remove(tmp, handle);
+            CHECK(!temps_in(d));
+        } else {
+            CHECK_OK(sl_output_set_commit(&err), &err);
+            sl_temp_dir_remove(tmp, handle);
+            CHECK(!temps_in(d));
+            CHECK(has_text(in_dir(report, "new.png"), "new"));
+            CHECK(!sl_test_file_exists(in_dir(report, "old.png")));
+            CHECK(has_text(members[0], "new a") && has_text(members[2], "new c"));
+            /* the earlier report again, for the failing round */
+            sl_remove_tree(report);
+            mkdir(report, 0777);
+            write_text(in_dir(report, "old.png"), "old");
+            const char *again[3] = {members[0], members[1], members[2]};
+            for (int i = 0; i < 3; i++)
+                unlink(again[i]);
+            write_text(members[2], "old c");
+            CHECK_OK(sl_output_set_begin(again, 3, &err), &err);
+            write_text(members[0], "new a");
+            write_text(members[1], "new b");
+            write_text(members[2], "new c");
+        }
+    }
+}
+
 /* A signal in the middle of a set: the child dies by it, the old files
  * stay, every temporary (files, a pending member, a folder) is removed. */
 static void interrupted_child(const char *d, int sig)
@@ -197,6 +250,7 @@ int main(void)
     RUN(test_commit_and_abort);
     RUN(test_prefix_and_nesting);
     RUN(test_rollback);
+    RUN(test_adopted_folder);
     RUN(test_interrupt);
     return sl_test_finish();
 }

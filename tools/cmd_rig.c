@@ -65,8 +65,9 @@ static const char *rig_help =
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
     "(missing, corrupt, not a lat-long), 1 could not write; 130/143 interrupted.\n"
-    "The USD, JSON, residual, preview and textures are replaced together: a failure\n"
-    "or an interrupt leaves every earlier one as it was. See docs/lightrig.md.\n";
+    "The USD, JSON, residual, preview, textures and validation report are replaced\n"
+    "together: a failure or an interrupt leaves every earlier one as it was. See\n"
+    "docs/lightrig.md.\n";
 
 /* The folder of an output exists: checked for every output before any is
  * written, so a run that fails on the last one has not written the first. */
@@ -375,6 +376,7 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     sl_meta_init(&out_meta);
     sl_rig rig = {0};
     rig_validation val = {0};
+    rig_report_tmp report_tmp = {"", -1};
     sl_error err;
     sl_result r = sl_check_input_file(in_path, &err);
     if (r || (r = sl_latlong_read(in_path, in_cs, &env, &meta, NULL, &err)))
@@ -483,13 +485,18 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
                                                     : "",
                  rig.skipped_count, rig.relative_error, out_path, val.width,
                  (long long)val.spp, sl_version());
-        if ((r = rig_validate_write_report(rep_dir, rep_name, about, &val, &rig, &env, &err)))
+        if ((r = rig_validate_write_report(rep_dir, rep_name, about, &val, &rig, &env,
+                                           &report_tmp, &err)))
             goto fail;
         sl_log(SL_LOG_INFO, "validation report: %.*s.validate.html",
                (int)(strlen(out_path) - 5), out_path);
     }
 
-    if ((r = sl_output_set_commit(&err)))
+    r = sl_output_set_commit(&err);
+    if (report_tmp.path[0])
+        sl_temp_dir_remove(report_tmp.path, report_tmp.handle);
+    report_tmp.path[0] = 0;
+    if (r)
         goto fail;
     if (cli->json) {
         char *s = sl_rig_json_string(&rig, dome_ref);
@@ -541,6 +548,8 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
 
 fail:
     sl_output_set_abort();
+    if (report_tmp.path[0])
+        sl_temp_dir_remove(report_tmp.path, report_tmp.handle);
     rig_validation_free(&val);
     sl_rig_free(&rig);
     sl_image_free(&env);

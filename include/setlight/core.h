@@ -180,6 +180,11 @@ const char *sl_output_set_pending(const char *final_path);
 sl_result sl_output_set_commit(sl_error *err);
 /* Removes every pending temporary; the old outputs stay. */
 void sl_output_set_abort(void);
+/* Adds a complete file or folder the caller made (inside a registered
+ * temporary folder, sl_temp_dir_create) to the open set: renamed over
+ * final_path at the commit (an earlier folder moved aside, then removed).
+ * It stays the caller's to remove when the set fails. */
+sl_result sl_output_set_adopt(const char *final_path, const char *temp_path, sl_error *err);
 
 /* Removes a folder and everything in it (a temporary or replaced output
  * folder), best effort: what cannot be removed stays. */
