@@ -111,6 +111,7 @@ int main(int argc, char **argv)
     sl_threads_set(cli.threads);
     sl_log_hold_notes(true);
     int rc = cmd->fn(n, args, &cli);
+    sl_output_set_abort(); /* a set a command left open: its temporaries go */
     sl_log_release_notes(rc == 0);
     free(args);
     fflush(stdout);
