@@ -309,13 +309,15 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
         return r;
     std::string why;
     bool ok = false, in_memory = false;
-    /* Encoded in memory, then written here: OIIO's PNG writer ignores a
-     * failed write (disk full gave a truncated PNG and success). */
+    /* PNG and JPEG are encoded in memory, then written here: OIIO's PNG
+     * writer ignores a failed write (disk full gave a truncated PNG and
+     * success). Not TIFF: libtiff seeks back, which OIIO 2.4's memory
+     * output gets wrong (a TIFF without its ImageLength). */
     std::vector<unsigned char> bytes;
     OIIO::Filesystem::IOVecOutput vec(bytes);
     try {
         std::unique_ptr<ImageOutput> out = ImageOutput::create(f.temp_path);
-        in_memory = out && out->supports("ioproxy") && out->set_ioproxy(&vec);
+        in_memory = (png || jpeg) && out && out->supports("ioproxy") && out->set_ioproxy(&vec);
         ok =
             out && out->open(f.temp_path, spec) && out->write_image(TypeDesc::FLOAT, pixels.data());
         if (out) {
