@@ -590,16 +590,16 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
         return sl_error_set(err, SL_ERR_USAGE,
                             "%s: already holds a capture (use --force to replace it)", dir);
     char tmp[4096], old[4096];
-    snprintf(tmp, sizeof tmp, "%s.sl-tmp-%ld", dir, (long)getpid());
+    snprintf(tmp, sizeof tmp, "%s.sl-tmp-%ld-XXXXXX", dir, (long)getpid());
     snprintf(old, sizeof old, "%s.sl-old-%ld", dir, (long)getpid());
-    sl_remove_tree(tmp);
     char sub[4200];
-    if (mkdir(tmp, 0777) != 0)
+    int tmp_handle = sl_temp_dir_create(tmp); /* an interrupt removes it */
+    if (tmp_handle < 0)
         return sl_error_set(err, SL_ERR_IO, "%s: cannot create the capture folder: %s", dir,
                             strerror(errno));
     sl_vset_scene scene;
     if ((r = sl_vset_scene_make(&o->scene, o->latlong_width, &scene, err))) {
-        sl_remove_tree(tmp);
+        sl_temp_dir_remove(tmp, tmp_handle);
         return r;
     }
     snprintf(sub, sizeof sub, "%s/hdri", tmp);
@@ -713,10 +713,9 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
         if (!r && had_old)
             sl_remove_tree(old);
     }
-    if (r) {
-        sl_remove_tree(tmp);
+    sl_temp_dir_remove(tmp, tmp_handle); /* gone when renamed: unregisters it */
+    if (r)
         return r;
-    }
     if (summary) {
         summary->frames = (o->views + (o->zenith ? 1 : 0)) * o->brackets;
         summary->probe_frames = frame - summary->frames;

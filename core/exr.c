@@ -16,6 +16,7 @@
 #include "exr_oiio.h"
 #include "exr_zip.h"
 
+#include <errno.h>
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
@@ -1375,7 +1376,8 @@ static sl_result patch_header(sl_exr_stream *s, const sl_meta *update, sl_error 
         const char *value = sl_meta_get(update, name);
         if (value && strcmp(tname, "string") == 0 && size == strlen(value)) {
             if (fseek(fp, (long)vat, SEEK_SET) != 0 || fwrite(value, 1, size, fp) != size) {
-                r = sl_error_set(err, SL_ERR_IO, "%s: cannot finish the header", s->path);
+                r = sl_error_set(err, SL_ERR_IO, "%s: cannot finish the header: %s", s->path,
+                                 strerror(errno));
                 break;
             }
         }
@@ -1383,7 +1385,8 @@ static sl_result patch_header(sl_exr_stream *s, const sl_meta *update, sl_error 
     }
     free(h);
     if (fclose(fp) != 0 && !r)
-        r = sl_error_set(err, SL_ERR_IO, "%s: cannot finish the header", s->path);
+        r = sl_error_set(err, SL_ERR_IO, "%s: cannot finish the header: %s", s->path,
+                         strerror(errno));
     return r;
 }
 

@@ -31,10 +31,12 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cfloat>
 #include <cmath>
 #include <cstring>
@@ -326,9 +328,16 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
     if (r)
         return r;
     std::string why;
-    bool ok = false;
+    bool ok = false, in_memory = false;
+    /* PNG and JPEG are encoded in memory, then written here: OIIO's PNG
+     * writer ignores a failed write (disk full gave a truncated PNG and
+     * success). Not TIFF: libtiff seeks back, which OIIO 2.4's memory
+     * output gets wrong (a TIFF without its ImageLength). */
+    std::vector<unsigned char> bytes;
+    OIIO::Filesystem::IOVecOutput vec(bytes);
     try {
         std::unique_ptr<ImageOutput> out = ImageOutput::create(f.temp_path);
+        in_memory = (png || jpeg) && out && out->supports("ioproxy") && out->set_ioproxy(&vec);
         ok =
             out && out->open(f.temp_path, spec) && out->write_image(TypeDesc::FLOAT, pixels.data());
         if (out) {
@@ -348,6 +357,19 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
         sl_atomic_abort(&f);
         return sl_error_set(err, SL_ERR_IO, "%s: cannot write image (%s)", path,
                             one_line(why).c_str());
+    }
+    if (in_memory) {
+        FILE *fp = fopen(f.temp_path, "wb");
+        bool wrote = fp && fwrite(bytes.data(), 1, bytes.size(), fp) == bytes.size();
+        int e = errno;
+        if (fp && fclose(fp) != 0 && wrote) {
+            wrote = false;
+            e = errno;
+        }
+        if (!wrote) {
+            sl_atomic_abort(&f);
+            return sl_error_set(err, SL_ERR_IO, "%s: write failed: %s", path, strerror(e));
+        }
     }
     return sl_atomic_commit(&f, err);
 }

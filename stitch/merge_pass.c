@@ -576,7 +576,7 @@ static void step_tasks(void *ctx, int64_t begin, int64_t end, int worker)
 
 /* Merges rows [y0, y1) (read already) while reading the next strip, and
  * hands the merged rows to the sink. */
-static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
+static sl_result merge_strip(pass_ctx *p, merge_sink *sink, sl_error *err)
 {
     sl_merge_result *res = p->res;
     int rows = p->y1 - p->y0;
@@ -601,16 +601,21 @@ static sl_result merge_strip(pass_ctx *p, const merge_sink *sink, sl_error *err)
             *err = p->errs[q];
     if (r || !sink)
         return r;
-    r = sl_exr_stream_write(sink->radiance, p->out, rows, p->out_stride, err);
-    if (!r && sink->mask)
-        r = sl_exr_stream_write(sink->mask, p->mask, rows, p->mask_stride, err);
-    if (!r && sink->ghost)
-        r = sl_exr_stream_write(sink->ghost, p->ghost, rows, p->ghost_stride, err);
+    /* A failed write frees its stream: forget it, so that the caller
+     * aborts only the others (a second free crashed on a full disk). */
+    if ((r = sl_exr_stream_write(sink->radiance, p->out, rows, p->out_stride, err)))
+        sink->radiance = NULL;
+    if (!r && sink->mask &&
+        (r = sl_exr_stream_write(sink->mask, p->mask, rows, p->mask_stride, err)))
+        sink->mask = NULL;
+    if (!r && sink->ghost &&
+        (r = sl_exr_stream_write(sink->ghost, p->ghost, rows, p->ghost_stride, err)))
+        sink->ghost = NULL;
     merge_clock_charge(&res->timing, clock, SL_MERGE_WRITE);
     return r;
 }
 
-sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merge_sink *sink,
+sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, merge_sink *sink,
                      sl_merge_result *res, sl_error *err)
 {
     int f = res->frame_count;

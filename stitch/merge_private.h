@@ -216,8 +216,9 @@ typedef struct merge_sink {
     sl_exr_stream *radiance, *mask, *ghost;
 } merge_sink;
 /* Merges the frames strip by strip into out->radiance, out->clipped (and
- * out->ghost with deghost), or with a sink into its streams. */
-sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, const merge_sink *sink,
+ * out->ghost with deghost), or with a sink into its streams; a stream whose
+ * write failed is freed (sl_exr_stream_write) and set to NULL in the sink. */
+sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, merge_sink *sink,
                      sl_merge_result *out, sl_error *err);
 /* The radiance EXR's attributes; the counts only known after the pass are
  * written at a fixed width, so a streamed file's header can be finished in

@@ -147,7 +147,12 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
         return r;
     const char *side_path[2] = {mask_path, ghost_path};
     const sl_image *side_img[2] = {&res->clipped, &res->ghost};
-    bool written[2] = {false, false};
+    /* The radiance and its masks are one set: all new or all as before. */
+    const char *members[3] = {path, mask_path, ghost_path};
+    if ((r = sl_output_set_begin(members, 3, err))) {
+        sl_meta_free(&meta);
+        return r;
+    }
     for (int i = 0; i < 2 && !r; i++) {
         if (!side_path[i])
             continue;
@@ -156,15 +161,15 @@ sl_result sl_merge_write(const char *path, const char *mask_path, const char *gh
         if (!r)
             r = sl_exr_write_compressed(side_path[i], side_img[i], &mm, SL_PIXEL_HALF,
                                         MASK_COMPRESSION, err);
-        written[i] = !r;
         sl_meta_free(&mm);
     }
     if (!r)
         r = sl_exr_write_compressed(path, &res->radiance, &meta, res->pixel_type,
                                     res->compression, err);
-    for (int i = 0; i < 2 && r; i++)
-        if (written[i])
-            unlink(side_path[i]); /* no half-written set */
+    if (!r)
+        r = sl_output_set_commit(err);
+    else
+        sl_output_set_abort();
     sl_meta_free(&meta);
     return r;
 }
@@ -188,6 +193,9 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
                       : merge_prepare(paths, count, &opt, true, &m, out, err);
     if (!r)
         r = merge_output_meta(path, mask_path, ghost_path, out, &meta, err);
+    /* The radiance and its masks are one set: all new or all as before. */
+    const char *members[3] = {path, mask_path, ghost_path};
+    bool in_set = !r && !(r = sl_output_set_begin(members, 3, err));
     const char *side_path[2] = {mask_path, ghost_path};
     sl_exr_stream **side[2] = {&sink.mask, &sink.ghost};
     for (int i = 0; i < 2 && !r; i++) {
@@ -208,24 +216,22 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
     if (!r)
         r = merge_output_meta(path, mask_path, ghost_path, out, &final, err);
     merge_clock finish = merge_clock_start();
-    /* Masks first, then the radiance; a failure removes them all. */
-    bool written[2] = {false, false};
     for (int i = 0; i < 2; i++) {
         if (!*side[i])
             continue;
-        if (!r) {
+        if (!r)
             r = sl_exr_stream_finish(*side[i], NULL, err);
-            written[i] = !r;
-        } else
+        else
             sl_exr_stream_abort(*side[i]);
     }
     if (!r)
         r = sl_exr_stream_finish(sink.radiance, &final, err);
     else
         sl_exr_stream_abort(sink.radiance);
-    for (int i = 0; i < 2 && r; i++)
-        if (written[i])
-            unlink(side_path[i]);
+    if (in_set && !r)
+        r = sl_output_set_commit(err);
+    else if (in_set)
+        sl_output_set_abort();
     merge_clock_charge(&out->timing, finish, SL_MERGE_WRITE);
     sl_meta_free(&meta);
     sl_meta_free(&final);

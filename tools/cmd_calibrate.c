@@ -89,8 +89,9 @@ static const char *calibrate_help =
     "the JSON's negative_clamped).\n\n"
     "Exit codes: 0 done, 2 usage, 3 bad or missing input (no chart found, or not a\n"
     "usable ColorChecker, and no grey sphere; no sphere found or none in the circle;\n"
-    "a grey photo whose exposure contradicts the HDRI's), 1 other failures. See\n"
-    "docs/calibrate.md.\n";
+    "a grey photo whose exposure contradicts the HDRI's), 1 other failures, 130/143\n"
+    "interrupted. The HDRI and the report's files are replaced together: a failure or\n"
+    "an interrupt leaves every earlier one as it was. See docs/calibrate.md.\n";
 
 static void mat_apply(const double m[3][3], float *v)
 {
@@ -732,6 +733,13 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
                                       neg_fraction));
     }
     out_meta.envmap = SL_ENVMAP_LATLONG;
+    /* The HDRI and the report are one set, renamed into place together:
+     * an interrupt or a failure leaves every earlier one as it was. */
+    char report_glob[4096];
+    snprintf(report_glob, sizeof report_glob, "%s/*", report_dir ? report_dir : "");
+    const char *members[2] = {out_path, report_dir ? report_glob : NULL};
+    if ((r = sl_output_set_begin(members, 2, &err)))
+        goto fail;
     if ((r = sl_image_write(out_path, &hdri, &out_meta, use_float ? SL_PIXEL_FLOAT : SL_PIXEL_HALF,
                             &err)))
         goto fail;
@@ -789,6 +797,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
         if (r)
             goto fail;
     }
+    if ((r = sl_output_set_commit(&err)))
+        goto fail;
     if (cli->json) {
         json_dumpf(js, stdout, JSON_INDENT(2));
         fputc('\n', stdout);
@@ -796,6 +806,8 @@ int cmd_calibrate(int argc, char **argv, const sl_cli *cli)
     r = SL_OK;
 
 fail:
+    if (r)
+        sl_output_set_abort();
     json_decref(js);
     sl_grey_fit_free(&gfit);
     sl_image_free(&hdri);

@@ -63,7 +63,9 @@ static const char *merge_help =
     "  --json                 print the result (frames, exposures, clipping) as JSON\n\n"
     "Exit codes: 0 merged, 1 runtime failure, 2 usage error, 3 bad input (frames of\n"
     "different sizes or bit depths, duplicate exposures, no exposure information,\n"
-    "corrupt, all black or all saturated frames). See docs/merge.md.\n";
+    "corrupt, all black or all saturated frames); 130/143 interrupted. The radiance\n"
+    "and its masks are replaced together: a failure or an interrupt leaves every\n"
+    "earlier one as it was. See docs/merge.md.\n";
 
 static const char *response_help =
     "usage: setlight response [options] -o CRF.json FRAME...\n\n"

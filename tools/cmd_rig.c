@@ -64,7 +64,10 @@ static const char *rig_help =
     "                        RIG.validate/ beside RIG.usda\n\n"
     "Exit codes: 0 done (also for a black map: an empty rig), 2 bad option (including\n"
     "--max-lights 0 and a room that does not contain the capture point), 3 bad input\n"
-    "(missing, corrupt, not a lat-long), 1 could not write. See docs/lightrig.md.\n";
+    "(missing, corrupt, not a lat-long), 1 could not write; 130/143 interrupted.\n"
+    "The USD, JSON, residual, preview, textures and validation report are replaced\n"
+    "together: a failure or an interrupt leaves every earlier one as it was. See\n"
+    "docs/lightrig.md.\n";
 
 /* The folder of an output exists: checked for every output before any is
  * written, so a run that fails on the last one has not written the first. */
@@ -99,6 +102,43 @@ static void dome_reference(const char *usda, const char *residual, char *out, si
         snprintf(b, sizeof b, "%s", residual);
         snprintf(out, size, "%s/%s", rb, basename(b));
     }
+}
+
+/* The rig as JSON at PATH for the validation renders, naming the files of
+ * the output set as they are before the commit (their temporaries). */
+static sl_result write_pending_rig_json(const sl_rig *rig, const char *path, const char *usda,
+                                        const char *residual, sl_error *err)
+{
+    sl_rig pending = *rig;
+    pending.lights = malloc((size_t)(rig->light_count ? rig->light_count : 1) *
+                            sizeof *pending.lights);
+    if (!pending.lights)
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+    char dir[PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", usda);
+    const char *slash = strrchr(dir, '/');
+    if (slash)
+        dir[slash - dir + 1] = 0;
+    else
+        dir[0] = 0;
+    for (int i = 0; i < rig->light_count; i++) {
+        pending.lights[i] = rig->lights[i];
+        if (!rig->lights[i].texture[0])
+            continue;
+        char final[2 * PATH_MAX];
+        snprintf(final, sizeof final, "%s%s", dir, rig->lights[i].texture);
+        const char *temp = sl_output_set_pending(final);
+        const char *base = temp ? strrchr(temp, '/') : NULL;
+        if (temp)
+            snprintf(pending.lights[i].texture, sizeof pending.lights[i].texture, "%s",
+                     base ? base + 1 : temp);
+    }
+    const char *res_temp = sl_output_set_pending(residual);
+    char dome_ref[2 * PATH_MAX + 2];
+    dome_reference(usda, res_temp ? res_temp : residual, dome_ref, sizeof dome_ref);
+    sl_result r = sl_rig_write_json(&pending, path, dome_ref, err);
+    free(pending.lights);
+    return r;
 }
 
 int cmd_rig(int argc, char **argv, const sl_cli *cli)
@@ -336,9 +376,18 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     sl_meta_init(&out_meta);
     sl_rig rig = {0};
     rig_validation val = {0};
+    rig_report_tmp report_tmp = {"", -1};
     sl_error err;
     sl_result r = sl_check_input_file(in_path, &err);
     if (r || (r = sl_latlong_read(in_path, in_cs, &env, &meta, NULL, &err)))
+        goto fail;
+    /* The rig's files are one set, renamed into place together at the end:
+     * an interrupt or a failure leaves every earlier one as it was. */
+    char textures_glob[PATH_MAX];
+    snprintf(textures_glob, sizeof textures_glob, "%.*s_light_*", (int)(strlen(out_path) - 5),
+             out_path);
+    const char *members[5] = {out_path, res_path, json_path, preview_path, textures_glob};
+    if ((r = sl_output_set_begin(members, 5, &err)))
         goto fail;
     if ((r = sl_rig_extract(&env, &opt, &rig, &err))) {
         /* library messages name the stage; name the file too */
@@ -410,16 +459,11 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
         /* The renderer reads the rig as a file: rig.json when written, else
          * a temporary one beside the USD (the dome reference is relative to it). */
         char tmp[PATH_MAX];
-        const char *rj = json_path;
-        if (!rj) {
-            snprintf(tmp, sizeof tmp, "%.*s.validate.json", (int)(strlen(out_path) - 5), out_path);
-            if ((r = sl_rig_write_json(&rig, tmp, dome_ref, &err)))
-                goto fail;
-            rj = tmp;
-        }
-        r = rig_validate(&env, rj, 96, validate_spp, &val, &err);
-        if (rj == tmp)
-            remove(tmp);
+        snprintf(tmp, sizeof tmp, "%.*s.validate.json", (int)(strlen(out_path) - 5), out_path);
+        if ((r = write_pending_rig_json(&rig, tmp, out_path, res_path, &err)))
+            goto fail;
+        r = rig_validate(&env, tmp, 96, validate_spp, &val, &err);
+        remove(tmp);
         if (r)
             goto fail;
         sl_log(SL_LOG_INFO,
@@ -441,12 +485,19 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
                                                     : "",
                  rig.skipped_count, rig.relative_error, out_path, val.width,
                  (long long)val.spp, sl_version());
-        if ((r = rig_validate_write_report(rep_dir, rep_name, about, &val, &rig, &env, &err)))
+        if ((r = rig_validate_write_report(rep_dir, rep_name, about, &val, &rig, &env,
+                                           &report_tmp, &err)))
             goto fail;
         sl_log(SL_LOG_INFO, "validation report: %.*s.validate.html",
                (int)(strlen(out_path) - 5), out_path);
     }
 
+    r = sl_output_set_commit(&err);
+    if (report_tmp.path[0])
+        sl_temp_dir_remove(report_tmp.path, report_tmp.handle);
+    report_tmp.path[0] = 0;
+    if (r)
+        goto fail;
     if (cli->json) {
         char *s = sl_rig_json_string(&rig, dome_ref);
         json_t *rj = s ? json_loads(s, 0, NULL) : NULL;
@@ -496,6 +547,9 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     return 0;
 
 fail:
+    sl_output_set_abort();
+    if (report_tmp.path[0])
+        sl_temp_dir_remove(report_tmp.path, report_tmp.handle);
     rig_validation_free(&val);
     sl_rig_free(&rig);
     sl_image_free(&env);

@@ -388,45 +388,31 @@ static sl_result build_report(const char *tmp, const char *name, const char *abo
 
 sl_result rig_validate_write_report(const char *dir, const char *name, const char *about,
                                     const rig_validation *v, const sl_rig *rig,
-                                    const sl_image *env, sl_error *err)
+                                    const sl_image *env, rig_report_tmp *tmp, sl_error *err)
 {
+    tmp->path[0] = 0;
+    tmp->handle = -1;
     sl_result r = rig_validate_report_check(dir, name, err);
     if (r)
         return r;
-    char tmp[4096], old[4200], folder[4400], page[4400], tmp_sub[4400], tmp_page[4400];
-    snprintf(tmp, sizeof tmp, "%s/.%s.sl-tmp-%ld-XXXXXX", dir, name, (long)getpid());
-    if (!mkdtemp(tmp))
+    char folder[4400], page[4400], tmp_sub[4400], tmp_page[4400];
+    snprintf(tmp->path, sizeof tmp->path, "%s/.%s.sl-tmp-%ld-XXXXXX", dir, name, (long)getpid());
+    tmp->handle = sl_temp_dir_create(tmp->path); /* an interrupt removes it */
+    if (tmp->handle < 0) {
+        tmp->path[0] = 0;
         return sl_error_set(err, SL_ERR_IO, "%s: cannot create a temporary folder: %s", dir,
                             strerror(errno));
+    }
     snprintf(folder, sizeof folder, "%s/%s", dir, name);
     snprintf(page, sizeof page, "%s/%s.html", dir, name);
-    snprintf(old, sizeof old, "%s/old", tmp);
-    snprintf(tmp_sub, sizeof tmp_sub, "%s/%s", tmp, name);
-    snprintf(tmp_page, sizeof tmp_page, "%s/%s.html", tmp, name);
-    if ((r = build_report(tmp, name, about, v, rig, env, err))) {
-        sl_remove_tree(tmp);
-        return r;
+    snprintf(tmp_sub, sizeof tmp_sub, "%s/%s", tmp->path, name);
+    snprintf(tmp_page, sizeof tmp_page, "%s/%s.html", tmp->path, name);
+    if ((r = build_report(tmp->path, name, about, v, rig, env, err)) ||
+        (r = sl_output_set_adopt(folder, tmp_sub, err)) ||
+        (r = sl_output_set_adopt(page, tmp_page, err))) {
+        sl_temp_dir_remove(tmp->path, tmp->handle);
+        tmp->path[0] = 0;
+        tmp->handle = -1;
     }
-    /* Swap the folder in (an earlier one moved aside into the temporary
-     * folder), then the page; the earlier folder goes only after both. */
-    struct stat st;
-    bool had_old = lstat(folder, &st) == 0;
-    if (had_old && rename(folder, old) != 0)
-        r = sl_error_set(err, SL_ERR_IO, "%s: cannot move the earlier report aside: %s", folder,
-                         strerror(errno));
-    if (!r && rename(tmp_sub, folder) != 0) {
-        r = sl_error_set(err, SL_ERR_IO, "%s: cannot rename the report's folder into place: %s",
-                         folder, strerror(errno));
-        if (had_old)
-            rename(old, folder);
-    }
-    if (!r && rename(tmp_page, page) != 0) {
-        r = sl_error_set(err, SL_ERR_IO, "%s: cannot rename the report into place: %s", page,
-                         strerror(errno));
-        rename(folder, tmp_sub);
-        if (had_old)
-            rename(old, folder);
-    }
-    sl_remove_tree(tmp);
     return r;
 }

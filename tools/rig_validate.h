@@ -48,13 +48,21 @@ sl_result rig_validate_report(sl_report *rep, const rig_validation *v, const cha
  * a file and a folder respectively. */
 sl_result rig_validate_report_check(const char *dir, const char *name, sl_error *err);
 
+/* The temporary folder a report is built in (sl_temp_dir_create). */
+typedef struct rig_report_tmp {
+    char path[4096];
+    int handle;
+} rig_report_tmp;
+
 /* `setlight rig --validate`'s report: DIR/NAME.html with its images (and
  * the renders as float EXR) in DIR/NAME/. Built in a temporary folder in
- * DIR and swapped in (the folder first, then the page): on failure nothing
- * is left and an earlier report stays as it was. `about` is the first
- * paragraph (input, rig, settings). */
+ * DIR (*tmp) and added to the open output set (the folder and the page),
+ * which renames them into place with the rig's files. The caller removes
+ * *tmp with sl_temp_dir_remove after the set's commit or abort; on a
+ * failure here nothing is left. `about` is the first paragraph (input,
+ * rig, settings). */
 sl_result rig_validate_write_report(const char *dir, const char *name, const char *about,
                                     const rig_validation *v, const sl_rig *rig,
-                                    const sl_image *env, sl_error *err);
+                                    const sl_image *env, rig_report_tmp *tmp, sl_error *err);
 
 #endif

@@ -51,12 +51,17 @@ static void print_help(FILE *out)
             "  --max-memory-mb N\n"
             "                memory budget for what is read (default: half the RAM;\n"
             "                also SETLIGHT_MAX_MEMORY_MB): larger images are refused (exit 3)\n"
-            "\nexit codes: 0 success, 1 runtime failure, 2 usage error, 3 invalid input data\n"
+            "\nexit codes: 0 success, 1 runtime failure, 2 usage error, 3 invalid input data;\n"
+            "interrupted (SIGINT, SIGTERM): ends by the signal (130, 143), no temporary or\n"
+            "partial output left, earlier outputs untouched\n"
             "docs: docs/index.md\n");
 }
 
 int main(int argc, char **argv)
 {
+    /* An interrupt removes every temporary output and never renames a
+     * partial file into place (docs/conventions.md). */
+    sl_interrupt_install();
     if (argc < 2) {
         print_help(stderr);
         return 2;
@@ -123,6 +128,7 @@ int main(int argc, char **argv)
     sl_threads_set(cli.threads);
     sl_log_hold_notes(true);
     int rc = cmd->fn(n, args, &cli);
+    sl_output_set_abort(); /* a set a command left open: its temporaries go */
     sl_log_release_notes(rc == 0);
     free(args);
     fflush(stdout);

@@ -134,15 +134,57 @@ void sl_parallel_for(int64_t count, int64_t grain, sl_range_fn fn, void *ctx);
 
 /* Writes go to a temporary name in the same folder that keeps the final
  * extension (libraries choose formats by it): `dir/.name.sl-tmp-PID-N.ext`.
- * Commit renames it over the final path; abort removes it. */
+ * Commit fsyncs it and renames it over the final path (or, for a member of
+ * the open output set, hands it to the set); abort removes it. A commit or
+ * begin after an interrupt is SL_ERR_CANCELLED. */
 typedef struct sl_atomic_file {
     char final_path[4096];
     char temp_path[4096];
+    int slot; /* in the registry of temporaries; -1 none */
 } sl_atomic_file;
 
 sl_result sl_atomic_begin(sl_atomic_file *f, const char *final_path, sl_error *err);
 sl_result sl_atomic_commit(sl_atomic_file *f, sl_error *err); /* fsyncs, renames */
 void sl_atomic_abort(sl_atomic_file *f);
+
+/* Interrupts. Every temporary (sl_atomic_begin, sl_temp_dir_create) is
+ * registered while it exists; sl_interrupt_install (the CLI calls it first
+ * thing) makes SIGINT, SIGTERM and SIGHUP remove them all, never rename a
+ * partial file into place, and end the process by the signal itself
+ * (status 128 + signal: 130, 143, 129), so a calling script stops too. A
+ * rename already under way (a whole file, or an output set's renames)
+ * finishes first. A signal ignored at start (nohup) stays ignored. */
+void sl_interrupt_install(void);
+/* mkdtemp(template_path), registered: a handle for sl_temp_dir_remove, or
+ * -1 with errno set (EINTR after an interrupt). */
+int sl_temp_dir_create(char *template_path);
+/* Removes the folder and what is in it, and unregisters it. */
+void sl_temp_dir_remove(const char *path, int handle);
+
+/* Output sets: a command's outputs are replaced together. Between begin
+ * and commit, an sl_atomic_commit of a member keeps its complete, fsynced
+ * temporary instead of renaming it; sl_output_set_commit then renames them
+ * all, after hard-linking each old file aside, and on a failed rename puts
+ * the old files back (or removes the new ones where there were none):
+ * either every member is new or every member is as before. Members are
+ * exact paths or prefixes ending in '*' (NULL entries are skipped); files
+ * not matching commit at once. A set begun while one is open joins it
+ * (its commit is the outer one's; its abort drops every pending file). The window:
+ * a crash (SIGKILL, power) inside the rename loop, a few system calls
+ * long, can leave some renamed and the old files beside as *.sl-tmp-*.old;
+ * where hard links are not supported a failed rename cannot be undone. */
+sl_result sl_output_set_begin(const char *const *members, int count, sl_error *err);
+/* The temporary holding a member's new content until the commit (to read
+ * an output back before it is in place), or NULL when none is pending. */
+const char *sl_output_set_pending(const char *final_path);
+sl_result sl_output_set_commit(sl_error *err);
+/* Removes every pending temporary; the old outputs stay. */
+void sl_output_set_abort(void);
+/* Adds a complete file or folder the caller made (inside a registered
+ * temporary folder, sl_temp_dir_create) to the open set: renamed over
+ * final_path at the commit (an earlier folder moved aside, then removed).
+ * It stays the caller's to remove when the set fails. */
+sl_result sl_output_set_adopt(const char *final_path, const char *temp_path, sl_error *err);
 
 /* Removes a folder and everything in it (a temporary or replaced output
  * folder), best effort: what cannot be removed stays. */

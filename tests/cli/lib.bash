@@ -37,6 +37,23 @@ json_eval() {
   if python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if eval(sys.argv[2]) else 1)' "$1" "$2"; then ok
   else bad "JSON check failed: $2 on $(head -c 300 "$1")"; fi
 }
+# png_bracket DIR W H: DIR/br_0.png .. br_2.png, 8-bit sRGB-ish PNGs (gamma
+# 1/2.2) of a smooth scene at gains 1/4, 1 and 4 (two stops apart).
+png_bracket() {
+  python3 - "$@" <<'PY'
+import struct, sys, zlib
+d, w, h = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+def chunk(t, data):
+    c = struct.pack(">I", len(data)) + t + data
+    return c + struct.pack(">I", zlib.crc32(t + data) & 0xffffffff)
+for k, gain in enumerate((0.25, 1.0, 4.0)):
+    rows = [bytes(int(round(min(1.0, 2 ** (-6 + 10 * (0.6 * (x + 0.5) / w + 0.4 * (y + 0.5) / h)) * gain) ** (1 / 2.2) * 255))
+                  for x in range(w) for c in range(3)) for y in range(h)]
+    raw = b"".join(b"\0" + r for r in rows)
+    hdr = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
+    open("%s/br_%d.png" % (d, k), "wb").write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", hdr) + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+PY
+}
 finish() {
   echo "$passed passed, $failed failed, $skipped skipped"
   [ "$failed" -eq 0 ]
