@@ -9,6 +9,7 @@
 #include <stdio.h>
 
 #include "calibrate_internal.h"
+#include "lens_calibrate_private.h"
 #include "unwrap_private.h"
 
 #ifndef SETLIGHT_OPENCV_MODULE
@@ -18,6 +19,7 @@
 static int (*hough)(const unsigned char *, int, int, double, double, double, int, double, float *,
                     int);
 static int (*mcc)(const unsigned char *, int, int, double[4][2], double *, char *, size_t);
+static int (*chessboard)(const unsigned char *, int, int, int, int, float *, char *, size_t);
 static char load_error[512];
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 
@@ -30,7 +32,8 @@ static void load(void)
         /* dlsym returns void *; POSIX guarantees it converts to a function pointer. */
         *(void **)&hough = dlsym(h, "sl_opencv_ball_hough");
         *(void **)&mcc = dlsym(h, "sl_opencv_mcc_detect");
-        if (!hough || !mcc)
+        *(void **)&chessboard = dlsym(h, "sl_opencv_chessboard");
+        if (!hough || !mcc || !chessboard)
             why = "entry points missing";
     }
     if (why) {
@@ -38,6 +41,7 @@ static void load(void)
                  SETLIGHT_OPENCV_MODULE, why);
         hough = NULL;
         mcc = NULL;
+        chessboard = NULL;
     }
 }
 
@@ -64,4 +68,15 @@ int sl_cal_mcc_detect(const unsigned char *bgr, int width, int height, double bo
         return -1;
     }
     return mcc(bgr, width, height, box, cost, msg, msg_size);
+}
+
+int lens_chessboard_cxx(const unsigned char *gray, int width, int height, int cols, int rows,
+                        float *corners, char *msg, size_t msg_size)
+{
+    pthread_once(&load_once, load);
+    if (!chessboard) {
+        snprintf(msg, msg_size, "%s", load_error);
+        return -1;
+    }
+    return chessboard(gray, width, height, cols, rows, corners, msg, msg_size);
 }

@@ -804,6 +804,64 @@ bool sl_lens_profile_fits(const sl_lens_profile *profile, int width, int height,
 /* Checks a lens as read and write do; `where` names it in the message. */
 sl_result sl_lens_check(const sl_lens *lens, const char *where, sl_error *err);
 
+/* ================================================================== */
+/* Stitch: lens-calibrate (a lens profile from chessboard photos)       */
+/* ================================================================== */
+
+typedef struct sl_lens_calibrate_options {
+    int board_cols, board_rows;  /* inner corners along the board's rows and columns */
+    double square_mm;            /* square size; only the board poses depend on it (25) */
+    sl_lens_projection projection; /* default equisolid */
+    double focal_mm;             /* nominal focal length; 0: the photos' EXIF */
+    double sensor_width_mm;      /* width of the sensor area the photo covers (required) */
+    int radial_terms;            /* radial correction terms solved, 0..3; -1 (default):
+                                    as many as the corners support (sl_lens_calibrate) */
+} sl_lens_calibrate_options;
+
+void sl_lens_calibrate_options_init(sl_lens_calibrate_options *opt);
+
+typedef struct sl_lens_calibrate_photo {
+    char name[256];
+    bool found;     /* the board was found */
+    bool used;      /* its corners are in the solve */
+    char why[160];  /* why not, when not used */
+    double rms_px;  /* its corners' reprojection error under the solved lens */
+    double max_px;
+} sl_lens_calibrate_photo;
+
+typedef struct sl_lens_calibrate_result {
+    sl_lens_profile profile;       /* the solved lens, source chessboard */
+    sl_lens nominal;               /* the lens from focal_mm and sensor_width_mm */
+    double nominal_focal_mm;
+    double focal_mm;               /* the solved focal length in the same mm */
+    int radial_terms;              /* k terms solved */
+    int photo_count, used;
+    sl_lens_calibrate_photo *photos; /* photo_count, owned */
+} sl_lens_calibrate_result;
+
+/* The solve alone: `count` boards' cols x rows corners (pixels, top-left
+ * corner of the image at (0, 0); row by row, x along a row) seen through
+ * one lens. `lens` holds the nominal lens on entry and the solved one on
+ * return (focal length, centre, radial terms; projection, field and
+ * vignetting kept). rms_px and max_px (count each, may be NULL) get each
+ * board's residual; *rms and *max the overall ones. A bundle adjustment
+ * (Levenberg-Marquardt) of the lens and each board's pose, each pose seeded
+ * by a homography of the nominal lens's rays. SL_ERR_INPUT when the solve
+ * does not converge to a lens whose radius increases over the field. */
+sl_result sl_lens_calibrate_corners(const double *corners, int count,
+                                    const sl_lens_calibrate_options *opt, sl_lens *lens,
+                                    double *rms_px, double *max_px, double *rms, double *max,
+                                    sl_error *err);
+
+/* lens-calibrate: finds the board in each photo (OpenCV), leaves out the
+ * photos without it (each says why) and solves the lens from the others (at
+ * least 3). Photos of different sizes or cameras: SL_ERR_INPUT naming the
+ * file. res->photos is allocated (also on failure after reading began). */
+sl_result sl_lens_calibrate(const char *const *paths, int count,
+                            const sl_lens_calibrate_options *opt, sl_lens_calibrate_result *res,
+                            sl_error *err);
+void sl_lens_calibrate_result_free(sl_lens_calibrate_result *res);
+
 #ifdef __cplusplus
 }
 #endif
