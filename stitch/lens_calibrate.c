@@ -251,24 +251,22 @@ sl_result sl_lens_calibrate(const char *const *paths, int count,
         if (!r && i == 0) {
             width = w;
             height = h;
-            snprintf(camera, sizeof camera, "%s", cam);
-            snprintf(lens_name, sizeof lens_name, "%s", meta.lens);
         } else if (!r && (w != width || h != height)) {
             r = sl_error_set(err, SL_ERR_INPUT, "%s: %dx%d, but %s is %dx%d: one lens and size "
                              "per calibration", paths[i], w, h, paths[0], width, height);
-        } else if (!r && strcasecmp(cam, camera) != 0) {
-            r = sl_error_set(err, SL_ERR_INPUT, "%s: camera \"%s\", but %s is from \"%s\": one "
-                             "camera per calibration", paths[i], cam, paths[0], camera);
+        } else if (!r && cam[0] && camera[0] && strcasecmp(cam, camera) != 0) {
+            r = sl_error_set(err, SL_ERR_INPUT, "%s: camera \"%s\", but another photo is from "
+                             "\"%s\": one camera per calibration", paths[i], cam, camera);
         }
-        if (!r && !(opt->focal_mm > 0)) {
-            if (!(meta.focal_length_mm > 0))
-                r = sl_error_set(err, SL_ERR_INPUT,
-                                 "%s: no focal length in EXIF: give the nominal one with "
-                                 "--focal-mm", paths[i]);
-            else if (focal_mm > 0 && fabs(meta.focal_length_mm - focal_mm) > 1e-6 * focal_mm)
-                r = sl_error_set(err, SL_ERR_INPUT, "%s: EXIF focal length %g mm, but %s has %g "
-                                 "mm: one lens per calibration", paths[i],
-                                 meta.focal_length_mm, paths[0], focal_mm);
+        if (!r && !camera[0]) /* the first photo that names its camera */
+            snprintf(camera, sizeof camera, "%s", cam);
+        if (!r && !lens_name[0])
+            snprintf(lens_name, sizeof lens_name, "%s", meta.lens);
+        if (!r && !(opt->focal_mm > 0) && meta.focal_length_mm > 0) {
+            if (focal_mm > 0 && fabs(meta.focal_length_mm - focal_mm) > 1e-6 * focal_mm)
+                r = sl_error_set(err, SL_ERR_INPUT, "%s: EXIF focal length %g mm, but another "
+                                 "photo has %g mm: one lens per calibration", paths[i],
+                                 meta.focal_length_mm, focal_mm);
             else
                 focal_mm = meta.focal_length_mm;
         }
@@ -288,6 +286,10 @@ sl_result sl_lens_calibrate(const char *const *paths, int count,
         }
     }
     free(found_xy);
+    if (!r && !(focal_mm > 0))
+        r = sl_error_set(err, SL_ERR_INPUT,
+                         "%s: no focal length in EXIF (nor in any other photo): give the nominal "
+                         "one with --focal-mm", paths[0]);
     if (!r && found_count < 3)
         r = sl_error_set(err, SL_ERR_INPUT,
                          "%s: only %d of %d photos show a %dx%d chessboard (inner corners); at "
