@@ -4,6 +4,8 @@
  * profiles"), so that a shoot's later setups reuse the first one's solve. */
 #include "setlight/stitch.h"
 
+#include "merge_private.h"
+
 #include <jansson.h>
 #include <math.h>
 #include <stdio.h>
@@ -111,21 +113,7 @@ sl_result sl_lens_profile_write(const char *path, const sl_lens_profile *p, sl_e
         l->max_theta_deg, "circle_radius_px", l->circle_radius_px);
     /* 17 digits: a profile read back gives the same doubles, so a reused
      * solve stitches bit for bit as the setup that made it. */
-    char *text = o ? json_dumps(o, JSON_INDENT(1) | JSON_REAL_PRECISION(17)) : NULL;
-    json_decref(o);
-    if (!text)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    size_t len = strlen(text);
-    char *with_nl = realloc(text, len + 2);
-    if (!with_nl) {
-        free(text);
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    }
-    with_nl[len] = '\n';
-    with_nl[len + 1] = '\0';
-    r = sl_write_file_atomic(path, with_nl, len + 1, err);
-    free(with_nl);
-    return r;
+    return stitch_json_write(path, o, 17, err);
 }
 
 /* Field getters: each names the file and the field in its one-line error. */

@@ -68,7 +68,13 @@ sl_result sl_response_write(const char *path, const sl_response *resp, sl_error 
                           "inverse[c][k]: linear exposure of value z = k/(nodes-1) in channel c "
                           "(R, G, B), interpolated linearly; inverse[c][nodes-1] = 1",
                           "inverse", curves);
-    char *text = o ? json_dumps(o, JSON_INDENT(1) | JSON_REAL_PRECISION(10)) : NULL;
+    return stitch_json_write(path, o, 10, err);
+}
+
+sl_result stitch_json_write(const char *path, void *json, int precision, sl_error *err)
+{
+    json_t *o = json;
+    char *text = o ? json_dumps(o, JSON_INDENT(1) | JSON_REAL_PRECISION(precision)) : NULL;
     json_decref(o);
     if (!text)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
