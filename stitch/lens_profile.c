@@ -224,14 +224,10 @@ static sl_result profile_from_json(json_t *o, const char *path, sl_lens_profile 
 sl_result sl_lens_profile_read(const char *path, sl_lens_profile *out, sl_error *err)
 {
     memset(out, 0, sizeof *out);
-    sl_result r = sl_check_input_file(path, err);
+    json_t *o;
+    sl_result r = stitch_json_read(path, &o, err);
     if (r)
         return r;
-    json_error_t jerr;
-    json_t *o = json_load_file(path, 0, &jerr);
-    if (!o)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: not JSON (line %d: %s)", path, jerr.line,
-                            jerr.text);
     r = json_is_object(o) ? profile_from_json(o, path, out, err)
                           : sl_error_set(err, SL_ERR_INPUT, "%s: not a JSON object", path);
     json_decref(o);

@@ -91,17 +91,28 @@ sl_result stitch_json_write(const char *path, void *json, int precision, sl_erro
     return r;
 }
 
-sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err)
+sl_result stitch_json_read(const char *path, void *out, sl_error *err)
 {
-    memset(resp, 0, sizeof *resp);
+    json_t **o = out;
+    *o = NULL;
     sl_result r = sl_check_input_file(path, err);
     if (r)
         return r;
     json_error_t jerr;
-    json_t *o = json_load_file(path, 0, &jerr);
-    if (!o)
+    *o = json_load_file(path, 0, &jerr);
+    if (!*o)
         return sl_error_set(err, SL_ERR_INPUT, "%s: not JSON (line %d: %s)", path, jerr.line,
                             jerr.text);
+    return SL_OK;
+}
+
+sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err)
+{
+    memset(resp, 0, sizeof *resp);
+    json_t *o;
+    sl_result r = stitch_json_read(path, &o, err);
+    if (r)
+        return r;
     const char *format = json_string_value(json_object_get(o, "format"));
     json_t *curves = json_object_get(o, "inverse");
     int nodes = (int)json_integer_value(json_object_get(o, "nodes"));
