@@ -116,6 +116,9 @@ def run_setlight(a, setlight, views, w, out_w):
     try:
         j = json.loads(r["stdout"])
         r["reproj"] = {k: v for k, v in find_numbers(j, ["rms"]).items() if "px" in k or "reproj" in k}
+        r["pairs"] = [(os.path.basename(p.get("a", "")), os.path.basename(p.get("b", "")),
+                       p.get("matches"), p.get("inliers"), p.get("status"))
+                      for p in j.get("pairs", []) if isinstance(p, dict)]
     except ValueError:
         r["reproj"] = {}
     if r["rc"]:
@@ -315,6 +318,8 @@ def main():
             print("          cpfind matches per pair: %s, control points kept: %s" %
                   (r.get("cpfind_matches"), r.get("control_points")))
             print("          solved poses (yaw, pitch, roll deg): %s" % r.get("poses"))
+        if r.get("pairs"):
+            print("          pairs (a, b, matches, inliers, status): %s" % r["pairs"])
         if name == "setlight" and s:
             s0 = score(r["out"], truth, align=False)
             print("          as written (no turn): med %.4f p95 %.4f cov %.2f; NaN/Inf/negative "
