@@ -236,17 +236,34 @@ sl_result sl_lens_profile_read(const char *path, sl_lens_profile *out, sl_error 
     return r;
 }
 
+/* One camera named two ways: equal, or the longer is the shorter with words
+ * in front ("Canon Canon EOS 6D Mark II", make + model as EXIF has them, and
+ * "Canon EOS 6D Mark II"; "NIKON CORPORATION NIKON D850" and "NIKON D850"). */
+static bool same_name(const char *a, const char *b)
+{
+    size_t na = strlen(a), nb = strlen(b);
+    if (na < nb) {
+        const char *t = a;
+        a = b;
+        b = t;
+        size_t n = na;
+        na = nb;
+        nb = n;
+    }
+    return strcasecmp(a + (na - nb), b) == 0 && (na == nb || a[na - nb - 1] == ' ');
+}
+
 bool sl_lens_profile_fits(const sl_lens_profile *p, int width, int height, const char *camera,
                           const char *lens, sl_lens *fitted, char *why, size_t why_size)
 {
     if (why_size)
         why[0] = '\0';
-    if (camera && camera[0] && p->camera[0] && strcasecmp(camera, p->camera) != 0) {
+    if (camera && camera[0] && p->camera[0] && !same_name(camera, p->camera)) {
         snprintf(why, why_size, "the profile is for camera \"%s\", the view is from \"%s\"",
                  p->camera, camera);
         return false;
     }
-    if (lens && lens[0] && p->lens_name[0] && strcasecmp(lens, p->lens_name) != 0) {
+    if (lens && lens[0] && p->lens_name[0] && !same_name(lens, p->lens_name)) {
         snprintf(why, why_size, "the profile is for lens \"%s\", the view is from \"%s\"",
                  p->lens_name, lens);
         return false;

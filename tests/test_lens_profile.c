@@ -118,6 +118,11 @@ static void fits(void)
     char why[256];
     CHECK(sl_lens_profile_fits(&p, 1600, 1600, "canon eos 6d mark ii", "8mm", &l, why, sizeof why));
     CHECK(why[0] == '\0' && lens_equal(&l, &p.lens));
+    /* EXIF's make + model names the camera too. */
+    CHECK(sl_lens_profile_fits(&p, 1600, 1600, "Canon Canon EOS 6D Mark II", "8mm", &l, why,
+                               sizeof why));
+    CHECK(!sl_lens_profile_fits(&p, 1600, 1600, "Canon EOS 6D Mark", NULL, &l, why, sizeof why));
+    CHECK(!sl_lens_profile_fits(&p, 1600, 1600, "Canon EOS 60D Mark II", NULL, &l, why, sizeof why));
     /* Unknown camera or lens on either side is not compared. */
     CHECK(sl_lens_profile_fits(&p, 1600, 1600, "", NULL, &l, why, sizeof why));
     CHECK(!sl_lens_profile_fits(&p, 1600, 1600, "NIKON D850", "8mm", &l, why, sizeof why));

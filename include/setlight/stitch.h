@@ -794,7 +794,8 @@ sl_result sl_lens_profile_read(const char *path, sl_lens_profile *out, sl_error 
 sl_result sl_lens_profile_write(const char *path, const sl_lens_profile *profile, sl_error *err);
 /* Whether `profile` applies to views width x height from `camera` with
  * `lens` (either "" or NULL when unknown: not compared). A different camera
- * or lens (case-insensitive), or a size of another aspect ratio, does not
+ * or lens (case-insensitive; "Make Model" and "Model" name one camera when
+ * the longer only adds words in front), or a size of another aspect ratio, does not
  * fit: false, `why` says which. A size of the same aspect ratio fits with
  * focal length, centre and circle scaled (`why` then says so; "" for an
  * exact fit). *fitted (may be NULL) gets the lens for that size. */
