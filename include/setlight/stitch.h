@@ -788,11 +788,16 @@ typedef struct sl_stitch_solve_options {
     int max_features;        /* per view (default 6000) */
     double circle_margin;    /* features kept this fraction of the circle radius inside it (0.02) */
     double ratio;            /* Lowe's ratio test (default 0.8) */
-    double ransac_deg;       /* RANSAC inlier threshold, angle between rays (default 0.5) */
+    double ransac_deg;       /* RANSAC inlier threshold, angle between the rays of the
+                                nominal lens (default 2: the lens is not solved yet) */
     int ransac_iterations;   /* default 2000 */
+    double inlier_px;        /* after the adjustment, a match is kept within this many
+                                pixels of the features' copies (default 2) */
     int min_inliers;         /* a pair with fewer falls back to the nominal rotation (default 25) */
     double max_correction_deg; /* a pair whose rotation differs more from the nominal one is
-                                  refused as inconsistent and falls back (default 10) */
+                                  refused as inconsistent and falls back; matches further
+                                  than 1.5 times this from their nominal place are dropped
+                                  (default 10) */
     uint64_t seed;           /* RANSAC sampling */
 } sl_stitch_solve_options;
 
