@@ -203,8 +203,104 @@ static void four_views(void)
     rig("4 views (+ zenith), stage", 1, 4);
 }
 
+/* A flat environment: no features, so every pair falls back to its
+ * nominal rotation, says why, and the lens and poses stay nominal; a few
+ * NaN pixels change nothing. */
+static void featureless(void)
+{
+    sl_error err;
+    sl_image env, img[3] = {{0}};
+    CHECK_OK(sl_image_alloc(&env, 256, 128, 3, &err), &err);
+    sl_image_fill(&env, 2.0f);
+    sl_lens lt, ln;
+    true_lens(&lt);
+    nominal_lens(&ln);
+    sl_stitch_view views[3];
+    for (int i = 0; i < 3; i++) {
+        CHECK_OK(sl_vset_view_image(&lt, &truth[i], &env, 1, &img[i], &err), &err);
+        views[i] = (sl_stitch_view){.name = "flat.exr", .radiance = &img[i], .lens = ln,
+                                    .pose = {120.0 * i, 0.0, 0.0}};
+    }
+    for (int k = 0; k < 3; k++)
+        sl_image_pixel(&img[1], W / 2 + 10 * k, H / 2)[k] = NAN;
+    sl_stitch_solve_result res;
+    CHECK_OK(sl_stitch_solve(views, 3, NULL, &res, &err), &err);
+    CHECK(res.pairs == 3 && res.pairs_solved == 0 && res.pairs_fallback == 3);
+    for (int p = 0; p < res.pairs; p++) {
+        CHECK(res.pair[p].fallback && res.pair[p].status == SL_STITCH_PAIR_FEW_MATCHES);
+        CHECK(strstr(res.pair[p].why, "at least 25 needed") != NULL);
+        printf("flat pair %d-%d: %s: %s\n", res.pair[p].a, res.pair[p].b,
+               sl_stitch_pair_status_name(res.pair[p].status), res.pair[p].why);
+    }
+    CHECK(res.lens.focal_px == ln.focal_px && res.lens.cx == ln.cx && !res.vignette_solved);
+    for (int i = 0; i < 3; i++) {
+        CHECK(relative_error(&res.pose_nominal[0], &res.pose_nominal[i], &views[0].pose,
+                             &views[i].pose) < 1e-4);
+        CHECK(views[i].lens.focal_px == ln.focal_px);
+    }
+    sl_stitch_solve_result_free(&res);
+    for (int i = 0; i < 3; i++)
+        sl_image_free(&img[i]);
+    sl_image_free(&env);
+}
+
+/* Views that cannot be one stitch are refused naming the file; one view
+ * is nothing to solve and comes back as it went in. */
+static void bad_views(void)
+{
+    sl_error err;
+    sl_image a, b;
+    CHECK_OK(sl_image_alloc(&a, 96, 64, 3, &err), &err);
+    CHECK_OK(sl_image_alloc(&b, 64, 64, 3, &err), &err);
+    sl_image_fill(&a, 1.0f);
+    sl_image_fill(&b, 1.0f);
+    sl_lens la, lb;
+    sl_lens_nominal(&la, SL_LENS_EQUISOLID, 96, 64, 8.0, 36.0);
+    sl_lens_nominal(&lb, SL_LENS_EQUISOLID, 64, 64, 8.0, 36.0);
+    sl_stitch_view v[2] = {{.name = "a.exr", .radiance = &a, .lens = la},
+                           {.name = "b.exr", .radiance = &b, .lens = lb, .pose = {180, 0, 0}}};
+    sl_stitch_solve_result res;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: 64x64, but a.exr is 96x64") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    v[1].radiance = &a;
+    v[1].lens = la;
+    v[1].lens.projection = SL_LENS_EQUIDISTANT;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: its lens (equidistant") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    v[1].lens = la;
+    v[1].lens.focal_px = 0.0;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: no lens") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    v[1].lens = la;
+    v[1].radiance = NULL;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: no image") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    /* The views' own poses: back to back, no overlap, the pair named. */
+    v[1].radiance = &a;
+    CHECK_OK(sl_stitch_solve(v, 2, NULL, &res, &err), &err);
+    CHECK(res.pairs == 1 && res.pair[0].status == SL_STITCH_PAIR_NO_OVERLAP &&
+          res.pair[0].fallback && v[1].pose.yaw_deg == 180.0);
+    sl_stitch_solve_result_free(&res);
+
+    CHECK_OK(sl_stitch_solve(v, 1, NULL, &res, &err), &err);
+    CHECK(res.views == 1 && res.pairs == 0 && res.lens.focal_px == la.focal_px);
+    sl_stitch_solve_result_free(&res);
+    sl_image_free(&a);
+    sl_image_free(&b);
+}
+
 int main(void)
 {
+    RUN(bad_views);
+    RUN(featureless);
     RUN(three_views);
     RUN(four_views);
     for (int i = 0; i < 2; i++) {
