@@ -754,11 +754,14 @@ sl_result sl_calibrate_report_chart(sl_report *rep, const char *file, const sl_i
  * the image's summed absolute values. */
 int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction);
 
-
 /* ================================================================== */
 /* Stitch: views                                                       */
 /* ================================================================== */
 
+/* One fisheye (or rectilinear) view of a stitch: its merged HDR radiance,
+ * the merge's per-pixel confidence and the lens and pose. All views of one
+ * stitch share one lens (one camera body and lens); the solve writes the
+ * solved lens into every view. */
 typedef struct sl_stitch_view {
     const char *name;          /* file name, for messages */
     const sl_image *radiance;  /* RGB(A) scene-linear view, as merge writes it */
@@ -766,6 +769,94 @@ typedef struct sl_stitch_view {
     sl_lens lens;              /* in: nominal or profile; out (solve): solved */
     sl_view_pose pose;         /* in: nominal; out (solve): solved */
 } sl_stitch_view;
+
+/* ================================================================== */
+/* Stitch: solve                                                       */
+/* ================================================================== */
+
+/* What sl_stitch_solve solves. The poses of views 1.. are always solved
+ * (view 0 fixes the frame) unless solve_poses is false; the lens values
+ * each have a switch, so a lens profile can be kept as it is. */
+typedef struct sl_stitch_solve_options {
+    bool solve_poses;        /* yaw, pitch, roll of views 1..count-1 (default true) */
+    bool solve_focal;        /* focal_px (default true) */
+    bool solve_centre;       /* cx, cy (default true) */
+    int radial_terms;        /* 0: keep k; 1: k1 (default); 2: k1, k2 */
+    bool solve_vignette;     /* vignette v1, v2 from the overlaps' radiance ratios (default true) */
+    const char *detector;    /* "sift" (default) or "akaze" */
+    int feature_width;       /* features on copies this many pixels wide at most (default 1536) */
+    int max_features;        /* per view (default 6000) */
+    double circle_margin;    /* features kept this fraction of the circle radius inside it (0.02) */
+    double ratio;            /* Lowe's ratio test (default 0.8) */
+    double ransac_deg;       /* RANSAC inlier threshold, angle between the rays of the
+                                nominal lens (default 2: the lens is not solved yet) */
+    int ransac_iterations;   /* default 2000 */
+    double inlier_px;        /* after the adjustment, a match is kept within this many
+                                pixels of the features' copies (default 2) */
+    int min_inliers;         /* a pair with fewer falls back to the nominal rotation (default 25) */
+    double max_correction_deg; /* a pair whose rotation differs more from the nominal one is
+                                  refused as inconsistent and falls back; matches further
+                                  than 1.5 times this from their nominal place are dropped
+                                  (default 10) */
+    uint64_t seed;           /* RANSAC sampling */
+} sl_stitch_solve_options;
+
+void sl_stitch_solve_options_init(sl_stitch_solve_options *o);
+
+typedef enum {
+    SL_STITCH_PAIR_SOLVED = 0,   /* its inliers are in the adjustment */
+    SL_STITCH_PAIR_NO_OVERLAP,   /* the nominal poses do not overlap: not matched */
+    SL_STITCH_PAIR_FEW_MATCHES,  /* fallback: too few inliers (a featureless pair) */
+    SL_STITCH_PAIR_INCONSISTENT  /* fallback: its rotation is far from the nominal one */
+} sl_stitch_pair_status;
+
+/* "solved", "no overlap", "too few matches", "inconsistent with the nominal poses" */
+const char *sl_stitch_pair_status_name(sl_stitch_pair_status s);
+
+typedef struct sl_stitch_pair {
+    int a, b;                    /* view indices, a < b */
+    double overlap_sr;           /* solid angle both nominal views see, steradians */
+    int matches;                 /* after the ratio test and the cross check */
+    int inliers;                 /* after RANSAC on the sphere */
+    sl_stitch_pair_status status;
+    bool fallback;               /* its relative rotation is the nominal one */
+    double rms_px, max_px;       /* reprojection error of its inliers after the adjustment */
+    char why[160];               /* for a fallback: what was found, for the report */
+} sl_stitch_pair;
+
+typedef struct sl_stitch_solve_result {
+    int views;
+    sl_view_pose *pose_nominal;  /* views entries each */
+    sl_view_pose *pose;          /* solved */
+    double *gain;                /* per-view radiance gain solved with the vignetting (view 0: 1) */
+    int *features;               /* features found per view */
+    sl_lens lens_nominal;        /* the lens the solve started from (view 0's) */
+    sl_lens lens;                /* solved */
+    int pairs;
+    sl_stitch_pair *pair;
+    int pairs_solved, pairs_fallback;
+    int inliers;                 /* matches in the adjustment */
+    double rms_px, max_px;       /* reprojection error over them, pixels of the full views */
+    int iterations;              /* Levenberg-Marquardt iterations */
+    bool vignette_solved;        /* false: too few overlap samples, or not asked */
+    int vignette_samples;
+    double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
+    double seconds_features, seconds_match, seconds_adjust, seconds_total;
+} sl_stitch_solve_result;
+
+/* Solves the views' poses and their shared lens from the overlaps:
+ * features on a log-encoded copy of each view inside its image circle,
+ * matched between overlapping pairs, RANSAC on the sphere, a bundle
+ * adjustment of the poses (view 0 fixed) and the lens, then the vignetting
+ * from the radiance ratios. Overwrites views[i].lens and views[i].pose with
+ * the solution; a pair without enough good matches keeps its nominal
+ * relative rotation and res says so. Views of different sizes or
+ * projections, or a view with no image (NULL) are SL_ERR_INPUT. res is
+ * filled (free with sl_stitch_solve_result_free) whatever the status. */
+sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
+                          sl_stitch_solve_result *res, sl_error *err);
+void sl_stitch_solve_result_free(sl_stitch_solve_result *res);
+
 
 /* ================================================================== */
 /* Stitch: blend and the stitch call                                   */
