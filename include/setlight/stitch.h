@@ -1050,6 +1050,55 @@ sl_result sl_stitch_lens_meta_set(sl_meta *meta, sl_error *err);
 bool sl_stitch_lens_from_meta(const sl_meta *meta, sl_lens_projection projection, int width,
                               int height, sl_lens *out, char *why, size_t why_size);
 
+/* Stitch: lens profiles                                               */
+/* ================================================================== */
+
+/* How a lens profile's numbers were found. */
+typedef enum {
+    SL_LENS_SOURCE_NOMINAL = 0, /* from the nominal focal length and sensor size */
+    SL_LENS_SOURCE_OVERLAPS,    /* solved from the overlaps of a stitch */
+    SL_LENS_SOURCE_CHESSBOARD,  /* solved from chessboard photos (lens-calibrate) */
+    SL_LENS_SOURCE_COUNT
+} sl_lens_source;
+
+/* "nominal", "overlaps", "chessboard"; -1 if unknown. */
+int sl_lens_source_from_name(const char *name);
+const char *sl_lens_source_name(sl_lens_source source);
+
+/* One solved lens on one camera body, in the pixels of a lens.width x
+ * lens.height image; a shoot's later setups reuse it (docs/formats.md,
+ * "Lens profiles"). */
+typedef struct sl_lens_profile {
+    sl_lens lens;
+    char camera[128];    /* "make model" as EXIF has them; "" when unknown */
+    char lens_name[128]; /* EXIF lens model; "" when unknown */
+    sl_lens_source source;
+    double rms_px;       /* reprojection residual of the solve; -1 when not solved */
+    double max_px;       /* its largest residual; -1 when not solved */
+    int images;          /* photos or views the solve used (0 nominal) */
+} sl_lens_profile;
+
+/* JSON {"format": "setlight-lens", "version": 1, ...}. A file with a field
+ * missing or of the wrong type, an unknown projection, NaN, a centre off the
+ * image, a radius r(theta) that does not increase over the field or a
+ * vignetting gain that is not positive over it is SL_ERR_INPUT with one
+ * line naming the file and the field. */
+sl_result sl_lens_profile_read(const char *path, sl_lens_profile *out, sl_error *err);
+/* Written atomically; the same checks as read (SL_ERR_INPUT on a profile
+ * that read would refuse). */
+sl_result sl_lens_profile_write(const char *path, const sl_lens_profile *profile, sl_error *err);
+/* Whether `profile` applies to views width x height from `camera` with
+ * `lens` (either "" or NULL when unknown: not compared). A different camera
+ * or lens (case-insensitive), or a size of another aspect ratio, does not
+ * fit: false, `why` says which. A size of the same aspect ratio fits with
+ * focal length, centre and circle scaled (`why` then says so; "" for an
+ * exact fit). *fitted (may be NULL) gets the lens for that size. */
+bool sl_lens_profile_fits(const sl_lens_profile *profile, int width, int height,
+                          const char *camera, const char *lens, sl_lens *fitted, char *why,
+                          size_t why_size);
+/* Checks a lens as read and write do; `where` names it in the message. */
+sl_result sl_lens_check(const sl_lens *lens, const char *where, sl_error *err);
+
 #ifdef __cplusplus
 }
 #endif
