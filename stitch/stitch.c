@@ -20,6 +20,12 @@
 
 static const char *const phase_names[SL_STITCH_PHASES] = {"read", "circle", "solve", "blend"};
 
+void sl_stitch_result_free(sl_stitch_result *res)
+{
+    if (res)
+        sl_stitch_solve_result_free(&res->solve);
+}
+
 const char *sl_stitch_phase_name(sl_stitch_phase phase)
 {
     return phase >= 0 && phase < SL_STITCH_PHASES ? phase_names[phase] : "unknown";
@@ -97,21 +103,18 @@ static sl_result read_confidence(view_file *v, sl_stitch_view_result *vr, sl_err
     return SL_OK;
 }
 
-/* The nominal lens: given whole, or from the options and the files' EXIF. */
+/* "make model" of a view's camera, as a lens profile names it. */
+static void camera_name(const sl_meta *m, char *buf, size_t size)
+{
+    snprintf(buf, size, "%s%s%s", m->make, m->make[0] && m->model[0] ? " " : "", m->model);
+}
+
+/* The nominal lens: a profile, the options, the files' EXIF, in that order. */
 static sl_result nominal_lens(const view_file *views, int count, const sl_stitch_options *opt,
                               sl_lens *lens, char *source, size_t source_size, sl_error *err)
 {
     const view_file *v0 = &views[0];
     int w = v0->radiance.width, h = v0->radiance.height;
-    if (opt->lens) {
-        if (opt->lens->width != w || opt->lens->height != h)
-            return sl_error_set(err, SL_ERR_INPUT,
-                                "%s: the lens given is for %dx%d images, the view is %dx%d",
-                                v0->path, opt->lens->width, opt->lens->height, w, h);
-        *lens = *opt->lens;
-        snprintf(source, source_size, "lens profile");
-        return SL_OK;
-    }
     /* One camera and lens: the EXIF of every view must agree. */
     for (int i = 1; i < count; i++) {
         const sl_meta *a = &v0->meta, *b = &views[i].meta;
@@ -123,20 +126,59 @@ static sl_result nominal_lens(const view_file *views, int count, const sl_stitch
                                 views[i].path, v0->path, b->model, b->lens, b->focal_length_mm,
                                 a->model, a->lens, a->focal_length_mm);
     }
-    double focal = opt->focal_mm > 0 ? opt->focal_mm : v0->meta.focal_length_mm;
-    double sensor = opt->sensor_mm[0];
-    if (!(focal > 0) || !(sensor > 0))
-        return sl_error_set(err, SL_ERR_INPUT,
-                            "%s: no lens information (%s): give --focal-mm and --sensor-mm, or "
-                            "--lens-profile",
-                            v0->path,
-                            !(focal > 0) ? "no focal length in the file" : "no sensor width");
+    if (opt->lens) {
+        if (opt->lens->width != w || opt->lens->height != h)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: the lens given is for %dx%d images, the view is %dx%d",
+                                v0->path, opt->lens->width, opt->lens->height, w, h);
+        *lens = *opt->lens;
+        snprintf(source, source_size, "given");
+        return SL_OK;
+    }
+    if (opt->lens_profile) {
+        sl_lens_profile prof;
+        sl_result r = sl_lens_profile_read(opt->lens_profile, &prof, err);
+        if (r)
+            return r;
+        char camera[160], why[512];
+        camera_name(&v0->meta, camera, sizeof camera);
+        if (!sl_lens_profile_fits(&prof, w, h, camera, v0->meta.lens, lens, why, sizeof why))
+            return sl_error_set(err, SL_ERR_INPUT, "%s: %s", opt->lens_profile, why);
+        snprintf(source, source_size, "lens profile %.400s (%s%s%.400s)", opt->lens_profile,
+                 sl_lens_source_name(prof.source), why[0] ? "; " : "", why);
+        return SL_OK;
+    }
     sl_lens_projection p = opt->projection >= 0 ? (sl_lens_projection)opt->projection
                                                 : SL_LENS_EQUISOLID;
-    sl_lens_nominal(lens, p, w, h, focal, sensor);
-    snprintf(source, source_size, "%s, %g mm on a %g mm wide sensor (%s)",
-             sl_lens_projection_name(p), focal, sensor,
-             opt->focal_mm > 0 ? "options" : "focal length from the file's EXIF");
+    if (opt->focal_mm > 0 && opt->sensor_mm[0] > 0) {
+        sl_lens_nominal(lens, p, w, h, opt->focal_mm, opt->sensor_mm[0]);
+        snprintf(source, source_size, "%s, %g mm on a %g mm wide sensor (options)",
+                 sl_lens_projection_name(p), opt->focal_mm, opt->sensor_mm[0]);
+        return SL_OK;
+    }
+    /* The file's EXIF, with what the options give in its place. */
+    sl_meta m;
+    sl_result r = sl_meta_copy(&v0->meta, &m, err);
+    if (r)
+        return r;
+    char sensor[64], why[512];
+    if (opt->focal_mm > 0)
+        m.focal_length_mm = opt->focal_mm;
+    snprintf(sensor, sizeof sensor, "%.6g x %.6g", opt->sensor_mm[0],
+             opt->sensor_mm[1] > 0 ? opt->sensor_mm[1] : opt->sensor_mm[0] * h / w);
+    if (opt->sensor_mm[0] > 0)
+        r = sl_meta_set(&m, SL_ATTR_SENSOR_MM, sensor, err);
+    bool ok = !r && sl_stitch_lens_from_meta(&m, p, w, h, lens, why, sizeof why);
+    if (ok)
+        snprintf(source, source_size, "%s, %g mm (%s), sensor %g mm wide (%s)",
+                 sl_lens_projection_name(p), m.focal_length_mm,
+                 opt->focal_mm > 0 ? "option" : "EXIF", lens->focal_px > 0 ? m.focal_length_mm * w / lens->focal_px : 0,
+                 opt->sensor_mm[0] > 0 ? "option" : "file");
+    sl_meta_free(&m);
+    if (r)
+        return r;
+    if (!ok)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: %s, or --lens-profile", v0->path, why);
     return SL_OK;
 }
 
@@ -344,15 +386,72 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         res->views[i].nominal = v->pose;
     }
     phase_end(res, SL_STITCH_READ, &t, &c);
+    /* A circular fisheye's image circle, found in every view: the optical
+     * centre and the circle the solve starts from (a profile keeps its own). */
+    bool given = opt.lens || opt.lens_profile;
+    if (res->lens_nominal.projection != SL_LENS_RECTILINEAR &&
+        res->lens_nominal.circle_radius_px > 0) {
+        double sx = 0, sy = 0, sr = 0;
+        for (int i = 0; i < count; i++) {
+            sl_stitch_circle circ;
+            if ((r = sl_stitch_circle_find(&files[i].radiance, files[i].path, &res->lens_nominal,
+                                           &circ, err)))
+                goto done;
+            if (i == 0)
+                res->circle = circ;
+            sx += circ.cx;
+            sy += circ.cy;
+            sr += circ.radius;
+        }
+        res->circle_found = true;
+        if (!given) {
+            for (int i = 0; i < count; i++) {
+                views[i].lens.cx = sx / count;
+                views[i].lens.cy = sy / count;
+                views[i].lens.circle_radius_px = sr / count;
+            }
+        }
+    }
     phase_end(res, SL_STITCH_CIRCLE, &t, &c);
     if ((r = check_overlaps(views, count, err)))
         goto done;
-    snprintf(res->solve_note, sizeof res->solve_note,
-             opt.solve ? "not solved: this build has no solve yet, nominal lens and poses used"
-                       : "not solved (--no-solve): lens and poses as given");
+    if (opt.solve && count >= 2) {
+        sl_stitch_solve_options so;
+        sl_stitch_solve_options_init(&so);
+        if (given) { /* the lens is known: only the poses */
+            so.solve_focal = so.solve_centre = so.solve_vignette = false;
+            so.radial_terms = 0;
+        }
+        if ((r = sl_stitch_solve(views, count, &so, &res->solve, err)))
+            goto done;
+        res->solved = true;
+        snprintf(res->solve_note, sizeof res->solve_note,
+                 "solved from the overlaps: %d pairs solved, %d fell back to the nominal "
+                 "rotation, %d matches, reprojection RMS %.3f px, max %.3f px",
+                 res->solve.pairs_solved, res->solve.pairs_fallback, res->solve.inliers,
+                 res->solve.rms_px, res->solve.max_px);
+    } else {
+        snprintf(res->solve_note, sizeof res->solve_note, "%s",
+                 count < 2   ? "not solved: one view, lens and pose as given"
+                 : opt.solve ? ""
+                             : "not solved (--no-solve): lens and poses as given");
+    }
     res->lens = views[0].lens;
     for (int i = 0; i < count; i++)
         res->views[i].pose = views[i].pose;
+    if (opt.save_lens) {
+        sl_lens_profile prof;
+        memset(&prof, 0, sizeof prof);
+        prof.lens = res->lens;
+        camera_name(&files[0].meta, prof.camera, sizeof prof.camera);
+        snprintf(prof.lens_name, sizeof prof.lens_name, "%s", files[0].meta.lens);
+        prof.source = res->solved && !given ? SL_LENS_SOURCE_OVERLAPS : SL_LENS_SOURCE_NOMINAL;
+        prof.rms_px = res->solved ? res->solve.rms_px : -1;
+        prof.max_px = res->solved ? res->solve.max_px : -1;
+        prof.images = res->solved ? count : 0;
+        if ((r = sl_lens_profile_write(opt.save_lens, &prof, err)))
+            goto done;
+    }
     phase_end(res, SL_STITCH_SOLVE, &t, &c);
 
     int width = opt.blend.width > 0 ? opt.blend.width
@@ -403,7 +502,9 @@ done:
     res->seconds = sl_seconds() - t0;
     res->cpu_seconds = sl_cpu_seconds() - c0;
     if (!r && res_out)
-        *res_out = *res;
+        *res_out = *res; /* the solve's arrays go with it */
+    else
+        sl_stitch_solve_result_free(&res->solve);
     for (int i = 0; i < SL_STITCH_MAX_VIEWS; i++) {
         sl_image_free(&files[i].radiance);
         sl_image_free(&files[i].weight);

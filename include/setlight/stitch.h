@@ -862,141 +862,6 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
 void sl_stitch_solve_result_free(sl_stitch_solve_result *res);
 
 
-/* ================================================================== */
-/* Stitch: blend and the stitch call                                   */
-/* ================================================================== */
-
-#define SL_STITCH_MAX_VIEWS 16
-
-/* How the views are blended into the lat-long (docs/stitch.md "Blend"). */
-typedef struct sl_stitch_blend_options {
-    int width;               /* lat-long width (even); 0: sl_stitch_default_width */
-    int max_width;           /* cap of the default width (8192) */
-    int supersample;         /* samples per texel side; 0: from the views' density (one
-                                view pixel apart, 4x finer on hard edges) */
-    double ramp_deg;         /* each view's weight falls to 0 over this many degrees
-                                inside its field's edge (cos^2 ramp; 15) */
-    double ghost_ratio;      /* views that both see a texel well (weight >= 0.25) and
-                                differ by more than this fraction of the brighter, plus
-                                the noise floor, disagree: the best single view is
-                                taken and the texel counted as a ghost (0.3); <= 0: off */
-    double noise_floor;      /* absolute floor of that test; < 0: 1e-3 of the median
-                                luminance of the stitch */
-    double nadir_mask_deg;   /* directions within this of the nadir are not taken from
-                                any view (a tripod, a head): filled; 0: none */
-    const sl_image *mask;    /* a lat-long (any 2:1 size): texels > 0.5 are not taken
-                                from any view (filled); NULL: none */
-} sl_stitch_blend_options;
-
-void sl_stitch_blend_options_init(sl_stitch_blend_options *opt);
-
-/* The lat-long width that keeps the views' pixel density on the horizon:
- * 2 pi focal_px rounded up to a multiple of 8, capped at max_width. */
-int sl_stitch_default_width(const sl_lens *lens, int max_width);
-
-typedef struct sl_stitch_coverage {
-    int width, height;
-    double seen_sr;          /* solid angle taken from the views (some weight > 0) */
-    double filled_sr;        /* solid angle filled from the seen border (no view, or masked) */
-    double masked_sr;        /* of filled_sr: masked (nadir or mask image) */
-    double low_sr;           /* of seen_sr: confidence under 0.5 (circles' edges) */
-    double view_sr[SL_STITCH_MAX_VIEWS]; /* solid angle each view contributes to */
-    int64_t ghost_texels;    /* texels where views disagreed: the best single view taken */
-    double ghost_sr;
-    int64_t filled_texels;
-    int supersample;         /* samples per texel side */
-    int supersample_hot;     /* ... where a view has a hard edge (a sun, a lamp) */
-    int64_t hot_texels;      /* texels sampled that finely */
-    double power[3];         /* integral of L over the sphere (W/sr units x sr), per channel */
-    double seen_power[3];    /* the same over the seen texels only */
-} sl_stitch_coverage;
-
-/* Where the blend hands the lat-long over, a strip of rows at a time: RGB
- * then the confidence in A, width * 4 floats per row, `stride` floats
- * apart, valid during the call only. */
-typedef sl_result (*sl_stitch_rows_fn)(void *user, const float *rows, int y0, int count,
-                                       size_t stride, sl_error *err);
-
-/* Blends views (their lens and pose as they are: nominal, profile or
- * solved) into a lat-long in radiance: per texel, ss x ss samples, each
- * view's radiance divided by its vignetting gain and weighted by the
- * angle from its centre (1 + cos theta) / 2 times a cos^2 ramp to 0 at the
- * field's edge times its confidence image; a weighted mean, so no light is
- * made or lost and nothing is negative. Unseen or masked texels are filled
- * smoothly from the seen border (diffusion on a coarse lat-long) and get
- * confidence 0. A = min(1, sum of the views' weights). The rows go to
- * `sink` in order. SL_ERR_INPUT naming the view for a view with a NaN/Inf
- * sample or a radiance whose size is not its lens's. */
-sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
-                                 const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
-                                 void *user, sl_stitch_coverage *cov, sl_error *err);
-/* The same into a whole image (RGBA). */
-sl_result sl_stitch_blend(const sl_stitch_view *views, int count,
-                          const sl_stitch_blend_options *opt, sl_image *out,
-                          sl_stitch_coverage *cov, sl_error *err);
-
-typedef struct sl_stitch_options {
-    sl_stitch_blend_options blend;
-    /* The nominal lens: given whole (a profile), else from projection,
-     * focal and sensor (each 0 / -1: the files' metadata). */
-    const sl_lens *lens;
-    int projection;          /* sl_lens_projection; -1: equisolid */
-    double focal_mm;
-    double sensor_mm[2];     /* width, height (height 0: width * height / width of the image) */
-    /* Nominal poses in degrees; a list shorter than the views: the rest
-     * default (yaws evenly spaced over 360 from 0, pitch and roll 0). */
-    int yaw_count, pitch_count, roll_count;
-    double yaw_deg[SL_STITCH_MAX_VIEWS], pitch_deg[SL_STITCH_MAX_VIEWS],
-        roll_deg[SL_STITCH_MAX_VIEWS];
-    bool solve;              /* solve lens and poses from the overlaps (default true) */
-    const char *input_colorspace; /* NULL: the files' */
-    sl_pixel_type pixel_type;     /* half (default; float when a view's radiance
-                                     exceeds half's 65504) or float */
-    sl_exr_compression compression;
-} sl_stitch_options;
-
-void sl_stitch_options_init(sl_stitch_options *opt);
-
-typedef enum {
-    SL_STITCH_READ = 0, SL_STITCH_CIRCLE, SL_STITCH_SOLVE,
-    SL_STITCH_BLEND, /* the coarse pass and fill, the blend, the EXR's encoding and writing */
-    SL_STITCH_PHASES
-} sl_stitch_phase;
-const char *sl_stitch_phase_name(sl_stitch_phase phase);
-
-typedef struct sl_stitch_view_result {
-    char path[1024];
-    int width, height;
-    sl_view_pose nominal, pose;  /* as given, as used (solved) */
-    bool confidence;             /* a merge clipped mask weighted it */
-    char confidence_source[4096];
-} sl_stitch_view_result;
-
-typedef struct sl_stitch_result {
-    int view_count;
-    sl_stitch_view_result views[SL_STITCH_MAX_VIEWS];
-    sl_lens lens_nominal, lens;  /* as given, as used */
-    char lens_source[256];       /* where the nominal lens came from */
-    bool solved;
-    char solve_note[512];        /* why not solved, or what the solve did */
-    sl_stitch_coverage coverage;
-    bool float_samples;          /* half was asked but the radiance needs float */
-    double wall[SL_STITCH_PHASES], cpu[SL_STITCH_PHASES];
-    double seconds, cpu_seconds;
-} sl_stitch_result;
-
-/* Stitches HDR views (files: EXR or any image setlight reads, all one
- * camera, lens and size) into one lat-long EXR at out_path, written in
- * strips (atomic: nothing is left on failure): RGB and the confidence in
- * A, `envmap`, chromaticities and setlight:stitch:* provenance. The lens:
- * opt->lens, else projection/focal/sensor from the options, else the
- * files' EXIF; SL_ERR_INPUT naming the file when neither says. Refused
- * (SL_ERR_INPUT naming the file or the pair): views of different sizes, a
- * NaN/Inf sample, views that do not overlap the others. One view makes a
- * partial lat-long. res may be NULL. */
-sl_result sl_stitch(const char *const *view_paths, int count, const char *out_path,
-                    const sl_stitch_options *opt, sl_stitch_result *res, sl_error *err);
-
 /* ------------------------------------------------------------------ */
 /* Stitch: image circle                                                 */
 /* ------------------------------------------------------------------ */
@@ -1098,6 +963,147 @@ bool sl_lens_profile_fits(const sl_lens_profile *profile, int width, int height,
                           size_t why_size);
 /* Checks a lens as read and write do; `where` names it in the message. */
 sl_result sl_lens_check(const sl_lens *lens, const char *where, sl_error *err);
+
+/* ================================================================== */
+/* Stitch: blend and the stitch call                                   */
+/* ================================================================== */
+
+#define SL_STITCH_MAX_VIEWS 16
+
+/* How the views are blended into the lat-long (docs/stitch.md "Blend"). */
+typedef struct sl_stitch_blend_options {
+    int width;               /* lat-long width (even); 0: sl_stitch_default_width */
+    int max_width;           /* cap of the default width (8192) */
+    int supersample;         /* samples per texel side; 0: from the views' density (one
+                                view pixel apart, 4x finer on hard edges) */
+    double ramp_deg;         /* each view's weight falls to 0 over this many degrees
+                                inside its field's edge (cos^2 ramp; 15) */
+    double ghost_ratio;      /* views that both see a texel well (weight >= 0.25) and
+                                differ by more than this fraction of the brighter, plus
+                                the noise floor, disagree: the best single view is
+                                taken and the texel counted as a ghost (0.3); <= 0: off */
+    double noise_floor;      /* absolute floor of that test; < 0: 1e-3 of the median
+                                luminance of the stitch */
+    double nadir_mask_deg;   /* directions within this of the nadir are not taken from
+                                any view (a tripod, a head): filled; 0: none */
+    const sl_image *mask;    /* a lat-long (any 2:1 size): texels > 0.5 are not taken
+                                from any view (filled); NULL: none */
+} sl_stitch_blend_options;
+
+void sl_stitch_blend_options_init(sl_stitch_blend_options *opt);
+
+/* The lat-long width that keeps the views' pixel density on the horizon:
+ * 2 pi focal_px rounded up to a multiple of 8, capped at max_width. */
+int sl_stitch_default_width(const sl_lens *lens, int max_width);
+
+typedef struct sl_stitch_coverage {
+    int width, height;
+    double seen_sr;          /* solid angle taken from the views (some weight > 0) */
+    double filled_sr;        /* solid angle filled from the seen border (no view, or masked) */
+    double masked_sr;        /* of filled_sr: masked (nadir or mask image) */
+    double low_sr;           /* of seen_sr: confidence under 0.5 (circles' edges) */
+    double view_sr[SL_STITCH_MAX_VIEWS]; /* solid angle each view contributes to */
+    int64_t ghost_texels;    /* texels where views disagreed: the best single view taken */
+    double ghost_sr;
+    int64_t filled_texels;
+    int supersample;         /* samples per texel side */
+    int supersample_hot;     /* ... where a view has a hard edge (a sun, a lamp) */
+    int64_t hot_texels;      /* texels sampled that finely */
+    double power[3];         /* integral of L over the sphere (W/sr units x sr), per channel */
+    double seen_power[3];    /* the same over the seen texels only */
+} sl_stitch_coverage;
+
+/* Where the blend hands the lat-long over, a strip of rows at a time: RGB
+ * then the confidence in A, width * 4 floats per row, `stride` floats
+ * apart, valid during the call only. */
+typedef sl_result (*sl_stitch_rows_fn)(void *user, const float *rows, int y0, int count,
+                                       size_t stride, sl_error *err);
+
+/* Blends views (their lens and pose as they are: nominal, profile or
+ * solved) into a lat-long in radiance: per texel, ss x ss samples, each
+ * view's radiance divided by its vignetting gain and weighted by the
+ * angle from its centre (1 + cos theta) / 2 times a cos^2 ramp to 0 at the
+ * field's edge times its confidence image; a weighted mean, so no light is
+ * made or lost and nothing is negative. Unseen or masked texels are filled
+ * smoothly from the seen border (diffusion on a coarse lat-long) and get
+ * confidence 0. A = min(1, sum of the views' weights). The rows go to
+ * `sink` in order. SL_ERR_INPUT naming the view for a view with a NaN/Inf
+ * sample or a radiance whose size is not its lens's. */
+sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
+                                 const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
+                                 void *user, sl_stitch_coverage *cov, sl_error *err);
+/* The same into a whole image (RGBA). */
+sl_result sl_stitch_blend(const sl_stitch_view *views, int count,
+                          const sl_stitch_blend_options *opt, sl_image *out,
+                          sl_stitch_coverage *cov, sl_error *err);
+
+typedef struct sl_stitch_options {
+    sl_stitch_blend_options blend;
+    /* The nominal lens: given whole (a profile), else from projection,
+     * focal and sensor (each 0 / -1: the files' metadata). */
+    const sl_lens *lens;
+    const char *lens_profile; /* a lens profile (JSON) to read and fit to the views */
+    const char *save_lens;   /* write the lens used (solved) as a profile here */
+    int projection;          /* sl_lens_projection; -1: equisolid */
+    double focal_mm;
+    double sensor_mm[2];     /* width, height (height 0: width * height / width of the image) */
+    /* Nominal poses in degrees; a list shorter than the views: the rest
+     * default (yaws evenly spaced over 360 from 0, pitch and roll 0). */
+    int yaw_count, pitch_count, roll_count;
+    double yaw_deg[SL_STITCH_MAX_VIEWS], pitch_deg[SL_STITCH_MAX_VIEWS],
+        roll_deg[SL_STITCH_MAX_VIEWS];
+    bool solve;              /* solve lens and poses from the overlaps (default true) */
+    const char *input_colorspace; /* NULL: the files' */
+    sl_pixel_type pixel_type;     /* half (default; float when a view's radiance
+                                     exceeds half's 65504) or float */
+    sl_exr_compression compression;
+} sl_stitch_options;
+
+void sl_stitch_options_init(sl_stitch_options *opt);
+
+typedef enum {
+    SL_STITCH_READ = 0, SL_STITCH_CIRCLE, SL_STITCH_SOLVE,
+    SL_STITCH_BLEND, /* the coarse pass and fill, the blend, the EXR's encoding and writing */
+    SL_STITCH_PHASES
+} sl_stitch_phase;
+const char *sl_stitch_phase_name(sl_stitch_phase phase);
+
+typedef struct sl_stitch_view_result {
+    char path[1024];
+    int width, height;
+    sl_view_pose nominal, pose;  /* as given, as used (solved) */
+    bool confidence;             /* a merge clipped mask weighted it */
+    char confidence_source[4096];
+} sl_stitch_view_result;
+
+typedef struct sl_stitch_result {
+    int view_count;
+    sl_stitch_view_result views[SL_STITCH_MAX_VIEWS];
+    sl_lens lens_nominal, lens;  /* as given, as used */
+    char lens_source[1024];      /* where the nominal lens came from */
+    sl_stitch_circle circle;     /* view 0's image circle */
+    bool circle_found;
+    bool solved;
+    sl_stitch_solve_result solve; /* pairs, matches, errors (when solved) */
+    char solve_note[512];        /* why not solved, or what the solve did */
+    sl_stitch_coverage coverage;
+    bool float_samples;          /* half was asked but the radiance needs float */
+    double wall[SL_STITCH_PHASES], cpu[SL_STITCH_PHASES];
+    double seconds, cpu_seconds;
+} sl_stitch_result;
+
+/* Stitches HDR views (files: EXR or any image setlight reads, all one
+ * camera, lens and size) into one lat-long EXR at out_path, written in
+ * strips (atomic: nothing is left on failure): RGB and the confidence in
+ * A, `envmap`, chromaticities and setlight:stitch:* provenance. The lens:
+ * opt->lens, else projection/focal/sensor from the options, else the
+ * files' EXIF; SL_ERR_INPUT naming the file when neither says. Refused
+ * (SL_ERR_INPUT naming the file or the pair): views of different sizes, a
+ * NaN/Inf sample, views that do not overlap the others. One view makes a
+ * partial lat-long. res may be NULL. */
+sl_result sl_stitch(const char *const *view_paths, int count, const char *out_path,
+                    const sl_stitch_options *opt, sl_stitch_result *res, sl_error *err);
+void sl_stitch_result_free(sl_stitch_result *res);
 
 #ifdef __cplusplus
 }
