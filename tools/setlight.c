@@ -22,6 +22,7 @@ static const command commands[] = {
     {"cameras", cmd_cameras, "list the cameras libgphoto2 detects"},
     {"merge", cmd_merge, "merge a bracket of exposures into HDR radiance (EXR)"},
     {"response", cmd_response, "recover a camera response curve from a bracket"},
+    {"stitch", cmd_stitch, "HDR fisheye views to one lat-long: lens and rotations solved, blended in radiance"},
     {"unwrap", cmd_unwrap, "chrome-ball photo to lat-long (finds the ball, exact perspective)"},
     {"calibrate", cmd_calibrate, "match the HDRI to the plate camera: ColorChecker and grey sphere"},
     {"lens-calibrate", cmd_lens_calibrate, "solve a lens profile from chessboard photos (for stitch)"},

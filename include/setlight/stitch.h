@@ -177,6 +177,10 @@ typedef struct sl_merge_result {
                                    green is luminance); else relative */
     double noise_gain, noise_floor, black, saturation;
     int width, height;          /* of the frames and the radiance */
+    /* The photos' lens EXIF, carried into the merged EXR (0 or "" when
+     * absent); every frame of the bracket agrees. */
+    double focal_length_mm;
+    char camera_make[64], camera_model[64], lens_model[128];
     /* Radiance EXR encoding: samples and compression, and why. */
     sl_pixel_type pixel_type;
     sl_exr_compression compression;
@@ -755,6 +759,162 @@ sl_result sl_calibrate_report_chart(sl_report *rep, const char *file, const sl_i
 int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction);
 
 /* ================================================================== */
+/* Stitch: views                                                       */
+/* ================================================================== */
+
+/* One fisheye (or rectilinear) view of a stitch: its merged HDR radiance,
+ * the merge's per-pixel confidence and the lens and pose. All views of one
+ * stitch share one lens (one camera body and lens); the solve writes the
+ * solved lens into every view. */
+typedef struct sl_stitch_view {
+    const char *name;          /* file name, for messages */
+    const sl_image *radiance;  /* RGB(A) scene-linear view, as merge writes it */
+    const sl_image *weight;    /* optional per-pixel confidence in [0,1] (merge's masks), or NULL */
+    sl_lens lens;              /* in: nominal or profile; out (solve): solved */
+    sl_view_pose pose;         /* in: nominal; out (solve): solved */
+} sl_stitch_view;
+
+/* ================================================================== */
+/* Stitch: solve                                                       */
+/* ================================================================== */
+
+/* What sl_stitch_solve solves. The poses of views 1.. are always solved
+ * (view 0 fixes the frame) unless solve_poses is false; the lens values
+ * each have a switch, so a lens profile can be kept as it is. */
+typedef struct sl_stitch_solve_options {
+    bool solve_poses;        /* yaw, pitch, roll of views 1..count-1 (default true) */
+    bool solve_focal;        /* focal_px (default true) */
+    bool solve_centre;       /* cx, cy (default true) */
+    int radial_terms;        /* 0: keep k; 1: k1 (default); 2: k1, k2 */
+    bool solve_vignette;     /* vignette v1, v2 from the overlaps' radiance ratios (default true) */
+    const char *detector;    /* "sift" (default) or "akaze" */
+    int feature_width;       /* features on copies this many pixels wide at most (default 1536) */
+    int max_features;        /* per view (default 6000) */
+    double circle_margin;    /* features kept this fraction of the circle radius inside it (0.02) */
+    double ratio;            /* Lowe's ratio test (default 0.8) */
+    double ransac_deg;       /* RANSAC inlier threshold, angle between the rays of the
+                                nominal lens (default 2: the lens is not solved yet) */
+    int ransac_iterations;   /* default 2000 */
+    double inlier_px;        /* after the adjustment, a match is kept within this many
+                                pixels of the features' copies (default 2) */
+    int min_inliers;         /* a pair with fewer falls back to the nominal rotation (default 25) */
+    double max_correction_deg; /* a pair whose rotation differs more from the nominal one is
+                                  refused as inconsistent and falls back; matches further
+                                  than 1.5 times this from their nominal place are dropped
+                                  (default 10) */
+    uint64_t seed;           /* RANSAC sampling */
+} sl_stitch_solve_options;
+
+void sl_stitch_solve_options_init(sl_stitch_solve_options *o);
+
+typedef enum {
+    SL_STITCH_PAIR_SOLVED = 0,   /* its inliers are in the adjustment */
+    SL_STITCH_PAIR_NO_OVERLAP,   /* the nominal poses do not overlap: not matched */
+    SL_STITCH_PAIR_FEW_MATCHES,  /* fallback: too few inliers (a featureless pair) */
+    SL_STITCH_PAIR_INCONSISTENT  /* fallback: its rotation is far from the nominal one */
+} sl_stitch_pair_status;
+
+/* "solved", "no overlap", "too few matches", "inconsistent with the nominal poses" */
+const char *sl_stitch_pair_status_name(sl_stitch_pair_status s);
+
+typedef struct sl_stitch_pair {
+    int a, b;                    /* view indices, a < b */
+    double overlap_sr;           /* solid angle both nominal views see, steradians */
+    int matches;                 /* after the ratio test and the cross check */
+    int inliers;                 /* after RANSAC on the sphere */
+    sl_stitch_pair_status status;
+    bool fallback;               /* its relative rotation is the nominal one */
+    double rms_px, max_px;       /* reprojection error of its inliers after the adjustment */
+    char why[160];               /* for a fallback: what was found, for the report */
+} sl_stitch_pair;
+
+typedef struct sl_stitch_solve_result {
+    int views;
+    sl_view_pose *pose_nominal;  /* views entries each */
+    sl_view_pose *pose;          /* solved */
+    double *gain;                /* per-view radiance gain solved with the vignetting (view 0: 1) */
+    int *features;               /* features found per view */
+    sl_lens lens_nominal;        /* the lens the solve started from (view 0's) */
+    sl_lens lens;                /* solved */
+    int pairs;
+    sl_stitch_pair *pair;
+    int pairs_solved, pairs_fallback;
+    int inliers;                 /* matches in the adjustment */
+    double rms_px, max_px;       /* reprojection error over them, pixels of the full views */
+    int iterations;              /* Levenberg-Marquardt iterations */
+    bool vignette_solved;        /* false: too few overlap samples, or not asked */
+    int vignette_samples;
+    double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
+    double seconds_features, seconds_match, seconds_adjust, seconds_total;
+} sl_stitch_solve_result;
+
+/* Solves the views' poses and their shared lens from the overlaps:
+ * features on a log-encoded copy of each view inside its image circle,
+ * matched between overlapping pairs, RANSAC on the sphere, a bundle
+ * adjustment of the poses (view 0 fixed) and the lens, then the vignetting
+ * from the radiance ratios. Overwrites views[i].lens and views[i].pose with
+ * the solution; a pair without enough good matches keeps its nominal
+ * relative rotation and res says so. Views of different sizes or
+ * projections, or a view with no image (NULL) are SL_ERR_INPUT. res is
+ * filled (free with sl_stitch_solve_result_free) whatever the status. */
+sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
+                          sl_stitch_solve_result *res, sl_error *err);
+void sl_stitch_solve_result_free(sl_stitch_solve_result *res);
+
+
+/* ------------------------------------------------------------------ */
+/* Stitch: image circle                                                 */
+/* ------------------------------------------------------------------ */
+
+/* The image circle of a circular fisheye view, fitted to its edge. */
+typedef struct sl_stitch_circle {
+    double cx, cy, radius; /* px; (0, 0) is the top-left corner of the top-left pixel */
+    double rms_px;         /* RMS distance of the edge points on the circle from it */
+    double support;        /* fraction of the rays cast with an edge point on the circle */
+    int rays, edges;       /* rays cast, edge points on the circle */
+    double radius_vs_nominal; /* radius / the nominal lens's circle_radius_px; 0 without */
+} sl_stitch_circle;
+
+/* Finds the image circle of an HDR (scene-linear) fisheye view: a coarse
+ * disc from sl_fisheye_check's evidence (dark frame border, dark outside,
+ * no Fresnel rim), then along 720 rays from its centre the sub-pixel point
+ * where the radiance falls halfway from the inside's level to the dark
+ * frame's (a box-filtered step edge crosses half at the edge itself), then
+ * a least-squares circle with outliers (a sun, a dark patch at the rim)
+ * dropped. nominal (may be NULL) only fills radius_vs_nominal. SL_ERR_INPUT
+ * "NAME: no image circle: ..." for a frame with no image circle (a
+ * rectilinear photo, a chrome-ball crop, a lat-long) or too few edge points
+ * on one circle. */
+sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
+                                const sl_lens *nominal, sl_stitch_circle *out, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Stitch: lens from EXIF                                               */
+/* ------------------------------------------------------------------ */
+
+/* What merge carries from the photos' EXIF into the merged EXR (OpenEXR's
+ * standard attributes, written from sl_meta): nominalFocalLength (mm),
+ * cameraMake, cameraModel, lensModel; and setlight's own, when the body's
+ * sensor is known: */
+#define SL_ATTR_SENSOR_MM "setlight:lens:sensor_mm" /* "W x H" in mm, e.g. "36 x 24" */
+#define SL_ATTR_SENSOR_SOURCE "setlight:lens:sensor_source" /* where it came from */
+#define SL_ATTR_FOCAL_35MM "setlight:lens:focal_35mm" /* 35 mm equivalent (diagonal) */
+
+/* The sensor size (mm) of a camera body from its EXIF make and model (a
+ * table of common bodies and the virtual set's camera); false if unknown. */
+bool sl_stitch_sensor_of_body(const char *make, const char *model, double *width_mm,
+                              double *height_mm);
+/* Adds the SL_ATTR_SENSOR_* and SL_ATTR_FOCAL_35MM attributes to meta when
+ * its body is known (make, model and focal length are already there). */
+sl_result sl_stitch_lens_meta_set(sl_meta *meta, sl_error *err);
+/* The nominal lens of a width x height view from its metadata: focal length
+ * from EXIF (nominalFocalLength in an EXR, FocalLength in a photo), sensor
+ * width from SL_ATTR_SENSOR_MM or else the body table, projection as given.
+ * False when a value is missing; `why` then says which, e.g. "no focal length
+ * in its metadata: give --focal-mm and --sensor-mm". */
+bool sl_stitch_lens_from_meta(const sl_meta *meta, sl_lens_projection projection, int width,
+                              int height, sl_lens *out, char *why, size_t why_size);
+
 /* Stitch: lens profiles                                               */
 /* ================================================================== */
 
@@ -862,6 +1022,147 @@ sl_result sl_lens_calibrate(const char *const *paths, int count,
                             const sl_lens_calibrate_options *opt, sl_lens_calibrate_result *res,
                             sl_error *err);
 void sl_lens_calibrate_result_free(sl_lens_calibrate_result *res);
+
+/* ================================================================== */
+/* Stitch: blend and the stitch call                                   */
+/* ================================================================== */
+
+#define SL_STITCH_MAX_VIEWS 16
+
+/* How the views are blended into the lat-long (docs/stitch.md "Blend"). */
+typedef struct sl_stitch_blend_options {
+    int width;               /* lat-long width (even); 0: sl_stitch_default_width */
+    int max_width;           /* cap of the default width (8192) */
+    int supersample;         /* samples per texel side; 0: from the views' density (one
+                                view pixel apart, 4x finer on hard edges) */
+    double ramp_deg;         /* each view's weight falls to 0 over this many degrees
+                                inside its field's edge (cos^2 ramp; 15) */
+    double ghost_ratio;      /* views that both see a texel well (weight >= 0.25) and
+                                differ by more than this fraction of the brighter, plus
+                                the noise floor, disagree: the best single view is
+                                taken and the texel counted as a ghost (0.3); <= 0: off */
+    double noise_floor;      /* absolute floor of that test; < 0: 1e-3 of the median
+                                luminance of the stitch */
+    double nadir_mask_deg;   /* directions within this of the nadir are not taken from
+                                any view (a tripod, a head): filled; 0: none */
+    const sl_image *mask;    /* a lat-long (any 2:1 size): texels > 0.5 are not taken
+                                from any view (filled); NULL: none */
+} sl_stitch_blend_options;
+
+void sl_stitch_blend_options_init(sl_stitch_blend_options *opt);
+
+/* The lat-long width that keeps the views' pixel density on the horizon:
+ * 2 pi focal_px rounded up to a multiple of 8, capped at max_width. */
+int sl_stitch_default_width(const sl_lens *lens, int max_width);
+
+typedef struct sl_stitch_coverage {
+    int width, height;
+    double seen_sr;          /* solid angle taken from the views (some weight > 0) */
+    double filled_sr;        /* solid angle filled from the seen border (no view, or masked) */
+    double masked_sr;        /* of filled_sr: masked (nadir or mask image) */
+    double low_sr;           /* of seen_sr: confidence under 0.5 (circles' edges) */
+    double view_sr[SL_STITCH_MAX_VIEWS]; /* solid angle each view contributes to */
+    int64_t ghost_texels;    /* texels where views disagreed: the best single view taken */
+    double ghost_sr;
+    int64_t filled_texels;
+    int supersample;         /* samples per texel side */
+    int supersample_hot;     /* ... where a view has a hard edge (a sun, a lamp) */
+    int64_t hot_texels;      /* texels sampled that finely */
+    double power[3];         /* integral of L over the sphere (W/sr units x sr), per channel */
+    double seen_power[3];    /* the same over the seen texels only */
+} sl_stitch_coverage;
+
+/* Where the blend hands the lat-long over, a strip of rows at a time: RGB
+ * then the confidence in A, width * 4 floats per row, `stride` floats
+ * apart, valid during the call only. */
+typedef sl_result (*sl_stitch_rows_fn)(void *user, const float *rows, int y0, int count,
+                                       size_t stride, sl_error *err);
+
+/* Blends views (their lens and pose as they are: nominal, profile or
+ * solved) into a lat-long in radiance: per texel, ss x ss samples, each
+ * view's radiance divided by its vignetting gain and weighted by the
+ * angle from its centre (1 + cos theta) / 2 times a cos^2 ramp to 0 at the
+ * field's edge times its confidence image; a weighted mean, so no light is
+ * made or lost and nothing is negative. Unseen or masked texels are filled
+ * smoothly from the seen border (diffusion on a coarse lat-long) and get
+ * confidence 0. A = min(1, sum of the views' weights). The rows go to
+ * `sink` in order. SL_ERR_INPUT naming the view for a view with a NaN/Inf
+ * sample or a radiance whose size is not its lens's. */
+sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
+                                 const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
+                                 void *user, sl_stitch_coverage *cov, sl_error *err);
+/* The same into a whole image (RGBA). */
+sl_result sl_stitch_blend(const sl_stitch_view *views, int count,
+                          const sl_stitch_blend_options *opt, sl_image *out,
+                          sl_stitch_coverage *cov, sl_error *err);
+
+typedef struct sl_stitch_options {
+    sl_stitch_blend_options blend;
+    /* The nominal lens: given whole (a profile), else from projection,
+     * focal and sensor (each 0 / -1: the files' metadata). */
+    const sl_lens *lens;
+    const char *lens_profile; /* a lens profile (JSON) to read and fit to the views */
+    const char *save_lens;   /* write the lens used (solved) as a profile here */
+    int projection;          /* sl_lens_projection; -1: equisolid */
+    double focal_mm;
+    double sensor_mm[2];     /* width, height (height 0: width * height / width of the image) */
+    /* Nominal poses in degrees; a list shorter than the views: the rest
+     * default (yaws evenly spaced over 360 from 0, pitch and roll 0). */
+    int yaw_count, pitch_count, roll_count;
+    double yaw_deg[SL_STITCH_MAX_VIEWS], pitch_deg[SL_STITCH_MAX_VIEWS],
+        roll_deg[SL_STITCH_MAX_VIEWS];
+    bool solve;              /* solve lens and poses from the overlaps (default true) */
+    const char *input_colorspace; /* NULL: the files' */
+    sl_pixel_type pixel_type;     /* half (default; float when a view's radiance
+                                     exceeds half's 65504) or float */
+    sl_exr_compression compression;
+} sl_stitch_options;
+
+void sl_stitch_options_init(sl_stitch_options *opt);
+
+typedef enum {
+    SL_STITCH_READ = 0, SL_STITCH_CIRCLE, SL_STITCH_SOLVE,
+    SL_STITCH_BLEND, /* the coarse pass and fill, the blend, the EXR's encoding and writing */
+    SL_STITCH_PHASES
+} sl_stitch_phase;
+const char *sl_stitch_phase_name(sl_stitch_phase phase);
+
+typedef struct sl_stitch_view_result {
+    char path[1024];
+    int width, height;
+    sl_view_pose nominal, pose;  /* as given, as used (solved) */
+    bool confidence;             /* a merge clipped mask weighted it */
+    char confidence_source[4096];
+} sl_stitch_view_result;
+
+typedef struct sl_stitch_result {
+    int view_count;
+    sl_stitch_view_result views[SL_STITCH_MAX_VIEWS];
+    sl_lens lens_nominal, lens;  /* as given, as used */
+    char lens_source[1024];      /* where the nominal lens came from */
+    sl_stitch_circle circle;     /* view 0's image circle */
+    bool circle_found;
+    bool solved;
+    sl_stitch_solve_result solve; /* pairs, matches, errors (when solved) */
+    char solve_note[512];        /* why not solved, or what the solve did */
+    sl_stitch_coverage coverage;
+    bool float_samples;          /* half was asked but the radiance needs float */
+    double wall[SL_STITCH_PHASES], cpu[SL_STITCH_PHASES];
+    double seconds, cpu_seconds;
+} sl_stitch_result;
+
+/* Stitches HDR views (files: EXR or any image setlight reads, all one
+ * camera, lens and size) into one lat-long EXR at out_path, written in
+ * strips (atomic: nothing is left on failure): RGB and the confidence in
+ * A, `envmap`, chromaticities and setlight:stitch:* provenance. The lens:
+ * opt->lens, else projection/focal/sensor from the options, else the
+ * files' EXIF; SL_ERR_INPUT naming the file when neither says. Refused
+ * (SL_ERR_INPUT naming the file or the pair): views of different sizes, a
+ * NaN/Inf sample, views that do not overlap the others. One view makes a
+ * partial lat-long. res may be NULL. */
+sl_result sl_stitch(const char *const *view_paths, int count, const char *out_path,
+                    const sl_stitch_options *opt, sl_stitch_result *res, sl_error *err);
+void sl_stitch_result_free(sl_stitch_result *res);
 
 #ifdef __cplusplus
 }
