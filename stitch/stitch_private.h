@@ -47,8 +47,10 @@ typedef struct solve_features {
 sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_options *opt,
                               solve_features *out, sl_error *err);
 void solve_features_free(solve_features *f);
-/* Cross-checked ratio-test matches; *pairs (index pairs) is malloc'd. */
-sl_result solve_match_features(const solve_features *a, const solve_features *b,
+/* Cross-checked ratio-test matches between the features with keep set
+ * (NULL: all); *pairs (index pairs into a's and b's features) is malloc'd. */
+sl_result solve_match_features(const solve_features *a, const bool *keep_a,
+                               const solve_features *b, const bool *keep_b,
                                const sl_stitch_solve_options *opt, int **pairs, int *count,
                                sl_error *err);
 

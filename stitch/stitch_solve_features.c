@@ -129,28 +129,57 @@ void solve_features_free(solve_features *f)
     memset(f, 0, sizeof *f);
 }
 
-sl_result solve_match_features(const solve_features *a, const solve_features *b,
+/* The descriptors of the features with keep[i] set (all when keep is
+ * NULL), packed; index[k] is the feature of the k-th. */
+static int pack(const solve_features *f, const bool *keep, unsigned char **desc, int **index)
+{
+    *desc = malloc((size_t)(f->count + 1) * STITCH_DESC_MAX);
+    *index = malloc((size_t)(f->count + 1) * sizeof **index);
+    if (!*desc || !*index)
+        return -1;
+    int n = 0;
+    for (int i = 0; i < f->count; i++)
+        if (!keep || keep[i]) {
+            memcpy(*desc + (size_t)n * STITCH_DESC_MAX, f->desc + (size_t)i * STITCH_DESC_MAX,
+                   STITCH_DESC_MAX);
+            (*index)[n++] = i;
+        }
+    return n;
+}
+
+sl_result solve_match_features(const solve_features *a, const bool *keep_a,
+                               const solve_features *b, const bool *keep_b,
                                const sl_stitch_solve_options *opt, int **pairs, int *count,
                                sl_error *err)
 {
     *pairs = NULL;
     *count = 0;
-    if (a->count < 2 || b->count < 2)
-        return SL_OK;
-    int cap = a->count < b->count ? a->count : b->count;
-    *pairs = malloc((size_t)cap * 2 * sizeof **pairs);
-    if (!*pairs)
-        return sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory for matches");
-    char msg[256] = "";
-    int detector = opt->detector && strcmp(opt->detector, "akaze") == 0 ? STITCH_DETECT_AKAZE
-                                                                         : STITCH_DETECT_SIFT;
-    int n = stitch_match_cxx(a->desc, a->count, b->desc, b->count, a->desc_bytes, detector,
-                             opt->ratio, *pairs, cap, msg, sizeof msg);
-    if (n < 0) {
+    unsigned char *da = NULL, *db = NULL;
+    int *ia = NULL, *ib = NULL;
+    int na = pack(a, keep_a, &da, &ia), nb = pack(b, keep_b, &db, &ib);
+    int cap = na < nb ? na : nb;
+    sl_result r = SL_OK;
+    if (na < 0 || nb < 0 || !(*pairs = malloc((size_t)(cap > 0 ? cap : 1) * 2 * sizeof **pairs)))
+        r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory for matches");
+    if (r == SL_OK && na >= 2 && nb >= 2) {
+        char msg[256] = "";
+        int detector = opt->detector && strcmp(opt->detector, "akaze") == 0
+                           ? STITCH_DETECT_AKAZE
+                           : STITCH_DETECT_SIFT;
+        int n = stitch_match_cxx(da, na, db, nb, a->desc_bytes, detector, opt->ratio, *pairs, cap,
+                                 msg, sizeof msg);
+        if (n < 0)
+            r = sl_error_set(err, SL_ERR_UNSUPPORTED, "stitch solve: %s", msg);
+        for (int k = 0; k < n; k++) {
+            (*pairs)[2 * k] = ia[(*pairs)[2 * k]];
+            (*pairs)[2 * k + 1] = ib[(*pairs)[2 * k + 1]];
+        }
+        *count = n > 0 ? n : 0;
+    }
+    if (r != SL_OK) {
         free(*pairs);
         *pairs = NULL;
-        return sl_error_set(err, SL_ERR_UNSUPPORTED, "stitch solve: %s", msg);
     }
-    *count = n;
-    return SL_OK;
+    free(da), free(db), free(ia), free(ib);
+    return r;
 }

@@ -161,7 +161,9 @@ static void rig(const char *label, int which, int count)
     sl_stitch_solve_options opt;
     sl_stitch_solve_options_init(&opt);
     sl_stitch_solve_result res;
+    double cpu = sl_cpu_seconds();
     CHECK_OK(sl_stitch_solve(views, count, &opt, &res, &err), &err);
+    cpu = sl_cpu_seconds() - cpu;
     const sl_lens *s = &res.lens;
     double focal_err = s->focal_px / lt.focal_px - 1.0;
     double centre_err = hypot(s->cx - lt.cx, s->cy - lt.cy);
@@ -171,10 +173,10 @@ static void rig(const char *label, int which, int count)
     double vig_err = vignette_error(&lt, s);
     printf("%s: focal %+.3f%% (nominal %+.2f%%), centre %.2f px, k1 %.4f, rotations %.4f deg, "
            "vignette %.2f%% (v1 %.3f v2 %.3f), rms %.3f px max %.2f px, %d inliers, %d iterations, "
-           "%.2f s (features %.2f, match %.2f, adjust %.2f)\n",
+           "%.2f s wall, %.2f s CPU (features %.2f, match %.2f, adjust %.2f)\n",
            label, 100 * focal_err, 100 * (ln.focal_px / lt.focal_px - 1), centre_err, s->k[0],
            rot_err, 100 * vig_err, s->vignette[0], s->vignette[1], res.rms_px, res.max_px,
-           res.inliers, res.iterations, res.seconds_total, res.seconds_features,
+           res.inliers, res.iterations, res.seconds_total, cpu, res.seconds_features,
            res.seconds_match, res.seconds_adjust);
     for (int p = 0; p < res.pairs; p++)
         printf("  pair %d-%d: %s, %.2f sr, %d matches, %d inliers, rms %.3f px %s\n",
