@@ -105,14 +105,36 @@ sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_
         char msg[256] = "";
         int detector = opt->detector && strcmp(opt->detector, "akaze") == 0 ? STITCH_DETECT_AKAZE
                                                                              : STITCH_DETECT_SIFT;
-        int found = stitch_features_cxx(gray, mask, w, h, detector, opt->max_features, out->xy,
+        /* Only the circle's bounding box goes to the detector: a 3:2
+         * frame's sides are black. */
+        int x0 = w, x1 = -1, y0 = h, y1 = -1;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++)
+                if (mask[(size_t)y * w + x]) {
+                    x0 = x < x0 ? x : x0;
+                    x1 = x > x1 ? x : x1;
+                    y0 = y < y0 ? y : y0;
+                    y1 = y > y1 ? y : y1;
+                }
+        x0 = x0 > 8 ? x0 - 8 : 0;
+        y0 = y0 > 8 ? y0 - 8 : 0;
+        x1 = x1 + 9 < w ? x1 + 9 : w;
+        y1 = y1 + 9 < h ? y1 + 9 : h;
+        int cw = x1 - x0, ch = y1 - y0;
+        for (int y = 0; y < ch; y++) {
+            memmove(gray + (size_t)y * cw, gray + (size_t)(y + y0) * w + x0, (size_t)cw);
+            memmove(mask + (size_t)y * cw, mask + (size_t)(y + y0) * w + x0, (size_t)cw);
+        }
+        int found = stitch_features_cxx(gray, mask, cw, ch, detector, opt->max_features, out->xy,
                                         out->desc, &out->desc_bytes, msg, sizeof msg);
         if (found < 0)
             r = sl_error_set(err, SL_ERR_UNSUPPORTED, "%s: %s", view->name, msg);
         else
             out->count = found;
-        for (int i = 0; i < out->count * 2; i++)
-            out->xy[i] = (float)(out->xy[i] * out->scale);
+        for (int i = 0; i < out->count; i++) {
+            out->xy[2 * i] = (float)((out->xy[2 * i] + x0) * out->scale);
+            out->xy[2 * i + 1] = (float)((out->xy[2 * i + 1] + y0) * out->scale);
+        }
     }
     free(gray), free(mask), free(logs);
     if (r != SL_OK)
