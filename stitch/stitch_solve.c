@@ -20,7 +20,7 @@ void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
     o->solve_poses = true;
     o->solve_focal = true;
     o->solve_centre = true;
-    o->radial_terms = 1;
+    o->radial_terms = 2;
     o->solve_vignette = true;
     o->detector = "sift";
     o->feature_width = 1536;
