@@ -40,7 +40,7 @@ typedef struct vcam {
     sl_virtual_camera_opts o;
     sl_vset_scene scene;
     sl_vset_camera body;
-    sl_vset_lens lens;
+    sl_lens lens; /* the virtual set's true fisheye */
     int width, height;
     sl_image radiance; /* the current view through the lens, cached */
     int view, views;
@@ -211,7 +211,8 @@ static void frame_meta(const vcam *v, sl_meta *meta, int *subsec_ms)
     meta->exposure_time = v->shutter; /* what the body believes it used */
     meta->f_number = v->f_number;
     meta->iso = v->iso;
-    meta->focal_length_mm = v->lens.focal_mm;
+    meta->focal_length_mm = SL_VSET_FISHEYE_FOCAL_MM;
+    snprintf(meta->lens, sizeof meta->lens, "%s", SL_VSET_FISHEYE_NAME);
     snprintf(meta->make, sizeof meta->make, "%s", v->body.make);
     snprintf(meta->model, sizeof meta->model, "%s", v->body.model);
     time_t when = (time_t)(CLOCK_EPOCH + floor(v->clock));
@@ -278,9 +279,8 @@ static sl_result v_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
     }
     sl_result r = SL_OK;
     if (!v->radiance.data) {
-        const sl_vset_view view = {v->views > 0 ? 360.0 * v->view / v->views : 0, 0, 0};
-        r = sl_vset_lens_image(&v->lens, &view, &v->scene.latlong, v->width, v->height, 2,
-                               &v->radiance, err);
+        const sl_view_pose view = {v->views > 0 ? 360.0 * v->view / v->views : 0, 0, 0};
+        r = sl_vset_view_image(&v->lens, &view, &v->scene.latlong, 2, &v->radiance, err);
         if (r)
             return r;
     }
@@ -381,7 +381,7 @@ sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_erro
     sl_vset_camera_default(&v->body, d.wb_kelvin);
     sl_vset_response_preset("srgb", &v->body.response, NULL);
     snprintf(v->body.model, sizeof v->body.model, "virtual camera");
-    sl_vset_lens_fisheye8(&v->lens);
+    sl_vset_fisheye_true(&v->lens, v->width, v->height);
     v->f_number = nearest(k_fnumbers, COUNT(k_fnumbers), d.f_number);
     v->iso = nearest(k_isos, COUNT(k_isos), d.iso);
     double lavg = sl_vset_log_average(&v->scene.latlong);

@@ -192,8 +192,38 @@ static sl_result write_json(const char *path, json_t *root, sl_error *err)
     return r;
 }
 
+/* Every field of a core lens, so a test can rebuild it exactly. */
+static json_t *lens_json(const sl_lens *l)
+{
+    return json_pack("{s:s, s:i, s:i, s:f, s:f, s:f, s:[fff], s:[fff], s:f, s:f}", "projection",
+                     sl_lens_projection_name(l->projection), "width", l->width, "height",
+                     l->height, "focal_px", l->focal_px, "cx", l->cx, "cy", l->cy, "k", l->k[0],
+                     l->k[1], l->k[2], "vignette", l->vignette[0], l->vignette[1],
+                     l->vignette[2], "max_theta_deg", l->max_theta_deg, "circle_radius_px",
+                     l->circle_radius_px);
+}
+
+/* The HDRI lens as it is and as its EXIF states it, and the true pose of
+ * every view and frame (capture.json keeps the plan). */
+static json_t *hdri_truth_json(const sl_lens *lens, const sl_lens *nominal, json_t *views,
+                               json_t *frames)
+{
+    json_t *l = lens_json(lens);
+    json_object_set_new(l, "name", json_string(SL_VSET_FISHEYE_NAME));
+    json_object_set_new(l, "focal_mm", json_real(lens->focal_px * SL_VSET_SENSOR_WIDTH_MM /
+                                                 lens->width));
+    json_object_set_new(l, "sensor_width_mm", json_real(SL_VSET_SENSOR_WIDTH_MM));
+    json_object_set_new(l, "nominal", lens_json(nominal));
+    json_object_set_new(json_object_get(l, "nominal"), "focal_mm",
+                        json_real(SL_VSET_FISHEYE_FOCAL_MM));
+    return json_pack("{s:o, s:s, s:O, s:O}", "lens", l, "axes",
+                     "camera frame x image right, y image down, z forward (sl_lens); poses as "
+                     "sl_view_pose (degrees); view 0 defines the frame of truth/latlong.exr",
+                     "views", views, "frames", frames);
+}
+
 static sl_result write_camera_json(const char *path, const sl_vset_camera *cam,
-                                   const sl_vset_lens *lens, const sl_vset_capture_opts *o,
+                                   json_t *hdri, const sl_vset_capture_opts *o,
                                    sl_error *err)
 {
     json_t *curve = json_array();
@@ -203,7 +233,7 @@ static sl_result write_camera_json(const char *path, const sl_vset_camera *cam,
     sl_vset_camera_output_matrix(cam, out);
     json_t *root = json_pack(
         "{s:s, s:s, s:s, s:f, s:f, s:f, s:f, s:f, s:i, s:o, s:[fff], s:o, s:o, s:f, "
-        "s:{s:s, s:i, s:o}, s:{s:s, s:f, s:f, s:f, s:f}}",
+        "s:{s:s, s:i, s:o}}",
         "make", cam->make, "model", cam->model, "exposure_model",
         "X = L * t * (ISO/100) * k / N^2, X = 1 at raw saturation", "k", cam->k,
         "full_well_e_iso100", cam->full_well_e, "read_noise_pre_e", cam->read_noise_pre_e,
@@ -211,9 +241,8 @@ static sl_result write_camera_json(const char *path, const sl_vset_camera *cam,
         "raw_bits", cam->raw_bits, "cam_from_rec709", mat3(cam->cam_from_rec709), "wb",
         cam->wb[0], cam->wb[1], cam->wb[2], "ccm", mat3(cam->ccm), "output_from_rec709",
         mat3(out), "wb_kelvin", o->wb_kelvin, "response", "name", cam->response.name,
-        "samples", SL_VSET_CRF_SAMPLES, "curve", curve, "lens", "name", lens->name,
-        "focal_mm", lens->focal_mm, "sensor_width_mm", lens->sensor_width_mm, "vignette_a",
-        lens->vignette_a, "vignette_b", lens->vignette_b);
+        "samples", SL_VSET_CRF_SAMPLES, "curve", curve);
+    json_object_update(root, hdri);
     return write_json(path, root, err);
 }
 
@@ -225,18 +254,18 @@ static void exif_time(int seconds, char *out, size_t size)
 }
 
 /* EXIF of a frame; the camera's clock moves on by the exposure and a second. */
-static void frame_meta(sl_meta *meta, const sl_vset_camera *cam, const sl_vset_lens *lens,
-                       const sl_vset_exposure *e, int *clock)
+static void frame_meta(sl_meta *meta, const sl_vset_camera *cam, const char *lens_name,
+                       double focal_mm, const sl_vset_exposure *e, int *clock)
 {
     sl_meta_init(meta);
     meta->exposure_time = e->time_s;
     meta->f_number = e->f_number;
     meta->iso = e->iso;
-    meta->focal_length_mm = lens->focal_mm;
+    meta->focal_length_mm = focal_mm;
     meta->orientation = 1;
     snprintf(meta->make, sizeof meta->make, "%s", cam->make);
     snprintf(meta->model, sizeof meta->model, "%s", cam->model);
-    snprintf(meta->lens, sizeof meta->lens, "%s", lens->name);
+    snprintf(meta->lens, sizeof meta->lens, "%s", lens_name);
     exif_time(*clock, meta->datetime, sizeof meta->datetime);
     *clock += 1 + (int)ceil(e->time_s);
 }
@@ -260,23 +289,38 @@ static sl_result write_frame(const char *tmp, const char *folder, const char *na
     return r;
 }
 
+static json_t *pose_json(const sl_view_pose *p)
+{
+    return json_pack("{s:f, s:f, s:f}", "yaw_deg", p->yaw_deg, "pitch_deg", p->pitch_deg,
+                     "roll_deg", p->roll_deg);
+}
+
+/* The HDRI: each view's bracket through the true lens at the head's true
+ * pose; capture.json gets the plan, the truth what really happened. */
 static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
-                              const sl_vset_camera *cam, const sl_vset_lens *lens,
+                              const sl_vset_camera *cam, const sl_lens *lens,
                               const sl_image *latlong, const double *times, double lavg,
-                              json_t *frames, int *frame, int *clock, sl_error *err)
+                              json_t *frames, json_t *truth_views, json_t *truth_frames,
+                              int *frame, int *clock, sl_error *err)
 {
     int nviews = o->views + (o->zenith ? 1 : 0);
     bool per_frame = o->jitter_deg > 0 || o->ghost;
     sl_result r = SL_OK;
     for (int v = 0; v < nviews && !r; v++) {
-        const sl_vset_view base = {v < o->views ? 360.0 * v / o->views : 0,
+        const sl_view_pose plan = {v < o->views ? 360.0 * v / o->views : 0,
                                    v < o->views ? 0 : 90, 0};
+        sl_view_pose base;
+        sl_vset_head_pose(o->seed, v, &plan, &base);
+        json_t *tv = pose_json(&base);
+        json_object_set_new(tv, "view", json_integer(v));
+        json_object_set_new(tv, "plan", pose_json(&plan));
+        json_array_append_new(truth_views, tv);
         sl_image rad = {0};
-        if (!per_frame && (r = sl_vset_lens_image(lens, &base, latlong, o->photo_width,
-                                                  o->photo_height, o->supersample, &rad, err)))
+        if (!per_frame &&
+            (r = sl_vset_view_image(lens, &base, latlong, o->supersample, &rad, err)))
             break;
         for (int k = 0; k < o->brackets && !r; k++) {
-            sl_vset_view view = base;
+            sl_view_pose view = base;
             bool ghost = o->ghost && v == 0;
             if (per_frame) {
                 /* Hand-held or loose head: the view wanders a little per frame. */
@@ -292,8 +336,7 @@ static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
                     use = &env;
                 }
                 sl_image_free(&rad);
-                r = sl_vset_lens_image(lens, &view, use, o->photo_width, o->photo_height,
-                                       o->supersample, &rad, err);
+                r = sl_vset_view_image(lens, &view, use, o->supersample, &rad, err);
                 sl_image_free(&env);
                 if (r)
                     break;
@@ -307,7 +350,7 @@ static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
             sl_meta meta;
             char name[64];
             snprintf(name, sizeof name, "IMG_%04d", *frame);
-            frame_meta(&meta, cam, lens, &e, clock);
+            frame_meta(&meta, cam, SL_VSET_FISHEYE_NAME, SL_VSET_FISHEYE_FOCAL_MM, &e, clock);
             r = write_frame(tmp, "hdri", name, &shot, &meta, err);
             if (!r) {
                 json_t *g = ghost ? json_pack("{s:f, s:f, s:f, s:f}", "azimuth_deg",
@@ -318,10 +361,14 @@ static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
                 json_array_append_new(
                     frames,
                     json_pack("{s:s, s:i, s:f, s:f, s:f, s:i, s:f, s:f, s:f, s:s, s:o}", "name",
-                              name, "view", v, "yaw_deg", view.yaw_deg, "pitch_deg",
-                              view.pitch_deg, "roll_deg", view.roll_deg, "bracket", k,
+                              name, "view", v, "yaw_deg", plan.yaw_deg, "pitch_deg",
+                              plan.pitch_deg, "roll_deg", plan.roll_deg, "bracket", k,
                               "exposure_time_s", e.time_s, "f_number", e.f_number, "iso", e.iso,
                               "datetime", meta.datetime, "ghost", g));
+                json_t *tf = pose_json(&view);
+                json_object_set_new(tf, "name", json_string(name));
+                json_object_set_new(tf, "view", json_integer(v));
+                json_array_append_new(truth_frames, tf);
             }
             sl_meta_free(&meta);
             sl_vset_shot_free(&shot);
@@ -455,7 +502,7 @@ static sl_result shoot_probes(const sl_vset_capture_opts *o, const char *tmp,
             char name[64];
             snprintf(name, sizeof name, "IMG_%04d", *frame);
             sl_meta meta;
-            frame_meta(&meta, cam, &p.lens, &e, clock);
+            frame_meta(&meta, cam, p.lens.name, p.lens.focal_mm, &e, clock);
             r = write_frame(tmp, "probes", name, &shot, &meta, err);
             if (!r) {
                 json_array_append_new(fr, json_pack("{s:s, s:i, s:f, s:f, s:f, s:s}", "name",
@@ -566,15 +613,17 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     sl_vset_camera_default(&cam, o->wb_kelvin);
     cam.response = o->response;
     cam.raw_bits = o->raw_bits;
-    sl_vset_lens lens;
-    sl_vset_lens_fisheye8(&lens);
+    sl_lens lens, nominal;
+    sl_vset_fisheye_true(&lens, o->photo_width, o->photo_height);
+    sl_vset_fisheye_nominal(&nominal, o->photo_width, o->photo_height);
     double times[16];
     int frame = 0, clock = 0;
     double lavg = plan_exposures(o, &cam, &scene.latlong, times);
     json_t *frames = json_array(), *probes = json_array(), *probes_truth = json_array();
+    json_t *truth_views = json_array(), *truth_frames = json_array();
     if (!r)
-        r = shoot_frames(o, tmp, &cam, &lens, &scene.latlong, times, lavg, frames, &frame,
-                         &clock, err);
+        r = shoot_frames(o, tmp, &cam, &lens, &scene.latlong, times, lavg, frames, truth_views,
+                         truth_frames, &frame, &clock, err);
     if (!r && o->probe_width > 0) {
         snprintf(sub, sizeof sub, "%s/probes", tmp);
         r = make_dir(sub, err);
@@ -612,7 +661,9 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     }
     if (!r) {
         snprintf(sub, sizeof sub, "%s/truth/camera.json", tmp);
-        r = write_camera_json(sub, &cam, &lens, o, err);
+        json_t *hdri = hdri_truth_json(&lens, &nominal, truth_views, truth_frames);
+        r = write_camera_json(sub, &cam, hdri, o, err);
+        json_decref(hdri);
     }
     if (!r) {
         json_t *times_js = json_array();
@@ -624,7 +675,7 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
             "setlight_capture", "virtual set", "version", sl_version(), "scene", scene.desc.name,
             "seed", (json_int_t)o->seed, "views", o->views, "zenith", o->zenith, "brackets",
             o->brackets, "stops", o->stops, "exposure_times_s", times_js, "f_number",
-            o->f_number, "iso", o->iso, "lens", lens.name, "width", o->photo_width, "height",
+            o->f_number, "iso", o->iso, "lens", SL_VSET_FISHEYE_NAME, "width", o->photo_width, "height",
             o->photo_height, "jitter_deg", o->jitter_deg, "ghost", o->ghost, "frames", frames,
             "truth", "latlong", "truth/latlong.exr", "lights", "truth/lights.json", "camera",
             "truth/camera.json");
@@ -638,6 +689,8 @@ sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
     json_decref(frames);
     json_decref(probes);
     json_decref(probes_truth);
+    json_decref(truth_views);
+    json_decref(truth_frames);
     sl_vset_scene_free(&scene);
     if (!r) {
         /* Swap the finished folder in; an old capture goes only after. */

@@ -96,7 +96,10 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
         f->f_number = meta.f_number;
         f->iso = meta.iso;
         int orientation = meta.orientation;
+        r = merge_lens_exif(paths, i, &meta, res, err);
         sl_meta_free(&meta);
+        if (r)
+            break;
         if (i == 0) {
             m->width = info.width;
             m->height = info.height;

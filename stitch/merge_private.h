@@ -230,6 +230,12 @@ sl_result merge_mask_meta(const char *path, const sl_merge_result *res, sl_meta 
 void merge_ctx_free(merge_ctx *m);
 /* Units, output scale and weights as EXR attributes (setlight:merge:units,
  * output_exposure, weights). */
+/* Keeps frame i's lens EXIF (focal length, camera, lens) in res: frame 0's,
+ * and SL_ERR_INPUT when a later frame names another lens or camera. */
+sl_result merge_lens_exif(const char *const *paths, int i, const sl_meta *meta,
+                          sl_merge_result *res, sl_error *err);
+/* The lens EXIF of res into the merged EXR's metadata (sl_stitch_lens_meta_set). */
+sl_result merge_lens_meta(sl_meta *meta, const sl_merge_result *res, sl_error *err);
 sl_result merge_provenance_meta(sl_meta *meta, const sl_merge_result *res, sl_error *err);
 
 /* Sample i of a strip of integer codes (uint8_t or uint16_t). */

@@ -102,6 +102,8 @@ sl_result merge_output_meta(const char *path, const char *mask_path, const char 
     if (!r)
         r = merge_provenance_meta(meta, res, err);
     if (!r)
+        r = merge_lens_meta(meta, res, err);
+    if (!r)
         r = set_number(meta, "setlight:merge:clipped_fraction", "%.9e", res->clipped_fraction, err);
     if (!r)
         r = set_count(meta, "setlight:merge:clipped_pixels", res->clipped_pixels, res, err);

@@ -203,7 +203,8 @@ static void test_capture_and_exif(void)
                       SL_VSET_CRF_SAMPLES);
     json_decref(root);
 
-    /* Same seed, same bytes; another seed, other noise but the same truth. */
+    /* Same seed, same bytes; another seed, other noise and head errors but
+     * the same scene and probes. */
     const char *b = sl_test_path("cap_b"), *c = sl_test_path("cap_c");
     sl_threads_set(1);
     CHECK_OK(sl_vset_capture_write(&o, b, NULL, &err), &err);
@@ -224,7 +225,8 @@ static void test_capture_and_exif(void)
         snprintf(pb, sizeof pb, "%s/%s", b, files[i]);
         snprintf(pc, sizeof pc, "%s/%s", c, files[i]);
         CHECK_MSG(same_file(pa, pb), "%s differs between runs with one seed", files[i]);
-        bool truth = strncmp(files[i], "truth/", 6) == 0;
+        /* The head's true poses (truth/camera.json) come from the seed too. */
+        bool truth = strncmp(files[i], "truth/", 6) == 0 && strcmp(files[i], "truth/camera.json");
         CHECK_MSG(same_file(pa, pc) == truth, "%s: seed changes %s", files[i],
                   truth ? "the truth" : "nothing");
     }
@@ -291,10 +293,20 @@ static void test_refusals(void)
     CHECK(!sl_test_file_exists(sl_test_path("never")));
 }
 
+static double jnum(json_t *o, const char *key) { return json_number_value(json_object_get(o, key)); }
+
 static json_t *frames_of(const char *dir)
 {
     char path[4096];
     snprintf(path, sizeof path, "%s/capture.json", dir);
+    json_error_t je;
+    return json_load_file(path, 0, &je);
+}
+
+static json_t *camera_truth_of(const char *dir)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/truth/camera.json", dir);
     json_error_t je;
     return json_load_file(path, 0, &je);
 }
@@ -316,14 +328,37 @@ static void test_views_jitter_ghost(void)
     const char *plain = sl_test_path("plain"), *moved = sl_test_path("moved");
     CHECK_OK(sl_vset_capture_write(&o, plain, &s, &err), &err);
     CHECK(s.frames == 12 && s.views == 4);
-    json_t *a = frames_of(plain);
-    CHECK(frame_num(a, 11, "pitch_deg") == 90 && frame_num(a, 3, "yaw_deg") == 120);
-    CHECK(json_is_null(json_object_get(json_array_get(json_object_get(a, "frames"), 0), "ghost")));
+    json_t *plan = frames_of(plain);
+    CHECK(frame_num(plan, 11, "pitch_deg") == 90 && frame_num(plan, 3, "yaw_deg") == 120);
+    CHECK(frame_num(plan, 4, "roll_deg") == 0);
+    CHECK(json_is_null(json_object_get(json_array_get(json_object_get(plan, "frames"), 0), "ghost")));
+    json_decref(plan);
+    /* The head is off its plan by the documented amounts; view 0 defines the frame. */
+    json_t *a = camera_truth_of(plain);
+    json_t *views = json_object_get(a, "views");
+    CHECK(json_array_size(views) == 4);
+    for (size_t v = 0; v < json_array_size(views); v++) {
+        json_t *tv = json_array_get(views, v), *pv = json_object_get(tv, "plan");
+        double dy = jnum(tv, "yaw_deg") - jnum(pv, "yaw_deg");
+        double dp = jnum(tv, "pitch_deg") - jnum(pv, "pitch_deg");
+        double dr = jnum(tv, "roll_deg") - jnum(pv, "roll_deg");
+        printf("  view %zu: head off its plan by yaw %+.3f, pitch %+.3f, roll %+.3f deg\n", v, dy,
+               dp, dr);
+        if (v == 0) {
+            CHECK(dy == 0 && dp == 0 && dr == 0);
+            continue;
+        }
+        CHECK(fabs(dy) >= 0.5 && fabs(dy) <= 1.0);
+        CHECK(fabs(dp) >= 0.3 && fabs(dp) <= 0.5);
+        CHECK(fabs(dr) >= 0.3 && fabs(dr) <= 0.5);
+        if (v == 3)
+            CHECK(dp < 0); /* the zenith view tilts down from the zenith */
+    }
 
     o.jitter_deg = 0.5;
     o.ghost = true;
     CHECK_OK(sl_vset_capture_write(&o, moved, &s, &err), &err);
-    json_t *b = frames_of(moved);
+    json_t *b = camera_truth_of(moved);
     double wander = 0;
     for (int i = 0; i < 12; i++) {
         double dy = frame_num(b, i, "yaw_deg") - frame_num(a, i, "yaw_deg");
@@ -335,13 +370,15 @@ static void test_views_jitter_ghost(void)
     printf("  jitter: measured %.3f deg for 0.5 asked\n", sd);
     CHECK(sd > 0.3 && sd < 0.7);
     /* The ghost walks across view 0 only, 4 degrees per frame. */
-    json_t *f0 = json_array_get(json_object_get(b, "frames"), 0);
-    json_t *f1 = json_array_get(json_object_get(b, "frames"), 1);
-    json_t *f7 = json_array_get(json_object_get(b, "frames"), 3);
+    json_t *moved_plan = frames_of(moved);
+    json_t *f0 = json_array_get(json_object_get(moved_plan, "frames"), 0);
+    json_t *f1 = json_array_get(json_object_get(moved_plan, "frames"), 1);
+    json_t *f7 = json_array_get(json_object_get(moved_plan, "frames"), 3);
     CHECK_NEAR(json_number_value(json_object_get(json_object_get(f1, "ghost"), "azimuth_deg")) -
                    json_number_value(json_object_get(json_object_get(f0, "ghost"), "azimuth_deg")),
                4, 1e-9);
     CHECK(json_is_null(json_object_get(f7, "ghost")));
+    json_decref(moved_plan);
     json_decref(a);
     json_decref(b);
     /* Ghost without jitter: view 0 frames change, the others stay the same bytes. */
@@ -359,7 +396,26 @@ static void test_views_jitter_ghost(void)
     CHECK_RESULT(sl_vset_capture_write(&o, sl_test_path("never2"), NULL, &err), SL_ERR_USAGE, &err);
 }
 
-static double jnum(json_t *o, const char *key) { return json_number_value(json_object_get(o, key)); }
+
+/* A core lens from truth/camera.json's record of it. */
+static void lens_of(json_t *j, sl_lens *l)
+{
+    memset(l, 0, sizeof *l);
+    l->projection = (sl_lens_projection)sl_lens_projection_from_name(
+        json_string_value(json_object_get(j, "projection")));
+    l->width = (int)json_integer_value(json_object_get(j, "width"));
+    l->height = (int)json_integer_value(json_object_get(j, "height"));
+    l->focal_px = jnum(j, "focal_px");
+    l->cx = jnum(j, "cx");
+    l->cy = jnum(j, "cy");
+    for (int i = 0; i < 3; i++) {
+        l->k[i] = json_number_value(json_array_get(json_object_get(j, "k"), (size_t)i));
+        l->vignette[i] =
+            json_number_value(json_array_get(json_object_get(j, "vignette"), (size_t)i));
+    }
+    l->max_theta_deg = jnum(j, "max_theta_deg");
+    l->circle_radius_px = jnum(j, "circle_radius_px");
+}
 
 /* The frames, inverted with nothing but the files of the capture (EXIF and
  * truth/camera.json), give back the ground-truth lat-long: the camera,
@@ -399,14 +455,22 @@ static void test_frames_invert_to_truth(void)
             int a = (j + 1) % 3, b = (j + 2) % 3, c = (i + 1) % 3, d = (i + 2) % 3;
             minv[i][j] = (m[a][c] * m[b][d] - m[a][d] * m[b][c]) / det;
         }
-    json_t *lj = json_object_get(cam, "lens");
-    sl_vset_lens lens;
-    memset(&lens, 0, sizeof lens);
-    lens.type = SL_VSET_LENS_EQUISOLID;
-    lens.focal_mm = jnum(lj, "focal_mm");
-    lens.sensor_width_mm = jnum(lj, "sensor_width_mm");
-    lens.vignette_a = jnum(lj, "vignette_a");
-    lens.vignette_b = jnum(lj, "vignette_b");
+    sl_lens lens;
+    lens_of(json_object_get(cam, "lens"), &lens);
+    /* The truth records every lens field: the one the frames were made with. */
+    sl_lens made;
+    sl_vset_fisheye_true(&made, 240, 160);
+    CHECK(lens.projection == made.projection && lens.width == 240 && lens.height == 160);
+    CHECK_NEAR(lens.focal_px, made.focal_px, 1e-6);
+    CHECK_NEAR(lens.cx, made.cx, 1e-6);
+    CHECK_NEAR(lens.cy, made.cy, 1e-6);
+    CHECK_NEAR(lens.circle_radius_px, made.circle_radius_px, 1e-6);
+    for (int i = 0; i < 3; i++) {
+        CHECK_NEAR(lens.k[i], made.k[i], 1e-9);
+        CHECK_NEAR(lens.vignette[i], made.vignette[i], 1e-9);
+    }
+    CHECK(lens.focal_px != 8.0 * 240 / 36 && lens.cx != 120); /* not the nominal lens */
+    json_t *true_frames = json_incref(json_object_get(cam, "frames"));
     double k = jnum(cam, "k");
     json_decref(cam);
 
@@ -429,7 +493,12 @@ static void test_frames_invert_to_truth(void)
         /* Exposure from EXIF (TIFF loses ISO in OIIO 2.4: it is in the plan). */
         double scale = meta.exposure_time * (jnum(fr, "iso") / 100.0) * k /
                        (meta.f_number * meta.f_number);
-        sl_vset_view view = {jnum(fr, "yaw_deg"), jnum(fr, "pitch_deg"), jnum(fr, "roll_deg")};
+        json_t *tf = json_array_get(true_frames, f);
+        CHECK(!strcmp(json_string_value(json_object_get(tf, "name")),
+                      json_string_value(json_object_get(fr, "name"))));
+        sl_view_pose view = {jnum(tf, "yaw_deg"), jnum(tf, "pitch_deg"), jnum(tf, "roll_deg")};
+        double rot[3][3];
+        sl_view_pose_matrix(&view, rot);
         for (int y = 4; y < img.height - 4; y += 2)
             for (int x = 4; x < img.width - 4; x += 2) {
                 const float *p = sl_image_pixel(&img, x, y);
@@ -439,10 +508,11 @@ static void test_frames_invert_to_truth(void)
                     if (lin[c] < 0.1 || lin[c] > 0.7)
                         ok = 0;
                 }
-                if (!ok || !sl_vset_lens_to_dir(&lens, &view, img.width, img.height, x + 0.5,
-                                                y + 0.5, dir3))
+                double ray[3];
+                if (!ok || !sl_lens_pixel_to_ray(&lens, x + 0.5, y + 0.5, ray))
                     continue;
-                double g = sl_vset_lens_vignette(&lens, img.width, img.height, x + 0.5, y + 0.5);
+                sl_mat3_apply(rot, ray, dir3);
+                double g = sl_lens_vignette(&lens, x + 0.5, y + 0.5);
                 for (int i = 0; i < 3; i++)
                     for (int j = 0; j < 3; j++)
                         est[i] += minv[i][j] * lin[j] / (scale * g);
@@ -463,6 +533,7 @@ static void test_frames_invert_to_truth(void)
         sl_meta_free(&meta);
     }
     json_decref(capj);
+    json_decref(true_frames);
     sl_image_free(&truth);
     printf("  %d well-exposed pixels: %.2f%% within 5%% of the truth, mean error %.3f%%\n", used,
            100.0 * close / used, 100.0 * sum_rel / used);

@@ -212,7 +212,7 @@ static void test_bad_probes(void)
     CHECK_RESULT(sl_vset_probe_render(&p, &env, &img, NULL, &err), SL_ERR_USAGE, &err);
     CHECK(strstr(err.message, "grey") != NULL && img.data == NULL);
     sl_vset_probe_default(&p, SL_VSET_PROBE_CHROME, 64, 48);
-    sl_vset_lens_fisheye8(&p.lens);
+    p.lens.focal_mm = 0; /* no lens */
     CHECK_RESULT(sl_vset_probe_render(&p, &env, &img, NULL, &err), SL_ERR_USAGE, &err);
     CHECK(strstr(err.message, "rectilinear") != NULL);
     sl_vset_probe_default(&p, SL_VSET_PROBE_CHART, 8, 48);

@@ -205,9 +205,9 @@ void sl_vset_quantize(sl_image *img, int bits);
 
 /* ---- lenses --------------------------------------------------------- */
 
+/* The probes' long lens; the HDRI fisheye is an sl_lens (below). */
 typedef enum {
-    SL_VSET_LENS_RECTILINEAR = 0, /* r = f tan(theta) */
-    SL_VSET_LENS_EQUISOLID        /* fisheye, r = 2 f sin(theta / 2), theta <= 90 deg */
+    SL_VSET_LENS_RECTILINEAR = 0 /* r = f tan(theta) */
 } sl_vset_lens_type;
 
 typedef struct sl_vset_lens {
@@ -216,7 +216,7 @@ typedef struct sl_vset_lens {
     double focal_mm;
     double sensor_width_mm; /* the image's width; pixels are square */
     /* Optical vignetting: gain 1 + a rho^2 + b rho^4, rho = r / half
-     * diagonal; rectilinear lenses also get natural cos^4(theta). */
+     * diagonal, times natural cos^4(theta). */
     double vignette_a, vignette_b;
 } sl_vset_lens;
 
@@ -226,14 +226,11 @@ typedef struct sl_vset_view {
     double yaw_deg, pitch_deg, roll_deg;
 } sl_vset_view;
 
-/* 8mm equisolid fisheye on a 36 mm wide sensor (a circular 180 deg image). */
-void sl_vset_lens_fisheye8(sl_vset_lens *lens);
 /* Rectilinear lens of focal_mm on a 36 mm wide sensor. */
 void sl_vset_lens_rectilinear(sl_vset_lens *lens, double focal_mm);
 
 /* Direction seen at image position (x, y) in pixels (0,0 = top-left
- * corner of the top-left pixel) of a width x height image; false outside
- * the image circle. */
+ * corner of the top-left pixel) of a width x height image. */
 bool sl_vset_lens_to_dir(const sl_vset_lens *lens, const sl_vset_view *view, int width,
                          int height, double x, double y, double dir[3]);
 /* Inverse; false when the direction is outside the lens's field. */
@@ -242,12 +239,6 @@ bool sl_vset_lens_from_dir(const sl_vset_lens *lens, const sl_vset_view *view, i
 /* Vignetting gain at image position (x, y). */
 double sl_vset_lens_vignette(const sl_vset_lens *lens, int width, int height, double x,
                              double y);
-/* Radiance image of an environment at infinity (lat-long) through the lens:
- * ss x ss samples per pixel, bilinear lookups, vignetting applied, black
- * outside the image circle. */
-sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
-                             const sl_image *latlong, int width, int height, int ss,
-                             sl_image *out, sl_error *err);
 
 /* Radiance image of an environment at infinity through any lens of the
  * core model (projection, correction, off-centre axis, its vignetting
@@ -256,6 +247,25 @@ sl_result sl_vset_lens_image(const sl_vset_lens *lens, const sl_vset_view *view,
  * tests and the fisheye views of the virtual set are made with it. */
 sl_result sl_vset_view_image(const sl_lens *lens, const sl_view_pose *pose,
                              const sl_image *latlong, int ss, sl_image *out, sl_error *err);
+
+/* The HDRI fisheye of the virtual set: what its EXIF states (nominal) and
+ * what the glass really is (true), for a width x height frame on the 36 mm
+ * wide sensor. Nominal: 8 mm equisolid, centre at the frame's centre, no
+ * correction, no falloff. True: focal 8.12 mm (1.5% long), optical centre
+ * +0.6% and -0.4% of the width off the frame's centre, radial correction
+ * k1 = 0.02, k2 = -0.01, vignetting v1 = -0.034, v2 = -0.003 (a 8% falloff
+ * at the circle), max field 90 deg; circle_radius_px where theta = 90 deg. */
+#define SL_VSET_FISHEYE_NAME "8mm f/3.5 equisolid fisheye"
+#define SL_VSET_FISHEYE_FOCAL_MM 8.0
+#define SL_VSET_SENSOR_WIDTH_MM 36.0
+void sl_vset_fisheye_nominal(sl_lens *lens, int width, int height);
+void sl_vset_fisheye_true(sl_lens *lens, int width, int height);
+/* The nodal head's true pose of view `view` of a capture whose plan is
+ * `plan`: view 0 is exact (it defines the frame of the truth lat-long);
+ * every other view's yaw is off by 0.5-1 deg and its pitch and roll by
+ * 0.3-0.5 deg, signs and sizes from the seed. A zenith view (pitch 90)
+ * tilts down from the zenith. */
+void sl_vset_head_pose(uint64_t seed, int view, const sl_view_pose *plan, sl_view_pose *out);
 
 /* ---- probes: chrome ball, grey ball and chart ------------------------ */
 

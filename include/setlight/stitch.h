@@ -177,6 +177,10 @@ typedef struct sl_merge_result {
                                    green is luminance); else relative */
     double noise_gain, noise_floor, black, saturation;
     int width, height;          /* of the frames and the radiance */
+    /* The photos' lens EXIF, carried into the merged EXR (0 or "" when
+     * absent); every frame of the bracket agrees. */
+    double focal_length_mm;
+    char camera_make[64], camera_model[64], lens_model[128];
     /* Radiance EXR encoding: samples and compression, and why. */
     sl_pixel_type pixel_type;
     sl_exr_compression compression;
@@ -856,6 +860,58 @@ typedef struct sl_stitch_solve_result {
 sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
                           sl_stitch_solve_result *res, sl_error *err);
 void sl_stitch_solve_result_free(sl_stitch_solve_result *res);
+/* ------------------------------------------------------------------ */
+/* Stitch: image circle                                                 */
+/* ------------------------------------------------------------------ */
+
+/* The image circle of a circular fisheye view, fitted to its edge. */
+typedef struct sl_stitch_circle {
+    double cx, cy, radius; /* px; (0, 0) is the top-left corner of the top-left pixel */
+    double rms_px;         /* RMS distance of the edge points on the circle from it */
+    double support;        /* fraction of the rays cast with an edge point on the circle */
+    int rays, edges;       /* rays cast, edge points on the circle */
+    double radius_vs_nominal; /* radius / the nominal lens's circle_radius_px; 0 without */
+} sl_stitch_circle;
+
+/* Finds the image circle of an HDR (scene-linear) fisheye view: a coarse
+ * disc from sl_fisheye_check's evidence (dark frame border, dark outside,
+ * no Fresnel rim), then along 720 rays from its centre the sub-pixel point
+ * where the radiance falls halfway from the inside's level to the dark
+ * frame's (a box-filtered step edge crosses half at the edge itself), then
+ * a least-squares circle with outliers (a sun, a dark patch at the rim)
+ * dropped. nominal (may be NULL) only fills radius_vs_nominal. SL_ERR_INPUT
+ * "NAME: no image circle: ..." for a frame with no image circle (a
+ * rectilinear photo, a chrome-ball crop, a lat-long) or too few edge points
+ * on one circle. */
+sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
+                                const sl_lens *nominal, sl_stitch_circle *out, sl_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Stitch: lens from EXIF                                               */
+/* ------------------------------------------------------------------ */
+
+/* What merge carries from the photos' EXIF into the merged EXR (OpenEXR's
+ * standard attributes, written from sl_meta): nominalFocalLength (mm),
+ * cameraMake, cameraModel, lensModel; and setlight's own, when the body's
+ * sensor is known: */
+#define SL_ATTR_SENSOR_MM "setlight:lens:sensor_mm" /* "W x H" in mm, e.g. "36 x 24" */
+#define SL_ATTR_SENSOR_SOURCE "setlight:lens:sensor_source" /* where it came from */
+#define SL_ATTR_FOCAL_35MM "setlight:lens:focal_35mm" /* 35 mm equivalent (diagonal) */
+
+/* The sensor size (mm) of a camera body from its EXIF make and model (a
+ * table of common bodies and the virtual set's camera); false if unknown. */
+bool sl_stitch_sensor_of_body(const char *make, const char *model, double *width_mm,
+                              double *height_mm);
+/* Adds the SL_ATTR_SENSOR_* and SL_ATTR_FOCAL_35MM attributes to meta when
+ * its body is known (make, model and focal length are already there). */
+sl_result sl_stitch_lens_meta_set(sl_meta *meta, sl_error *err);
+/* The nominal lens of a width x height view from its metadata: focal length
+ * from EXIF (nominalFocalLength in an EXR, FocalLength in a photo), sensor
+ * width from SL_ATTR_SENSOR_MM or else the body table, projection as given.
+ * False when a value is missing; `why` then says which, e.g. "no focal length
+ * in its metadata: give --focal-mm and --sensor-mm". */
+bool sl_stitch_lens_from_meta(const sl_meta *meta, sl_lens_projection projection, int width,
+                              int height, sl_lens *out, char *why, size_t why_size);
 
 #ifdef __cplusplus
 }

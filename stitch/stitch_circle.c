@@ -1,0 +1,308 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The image circle of a circular fisheye view, on HDR radiance. The coarse
+ * disc and the verdict "is this a fisheye at all" are sl_fisheye_check's;
+ * here the edge is measured to a fraction of a pixel along many rays and a
+ * circle fitted through it. The radiance is sampled where it is (bilinear
+ * on the view itself): no copy of a 24 MP view is made. */
+#include "unwrap_private.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+#define RAYS 720
+#define STEP 0.25         /* px between profile samples along a ray */
+#define MIN_CONTRAST 4.0  /* the inside at least this many times the dark frame */
+#define MIN_SUPPORT 0.5   /* fraction of the rays with an edge on the circle */
+#define ROUNDS 3          /* ray casts, each from the previous fit */
+
+static double lum_at_pixel(const sl_image *img, int x, int y)
+{
+    x = x < 0 ? 0 : (x >= img->width ? img->width - 1 : x);
+    y = y < 0 ? 0 : (y >= img->height ? img->height - 1 : y);
+    const float *p = sl_image_pixel(img, x, y);
+    double l = img->channels >= 3 ? 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] : p[0];
+    return isfinite(l) && l > 0.0 ? l : 0.0;
+}
+
+/* The median of the 3 x 3 pixels round (x, y): a merge leaves hot pixels
+ * and noise speckles in the dark frame, which would end a ray early; a
+ * median keeps a step edge where it is. */
+static double lum_median3(const sl_image *img, int x, int y)
+{
+    double v[9];
+    int n = 0;
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++)
+            v[n++] = lum_at_pixel(img, x + dx, y + dy);
+    for (int i = 1; i < 9; i++) /* insertion sort of nine */
+        for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
+            double t = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = t;
+        }
+    return v[4];
+}
+
+/* Bilinear between pixel centres; (x, y) in pixel coordinates. */
+static double lum_at(const sl_image *img, double x, double y)
+{
+    double fx = x - 0.5, fy = y - 0.5;
+    int ix = (int)floor(fx), iy = (int)floor(fy);
+    double ax = fx - ix, ay = fy - iy;
+    return (1 - ay) * ((1 - ax) * lum_median3(img, ix, iy) + ax * lum_median3(img, ix + 1, iy)) +
+           ay * ((1 - ax) * lum_median3(img, ix, iy + 1) + ax * lum_median3(img, ix + 1, iy + 1));
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double median_of(const double *v, int n, double *scratch)
+{
+    if (n <= 0)
+        return 0.0;
+    memcpy(scratch, v, (size_t)n * sizeof *v);
+    qsort(scratch, (size_t)n, sizeof *scratch, cmp_double);
+    return n % 2 ? scratch[n / 2] : 0.5 * (scratch[n / 2 - 1] + scratch[n / 2]);
+}
+
+static double mean_between(const double *prof, int n, double t0, double a, double b)
+{
+    int i0 = (int)ceil((a - t0) / STEP), i1 = (int)floor((b - t0) / STEP);
+    double s = 0.0;
+    int m = 0;
+    for (int i = i0 < 0 ? 0 : i0; i <= i1 && i < n; i++, m++)
+        s += prof[i];
+    return m ? s / m : -1.0;
+}
+
+/* The outermost point where the profile falls through `level`, as a
+ * distance from the centre; -1 if none. */
+static double crossing(const double *prof, int n, double t0, double level)
+{
+    for (int j = n - 2; j >= 0; j--)
+        if (prof[j] >= level && prof[j + 1] < level)
+            return t0 + STEP * (j + (prof[j] - level) / (prof[j] - prof[j + 1]));
+    return -1.0;
+}
+
+/* The edge along one ray from (cx, cy) near radius r, searched within +-w:
+ * where the radiance is halfway between the inside just within the edge
+ * and the dark frame just outside it. -1 when the ray has no clear edge
+ * there (leaves the frame, a dark or clipped stretch of the rim). */
+static double ray_edge(const sl_image *img, double cx, double cy, double r, double w,
+                       double dx, double dy, double *prof, double *scratch, double *blur)
+{
+    *blur = -1.0;
+    double t0 = r - w;
+    int n = (int)(2.0 * w / STEP) + 1;
+    for (int j = 0; j < n; j++) {
+        double t = t0 + j * STEP, x = cx + t * dx, y = cy + t * dy;
+        if (x < 0.5 || y < 0.5 || x > img->width - 0.5 || y > img->height - 0.5)
+            return -1.0; /* the circle meets the frame's edge here */
+        prof[j] = lum_at(img, x, y);
+    }
+    int q = n / 4;
+    double in = median_of(prof, q, scratch), out = median_of(prof + n - q, q, scratch);
+    if (!(in > MIN_CONTRAST * out) || !(in > 0.0))
+        return -1.0;
+    double te = crossing(prof, n, t0, 0.5 * (in + out));
+    if (te < 0.0)
+        return -1.0;
+    /* Again with the levels right beside this edge, beyond its blur (a real
+     * lens's rim is soft over several pixels): the scene's texture and the
+     * vignetting change the inside from place to place. */
+    double hi = crossing(prof, n, t0, out + 0.9 * (in - out));
+    double lo = crossing(prof, n, t0, out + 0.1 * (in - out));
+    double d = hi > 0.0 && lo > hi ? fmax(2.0, 1.0 + 0.5 * (lo - hi)) : 2.0;
+    *blur = hi > 0.0 && lo > hi ? lo - hi : -1.0;
+    double li = mean_between(prof, n, t0, te - d - 0.5, te - d + 0.5);
+    double lout = mean_between(prof, n, t0, te + d - 0.5, te + d + 0.5);
+    if (li > MIN_CONTRAST * lout && lout >= 0.0) {
+        double t2 = crossing(prof, n, t0, 0.5 * (li + lout));
+        if (t2 > 0.0 && fabs(t2 - te) < d)
+            te = t2;
+    }
+    return te > r - 0.75 * w && te < r + 0.75 * w ? te : -1.0;
+}
+
+/* Least-squares circle through the edge points, dropping those far from it
+ * (robust scale from the median absolute residual) until none is. */
+static bool robust_fit(const ball_point *pts, bool *use, int n, double c[3], int *inliers,
+                       double *rms, double *scratch)
+{
+    for (int i = 0; i < n; i++)
+        use[i] = true;
+    for (int pass = 0; pass < 8; pass++) {
+        if (!ball_circle_fit(pts, use, n, c))
+            return false;
+        int m = 0;
+        for (int i = 0; i < n; i++)
+            if (use[i])
+                scratch[m++] = fabs(hypot(pts[i].x - c[0], pts[i].y - c[1]) - c[2]);
+        double *sorted = scratch + n;
+        double tol = fmax(0.25, 3.0 * 1.4826 * median_of(scratch, m, sorted));
+        bool changed = false;
+        for (int i = 0; i < n; i++) {
+            bool keep = fabs(hypot(pts[i].x - c[0], pts[i].y - c[1]) - c[2]) <= tol;
+            changed = changed || keep != use[i];
+            use[i] = keep;
+        }
+        if (!changed)
+            break;
+    }
+    if (!ball_circle_fit(pts, use, n, c))
+        return false;
+    double ss = 0.0;
+    int m = 0;
+    for (int i = 0; i < n; i++)
+        if (use[i]) {
+            double e = hypot(pts[i].x - c[0], pts[i].y - c[1]) - c[2];
+            ss += e * e;
+            m++;
+        }
+    *inliers = m;
+    *rms = m ? sqrt(ss / m) : 0.0;
+    return true;
+}
+
+/* Luminance block-averaged to at most COARSE_SIZE px across, then 3 x 3
+ * median filtered, for sl_fisheye_check's coarse disc: its walk in from the
+ * frame's edge stops at the first bright pixel, a merge's hot pixel too. */
+#define COARSE_SIZE 800
+static sl_result coarse_copy(const sl_image *img, sl_image *out, int *factor, sl_error *err)
+{
+    int big = img->width > img->height ? img->width : img->height;
+    int f = (big + COARSE_SIZE - 1) / COARSE_SIZE;
+    sl_image mean = {0};
+    sl_result r = sl_image_alloc(&mean, img->width / f, img->height / f, 1, err);
+    if (!r)
+        r = sl_image_alloc(out, mean.width, mean.height, 1, err);
+    if (r) {
+        sl_image_free(&mean);
+        return r;
+    }
+    for (int y = 0; y < mean.height; y++)
+        for (int x = 0; x < mean.width; x++) {
+            double s = 0.0;
+            for (int j = 0; j < f; j++)
+                for (int i = 0; i < f; i++)
+                    s += lum_at_pixel(img, x * f + i, y * f + j);
+            sl_image_pixel(&mean, x, y)[0] = (float)(s / (f * f));
+        }
+    for (int y = 0; y < out->height; y++)
+        for (int x = 0; x < out->width; x++)
+            sl_image_pixel(out, x, y)[0] = (float)lum_median3(&mean, x, y);
+    sl_image_free(&mean);
+    *factor = f;
+    return SL_OK;
+}
+
+sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
+                                const sl_lens *nominal, sl_stitch_circle *out, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    if (!name)
+        name = "view";
+    if (!radiance || !radiance->data || radiance->width < 16 || radiance->height < 16)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: no image circle: the image is too small",
+                            name);
+    sl_fisheye_evidence ev;
+    sl_error check_err;
+    sl_image coarse = {0};
+    int f = 1;
+    sl_result r = coarse_copy(radiance, &coarse, &f, err);
+    if (r)
+        return r;
+    r = sl_fisheye_check(&coarse, false, name, &ev, &check_err);
+    sl_image_free(&coarse);
+    if (r && !ev.fisheye)
+        return sl_error_set(err, r, "%s", check_err.message);
+    ev.cx *= f;
+    ev.cy *= f;
+    ev.r *= f;
+    if (!ev.fisheye) {
+        const char *why = !isfinite(ev.border_level) ? "the image is black"
+                          : !ev.round ? (ev.border_level >= 0.15
+                                           ? "the frame's border is not dark"
+                                           : "no bright disc on a dark frame")
+                          : ev.dark_outside < 0.95 ? "the frame beyond the disc is not dark"
+                          : ev.margin < 0.02       ? "the disc touches the frame's edge"
+                                                   : "its rim is brighter than its inside "
+                                                     "(a chrome ball)";
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s: no image circle: %s (not a circular fisheye view)", name, why);
+    }
+    double c[3] = {ev.cx, ev.cy, ev.r};
+    ball_point *pts = malloc(RAYS * sizeof *pts);
+    bool *use = malloc(RAYS * sizeof *use);
+    int max_n = (int)(2.0 * fmax(8.0, 0.04 * ev.r) / STEP) + 2;
+    double *blurs = malloc(RAYS * sizeof *blurs);
+    double *prof = malloc((size_t)max_n * sizeof *prof);
+    double *scratch = malloc((size_t)(max_n > 2 * RAYS ? max_n : 2 * RAYS) * sizeof *scratch);
+    if (!pts || !use || !prof || !scratch || !blurs) {
+        free(blurs);
+        free(pts);
+        free(use);
+        free(prof);
+        free(scratch);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory finding the image circle",
+                            name);
+    }
+    /* The coarse disc is from a copy up to 400 px across: a few of its
+     * pixels wide is where the edge can be; later rounds look closer. */
+    double w = fmax(8.0, 0.04 * ev.r);
+    int n = 0, inliers = 0;
+    double rms = 0.0;
+    bool fitted = false;
+    for (int round = 0; round < ROUNDS; round++) {
+        n = 0;
+        int nb = 0;
+        for (int i = 0; i < RAYS; i++) {
+            double a = 2.0 * M_PI * (i + 0.5) / RAYS, dx = cos(a), dy = sin(a), blur;
+            double t = ray_edge(radiance, c[0], c[1], c[2], w, dx, dy, prof, scratch, &blur);
+            if (t > 0.0) {
+                pts[n].x = c[0] + t * dx;
+                pts[n].y = c[1] + t * dy;
+                n++;
+                if (blur > 0.0)
+                    blurs[nb++] = blur;
+            }
+        }
+        /* The next round looks closer, but never closer than the edge is wide. */
+        double edge_width = median_of(blurs, nb, scratch);
+        double next[3] = {c[0], c[1], c[2]};
+        fitted = n >= 8 && robust_fit(pts, use, n, next, &inliers, &rms, scratch);
+        if (!fitted)
+            break;
+        memcpy(c, next, sizeof c);
+        w = fmax(fmax(4.0, 2.0 * edge_width + 2.0), fmin(w, 4.0 * rms + 3.0));
+        w = fmin(w, fmax(8.0, 0.04 * ev.r));
+    }
+    free(blurs);
+    free(pts);
+    free(use);
+    free(prof);
+    free(scratch);
+    if (!fitted || inliers < MIN_SUPPORT * RAYS)
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s: no image circle: only %d of %d rays have an edge on one circle",
+                            name, fitted ? inliers : n, RAYS);
+    out->cx = c[0];
+    out->cy = c[1];
+    out->radius = c[2];
+    out->rms_px = rms;
+    out->rays = RAYS;
+    out->edges = inliers;
+    out->support = (double)inliers / RAYS;
+    if (nominal && nominal->circle_radius_px > 0.0)
+        out->radius_vs_nominal = c[2] / nominal->circle_radius_px;
+    return SL_OK;
+}
