@@ -74,6 +74,12 @@ bool solve_transfer(const sl_lens *unbounded, const double from[3][3], const dou
  * converge is dropped. Returns how many were refined. */
 int solve_refine_matches(const sl_stitch_view *views, solve_match *matches, int count,
                          double (*rot)[3][3], const sl_lens *lens, double step_px);
+/* world_dir expressed in the camera frame of a view whose cam_to_world is rot. */
+void solve_to_camera(const double rot[3][3], const double world[3], double cam[3]);
+/* Direction i of n spread evenly over the sphere (a Fibonacci lattice). */
+void solve_sphere_dir(int i, int n, double dir[3]);
+/* qsort comparison of floats, ascending. */
+int solve_compare_float(const void *a, const void *b);
 /* R <- Exp(w) R for a rotation vector w (radians). */
 void solve_rotate(double r[3][3], const double w[3]);
 /* Angle in degrees between two rotations. */

@@ -66,15 +66,12 @@ void sl_stitch_solve_result_free(sl_stitch_solve_result *res)
 static double overlap_solid_angle(const sl_lens *lens, const double a[3][3], const double b[3][3])
 {
     enum { N = 4096 };
-    const double golden = M_PI * (3.0 - sqrt(5.0));
     int both = 0;
     for (int i = 0; i < N; i++) {
-        double y = 1.0 - 2.0 * (i + 0.5) / N, r = sqrt(1.0 - y * y);
-        double d[3] = {r * cos(golden * i), y, r * sin(golden * i)}, ca[3], cb[3], px, py;
-        for (int k = 0; k < 3; k++) {
-            ca[k] = a[0][k] * d[0] + a[1][k] * d[1] + a[2][k] * d[2];
-            cb[k] = b[0][k] * d[0] + b[1][k] * d[1] + b[2][k] * d[2];
-        }
+        double d[3], ca[3], cb[3], px, py;
+        solve_sphere_dir(i, N, d);
+        solve_to_camera(a, d, ca);
+        solve_to_camera(b, d, cb);
         if (sl_lens_ray_to_pixel(lens, ca, &px, &py) && sl_lens_ray_to_pixel(lens, cb, &px, &py))
             both++;
     }

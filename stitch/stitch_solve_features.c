@@ -9,12 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static int compare_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Luminance (or the one channel) of the view at the features' scale, and
  * the confidence at that scale. */
 static sl_result reduced_copies(const sl_stitch_view *view, int width, int height,
@@ -87,7 +81,7 @@ sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_
     if (r == SL_OK) {
         /* The log range of the circle's middle 98%: a sun or a black
          * corner does not squeeze the rest into a few codes. */
-        qsort(logs, kept, sizeof *logs, compare_float);
+        qsort(logs, kept, sizeof *logs, solve_compare_float);
         float lo = logs[kept / 100], hi = logs[kept - 1 - kept / 100];
         float span = hi > lo ? hi - lo : 1.0f;
         for (int y = 0; y < h; y++)
