@@ -357,6 +357,14 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
             break;
         if ((r = sl_image_ensure_rgb(&v->radiance, v->path, err)))
             break;
+        sl_image_stats st;
+        sl_image_stats_compute(&v->radiance, &st);
+        if (st.nan_count + st.inf_count) {
+            r = sl_error_set(err, SL_ERR_INPUT,
+                             "%s: %lld NaN/Inf samples (a damaged file: merge never writes them)",
+                             v->path, (long long)(st.nan_count + st.inf_count));
+            break;
+        }
         res->views[i].width = v->radiance.width;
         res->views[i].height = v->radiance.height;
         if (i > 0 && (v->radiance.width != files[0].radiance.width ||

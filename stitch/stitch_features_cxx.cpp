@@ -32,7 +32,7 @@ extern "C" int stitch_features_cxx(const unsigned char *gray, const unsigned cha
         if (detector == STITCH_DETECT_AKAZE)
             det = cv::AKAZE::create(cv::AKAZE::DESCRIPTOR_MLDB, 0, 3, 0.0005f);
         else
-            det = cv::SIFT::create(max_out, 3, 0.02);
+            det = cv::SIFT::create(max_out, 3, 0.01);
         std::vector<cv::KeyPoint> kp;
         cv::Mat d;
         det->detectAndCompute(img, m, kp, d);

@@ -47,8 +47,10 @@ typedef struct solve_features {
 sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_options *opt,
                               solve_features *out, sl_error *err);
 void solve_features_free(solve_features *f);
-/* Cross-checked ratio-test matches; *pairs (index pairs) is malloc'd. */
-sl_result solve_match_features(const solve_features *a, const solve_features *b,
+/* Cross-checked ratio-test matches between the features with keep set
+ * (NULL: all); *pairs (index pairs into a's and b's features) is malloc'd. */
+sl_result solve_match_features(const solve_features *a, const bool *keep_a,
+                               const solve_features *b, const bool *keep_b,
                                const sl_stitch_solve_options *opt, int **pairs, int *count,
                                sl_error *err);
 
@@ -72,6 +74,12 @@ bool solve_transfer(const sl_lens *unbounded, const double from[3][3], const dou
  * converge is dropped. Returns how many were refined. */
 int solve_refine_matches(const sl_stitch_view *views, solve_match *matches, int count,
                          double (*rot)[3][3], const sl_lens *lens, double step_px);
+/* world_dir expressed in the camera frame of a view whose cam_to_world is rot. */
+void solve_to_camera(const double rot[3][3], const double world[3], double cam[3]);
+/* Direction i of n spread evenly over the sphere (a Fibonacci lattice). */
+void solve_sphere_dir(int i, int n, double dir[3]);
+/* qsort comparison of floats, ascending. */
+int solve_compare_float(const void *a, const void *b);
 /* R <- Exp(w) R for a rotation vector w (radians). */
 void solve_rotate(double r[3][3], const double w[3]);
 /* Angle in degrees between two rotations. */

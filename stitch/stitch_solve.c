@@ -20,7 +20,7 @@ void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
     o->solve_poses = true;
     o->solve_focal = true;
     o->solve_centre = true;
-    o->radial_terms = 1;
+    o->radial_terms = 2;
     o->solve_vignette = true;
     o->detector = "sift";
     o->feature_width = 1536;
@@ -66,15 +66,12 @@ void sl_stitch_solve_result_free(sl_stitch_solve_result *res)
 static double overlap_solid_angle(const sl_lens *lens, const double a[3][3], const double b[3][3])
 {
     enum { N = 4096 };
-    const double golden = M_PI * (3.0 - sqrt(5.0));
     int both = 0;
     for (int i = 0; i < N; i++) {
-        double y = 1.0 - 2.0 * (i + 0.5) / N, r = sqrt(1.0 - y * y);
-        double d[3] = {r * cos(golden * i), y, r * sin(golden * i)}, ca[3], cb[3], px, py;
-        for (int k = 0; k < 3; k++) {
-            ca[k] = a[0][k] * d[0] + a[1][k] * d[1] + a[2][k] * d[2];
-            cb[k] = b[0][k] * d[0] + b[1][k] * d[1] + b[2][k] * d[2];
-        }
+        double d[3], ca[3], cb[3], px, py;
+        solve_sphere_dir(i, N, d);
+        solve_to_camera(a, d, ca);
+        solve_to_camera(b, d, cb);
         if (sl_lens_ray_to_pixel(lens, ca, &px, &py) && sl_lens_ray_to_pixel(lens, cb, &px, &py))
             both++;
     }
@@ -216,6 +213,24 @@ static sl_result add_match(solve_state *st, const solve_match *m, sl_error *err)
     return SL_OK;
 }
 
+/* Which features of a view (pose `own`) lie within reach_deg of the other
+ * view's axis (pose `other`); NULL when out of memory (then all take part). */
+static bool *seen_by(const solve_features *f, const sl_lens *lens, const double own[3][3],
+                     const double other[3][3], double reach_deg)
+{
+    bool *keep = malloc((size_t)(f->count + 1) * sizeof *keep);
+    double cos_reach = cos(reach_deg * DEG);
+    for (int i = 0; keep && i < f->count; i++) {
+        double ray[3], w[3];
+        keep[i] = false;
+        if (!sl_lens_pixel_to_ray(lens, f->xy[2 * i], f->xy[2 * i + 1], ray))
+            continue;
+        sl_mat3_apply(own, ray, w);
+        keep[i] = other[0][2] * w[0] + other[1][2] * w[1] + other[2][2] * w[2] >= cos_reach;
+    }
+    return keep;
+}
+
 /* Matches one overlapping pair, keeps RANSAC's inliers, decides the pair's
  * status. */
 static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err)
@@ -224,7 +239,13 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
     const solve_features *fa = &st->feat[pr->a], *fb = &st->feat[pr->b];
     const sl_lens *lens = &st->views[0].lens;
     int *idx = NULL, n = 0;
-    sl_result r = solve_match_features(fa, fb, st->opt, &idx, &n, err);
+    double (*ma)[3] = st->rot_nominal[pr->a], (*mb)[3] = st->rot_nominal[pr->b];
+    /* Only what the other view may see takes part: fewer candidates,
+     * fewer look-alikes for the ratio test. */
+    double reach = lens->max_theta_deg + 1.5 * st->opt->max_correction_deg;
+    bool *keep_a = seen_by(fa, lens, ma, mb, reach), *keep_b = seen_by(fb, lens, mb, ma, reach);
+    sl_result r = solve_match_features(fa, keep_a, fb, keep_b, st->opt, &idx, &n, err);
+    free(keep_a), free(keep_b);
     double (*ra)[3] = r == SL_OK ? malloc((size_t)(n + 1) * sizeof *ra) : NULL;
     double (*rb)[3] = r == SL_OK ? malloc((size_t)(n + 1) * sizeof *rb) : NULL;
     int *kept = r == SL_OK ? malloc((size_t)(n + 1) * sizeof *kept) : NULL;
@@ -232,7 +253,6 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
     if (r == SL_OK && (!ra || !rb || !kept || !inlier))
         r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory for matches");
     int m = 0;
-    double (*ma)[3] = st->rot_nominal[pr->a], (*mb)[3] = st->rot_nominal[pr->b];
     for (int i = 0; r == SL_OK && i < n; i++) {
         const float *xa = fa->xy + 2 * idx[2 * i], *xb = fb->xy + 2 * idx[2 * i + 1];
         double wa[3], wb[3];

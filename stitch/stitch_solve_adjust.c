@@ -59,6 +59,27 @@ double solve_rotation_angle(const double a[3][3], const double b[3][3])
     return acos(c > 1.0 ? 1.0 : c < -1.0 ? -1.0 : c) * 180.0 / M_PI;
 }
 
+void solve_to_camera(const double rot[3][3], const double world[3], double cam[3])
+{
+    for (int i = 0; i < 3; i++)
+        cam[i] = rot[0][i] * world[0] + rot[1][i] * world[1] + rot[2][i] * world[2];
+}
+
+void solve_sphere_dir(int i, int n, double dir[3])
+{
+    const double golden = M_PI * (3.0 - sqrt(5.0));
+    double y = 1.0 - 2.0 * (i + 0.5) / n, r = sqrt(1.0 - y * y);
+    dir[0] = r * cos(golden * i);
+    dir[1] = y;
+    dir[2] = r * sin(golden * i);
+}
+
+int solve_compare_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
 bool solve_transfer(const sl_lens *unbounded, const double from[3][3], const double to[3][3],
                     const double px_from[2], double px_to[2])
 {
@@ -66,8 +87,7 @@ bool solve_transfer(const sl_lens *unbounded, const double from[3][3], const dou
     if (!sl_lens_pixel_to_ray(unbounded, px_from[0], px_from[1], ray))
         return false;
     sl_mat3_apply(from, ray, w);
-    for (int i = 0; i < 3; i++)
-        c[i] = to[0][i] * w[0] + to[1][i] * w[1] + to[2][i] * w[2];
+    solve_to_camera(to, w, c);
     return sl_lens_ray_to_pixel(unbounded, c, &px_to[0], &px_to[1]);
 }
 
@@ -77,8 +97,7 @@ static bool transfer(const sl_lens *lens, const double from[3][3], const double 
 {
     double w[3], c[3];
     sl_mat3_apply(from, ray, w);
-    for (int i = 0; i < 3; i++)
-        c[i] = to[0][i] * w[0] + to[1][i] * w[1] + to[2][i] * w[2];
+    solve_to_camera(to, w, c);
     return sl_lens_ray_to_pixel(lens, c, &px[0], &px[1]);
 }
 

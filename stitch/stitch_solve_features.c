@@ -9,12 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static int compare_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Luminance (or the one channel) of the view at the features' scale, and
  * the confidence at that scale. */
 static sl_result reduced_copies(const sl_stitch_view *view, int width, int height,
@@ -87,7 +81,7 @@ sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_
     if (r == SL_OK) {
         /* The log range of the circle's middle 98%: a sun or a black
          * corner does not squeeze the rest into a few codes. */
-        qsort(logs, kept, sizeof *logs, compare_float);
+        qsort(logs, kept, sizeof *logs, solve_compare_float);
         float lo = logs[kept / 100], hi = logs[kept - 1 - kept / 100];
         float span = hi > lo ? hi - lo : 1.0f;
         for (int y = 0; y < h; y++)
@@ -105,14 +99,36 @@ sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_
         char msg[256] = "";
         int detector = opt->detector && strcmp(opt->detector, "akaze") == 0 ? STITCH_DETECT_AKAZE
                                                                              : STITCH_DETECT_SIFT;
-        int found = stitch_features_cxx(gray, mask, w, h, detector, opt->max_features, out->xy,
+        /* Only the circle's bounding box goes to the detector: a 3:2
+         * frame's sides are black. */
+        int x0 = w, x1 = -1, y0 = h, y1 = -1;
+        for (int y = 0; y < h; y++)
+            for (int x = 0; x < w; x++)
+                if (mask[(size_t)y * w + x]) {
+                    x0 = x < x0 ? x : x0;
+                    x1 = x > x1 ? x : x1;
+                    y0 = y < y0 ? y : y0;
+                    y1 = y > y1 ? y : y1;
+                }
+        x0 = x0 > 8 ? x0 - 8 : 0;
+        y0 = y0 > 8 ? y0 - 8 : 0;
+        x1 = x1 + 9 < w ? x1 + 9 : w;
+        y1 = y1 + 9 < h ? y1 + 9 : h;
+        int cw = x1 - x0, ch = y1 - y0;
+        for (int y = 0; y < ch; y++) {
+            memmove(gray + (size_t)y * cw, gray + (size_t)(y + y0) * w + x0, (size_t)cw);
+            memmove(mask + (size_t)y * cw, mask + (size_t)(y + y0) * w + x0, (size_t)cw);
+        }
+        int found = stitch_features_cxx(gray, mask, cw, ch, detector, opt->max_features, out->xy,
                                         out->desc, &out->desc_bytes, msg, sizeof msg);
         if (found < 0)
             r = sl_error_set(err, SL_ERR_UNSUPPORTED, "%s: %s", view->name, msg);
         else
             out->count = found;
-        for (int i = 0; i < out->count * 2; i++)
-            out->xy[i] = (float)(out->xy[i] * out->scale);
+        for (int i = 0; i < out->count; i++) {
+            out->xy[2 * i] = (float)((out->xy[2 * i] + x0) * out->scale);
+            out->xy[2 * i + 1] = (float)((out->xy[2 * i + 1] + y0) * out->scale);
+        }
     }
     free(gray), free(mask), free(logs);
     if (r != SL_OK)
@@ -129,28 +145,57 @@ void solve_features_free(solve_features *f)
     memset(f, 0, sizeof *f);
 }
 
-sl_result solve_match_features(const solve_features *a, const solve_features *b,
+/* The descriptors of the features with keep[i] set (all when keep is
+ * NULL), packed; index[k] is the feature of the k-th. */
+static int pack(const solve_features *f, const bool *keep, unsigned char **desc, int **index)
+{
+    *desc = malloc((size_t)(f->count + 1) * STITCH_DESC_MAX);
+    *index = malloc((size_t)(f->count + 1) * sizeof **index);
+    if (!*desc || !*index)
+        return -1;
+    int n = 0;
+    for (int i = 0; i < f->count; i++)
+        if (!keep || keep[i]) {
+            memcpy(*desc + (size_t)n * STITCH_DESC_MAX, f->desc + (size_t)i * STITCH_DESC_MAX,
+                   STITCH_DESC_MAX);
+            (*index)[n++] = i;
+        }
+    return n;
+}
+
+sl_result solve_match_features(const solve_features *a, const bool *keep_a,
+                               const solve_features *b, const bool *keep_b,
                                const sl_stitch_solve_options *opt, int **pairs, int *count,
                                sl_error *err)
 {
     *pairs = NULL;
     *count = 0;
-    if (a->count < 2 || b->count < 2)
-        return SL_OK;
-    int cap = a->count < b->count ? a->count : b->count;
-    *pairs = malloc((size_t)cap * 2 * sizeof **pairs);
-    if (!*pairs)
-        return sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory for matches");
-    char msg[256] = "";
-    int detector = opt->detector && strcmp(opt->detector, "akaze") == 0 ? STITCH_DETECT_AKAZE
-                                                                         : STITCH_DETECT_SIFT;
-    int n = stitch_match_cxx(a->desc, a->count, b->desc, b->count, a->desc_bytes, detector,
-                             opt->ratio, *pairs, cap, msg, sizeof msg);
-    if (n < 0) {
+    unsigned char *da = NULL, *db = NULL;
+    int *ia = NULL, *ib = NULL;
+    int na = pack(a, keep_a, &da, &ia), nb = pack(b, keep_b, &db, &ib);
+    int cap = na < nb ? na : nb;
+    sl_result r = SL_OK;
+    if (na < 0 || nb < 0 || !(*pairs = malloc((size_t)(cap > 0 ? cap : 1) * 2 * sizeof **pairs)))
+        r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory for matches");
+    if (r == SL_OK && na >= 2 && nb >= 2) {
+        char msg[256] = "";
+        int detector = opt->detector && strcmp(opt->detector, "akaze") == 0
+                           ? STITCH_DETECT_AKAZE
+                           : STITCH_DETECT_SIFT;
+        int n = stitch_match_cxx(da, na, db, nb, a->desc_bytes, detector, opt->ratio, *pairs, cap,
+                                 msg, sizeof msg);
+        if (n < 0)
+            r = sl_error_set(err, SL_ERR_UNSUPPORTED, "stitch solve: %s", msg);
+        for (int k = 0; k < n; k++) {
+            (*pairs)[2 * k] = ia[(*pairs)[2 * k]];
+            (*pairs)[2 * k + 1] = ib[(*pairs)[2 * k + 1]];
+        }
+        *count = n > 0 ? n : 0;
+    }
+    if (r != SL_OK) {
         free(*pairs);
         *pairs = NULL;
-        return sl_error_set(err, SL_ERR_UNSUPPORTED, "stitch solve: %s", msg);
     }
-    *count = n;
-    return SL_OK;
+    free(da), free(db), free(ia), free(ib);
+    return r;
 }

@@ -10,10 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifndef M_PI
-#define M_PI 3.14159265358979323846
-#endif
-
 enum { DIRECTIONS = 40000, MIN_SAMPLES = 200 };
 
 typedef struct ratio_sample {
@@ -49,12 +45,6 @@ static bool smooth_sample(const solve_features *f, double x, double y, double da
     return true;
 }
 
-static int compare_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 static double median_luminance(const sl_image *l)
 {
     size_t n = 0, total = (size_t)l->width * l->height;
@@ -67,7 +57,7 @@ static double median_luminance(const sl_image *l)
                 v[n++] = *sl_image_pixel(l, x, y);
     double m = 0.0;
     if (n) {
-        qsort(v, n, sizeof *v, compare_float);
+        qsort(v, n, sizeof *v, solve_compare_float);
         m = v[n / 2];
     }
     free(v);
@@ -87,10 +77,9 @@ static int collect(int count, const solve_features *feat,
     if (inner.circle_radius_px > 0.0)
         inner.circle_radius_px *= 0.97;
     int n = 0;
-    const double golden = M_PI * (3.0 - sqrt(5.0));
     for (int i = 0; i < DIRECTIONS && n < cap; i++) {
-        double y = 1.0 - 2.0 * (i + 0.5) / DIRECTIONS, r = sqrt(1.0 - y * y);
-        double d[3] = {r * cos(golden * i), y, r * sin(golden * i)};
+        double d[3];
+        solve_sphere_dir(i, DIRECTIONS, d);
         for (int p = 0; p < res->pairs && n < cap; p++) {
             const sl_stitch_pair *pr = &res->pair[p];
             if (pr->status != SL_STITCH_PAIR_SOLVED)
@@ -100,8 +89,7 @@ static int collect(int count, const solve_features *feat,
             int v[2] = {pr->a, pr->b};
             for (int s = 0; s < 2 && ok; s++) {
                 double c[3];
-                for (int k = 0; k < 3; k++)
-                    c[k] = rot[v[s]][0][k] * d[0] + rot[v[s]][1][k] * d[1] + rot[v[s]][2][k] * d[2];
+                solve_to_camera((const double (*)[3])rot[v[s]], d, c);
                 ok = sl_lens_ray_to_pixel(&inner, c, &px[s][0], &px[s][1]) &&
                      smooth_sample(&feat[v[s]], px[s][0], px[s][1], dark[v[s]], &lum[s]);
             }

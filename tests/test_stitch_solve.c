@@ -10,7 +10,7 @@
 #include <string.h>
 
 #define W 1200
-#define H 800
+#define H 840 /* the true circle (r 398 px, centre 5 px up) inside the frame */
 
 static sl_vset_scene scenes[2];
 
@@ -126,55 +126,87 @@ static double vignette_error(const sl_lens *truth, const sl_lens *solved)
 /* The head's true poses: off the nominal ones by a fraction of a degree. */
 static const sl_view_pose truth[4] = {
     {0.4, -0.3, 0.5}, {120.6, 0.8, -0.4}, {239.3, -0.5, 0.9}, {0.6, 89.4, 0.7}};
-static sl_image views_of[2][4];
 
-static const sl_image *view_image(int which, int i)
+/* Two rigs: the lens and head above (0), and the virtual set's own true
+ * lens (k2, v2 too) and seeded head (1). */
+typedef struct test_rig {
+    sl_lens truth_lens, nominal;
+    sl_view_pose truth[4], plan[4];
+    sl_image views[2][4]; /* per scene */
+} test_rig;
+static test_rig rigs[2];
+
+static test_rig *get_rig(int kind)
 {
-    sl_image *img = &views_of[which][i];
+    test_rig *r = &rigs[kind];
+    if (r->truth_lens.focal_px > 0)
+        return r;
+    static const sl_view_pose plan[4] = {{0, 0, 0}, {120, 0, 0}, {240, 0, 0}, {0, 90, 0}};
+    if (kind == 0) {
+        true_lens(&r->truth_lens);
+        nominal_lens(&r->nominal);
+        memcpy(r->truth, truth, sizeof truth);
+    } else {
+        sl_vset_fisheye_true(&r->truth_lens, W, H);
+        sl_vset_fisheye_nominal(&r->nominal, W, H);
+        for (int i = 0; i < 4; i++)
+            sl_vset_head_pose(7, i, &plan[i], &r->truth[i]);
+    }
+    memcpy(r->plan, plan, sizeof plan);
+    return r;
+}
+
+static const sl_image *view_image(test_rig *r, int which, int i)
+{
+    sl_image *img = &r->views[which][i];
     if (!img->data) {
         sl_error err;
-        sl_lens lt;
-        true_lens(&lt);
-        CHECK_OK(sl_vset_view_image(&lt, &truth[i], &scene(which)->latlong, 1, img, &err), &err);
+        CHECK_OK(sl_vset_view_image(&r->truth_lens, &r->truth[i], &scene(which)->latlong, 1, img,
+                                    &err),
+                 &err);
     }
     return img;
 }
 
-static void rig(const char *label, int which, int count)
+static void rig(const char *label, int kind, int which, int count)
 {
     sl_error err;
-    sl_lens lt, ln;
-    true_lens(&lt);
-    nominal_lens(&ln);
-    ln.circle_radius_px = lt.circle_radius_px; /* as the circle detection finds it */
+    test_rig *tr = get_rig(kind);
+    const sl_lens lt = tr->truth_lens;
+    sl_lens ln = tr->nominal;
     sl_stitch_view views[4];
     static const char *names[4] = {"view0.exr", "view1.exr", "view2.exr", "view3.exr"};
     for (int i = 0; i < count; i++) {
-        views[i] = (sl_stitch_view){.name = names[i], .radiance = view_image(which, i), .lens = ln};
-        /* Nominal: the yaws and pitches the head's detents give, roll 0. */
-        views[i].pose.yaw_deg = round(truth[i].yaw_deg / 30.0) * 30.0;
-        views[i].pose.pitch_deg = round(truth[i].pitch_deg / 30.0) * 30.0;
-        views[i].pose.roll_deg = 0.0;
-        if (views[i].pose.pitch_deg == 90.0)
-            views[i].pose.yaw_deg = 0.0;
+        views[i] = (sl_stitch_view){.name = names[i], .radiance = view_image(tr, which, i)};
+        /* The image circle as the stitch finds it; the nominal pose is the plan. */
+        sl_stitch_circle circle;
+        CHECK_OK(sl_stitch_circle_find(views[i].radiance, names[i], &ln, &circle, &err), &err);
+        views[i].lens = ln;
+        views[i].lens.circle_radius_px = circle.radius;
+        views[i].pose = tr->plan[i];
     }
+    for (int i = 1; i < count; i++)
+        views[i].lens.circle_radius_px = views[0].lens.circle_radius_px;
     sl_stitch_solve_options opt;
     sl_stitch_solve_options_init(&opt);
     sl_stitch_solve_result res;
+    double cpu = sl_cpu_seconds();
     CHECK_OK(sl_stitch_solve(views, count, &opt, &res, &err), &err);
+    cpu = sl_cpu_seconds() - cpu;
     const sl_lens *s = &res.lens;
     double focal_err = s->focal_px / lt.focal_px - 1.0;
     double centre_err = hypot(s->cx - lt.cx, s->cy - lt.cy);
     double rot_err = 0;
     for (int i = 1; i < count; i++)
-        rot_err = fmax(rot_err, relative_error(&truth[0], &truth[i], &res.pose[0], &res.pose[i]));
+        rot_err = fmax(rot_err,
+                       relative_error(&tr->truth[0], &tr->truth[i], &res.pose[0], &res.pose[i]));
     double vig_err = vignette_error(&lt, s);
     printf("%s: focal %+.3f%% (nominal %+.2f%%), centre %.2f px, k1 %.4f, rotations %.4f deg, "
            "vignette %.2f%% (v1 %.3f v2 %.3f), rms %.3f px max %.2f px, %d inliers, %d iterations, "
-           "%.2f s (features %.2f, match %.2f, adjust %.2f)\n",
+           "%.2f s wall, %.2f s CPU (features %.2f, match %.2f, adjust %.2f)\n",
            label, 100 * focal_err, 100 * (ln.focal_px / lt.focal_px - 1), centre_err, s->k[0],
            rot_err, 100 * vig_err, s->vignette[0], s->vignette[1], res.rms_px, res.max_px,
-           res.inliers, res.iterations, res.seconds_total, res.seconds_features,
+           res.inliers, res.iterations, res.seconds_total, cpu, res.seconds_features,
            res.seconds_match, res.seconds_adjust);
     for (int p = 0; p < res.pairs; p++)
         printf("  pair %d-%d: %s, %.2f sr, %d matches, %d inliers, rms %.3f px %s\n",
@@ -194,13 +226,19 @@ static void rig(const char *label, int which, int count)
 
 static void three_views(void)
 {
-    rig("3 views, exterior", 0, 3);
-    rig("3 views, stage", 1, 3);
+    rig("3 views, exterior", 0, 0, 3);
 }
 
 static void four_views(void)
 {
-    rig("4 views (+ zenith), stage", 1, 4);
+    rig("4 views (+ zenith), stage", 0, 1, 4);
+}
+
+/* The virtual set's own fisheye and head (sl_vset_fisheye_true,
+ * sl_vset_head_pose): a k2 and a v2 as well. */
+static void virtual_set_lens(void)
+{
+    rig("virtual set's lens, 4 views, exterior", 1, 0, 4);
 }
 
 /* A flat environment: no features, so every pair falls back to its
@@ -303,10 +341,12 @@ int main(void)
     RUN(featureless);
     RUN(three_views);
     RUN(four_views);
+    RUN(virtual_set_lens);
     for (int i = 0; i < 2; i++) {
         sl_vset_scene_free(&scenes[i]);
-        for (int v = 0; v < 4; v++)
-            sl_image_free(&views_of[i][v]);
+        for (int k = 0; k < 2; k++)
+            for (int v = 0; v < 4; v++)
+                sl_image_free(&rigs[k].views[i][v]);
     }
     return sl_test_finish();
 }

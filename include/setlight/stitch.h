@@ -785,7 +785,7 @@ typedef struct sl_stitch_solve_options {
     bool solve_poses;        /* yaw, pitch, roll of views 1..count-1 (default true) */
     bool solve_focal;        /* focal_px (default true) */
     bool solve_centre;       /* cx, cy (default true) */
-    int radial_terms;        /* 0: keep k; 1: k1 (default); 2: k1, k2 */
+    int radial_terms;        /* 0: keep k; 1: k1; 2: k1, k2 (default) */
     bool solve_vignette;     /* vignette v1, v2 from the overlaps' radiance ratios (default true) */
     const char *detector;    /* "sift" (default) or "akaze" */
     int feature_width;       /* features on copies this many pixels wide at most (default 1536) */
