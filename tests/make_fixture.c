@@ -15,6 +15,9 @@
  *       code128   8-bit code 128 everywhere, no envmap (OUT .png, .jpg or .tif)
  *       lens OUT IN SECONDS LENS FOCAL-MM   IN as a linear TIFF bracket frame with EXIF
  *       ball...   chrome-ball photos, see ball_fixture.h
+ *       fisheye   make_fixture fisheye OUT W H YAW [PITCH [SCENE]]: the virtual
+ *                 stage (or SCENE: "flat" for a featureless grey) through an
+ *                 8 mm equisolid on a 36 mm sensor looking at YAW, PITCH (deg)
 
  *       chart...  chart photos and walls that are not one, see chart_fixture.h */
 #include <math.h>
@@ -24,6 +27,7 @@
 
 #include "ball_fixture.h"
 #include "chart_fixture.h"
+#include "setlight/capture.h"
 #include "setlight/core.h"
 
 /* Portable float map: header, then little-endian float rows bottom to top. */
@@ -36,6 +40,47 @@ static sl_result write_pfm(const char *path, const sl_image *img, sl_error *err)
     for (int y = img->height - 1; y >= 0; y--)
         fwrite(sl_image_pixel(img, 0, y), sizeof(float), (size_t)img->width * 3, f);
     return fclose(f) == 0 ? SL_OK : sl_error_set(err, SL_ERR_IO, "%s: write failed", path);
+}
+
+/* A fisheye view of the virtual stage (or of a flat grey) for the stitch. */
+static int fisheye_fixture(int argc, char **argv)
+{
+    if (argc < 6) {
+        fprintf(stderr, "usage: make_fixture fisheye OUT W H YAW [PITCH [SCENE]]\n");
+        return 2;
+    }
+    int w = atoi(argv[3]), h = atoi(argv[4]);
+    sl_view_pose pose = {atof(argv[5]), argc > 6 ? atof(argv[6]) : 0.0, 0.0};
+    const char *scene = argc > 7 ? argv[7] : "stage";
+    sl_error err;
+    sl_vset_desc d;
+    sl_vset_scene sc;
+    memset(&sc, 0, sizeof sc);
+    sl_lens lens;
+    sl_lens_nominal(&lens, SL_LENS_EQUISOLID, w, h, 8.0, 36.0);
+    sl_image view = {0};
+    sl_result r;
+    if (!strcmp(scene, "flat")) {
+        r = sl_image_alloc(&sc.latlong, 64, 32, 3, &err);
+        if (!r)
+            sl_image_fill(&sc.latlong, 0.5f);
+    } else {
+        r = sl_vset_preset(scene, &d, &err);
+        if (!r)
+            r = sl_vset_scene_make(&d, 1024, &sc, &err);
+    }
+    if (!r)
+        r = sl_vset_view_image(&lens, &pose, &sc.latlong, 2, &view, &err);
+    if (!r)
+        r = sl_exr_write(argv[2], &view, NULL, SL_PIXEL_FLOAT, &err);
+    if (r)
+        fprintf(stderr, "make_fixture: %s\n", err.message);
+    sl_image_free(&view);
+    if (!strcmp(scene, "flat"))
+        sl_image_free(&sc.latlong);
+    else
+        sl_vset_scene_free(&sc);
+    return r ? 1 : 0;
 }
 
 int main(int argc, char **argv)
@@ -93,6 +138,8 @@ int main(int argc, char **argv)
             fprintf(stderr, "make_fixture: %s\n", e.message);
         return rr ? 1 : 0;
     }
+    if (!strcmp(kind, "fisheye"))
+        return fisheye_fixture(argc, argv);
     int w = argc > 3 ? atoi(argv[3]) : 64, h = argc > 4 ? atoi(argv[4]) : w / 2;
     bool conf = !strcmp(kind, "conf");
     if (!strcmp(kind, "wide") || !strcmp(kind, "wideenv"))

@@ -57,6 +57,8 @@ int cmd_merge(int argc, char **argv, const sl_cli *cli);
 int cmd_response(int argc, char **argv, const sl_cli *cli);
 int cmd_rig(int argc, char **argv, const sl_cli *cli);
 int cmd_unwrap(int argc, char **argv, const sl_cli *cli);
+int cmd_stitch(int argc, char **argv, const sl_cli *cli);
 int cmd_calibrate(int argc, char **argv, const sl_cli *cli);
+int cmd_lens_calibrate(int argc, char **argv, const sl_cli *cli);
 
 #endif

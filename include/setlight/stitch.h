@@ -758,6 +758,110 @@ sl_result sl_calibrate_report_chart(sl_report *rep, const char *file, const sl_i
  * the image's summed absolute values. */
 int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction);
 
+/* ================================================================== */
+/* Stitch: views                                                       */
+/* ================================================================== */
+
+/* One fisheye (or rectilinear) view of a stitch: its merged HDR radiance,
+ * the merge's per-pixel confidence and the lens and pose. All views of one
+ * stitch share one lens (one camera body and lens); the solve writes the
+ * solved lens into every view. */
+typedef struct sl_stitch_view {
+    const char *name;          /* file name, for messages */
+    const sl_image *radiance;  /* RGB(A) scene-linear view, as merge writes it */
+    const sl_image *weight;    /* optional per-pixel confidence in [0,1] (merge's masks), or NULL */
+    sl_lens lens;              /* in: nominal or profile; out (solve): solved */
+    sl_view_pose pose;         /* in: nominal; out (solve): solved */
+} sl_stitch_view;
+
+/* ================================================================== */
+/* Stitch: solve                                                       */
+/* ================================================================== */
+
+/* What sl_stitch_solve solves. The poses of views 1.. are always solved
+ * (view 0 fixes the frame) unless solve_poses is false; the lens values
+ * each have a switch, so a lens profile can be kept as it is. */
+typedef struct sl_stitch_solve_options {
+    bool solve_poses;        /* yaw, pitch, roll of views 1..count-1 (default true) */
+    bool solve_focal;        /* focal_px (default true) */
+    bool solve_centre;       /* cx, cy (default true) */
+    int radial_terms;        /* 0: keep k; 1: k1; 2: k1, k2 (default) */
+    bool solve_vignette;     /* vignette v1, v2 from the overlaps' radiance ratios (default true) */
+    const char *detector;    /* "sift" (default) or "akaze" */
+    int feature_width;       /* features on copies this many pixels wide at most (default 1536) */
+    int max_features;        /* per view (default 6000) */
+    double circle_margin;    /* features kept this fraction of the circle radius inside it (0.02) */
+    double ratio;            /* Lowe's ratio test (default 0.8) */
+    double ransac_deg;       /* RANSAC inlier threshold, angle between the rays of the
+                                nominal lens (default 2: the lens is not solved yet) */
+    int ransac_iterations;   /* default 2000 */
+    double inlier_px;        /* after the adjustment, a match is kept within this many
+                                pixels of the features' copies (default 2) */
+    int min_inliers;         /* a pair with fewer falls back to the nominal rotation (default 25) */
+    double max_correction_deg; /* a pair whose rotation differs more from the nominal one is
+                                  refused as inconsistent and falls back; matches further
+                                  than 1.5 times this from their nominal place are dropped
+                                  (default 10) */
+    uint64_t seed;           /* RANSAC sampling */
+} sl_stitch_solve_options;
+
+void sl_stitch_solve_options_init(sl_stitch_solve_options *o);
+
+typedef enum {
+    SL_STITCH_PAIR_SOLVED = 0,   /* its inliers are in the adjustment */
+    SL_STITCH_PAIR_NO_OVERLAP,   /* the nominal poses do not overlap: not matched */
+    SL_STITCH_PAIR_FEW_MATCHES,  /* fallback: too few inliers (a featureless pair) */
+    SL_STITCH_PAIR_INCONSISTENT  /* fallback: its rotation is far from the nominal one */
+} sl_stitch_pair_status;
+
+/* "solved", "no overlap", "too few matches", "inconsistent with the nominal poses" */
+const char *sl_stitch_pair_status_name(sl_stitch_pair_status s);
+
+typedef struct sl_stitch_pair {
+    int a, b;                    /* view indices, a < b */
+    double overlap_sr;           /* solid angle both nominal views see, steradians */
+    int matches;                 /* after the ratio test and the cross check */
+    int inliers;                 /* after RANSAC on the sphere */
+    sl_stitch_pair_status status;
+    bool fallback;               /* its relative rotation is the nominal one */
+    double rms_px, max_px;       /* reprojection error of its inliers after the adjustment */
+    char why[160];               /* for a fallback: what was found, for the report */
+} sl_stitch_pair;
+
+typedef struct sl_stitch_solve_result {
+    int views;
+    sl_view_pose *pose_nominal;  /* views entries each */
+    sl_view_pose *pose;          /* solved */
+    double *gain;                /* per-view radiance gain solved with the vignetting (view 0: 1) */
+    int *features;               /* features found per view */
+    sl_lens lens_nominal;        /* the lens the solve started from (view 0's) */
+    sl_lens lens;                /* solved */
+    int pairs;
+    sl_stitch_pair *pair;
+    int pairs_solved, pairs_fallback;
+    int inliers;                 /* matches in the adjustment */
+    double rms_px, max_px;       /* reprojection error over them, pixels of the full views */
+    int iterations;              /* Levenberg-Marquardt iterations */
+    bool vignette_solved;        /* false: too few overlap samples, or not asked */
+    int vignette_samples;
+    double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
+    double seconds_features, seconds_match, seconds_adjust, seconds_total;
+} sl_stitch_solve_result;
+
+/* Solves the views' poses and their shared lens from the overlaps:
+ * features on a log-encoded copy of each view inside its image circle,
+ * matched between overlapping pairs, RANSAC on the sphere, a bundle
+ * adjustment of the poses (view 0 fixed) and the lens, then the vignetting
+ * from the radiance ratios. Overwrites views[i].lens and views[i].pose with
+ * the solution; a pair without enough good matches keeps its nominal
+ * relative rotation and res says so. Views of different sizes or
+ * projections, or a view with no image (NULL) are SL_ERR_INPUT. res is
+ * filled (free with sl_stitch_solve_result_free) whatever the status. */
+sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
+                          sl_stitch_solve_result *res, sl_error *err);
+void sl_stitch_solve_result_free(sl_stitch_solve_result *res);
+
+
 /* ------------------------------------------------------------------ */
 /* Stitch: image circle                                                 */
 /* ------------------------------------------------------------------ */
@@ -810,6 +914,255 @@ sl_result sl_stitch_lens_meta_set(sl_meta *meta, sl_error *err);
  * in its metadata: give --focal-mm and --sensor-mm". */
 bool sl_stitch_lens_from_meta(const sl_meta *meta, sl_lens_projection projection, int width,
                               int height, sl_lens *out, char *why, size_t why_size);
+
+/* Stitch: lens profiles                                               */
+/* ================================================================== */
+
+/* How a lens profile's numbers were found. */
+typedef enum {
+    SL_LENS_SOURCE_NOMINAL = 0, /* from the nominal focal length and sensor size */
+    SL_LENS_SOURCE_OVERLAPS,    /* solved from the overlaps of a stitch */
+    SL_LENS_SOURCE_CHESSBOARD,  /* solved from chessboard photos (lens-calibrate) */
+    SL_LENS_SOURCE_COUNT
+} sl_lens_source;
+
+/* "nominal", "overlaps", "chessboard"; -1 if unknown. */
+int sl_lens_source_from_name(const char *name);
+const char *sl_lens_source_name(sl_lens_source source);
+
+/* One solved lens on one camera body, in the pixels of a lens.width x
+ * lens.height image; a shoot's later setups reuse it (docs/formats.md,
+ * "Lens profiles"). */
+typedef struct sl_lens_profile {
+    sl_lens lens;
+    char camera[128];    /* "make model" as EXIF has them; "" when unknown */
+    char lens_name[128]; /* EXIF lens model; "" when unknown */
+    sl_lens_source source;
+    double rms_px;       /* reprojection residual of the solve; -1 when not solved */
+    double max_px;       /* its largest residual; -1 when not solved */
+    int images;          /* photos or views the solve used (0 nominal) */
+} sl_lens_profile;
+
+/* JSON {"format": "setlight-lens", "version": 1, ...}. A file with a field
+ * missing or of the wrong type, an unknown projection, NaN, a centre off the
+ * image, a radius r(theta) that does not increase over the field or a
+ * vignetting gain that is not positive over it is SL_ERR_INPUT with one
+ * line naming the file and the field. */
+sl_result sl_lens_profile_read(const char *path, sl_lens_profile *out, sl_error *err);
+/* Written atomically; the same checks as read (SL_ERR_INPUT on a profile
+ * that read would refuse). */
+sl_result sl_lens_profile_write(const char *path, const sl_lens_profile *profile, sl_error *err);
+/* Whether `profile` applies to views width x height from `camera` with
+ * `lens` (either "" or NULL when unknown: not compared). A different camera
+ * or lens (case-insensitive; "Make Model" and "Model" name one camera when
+ * the longer only adds words in front), or a size of another aspect ratio, does not
+ * fit: false, `why` says which. A size of the same aspect ratio fits with
+ * focal length, centre and circle scaled (`why` then says so; "" for an
+ * exact fit). *fitted (may be NULL) gets the lens for that size. */
+bool sl_lens_profile_fits(const sl_lens_profile *profile, int width, int height,
+                          const char *camera, const char *lens, sl_lens *fitted, char *why,
+                          size_t why_size);
+/* Checks a lens as read and write do; `where` names it in the message. */
+sl_result sl_lens_check(const sl_lens *lens, const char *where, sl_error *err);
+
+/* ================================================================== */
+/* Stitch: lens-calibrate (a lens profile from chessboard photos)       */
+/* ================================================================== */
+
+typedef struct sl_lens_calibrate_options {
+    int board_cols, board_rows;  /* inner corners along the board's rows and columns */
+    double square_mm;            /* square size; only the board poses depend on it (25) */
+    sl_lens_projection projection; /* default equisolid */
+    double focal_mm;             /* nominal focal length; 0: the photos' EXIF */
+    double sensor_width_mm;      /* width of the sensor area the photo covers (required) */
+    int radial_terms;            /* radial correction terms solved, 0..3; -1 (default):
+                                    as many as the corners support (sl_lens_calibrate) */
+} sl_lens_calibrate_options;
+
+void sl_lens_calibrate_options_init(sl_lens_calibrate_options *opt);
+
+typedef struct sl_lens_calibrate_photo {
+    char name[256];
+    bool found;     /* the board was found */
+    bool used;      /* its corners are in the solve */
+    char why[160];  /* why not, when not used */
+    double rms_px;  /* its corners' reprojection error under the solved lens */
+    double max_px;
+} sl_lens_calibrate_photo;
+
+typedef struct sl_lens_calibrate_result {
+    sl_lens_profile profile;       /* the solved lens, source chessboard */
+    sl_lens nominal;               /* the lens from focal_mm and sensor_width_mm */
+    double nominal_focal_mm;
+    double focal_mm;               /* the solved focal length in the same mm */
+    int radial_terms;              /* k terms solved */
+    int photo_count, used;
+    sl_lens_calibrate_photo *photos; /* photo_count, owned */
+} sl_lens_calibrate_result;
+
+/* The solve alone: `count` boards' cols x rows corners (pixels, top-left
+ * corner of the image at (0, 0); row by row, x along a row) seen through
+ * one lens. `lens` holds the nominal lens on entry and the solved one on
+ * return (focal length, centre, radial terms; projection, field and
+ * vignetting kept). rms_px and max_px (count each, may be NULL) get each
+ * board's residual; *rms and *max the overall ones. A bundle adjustment
+ * (Levenberg-Marquardt) of the lens and each board's pose, each pose seeded
+ * by a homography of the nominal lens's rays. SL_ERR_INPUT when the solve
+ * does not converge to a lens whose radius increases over the field. */
+sl_result sl_lens_calibrate_corners(const double *corners, int count,
+                                    const sl_lens_calibrate_options *opt, sl_lens *lens,
+                                    double *rms_px, double *max_px, double *rms, double *max,
+                                    sl_error *err);
+
+/* lens-calibrate: finds the board in each photo (OpenCV), leaves out the
+ * photos without it (each says why) and solves the lens from the others (at
+ * least 3). Photos of different sizes or cameras: SL_ERR_INPUT naming the
+ * file. res->photos is allocated (also on failure after reading began). */
+sl_result sl_lens_calibrate(const char *const *paths, int count,
+                            const sl_lens_calibrate_options *opt, sl_lens_calibrate_result *res,
+                            sl_error *err);
+void sl_lens_calibrate_result_free(sl_lens_calibrate_result *res);
+
+/* ================================================================== */
+/* Stitch: blend and the stitch call                                   */
+/* ================================================================== */
+
+#define SL_STITCH_MAX_VIEWS 16
+
+/* How the views are blended into the lat-long (docs/stitch.md "Blend"). */
+typedef struct sl_stitch_blend_options {
+    int width;               /* lat-long width (even); 0: sl_stitch_default_width */
+    int max_width;           /* cap of the default width (8192) */
+    int supersample;         /* samples per texel side; 0: from the views' density (one
+                                view pixel apart, 4x finer on hard edges) */
+    double ramp_deg;         /* each view's weight falls to 0 over this many degrees
+                                inside its field's edge (cos^2 ramp; 15) */
+    double ghost_ratio;      /* views that both see a texel well (weight >= 0.25) and
+                                differ by more than this fraction of the brighter, plus
+                                the noise floor, disagree: the best single view is
+                                taken and the texel counted as a ghost (0.3); <= 0: off */
+    double noise_floor;      /* absolute floor of that test; < 0: 1e-3 of the median
+                                luminance of the stitch */
+    double nadir_mask_deg;   /* directions within this of the nadir are not taken from
+                                any view (a tripod, a head): filled; 0: none */
+    const sl_image *mask;    /* a lat-long (any 2:1 size): texels > 0.5 are not taken
+                                from any view (filled); NULL: none */
+} sl_stitch_blend_options;
+
+void sl_stitch_blend_options_init(sl_stitch_blend_options *opt);
+
+/* The lat-long width that keeps the views' pixel density on the horizon:
+ * 2 pi focal_px rounded up to a multiple of 8, capped at max_width. */
+int sl_stitch_default_width(const sl_lens *lens, int max_width);
+
+typedef struct sl_stitch_coverage {
+    int width, height;
+    double seen_sr;          /* solid angle taken from the views (some weight > 0) */
+    double filled_sr;        /* solid angle filled from the seen border (no view, or masked) */
+    double masked_sr;        /* of filled_sr: masked (nadir or mask image) */
+    double low_sr;           /* of seen_sr: confidence under 0.5 (circles' edges) */
+    double view_sr[SL_STITCH_MAX_VIEWS]; /* solid angle each view contributes to */
+    int64_t ghost_texels;    /* texels where views disagreed: the best single view taken */
+    double ghost_sr;
+    int64_t filled_texels;
+    int supersample;         /* samples per texel side */
+    int supersample_hot;     /* ... where a view has a hard edge (a sun, a lamp) */
+    int64_t hot_texels;      /* texels sampled that finely */
+    double power[3];         /* integral of L over the sphere (W/sr units x sr), per channel */
+    double seen_power[3];    /* the same over the seen texels only */
+} sl_stitch_coverage;
+
+/* Where the blend hands the lat-long over, a strip of rows at a time: RGB
+ * then the confidence in A, width * 4 floats per row, `stride` floats
+ * apart, valid during the call only. */
+typedef sl_result (*sl_stitch_rows_fn)(void *user, const float *rows, int y0, int count,
+                                       size_t stride, sl_error *err);
+
+/* Blends views (their lens and pose as they are: nominal, profile or
+ * solved) into a lat-long in radiance: per texel, ss x ss samples, each
+ * view's radiance divided by its vignetting gain and weighted by the
+ * angle from its centre (1 + cos theta) / 2 times a cos^2 ramp to 0 at the
+ * field's edge times its confidence image; a weighted mean, so no light is
+ * made or lost and nothing is negative. Unseen or masked texels are filled
+ * smoothly from the seen border (diffusion on a coarse lat-long) and get
+ * confidence 0. A = min(1, sum of the views' weights). The rows go to
+ * `sink` in order. SL_ERR_INPUT naming the view for a view with a NaN/Inf
+ * sample or a radiance whose size is not its lens's. */
+sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
+                                 const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
+                                 void *user, sl_stitch_coverage *cov, sl_error *err);
+/* The same into a whole image (RGBA). */
+sl_result sl_stitch_blend(const sl_stitch_view *views, int count,
+                          const sl_stitch_blend_options *opt, sl_image *out,
+                          sl_stitch_coverage *cov, sl_error *err);
+
+typedef struct sl_stitch_options {
+    sl_stitch_blend_options blend;
+    /* The nominal lens: given whole (a profile), else from projection,
+     * focal and sensor (each 0 / -1: the files' metadata). */
+    const sl_lens *lens;
+    const char *lens_profile; /* a lens profile (JSON) to read and fit to the views */
+    const char *save_lens;   /* write the lens used (solved) as a profile here */
+    int projection;          /* sl_lens_projection; -1: equisolid */
+    double focal_mm;
+    double sensor_mm[2];     /* width, height (height 0: width * height / width of the image) */
+    /* Nominal poses in degrees; a list shorter than the views: the rest
+     * default (yaws evenly spaced over 360 from 0, pitch and roll 0). */
+    int yaw_count, pitch_count, roll_count;
+    double yaw_deg[SL_STITCH_MAX_VIEWS], pitch_deg[SL_STITCH_MAX_VIEWS],
+        roll_deg[SL_STITCH_MAX_VIEWS];
+    bool solve;              /* solve lens and poses from the overlaps (default true) */
+    const char *input_colorspace; /* NULL: the files' */
+    sl_pixel_type pixel_type;     /* half (default; float when a view's radiance
+                                     exceeds half's 65504) or float */
+    sl_exr_compression compression;
+} sl_stitch_options;
+
+void sl_stitch_options_init(sl_stitch_options *opt);
+
+typedef enum {
+    SL_STITCH_READ = 0, SL_STITCH_CIRCLE, SL_STITCH_SOLVE,
+    SL_STITCH_BLEND, /* the coarse pass and fill, the blend, the EXR's encoding and writing */
+    SL_STITCH_PHASES
+} sl_stitch_phase;
+const char *sl_stitch_phase_name(sl_stitch_phase phase);
+
+typedef struct sl_stitch_view_result {
+    char path[1024];
+    int width, height;
+    sl_view_pose nominal, pose;  /* as given, as used (solved) */
+    bool confidence;             /* a merge clipped mask weighted it */
+    char confidence_source[4096];
+} sl_stitch_view_result;
+
+typedef struct sl_stitch_result {
+    int view_count;
+    sl_stitch_view_result views[SL_STITCH_MAX_VIEWS];
+    sl_lens lens_nominal, lens;  /* as given, as used */
+    char lens_source[1024];      /* where the nominal lens came from */
+    sl_stitch_circle circle;     /* view 0's image circle */
+    bool circle_found;
+    bool solved;
+    sl_stitch_solve_result solve; /* pairs, matches, errors (when solved) */
+    char solve_note[512];        /* why not solved, or what the solve did */
+    sl_stitch_coverage coverage;
+    bool float_samples;          /* half was asked but the radiance needs float */
+    double wall[SL_STITCH_PHASES], cpu[SL_STITCH_PHASES];
+    double seconds, cpu_seconds;
+} sl_stitch_result;
+
+/* Stitches HDR views (files: EXR or any image setlight reads, all one
+ * camera, lens and size) into one lat-long EXR at out_path, written in
+ * strips (atomic: nothing is left on failure): RGB and the confidence in
+ * A, `envmap`, chromaticities and setlight:stitch:* provenance. The lens:
+ * opt->lens, else projection/focal/sensor from the options, else the
+ * files' EXIF; SL_ERR_INPUT naming the file when neither says. Refused
+ * (SL_ERR_INPUT naming the file or the pair): views of different sizes, a
+ * NaN/Inf sample, views that do not overlap the others. One view makes a
+ * partial lat-long. res may be NULL. */
+sl_result sl_stitch(const char *const *view_paths, int count, const char *out_path,
+                    const sl_stitch_options *opt, sl_stitch_result *res, sl_error *err);
+void sl_stitch_result_free(sl_stitch_result *res);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,526 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* sl_stitch: HDR fisheye views (files) to one lat-long EXR: the views read
+ * and checked, the nominal lens and poses, the overlaps checked, then the
+ * blend written a strip at a time. */
+#include "stitch_blend_private.h"
+
+#include <libgen.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+#define DEG (M_PI / 180.0)
+/* Two views overlap when their fields share a band at least this wide. */
+#define MIN_OVERLAP_DEG 2.0
+
+static const char *const phase_names[SL_STITCH_PHASES] = {"read", "circle", "solve", "blend"};
+
+void sl_stitch_result_free(sl_stitch_result *res)
+{
+    if (res)
+        sl_stitch_solve_result_free(&res->solve);
+}
+
+const char *sl_stitch_phase_name(sl_stitch_phase phase)
+{
+    return phase >= 0 && phase < SL_STITCH_PHASES ? phase_names[phase] : "unknown";
+}
+
+void sl_stitch_options_init(sl_stitch_options *opt)
+{
+    memset(opt, 0, sizeof *opt);
+    sl_stitch_blend_options_init(&opt->blend);
+    opt->projection = -1;
+    opt->solve = true;
+    opt->pixel_type = SL_PIXEL_HALF;
+    opt->compression = SL_EXR_ZIP;
+}
+
+/* One view as read: its radiance, metadata and confidence. */
+typedef struct view_file {
+    const char *path;
+    sl_image radiance, weight;
+    sl_meta meta;
+} view_file;
+
+/* The merge's clipped mask named by the radiance (as given to merge, or
+ * beside the radiance) as a confidence: 1, or 1e-3 where a channel is
+ * clipped in every frame (a lower bound: any unclipped view wins). */
+static sl_result read_confidence(view_file *v, sl_stitch_view_result *vr, sl_error *err)
+{
+    const char *mask = sl_meta_get(&v->meta, "setlight:merge:clipped_mask");
+    if (!mask || !mask[0])
+        return SL_OK;
+    char beside[4096];
+    const char *found = NULL;
+    FILE *f = fopen(mask, "rb");
+    if (f) {
+        found = mask;
+    } else {
+        char dir[4096], base[4096];
+        snprintf(dir, sizeof dir, "%s", v->path);
+        snprintf(base, sizeof base, "%s", mask);
+        snprintf(beside, sizeof beside, "%s/%s", dirname(dir), basename(base));
+        if ((f = fopen(beside, "rb")))
+            found = beside;
+    }
+    if (!f) {
+        sl_log_note(SL_LOG_WARN, "%s: its clipped mask %s is not there: every pixel weighted as "
+                                 "unclipped", v->path, mask);
+        return SL_OK;
+    }
+    fclose(f);
+    sl_image m = {0};
+    sl_result r = sl_exr_read(found, &m, NULL, err);
+    if (r)
+        return r;
+    if (m.width != v->radiance.width || m.height != v->radiance.height) {
+        sl_image_free(&m);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: its clipped mask %s is %dx%d, not %dx%d",
+                            v->path, found, m.width, m.height, v->radiance.width,
+                            v->radiance.height);
+    }
+    if ((r = sl_image_alloc(&v->weight, m.width, m.height, 1, err))) {
+        sl_image_free(&m);
+        return r;
+    }
+    for (int y = 0; y < m.height; y++)
+        for (int x = 0; x < m.width; x++) {
+            const float *p = sl_image_pixel(&m, x, y);
+            float c = p[0];
+            for (int k = 1; k < m.channels && k < 3; k++)
+                c = fmaxf(c, p[k]);
+            sl_image_pixel(&v->weight, x, y)[0] = c > 0.5f ? 1e-3f : 1.0f;
+        }
+    sl_image_free(&m);
+    vr->confidence = true;
+    snprintf(vr->confidence_source, sizeof vr->confidence_source, "%s", found);
+    return SL_OK;
+}
+
+/* "make model" of a view's camera, as a lens profile names it. */
+static void camera_name(const sl_meta *m, char *buf, size_t size)
+{
+    snprintf(buf, size, "%s%s%s", m->make, m->make[0] && m->model[0] ? " " : "", m->model);
+}
+
+/* The nominal lens: a profile, the options, the files' EXIF, in that order. */
+static sl_result nominal_lens(const view_file *views, int count, const sl_stitch_options *opt,
+                              sl_lens *lens, char *source, size_t source_size, sl_error *err)
+{
+    const view_file *v0 = &views[0];
+    int w = v0->radiance.width, h = v0->radiance.height;
+    /* One camera and lens: the EXIF of every view must agree. */
+    for (int i = 1; i < count; i++) {
+        const sl_meta *a = &v0->meta, *b = &views[i].meta;
+        if (strcmp(a->lens, b->lens) || strcmp(a->model, b->model) ||
+            fabs(a->focal_length_mm - b->focal_length_mm) > 1e-6)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: another camera or lens than %s (%s %s %gmm vs %s %s %gmm): "
+                                "one stitch is one camera and lens",
+                                views[i].path, v0->path, b->model, b->lens, b->focal_length_mm,
+                                a->model, a->lens, a->focal_length_mm);
+    }
+    if (opt->lens) {
+        if (opt->lens->width != w || opt->lens->height != h)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: the lens given is for %dx%d images, the view is %dx%d",
+                                v0->path, opt->lens->width, opt->lens->height, w, h);
+        *lens = *opt->lens;
+        snprintf(source, source_size, "given");
+        return SL_OK;
+    }
+    if (opt->lens_profile) {
+        sl_lens_profile prof;
+        sl_result r = sl_lens_profile_read(opt->lens_profile, &prof, err);
+        if (r)
+            return r;
+        char camera[160], why[512];
+        camera_name(&v0->meta, camera, sizeof camera);
+        if (!sl_lens_profile_fits(&prof, w, h, camera, v0->meta.lens, lens, why, sizeof why))
+            return sl_error_set(err, SL_ERR_INPUT, "%s: %s", opt->lens_profile, why);
+        snprintf(source, source_size, "lens profile %.400s (%s%s%.400s)", opt->lens_profile,
+                 sl_lens_source_name(prof.source), why[0] ? "; " : "", why);
+        return SL_OK;
+    }
+    sl_lens_projection p = opt->projection >= 0 ? (sl_lens_projection)opt->projection
+                                                : SL_LENS_EQUISOLID;
+    if (opt->focal_mm > 0 && opt->sensor_mm[0] > 0) {
+        sl_lens_nominal(lens, p, w, h, opt->focal_mm, opt->sensor_mm[0]);
+        snprintf(source, source_size, "%s, %g mm on a %g mm wide sensor (options)",
+                 sl_lens_projection_name(p), opt->focal_mm, opt->sensor_mm[0]);
+        return SL_OK;
+    }
+    /* The file's EXIF, with what the options give in its place. */
+    sl_meta m;
+    sl_result r = sl_meta_copy(&v0->meta, &m, err);
+    if (r)
+        return r;
+    char sensor[64], why[512];
+    if (opt->focal_mm > 0)
+        m.focal_length_mm = opt->focal_mm;
+    snprintf(sensor, sizeof sensor, "%.6g x %.6g", opt->sensor_mm[0],
+             opt->sensor_mm[1] > 0 ? opt->sensor_mm[1] : opt->sensor_mm[0] * h / w);
+    if (opt->sensor_mm[0] > 0)
+        r = sl_meta_set(&m, SL_ATTR_SENSOR_MM, sensor, err);
+    bool ok = !r && sl_stitch_lens_from_meta(&m, p, w, h, lens, why, sizeof why);
+    if (ok)
+        snprintf(source, source_size, "%s, %g mm (%s), sensor %g mm wide (%s)",
+                 sl_lens_projection_name(p), m.focal_length_mm,
+                 opt->focal_mm > 0 ? "option" : "EXIF", lens->focal_px > 0 ? m.focal_length_mm * w / lens->focal_px : 0,
+                 opt->sensor_mm[0] > 0 ? "option" : "file");
+    sl_meta_free(&m);
+    if (r)
+        return r;
+    if (!ok)
+        return sl_error_set(err, SL_ERR_INPUT, "%s: %s, or --lens-profile", v0->path, why);
+    return SL_OK;
+}
+
+static double axis_angle_deg(const sl_view_pose *a, const sl_view_pose *b)
+{
+    double ma[3][3], mb[3][3];
+    sl_view_pose_matrix(a, ma);
+    sl_view_pose_matrix(b, mb);
+    double c = ma[0][2] * mb[0][2] + ma[1][2] * mb[1][2] + ma[2][2] * mb[2][2];
+    return acos(fmin(1.0, fmax(-1.0, c))) / DEG;
+}
+
+/* Every view must share a field band with the others (one connected
+ * overlap graph), else the solve cannot tie it and the stitch would be
+ * pieces: the first view not reached and its nearest view are named. */
+static sl_result check_overlaps(const sl_stitch_view *views, int count, sl_error *err)
+{
+    if (count < 2)
+        return SL_OK;
+    bool reached[SL_STITCH_MAX_VIEWS] = {true};
+    for (bool grew = true; grew;) {
+        grew = false;
+        for (int i = 0; i < count; i++)
+            for (int j = 0; j < count && !reached[i]; j++)
+                if (reached[j] &&
+                    axis_angle_deg(&views[i].pose, &views[j].pose) <
+                        views[i].lens.max_theta_deg + views[j].lens.max_theta_deg -
+                            MIN_OVERLAP_DEG)
+                    reached[i] = grew = true;
+    }
+    for (int i = 0; i < count; i++) {
+        if (reached[i])
+            continue;
+        int near = 0;
+        double best = 1e9;
+        for (int j = 0; j < count; j++)
+            if (reached[j] && axis_angle_deg(&views[i].pose, &views[j].pose) < best) {
+                best = axis_angle_deg(&views[i].pose, &views[j].pose);
+                near = j;
+            }
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s and %s do not overlap (their axes are %.1f deg apart, their "
+                            "fields %.1f and %.1f deg): check --yaw/--pitch",
+                            views[near].name, views[i].name, best,
+                            views[near].lens.max_theta_deg, views[i].lens.max_theta_deg);
+    }
+    return SL_OK;
+}
+
+/* The output file, opened at the first strip. */
+typedef struct out_file {
+    const char *path;
+    const sl_stitch_options *opt;
+    sl_meta *meta;
+    int width, height;
+    sl_exr_stream *stream;
+} out_file;
+
+static sl_result write_rows(void *user, const float *rows, int y0, int count, size_t stride,
+                            sl_error *err)
+{
+    out_file *o = user;
+    sl_result r;
+    if (y0 == 0 && (r = sl_exr_stream_open(o->path, o->width, o->height, 4, o->meta,
+                                           o->opt->pixel_type, o->opt->compression, &o->stream,
+                                           err)))
+        return r;
+    r = sl_exr_stream_write(o->stream, rows, count, stride, err);
+    if (r)
+        o->stream = NULL; /* a failed write aborts the stream */
+    return r;
+}
+
+/* Coverage numbers known only after the last strip, at a fixed width (the
+ * header is written with a placeholder of the same length first). */
+static void coverage_text(const sl_stitch_coverage *c, int64_t texels, char *buf, size_t size)
+{
+    int digits = snprintf(NULL, 0, "%lld", (long long)texels);
+    snprintf(buf, size,
+             "seen %.6e sr, filled %.6e sr (masked %.6e sr), confidence under 0.5 %.6e sr, "
+             "ghost texels %*lld (%.6e sr)",
+             c->seen_sr, c->filled_sr, c->masked_sr, c->low_sr, digits,
+             (long long)c->ghost_texels, c->ghost_sr);
+}
+
+static sl_result output_meta(const sl_stitch_view *views, int count, const sl_stitch_result *res,
+                             const sl_stitch_options *opt, int width, sl_meta *meta,
+                             sl_error *err)
+{
+    meta->envmap = SL_ENVMAP_LATLONG;
+    sl_result r = sl_meta_set_color_space(meta, SL_WORKING_SPACE, err);
+    char buf[8192];
+    size_t len = 0;
+    for (int i = 0; i < count && len < sizeof buf; i++)
+        len += (size_t)snprintf(buf + len, sizeof buf - len, "%s yaw=%.4f pitch=%.4f roll=%.4f%s\n",
+                                views[i].name, views[i].pose.yaw_deg, views[i].pose.pitch_deg,
+                                views[i].pose.roll_deg,
+                                res->views[i].confidence ? " (clipped mask weighted)" : "");
+    if (!r)
+        r = sl_meta_set(meta, "setlight:version", sl_version(), err);
+    if (!r)
+        r = sl_meta_set(meta, "setlight:stitch:views", buf, err);
+    const sl_lens *l = &res->lens;
+    snprintf(buf, sizeof buf,
+             "%s %dx%d focal_px=%.4f cx=%.4f cy=%.4f k=%.6g,%.6g,%.6g vignette=%.6g,%.6g,%.6g "
+             "max_theta_deg=%.4f circle_radius_px=%.4f (%s; %s)",
+             sl_lens_projection_name(l->projection), l->width, l->height, l->focal_px, l->cx,
+             l->cy, l->k[0], l->k[1], l->k[2], l->vignette[0], l->vignette[1], l->vignette[2],
+             l->max_theta_deg, l->circle_radius_px, res->lens_source,
+             res->solved ? "solved" : res->solve_note);
+    if (!r)
+        r = sl_meta_set(meta, "setlight:stitch:lens", buf, err);
+    snprintf(buf, sizeof buf,
+             "weighted mean of radiance / vignetting, weight (1 + cos theta) / 2 x cos^2 ramp "
+             "over the last %g deg of the field x merge confidence; ghost test %g; nadir "
+             "mask %g deg%s",
+             opt->blend.ramp_deg, opt->blend.ghost_ratio, opt->blend.nadir_mask_deg,
+             opt->blend.mask ? "; mask image" : "");
+    (void)width;
+    if (!r)
+        r = sl_meta_set(meta, "setlight:stitch:blend", buf, err);
+    if (!r)
+        r = sl_meta_set(meta, "setlight:alpha",
+                        "confidence: min(1, sum of the views' blend weights), 0 where filled", err);
+    coverage_text(&res->coverage, (int64_t)width * (width / 2), buf, sizeof buf);
+    if (!r)
+        r = sl_meta_set(meta, "setlight:stitch:coverage", buf, err);
+    return r;
+}
+
+static void phase_end(sl_stitch_result *res, sl_stitch_phase ph, double *t, double *c)
+{
+    double t1 = sl_seconds(), c1 = sl_cpu_seconds();
+    res->wall[ph] += t1 - *t;
+    res->cpu[ph] += c1 - *c;
+    *t = t1;
+    *c = c1;
+}
+
+sl_result sl_stitch(const char *const *view_paths, int count, const char *out_path,
+                    const sl_stitch_options *opt_in, sl_stitch_result *res_out, sl_error *err)
+{
+    sl_stitch_options opt;
+    if (opt_in)
+        opt = *opt_in;
+    else
+        sl_stitch_options_init(&opt);
+    sl_stitch_result *res = calloc(1, sizeof *res);
+    view_file *files = calloc(SL_STITCH_MAX_VIEWS, sizeof *files);
+    sl_stitch_view views[SL_STITCH_MAX_VIEWS];
+    sl_meta meta;
+    sl_meta_init(&meta);
+    out_file out = {0};
+    if (res_out)
+        memset(res_out, 0, sizeof *res_out);
+    if (!res || !files) {
+        free(res);
+        free(files);
+        return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
+    }
+    double t0 = sl_seconds(), c0 = sl_cpu_seconds(), t = t0, c = c0;
+    sl_result r = SL_OK;
+    if (count < 1 || count > SL_STITCH_MAX_VIEWS) {
+        r = sl_error_set(err, SL_ERR_USAGE, "stitch: 1 to %d views, not %d", SL_STITCH_MAX_VIEWS,
+                         count);
+        goto done;
+    }
+    res->view_count = count;
+    for (int i = 0; i < count && !r; i++) {
+        view_file *v = &files[i];
+        v->path = view_paths[i];
+        sl_meta_init(&v->meta);
+        snprintf(res->views[i].path, sizeof res->views[i].path, "%s", v->path);
+        if ((r = sl_image_read_linear(v->path, opt.input_colorspace, &v->radiance, &v->meta,
+                                      NULL, err)))
+            break;
+        if ((r = sl_image_ensure_rgb(&v->radiance, v->path, err)))
+            break;
+        sl_image_stats st;
+        sl_image_stats_compute(&v->radiance, &st);
+        if (st.nan_count + st.inf_count) {
+            r = sl_error_set(err, SL_ERR_INPUT,
+                             "%s: %lld NaN/Inf samples (a damaged file: merge never writes them)",
+                             v->path, (long long)(st.nan_count + st.inf_count));
+            break;
+        }
+        res->views[i].width = v->radiance.width;
+        res->views[i].height = v->radiance.height;
+        if (i > 0 && (v->radiance.width != files[0].radiance.width ||
+                      v->radiance.height != files[0].radiance.height)) {
+            r = sl_error_set(err, SL_ERR_INPUT,
+                             "%s: %dx%d, but %s is %dx%d: one stitch is one camera, lens and size",
+                             v->path, v->radiance.width, v->radiance.height, files[0].path,
+                             files[0].radiance.width, files[0].radiance.height);
+            break;
+        }
+        r = read_confidence(v, &res->views[i], err);
+    }
+    if (r)
+        goto done;
+    if ((r = nominal_lens(files, count, &opt, &res->lens_nominal, res->lens_source,
+                          sizeof res->lens_source, err)))
+        goto done;
+    for (int i = 0; i < count; i++) {
+        sl_stitch_view *v = &views[i];
+        v->name = files[i].path;
+        v->radiance = &files[i].radiance;
+        v->weight = files[i].weight.data ? &files[i].weight : NULL;
+        v->lens = res->lens_nominal;
+        v->pose.yaw_deg = i < opt.yaw_count ? opt.yaw_deg[i] : 360.0 * i / count;
+        v->pose.pitch_deg = i < opt.pitch_count ? opt.pitch_deg[i] : 0.0;
+        v->pose.roll_deg = i < opt.roll_count ? opt.roll_deg[i] : 0.0;
+        res->views[i].nominal = v->pose;
+    }
+    phase_end(res, SL_STITCH_READ, &t, &c);
+    /* A circular fisheye's image circle, found in every view: the optical
+     * centre and the circle the solve starts from (a profile keeps its own). */
+    bool given = opt.lens || opt.lens_profile;
+    if (res->lens_nominal.projection != SL_LENS_RECTILINEAR &&
+        res->lens_nominal.circle_radius_px > 0) {
+        double sx = 0, sy = 0, sr = 0;
+        for (int i = 0; i < count; i++) {
+            sl_stitch_circle circ;
+            if ((r = sl_stitch_circle_find(&files[i].radiance, files[i].path, &res->lens_nominal,
+                                           &circ, err)))
+                goto done;
+            if (i == 0)
+                res->circle = circ;
+            sx += circ.cx;
+            sy += circ.cy;
+            sr += circ.radius;
+        }
+        res->circle_found = true;
+        if (!given) {
+            for (int i = 0; i < count; i++) {
+                views[i].lens.cx = sx / count;
+                views[i].lens.cy = sy / count;
+                views[i].lens.circle_radius_px = sr / count;
+            }
+        }
+    }
+    phase_end(res, SL_STITCH_CIRCLE, &t, &c);
+    if ((r = check_overlaps(views, count, err)))
+        goto done;
+    if (opt.solve && count >= 2) {
+        sl_stitch_solve_options so;
+        sl_stitch_solve_options_init(&so);
+        if (given) { /* the lens is known: only the poses */
+            so.solve_focal = so.solve_centre = so.solve_vignette = false;
+            so.radial_terms = 0;
+        }
+        if ((r = sl_stitch_solve(views, count, &so, &res->solve, err)))
+            goto done;
+        res->solved = true;
+        snprintf(res->solve_note, sizeof res->solve_note,
+                 "solved from the overlaps: %d pairs solved, %d fell back to the nominal "
+                 "rotation, %d matches, reprojection RMS %.3f px, max %.3f px",
+                 res->solve.pairs_solved, res->solve.pairs_fallback, res->solve.inliers,
+                 res->solve.rms_px, res->solve.max_px);
+    } else {
+        snprintf(res->solve_note, sizeof res->solve_note, "%s",
+                 count < 2   ? "not solved: one view, lens and pose as given"
+                 : opt.solve ? ""
+                             : "not solved (--no-solve): lens and poses as given");
+    }
+    res->lens = views[0].lens;
+    for (int i = 0; i < count; i++)
+        res->views[i].pose = views[i].pose;
+    if (opt.save_lens) {
+        sl_lens_profile prof;
+        memset(&prof, 0, sizeof prof);
+        prof.lens = res->lens;
+        camera_name(&files[0].meta, prof.camera, sizeof prof.camera);
+        snprintf(prof.lens_name, sizeof prof.lens_name, "%s", files[0].meta.lens);
+        prof.source = res->solved && !given ? SL_LENS_SOURCE_OVERLAPS : SL_LENS_SOURCE_NOMINAL;
+        prof.rms_px = res->solved ? res->solve.rms_px : -1;
+        prof.max_px = res->solved ? res->solve.max_px : -1;
+        prof.images = res->solved ? count : 0;
+        if ((r = sl_lens_profile_write(opt.save_lens, &prof, err)))
+            goto done;
+    }
+    phase_end(res, SL_STITCH_SOLVE, &t, &c);
+
+    int width = opt.blend.width > 0 ? opt.blend.width
+                                    : sl_stitch_default_width(&res->lens, opt.blend.max_width);
+    opt.blend.width = width;
+    /* Half holds values up to 65504: brighter views (a lamp, the sun) are
+     * written as float rather than clipped. */
+    if (opt.pixel_type == SL_PIXEL_HALF) {
+        double peak = 0, edge_gain = fmax(1e-6, sl_lens_vignette(&res->lens,
+                          res->lens.cx + fmax(res->lens.circle_radius_px,
+                                              0.5 * hypot(res->lens.width, res->lens.height)),
+                          res->lens.cy));
+        for (int i = 0; i < count; i++) {
+            sl_image_stats st;
+            sl_image_stats_compute(views[i].radiance, &st);
+            for (int k = 0; k < 3; k++)
+                peak = fmax(peak, st.max[k]);
+        }
+        if (peak / fmin(1.0, edge_gain) > 65504.0) {
+            opt.pixel_type = SL_PIXEL_FLOAT;
+            res->float_samples = true;
+        }
+    }
+    /* The header goes out with placeholders for the coverage. */
+    if ((r = output_meta(views, count, res, &opt, width, &meta, err)))
+        goto done;
+    out = (out_file){out_path, &opt, &meta, width, width / 2, NULL};
+    r = sl_stitch_blend_stream(views, count, &opt.blend, write_rows, &out, &res->coverage, err);
+    if (r)
+        goto done;
+    {
+        /* Final header values, the same lengths as the placeholders. */
+        sl_meta final;
+        sl_meta_init(&final);
+        char buf[1024];
+        coverage_text(&res->coverage, (int64_t)width * (width / 2), buf, sizeof buf);
+        r = sl_meta_set(&final, "setlight:stitch:coverage", buf, err);
+        if (!r) {
+            r = sl_exr_stream_finish(out.stream, &final, err);
+            out.stream = NULL;
+        }
+        sl_meta_free(&final);
+    }
+    phase_end(res, SL_STITCH_BLEND, &t, &c);
+
+done:
+    sl_exr_stream_abort(out.stream);
+    res->seconds = sl_seconds() - t0;
+    res->cpu_seconds = sl_cpu_seconds() - c0;
+    if (!r && res_out)
+        *res_out = *res; /* the solve's arrays go with it */
+    else
+        sl_stitch_solve_result_free(&res->solve);
+    for (int i = 0; i < SL_STITCH_MAX_VIEWS; i++) {
+        sl_image_free(&files[i].radiance);
+        sl_image_free(&files[i].weight);
+        if (files[i].path)
+            sl_meta_free(&files[i].meta);
+    }
+    sl_meta_free(&meta);
+    free(files);
+    free(res);
+    return r;
+}

@@ -1,0 +1,532 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The stitch's blend: fisheye views to one lat-long as a weighted mean of
+ * their radiance (vignetting divided out), written a strip of rows at a
+ * time, with a confidence channel, ghosts resolved to the best single view
+ * and unseen or masked directions filled from the seen border. */
+#include "stitch_blend_private.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+#define DEG (M_PI / 180.0)
+#define STRIP_ROWS 32
+/* A view must weigh at least this in a texel to take part in the ghost test. */
+#define GHOST_MIN_WEIGHT 0.25
+/* A texel whose samples fall between view pixels differing by more than
+ * this factor is sampled again more finely. */
+#define HOT_CONTRAST 1.5
+
+void sl_stitch_blend_options_init(sl_stitch_blend_options *opt)
+{
+    memset(opt, 0, sizeof *opt);
+    opt->max_width = 8192;
+    opt->ramp_deg = 15.0;
+    opt->ghost_ratio = 0.3;
+    opt->noise_floor = -1.0;
+}
+
+int sl_stitch_default_width(const sl_lens *lens, int max_width)
+{
+    double w = 2.0 * M_PI * lens->focal_px;
+    int width = (int)ceil(w / 8.0) * 8;
+    if (max_width > 0 && width > max_width)
+        width = max_width & ~1;
+    return width < 16 ? 16 : width;
+}
+
+/* Samples per texel side: one view pixel apart on the horizon (shrinking
+ * does not alias), and four times as fine on a view's hard edges, so the
+ * energy of a sun a few pixels wide does not depend on where the samples
+ * fall. */
+static void auto_supersample(const stitch_view_prep *v, int count, int width, int *ss,
+                             int *ss_hot)
+{
+    double f = 0;
+    for (int i = 0; i < count; i++)
+        f = fmax(f, v[i].lens.focal_px);
+    double ratio = f * 2.0 * M_PI / width;
+    int base = (int)ceil(ratio - 1e-9), hot = (int)ceil(4.0 * ratio - 1e-9);
+    *ss = base < 1 ? 1 : (base > 8 ? 8 : base);
+    *ss_hot = hot < *ss ? *ss : (hot > 8 ? 8 : hot);
+}
+
+sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
+                               const sl_stitch_blend_options *opt, stitch_view_prep *prep,
+                               sl_error *err)
+{
+    if (count < 1 || count > SL_STITCH_MAX_VIEWS)
+        return sl_error_set(err, SL_ERR_USAGE, "stitch: 1 to %d views, not %d",
+                            SL_STITCH_MAX_VIEWS, count);
+    for (int i = 0; i < count; i++) {
+        const sl_stitch_view *v = &views[i];
+        stitch_view_prep *p = &prep[i];
+        memset(p, 0, sizeof *p);
+        const char *name = v->name ? v->name : "view";
+        const sl_image *img = v->radiance;
+        if (!img || !img->data || img->channels < 3)
+            return sl_error_set(err, SL_ERR_INPUT, "%s: not an RGB image", name);
+        if (img->width != v->lens.width || img->height != v->lens.height)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: the image is %dx%d but its lens is for %dx%d", name,
+                                img->width, img->height, v->lens.width, v->lens.height);
+        if (v->weight && (v->weight->width != img->width || v->weight->height != img->height))
+            return sl_error_set(err, SL_ERR_INPUT, "%s: the confidence image is %dx%d, not %dx%d",
+                                name, v->weight->width, v->weight->height, img->width,
+                                img->height);
+        if (!(v->lens.focal_px > 0) || !(v->lens.max_theta_deg > 0))
+            return sl_error_set(err, SL_ERR_INPUT, "%s: lens without a focal length or field",
+                                name);
+        int64_t bad = 0;
+        for (int y = 0; y < img->height; y++) {
+            const float *row = sl_image_pixel(img, 0, y);
+            for (int x = 0; x < img->width; x++)
+                for (int c = 0; c < 3; c++)
+                    bad += !isfinite(row[x * img->channels + c]);
+        }
+        if (bad)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: %lld NaN/Inf samples (a damaged file: merge never writes "
+                                "them)",
+                                name, (long long)bad);
+        p->lens = v->lens;
+        p->radiance = img;
+        p->weight = v->weight;
+        double m[3][3];
+        sl_view_pose_matrix(&v->pose, m);
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++)
+                p->to_cam[r][c] = m[c][r];
+        for (int r = 0; r < 3; r++)
+            p->axis[r] = m[r][2];
+        double tmax = v->lens.max_theta_deg * DEG;
+        double ramp = fmin(fmax(opt->ramp_deg, 0.0), v->lens.max_theta_deg) * DEG;
+        p->theta_max = tmax;
+        p->cos_max = cos(fmin(tmax, M_PI));
+        p->ramp = ramp;
+    }
+    return SL_OK;
+}
+
+double stitch_view_weight(const stitch_view_prep *v, double theta)
+{
+    if (theta >= v->theta_max)
+        return 0.0;
+    double w = 0.5 * (1.0 + cos(theta));
+    double d = v->theta_max - theta;
+    if (v->ramp > 0 && d < v->ramp) {
+        double s = sin(0.5 * M_PI * d / v->ramp);
+        w *= s * s;
+    }
+    return w;
+}
+
+/* Bilinear lookup of channels [0, n) at pixel position (x, y) (pixel
+ * centres at +0.5), clamped to the image. */
+static void bilinear(const sl_image *img, double x, double y, int n, double *out,
+                     double *contrast)
+{
+    double fx = x - 0.5, fy = y - 0.5;
+    int x0 = (int)floor(fx), y0 = (int)floor(fy);
+    double ax = fx - x0, ay = fy - y0;
+    int x1 = x0 + 1, y1 = y0 + 1;
+    x0 = x0 < 0 ? 0 : (x0 >= img->width ? img->width - 1 : x0);
+    x1 = x1 < 0 ? 0 : (x1 >= img->width ? img->width - 1 : x1);
+    y0 = y0 < 0 ? 0 : (y0 >= img->height ? img->height - 1 : y0);
+    y1 = y1 < 0 ? 0 : (y1 >= img->height ? img->height - 1 : y1);
+    const float *p00 = sl_image_pixel(img, x0, y0), *p10 = sl_image_pixel(img, x1, y0);
+    const float *p01 = sl_image_pixel(img, x0, y1), *p11 = sl_image_pixel(img, x1, y1);
+    for (int c = 0; c < n; c++)
+        out[c] = (1 - ay) * ((1 - ax) * p00[c] + ax * p10[c]) +
+                 ay * ((1 - ax) * p01[c] + ax * p11[c]);
+    if (contrast) {
+        int g = n > 1 ? 1 : 0;
+        double lo = fmin(fmin(p00[g], p10[g]), fmin(p01[g], p11[g]));
+        double hi = fmax(fmax(p00[g], p10[g]), fmax(p01[g], p11[g]));
+        *contrast = hi / fmax(lo, 1e-30);
+    }
+}
+
+static double luminance(const double *rgb)
+{
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+
+/* One pass over the lat-long at one width: the geometry shared by its rows. */
+typedef struct blend_pass {
+    const stitch_view_prep *views;
+    int count;
+    const sl_stitch_blend_options *opt;
+    int width, height, ss;
+    int ss_hot;                /* samples per side where a view has a hard edge */
+    double *sin_lon, *cos_lon; /* width * ss sub-columns */
+    double nadir_lat;          /* latitudes below are masked; -inf: none */
+    double noise_floor;
+    bool ghosts;
+    const sl_image *fill;      /* coarse filled lat-long, or NULL */
+    float *rows;               /* STRIP_ROWS rows of width * 4 */
+    int y0;                    /* first row of the strip */
+    stitch_row_stats *stats;   /* per row of the strip */
+} blend_pass;
+
+static bool masked(const blend_pass *p, double u, double v, double lat)
+{
+    if (lat < p->nadir_lat)
+        return true;
+    const sl_image *m = p->opt->mask;
+    if (!m)
+        return false;
+    int mx = (int)(u * m->width), my = (int)(v * m->height);
+    mx = mx < 0 ? 0 : (mx >= m->width ? m->width - 1 : mx);
+    my = my < 0 ? 0 : (my >= m->height ? m->height - 1 : my);
+    return sl_image_pixel(m, mx, my)[0] > 0.5f;
+}
+
+/* Adds texel (x, y)'s ss x ss samples to the views' sums; true when a
+ * sample fell on a high-contrast spot of a view (worth more samples). */
+static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc_w,
+                          double (*acc_l)[3], double *area, double *masked_area)
+{
+    const int W = p->width, H = p->height, n = p->count;
+    bool hot = false;
+    for (int j = 0; j < ss; j++) {
+        double v = (y + (j + 0.5) / ss) / H, lat = M_PI * (0.5 - v);
+        double sin_lat = sin(lat), cos_lat = cos(lat);
+        for (int i = 0; i < ss; i++) {
+            double a = cos_lat, u = (x + (i + 0.5) / ss) / W;
+            *area += a;
+            if (masked(p, u, v, lat)) {
+                *masked_area += a;
+                continue;
+            }
+            double sin_lon, cos_lon;
+            if (ss == p->ss) {
+                sin_lon = p->sin_lon[x * ss + i];
+                cos_lon = p->cos_lon[x * ss + i];
+            } else {
+                double lon = M_PI * (1.0 - 2.0 * u);
+                sin_lon = sin(lon);
+                cos_lon = cos(lon);
+            }
+            double d[3] = {sin_lon * cos_lat, sin_lat, cos_lon * cos_lat};
+            for (int k = 0; k < n; k++) {
+                const stitch_view_prep *vw = &p->views[k];
+                double c = vw->axis[0] * d[0] + vw->axis[1] * d[1] + vw->axis[2] * d[2];
+                if (c < vw->cos_max)
+                    continue;
+                double ray[3], px, py;
+                for (int r = 0; r < 3; r++)
+                    ray[r] = vw->to_cam[r][0] * d[0] + vw->to_cam[r][1] * d[1] +
+                             vw->to_cam[r][2] * d[2];
+                if (!sl_lens_ray_to_pixel(&vw->lens, ray, &px, &py))
+                    continue;
+                double w = stitch_view_weight(vw, acos(fmin(1.0, fmax(-1.0, c))));
+                if (vw->weight) {
+                    double conf;
+                    bilinear(vw->weight, px, py, 1, &conf, NULL);
+                    w *= fmin(1.0, fmax(0.0, conf));
+                }
+                if (!(w > 0))
+                    continue;
+                double rgb[3], contrast;
+                bilinear(vw->radiance, px, py, 3, rgb, &contrast);
+                hot |= contrast > HOT_CONTRAST;
+                double g = sl_lens_vignette(&vw->lens, px, py);
+                if (!(g > 1e-6))
+                    continue;
+                w *= a;
+                acc_w[k] += w;
+                for (int ch = 0; ch < 3; ch++)
+                    acc_l[k][ch] += w * fmax(0.0, rgb[ch]) / g;
+            }
+        }
+    }
+    return hot;
+}
+
+static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *st)
+{
+    const int W = p->width, H = p->height, n = p->count;
+    memset(st, 0, sizeof *st);
+    double texel_sr = sl_latlong_texel_solid_angle(y, W, H);
+    for (int x = 0; x < W; x++) {
+        double acc_w[SL_STITCH_MAX_VIEWS] = {0}, acc_l[SL_STITCH_MAX_VIEWS][3];
+        memset(acc_l, 0, sizeof acc_l);
+        double area = 0, masked_area = 0;
+        /* A bright small source or a hard edge: sampled finer, so its
+         * energy does not depend on where the samples fall. */
+        if (texel_samples(p, x, y, p->ss, acc_w, acc_l, &area, &masked_area) &&
+            p->ss_hot > p->ss) {
+            memset(acc_w, 0, sizeof acc_w);
+            memset(acc_l, 0, sizeof acc_l);
+            area = masked_area = 0;
+            texel_samples(p, x, y, p->ss_hot, acc_w, acc_l, &area, &masked_area);
+            st->hot_texels++;
+        }
+        /* Per view: its mean weight over the texel and its mean radiance. */
+        double wsum = 0, best_w = 0, lmin = INFINITY, lmax = 0;
+        int best = -1, good = 0;
+        for (int k = 0; k < n; k++) {
+            if (!(acc_w[k] > 0))
+                continue;
+            double wk = acc_w[k] / area;
+            wsum += wk;
+            if (wk > best_w) {
+                best_w = wk;
+                best = k;
+            }
+            if (wk >= GHOST_MIN_WEIGHT) {
+                double l[3] = {acc_l[k][0] / acc_w[k], acc_l[k][1] / acc_w[k],
+                               acc_l[k][2] / acc_w[k]};
+                double y_k = luminance(l);
+                lmin = fmin(lmin, y_k);
+                lmax = fmax(lmax, y_k);
+                good++;
+            }
+        }
+        float *o = out + (size_t)x * 4;
+        if (wsum > 0) {
+            bool ghost = p->ghosts && good >= 2 &&
+                         lmax - lmin > p->opt->ghost_ratio * lmax + p->noise_floor;
+            double sw = 0, sl[3] = {0, 0, 0};
+            for (int k = 0; k < n; k++) {
+                if (!(acc_w[k] > 0) || (ghost && k != best))
+                    continue;
+                sw += acc_w[k];
+                for (int ch = 0; ch < 3; ch++)
+                    sl[ch] += acc_l[k][ch];
+            }
+            for (int ch = 0; ch < 3; ch++)
+                o[ch] = (float)(sl[ch] / sw);
+            o[3] = (float)fmin(1.0, wsum);
+            st->seen_sr += texel_sr;
+            if (wsum < 0.5)
+                st->low_sr += texel_sr;
+            if (ghost) {
+                st->ghost_texels++;
+                st->ghost_sr += texel_sr;
+            }
+            for (int k = 0; k < n; k++)
+                if (acc_w[k] > 0)
+                    st->view_sr[k] += texel_sr;
+            for (int ch = 0; ch < 3; ch++)
+                st->seen_power[ch] += texel_sr * o[ch];
+        } else {
+            float f[4] = {0, 0, 0, 0};
+            if (p->fill)
+                sl_latlong_lookup(p->fill, (x + 0.5) / W, (y + 0.5) / H, f);
+            for (int ch = 0; ch < 3; ch++)
+                o[ch] = fmaxf(0.0f, f[ch]);
+            o[3] = 0.0f;
+            st->filled_sr += texel_sr;
+            st->filled_texels++;
+            if (masked_area > 0.5 * area)
+                st->masked_sr += texel_sr;
+        }
+        for (int ch = 0; ch < 3; ch++)
+            st->power[ch] += texel_sr * o[ch];
+    }
+}
+
+static void blend_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    blend_pass *p = ctx;
+    for (int64_t r = begin; r < end; r++)
+        blend_row(p, p->y0 + (int)r, p->rows + (size_t)r * p->width * 4, &p->stats[r]);
+}
+
+static void add_stats(sl_stitch_coverage *cov, const stitch_row_stats *s, int n)
+{
+    cov->seen_sr += s->seen_sr;
+    cov->filled_sr += s->filled_sr;
+    cov->masked_sr += s->masked_sr;
+    cov->low_sr += s->low_sr;
+    cov->ghost_texels += s->ghost_texels;
+    cov->ghost_sr += s->ghost_sr;
+    cov->filled_texels += s->filled_texels;
+    cov->hot_texels += s->hot_texels;
+    for (int k = 0; k < n; k++)
+        cov->view_sr[k] += s->view_sr[k];
+    for (int c = 0; c < 3; c++) {
+        cov->power[c] += s->power[c];
+        cov->seen_power[c] += s->seen_power[c];
+    }
+}
+
+static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int count,
+                           const sl_stitch_blend_options *opt, int width, int ss, int ss_hot,
+                           sl_error *err)
+{
+    memset(p, 0, sizeof *p);
+    p->views = views;
+    p->count = count;
+    p->opt = opt;
+    p->width = width;
+    p->height = width / 2;
+    p->ss = ss;
+    p->ss_hot = ss_hot;
+    p->nadir_lat = opt->nadir_mask_deg > 0 ? (opt->nadir_mask_deg - 90.0) * DEG : -INFINITY;
+    size_t cols = (size_t)width * ss;
+    p->sin_lon = malloc(cols * sizeof(double));
+    p->cos_lon = malloc(cols * sizeof(double));
+    p->rows = malloc((size_t)STRIP_ROWS * width * 4 * sizeof(float));
+    p->stats = malloc(STRIP_ROWS * sizeof(stitch_row_stats));
+    if (!p->sin_lon || !p->cos_lon || !p->rows || !p->stats)
+        return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory for a %d wide lat-long",
+                            width);
+    for (size_t c = 0; c < cols; c++) {
+        double u = (c + 0.5) / (double)cols, lon = M_PI * (1.0 - 2.0 * u);
+        p->sin_lon[c] = sin(lon);
+        p->cos_lon[c] = cos(lon);
+    }
+    return SL_OK;
+}
+
+static void pass_free(blend_pass *p)
+{
+    free(p->sin_lon);
+    free(p->cos_lon);
+    free(p->rows);
+    free(p->stats);
+}
+
+/* Runs a pass over every row, strip by strip, into sink (or into `whole`). */
+static sl_result pass_run(blend_pass *p, sl_stitch_rows_fn sink, void *user, sl_image *whole,
+                          sl_stitch_coverage *cov, sl_error *err)
+{
+    for (int y0 = 0; y0 < p->height; y0 += STRIP_ROWS) {
+        int count = p->height - y0 < STRIP_ROWS ? p->height - y0 : STRIP_ROWS;
+        p->y0 = y0;
+        sl_parallel_for(count, 1, blend_rows, p);
+        for (int r = 0; r < count; r++)
+            add_stats(cov, &p->stats[r], p->count);
+        if (whole) {
+            for (int r = 0; r < count; r++)
+                memcpy(sl_image_pixel(whole, 0, y0 + r), p->rows + (size_t)r * p->width * 4,
+                       (size_t)p->width * 4 * sizeof(float));
+        } else {
+            sl_result res = sink(user, p->rows, y0, count, (size_t)p->width * 4, err);
+            if (res)
+                return res;
+        }
+    }
+    return SL_OK;
+}
+
+/* The coarse lat-long the fill and the noise floor come from: the blend
+ * without the ghost test, at most 256 wide, unseen texels filled. */
+static sl_result coarse_fill(const stitch_view_prep *views, int count,
+                             const sl_stitch_blend_options *opt, int width, int ss,
+                             sl_image *coarse, double *median_y, sl_error *err)
+{
+    int cw = width < 256 ? width : 256;
+    int css = (int)ceil((double)ss * width / cw);
+    css = css > 8 ? 8 : css;
+    blend_pass p;
+    sl_result r = pass_init(&p, views, count, opt, cw, css, css, err);
+    if (!r)
+        r = sl_image_alloc(coarse, cw, cw / 2, 4, err);
+    sl_stitch_coverage cov;
+    memset(&cov, 0, sizeof cov);
+    if (!r)
+        r = pass_run(&p, NULL, NULL, coarse, &cov, err);
+    pass_free(&p);
+    if (r)
+        return r;
+    /* Median luminance of the seen texels (for the ghost test's floor). */
+    size_t n = (size_t)coarse->width * coarse->height, m = 0;
+    float *lum = malloc(n * sizeof(float));
+    if (!lum)
+        return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
+    for (int y = 0; y < coarse->height; y++)
+        for (int x = 0; x < coarse->width; x++) {
+            const float *px = sl_image_pixel(coarse, x, y);
+            if (px[3] > 0) {
+                double rgb[3] = {px[0], px[1], px[2]};
+                lum[m++] = (float)luminance(rgb);
+            }
+        }
+    *median_y = m ? stitch_median(lum, m) : 0.0;
+    free(lum);
+    return stitch_fill(coarse, err);
+}
+
+sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
+                                 const sl_stitch_blend_options *opt_in, sl_stitch_rows_fn sink,
+                                 void *user, sl_stitch_coverage *cov, sl_error *err)
+{
+    return stitch_blend_run(views, count, opt_in, sink, user, NULL, cov, err);
+}
+
+sl_result stitch_blend_run(const sl_stitch_view *views, int count,
+                           const sl_stitch_blend_options *opt_in, sl_stitch_rows_fn sink,
+                           void *user, sl_image *whole, sl_stitch_coverage *cov_out,
+                           sl_error *err)
+{
+    sl_stitch_blend_options opt;
+    if (opt_in)
+        opt = *opt_in;
+    else
+        sl_stitch_blend_options_init(&opt);
+    sl_stitch_coverage cov;
+    memset(&cov, 0, sizeof cov);
+    if (cov_out)
+        memset(cov_out, 0, sizeof *cov_out);
+    stitch_view_prep prep[SL_STITCH_MAX_VIEWS];
+    sl_result r = stitch_prepare_views(views, count, &opt, prep, err);
+    if (r)
+        return r;
+    int width = opt.width > 0 ? opt.width : sl_stitch_default_width(&prep[0].lens, opt.max_width);
+    if (width < 16 || width % 2)
+        return sl_error_set(err, SL_ERR_USAGE, "stitch: the width must be even and at least 16, "
+                                               "not %d", width);
+    if (opt.mask && !sl_is_latlong_shape(opt.mask->width, opt.mask->height))
+        return sl_error_set(err, SL_ERR_INPUT, "stitch: the mask is %dx%d, not a 2:1 lat-long",
+                            opt.mask->width, opt.mask->height);
+    int ss = opt.supersample, ss_hot = opt.supersample;
+    if (ss <= 0)
+        auto_supersample(prep, count, width, &ss, &ss_hot);
+    else
+        ss = ss_hot = ss > 8 ? 8 : ss;
+
+    if (whole && (r = sl_image_alloc(whole, width, width / 2, 4, err)))
+        return r;
+    sl_image coarse = {0};
+    double median_y = 0;
+    if ((r = coarse_fill(prep, count, &opt, width, ss, &coarse, &median_y, err)))
+        goto done;
+    blend_pass p;
+    if ((r = pass_init(&p, prep, count, &opt, width, ss, ss_hot, err))) {
+        pass_free(&p);
+        goto done;
+    }
+    p.fill = &coarse;
+    p.ghosts = opt.ghost_ratio > 0 && count > 1;
+    p.noise_floor = opt.noise_floor >= 0 ? opt.noise_floor : 1e-3 * median_y;
+    r = pass_run(&p, sink, user, whole, &cov, err);
+    pass_free(&p);
+    cov.width = width;
+    cov.height = width / 2;
+    cov.supersample = ss;
+    cov.supersample_hot = ss_hot;
+    if (!r && cov_out)
+        *cov_out = cov;
+done:
+    sl_image_free(&coarse);
+    if (r && whole)
+        sl_image_free(whole);
+    return r;
+}
+
+sl_result sl_stitch_blend(const sl_stitch_view *views, int count,
+                          const sl_stitch_blend_options *opt, sl_image *out,
+                          sl_stitch_coverage *cov, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    return stitch_blend_run(views, count, opt, NULL, NULL, out, cov, err);
+}

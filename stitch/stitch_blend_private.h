@@ -1,0 +1,45 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Inside the stitch's blend and fill (stitch_blend.c, stitch_fill.c, stitch.c). */
+#ifndef SETLIGHT_STITCH_BLEND_PRIVATE_H
+#define SETLIGHT_STITCH_BLEND_PRIVATE_H
+
+#include "setlight/stitch.h"
+
+/* A view ready for lookups: its lens, world -> camera rotation, optical
+ * axis in the world and its field. */
+typedef struct stitch_view_prep {
+    sl_lens lens;
+    const sl_image *radiance, *weight;
+    double to_cam[3][3];
+    double axis[3];
+    double theta_max, cos_max, ramp; /* radians */
+} stitch_view_prep;
+
+/* What one lat-long row adds to the coverage. */
+typedef struct stitch_row_stats {
+    double seen_sr, filled_sr, masked_sr, low_sr, ghost_sr;
+    int64_t ghost_texels, filled_texels, hot_texels;
+    double view_sr[SL_STITCH_MAX_VIEWS];
+    double power[3], seen_power[3];
+} stitch_row_stats;
+
+/* Checks the views (size against the lens, NaN/Inf samples) and prepares them. */
+sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
+                               const sl_stitch_blend_options *opt, stitch_view_prep *prep,
+                               sl_error *err);
+/* Blend weight of a view for a ray theta (radians) off its axis. */
+double stitch_view_weight(const stitch_view_prep *v, double theta);
+/* The blend into a sink or, when `whole` is not NULL, into that image. */
+sl_result stitch_blend_run(const sl_stitch_view *views, int count,
+                           const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
+                           void *user, sl_image *whole, sl_stitch_coverage *cov, sl_error *err);
+
+/* Fills the texels of an RGBA lat-long whose A is 0 from those whose A is
+ * above 0: pull-push, then diffusion on the sphere (across the poles and
+ * the longitude seam). A values are left as they are. Non-negative in,
+ * non-negative out. Nothing seen: left black. */
+sl_result stitch_fill(sl_image *latlong, sl_error *err);
+/* Median of n values (reorders them). */
+double stitch_median(float *v, size_t n);
+
+#endif

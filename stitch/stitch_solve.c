@@ -1,0 +1,569 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The solve of a fisheye stitch: the views' poses and their shared lens
+ * from the overlaps (docs/stitch.md, "Solve"). */
+#include "merge_private.h"
+#include "stitch_private.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
+#define DEG (M_PI / 180.0)
+
+void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->solve_poses = true;
+    o->solve_focal = true;
+    o->solve_centre = true;
+    o->radial_terms = 2;
+    o->solve_vignette = true;
+    o->detector = "sift";
+    o->feature_width = 1536;
+    o->max_features = 6000;
+    o->circle_margin = 0.02;
+    o->ratio = 0.8;
+    o->ransac_deg = 2.0;
+    o->ransac_iterations = 2000;
+    o->inlier_px = 2.0;
+    o->min_inliers = 25;
+    o->max_correction_deg = 10.0;
+    o->seed = 1;
+}
+
+const char *sl_stitch_pair_status_name(sl_stitch_pair_status s)
+{
+    switch (s) {
+    case SL_STITCH_PAIR_SOLVED:
+        return "solved";
+    case SL_STITCH_PAIR_NO_OVERLAP:
+        return "no overlap";
+    case SL_STITCH_PAIR_FEW_MATCHES:
+        return "too few matches";
+    case SL_STITCH_PAIR_INCONSISTENT:
+        return "inconsistent with the nominal poses";
+    }
+    return "unknown";
+}
+
+void sl_stitch_solve_result_free(sl_stitch_solve_result *res)
+{
+    if (!res)
+        return;
+    free(res->pose_nominal);
+    free(res->pose);
+    free(res->gain);
+    free(res->features);
+    free(res->pair);
+    memset(res, 0, sizeof *res);
+}
+
+/* Solid angle both views see (steradians), from a Fibonacci sphere. */
+static double overlap_solid_angle(const sl_lens *lens, const double a[3][3], const double b[3][3])
+{
+    enum { N = 4096 };
+    int both = 0;
+    for (int i = 0; i < N; i++) {
+        double d[3], ca[3], cb[3], px, py;
+        solve_sphere_dir(i, N, d);
+        solve_to_camera(a, d, ca);
+        solve_to_camera(b, d, cb);
+        if (sl_lens_ray_to_pixel(lens, ca, &px, &py) && sl_lens_ray_to_pixel(lens, cb, &px, &py))
+            both++;
+    }
+    return 4.0 * M_PI * both / N;
+}
+
+static double angle_between(const double a[3], const double b[3])
+{
+    double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+    return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+                 a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+}
+
+/* The rotation R with a1 = R b1 exactly and a2 on the plane of R b2. */
+static bool rotation_from_two(const double a1[3], const double a2[3], const double b1[3],
+                              const double b2[3], double r[3][3])
+{
+    double ta[3][3], tb[3][3];
+    const double *p[2][2] = {{a1, a2}, {b1, b2}};
+    for (int s = 0; s < 2; s++) {
+        double (*t)[3] = s ? tb : ta;
+        const double *u = p[s][0], *v = p[s][1];
+        double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+        double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        if (len < 0.03) /* under ~2 degrees apart: no direction to turn about */
+            return false;
+        for (int k = 0; k < 3; k++)
+            n[k] /= len;
+        double m[3] = {n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2], n[0] * u[1] - n[1] * u[0]};
+        for (int k = 0; k < 3; k++) {
+            t[k][0] = u[k];
+            t[k][1] = n[k];
+            t[k][2] = m[k];
+        }
+    }
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            r[i][j] = ta[i][0] * tb[j][0] + ta[i][1] * tb[j][1] + ta[i][2] * tb[j][2];
+    return true;
+}
+
+static int count_inliers(const double (*ra)[3], const double (*rb)[3], int n, const double r[3][3],
+                         double threshold, bool *inlier)
+{
+    int count = 0;
+    for (int i = 0; i < n; i++) {
+        double v[3];
+        sl_mat3_apply(r, rb[i], v);
+        bool in = angle_between(ra[i], v) < threshold;
+        if (inlier)
+            inlier[i] = in;
+        count += in;
+    }
+    return count;
+}
+
+/* Least squares rotation over the inliers: Gauss-Newton on R <- Exp(w) R. */
+static void refine_rotation(const double (*ra)[3], const double (*rb)[3], int n, const bool *inlier,
+                            double r[3][3])
+{
+    for (int it = 0; it < 8; it++) {
+        double a[9] = {0}, g[3] = {0};
+        for (int i = 0; i < n; i++) {
+            if (!inlier[i])
+                continue;
+            double v[3], e[3];
+            sl_mat3_apply(r, rb[i], v);
+            for (int k = 0; k < 3; k++)
+                e[k] = v[k] - ra[i][k];
+            /* d(Exp(w) v)/dw = -[v]x */
+            double j[3][3] = {{0, v[2], -v[1]}, {-v[2], 0, v[0]}, {v[1], -v[0], 0}};
+            for (int p = 0; p < 3; p++) {
+                for (int k = 0; k < 3; k++)
+                    g[p] += j[k][p] * e[k];
+                for (int q = 0; q < 3; q++)
+                    for (int k = 0; k < 3; k++)
+                        a[p * 3 + q] += j[k][p] * j[k][q];
+            }
+        }
+        if (!merge_cholesky_solve(a, g, 3))
+            return;
+        double w[3] = {-g[0], -g[1], -g[2]};
+        solve_rotate(r, w);
+        if (fabs(g[0]) + fabs(g[1]) + fabs(g[2]) < 1e-12)
+            break;
+    }
+}
+
+/* The relative rotation a = R b of a pair's camera rays by RANSAC: two
+ * matches fix a rotation; the one most matches agree with wins. */
+static int ransac_rotation(const double (*ra)[3], const double (*rb)[3], int n,
+                           const sl_stitch_solve_options *opt, uint64_t *rng, double r[3][3],
+                           bool *inlier)
+{
+    int best = 0;
+    double threshold = opt->ransac_deg * DEG;
+    for (int it = 0; it < opt->ransac_iterations && n >= 2; it++) {
+        int i = (int)(merge_rand(rng) % (uint64_t)n), j = (int)(merge_rand(rng) % (uint64_t)n);
+        double cand[3][3];
+        if (i == j || !rotation_from_two(ra[i], ra[j], rb[i], rb[j], cand))
+            continue;
+        int c = count_inliers(ra, rb, n, cand, threshold, NULL);
+        if (c > best) {
+            best = c;
+            memcpy(r, cand, sizeof cand);
+        }
+    }
+    if (best < 2)
+        return 0;
+    count_inliers(ra, rb, n, r, threshold, inlier);
+    refine_rotation(ra, rb, n, inlier, r);
+    return count_inliers(ra, rb, n, r, threshold, inlier);
+}
+
+typedef struct solve_state {
+    sl_stitch_view *views;
+    int count;
+    const sl_stitch_solve_options *opt;
+    sl_stitch_solve_result *res;
+    solve_features *feat;
+    double (*rot)[3][3];       /* current cam_to_world */
+    double (*rot_nominal)[3][3];
+    double (*pair_rot)[3][3];  /* RANSAC's a = R b per pair */
+    solve_match *matches;
+    int match_count, match_cap;
+} solve_state;
+
+static sl_result add_match(solve_state *st, const solve_match *m, sl_error *err)
+{
+    if (st->match_count == st->match_cap) {
+        int cap = st->match_cap ? 2 * st->match_cap : 4096;
+        solve_match *grown = realloc(st->matches, (size_t)cap * sizeof *grown);
+        if (!grown)
+            return sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory for matches");
+        st->matches = grown;
+        st->match_cap = cap;
+    }
+    st->matches[st->match_count++] = *m;
+    return SL_OK;
+}
+
+/* Which features of a view (pose `own`) lie within reach_deg of the other
+ * view's axis (pose `other`); NULL when out of memory (then all take part). */
+static bool *seen_by(const solve_features *f, const sl_lens *lens, const double own[3][3],
+                     const double other[3][3], double reach_deg)
+{
+    bool *keep = malloc((size_t)(f->count + 1) * sizeof *keep);
+    double cos_reach = cos(reach_deg * DEG);
+    for (int i = 0; keep && i < f->count; i++) {
+        double ray[3], w[3];
+        keep[i] = false;
+        if (!sl_lens_pixel_to_ray(lens, f->xy[2 * i], f->xy[2 * i + 1], ray))
+            continue;
+        sl_mat3_apply(own, ray, w);
+        keep[i] = other[0][2] * w[0] + other[1][2] * w[1] + other[2][2] * w[2] >= cos_reach;
+    }
+    return keep;
+}
+
+/* Matches one overlapping pair, keeps RANSAC's inliers, decides the pair's
+ * status. */
+static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err)
+{
+    sl_stitch_pair *pr = &st->res->pair[p];
+    const solve_features *fa = &st->feat[pr->a], *fb = &st->feat[pr->b];
+    const sl_lens *lens = &st->views[0].lens;
+    int *idx = NULL, n = 0;
+    double (*ma)[3] = st->rot_nominal[pr->a], (*mb)[3] = st->rot_nominal[pr->b];
+    /* Only what the other view may see takes part: fewer candidates,
+     * fewer look-alikes for the ratio test. */
+    double reach = lens->max_theta_deg + 1.5 * st->opt->max_correction_deg;
+    bool *keep_a = seen_by(fa, lens, ma, mb, reach), *keep_b = seen_by(fb, lens, mb, ma, reach);
+    sl_result r = solve_match_features(fa, keep_a, fb, keep_b, st->opt, &idx, &n, err);
+    free(keep_a), free(keep_b);
+    double (*ra)[3] = r == SL_OK ? malloc((size_t)(n + 1) * sizeof *ra) : NULL;
+    double (*rb)[3] = r == SL_OK ? malloc((size_t)(n + 1) * sizeof *rb) : NULL;
+    int *kept = r == SL_OK ? malloc((size_t)(n + 1) * sizeof *kept) : NULL;
+    bool *inlier = r == SL_OK ? malloc((size_t)(n + 1) * sizeof *inlier) : NULL;
+    if (r == SL_OK && (!ra || !rb || !kept || !inlier))
+        r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory for matches");
+    int m = 0;
+    for (int i = 0; r == SL_OK && i < n; i++) {
+        const float *xa = fa->xy + 2 * idx[2 * i], *xb = fb->xy + 2 * idx[2 * i + 1];
+        double wa[3], wb[3];
+        if (!sl_lens_pixel_to_ray(lens, xa[0], xa[1], ra[m]) ||
+            !sl_lens_pixel_to_ray(lens, xb[0], xb[1], rb[m]))
+            continue;
+        sl_mat3_apply(ma, ra[m], wa);
+        sl_mat3_apply(mb, rb[m], wb);
+        /* Far from where the nominal poses put it: a repeated texture. */
+        if (angle_between(wa, wb) > 1.5 * st->opt->max_correction_deg * DEG)
+            continue;
+        kept[m++] = i;
+    }
+    pr->matches = m;
+    double rel[3][3], nominal[3][3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            nominal[i][j] = ma[0][i] * mb[0][j] + ma[1][i] * mb[1][j] + ma[2][i] * mb[2][j];
+    int inliers = r == SL_OK ? ransac_rotation((const double (*)[3])ra, (const double (*)[3])rb,
+                                               m, st->opt, rng, rel, inlier)
+                             : 0;
+    pr->inliers = inliers;
+    double off = inliers ? solve_rotation_angle(rel, nominal) : 0.0;
+    if (r != SL_OK) {
+        /* the error is the caller's */
+    } else if (inliers < st->opt->min_inliers) {
+        pr->status = SL_STITCH_PAIR_FEW_MATCHES;
+        pr->fallback = true;
+        snprintf(pr->why, sizeof pr->why,
+                 "%d features and %d, %d matches, %d consistent (at least %d needed)", fa->count,
+                 fb->count, m, inliers, st->opt->min_inliers);
+    } else if (off > st->opt->max_correction_deg) {
+        pr->status = SL_STITCH_PAIR_INCONSISTENT;
+        pr->fallback = true;
+        snprintf(pr->why, sizeof pr->why,
+                 "%d matches agree on a rotation %.1f deg from the nominal one (at most %.1f)",
+                 inliers, off, st->opt->max_correction_deg);
+    } else {
+        pr->status = SL_STITCH_PAIR_SOLVED;
+        memcpy(st->pair_rot[p], rel, sizeof rel);
+        for (int i = 0; i < m && r == SL_OK; i++) {
+            const float *xa = fa->xy + 2 * idx[2 * kept[i]], *xb = fb->xy + 2 * idx[2 * kept[i] + 1];
+            solve_match sm = {.pair = p, .a = pr->a, .b = pr->b,
+                              .pa = {xa[0], xa[1]}, .pb = {xb[0], xb[1]}, .inlier = inlier[i]};
+            r = add_match(st, &sm, err);
+        }
+    }
+    free(idx), free(ra), free(rb), free(kept), free(inlier);
+    return r;
+}
+
+/* Starting rotations: view 0's nominal one, then along the solved pairs
+ * (breadth first); views no solved pair reaches keep their nominal pose
+ * and stay fixed. */
+static void initial_rotations(solve_state *st, bool *free_view)
+{
+    int count = st->count;
+    bool *reached = calloc((size_t)count, sizeof *reached);
+    int *queue = malloc((size_t)count * sizeof *queue);
+    memcpy(st->rot, st->rot_nominal, (size_t)count * sizeof *st->rot);
+    for (int v = 0; v < count; v++)
+        free_view[v] = false;
+    if (!reached || !queue) {
+        free(reached), free(queue);
+        return;
+    }
+    int head = 0, tail = 0;
+    queue[tail++] = 0;
+    reached[0] = true;
+    while (head < tail) {
+        int v = queue[head++];
+        for (int p = 0; p < st->res->pairs; p++) {
+            const sl_stitch_pair *pr = &st->res->pair[p];
+            if (pr->status != SL_STITCH_PAIR_SOLVED || (pr->a != v && pr->b != v))
+                continue;
+            int o = pr->a == v ? pr->b : pr->a;
+            if (reached[o])
+                continue;
+            double (*rel)[3] = st->pair_rot[p], t[3][3];
+            if (pr->a == v) { /* M_b = M_a R */
+                sl_mat3_mul((const double (*)[3])st->rot[v], (const double (*)[3])rel, st->rot[o]);
+            } else { /* M_a = M_b R^T */
+                for (int i = 0; i < 3; i++)
+                    for (int j = 0; j < 3; j++)
+                        t[i][j] = rel[j][i];
+                sl_mat3_mul((const double (*)[3])st->rot[v], (const double (*)[3])t, st->rot[o]);
+            }
+            reached[o] = true;
+            free_view[o] = st->opt->solve_poses;
+            queue[tail++] = o;
+        }
+    }
+    free(reached), free(queue);
+}
+
+/* Reprojection errors of the inliers, overall and per pair. */
+static void measure(solve_state *st, const sl_lens *lens)
+{
+    sl_lens u;
+    solve_lens_unbounded(lens, &u);
+    sl_stitch_solve_result *res = st->res;
+    double *sum = calloc((size_t)res->pairs, sizeof *sum), total = 0.0;
+    int *n = calloc((size_t)res->pairs, sizeof *n);
+    res->inliers = 0;
+    res->rms_px = res->max_px = 0.0;
+    for (int p = 0; p < res->pairs; p++)
+        res->pair[p].rms_px = res->pair[p].max_px = 0.0;
+    for (int i = 0; i < st->match_count; i++) {
+        const solve_match *m = &st->matches[i];
+        double e1, e2;
+        if (!m->inlier || solve_match_error(m, st->rot, &u, &e1, &e2) < 0.0)
+            continue;
+        sl_stitch_pair *pr = &res->pair[m->pair];
+        double e = e1 > e2 ? e1 : e2, sq = 0.5 * (e1 * e1 + e2 * e2);
+        pr->max_px = e > pr->max_px ? e : pr->max_px;
+        res->max_px = e > res->max_px ? e : res->max_px;
+        total += sq;
+        res->inliers++;
+        if (sum && n) {
+            sum[m->pair] += sq;
+            n[m->pair]++;
+        }
+    }
+    res->rms_px = res->inliers ? sqrt(total / res->inliers) : 0.0;
+    for (int p = 0; sum && n && p < res->pairs; p++) {
+        res->pair[p].rms_px = n[p] ? sqrt(sum[p] / n[p]) : 0.0;
+        if (res->pair[p].status == SL_STITCH_PAIR_SOLVED)
+            res->pair[p].inliers = n[p];
+    }
+    free(sum), free(n);
+}
+
+/* Marks as inliers the matches of solved pairs within threshold pixels. */
+static void select_inliers(solve_state *st, const sl_lens *lens, double threshold)
+{
+    sl_lens u;
+    solve_lens_unbounded(lens, &u);
+    for (int i = 0; i < st->match_count; i++) {
+        double e = solve_match_error(&st->matches[i], st->rot, &u, NULL, NULL);
+        st->matches[i].inlier = e >= 0.0 && e < threshold;
+    }
+}
+
+/* Drops the inliers further than threshold pixels. */
+static void prune_inliers(solve_state *st, const sl_lens *lens, double threshold)
+{
+    sl_lens u;
+    solve_lens_unbounded(lens, &u);
+    for (int i = 0; i < st->match_count; i++)
+        if (st->matches[i].inlier)
+            st->matches[i].inlier =
+                solve_match_error(&st->matches[i], st->rot, &u, NULL, NULL) < threshold;
+}
+
+static sl_result check_views(const sl_stitch_view *views, int count, sl_error *err)
+{
+    if (count < 1 || !views)
+        return sl_error_set(err, SL_ERR_USAGE, "stitch solve: no views");
+    const sl_stitch_view *v0 = &views[0];
+    for (int i = 0; i < count; i++) {
+        const sl_stitch_view *v = &views[i];
+        const char *name = v->name ? v->name : "view";
+        if (!v->radiance || !v->radiance->data || v->radiance->width < 16 ||
+            v->radiance->height < 16)
+            return sl_error_set(err, SL_ERR_INPUT, "%s: no image", name);
+        if (v->weight && (v->weight->width != v->radiance->width ||
+                          v->weight->height != v->radiance->height))
+            return sl_error_set(err, SL_ERR_INPUT, "%s: its weight image is %dx%d, the view %dx%d",
+                                name, v->weight->width, v->weight->height, v->radiance->width,
+                                v->radiance->height);
+        if (!(v->lens.focal_px > 0.0) || !isfinite(v->lens.focal_px))
+            return sl_error_set(err, SL_ERR_INPUT, "%s: no lens (focal length unknown)", name);
+        if (v->radiance->width != v0->radiance->width ||
+            v->radiance->height != v0->radiance->height)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: %dx%d, but %s is %dx%d (one stitch is one camera and lens)",
+                                name, v->radiance->width, v->radiance->height,
+                                v0->name ? v0->name : "view 0", v0->radiance->width,
+                                v0->radiance->height);
+        if (v->lens.projection != v0->lens.projection ||
+            fabs(v->lens.focal_px - v0->lens.focal_px) > 1e-6 * v0->lens.focal_px)
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: its lens (%s, %.1f px) is not that of %s (%s, %.1f px); one "
+                                "stitch is one camera and lens",
+                                name, sl_lens_projection_name(v->lens.projection), v->lens.focal_px,
+                                v0->name ? v0->name : "view 0",
+                                sl_lens_projection_name(v0->lens.projection), v0->lens.focal_px);
+    }
+    return SL_OK;
+}
+
+sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
+                          sl_stitch_solve_result *res, sl_error *err)
+{
+    memset(res, 0, sizeof *res);
+    double start = sl_seconds();
+    sl_stitch_solve_options defaults;
+    if (!opt) {
+        sl_stitch_solve_options_init(&defaults);
+        opt = &defaults;
+    }
+    sl_result r = check_views(views, count, err);
+    if (r != SL_OK)
+        return r;
+    int pairs = count * (count - 1) / 2;
+    res->views = count;
+    res->pose_nominal = calloc((size_t)count, sizeof *res->pose_nominal);
+    res->pose = calloc((size_t)count, sizeof *res->pose);
+    res->gain = calloc((size_t)count, sizeof *res->gain);
+    res->features = calloc((size_t)count, sizeof *res->features);
+    res->pair = calloc((size_t)(pairs + 1), sizeof *res->pair);
+    solve_state st = {.views = views, .count = count, .opt = opt, .res = res};
+    st.feat = calloc((size_t)count, sizeof *st.feat);
+    st.rot = malloc((size_t)count * sizeof *st.rot);
+    st.rot_nominal = malloc((size_t)count * sizeof *st.rot_nominal);
+    st.pair_rot = malloc((size_t)(pairs + 1) * sizeof *st.pair_rot);
+    bool *free_view = calloc((size_t)count, sizeof *free_view);
+    if (!res->pose_nominal || !res->pose || !res->gain || !res->features || !res->pair ||
+        !st.feat || !st.rot || !st.rot_nominal || !st.pair_rot || !free_view) {
+        r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory");
+        goto done;
+    }
+    sl_lens lens = views[0].lens;
+    res->lens_nominal = lens;
+    for (int v = 0; v < count; v++) {
+        res->pose_nominal[v] = views[v].pose;
+        res->gain[v] = 1.0;
+        sl_view_pose_matrix(&views[v].pose, st.rot_nominal[v]);
+    }
+    res->pairs = pairs;
+    bool *needs = calloc((size_t)count, sizeof *needs);
+    for (int a = 0, p = 0; a < count; a++)
+        for (int b = a + 1; b < count; b++, p++) {
+            sl_stitch_pair *pr = &res->pair[p];
+            pr->a = a;
+            pr->b = b;
+            pr->overlap_sr = overlap_solid_angle(&lens, (const double (*)[3])st.rot_nominal[a],
+                                                 (const double (*)[3])st.rot_nominal[b]);
+            /* under ~1% of a fisheye's hemisphere: not a usable overlap */
+            if (pr->overlap_sr < 0.06) {
+                pr->status = SL_STITCH_PAIR_NO_OVERLAP;
+                pr->fallback = true;
+                snprintf(pr->why, sizeof pr->why, "the nominal poses overlap by %.3f sr",
+                         pr->overlap_sr);
+            } else if (needs) {
+                needs[a] = needs[b] = true;
+            }
+        }
+    bool wanted = opt->solve_poses || opt->solve_focal || opt->solve_centre ||
+                  opt->radial_terms > 0 || opt->solve_vignette;
+    for (int v = 0; r == SL_OK && v < count && wanted; v++)
+        if (needs && needs[v]) {
+            r = solve_find_features(&views[v], opt, &st.feat[v], err);
+            res->features[v] = st.feat[v].count;
+        }
+    free(needs);
+    res->seconds_features = sl_seconds() - start;
+    double t = sl_seconds();
+    uint64_t rng = opt->seed;
+    for (int p = 0; r == SL_OK && wanted && p < pairs; p++)
+        if (res->pair[p].status != SL_STITCH_PAIR_NO_OVERLAP)
+            r = solve_pair(&st, p, &rng, err);
+    res->seconds_match = sl_seconds() - t;
+    t = sl_seconds();
+    if (r != SL_OK)
+        goto done;
+    for (int p = 0; p < pairs; p++) {
+        res->pairs_solved += res->pair[p].status == SL_STITCH_PAIR_SOLVED;
+        res->pairs_fallback += res->pair[p].fallback;
+    }
+    initial_rotations(&st, free_view);
+    if (res->pairs_solved > 0) {
+        /* The nominal lens puts the circle's edge degrees off: a loose first
+         * round, then the matches re-judged in pixels with the lens solved. */
+        double s = st.feat[0].scale > 0.0 ? st.feat[0].scale : 1.0;
+        for (int p = 0; p < pairs; p++)
+            if (res->pair[p].status == SL_STITCH_PAIR_SOLVED && st.feat[res->pair[p].a].scale > 0)
+                s = st.feat[res->pair[p].a].scale;
+        const double rounds[] = {0.0, 8.0, 4.0, 1.0};
+        for (int k = 0; k < 4; k++) {
+            if (k > 0)
+                select_inliers(&st, &lens, rounds[k] * opt->inlier_px * s);
+            res->iterations += solve_adjust(st.matches, st.match_count, st.rot, free_view, count,
+                                            &lens, opt, 1.5 * s);
+        }
+        /* Then the inliers' positions to a hundredth of a pixel, at full
+         * resolution, and the adjustment again. */
+        solve_refine_matches(views, st.matches, st.match_count, st.rot, &lens, s > 2.0 ? 0.5 * s : 1.0);
+        for (int k = 0; k < 2; k++) {
+            res->iterations += solve_adjust(st.matches, st.match_count, st.rot, free_view, count,
+                                            &lens, opt, 0.5);
+            measure(&st, &lens);
+            /* what the refinement could not place */
+            prune_inliers(&st, &lens, fmax(0.5, 3.0 * res->rms_px));
+        }
+        measure(&st, &lens);
+    }
+    res->seconds_adjust = sl_seconds() - t;
+    if (opt->solve_vignette && res->pairs_solved > 0)
+        solve_vignette(count, st.feat, st.rot, &lens, res);
+    res->lens = lens;
+    for (int v = 0; v < count; v++) {
+        sl_view_pose_from_matrix((const double (*)[3])st.rot[v], &res->pose[v]);
+        views[v].lens = lens;
+        views[v].pose = res->pose[v];
+    }
+done:
+    for (int v = 0; st.feat && v < count; v++)
+        solve_features_free(&st.feat[v]);
+    free(st.feat), free(st.rot), free(st.rot_nominal), free(st.pair_rot), free(st.matches);
+    free(free_view);
+    res->seconds_total = sl_seconds() - start;
+    return r;
+}

@@ -1,0 +1,352 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The stitch's solve on synthetic fisheye views of the virtual set: a lens
+ * whose focal length, centre, radial correction and vignetting are off the
+ * nominal ones by known amounts, a head whose pitch and roll are off by
+ * known angles; the solve must find them from the overlaps alone. */
+#include "setlight/capture.h"
+#include "setlight/stitch.h"
+#include "testing.h"
+
+#include <string.h>
+
+#define W 1200
+#define H 840 /* the true circle (r 398 px, centre 5 px up) inside the frame */
+
+static sl_vset_scene scenes[2];
+
+/* Smooth value noise in [0, 1] on a lattice of spacing 1/freq. */
+static double noise(const double d[3], double freq, uint32_t seed)
+{
+    double p[3], f[3], sum = 0.0;
+    int c[3];
+    for (int k = 0; k < 3; k++) {
+        p[k] = d[k] * freq;
+        c[k] = (int)floor(p[k]);
+        f[k] = p[k] - c[k];
+        f[k] = f[k] * f[k] * (3.0 - 2.0 * f[k]);
+    }
+    for (int corner = 0; corner < 8; corner++) {
+        uint32_t h = seed * 0x9e3779b9u;
+        double w = 1.0;
+        for (int k = 0; k < 3; k++) {
+            int bit = (corner >> k) & 1;
+            h = (h ^ (uint32_t)(c[k] + bit)) * 0x85ebca6bu;
+            h ^= h >> 13;
+            w *= bit ? f[k] : 1.0 - f[k];
+        }
+        h *= 0xc2b2ae35u;
+        h ^= h >> 16;
+        sum += w * (h & 0xffff) / 65535.0;
+    }
+    return sum;
+}
+
+/* The set's lat-long with a texture multiplied in (0.5x to 1.5x, four
+ * octaves): the virtual set's surfaces are smooth, a real set's are not. */
+static const sl_vset_scene *scene(int which)
+{
+    static const char *names[2] = {"exterior", "stage"};
+    sl_vset_scene *s = &scenes[which];
+    if (!s->latlong.data) {
+        sl_error err;
+        sl_vset_desc d;
+        CHECK_OK(sl_vset_preset(names[which], &d, &err), &err);
+        CHECK_OK(sl_vset_scene_make(&d, 1024, s, &err), &err);
+        const sl_image *l = &s->latlong;
+        for (int y = 0; y < l->height; y++)
+            for (int x = 0; x < l->width; x++) {
+                double dir[3], t = 0.0;
+                sl_latlong_to_dir((x + 0.5) / l->width, (y + 0.5) / l->height, dir);
+                for (int o = 0; o < 4; o++)
+                    t += noise(dir, 6.0 * (1 << o), (uint32_t)(which * 4 + o + 1)) / (1 << o);
+                float g = (float)(0.5 + t / 1.875);
+                float *px = sl_image_pixel(l, x, y);
+                for (int c = 0; c < 3; c++)
+                    px[c] *= g;
+            }
+    }
+    return s;
+}
+
+static void nominal_lens(sl_lens *lens)
+{
+    sl_lens_nominal(lens, SL_LENS_EQUISOLID, W, H, 8.0, 36.0);
+}
+
+/* The true lens: focal +1.5%, centre (+8, -5) px, k1 0.02, v1 -0.2. */
+static void true_lens(sl_lens *lens)
+{
+    nominal_lens(lens);
+    lens->focal_px *= 1.015;
+    lens->cx += 8.0;
+    lens->cy -= 5.0;
+    lens->k[0] = 0.02;
+    lens->vignette[0] = -0.2;
+    lens->circle_radius_px = sl_lens_radius(lens, M_PI / 2);
+}
+
+/* Angle (degrees) between view i's rotation relative to view 0 in a and b. */
+static double relative_error(const sl_view_pose *a0, const sl_view_pose *ai,
+                             const sl_view_pose *b0, const sl_view_pose *bi)
+{
+    double m0[3][3], mi[3][3], n0[3][3], ni[3][3], ra[3][3], rb[3][3];
+    sl_view_pose_matrix(a0, m0);
+    sl_view_pose_matrix(ai, mi);
+    sl_view_pose_matrix(b0, n0);
+    sl_view_pose_matrix(bi, ni);
+    double tr = 0;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            ra[i][j] = m0[0][i] * mi[0][j] + m0[1][i] * mi[1][j] + m0[2][i] * mi[2][j];
+            rb[i][j] = n0[0][i] * ni[0][j] + n0[1][i] * ni[1][j] + n0[2][i] * ni[2][j];
+        }
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++)
+            tr += ra[k][i] * rb[k][i];
+    double c = 0.5 * (tr - 1.0);
+    return acos(c > 1 ? 1 : c < -1 ? -1 : c) * 180.0 / M_PI;
+}
+
+/* Worst relative difference of two falloffs over the field (theta <= 90). */
+static double vignette_error(const sl_lens *truth, const sl_lens *solved)
+{
+    double worst = 0;
+    for (int k = 0; k <= 90; k++) {
+        double rt = sl_lens_radius(truth, k * M_PI / 180.0);
+        double rs = sl_lens_radius(solved, k * M_PI / 180.0);
+        if (rt < 0 || rs < 0)
+            continue;
+        double vt = sl_lens_vignette(truth, truth->cx + rt, truth->cy);
+        double vs = sl_lens_vignette(solved, solved->cx + rs, solved->cy);
+        worst = fmax(worst, fabs(vs / vt - 1.0));
+    }
+    return worst;
+}
+
+/* The head's true poses: off the nominal ones by a fraction of a degree. */
+static const sl_view_pose truth[4] = {
+    {0.4, -0.3, 0.5}, {120.6, 0.8, -0.4}, {239.3, -0.5, 0.9}, {0.6, 89.4, 0.7}};
+
+/* Two rigs: the lens and head above (0), and the virtual set's own true
+ * lens (k2, v2 too) and seeded head (1). */
+typedef struct test_rig {
+    sl_lens truth_lens, nominal;
+    sl_view_pose truth[4], plan[4];
+    sl_image views[2][4]; /* per scene */
+} test_rig;
+static test_rig rigs[2];
+
+static test_rig *get_rig(int kind)
+{
+    test_rig *r = &rigs[kind];
+    if (r->truth_lens.focal_px > 0)
+        return r;
+    static const sl_view_pose plan[4] = {{0, 0, 0}, {120, 0, 0}, {240, 0, 0}, {0, 90, 0}};
+    if (kind == 0) {
+        true_lens(&r->truth_lens);
+        nominal_lens(&r->nominal);
+        memcpy(r->truth, truth, sizeof truth);
+    } else {
+        sl_vset_fisheye_true(&r->truth_lens, W, H);
+        sl_vset_fisheye_nominal(&r->nominal, W, H);
+        for (int i = 0; i < 4; i++)
+            sl_vset_head_pose(7, i, &plan[i], &r->truth[i]);
+    }
+    memcpy(r->plan, plan, sizeof plan);
+    return r;
+}
+
+static const sl_image *view_image(test_rig *r, int which, int i)
+{
+    sl_image *img = &r->views[which][i];
+    if (!img->data) {
+        sl_error err;
+        CHECK_OK(sl_vset_view_image(&r->truth_lens, &r->truth[i], &scene(which)->latlong, 1, img,
+                                    &err),
+                 &err);
+    }
+    return img;
+}
+
+static void rig(const char *label, int kind, int which, int count)
+{
+    sl_error err;
+    test_rig *tr = get_rig(kind);
+    const sl_lens lt = tr->truth_lens;
+    sl_lens ln = tr->nominal;
+    sl_stitch_view views[4];
+    static const char *names[4] = {"view0.exr", "view1.exr", "view2.exr", "view3.exr"};
+    for (int i = 0; i < count; i++) {
+        views[i] = (sl_stitch_view){.name = names[i], .radiance = view_image(tr, which, i)};
+        /* The image circle as the stitch finds it; the nominal pose is the plan. */
+        sl_stitch_circle circle;
+        CHECK_OK(sl_stitch_circle_find(views[i].radiance, names[i], &ln, &circle, &err), &err);
+        views[i].lens = ln;
+        views[i].lens.circle_radius_px = circle.radius;
+        views[i].pose = tr->plan[i];
+    }
+    for (int i = 1; i < count; i++)
+        views[i].lens.circle_radius_px = views[0].lens.circle_radius_px;
+    sl_stitch_solve_options opt;
+    sl_stitch_solve_options_init(&opt);
+    sl_stitch_solve_result res;
+    double cpu = sl_cpu_seconds();
+    CHECK_OK(sl_stitch_solve(views, count, &opt, &res, &err), &err);
+    cpu = sl_cpu_seconds() - cpu;
+    const sl_lens *s = &res.lens;
+    double focal_err = s->focal_px / lt.focal_px - 1.0;
+    double centre_err = hypot(s->cx - lt.cx, s->cy - lt.cy);
+    double rot_err = 0;
+    for (int i = 1; i < count; i++)
+        rot_err = fmax(rot_err,
+                       relative_error(&tr->truth[0], &tr->truth[i], &res.pose[0], &res.pose[i]));
+    double vig_err = vignette_error(&lt, s);
+    printf("%s: focal %+.3f%% (nominal %+.2f%%), centre %.2f px, k1 %.4f, rotations %.4f deg, "
+           "vignette %.2f%% (v1 %.3f v2 %.3f), rms %.3f px max %.2f px, %d inliers, %d iterations, "
+           "%.2f s wall, %.2f s CPU (features %.2f, match %.2f, adjust %.2f)\n",
+           label, 100 * focal_err, 100 * (ln.focal_px / lt.focal_px - 1), centre_err, s->k[0],
+           rot_err, 100 * vig_err, s->vignette[0], s->vignette[1], res.rms_px, res.max_px,
+           res.inliers, res.iterations, res.seconds_total, cpu, res.seconds_features,
+           res.seconds_match, res.seconds_adjust);
+    for (int p = 0; p < res.pairs; p++)
+        printf("  pair %d-%d: %s, %.2f sr, %d matches, %d inliers, rms %.3f px %s\n",
+               res.pair[p].a, res.pair[p].b, sl_stitch_pair_status_name(res.pair[p].status),
+               res.pair[p].overlap_sr, res.pair[p].matches, res.pair[p].inliers,
+               res.pair[p].rms_px, res.pair[p].why);
+    CHECK_MSG(fabs(focal_err) < 0.005, "%s: focal off by %.3f%%", label, 100 * focal_err);
+    CHECK_MSG(centre_err < 1.0, "%s: centre off by %.2f px", label, centre_err);
+    CHECK_MSG(rot_err < 0.05, "%s: rotation off by %.4f deg", label, rot_err);
+    CHECK_MSG(vig_err < 0.02, "%s: vignetting off by %.2f%%", label, 100 * vig_err);
+    CHECK_MSG(res.rms_px <= 0.3, "%s: reprojection rms %.3f px", label, res.rms_px);
+    CHECK(res.vignette_solved);
+    CHECK(res.pairs_fallback == 0 || count == 4); /* 4 views: the opposite pair has no overlap */
+    CHECK(views[1].lens.focal_px == s->focal_px && views[1].pose.yaw_deg == res.pose[1].yaw_deg);
+    sl_stitch_solve_result_free(&res);
+}
+
+static void three_views(void)
+{
+    rig("3 views, exterior", 0, 0, 3);
+}
+
+static void four_views(void)
+{
+    rig("4 views (+ zenith), stage", 0, 1, 4);
+}
+
+/* The virtual set's own fisheye and head (sl_vset_fisheye_true,
+ * sl_vset_head_pose): a k2 and a v2 as well. */
+static void virtual_set_lens(void)
+{
+    rig("virtual set's lens, 4 views, exterior", 1, 0, 4);
+}
+
+/* A flat environment: no features, so every pair falls back to its
+ * nominal rotation, says why, and the lens and poses stay nominal; a few
+ * NaN pixels change nothing. */
+static void featureless(void)
+{
+    sl_error err;
+    sl_image env, img[3] = {{0}};
+    CHECK_OK(sl_image_alloc(&env, 256, 128, 3, &err), &err);
+    sl_image_fill(&env, 2.0f);
+    sl_lens lt, ln;
+    true_lens(&lt);
+    nominal_lens(&ln);
+    sl_stitch_view views[3];
+    for (int i = 0; i < 3; i++) {
+        CHECK_OK(sl_vset_view_image(&lt, &truth[i], &env, 1, &img[i], &err), &err);
+        views[i] = (sl_stitch_view){.name = "flat.exr", .radiance = &img[i], .lens = ln,
+                                    .pose = {120.0 * i, 0.0, 0.0}};
+    }
+    for (int k = 0; k < 3; k++)
+        sl_image_pixel(&img[1], W / 2 + 10 * k, H / 2)[k] = NAN;
+    sl_stitch_solve_result res;
+    CHECK_OK(sl_stitch_solve(views, 3, NULL, &res, &err), &err);
+    CHECK(res.pairs == 3 && res.pairs_solved == 0 && res.pairs_fallback == 3);
+    for (int p = 0; p < res.pairs; p++) {
+        CHECK(res.pair[p].fallback && res.pair[p].status == SL_STITCH_PAIR_FEW_MATCHES);
+        CHECK(strstr(res.pair[p].why, "at least 25 needed") != NULL);
+        printf("flat pair %d-%d: %s: %s\n", res.pair[p].a, res.pair[p].b,
+               sl_stitch_pair_status_name(res.pair[p].status), res.pair[p].why);
+    }
+    CHECK(res.lens.focal_px == ln.focal_px && res.lens.cx == ln.cx && !res.vignette_solved);
+    for (int i = 0; i < 3; i++) {
+        CHECK(relative_error(&res.pose_nominal[0], &res.pose_nominal[i], &views[0].pose,
+                             &views[i].pose) < 1e-4);
+        CHECK(views[i].lens.focal_px == ln.focal_px);
+    }
+    sl_stitch_solve_result_free(&res);
+    for (int i = 0; i < 3; i++)
+        sl_image_free(&img[i]);
+    sl_image_free(&env);
+}
+
+/* Views that cannot be one stitch are refused naming the file; one view
+ * is nothing to solve and comes back as it went in. */
+static void bad_views(void)
+{
+    sl_error err;
+    sl_image a, b;
+    CHECK_OK(sl_image_alloc(&a, 96, 64, 3, &err), &err);
+    CHECK_OK(sl_image_alloc(&b, 64, 64, 3, &err), &err);
+    sl_image_fill(&a, 1.0f);
+    sl_image_fill(&b, 1.0f);
+    sl_lens la, lb;
+    sl_lens_nominal(&la, SL_LENS_EQUISOLID, 96, 64, 8.0, 36.0);
+    sl_lens_nominal(&lb, SL_LENS_EQUISOLID, 64, 64, 8.0, 36.0);
+    sl_stitch_view v[2] = {{.name = "a.exr", .radiance = &a, .lens = la},
+                           {.name = "b.exr", .radiance = &b, .lens = lb, .pose = {180, 0, 0}}};
+    sl_stitch_solve_result res;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: 64x64, but a.exr is 96x64") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    v[1].radiance = &a;
+    v[1].lens = la;
+    v[1].lens.projection = SL_LENS_EQUIDISTANT;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: its lens (equidistant") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    v[1].lens = la;
+    v[1].lens.focal_px = 0.0;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: no lens") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    v[1].lens = la;
+    v[1].radiance = NULL;
+    CHECK(sl_stitch_solve(v, 2, NULL, &res, &err) == SL_ERR_INPUT);
+    CHECK(strstr(err.message, "b.exr: no image") != NULL);
+    sl_stitch_solve_result_free(&res);
+
+    /* The views' own poses: back to back, no overlap, the pair named. */
+    v[1].radiance = &a;
+    CHECK_OK(sl_stitch_solve(v, 2, NULL, &res, &err), &err);
+    CHECK(res.pairs == 1 && res.pair[0].status == SL_STITCH_PAIR_NO_OVERLAP &&
+          res.pair[0].fallback && v[1].pose.yaw_deg == 180.0);
+    sl_stitch_solve_result_free(&res);
+
+    CHECK_OK(sl_stitch_solve(v, 1, NULL, &res, &err), &err);
+    CHECK(res.views == 1 && res.pairs == 0 && res.lens.focal_px == la.focal_px);
+    sl_stitch_solve_result_free(&res);
+    sl_image_free(&a);
+    sl_image_free(&b);
+}
+
+int main(void)
+{
+    RUN(bad_views);
+    RUN(featureless);
+    RUN(three_views);
+    RUN(four_views);
+    RUN(virtual_set_lens);
+    for (int i = 0; i < 2; i++) {
+        sl_vset_scene_free(&scenes[i]);
+        for (int k = 0; k < 2; k++)
+            for (int v = 0; v < 4; v++)
+                sl_image_free(&rigs[k].views[i][v]);
+    }
+    return sl_test_finish();
+}
