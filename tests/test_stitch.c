@@ -92,6 +92,17 @@ static void rig_free(rig *g)
         sl_image_free(&g->views[i]);
 }
 
+/* rig_make, a failed check when it fails. */
+static bool rig_checked(rig *g, const char *scene, int count)
+{
+    sl_error err;
+    if (rig_make(g, scene, count, &err))
+        return true;
+    CHECK_MSG(false, "rig %s: %s", scene, err.message);
+    rig_free(g);
+    return false;
+}
+
 /* The oracle's views: the true lens and poses. */
 static void oracle_views(const rig *g, sl_stitch_view *v)
 {
@@ -230,11 +241,8 @@ static void solved_vs_oracle(void)
 {
     rig g;
     sl_error err;
-    if (!rig_make(&g, "stage", 3, &err)) {
-        CHECK_MSG(false, "rig: %s", err.message);
-        rig_free(&g);
+    if (!rig_checked(&g, "stage", 3))
         return;
-    }
     sl_stitch_view v[3];
     oracle_views(&g, v);
     sl_image oracle_img, solved_img;
@@ -275,11 +283,8 @@ static void one_view(void)
 {
     rig g;
     sl_error err;
-    if (!rig_make(&g, "stage", 1, &err)) {
-        CHECK_MSG(false, "rig: %s", err.message);
-        rig_free(&g);
+    if (!rig_checked(&g, "stage", 1))
         return;
-    }
     sl_stitch_view v[1];
     oracle_views(&g, v);
     sl_image out;
@@ -308,11 +313,8 @@ static void moving_person(void)
 {
     rig g;
     sl_error err;
-    if (!rig_make(&g, "stage", 3, &err)) {
-        CHECK_MSG(false, "rig: %s", err.message);
-        rig_free(&g);
+    if (!rig_checked(&g, "stage", 3))
         return;
-    }
     /* A direction 70 deg off view 1's axis toward view 2 (50 deg off its
      * axis), on the horizon: azimuth 120 + 70 = 190. */
     double az = 190.0 * M_PI / 180.0, dir[3] = {sin(az), 0.0, cos(az)};
@@ -379,11 +381,8 @@ static void nadir_mask(void)
 {
     rig g;
     sl_error err;
-    if (!rig_make(&g, "stage", 3, &err)) {
-        CHECK_MSG(false, "rig: %s", err.message);
-        rig_free(&g);
+    if (!rig_checked(&g, "stage", 3))
         return;
-    }
     sl_stitch_view v[3];
     oracle_views(&g, v);
     sl_stitch_blend_options o;
@@ -429,11 +428,8 @@ static void files(void)
 {
     rig g;
     sl_error err;
-    if (!rig_make(&g, "stage", 3, &err)) {
-        CHECK_MSG(false, "rig: %s", err.message);
-        rig_free(&g);
+    if (!rig_checked(&g, "stage", 3))
         return;
-    }
     const char *paths[3];
     char names[3][64];
     for (int i = 0; i < 3; i++) {
