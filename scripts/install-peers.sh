@@ -2,7 +2,7 @@
 # Installs the peer tools the benchmarks in bench/ compare setlight with (Debian packages;
 # see ../shared/peers/README.md). Not needed to build or test setlight; CI does not run it.
 set -euo pipefail
-packages=(blender python3-opencv python3-numpy pfstools luminance-hdr hugin-tools
+packages=(blender python3-opencv python3-numpy pfstools luminance-hdr hugin-tools enblend
           openimageio-tools time)
 missing=()
 for p in "${packages[@]}"; do

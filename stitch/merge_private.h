@@ -61,6 +61,14 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
  * its lower part overwritten by the factor), then solves a x = b in place
  * (b gets x). False when a is not positive definite. */
 bool merge_cholesky_solve(double *a, double *b, int n);
+
+/* Writes the JSON text of `o` (json_t *, decref'd here; NULL: out of
+ * memory) with a final newline atomically to path; `precision` significant
+ * digits for reals. The response and the lens profile files. */
+sl_result stitch_json_write(const char *path, void *o, int precision, sl_error *err);
+/* Loads a JSON file into *o (json_t **; the caller decrefs): SL_ERR_NOT_FOUND
+ * for a missing file, SL_ERR_INPUT "not JSON" with the line. */
+sl_result stitch_json_read(const char *path, void *o, sl_error *err);
 /* For the solver's test and measurement (test_merge_solve): when set, the
  * Debevec-Malik fit shows it each round's system before solving it. */
 extern void (*merge_fit_system_hook)(const double *a, const double *b, int n);

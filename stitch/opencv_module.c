@@ -1,16 +1,18 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* The OpenCV shims (ball_detect_cxx.cpp, chart_detect_cxx.cpp,
- * stitch_features_cxx.cpp) forward to
- * the setlight_opencv module, loaded on the first call: linked in, OpenCV's
+ * stitch_features_cxx.cpp, lens_calibrate_cxx.cpp) forward to the
+ * setlight_opencv module, loaded on the first call: linked in, OpenCV's
  * ~26 libraries (mcc pulls dnn, protobuf, LAPACK, X11...) cost every
  * process ~11 ms of its ~17 ms start-up, though only ball and chart
- * detection and the stitch's features use them. Sanitizer builds link the shims in instead. */
+ * detection, the stitch's features and lens-calibrate use them.
+ * Sanitizer builds link the shims in instead. */
 #include <dlfcn.h>
 #include <pthread.h>
 #include <stdio.h>
 
 #include "calibrate_internal.h"
 #include "stitch_private.h"
+#include "lens_calibrate_private.h"
 #include "unwrap_private.h"
 
 #ifndef SETLIGHT_OPENCV_MODULE
@@ -24,6 +26,7 @@ static int (*features)(const unsigned char *, const unsigned char *, int, int, i
                        unsigned char *, int *, char *, size_t);
 static int (*match)(const unsigned char *, int, const unsigned char *, int, int, int, double, int *,
                     int, char *, size_t);
+static int (*chessboard)(const unsigned char *, int, int, int, int, float *, char *, size_t);
 static char load_error[512];
 static pthread_once_t load_once = PTHREAD_ONCE_INIT;
 
@@ -38,7 +41,8 @@ static void load(void)
         *(void **)&mcc = dlsym(h, "sl_opencv_mcc_detect");
         *(void **)&features = dlsym(h, "sl_opencv_stitch_features");
         *(void **)&match = dlsym(h, "sl_opencv_stitch_match");
-        if (!hough || !mcc || !features || !match)
+        *(void **)&chessboard = dlsym(h, "sl_opencv_chessboard");
+        if (!hough || !mcc || !features || !match || !chessboard)
             why = "entry points missing";
     }
     if (why) {
@@ -48,6 +52,7 @@ static void load(void)
         mcc = NULL;
         features = NULL;
         match = NULL;
+        chessboard = NULL;
     }
 }
 
@@ -100,4 +105,15 @@ int stitch_match_cxx(const unsigned char *desc_a, int count_a, const unsigned ch
     }
     return match(desc_a, count_a, desc_b, count_b, desc_bytes, detector, ratio, pairs, max_out,
                  msg, msg_size);
+}
+
+int lens_chessboard_cxx(const unsigned char *gray, int width, int height, int cols, int rows,
+                        float *corners, char *msg, size_t msg_size)
+{
+    pthread_once(&load_once, load);
+    if (!chessboard) {
+        snprintf(msg, msg_size, "%s", load_error);
+        return -1;
+    }
+    return chessboard(gray, width, height, cols, rows, corners, msg, msg_size);
 }

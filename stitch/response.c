@@ -68,7 +68,13 @@ sl_result sl_response_write(const char *path, const sl_response *resp, sl_error 
                           "inverse[c][k]: linear exposure of value z = k/(nodes-1) in channel c "
                           "(R, G, B), interpolated linearly; inverse[c][nodes-1] = 1",
                           "inverse", curves);
-    char *text = o ? json_dumps(o, JSON_INDENT(1) | JSON_REAL_PRECISION(10)) : NULL;
+    return stitch_json_write(path, o, 10, err);
+}
+
+sl_result stitch_json_write(const char *path, void *json, int precision, sl_error *err)
+{
+    json_t *o = json;
+    char *text = o ? json_dumps(o, JSON_INDENT(1) | JSON_REAL_PRECISION(precision)) : NULL;
     json_decref(o);
     if (!text)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
@@ -85,17 +91,28 @@ sl_result sl_response_write(const char *path, const sl_response *resp, sl_error 
     return r;
 }
 
-sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err)
+sl_result stitch_json_read(const char *path, void *out, sl_error *err)
 {
-    memset(resp, 0, sizeof *resp);
+    json_t **o = out;
+    *o = NULL;
     sl_result r = sl_check_input_file(path, err);
     if (r)
         return r;
     json_error_t jerr;
-    json_t *o = json_load_file(path, 0, &jerr);
-    if (!o)
+    *o = json_load_file(path, 0, &jerr);
+    if (!*o)
         return sl_error_set(err, SL_ERR_INPUT, "%s: not JSON (line %d: %s)", path, jerr.line,
                             jerr.text);
+    return SL_OK;
+}
+
+sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err)
+{
+    memset(resp, 0, sizeof *resp);
+    json_t *o;
+    sl_result r = stitch_json_read(path, &o, err);
+    if (r)
+        return r;
     const char *format = json_string_value(json_object_get(o, "format"));
     json_t *curves = json_object_get(o, "inverse");
     int nodes = (int)json_integer_value(json_object_get(o, "nodes"));

@@ -58,5 +58,6 @@ int cmd_response(int argc, char **argv, const sl_cli *cli);
 int cmd_rig(int argc, char **argv, const sl_cli *cli);
 int cmd_unwrap(int argc, char **argv, const sl_cli *cli);
 int cmd_calibrate(int argc, char **argv, const sl_cli *cli);
+int cmd_lens_calibrate(int argc, char **argv, const sl_cli *cli);
 
 #endif

@@ -24,6 +24,7 @@ static const command commands[] = {
     {"response", cmd_response, "recover a camera response curve from a bracket"},
     {"unwrap", cmd_unwrap, "chrome-ball photo to lat-long (finds the ball, exact perspective)"},
     {"calibrate", cmd_calibrate, "match the HDRI to the plate camera: ColorChecker and grey sphere"},
+    {"lens-calibrate", cmd_lens_calibrate, "solve a lens profile from chessboard photos (for stitch)"},
     {"rig", cmd_rig, "extract area lights and a residual dome from a lat-long, as USD and JSON"},
     {"render", cmd_render, "render grey/chrome/chart references under an HDR environment"},
     {"converge", cmd_converge, "error against time for each sampling strategy (table, SVG)"},

@@ -913,6 +913,115 @@ sl_result sl_stitch_lens_meta_set(sl_meta *meta, sl_error *err);
 bool sl_stitch_lens_from_meta(const sl_meta *meta, sl_lens_projection projection, int width,
                               int height, sl_lens *out, char *why, size_t why_size);
 
+/* ================================================================== */
+/* Stitch: lens profiles                                               */
+/* ================================================================== */
+
+/* How a lens profile's numbers were found. */
+typedef enum {
+    SL_LENS_SOURCE_NOMINAL = 0, /* from the nominal focal length and sensor size */
+    SL_LENS_SOURCE_OVERLAPS,    /* solved from the overlaps of a stitch */
+    SL_LENS_SOURCE_CHESSBOARD,  /* solved from chessboard photos (lens-calibrate) */
+    SL_LENS_SOURCE_COUNT
+} sl_lens_source;
+
+/* "nominal", "overlaps", "chessboard"; -1 if unknown. */
+int sl_lens_source_from_name(const char *name);
+const char *sl_lens_source_name(sl_lens_source source);
+
+/* One solved lens on one camera body, in the pixels of a lens.width x
+ * lens.height image; a shoot's later setups reuse it (docs/formats.md,
+ * "Lens profiles"). */
+typedef struct sl_lens_profile {
+    sl_lens lens;
+    char camera[128];    /* "make model" as EXIF has them; "" when unknown */
+    char lens_name[128]; /* EXIF lens model; "" when unknown */
+    sl_lens_source source;
+    double rms_px;       /* reprojection residual of the solve; -1 when not solved */
+    double max_px;       /* its largest residual; -1 when not solved */
+    int images;          /* photos or views the solve used (0 nominal) */
+} sl_lens_profile;
+
+/* JSON {"format": "setlight-lens", "version": 1, ...}. A file with a field
+ * missing or of the wrong type, an unknown projection, NaN, a centre off the
+ * image, a radius r(theta) that does not increase over the field or a
+ * vignetting gain that is not positive over it is SL_ERR_INPUT with one
+ * line naming the file and the field. */
+sl_result sl_lens_profile_read(const char *path, sl_lens_profile *out, sl_error *err);
+/* Written atomically; the same checks as read (SL_ERR_INPUT on a profile
+ * that read would refuse). */
+sl_result sl_lens_profile_write(const char *path, const sl_lens_profile *profile, sl_error *err);
+/* Whether `profile` applies to views width x height from `camera` with
+ * `lens` (either "" or NULL when unknown: not compared). A different camera
+ * or lens (case-insensitive; "Make Model" and "Model" name one camera when
+ * the longer only adds words in front), or a size of another aspect ratio, does not
+ * fit: false, `why` says which. A size of the same aspect ratio fits with
+ * focal length, centre and circle scaled (`why` then says so; "" for an
+ * exact fit). *fitted (may be NULL) gets the lens for that size. */
+bool sl_lens_profile_fits(const sl_lens_profile *profile, int width, int height,
+                          const char *camera, const char *lens, sl_lens *fitted, char *why,
+                          size_t why_size);
+/* Checks a lens as read and write do; `where` names it in the message. */
+sl_result sl_lens_check(const sl_lens *lens, const char *where, sl_error *err);
+
+/* ================================================================== */
+/* Stitch: lens-calibrate (a lens profile from chessboard photos)       */
+/* ================================================================== */
+
+typedef struct sl_lens_calibrate_options {
+    int board_cols, board_rows;  /* inner corners along the board's rows and columns */
+    double square_mm;            /* square size; only the board poses depend on it (25) */
+    sl_lens_projection projection; /* default equisolid */
+    double focal_mm;             /* nominal focal length; 0: the photos' EXIF */
+    double sensor_width_mm;      /* width of the sensor area the photo covers (required) */
+    int radial_terms;            /* radial correction terms solved, 0..3; -1 (default):
+                                    as many as the corners support (sl_lens_calibrate) */
+} sl_lens_calibrate_options;
+
+void sl_lens_calibrate_options_init(sl_lens_calibrate_options *opt);
+
+typedef struct sl_lens_calibrate_photo {
+    char name[256];
+    bool found;     /* the board was found */
+    bool used;      /* its corners are in the solve */
+    char why[160];  /* why not, when not used */
+    double rms_px;  /* its corners' reprojection error under the solved lens */
+    double max_px;
+} sl_lens_calibrate_photo;
+
+typedef struct sl_lens_calibrate_result {
+    sl_lens_profile profile;       /* the solved lens, source chessboard */
+    sl_lens nominal;               /* the lens from focal_mm and sensor_width_mm */
+    double nominal_focal_mm;
+    double focal_mm;               /* the solved focal length in the same mm */
+    int radial_terms;              /* k terms solved */
+    int photo_count, used;
+    sl_lens_calibrate_photo *photos; /* photo_count, owned */
+} sl_lens_calibrate_result;
+
+/* The solve alone: `count` boards' cols x rows corners (pixels, top-left
+ * corner of the image at (0, 0); row by row, x along a row) seen through
+ * one lens. `lens` holds the nominal lens on entry and the solved one on
+ * return (focal length, centre, radial terms; projection, field and
+ * vignetting kept). rms_px and max_px (count each, may be NULL) get each
+ * board's residual; *rms and *max the overall ones. A bundle adjustment
+ * (Levenberg-Marquardt) of the lens and each board's pose, each pose seeded
+ * by a homography of the nominal lens's rays. SL_ERR_INPUT when the solve
+ * does not converge to a lens whose radius increases over the field. */
+sl_result sl_lens_calibrate_corners(const double *corners, int count,
+                                    const sl_lens_calibrate_options *opt, sl_lens *lens,
+                                    double *rms_px, double *max_px, double *rms, double *max,
+                                    sl_error *err);
+
+/* lens-calibrate: finds the board in each photo (OpenCV), leaves out the
+ * photos without it (each says why) and solves the lens from the others (at
+ * least 3). Photos of different sizes or cameras: SL_ERR_INPUT naming the
+ * file. res->photos is allocated (also on failure after reading began). */
+sl_result sl_lens_calibrate(const char *const *paths, int count,
+                            const sl_lens_calibrate_options *opt, sl_lens_calibrate_result *res,
+                            sl_error *err);
+void sl_lens_calibrate_result_free(sl_lens_calibrate_result *res);
+
 #ifdef __cplusplus
 }
 #endif
