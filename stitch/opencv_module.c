@@ -1,10 +1,11 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* The OpenCV shims (ball_detect_cxx.cpp, chart_detect_cxx.cpp,
- * stitch_features_cxx.cpp) forward to
- * the setlight_opencv module, loaded on the first call: linked in, OpenCV's
+ * stitch_features_cxx.cpp, lens_calibrate_cxx.cpp) forward to the
+ * setlight_opencv module, loaded on the first call: linked in, OpenCV's
  * ~26 libraries (mcc pulls dnn, protobuf, LAPACK, X11...) cost every
  * process ~11 ms of its ~17 ms start-up, though only ball and chart
- * detection and the stitch's features use them. Sanitizer builds link the shims in instead. */
+ * detection, the stitch's features and lens-calibrate use them.
+ * Sanitizer builds link the shims in instead. */
 #include <dlfcn.h>
 #include <pthread.h>
 #include <stdio.h>

@@ -851,8 +851,9 @@ typedef struct sl_stitch_solve_result {
 /* Solves the views' poses and their shared lens from the overlaps:
  * features on a log-encoded copy of each view inside its image circle,
  * matched between overlapping pairs, RANSAC on the sphere, a bundle
- * adjustment of the poses (view 0 fixed) and the lens, then the vignetting
- * from the radiance ratios. Overwrites views[i].lens and views[i].pose with
+ * adjustment of the poses (view 0 fixed) and the lens, the inliers refined
+ * to sub-pixel on the full-resolution views and adjusted again, then the
+ * vignetting from the radiance ratios (docs/stitch.md, "Solve"). Overwrites views[i].lens and views[i].pose with
  * the solution; a pair without enough good matches keeps its nominal
  * relative rotation and res says so. Views of different sizes or
  * projections, or a view with no image (NULL) are SL_ERR_INPUT. res is
@@ -860,7 +861,6 @@ typedef struct sl_stitch_solve_result {
 sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
                           sl_stitch_solve_result *res, sl_error *err);
 void sl_stitch_solve_result_free(sl_stitch_solve_result *res);
-
 
 /* ------------------------------------------------------------------ */
 /* Stitch: image circle                                                 */
@@ -915,6 +915,7 @@ sl_result sl_stitch_lens_meta_set(sl_meta *meta, sl_error *err);
 bool sl_stitch_lens_from_meta(const sl_meta *meta, sl_lens_projection projection, int width,
                               int height, sl_lens *out, char *why, size_t why_size);
 
+/* ================================================================== */
 /* Stitch: lens profiles                                               */
 /* ================================================================== */
 
