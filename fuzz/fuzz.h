@@ -34,6 +34,7 @@ const char *sl_fuzz_dir(void);
 SL_FUZZ_DECLARE(exr)
 SL_FUZZ_DECLARE(hdr)
 SL_FUZZ_DECLARE(photo)
+SL_FUZZ_DECLARE(ingest)
 SL_FUZZ_DECLARE(scene_json)
 SL_FUZZ_DECLARE(vset_scene)
 SL_FUZZ_DECLARE(rig_json)

@@ -12,7 +12,7 @@ cd "$(dirname "$0")"
 OUT=$(realpath -m "${2:-corpus}")
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
-for t in exr hdr photo scene_json vset_scene rig_json journal response_json response_text \
+for t in exr hdr photo ingest scene_json vset_scene rig_json journal response_json response_text \
          chart_reference; do
   rm -rf "${OUT:?}/$t"
   mkdir -p "$OUT/$t"
@@ -131,6 +131,11 @@ J
 # --- a capture journal from the virtual camera (2 views x 3 frames)
 "$S" capture --quiet --camera virtual:stage --bracket 3x2 --center 1/30 --views 2 --no-prompt -o "$T/cap"
 cp "$T/cap/journal.jsonl" "$OUT/journal/virtual_2x3.jsonl"
+# ingest: the virtual camera's JPEGs (setlight's camera-style EXIF, sub-seconds) and oiiotool's
+for f in "$T"/cap/*.jpg; do
+  [ "$(stat -c %s "$f")" -lt 20000 ] && cp "$f" "$OUT/ingest/virtual_$(basename "$f")" && break
+done
+cp "$OUT/photo/exif.jpg" "$OUT/photo/rgb8.tif" "$OUT/ingest/"
 head -n 3 "$T/cap/journal.jsonl" > "$OUT/journal/interrupted.jsonl"
 
 # --- response curves
