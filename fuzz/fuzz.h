@@ -11,6 +11,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "setlight/core.h"
+
 typedef int (*sl_fuzz_fn)(const uint8_t *data, size_t size);
 
 typedef struct sl_fuzz_target {
@@ -29,6 +31,11 @@ void sl_fuzz_init(void);
 const char *sl_fuzz_file(const char *name, const uint8_t *data, size_t size);
 /* The private folder (a session folder for the journal target). */
 const char *sl_fuzz_dir(void);
+/* The bytes as the image file `name`, read by `read` (an image and its
+ * metadata, freed after). */
+typedef sl_result (*sl_fuzz_image_reader)(const char *path, sl_image *img, sl_meta *meta,
+                                          sl_error *err);
+void sl_fuzz_image(const char *name, const uint8_t *data, size_t size, sl_fuzz_image_reader read);
 
 #define SL_FUZZ_DECLARE(name) int sl_fuzz_##name(const uint8_t *data, size_t size);
 SL_FUZZ_DECLARE(exr)

@@ -53,10 +53,10 @@ int sl_fuzz_photo(const uint8_t *data, size_t size)
         return 0;
     sl_image img = {0};
     sl_meta_init(&meta);
-    if (sl_image_read(path, &img, &meta, &err) == SL_OK) {
-        sl_image_free(&img);
-        read_strips(path);
-    }
+    r = sl_image_read(path, &img, &meta, &err);
+    sl_image_free(&img);
     sl_meta_free(&meta);
+    if (r == SL_OK)
+        read_strips(path);
     return 0;
 }

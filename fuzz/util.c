@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "fuzz.h"
-#include "setlight/core.h"
 
 static char fuzz_dir[4096];
 
@@ -47,4 +46,18 @@ const char *sl_fuzz_file(const char *name, const uint8_t *data, size_t size)
     bool ok = fwrite(data, 1, size, f) == size;
     ok = fclose(f) == 0 && ok;
     return ok ? path : NULL;
+}
+
+void sl_fuzz_image(const char *name, const uint8_t *data, size_t size, sl_fuzz_image_reader read)
+{
+    const char *path = sl_fuzz_file(name, data, size);
+    if (!path)
+        return;
+    sl_image img = {0};
+    sl_meta meta;
+    sl_meta_init(&meta);
+    sl_error err = {0};
+    read(path, &img, &meta, &err);
+    sl_image_free(&img);
+    sl_meta_free(&meta);
 }
