@@ -18,7 +18,9 @@ for bin in "$B"/fuzz/fuzz_*; do
   t=${bin##*/fuzz_}
   mkdir -p "$W/$t/corpus" "$W/$t/artifacts"
   cp "$SRC/corpus/$t"/* "$W/$t/corpus/"
-  if "$bin" -max_total_time="$SECONDS_EACH" -max_len=16384 -timeout=20 -rss_limit_mb=2048 \
+  dict=()
+  [ -f "$SRC/dict/$t.dict" ] && dict=(-dict="$SRC/dict/$t.dict")
+  if "$bin" "${dict[@]}" -max_total_time="$SECONDS_EACH" -max_len=16384 -timeout=20 -rss_limit_mb=2048 \
        -artifact_prefix="$W/$t/artifacts/" -print_final_stats=1 "$W/$t/corpus" \
        > "$W/$t/log.txt" 2>&1; then
     echo "fuzz_$t: $(grep -E '^#[0-9]+.*DONE' "$W/$t/log.txt" | tail -1)"

@@ -25,8 +25,10 @@ run_target() {
   secs=$(python3 -c "print(int($minutes * 60 * $SCALE))")
   mkdir -p "$W/$t/corpus" "$W/$t/artifacts"
   cp -n "$SRC/corpus/$t"/* "$W/$t/corpus/" 2>/dev/null || true
+  local dict=()
+  [ -f "$SRC/dict/$t.dict" ] && dict=(-dict="$SRC/dict/$t.dict")
   (cd "$W/$t" && /usr/bin/time -f "cpu_user %U cpu_sys %S wall %e maxrss_kb %M" -o time.txt \
-     nice -n 19 "$B/fuzz/fuzz_$t" -fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1 \
+     nice -n 19 "$B/fuzz/fuzz_$t" "${dict[@]}" -fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1 \
        -max_total_time="$secs" -max_len="$max_len" -timeout=20 -rss_limit_mb=2048 \
        -artifact_prefix="$W/$t/artifacts/" -print_final_stats=1 corpus > log.txt 2>&1) || true
 }
