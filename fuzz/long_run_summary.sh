@@ -4,7 +4,7 @@
 # crash/oom/timeout counts and the artifacts kept.
 set -euo pipefail
 W=${1:?usage: fuzz/long_run_summary.sh WORK_DIR}
-printf '| target | CPU s | wall s | executions | cov | ft | corpus | crash/oom/timeout | artifacts |\n'
+printf '| target | CPU s | wall s | executions | cov | ft | corpus | oom/timeout/crash | artifacts |\n'
 printf '|---|---|---|---|---|---|---|---|---|\n'
 total=0
 for d in "$W"/*/; do
