@@ -429,12 +429,12 @@ static exr_result_t zip_scanlines(const exr_decode_job *job, const exr_chunk_inf
                 memcpy(&r, pr + 4 * (size_t)done, sizeof r);
                 memcpy(&g, pg + 4 * (size_t)done, sizeof g);
                 memcpy(&b, pb + 4 * (size_t)done, sizeof b);
-                v4f_t rg = __builtin_shuffle(r, g, (v4i_t){0, 4, 1, 5});
-                v4f_t gb = __builtin_shuffle(g, b, (v4i_t){1, 5, 2, 6});
-                v4f_t rg3 = __builtin_shuffle(r, g, (v4i_t){3, 7, 3, 7});
-                v4f_t out[3] = {__builtin_shuffle(rg, b, (v4i_t){0, 1, 4, 2}),
-                                __builtin_shuffle(gb, r, (v4i_t){0, 1, 6, 2}),
-                                __builtin_shuffle(rg3, b, (v4i_t){6, 0, 1, 7})};
+                v4f_t rg = __builtin_shufflevector(r, g, 0, 4, 1, 5);
+                v4f_t gb = __builtin_shufflevector(g, b, 1, 5, 2, 6);
+                v4f_t rg3 = __builtin_shufflevector(r, g, 3, 7, 3, 7);
+                v4f_t out[3] = {__builtin_shufflevector(rg, b, 0, 1, 4, 2),
+                                __builtin_shufflevector(gb, r, 0, 1, 6, 2),
+                                __builtin_shufflevector(rg3, b, 6, 0, 1, 7)};
                 memcpy(dst + 3 * (size_t)done, out, sizeof out);
             }
         }
@@ -1169,15 +1169,16 @@ static inline __attribute__((always_inline)) void rgb4_planes(const float *src, 
     memcpy(&a, src, sizeof a);
     memcpy(&b, src + 4, sizeof b);
     memcpy(&c, src + 8, sizeof c);
-    v4f_t r = __builtin_shuffle(a, b, (v4i_t){0, 3, 6, 6});
-    v4f_t g = __builtin_shuffle(a, b, (v4i_t){1, 4, 7, 7});
-    v4f_t bl = __builtin_shuffle(a, b, (v4i_t){2, 5, 5, 5});
-    plane[0] = __builtin_shuffle(bl, c, (v4i_t){0, 1, 4, 7});
-    plane[1] = __builtin_shuffle(g, c, (v4i_t){0, 1, 2, 6});
-    plane[2] = __builtin_shuffle(r, c, (v4i_t){0, 1, 2, 5});
+    v4f_t r = __builtin_shufflevector(a, b, 0, 3, 6, 6);
+    v4f_t g = __builtin_shufflevector(a, b, 1, 4, 7, 7);
+    v4f_t bl = __builtin_shufflevector(a, b, 2, 5, 5, 5);
+    plane[0] = __builtin_shufflevector(bl, c, 0, 1, 4, 7);
+    plane[1] = __builtin_shufflevector(g, c, 0, 1, 2, 6);
+    plane[2] = __builtin_shufflevector(r, c, 0, 1, 2, 5);
 }
 
-#if (defined(__x86_64__) || defined(__i386__)) && (defined(__clang__) || __GNUC__ >= 12)
+/* (clang 14's __builtin_cpu_supports does not know "f16c") */
+#if (defined(__x86_64__) || defined(__i386__)) && !defined(__clang__) && __GNUC__ >= 12
 #define HAVE_F16C_ROWS 1
 #include <immintrin.h>
 /* One RGB row's pixels 0 .. w - w % 4 into half planes B, G, R (w apart)

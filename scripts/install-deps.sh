@@ -16,6 +16,7 @@ packages=(
   python3
   chromium-headless-shell   # the tests open the HTML reports in a real browser
   python3-numpy python3-opencv
+  clang libclang-rt-14-dev   # the fuzz targets (libFuzzer: -DSETLIGHT_FUZZ=ON, fuzz/README.md)
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -208,7 +208,7 @@ static inline __attribute__((always_inline)) v4f photo_lookup(const unwrap_ctx *
     v2d qx = {ex, ex + 1.0}, k2 = {keep * keep, keep * keep};
     qx *= qx;
     v2l in0 = qx + ey * ey <= k2, in1 = qx + (ey + 1.0) * (ey + 1.0) <= k2;
-    w = (v4f)((v4i)w & __builtin_shuffle((v4i)in0, (v4i)in1, (v4i){0, 2, 4, 6}));
+    w = (v4f)((v4i)w & __builtin_shufflevector((v4i)in0, (v4i)in1, 0, 2, 4, 6));
     float wsum = w[0] + w[1] + w[2] + w[3];
     if (wsum > 0.0f)
         return (load3(p) * w[0] + load3(p + 3) * w[1] + load3(p + img->stride) * w[2] +
@@ -380,7 +380,11 @@ static int fast_count(double extent_px)
 
 static inline v4f splat(v4f v, int i)
 {
+#ifdef __clang__ /* no shuffle by a variable mask */
+    return (v4f){v[i], v[i], v[i], v[i]};
+#else
     return __builtin_shuffle(v, (v4i){i, i, i, i});
+#endif
 }
 
 /* Bilinear lookup at a point whose four taps are all ball pixels clear of
