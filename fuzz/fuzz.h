@@ -49,6 +49,7 @@ SL_FUZZ_DECLARE(journal)
 SL_FUZZ_DECLARE(response_json)
 SL_FUZZ_DECLARE(response_text)
 SL_FUZZ_DECLARE(chart_reference)
+SL_FUZZ_DECLARE(lens_profile)
 #undef SL_FUZZ_DECLARE
 
 #endif

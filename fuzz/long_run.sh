@@ -18,7 +18,8 @@ export TMPDIR=${TMPDIR:-/dev/shm}
 # target minutes max_len
 lane_a="exr:25:16384 photo:25:16384 hdr:15:8192 rig_json:15:8192"
 lane_b="ingest:14:16384 journal:12:8192 scene_json:12:4096 vset_scene:10:4096
-        response_json:12:16384 response_text:10:4096 chart_reference:10:4096"
+        response_json:12:16384 response_text:10:4096 chart_reference:10:4096
+        lens_profile:8:4096"
 
 run_target() {
   local t=$1 minutes=$2 max_len=$3 secs

@@ -41,9 +41,11 @@ oiiotool "$T/grad.exr" --attrib envmap latlong --attrib "setlight:inputs" "seed"
   --compression zip -o "$e/latlong_attrs.exr"
 # data window inside a larger display window
 oiiotool "$T/grad.exr" --fullsize 32x16+0+0 --origin +4+2 -d half -o "$e/datawindow.exr"
-# (No file with a channel setlight does not pick, e.g. R,G,B,Z: OpenEXR
-# 3.1's unpacker crashes on them in core/exr.c's decoder, issue 22 defect 1,
-# fixed apart. Once fixed: --ch R,G,B,Z=G in zip, piz and rle here.)
+# a channel setlight does not pick (a render's depth): OpenEXR 3.1's
+# unpackers once wrote through the NULL pointer core/exr.c gave it
+for c in zip piz rle; do
+  oiiotool "$T/grad.exr" --ch R,G,B,Z=G -d half --compression "$c" -o "$e/rgbz_${c}_half.exr"
+done
 
 h="$OUT/hdr"
 oiiotool "$T/grad.exr" -o "$h/grad_16x8.hdr"    # run-length rows (8 <= width)

@@ -22,6 +22,9 @@ void sl_fuzz_init(void)
     sl_log_set_quiet(true);
     sl_log_set_level(SL_LOG_ERROR);
     sl_threads_set(1);
+    /* Under libFuzzer's 2 GB RSS limit: a legal claim within the default
+     * budget (half the RAM) would otherwise show as an out-of-memory. */
+    sl_memory_budget_set((uint64_t)1 << 30);
     const char *tmp = getenv("TMPDIR");
     snprintf(fuzz_dir, sizeof fuzz_dir, "%s/setlight-fuzz-XXXXXX", tmp && *tmp ? tmp : "/tmp");
     if (!mkdtemp(fuzz_dir)) {
