@@ -107,5 +107,18 @@ printf '{"version": 1, "lights": [], "dome": {"file": null}}' >"$T/big.json"
 truncate -s 20M "$T/big.json"
 expect 3 "$SETLIGHT" render --rig "$T/big.json" --scene grey --width 8 --spp 1 -o "$T/r.exr"
 err_has "big.json: 20 MB, larger than a rig JSON may be (16 MB)"; err_one_line; absent "$T/r.exr"
+# A 423-byte PNG whose tEXt chunk claims 1.4 GB (found by fuzz_photo): refused
+# from the chunk's length before libpng allocates it (it cost 5 s and 1.4 GB).
+png_text="$SETLIGHT_SOURCE_DIR/tests/fuzz_regressions/photo/png_text_chunk_length.png"
+expect 3 "$SETLIGHT" convert "$png_text" "$T/text_out.exr"
+err_has "png_text_chunk_length.png: truncated or corrupt PNG: its tEXt chunk claims 1409286164 bytes"
+err_one_line; absent "$T/text_out.exr"
+# A 1.5 KB DWAA EXR whose string attribute claims 1.7 GB (found by fuzz_exr):
+# OpenEXRCore's parse notes the damage; refused before OpenEXR's C++ reader
+# allocates the claim (it cost 8.5 s and 1.8 GB).
+dwa="$SETLIGHT_SOURCE_DIR/tests/fuzz_regressions/exr/exr_dwa_attribute_size.exr"
+expect 3 "$SETLIGHT" convert "$dwa" "$T/dwa_out.exr"
+err_has "exr_dwa_attribute_size.exr: truncated or corrupt EXR (Attribute 'Exif:ImageHistory'"
+err_one_line; absent "$T/dwa_out.exr"
 no_temp "$T"
 finish
