@@ -67,10 +67,10 @@ interrupts rig "$T/rig" r.usda r.json r_residual.exr r.png -- \
 # --- merge: radiance and its clipped mask
 png_bracket "$T" 1024 512 || bad "fixture"
 mkdir -p "$T/merge"
-"$SETLIGHT" merge -q --times 1/8,1/2,2 -o "$T/merge/m.exr" "$T/br_0.png" "$T/br_1.png" "$T/br_2.png" \
+"$SETLIGHT" merge -q --align off --times 1/8,1/2,2 -o "$T/merge/m.exr" "$T/br_0.png" "$T/br_1.png" "$T/br_2.png" \
   >/dev/null 2>&1 || bad "merge: the old set"
 interrupts merge "$T/merge" m.exr m_clipped.exr -- \
-  "$SETLIGHT" merge -q --times 1/16,1/4,1 -o "$T/merge/m.exr" "$T/br_0.png" "$T/br_1.png" "$T/br_2.png"
+  "$SETLIGHT" merge -q --align off --times 1/16,1/4,1 -o "$T/merge/m.exr" "$T/br_0.png" "$T/br_1.png" "$T/br_2.png"
 
 # --- unwrap: one streamed lat-long
 "$MAKE_FIXTURE" ball "$T/ball.exr" || bad "fixture"
