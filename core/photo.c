@@ -29,9 +29,10 @@ static sl_result png_open(const char *path, sl_png_reader **r, sl_meta *meta, bo
     *r = NULL;
     *declined = false;
     sl_result res = sl_check_input_file(path, err);
-    /* Before any decoder (or OpenImageIO) starts: what the header claims. */
-    if (!res && pixels)
-        res = sl_photo_claim_check(path, err);
+    /* Before any decoder (or OpenImageIO) starts: what the header claims
+     * (libpng allocates a text chunk's claimed length even to read EXIF). */
+    if (!res)
+        res = pixels ? sl_photo_claim_check(path, err) : sl_photo_structure_check(path, err);
     if (res)
         return res;
     *declined = !sl_png_is_png(path);

@@ -200,7 +200,7 @@ static bool rgbe_claim(FILE *f, claim *c)
     return true;
 }
 
-sl_result sl_photo_claim_check(const char *path, sl_error *err)
+static sl_result claim_check(const char *path, bool with_budget, sl_error *err)
 {
     struct stat st;
     FILE *f = fopen(path, "rb");
@@ -236,9 +236,21 @@ sl_result sl_photo_claim_check(const char *path, sl_error *err)
                             " pixels, more than a %lld-byte %s file can hold (%.0f at most)",
                             path, c.format, c.width, c.height, (long long)st.st_size, c.format,
                             most);
+    if (!with_budget)
+        return SL_OK;
     char what[96];
     snprintf(what, sizeof what, "a %" PRId64 "x%" PRId64 " %s image", c.width, c.height, c.format);
     return sl_memory_check((uint64_t)c.width * (uint64_t)c.height * (uint64_t)c.channels *
                                sizeof(float),
                            path, what, err);
+}
+
+sl_result sl_photo_claim_check(const char *path, sl_error *err)
+{
+    return claim_check(path, true, err);
+}
+
+sl_result sl_photo_structure_check(const char *path, sl_error *err)
+{
+    return claim_check(path, false, err);
 }

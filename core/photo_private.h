@@ -57,6 +57,9 @@ void sl_png_close(sl_png_reader *reader);
  * the memory budget (photo_claim.c); SL_OK for other files, left to their
  * reader. Reads only the header, before any decoder is started. */
 sl_result sl_photo_claim_check(const char *path, sl_error *err);
+/* The same without the memory budget, for a read of the metadata only: a
+ * header or chunk that claims more than the file holds is still corrupt. */
+sl_result sl_photo_structure_check(const char *path, sl_error *err);
 
 /* How many times this process has started OpenImageIO (0 or 1): a test
  * checks that reading what core reads itself never does. */

@@ -115,9 +115,26 @@ static void test_real_files_pass(void)
     CHECK(n > 0);
 }
 
+/* A PNG whose text chunk claims 1.9 GB (found by fuzz_photo): refused from
+ * the chunk's length by the metadata read too (merge and ingest read the
+ * EXIF first), before libpng allocates the claim. */
+static void test_chunk_claim_on_meta_read(void)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/tests/fuzz_regressions/photo/png_text_chunk_meta.png",
+             SETLIGHT_SOURCE_DIR);
+    sl_error err = {0};
+    sl_meta meta;
+    int w, h, c;
+    CHECK_RESULT(sl_photo_read_meta(path, &meta, &w, &h, &c, &err), SL_ERR_INPUT, &err);
+    CHECK_MSG(strstr(err.message, "its tEXt chunk claims 1895825676 bytes, past the file's end"),
+              "%s", err.message);
+}
+
 int main(void)
 {
     RUN(test_claims);
+    RUN(test_chunk_claim_on_meta_read);
     RUN(test_real_files_pass);
     return sl_test_finish();
 }
