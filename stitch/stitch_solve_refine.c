@@ -85,9 +85,8 @@ static bool refine_one(const sl_stitch_view *views, solve_match *m, double (*rot
             }
         /* Along an edge (a panel's border, the horizon) the shift is free in
          * one direction: when the smaller gradient eigenvalue is under a
-         * tenth of the larger, the point moves only across the edge and
-         * keeps, along it, where the current geometry puts it (no
-         * information there, so no pull). */
+         * tenth of the larger, the point moves only across the edge, and
+         * the adjustment weighs its residual across the edge only. */
         double tr = a[0] + a[6], det = a[0] * a[6] - a[1] * a[5];
         double disc = sqrt(fmax(0.0, 0.25 * tr * tr - det));
         double big = 0.5 * tr + disc, small = 0.5 * tr - disc;
@@ -143,6 +142,8 @@ static bool refine_one(const sl_stitch_view *views, solve_match *m, double (*rot
         return false;
     m->pa[0] = pred[0] + d[0];
     m->pa[1] = pred[1] + d[1];
+    m->normal[0] = edge ? -tangent[1] : 0.0;
+    m->normal[1] = edge ? tangent[0] : 0.0;
     return true;
 }
 

@@ -306,12 +306,12 @@ static void solved_vs_oracle(void)
                 }
             }
         }
-        /* The issue's goal is 1.15x and 1.25x. p95 meets it (1.12x); the
-         * median reaches 1.57x: the centre's vertical error (0.2 px) and the
+        /* The issue's goal is 1.15x and 1.25x. p95 meets it (1.06x); the
+         * median reaches 1.38x: the centre's vertical error (0.15 px) and the
          * side views' pitch trade against each other in a 3-view ring, and
          * the median of this smooth stage (0.0006 for the oracle) moves with
          * a tenth of a pixel (docs/stitch.md). */
-        CHECK(sm <= 1.75 * om);
+        CHECK(sm <= 1.5 * om);
         CHECK(sp <= 1.25 * op);
     }
     sl_stitch_solve_result_free(&sr);
