@@ -316,15 +316,17 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
     memset(st, 0, sizeof *st);
     double texel_sr = sl_latlong_texel_solid_angle(y, W, H);
     for (int x = 0; x < W; x++) {
-        double acc_w[SL_STITCH_MAX_VIEWS] = {0}, acc_l[SL_STITCH_MAX_VIEWS][3];
-        memset(acc_l, 0, sizeof acc_l);
+        /* only the views there are: a texel is a few hundred nanoseconds */
+        double acc_w[SL_STITCH_MAX_VIEWS], acc_l[SL_STITCH_MAX_VIEWS][3];
+        memset(acc_w, 0, (size_t)n * sizeof *acc_w);
+        memset(acc_l, 0, (size_t)n * sizeof *acc_l);
         double area = 0, masked_area = 0;
         /* A bright small source or a hard edge: sampled finer, so its
          * energy does not depend on where the samples fall. */
         if (texel_samples(p, x, y, p->ss, acc_w, acc_l, &area, &masked_area) &&
             p->ss_hot > p->ss) {
-            memset(acc_w, 0, sizeof acc_w);
-            memset(acc_l, 0, sizeof acc_l);
+            memset(acc_w, 0, (size_t)n * sizeof *acc_w);
+            memset(acc_l, 0, (size_t)n * sizeof *acc_l);
             area = masked_area = 0;
             texel_samples(p, x, y, p->ss_hot, acc_w, acc_l, &area, &masked_area);
             st->hot_texels++;
