@@ -152,7 +152,7 @@ bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x
                        double *r2)
 {
     double u = 1.0 - ray[2], t = u / v->u_step;
-    if (!(t >= 0.0) || t >= v->q_entries - 1)
+    if (!(t >= 0.0) || t >= v->q_entries - 1 || !(ray[2] > -1.0)) /* straight back: no pixel */
         return false;
     int i = (int)t;
     double q0 = v->q_table[i], q1 = v->q_table[i + 1];
