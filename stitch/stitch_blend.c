@@ -42,7 +42,10 @@ int sl_stitch_default_width(const sl_lens *lens, int max_width)
 /* Samples per texel side: one view pixel apart on the horizon (shrinking
  * does not alias), and four times as fine on a view's hard edges, so the
  * energy of a sun a few pixels wide does not depend on where the samples
- * fall. */
+ * fall. Samples up to 10% further apart than the view's pixels count as
+ * one per pixel: a 24 MP 8 mm view (8378 px around the horizon) into an
+ * 8192-wide lat-long takes 1 x 1 samples per texel (4 x 4 on edges), not
+ * 2 x 2 (5 x 5), for a 2% difference in density. */
 static void auto_supersample(const stitch_view_prep *v, int count, int width, int *ss,
                              int *ss_hot)
 {
@@ -50,9 +53,31 @@ static void auto_supersample(const stitch_view_prep *v, int count, int width, in
     for (int i = 0; i < count; i++)
         f = fmax(f, v[i].lens.focal_px);
     double ratio = f * 2.0 * M_PI / width;
-    int base = (int)ceil(ratio - 1e-9), hot = (int)ceil(4.0 * ratio - 1e-9);
+    int base = (int)ceil(ratio / 1.1 - 1e-9), hot = (int)ceil(4.0 * ratio / 1.1 - 1e-9);
     *ss = base < 1 ? 1 : (base > 8 ? 8 : base);
     *ss_hot = hot < *ss ? *ss : (hot > 8 ? 8 : hot);
+}
+
+/* Entries of a view's lens table: linear interpolation of the smooth
+ * q(u) over them is within 1e-6 of r (a thousandth of a pixel). */
+#define Q_ENTRIES 2049
+
+static bool lens_table(stitch_view_prep *p)
+{
+    double u_max = 1.0 - cos(fmin(p->theta_max, M_PI));
+    p->q_entries = Q_ENTRIES;
+    p->u_step = fmax(u_max, 1e-9) / (Q_ENTRIES - 2); /* the last interval ends past u_max */
+    p->q_table = malloc(Q_ENTRIES * sizeof *p->q_table);
+    if (!p->q_table)
+        return false;
+    for (int i = 0; i < Q_ENTRIES; i++) {
+        /* at u = 0 the limit, from a point a millionth of a step out */
+        double u = i ? i * p->u_step : 1e-6 * p->u_step;
+        double theta = 2.0 * asin(fmin(1.0, sqrt(0.5 * u)));
+        double r = sl_lens_radius(&p->lens, fmin(theta, p->theta_max));
+        p->q_table[i] = r >= 0.0 ? r * r / u : -1.0;
+    }
+    return true;
 }
 
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
@@ -108,8 +133,44 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
         p->theta_max = tmax;
         p->cos_max = cos(fmin(tmax, M_PI));
         p->ramp = ramp;
+        p->cos_ramp = cos(fmax(0.0, tmax - ramp));
+        if (!lens_table(p))
+            return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
     }
     return SL_OK;
+}
+
+void stitch_release_views(stitch_view_prep *prep, int count)
+{
+    for (int i = 0; i < count; i++) {
+        free(prep[i].q_table);
+        prep[i].q_table = NULL;
+    }
+}
+
+bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x, double *y,
+                       double *r2)
+{
+    double u = 1.0 - ray[2], t = u / v->u_step;
+    if (!(t >= 0.0) || t >= v->q_entries - 1 || !(ray[2] > -1.0)) /* straight back: no pixel */
+        return false;
+    int i = (int)t;
+    double q0 = v->q_table[i], q1 = v->q_table[i + 1];
+    if (q0 < 0.0 || q1 < 0.0)
+        return false;
+    double q = q0 + (t - i) * (q1 - q0), rr = u * q;
+    const sl_lens *l = &v->lens;
+    if (l->circle_radius_px > 0.0 && rr > l->circle_radius_px * l->circle_radius_px)
+        return false;
+    /* r / sin(theta) = sqrt(q u / (1 - z^2)) = sqrt(q / (1 + z)) */
+    double k = sqrt(q / (1.0 + ray[2]));
+    double px = l->cx + k * ray[0], py = l->cy + k * ray[1];
+    if (px < 0.0 || py < 0.0 || px > l->width || py > l->height)
+        return false;
+    *x = px;
+    *y = py;
+    *r2 = rr;
+    return true;
 }
 
 double stitch_view_weight(const stitch_view_prep *v, double theta)
@@ -164,6 +225,8 @@ typedef struct blend_pass {
     int width, height, ss;
     int ss_hot;                /* samples per side where a view has a hard edge */
     double *sin_lon, *cos_lon; /* width * ss sub-columns */
+    double *sin_lat, *cos_lat; /* height * ss sub-rows */
+    double *sin_lon_hot, *cos_lon_hot, *sin_lat_hot, *cos_lat_hot; /* the same at ss_hot */
     double nadir_lat;          /* latitudes below are masked; -inf: none */
     double noise_floor;
     bool ghosts;
@@ -193,9 +256,12 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
 {
     const int W = p->width, H = p->height, n = p->count;
     bool hot = false;
+    bool base = ss == p->ss;
+    const double *slon = base ? p->sin_lon : p->sin_lon_hot, *clon = base ? p->cos_lon : p->cos_lon_hot;
+    const double *slat = base ? p->sin_lat : p->sin_lat_hot, *clat = base ? p->cos_lat : p->cos_lat_hot;
     for (int j = 0; j < ss; j++) {
         double v = (y + (j + 0.5) / ss) / H, lat = M_PI * (0.5 - v);
-        double sin_lat = sin(lat), cos_lat = cos(lat);
+        double sin_lat = slat[y * ss + j], cos_lat = clat[y * ss + j];
         for (int i = 0; i < ss; i++) {
             double a = cos_lat, u = (x + (i + 0.5) / ss) / W;
             *area += a;
@@ -203,28 +269,22 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
                 *masked_area += a;
                 continue;
             }
-            double sin_lon, cos_lon;
-            if (ss == p->ss) {
-                sin_lon = p->sin_lon[x * ss + i];
-                cos_lon = p->cos_lon[x * ss + i];
-            } else {
-                double lon = M_PI * (1.0 - 2.0 * u);
-                sin_lon = sin(lon);
-                cos_lon = cos(lon);
-            }
+            double sin_lon = slon[x * ss + i], cos_lon = clon[x * ss + i];
             double d[3] = {sin_lon * cos_lat, sin_lat, cos_lon * cos_lat};
             for (int k = 0; k < n; k++) {
                 const stitch_view_prep *vw = &p->views[k];
                 double c = vw->axis[0] * d[0] + vw->axis[1] * d[1] + vw->axis[2] * d[2];
                 if (c < vw->cos_max)
                     continue;
-                double ray[3], px, py;
+                double ray[3], px, py, r2;
                 for (int r = 0; r < 3; r++)
                     ray[r] = vw->to_cam[r][0] * d[0] + vw->to_cam[r][1] * d[1] +
                              vw->to_cam[r][2] * d[2];
-                if (!sl_lens_ray_to_pixel(&vw->lens, ray, &px, &py))
+                if (!stitch_view_pixel(vw, ray, &px, &py, &r2))
                     continue;
-                double w = stitch_view_weight(vw, acos(fmin(1.0, fmax(-1.0, c))));
+                /* theta (an acos) only where the edge ramp needs it */
+                double w = c > vw->cos_ramp ? 0.5 * (1.0 + c)
+                                            : stitch_view_weight(vw, acos(fmin(1.0, c)));
                 if (vw->weight) {
                     double conf;
                     bilinear(vw->weight, px, py, 1, &conf, NULL);
@@ -235,7 +295,9 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
                 double rgb[3], contrast;
                 bilinear(vw->radiance, px, py, 3, rgb, &contrast);
                 hot |= contrast > HOT_CONTRAST;
-                double g = sl_lens_vignette(&vw->lens, px, py);
+                double s2 = r2 / (vw->lens.focal_px * vw->lens.focal_px);
+                const double *vg = vw->lens.vignette;
+                double g = 1.0 + s2 * (vg[0] + s2 * (vg[1] + s2 * vg[2])); /* sl_lens_vignette */
                 if (!(g > 1e-6))
                     continue;
                 w *= a;
@@ -254,15 +316,17 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
     memset(st, 0, sizeof *st);
     double texel_sr = sl_latlong_texel_solid_angle(y, W, H);
     for (int x = 0; x < W; x++) {
-        double acc_w[SL_STITCH_MAX_VIEWS] = {0}, acc_l[SL_STITCH_MAX_VIEWS][3];
-        memset(acc_l, 0, sizeof acc_l);
+        /* only the views there are: a texel is a few hundred nanoseconds */
+        double acc_w[SL_STITCH_MAX_VIEWS], acc_l[SL_STITCH_MAX_VIEWS][3];
+        memset(acc_w, 0, (size_t)n * sizeof *acc_w);
+        memset(acc_l, 0, (size_t)n * sizeof *acc_l);
         double area = 0, masked_area = 0;
         /* A bright small source or a hard edge: sampled finer, so its
          * energy does not depend on where the samples fall. */
         if (texel_samples(p, x, y, p->ss, acc_w, acc_l, &area, &masked_area) &&
             p->ss_hot > p->ss) {
-            memset(acc_w, 0, sizeof acc_w);
-            memset(acc_l, 0, sizeof acc_l);
+            memset(acc_w, 0, (size_t)n * sizeof *acc_w);
+            memset(acc_l, 0, (size_t)n * sizeof *acc_l);
             area = masked_area = 0;
             texel_samples(p, x, y, p->ss_hot, acc_w, acc_l, &area, &masked_area);
             st->hot_texels++;
@@ -358,6 +422,21 @@ static void add_stats(sl_stitch_coverage *cov, const stitch_row_stats *s, int n)
     }
 }
 
+/* sin and cos of pi (a + b t) at the n sub-sample centres t = (c + 0.5) / n. */
+static bool angle_table(int n, double a, double b, double **sin_out, double **cos_out)
+{
+    *sin_out = malloc((size_t)n * sizeof(double));
+    *cos_out = malloc((size_t)n * sizeof(double));
+    if (!*sin_out || !*cos_out)
+        return false;
+    for (int c = 0; c < n; c++) {
+        double angle = M_PI * (a + b * (c + 0.5) / n);
+        (*sin_out)[c] = sin(angle);
+        (*cos_out)[c] = cos(angle);
+    }
+    return true;
+}
+
 static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int count,
                            const sl_stitch_blend_options *opt, int width, int ss, int ss_hot,
                            sl_error *err)
@@ -371,19 +450,16 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
     p->ss = ss;
     p->ss_hot = ss_hot;
     p->nadir_lat = opt->nadir_mask_deg > 0 ? (opt->nadir_mask_deg - 90.0) * DEG : -INFINITY;
-    size_t cols = (size_t)width * ss;
-    p->sin_lon = malloc(cols * sizeof(double));
-    p->cos_lon = malloc(cols * sizeof(double));
     p->rows = malloc((size_t)STRIP_ROWS * width * 4 * sizeof(float));
     p->stats = malloc(STRIP_ROWS * sizeof(stitch_row_stats));
-    if (!p->sin_lon || !p->cos_lon || !p->rows || !p->stats)
+    /* The sub-samples' sines and cosines, once per pass, not per texel. */
+    bool ok = angle_table(width * ss, 1.0, -2.0, &p->sin_lon, &p->cos_lon) &&
+              angle_table(p->height * ss, 0.5, -1.0, &p->sin_lat, &p->cos_lat) &&
+              angle_table(width * ss_hot, 1.0, -2.0, &p->sin_lon_hot, &p->cos_lon_hot) &&
+              angle_table(p->height * ss_hot, 0.5, -1.0, &p->sin_lat_hot, &p->cos_lat_hot);
+    if (!ok || !p->rows || !p->stats)
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory for a %d wide lat-long",
                             width);
-    for (size_t c = 0; c < cols; c++) {
-        double u = (c + 0.5) / (double)cols, lon = M_PI * (1.0 - 2.0 * u);
-        p->sin_lon[c] = sin(lon);
-        p->cos_lon[c] = cos(lon);
-    }
     return SL_OK;
 }
 
@@ -391,6 +467,12 @@ static void pass_free(blend_pass *p)
 {
     free(p->sin_lon);
     free(p->cos_lon);
+    free(p->sin_lat);
+    free(p->cos_lat);
+    free(p->sin_lon_hot);
+    free(p->cos_lon_hot);
+    free(p->sin_lat_hot);
+    free(p->cos_lat_hot);
     free(p->rows);
     free(p->stats);
 }
@@ -463,6 +545,11 @@ sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
     return stitch_blend_run(views, count, opt_in, sink, user, NULL, cov, err);
 }
 
+static sl_result blend_prepared(const stitch_view_prep *prep, int count,
+                                const sl_stitch_blend_options *optp, sl_stitch_rows_fn sink,
+                                void *user, sl_image *whole, sl_stitch_coverage *cov_out,
+                                sl_error *err);
+
 sl_result stitch_blend_run(const sl_stitch_view *views, int count,
                            const sl_stitch_blend_options *opt_in, sl_stitch_rows_fn sink,
                            void *user, sl_image *whole, sl_stitch_coverage *cov_out,
@@ -478,9 +565,26 @@ sl_result stitch_blend_run(const sl_stitch_view *views, int count,
     if (cov_out)
         memset(cov_out, 0, sizeof *cov_out);
     stitch_view_prep prep[SL_STITCH_MAX_VIEWS];
+    memset(prep, 0, sizeof prep);
     sl_result r = stitch_prepare_views(views, count, &opt, prep, err);
-    if (r)
-        return r;
+    if (!r)
+        r = blend_prepared(prep, count, &opt, sink, user, whole, &cov, err);
+    stitch_release_views(prep, count < SL_STITCH_MAX_VIEWS ? count : SL_STITCH_MAX_VIEWS);
+    if (!r && cov_out)
+        *cov_out = cov;
+    return r;
+}
+
+/* The blend of prepared views (stitch_blend_run's body). */
+static sl_result blend_prepared(const stitch_view_prep *prep, int count,
+                                const sl_stitch_blend_options *optp, sl_stitch_rows_fn sink,
+                                void *user, sl_image *whole, sl_stitch_coverage *cov_out,
+                                sl_error *err)
+{
+    const sl_stitch_blend_options opt = *optp;
+    sl_stitch_coverage cov;
+    memset(&cov, 0, sizeof cov);
+    sl_result r = SL_OK;
     int width = opt.width > 0 ? opt.width : sl_stitch_default_width(&prep[0].lens, opt.max_width);
     if (width < 16 || width % 2)
         return sl_error_set(err, SL_ERR_USAGE, "stitch: the width must be even and at least 16, "

@@ -13,6 +13,13 @@ typedef struct stitch_view_prep {
     double to_cam[3][3];
     double axis[3];
     double theta_max, cos_max, ramp; /* radians */
+    double cos_ramp;                 /* cos of where the edge ramp starts */
+    /* The lens as q(u) = r^2 / u at u = 1 - cos(theta) (smooth for every
+     * projection), so a ray's pixel takes a table lookup and one sqrt
+     * instead of atan2, hypot and the radial polynomial; -1: no pixel. */
+    double *q_table;
+    double u_step;                   /* the table's spacing in u */
+    int q_entries;
 } stitch_view_prep;
 
 /* What one lat-long row adds to the coverage. */
@@ -27,6 +34,13 @@ typedef struct stitch_row_stats {
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
                                const sl_stitch_blend_options *opt, stitch_view_prep *prep,
                                sl_error *err);
+/* Frees what stitch_prepare_views allocated (prep may be half filled). */
+void stitch_release_views(stitch_view_prep *prep, int count);
+/* The pixel of view v a unit camera-frame ray sees, from its lens table;
+ * false outside its field, circle or frame. r2 is the squared distance
+ * from the centre (for the vignetting). */
+bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x, double *y,
+                       double *r2);
 /* Blend weight of a view for a ray theta (radians) off its axis. */
 double stitch_view_weight(const stitch_view_prep *v, double theta);
 /* The blend into a sink or, when `whole` is not NULL, into that image. */

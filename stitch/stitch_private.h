@@ -59,6 +59,10 @@ typedef struct solve_match {
     int pair;      /* index into the result's pairs */
     int a, b;
     double pa[2], pb[2];
+    /* A point on an edge (refined across it only): the unit normal in view
+     * a, and the match's one residual is b's point seen in a along it;
+     * (0, 0) for a point. */
+    double normal[2];
     bool inlier;
 } solve_match;
 

@@ -13,6 +13,9 @@
 #endif
 
 #define DEG (M_PI / 180.0)
+/* Matches of a fallen-back pair that must agree with the solved poses for
+ * the pair to count as solved. */
+#define KEEP_MIN_AGREE 8
 
 void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
 {
@@ -284,6 +287,15 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
         snprintf(pr->why, sizeof pr->why,
                  "%d features and %d, %d matches, %d consistent (at least %d needed)", fa->count,
                  fb->count, m, inliers, st->opt->min_inliers);
+        /* Too few to fix a rotation on their own, but once the other pairs
+         * have placed both views its matches are judged against that
+         * (keep_agreeing_pairs): they start as outliers. */
+        for (int i = 0; i < m && r == SL_OK; i++) {
+            const float *xa = fa->xy + 2 * idx[2 * kept[i]], *xb = fb->xy + 2 * idx[2 * kept[i] + 1];
+            solve_match sm = {.pair = p, .a = pr->a, .b = pr->b,
+                              .pa = {xa[0], xa[1]}, .pb = {xb[0], xb[1]}, .inlier = false};
+            r = add_match(st, &sm, err);
+        }
     } else if (off > st->opt->max_correction_deg) {
         pr->status = SL_STITCH_PAIR_INCONSISTENT;
         pr->fallback = true;
@@ -307,18 +319,15 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
 /* Starting rotations: view 0's nominal one, then along the solved pairs
  * (breadth first); views no solved pair reaches keep their nominal pose
  * and stay fixed. */
-static void initial_rotations(solve_state *st, bool *free_view)
+static void initial_rotations(solve_state *st, bool *free_view, bool *reached)
 {
     int count = st->count;
-    bool *reached = calloc((size_t)count, sizeof *reached);
     int *queue = malloc((size_t)count * sizeof *queue);
     memcpy(st->rot, st->rot_nominal, (size_t)count * sizeof *st->rot);
     for (int v = 0; v < count; v++)
-        free_view[v] = false;
-    if (!reached || !queue) {
-        free(reached), free(queue);
+        free_view[v] = reached[v] = false;
+    if (!queue)
         return;
-    }
     int head = 0, tail = 0;
     queue[tail++] = 0;
     reached[0] = true;
@@ -345,7 +354,51 @@ static void initial_rotations(solve_state *st, bool *free_view)
             queue[tail++] = o;
         }
     }
-    free(reached), free(queue);
+    free(queue);
+}
+
+/* The matches of a pair that fell back take part only when the solved
+ * pairs reach both its views (else nothing places them); the rest are
+ * dropped. */
+static void drop_unplaced_matches(solve_state *st, const bool *reached)
+{
+    int kept = 0;
+    for (int i = 0; i < st->match_count; i++) {
+        const solve_match *m = &st->matches[i];
+        if (st->res->pair[m->pair].status == SL_STITCH_PAIR_SOLVED ||
+            (reached[m->a] && reached[m->b]))
+            st->matches[kept++] = *m;
+    }
+    st->match_count = kept;
+}
+
+/* A pair that fell back for too few matches is solved after all when at
+ * least min_agree of its matches agree with the poses the other pairs
+ * solved (to the final inlier threshold); otherwise its matches leave the
+ * adjustment. */
+static void keep_agreeing_pairs(solve_state *st, int min_agree)
+{
+    sl_stitch_solve_result *res = st->res;
+    for (int p = 0; p < res->pairs; p++) {
+        sl_stitch_pair *pr = &res->pair[p];
+        if (pr->status != SL_STITCH_PAIR_FEW_MATCHES)
+            continue;
+        int agree = 0;
+        for (int i = 0; i < st->match_count; i++)
+            agree += st->matches[i].pair == p && st->matches[i].inlier;
+        if (agree >= min_agree) {
+            pr->status = SL_STITCH_PAIR_SOLVED;
+            pr->fallback = false;
+            snprintf(pr->why, sizeof pr->why,
+                     "%d matches, %d consistent: too few for a rotation of its own, but %d agree "
+                     "with the poses of the other pairs",
+                     pr->matches, pr->inliers, agree);
+        } else {
+            for (int i = 0; i < st->match_count; i++)
+                if (st->matches[i].pair == p)
+                    st->matches[i].inlier = false;
+        }
+    }
 }
 
 /* Reprojection errors of the inliers, overall and per pair. */
@@ -470,7 +523,8 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     st.rot_nominal = malloc((size_t)count * sizeof *st.rot_nominal);
     st.pair_rot = malloc((size_t)(pairs + 1) * sizeof *st.pair_rot);
     bool *free_view = calloc((size_t)count, sizeof *free_view);
-    if (!res->pose_nominal || !res->pose || !res->gain || !res->features || !res->pair ||
+    bool *reached = calloc((size_t)count, sizeof *reached);
+    if (!reached || !res->pose_nominal || !res->pose || !res->gain || !res->features || !res->pair ||
         !st.feat || !st.rot || !st.rot_nominal || !st.pair_rot || !free_view) {
         r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory");
         goto done;
@@ -523,7 +577,8 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
         res->pairs_solved += res->pair[p].status == SL_STITCH_PAIR_SOLVED;
         res->pairs_fallback += res->pair[p].fallback;
     }
-    initial_rotations(&st, free_view);
+    initial_rotations(&st, free_view, reached);
+    drop_unplaced_matches(&st, reached);
     if (res->pairs_solved > 0) {
         /* The nominal lens puts the circle's edge degrees off: a loose first
          * round, then the matches re-judged in pixels with the lens solved. */
@@ -548,7 +603,13 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
             /* what the refinement could not place */
             prune_inliers(&st, &lens, fmax(0.5, 3.0 * res->rms_px));
         }
+        keep_agreeing_pairs(&st, KEEP_MIN_AGREE);
         measure(&st, &lens);
+        res->pairs_solved = res->pairs_fallback = 0;
+        for (int p = 0; p < pairs; p++) {
+            res->pairs_solved += res->pair[p].status == SL_STITCH_PAIR_SOLVED;
+            res->pairs_fallback += res->pair[p].fallback;
+        }
     }
     res->seconds_adjust = sl_seconds() - t;
     if (opt->solve_vignette && res->pairs_solved > 0)
@@ -563,7 +624,7 @@ done:
     for (int v = 0; st.feat && v < count; v++)
         solve_features_free(&st.feat[v]);
     free(st.feat), free(st.rot), free(st.rot_nominal), free(st.pair_rot), free(st.matches);
-    free(free_view);
+    free(free_view), free(reached);
     res->seconds_total = sl_seconds() - start;
     return r;
 }

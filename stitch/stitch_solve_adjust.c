@@ -113,6 +113,11 @@ static bool residuals(const solve_match *m, double (*rot)[3][3], const sl_lens *
     res[1] = pa[1] - m->pa[1];
     res[2] = pb[0] - m->pb[0];
     res[3] = pb[1] - m->pb[1];
+    if (m->normal[0] != 0.0 || m->normal[1] != 0.0) {
+        /* along an edge the position says nothing: only across it */
+        res[0] = m->normal[0] * res[0] + m->normal[1] * res[1];
+        res[1] = res[2] = res[3] = 0.0;
+    }
     return true;
 }
 
@@ -125,6 +130,8 @@ double solve_match_error(const solve_match *m, double (*rot)[3][3], const sl_len
         !residuals(m, rot, unbounded, ra, rb, res))
         return -1.0;
     double e1 = hypot(res[0], res[1]), e2 = hypot(res[2], res[3]);
+    if (m->normal[0] != 0.0 || m->normal[1] != 0.0)
+        e2 = e1; /* an edge's one residual, counted once for each way */
     if (err_b_in_a)
         *err_b_in_a = e1;
     if (err_a_in_b)

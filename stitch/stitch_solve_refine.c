@@ -62,7 +62,8 @@ static bool refine_one(const sl_stitch_view *views, solve_match *m, double (*rot
     /* Gauss-Newton on the shift d and a log gain that may vary linearly
      * across the patch: the views' exposures differ by a constant, their
      * vignetting by a slope that would otherwise pull a soft feature. */
-    double d[2] = {0.0, 0.0}, gain[3] = {0.0, 0.0, 0.0};
+    double d[2] = {0.0, 0.0}, gain[3] = {0.0, 0.0, 0.0}, tangent[2] = {0.0, 0.0};
+    bool edge = false;
     for (int it = 0; it < 20; it++) {
         double a[25] = {0}, g[5] = {0};
         for (int j = -HALF, k = 0; j <= HALF; j++)
@@ -82,12 +83,35 @@ static bool refine_one(const sl_stitch_view *views, solve_match *m, double (*rot
                         a[p * 5 + q] += wgt[k] * jac[p] * jac[q];
                 }
             }
-        /* Along an edge (the horizon) the shift is free in one direction:
-         * the smaller gradient eigenvalue must be a fair share of the larger. */
+        /* Along an edge (a panel's border, the horizon) the shift is free in
+         * one direction: when the smaller gradient eigenvalue is under a
+         * tenth of the larger, the point moves only across the edge, and
+         * the adjustment weighs its residual across the edge only. */
         double tr = a[0] + a[6], det = a[0] * a[6] - a[1] * a[5];
         double disc = sqrt(fmax(0.0, 0.25 * tr * tr - det));
-        if (it == 0 && !(0.5 * tr - disc > 0.1 * (0.5 * tr + disc)))
-            return false;
+        double big = 0.5 * tr + disc, small = 0.5 * tr - disc;
+        if (it == 0 && !(small > 0.1 * big)) {
+            if (!(big > 0.0))
+                return false;
+            /* the eigenvector of the smaller eigenvalue: the edge's direction */
+            double ex = a[1], ey = small - a[0];
+            if (fabs(a[1]) < 1e-12 * big) {
+                ex = a[0] < a[6] ? 1.0 : 0.0;
+                ey = 1.0 - ex;
+            }
+            double len = hypot(ex, ey);
+            tangent[0] = ex / len;
+            tangent[1] = ey / len;
+            edge = true;
+        }
+        if (edge) {
+            double lambda = 1e3 * big;
+            for (int p = 0; p < 2; p++) {
+                for (int q = 0; q < 2; q++)
+                    a[p * 5 + q] += lambda * tangent[p] * tangent[q];
+                g[p] += lambda * tangent[p] * (tangent[0] * d[0] + tangent[1] * d[1]);
+            }
+        }
         if (!merge_cholesky_solve(a, g, 5))
             return false;
         d[0] -= g[0];
@@ -118,6 +142,8 @@ static bool refine_one(const sl_stitch_view *views, solve_match *m, double (*rot
         return false;
     m->pa[0] = pred[0] + d[0];
     m->pa[1] = pred[1] + d[1];
+    m->normal[0] = edge ? -tangent[1] : 0.0;
+    m->normal[1] = edge ? tangent[0] : 0.0;
     return true;
 }
 

@@ -266,11 +266,56 @@ static void solved_vs_oracle(void)
                sr.pairs_solved, sr.pairs_fallback, sr.rms_px,
                100 * (v[0].lens.focal_px / g.lens.focal_px - 1), sm, om, sm / om, sp, op,
                sp / op);
-        /* The issue's goal is 1.15x and 1.25x; today one of the three pairs
-         * falls back on these 960 px views and the stitch reaches 2.6x and
-         * 1.4x: held there so it does not get worse (docs/stitch.md). */
-        CHECK(sm <= 3.0 * om);
-        CHECK(sp <= 1.5 * op);
+        /* Which part carries the error: the true values put back one group
+         * at a time (docs/stitch.md, "Accuracy of the solved stitch"). */
+        if (getenv("SETLIGHT_STITCH_SUBSTITUTE")) {
+            for (int p = 0; p < sr.pairs; p++)
+                printf("   pair %d-%d: %s, %d matches %d inliers rms %.3f why %s\n", sr.pair[p].a,
+                       sr.pair[p].b, sl_stitch_pair_status_name(sr.pair[p].status),
+                       sr.pair[p].matches, sr.pair[p].inliers, sr.pair[p].rms_px, sr.pair[p].why);
+            printf("   features %d %d %d; lens f %.3f/%.3f c %.2f,%.2f / %.2f,%.2f k %.4f %.4f / %.4f v %.4f %.4f / %.4f vs %d gains %.4f %.4f\n",
+                   sr.features[0], sr.features[1], sr.features[2], v[0].lens.focal_px, g.lens.focal_px,
+                   v[0].lens.cx, v[0].lens.cy, g.lens.cx, g.lens.cy, v[0].lens.k[0], v[0].lens.k[1],
+                   g.lens.k[0], v[0].lens.vignette[0], v[0].lens.vignette[1], g.lens.vignette[0],
+                   sr.vignette_samples, sr.gain[1], sr.gain[2]);
+            for (int i = 0; i < 3; i++)
+                printf("   pose %d: solved %.3f %.3f %.3f true %.3f %.3f %.3f\n", i, v[i].pose.yaw_deg,
+                       v[i].pose.pitch_deg, v[i].pose.roll_deg, g.pose[i].yaw_deg,
+                       g.pose[i].pitch_deg, g.pose[i].roll_deg);
+            sl_stitch_view w[3];
+            const char *label[4] = {"true vignette, solved geometry", "true lens, solved poses",
+                                    "solved lens, true poses", "solved lens+true vignette, true poses"};
+            for (int k = 0; k < 4; k++) {
+                for (int i = 0; i < 3; i++) {
+                    w[i] = v[i];
+                    if (k == 0)
+                        memcpy(w[i].lens.vignette, g.lens.vignette, sizeof g.lens.vignette);
+                    if (k == 1)
+                        w[i].lens = g.lens;
+                    if (k >= 2)
+                        w[i].pose = g.pose[i];
+                    if (k == 3)
+                        memcpy(w[i].lens.vignette, g.lens.vignette, sizeof g.lens.vignette);
+                }
+                sl_image x;
+                if (sl_stitch_blend(w, 3, &o, &x, NULL, &err) == SL_OK) {
+                    double xm, xp;
+                    error_vs_truth(&x, &g.scene.latlong, &xm, &xp);
+                    printf("   %s: median %.4f (%.2fx) p95 %.4f (%.2fx)\n", label[k], xm, xm / om, xp, xp / op);
+                    sl_image_free(&x);
+                }
+            }
+        }
+        /* The issue's goal is 1.15x and 1.25x. p95 meets it (1.06x); the
+         * median reaches 1.38x: the centre's vertical error (0.15 px) and the
+         * side views' pitch trade against each other in a 3-view ring, and
+         * the median of this smooth stage (0.0006 for the oracle) moves with
+         * a tenth of a pixel (docs/stitch.md). */
+        /* pair 1-2 has 23 consistent matches of its own (25 needed), but
+         * they agree with the poses the two other pairs solve: kept */
+        CHECK(sr.pairs_solved == 3 && sr.pairs_fallback == 0);
+        CHECK(sm <= 1.5 * om);
+        CHECK(sp <= 1.25 * op);
     }
     sl_stitch_solve_result_free(&sr);
     sl_image_free(&oracle_img);
