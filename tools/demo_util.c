@@ -17,15 +17,22 @@ json_t *demo_load_json(const char *dir, const char *name, sl_error *err)
     return j;
 }
 
-sl_result demo_truth_latlong(const demo *d, sl_image *ll, sl_error *err)
+static sl_result read_latlong(const char *path, sl_image *ll, sl_error *err)
 {
-    char path[4300];
-    snprintf(path, sizeof path, "%s/truth/latlong.exr", d->capture);
     sl_meta meta;
     sl_result r = sl_exr_read(path, ll, &meta, err);
     sl_meta_free(&meta);
     return r;
 }
+
+sl_result demo_truth_latlong(const demo *d, sl_image *ll, sl_error *err)
+{
+    char path[4300];
+    snprintf(path, sizeof path, "%s/truth/latlong.exr", d->capture);
+    return read_latlong(path, ll, err);
+}
+
+sl_result demo_hdri(const demo *d, sl_image *ll, sl_error *err) { return read_latlong(d->hdri, ll, err); }
 
 sl_result demo_camera(const demo *d, double m[3][3], double *k, sl_error *err)
 {
