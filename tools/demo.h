@@ -22,7 +22,7 @@ typedef struct demo {
     double lavg;
     char hdri[4300];        /* the stitched HDRI (cd/m^2) calibrate, rig and render use */
     sl_image confidence;    /* its coverage: the stitch's confidence per texel */
-    double stitch_median, stitch_p95; /* its luminance error against the truth */
+    json_t *facts;          /* headline numbers by stage, for --json */
 } demo;
 
 /* Luminance a against b over the texels keep marks, on a width x height
@@ -44,6 +44,13 @@ sl_result demo_truth_latlong(const demo *d, sl_image *ll, sl_error *err);
 sl_result demo_hdri(const demo *d, sl_image *ll, sl_error *err);
 /* truth/camera.json's output_from_rec709 and k. */
 sl_result demo_camera(const demo *d, double out_from_rec709[3][3], double *k, sl_error *err);
+/* Its inverse, rec709_from_output: a merged value back to the set's cd/m^2. */
+sl_result demo_camera_inverse(const demo *d, double rec709_from_output[3][3], double *k,
+                              sl_error *err);
+/* One merged pixel (RGB, the reference frame's exposure k t (ISO/100) / N^2)
+ * back in the set's units: rec709_from_output * p / exposure. */
+void demo_set_units(const float *p, double exposure, const double rec709_from_output[3][3],
+                    float *out);
 /* Merges a probe's bracket (its linear TIFFs, linear response, EXIF
  * exposures), or with middle_only takes its middle frame alone. *truth gets the probe's entry of truth/probes.json (a new
  * reference), *exposure the reference frame's k t (ISO/100) / N^2: merged

@@ -78,21 +78,13 @@ sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err)
 
     /* Grey ball: the photo back in the set's units, then the gains that make
      * the stitched HDRI render like it. */
-    double m[3][3], minv[3][3], k;
-    if ((r = demo_camera(d, m, &k, err)))
+    double minv[3][3], k;
+    if ((r = demo_camera_inverse(d, minv, &k, err)))
         goto done;
-    if (!sl_mat3_invert(m, minv)) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: singular output matrix",
-                         d->capture);
-        goto done;
-    }
     for (int y = 0; y < grey.radiance.height; y++)
         for (int x = 0; x < grey.radiance.width; x++) {
             float *p = sl_image_pixel(&grey.radiance, x, y);
-            double v[3] = {p[0] / ge, p[1] / ge, p[2] / ge}, out[3];
-            sl_mat3_apply(minv, v, out);
-            for (int c = 0; c < 3; c++)
-                p[c] = (float)out[c];
+            demo_set_units(p, ge, (const double(*)[3])minv, p);
         }
     json_t *tb = json_object_get(gt, "ball"), *tc = json_object_get(gt, "camera");
     sl_grey_options go;

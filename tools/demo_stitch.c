@@ -163,7 +163,7 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
     double *a = NULL, *b = NULL;
     unsigned char *keep = NULL;
     char(*views)[4300] = calloc(SL_STITCH_MAX_VIEWS, sizeof *views);
-    double m[3][3], minv[3][3], k, exposure = 1, merge_s = 0;
+    double minv[3][3], k, exposure = 1, merge_s = 0;
     sl_result r = SL_OK;
     if (!sres || !views) {
         r = sl_error_set(err, SL_ERR_NOMEM, "demo stitch: out of memory");
@@ -175,13 +175,8 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
         r = sl_error_set(err, SL_ERR_INPUT, "%s/capture.json: %d views", d->capture, count);
         goto done;
     }
-    if ((r = demo_camera(d, m, &k, err)) || (r = demo_truth_latlong(d, &ll, err)))
+    if ((r = demo_camera_inverse(d, minv, &k, err)) || (r = demo_truth_latlong(d, &ll, err)))
         goto done;
-    if (!sl_mat3_invert(m, minv)) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: singular output matrix",
-                         d->capture);
-        goto done;
-    }
     if ((r = merge_views(d, json_object_get(cap, "frames"), count, k, views, &exposure,
                          &merge_s, err)))
         goto done;
@@ -223,14 +218,13 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
     for (int y = 0; y < st.height; y++)
         for (int x = 0; x < st.width; x++) {
             const float *p = sl_image_pixel(&st, x, y);
-            double v[3] = {p[0] / exposure, p[1] / exposure, p[2] / exposure}, o[3];
-            sl_mat3_apply(minv, v, o);
             float *q = sl_image_pixel(&hdri, x, y);
+            demo_set_units(p, exposure, (const double(*)[3])minv, q);
             for (int c = 0; c < 3; c++) {
                 bad += !isfinite(p[c]) || p[c] < 0;
                 /* The inverse matrix can take a saturated colour's dark
                  * channel a hair below 0; radiance is never negative. */
-                q[c] = (float)fmax(0, o[c]);
+                q[c] = fmaxf(0, q[c]);
             }
             *sl_image_pixel(&d->confidence, x, y) = p[3];
         }
@@ -274,8 +268,6 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
     demo_diff whole;
     if ((r = demo_diff_luminance(a, b, keep, ll.width, ll.height, &whole, err)))
         goto done;
-    d->stitch_median = texel.median;
-    d->stitch_p95 = texel.p95;
 
     /* The solve against what really happened (truth/camera.json). */
     sl_lens truth = sres->lens, nominal = sres->lens_nominal;
@@ -370,6 +362,21 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
                    "sample.",
                    texel.solid_angle, 100 * texel.median, 100 * texel.p95, seen.solid_angle,
                    100 * seen.energy, 100 * whole.energy);
+    json_t *fallen = json_array();
+    for (int i = 0; sres->solved && i < sv->pairs; i++)
+        if (sv->pair[i].fallback)
+            json_array_append_new(fallen, json_pack("{s:i, s:i, s:s}", "a", sv->pair[i].a, "b",
+                                                    sv->pair[i].b, "why", sv->pair[i].why));
+    json_object_set_new(
+        d->facts, "stitch",
+        json_pack("{s:s, s:i, s:i, s:o, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}",
+                  "hdri", d->hdri, "views", count, "pairs_solved",
+                  sres->solved ? sv->pairs_solved : 0, "fallback", fallen, "rms_px",
+                  sres->solved ? sv->rms_px : -1.0, "focal_vs_truth_percent", 100 * focal_err,
+                  "centre_vs_truth_px", centre_err, "vignette_vs_truth_percent", 100 * vig_err,
+                  "rotation_vs_truth_deg", worst_rot, "seen_sr", cov->seen_sr, "filled_sr",
+                  cov->filled_sr, "median_rel_error", texel.median, "p95_rel_error", texel.p95,
+                  "energy_seen", 1 + seen.energy, "energy_sphere", 1 + whole.energy));
     if ((r = sl_report_image(d->rep, "stitch_hdri.png", &hdri, demo_stops(d->lavg),
                              "hdri.exr: the stitched HDRI, cd/m^2", err)))
         goto done;

@@ -153,6 +153,12 @@ static sl_result cross_check(demo *d, const sl_image *ball, const double *ball_c
         sl_report_table_row(d->rep, cells);
     }
     sl_report_table_end(d->rep);
+    json_object_set_new(d->facts, "unwrap_vs_stitch",
+                        json_pack("{s:f, s:f, s:f, s:f, s:i, s:f}", "solid_angle_sr",
+                                  diff.solid_angle, "median_rel_difference", diff.median,
+                                  "p95_rel_difference", diff.p95, "energy_ratio",
+                                  1 + diff.energy, "lights", compared, "worst_light_deg",
+                                  worst));
     sl_report_text(d->rep, "Lights compared: %d, worst angle between the two maps %.2f deg.",
                    compared, worst);
     snprintf(note, n, "; vs stitch median %.1f%%, p95 %.1f%%, energy ratio %.3f, lights within %.2f deg",
@@ -169,19 +175,14 @@ sl_result demo_stage_unwrap(demo *d, char *note, size_t n, sl_error *err)
 {
     sl_merge_result mr;
     json_t *truth = NULL;
-    double exposure, m[3][3], minv[3][3], k;
+    double exposure, minv[3][3], k;
     sl_image ll = {0}, ball = {0}, est = {0};
     double *a = NULL, *b = NULL, *rel = NULL;
     sl_result r = demo_merge_probe(d, "chrome", false, &mr, &truth, &exposure, err);
     if (r)
         return r;
-    if ((r = demo_camera(d, m, &k, err)) || (r = demo_truth_latlong(d, &ll, err)))
+    if ((r = demo_camera_inverse(d, minv, &k, err)) || (r = demo_truth_latlong(d, &ll, err)))
         goto done;
-    if (!sl_mat3_invert(m, minv)) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: singular output matrix",
-                         d->capture);
-        goto done;
-    }
     json_t *tb = json_object_get(truth, "ball"), *tc = json_object_get(truth, "camera");
     double tcx = json_number_value(json_object_get(tb, "cx"));
     double tcy = json_number_value(json_object_get(tb, "cy"));
@@ -216,12 +217,8 @@ sl_result demo_stage_unwrap(demo *d, char *note, size_t n, sl_error *err)
         goto done;
     for (int y = 0; y < ball.height; y++)
         for (int x = 0; x < ball.width; x++) {
-            const float *p = sl_image_pixel(&ball, x, y);
-            double v[3] = {p[0] / exposure, p[1] / exposure, p[2] / exposure}, out[3];
-            sl_mat3_apply(minv, v, out);
-            float *q = sl_image_pixel(&est, x, y);
-            for (int c = 0; c < 3; c++)
-                q[c] = (float)out[c];
+            demo_set_units(sl_image_pixel(&ball, x, y), exposure, (const double(*)[3])minv,
+                           sl_image_pixel(&est, x, y));
         }
     char path[4300];
     snprintf(path, sizeof path, "%s/unwrap_chrome.exr", d->dir);

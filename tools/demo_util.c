@@ -51,6 +51,26 @@ sl_result demo_camera(const demo *d, double m[3][3], double *k, sl_error *err)
     return SL_OK;
 }
 
+sl_result demo_camera_inverse(const demo *d, double minv[3][3], double *k, sl_error *err)
+{
+    double m[3][3];
+    sl_result r = demo_camera(d, m, k, err);
+    if (r)
+        return r;
+    if (!sl_mat3_invert(m, minv))
+        return sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: singular output matrix",
+                            d->capture);
+    return SL_OK;
+}
+
+void demo_set_units(const float *p, double exposure, const double minv[3][3], float *out)
+{
+    double v[3] = {p[0] / exposure, p[1] / exposure, p[2] / exposure}, o[3];
+    sl_mat3_apply(minv, v, o);
+    for (int c = 0; c < 3; c++)
+        out[c] = (float)o[c];
+}
+
 static json_t *find_kind(json_t *arr, const char *kind)
 {
     for (size_t i = 0; i < json_array_size(arr); i++) {

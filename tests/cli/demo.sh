@@ -52,6 +52,9 @@ for f in stitch.exr hdri.exr stitch_lens.json stitch_view0.exr stitch_view2_clip
     present "$T/demo/$f"
 done
 json_eval "$T/demo/stitch_lens.json" 'd["format"] == "setlight-lens"'
+# --json carries the same facts: what fell back, the errors against the truth, the cross-check
+json_eval "$T/summary.json" 'd["facts"]["stitch"]["hdri"].endswith("/hdri.exr") and len(d["facts"]["stitch"]["fallback"]) == 3 - d["facts"]["stitch"]["pairs_solved"] and d["facts"]["stitch"]["seen_sr"] > 12.5 and d["facts"]["stitch"]["median_rel_error"] < 0.1'
+json_eval "$T/summary.json" 'd["facts"]["unwrap_vs_stitch"]["lights"] >= 3 and 0.9 < d["facts"]["unwrap_vs_stitch"]["energy_ratio"] < 1.1'
 if python3 - "$T/demo" $size "$S" <<'PY'
 import re, subprocess, sys
 d, size, setlight = sys.argv[1], sys.argv[2], sys.argv[3]
