@@ -158,8 +158,8 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
         json_decref(cap);
         return err ? err->code : SL_ERR_INPUT;
     }
-    sl_stitch_result *sres = calloc(1, sizeof *sres);
-    sl_image st = {0}, ll = {0}, hdri = {0};
+    sl_stitch_result *sres = calloc(1, sizeof *sres), *ores = NULL;
+    sl_image st = {0}, ll = {0}, hdri = {0}, orc = {0};
     double *a = NULL, *b = NULL;
     unsigned char *keep = NULL;
     char(*views)[4300] = calloc(SL_STITCH_MAX_VIEWS, sizeof *views);
@@ -259,6 +259,46 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
     demo_diff texel;
     if ((r = demo_diff_luminance(a, b, keep, ll.width, ll.height, &texel, err)))
         goto done;
+
+    /* The oracle: the same views stitched with the true lens and head
+     * (truth/camera.json), nothing solved: what a perfect solve would give,
+     * compared over the same texels. */
+    sl_lens truth = sres->lens;
+    lens_from_json(json_object_get(cam, "lens"), &truth);
+    json_t *tv = json_object_get(cam, "views");
+    sl_stitch_options oo;
+    sl_stitch_options_init(&oo);
+    oo.blend.width = ll.width;
+    oo.lens = &truth;
+    oo.solve = false;
+    oo.yaw_count = oo.pitch_count = oo.roll_count = count;
+    for (int v = 0; v < count; v++) {
+        json_t *j = json_array_get(tv, (size_t)v);
+        oo.yaw_deg[v] = json_number_value(json_object_get(j, "yaw_deg"));
+        oo.pitch_deg[v] = json_number_value(json_object_get(j, "pitch_deg"));
+        oo.roll_deg[v] = json_number_value(json_object_get(j, "roll_deg"));
+    }
+    char oracle_path[4300];
+    snprintf(oracle_path, sizeof oracle_path, "%s/stitch_oracle.exr", d->dir);
+    if (!(ores = calloc(1, sizeof *ores))) {
+        r = sl_error_set(err, SL_ERR_NOMEM, "demo stitch: out of memory");
+        goto done;
+    }
+    if ((r = sl_stitch(ptrs, count, oracle_path, &oo, ores, err)) ||
+        (r = sl_exr_read(oracle_path, &orc, &meta, err)))
+        goto done;
+    sl_meta_free(&meta);
+    for (int y = 0; y < orc.height && y < ll.height; y++)
+        for (int x = 0; x < orc.width && x < ll.width; x++) {
+            float q[3];
+            demo_set_units(sl_image_pixel(&orc, x, y), exposure, (const double(*)[3])minv, q);
+            a[(size_t)y * ll.width + x] = luminance(q);
+        }
+    demo_diff oracle;
+    if ((r = demo_diff_luminance(a, b, keep, ll.width, ll.height, &oracle, err)))
+        goto done;
+    for (size_t i = 0; i < texels; i++)
+        a[i] = luminance(hdri.data + 3 * i);
     for (size_t i = 0; i < texels; i++)
         keep[i] = d->confidence.data[i] > 0;
     demo_diff seen;
@@ -270,8 +310,7 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
         goto done;
 
     /* The solve against what really happened (truth/camera.json). */
-    sl_lens truth = sres->lens, nominal = sres->lens_nominal;
-    lens_from_json(json_object_get(cam, "lens"), &truth);
+    sl_lens nominal = sres->lens_nominal;
     const sl_lens *got = &sres->lens;
     double focal_err = got->focal_px / truth.focal_px - 1;
     double centre_err = hypot(got->cx - truth.cx, got->cy - truth.cy);
@@ -279,7 +318,6 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
                          vignette_at_circle(&truth, truth.circle_radius_px) -
                      1;
     double worst_rot = 0, worst_rot_nominal = 0;
-    json_t *tv = json_object_get(cam, "views");
     for (int v = 1; v < count; v++) {
         json_t *j = json_array_get(tv, (size_t)v);
         sl_view_pose tp = {json_number_value(json_object_get(j, "yaw_deg")),
@@ -359,9 +397,12 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
                    "deg of the horizon where seen (%.2f sr): median relative error %.2f%%, "
                    "95th percentile %.2f%%. Energy over the seen sphere (%.2f sr) %+.2f%%, "
                    "over the whole sphere (fill included) %+.2f%%. No negative or non-finite "
-                   "sample.",
+                   "sample. The oracle (the same views stitched with the true lens and head, "
+                   "stitch_oracle.exr) over the same texels: median %.2f%%, 95th percentile "
+                   "%.2f%%; the stitch against it: %.2fx and %.2fx.",
                    texel.solid_angle, 100 * texel.median, 100 * texel.p95, seen.solid_angle,
-                   100 * seen.energy, 100 * whole.energy);
+                   100 * seen.energy, 100 * whole.energy, 100 * oracle.median, 100 * oracle.p95,
+                   texel.median / fmax(oracle.median, 1e-12), texel.p95 / fmax(oracle.p95, 1e-12));
     json_t *fallen = json_array();
     for (int i = 0; sres->solved && i < sv->pairs; i++)
         if (sv->pair[i].fallback)
@@ -369,14 +410,15 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
                                                     sv->pair[i].b, "why", sv->pair[i].why));
     json_object_set_new(
         d->facts, "stitch",
-        json_pack("{s:s, s:i, s:i, s:o, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}",
+        json_pack("{s:s, s:i, s:i, s:o, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:f}",
                   "hdri", d->hdri, "views", count, "pairs_solved",
                   sres->solved ? sv->pairs_solved : 0, "fallback", fallen, "rms_px",
                   sres->solved ? sv->rms_px : -1.0, "focal_vs_truth_percent", 100 * focal_err,
                   "centre_vs_truth_px", centre_err, "vignette_vs_truth_percent", 100 * vig_err,
                   "rotation_vs_truth_deg", worst_rot, "seen_sr", cov->seen_sr, "filled_sr",
                   cov->filled_sr, "median_rel_error", texel.median, "p95_rel_error", texel.p95,
-                  "energy_seen", 1 + seen.energy, "energy_sphere", 1 + whole.energy));
+                  "energy_seen", 1 + seen.energy, "energy_sphere", 1 + whole.energy,
+                  "oracle_median_rel_error", oracle.median, "oracle_p95_rel_error", oracle.p95));
     if ((r = sl_report_image(d->rep, "stitch_hdri.png", &hdri, demo_stops(d->lavg),
                              "hdri.exr: the stitched HDRI, cd/m^2", err)))
         goto done;
@@ -386,9 +428,11 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
     if (sres->solved)
         snprintf(note, n,
                  "%d views, %d of %d pairs solved%s, %.2f px RMS; focal %+.2f%%, rotations "
-                 "%.2f deg off the truth; vs truth median %.1f%%, p95 %.1f%%, energy %+.2f%%",
+                 "%.2f deg off the truth; vs truth median %.1f%%, p95 %.1f%% (oracle %.1f%%, "
+                 "%.1f%%), energy %+.2f%%",
                  count, sv->pairs_solved, sv->pairs, fell, sv->rms_px, 100 * focal_err,
-                 worst_rot, 100 * texel.median, 100 * texel.p95, 100 * seen.energy);
+                 worst_rot, 100 * texel.median, 100 * texel.p95, 100 * oracle.median,
+                 100 * oracle.p95, 100 * seen.energy);
     else
         snprintf(note, n, "%d views, not solved (%s); vs truth median %.1f%%, p95 %.1f%%",
                  count, sres->solve_note, 100 * texel.median, 100 * texel.p95);
@@ -396,6 +440,10 @@ done:
     if (sres)
         sl_stitch_result_free(sres);
     free(sres);
+    if (ores)
+        sl_stitch_result_free(ores);
+    free(ores);
+    sl_image_free(&orc);
     free(views);
     free(a);
     free(b);

@@ -70,6 +70,10 @@ e = re.search(r"luminance texel by texel within 75 deg of the horizon where seen
               r"seen sphere \([0-9.]+ sr\) ([+-][0-9.]+)%", t)
 assert e, "error against the truth"
 med, p95, energy = float(e.group(2)), float(e.group(3)), float(e.group(4))
+o = re.search(r"The oracle \(the same views stitched with the true lens and head, "
+              r"stitch_oracle.exr\) over the same texels: median ([0-9.]+)%, 95th percentile ([0-9.]+)%", t)
+assert o, "oracle"
+omed, op95 = float(o.group(1)), float(o.group(2))
 x = re.search(r"Cross-check of the stitched HDRI: .*?median relative difference ([0-9.]+)%, 95th "
               r"percentile ([0-9.]+)%, energy ratio ([0-9.]+) .*?Lights compared: ([0-9]+), worst "
               r"angle between the two maps ([0-9.]+) deg", t)
@@ -82,6 +86,8 @@ if size == "small":
     rms, focal, centre, vig, rot = (float(s.group(i)) for i in range(3, 8))
     assert rms < 0.3 and abs(focal) < 0.5 and centre < 1 and abs(vig) < 2 and rot < 0.05, s.groups()
     assert med < 1 and p95 < 40 and abs(energy) < 0.5, (med, p95, energy)
+    # the issue's bounds against an oracle told the true lens and rotations
+    assert med <= 1.15 * omed and p95 <= 1.25 * op95, (med, omed, p95, op95)
     assert float(x.group(1)) < 5 and abs(float(x.group(3)) - 1) < 0.03 and float(x.group(5)) < 1, x.groups()
 else:
     # 192 x 128 views: every pair too featureless, fallen back and reported as such
