@@ -21,10 +21,17 @@ static void help(FILE *out)
             "usage: setlight demo [DIR] [--size tiny|small] [--seed N] [--force]\n\n"
             "Simulates the 'stage' virtual set (no camera, no downloaded data), runs every\n"
             "pipeline stage setlight has on the capture, and writes DIR/report.html with the\n"
-            "stages, their numbers and pictures. DIR defaults to ./setlight-demo.\n\n"
+            "stages, their numbers and pictures. DIR defaults to ./setlight-demo.\n"
+            "The chain is the on-set one: each fisheye view's bracket merged, the views\n"
+            "stitched to the HDRI (DIR/hdri.exr) from their EXIF lens, then calibrate, rig\n"
+            "and render on that HDRI; the chrome-ball unwrap cross-checks it. Every stage\n"
+            "is scored against the set's ground truth.\n\n"
             "  --size S    small (default; a few minutes at most on 2 cores) or tiny\n"
             "  --seed N    sensor-noise seed (default 1)\n"
             "  --force     replace an earlier demo in DIR\n"
+            "  --json      print the report's path, each stage's time and the headline facts\n"
+            "              (the stitch's solve, fallbacks and error against the truth; the\n"
+            "              unwrap's difference from the stitch)\n"
             "\nexit codes: 0 success, 1 runtime failure, 2 usage error (DIR holds other files,\n"
             "or an earlier demo without --force), 3 invalid input data\n");
 }
@@ -39,6 +46,15 @@ static sl_result stage_simulate(demo *d, char *note, size_t n, sl_error *err)
     sl_vset_capture_defaults(&o, &desc, d->size);
     o.seed = d->seed;
     o.force = d->force;
+    /* The HDRI frames 1.5 times the small preset's: at 720 x 480 the stage's
+     * smooth surfaces give two of its three overlaps too few features for
+     * the stitch's solve (they fall back to the nominal rotations, 1 degree
+     * off, and the centre goes unsolved, 5 px off); at 1080 x 720 every pair
+     * solves (docs/demo.md). */
+    if (d->size == SL_VSET_SIZE_SMALL) {
+        o.photo_width = 1080;
+        o.photo_height = 720;
+    }
     if ((r = sl_vset_capture_write(&o, d->capture, &d->summary, err)))
         return r;
     snprintf(note, n, "%d frames in %d views, f/%g ISO %g, %.6g to %g s", d->summary.frames,
@@ -350,16 +366,13 @@ static double irradiance_y(const sl_image *ll, const double n[3])
 }
 
 /* The on-set references (grey ball, chrome ball, chart) rendered under the
- * ground-truth lat-long, and the grey ball's centre checked against a
+ * stitched HDRI, and the grey ball's centre checked against a
  * brute-force irradiance sum. */
 static sl_result stage_render(demo *d, char *note, size_t n, sl_error *err)
 {
-    char path[4300];
-    snprintf(path, sizeof path, "%s/truth/latlong.exr", d->capture);
+    const char *path = d->hdri;
     sl_image ll, img = {0}, grey = {0};
-    sl_meta meta;
-    sl_result r = sl_exr_read(path, &ll, &meta, err);
-    sl_meta_free(&meta);
+    sl_result r = demo_hdri(d, &ll, err);
     if (r)
         return r;
     sl_scene scene;
@@ -373,13 +386,13 @@ static sl_result stage_render(demo *d, char *note, size_t n, sl_error *err)
         (r = sl_render(&scene, &o, &img, &st, err)))
         goto done;
     sl_report_section(d->rep, "Render");
-    sl_report_text(d->rep, "Grey ball, chrome ball and ColorChecker under the ground-truth "
-                           "lat-long: %lld spp in %.2f s (%.3g samples/s), estimated relative "
+    sl_report_text(d->rep, "Grey ball, chrome ball and ColorChecker under the stitched HDRI "
+                           "(hdri.exr): %lld spp in %.2f s (%.3g samples/s), estimated relative "
                            "RMSE %.2f%%.",
                    (long long)st.spp, st.seconds, st.samples_per_second,
                    st.pass_count ? 100 * st.passes[st.pass_count - 1].est_rel_rmse : 0.0);
     if ((r = sl_report_image(d->rep, "render_refs.png", &img, log2(0.18 / d->lavg),
-                             "refs under truth/latlong.exr", err)))
+                             "refs under the stitched hdri.exr", err)))
         goto done;
     if (st.pass_count > 1) {
         double t[64], e[64];
@@ -388,7 +401,7 @@ static sl_result stage_render(demo *d, char *note, size_t n, sl_error *err)
             t[i] = st.passes[i].seconds;
             e[i] = st.passes[i].est_rel_rmse;
         }
-        const sl_plot_series conv = {"refs under the truth", t, e, m};
+        const sl_plot_series conv = {"refs under the stitched HDRI", t, e, m};
         if ((r = sl_report_plot(d->rep, "render_convergence.svg",
                                 "render convergence: estimated relative RMSE", "seconds",
                                 "relative RMSE", true, true, &conv, 1, err)))
@@ -436,13 +449,17 @@ static const struct {
     {"ingest", "capture folder ingested as a card: views and brackets from EXIF, against the plan",
      stage_ingest},
     {"merge", "one view's bracket merged to HDR, response scored against the truth", stage_merge},
-    {"unwrap", "chrome-ball bracket merged, ball found, unwrapped, scored against the truth",
+    {"stitch", "each fisheye view's bracket merged, the views stitched to the HDRI from their "
+               "EXIF lens, scored against the truth",
+     demo_stage_stitch},
+    {"unwrap", "chrome-ball bracket merged, ball found, unwrapped: against the truth and as "
+               "a cross-check of the stitched HDRI",
      demo_stage_unwrap},
-    {"calibrate", "chart colour matrix and grey-ball exposure scale against the camera model",
+    {"calibrate", "chart colour matrix; grey-ball gains of the stitched HDRI against the camera model",
      demo_stage_calibrate},
-    {"rig", "light rig from the truth lat-long, lights matched to the truth, energy ledger",
+    {"rig", "light rig from the stitched HDRI, lights matched to the truth, energy ledger",
      demo_stage_rig},
-    {"render", "grey ball, chrome ball and chart rendered under the ground truth", stage_render},
+    {"render", "grey ball, chrome ball and chart rendered under the stitched HDRI", stage_render},
 };
 
 /* 0 absent or empty, 1 an earlier demo, 2 something else. */
@@ -524,11 +541,12 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli)
     sl_result r = sl_report_new(&d.rep, d.dir, "report", "setlight demo: the virtual stage", &err);
     if (r)
         return cli_fail(cli, &err);
+    d.facts = json_object();
     sl_report_text(d.rep, "setlight %s simulated the 'stage' virtual set (seed %llu) and ran every "
                           "pipeline stage it has on the capture in %s.",
                    sl_version(), (unsigned long long)d.seed, d.capture);
     int count = (int)(sizeof stages / sizeof stages[0]);
-    char notes[16][256];
+    char notes[16][512];
     double secs[16];
     sl_progress bar;
     sl_progress_begin(&bar, "demo", count);
@@ -542,8 +560,10 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli)
         sl_progress_add(&bar, 1);
     }
     sl_progress_end(&bar);
+    sl_image_free(&d.confidence);
     if (r) {
         sl_report_free(d.rep);
+        json_decref(d.facts);
         return cli_fail(cli, &err);
     }
     /* The summary is written last but stands at the top of the page. */
@@ -565,14 +585,24 @@ int cmd_demo(int argc, char **argv, const sl_cli *cli)
     }
     sl_report_table_end(d.rep);
     sl_report_top_end(d.rep);
-    if ((r = sl_report_finish(d.rep, &err)))
+    if ((r = sl_report_finish(d.rep, &err))) {
+        json_decref(d.facts);
         return cli_fail(cli, &err);
-    if (cli->json) {
-        printf("{\"report\": \"%s/report.html\", \"stages\": [", d.dir);
-        for (int i = 0; i < count; i++)
-            printf("%s{\"name\": \"%s\", \"seconds\": %.3f}", i ? ", " : "", stages[i].name,
-                   secs[i]);
-        printf("]}\n");
     }
+    if (cli->json) {
+        char report[4200];
+        snprintf(report, sizeof report, "%s/report.html", d.dir);
+        json_t *out = json_pack("{s:s, s:[], s:O}", "report", report, "stages", "facts", d.facts);
+        json_t *arr = json_object_get(out, "stages");
+        for (int i = 0; i < count; i++)
+            json_array_append_new(arr, json_pack("{s:s, s:f}", "name", stages[i].name,
+                                                 "seconds", round(secs[i] * 1000) / 1000));
+        char *text = json_dumps(out, JSON_REAL_PRECISION(6));
+        if (text)
+            printf("%s\n", text);
+        free(text);
+        json_decref(out);
+    }
+    json_decref(d.facts);
     return 0;
 }

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* `setlight demo` calibrate stage: the chart's colour matrix (CIEDE2000
- * before and after), and the grey ball's gains for the truth lat-long
+ * before and after), and the grey ball's gains for the stitched HDRI
  * against the grey-ball photo taken back to cd/m^2 through the camera model
  * (truth/camera.json, EXIF): they should be 1. */
 #include <math.h>
@@ -22,7 +22,7 @@ sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err)
     if (!r)
         r = demo_merge_probe(d, "grey", false, &grey, &gt, &ge, err);
     if (!r)
-        r = demo_truth_latlong(d, &ll, err);
+        r = demo_hdri(d, &ll, err);
     if (r)
         goto done;
 
@@ -77,22 +77,14 @@ sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err)
         goto done;
 
     /* Grey ball: the photo back in the set's units, then the gains that make
-     * the truth lat-long render like it. */
-    double m[3][3], minv[3][3], k;
-    if ((r = demo_camera(d, m, &k, err)))
+     * the stitched HDRI render like it. */
+    double minv[3][3], k;
+    if ((r = demo_camera_inverse(d, minv, &k, err)))
         goto done;
-    if (!sl_mat3_invert(m, minv)) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: singular output matrix",
-                         d->capture);
-        goto done;
-    }
     for (int y = 0; y < grey.radiance.height; y++)
         for (int x = 0; x < grey.radiance.width; x++) {
             float *p = sl_image_pixel(&grey.radiance, x, y);
-            double v[3] = {p[0] / ge, p[1] / ge, p[2] / ge}, out[3];
-            sl_mat3_apply(minv, v, out);
-            for (int c = 0; c < 3; c++)
-                p[c] = (float)out[c];
+            demo_set_units(p, ge, (const double(*)[3])minv, p);
         }
     json_t *tb = json_object_get(gt, "ball"), *tc = json_object_get(gt, "camera");
     sl_grey_options go;
@@ -131,8 +123,8 @@ sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err)
     sl_report_text(d->rep,
                    "Grey ball: %d frames merged and taken back to cd/m^2 through the camera "
                    "model (output matrix, EXIF exposure); virtual sphere seen by the probe's "
-                   "pinhole (%.0f px focal length, %.1f ball radii away). Gains for truth/latlong.exr to "
-                   "match it, all 1 in truth: %.4f %.4f %.4f, exposure scale %.4f (%+.2f%%, "
+                   "pinhole (%.0f px focal length, %.1f ball radii away). Gains for the stitched "
+                   "hdri.exr to match it, all 1 for a right stitch: %.4f %.4f %.4f, exposure scale %.4f (%+.2f%%, "
                    "worst channel %.2f%%). Sphere relative RMSE %.1f%% before (exposure "
                    "only), %.1f%% after.",
                    grey.frame_count, go.focal_px, go.distance, gfit.gain[0], gfit.gain[1], gfit.gain[2], gfit.scale,
@@ -142,7 +134,7 @@ sl_result demo_stage_calibrate(demo *d, char *note, size_t n, sl_error *err)
                              demo_stops(d->lavg * ce), "merged chart photo (camera RGB)", err)) ||
         (r = sl_calibrate_report(d->rep, "calibrate_", patches, &fit, &gfit, err)))
         goto done;
-    snprintf(note, n, "chart dE2000 %.2f -> %.2f; grey-ball exposure scale %+.2f%% from truth",
+    snprintf(note, n, "chart dE2000 %.2f -> %.2f; stitched HDRI's grey-ball exposure scale %+.2f%%",
              fit.de_before_mean, fit.de_after_mean, 100 * scale_err);
 done:
     sl_grey_fit_free(&gfit);

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* `setlight demo` rig stage: area lights and a residual dome extracted from
- * the truth lat-long, each truth light matched to the rig light nearest in
+ * the stitched HDRI, each truth light matched to the rig light nearest in
  * direction, the energy ledger, and the validation renders under map and
  * rig. */
 #include <math.h>
@@ -21,7 +21,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     json_t *lights = NULL;
     rig_validation val;
     memset(&val, 0, sizeof val);
-    sl_result r = demo_truth_latlong(d, &ll, err);
+    sl_result r = demo_hdri(d, &ll, err);
     if (r)
         return r;
     sl_rig_options o;
@@ -53,7 +53,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     }
     sl_report_section(d->rep, "Rig");
     sl_report_text(d->rep,
-                   "Light rig from truth/latlong.exr (energy share 0.99) in %.2f s: %d lights, "
+                   "Light rig from the stitched hdri.exr (energy share 0.99) in %.2f s: %d lights, "
                    "%d candidates left in "
                    "the dome. Ledger: original %.5g, lights %.5g + dome %.5g (luminance "
                    "integrals), closure error %.1e. Each truth light against the rig light "
@@ -117,7 +117,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     for (size_t i = 0; i < (size_t)prev.width * prev.height * prev.channels; i++)
         prev.data[i] = sl_srgb_to_linear(prev.data[i]);
     r = sl_report_image(d->rep, "rig_preview.png", &prev, 0,
-                        "the truth lat-long with the rig's lights outlined and numbered", err);
+                        "the stitched HDRI with the rig's lights outlined and numbered", err);
     sl_image_free(&prev);
     if (r)
         goto done;
@@ -131,7 +131,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
         goto done;
     sl_report_text(d->rep,
                    "Validation as `setlight rig --validate` does it: grey, chrome and shadow "
-                   "rendered under the truth lat-long and under the rig read back from rig.json "
+                   "rendered under the stitched HDRI and under the rig read back from rig.json "
                    "(rig_residual.exr as the dome, %d graded light%s textured), %d px, %lld "
                    "spp, %.1f s (%.1f CPU s) in all. Relative RMSE of rig against map: grey %.3f%%, chrome "
                    "%.3f%%, shadow %.3f%%; beyond the Monte Carlo noise of this sample count: "

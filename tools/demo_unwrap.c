@@ -38,23 +38,151 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* Luminance-weighted mean direction of img's texels within `radius`
+ * (radians) of `axis`; false when they carry no light. */
+static bool light_centroid(const sl_image *img, const double axis[3], double radius,
+                           double out[3])
+{
+    double s[3] = {0, 0, 0}, cos_r = cos(radius);
+    for (int y = 0; y < img->height; y++) {
+        double dw = sl_latlong_texel_solid_angle(y, img->width, img->height);
+        for (int x = 0; x < img->width; x++) {
+            double dir[3];
+            sl_latlong_to_dir((x + 0.5) / img->width, (y + 0.5) / img->height, dir);
+            if (dir[0] * axis[0] + dir[1] * axis[1] + dir[2] * axis[2] < cos_r)
+                continue;
+            const float *p = sl_image_pixel(img, x, y);
+            double w = dw * (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
+            for (int c = 0; c < 3; c++)
+                s[c] += w * dir[c];
+        }
+    }
+    double len = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+    if (!(len > 0))
+        return false;
+    for (int c = 0; c < 3; c++)
+        out[c] = s[c] / len;
+    return true;
+}
+
+static double angle_deg(const double a[3], const double b[3])
+{
+    double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    return acos(fmax(-1, fmin(1, c))) * 180 / M_PI;
+}
+
+/* The chrome ball's map against the stitched HDRI, two ways of seeing the
+ * same set: luminance on the 128 x 64 grid over the front hemisphere where
+ * the stitch saw every texel, the energy there, and where each puts the
+ * truth's lights that face the ball (the luminance-weighted centre of each
+ * within its size plus 5 degrees of the truth's direction). */
+static sl_result cross_check(demo *d, const sl_image *ball, const double *ball_coarse,
+                             const double toward[3], char *note, size_t n, sl_error *err)
+{
+    sl_image hdri = {0};
+    double *h = malloc(sizeof(double) * CW * CH);
+    unsigned char *keep = calloc(CW * CH, 1);
+    json_t *lights = NULL;
+    sl_result r = SL_OK;
+    if (!h || !keep) {
+        r = sl_error_set(err, SL_ERR_NOMEM, "demo unwrap: out of memory");
+        goto done;
+    }
+    if ((r = demo_hdri(d, &hdri, err)))
+        goto done;
+    if (hdri.width % CW || hdri.height % CH || d->confidence.width != hdri.width ||
+        d->confidence.height != hdri.height) {
+        r = sl_error_set(err, SL_ERR_INTERNAL, "%s: %dx%d, not a multiple of %dx%d", d->hdri,
+                         hdri.width, hdri.height, CW, CH);
+        goto done;
+    }
+    coarse_luminance(&hdri, h);
+    int fx = hdri.width / CW, fy = hdri.height / CH;
+    for (int y = 0; y < CH; y++)
+        for (int x = 0; x < CW; x++) {
+            double dir[3];
+            sl_latlong_to_dir((x + 0.5) / CW, (y + 0.5) / CH, dir);
+            bool seen = dir[0] * toward[0] + dir[1] * toward[1] + dir[2] * toward[2] > 0;
+            for (int j = 0; j < fy && seen; j++)
+                for (int i = 0; i < fx && seen; i++)
+                    seen = *sl_image_pixel(&d->confidence, x * fx + i, y * fy + j) > 0;
+            keep[y * CW + x] = seen;
+        }
+    demo_diff diff;
+    if ((r = demo_diff_luminance(ball_coarse, h, keep, CW, CH, &diff, err)))
+        goto done;
+    if (!(lights = demo_load_json(d->capture, "truth/lights.json", err))) {
+        r = err ? err->code : SL_ERR_INPUT;
+        goto done;
+    }
+    sl_report_text(d->rep,
+                   "Cross-check of the stitched HDRI: the chrome ball's map against hdri.exr "
+                   "over the front hemisphere where the stitch saw every texel (%.2f sr, "
+                   "128x64): median relative difference %.1f%%, 95th percentile %.1f%%, "
+                   "energy ratio %.4f (ball / stitch). Each truth light facing the ball, where "
+                   "each map puts it:",
+                   diff.solid_angle, 100 * diff.median, 100 * diff.p95, 1 + diff.energy);
+    static const char *const head[] = {"light", "truth az, el", "stitch az, el",
+                                       "ball az, el", "stitch to ball (deg)"};
+    sl_report_table_begin(d->rep, 5, head);
+    json_t *arr = json_object_get(lights, "lights");
+    double worst = 0;
+    int compared = 0;
+    for (size_t i = 0; i < json_array_size(arr); i++) {
+        json_t *l = json_array_get(arr, i), *dj = json_object_get(l, "direction");
+        double td[3], sd[3], bd[3];
+        for (int c = 0; c < 3; c++)
+            td[c] = json_number_value(json_array_get(dj, (size_t)c));
+        if (td[0] * toward[0] + td[1] * toward[1] + td[2] * toward[2] <= 0)
+            continue;
+        double radius = sqrt(json_number_value(json_object_get(l, "solid_angle_sr")) / M_PI) +
+                        5 * M_PI / 180;
+        if (!light_centroid(&hdri, td, radius, sd) || !light_centroid(ball, td, radius, bd))
+            continue;
+        double a = angle_deg(sd, bd);
+        worst = fmax(worst, a);
+        compared++;
+        char c[5][64];
+        const double *ds[3] = {td, sd, bd};
+        snprintf(c[0], 64, "%s", json_string_value(json_object_get(l, "name")));
+        for (int k = 0; k < 3; k++)
+            snprintf(c[k + 1], 64, "%.1f, %.1f", atan2(ds[k][0], ds[k][2]) * 180 / M_PI,
+                     asin(fmax(-1, fmin(1, ds[k][1]))) * 180 / M_PI);
+        snprintf(c[4], 64, "%.2f", a);
+        const char *cells[5] = {c[0], c[1], c[2], c[3], c[4]};
+        sl_report_table_row(d->rep, cells);
+    }
+    sl_report_table_end(d->rep);
+    json_object_set_new(d->facts, "unwrap_vs_stitch",
+                        json_pack("{s:f, s:f, s:f, s:f, s:i, s:f}", "solid_angle_sr",
+                                  diff.solid_angle, "median_rel_difference", diff.median,
+                                  "p95_rel_difference", diff.p95, "energy_ratio",
+                                  1 + diff.energy, "lights", compared, "worst_light_deg",
+                                  worst));
+    sl_report_text(d->rep, "Lights compared: %d, worst angle between the two maps %.2f deg.",
+                   compared, worst);
+    snprintf(note, n, "; vs stitch median %.1f%%, p95 %.1f%%, energy ratio %.3f, lights within %.2f deg",
+             100 * diff.median, 100 * diff.p95, 1 + diff.energy, worst);
+done:
+    json_decref(lights);
+    free(h);
+    free(keep);
+    sl_image_free(&hdri);
+    return r;
+}
+
 sl_result demo_stage_unwrap(demo *d, char *note, size_t n, sl_error *err)
 {
     sl_merge_result mr;
     json_t *truth = NULL;
-    double exposure, m[3][3], minv[3][3], k;
+    double exposure, minv[3][3], k;
     sl_image ll = {0}, ball = {0}, est = {0};
     double *a = NULL, *b = NULL, *rel = NULL;
     sl_result r = demo_merge_probe(d, "chrome", false, &mr, &truth, &exposure, err);
     if (r)
         return r;
-    if ((r = demo_camera(d, m, &k, err)) || (r = demo_truth_latlong(d, &ll, err)))
+    if ((r = demo_camera_inverse(d, minv, &k, err)) || (r = demo_truth_latlong(d, &ll, err)))
         goto done;
-    if (!sl_mat3_invert(m, minv)) {
-        r = sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: singular output matrix",
-                         d->capture);
-        goto done;
-    }
     json_t *tb = json_object_get(truth, "ball"), *tc = json_object_get(truth, "camera");
     double tcx = json_number_value(json_object_get(tb, "cx"));
     double tcy = json_number_value(json_object_get(tb, "cy"));
@@ -89,12 +217,8 @@ sl_result demo_stage_unwrap(demo *d, char *note, size_t n, sl_error *err)
         goto done;
     for (int y = 0; y < ball.height; y++)
         for (int x = 0; x < ball.width; x++) {
-            const float *p = sl_image_pixel(&ball, x, y);
-            double v[3] = {p[0] / exposure, p[1] / exposure, p[2] / exposure}, out[3];
-            sl_mat3_apply(minv, v, out);
-            float *q = sl_image_pixel(&est, x, y);
-            for (int c = 0; c < 3; c++)
-                q[c] = (float)out[c];
+            demo_set_units(sl_image_pixel(&ball, x, y), exposure, (const double(*)[3])minv,
+                           sl_image_pixel(&est, x, y));
         }
     char path[4300];
     snprintf(path, sizeof path, "%s/unwrap_chrome.exr", d->dir);
@@ -160,9 +284,13 @@ sl_result demo_stage_unwrap(demo *d, char *note, size_t n, sl_error *err)
         (r = sl_report_image(d->rep, "unwrap_chrome.png", &est, demo_stops(d->lavg),
                              "unwrap_chrome.exr: the set from the chrome ball, cd/m^2", err)))
         goto done;
-    snprintf(note, n,
-             "ball %s (%.2f px off); front hemisphere energy %+.1f%%, median texel error %.1f%%",
-             detected ? "detected" : "from truth", centre_off, 100 * energy, 100 * median);
+    int used = snprintf(note, n,
+                        "ball %s (%.2f px off); front hemisphere energy %+.1f%%, median texel "
+                        "error %.1f%%",
+                        detected ? "detected" : "from truth", centre_off, 100 * energy,
+                        100 * median);
+    if (used > 0 && (size_t)used < n)
+        r = cross_check(d, &est, a, toward, note + used, n - (size_t)used, err);
 done:
     free(a);
     free(b);

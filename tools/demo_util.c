@@ -17,15 +17,22 @@ json_t *demo_load_json(const char *dir, const char *name, sl_error *err)
     return j;
 }
 
-sl_result demo_truth_latlong(const demo *d, sl_image *ll, sl_error *err)
+static sl_result read_latlong(const char *path, sl_image *ll, sl_error *err)
 {
-    char path[4300];
-    snprintf(path, sizeof path, "%s/truth/latlong.exr", d->capture);
     sl_meta meta;
     sl_result r = sl_exr_read(path, ll, &meta, err);
     sl_meta_free(&meta);
     return r;
 }
+
+sl_result demo_truth_latlong(const demo *d, sl_image *ll, sl_error *err)
+{
+    char path[4300];
+    snprintf(path, sizeof path, "%s/truth/latlong.exr", d->capture);
+    return read_latlong(path, ll, err);
+}
+
+sl_result demo_hdri(const demo *d, sl_image *ll, sl_error *err) { return read_latlong(d->hdri, ll, err); }
 
 sl_result demo_camera(const demo *d, double m[3][3], double *k, sl_error *err)
 {
@@ -42,6 +49,26 @@ sl_result demo_camera(const demo *d, double m[3][3], double *k, sl_error *err)
         return sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: no exposure constant k",
                             d->capture);
     return SL_OK;
+}
+
+sl_result demo_camera_inverse(const demo *d, double minv[3][3], double *k, sl_error *err)
+{
+    double m[3][3];
+    sl_result r = demo_camera(d, m, k, err);
+    if (r)
+        return r;
+    if (!sl_mat3_invert(m, minv))
+        return sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: singular output matrix",
+                            d->capture);
+    return SL_OK;
+}
+
+void demo_set_units(const float *p, double exposure, const double minv[3][3], float *out)
+{
+    double v[3] = {p[0] / exposure, p[1] / exposure, p[2] / exposure}, o[3];
+    sl_mat3_apply(minv, v, o);
+    for (int c = 0; c < 3; c++)
+        out[c] = (float)o[c];
 }
 
 static json_t *find_kind(json_t *arr, const char *kind)
