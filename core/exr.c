@@ -683,6 +683,7 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
     const exr_attr_chlist_t *cl = NULL;
     exr_frame fr;
     exr_pick pick;
+    bool yc = false;
     int w = 0, h = 0, dw = 0, dh = 0;
     rv = exr_get_channels(ctx, 0, &cl);
     if (rv == EXR_ERR_SUCCESS)
@@ -703,9 +704,23 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
                          path);
     } else if (strcmp(pick.names[0], "Y") == 0 &&
                (find_channel(cl, "RY") || find_channel(cl, "BY"))) {
-        /* Reading Y alone would silently turn a colour image grey. */
-        r = sl_error_set(err, SL_ERR_UNSUPPORTED,
-                         "%s: luminance/chroma (Y, RY, BY) EXR is not supported", path);
+        /* Luminance/chroma (what OpenEXR's RGBA interface writes with
+         * WRITE_YC): its RGBA interface turns it back into RGB; reading Y
+         * alone would silently turn a colour image grey. */
+        static const char *const rgba[4] = {"R", "G", "B", "A"};
+        const exr_attr_chlist_entry_t *ry = find_channel(cl, "RY"), *by = find_channel(cl, "BY");
+        if (!ry || !by || ry->x_sampling != 2 || ry->y_sampling != 2 || by->x_sampling != 2 ||
+            by->y_sampling != 2)
+            r = sl_error_set(err, SL_ERR_INPUT,
+                             "%s: luminance/chroma EXR without both RY and BY sampled 2 x 2 "
+                             "(the only layout OpenEXR turns back into RGB)",
+                             path);
+        yc = true;
+        pick.count = find_channel(cl, "A") ? 4 : 3;
+        for (int c = 0; c < pick.count; c++) {
+            pick.names[c] = rgba[c];
+            pick.types[c] = EXR_PIXEL_HALF;
+        }
     } else {
         for (int c = 0; c < pick.count && !r; c++) {
             const exr_attr_chlist_entry_t *e = find_channel(cl, pick.names[c]);
@@ -729,7 +744,7 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
     exr_compression_t comp = EXR_COMPRESSION_NONE;
     if (!r && (rv = exr_get_compression(ctx, 0, &comp)) != EXR_ERR_SUCCESS)
         r = corrupt(err, path, rv);
-    if (!r && needs_cxx_decoder(cl, comp))
+    if (!r && (yc || needs_cxx_decoder(cl, comp)))
         r = sl_exr_read_pixels_oiio(path, pick.names, pick.count, fr.display.min.x,
                                     fr.display.min.y, img, err);
     else if (!r)

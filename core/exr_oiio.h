@@ -2,7 +2,8 @@
 /* Private: OpenEXR pixels through OpenEXR's C++ library (in the module
  * that links OpenImageIO, which links it), for what the OpenEXR 3.1 C API
  * cannot decode (DWAA, DWAB) or decodes wrong (B44 with float channels,
- * subsampled channels). */
+ * subsampled channels), and luminance/chroma (Y, RY, BY) files back to RGB
+ * through its RGBA interface. */
 #ifndef SETLIGHT_CORE_EXR_OIIO_H
 #define SETLIGHT_CORE_EXR_OIIO_H
 

@@ -28,9 +28,11 @@
 #include "setlight/core.h"
 #include "exr_oiio.h"
 
+#include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfRgbaFile.h>
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
@@ -377,10 +379,46 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
 /* OpenEXR's C++ library, which OpenImageIO links (OpenImageIO itself
  * refuses a file with any subsampled channel), a strip of rows at a time:
  * only the picked channels are decoded, others are skipped by the library. */
+/* Luminance/chroma files (Y, RY, BY: chroma subsampled) back to R, G, B
+ * (and A) through OpenEXR's RGBA interface, which knows the file's
+ * chromaticities and chroma filter. */
+sl_result exr_yc_pixels(const char *path, int count, int x0, int y0, sl_image *img)
+{
+    Imf::RgbaInputFile in(path, sl_threads_get());
+    const Imath::Box2i &dw = in.dataWindow();
+    int64_t w = (int64_t)dw.max.x - dw.min.x + 1;
+    int first = std::max(dw.min.y, y0), last = std::min(dw.max.y, y0 + img->height - 1);
+    int strip = 64;
+    std::vector<Imf::Rgba> rows((size_t)w * (size_t)strip);
+    for (int ys = first; ys <= last; ys += strip) {
+        int ye = std::min(ys + strip - 1, last);
+        /* The frame buffer is addressed by file coordinates: shift the
+         * strip's base by the strip's origin, in integers. */
+        intptr_t origin = (intptr_t)dw.min.x + (intptr_t)ys * (intptr_t)w;
+        in.setFrameBuffer((Imf::Rgba *)((uintptr_t)rows.data() - (uintptr_t)origin * sizeof(Imf::Rgba)),
+                          1, (size_t)w);
+        in.readPixels(ys, ye);
+        for (int y = ys; y <= ye; y++)
+            for (int64_t x = std::max<int64_t>(dw.min.x, x0);
+                 x <= std::min<int64_t>(dw.max.x, (int64_t)x0 + img->width - 1); x++) {
+                const Imf::Rgba &p = rows[(size_t)(y - ys) * (size_t)w + (size_t)(x - dw.min.x)];
+                float *dst = sl_image_pixel(img, (int)(x - x0), y - y0);
+                const float v[4] = {p.r, p.g, p.b, p.a};
+                for (int c = 0; c < count; c++)
+                    dst[c] = v[c];
+            }
+    }
+    return SL_OK;
+}
+
 sl_result exr_pixels_impl(const char *path, const char *const *names, int count, int x0, int y0,
                           sl_image *img)
 {
     Imf::InputFile in(path, sl_threads_get());
+    const Imf::ChannelList &channels = in.header().channels();
+    if (!channels.findChannel("R") && channels.findChannel("Y") &&
+        (channels.findChannel("RY") || channels.findChannel("BY")))
+        return exr_yc_pixels(path, count, x0, y0, img);
     const Imath::Box2i &dw = in.header().dataWindow();
     int64_t w = (int64_t)dw.max.x - dw.min.x + 1;
     /* The rows of the data window inside the display window. */

@@ -39,6 +39,16 @@ bool exr_layout_write(const char *path, const exr_layout *l, exr_layout_value va
 bool exr_layout_decode(const char *path, const char *name, float *out, int width, int height,
                        char *why, size_t why_size);
 
+/* Writes width x height RGB(A) (channels 3 or 4, interleaved) the way
+ * OpenEXR's RGBA interface does with WRITE_YC(A): luminance Y and 2 x 2
+ * subsampled chroma RY, BY. */
+bool exr_layout_write_yc(const char *path, const float *pixels, int width, int height,
+                         int channels, char *why, size_t why_size);
+
+/* OpenEXR's own RGBA decoding of any file into width x height x 4 floats. */
+bool exr_layout_decode_rgba(const char *path, float *out, int width, int height, char *why,
+                            size_t why_size);
+
 #ifdef __cplusplus
 }
 #endif

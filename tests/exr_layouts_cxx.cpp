@@ -8,6 +8,7 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
+#include <ImfRgbaFile.h>
 #include <ImfTiledOutputFile.h>
 #include <half.h>
 
@@ -97,5 +98,37 @@ extern "C" bool exr_layout_decode(const char *path, const char *name, float *out
                                          sizeof(float) * (size_t)width));
         in.setFrameBuffer(fb);
         in.readPixels(data.min.y, data.min.y + height - 1);
+    }, why, why_size);
+}
+
+extern "C" bool exr_layout_write_yc(const char *path, const float *pixels, int width, int height,
+                                    int channels, char *why, size_t why_size)
+{
+    return guarded([&] {
+        std::vector<Imf::Rgba> px((size_t)width * (size_t)height);
+        for (size_t i = 0; i < px.size(); i++) {
+            const float *p = pixels + i * (size_t)channels;
+            px[i] = Imf::Rgba(p[0], p[1], p[2], channels == 4 ? p[3] : 1.0f);
+        }
+        Imf::RgbaOutputFile out(path, width, height, channels == 4 ? Imf::WRITE_YCA : Imf::WRITE_YC);
+        out.setFrameBuffer(px.data(), 1, (size_t)width);
+        out.writePixels(height);
+    }, why, why_size);
+}
+
+extern "C" bool exr_layout_decode_rgba(const char *path, float *out, int width, int height,
+                                       char *why, size_t why_size)
+{
+    return guarded([&] {
+        Imf::RgbaInputFile in(path);
+        std::vector<Imf::Rgba> px((size_t)width * (size_t)height);
+        in.setFrameBuffer(px.data(), 1, (size_t)width);
+        in.readPixels(0, height - 1);
+        for (size_t i = 0; i < px.size(); i++) {
+            out[4 * i] = px[i].r;
+            out[4 * i + 1] = px[i].g;
+            out[4 * i + 2] = px[i].b;
+            out[4 * i + 3] = px[i].a;
+        }
     }, why, why_size);
 }
