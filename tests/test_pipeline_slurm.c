@@ -185,7 +185,7 @@ static void test_day_on_slurm(void)
     sl_pipeline_slurm_options o;
     sl_pipeline_slurm_options_init(&o);
     o.poll_seconds = 0.1;
-    o.timeout_seconds = 120;
+    o.timeout_seconds = 60;
     sl_pipeline_slurm_result res;
     sl_error err = {0};
     double t0 = sl_seconds();
