@@ -883,6 +883,35 @@ void sl_pipeline_slurm_result_free(sl_pipeline_slurm_result *res)
     memset(res, 0, sizeof(*res));
 }
 
+void *sl_pipeline_slurm_result_json(const sl_pipeline_slurm_result *res)
+{
+    json_t *jobs = json_array();
+    for (int i = 0; jobs && i < res->job_count; i++) {
+        const sl_pipeline_slurm_job *j = &res->jobs[i];
+        json_t *o = json_pack("{s:s, s:b, s:s?, s:s, s:s?, s:i, s:i, s:s, s:f, s:f}", "id", j->id,
+                              "submitted", j->submitted, "slurm_id",
+                              j->slurm_id[0] ? j->slurm_id : NULL, "end",
+                              sl_pipeline_slurm_end_name(j->end), "state",
+                              j->state[0] ? j->state : NULL, "exit_code", j->exit_code, "signal",
+                              j->signal, "log", j->log, "queue_seconds", j->queue_seconds,
+                              "wall_seconds", j->wall_seconds);
+        if (!o || json_array_append_new(jobs, o) != 0) {
+            json_decref(jobs);
+            return NULL;
+        }
+    }
+    if (!jobs)
+        return NULL;
+    return json_pack("{s:i, s:i, s:i, s:i, s:i, s:i, s:i, s:i, s:f, s:f, s:f, s:f, s:f, s:o}",
+                     "jobs_total", res->job_count, "skipped", res->skipped, "submitted",
+                     res->submitted, "completed", res->completed, "failed", res->failed,
+                     "cancelled", res->cancelled, "lost", res->lost, "sbatch_calls",
+                     res->sbatch_calls, "submit_seconds", res->submit_seconds, "wait_seconds",
+                     res->wait_seconds, "wall_seconds", res->wall_seconds, "queue_seconds_mean",
+                     res->queue_seconds_mean, "job_seconds_sum", res->job_seconds_sum, "jobs",
+                     jobs);
+}
+
 /* Is the controller up: `scontrol ping` (exit 0 when it answers). */
 static sl_result check_cluster(const sl_pipeline_slurm_options *o, sl_error *err)
 {

@@ -80,4 +80,11 @@ sl_result sl_pipeline_slurm_run(const char *jobs_json, const sl_pipeline_slurm_o
 
 void sl_pipeline_slurm_result_free(sl_pipeline_slurm_result *res);
 
+/* The result as JSON for --json (docs/slurm.md): {"submitted":..,
+ * "jobs":[{"id","submitted","slurm_id","end","state","exit_code","signal",
+ * "log","queue_seconds","wall_seconds"}], ...}; a new reference, or NULL
+ * when out of memory. Declared as void * so callers need not include
+ * jansson.h: it is a json_t *. */
+void *sl_pipeline_slurm_result_json(const sl_pipeline_slurm_result *res);
+
 #endif
