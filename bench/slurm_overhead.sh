@@ -12,6 +12,7 @@ dir=$(mktemp -d /tmp/sl-slurm-bench.XXXXXX)
 chmod 755 "$dir"
 trap 'bash "$here/tests/slurm/cluster.sh" stop "$dir/cluster"; rm -rf "$dir"' EXIT
 bash "$here/tests/slurm/cluster.sh" start "$dir/cluster" >/dev/null || exit 1
-echo "daemons up (node idle) in $(cat "$dir/cluster/run/start_seconds") s"
+read -r total _ munge _ daemons _ node <"$dir/cluster/run/start_seconds"
+echo "cluster up in $total s (munged $munge s, slurmctld + slurmd $daemons s, node idle $node s)"
 export SLURM_CONF="$dir/cluster/slurm.conf"
 "$build/bench/bench_slurm_overhead" "$n" "$seconds" 2 "$dir/jobs"
