@@ -94,20 +94,25 @@ static bool text_printf(text *t, const char *fmt, ...)
     return ok;
 }
 
+static bool text_add_str(text *t, const char *s)
+{
+    return text_add(t, s, strlen(s));
+}
+
 /* The shell word for s: single-quoted, ' as '\''. */
 static bool text_add_quoted(text *t, const char *s)
 {
-    if (!text_add(t, "'", 1))
+    if (!text_add_str(t, "'"))
         return false;
     for (const char *p = s; *p; p++) {
         if (*p == '\'') {
-            if (!text_add(t, "'\\''", 4))
+            if (!text_add_str(t, "'\\''"))
                 return false;
         } else if (!text_add(t, p, 1)) {
             return false;
         }
     }
-    return text_add(t, "'", 1);
+    return text_add_str(t, "'");
 }
 
 /* The first line of s (at most 300 characters), for a one-line message. */
@@ -523,9 +528,9 @@ static sl_result plan_batches(graph *g, sl_error *err)
 
 static bool add_command_line(text *t, const job *j)
 {
-    bool ok = text_add(t, "exec", 4);
+    bool ok = text_add_str(t, "exec");
     for (size_t k = 0; k < json_array_size(j->argv) && ok; k++)
-        ok = text_add(t, " ", 1) && text_add_quoted(t, json_string_value(json_array_get(j->argv, k)));
+        ok = text_add_str(t, " ") && text_add_quoted(t, json_string_value(json_array_get(j->argv, k)));
     return ok;
 }
 
@@ -536,15 +541,15 @@ static bool batch_script(const graph *g, const batch *b, text *t)
     bool ok = text_printf(t, "#!/bin/sh\n# setlight: %s of %s\n",
                           b->array ? g->jobs[b->first].array : g->jobs[b->first].id, g->path);
     if (!b->array)
-        return ok && add_command_line(t, &g->jobs[b->first]) && text_add(t, "\n", 1);
-    ok = ok && text_add(t, "case \"$SLURM_ARRAY_TASK_ID\" in\n", 31);
+        return ok && add_command_line(t, &g->jobs[b->first]) && text_add_str(t, "\n");
+    ok = ok && text_add_str(t, "case \"$SLURM_ARRAY_TASK_ID\" in\n");
     for (int m = 0; m < b->count && ok; m++) {
         const job *j = &g->jobs[b->members[m]];
-        ok = text_printf(t, "%d) ", m) && add_command_line(t, j) && text_add(t, " >", 2) &&
-             text_add_quoted(t, j->log) && text_add(t, " 2>&1 ;;\n", 9);
+        ok = text_printf(t, "%d) ", m) && add_command_line(t, j) && text_add_str(t, " >") &&
+             text_add_quoted(t, j->log) && text_add_str(t, " 2>&1 ;;\n");
     }
-    return ok && text_add(t, "esac\necho \"no task $SLURM_ARRAY_TASK_ID in this array\" >&2\n"
-                             "exit 1\n", 69);
+    return ok && text_add_str(t, "esac\necho \"no task $SLURM_ARRAY_TASK_ID in this array\" >&2\n"
+                                 "exit 1\n");
 }
 
 /* mkdir -p of the folder holding `path`. */
@@ -630,8 +635,7 @@ static sl_result submit_batch(graph *g, int bi, const sl_pipeline_slurm_options 
     for (int d = 0; d < nd && ok; d++) {
         char s[48];
         slurm_name(g, &g->jobs[deps[d]], s, sizeof s);
-        ok = text_add(&dep, d ? ":" : "--dependency=afterok:", d ? 1 : 21) &&
-             text_add(&dep, s, strlen(s));
+        ok = text_add_str(&dep, d ? ":" : "--dependency=afterok:") && text_add_str(&dep, s);
     }
     free(deps);
     if (nd > 0 && ok)

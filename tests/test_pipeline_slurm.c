@@ -6,7 +6,8 @@
  * dependents end cancelled (not pending forever); a rerun after the fix
  * submits only the failed job and what follows it. The graph checks and
  * the missing-sbatch and cluster-down errors need no cluster. */
-#include <signal.h>
+#include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,11 +20,8 @@
 static char cluster_dir[4096];
 static bool cluster_up;
 
-static void stop_cluster(void)
+static void run_stop(void)
 {
-    if (!cluster_up)
-        return;
-    cluster_up = false;
     char cmd[8400];
     snprintf(cmd, sizeof cmd, "bash '%s/tests/slurm/cluster.sh' stop '%s'", SETLIGHT_SOURCE_DIR,
              cluster_dir);
@@ -31,11 +29,31 @@ static void stop_cluster(void)
         fprintf(stderr, "warning: %s failed\n", cmd);
 }
 
-static void on_signal(int sig)
+static void stop_cluster(void)
 {
-    stop_cluster();
-    signal(sig, SIG_DFL);
-    raise(sig);
+    if (cluster_up)
+        run_stop();
+    cluster_up = false;
+}
+
+/* A child that stops the cluster when this process ends, however it ends
+ * (a failed check, a sanitizer abort, SIGKILL from ctest's timeout): it
+ * waits for the end of a pipe only this process holds. */
+static void watch_cluster(void)
+{
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0)
+        return;
+    pid_t pid = fork();
+    if (pid == 0) {
+        close(fds[1]);
+        char c;
+        while (read(fds[0], &c, 1) < 0 && errno == EINTR) {
+        }
+        run_stop();
+        _exit(0);
+    }
+    close(fds[0]); /* fds[1] stays open until this process ends */
 }
 
 /* Starts the cluster; false (and a skip line with cluster.sh's reason) when
@@ -59,9 +77,7 @@ static bool start_cluster(void)
         return false;
     }
     cluster_up = true;
-    atexit(stop_cluster);
-    signal(SIGINT, on_signal);
-    signal(SIGTERM, on_signal);
+    watch_cluster();
     char conf[4200];
     snprintf(conf, sizeof conf, "%s/slurm.conf", cluster_dir);
     setenv("SLURM_CONF", conf, 1);
