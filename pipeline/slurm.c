@@ -1002,21 +1002,28 @@ sl_result sl_pipeline_slurm_run(const char *jobs_json, const sl_pipeline_slurm_o
                              opts->sbatch);
         if (r == SL_OK)
             r = check_cluster(opts, err);
+        /* the jobs' working folder (--chdir) and log folders */
+        char out_dot[4200];
+        snprintf(out_dot, sizeof out_dot, "%s/.", g.out);
+        if (r == SL_OK)
+            r = make_parent(out_dot, err);
         for (int i = 0; i < g.count && r == SL_OK; i++)
             if (g.jobs[i].submit)
                 r = make_parent(g.jobs[i].log, err);
         double ts = sl_seconds();
         int b = 0;
-        for (; b < g.batch_count && r == SL_OK; b++)
+        for (; b < g.batch_count && r == SL_OK; b++) {
             r = submit_batch(&g, b, opts, err);
+            for (int m = 0; m < g.batches[b].count && r == SL_OK; m++) {
+                int i = g.batches[b].members[m];
+                slurm_name(&g, &g.jobs[i], res->jobs[i].slurm_id, sizeof res->jobs[i].slurm_id);
+            }
+        }
         if (r != SL_OK && b > 0)
             cancel_batches(&g, b - 1);
         double tw = sl_seconds();
         res->submit_seconds = tw - ts;
         res->sbatch_calls = b;
-        for (int i = 0; i < g.count && r == SL_OK; i++)
-            if (g.jobs[i].submit)
-                slurm_name(&g, &g.jobs[i], res->jobs[i].slurm_id, sizeof res->jobs[i].slurm_id);
         if (r == SL_OK)
             r = wait_jobs(&g, opts, res, t0, err);
         res->wait_seconds = sl_seconds() - tw;

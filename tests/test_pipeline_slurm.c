@@ -294,6 +294,56 @@ static void test_day_on_slurm(void)
     CHECK(res.submitted == 0 && res.skipped == DAY_JOBS && res.sbatch_calls == 0);
     sl_pipeline_slurm_result_free(&res);
 
+    /* A submission refused (more memory than the node has): one line
+     * naming the job and Slurm's reason; what was submitted before it is
+     * cancelled, not left to run. */
+    const char *big = keep_path("jobs_big.json");
+    f = fopen(big, "w");
+    CHECK(f != NULL);
+    if (f) {
+        fprintf(f,
+                "{\"format\":\"setlight-jobs\",\"version\":1,\"out\":\"%s\",\"jobs\":["
+                "{\"id\":\"first\",\"argv\":[\"sleep\",\"30\"],\"deps\":[],\"array\":null,"
+                "\"memory_mb\":16,\"cpus\":1,\"log\":\"%s/logs/first.log\",\"up_to_date\":false},"
+                "{\"id\":\"huge\",\"argv\":[\"true\"],\"deps\":[\"first\"],\"array\":null,"
+                "\"memory_mb\":100000000,\"cpus\":1,\"log\":\"%s/logs/huge.log\",\"up_to_date\":false}]}\n",
+                out_dir(), out_dir(), out_dir());
+        fclose(f);
+    }
+    CHECK_RESULT(sl_pipeline_slurm_run(big, &o, &res, &err), SL_ERR_IO, &err);
+    CHECK_MSG(strstr(err.message, "sbatch refused job 'huge': ") != NULL, "%s", err.message);
+    CHECK(strchr(err.message, '\n') == NULL);
+    CHECK(res.jobs && res.jobs[0].slurm_id[0] != '\0');
+    if (res.jobs && res.jobs[0].slurm_id[0]) {
+        char cmd[256], path[4200];
+        snprintf(path, sizeof path, "%s/first_state.txt", sl_test_tmpdir());
+        snprintf(cmd, sizeof cmd, "squeue -h -t all -j %.40s -o %%T > '%.150s'", res.jobs[0].slurm_id,
+                 path);
+        CHECK(system(cmd) == 0);
+        char *state = sl_test_read_file(path, NULL);
+        CHECK_MSG(state && strncmp(state, "CANCELLED", 9) == 0, "first job: %s",
+                  state ? state : "(none)");
+        free(state);
+    }
+    sl_pipeline_slurm_result_free(&res);
+
+    /* A timeout: one line naming the jobs left on the cluster. */
+    const char *slow = keep_path("jobs_slow.json");
+    f = fopen(slow, "w");
+    if (f) {
+        fprintf(f,
+                "{\"format\":\"setlight-jobs\",\"version\":1,\"out\":\"%s\",\"jobs\":["
+                "{\"id\":\"slow\",\"argv\":[\"sleep\",\"30\"],\"deps\":[],\"array\":null,"
+                "\"memory_mb\":16,\"cpus\":1,\"log\":\"%s/logs/slow.log\",\"up_to_date\":false}]}\n",
+                out_dir(), out_dir());
+        fclose(f);
+    }
+    sl_pipeline_slurm_options quick = o;
+    quick.timeout_seconds = 1;
+    CHECK_RESULT(sl_pipeline_slurm_run(slow, &quick, &res, &err), SL_ERR_IO, &err);
+    CHECK_MSG(strstr(err.message, "still queued or running after 1 s") != NULL, "%s", err.message);
+    sl_pipeline_slurm_result_free(&res);
+
     /* The cluster down: one line naming the problem, nothing written. */
     stop_cluster();
     write_graph(graph, NULL);

@@ -41,10 +41,22 @@ pid_of() {
   echo "$pid"
 }
 
-# SIGTERM to the daemons this script started in DIR, all at once; SIGKILL
-# to any still there after 5 s.
+# The jobs still on the cluster in DIR cancelled (slurmstepd and the job's
+# processes outlive slurmd otherwise), then SIGTERM to the daemons this
+# script started there, all at once; SIGKILL to any still there after 5 s.
 stop_all() {
-  local pids=() f prog pid
+  local pids=() f prog pid jobs
+  if pid_of "$dir/run/slurmctld.pid" slurmctld >/dev/null && [ -s "$dir/slurm.conf" ]; then
+    jobs=$(SLURM_CONF="$dir/slurm.conf" squeue -h -o %A 2>/dev/null)
+    if [ -n "$jobs" ]; then
+      # shellcheck disable=SC2086
+      SLURM_CONF="$dir/slurm.conf" scancel $jobs 2>/dev/null
+      for _ in $(seq 100); do
+        [ -z "$(SLURM_CONF="$dir/slurm.conf" squeue -h -o %A 2>/dev/null)" ] && break
+        sleep 0.05
+      done
+    fi
+  fi
   for f in run/slurmd.pid:slurmd run/slurmctld.pid:slurmctld munge/munged.pid:munged; do
     prog=${f#*:}
     f="$dir/${f%%:*}"
