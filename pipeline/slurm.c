@@ -170,6 +170,8 @@ static sl_result run_command(char *const argv[], const char *input, char **out, 
     in_pipe[0] = out_pipe[1] = err_pipe[1] = -1;
 
     size_t in_len = input ? strlen(input) : 0, in_done = 0;
+    /* never block on a full pipe while the child blocks on its output */
+    fcntl(in_pipe[1], F_SETFL, fcntl(in_pipe[1], F_GETFL) | O_NONBLOCK);
     if (in_len == 0) {
         close(in_pipe[1]);
         in_pipe[1] = -1;
@@ -187,6 +189,16 @@ static sl_result run_command(char *const argv[], const char *input, char **out, 
         if (poll(fds, 3, -1) < 0) {
             if (errno == EINTR)
                 continue;
+            kill(pid, SIGKILL); /* nothing can be read: do not wait on it */
+            for (int k = 0; k < 2; k++) {
+                int *fd = k ? &err_pipe[0] : &out_pipe[0];
+                close(*fd);
+                *fd = -1;
+            }
+            if (in_pipe[1] >= 0)
+                close(in_pipe[1]);
+            in_pipe[1] = -1;
+            nomem = true;
             break;
         }
         if (in_pipe[1] >= 0 && (fds[0].revents & (POLLOUT | POLLERR | POLLHUP))) {
@@ -235,7 +247,8 @@ static sl_result run_command(char *const argv[], const char *input, char **out, 
         goto fail;
     }
     if (nomem) {
-        sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory reading its output", argv[0]);
+        sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory (or poll failed) reading its output",
+                     argv[0]);
         goto fail;
     }
     *out = o.s ? o.s : strdup("");
@@ -277,6 +290,7 @@ typedef struct job {
     int task; /* its index in an array, or -1 */
     int missing; /* polls it was not in squeue's answer */
     bool done;
+    bool held_warned;
 } job;
 
 typedef struct batch {
@@ -723,12 +737,12 @@ static bool state_is_final(const char *s, sl_pipeline_slurm_end *end)
     return false;
 }
 
-/* One squeue row: JobID|ArrayJobID|ArrayTaskID|State|exit_code|SubmitTime|StartTime|EndTime| */
+/* One squeue row: JobID|ArrayJobID|ArrayTaskID|State|exit_code|SubmitTime|StartTime|EndTime|Reason| */
 static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result *res)
 {
-    char *f[9];
+    char *f[10];
     int n = 0;
-    for (char *p = row; n < 9;) {
+    for (char *p = row; n < 10;) {
         f[n++] = p;
         char *bar = strchr(p, '|');
         if (!bar)
@@ -736,9 +750,9 @@ static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result 
         *bar = '\0';
         p = bar + 1;
     }
-    if (n < 8)
+    if (n < 9)
         return;
-    for (int k = 0; k < 8; k++) /* squeue pads some fields */
+    for (int k = 0; k < 9; k++) /* squeue pads some fields */
         for (char *e = f[k] + strlen(f[k]); e > f[k] && e[-1] == ' ';)
             *--e = '\0';
     long job_id = strtol(f[0], NULL, 10), array_id = strtol(f[1], NULL, 10);
@@ -758,8 +772,16 @@ static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result 
         seen[i] = true;
         sl_pipeline_slurm_job *rj = &res->jobs[i];
         sl_pipeline_slurm_end e;
-        if (task_range || !state_is_final(f[3], &e))
+        if (task_range || !state_is_final(f[3], &e)) {
+            /* A held job (an admin hold, or a launch that failed and was
+             * requeued held) waits for `scontrol release`: said once. */
+            if (!j->held_warned && (strcasestr(f[8], "held") || strstr(f[3], "HOLD"))) {
+                j->held_warned = true;
+                sl_log(SL_LOG_WARN, "Slurm job %s (%s) is held (%s): it runs once released "
+                       "(scontrol release)", f[0], j->id, f[8]);
+            }
             continue;
+        }
         j->done = true;
         rj->end = e;
         snprintf(rj->state, sizeof rj->state, "%s", f[3]);
@@ -813,7 +835,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
         }
         char *args[] = {(char *)o->squeue, "--noheader", "--states=all", "--jobs", ids.s,
                         "--Format=JobID:|,ArrayJobID:|,ArrayTaskID:|,State:|,exit_code:|,"
-                        "SubmitTime:|,StartTime:|,EndTime:|",
+                        "SubmitTime:|,StartTime:|,EndTime:|,Reason:|",
                         NULL};
         char *out = NULL, *errout = NULL;
         int status = 0;
