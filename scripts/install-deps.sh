@@ -17,6 +17,7 @@ packages=(
   chromium-headless-shell   # the tests open the HTML reports in a real browser
   python3-numpy python3-opencv
   clang libclang-rt-14-dev   # the fuzz targets (libFuzzer: -DSETLIGHT_FUZZ=ON, fuzz/README.md)
+  slurmctld slurmd slurm-client munge iproute2   # --farm slurm; tests/slurm/cluster.sh (docs/slurm.md)
 )
 missing=()
 for p in "${packages[@]}"; do
