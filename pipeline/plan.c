@@ -207,10 +207,12 @@ static sl_result read_session(setup_plan *sp, const char *dir, const json_t *cap
             }
             snprintf(fp, sizeof fp, "%s/%s", dir, file);
             if (!is_file(fp)) {
+                /* the message before the session that holds the name goes */
+                sl_result r = sl_error_set(err, SL_ERR_INPUT, "%s: names %s, which is missing",
+                                           path, file);
                 json_decref(vw->frames);
                 json_decref(s);
-                return sl_error_set(err, SL_ERR_INPUT, "%s: names %s, which is missing", path,
-                                    file);
+                return r;
             }
             json_array_append_new(vw->frames, json_string(fp));
             const char *source = json_string_value(json_object_get(f, "source"));

@@ -79,7 +79,8 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
         res->setups++;
         if (st && !strcmp(st, "failed")) {
             res->setups_failed++;
-            add_failure(res, name, json_string_value(json_object_get(sum, "reason")));
+            const char *why = json_string_value(json_object_get(sum, "reason"));
+            add_failure(res, name, why ? why : "failed");
             if (json_integer_value(json_object_get(sum, "exit")) != 3)
                 res->input_failures_only = false;
         }

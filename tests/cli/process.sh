@@ -15,6 +15,7 @@ out_has "process"
 
 # The shoot: an exterior and a stage, photographed by the virtual set; a
 # second exterior (another noise seed) gives a changed frame later.
+mkdir -p "$T/sets"
 "$S" simulate --scene exterior --size tiny -o "$T/sets/ext" -q &
 "$S" simulate --scene stage --size tiny -o "$T/sets/stage" -q &
 "$S" simulate --scene exterior --size tiny --seed 2 -o "$T/seed2" -q &
