@@ -136,9 +136,16 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
             int e = posix_spawn(&j->pid, argv[0], NULL, NULL, argv, environ);
             free(argv);
             if (e) {
-                r = sl_error_set(err, SL_ERR_IO, "%s: cannot run: %s",
-                                 json_string_value(json_object_get(j->job, "id")), strerror(e));
-                break;
+                /* This job fails (its setup with it); the others go on. */
+                sl_log(SL_LOG_WARN, "%s: cannot run %s: %s",
+                       json_string_value(json_object_get(j->job, "id")),
+                       json_string_value(json_array_get(argv_j, 0)), strerror(e));
+                j->state = J_FAILED;
+                done++;
+                if (o->progress)
+                    sl_progress_add(&bar, 1);
+                i = -1;
+                continue;
             }
             j->state = J_RUNNING;
             running++;

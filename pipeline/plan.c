@@ -356,10 +356,16 @@ static const char *id_of(const json_t *job)
     return json_string_value(json_object_get(job, "id"));
 }
 
+/* The report follows the job and reads its output number `result`. */
+static void report_on(json_t *report_deps, json_t *report_in, const json_t *job, size_t result)
+{
+    json_array_append_new(report_deps, json_string(id_of(job)));
+    json_array_append(report_in, json_array_get(json_object_get(job, "outputs"), result));
+}
+
 /* The setup's graph. Every command runs single-threaded (--threads 1): the
  * parallelism is across jobs, and the keys do not depend on the machine. */
-static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char *jobs_path,
-                      json_t *reports)
+static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char *jobs_path)
 {
     const sl_pipeline_options *o = sp->o;
     const char *exe = o->exe, *s = sp->name, *d = sp->dir;
@@ -391,8 +397,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         push(out_files, "%s/merge/%d.result.json", d, n);
         json_t *job = add_job(jobs, out, jobs_path, s, "merge", n, arr, cmd,
                               json_deep_copy(v->frames), out_files, json_array(), 160, 6);
-        json_array_append_new(report_deps, json_string(id_of(job)));
-        json_array_append_new(report_in, json_string(json_string_value(json_array_get(out_files, 2))));
+        report_on(report_deps, report_in, job, 2);
         if (v->probe == PROBE_CHROME)
             chrome = n;
         else if (v->probe == PROBE_GREY)
@@ -428,8 +433,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
     push(outs, "%s/stitch/stitch.result.json", d);
     json_t *stitch = add_job(jobs, out, jobs_path, s, "stitch", -1, NULL, cmd, in, outs,
                              view_deps, 200, 8);
-    json_array_append_new(report_deps, json_string(id_of(stitch)));
-    json_array_append(report_in, json_array_get(outs, 1));
+    report_on(report_deps, report_in, stitch, 1);
     json_decref(stitch_in);
 
     if (chrome >= 0) {
@@ -449,8 +453,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         snprintf(dep, sizeof dep, "%s/merge/%d", s, chrome);
         json_t *job = add_job(jobs, out, jobs_path, s, "unwrap", -1, NULL, cmd, in, outs,
                               strs(dep, NULL), 160, 8);
-        json_array_append_new(report_deps, json_string(id_of(job)));
-        json_array_append(report_in, json_array_get(outs, 1));
+        report_on(report_deps, report_in, job, 1);
     }
 
     snprintf(env, sizeof env, "%s", hdri);
@@ -485,8 +488,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         push(outs, "%s/calibrate/calibrate.result.json", d);
         json_t *job = add_job(jobs, out, jobs_path, s, "calibrate", -1, NULL, cmd, in, outs,
                               deps, 220, 8);
-        json_array_append_new(report_deps, json_string(id_of(job)));
-        json_array_append(report_in, json_array_get(outs, 1));
+        report_on(report_deps, report_in, job, 1);
         json_decref(env_dep);
         env_dep = json_string(id_of(job));
     }
@@ -505,8 +507,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
     json_t *rig_job = add_job(jobs, out, jobs_path, s, "rig", -1, NULL, cmd, strs(env, NULL),
                               outs, json_array(), 160, 8);
     json_array_append(json_object_get(rig_job, "deps"), env_dep);
-    json_array_append_new(report_deps, json_string(id_of(rig_job)));
-    json_array_append(report_in, json_array_get(outs, 4));
+    report_on(report_deps, report_in, rig_job, 4);
 
     static const char *const scenes[] = {"grey", "chrome", "chart"};
     snprintf(arr, sizeof arr, "%s/render", s);
@@ -523,20 +524,16 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         json_array_append_new(deps, json_string(id_of(rig_job)));
         json_t *job = add_job(jobs, out, jobs_path, s, "render", k, arr, cmd, in,
                               strs(file, NULL), deps, 80, 8);
-        json_array_append_new(report_deps, json_string(id_of(job)));
-        json_array_append_new(report_in, json_string(file));
+        report_on(report_deps, report_in, job, 0);
     }
     json_decref(env_dep);
 
     json_array_append_new(report_in, json_string(env));
-    char report_json[2 * PATH_MAX];
-    snprintf(report_json, sizeof report_json, "%s/report.json", d);
     outs = json_array();
     push(outs, "%s/report.html", d);
-    push(outs, "%s", report_json);
+    push(outs, "%s/report.json", d);
     add_job(jobs, out, jobs_path, s, "report", -1, NULL,
             strs(exe, "process-report", jobs_path, s, NULL), report_in, outs, report_deps, 120, 4);
-    json_array_append_new(reports, json_string(report_json));
 }
 
 static bool valid_name(const char *name)
@@ -593,7 +590,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
     if ((r = pl_mkdirs(logs, err)))
         return r;
 
-    json_t *jobs = json_array(), *reports = json_array(), *list = json_array();
+    json_t *jobs = json_array(), *list = json_array();
     json_t *index_deps = json_array();
     for (int i = 0; i < o->setup_count; i++) {
         setup_plan *sp = calloc(1, sizeof *sp);
@@ -624,7 +621,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
             json_object_set_new(entry, "exit", json_integer(sl_result_exit_code(sr)));
         } else {
             size_t before = json_array_size(jobs);
-            plan_jobs(sp, jobs, out, jobs_path, reports);
+            plan_jobs(sp, jobs, out, jobs_path);
             json_array_append_new(index_deps,
                                   json_string(id_of(json_array_get(jobs, json_array_size(jobs) - 1))));
             json_object_set_new(entry, "jobs", json_integer((json_int_t)(json_array_size(jobs) - before)));
@@ -636,7 +633,6 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
     }
     if (r) {
         json_decref(jobs);
-        json_decref(reports);
         json_decref(list);
         json_decref(index_deps);
         return r;
@@ -654,7 +650,6 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
     push(outs, "%s/index.json", out);
     add_job(jobs, out, jobs_path, NULL, "index", -1, NULL,
             strs(o->exe, "process-index", jobs_path, NULL), in, outs, index_deps, 120, 4);
-    json_decref(reports);
     *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
                        "setlight", sl_version(), "out", out, "jobs", jobs);
     /* Keys where the inputs exist, and whether the stamp matches. */
