@@ -30,6 +30,7 @@ typedef struct setup_plan {
     view views[64];
     int view_count;
     double sensor_mm;    /* the probe camera's sensor width, 0: unknown */
+    json_t *warnings;    /* the sessions' problems (ingest's skipped files, short brackets) */
 } setup_plan;
 
 static bool is_file(const char *p)
@@ -175,6 +176,13 @@ static sl_result read_session(setup_plan *sp, const char *dir, const json_t *cap
     }
     size_t i, j;
     json_t *v;
+    json_array_foreach(json_object_get(s, "problems"), i, v) {
+        if (json_is_string(v)) {
+            char line[4 * PATH_MAX];
+            snprintf(line, sizeof line, "%s: %s", path, json_string_value(v));
+            json_array_append_new(sp->warnings, json_string(line));
+        }
+    }
     json_array_foreach(views, i, v) {
         json_t *best = NULL, *b;
         json_array_foreach(json_object_get(v, "brackets"), j, b) {
@@ -600,6 +608,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
         }
         sp->o = o;
         sp->name = names[i];
+        sp->warnings = json_array();
         snprintf(sp->dir, sizeof sp->dir, "%s/%s", out, names[i]);
         char src[PATH_MAX];
         if (!realpath(o->setups[i], src))
@@ -626,6 +635,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
                                   json_string(id_of(json_array_get(jobs, json_array_size(jobs) - 1))));
             json_object_set_new(entry, "jobs", json_integer((json_int_t)(json_array_size(jobs) - before)));
         }
+        json_object_set_new(entry, "warnings", sp->warnings);
         json_array_append_new(list, entry);
         for (int v = 0; v < sp->view_count; v++)
             json_decref(sp->views[v].frames);

@@ -75,6 +75,12 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     json_array_foreach(setups, i, s) {
         const char *name = json_string_value(json_object_get(s, "name"));
         json_t *sum = pl_setup_summary(graph, s, status);
+        /* Emitted only: nothing ran, nothing to judge but the planning. */
+        if (o->emit_jobs && !strcmp(json_string_value(json_object_get(s, "status")), "ok")) {
+            json_object_set_new(sum, "status", json_string("planned"));
+            json_object_del(sum, "reason");
+            json_object_del(sum, "exit");
+        }
         const char *st = json_string_value(json_object_get(sum, "status"));
         res->setups++;
         if (st && !strcmp(st, "failed")) {

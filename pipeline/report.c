@@ -198,13 +198,18 @@ json_t *pl_setup_summary(const json_t *graph, const json_t *entry, const json_t 
 {
     const char *name = str(entry, "name");
     json_t *sum = json_pack("{s:s,s:s}", "name", name, "source", str(entry, "source"));
+    /* The sessions' problems first: what ingest skipped or could not group. */
+    json_t *warn = json_deep_copy(json_object_get(entry, "warnings"));
+    if (!warn)
+        warn = json_array();
     if (!strcmp(str(entry, "status"), "failed")) {
         json_object_set_new(sum, "status", json_string("failed"));
         json_object_set(sum, "reason", json_object_get(entry, "reason"));
         json_object_set(sum, "exit", json_object_get(entry, "exit"));
+        json_object_set_new(sum, "warnings", warn);
         return sum;
     }
-    json_t *jobs = json_array(), *nums = json_object(), *warn = json_array(), *outs = json_object();
+    json_t *jobs = json_array(), *nums = json_object(), *outs = json_object();
     double wall = 0, cpu = 0, rss = 0;
     const char *reason = NULL;
     json_int_t exit_code = 0;

@@ -118,6 +118,12 @@ json_eval "$T/emitted.json" 'd["format"] == "setlight-jobs" and all(j["argv"][2]
 expect 0 "$S" job "$T/emitted.json" ext/merge/1
 expect 2 "$S" job "$T/emitted.json" ext/nothing
 err_one_line
+# What ingest skipped is a warning of the setup, not silence.
+mkdir -p "$T/junk"
+cp "$T/sets/ext/hdri/IMG_000"[1-7].tif "$T/junk/"
+echo notes >"$T/junk/notes.txt"
+expect 0 "$S" process "$T/junk" -o "$T/junk_day" --emit-jobs "$T/junk.json" --json -q
+json_eval "$T/out" 'd["setups"][0]["status"] == "planned" and any("notes.txt: not a photograph" in w for w in d["setups"][0]["warnings"])'
 expect 1 "$S" process "$T/sets/ext" -o "$T/slurm_day" --farm slurm -q
 err_has "not built yet"
 err_one_line
