@@ -6,10 +6,34 @@
 #define SETLIGHT_PIPELINE_PRIVATE_H
 
 #include <jansson.h>
+#include <limits.h>
 #include <stdbool.h>
 #include <stdint.h>
 
 #include "setlight/pipeline.h"
+
+enum { PROBE_NONE = 0, PROBE_CHROME, PROBE_GREY, PROBE_CHART };
+
+typedef struct view {
+    json_t *frames; /* absolute paths, in exposure order */
+    double focal_mm;
+    int probe;      /* PROBE_* */
+} view;
+
+typedef struct setup_plan {
+    const sl_pipeline_options *o;
+    const char *name;
+    char dir[PATH_MAX + 300]; /* OUT/<name> */
+    view views[64];
+    int view_count;
+    double sensor_mm;    /* the probe camera's sensor width, 0: unknown */
+    json_t *warnings;    /* the sessions' problems (ingest's skipped files, short brackets) */
+} setup_plan;
+
+/* SETUP (a folder: session, virtual-set capture or frames) -> sp's views,
+ * ingesting into sp->dir/ingest when needed; sp->warnings gets the
+ * sessions' problems. */
+sl_result pl_load_setup(setup_plan *sp, const char *src, sl_error *err);
 
 /* mkdir -p. */
 sl_result pl_mkdirs(const char *path, sl_error *err);
