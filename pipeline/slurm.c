@@ -738,6 +738,17 @@ static bool state_is_final(const char *s, sl_pipeline_slurm_end *end)
 }
 
 /* One squeue row: JobID|ArrayJobID|ArrayTaskID|State|exit_code|SubmitTime|StartTime|EndTime|Reason| */
+/* squeue's rows for the jobs in ids ("1,2,3"). */
+static sl_result squeue_rows(const sl_pipeline_slurm_options *o, char *ids, char **out,
+                             char **errout, int *status, sl_error *err)
+{
+    char *args[] = {(char *)o->squeue, "--noheader", "--states=all", "--jobs", ids,
+                    "--Format=JobID:|,ArrayJobID:|,ArrayTaskID:|,State:|,exit_code:|,"
+                    "SubmitTime:|,StartTime:|,EndTime:|,Reason:|",
+                    NULL};
+    return run_command(args, NULL, out, errout, status, err);
+}
+
 static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result *res)
 {
     char *f[10];
@@ -833,16 +844,37 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
             free(ids.s);
             break;
         }
-        char *args[] = {(char *)o->squeue, "--noheader", "--states=all", "--jobs", ids.s,
-                        "--Format=JobID:|,ArrayJobID:|,ArrayTaskID:|,State:|,exit_code:|,"
-                        "SubmitTime:|,StartTime:|,EndTime:|,Reason:|",
-                        NULL};
         char *out = NULL, *errout = NULL;
         int status = 0;
-        r = run_command(args, NULL, &out, &errout, &status, err);
+        r = squeue_rows(o, ids.s, &out, &errout, &status, err);
+        if (r == SL_OK && WIFEXITED(status) && WEXITSTATUS(status) != 0 && errout &&
+            strstr(errout, "Invalid job id")) {
+            /* One id the controller no longer knows (purged) fails the
+             * whole query: ask for each batch alone, so the others are
+             * still seen and the gone one counts as missing. */
+            free(out);
+            free(errout);
+            out = errout = NULL;
+            status = 0;
+            text rows = {0};
+            for (char *id = strtok(ids.s, ","); id && r == SL_OK; id = strtok(NULL, ",")) {
+                char *one = NULL, *one_err = NULL;
+                int one_status = 0;
+                r = squeue_rows(o, id, &one, &one_err, &one_status, err);
+                if (r == SL_OK && WIFEXITED(one_status) && WEXITSTATUS(one_status) == 0 && one &&
+                    !text_printf(&rows, "%s", one))
+                    r = sl_error_set(err, SL_ERR_NOMEM, "out of memory");
+                free(one);
+                free(one_err);
+            }
+            out = rows.s;
+        }
         free(ids.s);
-        if (r != SL_OK)
+        if (r != SL_OK) {
+            free(out);
+            free(errout);
             break;
+        }
         if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
             /* the controller restarting: keep asking for a minute */
             double now = sl_seconds();

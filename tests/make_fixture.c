@@ -29,6 +29,7 @@
 #include "chart_fixture.h"
 #include "setlight/capture.h"
 #include "setlight/core.h"
+#include "setlight/pipeline.h"
 
 /* Portable float map: header, then little-endian float rows bottom to top. */
 static sl_result write_pfm(const char *path, const sl_image *img, sl_error *err)
@@ -90,6 +91,25 @@ int main(int argc, char **argv)
         return 2;
     }
     const char *kind = argv[1], *out = argv[2];
+    /* make_fixture latlong-error TEST.exr REF.exr BAND-DEG: prints the median
+     * luminance ratio, median relative error, and that error once the ratio is
+     * divided out, within BAND-DEG of the horizon (sl_pipeline_latlong_compare), for the process tests' score against a
+     * virtual set's truth. */
+    if (!strcmp(kind, "latlong-error")) {
+        double ratio, rel, scaled;
+        sl_error e;
+        if (argc != 5) {
+            fprintf(stderr, "usage: make_fixture latlong-error TEST REF BAND-DEG\n");
+            return 2;
+        }
+        if (sl_pipeline_latlong_compare(out, argv[3], atof(argv[4]), &ratio, &rel, &scaled,
+                                        &e)) {
+            fprintf(stderr, "make_fixture: %s\n", e.message);
+            return 1;
+        }
+        printf("%.6g %.6f %.6f\n", ratio, rel, scaled);
+        return 0;
+    }
     if (!strncmp(kind, "ball", 4))
         return ball_fixture_main(kind, out);
     if (!strncmp(kind, "chart", 5))

@@ -60,5 +60,10 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli);
 int cmd_stitch(int argc, char **argv, const sl_cli *cli);
 int cmd_calibrate(int argc, char **argv, const sl_cli *cli);
 int cmd_lens_calibrate(int argc, char **argv, const sl_cli *cli);
+int cmd_process(int argc, char **argv, const sl_cli *cli);
+/* Hidden: what the jobs of `process` run. */
+int cmd_job(int argc, char **argv, const sl_cli *cli);
+int cmd_process_report(int argc, char **argv, const sl_cli *cli);
+int cmd_process_index(int argc, char **argv, const sl_cli *cli);
 
 #endif

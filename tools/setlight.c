@@ -32,6 +32,11 @@ static const command commands[] = {
     {"furnace", cmd_furnace, "white-furnace energy test of every BSDF"},
     {"info", cmd_info, "print size, channels, range, NaN/Inf, EXIF and colour facts of images"},
     {"convert", cmd_convert, "convert between lat-long, mirror ball, angular map and cube map"},
+    {"process", cmd_process, "a shoot day end to end: every setup's stages as jobs, the day's index"},
+    /* Hidden (no summary): the jobs of a process graph. */
+    {"job", cmd_job, NULL},
+    {"process-report", cmd_process_report, NULL},
+    {"process-index", cmd_process_index, NULL},
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
 
@@ -43,7 +48,8 @@ static void print_help(FILE *out)
             "On-set HDRI and lighting-reference pipeline.\n\n"
             "commands:\n");
     for (int i = 0; i < command_count; i++)
-        fprintf(out, "  %-10s %s\n", commands[i].name, commands[i].summary);
+        if (commands[i].summary)
+            fprintf(out, "  %-10s %s\n", commands[i].name, commands[i].summary);
     fprintf(out,
             "\noptions for every command:\n"
             "  --help        describe the command\n"

@@ -1,0 +1,94 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* setlight pipeline: a shoot day as a graph of file-to-file jobs.
+ *
+ * Each SETUP (a capture session folder with session.json, a virtual-set
+ * capture from `setlight simulate`, or a plain folder of frames, ingested
+ * first) becomes a chain of jobs, each one setlight command line:
+ * merge (per view and per probe) -> stitch -> unwrap (chrome ball, a
+ * cross-check) -> calibrate (grey ball, chart) -> rig -> render (grey,
+ * chrome, chart under the HDRI and under the rig) -> report; then one index
+ * for the day. A job's key is the SHA-256 of its input files' contents, its
+ * command line and the setlight version; a stamp beside its outputs records
+ * it, so a rerun skips what is up to date. The graph is written as JSON
+ * (format "setlight-jobs", docs/process.md) and run locally, on Slurm, or by
+ * any queue through `setlight job JOBS.json ID`. */
+#ifndef SETLIGHT_PIPELINE_H
+#define SETLIGHT_PIPELINE_H
+
+#include <stdbool.h>
+
+#include "setlight/core.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum { SL_FARM_LOCAL = 0, SL_FARM_SLURM } sl_farm;
+
+typedef struct sl_pipeline_options {
+    const char *const *setups; /* SETUP folders */
+    int setup_count;
+    const char *out;           /* OUT folder (created) */
+    const char *exe;           /* the setlight executable the jobs run (absolute) */
+    const char *emit_jobs;     /* write the graph there and run nothing (NULL: run) */
+    sl_farm farm;              /* local (default) or slurm */
+    int jobs;                  /* parallel jobs (0: the cores) */
+    int memory_mb;             /* memory budget of the running jobs (0: half the RAM) */
+    double probe_azimuth_deg;  /* where the probe camera looks in the set (unwrap, */
+    double probe_elevation_deg;/* calibrate's grey view); default 0, 0 */
+    double probe_sensor_mm;    /* probe camera's sensor width (0: the capture's, else none) */
+    bool progress;             /* a progress line on stderr (when it is a terminal) */
+} sl_pipeline_options;
+
+void sl_pipeline_options_init(sl_pipeline_options *o);
+
+typedef struct sl_pipeline_result {
+    int setups, setups_failed;
+    int jobs, jobs_run, jobs_skipped, jobs_failed;
+    bool input_failures_only;  /* every failure was bad input (exit 3, else 1) */
+    double seconds;
+    char *json;                /* the --json result (free()) */
+    char *failures;            /* one "SETUP: reason" line per failed setup (free()) */
+} sl_pipeline_result;
+
+/* Plans every setup, writes OUT/jobs.json (or options->emit_jobs), then runs
+ * the graph. A setup that fails (bad session, missing or corrupt frame, a
+ * failed job) is reported (sl_log error naming it, the index, the result)
+ * and the others go on: SL_OK is returned with setups_failed > 0.
+ * SL_ERR_USAGE for two setups of one name or an OUT that is not a folder
+ * (nothing written then). */
+sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *res,
+                              sl_error *err);
+void sl_pipeline_result_free(sl_pipeline_result *res);
+
+/* Runs one job of an emitted graph: nothing when its stamp is up to date,
+ * else its command (stdout to its *.result.json output, stderr to its log),
+ * then its stamp. *exit_code is the command's exit status (0 when skipped);
+ * SL_OK also when the command failed (a failed stamp is written). */
+sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
+                              bool *skipped, sl_error *err);
+
+/* The report job: OUT/SETUP/report.html and report.json from the setup's
+ * job results. */
+sl_result sl_pipeline_report_setup(const char *jobs_json, const char *setup, sl_error *err);
+/* The index job: OUT/index.html and index.json, every setup with its
+ * thumbnail, key numbers, warnings, cost, or the reason it failed. */
+sl_result sl_pipeline_report_index(const char *jobs_json, sl_error *err);
+
+/* Compares two lat-longs within band_deg of the horizon (the reference
+ * resampled to the test's size), texel by texel over texels where the
+ * reference is positive: the median luminance ratio s = test/ref, the
+ * median relative luminance error |test - ref| / ref, and the same after
+ * the test is divided by s (what is left once the exposure is matched).
+ * The report's unwrap cross-check; the tests' score against a virtual
+ * set's truth. */
+sl_result sl_pipeline_latlong_compare(const char *test_path, const char *ref_path,
+                                      double band_deg, double *median_ratio,
+                                      double *median_rel_error, double *median_rel_error_scaled,
+                                      sl_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* SETLIGHT_PIPELINE_H */

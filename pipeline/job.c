@@ -1,0 +1,302 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* One job: its key, its stamp, and `setlight job JOBS.json ID`. */
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <signal.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "pipeline_private.h"
+#include "setlight/capture.h"
+
+extern char **environ;
+
+json_t *pl_job_find(const json_t *graph, const char *id)
+{
+    size_t i;
+    json_t *job;
+    json_array_foreach(json_object_get(graph, "jobs"), i, job) {
+        const char *jid = json_string_value(json_object_get(job, "id"));
+        if (jid && !strcmp(jid, id))
+            return job;
+    }
+    return NULL;
+}
+
+/* What is hashed: "setlight-job 1", the version, each argument after
+ * argv[0], then each input's path and the SHA-256 of its contents, every
+ * field ended by a NUL. */
+bool pl_job_key(const json_t *job, char key[65])
+{
+    key[0] = 0;
+    size_t cap = 4096, len = 0;
+    char *buf = malloc(cap);
+    if (!buf)
+        return false;
+#define ADD(s)                                                                                   \
+    do {                                                                                         \
+        size_t n_ = strlen(s) + 1;                                                               \
+        if (len + n_ > cap) {                                                                    \
+            while (len + n_ > cap)                                                               \
+                cap *= 2;                                                                        \
+            char *p_ = realloc(buf, cap);                                                        \
+            if (!p_) {                                                                           \
+                free(buf);                                                                       \
+                return false;                                                                    \
+            }                                                                                    \
+            buf = p_;                                                                            \
+        }                                                                                        \
+        memcpy(buf + len, s, n_);                                                                \
+        len += n_;                                                                               \
+    } while (0)
+    ADD("setlight-job 1");
+    ADD(sl_version());
+    size_t i;
+    json_t *x;
+    json_array_foreach(json_object_get(job, "command"), i, x) {
+        if (i > 0)
+            ADD(json_string_value(x) ? json_string_value(x) : "");
+    }
+    json_array_foreach(json_object_get(job, "inputs"), i, x) {
+        const char *path = json_string_value(x);
+        char hex[65];
+        sl_error err;
+        if (!path || sl_sha256_file(path, hex, &err) != SL_OK || !hex[0]) {
+            free(buf);
+            return false;
+        }
+        ADD(path);
+        ADD(hex);
+    }
+#undef ADD
+    sl_sha256_hex(buf, len, key);
+    free(buf);
+    return key[0] != 0;
+}
+
+void pl_stamp_path(const json_t *graph, const json_t *job, char *path, size_t size)
+{
+    snprintf(path, size, "%s/%s.stamp.json", json_string_value(json_object_get(graph, "out")),
+             json_string_value(json_object_get(job, "id")));
+}
+
+json_t *pl_stamp_load(const json_t *graph, const json_t *job)
+{
+    char path[PATH_MAX + 600];
+    pl_stamp_path(graph, job, path, sizeof path);
+    json_t *s = NULL;
+    sl_error err;
+    pl_json_load(path, &s, &err);
+    return s;
+}
+
+bool pl_stamp_current(const json_t *graph, const json_t *job, const char *key)
+{
+    json_t *s = pl_stamp_load(graph, job);
+    const char *sk = json_string_value(json_object_get(s, "key"));
+    const char *st = json_string_value(json_object_get(s, "status"));
+    bool ok = sk && st && !strcmp(sk, key) && !strcmp(st, "ok");
+    size_t i;
+    json_t *o;
+    json_array_foreach(json_object_get(s, "outputs"), i, o) {
+        struct stat sb;
+        const char *p = json_string_value(json_object_get(o, "path"));
+        if (!ok || !p || stat(p, &sb) ||
+            (json_int_t)sb.st_size != json_integer_value(json_object_get(o, "size")))
+            ok = false;
+    }
+    json_decref(s);
+    return ok;
+}
+
+/* The output that takes the command's stdout (its --json result), or NULL. */
+static const char *result_output(const json_t *job)
+{
+    size_t i;
+    json_t *x;
+    json_array_foreach(json_object_get(job, "outputs"), i, x) {
+        const char *p = json_string_value(x);
+        size_t n = p ? strlen(p) : 0;
+        if (n > 12 && !strcmp(p + n - 12, ".result.json"))
+            return p;
+    }
+    return NULL;
+}
+
+/* The last non-empty line of the log: the command's error. */
+static void last_line(const char *log, char *line, size_t size)
+{
+    line[0] = 0;
+    FILE *f = fopen(log, "r");
+    if (!f)
+        return;
+    char buf[2048];
+    while (fgets(buf, sizeof buf, f)) {
+        buf[strcspn(buf, "\n")] = 0;
+        if (buf[0])
+            snprintf(line, size, "%s", buf);
+    }
+    fclose(f);
+}
+
+static sl_result make_parent(const char *path, sl_error *err)
+{
+    char dir[PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (!slash || slash == dir)
+        return SL_OK;
+    *slash = 0;
+    return pl_mkdirs(dir, err);
+}
+
+/* The index reads every job's outcome: OUT/status.json, each job's stamp
+ * status and key, is its input, rewritten only when an outcome changed, so
+ * the index reruns exactly when something it shows did. */
+sl_result pl_index_prepare(const json_t *graph, sl_error *err)
+{
+    json_t *doc = json_object();
+    size_t i;
+    json_t *job;
+    json_array_foreach(json_object_get(graph, "jobs"), i, job) {
+        if (!strcmp(json_string_value(json_object_get(job, "stage")), "index"))
+            continue;
+        json_t *st = pl_stamp_load(graph, job);
+        json_t *e = json_object();
+        json_object_set(e, "status", json_object_get(st, "status") ? json_object_get(st, "status")
+                                                                   : json_null());
+        json_object_set(e, "key", json_object_get(st, "key") ? json_object_get(st, "key")
+                                                             : json_null());
+        json_object_set_new(doc, json_string_value(json_object_get(job, "id")), e);
+        json_decref(st);
+    }
+    char path[PATH_MAX + 16];
+    snprintf(path, sizeof path, "%s/status.json", json_string_value(json_object_get(graph, "out")));
+    json_t *old = NULL;
+    sl_error ignored;
+    sl_result r = SL_OK;
+    pl_json_load(path, &old, &ignored);
+    if (!old || !json_equal(old, doc))
+        r = pl_json_write(path, doc, err);
+    json_decref(old);
+    json_decref(doc);
+    return r;
+}
+
+sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
+                              bool *skipped, sl_error *err)
+{
+    *exit_code = 0;
+    *skipped = false;
+    json_t *graph = NULL;
+    sl_result r = pl_json_load(jobs_json, &graph, err);
+    if (r)
+        return r;
+    json_t *job = pl_job_find(graph, id);
+    if (!job) {
+        json_decref(graph);
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no job '%s'", jobs_json, id);
+    }
+    char key[65];
+    if (!strcmp(json_string_value(json_object_get(job, "stage")), "index") &&
+        (r = pl_index_prepare(graph, err))) {
+        json_decref(graph);
+        return r;
+    }
+    if (!pl_job_key(job, key)) {
+        json_decref(graph);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: an input is missing (did its dependencies run?)",
+                            id);
+    }
+    if (pl_stamp_current(graph, job, key)) {
+        *skipped = true;
+        json_decref(graph);
+        return SL_OK;
+    }
+    json_t *command = json_object_get(job, "command");
+    size_t argc = json_array_size(command), i;
+    char **argv = calloc(argc + 1, sizeof *argv);
+    const char *log = json_string_value(json_object_get(job, "log"));
+    const char *result = result_output(job);
+    char partial[PATH_MAX + 16] = "", stamp[PATH_MAX + 600];
+    json_t *x;
+    if (!argv || !log) {
+        free(argv);
+        json_decref(graph);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: job '%s' has no command or log", jobs_json, id);
+    }
+    json_array_foreach(command, i, x)
+        argv[i] = (char *)json_string_value(x);
+    json_array_foreach(json_object_get(job, "outputs"), i, x)
+        if ((r = make_parent(json_string_value(x), err)))
+            goto done;
+    if ((r = make_parent(log, err)))
+        goto done;
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    if (result) {
+        snprintf(partial, sizeof partial, "%s.partial", result);
+        posix_spawn_file_actions_addopen(&fa, 1, partial, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+    } else
+        posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 2, log, O_WRONLY | O_CREAT | O_TRUNC, 0666);
+    pid_t pid;
+    double t0 = sl_seconds();
+    int e = posix_spawn(&pid, argv[0], &fa, NULL, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (e) {
+        r = sl_error_set(err, SL_ERR_IO, "%s: cannot run %s: %s", id, argv[0], strerror(e));
+        goto done;
+    }
+    int status = 0;
+    struct rusage ru;
+    memset(&ru, 0, sizeof ru);
+    while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR) {
+    }
+    double wall = sl_seconds() - t0;
+    double cpu = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+                 (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+    *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    char message[2048] = "";
+    if (!*exit_code && result && rename(partial, result))
+        *exit_code = 1, snprintf(message, sizeof message, "%s: cannot rename: %s", result,
+                                 strerror(errno));
+    if (partial[0])
+        unlink(partial);
+    json_t *outs = json_array();
+    json_array_foreach(json_object_get(job, "outputs"), i, x) {
+        struct stat sb;
+        const char *p = json_string_value(x);
+        if (stat(p, &sb)) {
+            if (!*exit_code) {
+                *exit_code = 1;
+                snprintf(message, sizeof message, "%s: not written by the command", p);
+            }
+            continue;
+        }
+        json_array_append_new(outs, json_pack("{s:s,s:I}", "path", p, "size",
+                                               (json_int_t)sb.st_size));
+    }
+    if (*exit_code && !message[0])
+        last_line(log, message, sizeof message);
+    json_t *st = json_pack("{s:s,s:s,s:s,s:i,s:f,s:f,s:f,s:o}", "id", id, "key", key, "status",
+                           *exit_code ? "failed" : "ok", "exit", *exit_code, "seconds", wall,
+                           "cpu_seconds", cpu, "max_rss_mb", (double)ru.ru_maxrss / 1024.0,
+                           "outputs", outs);
+    if (*exit_code)
+        json_object_set_new(st, "message", json_string(message));
+    pl_stamp_path(graph, job, stamp, sizeof stamp);
+    r = pl_json_write(stamp, st, err);
+    json_decref(st);
+done:
+    free(argv);
+    json_decref(graph);
+    return r;
+}

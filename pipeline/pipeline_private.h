@@ -1,0 +1,73 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Inside the pipeline module: the graph is kept as the JSON it is written
+ * as (docs/process.md), so the planner, the runners and `setlight job`
+ * share one representation. */
+#ifndef SETLIGHT_PIPELINE_PRIVATE_H
+#define SETLIGHT_PIPELINE_PRIVATE_H
+
+#include <jansson.h>
+#include <limits.h>
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "setlight/pipeline.h"
+
+enum { PROBE_NONE = 0, PROBE_CHROME, PROBE_GREY, PROBE_CHART };
+
+typedef struct view {
+    json_t *frames; /* absolute paths, in exposure order */
+    double focal_mm;
+    int probe;      /* PROBE_* */
+} view;
+
+typedef struct setup_plan {
+    const sl_pipeline_options *o;
+    const char *name;
+    char dir[PATH_MAX + 300]; /* OUT/<name> */
+    view views[64];
+    int view_count;
+    double sensor_mm;    /* the probe camera's sensor width, 0: unknown */
+    json_t *warnings;    /* the sessions' problems (ingest's skipped files, short brackets) */
+} setup_plan;
+
+/* SETUP (a folder: session, virtual-set capture or frames) -> sp's views,
+ * ingesting into sp->dir/ingest when needed; sp->warnings gets the
+ * sessions' problems. */
+sl_result pl_load_setup(setup_plan *sp, const char *src, sl_error *err);
+
+/* mkdir -p. */
+sl_result pl_mkdirs(const char *path, sl_error *err);
+/* Loads a JSON file: SL_ERR_NOT_FOUND when absent, SL_ERR_INPUT naming the
+ * file and line when it does not parse. */
+sl_result pl_json_load(const char *path, json_t **out, sl_error *err);
+/* Writes a JSON value atomically (indented, sorted as built). */
+sl_result pl_json_write(const char *path, const json_t *value, sl_error *err);
+
+/* The graph (its jobs' argv name jobs_path; "" there: OUT/jobs.json, set)
+ * and the setups as planned: name, source, status "ok" or "failed" and the
+ * reason (also OUT/setups.json). */
+sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_path_size,
+                  json_t **graph, json_t **setups, sl_error *err);
+
+/* A job's key: SHA-256 hex of the version, its command (argv[0] left out:
+ * the same setlight anywhere) and its input files' contents. false when an
+ * input does not exist (yet). */
+bool pl_job_key(const json_t *job, char key[65]);
+/* Where a job's stamp lives: OUT/<id>.stamp.json. */
+void pl_stamp_path(const json_t *graph, const json_t *job, char *path, size_t size);
+/* True when the stamp says "ok" with this key and every output exists. */
+bool pl_stamp_current(const json_t *graph, const json_t *job, const char *key);
+/* The stamp (NULL when absent or unreadable). */
+json_t *pl_stamp_load(const json_t *graph, const json_t *job);
+/* Writes OUT/status.json, the index job's input: every other job's stamp
+ * status and key (rewritten only when one changed). */
+sl_result pl_index_prepare(const json_t *graph, sl_error *err);
+/* The job of that id, or NULL. */
+json_t *pl_job_find(const json_t *graph, const char *id);
+
+/* Runs the graph on this machine; fills the job counts of res and a status
+ * per job id in *status ("skipped", "ran", "failed", "not run"). */
+sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *status,
+                       sl_pipeline_result *res, sl_error *err);
+
+#endif

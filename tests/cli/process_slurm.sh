@@ -1,0 +1,75 @@
+#!/bin/bash
+# setlight process --farm slurm on a real single-node Slurm cluster
+# (tests/slurm/cluster.sh; skipped with its reason where the daemons cannot
+# start): the same stage outputs as the local run, byte for byte; a job made
+# to fail (a corrupt frame) fails with its dependants cancelled, and the
+# rerun submits it and what follows it, nothing else; the day's index is
+# written either way.
+. "$(dirname "$0")/lib.bash"
+S="$SETLIGHT"
+CLUSTER_SH="$(cd "$(dirname "$0")/.." && pwd)/slurm/cluster.sh"
+
+# munged's socket path must fit a sockaddr_un: the cluster lives in /tmp.
+C=$(mktemp -d /tmp/sl-process-slurm-XXXXXX)
+chmod 755 "$C"
+stop_cluster() { bash "$CLUSTER_SH" stop "$C" >/dev/null 2>&1; rm -rf "$C"; }
+if ! bash "$CLUSTER_SH" start "$C" >/dev/null 2>"$T/cluster.err"; then
+  skip "Slurm: the cluster did not start: $(head -1 "$T/cluster.err")"
+  rm -rf "$C"
+  finish
+  exit
+fi
+trap stop_cluster EXIT
+export SLURM_CONF="$C/slurm.conf"
+
+"$S" simulate --scene exterior --size tiny -o "$T/ext" -q
+P=(--probe-view 180,0)
+
+# 1. Local and farm runs of the same setup into the same folder (outputs
+# carry their command lines): the same bytes.
+expect 0 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" -q
+mv "$T/farm" "$T/local"
+expect 0 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --json -q
+cp "$T/out" "$T/farm1.json"
+json_eval "$T/farm1.json" 'd["jobs"]["failed"] == 0 and d["jobs"]["ran"] == d["jobs"]["total"] and d["setups"][0]["status"] == "ok"'
+present "$T/farm/index.html"
+present "$T/farm/ext/report.html"
+stage_outputs() { (cd "$1" && find ext \( -name '*.exr' -o -name '*.usda' -o -name '*.png' \) -not -path '*/ingest/*' | sort | xargs sha256sum); }
+stage_outputs "$T/local" >"$T/sums_local"
+stage_outputs "$T/farm" >"$T/sums_farm"
+if [ "$(wc -l <"$T/sums_local")" -ge 10 ] && cmp -s "$T/sums_local" "$T/sums_farm"; then ok; else
+  bad "farm outputs differ from the local run's: $(diff "$T/sums_local" "$T/sums_farm" | head -5)"
+fi
+# Every job ran on the cluster: its log is Slurm's output file.
+json_eval "$T/farm/jobs.json" 'all(__import__("os").path.exists(j["log"]) for j in d["jobs"] if j["stage"] != "index")'
+
+# 2. A frame of view 1's ingested copy goes corrupt: that merge fails, what
+# depends on it is cancelled (not left pending), the setup fails with exit 3.
+G="$T/farm/ext/ingest/hdri/v01_b00_f03.tif"
+cp "$G" "$T/frame.good"
+head -c 3000 "$T/frame.good" >"$G"
+rm -f "$T/farm/ext/merge/1.exr" "$T/farm/ext/merge/1.stamp.json" "$T/farm/ext/stitch.stamp.json"
+expect 3 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --json -q
+err_one_line
+err_has "ext/merge/1"
+json_eval "$T/out" '{j["id"]: j["status"] for j in d["setups"][0]["jobs"]}["ext/merge/1"] == "failed" and {j["id"]: j["status"] for j in d["setups"][0]["jobs"]}["ext/stitch"] == "not run"'
+present "$T/farm/index.html"
+
+# 3. The frame repaired: the rerun submits the failed merge and what follows
+# it; the other merges and the chrome-ball unwrap stay as they are.
+cp "$T/frame.good" "$G"
+expect 0 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --json -q
+json_eval "$T/out" '{j["id"]: j["status"] for j in d["setups"][0]["jobs"]}["ext/merge/1"] == "ran" and all(j["status"] == "skipped" for j in d["setups"][0]["jobs"] if j["id"] in ("ext/merge/0", "ext/merge/2", "ext/unwrap"))'
+stage_outputs "$T/farm" >"$T/sums_farm2"
+if cmp -s "$T/sums_local" "$T/sums_farm2"; then ok; else
+  bad "rerun outputs differ from the local run's: $(diff "$T/sums_local" "$T/sums_farm2" | head -5)"
+fi
+
+# 4. The cluster down: one line, exit 1, nothing written over.
+stop_cluster
+trap - EXIT
+sha_before=$(sha256sum <"$T/farm/ext/stitch/hdri.exr")
+expect 1 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm -q
+err_one_line
+if [ "$(sha256sum <"$T/farm/ext/stitch/hdri.exr")" = "$sha_before" ]; then ok; else bad "a failed farm run changed an output"; fi
+finish

@@ -1,0 +1,129 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The local runner (pl_run_local) on jobs that are shell lines: the memory
+ * budget keeps jobs apart (a lock folder each takes while it runs: two at
+ * once would find it taken), a wider budget lets them overlap, a job larger
+ * than the budget still runs (alone), dependencies come first, and a failed
+ * job's dependants are not run while the index runs anyway. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../pipeline/pipeline_private.h"
+#include "testing.h"
+
+/* A job whose argv is `sh -c LINE`; LINE ends by writing an "ok" stamp
+ * (as `setlight job` would) unless it fails first. */
+static json_t *shell_job(const char *dir, const char *id, const char *stage, const char *line,
+                         int memory_mb, const char *dep)
+{
+    char script[4096], flat[64];
+    snprintf(flat, sizeof flat, "%s", id);
+    for (char *p = flat; *p; p++)
+        if (*p == '/')
+            *p = '_';
+    snprintf(script, sizeof script,
+             "%s && mkdir -p %s/s/merge && echo '{\"status\": \"ok\", \"key\": \"-\", \"outputs\": []}' > %s/%s.stamp.json",
+             line, dir, dir, id);
+    json_t *job = json_pack("{s:s,s:s,s:s,s:[sss],s:[],s:[],s:[],s:[],s:n,s:i,s:i,s:s,s:n,s:b}",
+                            "id", id, "setup", "s", "stage", stage, "argv", "/bin/sh", "-c", script,
+                            "command", "inputs", "outputs", "deps", "array", "memory_mb",
+                            memory_mb, "cpus", 1, "log", "/dev/null", "key", "up_to_date", 0);
+    if (dep)
+        json_array_append_new(json_object_get(job, "deps"), json_string(dep));
+    return job;
+}
+
+/* Four jobs that each hold OUT/lock for 0.2 s, run with a budget. */
+static int overlaps(int budget_mb, int job_mb, int *ran)
+{
+    const char *dir = sl_test_tmpdir();
+    char cmd[1024], line[1024];
+    snprintf(cmd, sizeof cmd, "rm -rf %s/s %s/lock %s/overlap", dir, dir, dir);
+    CHECK(system(cmd) == 0);
+    json_t *jobs = json_array();
+    for (int i = 0; i < 4; i++) {
+        char id[32];
+        snprintf(id, sizeof id, "s/merge/%d", i);
+        snprintf(line, sizeof line,
+                 "{ mkdir %s/lock 2>/dev/null || touch %s/overlap; }; sleep 0.2; rmdir %s/lock 2>/dev/null; true",
+                 dir, dir, dir);
+        json_array_append_new(jobs, shell_job(dir, id, "merge", line, job_mb, NULL));
+    }
+    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
+                              "setlight", sl_version(), "out", dir, "jobs", jobs);
+    sl_pipeline_options o;
+    sl_pipeline_options_init(&o);
+    o.jobs = 4;
+    o.memory_mb = budget_mb;
+    sl_pipeline_result res;
+    memset(&res, 0, sizeof res);
+    json_t *status = json_object();
+    sl_error err;
+    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    *ran = res.jobs_run - res.jobs_failed;
+    char path[1024];
+    snprintf(path, sizeof path, "%s/overlap", dir);
+    json_decref(status);
+    json_decref(graph);
+    return sl_test_file_exists(path);
+}
+
+static void test_memory_budget(void)
+{
+    int ran = 0;
+    /* 60 MB each in 100 MB: one at a time. */
+    CHECK(!overlaps(100, 60, &ran));
+    CHECK(ran == 4);
+    /* Larger than the budget: each still runs, alone. */
+    CHECK(!overlaps(100, 500, &ran));
+    CHECK(ran == 4);
+    /* A budget for all four: they overlap (the check above can fail). */
+    CHECK(overlaps(1000, 60, &ran));
+    CHECK(ran == 4);
+}
+
+static void test_dependencies(void)
+{
+    const char *dir = sl_test_tmpdir();
+    char cmd[1024], a[1024], b[1024], fail[1024];
+    snprintf(cmd, sizeof cmd, "rm -rf %s/s %s/a_done %s/index_ran %s/status.json", dir, dir, dir, dir);
+    CHECK(system(cmd) == 0);
+    snprintf(a, sizeof a, "sleep 0.1; touch %s/a_done", dir);
+    snprintf(b, sizeof b, "test -e %s/a_done", dir); /* fails unless a ran first */
+    snprintf(fail, sizeof fail, "exit 3");
+    char idx[1024];
+    snprintf(idx, sizeof idx, "touch %s/index_ran", dir);
+    json_t *jobs = json_array();
+    json_array_append_new(jobs, shell_job(dir, "s/merge/0", "merge", a, 10, NULL));
+    json_array_append_new(jobs, shell_job(dir, "s/stitch", "stitch", b, 10, "s/merge/0"));
+    json_array_append_new(jobs, shell_job(dir, "s/merge/1", "merge", fail, 10, NULL));
+    json_array_append_new(jobs, shell_job(dir, "s/unwrap", "unwrap", "true", 10, "s/merge/1"));
+    json_t *index = shell_job(dir, "index", "index", idx, 10, "s/stitch");
+    json_object_set_new(index, "setup", json_null());
+    json_array_append_new(jobs, index);
+    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
+                              "setlight", sl_version(), "out", dir, "jobs", jobs);
+    sl_pipeline_options o;
+    sl_pipeline_options_init(&o);
+    o.jobs = 3;
+    sl_pipeline_result res;
+    memset(&res, 0, sizeof res);
+    json_t *status = json_object();
+    sl_error err;
+    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    CHECK(!strcmp(json_string_value(json_object_get(status, "s/merge/0")), "ran"));
+    CHECK(!strcmp(json_string_value(json_object_get(status, "s/stitch")), "ran"));
+    CHECK(!strcmp(json_string_value(json_object_get(status, "s/merge/1")), "failed"));
+    CHECK(!strcmp(json_string_value(json_object_get(status, "s/unwrap")), "not run"));
+    CHECK(!strcmp(json_string_value(json_object_get(status, "index")), "ran"));
+    CHECK(res.jobs == 5 && res.jobs_failed == 1 && res.jobs_run == 4);
+    json_decref(status);
+    json_decref(graph);
+}
+
+int main(void)
+{
+    RUN(test_memory_budget);
+    RUN(test_dependencies);
+    return sl_test_finish();
+}

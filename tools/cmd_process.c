@@ -1,0 +1,177 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* setlight process SETUP... -o OUT, and the hidden commands its jobs run:
+ * job (one job of a graph), process-report, process-index. */
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "setlight/pipeline.h"
+
+static const char process_help[] =
+    "usage: setlight process [options] SETUP... -o OUT\n"
+    "\n"
+    "Processes a shoot day: each SETUP (a capture session folder with session.json,\n"
+    "a folder 'setlight simulate' wrote, or a plain folder or card of frames, ingested\n"
+    "first into OUT/SETUP/ingest) becomes a graph of jobs, each one setlight command:\n"
+    "merge each view's bracket -> stitch -> unwrap the chrome ball (a cross-check) ->\n"
+    "calibrate with the grey ball and chart -> rig -> validation renders (grey,\n"
+    "chrome, chart under the HDRI and under the rig) -> the setup's report\n"
+    "(OUT/SETUP/report.html); then the day's index, OUT/index.html. A job's key is\n"
+    "the SHA-256 of its input files, its command line and the setlight version,\n"
+    "stamped beside its outputs: a rerun does only what changed, a killed run\n"
+    "resumes. A failed setup is listed in the index with its reason; the others go on.\n"
+    "\n"
+    "  -o, --output OUT       the day's folder (created)\n"
+    "  -j, --jobs N           jobs at once (default: the cores)\n"
+    "  --memory-mb MB         memory budget of the jobs running at once (default: half\n"
+    "                         the RAM; a job estimated larger runs alone)\n"
+    "  --farm local|slurm     where the jobs run (default local)\n"
+    "  --emit-jobs FILE       write the job graph as JSON (docs/process.md) and run\n"
+    "                         nothing: for other queues, through 'setlight job FILE ID'\n"
+    "  --probe-view AZ,EL     where the probe camera (chrome and grey ball) looked in\n"
+    "                         the set, degrees as 'setlight unwrap' takes them\n"
+    "                         (default 0,0: along +Z)\n"
+    "  --probe-sensor-mm W    the probe camera's sensor width (default: the capture's,\n"
+    "                         else an orthographic ball)\n"
+    "  --json                 print the result: per setup its status, outputs, key\n"
+    "                         numbers, warnings, and each job's status and cost\n"
+    "\n"
+    "Exit codes: 0 every setup processed; 3 some setups failed on their input (a\n"
+    "folder with no frames, a session.json that does not parse or names missing\n"
+    "files, a corrupt frame): one line each on stderr, the others processed and the\n"
+    "index written; 1 a setup failed otherwise, or the run could not go on; 2 usage\n"
+    "(two setups of one name, OUT a file: nothing written). See docs/process.md.\n";
+
+int cmd_process(int argc, char **argv, const sl_cli *cli)
+{
+    enum { OPT_MEMORY = 1000, OPT_FARM, OPT_EMIT, OPT_PROBE_VIEW, OPT_PROBE_SENSOR };
+    static const struct option opts[] = {{"help", no_argument, NULL, 'h'},
+                                         {"output", required_argument, NULL, 'o'},
+                                         {"jobs", required_argument, NULL, 'j'},
+                                         {"memory-mb", required_argument, NULL, OPT_MEMORY},
+                                         {"farm", required_argument, NULL, OPT_FARM},
+                                         {"emit-jobs", required_argument, NULL, OPT_EMIT},
+                                         {"probe-view", required_argument, NULL, OPT_PROBE_VIEW},
+                                         {"probe-sensor-mm", required_argument, NULL,
+                                          OPT_PROBE_SENSOR},
+                                         {0, 0, 0, 0}};
+    sl_pipeline_options o;
+    sl_pipeline_options_init(&o);
+    cli_getopt_reset();
+    int c;
+    while ((c = getopt_long(argc, argv, ":ho:j:", opts, NULL)) != -1) {
+        switch (c) {
+        case 'h':
+            fputs(process_help, stdout);
+            return 0;
+        case 'o':
+            o.out = optarg;
+            break;
+        case 'j':
+            if (!cli_parse_int(optarg, &o.jobs) || o.jobs < 1)
+                return cli_usage_error(cli, "--jobs needs a whole number >= 1, not '%s'", optarg);
+            break;
+        case OPT_MEMORY:
+            if (!cli_parse_int(optarg, &o.memory_mb) || o.memory_mb < 1)
+                return cli_usage_error(cli, "--memory-mb needs a whole number >= 1, not '%s'",
+                                       optarg);
+            break;
+        case OPT_FARM:
+            if (!strcmp(optarg, "local"))
+                o.farm = SL_FARM_LOCAL;
+            else if (!strcmp(optarg, "slurm"))
+                o.farm = SL_FARM_SLURM;
+            else
+                return cli_usage_error(cli, "--farm is local or slurm, not '%s'", optarg);
+            break;
+        case OPT_EMIT:
+            o.emit_jobs = optarg;
+            break;
+        case OPT_PROBE_VIEW:
+            if (!cli_parse_view(optarg, &o.probe_azimuth_deg, &o.probe_elevation_deg))
+                return cli_usage_error(cli, "--probe-view needs AZ,EL in degrees, not '%s'",
+                                       optarg);
+            break;
+        case OPT_PROBE_SENSOR:
+            if (!cli_parse_double(optarg, &o.probe_sensor_mm) || o.probe_sensor_mm <= 0)
+                return cli_usage_error(cli, "--probe-sensor-mm needs a width in mm > 0, not '%s'",
+                                       optarg);
+            break;
+        case ':':
+            return cli_usage_error(cli, "%s needs a value", argv[optind - 1]);
+        default:
+            return cli_usage_error(cli, "unknown option %s", argv[optind - 1]);
+        }
+    }
+    if (!o.out)
+        return cli_usage_error(cli, "needs -o OUT");
+    if (optind >= argc)
+        return cli_usage_error(cli, "needs at least one SETUP folder");
+    o.setups = (const char *const *)argv + optind;
+    o.setup_count = argc - optind;
+    /* The jobs run this very executable. */
+    char exe[PATH_MAX];
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n <= 0)
+        return cli_usage_error(cli, "cannot find the setlight executable (/proc/self/exe)");
+    exe[n] = 0;
+    o.exe = exe;
+    o.progress = !cli->quiet;
+    sl_pipeline_result res;
+    sl_error err;
+    sl_result r = sl_pipeline_process(&o, &res, &err);
+    if (r)
+        return cli_fail(cli, &err);
+    for (char *line = res.failures; line && *line;) {
+        char *end = strchr(line, '\n');
+        fprintf(stderr, "setlight process: %.*s\n", (int)(end ? end - line : (long)strlen(line)),
+                line);
+        line = end ? end + 1 : line + strlen(line);
+    }
+    if (cli->json && res.json)
+        printf("%s\n", res.json);
+    else if (!cli->quiet)
+        sl_log(SL_LOG_INFO, "%s: %d setups (%d failed), %d jobs: %d run, %d up to date, %d failed, %.1f s",
+               o.out, res.setups, res.setups_failed, res.jobs, res.jobs_run, res.jobs_skipped,
+               res.jobs_failed, res.seconds);
+    int rc = res.setups_failed ? (res.input_failures_only ? 3 : 1) : 0;
+    sl_pipeline_result_free(&res);
+    return rc;
+}
+
+/* setlight job JOBS.json ID: exits 0 at once when the job is up to date,
+ * else with its command's code. */
+int cmd_job(int argc, char **argv, const sl_cli *cli)
+{
+    if (argc != 3)
+        return cli_usage_error(cli, "usage: setlight job JOBS.json ID");
+    int code;
+    bool skipped;
+    sl_error err;
+    if (sl_pipeline_job_run(argv[1], argv[2], &code, &skipped, &err))
+        return cli_fail(cli, &err);
+    return code;
+}
+
+int cmd_process_report(int argc, char **argv, const sl_cli *cli)
+{
+    if (argc != 3)
+        return cli_usage_error(cli, "usage: setlight process-report JOBS.json SETUP");
+    sl_error err;
+    if (sl_pipeline_report_setup(argv[1], argv[2], &err))
+        return cli_fail(cli, &err);
+    return 0;
+}
+
+int cmd_process_index(int argc, char **argv, const sl_cli *cli)
+{
+    if (argc != 2)
+        return cli_usage_error(cli, "usage: setlight process-index JOBS.json");
+    sl_error err;
+    if (sl_pipeline_report_index(argv[1], &err))
+        return cli_fail(cli, &err);
+    return 0;
+}
