@@ -46,6 +46,7 @@ typedef struct view_file {
     const char *path;
     sl_image radiance, weight;
     sl_meta meta;
+    double peak; /* largest RGB sample */
 } view_file;
 
 /* The merge's clipped mask named by the radiance (as given to merge, or
@@ -365,6 +366,7 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
                              v->path, (long long)(st.nan_count + st.inf_count));
             break;
         }
+        v->peak = fmax(st.max[0], fmax(st.max[1], st.max[2]));
         res->views[i].width = v->radiance.width;
         res->views[i].height = v->radiance.height;
         if (i > 0 && (v->radiance.width != files[0].radiance.width ||
@@ -472,12 +474,8 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
                           res->lens.cx + fmax(res->lens.circle_radius_px,
                                               0.5 * hypot(res->lens.width, res->lens.height)),
                           res->lens.cy));
-        for (int i = 0; i < count; i++) {
-            sl_image_stats st;
-            sl_image_stats_compute(views[i].radiance, &st);
-            for (int k = 0; k < 3; k++)
-                peak = fmax(peak, st.max[k]);
-        }
+        for (int i = 0; i < count; i++)
+            peak = fmax(peak, files[i].peak);
         if (peak / fmin(1.0, edge_gain) > 65504.0) {
             opt.pixel_type = SL_PIXEL_FLOAT;
             res->float_samples = true;
