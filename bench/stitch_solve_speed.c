@@ -9,7 +9,11 @@
  * time, nothing kept) to an OUT_WIDTH lat-long (default 8192): its wall and
  * CPU time and the program's peak memory.
  *
- *   ./build/bench/bench_stitch_solve [WIDTH HEIGHT [SCENE [blend [OUT_WIDTH]]]]
+ * With `write DIR`, the three views are written to DIR/view0.exr ...
+ * (half, as merge writes them) and nothing is solved: the input of a timed
+ * `setlight stitch --focal-mm 8 --sensor-mm 36,24` (docs/stitch.md, "Speed").
+ *
+ *   ./build/bench/bench_stitch_solve [WIDTH HEIGHT [SCENE [blend [OUT_WIDTH] | write DIR]]]
  *   (6000 4000 stage)
  */
 #include <math.h>
@@ -56,6 +60,19 @@ int main(int argc, char **argv)
         }
         views[i] = (sl_stitch_view){.name = "view", .radiance = &img[i], .lens = nominal,
                                     .pose = plan[i]};
+    }
+    if (argc > 5 && !strcmp(argv[4], "write")) {
+        for (int i = 0; i < 3; i++) {
+            char path[4096];
+            snprintf(path, sizeof path, "%s/view%d.exr", argv[5], i);
+            if (sl_exr_write(path, &img[i], NULL, SL_PIXEL_HALF, &err)) {
+                fprintf(stderr, "%s\n", err.message);
+                return 1;
+            }
+            sl_image_free(&img[i]);
+        }
+        sl_vset_scene_free(&scene);
+        return 0;
     }
     sl_stitch_solve_result res;
     double wall = sl_seconds(), cpu = sl_cpu_seconds();

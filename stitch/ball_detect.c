@@ -82,17 +82,7 @@ typedef struct fit {
 
 static double bilinear(const det_image *im, const float *p, double x, double y)
 {
-    double fx = x - 0.5, fy = y - 0.5;
-    int x0 = (int)floor(fx), y0 = (int)floor(fy);
-    double tx = fx - x0, ty = fy - y0;
-    int x1 = x0 + 1, y1 = y0 + 1;
-    x0 = x0 < 0 ? 0 : (x0 >= im->w ? im->w - 1 : x0);
-    x1 = x1 < 0 ? 0 : (x1 >= im->w ? im->w - 1 : x1);
-    y0 = y0 < 0 ? 0 : (y0 >= im->h ? im->h - 1 : y0);
-    y1 = y1 < 0 ? 0 : (y1 >= im->h ? im->h - 1 : y1);
-    double a = p[(size_t)y0 * im->w + x0] * (1 - tx) + p[(size_t)y0 * im->w + x1] * tx;
-    double b = p[(size_t)y1 * im->w + x0] * (1 - tx) + p[(size_t)y1 * im->w + x1] * tx;
-    return a * (1 - ty) + b * ty;
+    return sl_bilinear_plane(p, im->w, im->h, x, y);
 }
 
 static double log_at(const det_image *im, double x, double y)

@@ -46,6 +46,7 @@ typedef struct view_file {
     const char *path;
     sl_image radiance, weight;
     sl_meta meta;
+    double peak; /* largest RGB sample */
 } view_file;
 
 /* The merge's clipped mask named by the radiance (as given to merge, or
@@ -235,7 +236,41 @@ typedef struct out_file {
     sl_meta *meta;
     int width, height;
     sl_exr_stream *stream;
+    stitch_report_images *report; /* NULL: no report; else its map is summed here */
 } out_file;
+
+/* The report's map: each strip's texels summed into the map's pixels (RGBA;
+ * and filled texels, all texels), divided into means after the last. */
+static void add_to_map(stitch_report_images *ri, const float *rows, int y0, int count,
+                       size_t stride, int width, int height)
+{
+    sl_image *m = &ri->map, *f = &ri->filled;
+    for (int r = 0; r < count; r++) {
+        int my = (y0 + r) * m->height / height;
+        const float *row = rows + (size_t)r * stride;
+        for (int x = 0; x < width; x++) {
+            float *o = sl_image_pixel(m, x * m->width / width, my);
+            float *n = sl_image_pixel(f, x * m->width / width, my);
+            const float *p = row + (size_t)x * 4;
+            for (int c = 0; c < 4; c++)
+                o[c] += p[c];
+            n[0] += !(p[3] > 0);
+            n[1] += 1.0f;
+        }
+    }
+}
+
+static void map_means(stitch_report_images *ri)
+{
+    for (int y = 0; y < ri->map.height; y++)
+        for (int x = 0; x < ri->map.width; x++) {
+            float *o = sl_image_pixel(&ri->map, x, y), *n = sl_image_pixel(&ri->filled, x, y);
+            float k = n[1] > 0 ? 1.0f / n[1] : 0.0f;
+            for (int c = 0; c < 4; c++)
+                o[c] *= k;
+            n[0] *= k;
+        }
+}
 
 static sl_result write_rows(void *user, const float *rows, int y0, int count, size_t stride,
                             sl_error *err)
@@ -246,6 +281,8 @@ static sl_result write_rows(void *user, const float *rows, int y0, int count, si
                                            o->opt->pixel_type, o->opt->compression, &o->stream,
                                            err)))
         return r;
+    if (o->report)
+        add_to_map(o->report, rows, y0, count, stride, o->width, o->height);
     r = sl_exr_stream_write(o->stream, rows, count, stride, err);
     if (r)
         o->stream = NULL; /* a failed write aborts the stream */
@@ -332,6 +369,7 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
     sl_meta meta;
     sl_meta_init(&meta);
     out_file out = {0};
+    stitch_report_images *report = NULL;
     if (res_out)
         memset(res_out, 0, sizeof *res_out);
     if (!res || !files) {
@@ -365,6 +403,7 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
                              v->path, (long long)(st.nan_count + st.inf_count));
             break;
         }
+        v->peak = fmax(st.max[0], fmax(st.max[1], st.max[2]));
         res->views[i].width = v->radiance.width;
         res->views[i].height = v->radiance.height;
         if (i > 0 && (v->radiance.width != files[0].radiance.width ||
@@ -393,6 +432,17 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         v->pose.roll_deg = i < opt.roll_count ? opt.roll_deg[i] : 0.0;
         res->views[i].nominal = v->pose;
     }
+    /* The report's thumbnails, while the views are here. */
+    if (opt.report && !(report = calloc(1, sizeof *report)))
+        r = sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
+    for (int i = 0; report && !r && i < count; i++) {
+        const sl_image *v = &files[i].radiance;
+        int tw = v->width < 320 ? v->width : 320;
+        int th = (int)lround((double)v->height * tw / v->width);
+        r = sl_image_resample(v, tw, th > 0 ? th : 1, &report->thumb[i], err);
+    }
+    if (r)
+        goto done;
     phase_end(res, SL_STITCH_READ, &t, &c);
     /* A circular fisheye's image circle, found in every view: the optical
      * centre and the circle the solve starts from (a profile keeps its own). */
@@ -407,6 +457,12 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
                 goto done;
             if (i == 0)
                 res->circle = circ;
+            if (report) {
+                double f = (double)report->thumb[i].width / files[i].radiance.width;
+                report->circle[i][0] = circ.cx * f;
+                report->circle[i][1] = circ.cy * f;
+                report->circle[i][2] = circ.radius * f;
+            }
             sx += circ.cx;
             sy += circ.cy;
             sr += circ.radius;
@@ -435,9 +491,10 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         res->solved = true;
         snprintf(res->solve_note, sizeof res->solve_note,
                  "solved from the overlaps: %d pairs solved, %d fell back to the nominal "
-                 "rotation, %d matches, reprojection RMS %.3f px, max %.3f px",
+                 "rotation, %d matches, reprojection RMS %.3f px, max %.3f px%s%s",
                  res->solve.pairs_solved, res->solve.pairs_fallback, res->solve.inliers,
-                 res->solve.rms_px, res->solve.max_px);
+                 res->solve.rms_px, res->solve.max_px, res->solve.lens_held ? "; " : "",
+                 res->solve.lens_held ? res->solve.lens_note : "");
     } else {
         snprintf(res->solve_note, sizeof res->solve_note, "%s",
                  count < 2   ? "not solved: one view, lens and pose as given"
@@ -472,12 +529,8 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
                           res->lens.cx + fmax(res->lens.circle_radius_px,
                                               0.5 * hypot(res->lens.width, res->lens.height)),
                           res->lens.cy));
-        for (int i = 0; i < count; i++) {
-            sl_image_stats st;
-            sl_image_stats_compute(views[i].radiance, &st);
-            for (int k = 0; k < 3; k++)
-                peak = fmax(peak, st.max[k]);
-        }
+        for (int i = 0; i < count; i++)
+            peak = fmax(peak, files[i].peak);
         if (peak / fmin(1.0, edge_gain) > 65504.0) {
             opt.pixel_type = SL_PIXEL_FLOAT;
             res->float_samples = true;
@@ -486,7 +539,15 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
     /* The header goes out with placeholders for the coverage. */
     if ((r = output_meta(views, count, res, &opt, width, &meta, err)))
         goto done;
-    out = (out_file){out_path, &opt, &meta, width, width / 2, NULL};
+    if (report) {
+        int mw = width < 512 ? width : 512;
+        if ((r = sl_image_alloc(&report->map, mw, mw / 2, 4, err)) ||
+            (r = sl_image_alloc(&report->filled, mw, mw / 2, 2, err)))
+            goto done;
+        sl_image_fill(&report->map, 0.0f);
+        sl_image_fill(&report->filled, 0.0f);
+    }
+    out = (out_file){out_path, &opt, &meta, width, width / 2, NULL, report};
     r = sl_stitch_blend_stream(views, count, &opt.blend, write_rows, &out, &res->coverage, err);
     if (r)
         goto done;
@@ -497,6 +558,12 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         char buf[1024];
         coverage_text(&res->coverage, (int64_t)width * (width / 2), buf, sizeof buf);
         r = sl_meta_set(&final, "setlight:stitch:coverage", buf, err);
+        /* The report before the lat-long moves into place: a failed report
+         * leaves no output. */
+        if (!r && report) {
+            map_means(report);
+            r = stitch_report_write(opt.report, res, report, out_path, err);
+        }
         if (!r) {
             r = sl_exr_stream_finish(out.stream, &final, err);
             out.stream = NULL;
@@ -520,6 +587,13 @@ done:
             sl_meta_free(&files[i].meta);
     }
     sl_meta_free(&meta);
+    if (report) {
+        for (int i = 0; i < SL_STITCH_MAX_VIEWS; i++)
+            sl_image_free(&report->thumb[i]);
+        sl_image_free(&report->map);
+        sl_image_free(&report->filled);
+        free(report);
+    }
     free(files);
     free(res);
     return r;

@@ -187,28 +187,25 @@ double stitch_view_weight(const stitch_view_prep *v, double theta)
 }
 
 /* Bilinear lookup of channels [0, n) at pixel position (x, y) (pixel
- * centres at +0.5), clamped to the image. */
-static void bilinear(const sl_image *img, double x, double y, int n, double *out,
-                     double *contrast)
+ * centres at +0.5), clamped to the image; *contrast (may be NULL) the ratio
+ * of the largest to the smallest of the four pixels' channel 1 (or 0). */
+static inline void bilinear(const sl_image *img, double x, double y, int n, double *out,
+                            double *contrast)
 {
-    double fx = x - 0.5, fy = y - 0.5;
-    int x0 = (int)floor(fx), y0 = (int)floor(fy);
-    double ax = fx - x0, ay = fy - y0;
-    int x1 = x0 + 1, y1 = y0 + 1;
-    x0 = x0 < 0 ? 0 : (x0 >= img->width ? img->width - 1 : x0);
-    x1 = x1 < 0 ? 0 : (x1 >= img->width ? img->width - 1 : x1);
-    y0 = y0 < 0 ? 0 : (y0 >= img->height ? img->height - 1 : y0);
-    y1 = y1 < 0 ? 0 : (y1 >= img->height ? img->height - 1 : y1);
-    const float *p00 = sl_image_pixel(img, x0, y0), *p10 = sl_image_pixel(img, x1, y0);
-    const float *p01 = sl_image_pixel(img, x0, y1), *p11 = sl_image_pixel(img, x1, y1);
+    sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
+    const float *p00 = sl_image_pixel(img, b.x0, b.y0), *p10 = sl_image_pixel(img, b.x1, b.y0);
+    const float *p01 = sl_image_pixel(img, b.x0, b.y1), *p11 = sl_image_pixel(img, b.x1, b.y1);
+    double w00 = (1 - b.ay) * (1 - b.ax), w10 = (1 - b.ay) * b.ax;
+    double w01 = b.ay * (1 - b.ax), w11 = b.ay * b.ax;
     for (int c = 0; c < n; c++)
-        out[c] = (1 - ay) * ((1 - ax) * p00[c] + ax * p10[c]) +
-                 ay * ((1 - ax) * p01[c] + ax * p11[c]);
+        out[c] = w00 * p00[c] + w10 * p10[c] + w01 * p01[c] + w11 * p11[c];
     if (contrast) {
         int g = n > 1 ? 1 : 0;
-        double lo = fmin(fmin(p00[g], p10[g]), fmin(p01[g], p11[g]));
-        double hi = fmax(fmax(p00[g], p10[g]), fmax(p01[g], p11[g]));
-        *contrast = hi / fmax(lo, 1e-30);
+        float a = p00[g], bb = p10[g], c = p01[g], d = p11[g];
+        float lo0 = a < bb ? a : bb, lo1 = c < d ? c : d, hi0 = a < bb ? bb : a,
+              hi1 = c < d ? d : c;
+        float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
+        *contrast = hi / (lo > 1e-30f ? (double)lo : 1e-30);
     }
 }
 
@@ -284,11 +281,11 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
                     continue;
                 /* theta (an acos) only where the edge ramp needs it */
                 double w = c > vw->cos_ramp ? 0.5 * (1.0 + c)
-                                            : stitch_view_weight(vw, acos(fmin(1.0, c)));
+                                            : stitch_view_weight(vw, acos(c < 1.0 ? c : 1.0));
                 if (vw->weight) {
                     double conf;
                     bilinear(vw->weight, px, py, 1, &conf, NULL);
-                    w *= fmin(1.0, fmax(0.0, conf));
+                    w *= conf < 0.0 ? 0.0 : (conf > 1.0 ? 1.0 : conf);
                 }
                 if (!(w > 0))
                     continue;
@@ -302,8 +299,9 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
                     continue;
                 w *= a;
                 acc_w[k] += w;
+                double wg = w / g;
                 for (int ch = 0; ch < 3; ch++)
-                    acc_l[k][ch] += w * fmax(0.0, rgb[ch]) / g;
+                    acc_l[k][ch] += rgb[ch] > 0.0 ? wg * rgb[ch] : 0.0;
             }
         }
     }

@@ -48,6 +48,21 @@ sl_result stitch_blend_run(const sl_stitch_view *views, int count,
                            const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
                            void *user, sl_image *whole, sl_stitch_coverage *cov, sl_error *err);
 
+/* What the stitch's report shows beside its numbers: each view's thumbnail
+ * and its circle in the thumbnail's pixels, and the lat-long reduced to a
+ * small RGBA map (A: mean confidence; filled: the share of filled texels). */
+typedef struct stitch_report_images {
+    sl_image thumb[SL_STITCH_MAX_VIEWS];
+    double circle[SL_STITCH_MAX_VIEWS][3]; /* cx, cy, r; r 0: none found */
+    sl_image map;                          /* RGBA means of the lat-long's texels */
+    sl_image filled;                       /* share of filled texels (channel 0) */
+} stitch_report_images;
+
+/* Writes the report page (opt->report) of a stitch: summary on top. */
+sl_result stitch_report_write(const char *path, const sl_stitch_result *res,
+                              const stitch_report_images *img, const char *out_path,
+                              sl_error *err);
+
 /* Fills the texels of an RGBA lat-long whose A is 0 from those whose A is
  * above 0: pull-push, then diffusion on the sphere (across the poles and
  * the longitude seam). A values are left as they are. Non-negative in,

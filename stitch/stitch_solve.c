@@ -34,6 +34,8 @@ void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
     o->ransac_iterations = 2000;
     o->inlier_px = 2.0;
     o->min_inliers = 25;
+    o->min_lens_inliers = 30;
+    o->min_lens_spread = 0.1;
     o->max_correction_deg = 10.0;
     o->seed = 1;
 }
@@ -449,6 +451,43 @@ static void select_inliers(solve_state *st, const sl_lens *lens, double threshol
     }
 }
 
+/* How well the inliers of the solved pairs tie the lens down: their count
+ * and the RMS distance of their points (both ends) from the centroid of
+ * the points in the same view, over the circle radius. */
+static int lens_evidence(const solve_state *st, const sl_lens *lens, double *spread)
+{
+    double n[SL_STITCH_MAX_VIEWS] = {0}, sx[SL_STITCH_MAX_VIEWS] = {0},
+           sy[SL_STITCH_MAX_VIEWS] = {0}, sq[SL_STITCH_MAX_VIEWS] = {0};
+    int inliers = 0;
+    for (int i = 0; i < st->match_count; i++) {
+        const solve_match *m = &st->matches[i];
+        if (!m->inlier || st->res->pair[m->pair].status != SL_STITCH_PAIR_SOLVED ||
+            m->a >= SL_STITCH_MAX_VIEWS || m->b >= SL_STITCH_MAX_VIEWS)
+            continue;
+        inliers++;
+        const int v[2] = {m->a, m->b};
+        const double *p[2] = {m->pa, m->pb};
+        for (int k = 0; k < 2; k++) {
+            n[v[k]] += 1;
+            sx[v[k]] += p[k][0];
+            sy[v[k]] += p[k][1];
+            sq[v[k]] += p[k][0] * p[k][0] + p[k][1] * p[k][1];
+        }
+    }
+    double total = 0, var = 0;
+    for (int v = 0; v < SL_STITCH_MAX_VIEWS; v++)
+        if (n[v] > 0) {
+            double mx = sx[v] / n[v], my = sy[v] / n[v];
+            var += fmax(0.0, sq[v] - n[v] * (mx * mx + my * my));
+            total += n[v];
+        }
+    double radius = lens->circle_radius_px > 0
+                        ? lens->circle_radius_px
+                        : 0.5 * hypot(lens->width, lens->height);
+    *spread = total > 0 ? sqrt(var / total) / radius : 0.0;
+    return inliers;
+}
+
 /* Drops the inliers further than threshold pixels. */
 static void prune_inliers(solve_state *st, const sl_lens *lens, double threshold)
 {
@@ -579,6 +618,26 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     }
     initial_rotations(&st, free_view, reached);
     drop_unplaced_matches(&st, reached);
+    /* A few matches in one corner of the overlaps fit the lens to
+     * themselves: the lens moves only on enough inliers spread over the
+     * circle, else the poses alone are solved. */
+    sl_stitch_solve_options adjust_opt = *opt;
+    opt = &adjust_opt;
+    bool lens_wanted = opt->solve_focal || opt->solve_centre || opt->radial_terms > 0;
+    if (res->pairs_solved > 0 && lens_wanted) {
+        res->lens_inliers = lens_evidence(&st, &lens, &res->lens_spread);
+        bool few = res->lens_inliers < opt->min_lens_inliers;
+        if (few || res->lens_spread < opt->min_lens_spread) {
+            res->lens_held = true;
+            snprintf(res->lens_note, sizeof res->lens_note,
+                     "lens kept nominal: %d inliers spread over %.2f of the circle radius "
+                     "(needs %d and %.2f); only the poses solved",
+                     res->lens_inliers, res->lens_spread, opt->min_lens_inliers,
+                     opt->min_lens_spread);
+            adjust_opt.solve_focal = adjust_opt.solve_centre = false;
+            adjust_opt.radial_terms = 0;
+        }
+    }
     if (res->pairs_solved > 0) {
         /* The nominal lens puts the circle's edge degrees off: a loose first
          * round, then the matches re-judged in pixels with the lens solved. */

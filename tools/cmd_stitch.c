@@ -25,6 +25,9 @@ static const char *stitch_help =
     "  --lens-profile FILE      a solved lens (setlight-lens JSON) instead of the nominal\n"
     "                           one; only the rotations are solved\n"
     "  --save-lens FILE         write the lens used (solved) as a profile\n"
+    "  --report FILE.html       an HTML report: the solved lens, pairs, reprojection\n"
+    "                           error, coverage and confidence map, the views and their\n"
+    "                           circles (images beside it as FILE_*.png)\n"
     "  --yaw Y1,Y2,...          nominal yaws in degrees (default: evenly over 360)\n"
     "  --pitch P1,P2,...        nominal pitches (default 0; +90 looks up)\n"
     "  --roll R1,R2,...         nominal rolls (default 0)\n"
@@ -135,7 +138,7 @@ int cmd_stitch(int argc, char **argv, const sl_cli *cli)
     enum {
         OPT_PROJ = 1000, OPT_FOCAL, OPT_SENSOR, OPT_PROFILE, OPT_SAVE, OPT_YAW, OPT_PITCH,
         OPT_ROLL, OPT_NOSOLVE, OPT_NADIR, OPT_WIDTH, OPT_GHOST, OPT_FLOAT, OPT_COMPRESSION,
-        OPT_INCS
+        OPT_INCS, OPT_REPORT
     };
     static const struct option opts[] = {{"help", no_argument, NULL, 'h'},
                                          {"output", required_argument, NULL, 'o'},
@@ -144,6 +147,7 @@ int cmd_stitch(int argc, char **argv, const sl_cli *cli)
                                          {"sensor-mm", required_argument, NULL, OPT_SENSOR},
                                          {"lens-profile", required_argument, NULL, OPT_PROFILE},
                                          {"save-lens", required_argument, NULL, OPT_SAVE},
+                                         {"report", required_argument, NULL, OPT_REPORT},
                                          {"yaw", required_argument, NULL, OPT_YAW},
                                          {"pitch", required_argument, NULL, OPT_PITCH},
                                          {"roll", required_argument, NULL, OPT_ROLL},
@@ -195,6 +199,9 @@ int cmd_stitch(int argc, char **argv, const sl_cli *cli)
             break;
         case OPT_SAVE:
             o.save_lens = optarg;
+            break;
+        case OPT_REPORT:
+            o.report = optarg;
             break;
         case OPT_YAW:
         case OPT_PITCH:

@@ -244,6 +244,42 @@ static inline float *sl_image_pixel(const sl_image *img, int x, int y)
 {
     return img->data + (size_t)y * img->stride + (size_t)x * (size_t)img->channels;
 }
+/* A bilinear lookup at pixel position (x, y) (pixel centres at +0.5; x, y
+ * finite) of a width x height grid, clamped to its edges: the two columns
+ * and rows and the weights of the second ones, so a value is
+ * (1-ay) ((1-ax) v[y0][x0] + ax v[y0][x1]) + ay ((1-ax) v[y1][x0] + ax v[y1][x1]).
+ * Inline: per-pixel lookups of the stitch's blend and the ball finder. */
+typedef struct sl_bilinear {
+    int x0, x1, y0, y1;
+    double ax, ay;
+} sl_bilinear;
+static inline sl_bilinear sl_bilinear_at(int width, int height, double x, double y)
+{
+    double fx = x - 0.5, fy = y - 0.5;
+    int x0 = (int)fx, y0 = (int)fy;
+    x0 -= fx < x0; /* floor, without a libm call */
+    y0 -= fy < y0;
+    sl_bilinear b = {x0, x0 + 1, y0, y0 + 1, fx - x0, fy - y0};
+    if (x0 < 0 || b.x1 >= width) {
+        b.x0 = x0 < 0 ? 0 : (x0 >= width ? width - 1 : x0);
+        b.x1 = b.x1 < 0 ? 0 : (b.x1 >= width ? width - 1 : b.x1);
+    }
+    if (y0 < 0 || b.y1 >= height) {
+        b.y0 = y0 < 0 ? 0 : (y0 >= height ? height - 1 : y0);
+        b.y1 = b.y1 < 0 ? 0 : (b.y1 >= height ? height - 1 : b.y1);
+    }
+    return b;
+}
+/* The lookup of a one-channel plane of width x height floats, row after row. */
+static inline double sl_bilinear_plane(const float *plane, int width, int height, double x,
+                                       double y)
+{
+    sl_bilinear b = sl_bilinear_at(width, height, x, y);
+    const float *r0 = plane + (size_t)b.y0 * width, *r1 = plane + (size_t)b.y1 * width;
+    double top = r0[b.x0] * (1 - b.ax) + r0[b.x1] * b.ax;
+    double bot = r1[b.x0] * (1 - b.ax) + r1[b.x1] * b.ax;
+    return top * (1 - b.ay) + bot * b.ay;
+}
 sl_result sl_image_copy(const sl_image *src, sl_image *dst, sl_error *err);
 void sl_image_fill(sl_image *img, float value);
 

@@ -798,6 +798,15 @@ typedef struct sl_stitch_solve_options {
     double inlier_px;        /* after the adjustment, a match is kept within this many
                                 pixels of the features' copies (default 2) */
     int min_inliers;         /* a pair with fewer falls back to the nominal rotation (default 25) */
+    /* The shared lens (focal, centre, radial terms) moves only when the
+     * solved pairs' RANSAC inliers number at least min_lens_inliers
+     * (default 30) and their points spread over the circle: RMS distance
+     * from their centroid in their view at least min_lens_spread of the
+     * circle radius (default 0.1: a cluster in one
+     * spot is 0.05, one pair's crescent of overlap 0.15); else only the poses are solved and the
+     * result says why (lens_held, lens_note). */
+    int min_lens_inliers;
+    double min_lens_spread;
     double max_correction_deg; /* a pair whose rotation differs more from the nominal one is
                                   refused as inconsistent and falls back; matches further
                                   than 1.5 times this from their nominal place are dropped
@@ -842,6 +851,10 @@ typedef struct sl_stitch_solve_result {
     int inliers;                 /* matches in the adjustment */
     double rms_px, max_px;       /* reprojection error over them, pixels of the full views */
     int iterations;              /* Levenberg-Marquardt iterations */
+    int lens_inliers;            /* the inliers the lens gate counted */
+    double lens_spread;          /* their spread over the circle (see min_lens_spread) */
+    bool lens_held;              /* the lens stayed nominal: too few or clustered inliers */
+    char lens_note[200];         /* why it was held, for the report */
     bool vignette_solved;        /* false: too few overlap samples, or not asked */
     int vignette_samples;
     double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
@@ -1117,6 +1130,11 @@ typedef struct sl_stitch_options {
     sl_pixel_type pixel_type;     /* half (default; float when a view's radiance
                                      exceeds half's 65504) or float */
     sl_exr_compression compression;
+    /* An HTML report here (FILE.html; its images beside it, named
+     * FILE_*.png): the solved lens and its change, the pairs, the
+     * reprojection error, the coverage and confidence map, the views'
+     * thumbnails with their circles. NULL: none. */
+    const char *report;
 } sl_stitch_options;
 
 void sl_stitch_options_init(sl_stitch_options *opt);

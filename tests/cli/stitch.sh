@@ -79,4 +79,28 @@ expect 2 "$SETLIGHT" stitch --lens-profile "$T/lens.json" --focal-mm 8 -o "$T/ba
 expect 2 "$SETLIGHT" stitch "${LENS[@]}" --width 15 -o "$T/bad.exr" "$T/f0.exr"
 absent "$T/bad.exr"; no_temp "$T"
 
+# --- the report: summary on top, the confidence map, the views with their circles
+mkdir -p "$T/rep"
+expect 0 "$SETLIGHT" stitch "${LENS[@]}" --nadir-mask 30 --report "$T/rep/stitch.html" -o "$T/rep.exr" \
+  "$T/f0.exr" "$T/f120.exr" "$T/f240.exr"
+present "$T/rep.exr"; present "$T/rep/stitch.html"
+for f in confidence latlong view1 view2 view3; do present "$T/rep/stitch_$f.png"; done
+grep -q "Lens (equisolid, 8 mm" "$T/rep/stitch.html" && ok || bad "report lacks the lens"
+grep -q "Coverage: seen .* filled .*masked" "$T/rep/stitch.html" && ok || bad "report lacks the coverage"
+grep -q "<th>inliers</th>" "$T/rep/stitch.html" && ok || bad "report lacks the pair table"
+grep -q "its image circle in red" "$T/rep/stitch.html" && ok || bad "report lacks the circles"
+if ! /usr/bin/python3 -c "import cv2" 2>/dev/null; then skip "confidence map pixels (no python3-opencv)"
+else /usr/bin/python3 - "$T/rep/stitch_confidence.png" <<'PY' && ok || bad "confidence map under 256 px or without the filled nadir"
+import sys, cv2
+m = cv2.imread(sys.argv[1])
+h, w = m.shape[:2]
+nadir = m[int(0.95 * h), w // 2]  # BGR: filled texels are red
+sys.exit(0 if w >= 256 and nadir[2] > 200 and nadir[1] < 50 else 1)
+PY
+fi
+browser_check "$T/rep/stitch.html" 5
+# a report in a folder that is not there: refused, nothing left
+expect 2 "$SETLIGHT" stitch "${LENS[@]}" --no-solve --report "$T/nodir/stitch.html" -o "$T/bad.exr" "$T/f0.exr"
+err_one_line; err_has "nodir"; absent "$T/bad.exr"; no_temp "$T"
+
 finish
