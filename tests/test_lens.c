@@ -5,7 +5,7 @@
  * and pose <-> matrix round trips. */
 #include "testing.h"
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 #include <math.h>
 #include <stdint.h>

@@ -7,7 +7,7 @@
  * call's refusals. */
 #include "testing.h"
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/stitch.h"
 
 #include <math.h>

@@ -8,7 +8,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "testing.h"
 
 static void tiny_opts(sl_vset_capture_opts *o, const char *scene, uint64_t seed)

@@ -7,7 +7,7 @@
 #include <math.h>
 #include <stdint.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 #define VSET_PI 3.14159265358979323846
 #define VSET_DEG (VSET_PI / 180.0)
