@@ -131,14 +131,6 @@ static sl_result v_get(sl_camera *c, sl_camera_settings *s, sl_error *err)
     return SL_OK;
 }
 
-static uint64_t mix64(uint64_t x)
-{
-    x += 0x9E3779B97F4A7C15ull;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
-}
-
 /* The sRGB-encoded JPEG of one exposure, as the body's encoder writes it. */
 static sl_result encode(sl_camera *c, const sl_image *img, unsigned char **data, size_t *size,
                         sl_error *err)
@@ -287,7 +279,7 @@ static sl_result v_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
     }
     sl_vset_exposure e = {v->actual_shutter, v->f_number, v->iso};
     sl_vset_shot img;
-    if ((r = sl_vset_camera_shoot(&v->body, &e, &v->radiance, mix64(v->o.seed ^ (uint64_t)frame),
+    if ((r = sl_vset_camera_shoot(&v->body, &e, &v->radiance, sl_splitmix64_hash(v->o.seed ^ (uint64_t)frame),
                                   &img, err)))
         return r;
     r = write_files(c, &img, frame, shot, err);
