@@ -11,12 +11,8 @@
 
 static void write_text(const char *path, const char *text)
 {
-    FILE *f = fopen(path, "w");
-    CHECK(f != NULL);
-    if (f) {
-        fputs(text, f);
-        fclose(f);
-    }
+    sl_error err;
+    CHECK_OK(sl_write_file_atomic(path, text, strlen(text), &err), &err);
 }
 
 static void test_json_files(void)
