@@ -53,12 +53,6 @@ void sl_shutter_format(double t, char *buf, size_t size)
         snprintf(buf, size, "%.3g", t);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 sl_result sl_bracket_plan_parse(const char *spec, double center, double **times, int *count,
                                 sl_error *err)
 {
@@ -120,7 +114,7 @@ sl_result sl_bracket_plan_parse(const char *spec, double center, double **times,
             return sl_error_set(err, SL_ERR_USAGE, "bracket '%s': empty entry in the list", spec);
         }
     }
-    qsort(t, (size_t)n, sizeof *t, cmp_double);
+    qsort(t, (size_t)n, sizeof *t, sl_cmp_double);
     *times = t;
     *count = n;
     return SL_OK;

@@ -12,9 +12,36 @@ sl_result sl_camera_list(sl_camera_entry **list, int *count, sl_error *err)
     return sl_gphoto2_list(list, count, err);
 }
 
-static bool is_virtual(const char *port)
+/* The drivers other than libgphoto2, as registered (a fixed table: a
+ * handful at most, registered at start-up before any thread opens one). */
+#define MAX_DRIVERS 8
+static const sl_camera_driver *g_drivers[MAX_DRIVERS];
+static int g_driver_count;
+
+sl_result sl_camera_driver_register(const sl_camera_driver *driver, sl_error *err)
 {
-    return !strcmp(port, "virtual") || !strncmp(port, "virtual:", 8);
+    for (int i = 0; i < g_driver_count; i++)
+        if (!strcmp(g_drivers[i]->name, driver->name))
+            return SL_OK;
+    if (g_driver_count == MAX_DRIVERS)
+        return sl_error_set(err, SL_ERR_INTERNAL, "camera driver %s: the table is full (%d)",
+                            driver->name, MAX_DRIVERS);
+    g_drivers[g_driver_count++] = driver;
+    return SL_OK;
+}
+
+/* The registered driver whose name is the port ("virtual") or its prefix
+ * before ':' ("virtual:stage"), or NULL. */
+static const sl_camera_driver *driver_of_port(const char *port, const char **args)
+{
+    for (int i = 0; i < g_driver_count; i++) {
+        size_t n = strlen(g_drivers[i]->name);
+        if (!strncmp(port, g_drivers[i]->name, n) && (port[n] == '\0' || port[n] == ':')) {
+            *args = port[n] == ':' ? port + n + 1 : NULL;
+            return g_drivers[i];
+        }
+    }
+    return NULL;
 }
 
 sl_result sl_camera_open(const char *port, sl_camera **camera, sl_error *err)
@@ -23,35 +50,12 @@ sl_result sl_camera_open(const char *port, sl_camera **camera, sl_error *err)
     if (!port || !*port)
         return sl_error_set(err, SL_ERR_USAGE,
                             "no camera port given (auto, usb:..., ptpip:HOST, virtual)");
-    if (is_virtual(port)) {
-        sl_virtual_camera_opts o;
-        memset(&o, 0, sizeof o);
-        if (port[7] == ':' && strlen(port + 8) >= sizeof o.scene)
-            return sl_error_set(err, SL_ERR_USAGE, "%.200s...: scene name too long", port);
-        if (port[7] == ':')
-            strcpy(o.scene, port + 8);
-        return sl_camera_open_virtual(&o, camera, err);
-    }
     sl_camera *c = calloc(1, sizeof *c);
     if (!c)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", port);
-    sl_result r = sl_gphoto2_open(port, c, err);
-    if (r) {
-        free(c);
-        return r;
-    }
-    *camera = c;
-    return SL_OK;
-}
-
-sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
-                                 sl_error *err)
-{
-    *camera = NULL;
-    sl_camera *c = calloc(1, sizeof *c);
-    if (!c)
-        return sl_error_set(err, SL_ERR_NOMEM, "virtual camera: out of memory");
-    sl_result r = sl_virtual_open(o, c, err);
+    const char *args = NULL;
+    const sl_camera_driver *driver = driver_of_port(port, &args);
+    sl_result r = driver ? driver->open(args, c, err) : sl_gphoto2_open(port, c, err);
     if (r) {
         free(c);
         return r;

@@ -42,8 +42,23 @@ struct sl_camera {
 /* libgphoto2 (camera_gphoto2.c). */
 sl_result sl_gphoto2_open(const char *port, sl_camera *camera, sl_error *err);
 sl_result sl_gphoto2_list(sl_camera_entry **list, int *count, sl_error *err);
-/* The virtual set's camera (camera_virtual.c). */
-sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *camera, sl_error *err);
+
+/* A backend other than libgphoto2 (the virtual set's camera, vset/) opens
+ * the ports "NAME" and "NAME:ARGS" (args NULL for the former), filling a
+ * zeroed camera. It registers once at start-up, as libgphoto2's camera
+ * drivers do; registering a name twice keeps the first. */
+typedef struct sl_camera_driver {
+    const char *name;
+    sl_result (*open)(const char *args, sl_camera *camera, sl_error *err);
+} sl_camera_driver;
+sl_result sl_camera_driver_register(const sl_camera_driver *driver, sl_error *err);
+
+/* Replaces a JPEG stream's APP0/APP1 segments with a camera's EXIF (exif.c):
+ * make, model, date, exposure time, f-number, ISO, focal length and
+ * SubSecTimeOriginal (milliseconds). *jpeg is realloc'd. For backends that
+ * make their own files. */
+sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *meta, int subsec_ms,
+                           sl_error *err);
 
 /* Sets the image-format choice `label`, busy replies retried with backoff
  * like every other setting. */

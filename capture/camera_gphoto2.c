@@ -116,12 +116,6 @@ static sl_result find_widget(sl_camera *c, int kind, CameraWidget **widget, cons
                                               : "image format");
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static sl_result gp_shutter_speeds(sl_camera *c, double **speeds, int *count, sl_error *err)
 {
     gp_impl *g = c->impl;
@@ -144,7 +138,7 @@ static sl_result gp_shutter_speeds(sl_camera *c, double **speeds, int *count, sl
             v[k++] = t;
     }
     gp_widget_free(w);
-    qsort(v, (size_t)k, sizeof *v, cmp_double);
+    qsort(v, (size_t)k, sizeof *v, sl_cmp_double);
     if (k == 0) {
         free(v);
         return sl_error_set(err, SL_ERR_CAMERA,

@@ -66,10 +66,5 @@ bool sl_frame_setup_differs(const sl_frame_setup *a, const sl_frame_setup *b, ch
 /* The setup as a JSON object (unknown strings null). */
 json_t *sl_frame_setup_json(const sl_frame_setup *setup);
 
-/* Replaces a JPEG stream's APP0/APP1 segments with a camera's EXIF: make,
- * model, date, exposure time, f-number, ISO, focal length and
- * SubSecTimeOriginal (milliseconds). *jpeg is realloc'd. */
-sl_result sl_jpeg_set_exif(unsigned char **jpeg, size_t *size, const sl_meta *meta, int subsec_ms,
-                           sl_error *err);
 
 #endif

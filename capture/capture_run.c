@@ -51,12 +51,6 @@ static void linearize(sl_image *img, const sl_meta *meta)
         img->data[i] = sl_srgb_to_linear(img->data[i]);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 /* Median of cur/prev over pixels well exposed in both (0 when too few):
  * between 0.005 and 0.85 of white (1, camera raw included: core reads it
  * relative to the white level). */
@@ -79,7 +73,7 @@ static double measure_ratio(const sl_image *prev, const sl_image *cur)
     }
     double m = 0;
     if (k >= 32) {
-        qsort(r, k, sizeof *r, cmp_double);
+        qsort(r, k, sizeof *r, sl_cmp_double);
         m = k % 2 ? r[k / 2] : 0.5 * (r[k / 2 - 1] + r[k / 2]);
     }
     free(r);

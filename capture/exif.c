@@ -9,6 +9,7 @@
 #include <string.h>
 #include <strings.h>
 
+#include "camera_backend.h"
 #include "capture_private.h"
 
 /* ---- reading ------------------------------------------------------- */

@@ -51,18 +51,12 @@ sl_result sl_session_write_json(const char *dir, json_t *camera, json_t *views, 
     json_object_set_new(root, "problems", problems ? problems : json_array());
     if (splits)
         json_object_set_new(root, "splits", splits);
-    char *text = json_dumps(root, JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(10));
-    json_decref(root);
-    if (!text)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: session.json: out of memory", dir);
     char path[4096];
     sl_result r = sl_capture_path(path, sizeof path, dir, SL_SESSION_NAME, err);
-    if (!r) {
-        size_t n = strlen(text);
-        text[n] = '\n'; /* json_dumps leaves room for the terminator we replace */
-        r = sl_write_file_atomic(path, text, n + 1, err);
-    }
-    free(text);
+    if (!r)
+        r = sl_json_write_atomic(path, root,
+                                 JSON_INDENT(2) | JSON_PRESERVE_ORDER | JSON_REAL_PRECISION(10), err);
+    json_decref(root);
     return r;
 }
 

@@ -44,13 +44,11 @@ sl_result sl_distrib1d_init(sl_distrib1d *d, const double *func, int n, sl_error
     d->n = n;
     /* Neumaier-compensated prefix sums: cdf[i] is the correctly rounded
      * partial sum, so a tiny bin after a huge one keeps its own width. */
-    double s = 0.0, comp = 0.0;
+    sl_ksum sum = {0};
     d->cdf[0] = 0.0;
     for (int i = 0; i < n; i++) {
-        double x = func[i], t = s + x;
-        comp += fabs(s) >= fabs(x) ? (s - t) + x : (x - t) + s;
-        s = t;
-        d->cdf[i + 1] = s + comp;
+        sl_ksum_add(&sum, func[i]);
+        d->cdf[i + 1] = sl_ksum_value(&sum);
     }
     double total = d->cdf[n];
     if (!isfinite(total)) {

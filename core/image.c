@@ -109,7 +109,7 @@ sl_result sl_image_convert_channels(const sl_image *src, int channels, sl_image 
 void sl_image_stats_compute(const sl_image *img, sl_image_stats *st)
 {
     memset(st, 0, sizeof *st);
-    double comp[4] = {0};
+    sl_ksum sums[4] = {{0}};
     for (int c = 0; c < 4; c++) {
         st->min[c] = INFINITY;
         st->max[c] = -INFINITY;
@@ -134,18 +134,13 @@ void sl_image_stats_compute(const sl_image *img, sl_image_stats *st)
                     st->min[c] = v;
                 if (v > st->max[c])
                     st->max[c] = v;
-                /* Kahan-Babuska (Neumaier) summation: maps span 1e-6..1e9. */
-                double t = st->sum[c] + v;
-                if (fabs(st->sum[c]) >= fabs((double)v))
-                    comp[c] += (st->sum[c] - t) + v;
-                else
-                    comp[c] += ((double)v - t) + st->sum[c];
-                st->sum[c] = t;
+                /* Compensated: maps span 1e-6..1e9. */
+                sl_ksum_add(&sums[c], v);
                 st->finite_count[c]++;
             }
     }
     for (int c = 0; c < 4; c++) {
-        st->sum[c] += comp[c];
+        st->sum[c] = sl_ksum_value(&sums[c]);
         if (st->finite_count[c] > 0)
             st->mean[c] = st->sum[c] / (double)st->finite_count[c];
         else

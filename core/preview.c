@@ -50,7 +50,7 @@ static sl_result median_luminance(const sl_image *rgb, double *median, sl_error 
     for (int y = 0; y < rgb->height; y++)
         for (int x = 0; x < rgb->width; x++) {
             const float *p = sl_image_pixel(rgb, x, y);
-            float l = 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+            float l = sl_luminancef(p);
             if (l > 0.0f && isfinite(l))
                 lum[n++] = l;
         }

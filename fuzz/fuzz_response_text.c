@@ -4,7 +4,7 @@
  * samples, "B =", samples) or plain "I B" lines; then applied and inverted
  * across the range as the simulated camera does. */
 #include "fuzz.h"
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 int sl_fuzz_response_text(const uint8_t *data, size_t size)
 {

@@ -2,7 +2,7 @@
 /* A virtual-set scene file (docs/virtual-set.md) as `simulate --scene
  * FILE.json` reads it (sl_vset_desc_read_json, which validates it). */
 #include "fuzz.h"
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 int sl_fuzz_vset_scene(const uint8_t *data, size_t size)
 {

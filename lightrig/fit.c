@@ -77,7 +77,7 @@ static double lost_y(const sl_image *rgb, const sl_image *residual, int x, int y
     x = rig_wrap_x(x, rgb->width);
     const float *p = sl_image_pixel(rgb, x, y), *q = sl_image_pixel(residual, x, y);
     double e[3] = {(double)p[0] - q[0], (double)p[1] - q[1], (double)p[2] - q[2]};
-    return rig_luma(e);
+    return sl_luminance(e);
 }
 
 /* Fraction of texel (x, y) the source covers, from its neighbours: a texel
@@ -140,7 +140,7 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *te
     int w = rgb->width, h = rgb->height;
     memset(L, 0, sizeof *L);
     L->texels = count;
-    rig_sum integ[3] = {{0}}, ysum = {0}, omega_sum = {0};
+    sl_ksum integ[3] = {{0}}, ysum = {0}, omega_sum = {0};
     double dsum[3] = {0, 0, 0}, ct[4], *dv = ct + 1;
     /* Texels under 10% of the region's brightest are the edge or a glow
      * around the source, counted by the fraction they are of that: an
@@ -158,18 +158,18 @@ bool rig_fit_region(const sl_image *rgb, const sl_image *residual, const int *te
         double e[3];
         for (int c = 0; c < 3; c++) {
             e[c] = (double)p[c] - (double)q[c];
-            rig_sum_add(&integ[c], e[c] * om);
+            sl_ksum_add(&integ[c], e[c] * om);
         }
-        rig_sum_add(&ysum, rig_luma(e) * om);
+        sl_ksum_add(&ysum, sl_luminance(e) * om);
         covered(rgb, residual, texels[t], floor_y, ct);
-        rig_sum_add(&omega_sum, ct[0]);
+        sl_ksum_add(&omega_sum, ct[0]);
         for (int a = 0; a < 3; a++)
             dsum[a] += ct[0] * dv[a];
     }
     for (int c = 0; c < 3; c++)
-        L->integral[c] = rig_sum_get(&integ[c]);
-    double omega = rig_sum_get(&omega_sum);
-    if (!(rig_sum_get(&ysum) > 0) || !(omega > 0) || !(dot(dsum, dsum) > 0))
+        L->integral[c] = sl_ksum_value(&integ[c]);
+    double omega = sl_ksum_value(&omega_sum);
+    if (!(sl_ksum_value(&ysum) > 0) || !(omega > 0) || !(dot(dsum, dsum) > 0))
         return false;
     /* The geometric centre: a graded source's energy centroid leans toward
      * its bright side (the stage window: 3.7 degrees). */
@@ -332,7 +332,7 @@ static int cmp_ranked(const void *a, const void *b)
 static double glossy_score(const sl_rig_light *L)
 {
     double t = tan(0.5 * cap_radius(L->solid_angle)), a2 = RIG_GLOSSY_ALPHA * RIG_GLOSSY_ALPHA;
-    double y = rig_luma(L->integral) / L->solid_angle;
+    double y = sl_luminance(L->integral) / L->solid_angle;
     return (y > 0 ? y : 0) * t * t / (a2 + t * t);
 }
 
@@ -360,13 +360,13 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
         return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
     }
     for (int i = 0; i < count; i++) {
-        double y = rig_luma(cand[i].integral);
+        double y = sl_luminance(cand[i].integral);
         gl[i] = glossy_score(&cand[i]);
         total += y > 0 ? y : 0;
         total_g += gl[i];
     }
     for (int i = 0; i < count; i++) {
-        double y = rig_luma(cand[i].integral);
+        double y = sl_luminance(cand[i].integral);
         cand[i].share = total > 0 && y > 0 ? y / total : 0;
         cand[i].share_glossy = total_g > 0 ? gl[i] / total_g : 0;
         /* ranked by the larger of its two shares */

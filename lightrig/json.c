@@ -7,6 +7,9 @@
 
 #include "lightrig_private.h"
 
+/* rig.json as written and as sl_rig_json_string returns it. */
+#define RIG_JSON_FLAGS (JSON_INDENT(2) | JSON_REAL_PRECISION(17))
+
 static json_t *vec(const double *v, int n)
 {
     json_t *a = json_array();
@@ -73,7 +76,7 @@ static json_t *rig_json(const sl_rig *rig, const char *dome_file)
 char *sl_rig_json_string(const sl_rig *rig, const char *dome_file)
 {
     json_t *root = rig_json(rig, dome_file);
-    char *s = json_dumps(root, JSON_INDENT(2) | JSON_REAL_PRECISION(17));
+    char *s = json_dumps(root, RIG_JSON_FLAGS);
     json_decref(root);
     return s;
 }
@@ -81,18 +84,8 @@ char *sl_rig_json_string(const sl_rig *rig, const char *dome_file)
 sl_result sl_rig_write_json(const sl_rig *rig, const char *path, const char *dome_file,
                             sl_error *err)
 {
-    char *s = sl_rig_json_string(rig, dome_file);
-    if (!s)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    size_t n = strlen(s);
-    char *t = realloc(s, n + 2);
-    if (!t) {
-        free(s);
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    }
-    t[n] = '\n';
-    t[n + 1] = 0;
-    sl_result r = sl_write_file_atomic(path, t, n + 1, err);
-    free(t);
+    json_t *root = rig_json(rig, dome_file);
+    sl_result r = sl_json_write_atomic(path, root, RIG_JSON_FLAGS, err);
+    json_decref(root);
     return r;
 }

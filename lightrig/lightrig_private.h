@@ -5,32 +5,6 @@
 
 #include "setlight/lightrig.h"
 
-/* Neumaier compensated sum. */
-typedef struct rig_sum {
-    double s, c;
-} rig_sum;
-
-static inline void rig_sum_add(rig_sum *a, double v)
-{
-    double t = a->s + v;
-    if (__builtin_fabs(a->s) >= __builtin_fabs(v))
-        a->c += (a->s - t) + v;
-    else
-        a->c += (v - t) + a->s;
-    a->s = t;
-}
-
-static inline double rig_sum_get(const rig_sum *a)
-{
-    return a->s + a->c;
-}
-
-/* Rec.709 luminance. */
-static inline double rig_luma(const double *rgb)
-{
-    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
-}
-
 /* The texel across the north/south pole from (x, 0) or (x, h-1) is x + w/2. */
 static inline int rig_wrap_x(int x, int w)
 {

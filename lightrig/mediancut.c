@@ -82,7 +82,7 @@ sl_result rig_mediancut(const sl_image *rgb, const sl_rig_options *opt, sl_rig *
         for (int x = 0; x < w; x++) {
             const float *p = sl_image_pixel(rgb, x, y);
             double v[3] = {p[0], p[1], p[2]};
-            row += rig_luma(v) * om;
+            row += sl_luminance(v) * om;
             s[(size_t)(y + 1) * W + x + 1] = s[(size_t)y * W + x + 1] + row;
         }
     }
@@ -114,15 +114,15 @@ sl_result rig_mediancut(const sl_image *rgb, const sl_rig_options *opt, sl_rig *
         total += boxes[i].energy;
     for (int i = 0; i < count; i++) {
         sl_rig_light *L = &rig->lights[i];
-        rig_sum integ[3] = {{0}};
+        sl_ksum integ[3] = {{0}};
         double d[3] = {0, 0, 0}, dv[3], om_sum = 0;
         for (int y = boxes[i].y0; y < boxes[i].y1; y++) {
             double om = sl_latlong_texel_solid_angle(y, w, h);
             for (int x = boxes[i].x0; x < boxes[i].x1; x++) {
                 const float *p = sl_image_pixel(rgb, x, y);
-                double v[3] = {p[0], p[1], p[2]}, e = rig_luma(v) * om;
+                double v[3] = {p[0], p[1], p[2]}, e = sl_luminance(v) * om;
                 for (int c = 0; c < 3; c++)
-                    rig_sum_add(&integ[c], v[c] * om);
+                    sl_ksum_add(&integ[c], v[c] * om);
                 rig_texel_dir(x, y, w, h, dv);
                 for (int a = 0; a < 3; a++)
                     d[a] += (e > 0 ? e : om * 1e-30) * dv[a];
@@ -154,7 +154,7 @@ sl_result rig_mediancut(const sl_image *rgb, const sl_rig_options *opt, sl_rig *
         double rr = acos(1 - fmin(om_sum, 4 * M_PI) / (2 * M_PI));
         L->angular_size[0] = L->angular_size[1] = 2 * rr;
         for (int c = 0; c < 3; c++) {
-            L->integral[c] = rig_sum_get(&integ[c]);
+            L->integral[c] = sl_ksum_value(&integ[c]);
             L->radiance[c] = L->integral[c] / om_sum;
         }
         L->share = total > 0 ? boxes[i].energy / total : 0;

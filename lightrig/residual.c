@@ -68,7 +68,7 @@ sl_result rig_fill(const sl_image *rgb, const int *labels, sl_image *out, sl_err
     if (!alloc_level(&lv[0], w, h))
         goto nomem;
     nl = 1;
-    rig_sum tot[3] = {{0}}, totw = {0};
+    sl_ksum tot[3] = {{0}}, totw = {0};
     for (int y = 0; y < h; y++) {
         double om = sl_latlong_texel_solid_angle(y, w, h);
         for (int x = 0; x < w; x++) {
@@ -80,9 +80,9 @@ sl_result rig_fill(const sl_image *rgb, const int *labels, sl_image *out, sl_err
             lv[0].wk[i] = om;
             for (int c = 0; c < 3; c++) {
                 lv[0].v[3 * i + c] = om * p[c];
-                rig_sum_add(&tot[c], om * p[c]);
+                sl_ksum_add(&tot[c], om * p[c]);
             }
-            rig_sum_add(&totw, om);
+            sl_ksum_add(&totw, om);
         }
     }
     /* Push: sums of 2x2 children, wrapping in x. */
@@ -103,9 +103,9 @@ sl_result rig_fill(const sl_image *rgb, const int *labels, sl_image *out, sl_err
     }
     /* Averages; the coarsest level's empty texels take the global mean. */
     double mean[3];
-    double tw = rig_sum_get(&totw);
+    double tw = sl_ksum_value(&totw);
     for (int c = 0; c < 3; c++)
-        mean[c] = tw > 0 ? rig_sum_get(&tot[c]) / tw : 0;
+        mean[c] = tw > 0 ? sl_ksum_value(&tot[c]) / tw : 0;
     for (int k = 0; k < nl; k++) {
         level *l = &lv[k];
         for (size_t i = 0; i < (size_t)l->w * l->h; i++)

@@ -149,7 +149,7 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
         for (int x = 0; x < w; x++) {
             const float *p = sl_image_pixel(&rgb, x, y);
             double v[3] = {p[0], p[1], p[2]};
-            lum[(size_t)y * w + x] = (float)rig_luma(v);
+            lum[(size_t)y * w + x] = (float)sl_luminance(v);
         }
     double med = rig_weighted_median(lum, w, h, err, &r);
     if (r)
@@ -157,13 +157,13 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
     double base = med;
     if (!(base > 0)) {
         /* Mostly black (a night sky, a studio): fall back on the mean. */
-        rig_sum s = {0};
+        sl_ksum s = {0};
         for (int y = 0; y < h; y++) {
             double om = sl_latlong_texel_solid_angle(y, w, h);
             for (int x = 0; x < w; x++)
-                rig_sum_add(&s, lum[(size_t)y * w + x] * om);
+                sl_ksum_add(&s, lum[(size_t)y * w + x] * om);
         }
-        base = rig_sum_get(&s) / (4 * M_PI);
+        base = sl_ksum_value(&s) / (4 * M_PI);
     }
     rig->median_luminance = med;
     rig->threshold_luminance = opt->threshold * base;

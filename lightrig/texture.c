@@ -46,7 +46,7 @@ static sl_result write_one(sl_rig *rig, const sl_image *env, int index, const ch
     sl_result r = sl_image_alloc(&img, tw, th, 3, err);
     if (r)
         return r;
-    rig_sum mean[3] = {{0}}, wsum = {0};
+    sl_ksum mean[3] = {{0}}, wsum = {0};
     for (int t = 0; t < th; t++)
         for (int s = 0; s < tw; s++) {
             double acc[3] = {0, 0, 0}, wacc = 0;
@@ -69,8 +69,8 @@ static sl_result write_one(sl_rig *rig, const sl_image *env, int index, const ch
             for (int k = 0; k < 3; k++)
                 p[k] = (float)(acc[k] / wacc);
             for (int k = 0; k < 3; k++)
-                rig_sum_add(&mean[k], p[k] * wacc);
-            rig_sum_add(&wsum, wacc);
+                sl_ksum_add(&mean[k], p[k] * wacc);
+            sl_ksum_add(&wsum, wacc);
         }
     /* The renderer (and UsdLux) multiply the texture by the light's colour,
      * which is already the mean radiance: each channel's mean over the solid
@@ -78,7 +78,7 @@ static sl_result write_one(sl_rig *rig, const sl_image *env, int index, const ch
      * warm window's red up 43% and its blue down 43%). */
     double m[3];
     for (int k = 0; k < 3; k++)
-        m[k] = rig_sum_get(&mean[k]) / rig_sum_get(&wsum);
+        m[k] = sl_ksum_value(&mean[k]) / sl_ksum_value(&wsum);
     if (!(m[0] > 0 || m[1] > 0 || m[2] > 0)) {
         sl_image_free(&img);
         return SL_OK; /* nothing to show: the light stays plain */
@@ -124,7 +124,7 @@ static sl_result region_variations(const sl_rig *rig, const sl_image *env, doubl
                                    int *interior, sl_error *err)
 {
     const int w = rig->width, h = rig->height, n = rig->light_count;
-    rig_sum *sums = calloc((size_t)3 * (n > 0 ? n : 1), sizeof *sums);
+    sl_ksum *sums = calloc((size_t)3 * (n > 0 ? n : 1), sizeof *sums);
     if (!sums)
         return sl_error_set(err, SL_ERR_NOMEM, "rig textures: out of memory");
     memset(interior, 0, (size_t)n * sizeof *interior);
@@ -147,19 +147,19 @@ static sl_result region_variations(const sl_rig *rig, const sl_image *env, doubl
                 o[c] = isfinite(v) && v > 0 ? v : 0;
                 d[c] = q[c];
             }
-            double e = rig_luma(o) - rig_luma(d);
+            double e = sl_luminance(o) - sl_luminance(d);
             e = e > 0 ? e : 0;
-            rig_sum *s = &sums[3 * (label - 1)];
-            rig_sum_add(&s[0], dw);
-            rig_sum_add(&s[1], e * dw);
-            rig_sum_add(&s[2], e * e * dw);
+            sl_ksum *s = &sums[3 * (label - 1)];
+            sl_ksum_add(&s[0], dw);
+            sl_ksum_add(&s[1], e * dw);
+            sl_ksum_add(&s[2], e * e * dw);
             interior[label - 1]++;
         }
     }
     for (int k = 0; k < n; k++) {
-        const rig_sum *s = &sums[3 * k];
-        double W = rig_sum_get(&s[0]), m = W > 0 ? rig_sum_get(&s[1]) / W : 0;
-        double var = m > 0 ? rig_sum_get(&s[2]) / W - m * m : 0;
+        const sl_ksum *s = &sums[3 * k];
+        double W = sl_ksum_value(&s[0]), m = W > 0 ? sl_ksum_value(&s[1]) / W : 0;
+        double var = m > 0 ? sl_ksum_value(&s[2]) / W - m * m : 0;
         variation[k] = interior[k] >= SL_RIG_TEXTURE_MIN_TEXELS && var > 0 ? sqrt(var) / m : 0;
     }
     free(sums);

@@ -12,7 +12,7 @@
 static void split_radiance(const double rad[3], double color[3], double *intensity,
                            int *exposure)
 {
-    double y = rig_luma(rad);
+    double y = sl_luminance(rad);
     if (!(y > 0)) {
         color[0] = color[1] = color[2] = 1;
         *intensity = 0;

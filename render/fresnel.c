@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Fresnel terms. The exact conductor formula is the standard one for an
- * absorbing medium seen from air (as in pbrt-v3 FrConductor); the artist
- * mapping is Gulbrandsen, "Artist Friendly Metallic Fresnel", JCGT 3(4) 2014. */
+/* Fresnel terms. The exact conductor formula is core's (shared with the
+ * unwrap); the artist mapping is Gulbrandsen, "Artist Friendly Metallic
+ * Fresnel", JCGT 3(4) 2014. */
 #include "fresnel.h"
 
 #include <math.h>
@@ -27,21 +27,6 @@ double sl_fresnel_dielectric(double cos_i, double eta)
     double rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     double rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     return 0.5 * (rs * rs + rp * rp);
-}
-
-double sl_fresnel_conductor(double cos_i, double n, double k)
-{
-    cos_i = fmin(fmax(cos_i, 0.0), 1.0);
-    double c2 = cos_i * cos_i, s2 = 1.0 - c2;
-    double n2 = n * n, k2 = k * k;
-    double t0 = n2 - k2 - s2;
-    double a2b2 = sqrt(t0 * t0 + 4.0 * n2 * k2);
-    double a = sqrt(fmax(0.0, 0.5 * (a2b2 + t0)));
-    double t1 = a2b2 + c2, t2 = 2.0 * cos_i * a;
-    double rs = (t1 - t2) / (t1 + t2);
-    double t3 = c2 * a2b2 + s2 * s2, t4 = t2 * s2;
-    double rp = rs * (t3 - t4) / (t3 + t4);
-    return 0.5 * (rs + rp);
 }
 
 void sl_fresnel_artist_nk(double r, double g, double *n, double *k)

@@ -11,8 +11,7 @@ double sl_fresnel_schlick(double f0, double cos_i);
 /* Unpolarised reflectance from outside a dielectric of relative index eta;
  * 1 under total internal reflection (eta < 1). cos_i in (0, 1]. */
 double sl_fresnel_dielectric(double cos_i, double eta);
-/* Unpolarised reflectance of a conductor of complex index n + ik (from air). */
-double sl_fresnel_conductor(double cos_i, double n, double k);
+/* sl_fresnel_conductor: core.h. */
 /* Gulbrandsen 2014: reflectance r at normal incidence and edge tint g
  * (both 0..1) -> n, k. r is clamped below 1 (F = 1 is handled by the caller). */
 void sl_fresnel_artist_nk(double r, double g, double *n, double *k);

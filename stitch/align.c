@@ -80,7 +80,7 @@ static sl_result read_luma(const char *path, int scale, const sl_merge_options *
             for (int x = 0; x < w * scale; x++) {
                 const float *p = buf + ((size_t)j * fw + x) * 3;
                 int bx = x / scale;
-                double y = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+                double y = sl_luminance_px(p);
                 if (!(p[0] < sat && p[1] < sat && p[2] < sat))
                     state[bx] = 2; /* also NaN */
                 else if (y <= black)
@@ -730,7 +730,7 @@ void align_plane_add(align_plane *p, const void *strip, int code_bytes, int widt
                 for (int k = 0; k < 3; k++)
                     c[k] = code_bytes ? (float)merge_code(strip, code_bytes, at + k) * unit
                                       : ((const float *)strip)[at + k];
-                float lum = 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+                float lum = sl_luminancef(c);
                 if (!(c[0] < sat && c[1] < sat && c[2] < sat))
                     st = 2;
                 else if (lum <= black && !st)

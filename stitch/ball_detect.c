@@ -95,12 +95,6 @@ static bool in_frame(const det_image *im, double x, double y)
     return x >= 0.5 && y >= 0.5 && x <= im->w - 0.5 && y <= im->h - 0.5;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 bool ball_circle_fit(const ball_point *p, const bool *use, int n, double c[3])
 {
     double s[3][4] = {{0}};
@@ -315,7 +309,7 @@ static bool refine(const det_image *im, double cx, double cy, double r, double w
         for (int i = 0; i < m; i++)
             res[i] = fabs(hypot(pts[i].x - c[0], pts[i].y - c[1]) - c[2]);
         memcpy(sorted, res, (size_t)m * sizeof *sorted);
-        qsort(sorted, (size_t)m, sizeof *sorted, cmp_double);
+        qsort(sorted, (size_t)m, sizeof *sorted, sl_cmp_double);
         double limit = 3.0 * 1.4826 * sorted[m / 2];
         limit = limit < INLIER_MIN ? INLIER_MIN : (limit > INLIER_MAX ? INLIER_MAX : limit);
         for (int i = 0; i < m; i++)
@@ -470,13 +464,13 @@ static sl_result full_image(const sl_image *photo, det_image *im, sl_error *err)
     for (int y = 0; y < photo->height; y++)
         for (int x = 0; x < photo->width; x++) {
             const float *p = sl_image_pixel(photo, x, y);
-            double l = photo->channels >= 3 ? 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]
+            double l = photo->channels >= 3 ? sl_luminance_px(p)
                                             : p[0];
             im->lum[(size_t)y * photo->width + x] = isfinite(l) && l > 0.0 ? (float)l : 0.0f;
         }
     for (size_t i = 0; i < ns; i++)
         sample[i] = im->lum[i * (n / ns)];
-    qsort(sample, ns, sizeof *sample, cmp_double);
+    qsort(sample, ns, sizeof *sample, sl_cmp_double);
     im->eps = fmax(1e-3 * sample[ns / 2], 1e-4 * sample[ns - 1]);
     if (!(im->eps > 0.0))
         im->eps = 1e-9;
@@ -511,7 +505,7 @@ static sl_result work_image(const det_image *full, int factor, det_image *im,
     }
     for (size_t i = 0; i < ns; i++)
         sample[i] = im->logl[i * (n / ns)];
-    qsort(sample, ns, sizeof *sample, cmp_double);
+    qsort(sample, ns, sizeof *sample, sl_cmp_double);
     double lo = sample[ns / 100], hi = sample[ns - 1 - ns / 200];
     free(sample);
     double scale = hi > lo ? 255.0 / (hi - lo) : 1.0;
@@ -541,7 +535,7 @@ static double flat_fraction(const det_image *im, const fit *f, double a, double 
         }
     if (n < 16)
         return 0.0;
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    qsort(v, (size_t)n, sizeof *v, sl_cmp_double);
     double med = v[n / 2];
     int near = 0;
     for (int i = 0; i < n; i++)

@@ -25,12 +25,6 @@ void sl_grey_fit_free(sl_grey_fit *fit)
     sl_image_free(&fit->error);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 /* Bilinear lookup of channel c at pixel coordinates (x, y); false when any
  * tap is outside, non-finite or clipped. */
 static bool bilinear(const sl_image *img, double x, double y, double clip, float out[3])
@@ -56,8 +50,6 @@ static bool bilinear(const sl_image *img, double x, double y, double clip, float
         out[c] = (float)acc[c];
     return true;
 }
-
-static double lum(const float *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
 
 sl_result sl_cal_grey_check(const sl_grey_options *o, const sl_image *photo, sl_cal_view *view,
                             sl_error *err)
@@ -272,7 +264,7 @@ sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const 
     for (int c = 0; c < 3; c++) {
         for (size_t i = 0; i < k; i++)
             tmp[i] = ratio[i * 3 + c];
-        qsort(tmp, k, sizeof(double), cmp_double);
+        qsort(tmp, k, sizeof(double), sl_cmp_double);
         med[c] = tmp[k / 2];
     }
     /* Least squares over the inliers, and the error before and after. */
@@ -301,7 +293,7 @@ sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const 
     free(ratio);
     for (int c = 0; c < 3; c++)
         fit->gain[c] = srr[c] > 0 ? spr[c] / srr[c] : 0;
-    fit->scale = 0.2126 * fit->gain[0] + 0.7152 * fit->gain[1] + 0.0722 * fit->gain[2];
+    fit->scale = sl_luminance(fit->gain);
     if (!(fit->scale > 0) || !isfinite(fit->scale) || fit->pixels < 16) {
         free(tmp);
         sl_grey_fit_free(fit);
@@ -325,16 +317,16 @@ sl_result sl_grey_sphere_fit(const sl_image *hdri, const sl_image *photo, const 
             er[0] = er[1] = er[2] = 0;
             continue;
         }
-        double l = lum(ph);
+        double l = sl_luminance_px(ph);
         for (int c = 0; c < 3; c++) {
             e0 += (before[c] - ph[c]) * (before[c] - ph[c]);
             e1 += ((double)re[c] - ph[c]) * ((double)re[c] - ph[c]);
             ref += (double)ph[c] * ph[c];
             er[c] = (float)(l > 0 ? (re[c] - ph[c]) / l : 0);
         }
-        tmp[m++] = fabs(lum(er));
+        tmp[m++] = fabs(sl_luminance_px(er));
     }
-    qsort(tmp, m, sizeof(double), cmp_double);
+    qsort(tmp, m, sizeof(double), sl_cmp_double);
     fit->error_p95 = m ? tmp[(size_t)(0.95 * (double)(m - 1))] : 0;
     free(tmp);
     fit->rel_rmse_before = sqrt(e0 / ref);

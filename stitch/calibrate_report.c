@@ -84,7 +84,7 @@ sl_result sl_calibrate_report(sl_report *rep, const char *prefix, const sl_chart
             for (int x = 0; x < grey->photo.width; x++) {
                 const float *v = grey->photo.data + (size_t)y * grey->photo.stride + (size_t)x * 4;
                 if (v[3] > 0) {
-                    lsum += 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+                    lsum += sl_luminance_px(v);
                     n++;
                 }
             }

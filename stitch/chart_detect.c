@@ -24,7 +24,7 @@ static double white_level(const sl_image *img, double clip_level)
         return -1;
     for (size_t i = 0; i < n; i += step) {
         const float *p = img->data + (i / img->width) * img->stride + (i % img->width) * img->channels;
-        float y = 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+        float y = sl_luminancef(p);
         bool clipped = clip_level > 0 && (p[0] >= clip_level || p[1] >= clip_level ||
                                           p[2] >= clip_level);
         if (isfinite(y) && y > 0 && !clipped)

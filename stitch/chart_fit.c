@@ -8,11 +8,6 @@
 #include "calibrate_internal.h"
 #include "setlight/stitch.h"
 
-static double luminance(const double rgb[3])
-{
-    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
-}
-
 double sl_chart_delta_e(const double rgb[3], const double ref[3])
 {
     double x1[3], x2[3], l1[3], l2[3];
@@ -59,7 +54,7 @@ static sl_result fit_once(const sl_chart_patch patches[24], const double referen
     fit->neutral_patch = -1;
     double w[24];
     for (int p = 0; p < 24; p++) {
-        double y = luminance(reference[p]);
+        double y = sl_luminance(reference[p]);
         bool ok = patches[p].valid && !exclude[p] && y > 0 && isfinite(y);
         for (int c = 0; c < 3; c++)
             ok = ok && isfinite(patches[p].rgb[c]) && isfinite(reference[p][c]);
@@ -76,8 +71,8 @@ static sl_result fit_once(const sl_chart_patch patches[24], const double referen
         n = opt->neutral_patch;
         if (n < 0) {
             for (int p = 18; p < 24; p++)
-                if (fit->used_patch[p] && (n < 0 || luminance(patches[p].rgb) >
-                                                         luminance(patches[n].rgb)))
+                if (fit->used_patch[p] && (n < 0 || sl_luminance(patches[p].rgb) >
+                                                         sl_luminance(patches[n].rgb)))
                     n = p;
             if (n < 0)
                 return sl_error_set(err, SL_ERR_INPUT,
@@ -122,15 +117,15 @@ static sl_result fit_once(const sl_chart_patch patches[24], const double referen
     double ym = 0, yr = 0;
     for (int p = 18; p < 24; p++)
         if (fit->used_patch[p]) {
-            ym += luminance(patches[p].rgb);
-            yr += luminance(reference[p]);
+            ym += sl_luminance(patches[p].rgb);
+            yr += sl_luminance(reference[p]);
         }
     if (!(ym > 0)) {
         ym = yr = 0;
         for (int p = 0; p < 24; p++)
             if (fit->used_patch[p]) {
-                ym += luminance(patches[p].rgb);
-                yr += luminance(reference[p]);
+                ym += sl_luminance(patches[p].rgb);
+                yr += sl_luminance(reference[p]);
             }
     }
     double k_before = ym > 0 ? yr / ym : 1;
@@ -157,12 +152,6 @@ static sl_result fit_once(const sl_chart_patch patches[24], const double referen
     return SL_OK;
 }
 
-static int cmp_lq(const void *a, const void *b)
-{
-    const double *x = a, *y = b;
-    return (x[0] > y[0]) - (x[0] < y[0]);
-}
-
 sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double reference[24][3],
                            const sl_ccm_options *opt, sl_ccm_fit *fit, sl_error *err)
 {
@@ -186,11 +175,11 @@ sl_result sl_ccm_fit_chart(const sl_chart_patch patches[24], const double refere
                 continue;
             double v[3];
             sl_mat3_apply(fit->m, patches[p].rgb, v);
-            double q = luminance(v) / luminance(reference[p]);
+            double q = sl_luminance(v) / sl_luminance(reference[p]);
             lq[m][0] = q > 0 ? log(q) : -1e300;
             lq[m++][1] = p;
         }
-        qsort(lq, (size_t)m, sizeof(lq[0]), cmp_lq);
+        qsort(lq, (size_t)m, sizeof(lq[0]), sl_cmp_double);
         int best = 0, bi = 0;
         for (int i = 0, j = 0; i < m; i++) {
             while (j < m && lq[j][0] - lq[i][0] <= log(opt->outlier_ratio))
@@ -226,8 +215,8 @@ void sl_ccm_plate_matrix(const sl_chart_patch patches[24], const sl_ccm_fit *fit
     if (n >= 0) {
         double v[3];
         sl_mat3_apply(fit->m, patches[n].rgb, v);
-        y_in = luminance(patches[n].rgb);
-        y_out = luminance(v);
+        y_in = sl_luminance(patches[n].rgb);
+        y_out = sl_luminance(v);
     }
     double k = y_out > 0 && y_in > 0 ? y_in / y_out : 1 / fit->gain;
     for (int i = 0; i < 3; i++)

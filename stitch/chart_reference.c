@@ -130,11 +130,10 @@ static sl_result read_csv(const char *path, FILE *f, double values[24][3], sl_ch
 static sl_result read_json(const char *path, double values[24][3], sl_chart_space *space,
                            sl_error *err)
 {
-    json_error_t je;
-    json_t *root = json_load_file(path, 0, &je);
-    if (!root)
-        return sl_error_set(err, SL_ERR_INPUT, "%s:%d: %s", path, je.line, je.text);
-    sl_result r = SL_OK;
+    json_t *root;
+    sl_result r = sl_json_load_file(path, "chart reference JSON", 0, &root, err);
+    if (r)
+        return r;
     json_t *sp = json_object_get(root, "space"), *pa = json_object_get(root, "patches");
     if (!json_is_string(sp) || !space_from_name(json_string_value(sp), space))
         r = sl_error_set(err, SL_ERR_INPUT,
@@ -186,7 +185,7 @@ sl_result sl_chart_reference_read(const char *path, double reference[24][3], sl_
                 v[p][c] /= 100;
     for (int p = 0; p < 24; p++) {
         to_rec709(sp, v[p], reference[p]);
-        double y = 0.2126 * reference[p][0] + 0.7152 * reference[p][1] + 0.0722 * reference[p][2];
+        double y = sl_luminance(reference[p]);
         if (!(y > 0))
             return sl_error_set(err, SL_ERR_INPUT, "%s: patch %d has no positive luminance", path,
                                 p + 1);

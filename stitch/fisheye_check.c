@@ -75,7 +75,7 @@ static sl_result shrink(const sl_image *photo, bool srgb, small_image *s, int *f
                 double v = p[photo->channels >= 3 ? k : 0];
                 c[k] = srgb ? sl_srgb_to_linear((float)v) : v;
             }
-            double l = 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+            double l = sl_luminance(c);
             s->lum[(size_t)(y / f) * s->w + x / f] += isfinite(l) && l > 0.0 ? (float)l : 0.0f;
         }
     for (size_t i = 0; i < (size_t)s->w * s->h; i++)

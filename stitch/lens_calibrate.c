@@ -48,7 +48,7 @@ static unsigned char *grey_bytes(const sl_image *img, bool linear)
     for (int r = 0; r < img->height; r++)
         for (int c = 0; c < img->width; c++) {
             const float *p = sl_image_pixel(img, c, r);
-            float v = img->channels >= 3 ? 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2] : p[0];
+            float v = img->channels >= 3 ? sl_luminancef(p) : p[0];
             y[(size_t)r * img->width + c] = isfinite(v) && v > 0 ? v : 0.0f;
         }
     double white = 1.0;

@@ -339,8 +339,8 @@ static sl_result choose_positions(merge_ctx *m, const sl_merge_result *res, uint
         int y0 = (int)((int64_t)cy * m->height / gh), y1 = (int)((int64_t)(cy + 1) * m->height / gh);
         for (int cx = 0; cx < gw; cx++) {
             int x0 = (int)((int64_t)cx * m->width / gw), x1 = (int)((int64_t)(cx + 1) * m->width / gw);
-            int x = x0 + (int)(merge_rand(&state) % (uint64_t)(x1 - x0));
-            int y = y0 + (int)(merge_rand(&state) % (uint64_t)(y1 - y0));
+            int x = x0 + (int)(sl_splitmix64(&state) % (uint64_t)(x1 - x0));
+            int y = y0 + (int)(sl_splitmix64(&state) % (uint64_t)(y1 - y0));
             /* Where an aligned frame does not reach, its edge is repeated: no sample there. */
             bool covered = true;
             for (int i = 0; i < res->frame_count && covered; i++)
@@ -571,15 +571,9 @@ static sl_result sample_pass(merge_ctx *m, sl_merge_result *res, sl_error *err)
     return SL_OK;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 static double median_inplace(double *v, int n)
 {
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    qsort(v, (size_t)n, sizeof *v, sl_cmp_double);
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 

@@ -253,13 +253,4 @@ static inline int merge_code(const void *buf, int bytes, size_t i)
     return bytes == 1 ? ((const uint8_t *)buf)[i] : ((const uint16_t *)buf)[i];
 }
 
-/* splitmix64: a small seeded generator for sample positions. */
-static inline uint64_t merge_rand(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
 #endif

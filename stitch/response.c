@@ -74,36 +74,14 @@ sl_result sl_response_write(const char *path, const sl_response *resp, sl_error 
 sl_result stitch_json_write(const char *path, void *json, int precision, sl_error *err)
 {
     json_t *o = json;
-    char *text = o ? json_dumps(o, JSON_INDENT(1) | JSON_REAL_PRECISION(precision)) : NULL;
+    sl_result r = sl_json_write_atomic(path, o, JSON_INDENT(1) | JSON_REAL_PRECISION(precision), err);
     json_decref(o);
-    if (!text)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    size_t len = strlen(text);
-    char *with_nl = realloc(text, len + 2);
-    if (!with_nl) {
-        free(text);
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    }
-    with_nl[len] = '\n';
-    with_nl[len + 1] = '\0';
-    sl_result r = sl_write_file_atomic(path, with_nl, len + 1, err);
-    free(with_nl);
     return r;
 }
 
 sl_result stitch_json_read(const char *path, void *out, sl_error *err)
 {
-    json_t **o = out;
-    *o = NULL;
-    sl_result r = sl_check_input_file(path, err);
-    if (r)
-        return r;
-    json_error_t jerr;
-    *o = json_load_file(path, 0, &jerr);
-    if (!*o)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: not JSON (line %d: %s)", path, jerr.line,
-                            jerr.text);
-    return SL_OK;
+    return sl_json_load_file(path, "JSON", 0, (json_t **)out, err);
 }
 
 sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err)

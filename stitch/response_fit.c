@@ -108,7 +108,7 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
     }
     uint64_t state = seed ^ (0x5851f42d4c957f2dull * (uint64_t)(c + 1));
     for (int i = valid - 1; i > 0; i--) {
-        int j = (int)(merge_rand(&state) % (uint64_t)(i + 1));
+        int j = (int)(sl_splitmix64(&state) % (uint64_t)(i + 1));
         int t = order[i];
         order[i] = order[j];
         order[j] = t;

@@ -25,7 +25,7 @@ static double lum_at_pixel(const sl_image *img, int x, int y)
     x = x < 0 ? 0 : (x >= img->width ? img->width - 1 : x);
     y = y < 0 ? 0 : (y >= img->height ? img->height - 1 : y);
     const float *p = sl_image_pixel(img, x, y);
-    double l = img->channels >= 3 ? 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] : p[0];
+    double l = img->channels >= 3 ? sl_luminance_px(p) : p[0];
     return isfinite(l) && l > 0.0 ? l : 0.0;
 }
 
@@ -58,18 +58,12 @@ static double lum_at(const sl_image *img, double x, double y)
            ay * ((1 - ax) * lum_median3(img, ix, iy + 1) + ax * lum_median3(img, ix + 1, iy + 1));
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static double median_of(const double *v, int n, double *scratch)
 {
     if (n <= 0)
         return 0.0;
     memcpy(scratch, v, (size_t)n * sizeof *v);
-    qsort(scratch, (size_t)n, sizeof *scratch, cmp_double);
+    qsort(scratch, (size_t)n, sizeof *scratch, sl_cmp_double);
     return n % 2 ? scratch[n / 2] : 0.5 * (scratch[n / 2 - 1] + scratch[n / 2]);
 }
 

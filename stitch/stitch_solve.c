@@ -174,7 +174,7 @@ static int ransac_rotation(const double (*ra)[3], const double (*rb)[3], int n,
     int best = 0;
     double threshold = opt->ransac_deg * DEG;
     for (int it = 0; it < opt->ransac_iterations && n >= 2; it++) {
-        int i = (int)(merge_rand(rng) % (uint64_t)n), j = (int)(merge_rand(rng) % (uint64_t)n);
+        int i = (int)(sl_splitmix64(rng) % (uint64_t)n), j = (int)(sl_splitmix64(rng) % (uint64_t)n);
         double cand[3][3];
         if (i == j || !rotation_from_two(ra[i], ra[j], rb[i], rb[j], cand))
             continue;

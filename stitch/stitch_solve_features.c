@@ -33,7 +33,7 @@ static sl_result reduced_copies(const sl_stitch_view *view, int width, int heigh
     for (int y = 0; r == SL_OK && y < height; y++)
         for (int x = 0; x < width; x++) {
             const float *p = sl_image_pixel(&small, x, y);
-            float l = small.channels >= 3 ? 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]
+            float l = small.channels >= 3 ? sl_luminancef(p)
                                           : p[0];
             *sl_image_pixel(&out->luminance, x, y) = isfinite(l) ? l : -1.0f;
         }

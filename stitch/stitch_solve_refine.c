@@ -24,7 +24,7 @@ static bool log_luminance(const sl_image *img, double x, double y, double *out)
     double fx = u - x0, fy = v - y0, l[4];
     for (int k = 0; k < 4; k++) {
         const float *p = sl_image_pixel(img, x0 + (k & 1), y0 + (k >> 1));
-        l[k] = img->channels >= 3 ? 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] : p[0];
+        l[k] = img->channels >= 3 ? sl_luminance_px(p) : p[0];
         if (!(l[k] > 0.0) || !isfinite(l[k]))
             return false;
     }

@@ -297,12 +297,6 @@ static void pixel_of(const unwrap_ctx *c, double u, double v, double xy[2])
     xy[1] = h.y;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static int sub_count(double extent_px)
 {
     double n = ceil(2.0 * extent_px);
@@ -1233,7 +1227,7 @@ static sl_result unwrap_start(const sl_image *photo, const sl_unwrap_options *op
             ring[k * RING_SAMPLES + i] = val[k] / rf[k];
     }
     for (int k = 0; k < 3; k++) {
-        qsort(ring + k * RING_SAMPLES, RING_SAMPLES, sizeof(double), cmp_double);
+        qsort(ring + k * RING_SAMPLES, RING_SAMPLES, sizeof(double), sl_cmp_double);
         c->blind_fill[k] = 0.5 * (ring[k * RING_SAMPLES + RING_SAMPLES / 2 - 1] +
                                   ring[k * RING_SAMPLES + RING_SAMPLES / 2]);
     }

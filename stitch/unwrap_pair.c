@@ -50,7 +50,7 @@ static double occluder_weight(const double d[3], const double cam[3], double occ
 
 static double log_lum(const float *p, double eps)
 {
-    return log(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] + eps);
+    return log(sl_luminance_px(p) + eps);
 }
 
 typedef struct search_ctx {
@@ -96,19 +96,13 @@ static double search_cost(const search_ctx *c, double s_deg, double *out, int *c
     return wsum > 0.0 ? sum / wsum : LOG_CLAMP;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static double median_cost(const search_ctx *c, double s_deg, double *scratch, double *overlap)
 {
     int m = 0;
     search_cost(c, s_deg, scratch, &m, overlap);
     if (!m)
         return NAN;
-    qsort(scratch, (size_t)m, sizeof(double), cmp_double);
+    qsort(scratch, (size_t)m, sizeof(double), sl_cmp_double);
     return m % 2 ? scratch[m / 2] : 0.5 * (scratch[m / 2 - 1] + scratch[m / 2]);
 }
 
@@ -154,7 +148,7 @@ static sl_result refine_azimuth(const sl_image *p1, const sl_image *p2,
         for (int x = 0; x < c.w; x++) {
             const float *p = sl_image_pixel(&a, x, y);
             double wt = sl_latlong_texel_solid_angle(y, c.w, c.h) * p[3];
-            mean += wt * (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
+            mean += wt * sl_luminance_px(p);
             msum += wt;
         }
     double eps = msum > 0.0 ? 1e-3 * mean / msum : 1e-6;

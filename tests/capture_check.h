@@ -8,7 +8,7 @@
 
 #include <jansson.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 /* SETLIGHT_SANITIZED set: smaller frames, same assertions. */
 bool cap_sanitized(void);

@@ -27,7 +27,7 @@
 
 #include "ball_fixture.h"
 #include "chart_fixture.h"
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/core.h"
 #include "setlight/pipeline.h"
 

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 #include "merge_fixture.h"
+#include "testing.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -32,18 +33,10 @@ double mf_curve_inverse(mf_curve curve, double z)
     return 0.5 * (lo + hi);
 }
 
-static uint64_t next(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
 static double gauss(uint64_t *s)
 {
-    double u1 = ((next(s) >> 11) + 0.5) / 9007199254740992.0;
-    double u2 = (next(s) >> 11) / 9007199254740992.0;
+    double u1 = ((sl_test_rand(s) >> 11) + 0.5) / 9007199254740992.0;
+    double u2 = sl_test_uniform(s);
     return sqrt(-2 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
@@ -151,12 +144,6 @@ void mf_result_free(mf_result *r)
     sl_image_free(&r->ghost);
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 int64_t mf_compare(const sl_image *merged, const mf_result *truth, bool fit_scale,
                    double *median, double *p99, double *scale)
 {
@@ -171,12 +158,12 @@ int64_t mf_compare(const sl_image *merged, const mf_result *truth, bool fit_scal
                     e[m++] = sl_image_pixel(merged, x, y)[c] / sl_image_pixel(&truth->radiance, x, y)[c];
     double s = 1;
     if (fit_scale && m) {
-        qsort(e, m, sizeof *e, cmp_double);
+        qsort(e, m, sizeof *e, sl_cmp_double);
         s = e[m / 2];
     }
     for (size_t i = 0; i < m; i++)
         e[i] = fabs(e[i] / s - 1);
-    qsort(e, m, sizeof *e, cmp_double);
+    qsort(e, m, sizeof *e, sl_cmp_double);
     *median = m ? e[m / 2] : NAN;
     *p99 = m ? e[(size_t)(0.99 * (double)(m - 1))] : NAN;
     if (scale)

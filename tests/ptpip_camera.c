@@ -53,7 +53,7 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 enum {
     PKT_INIT_CMD_REQ = 1,
@@ -947,7 +947,7 @@ int main(int argc, char **argv)
             char port[600];
             snprintf(port, sizeof port, "virtual:%s", v ? v : "");
             sl_error err;
-            if (sl_camera_open(port, &g.scene, &err)) {
+            if (sl_vset_camera_register(&err) || sl_camera_open(port, &g.scene, &err)) {
                 fprintf(stderr, "ptpip_camera: %s\n", err.message);
                 return 2;
             }

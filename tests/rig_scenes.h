@@ -209,7 +209,7 @@ static inline void irradiance_map(const sl_image *img, const double n[][3], int 
             double d[3];
             sl_latlong_to_dir((x + 0.5) / img->width, (y + 0.5) / img->height, d);
             const float *p = sl_image_pixel(img, x, y);
-            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            double l = sl_luminance_px(p);
             for (int k = 0; k < count; k++) {
                 double c = sc_dot(n[k], d);
                 if (c > 0)
@@ -227,7 +227,7 @@ static inline void light_irradiance(const sl_rig_light *L, const double n[][3], 
 {
     enum { Q = 24 };
     const double *d = L->direction, *u = L->axis_u, *v = L->axis_v;
-    double y = 0.2126 * L->radiance[0] + 0.7152 * L->radiance[1] + 0.0722 * L->radiance[2];
+    double y = sl_luminance(L->radiance);
     bool rect = L->shape == SL_RIG_RECT;
     double a = tan(L->angular_size[0] / 2), b = tan(L->angular_size[1] / 2);
     double r = acos(fmax(-1, 1 - L->solid_angle / (2 * M_PI)));

@@ -16,16 +16,9 @@
 
 #define PI 3.14159265358979323846
 
-static uint64_t rng = 0x9e3779b97f4a7c15ull;
+static uint64_t rng = SL_SPLITMIX64_INCREMENT;
 
-static double rnd(void)
-{
-    uint64_t z = (rng += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+static double rnd(void) { return sl_test_uniform(&rng); }
 
 static void dir(double cos_theta, double phi, double w[3])
 {
@@ -400,12 +393,6 @@ static double gamma_q(double a, double x)
 #define PH 32
 #define SUB 8
 
-static int cmp_exp(const void *a, const void *b)
-{
-    const double *x = a, *y = b;
-    return (x[0] > y[0]) - (x[0] < y[0]);
-}
-
 /* p-value of samples drawn from `sampler` against the pdf of `model`;
  * 0 when a sample lands where the pdf is zero. */
 static double chi2_pvalue(const sl_material *sampler, const sl_material *model,
@@ -443,7 +430,7 @@ static double chi2_pvalue(const sl_material *sampler, const sl_material *model,
             cells[c][0] = e * n;
             cells[c][1] = obs[c];
         }
-    qsort(cells, TH * PH, sizeof cells[0], cmp_exp);
+    qsort(cells, TH * PH, sizeof cells[0], sl_cmp_double);
     double pool_e = 0.0, pool_o = 0.0, chi2 = 0.0;
     int i = 0, dof = 0;
     while (i < TH * PH && (cells[i][0] < 5.0 || pool_e < 5.0)) {

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/render.h"
 #include "setlight/stitch.h"
 #include "testing.h"

@@ -15,8 +15,6 @@
 const char *__lsan_default_suppressions(void);
 const char *__lsan_default_suppressions(void) { return "leak:cv::fastMalloc\n"; }
 
-static double lum(const double *c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
-
 /* The chart preset on a mid-grey background, under a white dome. */
 static int render_chart(sl_image *img, int w)
 {
@@ -143,7 +141,7 @@ static void test_real_photos(void)
                 spread = s, worst = k;
         }
         for (int k = 18; k < 23; k++)
-            ordered = ordered && lum(p[k].rgb) > lum(p[k + 1].rgb);
+            ordered = ordered && sl_luminance(p[k].rgb) > sl_luminance(p[k + 1].rgb);
         printf("  %-44s %4dx%-4d cost %6.2f  max spread %.3f (patch %2d) neutrals %s  "
                "dE2000 vs X-Rite: before %.2f (max %.2f) after CCM %.2f (max %.2f), %d used, %d outliers\n",
                photos[i], img.width, img.height, d.cost, spread, worst + 1, ordered ? "ordered" : "NOT ordered",

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/render.h"
 #include "setlight/stitch.h"
 #include "testing.h"
@@ -69,7 +69,7 @@ static void test_stage(void)
     o.spp = spp;
     sl_grey_fit fit;
     CHECK_OK(sl_grey_sphere_fit(&hdri, &photo, &o, &fit, &err), &err);
-    double true_scale = 0.2126 * truth_gain[0] + 0.7152 * truth_gain[1] + 0.0722 * truth_gain[2];
+    double true_scale = sl_luminance(truth_gain);
     printf("  stage %dpx %lld spp: gain %.4f %.4f %.4f (true %.4f %.4f %.4f), scale %.4f (true "
            "%.4f, %+.2f%%), rel RMSE before %.4f after %.4f, p95 %.4f, %lld px, %lld rejected\n",
            n, (long long)spp, fit.gain[0], fit.gain[1], fit.gain[2], truth_gain[0], truth_gain[1],

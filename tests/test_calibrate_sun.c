@@ -7,14 +7,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/render.h"
 #include "setlight/stitch.h"
 #include "testing.h"
 
 static const double H = 0.25; /* the HDRI's exposure relative to the truth */
-
-static double lum(const double *v) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
 
 static int render_photo(const sl_image *env, int n, int64_t spp, double az, double el,
                         sl_image *out)
@@ -138,29 +136,29 @@ static void test_exterior(void)
     integral(&hdri, repaired_int);
     double ang = acos(fmin(1, rep.direction[0] * sun->dir[0] + rep.direction[1] * sun->dir[1] +
                                   rep.direction[2] * sun->dir[2])) * 180 / M_PI;
-    double missing = lum(truth_int) - lum(clipped_int);
+    double missing = sl_luminance(truth_int) - sl_luminance(clipped_int);
     printf("  exterior %d wide, sphere %d px, %lld spp: %lld texels clipped (%.2e sr), centroid "
            "%.3f deg off the sun\n",
            w, n, (long long)spp, (long long)rep.clipped_texels, rep.solid_angle, ang);
     printf("  before: sun bound %.4g (truth %.4g, %.2f%%), grey fit scale %.4f (truth %.4f), rel "
            "RMSE %.4f inliers %lld rejected %lld; repair's gains-only rel RMSE %.4f\n",
-           lum(rep.bound), lum(sun_truth), 100 * lum(rep.bound) / lum(sun_truth), before.scale,
+           sl_luminance(rep.bound), sl_luminance(sun_truth), 100 * sl_luminance(rep.bound) / sl_luminance(sun_truth), before.scale,
            1 / H, before.rel_rmse_after, (long long)before.pixels, (long long)before.rejected,
            rep.rel_rmse_before);
     printf("  fitted sun %.5g %.5g %.5g (truth %.5g %.5g %.5g), lum %+.2f%%, sigma %.2f%%\n",
            rep.radiance[0], rep.radiance[1], rep.radiance[2], sun_truth[0], sun_truth[1],
-           sun_truth[2], 100 * (lum(rep.radiance) / lum(sun_truth) - 1),
-           100 * lum(rep.radiance_sigma) / lum(rep.radiance));
+           sun_truth[2], 100 * (sl_luminance(rep.radiance) / sl_luminance(sun_truth) - 1),
+           100 * sl_luminance(rep.radiance_sigma) / sl_luminance(rep.radiance));
     printf("  energy: missing %.5g (%.1f%% of the map), added %.5g (%+.2f%%); after: scale %.4f "
            "(%+.2f%%), rel RMSE %.4f, p95 %.4f, rejected %lld\n",
-           missing, 100 * missing / lum(truth_int), lum(rep.energy_added),
-           100 * (lum(rep.energy_added) / missing - 1), after.scale, 100 * (after.scale * H - 1),
+           missing, 100 * missing / sl_luminance(truth_int), sl_luminance(rep.energy_added),
+           100 * (sl_luminance(rep.energy_added) / missing - 1), after.scale, 100 * (after.scale * H - 1),
            after.rel_rmse_after, after.error_p95, (long long)after.rejected);
     CHECK(flagged > 0 && rep.clipped_texels == flagged);
     CHECK(ang < 1.0);
     /* Before: most of the sun is gone and the grey sphere says so. */
-    CHECK(lum(rep.bound) < 0.5 * lum(sun_truth));
-    CHECK(missing > 0.3 * lum(truth_int));
+    CHECK(sl_luminance(rep.bound) < 0.5 * sl_luminance(sun_truth));
+    CHECK(missing > 0.3 * sl_luminance(truth_int));
     CHECK(rep.rel_rmse_before > 0.10);
     CHECK(before.rejected > before.pixels / 10 || fabs(before.scale * H - 1) > 0.1);
     /* After: the bounds. */
@@ -168,10 +166,10 @@ static void test_exterior(void)
     CHECK(rep.rel_rmse_after < 0.03);
     for (int c = 0; c < 3; c++)
         CHECK(fabs(rep.radiance[c] / sun_truth[c] - 1) < 0.10);
-    CHECK(fabs(lum(rep.energy_added) / missing - 1) < 0.10);
-    CHECK(fabs(lum(repaired_int) / lum(truth_int) - 1) < 0.10);
+    CHECK(fabs(sl_luminance(rep.energy_added) / missing - 1) < 0.10);
+    CHECK(fabs(sl_luminance(repaired_int) / sl_luminance(truth_int) - 1) < 0.10);
     CHECK(fabs(after.scale * H - 1) < 0.03);
-    CHECK(lum(rep.radiance_sigma) < 0.1 * lum(rep.radiance) && lum(rep.radiance_sigma) > 0);
+    CHECK(sl_luminance(rep.radiance_sigma) < 0.1 * sl_luminance(rep.radiance) && sl_luminance(rep.radiance_sigma) > 0);
     sl_grey_fit_free(&before);
     sl_grey_fit_free(&after);
 

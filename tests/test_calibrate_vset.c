@@ -11,7 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/render.h"
 #include "setlight/stitch.h"
 #include "testing.h"
@@ -209,7 +209,7 @@ static void test_stage(void)
         for (int x = 0; x < hdri.width; x++) {
             const float *t = vs.latlong.data + (size_t)y * vs.latlong.stride + (size_t)x * 3;
             const float *v = hdri.data + (size_t)y * hdri.stride + (size_t)x * 3;
-            yt += da * (0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2]);
+            yt += da * (sl_luminance_px(t));
             yl += da * a * (0.2126 * gf.gain[0] * v[0] + 0.7152 * gf.gain[1] * v[1] +
                             0.0722 * gf.gain[2] * v[2]);
         }

@@ -15,7 +15,7 @@
 #include <unistd.h>
 
 #include "capture_check.h"
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "testing.h"
 
 #define VIEWS 3

@@ -18,7 +18,7 @@
 #include <sys/stat.h>
 
 #include "capture_check.h"
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "testing.h"
 
 /* The fault tests: 7 frames 2 stops apart around the metered speed. */
@@ -31,6 +31,11 @@ static void test_camera_interface(void)
 {
     sl_camera *cam = (sl_camera *)1;
     sl_error err;
+    /* Before its backend registers, "virtual" is a port libgphoto2 does not know. */
+    CHECK_RESULT(sl_camera_open("virtual:exterior", &cam, &err), SL_ERR_USAGE, &err);
+    CHECK(cam == NULL && strstr(err.message, "virtual:exterior") != NULL);
+    CHECK_OK(sl_vset_camera_register(&err), &err);
+    CHECK_OK(sl_vset_camera_register(&err), &err); /* a second time does nothing */
     CHECK_RESULT(sl_camera_open("virtual:nowhere", &cam, &err), SL_ERR_USAGE, &err);
     CHECK(cam == NULL && strstr(err.message, "nowhere") && strstr(err.message, "virtual"));
     CHECK_RESULT(sl_camera_open("virtual:/no/such/scene.json", &cam, &err), SL_ERR_NOT_FOUND,

@@ -12,17 +12,10 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
+static uint64_t rng_state = SL_SPLITMIX64_INCREMENT;
 
 /* splitmix64: fixed seed, same numbers everywhere. */
-static double rng_uniform(void)
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+static double rng_uniform(void) { return sl_test_uniform(&rng_state); }
 
 static void random_dir(double d[3])
 {
@@ -545,7 +538,7 @@ static double *log_luminance(const sl_image *img)
     for (int y = 0; l && y < img->height; y++)
         for (int x = 0; x < img->width; x++) {
             const float *p = sl_image_pixel(img, x, y);
-            double lum = img->channels >= 3 ? 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2] : p[0];
+            double lum = img->channels >= 3 ? sl_luminance_px(p) : p[0];
             l[(size_t)y * img->width + x] = log(fmax(lum, 1e-4));
         }
     return l;

@@ -100,7 +100,7 @@ static void bad_files(void)
                    "unknown projection \"fisheye\"");
     /* k1 = -0.3: r = f q (1 - 0.3 q^2) peaks at q = 1.05, 63 deg off-axis. */
     expect_refused(edited("monotone.json", "0.015625", "-0.3"), "stop increasing");
-    expect_refused(edited("nan.json", "0.015625", "NaN"), "not JSON");
+    expect_refused(edited("nan.json", "0.015625", "NaN"), "JSON syntax error");
     expect_refused(edited("vignette.json", "-0.125", "-0.8"), "vignetting");
     expect_refused(edited("centre.json", "\"cy\": 797.5", "\"cy\": 1700"), "off the");
     expect_refused(edited("k.json", "\"k\": [", "\"k\": [1, "), "\"k\" is not three");

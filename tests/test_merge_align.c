@@ -26,19 +26,10 @@ typedef struct blob {
 static int size(int full) { return getenv("SETLIGHT_SANITIZED") ? full / 2 : full; }
 static int size_still(int full) { return getenv("SETLIGHT_SANITIZED") ? full * 2 / 3 : full; }
 
-static uint64_t rng(uint64_t *s)
-{
-    uint64_t z = (*s += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
-static double uniform(uint64_t *s) { return (rng(s) >> 11) / 9007199254740992.0; }
 
 static double gauss(uint64_t *s)
 {
-    double u1 = uniform(s) + 1e-300, u2 = uniform(s);
+    double u1 = sl_test_uniform(s) + 1e-300, u2 = sl_test_uniform(s);
     return sqrt(-2 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
@@ -54,10 +45,10 @@ static void make_scene(scene *s, int w, int h, uint64_t seed)
     s->w = w;
     s->h = h;
     for (int i = 0; i < BLOBS; i++) {
-        s->b[i].x = (uniform(&seed) * 1.4 - 0.2) * w;
-        s->b[i].y = (uniform(&seed) * 1.4 - 0.2) * h;
-        s->b[i].sigma = 3 + 30 * pow(uniform(&seed), 2);
-        s->b[i].stops = (uniform(&seed) - 0.45) * 6;
+        s->b[i].x = (sl_test_uniform(&seed) * 1.4 - 0.2) * w;
+        s->b[i].y = (sl_test_uniform(&seed) * 1.4 - 0.2) * h;
+        s->b[i].sigma = 3 + 30 * pow(sl_test_uniform(&seed), 2);
+        s->b[i].stops = (sl_test_uniform(&seed) - 0.45) * 6;
     }
 }
 
@@ -139,12 +130,6 @@ static void make_bracket(bracket *b, const char *name, const scene *s, int n, do
         b->ptr[k] = b->paths[k];
         CHECK_OK(write_frame(b->paths[k], s, &t[k], st, 17 + (uint64_t)k * 1000003, &err), &err);
     }
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
 }
 
 /* Largest displacement error over the frame's corners (pixels). */
@@ -250,7 +235,7 @@ static double median_error(const sl_merge_result *res, const scene *s, const dou
             double truth = exp2(l2[(size_t)y * s->w + x] - 3);
             e[n++] = fabs(sl_image_pixel(&res->radiance, x, y)[1] / truth - 1);
         }
-    qsort(e, n, sizeof *e, cmp_double);
+    qsort(e, n, sizeof *e, sl_cmp_double);
     double m = e[n / 2];
     free(e);
     return m;

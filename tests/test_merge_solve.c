@@ -63,12 +63,6 @@ static double residual(const double *a, const double *b, const double *x, int n)
     return sqrt(num / den);
 }
 
-static int cmp_double(const void *x, const void *y)
-{
-    double a = *(const double *)x, b = *(const double *)y;
-    return a < b ? -1 : a > b;
-}
-
 /* Median time of `repeats` solves of the system, each on a fresh copy; the
  * solution in x. */
 static double time_solver(bool (*solve)(double *, double *, int), const double *a0,
@@ -83,7 +77,7 @@ static double time_solver(bool (*solve)(double *, double *, int), const double *
         t[r] = sl_seconds() - t0;
     }
     free(a);
-    qsort(t, (size_t)repeats, sizeof t[0], cmp_double);
+    qsort(t, (size_t)repeats, sizeof t[0], sl_cmp_double);
     return t[repeats / 2];
 }
 

@@ -8,14 +8,7 @@
 
 static uint64_t rng_state = 12345;
 
-static double rng_uniform(void)
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
+static double rng_uniform(void) { return sl_test_uniform(&rng_state); }
 
 static double image_mean(const sl_image *img, int c)
 {

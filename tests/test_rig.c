@@ -112,7 +112,7 @@ static void test_stage(void)
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
             const float *p = sl_image_pixel(&rig.residual, x, y);
-            double v = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            double v = sl_luminance_px(p);
             maxl = v > maxl ? v : maxl;
         }
     printf("  residual max luminance %.3g (threshold %.3g)\n", maxl, rig.threshold_luminance);

@@ -9,7 +9,7 @@
 #include <string.h>
 
 #include "rig_scenes.h"
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/lightrig.h"
 #include "setlight/render.h"
 #include "testing.h"

@@ -7,7 +7,7 @@
  * call's refusals. */
 #include "testing.h"
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/stitch.h"
 
 #include <math.h>
@@ -111,17 +111,6 @@ static void oracle_views(const rig *g, sl_stitch_view *v)
         v[i] = (sl_stitch_view){names[i], &g->views[i], NULL, g->lens, g->pose[i]};
 }
 
-static double lum(const float *p)
-{
-    return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
 /* Median and p95 of the relative luminance error against the truth (area
  * resampled to the stitch's size) over latitudes within +-75 deg, seen
  * texels only. */
@@ -143,11 +132,11 @@ static void error_vs_truth(const sl_image *st, const sl_image *truth_full, doubl
             const float *s = sl_image_pixel(st, x, y), *t = sl_image_pixel(&truth, x, y);
             if (s[3] <= 0)
                 continue;
-            double lt = lum(t);
-            e[n++] = fabs(lum(s) - lt) / fmax(lt, 1e-9);
+            double lt = sl_luminance_px(t);
+            e[n++] = fabs(sl_luminance_px(s) - lt) / fmax(lt, 1e-9);
         }
     }
-    qsort(e, n, sizeof *e, cmp_double);
+    qsort(e, n, sizeof *e, sl_cmp_double);
     if (n) {
         *median = e[n / 2];
         *p95 = e[(size_t)(0.95 * (n - 1))];
@@ -406,7 +395,7 @@ static void moving_person(void)
         for (int y = cy - 12; y <= cy + 12; y++)
             for (int x = cx - 12; x <= cx + 12; x++) {
                 const float *s = sl_image_pixel(&out, x, y), *t = sl_image_pixel(&clean, x, y);
-                err_on[pass] = fmax(err_on[pass], fabs(lum(s) - lum(t)) / fmax(lum(t), 1e-6));
+                err_on[pass] = fmax(err_on[pass], fabs(sl_luminance_px(s) - sl_luminance_px(t)) / fmax(sl_luminance_px(t), 1e-6));
             }
         ghosts[pass] = cov.ghost_texels;
         sl_image_free(&out);
@@ -452,11 +441,11 @@ static void nadir_mask(void)
                 const float *p = sl_image_pixel(&out, x, y);
                 if (lat < -70.5) {
                     unflagged += p[3] != 0.0f;
-                    fill_min = fmin(fill_min, lum(p));
-                    fill_max = fmax(fill_max, lum(p));
+                    fill_min = fmin(fill_min, sl_luminance_px(p));
+                    fill_max = fmax(fill_max, sl_luminance_px(p));
                 } else if (lat < -67 && lat > -69.5) {
-                    ring_min = fmin(ring_min, lum(p));
-                    ring_max = fmax(ring_max, lum(p));
+                    ring_min = fmin(ring_min, sl_luminance_px(p));
+                    ring_max = fmax(ring_max, sl_luminance_px(p));
                 }
             }
         }

@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/stitch.h"
 #include "testing.h"
 

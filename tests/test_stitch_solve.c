@@ -3,7 +3,7 @@
  * whose focal length, centre, radial correction and vignetting are off the
  * nominal ones by known amounts, a head whose pitch and roll are off by
  * known angles; the solve must find them from the overlaps alone. */
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/stitch.h"
 #include "testing.h"
 

@@ -17,12 +17,6 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 static double angle_between(const double a[3], const double b[3])
 {
     double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
@@ -238,13 +232,13 @@ static void test_unwrap_core_ball(void)
             double phi = atan2(hypot(d[0], d[1]), -d[2]);
             const float *p = sl_image_pixel(&out, x, y), *t = sl_image_pixel(&env, x, y);
             if (phi < M_PI / 2) {
-                double lo = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-                double lt = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+                double lo = sl_luminance_px(p);
+                double lt = sl_luminance_px(t);
                 rel[n++] = fabs(lo - lt) / lt;
                 conf_err = fmax(conf_err, fabs(p[3] - cos(phi / 2)));
             }
         }
-    qsort(rel, (size_t)n, sizeof *rel, cmp_double);
+    qsort(rel, (size_t)n, sizeof *rel, sl_cmp_double);
     double med = rel[n / 2];
     printf("  core mirror ball 1024 px -> 256 lat-long: front median rel err %.4f, confidence "
            "worst %.4f\n",

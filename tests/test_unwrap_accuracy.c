@@ -17,17 +17,6 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double lum(const float *p)
-{
-    return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-}
-
 typedef struct errors {
     double front, side, back; /* median relative luminance error */
     double total_ratio;       /* integral of L over the sphere, unwrapped / truth */
@@ -67,7 +56,7 @@ static void measure(const sl_image *out, const sl_image *truth, const sl_ball_vi
         for (int x = 0; x < w; x++) {
             double d[3];
             sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / h, d);
-            double lo = lum(sl_image_pixel(out, x, y)), lt = lum(sl_image_pixel(truth, x, y));
+            double lo = sl_luminance_px(sl_image_pixel(out, x, y)), lt = sl_luminance_px(sl_image_pixel(truth, x, y));
             double phi = acos(fmax(-1.0, fmin(1.0, -(d[0] * axis[0] + d[1] * axis[1] +
                                                      d[2] * axis[2]))));
             int region = phi < M_PI / 2 ? 0 : (phi < 0.75 * M_PI ? 1 : 2);
@@ -90,7 +79,7 @@ static void measure(const sl_image *out, const sl_image *truth, const sl_ball_vi
     }
     double *med[3] = {&e->front, &e->side, &e->back};
     for (int k = 0; k < 3; k++) {
-        qsort(rel[k], (size_t)n[k], sizeof(double), cmp_double);
+        qsort(rel[k], (size_t)n[k], sizeof(double), sl_cmp_double);
         *med[k] = n[k] ? rel[k][n[k] / 2] : 0.0;
         free(rel[k]);
     }
@@ -115,7 +104,7 @@ static void measure(const sl_image *out, const sl_image *truth, const sl_ball_vi
                 sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / h, d);
                 if (d[0] * sd[0] + d[1] * sd[1] + d[2] * sd[2] < cos(4.0 * rad))
                     continue;
-                double wt = fmax(0.0, lum(sl_image_pixel(out, x, y)) - 2.0) *
+                double wt = fmax(0.0, sl_luminance_px(sl_image_pixel(out, x, y)) - 2.0) *
                             sl_latlong_texel_solid_angle(y, w, h);
                 for (int k = 0; k < 3; k++)
                     c[k] += wt * d[k];

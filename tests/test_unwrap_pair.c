@@ -19,17 +19,6 @@
 
 enum { OUT_W = 256 };
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double lum(const float *p)
-{
-    return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-}
-
 /* Median relative luminance error over the texels within max_deg of axis. */
 static double cone_median(const sl_image *out, const sl_image *truth, const double axis[3],
                           double max_deg)
@@ -44,10 +33,10 @@ static double cone_median(const sl_image *out, const sl_image *truth, const doub
             sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / h, d);
             if (d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2] < c)
                 continue;
-            double lt = lum(sl_image_pixel(truth, x, y));
-            rel[n++] = fabs(lum(sl_image_pixel(out, x, y)) - lt) / lt;
+            double lt = sl_luminance_px(sl_image_pixel(truth, x, y));
+            rel[n++] = fabs(sl_luminance_px(sl_image_pixel(out, x, y)) - lt) / lt;
         }
-    qsort(rel, (size_t)n, sizeof *rel, cmp_double);
+    qsort(rel, (size_t)n, sizeof *rel, sl_cmp_double);
     double v = n ? rel[n / 2] : INFINITY;
     free(rel);
     return v;
@@ -68,7 +57,7 @@ static void irradiance_errors(const sl_image *out, const sl_image *truth, double
         for (int x = 0; x < w; x++) {
             double d[3];
             sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / h, d);
-            double lo = lum(sl_image_pixel(out, x, y)), lt = lum(sl_image_pixel(truth, x, y));
+            double lo = sl_luminance_px(sl_image_pixel(out, x, y)), lt = sl_luminance_px(sl_image_pixel(truth, x, y));
             to += lo * dw;
             tt += lt * dw;
             for (int i = 0; i < 6; i++) {

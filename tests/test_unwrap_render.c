@@ -17,12 +17,6 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 /* Quantile q of the relative luminance error over the front hemisphere
  * (directions within 90 degrees of -Z, the side facing the camera). */
 static double front_median_pct(const sl_image *out, const sl_image *truth, double q)
@@ -38,11 +32,11 @@ static double front_median_pct(const sl_image *out, const sl_image *truth, doubl
             if (atan2(hypot(d[0], d[1]), -d[2]) > M_PI / 2)
                 continue;
             const float *p = sl_image_pixel(out, x, y), *t = sl_image_pixel(truth, x, y);
-            double lo = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-            double lt = 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2];
+            double lo = sl_luminance_px(p);
+            double lt = sl_luminance_px(t);
             rel[n++] = fabs(lo - lt) / lt;
         }
-    qsort(rel, (size_t)n, sizeof *rel, cmp_double);
+    qsort(rel, (size_t)n, sizeof *rel, sl_cmp_double);
     double v = rel[(int)(q * (n - 1))];
     free(rel);
     return v;

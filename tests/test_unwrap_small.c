@@ -17,11 +17,6 @@
 #define M_PI 3.14159265358979323846
 #endif
 
-static double lum(const float *p)
-{
-    return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-}
-
 /* A uniform value in [0, 1) for a noise lattice point of octave k. */
 static double hash01(uint32_t x, uint32_t y, uint32_t k)
 {
@@ -116,8 +111,8 @@ static double median_error(const sl_image *est, const sl_image *truth, const dou
             sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / h, d);
             if (-(d[0] * axis[0] + d[1] * axis[1] + d[2] * axis[2]) < c)
                 continue;
-            double lt = lum(sl_image_pixel(truth, x, y));
-            rel[n++] = fabs(lum(sl_image_pixel(est, x, y)) - lt) / lt;
+            double lt = sl_luminance_px(sl_image_pixel(truth, x, y));
+            rel[n++] = fabs(sl_luminance_px(sl_image_pixel(est, x, y)) - lt) / lt;
         }
     double m = sl_test_median(rel, (size_t)n);
     free(rel);

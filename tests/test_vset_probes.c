@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/render.h"
 #include "setlight/stitch.h"
 #include "testing.h"
@@ -51,8 +51,6 @@ static void mirror_point(const double c[3], double rad, const double d[3], doubl
     }
 }
 
-static double lum(const float *p) { return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]; }
-
 static void test_chrome_highlight(void)
 {
     /* Camera looks along -Z (yaw 180): image right is +X, up +Y. */
@@ -88,7 +86,7 @@ static void test_chrome_highlight(void)
         int peak_x = -1, peak_y = -1;
         for (int y = 0; y < img.height; y++)
             for (int x = 0; x < img.width; x++) {
-                double l = lum(sl_image_pixel(&img, x, y));
+                double l = sl_luminance_px(sl_image_pixel(&img, x, y));
                 sx += l * (x + 0.5);
                 sy += l * (y + 0.5);
                 s += l;
@@ -147,7 +145,7 @@ static void test_truth_geometry(void)
         for (int x = 0; x < img.width; x++) {
             double rr = hypot(x + 0.5 - g.cx, y + 0.5 - g.cy);
             double v = sl_vset_lens_vignette(&p.lens, 192, 128, x + 0.5, y + 0.5);
-            double l = lum(sl_image_pixel(&img, x, y)) / v;
+            double l = sl_luminance_px(sl_image_pixel(&img, x, y)) / v;
             if (rr < g.r - 1) {
                 inside++;
                 mean += l;

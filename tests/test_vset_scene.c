@@ -4,12 +4,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "testing.h"
 
 #define PI 3.14159265358979323846
-
-static double lum(const double *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
 
 /* Integral of an image over the sphere, per channel, in double. */
 static void integral(const sl_image *img, double out[3])
@@ -68,12 +66,12 @@ static void test_sun(void)
     const sl_vset_light *sun = &sc.desc.lights[0];
     double r = 0.265 * PI / 180;
     CHECK_NEAR(sun->solid_angle, 2 * PI * (1 - cos(r)), 1e-12);
-    CHECK(lum(sun->radiance) > 5e8 && lum(sun->radiance) < 2e9);
+    CHECK(sl_luminance(sun->radiance) > 5e8 && sl_luminance(sun->radiance) < 2e9);
     /* Sun to sky: against the zenith and against the mean sky. */
     double zen[3], up[3] = {0, 1, 0};
     sl_vset_sky_radiance(sun->dir, d.turbidity, up, zen);
-    double ratio = lum(sun->radiance) / lum(zen);
-    printf("  sun %.3g cd/m^2, zenith %.4g, ratio %.3g\n", lum(sun->radiance), lum(zen), ratio);
+    double ratio = sl_luminance(sun->radiance) / sl_luminance(zen);
+    printf("  sun %.3g cd/m^2, zenith %.4g, ratio %.3g\n", sl_luminance(sun->radiance), sl_luminance(zen), ratio);
     CHECK(ratio > 5e4 && ratio < 5e5);
     sl_vset_scene_free(&sc);
     /* Exact-coverage antialiasing: integral within 1% at small and full. */
@@ -160,7 +158,7 @@ static void test_night_total(void)
     }
     /* The stiff case: sources 1e7..1e9 times brighter than the surroundings. */
     for (int i = 0; i < sc.desc.light_count; i++)
-        CHECK(lum(sc.desc.lights[i].radiance) > 1e3 * 1e3 * d.dark_luminance);
+        CHECK(sl_luminance(sc.desc.lights[i].radiance) > 1e3 * 1e3 * d.dark_luminance);
     sl_vset_scene_free(&sc);
 }
 
@@ -182,7 +180,7 @@ static void test_stage_walls(void)
         for (size_t k = 0; k < (size_t)w * (w / 2) * 3; k++)
             mask.data[k] += li.data[k];
         sl_image_free(&li);
-        dimmest = fmin(dimmest, lum(sc.desc.lights[i].radiance));
+        dimmest = fmin(dimmest, sl_luminance(sc.desc.lights[i].radiance));
     }
     double wall_max = 0;
     for (int y = 0; y < w / 2; y++)
@@ -190,7 +188,7 @@ static void test_stage_walls(void)
             const float *m = sl_image_pixel(&mask, x, y), *p = sl_image_pixel(&sc.latlong, x, y);
             if (m[0] + m[1] + m[2] == 0) {
                 double v[3] = {p[0], p[1], p[2]};
-                wall_max = fmax(wall_max, lum(v));
+                wall_max = fmax(wall_max, sl_luminance(v));
             }
         }
     printf("  stage: brightest wall %.3g cd/m^2, dimmest light %.3g\n", wall_max, dimmest);

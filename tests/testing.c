@@ -128,10 +128,7 @@ char *sl_test_read_file(const char *path, size_t *size)
 
 uint64_t sl_test_rand(uint64_t *state)
 {
-    uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
+    return sl_splitmix64(state);
 }
 
 double sl_test_uniform(uint64_t *state)
@@ -149,17 +146,11 @@ void sl_test_shuffle(int *a, int n, uint64_t *state)
     }
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 double sl_test_median(double *v, size_t n)
 {
     if (n == 0)
         return NAN;
-    qsort(v, n, sizeof *v, cmp_double);
+    qsort(v, n, sizeof *v, sl_cmp_double);
     return v[n / 2];
 }
 

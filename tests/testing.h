@@ -91,7 +91,7 @@ char *sl_test_read_file(const char *path, size_t *size);
  * least 5; *dof gets the degrees of freedom. A count in a bin that expects
  * nothing is an outright failure (p = 0). */
 double sl_test_chi2(const double *obs, const double *expct, int n, int *dof);
-/* splitmix64 on a caller's state: the same numbers on every platform. */
+/* splitmix64 (core.h) on a caller's state: the same numbers on every platform. */
 uint64_t sl_test_rand(uint64_t *state);
 /* Uniform in [0, 1) with 53 bits. */
 double sl_test_uniform(uint64_t *state);

@@ -7,7 +7,7 @@
 #include <string.h>
 
 /* The full-stop shutter speeds the virtual camera writes to EXIF (as in
- * capture/vset_capture.c); the simulated exposure is the nominal time. */
+ * vset/vset_capture.c); the simulated exposure is the nominal time. */
 static const double shutter[] = {1.0 / 8000, 1.0 / 4000, 1.0 / 2000, 1.0 / 1000, 1.0 / 500,
                                  1.0 / 250,  1.0 / 125,  1.0 / 60,   1.0 / 30,   1.0 / 15,
                                  1.0 / 8,    1.0 / 4,    1.0 / 2,    1,          2,

@@ -6,7 +6,7 @@
 #ifndef SETLIGHT_TESTS_VSET_BRACKET_H
 #define SETLIGHT_TESTS_VSET_BRACKET_H
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/stitch.h"
 
 enum { VB_MAX_FRAMES = 16 };

@@ -7,7 +7,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 static void help(FILE *out)
 {

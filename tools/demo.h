@@ -7,7 +7,7 @@
 #include <jansson.h>
 #include <stddef.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 #include "setlight/stitch.h"
 
 typedef struct demo {

@@ -11,8 +11,6 @@
 #include "rig_validate.h"
 #include "setlight/lightrig.h"
 
-static double luma(const double v[3]) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
-
 sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
 {
     sl_image ll = {0};
@@ -58,8 +56,8 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
                    "the dome. Ledger: original %.5g, lights %.5g + dome %.5g (luminance "
                    "integrals), closure error %.1e. Each truth light against the rig light "
                    "nearest in direction (rig.json, rig_preview.png):",
-                   secs, rig.light_count, rig.skipped_count, luma(rig.original),
-                   luma(rig.lights_sum), luma(rig.dome), rig.relative_error);
+                   secs, rig.light_count, rig.skipped_count, sl_luminance(rig.original),
+                   sl_luminance(rig.lights_sum), sl_luminance(rig.dome), rig.relative_error);
     static const char *const head[] = {"truth light", "rig light", "shape", "angle (deg)",
                                        "integral Y truth", "integral Y rig", "ratio"};
     sl_report_table_begin(d->rep, 7, head);
@@ -87,7 +85,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
         double angle = best >= 0 ? acos(fmin(1, best_cos)) * 180 / M_PI : 0;
         char c[7][64];
         snprintf(c[0], 64, "%s", json_string_value(json_object_get(l, "name")));
-        snprintf(c[4], 64, "%.4g", luma(ti));
+        snprintf(c[4], 64, "%.4g", sl_luminance(ti));
         /* Within 5 degrees: the same fixture (the rig merges fragments closer than 2). */
         if (best >= 0 && angle < 5) {
             matched++;
@@ -95,8 +93,8 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
             snprintf(c[1], 64, "%d", best + 1);
             snprintf(c[2], 64, "%s", sl_rig_shape_name(rig.lights[best].shape));
             snprintf(c[3], 64, "%.2f", angle);
-            snprintf(c[5], 64, "%.4g", luma(rig.lights[best].integral));
-            snprintf(c[6], 64, "%.3f", luma(rig.lights[best].integral) / luma(ti));
+            snprintf(c[5], 64, "%.4g", sl_luminance(rig.lights[best].integral));
+            snprintf(c[6], 64, "%.3f", sl_luminance(rig.lights[best].integral) / sl_luminance(ti));
         } else {
             snprintf(c[1], 64, "(dome)");
             c[2][0] = 0;

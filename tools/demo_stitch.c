@@ -12,14 +12,6 @@
 
 #include "demo.h"
 
-static double luminance(const float *p) { return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]; }
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 sl_result demo_diff_luminance(const double *a, const double *b, const unsigned char *keep,
                               int width, int height, demo_diff *out, sl_error *err)
 {
@@ -42,7 +34,7 @@ sl_result demo_diff_luminance(const double *a, const double *b, const unsigned c
         }
     }
     if (count > 0) {
-        qsort(rel, (size_t)count, sizeof *rel, cmp_double);
+        qsort(rel, (size_t)count, sizeof *rel, sl_cmp_double);
         out->median = rel[count / 2];
         out->p95 = rel[(int)(0.95 * (count - 1))];
         out->energy = eb > 0 ? ea / eb - 1 : 0;
@@ -251,8 +243,8 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
         double lat = 90 - 180 * (y + 0.5) / ll.height;
         for (int x = 0; x < ll.width; x++) {
             size_t i = (size_t)y * ll.width + x;
-            a[i] = luminance(sl_image_pixel(&hdri, x, y));
-            b[i] = luminance(sl_image_pixel(&ll, x, y));
+            a[i] = sl_luminance_px(sl_image_pixel(&hdri, x, y));
+            b[i] = sl_luminance_px(sl_image_pixel(&ll, x, y));
             keep[i] = fabs(lat) <= 75 && *sl_image_pixel(&d->confidence, x, y) > 0;
         }
     }
@@ -292,13 +284,13 @@ sl_result demo_stage_stitch(demo *d, char *note, size_t n, sl_error *err)
         for (int x = 0; x < orc.width && x < ll.width; x++) {
             float q[3];
             demo_set_units(sl_image_pixel(&orc, x, y), exposure, (const double(*)[3])minv, q);
-            a[(size_t)y * ll.width + x] = luminance(q);
+            a[(size_t)y * ll.width + x] = sl_luminance_px(q);
         }
     demo_diff oracle;
     if ((r = demo_diff_luminance(a, b, keep, ll.width, ll.height, &oracle, err)))
         goto done;
     for (size_t i = 0; i < texels; i++)
-        a[i] = luminance(hdri.data + 3 * i);
+        a[i] = sl_luminance_px(hdri.data + 3 * i);
     for (size_t i = 0; i < texels; i++)
         keep[i] = d->confidence.data[i] > 0;
     demo_diff seen;

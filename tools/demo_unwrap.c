@@ -24,18 +24,12 @@ static void coarse_luminance(const sl_image *img, double *out)
         for (int x = 0; x < img->width; x++) {
             const float *p = sl_image_pixel(img, x, y);
             int i = (y / fy) * CW + x / fx;
-            out[i] += dw * (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
+            out[i] += dw * (sl_luminance_px(p));
             wsum[i] += dw;
         }
     }
     for (int i = 0; i < CW * CH; i++)
         out[i] /= wsum[i];
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
 }
 
 /* Luminance-weighted mean direction of img's texels within `radius`
@@ -52,7 +46,7 @@ static bool light_centroid(const sl_image *img, const double axis[3], double rad
             if (dir[0] * axis[0] + dir[1] * axis[1] + dir[2] * axis[2] < cos_r)
                 continue;
             const float *p = sl_image_pixel(img, x, y);
-            double w = dw * (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
+            double w = dw * (sl_luminance_px(p));
             for (int c = 0; c < 3; c++)
                 s[c] += w * dir[c];
         }
@@ -256,7 +250,7 @@ sl_result demo_stage_unwrap(demo *d, char *note, size_t n, sl_error *err)
             rel[cnt++] = fabs(a[i] / (b[i] > 1e-9 ? b[i] : 1e-9) - 1);
         }
     }
-    qsort(rel, (size_t)cnt, sizeof *rel, cmp_double);
+    qsort(rel, (size_t)cnt, sizeof *rel, sl_cmp_double);
     double energy = ea / eb - 1, rrmse = sqrt(se / sb), median = rel[cnt / 2],
            p90 = rel[(int)(0.9 * cnt)];
 

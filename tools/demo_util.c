@@ -10,10 +10,8 @@ json_t *demo_load_json(const char *dir, const char *name, sl_error *err)
 {
     char path[4300];
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    json_error_t je;
-    json_t *j = json_load_file(path, 0, &je);
-    if (!j)
-        sl_error_set(err, SL_ERR_INPUT, "%s: line %d: %s", path, je.line, je.text);
+    json_t *j;
+    sl_json_load_file(path, "JSON", 0, &j, err);
     return j;
 }
 

@@ -7,6 +7,9 @@
 #include <string.h>
 
 #include "cli.h"
+#ifdef SETLIGHT_HAVE_VSET
+#include "setlight/vset.h"
+#endif
 
 typedef struct command {
     const char *name;
@@ -70,6 +73,11 @@ int main(int argc, char **argv)
     /* An interrupt removes every temporary output and never renames a
      * partial file into place (docs/conventions.md). */
     sl_interrupt_install();
+#ifdef SETLIGHT_HAVE_VSET
+    /* The virtual camera joins the camera backends ("--camera virtual"). */
+    if (sl_vset_camera_register(NULL))
+        return 1;
+#endif
     if (argc < 2) {
         print_help(stderr);
         return 2;

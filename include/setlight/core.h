@@ -829,6 +829,88 @@ sl_result sl_plot_write_svg(const char *path, const char *title, const char *xla
                             const sl_plot_series *series, int series_count, sl_error *err);
 
 /* ------------------------------------------------------------------ */
+/* Small shared helpers: JSON files, luminance, sorting, random         */
+/* numbers, compensated sums, conductor Fresnel                         */
+/* ------------------------------------------------------------------ */
+
+/* jansson's value type (jansson.h), for the JSON file helpers. */
+struct json_t;
+/* Reads a JSON file parsed whole: sl_check_input_size against
+ * SL_MAX_JSON_BYTES (`what` names the kind of file, e.g. "rig JSON"),
+ * then jansson with its decoding `flags` (e.g. JSON_REJECT_DUPLICATES).
+ * SL_ERR_INPUT "PATH: line N: JSON syntax error: ..." when it does not
+ * parse. *out is the caller's to json_decref. */
+sl_result sl_json_load_file(const char *path, const char *what, size_t flags,
+                            struct json_t **out, sl_error *err);
+/* Writes `root` with jansson's encoding `flags` and a final newline,
+ * atomically (sl_write_file_atomic). Does not take the reference. */
+sl_result sl_json_write_atomic(const char *path, const struct json_t *root, size_t flags,
+                               sl_error *err);
+
+/* Relative luminance of linear Rec.709 RGB (BT.709's Y row to 4 places). */
+static inline double sl_luminance(const double rgb[3])
+{
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+/* The same of a float pixel, computed in double. */
+static inline double sl_luminance_px(const float *p)
+{
+    return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+}
+/* The same in float arithmetic, for float buffers. */
+static inline float sl_luminancef(const float *p)
+{
+    return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+}
+
+/* qsort comparator of doubles, ascending (NaNs compare equal to all). */
+int sl_cmp_double(const void *a, const void *b);
+
+/* SplitMix64 (Steele, Lea and Flood 2014): sl_splitmix64_mix is its
+ * bijective finaliser; sl_splitmix64 advances a state and returns the next
+ * value; sl_splitmix64_hash(x) = mix(x + increment), a 64-bit hash. */
+#define SL_SPLITMIX64_INCREMENT 0x9e3779b97f4a7c15ull
+static inline uint64_t sl_splitmix64_mix(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+static inline uint64_t sl_splitmix64(uint64_t *state)
+{
+    return sl_splitmix64_mix(*state += SL_SPLITMIX64_INCREMENT);
+}
+static inline uint64_t sl_splitmix64_hash(uint64_t x)
+{
+    return sl_splitmix64_mix(x + SL_SPLITMIX64_INCREMENT);
+}
+
+/* Neumaier's compensated sum (Kahan's, right also when an addend is larger
+ * than the running sum): the total is sum + c. Zero-initialise. */
+typedef struct sl_ksum {
+    double sum, c;
+} sl_ksum;
+static inline void sl_ksum_add(sl_ksum *k, double v)
+{
+    double t = k->sum + v;
+    if (__builtin_fabs(k->sum) >= __builtin_fabs(v))
+        k->c += (k->sum - t) + v;
+    else
+        k->c += (v - t) + k->sum;
+    k->sum = t;
+}
+static inline double sl_ksum_value(const sl_ksum *k)
+{
+    return k->sum + k->c;
+}
+
+/* Unpolarised Fresnel reflectance of a conductor of complex index n + ik
+ * seen from air, at the cosine of incidence cos_i (clamped to [0, 1]): the
+ * exact formula in real arithmetic (as pbrt-v3's FrConductor). The
+ * renderer's metals and the unwrap's chrome ball share it. */
+double sl_fresnel_conductor(double cos_i, double n, double k);
+
+/* ------------------------------------------------------------------ */
 /* Version                                                             */
 /* ------------------------------------------------------------------ */
 

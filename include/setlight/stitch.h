@@ -3,6 +3,21 @@
  * setlight stitch: bracketed exposures to HDR radiance (merge), chrome-ball
  * and fisheye views to lat-long (unwrap), and calibration against the grey
  * sphere and the Macbeth chart (calibrate).
+ *
+ * Map: one section per stage, in pipeline order, each under a banner
+ * comment; its entry calls; its sources.
+ *   Merge: brackets to HDR radiance   sl_merge, sl_merge_to_exr, sl_response_*,
+ *                                     sl_align_bracket  merge*.c response*.c align.c
+ *   Unwrap: chrome ball to lat-long   sl_unwrap, sl_unwrap_pair, sl_ball_detect
+ *                                     unwrap*.c ball_detect*.c fisheye_check.c
+ *   Calibrate: grey sphere and chart  sl_ccm_fit_chart, sl_grey_sphere_fit,
+ *                                     sl_chart_detect, sl_sun_repair_fit
+ *                                     calibrate*.c chart_*.c
+ *   Stitch: views, solve, image circle, lens from EXIF, lens profiles,
+ *   lens-calibrate, blend and the stitch call
+ *                                     sl_stitch, sl_stitch_solve, sl_stitch_blend,
+ *                                     sl_lens_profile_read, sl_lens_calibrate
+ *                                     stitch*.c lens_*.c warp_reader.c
  */
 #ifndef SETLIGHT_STITCH_H
 #define SETLIGHT_STITCH_H

@@ -79,7 +79,7 @@ double sl_vset_log_average(const sl_image *latlong)
         double dw = sl_latlong_texel_solid_angle(y, latlong->width, latlong->height);
         for (int x = 0; x < latlong->width; x++) {
             const float *p = sl_image_pixel(latlong, x, y);
-            double l = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            double l = sl_luminance_px(p);
             acc += dw * log(l > 1e-6 ? l : 1e-6);
             wsum += dw;
         }
@@ -183,12 +183,8 @@ static json_t *mat3(const double m[3][3])
 
 static sl_result write_json(const char *path, json_t *root, sl_error *err)
 {
-    char *s = json_dumps(root, JSON_INDENT(2) | JSON_REAL_PRECISION(10));
+    sl_result r = sl_json_write_atomic(path, root, JSON_INDENT(2) | JSON_REAL_PRECISION(10), err);
     json_decref(root);
-    if (!s)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    sl_result r = sl_write_file_atomic(path, s, strlen(s), err);
-    free(s);
     return r;
 }
 
@@ -343,7 +339,7 @@ static sl_result shoot_frames(const sl_vset_capture_opts *o, const char *tmp,
             }
             sl_vset_exposure e = {times[k], o->f_number, o->iso};
             sl_vset_shot shot;
-            uint64_t seed = vset_mix64(o->seed ^ vset_mix64((uint64_t)(v * 64 + k)));
+            uint64_t seed = sl_splitmix64_hash(o->seed ^ sl_splitmix64_hash((uint64_t)(v * 64 + k)));
             if ((r = sl_vset_camera_shoot(cam, &e, &rad, seed, &shot, err)))
                 break;
             (*frame)++;
@@ -442,7 +438,7 @@ static double percentile_luminance(const sl_image *img, double q)
         return 1;
     for (size_t i = 0; i < n; i++) {
         const float *p = img->data + i * (size_t)img->channels;
-        l[i] = 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+        l[i] = sl_luminancef(p);
     }
     qsort(l, n, sizeof *l, cmp_float);
     double v = l[(size_t)(q * (double)(n - 1))];
@@ -495,7 +491,7 @@ static sl_result shoot_probes(const sl_vset_capture_opts *o, const char *tmp,
         for (int k = 0; k < n && !r; k++) {
             sl_vset_exposure e = {pt[k], o->f_number, o->iso};
             sl_vset_shot shot;
-            uint64_t seed = vset_mix64(o->seed ^ vset_mix64(0x7000u + (uint64_t)(kind * 64 + k)));
+            uint64_t seed = sl_splitmix64_hash(o->seed ^ sl_splitmix64_hash(0x7000u + (uint64_t)(kind * 64 + k)));
             if ((r = sl_vset_camera_shoot(cam, &e, &rad, seed, &shot, err)))
                 break;
             (*frame)++;

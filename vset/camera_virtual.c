@@ -13,7 +13,7 @@
 #include <unistd.h>
 
 #include "camera_backend.h"
-#include "capture_private.h"
+#include "setlight/vset.h"
 
 /* Nominal third-stop speeds, as bodies label them and write them to EXIF. */
 static const double k_speeds[] = {
@@ -129,14 +129,6 @@ static sl_result v_get(sl_camera *c, sl_camera_settings *s, sl_error *err)
     s->f_number = v->f_number;
     s->iso = v->iso;
     return SL_OK;
-}
-
-static uint64_t mix64(uint64_t x)
-{
-    x += 0x9E3779B97F4A7C15ull;
-    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-    return x ^ (x >> 31);
 }
 
 /* The sRGB-encoded JPEG of one exposure, as the body's encoder writes it. */
@@ -287,7 +279,7 @@ static sl_result v_capture(sl_camera *c, sl_camera_shot *shot, sl_error *err)
     }
     sl_vset_exposure e = {v->actual_shutter, v->f_number, v->iso};
     sl_vset_shot img;
-    if ((r = sl_vset_camera_shoot(&v->body, &e, &v->radiance, mix64(v->o.seed ^ (uint64_t)frame),
+    if ((r = sl_vset_camera_shoot(&v->body, &e, &v->radiance, sl_splitmix64_hash(v->o.seed ^ (uint64_t)frame),
                                   &img, err)))
         return r;
     r = write_files(c, &img, frame, shot, err);
@@ -339,7 +331,7 @@ static const sl_camera_ops k_ops = {"virtual",        v_shutter_speeds, v_set,  
                                     v_format_choices, v_set_format,     v_capture, v_aim,
                                     v_reconnect,      v_close};
 
-sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_error *err)
+static sl_result virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_error *err)
 {
     vcam *v = calloc(1, sizeof *v);
     if (!v)
@@ -402,5 +394,41 @@ sl_result sl_virtual_open(const sl_virtual_camera_opts *o, sl_camera *c, sl_erro
     c->impl = v;
     snprintf(c->model, sizeof c->model, "%.40s %.40s (%.40s)", v->body.make, v->body.model,
              v->scene.desc.name);
+    return SL_OK;
+}
+
+/* The port "virtual[:SCENE]": the faultless camera of a preset or a scene
+ * JSON file. */
+static sl_result open_port(const char *args, sl_camera *c, sl_error *err)
+{
+    sl_virtual_camera_opts o;
+    memset(&o, 0, sizeof o);
+    if (args && strlen(args) >= sizeof o.scene)
+        return sl_error_set(err, SL_ERR_USAGE, "virtual:%.200s...: scene name too long", args);
+    if (args)
+        strcpy(o.scene, args);
+    return virtual_open(&o, c, err);
+}
+
+static const sl_camera_driver k_driver = {"virtual", open_port};
+
+sl_result sl_vset_camera_register(sl_error *err)
+{
+    return sl_camera_driver_register(&k_driver, err);
+}
+
+sl_result sl_camera_open_virtual(const sl_virtual_camera_opts *o, sl_camera **camera,
+                                 sl_error *err)
+{
+    *camera = NULL;
+    sl_camera *c = calloc(1, sizeof *c);
+    if (!c)
+        return sl_error_set(err, SL_ERR_NOMEM, "virtual camera: out of memory");
+    sl_result r = virtual_open(o, c, err);
+    if (r) {
+        free(c);
+        return r;
+    }
+    *camera = c;
     return SL_OK;
 }

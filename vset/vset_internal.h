@@ -7,7 +7,7 @@
 #include <math.h>
 #include <stdint.h>
 
-#include "setlight/capture.h"
+#include "setlight/vset.h"
 
 #define VSET_PI 3.14159265358979323846
 #define VSET_DEG (VSET_PI / 180.0)
@@ -59,18 +59,10 @@ static inline void vset_view_frame(const sl_vset_view *v, double f[3], double r[
     }
 }
 
-static inline uint64_t vset_mix64(uint64_t z)
-{
-    z += 0x9e3779b97f4a7c15ull;
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
 /* A uniform double in (0, 1) for (seed, stream, index). */
 static inline double vset_uniform(uint64_t seed, uint64_t stream, uint64_t index)
 {
-    uint64_t h = vset_mix64(seed ^ vset_mix64(stream * 0x632be59bd9b4e019ull + index));
+    uint64_t h = sl_splitmix64_hash(seed ^ sl_splitmix64_hash(stream * 0x632be59bd9b4e019ull + index));
     return ((double)(h >> 11) + 0.5) * (1.0 / 9007199254740992.0);
 }
 

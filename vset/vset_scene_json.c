@@ -144,14 +144,10 @@ static sl_result read_light(jctx *j, json_t *o, int index, sl_vset_light *l)
 sl_result sl_vset_desc_read_json(const char *path, sl_vset_desc *d, sl_error *err)
 {
     memset(d, 0, sizeof *d);
-    sl_result r = sl_check_input_size(path, SL_MAX_JSON_BYTES, "scene JSON", err);
+    json_t *root;
+    sl_result r = sl_json_load_file(path, "scene JSON", JSON_REJECT_DUPLICATES, &root, err);
     if (r)
         return r;
-    json_error_t jerr;
-    json_t *root = json_load_file(path, JSON_REJECT_DUPLICATES, &jerr);
-    if (!root)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: line %d: JSON syntax error: %s", path,
-                            jerr.line, jerr.text);
     jctx j = {path, err};
     static const char *const keys[] = {"name", "background", "turbidity", "ground_albedo",
                                        "room_illuminance", "dark_luminance", "sun_azimuth",
