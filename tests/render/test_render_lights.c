@@ -476,6 +476,81 @@ static void test_shadow(void)
     sl_scene_free(&s);
 }
 
+/* Lights are scene objects for visibility. A 1 x 1 rect light 9 units to
+ * the -X side of the grey sphere (out of the camera's view), fully behind a
+ * 2 x 2 rect at 6 units (from every point of the sphere the line to any point
+ * of the far light crosses the near one: off the axis by at most
+ * 3/8 + 2/3 x 0.5 < 1 at x = -6): the far light
+ * contributes nothing, whatever its power. Side by side, both contribute:
+ * each pixel is the quadrature of both rects. A light's own emitter does not
+ * shadow it (the near light alone still matches its quadrature). */
+static double two_light_worst(const sl_light *near, const sl_light *far, bool far_counts,
+                              int64_t *shadow_rays)
+{
+    sl_scene s;
+    sl_scene_init(&s);
+    CHECK_OK(sl_scene_preset(&s, "grey", VS_SIZE, NULL), NULL);
+    sl_light a = *near, b = *far;
+    CHECK_OK(sl_scene_add_light(&s, &a, NULL), NULL);
+    CHECK_OK(sl_scene_add_light(&s, &b, NULL), NULL);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 256;
+    o.pixel_centers = true;
+    sl_image img;
+    sl_render_stats st;
+    CHECK_OK(sl_render(&s, &o, &img, &st, NULL), NULL);
+    *shadow_rays = st.shadow_rays;
+    double worst = 0;
+    int lit = 0;
+    for (int py = 0; py < VS_SIZE; py++)
+        for (int px = 0; px < VS_SIZE; px++) {
+            double x = 2.0 * (px + 0.5) / VS_SIZE - 1.0, y = 1.0 - 2.0 * (py + 0.5) / VS_SIZE;
+            if (x * x + y * y >= 1)
+                continue;
+            double n[3] = {-x, y, -sqrt(1 - x * x - y * y)};
+            double ea = irr_rect_quadrature(n, n, &s.lights[0]);
+            double eb = irr_rect_quadrature(n, n, &s.lights[1]);
+            if (ea <= 0 || eb <= 0)
+                continue; /* partly below the horizon: not compared */
+            double ref = 0.18 / SL_PI * (ea + (far_counts ? eb : 0.0));
+            worst = fmax(worst, fabs(sl_image_pixel(&img, px, py)[0] - ref) / ref);
+            lit++;
+        }
+    CHECK(lit > VS_SIZE);
+    sl_image_free(&img);
+    sl_render_stats_free(&st);
+    sl_scene_free(&s);
+    return worst;
+}
+
+static void test_lights_occlude_lights(void)
+{
+    const double toward[3] = {1, 0, 0}; /* emitting toward the sphere */
+    const double near_pos[3] = {-6, 0, 0}, far_pos[3] = {-9, 0, 0};
+    sl_light near, far;
+    base_light(&near, SL_LIGHT_RECT, near_pos, toward);
+    near.width = near.height = 2;
+    base_light(&far, SL_LIGHT_RECT, far_pos, toward);
+    far.width = far.height = 1;
+    far.intensity = 20; /* unblocked it would add about 2.5 times the near light */
+    int64_t rays;
+    double worst = two_light_worst(&near, &far, false, &rays);
+    printf("  rect fully behind a rect: worst %.3f%% against the near light alone\n", 100 * worst);
+    CHECK(worst < 0.01);
+    CHECK(rays > 0); /* one shape, yet lights can block lights */
+    /* Side by side, 3 apart: both light the sphere. */
+    const double left[3] = {-6, 0, -1.5}, right[3] = {-6, 0, 1.5};
+    base_light(&near, SL_LIGHT_RECT, left, toward);
+    near.width = near.height = 1;
+    base_light(&far, SL_LIGHT_RECT, right, toward);
+    far.width = far.height = 1;
+    far.intensity = 2;
+    worst = two_light_worst(&near, &far, true, &rays);
+    printf("  two rects side by side: worst %.3f%% against both quadratures\n", 100 * worst);
+    CHECK(worst < 0.01);
+}
+
 static void test_normalize_and_bad_lights(void)
 {
     sl_scene s;
@@ -683,6 +758,7 @@ int main(void)
     RUN(test_light_sampler_chi2);
     RUN(test_light_sampler_chi2_more);
     RUN(test_shadow);
+    RUN(test_lights_occlude_lights);
     RUN(test_normalize_and_bad_lights);
     return sl_test_finish();
 }
