@@ -97,11 +97,15 @@ double sl_energy_ed_avg(double roughness, double ior)
     return lerp(lerp(a[j], a[j + 1], fj), lerp(b[j], b[j + 1], fj), fk);
 }
 
-/* Anisotropy axis, linear in y: node 0 is the isotropic table, node l+1 the slab l. */
+/* Anisotropy axis, linear in y between the nodes y_n = y(1) (n/NA)^2: node 0
+ * is the isotropic table, node l+1 the slab l. */
 static void a_cell(double a, int *l, double *f)
 {
     a = fmin(fmax(a, 0.0), 1.0);
-    cell(sl_energy_a_y(a) / sl_energy_a_y(1.0), SL_E_NA + 1, l, f);
+    double y = sl_energy_a_y(a);
+    cell(sqrt(y / sl_energy_a_y(1.0)), SL_E_NA + 1, l, f);
+    double ya = sl_energy_a_axis_y(*l), yb = sl_energy_a_axis_y(*l + 1);
+    *f = fmin(fmax((y - ya) / (yb - ya), 0.0), 1.0);
 }
 
 static double ea_slab(int l, double mu, double phi, double roughness)

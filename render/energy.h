@@ -17,16 +17,16 @@
 #define SL_E_NR 32
 #define SL_E_NT 20
 
-/* Anisotropic GGX with F = 1: nodes uniform in y = 1/aspect - 1 = ax/alpha - 1
- * (E is close to linear in y, and bends the safe way; in the anisotropy itself it
- * falls steeply near 1), y_l = (l+1)/NA y(1), y = 0 being the isotropic table;
- * and the azimuth of wo folded into [0, pi/2], phi_m = m/(NPHI-1) pi/2
- * (E is symmetric about both axes of the anisotropy). The average over the
- * hemisphere is exact for the interpolant (trapezoid over phi of the row
- * averages), so the compensation lobe closes energy exactly as in the
- * isotropic case. */
-#define SL_E_NA 4
-#define SL_E_NPHI 5
+/* Anisotropic GGX with F = 1: nodes in y = 1/aspect - 1 = ax/alpha - 1 at
+ * y_l = y(1) ((l+1)/NA)^2, y = 0 being the isotropic table; E bends most near
+ * y = 0 (at azimuth 0 it rises, then falls), so the nodes are densest there.
+ * The azimuth of wo is folded into [0, pi/2], phi_m = m/(NPHI-1) pi/2 (E is
+ * symmetric about both axes of the anisotropy). Interpolation is linear in y
+ * and phi between nodes. The average over the hemisphere is exact for the
+ * interpolant (trapezoid over phi of the row averages), so the compensation
+ * lobe closes energy exactly as in the isotropic case. */
+#define SL_E_NA 8
+#define SL_E_NPHI 9
 
 /* E(mu, r) of the single-scattering isotropic GGX lobe with F = 1. */
 extern const float sl_energy_e1_table[SL_E_NR][SL_E_NMU];
@@ -47,8 +47,10 @@ double sl_energy_integrate_aniso(double mu, double phi, double roughness, double
                                  int k);
 /* Positions of the mu, roughness, anisotropy and azimuth nodes. */
 double sl_energy_a_node(int l);
-/* The anisotropy axis coordinate y = 1/sqrt(1 - 0.9 a) - 1. */
+/* The anisotropy axis coordinate y = 1/sqrt(1 - 0.9 a) - 1, and y of axis
+ * node n (0: the isotropic table, n >= 1: anisotropic slab n - 1). */
 double sl_energy_a_y(double anisotropy);
+double sl_energy_a_axis_y(int n);
 double sl_energy_phi_node(int m);
 double sl_energy_mu_node(int i);
 double sl_energy_r_node(int j);

@@ -54,10 +54,17 @@ double sl_energy_a_y(double anisotropy)
     return 1.0 / sqrt(1.0 - 0.9 * anisotropy) - 1.0;
 }
 
+double sl_energy_a_axis_y(int n)
+{
+    double x = (double)n / SL_E_NA;
+    return x * x * sl_energy_a_y(1.0);
+}
+
 double sl_energy_a_node(int l)
 {
-    double y = (l + 1.0) / SL_E_NA * sl_energy_a_y(1.0);
-    double aspect = 1.0 / (1.0 + y);
+    if (l == SL_E_NA - 1)
+        return 1.0;
+    double aspect = 1.0 / (1.0 + sl_energy_a_axis_y(l + 1));
     return fmin((1.0 - aspect * aspect) / 0.9, 1.0);
 }
 

@@ -18,6 +18,25 @@ void sl_integrator_init(sl_integrator *it, const sl_scene *scene, const sl_rende
     it->can_occlude = scene->shape_count > 1;
     it->light_sampling = o->strategy == SL_STRATEGY_MIS || o->strategy == SL_STRATEGY_LIGHT;
     it->dome_sampling = sl_dome_can_sample(&scene->dome) && it->light_sampling;
+    it->area_lights = 0;
+    for (int i = 0; i < scene->light_count; i++)
+        it->area_lights += scene->lights[i].type != SL_LIGHT_DISTANT;
+}
+
+/* Lights are objects: a rect, disk or sphere light between p and what a
+ * shadow ray aims at (before tmax) blocks it, from either face, as it ends a
+ * BSDF-sampled path. `self` is the light being sampled: its own emitter does
+ * not shadow itself. */
+static bool light_blocks(const sl_scene *scene, const double p[3], const double d[3], double tmax,
+                         int self)
+{
+    for (int i = 0; i < scene->light_count; i++) {
+        double t, Le[3];
+        if (i != self && scene->lights[i].type != SL_LIGHT_DISTANT &&
+            sl_light_intersect(&scene->lights[i], p, d, tmax, &t, Le))
+            return true;
+    }
+    return false;
 }
 
 /* Direction for the next vertex by strategy; returns false when none. */
@@ -171,11 +190,12 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     c->zero_weight++;
                 } else {
                     bool blocked = false;
-                    if (it->can_occlude || hit.inside) {
+                    if (it->can_occlude || hit.inside || it->area_lights > 0) {
                         double so[3];
                         sl_offset_origin(hit.p, hit.n, wi, so);
                         c->shadow_rays++;
-                        blocked = sl_scene_occluded(scene, so, wi, INFINITY);
+                        blocked = light_blocks(scene, so, wi, INFINITY, -1) ||
+                                  sl_scene_occluded(scene, so, wi, INFINITY);
                     } else {
                         c->shadow_skipped++;
                     }
@@ -233,11 +253,13 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     c->zero_weight++;
                     continue;
                 }
-                if (it->can_occlude || hit.inside) {
-                    double so[3];
+                int others = it->area_lights - (l->type != SL_LIGHT_DISTANT);
+                if (it->can_occlude || hit.inside || others > 0) {
+                    double so[3], tmax = isinf(dist) ? INFINITY : dist * (1 - 1e-9);
                     sl_offset_origin(hit.p, hit.n, wi, so);
                     c->shadow_rays++;
-                    if (sl_scene_occluded(scene, so, wi, isinf(dist) ? INFINITY : dist * (1 - 1e-9)))
+                    if ((others > 0 && light_blocks(scene, so, wi, tmax, i)) ||
+                        sl_scene_occluded(scene, so, wi, tmax))
                         continue;
                 } else {
                     c->shadow_skipped++;

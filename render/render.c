@@ -72,7 +72,9 @@ typedef struct job {
     sl_integrator it;
     const sl_scene *scene;
     double *sum[2];  /* RGBA sums per half-buffer */
-    uint32_t begin, end; /* sample indices of this pass, per half */
+    uint32_t end; /* this pass takes every active pixel to this many samples per half */
+    uint32_t *n_px;  /* samples per half each pixel has (adaptive: stopped pixels keep theirs) */
+    uint8_t *done;   /* adaptive sampling: the pixel has stopped */
     sl_counters *rows; /* per-row counters: integer sums, order-free */
 } job;
 
@@ -85,10 +87,15 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int worker)
         sl_counters *c = &j->rows[y];
         for (int x = 0; x < cam->width; x++) {
             uint64_t pixel = (uint64_t)y * (uint64_t)cam->width + (uint64_t)x;
+            if (j->done[pixel])
+                continue;
+            /* A pixel stopped and taken up again catches up from its own count. */
+            uint32_t first = j->n_px[pixel];
+            j->n_px[pixel] = j->end;
             for (int h = 0; h < 2; h++) {
                 uint64_t seed = sl_hash_combine(sl_hash_combine(j->it.o->seed, pixel), (uint64_t)h);
                 double acc[4] = {0, 0, 0, 0};
-                for (uint32_t i = j->begin; i < j->end; i++) {
+                for (uint32_t i = first; i < j->end; i++) {
                     sl_sampler s;
                     double rgba[4];
                     sl_sampler_start(&s, seed, i, j->it.o->low_discrepancy);
@@ -104,24 +111,67 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
-static void resolve(const double *sa, const double *sb, int64_t n_half, int w, int h, sl_image *out,
-                    double *est)
+/* The image and the estimated relative RMSE; var_px gets each pixel's
+ * squared error estimate sum_c ((A - B)/2)^2, and *mean_m2 the mean over
+ * pixels of sum_c M^2. */
+static void resolve(const double *sa, const double *sb, const uint32_t *n_px, int w, int h,
+                    sl_image *out, double *var_px, double *est, double *mean_m2)
 {
-    double num = 0, den = 0, inv = 1.0 / (double)n_half;
+    double num = 0, den = 0;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
-            size_t i = ((size_t)y * (size_t)w + (size_t)x) * 4;
+            size_t px = (size_t)y * (size_t)w + (size_t)x, i = px * 4;
+            double inv = 1.0 / (double)n_px[px], var = 0;
             float *p = sl_image_pixel(out, x, y);
             for (int k = 0; k < 4; k++) {
                 double a = sa[i + k] * inv, b = sb[i + k] * inv, m = 0.5 * (a + b);
                 p[k] = (float)m;
                 if (k < 3) {
-                    num += 0.25 * (a - b) * (a - b);
+                    var += 0.25 * (a - b) * (a - b);
                     den += m * m;
                 }
             }
+            var_px[px] = var;
+            num += var;
         }
     *est = den > 0 ? sqrt(num / den) : 0;
+    *mean_m2 = den / ((double)w * h);
+}
+
+/* Adaptive sampling with --target-error E: a pixel stops once the error
+ * estimate pooled over its 3 x 3 neighbourhood (one pixel's two halves are
+ * too few to trust) is within its share of the target, E^2 x the mean of
+ * M^2: when every pixel is there, the whole image is. Pixels with no
+ * variance at all (background, a mirror at its centre) stop at once. Stopping
+ * looks only at A - B, which is uncorrelated with the mean (A + B)/2, and
+ * stopped pixels stay in the error estimate. Returns the pixels still active. */
+#define ADAPTIVE_MIN_HALF 8
+static int64_t stop_converged(const double *var_px, double limit, int w, int h, uint8_t *done)
+{
+    int64_t active = 0;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t px = (size_t)y * (size_t)w + (size_t)x;
+            if (done[px])
+                continue;
+            double sum = 0;
+            int n = 0;
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++) {
+                    int xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= w || yy >= h)
+                        continue;
+                    sum += var_px[(size_t)yy * (size_t)w + (size_t)xx];
+                    n++;
+                }
+            if (sum <= limit * n)
+                done[px] = 2; /* stopped at this pass: marked 1 below */
+            else
+                active++;
+        }
+    for (size_t px = 0; px < (size_t)w * (size_t)h; px++)
+        done[px] = done[px] ? 1 : 0;
+    return active;
 }
 
 static sl_result push_pass(sl_render_stats *st, const sl_render_pass *p, sl_error *err)
@@ -170,7 +220,10 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     j.sum[0] = calloc(npix * 4, sizeof(double));
     j.sum[1] = calloc(npix * 4, sizeof(double));
     j.rows = calloc((size_t)cam->height, sizeof *j.rows);
-    if (!j.sum[0] || !j.sum[1] || !j.rows) {
+    j.n_px = calloc(npix, sizeof *j.n_px);
+    j.done = calloc(npix, 1);
+    double *var_px = malloc(npix * sizeof *var_px);
+    if (!j.sum[0] || !j.sum[1] || !j.rows || !j.n_px || !j.done || !var_px) {
         r = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for %dx%d buffers", cam->width,
                          cam->height);
         goto done;
@@ -197,12 +250,13 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
             strcpy(stats->stop_reason, "time");
             break;
         }
-        j.begin = (uint32_t)n_half;
         j.end = (uint32_t)(n_half + add);
         sl_parallel_for(cam->height, 1, render_rows, &j);
         n_half += add;
         sl_render_pass pass = {.spp = 2 * n_half, .ref_rel_rmse = -1};
-        resolve(j.sum[0], j.sum[1], n_half, cam->width, cam->height, out, &pass.est_rel_rmse);
+        double mean_m2;
+        resolve(j.sum[0], j.sum[1], j.n_px, cam->width, cam->height, out, var_px,
+                &pass.est_rel_rmse, &mean_m2);
         pass.seconds = sl_seconds() - t0;
         if (o->reference && (r = sl_relative_rmse(out, o->reference, &pass.ref_rel_rmse, err)))
             goto done;
@@ -218,16 +272,26 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
             strcpy(stats->stop_reason, "target-error");
             break;
         }
+        if (o->target_error > 0 && n_half >= ADAPTIVE_MIN_HALF &&
+            stop_converged(var_px, o->target_error * o->target_error * mean_m2, cam->width,
+                           cam->height, j.done) == 0)
+            /* All stopped yet the pooled estimates were optimistic: go on
+             * with every pixel rather than report an error above the target. */
+            memset(j.done, 0, npix);
         if (o->time_limit > 0 && pass.seconds >= o->time_limit) {
             strcpy(stats->stop_reason, "time");
             break;
         }
     }
     stats->spp = 2 * n_half;
+    for (size_t px = 0; px < npix; px++) {
+        stats->samples += 2 * (int64_t)j.n_px[px];
+        stats->pixels_stopped_early += j.n_px[px] < n_half;
+    }
     stats->seconds = sl_seconds() - t0;
     stats->cpu_seconds = sl_cpu_seconds() - c0;
     stats->samples_per_second =
-        stats->seconds > 0 ? (double)npix * (double)stats->spp / stats->seconds : 0;
+        stats->seconds > 0 ? (double)stats->samples / stats->seconds : 0;
     for (int y = 0; y < cam->height; y++) {
         stats->camera_rays += j.rows[y].camera_rays;
         stats->shadow_rays += j.rows[y].shadow_rays;
@@ -245,6 +309,9 @@ done:
     free(j.sum[0]);
     free(j.sum[1]);
     free(j.rows);
+    free(j.n_px);
+    free(j.done);
+    free(var_px);
     if (r)
         sl_image_free(out);
     if (r || stats == &local)

@@ -174,6 +174,8 @@ typedef struct sl_integrator {
                          (a lone sphere can also shadow its own inside) */
     bool light_sampling; /* strategy samples lights and the dome */
     bool dome_sampling;
+    int area_lights; /* rect, disk and sphere lights: they block the shadow rays of
+                        other lights and of the dome */
 } sl_integrator;
 
 void sl_integrator_init(sl_integrator *it, const sl_scene *scene, const sl_render_options *o);

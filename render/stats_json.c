@@ -19,6 +19,8 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(root, "seconds", json_real(st->seconds));
     json_object_set_new(root, "cpu_seconds", json_real(st->cpu_seconds));
     json_object_set_new(root, "samples_per_second", json_real(st->samples_per_second));
+    json_object_set_new(root, "samples", json_integer(st->samples));
+    json_object_set_new(root, "pixels_stopped_early", json_integer(st->pixels_stopped_early));
     json_object_set_new(root, "stop_reason", json_string(st->stop_reason));
     json_object_set_new(root, "camera_rays", json_integer(st->camera_rays));
     json_object_set_new(root, "shadow_rays", json_integer(st->shadow_rays));

@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* Writes render/energy_tables.c, the directional-albedo tables for the
- * Kulla-Conty compensation and the diffuse-under-coat lobe. Deterministic.
- *   cc -O2 -std=c11 -Iinclude -Irender scripts/gen_energy_tables.c \
+ * Kulla-Conty compensation and the diffuse-under-coat lobe. Deterministic
+ * (OpenMP only spreads independent quadratures over the cores).
+ *   cc -O2 -std=c11 -fopenmp -Iinclude -Irender scripts/gen_energy_tables.c \
  *      render/energy_integrate.c render/fresnel.c render/microfacet.c -lm \
  *      -o /tmp/gen && /tmp/gen > render/energy_tables.c
  * tests/test_furnace.c recomputes entries and fails when the tables are stale. */
@@ -26,18 +27,21 @@ static double value(double mu, double r, double ior, double phi, double aniso)
 
 static void fill(double ior, double phi, double aniso, slab e)
 {
-    static slab bump;
+    static slab bump, centre;
+#pragma omp parallel for collapse(2) schedule(dynamic)
     for (int j = 0; j < SL_E_NR; j++)
         for (int i = 0; i < SL_E_NMU; i++) {
             e[j][i] = value(sl_energy_mu_node(i), sl_energy_r_node(j), ior, phi, aniso);
             bump[j][i] = 0.0;
+            if (j + 1 < SL_E_NR && i + 1 < SL_E_NMU)
+                centre[j][i] = value(0.5 * (sl_energy_mu_node(i) + sl_energy_mu_node(i + 1)),
+                                     0.5 * (sl_energy_r_node(j) + sl_energy_r_node(j + 1)), ior,
+                                     phi, aniso);
         }
     for (int j = 0; j + 1 < SL_E_NR; j++)
         for (int i = 0; i + 1 < SL_E_NMU; i++) {
-            double mu = 0.5 * (sl_energy_mu_node(i) + sl_energy_mu_node(i + 1));
-            double r = 0.5 * (sl_energy_r_node(j) + sl_energy_r_node(j + 1));
             double lerp = 0.25 * (e[j][i] + e[j][i + 1] + e[j + 1][i] + e[j + 1][i + 1]);
-            double d = value(mu, r, ior, phi, aniso) - lerp;
+            double d = centre[j][i] - lerp;
             for (int a = 0; a < 2; a++)
                 for (int b = 0; b < 2; b++)
                     bump[j + a][i + b] = fmax(bump[j + a][i + b], d);
@@ -52,18 +56,24 @@ static void fill(double ior, double phi, double aniso, slab e)
  * so a cell touching it raises its other four corners twice as much. */
 static void bound_in_t(slab ed[SL_E_NT])
 {
-    static slab bump[SL_E_NT];
+    static slab bump[SL_E_NT], centre[SL_E_NT];
+#pragma omp parallel for collapse(2) schedule(dynamic)
+    for (int k = 0; k < SL_E_NT - 1; k++)
+        for (int j = 0; j < SL_E_NR - 1; j++) {
+            double t = 0.5 * (sl_energy_t_node(k) + sl_energy_t_node(k + 1));
+            double ior = (1.0 + t) / (1.0 - t);
+            double r = 0.5 * (sl_energy_r_node(j) + sl_energy_r_node(j + 1));
+            for (int i = 0; i + 1 < SL_E_NMU; i++)
+                centre[k][j][i] = sl_energy_integrate(
+                    0.5 * (sl_energy_mu_node(i) + sl_energy_mu_node(i + 1)), r, ior, K);
+        }
     for (int k = 0; k + 1 < SL_E_NT; k++) {
-        double t = 0.5 * (sl_energy_t_node(k) + sl_energy_t_node(k + 1));
-        double ior = (1.0 + t) / (1.0 - t);
         for (int j = 0; j + 1 < SL_E_NR; j++)
             for (int i = 0; i + 1 < SL_E_NMU; i++) {
-                double mu = 0.5 * (sl_energy_mu_node(i) + sl_energy_mu_node(i + 1));
-                double r = 0.5 * (sl_energy_r_node(j) + sl_energy_r_node(j + 1));
                 double lerp = 0.0;
                 for (int c = 0; c < 8; c++)
                     lerp += ed[k + (c >> 2)][j + ((c >> 1) & 1)][i + (c & 1)] / 8.0;
-                double d = sl_energy_integrate(mu, r, ior, K) - lerp;
+                double d = centre[k][j][i] - lerp;
                 for (int c = 0; c < 8; c++) {
                     int kk = k + (c >> 2);
                     if (kk == 0)
@@ -84,34 +94,41 @@ static void bound_in_t(slab ed[SL_E_NT])
  * its other corners twice as much. */
 static void bound_in_a(slab e1, slab ea[SL_E_NA][SL_E_NPHI])
 {
-    static slab bump[SL_E_NA][SL_E_NPHI];
-    for (int l = -1; l + 1 < SL_E_NA; l++) {
-        double ya = l < 0 ? 0.0 : sl_energy_a_y(sl_energy_a_node(l));
-        double yc = 0.5 * (ya + sl_energy_a_y(sl_energy_a_node(l + 1)));
-        double aspect = 1.0 / (1.0 + yc), a = (1.0 - aspect * aspect) / 0.9;
-        for (int m = 0; m + 1 < SL_E_NPHI; m++) {
-            double phi = 0.5 * (sl_energy_phi_node(m) + sl_energy_phi_node(m + 1));
-            for (int j = 0; j + 1 < SL_E_NR; j++)
+    static slab bump[SL_E_NA][SL_E_NPHI], centre[SL_E_NA][SL_E_NPHI];
+    /* Cell (n, m, j, i) spans the anisotropy axis nodes n and n + 1 (node 0
+     * is the isotropic table, node n >= 1 the slab n - 1). */
+#pragma omp parallel for collapse(3) schedule(dynamic)
+    for (int n = 0; n < SL_E_NA; n++)
+        for (int m = 0; m < SL_E_NPHI - 1; m++)
+            for (int j = 0; j < SL_E_NR - 1; j++) {
+                double yc = 0.5 * (sl_energy_a_axis_y(n) + sl_energy_a_axis_y(n + 1));
+                double aspect = 1.0 / (1.0 + yc), a = (1.0 - aspect * aspect) / 0.9;
+                double phi = 0.5 * (sl_energy_phi_node(m) + sl_energy_phi_node(m + 1));
+                double r = 0.5 * (sl_energy_r_node(j) + sl_energy_r_node(j + 1));
                 for (int i = 0; i + 1 < SL_E_NMU; i++) {
                     double mu = 0.5 * (sl_energy_mu_node(i) + sl_energy_mu_node(i + 1));
-                    double r = 0.5 * (sl_energy_r_node(j) + sl_energy_r_node(j + 1));
+                    centre[n][m][j][i] = value(mu, r, 0.0, phi, a);
+                }
+            }
+    for (int n = 0; n < SL_E_NA; n++)
+        for (int m = 0; m < SL_E_NPHI - 1; m++)
+            for (int j = 0; j + 1 < SL_E_NR; j++)
+                for (int i = 0; i + 1 < SL_E_NMU; i++) {
                     double lerp = 0.0;
                     for (int c = 0; c < 16; c++) {
-                        int ll = l + (c >> 3), mm = m + ((c >> 2) & 1);
+                        int ll = n - 1 + (c >> 3), mm = m + ((c >> 2) & 1);
                         int jj = j + ((c >> 1) & 1), ii = i + (c & 1);
                         lerp += (ll < 0 ? e1[jj][ii] : ea[ll][mm][jj][ii]) / 16.0;
                     }
-                    double d = value(mu, r, 0.0, phi, a) - lerp;
+                    double d = centre[n][m][j][i] - lerp;
                     for (int c = 0; c < 16; c++) {
-                        int ll = l + (c >> 3);
+                        int ll = n - 1 + (c >> 3);
                         if (ll < 0)
                             continue;
                         double *b = &bump[ll][m + ((c >> 2) & 1)][j + ((c >> 1) & 1)][i + (c & 1)];
-                        *b = fmax(*b, l < 0 ? 2.0 * d : d);
+                        *b = fmax(*b, n == 0 ? 2.0 * d : d);
                     }
                 }
-        }
-    }
     for (int l = 0; l < SL_E_NA; l++)
         for (int m = 0; m < SL_E_NPHI; m++)
             for (int j = 0; j < SL_E_NR; j++)

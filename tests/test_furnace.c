@@ -44,14 +44,14 @@ static void test_furnace_thresholds(void)
     r = family_range("conductor", false);
     CHECK(r.hi <= 1.0005);
     r = family_range("plastic", true);
-    CHECK(r.lo > 0.97);
+    CHECK(r.lo >= 0.99);
     /* Never above 1 beyond the error of 4096-sample quadrature (see the
      * high-precision check below). */
     CHECK(r.hi <= 1.001);
     r = family_range("plastic", false);
     CHECK(r.hi <= 1.0);
     r = family_range("conductor_aniso", true);
-    CHECK(r.lo >= 0.98 && r.hi <= 1.002);
+    CHECK(r.lo >= 0.99 && r.hi <= 1.01);
     family_range("conductor_aniso", false);
     for (int i = 0; i < furnace.count; i++)
         CHECK(furnace.cases[i].expected == 1.0 && isfinite(furnace.cases[i].albedo));
@@ -327,9 +327,42 @@ static void test_furnace_json(void)
     CHECK(strstr(err.message, "samples") != NULL && f.cases == NULL);
 }
 
+/* The compensated anisotropic conductor off the furnace's anisotropy 0.8:
+ * anisotropies on and between the table's nodes, roughness 0.1 .. 1 and the
+ * furnace's angles (wo along the stretched axis), within 1 +- 0.01 (the loss was
+ * 1.9% at roughness 0.9 - 1 when the tables had 4 x 5 anisotropy and azimuth
+ * nodes). */
+static void test_aniso_furnace_scan(void)
+{
+    static const double aniso[] = {0.1, 0.2, 0.35, 0.5, 0.65, 0.8, 0.9, 1.0};
+    static const double coss[] = {0.02, 0.1, 0.2, 0.35, 0.5, 0.7, 1.0};
+    static const double one[3] = {1, 1, 1};
+    double lo = INFINITY, hi = -INFINITY, at_lo[3] = {0};
+    for (int a = 0; a < 8; a++)
+        for (int r = 1; r <= 10; r++)
+            for (int c = 0; c < 7; c++) {
+                sl_material m;
+                sl_material_conductor(&m, one, one, r / 10.0);
+                m.fresnel = SL_FRESNEL_ONE;
+                m.anisotropy = aniso[a];
+                double al[3];
+                sl_bsdf_albedo(&m, coss[c], 4096, al);
+                if (al[0] < lo) {
+                    lo = al[0];
+                    at_lo[0] = aniso[a], at_lo[1] = r / 10.0, at_lo[2] = coss[c];
+                }
+                hi = fmax(hi, al[0]);
+            }
+    printf("  anisotropic conductor, anisotropy 0.1 .. 1: albedo %.4f .. %.4f (lowest at "
+           "anisotropy %.2f, roughness %.1f, cos %.2f)\n",
+           lo, hi, at_lo[0], at_lo[1], at_lo[2]);
+    CHECK(lo >= 0.99 && hi <= 1.01);
+}
+
 int main(void)
 {
     RUN(test_furnace_thresholds);
+    RUN(test_aniso_furnace_scan);
     RUN(test_uncompensated_loss);
     RUN(test_tables_current);
     RUN(test_table_accuracy);

@@ -301,7 +301,10 @@ typedef struct sl_render_stats {
     int64_t spp;
     double seconds;
     double cpu_seconds;          /* process CPU time spent in the render */
-    double samples_per_second;   /* camera samples (pixels x spp) per wall second */
+    double samples_per_second;   /* camera samples taken per wall second */
+    int64_t samples;             /* camera samples taken: pixels x spp, less what
+                                    adaptive sampling (--target-error) saved */
+    int64_t pixels_stopped_early; /* adaptive sampling: pixels that stopped before spp */
     int64_t camera_rays, shadow_rays, bsdf_rays;
     int64_t shadow_rays_skipped; /* nothing in the scene could occlude */
     int64_t zero_weight_skipped; /* light samples whose BSDF value or pdf was zero */

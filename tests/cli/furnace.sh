@@ -23,7 +23,7 @@ for c in cases:
 fams = {c["bsdf"] for c in cases}
 assert fams == {"lambert", "conductor", "conductor_aniso", "plastic"}, fams
 for c in cases:
-    if c["bsdf"] == "conductor" and c["compensated"]:
+    if c["bsdf"] in ("conductor", "conductor_aniso", "plastic") and c["compensated"]:
         assert abs(c["albedo"] - 1.0) <= 0.01, c
     if c["bsdf"] == "lambert":
         assert abs(c["albedo"] - 1.0) <= 0.005, c

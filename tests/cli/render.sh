@@ -29,6 +29,11 @@ grep -q '"passes"' "$T/grey.json" || { echo "FAIL stats without passes"; fail=1;
 "$S" render --env "$T/env.hdr" --scene grey --width 16 --spp 4 --reference "$T/grey.exr" -o "$T/grey2.exr" --json --quiet > "$T/out.json"
 check "render with reference" 0 $?
 grep -q '"ref_rel_rmse": 0,' "$T/out.json" || grep -q '"ref_rel_rmse": 0\b' "$T/out.json" || { echo "FAIL same seed should match its reference exactly: $(cat "$T/out.json")"; fail=1; }
+# Adaptive sampling: under a uniform dome the background (21% of the image)
+# has no variance and stops at once; the stats count what was saved.
+"$S" render --env "$T/env.hdr" --scene grey --width 16 --target-error 0.001 -o "$T/ad.exr" --stats "$T/ad.json" --quiet
+check "adaptive render" 0 $?
+python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if d["pixels_stopped_early"] >= 50 and 0 < d["samples"] < d["spp"] * 256 and d["passes"][-1]["est_rel_rmse"] <= 0.001 else 1)' "$T/ad.json" || { echo "FAIL adaptive stats: $(head -c 400 "$T/ad.json")"; fail=1; }
 "$S" render --help > "$T/help.txt"
 check "help" 0 $?
 for o in --env --scene --material --width --view --background --pixel-centers --spp --time --target-error --bounces --strategy --sampler --seed --reference --stats --output; do

@@ -29,19 +29,24 @@ static void base_light(sl_light *l, sl_light_type type, const double pos[3], con
     l->intensity = 1;
 }
 
-/* Grey sphere lit by one light; each lit pixel against E(n) from `irr`. */
 typedef double (*irradiance_fn)(const double p[3], const double n[3], const sl_light *l);
 
-static double render_vs(const sl_light *proto, irradiance_fn irr, int64_t spp, double *worst_out)
+/* Grey sphere lit by n lights; each pixel lit by every light (E(n) > 0 from
+ * `irr` for each) against the sum of E over the lights with counts[i]. With
+ * one light and one shape nothing occludes: no shadow rays. */
+static double render_vs_lights(const sl_light *protos, int n_lights, const bool *counts,
+                               irradiance_fn irr, int64_t spp, int64_t *shadow_rays)
 {
     sl_scene s;
     sl_scene_init(&s);
     sl_error err = {0};
     CHECK_OK(sl_scene_preset(&s, "grey", VS_SIZE, &err), &err);
-    sl_light l = *proto;
-    if (proto->texture.data) /* the scene takes over its own copy */
-        CHECK_OK(sl_image_copy(&proto->texture, &l.texture, NULL), NULL);
-    CHECK_OK(sl_scene_add_light(&s, &l, &err), &err);
+    for (int i = 0; i < n_lights; i++) {
+        sl_light l = protos[i];
+        if (protos[i].texture.data) /* the scene takes over its own copy */
+            CHECK_OK(sl_image_copy(&protos[i].texture, &l.texture, NULL), NULL);
+        CHECK_OK(sl_scene_add_light(&s, &l, &err), &err);
+    }
     sl_render_options o;
     sl_render_options_init(&o);
     o.spp = spp;
@@ -50,7 +55,10 @@ static double render_vs(const sl_light *proto, irradiance_fn irr, int64_t spp, d
     sl_render_stats st;
     CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
     CHECK(st.nonfinite_samples == 0);
-    CHECK(st.shadow_rays == 0 && st.shadow_rays_skipped > 0); /* one shape: nothing occludes */
+    if (n_lights == 1)
+        CHECK(st.shadow_rays == 0 && st.shadow_rays_skipped > 0); /* one shape: nothing occludes */
+    if (shadow_rays)
+        *shadow_rays = st.shadow_rays;
     double worst = 0;
     int lit = 0;
     for (int py = 0; py < VS_SIZE; py++)
@@ -58,20 +66,31 @@ static double render_vs(const sl_light *proto, irradiance_fn irr, int64_t spp, d
             double x = 2.0 * (px + 0.5) / VS_SIZE - 1.0, y = 1.0 - 2.0 * (py + 0.5) / VS_SIZE;
             if (x * x + y * y >= 1)
                 continue;
-            double n[3] = {-x, y, -sqrt(1 - x * x - y * y)};
-            double E = irr(n, n, &s.lights[0]);
-            if (E <= 0)
+            double n[3] = {-x, y, -sqrt(1 - x * x - y * y)}, E = 0;
+            bool all = true;
+            for (int i = 0; i < n_lights; i++) {
+                double e = irr(n, n, &s.lights[i]);
+                all = all && e > 0;
+                E += counts[i] ? e : 0.0;
+            }
+            if (!all)
                 continue;
             double ref = 0.18 / SL_PI * E, val = sl_image_pixel(&img, px, py)[0];
             worst = fmax(worst, fabs(val - ref) / ref);
             lit++;
         }
     CHECK(lit > VS_SIZE);
-    *worst_out = worst;
     sl_image_free(&img);
     sl_render_stats_free(&st);
     sl_scene_free(&s);
     return worst;
+}
+
+static double render_vs(const sl_light *proto, irradiance_fn irr, int64_t spp, double *worst_out)
+{
+    static const bool one = true;
+    *worst_out = render_vs_lights(proto, 1, &one, irr, spp, NULL);
+    return *worst_out;
 }
 
 /* A uniform sphere fully above the horizon irradiates like a point:
@@ -476,6 +495,44 @@ static void test_shadow(void)
     sl_scene_free(&s);
 }
 
+/* Lights are scene objects for visibility. A 1 x 1 rect light 9 units to
+ * the -X side of the grey sphere (out of the camera's view), fully behind a
+ * 2 x 2 rect at 6 units (from every point of the sphere the line to any point
+ * of the far light crosses the near one: off the axis by at most
+ * 3/8 + 2/3 x 0.5 < 1 at x = -6): the far light
+ * contributes nothing, whatever its power. Side by side, both contribute:
+ * each pixel is the quadrature of both rects. A light's own emitter does not
+ * shadow it (the near light alone still matches its quadrature). */
+static void test_lights_occlude_lights(void)
+{
+    const double toward[3] = {1, 0, 0}; /* emitting toward the sphere */
+    const double near_pos[3] = {-6, 0, 0}, far_pos[3] = {-9, 0, 0};
+    sl_light near, far;
+    base_light(&near, SL_LIGHT_RECT, near_pos, toward);
+    near.width = near.height = 2;
+    base_light(&far, SL_LIGHT_RECT, far_pos, toward);
+    far.width = far.height = 1;
+    far.intensity = 20; /* unblocked it would add about 2.5 times the near light */
+    int64_t rays;
+    sl_light pair[2] = {near, far};
+    const bool near_only[2] = {true, false}, both[2] = {true, true};
+    double worst = render_vs_lights(pair, 2, near_only, irr_rect_quadrature, 256, &rays);
+    printf("  rect fully behind a rect: worst %.3f%% against the near light alone\n", 100 * worst);
+    CHECK(worst < 0.01);
+    CHECK(rays > 0); /* one shape, yet lights can block lights */
+    /* Side by side, 3 apart: both light the sphere. */
+    const double left[3] = {-6, 0, -1.5}, right[3] = {-6, 0, 1.5};
+    base_light(&near, SL_LIGHT_RECT, left, toward);
+    near.width = near.height = 1;
+    base_light(&far, SL_LIGHT_RECT, right, toward);
+    far.width = far.height = 1;
+    far.intensity = 2;
+    pair[0] = near, pair[1] = far;
+    worst = render_vs_lights(pair, 2, both, irr_rect_quadrature, 256, &rays);
+    printf("  two rects side by side: worst %.3f%% against both quadratures\n", 100 * worst);
+    CHECK(worst < 0.01);
+}
+
 static void test_normalize_and_bad_lights(void)
 {
     sl_scene s;
@@ -683,6 +740,7 @@ int main(void)
     RUN(test_light_sampler_chi2);
     RUN(test_light_sampler_chi2_more);
     RUN(test_shadow);
+    RUN(test_lights_occlude_lights);
     RUN(test_normalize_and_bad_lights);
     return sl_test_finish();
 }

@@ -70,6 +70,60 @@ static void test_stop_conditions(void)
     sl_scene_free(&s);
 }
 
+/* Adaptive sampling under --target-error: background pixels (no variance)
+ * and pixels within their share of the target stop early, the samples taken
+ * are fewer than pixels x spp and counted, the image is still within the
+ * target of a converged render (true error, not only the estimate), and the
+ * background stays exactly black. */
+static void test_adaptive_sampling(void)
+{
+    sl_scene s;
+    grey_scene(&s, 32);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    sl_image ref, img;
+    sl_render_stats st;
+    sl_error err = {0};
+    o.spp = 4096;
+    CHECK_OK(sl_render(&s, &o, &ref, NULL, &err), &err);
+    o.spp = 0;
+    o.target_error = 0.004;
+    o.reference = &ref;
+    CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
+    const int npix = 32 * 32;
+    double true_err = st.passes[st.pass_count - 1].ref_rel_rmse;
+    printf("  adaptive: spp %lld, samples %lld of %lld, %lld pixels stopped early, est %.4f, "
+           "true %.4f\n",
+           (long long)st.spp, (long long)st.samples, (long long)st.spp * npix,
+           (long long)st.pixels_stopped_early, st.passes[st.pass_count - 1].est_rel_rmse,
+           true_err);
+    CHECK(!strcmp(st.stop_reason, "target-error"));
+    CHECK(st.pixels_stopped_early >= 200); /* the 21% of background at least */
+    CHECK(st.samples < st.spp * npix && st.samples > 0);
+    CHECK(st.camera_rays == st.samples);
+    CHECK(true_err < 2.0 * o.target_error);
+    int lit_wrong = 0;
+    for (int y = 0; y < 32; y++)
+        for (int x = 0; x < 32; x++) {
+            const float *p = sl_image_pixel(&img, x, y);
+            double dx = (x + 0.5) / 16 - 1, dy = (y + 0.5) / 16 - 1;
+            if (dx * dx + dy * dy > 1.2 && (p[0] != 0 || p[3] != 0))
+                lit_wrong++;
+        }
+    CHECK(lit_wrong == 0);
+    /* Without a target nothing stops early: every pixel has spp samples. */
+    sl_image_free(&img);
+    sl_render_stats_free(&st);
+    o.target_error = 0;
+    o.spp = 32;
+    CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
+    CHECK(st.pixels_stopped_early == 0 && st.samples == 32 * npix);
+    sl_image_free(&img);
+    sl_render_stats_free(&st);
+    sl_image_free(&ref);
+    sl_scene_free(&s);
+}
+
 /* The half-buffer estimate tracks the true error (within a factor of 2
  * once past a few passes), for both sequences. */
 static void test_error_estimate(void)
@@ -227,6 +281,7 @@ static void test_scene_files(void)
 int main(void)
 {
     RUN(test_stop_conditions);
+    RUN(test_adaptive_sampling);
     RUN(test_error_estimate);
     RUN(test_stats_json);
     RUN(test_bad_options);
