@@ -327,6 +327,28 @@ const char *sl_meta_get(const sl_meta *meta, const char *name);
 void sl_meta_set_rec709(sl_meta *meta);
 
 /* ------------------------------------------------------------------ */
+/* TIFF directories (EXIF's APP1 payload, TIFF and DNG headers)        */
+/* ------------------------------------------------------------------ */
+
+/* A TIFF structure in memory; every read is bounds-checked against n. */
+typedef struct sl_tiff {
+    const unsigned char *p;
+    size_t n;
+    bool big; /* "MM" byte order */
+} sl_tiff;
+/* false unless p starts with a TIFF header; *ifd0 is its first IFD's offset. */
+bool sl_tiff_open(const unsigned char *p, size_t n, sl_tiff *t, unsigned long *ifd0);
+bool sl_tiff_u16(const sl_tiff *t, size_t at, unsigned *v);
+bool sl_tiff_u32(const sl_tiff *t, size_t at, unsigned long *v);
+/* The entry `tag` of the IFD at `ifd`: its type, count and the offset of its
+ * value (inline values sit in the entry itself), inside the buffer. */
+bool sl_tiff_find(const sl_tiff *t, unsigned long ifd, unsigned tag, unsigned *type,
+                  unsigned long *count, size_t *value_at);
+/* The same for the i-th entry of the IFD (any tag); false past the last. */
+bool sl_tiff_entry(const sl_tiff *t, unsigned long ifd, unsigned i, unsigned *tag,
+                   unsigned *type, unsigned long *count, size_t *value_at);
+
+/* ------------------------------------------------------------------ */
 /* Image files                                                         */
 /* ------------------------------------------------------------------ */
 
