@@ -18,6 +18,17 @@ typedef struct jpeg_failure {
     char why[JMSG_LENGTH_MAX];
 } jpeg_failure;
 
+/* What the EXIF block gave: OIIO keeps the first value of a tag. */
+typedef struct exif_found {
+    unsigned long ifds_seen[8];
+    int ifd_count;
+    bool have_exposure, have_fnumber, have_iso, have_focal, have_orientation;
+    bool have_make, have_model, have_lens, have_datetime, have_original;
+    double exposure, fnumber, iso, focal;
+    long orientation;
+    char make[64], model[64], lens[128], datetime[32], original[32];
+} exif_found;
+
 struct sl_jpeg_reader {
     jpeg_failure fail;
     struct jpeg_decompress_struct cinfo;
@@ -27,6 +38,7 @@ struct sl_jpeg_reader {
     int width, height, channels, block_w, block_h;
     int next_row;
     unsigned char *row; /* one decoded row, when channels are dropped */
+    exif_found exif;
 };
 
 static void on_error(j_common_ptr cinfo)
@@ -90,16 +102,6 @@ enum {
     TAG_LENS = 0xA434,          /* Exif:LensModel */
 };
 
-/* What the EXIF block gave: OIIO keeps the first value of a tag. */
-typedef struct exif_found {
-    unsigned long ifds_seen[8];
-    int ifd_count;
-    bool have_exposure, have_fnumber, have_iso, have_focal, have_orientation;
-    bool have_make, have_model, have_lens, have_datetime, have_original;
-    double exposure, fnumber, iso, focal;
-    long orientation;
-    char make[64], model[64], lens[128], datetime[32], original[32];
-} exif_found;
 
 /* The first value of a numeric entry as OIIO's attribute gives it as a
  * float: rationals are num / den in double then float, as OIIO stores them. */
@@ -267,37 +269,107 @@ static void copy_text(char *dst, size_t size, const char *src)
     snprintf(dst, size, "%s", src ? src : "");
 }
 
-/* sl_meta as photo_cxx.cpp's fill_meta makes it from OIIO's attributes. */
-static void fill_meta(const sl_jpeg_reader *r, sl_meta *meta)
+/* The EXIF blocks, in file order. */
+static void read_exif(const struct jpeg_decompress_struct *cinfo, exif_found *x)
 {
-    exif_found x;
-    memset(&x, 0, sizeof x);
-    for (jpeg_saved_marker_ptr m = r->cinfo.marker_list; m; m = m->next)
+    memset(x, 0, sizeof *x);
+    for (jpeg_saved_marker_ptr m = cinfo->marker_list; m; m = m->next)
         if (m->marker == JPEG_APP0 + 1 && m->data_length >= 6 && !memcmp(m->data, "Exif\0", 5))
-            decode_exif(m->data + 6, m->data_length - 6, &x);
+            decode_exif(m->data + 6, m->data_length - 6, x);
+}
+
+/* sl_meta as photo_cxx.cpp's fill_meta makes it from OIIO's attributes. */
+static void fill_meta(const exif_found *x, sl_meta *meta)
+{
     copy_text(meta->format, sizeof meta->format, "jpeg");
     meta->is_float = false;
     meta->bits_per_sample = 8;
     copy_text(meta->colorspace, sizeof meta->colorspace, "sRGB");
-    meta->exposure_time = x.have_exposure ? x.exposure : 0;
-    meta->f_number = x.have_fnumber ? x.fnumber : 0;
-    meta->iso = x.have_iso ? x.iso : 0;
-    meta->focal_length_mm = x.have_focal ? x.focal : 0;
-    copy_text(meta->make, sizeof meta->make, x.make);
-    copy_text(meta->model, sizeof meta->model, x.model);
-    copy_text(meta->lens, sizeof meta->lens, x.lens);
-    copy_text(meta->datetime, sizeof meta->datetime, x.original[0] ? x.original : x.datetime);
-    meta->orientation = x.orientation >= 1 && x.orientation <= 8 ? (int)x.orientation : 0;
+    meta->exposure_time = x->have_exposure ? x->exposure : 0;
+    meta->f_number = x->have_fnumber ? x->fnumber : 0;
+    meta->iso = x->have_iso ? x->iso : 0;
+    meta->focal_length_mm = x->have_focal ? x->focal : 0;
+    copy_text(meta->make, sizeof meta->make, x->make);
+    copy_text(meta->model, sizeof meta->model, x->model);
+    copy_text(meta->lens, sizeof meta->lens, x->lens);
+    copy_text(meta->datetime, sizeof meta->datetime, x->original[0] ? x->original : x->datetime);
+    meta->orientation = x->orientation >= 1 && x->orientation <= 8 ? (int)x->orientation : 0;
 }
 
-/* Markers whose attributes this reader does not reproduce: XMP (OIIO's
- * decode_xmp can replace EXIF's values). */
-static bool declined_metadata(const struct jpeg_decompress_struct *cinfo)
+/* ---- XMP: read natively only when it cannot change what setlight reads */
+
+/* XMP names (element or attribute, any case) that OIIO's decode_xmp turns
+ * into, or keeps as, an attribute photo_cxx.cpp's fill_meta reads. */
+static const char *const xmp_setlight_names[] = {
+    "tiff:Make", "tiff:Model", "tiff:Orientation", "exifEX:PhotographicSensitivity",
+    "exif:PhotographicSensitivity", "exif:ISOSpeedRatings", "exif:FocalLength",
+    "exif:LensModel", "exif:DateTimeOriginal", "ExposureTime", "FNumber", "Make", "Model",
+    "LensModel", "Orientation", "oiio:ColorSpace",
+};
+/* The ones that only give OIIO's "DateTime", which fill_meta reads only
+ * when Exif:DateTimeOriginal is empty. */
+static const char *const xmp_date_names[] = {
+    "tiff:DateTime", "xmp:CreateDate", "photoshop:DateCreated", "DateTime",
+};
+
+static bool name_in(const char *name, size_t n, const char *const *list, size_t count)
+{
+    for (size_t i = 0; i < count; i++)
+        if (strlen(list[i]) == n && !strncasecmp(name, list[i], n))
+            return true;
+    return false;
+}
+
+static bool xml_name_char(unsigned char c)
+{
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           c == ':' || c == '_' || c == '-' || c == '.' || c >= 0x80;
+}
+
+/* Whether OIIO's reading of this XMP packet could differ from the EXIF-only
+ * metadata: some element or attribute name that reaches fill_meta. Every
+ * name in the packet is looked at, inside rdf:Description or not. */
+static bool xmp_matters(const unsigned char *p, size_t n, bool have_original)
+{
+    for (size_t i = 0; i < n; i++) {
+        /* a name follows '<' or '</' (an element), or blank space (an attribute) */
+        bool element = p[i] == '<';
+        if (!element && p[i] != ' ' && p[i] != '\t' && p[i] != '\n' && p[i] != '\r')
+            continue;
+        size_t b = i + 1;
+        if (element && b < n && p[b] == '/')
+            b++;
+        size_t e = b;
+        while (e < n && xml_name_char(p[e]))
+            e++;
+        if (e == b)
+            continue;
+        const char *name = (const char *)p + b;
+        size_t len = e - b;
+        if (len >= 9 && !strncasecmp(name, "setlight:", 9))
+            return true;
+        if (name_in(name, len, xmp_setlight_names,
+                    sizeof xmp_setlight_names / sizeof xmp_setlight_names[0]))
+            return true;
+        if (!have_original &&
+            name_in(name, len, xmp_date_names, sizeof xmp_date_names / sizeof xmp_date_names[0]))
+            return true;
+        i = e - 1;
+    }
+    return false;
+}
+
+/* Markers whose attributes this reader does not reproduce: an XMP packet
+ * that would change what setlight reads (OIIO's decode_xmp replaces EXIF's
+ * values: the XMP date of some cameras' files wins). */
+static bool declined_metadata(const struct jpeg_decompress_struct *cinfo, const exif_found *x)
 {
     static const char xmp[] = "http://ns.adobe.com/xap/1.0/";
+    bool have_original = x->original[0] != 0;
     for (jpeg_saved_marker_ptr m = cinfo->marker_list; m; m = m->next)
         if (m->marker == JPEG_APP0 + 1 && m->data_length >= sizeof xmp &&
-            !memcmp(m->data, xmp, sizeof xmp))
+            !memcmp(m->data, xmp, sizeof xmp) &&
+            xmp_matters(m->data + sizeof xmp, m->data_length - sizeof xmp, have_original))
             return true;
     return false;
 }
@@ -337,11 +409,12 @@ static sl_result read_header(sl_jpeg_reader *r, bool *declined, sl_error *err)
     if (jpeg_read_header(&r->cinfo, FALSE) != JPEG_HEADER_OK)
         return sl_error_set(err, SL_ERR_INPUT, "%s: JPEG without an image (tables only)",
                             r->path);
+    read_exif(&r->cinfo, &r->exif);
     /* CMYK is converted by OIIO's own arithmetic; other component counts
      * than grey and colour are left to it too. */
     if (r->cinfo.jpeg_color_space == JCS_CMYK || r->cinfo.jpeg_color_space == JCS_YCCK ||
         (r->cinfo.num_components != 1 && r->cinfo.num_components != 3) ||
-        declined_metadata(&r->cinfo)) {
+        declined_metadata(&r->cinfo, &r->exif)) {
         *declined = true;
         return SL_OK;
     }
@@ -380,7 +453,7 @@ sl_result sl_jpeg_open(const char *path, sl_jpeg_reader **reader, sl_meta *meta,
     r->fail.pub.output_message = no_output;
     sl_result res = read_header(r, declined, err);
     if (!res && !*declined && meta)
-        fill_meta(r, meta);
+        fill_meta(&r->exif, meta);
     if (res || *declined) {
         sl_jpeg_close(r);
         return res;

@@ -23,7 +23,10 @@ typedef struct variant {
     const char *name;
     int width, height, components; /* 1 grey, 3 colour, 4 CMYK */
     int h0, v0;                     /* luma sampling (chroma 1x1) */
-    bool progressive, arithmetic, big_endian_exif, xmp, restart;
+    bool progressive, arithmetic, big_endian_exif;
+    int xmp; /* 0 none, 1 XMP's DateTimeOriginal, 2 dates and names setlight
+              * does not read, 3 CreateDate (OIIO's DateTime) */
+    bool restart;
     int exif; /* 0 none, 1 full, 2 IFD0 only (DateTime, no original) */
     int block_w, block_h; /* what OIIO's strips report */
 } variant;
@@ -36,12 +39,15 @@ static const variant variants[] = {
     {"grey.jpg", 29, 19, 1, 1, 1, false, false, false, false, false, 1, 8, 8},
     {"progressive.jpg", 41, 23, 3, 2, 2, true, false, true, false, false, 1, 16, 16},
     {"arithmetic.jpg", 26, 14, 3, 2, 2, false, true, false, false, false, 0, 16, 16},
+    {"xmp_other.jpg", 20, 12, 3, 2, 2, false, false, false, 2, false, 1, 16, 16},
+    {"xmp_date.jpg", 20, 12, 3, 2, 2, false, false, true, 3, false, 1, 16, 16},
     /* declined: OpenImageIO reads these */
-    {"cmyk.jpg", 20, 12, 4, 1, 1, false, false, false, false, false, 0, 8, 8},
-    {"xmp.jpg", 20, 12, 3, 2, 2, false, false, false, true, false, 1, 16, 16},
+    {"cmyk.jpg", 20, 12, 4, 1, 1, false, false, false, 0, false, 0, 8, 8},
+    {"xmp.jpg", 20, 12, 3, 2, 2, false, false, false, 1, false, 1, 16, 16},
+    {"xmp_date_no_original.jpg", 20, 12, 3, 2, 2, false, false, false, 3, false, 2, 16, 16},
 };
 #define VARIANTS (int)(sizeof variants / sizeof variants[0])
-#define NATIVE 7
+#define NATIVE 9
 
 /* A little TIFF writer for the EXIF block: one IFD at a time. */
 typedef struct tiff_out {
@@ -166,13 +172,28 @@ static bool write_variant(const char *path, const variant *v)
     unsigned char app1[1100];
     if (v->exif)
         jpeg_write_marker(&c, JPEG_APP0 + 1, app1, (unsigned)make_exif(app1, v->big_endian_exif, v->exif == 1));
+    static const char *const xmps[] = {
+        NULL,
+        /* as the stack_ghost bracket's: XMP's original date wins */
+        "<rdf:Description xmlns:exif='http://ns.adobe.com/exif/1.0/'><exif:DateTimeOriginal>"
+        "2011:12:13 03:09:10</exif:DateTimeOriginal><exif:Make>Nikon</exif:Make>"
+        "</rdf:Description>",
+        /* as Apple Photos' and Canon's: nothing setlight reads */
+        "<rdf:Description rdf:about='' xmlns:aux='http://ns.adobe.com/exif/1.0/aux/' "
+        "aux:Lens='Canon EF-S 18-55mm f/3.5-5.6 IS' aux:SerialNumber='1823918851' "
+        "xmp:ModifyDate='2015-08-21T09:11:58' xmp:Rating='3'/>",
+        /* OIIO's DateTime, which setlight reads without an original date */
+        "<rdf:Description rdf:about='' xmp:CreateDate='2017-10-31T22:39:43.629' "
+        "photoshop:DateCreated='2017-10-31T22:39:43.629'/>",
+    };
     if (v->xmp) {
-        static const char xmp[] =
-            "http://ns.adobe.com/xap/1.0/\0<x:xmpmeta xmlns:x='adobe:ns:meta/'><rdf:RDF "
-            "xmlns:rdf='http://www.w3.org/1999/02/22-rdf-syntax-ns#'><rdf:Description "
-            "xmlns:exif='http://ns.adobe.com/exif/1.0/'><exif:DateTimeOriginal>2011:12:13 "
-            "03:09:10</exif:DateTimeOriginal></rdf:Description></rdf:RDF></x:xmpmeta>";
-        jpeg_write_marker(&c, JPEG_APP0 + 1, (const JOCTET *)xmp, sizeof xmp - 1);
+        char xmp[1024];
+        int n = snprintf(xmp, sizeof xmp,
+                         "http://ns.adobe.com/xap/1.0/%c<x:xmpmeta xmlns:x='adobe:ns:meta/'>"
+                         "<rdf:RDF xmlns:rdf='http://www.w3.org/1999/02/22-rdf-syntax-ns#'>%s"
+                         "</rdf:RDF></x:xmpmeta>",
+                         0, xmps[v->xmp]);
+        jpeg_write_marker(&c, JPEG_APP0 + 1, (const JOCTET *)xmp, (unsigned)n);
     }
     size_t stride = (size_t)v->width * (size_t)v->components;
     unsigned char *row = malloc(stride);
@@ -319,6 +340,9 @@ static void test_jpeg_does_not_start_oiio(void)
     CHECK(native_meta[3].exposure_time == 0 && native_meta[3].make[0] == 0);
     CHECK(native[4].channels == 1);
     CHECK(native_meta[1].orientation == 6 && native_meta[1].iso == 400); /* big-endian */
+    /* XMP that changes nothing setlight reads: EXIF's original date stays. */
+    CHECK(strcmp(native_meta[7].datetime, "2024:02:03 04:05:06") == 0);
+    CHECK(strcmp(native_meta[8].datetime, "2024:02:03 04:05:06") == 0);
 }
 
 static void test_jpeg_matches_oiio(void)
@@ -349,6 +373,13 @@ static void test_declined_go_to_oiio(void)
     CHECK(img.width == 20 && img.height == 12 && img.channels == 3);
     sl_image_free(&img);
     sl_meta_free(&meta);
+    for (int i = NATIVE; i < VARIANTS; i++) {
+        sl_jpeg_reader *r = NULL;
+        bool declined = false;
+        CHECK_OK(sl_jpeg_open(sl_test_path(variants[i].name), &r, NULL, &declined, &err), &err);
+        CHECK_MSG(declined && !r, "%s not declined", variants[i].name);
+        sl_jpeg_close(r);
+    }
     /* XMP's date wins over EXIF's in OpenImageIO. */
     CHECK_OK(sl_photo_read_meta(sl_test_path("xmp.jpg"), &meta, NULL, NULL, NULL, &err), &err);
     CHECK_MSG(strcmp(meta.datetime, "2011:12:13 03:09:10") == 0, "XMP date '%s'", meta.datetime);
