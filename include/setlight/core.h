@@ -396,8 +396,8 @@ sl_result sl_exr_stream_finish(sl_exr_stream *stream, const sl_meta *update, sl_
 /* Removes the partial file and frees the stream (NULL is fine). */
 void sl_exr_stream_abort(sl_exr_stream *stream);
 
-/* Camera and photo formats: PNG through libpng, the others (JPEG, TIFF, HDR,
- * DNG, camera raw via LibRaw) through OpenImageIO, loaded on first use
+/* Camera and photo formats: PNG and JPEG through libpng and libjpeg as OpenImageIO reads them,
+ * the others (TIFF, HDR, DNG, camera raw via LibRaw) through OpenImageIO, loaded on first use
  * (docs/performance.md). Integer formats come back scaled to [0, 1] with no
  * transfer function removed: a JPEG stays sRGB-encoded, camera raw is read
  * linear (no tone curve, camera white balance, Rec.709 output). */
