@@ -27,7 +27,7 @@ typedef struct variant {
     int xmp; /* 0 none, 1 XMP's DateTimeOriginal, 2 dates and names setlight
               * does not read, 3 CreateDate (OIIO's DateTime) */
     bool restart;
-    int exif; /* 0 none, 1 full, 2 IFD0 only (DateTime, no original) */
+    int exif; /* 0 none, 1 full, 2 IFD0 only (DateTime, no original), 3 tags twice */
     int block_w, block_h; /* what OIIO's strips report */
 } variant;
 
@@ -41,13 +41,14 @@ static const variant variants[] = {
     {"arithmetic.jpg", 26, 14, 3, 2, 2, false, true, false, false, false, 0, 16, 16},
     {"xmp_other.jpg", 20, 12, 3, 2, 2, false, false, false, 2, false, 1, 16, 16},
     {"xmp_date.jpg", 20, 12, 3, 2, 2, false, false, true, 3, false, 1, 16, 16},
+    {"exif_twice.jpg", 20, 12, 3, 1, 1, false, false, false, 0, false, 3, 8, 8},
     /* declined: OpenImageIO reads these */
     {"cmyk.jpg", 20, 12, 4, 1, 1, false, false, false, 0, false, 0, 8, 8},
     {"xmp.jpg", 20, 12, 3, 2, 2, false, false, false, 1, false, 1, 16, 16},
     {"xmp_date_no_original.jpg", 20, 12, 3, 2, 2, false, false, false, 3, false, 2, 16, 16},
 };
 #define VARIANTS (int)(sizeof variants / sizeof variants[0])
-#define NATIVE 9
+#define NATIVE 10
 
 /* A little TIFF writer for the EXIF block: one IFD at a time. */
 typedef struct tiff_out {
@@ -110,8 +111,9 @@ static size_t write_ifd(tiff_out *t, const entry *e, int count)
 /* "Exif\0\0" and a TIFF: IFD0 (Make, Model, Orientation, DateTime, and the
  * Exif IFD's offset) and the Exif IFD (exposure, aperture, ISO, original
  * date, focal length, lens). */
-static size_t make_exif(unsigned char *out, bool big, bool full)
+static size_t make_exif(unsigned char *out, bool big, int mode)
 {
+    bool full = mode != 2;
     tiff_out t;
     memset(&t, 0, sizeof t);
     t.big = big;
@@ -133,6 +135,26 @@ static size_t make_exif(unsigned char *out, bool big, bool full)
         TEXT(0x0132, "2024:02:03 09:09:09"),
         {0x8769, 4, 1, NULL, 0, 0},
     };
+    /* mode 3: Make and ExposureTime in both IFDs (OIIO keeps the first),
+     * a focal length of 7/0 */
+    entry twice[] = {
+        {0x829A, 5, 1, NULL, 1, 250},
+        TEXT(0x010F, "BBB"),
+        {0x920A, 5, 1, NULL, 7, 0},
+    };
+    entry first[] = {
+        TEXT(0x010F, "AAA"),
+        {0x829A, 5, 1, NULL, 1, 100},
+        {0x8769, 4, 1, NULL, 0, 0},
+    };
+    if (mode == 3) {
+        size_t at0 = write_ifd(&t, first, 3);
+        size_t exif_at = write_ifd(&t, twice, 3);
+        put(&t, at0 + 2 + 12 * 2 + 8, (unsigned long)exif_at, 4);
+        memcpy(out, "Exif\0\0", 6);
+        memcpy(out + 6, t.b, t.n);
+        return 6 + t.n;
+    }
     int n0 = full ? 5 : 4;
     /* IFD0 first; the Exif IFD after its values, then IFD0's link patched. */
     size_t at0 = write_ifd(&t, ifd0, n0);
@@ -171,7 +193,7 @@ static bool write_variant(const char *path, const variant *v)
     jpeg_start_compress(&c, TRUE);
     unsigned char app1[1100];
     if (v->exif)
-        jpeg_write_marker(&c, JPEG_APP0 + 1, app1, (unsigned)make_exif(app1, v->big_endian_exif, v->exif == 1));
+        jpeg_write_marker(&c, JPEG_APP0 + 1, app1, (unsigned)make_exif(app1, v->big_endian_exif, v->exif));
     static const char *const xmps[] = {
         NULL,
         /* as the stack_ghost bracket's: XMP's original date wins */
@@ -343,6 +365,9 @@ static void test_jpeg_does_not_start_oiio(void)
     /* XMP that changes nothing setlight reads: EXIF's original date stays. */
     CHECK(strcmp(native_meta[7].datetime, "2024:02:03 04:05:06") == 0);
     CHECK(strcmp(native_meta[8].datetime, "2024:02:03 04:05:06") == 0);
+    /* A tag twice: the first value (IFD0's), as OIIO keeps it. */
+    CHECK(strcmp(native_meta[9].make, "AAA") == 0 &&
+          native_meta[9].exposure_time == (double)(float)(1.0 / 100));
 }
 
 static void test_jpeg_matches_oiio(void)
