@@ -234,31 +234,6 @@ static bool write_variant(const char *path, const variant *v)
 
 /* ---- comparisons ------------------------------------------------------ */
 
-static bool same_meta(const char *name, const sl_meta *a, const sl_meta *b)
-{
-    bool same = strcmp(a->format, b->format) == 0 && a->bits_per_sample == b->bits_per_sample &&
-                a->is_float == b->is_float && strcmp(a->colorspace, b->colorspace) == 0 &&
-                a->exposure_time == b->exposure_time && a->f_number == b->f_number &&
-                a->iso == b->iso && a->focal_length_mm == b->focal_length_mm &&
-                strcmp(a->make, b->make) == 0 && strcmp(a->model, b->model) == 0 &&
-                strcmp(a->lens, b->lens) == 0 && strcmp(a->datetime, b->datetime) == 0 &&
-                a->orientation == b->orientation && a->attr_count == b->attr_count &&
-                a->has_chromaticities == b->has_chromaticities && a->envmap == b->envmap;
-    for (int i = 0; same && i < a->attr_count; i++)
-        same = strcmp(a->attrs[i].name, b->attrs[i].name) == 0 &&
-               strcmp(a->attrs[i].value, b->attrs[i].value) == 0;
-    if (!same)
-        printf("  %s: libjpeg %s %d-bit '%s' t=%.9g N=%.9g iso=%g f=%.9g '%s' '%s' '%s' '%s' o=%d "
-               "%d attrs\n  %s: OIIO    %s %d-bit '%s' t=%.9g N=%.9g iso=%g f=%.9g '%s' '%s' '%s' "
-               "'%s' o=%d %d attrs\n",
-               name, a->format, a->bits_per_sample, a->colorspace, a->exposure_time, a->f_number,
-               a->iso, a->focal_length_mm, a->make, a->model, a->lens, a->datetime,
-               a->orientation, a->attr_count, name, b->format, b->bits_per_sample, b->colorspace,
-               b->exposure_time, b->f_number, b->iso, b->focal_length_mm, b->make, b->model,
-               b->lens, b->datetime, b->orientation, b->attr_count);
-    return same;
-}
-
 static bool same_pixels(const sl_image *a, const sl_image *b)
 {
     return a->width == b->width && a->height == b->height && a->channels == b->channels &&
@@ -321,12 +296,12 @@ static void compare_reads(const char *path, const sl_image *native, const sl_met
     int w, h, c, ow, oh, oc;
     CHECK_OK(sl_oiio_read(path, &ref, &ref_meta, &err), &err);
     CHECK_MSG(same_pixels(native, &ref), "%s: pixels differ from OpenImageIO's", path);
-    CHECK_MSG(same_meta(path, native_meta, &ref_meta), "%s: metadata differs", path);
+    CHECK_MSG(sl_test_same_meta(path, native_meta, &ref_meta), "%s: metadata differs", path);
     CHECK_OK(sl_photo_read_meta(path, &meta, &w, &h, &c, &err), &err);
     CHECK_OK(sl_oiio_read_meta(path, &oiio_meta, &ow, &oh, &oc, &err), &err);
     CHECK_MSG(w == ow && h == oh && c == oc, "%s: %dx%d %d ch, OIIO %dx%d %d ch", path, w, h, c,
               ow, oh, oc);
-    CHECK_MSG(same_meta(path, &meta, &oiio_meta), "%s: read_meta differs", path);
+    CHECK_MSG(sl_test_same_meta(path, &meta, &oiio_meta), "%s: read_meta differs", path);
     sl_image_free(&ref);
     sl_meta_free(&ref_meta);
     sl_meta_free(&meta);
