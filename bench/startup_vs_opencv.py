@@ -3,9 +3,10 @@
 running OpenCV's Debevec calibrate + merge on the same frames (issue 20, item 12: process
 start-up; goal: setlight at <= 0.2x OpenCV's time).
 
-  /usr/bin/python3 bench/startup_vs_opencv.py [--runs 7] [--setlight BIN]... [--work DIR]
+  /usr/bin/python3 bench/startup_vs_opencv.py [--runs 7] [--format png|jpg] [--setlight BIN]...
+                                              [--work DIR]
 
-Makes a 1024x512x7 8-bit PNG bracket (a synthetic sky with a sun, 2 stops apart, through an
+Makes a 1024x512x7 8-bit PNG (or JPEG, quality 95, 4:2:0) bracket (a synthetic sky with a sun, 2 stops apart, through an
 sRGB-like response with noise) in DIR, then, --runs times and interleaved, runs
   setlight merge --quiet --times T1,... -o DIR/setlight.exr FRAMES
   python3 -c '<imread the frames, cv2.createCalibrateDebevec().process,
@@ -40,8 +41,8 @@ if not cv2.imwrite(out, hdr):
 """
 
 
-def make_bracket(work):
-    """Writes FRAMES PNGs (brightest last) and returns their paths and exposure times."""
+def make_bracket(work, ext):
+    """Writes FRAMES PNGs or JPEGs (brightest last); returns their paths and exposure times."""
     rng = np.random.default_rng(20)
     y, x = np.mgrid[0:H, 0:W].astype(np.float32)
     elev = 1.0 - y / H
@@ -60,8 +61,8 @@ def make_bracket(work):
         v = np.clip(v, 0, 1)
         code = np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055)
         img = np.round(np.clip(code, 0, 1) * 255).astype(np.uint8)
-        p = os.path.join(work, "frame_%d.png" % i)
-        cv2.imwrite(p, img[:, :, ::-1])  # RGB -> BGR
+        p = os.path.join(work, "frame_%d.%s" % (i, ext))
+        cv2.imwrite(p, img[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])  # RGB -> BGR
         paths.append(p)
     return paths, times
 
@@ -82,11 +83,12 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("--setlight", action="append", default=None)
+    ap.add_argument("--format", choices=["png", "jpg"], default="png")
     ap.add_argument("--work", default="/tmp/setlight-bench-startup")
     a = ap.parse_args()
     builds = a.setlight or [os.path.join(HERE, "..", "build", "setlight")]
     os.makedirs(a.work, exist_ok=True)
-    frames, times = make_bracket(a.work)
+    frames, times = make_bracket(a.work, a.format)
     tlist = ",".join("%.9g" % t for t in times)
     env = dict(os.environ, OPENCV_IO_ENABLE_OPENEXR="1")
     opencv = [sys.executable, "-c", OPENCV_MERGE, os.path.join(a.work, "opencv.exr"), tlist] + frames
@@ -98,8 +100,8 @@ def main():
             res[b].append(run([b, "merge", "--quiet", "--times", tlist, "-o", out] + frames))
         ocv.append(run(opencv, env))
     med = lambda rows, i: statistics.median(r[i] for r in rows)
-    print("%dx%dx%d 8-bit PNG bracket, %d runs each (interleaved), medians, whole processes"
-          % (W, H, FRAMES, a.runs))
+    print("%dx%dx%d 8-bit %s bracket, %d runs each (interleaved), medians, whole processes"
+          % (W, H, FRAMES, a.format.upper(), a.runs))
     print("| command | wall s | CPU s |")
     print("|---|---|---|")
     for b in builds:

@@ -14,69 +14,13 @@
 
 /* ---- reading ------------------------------------------------------- */
 
-typedef struct tiff {
-    const unsigned char *p;
-    size_t n;
-    bool big; /* "MM" byte order */
-} tiff;
-
-static bool rd16(const tiff *t, size_t at, unsigned *v)
-{
-    if (at + 2 > t->n)
-        return false;
-    const unsigned char *q = t->p + at;
-    *v = t->big ? (unsigned)(q[0] << 8 | q[1]) : (unsigned)(q[1] << 8 | q[0]);
-    return true;
-}
-
-static bool rd32(const tiff *t, size_t at, unsigned long *v)
-{
-    if (at + 4 > t->n)
-        return false;
-    const unsigned char *q = t->p + at;
-    *v = t->big ? (unsigned long)q[0] << 24 | (unsigned long)q[1] << 16 |
-                      (unsigned long)q[2] << 8 | q[3]
-                : (unsigned long)q[3] << 24 | (unsigned long)q[2] << 16 |
-                      (unsigned long)q[1] << 8 | q[0];
-    return true;
-}
-
-/* The entry `tag` of the IFD at `ifd`: its type, count and the offset of its
- * value (inline values sit in the entry itself). */
-static bool find_tag(const tiff *t, unsigned long ifd, unsigned tag, unsigned *type,
-                     unsigned long *count, size_t *value_at)
-{
-    unsigned n;
-    if (!rd16(t, ifd, &n))
-        return false;
-    for (unsigned i = 0; i < n; i++) {
-        size_t e = ifd + 2 + 12 * (size_t)i;
-        unsigned tg;
-        if (!rd16(t, e, &tg) || !rd16(t, e + 2, type) || !rd32(t, e + 4, count))
-            return false;
-        if (tg != tag)
-            continue;
-        static const int size[] = {0, 1, 1, 2, 4, 8, 1, 1, 2, 4, 8, 4, 8};
-        size_t bytes = *type < 13 ? (size_t)size[*type] * *count : 0;
-        unsigned long off;
-        if (bytes <= 4)
-            *value_at = e + 8;
-        else if (rd32(t, e + 8, &off))
-            *value_at = off;
-        else
-            return false;
-        return *value_at + bytes <= t->n;
-    }
-    return false;
-}
-
 /* ASCII digits of a SubSecTime tag as a fraction of a second. */
-static double subsec_value(const tiff *t, unsigned long ifd, unsigned tag)
+static double subsec_value(const sl_tiff *t, unsigned long ifd, unsigned tag)
 {
     unsigned type;
     unsigned long count;
     size_t at;
-    if (!find_tag(t, ifd, tag, &type, &count, &at) || type != 2)
+    if (!sl_tiff_find(t, ifd, tag, &type, &count, &at) || type != 2)
         return -1;
     double v = 0, scale = 0.1;
     int digits = 0;
@@ -94,13 +38,13 @@ static double subsec_value(const tiff *t, unsigned long ifd, unsigned tag)
 }
 
 /* An ASCII tag's text, trailing spaces and NULs dropped; "" when absent. */
-static void ascii_value(const tiff *t, unsigned long ifd, unsigned tag, char *buf, size_t size)
+static void ascii_value(const sl_tiff *t, unsigned long ifd, unsigned tag, char *buf, size_t size)
 {
     unsigned type;
     unsigned long count;
     size_t at;
     buf[0] = 0;
-    if (!find_tag(t, ifd, tag, &type, &count, &at) || (type != 2 && type != 7))
+    if (!sl_tiff_find(t, ifd, tag, &type, &count, &at) || (type != 2 && type != 7))
         return;
     size_t n = 0;
     for (unsigned long i = 0; i < count && n + 1 < size; i++) {
@@ -114,52 +58,44 @@ static void ascii_value(const tiff *t, unsigned long ifd, unsigned tag, char *bu
     buf[n] = 0;
 }
 
-static bool tiff_header(const unsigned char *p, size_t n, tiff *t, unsigned long *ifd0)
-{
-    if (n < 8 || (memcmp(p, "MM\0*", 4) && memcmp(p, "II*\0", 4)))
-        return false;
-    *t = (tiff){p, n, p[0] == 'M'};
-    return rd32(t, 4, ifd0);
-}
-
 /* Body serial and lens from the maker note of a Canon (a bare IFD with
  * offsets from the TIFF header: 0x000C serial number, 0x0095 lens model)
  * or a Nikon ("Nikon\0", version, then a TIFF of its own: 0x001D serial). */
-static void maker_note_ids(const tiff *t, unsigned long exif, const char *make,
+static void maker_note_ids(const sl_tiff *t, unsigned long exif, const char *make,
                            sl_exif_extra *x)
 {
     unsigned type;
     unsigned long count;
     size_t note, at;
-    if (!find_tag(t, exif, 0x927C, &type, &count, &note))
+    if (!sl_tiff_find(t, exif, 0x927C, &type, &count, &note))
         return;
     if (!strncasecmp(make, "Canon", 5)) {
         unsigned long serial;
-        if (!x->serial[0] && find_tag(t, note, 0x000C, &type, &count, &at) && type == 4 &&
-            rd32(t, at, &serial) && serial)
+        if (!x->serial[0] && sl_tiff_find(t, note, 0x000C, &type, &count, &at) && type == 4 &&
+            sl_tiff_u32(t, at, &serial) && serial)
             snprintf(x->serial, sizeof x->serial, "%lu", serial);
         if (!x->lens[0])
             ascii_value(t, note, 0x0095, x->lens, sizeof x->lens);
     } else if (!strncasecmp(make, "Nikon", 5) && count > 18 && note + 18 <= t->n &&
                !memcmp(t->p + note, "Nikon\0", 6)) {
-        tiff nt;
+        sl_tiff nt;
         unsigned long ifd;
-        if (!x->serial[0] && tiff_header(t->p + note + 10, t->n - note - 10, &nt, &ifd))
+        if (!x->serial[0] && sl_tiff_open(t->p + note + 10, t->n - note - 10, &nt, &ifd))
             ascii_value(&nt, ifd, 0x001D, x->serial, sizeof x->serial);
     }
 }
 
 static void tiff_extra(const unsigned char *p, size_t n, sl_exif_extra *x)
 {
-    tiff t;
+    sl_tiff t;
     unsigned long ifd0, exif;
     unsigned type;
     unsigned long count;
     size_t at;
-    if (!tiff_header(p, n, &t, &ifd0))
+    if (!sl_tiff_open(p, n, &t, &ifd0))
         return;
     ascii_value(&t, ifd0, 0xC62F, x->serial, sizeof x->serial); /* DNG CameraSerialNumber */
-    if (!find_tag(&t, ifd0, 0x8769, &type, &count, &at) || !rd32(&t, at, &exif))
+    if (!sl_tiff_find(&t, ifd0, 0x8769, &type, &count, &at) || !sl_tiff_u32(&t, at, &exif))
         return;
     x->subsec = subsec_value(&t, exif, 0x9291); /* SubSecTimeOriginal */
     if (x->subsec < 0)

@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* core.h's photo calls: PNG through libpng (photo_png.c), everything else,
- * and the PNGs it declines, through OpenImageIO (photo_module.c). Writing
- * always goes through OpenImageIO. */
+/* core.h's photo calls: PNG through libpng (photo_png.c), JPEG through
+ * libjpeg (photo_jpeg.c), everything else, and the files those decline,
+ * through OpenImageIO (photo_module.c). Writing always goes through
+ * OpenImageIO. */
 #include "photo_private.h"
 
 #include <stdlib.h>
@@ -21,12 +22,28 @@ static void codes_to_float(const void *codes, int code_bytes, size_t n, float *d
     }
 }
 
-/* The PNG reader for path, or NULL with *declined or an error. A missing or
- * empty file is refused here: OpenImageIO would not be loaded to say so. */
-static sl_result png_open(const char *path, sl_png_reader **r, sl_meta *meta, bool pixels,
-                          bool *declined, sl_error *err)
+/* A file core decodes itself: one of the two readers. */
+typedef struct native {
+    sl_png_reader *png;
+    sl_jpeg_reader *jpeg;
+    int width, height, channels, code_bytes, block_w, block_h;
+} native;
+
+static void native_close(native *n)
 {
-    *r = NULL;
+    sl_png_close(n->png);
+    sl_jpeg_close(n->jpeg);
+    n->png = NULL;
+    n->jpeg = NULL;
+}
+
+/* The reader for path, or *declined (a format or file left to
+ * OpenImageIO) or an error. A missing or empty file is refused here:
+ * OpenImageIO would not be loaded to say so. */
+static sl_result native_open(const char *path, native *n, sl_meta *meta, bool pixels,
+                             bool *declined, sl_error *err)
+{
+    memset(n, 0, sizeof *n);
     *declined = false;
     sl_result res = sl_check_input_file(path, err);
     /* Before any decoder (or OpenImageIO) starts: what the header claims
@@ -35,25 +52,40 @@ static sl_result png_open(const char *path, sl_png_reader **r, sl_meta *meta, bo
         res = pixels ? sl_photo_claim_check(path, err) : sl_photo_structure_check(path, err);
     if (res)
         return res;
-    *declined = !sl_png_is_png(path);
-    if (*declined)
-        return SL_OK;
-    return sl_png_open(path, r, meta, declined, err);
+    if (sl_png_is_png(path)) {
+        res = sl_png_open(path, &n->png, meta, declined, err);
+        if (n->png)
+            sl_png_size(n->png, &n->width, &n->height, &n->channels, &n->code_bytes);
+    } else if (sl_jpeg_is_jpeg(path)) {
+        res = sl_jpeg_open(path, &n->jpeg, meta, declined, err);
+        n->code_bytes = 1;
+        if (n->jpeg)
+            sl_jpeg_size(n->jpeg, &n->width, &n->height, &n->channels, &n->block_w,
+                         &n->block_h);
+    } else
+        *declined = true;
+    return res;
+}
+
+/* Rows [y0, y1) in order as the file's codes, channels [0, keep) kept. */
+static sl_result native_rows(native *n, int y0, int y1, int keep, void *codes, sl_error *err)
+{
+    if (n->jpeg)
+        return sl_jpeg_read_rows(n->jpeg, y0, y1, keep, codes, err);
+    return sl_png_read_rows(n->png, y0, y1, keep, codes, err);
 }
 
 sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err)
 {
-    sl_png_reader *r;
+    native r;
     bool declined;
     memset(img, 0, sizeof *img);
     if (meta)
         sl_meta_init(meta);
-    sl_result res = png_open(path, &r, meta, true, &declined, err);
+    sl_result res = native_open(path, &r, meta, true, &declined, err);
     if (declined)
         return sl_oiio_read(path, img, meta, err);
-    int w = 0, h = 0, ch = 0, b = 0;
-    if (!res)
-        sl_png_size(r, &w, &h, &ch, &b);
+    int w = r.width, h = r.height, ch = r.channels, b = r.code_bytes;
     if (!res && (res = sl_image_alloc(img, w, h, ch, NULL)) != SL_OK)
         sl_error_set(err, res, "%s: cannot hold a %dx%d image with %d channels", path, w, h, ch);
     size_t n = (size_t)w * (size_t)ch;
@@ -61,10 +93,10 @@ sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error
     if (!res && !codes)
         res = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
     for (int y = 0; !res && y < h; y++)
-        if ((res = sl_png_read_rows(r, y, y + 1, ch, codes, err)) == SL_OK)
+        if ((res = native_rows(&r, y, y + 1, ch, codes, err)) == SL_OK)
             codes_to_float(codes, b, n, img->data + (size_t)y * n);
     free(codes);
-    sl_png_close(r);
+    native_close(&r);
     if (res) {
         sl_image_free(img);
         if (meta)
@@ -76,21 +108,19 @@ sl_result sl_photo_read(const char *path, sl_image *img, sl_meta *meta, sl_error
 sl_result sl_photo_read_meta(const char *path, sl_meta *meta, int *width, int *height,
                              int *channels, sl_error *err)
 {
-    int size[3] = {0, 0, 0}, code_bytes;
     int *out[3] = {width, height, channels};
     for (int i = 0; i < 3; i++)
         if (out[i])
             *out[i] = 0;
     if (meta)
         sl_meta_init(meta);
-    sl_png_reader *r;
+    native r;
     bool declined;
-    sl_result res = png_open(path, &r, meta, false, &declined, err);
+    sl_result res = native_open(path, &r, meta, false, &declined, err);
     if (declined)
         return sl_oiio_read_meta(path, meta, width, height, channels, err);
-    if (!res)
-        sl_png_size(r, &size[0], &size[1], &size[2], &code_bytes);
-    sl_png_close(r);
+    int size[3] = {r.width, r.height, r.channels};
+    native_close(&r);
     if (res && meta)
         sl_meta_free(meta);
     for (int i = 0; i < 3; i++)
@@ -107,10 +137,10 @@ sl_result sl_photo_write(const char *path, const sl_image *img, const sl_meta *m
 
 struct sl_photo_strips {
     sl_oiio_strips *oiio;
-    sl_png_reader *png;
+    native file;
     char *path;
-    int width, keep, code_bytes; /* PNG: channels kept (3 of RGB(A), 1 of grey(+alpha)) */
-    void *codes;                 /* PNG: a strip's codes */
+    int width, keep, code_bytes; /* channels kept (3 of RGB(A), 1 of grey(+alpha)) */
+    void *codes;                 /* a strip's codes */
     size_t codes_size;
 };
 
@@ -128,18 +158,20 @@ sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
         free(s);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
     }
-    sl_result res = png_open(path, &s->png, NULL, true, &declined, err);
+    sl_result res = native_open(path, &s->file, NULL, true, &declined, err);
     if (declined)
         res = sl_oiio_strips_open(path, &s->oiio, info, err);
     else if (!res) {
-        int h, ch;
-        sl_png_size(s->png, &s->width, &h, &ch, &s->code_bytes);
-        s->keep = ch >= 3 ? 3 : 1;
+        s->width = s->file.width;
+        s->code_bytes = s->file.code_bytes;
+        s->keep = s->file.channels >= 3 ? 3 : 1;
         info->width = s->width;
-        info->height = h;
-        info->file_channels = ch;
+        info->height = s->file.height;
+        info->file_channels = s->file.channels;
         info->bits = 8 * s->code_bytes;
         info->code_bytes = s->code_bytes;
+        info->block_w = s->file.block_w;
+        info->block_h = s->file.block_h;
     }
     if (res) {
         sl_photo_strips_close(s);
@@ -149,8 +181,8 @@ sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
     return SL_OK;
 }
 
-/* PNG rows [y0, y1) as codes in s->codes, RGB (grey repeated). */
-static sl_result png_strip(sl_photo_strips *s, int y0, int y1, sl_error *err)
+/* Rows [y0, y1) as codes in s->codes, RGB (grey repeated). */
+static sl_result native_strip(sl_photo_strips *s, int y0, int y1, sl_error *err)
 {
     size_t n = (size_t)(y1 - y0) * (size_t)s->width, b = (size_t)s->code_bytes;
     if (n * 3 * b > s->codes_size) {
@@ -160,7 +192,7 @@ static sl_result png_strip(sl_photo_strips *s, int y0, int y1, sl_error *err)
         s->codes = grown;
         s->codes_size = n * 3 * b;
     }
-    sl_result res = sl_png_read_rows(s->png, y0, y1, s->keep, s->codes, err);
+    sl_result res = native_rows(&s->file, y0, y1, s->keep, s->codes, err);
     unsigned char *c = s->codes;
     if (!res && s->keep == 1)
         for (size_t i = n; i-- > 0;)
@@ -173,7 +205,7 @@ sl_result sl_photo_strips_read(sl_photo_strips *s, int y0, int y1, float *rgb, s
 {
     if (s->oiio)
         return sl_oiio_strips_read(s->oiio, y0, y1, rgb, err);
-    sl_result res = png_strip(s, y0, y1, err);
+    sl_result res = native_strip(s, y0, y1, err);
     if (!res)
         codes_to_float(s->codes, s->code_bytes, (size_t)(y1 - y0) * (size_t)s->width * 3, rgb);
     return res;
@@ -184,7 +216,7 @@ sl_result sl_photo_strips_read_codes(sl_photo_strips *s, int y0, int y1, void *r
 {
     if (s->oiio)
         return sl_oiio_strips_read_codes(s->oiio, y0, y1, rgb, err);
-    sl_result res = png_strip(s, y0, y1, err);
+    sl_result res = native_strip(s, y0, y1, err);
     if (!res)
         memcpy(rgb, s->codes, (size_t)(y1 - y0) * (size_t)s->width * 3 * (size_t)s->code_bytes);
     return res;
@@ -195,7 +227,7 @@ void sl_photo_strips_close(sl_photo_strips *s)
     if (!s)
         return;
     sl_oiio_strips_close(s->oiio);
-    sl_png_close(s->png);
+    native_close(&s->file);
     free(s->codes);
     free(s->path);
     free(s);

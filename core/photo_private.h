@@ -1,9 +1,10 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Private: the two photo readers behind core.h's sl_photo_* calls
- * (core/photo.c chooses). PNG is read by libpng directly (photo_png.c):
+/* Private: the photo readers behind core.h's sl_photo_* calls
+ * (core/photo.c chooses). PNG is read by libpng directly (photo_png.c),
+ * JPEG by libjpeg (photo_jpeg.c):
  * loading OpenImageIO costs a process ~0.3 s of CPU binding the symbols of
  * its ~260 libraries, more than a small bracket's whole merge. Everything
- * else, and the PNGs photo_png.c declines, goes to OpenImageIO
+ * else, and the files those two decline, goes to OpenImageIO
  * (photo_cxx.cpp, loaded on first use by photo_module.c). */
 #ifndef SETLIGHT_CORE_PHOTO_PRIVATE_H
 #define SETLIGHT_CORE_PHOTO_PRIVATE_H
@@ -51,6 +52,28 @@ void sl_png_size(const sl_png_reader *reader, int *width, int *height, int *chan
 sl_result sl_png_read_rows(sl_png_reader *reader, int y0, int y1, int keep, void *codes,
                            sl_error *err);
 void sl_png_close(sl_png_reader *reader);
+
+/* JPEG through libjpeg, giving what OpenImageIO 2.4 gives for the same
+ * file: the same codes (the same libjpeg, its default DCT and upsampling),
+ * grey as one channel, no rotation (the EXIF Orientation is reported), the
+ * colour space "sRGB", EXIF's ExposureTime, FNumber, ISO, FocalLength,
+ * Make, Model, LensModel, DateTime(Original) and Orientation converted as
+ * OIIO converts them, and OIIO's MCU for the strips. Declined (*declined
+ * set, err untouched, for OpenImageIO): CMYK and YCCK, component counts
+ * other than 1 and 3, and files with XMP. A libjpeg warning (corrupt
+ * data, a file cut short) is an error, as in OIIO; nothing is printed. */
+typedef struct sl_jpeg_reader sl_jpeg_reader;
+/* Whether the file starts with JPEG's SOI and a marker (false when unreadable). */
+bool sl_jpeg_is_jpeg(const char *path);
+sl_result sl_jpeg_open(const char *path, sl_jpeg_reader **reader, sl_meta *meta, bool *declined,
+                       sl_error *err);
+void sl_jpeg_size(const sl_jpeg_reader *reader, int *width, int *height, int *channels,
+                  int *block_w, int *block_h);
+/* Rows [y0, y1) after the rows read so far, as 8-bit codes, channels
+ * [0, keep) of each pixel kept. */
+sl_result sl_jpeg_read_rows(sl_jpeg_reader *reader, int y0, int y1, int keep,
+                            unsigned char *codes, sl_error *err);
+void sl_jpeg_close(sl_jpeg_reader *reader);
 
 /* SL_ERR_INPUT naming the file when a JPEG, PNG, TIFF or Radiance header
  * claims more pixels than a file of its size can hold, or an image over

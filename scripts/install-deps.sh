@@ -11,6 +11,7 @@ packages=(
   libopencolorio-dev
   libraw-dev
   libpng-dev
+  libjpeg62-turbo-dev   # core/photo_jpeg.c (the libjpeg OpenImageIO uses)
   libjansson-dev
   libssl-dev
   python3

@@ -136,30 +136,6 @@ static bool write_variant(const char *path, const variant *v)
     return fclose(f) == 0;
 }
 
-static bool same_meta(const char *name, const sl_meta *a, const sl_meta *b)
-{
-    bool same = strcmp(a->format, b->format) == 0 && a->bits_per_sample == b->bits_per_sample &&
-                a->is_float == b->is_float && strcmp(a->colorspace, b->colorspace) == 0 &&
-                a->exposure_time == b->exposure_time && a->f_number == b->f_number &&
-                a->iso == b->iso && a->focal_length_mm == b->focal_length_mm &&
-                strcmp(a->make, b->make) == 0 && strcmp(a->model, b->model) == 0 &&
-                strcmp(a->lens, b->lens) == 0 && strcmp(a->datetime, b->datetime) == 0 &&
-                a->orientation == b->orientation && a->attr_count == b->attr_count;
-    for (int i = 0; same && i < a->attr_count; i++)
-        same = strcmp(a->attrs[i].name, b->attrs[i].name) == 0 &&
-               strcmp(a->attrs[i].value, b->attrs[i].value) == 0;
-    if (!same)
-        printf("  %s: libpng %s %d-bit '%s' t=%g N=%g iso=%g f=%g '%s' '%s' '%s' '%s' o=%d "
-               "%d attrs\n  %s: OIIO   %s %d-bit '%s' t=%g N=%g iso=%g f=%g '%s' '%s' '%s' "
-               "'%s' o=%d %d attrs\n",
-               name, a->format, a->bits_per_sample, a->colorspace, a->exposure_time, a->f_number,
-               a->iso, a->focal_length_mm, a->make, a->model, a->lens, a->datetime,
-               a->orientation, a->attr_count, name, b->format, b->bits_per_sample, b->colorspace,
-               b->exposure_time, b->f_number, b->iso, b->focal_length_mm, b->make, b->model,
-               b->lens, b->datetime, b->orientation, b->attr_count);
-    return same;
-}
-
 /* The native reads come first: nothing before them may start OpenImageIO. */
 static sl_image native[VARIANTS];
 static sl_meta native_meta[VARIANTS];
@@ -177,7 +153,7 @@ static void test_png_does_not_start_oiio(void)
         int w, h, c;
         CHECK_OK(sl_photo_read_meta(sl_test_path(variants[i].name), &m, &w, &h, &c, &err), &err);
         CHECK(w == variants[i].width && h == variants[i].height && c == native[i].channels);
-        CHECK(same_meta(variants[i].name, &m, &native_meta[i]));
+        CHECK(sl_test_same_meta(variants[i].name, &m, &native_meta[i]));
         sl_meta_free(&m);
     }
     /* Nor does refusing a missing or empty file. */
@@ -219,7 +195,7 @@ static void test_png_matches_oiio(void)
                            sizeof(float) * (size_t)ref.width * (size_t)ref.height *
                                (size_t)ref.channels) == 0;
         CHECK_MSG(same, "%s: pixels differ from OpenImageIO's", variants[i].name);
-        CHECK_MSG(same_meta(variants[i].name, &native_meta[i], &ref_meta),
+        CHECK_MSG(sl_test_same_meta(variants[i].name, &native_meta[i], &ref_meta),
                   "%s: metadata differs from OpenImageIO's", variants[i].name);
         sl_image_free(&ref);
         sl_meta_free(&ref_meta);

@@ -154,6 +154,31 @@ double sl_test_median(double *v, size_t n)
     return v[n / 2];
 }
 
+bool sl_test_same_meta(const char *name, const sl_meta *a, const sl_meta *b)
+{
+    bool same = strcmp(a->format, b->format) == 0 && a->bits_per_sample == b->bits_per_sample &&
+                a->is_float == b->is_float && strcmp(a->colorspace, b->colorspace) == 0 &&
+                a->exposure_time == b->exposure_time && a->f_number == b->f_number &&
+                a->iso == b->iso && a->focal_length_mm == b->focal_length_mm &&
+                strcmp(a->make, b->make) == 0 && strcmp(a->model, b->model) == 0 &&
+                strcmp(a->lens, b->lens) == 0 && strcmp(a->datetime, b->datetime) == 0 &&
+                a->orientation == b->orientation && a->attr_count == b->attr_count &&
+                a->has_chromaticities == b->has_chromaticities && a->envmap == b->envmap;
+    for (int i = 0; same && i < a->attr_count; i++)
+        same = strcmp(a->attrs[i].name, b->attrs[i].name) == 0 &&
+               strcmp(a->attrs[i].value, b->attrs[i].value) == 0;
+    if (!same)
+        printf("  %s: native %s %d-bit '%s' t=%.9g N=%.9g iso=%g f=%.9g '%s' '%s' '%s' '%s' o=%d "
+               "%d attrs\n  %s: OIIO   %s %d-bit '%s' t=%.9g N=%.9g iso=%g f=%.9g '%s' '%s' '%s' "
+               "'%s' o=%d %d attrs\n",
+               name, a->format, a->bits_per_sample, a->colorspace, a->exposure_time, a->f_number,
+               a->iso, a->focal_length_mm, a->make, a->model, a->lens, a->datetime,
+               a->orientation, a->attr_count, name, b->format, b->bits_per_sample, b->colorspace,
+               b->exposure_time, b->f_number, b->iso, b->focal_length_mm, b->make, b->model,
+               b->lens, b->datetime, b->orientation, b->attr_count);
+    return same;
+}
+
 int sl_test_finish(void)
 {
     printf("%d passed, %d failed, %d skipped\n", sl_test_passed, sl_test_failed, sl_test_skipped);

@@ -86,6 +86,9 @@ int sl_test_count_files(const char *dir);
 /* The whole file, NUL-terminated (for text), malloc'd; size may be NULL.
  * NULL when it cannot be read. */
 char *sl_test_read_file(const char *path, size_t *size);
+/* Whether two sl_meta hold the same (every field and attribute, in order);
+ * prints both, labelled by `name`, when not (native readers vs OIIO). */
+bool sl_test_same_meta(const char *name, const sl_meta *native, const sl_meta *oiio);
 /* Pearson chi-square p-value of observed counts against expected counts
  * (same total), pooling neighbouring bins until each pooled bin expects at
  * least 5; *dof gets the degrees of freedom. A count in a bin that expects

@@ -12,10 +12,10 @@
 
 static const char *merge_help =
     "usage: setlight merge [options] -o OUT.exr FRAME...\n\n"
-    "Merges a bracket of exposures (any order; PNG read by libpng, any other format\n"
-    "OpenImageIO reads, which costs ~0.4 s of CPU to load once) into one EXR of\n"
-    "relative radiance, scaled like the middle exposure, written strip by strip as it\n"
-    "is merged.\n\n"
+    "Merges a bracket of exposures (any order; PNG and JPEG read by libpng and\n"
+    "libjpeg, any other format OpenImageIO reads, which costs ~0.4 s of CPU to load\n"
+    "once) into one EXR of relative radiance, scaled like the middle exposure,\n"
+    "written strip by strip as it is merged.\n\n"
     "  -o, --output OUT.exr   the radiance image (required)\n"
     "  --times T1,T2,...      exposure times in seconds (e.g. 1/30,1/250), in frame order;\n"
     "                         default: EXIF ExposureTime (with FNumber and ISO when every\n"

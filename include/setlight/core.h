@@ -363,6 +363,28 @@ const char *sl_meta_get(const sl_meta *meta, const char *name);
 void sl_meta_set_rec709(sl_meta *meta);
 
 /* ------------------------------------------------------------------ */
+/* TIFF directories (EXIF's APP1 payload, TIFF and DNG headers)        */
+/* ------------------------------------------------------------------ */
+
+/* A TIFF structure in memory; every read is bounds-checked against n. */
+typedef struct sl_tiff {
+    const unsigned char *p;
+    size_t n;
+    bool big; /* "MM" byte order */
+} sl_tiff;
+/* false unless p starts with a TIFF header; *ifd0 is its first IFD's offset. */
+bool sl_tiff_open(const unsigned char *p, size_t n, sl_tiff *t, unsigned long *ifd0);
+bool sl_tiff_u16(const sl_tiff *t, size_t at, unsigned *v);
+bool sl_tiff_u32(const sl_tiff *t, size_t at, unsigned long *v);
+/* The entry `tag` of the IFD at `ifd`: its type, count and the offset of its
+ * value (inline values sit in the entry itself), inside the buffer. */
+bool sl_tiff_find(const sl_tiff *t, unsigned long ifd, unsigned tag, unsigned *type,
+                  unsigned long *count, size_t *value_at);
+/* The same for the i-th entry of the IFD (any tag); false past the last. */
+bool sl_tiff_entry(const sl_tiff *t, unsigned long ifd, unsigned i, unsigned *tag,
+                   unsigned *type, unsigned long *count, size_t *value_at);
+
+/* ------------------------------------------------------------------ */
 /* Image files                                                         */
 /* ------------------------------------------------------------------ */
 
@@ -410,8 +432,8 @@ sl_result sl_exr_stream_finish(sl_exr_stream *stream, const sl_meta *update, sl_
 /* Removes the partial file and frees the stream (NULL is fine). */
 void sl_exr_stream_abort(sl_exr_stream *stream);
 
-/* Camera and photo formats: PNG through libpng, the others (JPEG, TIFF, HDR,
- * DNG, camera raw via LibRaw) through OpenImageIO, loaded on first use
+/* Camera and photo formats: PNG and JPEG through libpng and libjpeg as OpenImageIO reads them,
+ * the others (TIFF, HDR, DNG, camera raw via LibRaw) through OpenImageIO, loaded on first use
  * (docs/performance.md). Integer formats come back scaled to [0, 1] with no
  * transfer function removed: a JPEG stays sRGB-encoded, camera raw is read
  * linear (no tone curve, camera white balance, Rec.709 output). */

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Start-up work is done only when needed: commands that read PNG or EXR files
+# Start-up work is done only when needed: commands that read PNG, JPEG or EXR files
 # never load OpenImageIO (its ~260 libraries cost a process ~0.35 s of CPU)
 # nor OpenCV (ball and chart detection only; ~11 ms); one that reads a TIFF
 # loads OpenImageIO, which shows the check can see it. The loader's own trace
@@ -49,6 +49,14 @@ for k in range(3):
 PY
 trace "$SETLIGHT" merge --quiet --no-mask --times 1/16,1/4,1 -o "$T/m.exr" "$T/b0.png" "$T/b1.png" "$T/b2.png"
 lean "merge of a PNG bracket"
+# JPEG: libjpeg, not OpenImageIO (a JPEG with XMP or CMYK would load it).
+"$SETLIGHT" convert "$T/env.exr" "$T/env.jpg" 2>/dev/null || bad "fixture"
+for k in 0 1 2; do
+  "$SETLIGHT" convert "$T/b$k.png" "$T/b$k.jpg" 2>/dev/null || bad "fixture"
+done
+trace "$SETLIGHT" info "$T/env.jpg"; lean "info on a JPEG"
+trace "$SETLIGHT" merge --quiet --no-mask --times 1/16,1/4,1 -o "$T/mj.exr" "$T/b0.jpg" "$T/b1.jpg" "$T/b2.jpg"
+lean "merge of a JPEG bracket"
 trace "$SETLIGHT" info "$T/env.tif"
 if grep -q 'file=.*libOpenImageIO' "$T/libs"; then ok; else bad "info on a TIFF did not load OpenImageIO (is the trace working?)"; fi
 # Ball detection loads OpenCV (and still finds the ball through the module).
