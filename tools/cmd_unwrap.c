@@ -112,7 +112,7 @@ static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
     /* Geometry: focal length in pixels of this image (lens or field of view),
      * distance in ball radii. */
     double focal_px, distance;
-    ball_camera_opts_geometry(bc, v->photo.width, v->meta.focal_length_mm, &focal_px, &distance);
+    sl_ball_lens_geometry(bc, v->photo.width, v->meta.focal_length_mm, &focal_px, &distance);
     if (focal_px > 0)
         o->geometry.focal_px = focal_px;
     if (distance > 0)
@@ -331,7 +331,7 @@ int cmd_unwrap(int argc, char **argv, const sl_cli *cli)
     bool have_refl = false, have_patch = false, have[3] = {false, false, false};
     double cam2[3] = {0, 0, 0}, patch[6] = {0};
     ball_camera_opts bc;
-    ball_camera_opts_init(&bc);
+    sl_ball_lens_init(&bc);
 
     cli_getopt_reset();
     int c;

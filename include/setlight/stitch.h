@@ -322,6 +322,20 @@ typedef struct sl_ball_geometry {
     double azimuth_deg, elevation_deg, roll_deg;
 } sl_ball_geometry;
 
+/* A ball photo's camera as a user states it (unwrap's and calibrate's
+ * options): the model, the lens, the distance. 0: not given. */
+typedef struct sl_ball_lens {
+    int camera; /* sl_ball_camera, or -1: perspective when anything gives the geometry */
+    double focal_mm, sensor_mm, fov_deg, distance_mm, diameter_mm;
+} sl_ball_lens;
+
+void sl_ball_lens_init(sl_ball_lens *lens); /* camera -1, the rest 0 */
+/* For a photo `width` pixels wide: the focal length in pixels (the lens,
+ * the EXIF focal length when only the sensor width is given, or the field
+ * of view; 0 unknown) and the distance in ball radii (0 unknown). */
+void sl_ball_lens_geometry(const sl_ball_lens *lens, int width, double exif_focal_mm,
+                           double *focal_px, double *distance);
+
 typedef enum {
     SL_REFLECTANCE_CONSTANT = 0, /* R per channel at every angle (1 = ideal mirror) */
     SL_REFLECTANCE_CONDUCTOR     /* exact unpolarised Fresnel of a metal, n + ik per channel */
@@ -757,6 +771,66 @@ sl_result sl_calibrate_report_chart(sl_report *rep, const char *file, const sl_i
  * zero) and returns how many; *fraction (may be NULL) gets their share of
  * the image's summed absolute values. */
 int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction);
+
+/* ---- The calibrate stage, files to files ---- */
+
+typedef struct sl_calibrate_run_options {
+    const char *hdri_path;       /* the lat-long to calibrate (read as sl_latlong_read) */
+    const char *out_path;        /* the calibrated lat-long (EXR) */
+    const char *chart_path;      /* chart photo, or NULL */
+    const char *grey_path;       /* grey-sphere photo, or NULL; at least one of the two */
+    const char *report_dir;      /* DIR/calibrate.html and DIR/calibrate.json, or NULL */
+    const char *chart_reference; /* CSV or JSON file of 24 values; NULL: classic24 */
+    const char *clipped_mask;    /* NULL: the HDRI's setlight:merge:clipped_mask if it exists */
+    const char *out_colorspace;  /* OCIO name ("lin_rec709") */
+    const char *chart_colorspace, *grey_colorspace; /* NULL: the file's own, else sRGB/linear */
+    bool have_corners;           /* corners: centres of patches 1, 6, 24, 19 instead of detection */
+    double corners[4][2];
+    double clip;                 /* photo clip level; < 0: none for float, 0.999 for 8/16-bit (-1) */
+    bool hdri_in_chart;          /* the HDRI is in the chart camera's RGB (true) */
+    bool sun_repair;             /* repair a source clipped in every frame (true) */
+    bool absolute;               /* cd/m^2 from the grey photo's EXIF (true) */
+    double exposure_tolerance;   /* stops the grey photo's EXIF may disagree with the HDRI's (1) */
+    bool write_float;            /* 32-bit float output instead of half */
+    sl_ball_lens camera;         /* the grey photo's camera */
+    sl_ccm_options ccm;
+    sl_grey_options grey;        /* circle[2] > 0: the sphere's outline, else found */
+    sl_sun_options sun;
+} sl_calibrate_run_options;
+
+void sl_calibrate_run_options_init(sl_calibrate_run_options *o);
+
+typedef struct sl_calibrate_run_result {
+    double matrix[3][3];         /* T: HDRI values to output values, as the metadata records */
+    bool chart_used;             /* the chart was judged a ColorChecker and its matrix used */
+    double plate_matrix[3][3];   /* P, when chart_used */
+    bool hdri_in_chart;          /* P applied to the HDRI */
+    bool chart_sampled;          /* chart and judgement hold a fit (used or refused) */
+    sl_ccm_fit chart;
+    sl_chart_judgement judgement;
+    bool grey_used;
+    double grey_circle[3], grey_gain[3];
+    double grey_rel_rmse_before, grey_rel_rmse_after, grey_error_p95;
+    int64_t grey_pixels;
+    double scale;                /* exposure scale (1 without a grey sphere) */
+    sl_sun_repair sun;           /* sun.repaired: a clipped source was repaired */
+    double cd_m2_per_unit;       /* absolute scale applied, 0: relative units */
+    char absolute_from[256];
+    int64_t negative_samples;    /* samples set to 0 after the transform */
+    double negative_fraction;
+    char *json;                  /* every number above and more: what `calibrate --json`
+                                  * prints and DIR/calibrate.json holds (owned) */
+} sl_calibrate_run_result;
+
+/* Reads the HDRI and the photos, calibrates (docs/calibrate.md), writes the
+ * calibrated HDRI with its provenance (setlight:calibration_matrix, ...)
+ * and the report as one output set: on failure every earlier output stays.
+ * SL_ERR_INPUT with a message naming the file for input that does not fit
+ * (no chart and no grey sphere usable, exposure contradiction, ...). Logs
+ * warnings and one info line per part through sl_log. */
+sl_result sl_calibrate_run(const sl_calibrate_run_options *o, sl_calibrate_run_result *res,
+                           sl_error *err);
+void sl_calibrate_run_result_free(sl_calibrate_run_result *res);
 
 /* ================================================================== */
 /* Stitch: views                                                       */
