@@ -8,7 +8,6 @@
 #include <string.h>
 
 #include "demo.h"
-#include "rig_validate.h"
 #include "setlight/lightrig.h"
 
 static double luma(const double v[3]) { return 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2]; }
@@ -19,7 +18,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     sl_rig rig;
     memset(&rig, 0, sizeof rig);
     json_t *lights = NULL;
-    rig_validation val;
+    sl_rig_validation val;
     memset(&val, 0, sizeof val);
     sl_result r = demo_hdri(d, &ll, err);
     if (r)
@@ -127,7 +126,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     for (int k = 0; k < rig.light_count; k++)
         textured += rig.lights[k].texture[0] != 0;
     snprintf(path, sizeof path, "%s/rig.json", d->dir);
-    if ((r = rig_validate(&ll, path, tiny ? 32 : 64, tiny ? 16 : 64, &val, err)))
+    if ((r = sl_rig_validate(&ll, path, tiny ? 32 : 64, tiny ? 16 : 64, &val, err)))
         goto done;
     sl_report_text(d->rep,
                    "Validation as `setlight rig --validate` does it: grey, chrome and shadow "
@@ -140,7 +139,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
                    val.seconds, val.cpu_seconds, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
                    100 * val.beyond_noise[0], 100 * val.beyond_noise[1],
                    100 * val.beyond_noise[2]);
-    if ((r = rig_validate_report(d->rep, &val, "rig_validate_", err)))
+    if ((r = sl_rig_validate_report(d->rep, &val, "rig_validate_", err)))
         goto done;
     snprintf(note, n,
              "%d lights; %d of %zu truth lights matched (worst %.2f deg); ledger %.1e; rig "
@@ -148,7 +147,7 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
              rig.light_count, matched, json_array_size(arr), worst_angle, rig.relative_error,
              100 * val.beyond_noise[0], 100 * val.beyond_noise[1], 100 * val.beyond_noise[2]);
 done:
-    rig_validation_free(&val);
+    sl_rig_validation_free(&val);
     json_decref(lights);
     sl_rig_free(&rig);
     sl_image_free(&ll);
