@@ -476,6 +476,57 @@ sl_result sl_unwrap_patch_reflectance(const sl_image *latlong, const double dir[
                                       double radius_rad, const double radiance[3],
                                       double reflectance[3], sl_error *err);
 
+/* ---- The unwrap stage, files to files ---- */
+
+typedef struct sl_unwrap_run_options {
+    const char *photo_paths[2];   /* the ball photos (read scene-linear, as every command reads) */
+    int photo_count;              /* 1 or 2 (the same ball from about 90 degrees round it) */
+    const char *out_path;         /* the lat-long EXR */
+    const char *input_colorspace; /* NULL: the file's own, else sRGB for 8/16-bit */
+    /* views[0]: camera angles, reflectance (1), width (0: one texel per
+     * photo pixel at the ball's centre) and, when have_circle[0], the circle;
+     * views[1]: its circle when have_circle[1]; search_deg (20),
+     * occluder_deg (20). View 2's camera is view 1's turned 90 degrees in
+     * azimuth unless have_camera2[k] gives azimuth, elevation, roll. */
+    sl_unwrap_pair_options pair;
+    bool have_circle[2];
+    bool have_camera2[3];
+    double camera2[3];
+    sl_ball_lens camera;          /* the photos' camera model, lens and distance */
+    bool have_patch;              /* solve the reflectance from a patch of known radiance: */
+    double patch[6];              /* azimuth, elevation, radius (degrees), radiance R, G, B */
+    bool confidence;              /* write the confidence as alpha (true) */
+    bool write_float;             /* 32-bit float instead of half */
+    sl_exr_compression compression; /* ZIP */
+} sl_unwrap_run_options;
+
+void sl_unwrap_run_options_init(sl_unwrap_run_options *o);
+
+typedef struct sl_unwrap_run_result {
+    sl_unwrap_pair_info info;     /* views[0] (and views[1]); the pair's numbers with two */
+    sl_ball_circle circle[2];     /* as used */
+    bool detected[2];             /* found by sl_ball_detect rather than given */
+    sl_ball_camera camera;
+    int width, height;            /* of the lat-long */
+    sl_reflectance reflectance;   /* as used (solved from the patch when given) */
+    double patch_reflectance[3];
+    bool streamed;                /* rows written as they were unwrapped */
+    bool ldr_linearised;          /* an 8/16-bit photo was linearised */
+    double seconds, read_detect_s, read_detect_cpu, unwrap_s, unwrap_cpu, write_s, write_cpu;
+    char *json;                   /* what `unwrap --json` prints (owned) */
+} sl_unwrap_run_result;
+
+/* Reads the photos, finds the ball unless given, unwraps (one view, or two
+ * merged), solves the reflectance from the patch when asked and writes
+ * the lat-long atomically with its provenance (setlight:source,
+ * setlight:ball_circle, setlight:ball_camera, ...; docs/unwrap.md): on
+ * failure no output and an earlier file stays. SL_ERR_USAGE for a given
+ * circle outside the photo; SL_ERR_INPUT for a fisheye photo, no ball or
+ * several, a patch not seen. */
+sl_result sl_unwrap_run(const sl_unwrap_run_options *o, sl_unwrap_run_result *res,
+                        sl_error *err);
+void sl_unwrap_run_result_free(sl_unwrap_run_result *res);
+
 /* ================================================================== */
 /* Calibrate: grey sphere and chart                                    */
 /* ================================================================== */
