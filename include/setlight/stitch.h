@@ -248,6 +248,35 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
                           const char *path, const char *mask_path, const char *ghost_path,
                           sl_merge_result *out, sl_error *err);
 
+/* ---- The merge stage, files to files ---- */
+
+typedef struct sl_merge_run_options {
+    const char *const *frame_paths; /* the bracket, any order */
+    int frame_count;
+    const char *out_path;           /* the radiance EXR (merge) or the response JSON (response) */
+    const char *mask_path;          /* NULL: OUT_clipped.exr beside the output */
+    bool no_mask;                   /* no clipped mask */
+    const char *ghost_path;         /* with merge.deghost; NULL: OUT_ghost.exr */
+    sl_merge_options merge;         /* sl_merge_options_init */
+} sl_merge_run_options;
+
+void sl_merge_run_options_init(sl_merge_run_options *o);
+
+typedef struct sl_merge_run_result {
+    sl_merge_result merge;          /* every number (radiance and masks stay empty) */
+    char mask_path[4096], ghost_path[4096]; /* as written ("" none) */
+    char *json;                     /* what `merge --json` (`response --json`) prints (owned) */
+} sl_merge_run_result;
+
+/* sl_merge_to_exr with the masks' default names beside the output; logs
+ * each frame's alignment and exposure warnings and the summary line. The
+ * files are written atomically with their provenance (docs/merge.md); on
+ * failure none is left and earlier ones stay. */
+sl_result sl_merge_run(const sl_merge_run_options *o, sl_merge_run_result *res, sl_error *err);
+/* The response alone (sl_merge_response) written to o->out_path as JSON. */
+sl_result sl_response_run(const sl_merge_run_options *o, sl_merge_run_result *res, sl_error *err);
+void sl_merge_run_result_free(sl_merge_run_result *res);
+
 /* ================================================================== */
 /* Unwrap: chrome ball to lat-long                                     */
 /* ================================================================== */
