@@ -1319,6 +1319,30 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
                     const sl_stitch_options *opt, sl_stitch_result *res, sl_error *err);
 void sl_stitch_result_free(sl_stitch_result *res);
 
+/* ---- The stitch stage, files to files ---- */
+
+typedef struct sl_stitch_run_options {
+    const char *const *view_paths; /* the merged HDR fisheye views */
+    int view_count;                /* 1 .. SL_STITCH_MAX_VIEWS */
+    const char *out_path;          /* the lat-long EXR */
+    const char *mask_path;         /* a 2:1 nadir mask (the tripod's cone), or NULL */
+    sl_stitch_options stitch;      /* sl_stitch_options_init; blend.mask is set from mask_path */
+} sl_stitch_run_options;
+
+void sl_stitch_run_options_init(sl_stitch_run_options *o);
+
+typedef struct sl_stitch_run_result {
+    sl_stitch_result stitch;       /* lens, solve, views, coverage, timing */
+    char *json;                    /* what `stitch --json` prints (owned) */
+} sl_stitch_run_result;
+
+/* Reads the mask, stitches (sl_stitch: the views read, solved, blended and
+ * written with their provenance) and logs the summary and each pair left
+ * at its nominal rotation. */
+sl_result sl_stitch_run(const sl_stitch_run_options *o, sl_stitch_run_result *res,
+                        sl_error *err);
+void sl_stitch_run_result_free(sl_stitch_run_result *res);
+
 #ifdef __cplusplus
 }
 #endif
