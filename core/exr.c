@@ -835,6 +835,12 @@ static inline __attribute__((always_inline)) void half_bits4(v4f_t f, uint16_t *
 #endif
 }
 
+const char *sl_exr_compression_name(sl_exr_compression c)
+{
+    static const char *const names[] = {"zip", "piz", "none", "rle"};
+    return (int)c >= 0 && (int)c < (int)(sizeof names / sizeof names[0]) ? names[c] : "unknown";
+}
+
 static exr_compression_t exr_compression(sl_exr_compression c)
 {
     switch (c) {

@@ -55,4 +55,23 @@ void rig_ledger(const sl_image *rgb, sl_rig *rig);
 sl_result rig_mediancut(const sl_image *rgb, const sl_rig_options *opt, sl_rig *rig,
                         sl_error *err);
 
+
+/* The temporary folder the validation report is built in (sl_temp_dir_create). */
+typedef struct sl_rig_report_tmp {
+    char path[4096];
+    int handle;
+} sl_rig_report_tmp;
+
+/* The validation report: DIR/NAME.html with its images (and the renders
+ * as float EXR) in DIR/NAME/. Built in a temporary folder in DIR (*tmp)
+ * and added to the open output set (the folder and the page), which
+ * renames them into place with the rig's files. The caller removes *tmp
+ * with sl_temp_dir_remove after the set's commit or abort; on a failure
+ * here nothing is left. `about` is the first paragraph (input, rig,
+ * settings). */
+sl_result sl_rig_validate_write_report(const char *dir, const char *name, const char *about,
+                                       const sl_rig_validation *v, const sl_rig *rig,
+                                       const sl_image *env, sl_rig_report_tmp *tmp,
+                                       sl_error *err);
+
 #endif

@@ -1,16 +1,9 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 #include "ball_camera_opts.h"
 
-#include <math.h>
 #include <string.h>
 
 #include "setlight/stitch.h"
-
-void ball_camera_opts_init(ball_camera_opts *bc)
-{
-    memset(bc, 0, sizeof *bc);
-    bc->camera = -1;
-}
 
 int ball_camera_opts_parse(const sl_cli *cli, ball_camera_opts *bc, int kind, const char *arg)
 {
@@ -49,16 +42,4 @@ int ball_camera_opts_check(const sl_cli *cli, const ball_camera_opts *bc)
     if (bc->focal_mm > 0 && bc->sensor_mm == 0)
         return cli_usage_error(cli, "--focal-mm needs --sensor-mm (the sensor width)");
     return 0;
-}
-
-void ball_camera_opts_geometry(const ball_camera_opts *bc, int width, double exif_focal_mm,
-                               double *focal_px, double *distance)
-{
-    double fmm = bc->focal_mm > 0 || bc->sensor_mm == 0 ? bc->focal_mm : exif_focal_mm;
-    *focal_px = 0;
-    if (fmm > 0 && bc->sensor_mm > 0)
-        *focal_px = fmm * width / bc->sensor_mm;
-    else if (bc->fov_deg > 0)
-        *focal_px = 0.5 * width / tan(0.5 * bc->fov_deg * M_PI / 180.0);
-    *distance = bc->distance_mm > 0 ? bc->distance_mm / (0.5 * bc->diameter_mm) : 0;
 }

@@ -6,28 +6,20 @@
 #define SETLIGHT_BALL_CAMERA_OPTS_H
 
 #include "cli.h"
+#include "setlight/stitch.h"
 
 /* The options in this order; a command's getopt codes for them are
  * consecutive, so `code - first` is the kind. */
 enum { BALL_OPT_CAMERA, BALL_OPT_FOCAL, BALL_OPT_SENSOR, BALL_OPT_FOV, BALL_OPT_DIST,
        BALL_OPT_DIAM, BALL_OPT_COUNT };
 
-typedef struct ball_camera_opts {
-    int camera; /* sl_ball_camera, or -1: perspective when anything gives the geometry */
-    double focal_mm, sensor_mm, fov_deg, distance_mm, diameter_mm; /* 0: not given */
-} ball_camera_opts;
+typedef sl_ball_lens ball_camera_opts;
 
-void ball_camera_opts_init(ball_camera_opts *bc);
 /* One option (kind BALL_OPT_*, its value); 0, or the usage error's exit
  * code after printing it. */
 int ball_camera_opts_parse(const sl_cli *cli, ball_camera_opts *bc, int kind, const char *arg);
 /* The options together (distance with diameter, focal length or field of
  * view, focal length with sensor width); 0 or the usage error's exit code. */
 int ball_camera_opts_check(const sl_cli *cli, const ball_camera_opts *bc);
-/* For a photo `width` pixels wide: the focal length in pixels (the lens,
- * the EXIF focal length when only the sensor width is given, or the field
- * of view; 0 unknown) and the distance in ball radii (0 unknown). */
-void ball_camera_opts_geometry(const ball_camera_opts *bc, int width, double exif_focal_mm,
-                               double *focal_px, double *distance);
 
 #endif

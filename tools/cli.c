@@ -95,18 +95,15 @@ bool cli_parse_list(const char *s, double *v, int n)
 }
 
 /* By sl_exr_compression value. */
-static const char *const compression_names[] = {"zip", "piz", "none", "rle"};
-#define COMPRESSIONS (int)(sizeof compression_names / sizeof compression_names[0])
-
 const char *cli_compression_name(sl_exr_compression c)
 {
-    return (int)c >= 0 && (int)c < COMPRESSIONS ? compression_names[c] : "unknown";
+    return sl_exr_compression_name(c);
 }
 
 bool cli_parse_compression(const char *s, sl_exr_compression *out)
 {
-    for (int k = 0; k < COMPRESSIONS; k++)
-        if (!strcmp(s, compression_names[k])) {
+    for (int k = 0; k <= SL_EXR_RLE; k++)
+        if (!strcmp(s, sl_exr_compression_name((sl_exr_compression)k))) {
             *out = (sl_exr_compression)k;
             return true;
         }

@@ -1,7 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* setlight merge and setlight response: brackets to HDR radiance, and the
  * camera response recovered from a bracket. */
-#include <jansson.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -116,108 +115,6 @@ static int parse_times(const char *s, double **times)
         }
     free(copy);
     return k == n ? n : -1;
-}
-
-static const char *align_mode_name(sl_align_mode mode)
-{
-    return mode == SL_ALIGN_ON ? "on" : mode == SL_ALIGN_AUTO ? "auto" : "off";
-}
-
-/* The alignment for --json: mode, decision, why, and what it cost. */
-static json_t *align_json(const sl_merge_result *res)
-{
-    return json_pack("{s:s, s:b, s:o, s:s, s:f, s:f, s:f}", "mode",
-                     align_mode_name(res->align_mode), "aligned", res->aligned, "misalignment_px",
-                     res->misalignment_px >= 0 ? json_real(res->misalignment_px) : json_null(),
-                     "note", res->align_note, "measure_cpu_seconds", res->align_measure_cpu,
-                     "cpu_seconds", res->timing.cpu[SL_MERGE_ALIGN], "wall_seconds",
-                     res->timing.wall[SL_MERGE_ALIGN]);
-}
-
-/* Per frame in the given order, for the summary line: "ref", "+0.03,-0.28"
- * (dx,dy in px), "?" when it could not be estimated. */
-static void shifts_text(const sl_merge_result *res, char *out, size_t size)
-{
-    size_t n = 0;
-    out[0] = '\0';
-    for (int i = 0; i < res->frame_count && n < size; i++) {
-        const sl_align_transform *t = &res->frames[i].align;
-        int k = !strcmp(t->note, "reference") ? snprintf(out + n, size - n, "%sref", i ? " " : "")
-                : t->refused ? snprintf(out + n, size - n, "%s?", i ? " " : "")
-                             : snprintf(out + n, size - n, "%s%+.2f,%+.2f", i ? " " : "", t->dx, t->dy);
-        n += k > 0 ? (size_t)k : 0;
-    }
-}
-
-static json_t *frames_json(const sl_merge_result *res, bool aligned)
-{
-    json_t *a = json_array();
-    for (int i = 0; i < res->frame_count; i++) {
-        const sl_merge_frame *f = &res->frames[i];
-        json_t *o;
-        json_array_append_new(
-            a, o = json_pack("{s:s, s:f, s:f, s:f, s:f, s:f, s:f, s:f, s:b, s:i, s:f, s:f}", "path",
-                         f->path, "time", f->time, "f_number", f->f_number, "iso", f->iso,
-                         "exif_exposure", f->exif_exposure, "fitted_exposure",
-                         f->fitted_exposure, "exposure", f->exposure, "disagreement_stops",
-                         f->disagreement_stops, "disagrees", f->disagrees, "rank", f->rank,
-                         "saturated_fraction", f->saturated_fraction, "black_fraction",
-                         f->black_fraction));
-        if (aligned)
-            json_object_set_new(o, "align",
-                                json_pack("{s:f, s:f, s:f, s:f, s:I, s:b, s:b, s:s}", "dx",
-                                          f->align.dx, "dy", f->align.dy, "angle_deg",
-                                          f->align.angle, "displacement_px",
-                                          sl_align_displacement(&f->align, res->width, res->height), "pixels",
-                                          (json_int_t)f->align.pixels, "applied", f->align.applied,
-                                          "refused", f->align.refused, "note", f->align.note));
-    }
-    return a;
-}
-
-/* Wall and CPU seconds per phase and in all; "process_cpu" adds the
- * process's start-up (loading the libraries) to the merge's CPU. */
-static json_t *timing_json(const sl_merge_result *res)
-{
-    json_t *o = json_object();
-    for (int p = 0; p < SL_MERGE_PHASES; p++)
-        json_object_set_new(o, sl_merge_phase_name((sl_merge_phase)p),
-                            json_pack("{s:f, s:f}", "wall", res->timing.wall[p], "cpu",
-                                      res->timing.cpu[p]));
-    json_object_set_new(o, "total",
-                        json_pack("{s:f, s:f}", "wall", res->seconds, "cpu", res->cpu_seconds));
-    json_object_set_new(o, "process_cpu", json_real(sl_cpu_seconds()));
-    return o;
-}
-
-static void log_frames(const sl_merge_result *res, bool aligned, double auto_px)
-{
-    for (int i = 0; i < res->frame_count; i++) {
-        const sl_merge_frame *f = &res->frames[i];
-        if (aligned && !strcmp(f->align.note, "reference"))
-            sl_log(SL_LOG_INFO, "%s: alignment reference", f->path);
-        else if (aligned)
-            sl_log(f->align.refused ? SL_LOG_WARN : SL_LOG_INFO,
-                   "%s: shift %+.2f, %+.2f px, rotation %+.3f deg%s%s", f->path, f->align.dx,
-                   f->align.dy, f->align.angle,
-                   f->align.refused ? "; not aligned: " : f->align.note[0] ? "; " : "",
-                   f->align.note);
-        if (f->disagrees)
-            sl_log(SL_LOG_WARN,
-                   "%s: exposure from the pixels is %+.2f stops off what EXIF/--times says",
-                   f->path, f->disagreement_stops);
-    }
-    if (res->fitted_ratios < res->frame_count - 1)
-        sl_log(SL_LOG_WARN, "%d of %d exposure steps could not be measured from the pixels",
-               res->frame_count - 1 - res->fitted_ratios, res->frame_count - 1);
-    /* The camera moved and the frames were registered without being asked:
-     * say so, and how to have them merged as shot. */
-    if (res->align_mode == SL_ALIGN_AUTO && res->aligned)
-        sl_log(SL_LOG_WARN, "frames registered before merging: %s (--align=off merges them as shot)",
-               res->align_note);
-    else if (res->align_mode == SL_ALIGN_AUTO &&
-             (res->misalignment_px < 0 || res->misalignment_px > auto_px))
-        sl_log(SL_LOG_WARN, "%s (--align=on registers them anyway)", res->align_note);
 }
 
 typedef struct merge_args {
@@ -436,119 +333,40 @@ static void free_args(merge_args *a)
     sl_response_free(&a->response);
 }
 
-/* "dir/name.exr" -> "dir/name_SUFFIX.exr" */
-static char *sidecar_path(const char *out, const char *suffix)
+/* Runs merge or response on the parsed arguments and prints the result. */
+static int run(int argc, char **argv, const sl_cli *cli, bool is_merge)
 {
-    size_t n = strlen(out);
-    const char *dot = strrchr(out, '.'), *slash = strrchr(out, '/');
-    size_t stem = dot && (!slash || dot > slash) ? (size_t)(dot - out) : n;
-    char *p = malloc(n + strlen(suffix) + 8);
-    if (p)
-        snprintf(p, n + strlen(suffix) + 8, "%.*s_%s.exr", (int)stem, out, suffix);
-    return p;
+    merge_args a = {0};
+    int rc = parse_args(argc, argv, cli, is_merge, &a);
+    if (rc >= 0) {
+        free_args(&a);
+        return rc;
+    }
+    sl_merge_run_options o;
+    sl_merge_run_options_init(&o);
+    o.frame_paths = (const char *const *)argv + optind;
+    o.frame_count = argc - optind;
+    o.out_path = a.output;
+    o.mask_path = a.mask;
+    o.no_mask = a.no_mask;
+    o.ghost_path = a.ghost_mask;
+    o.merge = a.opt;
+    sl_merge_run_result res;
+    sl_error err;
+    sl_result r = is_merge ? sl_merge_run(&o, &res, &err) : sl_response_run(&o, &res, &err);
+    if (!r && cli->json)
+        printf("%s\n", res.json);
+    sl_merge_run_result_free(&res);
+    free_args(&a);
+    return r ? cli_fail(cli, &err) : 0;
 }
 
 int cmd_merge(int argc, char **argv, const sl_cli *cli)
 {
-    merge_args a = {0};
-    int rc = parse_args(argc, argv, cli, true, &a);
-    if (rc >= 0) {
-        free_args(&a);
-        return rc;
-    }
-    sl_error err;
-    sl_merge_result res;
-    char *mask = a.no_mask ? NULL : a.mask ? strdup(a.mask) : sidecar_path(a.output, "clipped");
-    char *ghost = !a.opt.deghost ? NULL : a.ghost_mask ? strdup(a.ghost_mask) : sidecar_path(a.output, "ghost");
-    sl_result r = (!a.no_mask && !mask) || (a.opt.deghost && !ghost)
-                      ? sl_error_set(&err, SL_ERR_NOMEM, "out of memory")
-                      : sl_merge_to_exr((const char *const *)argv + optind, argc - optind,
-                                        &a.opt, a.output, mask, ghost, &res, &err);
-    if (r) {
-        free(mask);
-        free(ghost);
-        sl_merge_result_free(&res);
-        free_args(&a);
-        return cli_fail(cli, &err);
-    }
-    bool measured = res.align_mode != SL_ALIGN_OFF;
-    log_frames(&res, measured, a.opt.align_auto_px);
-    char shifts[64 * 24] = "";
-    if (measured)
-        shifts_text(&res, shifts, sizeof shifts);
-    sl_log(SL_LOG_INFO,
-           "%s: %d frames, response %s, %lld pixels clipped in every frame (%.4f%%), "
-           "shifts (px) %s (%s), %.2f s",
-           a.output, res.frame_count, res.response.source, (long long)res.clipped_pixels,
-           100 * res.clipped_fraction, measured ? shifts : "not measured",
-           res.aligned ? "aligned" : "merged as shot", res.seconds);
-    if (cli->json) {
-        json_t *o = json_pack(
-            "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f, s:o}",
-            "output", a.output, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
-            (json_int_t)res.ghost_pixels, "width", res.width, "height",
-            res.height, "response", res.response.source, "exposures",
-            a.opt.exposures == SL_EXPOSURES_DATA ? "data" : "exif", "frames", frames_json(&res, measured), "align", align_json(&res),
-            "reference_frame", res.reference, "clipped_pixels", (json_int_t)res.clipped_pixels,
-            "clipped_samples", (json_int_t)res.clipped_samples[0],
-            (json_int_t)res.clipped_samples[1], (json_int_t)res.clipped_samples[2],
-            "clipped_fraction", res.clipped_fraction, "clipped_solid_angle_sr",
-            res.clipped_solid_angle, "underexposed_samples", (json_int_t)res.underexposed_samples,
-            "disagreeing_frames", (json_int_t)res.disagreeing_frames, "nonfinite_samples",
-            (json_int_t)res.nonfinite_samples, "units", res.absolute ? "cd/m^2" : "relative",
-            "output_exposure", res.output_exposure, "weights", "noise_gain", res.noise_gain,
-            "noise_floor", res.noise_floor, "black", res.black, "saturation", res.saturation,
-            "encoding", "pixels", res.pixel_type == SL_PIXEL_HALF ? "half" : "float",
-            "compression", cli_compression_name(res.compression), "max_value", res.max_value,
-            "why", res.encoding_note, "frames_decoded_once", res.held_frames, "seconds",
-            res.seconds, "timing", timing_json(&res));
-        json_dumpf(o, stdout, JSON_INDENT(2));
-        fputc('\n', stdout);
-        json_decref(o);
-    }
-    free(mask);
-    free(ghost);
-    sl_merge_result_free(&res);
-    free_args(&a);
-    return 0;
+    return run(argc, argv, cli, true);
 }
 
 int cmd_response(int argc, char **argv, const sl_cli *cli)
 {
-    merge_args a = {0};
-    int rc = parse_args(argc, argv, cli, false, &a);
-    if (rc >= 0) {
-        free_args(&a);
-        return rc;
-    }
-    sl_error err;
-    sl_merge_result res;
-    sl_result r =
-        sl_merge_response((const char *const *)argv + optind, argc - optind, &a.opt, &res, &err);
-    if (!r)
-        r = sl_response_write(a.output, &res.response, &err);
-    if (r) {
-        sl_merge_result_free(&res);
-        free_args(&a);
-        return cli_fail(cli, &err);
-    }
-    log_frames(&res, res.align_mode != SL_ALIGN_OFF, a.opt.align_auto_px);
-    if (cli->json) {
-        double mid[3];
-        for (int c = 0; c < 3; c++)
-            mid[c] = sl_response_eval(&res.response, c, 0.5);
-        json_t *o = json_pack("{s:s, s:s, s:i, s:[f,f,f], s:o, s:o, s:I, s:f, s:o}", "output",
-                              a.output, "source", res.response.source, "nodes",
-                              res.response.nodes, "linear_at_half", mid[0], mid[1], mid[2],
-                              "frames", frames_json(&res, res.align_mode != SL_ALIGN_OFF),
-                              "align", align_json(&res), "disagreeing_frames",
-                              (json_int_t)res.disagreeing_frames, "seconds", res.seconds,
-                              "timing", timing_json(&res));
-        json_dumpf(o, stdout, JSON_INDENT(2));
-        fputc('\n', stdout);
-        json_decref(o);
-    }
-    sl_merge_result_free(&res);
-    free_args(&a);
-    return 0;
+    return run(argc, argv, cli, false);
 }

@@ -215,81 +215,39 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
     if (mat_spec && !parse_material(mat_spec, &mat))
         return cli_usage_error(cli, "bad --material '%s'", mat_spec);
 
-    sl_error err = {0};
-    sl_scene scene;
-    sl_image ref = {0}, img = {0};
-    sl_render_stats stats = {0};
-    sl_scene_init(&scene);
-    sl_result r;
-    bool preset = !sl_scene_arg_is_file(scene_arg);
+    sl_render_run_options rr;
+    sl_render_run_options_init(&rr);
+    rr.scene = scene_arg;
+    rr.env_path = env_path;
+    rr.rig_path = rig_path;
+    rr.input_colorspace = in_cs;
+    rr.rotate_deg = rotate;
+    rr.intensity = intensity;
+    rr.width = ro.width;
+    rr.view = ro.view;
+    rr.view_az = ro.az;
+    rr.view_el = ro.el;
+    rr.background_env = ro.background_env;
+    rr.material = mat_spec ? &mat : NULL;
+    rr.reference_path = ref_path;
+    rr.stats_path = stats_path;
+    rr.out_path = out_path;
     o.bounces = ro.bounces;
     o.seed = (uint64_t)ro.seed;
-    if ((r = sl_scene_load(&scene, scene_arg, ro.width, env_path, in_cs, rotate, intensity, rig_path,
-                           &err)))
-        goto fail;
-    if (ro.view) {
-        if (!preset) {
-            sl_error_set(&err, SL_ERR_USAGE, "--view turns a preset's validation camera; "
-                                             "scene files set their own camera");
-            r = SL_ERR_USAGE;
-            goto fail;
-        }
-    }
-    render_opts_apply(&ro, &scene);
-    if (mat_spec) {
-        int idx;
-        if ((r = sl_scene_add_material(&scene, &mat, &idx, &err)))
-            goto fail;
-        for (int i = 0; i < scene.shape_count; i++)
-            scene.shapes[i].material = idx;
-    }
-    const char *light_src = env_path ? env_path : rig_path;
-    if (scene.dome.bad_texels)
-        sl_log(SL_LOG_WARN, "%s: %lld NaN, Inf or negative samples set to 0", light_src,
-               (long long)scene.dome.bad_texels);
-    if (ref_path) {
-        if ((r = render_opts_read_reference(ref_path, &scene, &ref, &err)))
-            goto fail;
-        o.reference = &ref;
-    }
-    bool progress = !cli->quiet && isatty(2);
-    if (progress)
+    if (!cli->quiet && isatty(2))
         o.on_pass = show_pass;
-    r = sl_render(&scene, &o, &img, &stats, &err);
-    if (progress)
+    rr.render = o;
+    sl_render_run_result res;
+    sl_error err;
+    sl_result r = sl_render_run(&rr, &res, &err);
+    if (o.on_pass)
         fputc('\n', stderr);
-    if (r)
-        goto fail;
-    sl_meta meta;
-    sl_meta_init(&meta);
-    char buf[256];
-    const sl_render_pass *last = stats.pass_count ? &stats.passes[stats.pass_count - 1] : NULL;
-    snprintf(buf, sizeof buf, "scene=%s %s=%s rotate=%g intensity=%g spp=%lld strategy=%s",
-             scene.name, env_path ? "env" : "rig", light_src, rotate, intensity, (long long)stats.spp,
-             sl_strategy_name(o.strategy));
-    sl_meta_set(&meta, "setlight:render", buf, NULL);
-    snprintf(buf, sizeof buf, "%.6g", last ? last->est_rel_rmse : 0.0);
-    sl_meta_set(&meta, "setlight:estimated_rel_rmse", buf, NULL);
-    r = sl_exr_write(out_path, &img, &meta, SL_PIXEL_FLOAT, &err);
-    sl_meta_free(&meta);
-    if (r)
-        goto fail;
-    if (stats_path && (r = sl_render_stats_write_json(&stats, &o, stats_path, &err)))
-        goto fail;
-    if (cli->json)
-        printf("{\"output\": \"%s\", \"spp\": %lld, \"seconds\": %.6g, \"est_rel_rmse\": %.6g, "
-               "\"ref_rel_rmse\": %.6g, \"stop_reason\": \"%s\", \"dome_bad_texels\": %lld}\n",
-               out_path, (long long)stats.spp, stats.seconds, last ? last->est_rel_rmse : 0.0,
-               last ? last->ref_rel_rmse : -1.0, stats.stop_reason,
-               (long long)scene.dome.bad_texels);
-    else
+    if (!r && cli->json)
+        printf("%s\n", res.json);
+    else if (!r)
         sl_log(SL_LOG_INFO, "%s: %dx%d, %lld spp in %.3f s, estimated relative RMSE %.4g (%s)",
-               out_path, img.width, img.height, (long long)stats.spp, stats.seconds,
-               last ? last->est_rel_rmse : 0.0, stats.stop_reason);
-fail:
-    sl_render_stats_free(&stats);
-    sl_image_free(&img);
-    sl_image_free(&ref);
-    sl_scene_free(&scene);
+               out_path, res.width, res.height, (long long)res.stats.spp, res.stats.seconds,
+               res.est_rel_rmse, res.stats.stop_reason);
+    sl_render_run_result_free(&res);
     return r ? cli_fail(cli, &err) : 0;
 }

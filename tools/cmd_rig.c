@@ -11,7 +11,6 @@
 #include <sys/stat.h>
 
 #include "cli.h"
-#include "rig_validate.h"
 #include "setlight/lightrig.h"
 
 static const char *rig_help =
@@ -83,62 +82,6 @@ static bool has_suffix(const char *s, const char *suffix)
 {
     size_t n = strlen(s), m = strlen(suffix);
     return n >= m && strcasecmp(s + n - m, suffix) == 0;
-}
-
-/* The residual's name as the USD file should reference it: bare when both
- * sit in one folder, else absolute. */
-static void dome_reference(const char *usda, const char *residual, char *out, size_t size)
-{
-    char a[PATH_MAX], b[PATH_MAX], ra[PATH_MAX], rb[PATH_MAX];
-    snprintf(a, sizeof a, "%s", usda);
-    snprintf(b, sizeof b, "%s", residual);
-    const char *da = dirname(a), *db = dirname(b);
-    if (realpath(da, ra) && realpath(db, rb) && strcmp(ra, rb) == 0) {
-        snprintf(b, sizeof b, "%s", residual);
-        snprintf(out, size, "%s", basename(b));
-    } else if (residual[0] == '/' || !realpath(db, rb)) {
-        snprintf(out, size, "%s", residual);
-    } else {
-        snprintf(b, sizeof b, "%s", residual);
-        snprintf(out, size, "%s/%s", rb, basename(b));
-    }
-}
-
-/* The rig as JSON at PATH for the validation renders, naming the files of
- * the output set as they are before the commit (their temporaries). */
-static sl_result write_pending_rig_json(const sl_rig *rig, const char *path, const char *usda,
-                                        const char *residual, sl_error *err)
-{
-    sl_rig pending = *rig;
-    pending.lights = malloc((size_t)(rig->light_count ? rig->light_count : 1) *
-                            sizeof *pending.lights);
-    if (!pending.lights)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    char dir[PATH_MAX];
-    snprintf(dir, sizeof dir, "%s", usda);
-    const char *slash = strrchr(dir, '/');
-    if (slash)
-        dir[slash - dir + 1] = 0;
-    else
-        dir[0] = 0;
-    for (int i = 0; i < rig->light_count; i++) {
-        pending.lights[i] = rig->lights[i];
-        if (!rig->lights[i].texture[0])
-            continue;
-        char final[2 * PATH_MAX];
-        snprintf(final, sizeof final, "%s%s", dir, rig->lights[i].texture);
-        const char *temp = sl_output_set_pending(final);
-        const char *base = temp ? strrchr(temp, '/') : NULL;
-        if (temp)
-            snprintf(pending.lights[i].texture, sizeof pending.lights[i].texture, "%s",
-                     base ? base + 1 : temp);
-    }
-    const char *res_temp = sl_output_set_pending(residual);
-    char dome_ref[2 * PATH_MAX + 2];
-    dome_reference(usda, res_temp ? res_temp : residual, dome_ref, sizeof dome_ref);
-    sl_result r = sl_rig_write_json(&pending, path, dome_ref, err);
-    free(pending.lights);
-    return r;
 }
 
 int cmd_rig(int argc, char **argv, const sl_cli *cli)
@@ -365,195 +308,31 @@ int cmd_rig(int argc, char **argv, const sl_cli *cli)
     }
     if (validate_spp > 0) {
         sl_error e;
-        if (rig_validate_report_check(rep_dir, rep_name, &e))
+        if (sl_rig_validate_report_check(rep_dir, rep_name, &e))
             return cli_usage_error(cli, "%s", e.message);
     }
-    double t0 = sl_seconds();
-
-    sl_image env = {0};
-    sl_meta meta, out_meta;
-    sl_meta_init(&meta);
-    sl_meta_init(&out_meta);
-    sl_rig rig = {0};
-    rig_validation val = {0};
-    rig_report_tmp report_tmp = {"", -1};
+    sl_rig_run_options ro;
+    sl_rig_run_options_init(&ro);
+    ro.input_path = in_path;
+    ro.input_colorspace = in_cs;
+    ro.out_path = out_path;
+    ro.json_path = json_path;
+    ro.residual_path = res_path;
+    ro.preview_path = preview_path;
+    ro.rig = opt;
+    ro.textures = textures;
+    ro.validate_spp = validate_spp;
+    sl_rig_run_result res;
     sl_error err;
-    sl_result r = sl_check_input_file(in_path, &err);
-    if (r || (r = sl_latlong_read(in_path, in_cs, &env, &meta, NULL, &err)))
-        goto fail;
-    /* The rig's files are one set, renamed into place together at the end:
-     * an interrupt or a failure leaves every earlier one as it was. */
-    char textures_glob[PATH_MAX];
-    snprintf(textures_glob, sizeof textures_glob, "%.*s_light_*", (int)(strlen(out_path) - 5),
-             out_path);
-    const char *members[5] = {out_path, res_path, json_path, preview_path, textures_glob};
-    if ((r = sl_output_set_begin(members, 5, &err)))
-        goto fail;
-    if ((r = sl_rig_extract(&env, &opt, &rig, &err))) {
-        /* library messages name the stage; name the file too */
-        sl_error e2;
-        sl_error_set(&e2, err.code, "%s: %s", in_path, err.message);
-        err = e2;
-        goto fail;
+    if (sl_rig_run(&ro, &res, &err)) {
+        sl_rig_run_result_free(&res);
+        return cli_fail(cli, &err);
     }
-    if (rig.nonfinite)
-        sl_log(SL_LOG_WARN, "%s: %lld NaN/Inf samples counted, set to 0 and left out", in_path,
-               (long long)rig.nonfinite);
-    if (rig.negative)
-        sl_log(SL_LOG_WARN,
-               "%s: %lld negative samples (outside Rec.709's gamut, or lossy compression) set "
-               "to 0",
-               in_path, (long long)rig.negative);
-    bool black = !(rig.original[0] > 0 || rig.original[1] > 0 || rig.original[2] > 0);
-    if (black)
-        sl_log(SL_LOG_WARN, "%s: the map is black: the rig is empty (no lights, black dome)",
-               in_path);
-    else if (!rig.light_count)
-        sl_log(SL_LOG_WARN,
-               "%s: nothing above %g x the median luminance: the rig is the dome alone", in_path,
-               opt.threshold);
-
-    /* Outputs: the dome first, so the USD never names a missing file. */
-    char buf[1024];
-    const char *cs = sl_meta_color_space(&meta);
-    if (cs) {
-        if ((r = sl_meta_set_color_space(&out_meta, cs, &err)))
-            goto fail;
-    } else {
-        sl_meta_set_rec709(&out_meta);
-    }
-    out_meta.envmap = SL_ENVMAP_LATLONG;
-    snprintf(buf, sizeof buf, "setlight %s rig: residual dome (%d lights extracted)",
-             sl_version(), rig.light_count);
-    if ((r = sl_meta_set(&out_meta, "setlight:command", buf, &err)) ||
-        (r = sl_meta_set(&out_meta, "setlight:source", in_path, &err)))
-        goto fail;
-    if (rig.nonfinite) {
-        snprintf(buf, sizeof buf, "%lld", (long long)rig.nonfinite);
-        if ((r = sl_meta_set(&out_meta, "setlight:nonfinite_replaced", buf, &err)))
-            goto fail;
-    }
-    /* Float: half would round the dome by up to 0.05% per texel. */
-    if ((r = sl_exr_write(res_path, &rig.residual, &out_meta, SL_PIXEL_FLOAT, &err)))
-        goto fail;
-    {
-        /* beside the USD, named after it */
-        char prefix[PATH_MAX];
-        snprintf(prefix, sizeof prefix, "%.*s", (int)(strlen(out_path) - 5), out_path);
-        if ((r = sl_rig_write_textures_mode(&rig, &env, prefix, textures, &err)))
-            goto fail;
-        for (int i = 0; i < rig.light_count; i++)
-            sl_log(SL_LOG_INFO, "light %d (%s): %s%s", i + 1,
-                   sl_rig_shape_name(rig.lights[i].shape),
-                   rig.lights[i].texture[0] ? "textured, " : "", rig.lights[i].texture_reason);
-    }
-    char dome_ref[2 * PATH_MAX + 2];
-    dome_reference(out_path, res_path, dome_ref, sizeof dome_ref);
-    if ((r = sl_rig_write_usda(&rig, out_path, dome_ref, &err)))
-        goto fail;
-    if (json_path && (r = sl_rig_write_json(&rig, json_path, dome_ref, &err)))
-        goto fail;
-    if (preview_path && (r = sl_rig_write_preview(&rig, &env, preview_path, &err)))
-        goto fail;
-    if (validate_spp > 0) {
-        /* The renderer reads the rig as a file: rig.json when written, else
-         * a temporary one beside the USD (the dome reference is relative to it). */
-        char tmp[PATH_MAX];
-        snprintf(tmp, sizeof tmp, "%.*s.validate.json", (int)(strlen(out_path) - 5), out_path);
-        if ((r = write_pending_rig_json(&rig, tmp, out_path, res_path, &err)))
-            goto fail;
-        r = rig_validate(&env, tmp, 96, validate_spp, &val, &err);
-        remove(tmp);
-        if (r)
-            goto fail;
-        sl_log(SL_LOG_INFO,
-               "validation (96 px, %lld spp, relative RMSE rig against map): grey %.2f%%, "
-               "chrome %.2f%%, shadow %.2f%% (beyond the renders' noise: %.2f%%, %.2f%%, "
-               "%.2f%%)",
-               (long long)val.spp, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
-               100 * val.beyond_noise[0], 100 * val.beyond_noise[1], 100 * val.beyond_noise[2]);
-        char about[4096];
-        snprintf(about, sizeof about,
-                 "%s: %d lights (method %s, energy share %g%s), %d candidates left in the dome, "
-                 "ledger closure error %.1e. Written as %s. Renders %d px wide, %lld spp, "
-                 "direct light and one bounce, the map's and the rig's with the same seed; "
-                 "compared on the objects (relative RMSE of rig against map). setlight %s.",
-                 in_path, rig.light_count,
-                 opt.method == SL_RIG_METHOD_MEDIANCUT ? "mediancut" : "regions", opt.energy,
-                 textures == SL_RIG_TEXTURES_ALL    ? ", every rect textured"
-                 : textures == SL_RIG_TEXTURES_NONE ? ", no textures"
-                                                    : "",
-                 rig.skipped_count, rig.relative_error, out_path, val.width,
-                 (long long)val.spp, sl_version());
-        if ((r = rig_validate_write_report(rep_dir, rep_name, about, &val, &rig, &env,
-                                           &report_tmp, &err)))
-            goto fail;
-        sl_log(SL_LOG_INFO, "validation report: %.*s.validate.html",
-               (int)(strlen(out_path) - 5), out_path);
-    }
-
-    r = sl_output_set_commit(&err);
-    if (report_tmp.path[0])
-        sl_temp_dir_remove(report_tmp.path, report_tmp.handle);
-    report_tmp.path[0] = 0;
-    if (r)
-        goto fail;
-    if (cli->json) {
-        char *s = sl_rig_json_string(&rig, dome_ref);
-        json_t *rj = s ? json_loads(s, 0, NULL) : NULL;
-        free(s);
-        json_t *o = json_pack(
-            "{s:s, s:s, s:s?, s:s, s:s?, s:s, s:i, s:i, s:I, s:I, s:f, s:f, s:f, s:b, s:f, s:o?}",
-            "input", in_path, "output", out_path, "json", json_path, "residual", res_path,
-            "preview", preview_path, "method",
-            opt.method == SL_RIG_METHOD_MEDIANCUT ? "mediancut" : "regions", "lights",
-            rig.light_count, "skipped", rig.skipped_count, "nonfinite", (json_int_t)rig.nonfinite,
-            "negative", (json_int_t)rig.negative,
-            "median_luminance", rig.median_luminance, "threshold_luminance",
-            rig.threshold_luminance, "relative_error", rig.relative_error, "black", black,
-            "seconds", sl_seconds() - t0, "rig", rj);
-        if (validate_spp > 0) {
-            char page[PATH_MAX + 16];
-            snprintf(page, sizeof page, "%.*s.validate.html", (int)(strlen(out_path) - 5),
-                     out_path);
-            json_t *vj = json_pack("{s:i, s:I, s:f, s:f, s:s, s:{}, s:{}, s:{}}", "width",
-                                   val.width, "spp", (json_int_t)val.spp, "seconds", val.seconds,
-                                   "cpu_seconds", val.cpu_seconds, "report", page,
-                                   "render_seconds", "noise", "beyond_noise");
-            for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
-                json_object_set_new(vj, val.scene[k], json_real(val.error[k]));
-                json_object_set_new(json_object_get(vj, "render_seconds"), val.scene[k],
-                                    json_pack("{s:f, s:f}", "map", val.seconds_map[k], "rig",
-                                              val.seconds_rig[k]));
-                json_object_set_new(json_object_get(vj, "noise"), val.scene[k],
-                                    json_real(val.noise[k]));
-                json_object_set_new(json_object_get(vj, "beyond_noise"), val.scene[k],
-                                    json_real(val.beyond_noise[k]));
-            }
-            json_object_set_new(o, "validation", vj);
-        }
-        json_dumpf(o, stdout, JSON_INDENT(2) | JSON_REAL_PRECISION(10));
-        fputc('\n', stdout);
-        json_decref(o);
-    } else if (!sl_log_is_quiet()) {
+    if (cli->json)
+        printf("%s\n", res.json);
+    else if (!sl_log_is_quiet())
         sl_log(SL_LOG_INFO, "%s: %d lights, %d skipped, ledger error %.2g", out_path,
-               rig.light_count, rig.skipped_count, rig.relative_error);
-    }
-    rig_validation_free(&val);
-    sl_rig_free(&rig);
-    sl_image_free(&env);
-    sl_meta_free(&meta);
-    sl_meta_free(&out_meta);
+               res.rig.light_count, res.rig.skipped_count, res.rig.relative_error);
+    sl_rig_run_result_free(&res);
     return 0;
-
-fail:
-    sl_output_set_abort();
-    if (report_tmp.path[0])
-        sl_temp_dir_remove(report_tmp.path, report_tmp.handle);
-    rig_validation_free(&val);
-    sl_rig_free(&rig);
-    sl_image_free(&env);
-    sl_meta_free(&meta);
-    sl_meta_free(&out_meta);
-    return cli_fail(cli, &err);
 }

@@ -65,74 +65,6 @@ static int parse_angles(const char *s, double *v, int max)
     return n;
 }
 
-static json_t *lens_json(const sl_lens *l)
-{
-    return json_pack("{s:s, s:i, s:i, s:f, s:f, s:f, s:[f, f, f], s:[f, f, f], s:f, s:f}",
-                     "projection", sl_lens_projection_name(l->projection), "width", l->width,
-                     "height", l->height, "focal_px", l->focal_px, "cx", l->cx, "cy", l->cy, "k",
-                     l->k[0], l->k[1], l->k[2], "vignette", l->vignette[0], l->vignette[1],
-                     l->vignette[2], "max_theta_deg", l->max_theta_deg, "circle_radius_px",
-                     l->circle_radius_px);
-}
-
-static json_t *result_json(const sl_stitch_result *res, const char *out_path)
-{
-    const sl_stitch_coverage *c = &res->coverage;
-    json_t *views = json_array(), *pairs = json_array(), *timing = json_object();
-    for (int i = 0; i < res->view_count; i++) {
-        const sl_stitch_view_result *v = &res->views[i];
-        json_array_append_new(
-            views, json_pack("{s:s, s:[f, f, f], s:[f, f, f], s:f, s:b}", "path", v->path,
-                             "nominal_ypr_deg", v->nominal.yaw_deg, v->nominal.pitch_deg,
-                             v->nominal.roll_deg, "ypr_deg", v->pose.yaw_deg, v->pose.pitch_deg,
-                             v->pose.roll_deg, "contributes_sr", c->view_sr[i],
-                             "clipped_mask_weighted", v->confidence));
-    }
-    for (int i = 0; res->solved && i < res->solve.pairs; i++) {
-        const sl_stitch_pair *p = &res->solve.pair[i];
-        json_array_append_new(
-            pairs, json_pack("{s:s, s:s, s:i, s:i, s:s, s:b, s:f, s:f, s:s}", "a",
-                             res->views[p->a].path, "b", res->views[p->b].path, "matches",
-                             p->matches, "inliers", p->inliers, "status",
-                             sl_stitch_pair_status_name(p->status), "fallback", p->fallback,
-                             "rms_px", p->rms_px, "max_px", p->max_px, "why", p->why));
-    }
-    for (int p = 0; p < SL_STITCH_PHASES; p++)
-        json_object_set_new(timing, sl_stitch_phase_name((sl_stitch_phase)p),
-                            json_pack("{s:f, s:f}", "wall", res->wall[p], "cpu", res->cpu[p]));
-    json_object_set_new(timing, "total",
-                        json_pack("{s:f, s:f}", "wall", res->seconds, "cpu", res->cpu_seconds));
-    const sl_lens *n = &res->lens_nominal, *l = &res->lens;
-    json_t *j = json_pack(
-        "{s:s, s:i, s:i, s:o, s:o, s:s, s:{s:f, s:f, s:f}, s:b, s:s, s:o, s:o}", "output",
-        out_path, "width", c->width, "height", c->height, "lens_nominal", lens_json(n), "lens",
-        lens_json(l), "lens_source", res->lens_source, "lens_change", "focal_percent",
-        100.0 * (l->focal_px / n->focal_px - 1.0), "cx_px", l->cx - n->cx, "cy_px",
-        l->cy - n->cy, "solved", res->solved, "solve_note", res->solve_note, "views", views,
-        "pairs", pairs);
-    if (res->solved)
-        json_object_set_new(j, "reprojection",
-                            json_pack("{s:f, s:f, s:i, s:i, s:i}", "rms_px", res->solve.rms_px,
-                                      "max_px", res->solve.max_px, "matches", res->solve.inliers,
-                                      "pairs_solved", res->solve.pairs_solved, "pairs_fallback",
-                                      res->solve.pairs_fallback));
-    if (res->circle_found)
-        json_object_set_new(j, "circle",
-                            json_pack("{s:f, s:f, s:f, s:f, s:f}", "cx", res->circle.cx, "cy",
-                                      res->circle.cy, "radius", res->circle.radius, "rms_px",
-                                      res->circle.rms_px, "support", res->circle.support));
-    json_object_set_new(
-        j, "coverage",
-        json_pack("{s:f, s:f, s:f, s:f, s:f, s:I, s:f, s:i, s:i}", "seen_sr", c->seen_sr,
-                  "filled_sr", c->filled_sr, "filled_percent", 100.0 * c->filled_sr / (4 * M_PI),
-                  "masked_sr", c->masked_sr, "low_confidence_sr", c->low_sr, "ghost_texels",
-                  (json_int_t)c->ghost_texels, "ghost_sr", c->ghost_sr, "supersample",
-                  c->supersample, "supersample_edges", c->supersample_hot));
-    json_object_set_new(j, "float_samples", json_boolean(res->float_samples));
-    json_object_set_new(j, "timing", timing);
-    return j;
-}
-
 int cmd_stitch(int argc, char **argv, const sl_cli *cli)
 {
     enum {
@@ -267,45 +199,21 @@ int cmd_stitch(int argc, char **argv, const sl_cli *cli)
     if (o.lens_profile && (o.focal_mm > 0 || o.sensor_mm[0] > 0 || o.projection >= 0))
         return cli_usage_error(cli, "give --lens-profile or --projection/--focal-mm/--sensor-mm, "
                                     "not both");
+    sl_stitch_run_options so;
+    sl_stitch_run_options_init(&so);
+    so.view_paths = (const char *const *)argv + optind;
+    so.view_count = count;
+    so.out_path = out_path;
+    so.mask_path = mask_path;
+    so.stitch = o;
+    sl_stitch_run_result res;
     sl_error err;
-    sl_image mask = {0};
-    sl_result r;
-    if (mask_path) {
-        if ((r = sl_image_read(mask_path, &mask, NULL, &err)))
-            return cli_fail(cli, &err);
-        if (!sl_is_latlong_shape(mask.width, mask.height)) {
-            sl_error_set(&err, SL_ERR_INPUT, "%s: the nadir mask is %dx%d, not a 2:1 lat-long",
-                         mask_path, mask.width, mask.height);
-            sl_image_free(&mask);
-            return cli_fail(cli, &err);
-        }
-        o.blend.mask = &mask;
-    }
-    sl_stitch_result res;
-    r = sl_stitch((const char *const *)argv + optind, count, out_path, &o, &res, &err);
-    sl_image_free(&mask);
-    if (r)
+    if (sl_stitch_run(&so, &res, &err)) {
+        sl_stitch_run_result_free(&res);
         return cli_fail(cli, &err);
-    const sl_stitch_coverage *cv = &res.coverage;
-    sl_log(SL_LOG_INFO, "%s: %dx%d from %d views; %s", out_path, cv->width, cv->height, count,
-           res.solve_note[0] ? res.solve_note : "solved");
-    for (int i = 0; res.solved && i < res.solve.pairs; i++) {
-        const sl_stitch_pair *p = &res.solve.pair[i];
-        if (p->fallback)
-            sl_log(SL_LOG_WARN, "%s and %s: %s, nominal rotation kept (%s)",
-                   res.views[p->a].path, res.views[p->b].path,
-                   sl_stitch_pair_status_name(p->status), p->why);
     }
-    sl_log(SL_LOG_INFO, "coverage: seen %.3f sr, filled %.3f sr (%.2f%% of the sphere, %.3f sr "
-                        "masked), %lld ghost texels",
-           cv->seen_sr, cv->filled_sr, 100.0 * cv->filled_sr / (4 * M_PI), cv->masked_sr,
-           (long long)cv->ghost_texels);
-    if (cli->json) {
-        json_t *j = result_json(&res, out_path);
-        json_dumpf(j, stdout, JSON_INDENT(2));
-        fputc('\n', stdout);
-        json_decref(j);
-    }
-    sl_stitch_result_free(&res);
+    if (cli->json)
+        printf("%s\n", res.json);
+    sl_stitch_run_result_free(&res);
     return 0;
 }

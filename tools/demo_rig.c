@@ -8,56 +8,50 @@
 #include <string.h>
 
 #include "demo.h"
-#include "rig_validate.h"
 #include "setlight/lightrig.h"
 
 sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
 {
-    sl_image ll = {0};
-    sl_rig rig;
-    memset(&rig, 0, sizeof rig);
     json_t *lights = NULL;
-    rig_validation val;
-    memset(&val, 0, sizeof val);
-    sl_result r = demo_hdri(d, &ll, err);
-    if (r)
-        return r;
-    sl_rig_options o;
-    sl_rig_options_default(&o);
+    bool tiny = d->size == SL_VSET_SIZE_TINY;
+    /* The stage as `setlight rig --validate` runs it, on the stitched HDRI:
+     * dome, textures of graded rect lights, rig.json naming them, preview,
+     * and the validation renders read back from the rig's files. */
+    char usda[4300], json_path[4300], preview[4300], path[4300];
+    snprintf(usda, sizeof usda, "%s/rig.usda", d->dir);
+    snprintf(json_path, sizeof json_path, "%s/rig.json", d->dir);
+    snprintf(preview, sizeof preview, "%s/rig_preview.png", d->dir);
+    sl_rig_run_options ro;
+    sl_rig_run_options_init(&ro);
+    ro.input_path = d->hdri;
+    ro.out_path = usda;
+    ro.json_path = json_path;
+    ro.preview_path = preview;
     /* Every fixture, not only the few carrying 90% of the energy. */
-    o.energy = 0.99;
-    double t0 = sl_seconds();
-    if ((r = sl_rig_extract(&ll, &o, &rig, err)))
+    ro.rig.energy = 0.99;
+    /* The validation, small enough to keep the demo quick. */
+    ro.validate_width = tiny ? 32 : 64;
+    ro.validate_spp = tiny ? 16 : 64;
+    sl_rig_run_result res;
+    sl_result r = sl_rig_run(&ro, &res, err);
+    const sl_rig *rigp = &res.rig;
+    const sl_rig_validation *valp = &res.validation;
+    if (r)
         goto done;
-    double secs = sl_seconds() - t0;
-    char path[4300];
-    /* The rig as `setlight rig` writes it (dome, textures of graded rect
-     * lights, rig.json naming them), so the renderer reads it back whole. */
-    snprintf(path, sizeof path, "%s/rig_residual.exr", d->dir);
-    if ((r = sl_exr_write(path, &rig.residual, NULL, SL_PIXEL_FLOAT, err)))
-        goto done;
-    snprintf(path, sizeof path, "%s/rig", d->dir);
-    if ((r = sl_rig_write_textures_mode(&rig, &ll, path, SL_RIG_TEXTURES_AUTO, err)))
-        goto done;
-    snprintf(path, sizeof path, "%s/rig.json", d->dir);
-    if ((r = sl_rig_write_json(&rig, path, "rig_residual.exr", err)))
-        goto done;
-    snprintf(path, sizeof path, "%s/rig_preview.png", d->dir);
-    if ((r = sl_rig_write_preview(&rig, &ll, path, err)))
-        goto done;
+    double secs = res.seconds;
     if (!(lights = demo_load_json(d->capture, "truth/lights.json", err))) {
         r = err ? err->code : SL_ERR_INPUT;
         goto done;
     }
     sl_report_section(d->rep, "Rig");
     sl_report_text(d->rep,
-                   "Light rig from the stitched hdri.exr (energy share 0.99) in %.2f s: %d lights, "
+                   "Light rig from the stitched hdri.exr (energy share 0.99) in %.2f s with its files and validation: %d lights, "
                    "%d candidates left in "
                    "the dome. Ledger: original %.5g, lights %.5g + dome %.5g (luminance "
                    "integrals), closure error %.1e. Each truth light against the rig light "
                    "nearest in direction (rig.json, rig_preview.png):",
-                   secs, rig.light_count, rig.skipped_count, sl_luminance(rig.original),
-                   sl_luminance(rig.lights_sum), sl_luminance(rig.dome), rig.relative_error);
+                   secs, rigp->light_count, rigp->skipped_count, sl_luminance(rigp->original),
+                   sl_luminance(rigp->lights_sum), sl_luminance(rigp->dome), rigp->relative_error);
     static const char *const head[] = {"truth light", "rig light", "shape", "angle (deg)",
                                        "integral Y truth", "integral Y rig", "ratio"};
     sl_report_table_begin(d->rep, 7, head);
@@ -74,8 +68,8 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
         }
         int best = -1;
         double best_cos = -2;
-        for (int k = 0; k < rig.light_count; k++) {
-            const double *rd = rig.lights[k].direction;
+        for (int k = 0; k < rigp->light_count; k++) {
+            const double *rd = rigp->lights[k].direction;
             double c = td[0] * rd[0] + td[1] * rd[1] + td[2] * rd[2];
             if (c > best_cos) {
                 best_cos = c;
@@ -91,10 +85,10 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
             matched++;
             worst_angle = fmax(worst_angle, angle);
             snprintf(c[1], 64, "%d", best + 1);
-            snprintf(c[2], 64, "%s", sl_rig_shape_name(rig.lights[best].shape));
+            snprintf(c[2], 64, "%s", sl_rig_shape_name(rigp->lights[best].shape));
             snprintf(c[3], 64, "%.2f", angle);
-            snprintf(c[5], 64, "%.4g", sl_luminance(rig.lights[best].integral));
-            snprintf(c[6], 64, "%.3f", sl_luminance(rig.lights[best].integral) / sl_luminance(ti));
+            snprintf(c[5], 64, "%.4g", sl_luminance(rigp->lights[best].integral));
+            snprintf(c[6], 64, "%.3f", sl_luminance(rigp->lights[best].integral) / sl_luminance(ti));
         } else {
             snprintf(c[1], 64, "(dome)");
             c[2][0] = 0;
@@ -119,14 +113,9 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
     sl_image_free(&prev);
     if (r)
         goto done;
-    /* The validation, small enough to keep the demo quick. */
-    bool tiny = d->size == SL_VSET_SIZE_TINY;
     int textured = 0;
-    for (int k = 0; k < rig.light_count; k++)
-        textured += rig.lights[k].texture[0] != 0;
-    snprintf(path, sizeof path, "%s/rig.json", d->dir);
-    if ((r = rig_validate(&ll, path, tiny ? 32 : 64, tiny ? 16 : 64, &val, err)))
-        goto done;
+    for (int k = 0; k < rigp->light_count; k++)
+        textured += rigp->lights[k].texture[0] != 0;
     sl_report_text(d->rep,
                    "Validation as `setlight rig --validate` does it: grey, chrome and shadow "
                    "rendered under the stitched HDRI and under the rig read back from rig.json "
@@ -134,21 +123,19 @@ sl_result demo_stage_rig(demo *d, char *note, size_t n, sl_error *err)
                    "spp, %.1f s (%.1f CPU s) in all. Relative RMSE of rig against map: grey %.3f%%, chrome "
                    "%.3f%%, shadow %.3f%%; beyond the Monte Carlo noise of this sample count: "
                    "grey %.3f%%, chrome %.3f%%, shadow %.3f%%.",
-                   textured, textured == 1 ? "" : "s", val.width, (long long)val.spp,
-                   val.seconds, val.cpu_seconds, 100 * val.error[0], 100 * val.error[1], 100 * val.error[2],
-                   100 * val.beyond_noise[0], 100 * val.beyond_noise[1],
-                   100 * val.beyond_noise[2]);
-    if ((r = rig_validate_report(d->rep, &val, "rig_validate_", err)))
+                   textured, textured == 1 ? "" : "s", valp->width, (long long)valp->spp,
+                   valp->seconds, valp->cpu_seconds, 100 * valp->error[0], 100 * valp->error[1], 100 * valp->error[2],
+                   100 * valp->beyond_noise[0], 100 * valp->beyond_noise[1],
+                   100 * valp->beyond_noise[2]);
+    if ((r = sl_rig_validate_report(d->rep, valp, "rig_validate_", err)))
         goto done;
     snprintf(note, n,
              "%d lights; %d of %zu truth lights matched (worst %.2f deg); ledger %.1e; rig "
              "against map beyond noise: grey %.2f%%, chrome %.2f%%, shadow %.2f%%",
-             rig.light_count, matched, json_array_size(arr), worst_angle, rig.relative_error,
-             100 * val.beyond_noise[0], 100 * val.beyond_noise[1], 100 * val.beyond_noise[2]);
+             rigp->light_count, matched, json_array_size(arr), worst_angle, rigp->relative_error,
+             100 * valp->beyond_noise[0], 100 * valp->beyond_noise[1], 100 * valp->beyond_noise[2]);
 done:
-    rig_validation_free(&val);
+    sl_rig_run_result_free(&res);
     json_decref(lights);
-    sl_rig_free(&rig);
-    sl_image_free(&ll);
     return r;
 }

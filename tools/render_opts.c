@@ -51,13 +51,5 @@ void render_opts_apply(const render_opts *ro, sl_scene *scene)
 sl_result render_opts_read_reference(const char *path, const sl_scene *scene, sl_image *ref,
                                      sl_error *err)
 {
-    sl_result r = sl_image_read_linear(path, NULL, ref, NULL, NULL, err);
-    if (r)
-        return r;
-    if (ref->width != scene->camera.width || ref->height != scene->camera.height ||
-        ref->channels < 3)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: reference is %dx%d, the render %dx%d (RGB needed)",
-                            path, ref->width, ref->height, scene->camera.width,
-                            scene->camera.height);
-    return SL_OK;
+    return sl_render_read_reference(path, scene, ref, err);
 }

@@ -406,6 +406,9 @@ typedef enum {
     SL_EXR_NONE = 2,
     SL_EXR_RLE = 3
 } sl_exr_compression;
+
+/* "zip", "piz", "none", "rle" (the options' names); "unknown" otherwise. */
+const char *sl_exr_compression_name(sl_exr_compression c);
 /* (No ZIPS: OpenEXR 3.1.5's C decoder misreads half ZIPS files that its
  * C++ library reads correctly; test_exr_stream found it.) */
 /* sl_exr_write with a chosen compression; chunks are compressed in parallel. */

@@ -174,6 +174,89 @@ sl_result sl_rig_write_textures_mode(sl_rig *rig, const sl_image *env, const cha
 sl_result sl_rig_write_preview(const sl_rig *rig, const sl_image *env, const char *path,
                                sl_error *err);
 
+/* ---- Validation: the rig against the map it came from ---- */
+
+#define SL_RIG_VALIDATE_SCENES 3
+
+typedef struct sl_rig_validation {
+    int width;
+    int64_t spp;      /* samples per pixel done (requested, rounded up to a multiple of 4) */
+    int64_t spp_done; /* the last scene's, while rendering */
+    const char *scene[SL_RIG_VALIDATE_SCENES]; /* "grey", "chrome", "shadow" */
+    double error[SL_RIG_VALIDATE_SCENES];      /* relative RMSE, rig against map */
+    double seconds_map[SL_RIG_VALIDATE_SCENES], seconds_rig[SL_RIG_VALIDATE_SCENES];
+    /* The Monte Carlo noise of the rig-minus-map difference (relative to
+     * the map render, from two half renders with different seeds) and the
+     * error left when it is taken out: sqrt(max(0, error^2 - noise^2)). */
+    double noise[SL_RIG_VALIDATE_SCENES];
+    double beyond_noise[SL_RIG_VALIDATE_SCENES];
+    double seconds, cpu_seconds; /* wall and process CPU time of the whole validation */
+    /* The renders as compared: RGBA, RGB multiplied by the map render's
+     * alpha (the objects only). Freed by sl_rig_validation_free. */
+    sl_image map[SL_RIG_VALIDATE_SCENES], rig[SL_RIG_VALIDATE_SCENES];
+} sl_rig_validation;
+
+/* Renders the grey, chrome and shadow presets (width pixels wide, spp
+ * samples, direct light and one bounce) under the map and under the rig
+ * file (rig.json, read back as the renderer reads it) with the same seeds,
+ * and compares them on the objects (camera rays that miss see black).
+ * Free *out with sl_rig_validation_free, also after failure. */
+sl_result sl_rig_validate(const sl_image *env, const char *rig_json, int width, int64_t spp,
+                          sl_rig_validation *out, sl_error *err);
+void sl_rig_validation_free(sl_rig_validation *v);
+
+/* Adds the validation to a report: a table (relative RMSE, spp, size,
+ * render times) and for each scene the render under the map, under the rig
+ * and a false-colour difference, as PNGs named PREFIX<scene>_map.png,
+ * PREFIX<scene>_rig.png, PREFIX<scene>_diff.png, plus PREFIXdiff_scale.png
+ * (the colour bar). PREFIX may name a subfolder of the report's folder
+ * ("RIG.validate/"), which must exist. */
+sl_result sl_rig_validate_report(sl_report *rep, const sl_rig_validation *v, const char *prefix,
+                                 sl_error *err);
+
+/* Checks that DIR/NAME.html and DIR/NAME can be replaced: each absent, or
+ * a file and a folder respectively. */
+sl_result sl_rig_validate_report_check(const char *dir, const char *name, sl_error *err);
+
+/* ---- The rig stage, files to files ---- */
+
+typedef struct sl_rig_run_options {
+    const char *input_path;       /* the lat-long (read as sl_latlong_read) */
+    const char *input_colorspace; /* NULL: the file's own, else the default (sRGB for 8/16-bit) */
+    const char *out_path;         /* RIG.usda */
+    const char *json_path;        /* the rig as JSON too, or NULL */
+    const char *residual_path;    /* NULL: RIG_residual.exr beside RIG.usda */
+    const char *preview_path;     /* PNG with the lights outlined, or NULL */
+    sl_rig_options rig;           /* sl_rig_options_default */
+    sl_rig_texture_mode textures; /* AUTO */
+    /* > 0: the validation renders (grey, chrome, shadow; validate_width px,
+     * default 96) under map and rig, and the report RIG.validate.html with
+     * its files in RIG.validate/ beside RIG.usda. 0: none (default). */
+    int64_t validate_spp;
+    int validate_width;
+} sl_rig_run_options;
+
+void sl_rig_run_options_init(sl_rig_run_options *o);
+
+typedef struct sl_rig_run_result {
+    sl_rig rig;                   /* lights, skipped candidates, residual, ledger */
+    bool black;                   /* the map was black: an empty rig */
+    double seconds;               /* the whole run */
+    bool validated;
+    sl_rig_validation validation; /* when validated */
+    char residual_path[4096];     /* as written */
+    char report_path[4096];       /* RIG.validate.html when validated */
+    char *json;                   /* every number above: what `rig --json` prints (owned) */
+} sl_rig_run_result;
+
+/* Reads the map, extracts the rig, writes the residual dome (with its
+ * provenance), the light textures, the USD, the JSON and preview when asked
+ * and the validation report, all as one output set: on failure every
+ * earlier output stays. Messages name the input file. Free *res with
+ * sl_rig_run_result_free, also after failure. */
+sl_result sl_rig_run(const sl_rig_run_options *o, sl_rig_run_result *res, sl_error *err);
+void sl_rig_run_result_free(sl_rig_run_result *res);
+
 #ifdef __cplusplus
 }
 #endif

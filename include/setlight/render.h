@@ -321,6 +321,49 @@ void sl_render_stats_free(sl_render_stats *stats);
 sl_result sl_render_stats_write_json(const sl_render_stats *stats, const sl_render_options *o,
                                      const char *path, sl_error *err);
 
+/* Reads a reference image for sl_render_options.reference: RGB at the
+ * scene camera's size (SL_ERR_INPUT naming the file otherwise). */
+sl_result sl_render_read_reference(const char *path, const sl_scene *scene, sl_image *ref,
+                                   sl_error *err);
+
+/* ---- The render stage, files to files ---- */
+
+typedef struct sl_render_run_options {
+    const char *scene;            /* a preset name or a scene JSON file ("grey") */
+    const char *env_path;         /* exactly one of env_path and rig_path lights it */
+    const char *rig_path;
+    const char *input_colorspace; /* the environment's (NULL: the file's own) */
+    double rotate_deg, intensity; /* the environment's turn and scale (0, 1) */
+    int width;                    /* image width (512) */
+    bool view;                    /* turn a preset's validation camera to view_az, view_el */
+    double view_az, view_el;
+    bool background_env;          /* camera rays that miss see the environment */
+    const sl_material *material;  /* every shape's material instead of the scene's, or NULL */
+    const char *reference_path;   /* true error per pass against this image, or NULL */
+    const char *stats_path;       /* per-pass statistics as JSON, or NULL */
+    const char *out_path;         /* the render (float EXR) */
+    sl_render_options render;     /* sl_render_options_init: spp, time, target error, ... */
+} sl_render_run_options;
+
+void sl_render_run_options_init(sl_render_run_options *o);
+
+typedef struct sl_render_run_result {
+    sl_render_stats stats;        /* spp, seconds, passes, rays, stop reason */
+    int width, height;
+    double est_rel_rmse;          /* the last pass's estimate */
+    double ref_rel_rmse;          /* against the reference, -1 without */
+    int64_t dome_bad_texels;      /* NaN, Inf or negative texels of the dome set to 0 */
+    char *json;                   /* what `render --json` prints (owned) */
+} sl_render_run_result;
+
+/* Loads the scene and its light, renders, and writes the image (with
+ * setlight:render and setlight:estimated_rel_rmse) and the statistics as
+ * one output set. Free *res with sl_render_run_result_free, also after
+ * failure. */
+sl_result sl_render_run(const sl_render_run_options *o, sl_render_run_result *res,
+                        sl_error *err);
+void sl_render_run_result_free(sl_render_run_result *res);
+
 /* Relative RMSE of img against ref over RGB: sqrt(sum (a-b)^2 / sum b^2).
  * SL_ERR_INPUT when the sizes differ. */
 sl_result sl_relative_rmse(const sl_image *img, const sl_image *ref, double *out, sl_error *err);

@@ -263,6 +263,35 @@ sl_result sl_merge_to_exr(const char *const *paths, int count, const sl_merge_op
                           const char *path, const char *mask_path, const char *ghost_path,
                           sl_merge_result *out, sl_error *err);
 
+/* ---- The merge stage, files to files ---- */
+
+typedef struct sl_merge_run_options {
+    const char *const *frame_paths; /* the bracket, any order */
+    int frame_count;
+    const char *out_path;           /* the radiance EXR (merge) or the response JSON (response) */
+    const char *mask_path;          /* NULL: OUT_clipped.exr beside the output */
+    bool no_mask;                   /* no clipped mask */
+    const char *ghost_path;         /* with merge.deghost; NULL: OUT_ghost.exr */
+    sl_merge_options merge;         /* sl_merge_options_init */
+} sl_merge_run_options;
+
+void sl_merge_run_options_init(sl_merge_run_options *o);
+
+typedef struct sl_merge_run_result {
+    sl_merge_result merge;          /* every number (radiance and masks stay empty) */
+    char mask_path[4096], ghost_path[4096]; /* as written ("" none) */
+    char *json;                     /* what `merge --json` (`response --json`) prints (owned) */
+} sl_merge_run_result;
+
+/* sl_merge_to_exr with the masks' default names beside the output; logs
+ * each frame's alignment and exposure warnings and the summary line. The
+ * files are written atomically with their provenance (docs/merge.md); on
+ * failure none is left and earlier ones stay. */
+sl_result sl_merge_run(const sl_merge_run_options *o, sl_merge_run_result *res, sl_error *err);
+/* The response alone (sl_merge_response) written to o->out_path as JSON. */
+sl_result sl_response_run(const sl_merge_run_options *o, sl_merge_run_result *res, sl_error *err);
+void sl_merge_run_result_free(sl_merge_run_result *res);
+
 /* ================================================================== */
 /* Unwrap: chrome ball to lat-long                                     */
 /* ================================================================== */
@@ -336,6 +365,20 @@ typedef struct sl_ball_geometry {
     double distance;
     double azimuth_deg, elevation_deg, roll_deg;
 } sl_ball_geometry;
+
+/* A ball photo's camera as a user states it (unwrap's and calibrate's
+ * options): the model, the lens, the distance. 0: not given. */
+typedef struct sl_ball_lens {
+    int camera; /* sl_ball_camera, or -1: perspective when anything gives the geometry */
+    double focal_mm, sensor_mm, fov_deg, distance_mm, diameter_mm;
+} sl_ball_lens;
+
+void sl_ball_lens_init(sl_ball_lens *lens); /* camera -1, the rest 0 */
+/* For a photo `width` pixels wide: the focal length in pixels (the lens,
+ * the EXIF focal length when only the sensor width is given, or the field
+ * of view; 0 unknown) and the distance in ball radii (0 unknown). */
+void sl_ball_lens_geometry(const sl_ball_lens *lens, int width, double exif_focal_mm,
+                           double *focal_px, double *distance);
 
 typedef enum {
     SL_REFLECTANCE_CONSTANT = 0, /* R per channel at every angle (1 = ideal mirror) */
@@ -476,6 +519,57 @@ sl_result sl_unwrap_pair(const sl_image *photo1, const sl_image *photo2,
 sl_result sl_unwrap_patch_reflectance(const sl_image *latlong, const double dir[3],
                                       double radius_rad, const double radiance[3],
                                       double reflectance[3], sl_error *err);
+
+/* ---- The unwrap stage, files to files ---- */
+
+typedef struct sl_unwrap_run_options {
+    const char *photo_paths[2];   /* the ball photos (read scene-linear, as every command reads) */
+    int photo_count;              /* 1 or 2 (the same ball from about 90 degrees round it) */
+    const char *out_path;         /* the lat-long EXR */
+    const char *input_colorspace; /* NULL: the file's own, else sRGB for 8/16-bit */
+    /* views[0]: camera angles, reflectance (1), width (0: one texel per
+     * photo pixel at the ball's centre) and, when have_circle[0], the circle;
+     * views[1]: its circle when have_circle[1]; search_deg (20),
+     * occluder_deg (20). View 2's camera is view 1's turned 90 degrees in
+     * azimuth unless have_camera2[k] gives azimuth, elevation, roll. */
+    sl_unwrap_pair_options pair;
+    bool have_circle[2];
+    bool have_camera2[3];
+    double camera2[3];
+    sl_ball_lens camera;          /* the photos' camera model, lens and distance */
+    bool have_patch;              /* solve the reflectance from a patch of known radiance: */
+    double patch[6];              /* azimuth, elevation, radius (degrees), radiance R, G, B */
+    bool confidence;              /* write the confidence as alpha (true) */
+    bool write_float;             /* 32-bit float instead of half */
+    sl_exr_compression compression; /* ZIP */
+} sl_unwrap_run_options;
+
+void sl_unwrap_run_options_init(sl_unwrap_run_options *o);
+
+typedef struct sl_unwrap_run_result {
+    sl_unwrap_pair_info info;     /* views[0] (and views[1]); the pair's numbers with two */
+    sl_ball_circle circle[2];     /* as used */
+    bool detected[2];             /* found by sl_ball_detect rather than given */
+    sl_ball_camera camera;
+    int width, height;            /* of the lat-long */
+    sl_reflectance reflectance;   /* as used (solved from the patch when given) */
+    double patch_reflectance[3];
+    bool streamed;                /* rows written as they were unwrapped */
+    bool ldr_linearised;          /* an 8/16-bit photo was linearised */
+    double seconds, read_detect_s, read_detect_cpu, unwrap_s, unwrap_cpu, write_s, write_cpu;
+    char *json;                   /* what `unwrap --json` prints (owned) */
+} sl_unwrap_run_result;
+
+/* Reads the photos, finds the ball unless given, unwraps (one view, or two
+ * merged), solves the reflectance from the patch when asked and writes
+ * the lat-long atomically with its provenance (setlight:source,
+ * setlight:ball_circle, setlight:ball_camera, ...; docs/unwrap.md): on
+ * failure no output and an earlier file stays. SL_ERR_USAGE for a given
+ * circle outside the photo; SL_ERR_INPUT for a fisheye photo, no ball or
+ * several, a patch not seen. */
+sl_result sl_unwrap_run(const sl_unwrap_run_options *o, sl_unwrap_run_result *res,
+                        sl_error *err);
+void sl_unwrap_run_result_free(sl_unwrap_run_result *res);
 
 /* ================================================================== */
 /* Calibrate: grey sphere and chart                                    */
@@ -772,6 +866,66 @@ sl_result sl_calibrate_report_chart(sl_report *rep, const char *file, const sl_i
  * zero) and returns how many; *fraction (may be NULL) gets their share of
  * the image's summed absolute values. */
 int64_t sl_calibrate_clamp_negative(sl_image *img, double *fraction);
+
+/* ---- The calibrate stage, files to files ---- */
+
+typedef struct sl_calibrate_run_options {
+    const char *hdri_path;       /* the lat-long to calibrate (read as sl_latlong_read) */
+    const char *out_path;        /* the calibrated lat-long (EXR) */
+    const char *chart_path;      /* chart photo, or NULL */
+    const char *grey_path;       /* grey-sphere photo, or NULL; at least one of the two */
+    const char *report_dir;      /* DIR/calibrate.html and DIR/calibrate.json, or NULL */
+    const char *chart_reference; /* CSV or JSON file of 24 values; NULL: classic24 */
+    const char *clipped_mask;    /* NULL: the HDRI's setlight:merge:clipped_mask if it exists */
+    const char *out_colorspace;  /* OCIO name ("lin_rec709") */
+    const char *chart_colorspace, *grey_colorspace; /* NULL: the file's own, else sRGB/linear */
+    bool have_corners;           /* corners: centres of patches 1, 6, 24, 19 instead of detection */
+    double corners[4][2];
+    double clip;                 /* photo clip level; < 0: none for float, 0.999 for 8/16-bit (-1) */
+    bool hdri_in_chart;          /* the HDRI is in the chart camera's RGB (true) */
+    bool sun_repair;             /* repair a source clipped in every frame (true) */
+    bool absolute;               /* cd/m^2 from the grey photo's EXIF (true) */
+    double exposure_tolerance;   /* stops the grey photo's EXIF may disagree with the HDRI's (1) */
+    bool write_float;            /* 32-bit float output instead of half */
+    sl_ball_lens camera;         /* the grey photo's camera */
+    sl_ccm_options ccm;
+    sl_grey_options grey;        /* circle[2] > 0: the sphere's outline, else found */
+    sl_sun_options sun;
+} sl_calibrate_run_options;
+
+void sl_calibrate_run_options_init(sl_calibrate_run_options *o);
+
+typedef struct sl_calibrate_run_result {
+    double matrix[3][3];         /* T: HDRI values to output values, as the metadata records */
+    bool chart_used;             /* the chart was judged a ColorChecker and its matrix used */
+    double plate_matrix[3][3];   /* P, when chart_used */
+    bool hdri_in_chart;          /* P applied to the HDRI */
+    bool chart_sampled;          /* chart and judgement hold a fit (used or refused) */
+    sl_ccm_fit chart;
+    sl_chart_judgement judgement;
+    bool grey_used;
+    double grey_circle[3], grey_gain[3];
+    double grey_rel_rmse_before, grey_rel_rmse_after, grey_error_p95;
+    int64_t grey_pixels;
+    double scale;                /* exposure scale (1 without a grey sphere) */
+    sl_sun_repair sun;           /* sun.repaired: a clipped source was repaired */
+    double cd_m2_per_unit;       /* absolute scale applied, 0: relative units */
+    char absolute_from[256];
+    int64_t negative_samples;    /* samples set to 0 after the transform */
+    double negative_fraction;
+    char *json;                  /* every number above and more: what `calibrate --json`
+                                  * prints and DIR/calibrate.json holds (owned) */
+} sl_calibrate_run_result;
+
+/* Reads the HDRI and the photos, calibrates (docs/calibrate.md), writes the
+ * calibrated HDRI with its provenance (setlight:calibration_matrix, ...)
+ * and the report as one output set: on failure every earlier output stays.
+ * SL_ERR_INPUT with a message naming the file for input that does not fit
+ * (no chart and no grey sphere usable, exposure contradiction, ...). Logs
+ * warnings and one info line per part through sl_log. */
+sl_result sl_calibrate_run(const sl_calibrate_run_options *o, sl_calibrate_run_result *res,
+                           sl_error *err);
+void sl_calibrate_run_result_free(sl_calibrate_run_result *res);
 
 /* ================================================================== */
 /* Stitch: views                                                       */
@@ -1197,6 +1351,30 @@ typedef struct sl_stitch_result {
 sl_result sl_stitch(const char *const *view_paths, int count, const char *out_path,
                     const sl_stitch_options *opt, sl_stitch_result *res, sl_error *err);
 void sl_stitch_result_free(sl_stitch_result *res);
+
+/* ---- The stitch stage, files to files ---- */
+
+typedef struct sl_stitch_run_options {
+    const char *const *view_paths; /* the merged HDR fisheye views */
+    int view_count;                /* 1 .. SL_STITCH_MAX_VIEWS */
+    const char *out_path;          /* the lat-long EXR */
+    const char *mask_path;         /* a 2:1 nadir mask (the tripod's cone), or NULL */
+    sl_stitch_options stitch;      /* sl_stitch_options_init; blend.mask is set from mask_path */
+} sl_stitch_run_options;
+
+void sl_stitch_run_options_init(sl_stitch_run_options *o);
+
+typedef struct sl_stitch_run_result {
+    sl_stitch_result stitch;       /* lens, solve, views, coverage, timing */
+    char *json;                    /* what `stitch --json` prints (owned) */
+} sl_stitch_run_result;
+
+/* Reads the mask, stitches (sl_stitch: the views read, solved, blended and
+ * written with their provenance) and logs the summary and each pair left
+ * at its nominal rotation. */
+sl_result sl_stitch_run(const sl_stitch_run_options *o, sl_stitch_run_result *res,
+                        sl_error *err);
+void sl_stitch_run_result_free(sl_stitch_run_result *res);
 
 #ifdef __cplusplus
 }

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Validation for `setlight rig --validate`: the issue's grey, chrome and
+/* The rig's validation (`setlight rig --validate`, sl_rig_run): the issue's grey, chrome and
  * shadow scenes rendered under the map and under the rig, and their report. */
-#include "rig_validate.h"
+#include "lightrig_private.h"
 
 #include <errno.h>
 #include <math.h>
@@ -43,9 +43,9 @@ static sl_result render_one(const char *preset, const sl_image *env, const char 
     return r;
 }
 
-void rig_validation_free(rig_validation *v)
+void sl_rig_validation_free(sl_rig_validation *v)
 {
-    for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
+    for (int k = 0; k < SL_RIG_VALIDATE_SCENES; k++) {
         sl_image_free(&v->map[k]);
         sl_image_free(&v->rig[k]);
     }
@@ -57,7 +57,7 @@ void rig_validation_free(rig_validation *v)
  * difference is the Monte Carlo noise of the final difference (the map's
  * and the rig's noise are strongly correlated: a chrome sphere's jittered
  * pixels see nearly the same directions under both). */
-static sl_result validate_scene(rig_validation *v, int k, const sl_image *env, const char *rig_json,
+static sl_result validate_scene(sl_rig_validation *v, int k, const sl_image *env, const char *rig_json,
                                 sl_error *err)
 {
     sl_image a[2] = {{0}}, b[2] = {{0}};
@@ -111,20 +111,20 @@ static sl_result validate_scene(rig_validation *v, int k, const sl_image *env, c
     return r;
 }
 
-sl_result rig_validate(const sl_image *env, const char *rig_json, int width, int64_t spp,
-                       rig_validation *v, sl_error *err)
+sl_result sl_rig_validate(const sl_image *env, const char *rig_json, int width, int64_t spp,
+                       sl_rig_validation *v, sl_error *err)
 {
-    static const char *const scenes[RIG_VALIDATE_SCENES] = {"grey", "chrome", "shadow"};
+    static const char *const scenes[SL_RIG_VALIDATE_SCENES] = {"grey", "chrome", "shadow"};
     memset(v, 0, sizeof *v);
     double t0 = sl_seconds(), c0 = sl_cpu_seconds();
     v->width = width;
     v->spp = spp;
-    for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
+    for (int k = 0; k < SL_RIG_VALIDATE_SCENES; k++) {
         v->scene[k] = scenes[k];
         v->error[k] = -1;
     }
     sl_result r = SL_OK;
-    for (int k = 0; k < RIG_VALIDATE_SCENES && !r; k++)
+    for (int k = 0; k < SL_RIG_VALIDATE_SCENES && !r; k++)
         r = validate_scene(v, k, env, rig_json, err);
     v->seconds = sl_seconds() - t0;
     v->cpu_seconds = sl_cpu_seconds() - c0;
@@ -208,14 +208,14 @@ static double render_stops(const sl_image *a)
     return n ? log2(0.18 / exp(s / (double)n)) : 0;
 }
 
-sl_result rig_validate_report(sl_report *rep, const rig_validation *v, const char *prefix,
+sl_result sl_rig_validate_report(sl_report *rep, const sl_rig_validation *v, const char *prefix,
                               sl_error *err)
 {
     static const char *const head[] = {
         "scene",          "relative RMSE (%)", "spp",           "size (px)",
         "map render (s)", "rig render (s)",    "noise (%)",     "beyond noise (%)"};
     sl_report_table_begin(rep, 8, head);
-    for (int k = 0; k < RIG_VALIDATE_SCENES; k++) {
+    for (int k = 0; k < SL_RIG_VALIDATE_SCENES; k++) {
         char c[8][48];
         snprintf(c[0], sizeof c[0], "%s", v->scene[k]);
         snprintf(c[1], sizeof c[1], "%.3f", 100 * v->error[k]);
@@ -255,7 +255,7 @@ sl_result rig_validate_report(sl_report *rep, const rig_validation *v, const cha
                         "yellow 10%, red 30% or more",
                         err);
     sl_image_free(&bar);
-    for (int k = 0; k < RIG_VALIDATE_SCENES && !r; k++) {
+    for (int k = 0; k < SL_RIG_VALIDATE_SCENES && !r; k++) {
         double stops = render_stops(&v->map[k]);
         snprintf(file, sizeof file, "%s%s_map.png", prefix, v->scene[k]);
         snprintf(cap, sizeof cap, "%s under the map (%+.1f stops)", v->scene[k], stops);
@@ -325,7 +325,7 @@ static sl_result report_preview(sl_report *rep, const char *dir, const char *fil
     return r;
 }
 
-sl_result rig_validate_report_check(const char *dir, const char *name, sl_error *err)
+sl_result sl_rig_validate_report_check(const char *dir, const char *name, sl_error *err)
 {
     char path[4096];
     struct stat st;
@@ -339,7 +339,7 @@ sl_result rig_validate_report_check(const char *dir, const char *name, sl_error 
 }
 
 static sl_result build_report(const char *tmp, const char *name, const char *about,
-                              const rig_validation *v, const sl_rig *rig, const sl_image *env,
+                              const sl_rig_validation *v, const sl_rig *rig, const sl_image *env,
                               sl_error *err)
 {
     char sub[4400], prefix[512];
@@ -357,7 +357,7 @@ static sl_result build_report(const char *tmp, const char *name, const char *abo
         return r;
     sl_report_text(rep, "%s", about);
     sl_report_section(rep, "Renders: map against rig");
-    r = rig_validate_report(rep, v, prefix, err);
+    r = sl_rig_validate_report(rep, v, prefix, err);
     if (!r) {
         sl_report_section(rep, "Lights");
         report_lights(rep, rig);
@@ -366,7 +366,7 @@ static sl_result build_report(const char *tmp, const char *name, const char *abo
         r = report_preview(rep, tmp, file, rig, env, err);
     }
     /* the renders as compared, for a closer look */
-    for (int k = 0; k < RIG_VALIDATE_SCENES && !r; k++) {
+    for (int k = 0; k < SL_RIG_VALIDATE_SCENES && !r; k++) {
         char path[4700];
         snprintf(path, sizeof path, "%s/%s_map.exr", sub, v->scene[k]);
         if ((r = sl_exr_write(path, &v->map[k], NULL, SL_PIXEL_FLOAT, err)))
@@ -386,13 +386,13 @@ static sl_result build_report(const char *tmp, const char *name, const char *abo
     return sl_report_finish(rep, err);
 }
 
-sl_result rig_validate_write_report(const char *dir, const char *name, const char *about,
-                                    const rig_validation *v, const sl_rig *rig,
-                                    const sl_image *env, rig_report_tmp *tmp, sl_error *err)
+sl_result sl_rig_validate_write_report(const char *dir, const char *name, const char *about,
+                                    const sl_rig_validation *v, const sl_rig *rig,
+                                    const sl_image *env, sl_rig_report_tmp *tmp, sl_error *err)
 {
     tmp->path[0] = 0;
     tmp->handle = -1;
-    sl_result r = rig_validate_report_check(dir, name, err);
+    sl_result r = sl_rig_validate_report_check(dir, name, err);
     if (r)
         return r;
     char folder[4400], page[4400], tmp_sub[4400], tmp_page[4400];
