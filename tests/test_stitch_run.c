@@ -10,6 +10,7 @@
 
 #include "setlight/capture.h"
 #include "setlight/stitch.h"
+#include "setlight/vset.h"
 #include "testing.h"
 
 static double lum(const float *p)
