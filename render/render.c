@@ -17,6 +17,7 @@ void sl_render_options_init(sl_render_options *o)
     o->low_discrepancy = true;
     o->seed = 1;
     o->light_cull = 1e-3;
+    o->closed_form = true;
 }
 
 static const char *const strategy_names[SL_STRATEGY_COUNT] = {"mis", "uniform", "cosine", "bsdf",
@@ -85,6 +86,8 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int worker)
         sl_counters *c = &j->rows[y];
         for (int x = 0; x < cam->width; x++) {
             uint64_t pixel = (uint64_t)y * (uint64_t)cam->width + (uint64_t)x;
+            if (j->it.cf && j->it.cf->mode[pixel] == SL_PIXEL_EXACT)
+                continue; /* nothing to sample */
             for (int h = 0; h < 2; h++) {
                 uint64_t seed = sl_hash_combine(sl_hash_combine(j->it.o->seed, pixel), (uint64_t)h);
                 double acc[4] = {0, 0, 0, 0};
@@ -104,19 +107,30 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
-static void resolve(const double *sa, const double *sb, int64_t n_half, int w, int h, sl_image *out,
-                    double *est)
+/* The image is the mean of the halves, plus the closed-form value of
+ * exact and control-variate pixels; the estimated error counts each exact
+ * pixel's bound as its error. */
+static void resolve(const double *sa, const double *sb, int64_t n_half, const sl_closed_form *cf,
+                    int w, int h, sl_image *out, double *est)
 {
-    double num = 0, den = 0, inv = 1.0 / (double)n_half;
+    double num = 0, den = 0, inv = n_half > 0 ? 1.0 / (double)n_half : 0.0;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
-            size_t i = ((size_t)y * (size_t)w + (size_t)x) * 4;
+            size_t pix = (size_t)y * (size_t)w + (size_t)x, i = pix * 4;
+            int mode = cf && cf->mode ? cf->mode[pix] : SL_PIXEL_SAMPLED;
             float *p = sl_image_pixel(out, x, y);
             for (int k = 0; k < 4; k++) {
                 double a = sa[i + k] * inv, b = sb[i + k] * inv, m = 0.5 * (a + b);
-                p[k] = (float)m;
+                if (mode == SL_PIXEL_EXACT)
+                    a = b = m = k < 3 ? cf->value[pix][k] : 1.0;
+                else if (mode == SL_PIXEL_CONTROL && k < 3)
+                    m += cf->value[pix][k];
+                /* A control variate's noise may dip below zero: never written. */
+                p[k] = (float)fmax(0.0, m);
                 if (k < 3) {
                     num += 0.25 * (a - b) * (a - b);
+                    if (mode != SL_PIXEL_SAMPLED)
+                        num += (double)cf->bound[pix][k] * cf->bound[pix][k];
                     den += m * m;
                 }
             }
@@ -167,6 +181,17 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     size_t npix = (size_t)cam->width * (size_t)cam->height;
     job j = {.scene = scene};
     sl_integrator_init(&j.it, scene, o);
+    double t0 = sl_seconds(), c0 = sl_cpu_seconds();
+    sl_closed_form cf;
+    if ((r = sl_closed_form_plan(&cf, scene, o, &stats->closed_form, err))) {
+        sl_image_free(out);
+        if (stats == &local)
+            sl_render_stats_free(stats);
+        return r;
+    }
+    if (stats->closed_form.used)
+        j.it.cf = &cf;
+    bool to_sample = stats->closed_form.sampled_pixels + stats->closed_form.control_variate_pixels > 0;
     j.sum[0] = calloc(npix * 4, sizeof(double));
     j.sum[1] = calloc(npix * 4, sizeof(double));
     j.rows = calloc((size_t)cam->height, sizeof *j.rows);
@@ -180,15 +205,28 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     if (half_target > (int64_t)UINT32_MAX)
         half_target = UINT32_MAX;
     int64_t n_half = 0;
-    double t0 = sl_seconds(), c0 = sl_cpu_seconds();
+    double t_sampling = sl_seconds();
     strcpy(stats->stop_reason, "spp");
-    for (;;) {
+    if (!to_sample) {
+        /* Every pixel is exact: one pass with no samples reports the bound. */
+        sl_render_pass pass = {.spp = 0, .ref_rel_rmse = -1};
+        resolve(j.sum[0], j.sum[1], 0, &cf, cam->width, cam->height, out, &pass.est_rel_rmse);
+        pass.seconds = sl_seconds() - t0;
+        if (o->reference && (r = sl_relative_rmse(out, o->reference, &pass.ref_rel_rmse, err)))
+            goto done;
+        if ((r = push_pass(stats, &pass, err)))
+            goto done;
+        if (o->on_pass)
+            o->on_pass(o->on_pass_ctx, &pass);
+        strcpy(stats->stop_reason, "exact");
+    }
+    while (to_sample) {
         int64_t add = n_half > 0 ? n_half : 1;
         if (add > half_target - n_half)
             add = half_target - n_half;
         double elapsed = sl_seconds() - t0;
         if (o->time_limit > 0 && n_half > 0) {
-            double per = elapsed / (double)n_half;
+            double per = (sl_seconds() - t_sampling) / (double)n_half;
             int64_t fit = per > 0 ? (int64_t)((o->time_limit - elapsed) / per) : add;
             if (fit < add)
                 add = fit;
@@ -202,7 +240,8 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
         sl_parallel_for(cam->height, 1, render_rows, &j);
         n_half += add;
         sl_render_pass pass = {.spp = 2 * n_half, .ref_rel_rmse = -1};
-        resolve(j.sum[0], j.sum[1], n_half, cam->width, cam->height, out, &pass.est_rel_rmse);
+        resolve(j.sum[0], j.sum[1], n_half, j.it.cf, cam->width, cam->height, out,
+                &pass.est_rel_rmse);
         pass.seconds = sl_seconds() - t0;
         if (o->reference && (r = sl_relative_rmse(out, o->reference, &pass.ref_rel_rmse, err)))
             goto done;
@@ -242,6 +281,7 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     stats->dome_sampled = j.it.dome_sampling;
     r = SL_OK;
 done:
+    sl_closed_form_free(&cf);
     free(j.sum[0]);
     free(j.sum[1]);
     free(j.rows);
