@@ -1,9 +1,9 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* Leaves out the sampling a pixel does not need. A Lambert object under the
  * dome alone has the closed-form radiance rho/pi E(n) (irradiance.c); a
- * pixel gets it when the object covers the whole pixel (its four corners:
- * the silhouette of a sphere, rect or disk is convex under an orthographic
- * or perspective camera) and every other object lies behind the tangent
+ * pixel gets it when the object is the first hit at the pixel's centre and
+ * four corners (the silhouette of a sphere, rect or disk is convex under an
+ * orthographic or perspective camera, so it covers the pixel) and every other object lies behind the tangent
  * plane of every point it shows, so no direction of its hemisphere can be
  * shadowed and no light can bounce onto it. A covered pixel that other
  * objects may shadow keeps the closed form as a control variate: the
@@ -122,7 +122,8 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (!j->o->pixel_centers)
                 for (int c = 0; c < 4 && covered; c++) {
                     covered = ray_at(cam, x + (c & 1), y + (c >> 1), org, dir) &&
-                              sl_shape_intersect(scene, a, org, dir, &h[npts]) && !h[npts].inside;
+                              sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &h[npts]) &&
+                              h[npts].shape == a && !h[npts].inside;
                     npts++;
                 }
             if (!covered)
