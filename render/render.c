@@ -148,6 +148,20 @@ static sl_result push_pass(sl_render_stats *st, const sl_render_pass *p, sl_erro
     return SL_OK;
 }
 
+/* The true error against the reference, the pass kept, the caller told. */
+static sl_result record_pass(sl_render_stats *st, sl_render_pass *p, const sl_image *out,
+                             const sl_render_options *o, sl_error *err)
+{
+    sl_result r;
+    if (o->reference && (r = sl_relative_rmse(out, o->reference, &p->ref_rel_rmse, err)))
+        return r;
+    if ((r = push_pass(st, p, err)))
+        return r;
+    if (o->on_pass)
+        o->on_pass(o->on_pass_ctx, p);
+    return SL_OK;
+}
+
 sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image *out,
                     sl_render_stats *stats, sl_error *err)
 {
@@ -212,12 +226,8 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
         sl_render_pass pass = {.spp = 0, .ref_rel_rmse = -1};
         resolve(j.sum[0], j.sum[1], 0, &cf, cam->width, cam->height, out, &pass.est_rel_rmse);
         pass.seconds = sl_seconds() - t0;
-        if (o->reference && (r = sl_relative_rmse(out, o->reference, &pass.ref_rel_rmse, err)))
+        if ((r = record_pass(stats, &pass, out, o, err)))
             goto done;
-        if ((r = push_pass(stats, &pass, err)))
-            goto done;
-        if (o->on_pass)
-            o->on_pass(o->on_pass_ctx, &pass);
         strcpy(stats->stop_reason, "exact");
     }
     while (to_sample) {
@@ -243,12 +253,8 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
         resolve(j.sum[0], j.sum[1], n_half, j.it.cf, cam->width, cam->height, out,
                 &pass.est_rel_rmse);
         pass.seconds = sl_seconds() - t0;
-        if (o->reference && (r = sl_relative_rmse(out, o->reference, &pass.ref_rel_rmse, err)))
+        if ((r = record_pass(stats, &pass, out, o, err)))
             goto done;
-        if ((r = push_pass(stats, &pass, err)))
-            goto done;
-        if (o->on_pass)
-            o->on_pass(o->on_pass_ctx, &pass);
         if (n_half >= half_target) {
             strcpy(stats->stop_reason, "spp");
             break;
