@@ -84,7 +84,8 @@ static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], doub
     return sl_camera_ray(cam, sx / cam->width, sy / cam->height, o, d);
 }
 
-/* Is every other shape behind the tangent plane at each of the points? */
+/* Is every other shape behind the tangent plane at each of the points? One
+ * in the plane (the chart's patches) hides no direction above it. */
 static bool unshadowed(const sl_scene *scene, int a, const sl_hit *pts, int npts, double margin)
 {
     for (int b = 0; b < scene->shape_count; b++) {
@@ -92,7 +93,7 @@ static bool unshadowed(const sl_scene *scene, int a, const sl_hit *pts, int npts
             continue;
         for (int i = 0; i < npts; i++) {
             double scale = 1e-9 * (1.0 + fabs(pts[i].p[0]) + fabs(pts[i].p[1]) + fabs(pts[i].p[2]));
-            if (!(reach_along(&scene->shapes[b], pts[i].p, pts[i].n) <= -(margin + scale)))
+            if (!(reach_along(&scene->shapes[b], pts[i].p, pts[i].n) <= scale - margin))
                 return false;
         }
     }

@@ -214,7 +214,10 @@ static void test_real_hdri_goal(void)
     }
     closedir(d);
     qsort(names, (size_t)count, sizeof names[0], (int (*)(const void *, const void *))strcmp);
-    int stride = sanitized() ? 12 : 5, tested = 0;
+    /* Sanitizers run ~20x slower: two maps, fewer pixels; the same bound. */
+    int stride = sanitized() ? 12 : 7, tested = 0;
+    if (sanitized() && count > 2)
+        count = 2;
     double worst = 0;
     for (int i = 0; i < count; i++) {
         char path[4400];
