@@ -46,6 +46,7 @@ sl_result sl_converge_run(const sl_scene *scene, const sl_render_options *base,
         ro.seed = base->seed ^ 0x5eed5eedull; /* independent of the curves' samples */
         ro.reference = NULL;
         ro.time_limit = ro.target_error = 0;
+        ro.closed_form = false; /* the curves compare sampling strategies */
         sl_render_stats st;
         if ((r = sl_render(scene, &ro, &own, &st, err)))
             return r;
@@ -61,6 +62,7 @@ sl_result sl_converge_run(const sl_scene *scene, const sl_render_options *base,
         o.low_discrepancy = configs[i].ld;
         o.reference = reference;
         o.time_limit = o.target_error = 0;
+        o.closed_form = false;
         snprintf(c->name, sizeof c->name, "%s", configs[i].name);
         c->strategy = o.strategy;
         c->low_discrepancy = o.low_discrepancy;

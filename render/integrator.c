@@ -18,6 +18,7 @@ void sl_integrator_init(sl_integrator *it, const sl_scene *scene, const sl_rende
     it->can_occlude = scene->shape_count > 1;
     it->light_sampling = o->strategy == SL_STRATEGY_MIS || o->strategy == SL_STRATEGY_LIGHT;
     it->dome_sampling = sl_dome_can_sample(&scene->dome) && it->light_sampling;
+    it->cf = NULL;
     it->area_lights = 0;
     for (int i = 0; i < scene->light_count; i++)
         it->area_lights += scene->lights[i].type != SL_LIGHT_DISTANT;
@@ -91,6 +92,19 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         return;
     c->camera_rays++;
 
+    /* Control variate (closed_form.c): the pixel's closed form holds the
+     * dome's unshadowed light on its object, so at that object's camera
+     * vertex only shadowed directions are sampled, with a minus sign. */
+    int cv_shape = -1;
+    bool cv_vertex = false, cv_prev = false, cv_hit = false;
+    double org0[3], dir0[3];
+    if (it->cf) {
+        size_t pix = (size_t)py * (size_t)cam->width + (size_t)px;
+        if (it->cf->mode[pix] == SL_PIXEL_CONTROL)
+            cv_shape = it->cf->shape[pix];
+        v3_copy(org0, org);
+        v3_copy(dir0, dir);
+    }
     double beta[3] = {1, 1, 1}, L[3] = {0, 0, 0};
     bool prev_delta = true; /* the camera: what it sees directly gets full weight */
     double prev_pdf = 0;
@@ -142,6 +156,8 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                 }
                 break;
             }
+            if (cv_prev)
+                break; /* unshadowed: in the closed form */
             double w = 1.0;
             if (it->dome_sampling) {
                 double pdf_dome;
@@ -154,8 +170,20 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                 L[k] += beta[k] * w * Le[k];
             break;
         }
-        if (vertex == 0)
+        if (vertex == 0) {
             rgba[3] = 1;
+            cv_vertex = cv_hit = hit.shape == cv_shape;
+        }
+        if (cv_prev) {
+            /* The BSDF ray from the object found a shadowing surface: the
+             * dome light it hides was counted by the closed form. */
+            double Ld[3], pdf_d;
+            sl_dome_radiance_pdf(&scene->dome, dir, Ld, &pdf_d);
+            double w = emission_weight(it, prev_delta, prev_pdf, pdf_d);
+            for (int k = 0; k < 3; k++)
+                L[k] -= beta[k] * w * Ld[k];
+            cv_prev = false;
+        }
         const sl_material *m = &scene->materials[scene->shapes[hit.shape].material];
         bool delta = sl_bsdf_is_delta(m);
         /* Mirror chains are free up to the first non-delta vertex; after it
@@ -199,12 +227,13 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     } else {
                         c->shadow_skipped++;
                     }
-                    if (!blocked) {
+                    if (blocked == cv_vertex) {
                         double w = o->strategy == SL_STRATEGY_MIS
                                        ? mis_power(pdf_mis, sl_bsdf_pdf(m, wo, wil))
                                        : 1.0;
+                        double sign = cv_vertex ? -1.0 : 1.0;
                         for (int k = 0; k < 3; k++)
-                            L[k] += beta[k] * f[k] * wil[2] * Le[k] * w / pdf_l;
+                            L[k] += sign * beta[k] * f[k] * wil[2] * Le[k] * w / pdf_l;
                     }
                 }
             }
@@ -292,6 +321,8 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     beta[k] /= q;
             }
         }
+        cv_prev = cv_vertex;
+        cv_vertex = false;
         prev_delta = bs.delta;
         prev_pdf = bs.pdf;
         prev_unsampled = unsampled;
@@ -300,6 +331,17 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         sl_offset_origin(hit.p, hit.n, wi_world, org);
         v3_copy(dir, wi_world);
         c->bsdf_rays++;
+    }
+    if (cv_shape >= 0 && !cv_hit) {
+        /* Something else covers this sample: its full value, minus the
+         * closed form's integrand here, keeps the pixel's mean right. */
+        sl_hit ha;
+        double Lcf[3], bound[3];
+        if (sl_shape_intersect(scene, cv_shape, org0, dir0, &ha)) {
+            sl_closed_form_radiance(it->cf, scene, cv_shape, ha.n, Lcf, bound, NULL);
+            for (int k = 0; k < 3; k++)
+                L[k] -= Lcf[k];
+        }
     }
     if (!v3_finite(L)) {
         c->nonfinite++;

@@ -17,6 +17,7 @@ void sl_render_options_init(sl_render_options *o)
     o->low_discrepancy = true;
     o->seed = 1;
     o->light_cull = 1e-3;
+    o->closed_form = true;
 }
 
 static const char *const strategy_names[SL_STRATEGY_COUNT] = {"mis", "uniform", "cosine", "bsdf",
@@ -89,6 +90,8 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int worker)
             uint64_t pixel = (uint64_t)y * (uint64_t)cam->width + (uint64_t)x;
             if (j->done[pixel])
                 continue;
+            if (j->it.cf && j->it.cf->mode[pixel] == SL_PIXEL_EXACT)
+                continue; /* nothing to sample */
             /* A pixel stopped and taken up again catches up from its own count. */
             uint32_t first = j->n_px[pixel];
             j->n_px[pixel] = j->end;
@@ -111,28 +114,40 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
-/* The image and the estimated relative RMSE; var_px gets each pixel's
- * squared error estimate sum_c ((A - B)/2)^2, and *mean_m2 the mean over
+/* The image is the mean of the halves, plus the closed-form value of
+ * exact and control-variate pixels, and the estimated relative RMSE, which
+ * counts each exact or control-variate pixel's proven bound as error too;
+ * var_px gets each pixel's squared noise estimate sum_c ((A - B)/2)^2 (the
+ * bound left out: sampling cannot lower it), and *mean_m2 the mean over
  * pixels of sum_c M^2. */
-static void resolve(const double *sa, const double *sb, const uint32_t *n_px, int w, int h,
-                    sl_image *out, double *var_px, double *est, double *mean_m2)
+static void resolve(const double *sa, const double *sb, const uint32_t *n_px,
+                    const sl_closed_form *cf, int w, int h, sl_image *out, double *var_px,
+                    double *est, double *mean_m2)
 {
     double num = 0, den = 0;
     for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
             size_t px = (size_t)y * (size_t)w + (size_t)x, i = px * 4;
-            double inv = 1.0 / (double)n_px[px], var = 0;
+            int mode = cf && cf->mode ? cf->mode[px] : SL_PIXEL_SAMPLED;
+            double inv = n_px[px] > 0 ? 1.0 / (double)n_px[px] : 0.0, var = 0, bound = 0;
             float *p = sl_image_pixel(out, x, y);
             for (int k = 0; k < 4; k++) {
                 double a = sa[i + k] * inv, b = sb[i + k] * inv, m = 0.5 * (a + b);
-                p[k] = (float)m;
+                if (mode == SL_PIXEL_EXACT)
+                    a = b = m = k < 3 ? cf->value[px][k] : 1.0;
+                else if (mode == SL_PIXEL_CONTROL && k < 3)
+                    m += cf->value[px][k];
+                /* A control variate's noise may dip below zero: never written. */
+                p[k] = (float)fmax(0.0, m);
                 if (k < 3) {
                     var += 0.25 * (a - b) * (a - b);
+                    if (mode != SL_PIXEL_SAMPLED)
+                        bound += (double)cf->bound[px][k] * cf->bound[px][k];
                     den += m * m;
                 }
             }
             var_px[px] = var;
-            num += var;
+            num += var + bound;
         }
     *est = den > 0 ? sqrt(num / den) : 0;
     *mean_m2 = den / ((double)w * h);
@@ -184,6 +199,20 @@ static sl_result push_pass(sl_render_stats *st, const sl_render_pass *p, sl_erro
     return SL_OK;
 }
 
+/* The true error against the reference, the pass kept, the caller told. */
+static sl_result record_pass(sl_render_stats *st, sl_render_pass *p, const sl_image *out,
+                             const sl_render_options *o, sl_error *err)
+{
+    sl_result r;
+    if (o->reference && (r = sl_relative_rmse(out, o->reference, &p->ref_rel_rmse, err)))
+        return r;
+    if ((r = push_pass(st, p, err)))
+        return r;
+    if (o->on_pass)
+        o->on_pass(o->on_pass_ctx, p);
+    return SL_OK;
+}
+
 sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image *out,
                     sl_render_stats *stats, sl_error *err)
 {
@@ -217,6 +246,17 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     size_t npix = (size_t)cam->width * (size_t)cam->height;
     job j = {.scene = scene};
     sl_integrator_init(&j.it, scene, o);
+    double t0 = sl_seconds(), c0 = sl_cpu_seconds();
+    sl_closed_form cf;
+    if ((r = sl_closed_form_plan(&cf, scene, o, &stats->closed_form, err))) {
+        sl_image_free(out);
+        if (stats == &local)
+            sl_render_stats_free(stats);
+        return r;
+    }
+    if (stats->closed_form.used)
+        j.it.cf = &cf;
+    bool to_sample = stats->closed_form.sampled_pixels + stats->closed_form.control_variate_pixels > 0;
     j.sum[0] = calloc(npix * 4, sizeof(double));
     j.sum[1] = calloc(npix * 4, sizeof(double));
     j.rows = calloc((size_t)cam->height, sizeof *j.rows);
@@ -233,15 +273,26 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     if (half_target > (int64_t)UINT32_MAX)
         half_target = UINT32_MAX;
     int64_t n_half = 0;
-    double t0 = sl_seconds(), c0 = sl_cpu_seconds();
+    double t_sampling = sl_seconds();
     strcpy(stats->stop_reason, "spp");
-    for (;;) {
+    if (!to_sample) {
+        /* Every pixel is exact: one pass with no samples reports the bound. */
+        sl_render_pass pass = {.spp = 0, .ref_rel_rmse = -1};
+        double mean_m2;
+        resolve(j.sum[0], j.sum[1], j.n_px, &cf, cam->width, cam->height, out, var_px,
+                &pass.est_rel_rmse, &mean_m2);
+        pass.seconds = sl_seconds() - t0;
+        if ((r = record_pass(stats, &pass, out, o, err)))
+            goto done;
+        strcpy(stats->stop_reason, "exact");
+    }
+    while (to_sample) {
         int64_t add = n_half > 0 ? n_half : 1;
         if (add > half_target - n_half)
             add = half_target - n_half;
         double elapsed = sl_seconds() - t0;
         if (o->time_limit > 0 && n_half > 0) {
-            double per = elapsed / (double)n_half;
+            double per = (sl_seconds() - t_sampling) / (double)n_half;
             int64_t fit = per > 0 ? (int64_t)((o->time_limit - elapsed) / per) : add;
             if (fit < add)
                 add = fit;
@@ -255,15 +306,11 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
         n_half += add;
         sl_render_pass pass = {.spp = 2 * n_half, .ref_rel_rmse = -1};
         double mean_m2;
-        resolve(j.sum[0], j.sum[1], j.n_px, cam->width, cam->height, out, var_px,
+        resolve(j.sum[0], j.sum[1], j.n_px, j.it.cf, cam->width, cam->height, out, var_px,
                 &pass.est_rel_rmse, &mean_m2);
         pass.seconds = sl_seconds() - t0;
-        if (o->reference && (r = sl_relative_rmse(out, o->reference, &pass.ref_rel_rmse, err)))
+        if ((r = record_pass(stats, &pass, out, o, err)))
             goto done;
-        if ((r = push_pass(stats, &pass, err)))
-            goto done;
-        if (o->on_pass)
-            o->on_pass(o->on_pass_ctx, &pass);
         if (n_half >= half_target) {
             strcpy(stats->stop_reason, "spp");
             break;
@@ -286,7 +333,8 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     stats->spp = 2 * n_half;
     for (size_t px = 0; px < npix; px++) {
         stats->samples += 2 * (int64_t)j.n_px[px];
-        stats->pixels_stopped_early += j.n_px[px] < n_half;
+        stats->pixels_stopped_early +=
+            j.n_px[px] < n_half && !(j.it.cf && cf.mode[px] == SL_PIXEL_EXACT);
     }
     stats->seconds = sl_seconds() - t0;
     stats->cpu_seconds = sl_cpu_seconds() - c0;
@@ -306,6 +354,7 @@ sl_result sl_render(const sl_scene *scene, const sl_render_options *o, sl_image 
     stats->dome_sampled = j.it.dome_sampling;
     r = SL_OK;
 done:
+    sl_closed_form_free(&cf);
     free(j.sum[0]);
     free(j.sum[1]);
     free(j.rows);

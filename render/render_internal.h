@@ -117,6 +117,9 @@ typedef struct sl_hit {
 bool sl_scene_intersect(const sl_scene *scene, const double o[3], const double d[3], double tmin,
                         double tmax, sl_hit *hit);
 bool sl_scene_occluded(const sl_scene *scene, const double o[3], const double d[3], double tmax);
+/* Nearest hit of the ray on one shape alone (others ignored). */
+bool sl_shape_intersect(const sl_scene *scene, int shape, const double o[3], const double d[3],
+                        sl_hit *hit);
 /* Ray origin nudged off a surface at p (normal n) toward direction d. */
 void sl_offset_origin(const double p[3], const double n[3], const double d[3], double out[3]);
 
@@ -162,6 +165,7 @@ double sl_light_irradiance_bound(const sl_light *l, const double p[3], const dou
                                  bool *behind);
 
 /* ---- integrator (integrator.c) ---- */
+typedef struct sl_closed_form sl_closed_form; /* closed_form.c, below */
 typedef struct sl_counters {
     int64_t camera_rays, shadow_rays, bsdf_rays, shadow_skipped, zero_weight, nonfinite;
     int64_t culled, behind;
@@ -176,11 +180,49 @@ typedef struct sl_integrator {
     bool dome_sampling;
     int area_lights; /* rect, disk and sphere lights: they block the shadow rays of
                         other lights and of the dome */
+    const sl_closed_form *cf; /* NULL: every pixel sampled */
 } sl_integrator;
 
 void sl_integrator_init(sl_integrator *it, const sl_scene *scene, const sl_render_options *o);
 /* One camera sample: rgb radiance and alpha (coverage). */
 void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py, double rgba[4],
                          sl_counters *c);
+
+/* ---- closed-form irradiance from the dome (irradiance.c) ---- */
+typedef struct sl_irradiance sl_irradiance;
+typedef struct sl_irradiance_cost {
+    int64_t evaluations, cells; /* normals evaluated, lat-long cells visited */
+    int finest_level;           /* finest cell split to: mip level, < 0 inside a texel */
+} sl_irradiance_cost;
+/* Mip levels of the dome's exact cell sums (intensity and rotation kept). */
+sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error *err);
+void sl_irradiance_free(sl_irradiance *ir);
+int sl_irradiance_top_level(const sl_irradiance *ir);
+/* E[c] = integral of L max(0, n.w) dw for the world normal n, and bound[c]
+ * >= |E - exact| per channel, refined until bound <= tol x E (or no room). */
+void sl_irradiance_eval(const sl_irradiance *ir, const double n[3], double tol, double E[3],
+                        double bound[3], sl_irradiance_cost *cost);
+
+/* ---- closed form per pixel (closed_form.c) ---- */
+enum { SL_PIXEL_SAMPLED = 0, SL_PIXEL_EXACT, SL_PIXEL_CONTROL };
+struct sl_closed_form {
+    sl_irradiance *ir;
+    double tol;
+    uint8_t *mode;     /* per pixel: SL_PIXEL_* */
+    int32_t *shape;    /* the object an exact or control pixel shows */
+    float (*value)[3]; /* its closed-form value, pixel filter applied */
+    float (*bound)[3]; /* proven quadrature bound + pixel-filter estimate */
+};
+
+/* Decides per pixel what is exact, what is a control variate and what is
+ * sampled, and computes the closed-form values. Not applicable is not an
+ * error: every pixel is then sampled and stats->reason says why. */
+sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const sl_render_options *o,
+                              sl_closed_form_stats *stats, sl_error *err);
+void sl_closed_form_free(sl_closed_form *cf);
+/* Lambert radiance rho/pi E(n) of a shape's material at world normal n. */
+void sl_closed_form_radiance(const sl_closed_form *cf, const sl_scene *scene, int shape,
+                             const double n[3], double out[3], double bound[3],
+                             sl_irradiance_cost *cost);
 
 #endif

@@ -109,13 +109,21 @@ sl_result sl_render_run(const sl_render_run_options *ro, sl_render_run_result *r
     sl_meta_free(&meta);
     if (r)
         goto fail;
-    size_t n = strlen(ro->out_path) + strlen(st->stop_reason) + 256;
+    const sl_closed_form_stats *cf = &st->closed_form;
+    size_t n = strlen(ro->out_path) + strlen(st->stop_reason) + 640;
     if ((res->json = malloc(n)))
         snprintf(res->json, n,
                  "{\"output\": \"%s\", \"spp\": %lld, \"seconds\": %.6g, \"est_rel_rmse\": %.6g, "
-                 "\"ref_rel_rmse\": %.6g, \"stop_reason\": \"%s\", \"dome_bad_texels\": %lld}",
+                 "\"ref_rel_rmse\": %.6g, \"stop_reason\": \"%s\", \"dome_bad_texels\": %lld, "
+                 "\"closed_form\": {\"used\": %s, \"exact_pixels\": %lld, "
+                 "\"control_variate_pixels\": %lld, \"sampled_pixels\": %lld, "
+                 "\"max_rel_bound\": %.6g, \"tolerance\": %.6g, \"finest_level\": %d, "
+                 "\"seconds\": %.6g}}",
                  ro->out_path, (long long)st->spp, st->seconds, res->est_rel_rmse,
-                 res->ref_rel_rmse, st->stop_reason, (long long)scene.dome.bad_texels);
+                 res->ref_rel_rmse, st->stop_reason, (long long)scene.dome.bad_texels,
+                 cf->used ? "true" : "false", (long long)cf->exact_pixels,
+                 (long long)cf->control_variate_pixels, (long long)cf->sampled_pixels,
+                 cf->max_rel_bound, cf->tolerance, cf->finest_level, cf->seconds);
     else
         r = sl_error_set(&err, SL_ERR_NOMEM, "%s: out of memory", ro->out_path);
 fail:

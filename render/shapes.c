@@ -77,6 +77,35 @@ static bool hit_shape(const sl_shape *s, const double o[3], const double d[3], d
                                       : hit_plane(s, o, d, tmin, tmax, t);
 }
 
+/* Point, normal facing the ray and inside flag of a hit at t on shape i. */
+static void fill_hit(const sl_scene *scene, int i, const double o[3], const double d[3], double t,
+                     sl_hit *hit)
+{
+    const sl_shape *s = &scene->shapes[i];
+    hit->t = t;
+    hit->shape = i;
+    for (int k = 0; k < 3; k++)
+        hit->p[k] = o[k] + t * d[k];
+    if (s->type == SL_SHAPE_SPHERE) {
+        for (int k = 0; k < 3; k++)
+            hit->n[k] = (hit->p[k] - s->center[k]) / s->radius;
+        v3_normalize(hit->n);
+        /* Project onto the surface so secondary rays start from it. */
+        for (int k = 0; k < 3; k++)
+            hit->p[k] = s->center[k] + s->radius * hit->n[k];
+        /* Spheres are thin shells: seen from inside, the normal faces in. */
+        hit->inside = v3_dot(d, hit->n) > 0;
+        if (hit->inside)
+            for (int k = 0; k < 3; k++)
+                hit->n[k] = -hit->n[k];
+    } else {
+        hit->inside = false;
+        double sign = v3_dot(d, s->normal) > 0 ? -1.0 : 1.0;
+        for (int k = 0; k < 3; k++)
+            hit->n[k] = sign * s->normal[k];
+    }
+}
+
 bool sl_scene_intersect(const sl_scene *scene, const double o[3], const double d[3], double tmin,
                         double tmax, sl_hit *hit)
 {
@@ -89,29 +118,17 @@ bool sl_scene_intersect(const sl_scene *scene, const double o[3], const double d
         }
     if (best < 0)
         return false;
-    const sl_shape *s = &scene->shapes[best];
-    hit->t = tmax;
-    hit->shape = best;
-    for (int i = 0; i < 3; i++)
-        hit->p[i] = o[i] + tmax * d[i];
-    if (s->type == SL_SHAPE_SPHERE) {
-        for (int i = 0; i < 3; i++)
-            hit->n[i] = (hit->p[i] - s->center[i]) / s->radius;
-        v3_normalize(hit->n);
-        /* Project onto the surface so secondary rays start from it. */
-        for (int i = 0; i < 3; i++)
-            hit->p[i] = s->center[i] + s->radius * hit->n[i];
-        /* Spheres are thin shells: seen from inside, the normal faces in. */
-        hit->inside = v3_dot(d, hit->n) > 0;
-        if (hit->inside)
-            for (int i = 0; i < 3; i++)
-                hit->n[i] = -hit->n[i];
-    } else {
-        hit->inside = false;
-        double sign = v3_dot(d, s->normal) > 0 ? -1.0 : 1.0;
-        for (int i = 0; i < 3; i++)
-            hit->n[i] = sign * s->normal[i];
-    }
+    fill_hit(scene, best, o, d, tmax, hit);
+    return true;
+}
+
+bool sl_shape_intersect(const sl_scene *scene, int shape, const double o[3], const double d[3],
+                        sl_hit *hit)
+{
+    double t;
+    if (!hit_shape(&scene->shapes[shape], o, d, 0.0, INFINITY, &t))
+        return false;
+    fill_hit(scene, shape, o, d, t, hit);
     return true;
 }
 

@@ -32,6 +32,25 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(root, "nonfinite_samples", json_integer(st->nonfinite_samples));
     json_object_set_new(root, "dome_bad_texels", json_integer(st->dome_bad_texels));
     json_object_set_new(root, "dome_sampled", json_boolean(st->dome_sampled));
+    const sl_closed_form_stats *cf = &st->closed_form;
+    json_t *jc = json_object(), *objs = json_array();
+    json_object_set_new(jc, "used", json_boolean(cf->used));
+    json_object_set_new(jc, "reason", cf->reason[0] ? json_string(cf->reason) : json_null());
+    json_object_set_new(jc, "exact_pixels", json_integer(cf->exact_pixels));
+    json_object_set_new(jc, "control_variate_pixels", json_integer(cf->control_variate_pixels));
+    json_object_set_new(jc, "sampled_pixels", json_integer(cf->sampled_pixels));
+    for (int i = 0; i < cf->object_count; i++)
+        json_array_append_new(objs, json_integer(cf->objects[i]));
+    json_object_set_new(jc, "objects", objs);
+    json_object_set_new(jc, "tolerance", json_real(cf->tolerance));
+    json_object_set_new(jc, "max_rel_bound", json_real(cf->max_rel_bound));
+    json_object_set_new(jc, "max_footprint_error", json_real(cf->max_footprint_error));
+    json_object_set_new(jc, "top_level", json_integer(cf->top_level));
+    json_object_set_new(jc, "finest_level", json_integer(cf->finest_level));
+    json_object_set_new(jc, "evaluations", json_integer(cf->evaluations));
+    json_object_set_new(jc, "cells", json_integer(cf->cells));
+    json_object_set_new(jc, "seconds", json_real(cf->seconds));
+    json_object_set_new(root, "closed_form", jc);
     for (int i = 0; i < st->pass_count; i++) {
         const sl_render_pass *p = &st->passes[i];
         json_t *jp = json_object();

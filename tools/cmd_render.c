@@ -45,6 +45,9 @@ static void help(FILE *out)
             "  --bounces N         indirect bounces after the first hit (default 0: direct)\n"
             "  --strategy NAME     mis (default), bsdf, light, cosine or uniform\n"
             "  --sampler NAME      sobol (Owen-scrambled, default) or random\n"
+            "  --closed-form MODE  on (default): pixels of an unoccluded Lambert object under\n"
+            "                      the dome alone are computed exactly (no samples), shadowed\n"
+            "                      ones sample only the shadowed part; off: sample everything\n"
             "  --seed N            sample seed (default 1); same seed, same bytes\n"
             "  --reference IMG     image of the same size: true relative RMSE per pass\n"
             "  --stats FILE.json   error against time per pass, rays, skipped work\n"
@@ -108,7 +111,8 @@ static void show_pass(void *ctx, const sl_render_pass *p)
 int cmd_render(int argc, char **argv, const sl_cli *cli)
 {
     enum { O_ENV = 256, O_ROT, O_INT, O_SCENE, O_MAT, O_WIDTH, O_VIEW, O_BG, O_BOUNCES, O_SEED,
-           O_SPP, O_TIME, O_TERR, O_STRAT, O_SAMPLER, O_REF, O_STATS, O_RIG, O_CENTERS, O_INCS };
+           O_SPP, O_TIME, O_TERR, O_STRAT, O_SAMPLER, O_REF, O_STATS, O_RIG, O_CENTERS, O_INCS,
+           O_CLOSED };
     static const struct option opts[] = {
         {"env", required_argument, 0, O_ENV},         {"rotate", required_argument, 0, O_ROT},
         {"intensity", required_argument, 0, O_INT},   {"scene", required_argument, 0, O_SCENE},
@@ -117,7 +121,7 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         {"spp", required_argument, 0, O_SPP},         {"time", required_argument, 0, O_TIME},
         {"target-error", required_argument, 0, O_TERR},
         {"bounces", required_argument, 0, O_BOUNCES}, {"strategy", required_argument, 0, O_STRAT},
-        {"sampler", required_argument, 0, O_SAMPLER}, {"seed", required_argument, 0, O_SEED},
+        {"sampler", required_argument, 0, O_SAMPLER}, {"closed-form", required_argument, 0, O_CLOSED}, {"seed", required_argument, 0, O_SEED},
         {"rig", required_argument, 0, O_RIG},         {"reference", required_argument, 0, O_REF},   {"stats", required_argument, 0, O_STATS},
         {"pixel-centers", no_argument, 0, O_CENTERS},
         {"input-colorspace", required_argument, 0, O_INCS},
@@ -197,6 +201,11 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                 return cli_usage_error(cli, "--sampler is sobol or random");
             o.low_discrepancy = !strcmp(optarg, "sobol");
             break;
+        case O_CLOSED:
+            if (strcmp(optarg, "on") && strcmp(optarg, "off"))
+                return cli_usage_error(cli, "--closed-form is on or off");
+            o.closed_form = !strcmp(optarg, "on");
+            break;
         case ':': return cli_usage_error(cli, "%s needs a value", argv[optind - 1]);
         default: return cli_usage_error(cli, "unknown option %s", argv[optind - 1]);
         }
@@ -248,6 +257,18 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
         sl_log(SL_LOG_INFO, "%s: %dx%d, %lld spp in %.3f s, estimated relative RMSE %.4g (%s)",
                out_path, res.width, res.height, (long long)res.stats.spp, res.stats.seconds,
                res.est_rel_rmse, res.stats.stop_reason);
+    if (!r && !cli->json) {
+        const sl_closed_form_stats *cf = &res.stats.closed_form;
+        if (cf->used)
+            sl_log(SL_LOG_INFO,
+                   "closed form: %lld pixels exact, %lld control variate, %lld sampled; bound "
+                   "%.3g (tolerance %.3g, mip levels %d..%d), %lld evaluations in %.3f s",
+                   (long long)cf->exact_pixels, (long long)cf->control_variate_pixels,
+                   (long long)cf->sampled_pixels, cf->max_rel_bound, cf->tolerance, cf->top_level,
+                   cf->finest_level, (long long)cf->evaluations, cf->seconds);
+        else
+            sl_log(SL_LOG_INFO, "closed form not used: %s", cf->reason);
+    }
     sl_render_run_result_free(&res);
     return r ? cli_fail(cli, &err) : 0;
 }

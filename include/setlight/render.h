@@ -281,6 +281,15 @@ typedef struct sl_render_options {
      * still finds it (with full weight), so the image stays unbiased.
      * 0 samples every light. Default 1e-3. */
     double light_cull;
+    /* Closed form (docs/render.md): pixels of an unoccluded Lambert object
+     * under the dome alone get their exact value (no samples); where other
+     * objects may shadow it, only the shadowed difference is sampled. Only
+     * with the MIS strategy. Default on. */
+    bool closed_form;
+    /* Bound on the closed form's relative irradiance error per pixel (the
+     * quadrature refines until its proven bound is below it); 0 = default
+     * 1e-2, or half --target-error when that is smaller. */
+    double closed_form_tolerance;
     /* Called after every pass (from the calling thread), e.g. for progress. */
     void (*on_pass)(void *ctx, const struct sl_render_pass *pass);
     void *on_pass_ctx;
@@ -294,6 +303,24 @@ typedef struct sl_render_pass {
     double est_rel_rmse;    /* from the two half-buffers */
     double ref_rel_rmse;    /* against the reference, or -1 */
 } sl_render_pass;
+
+/* What the closed form computed: pixels exact, pixels whose shadowed part
+ * was sampled (control variate), pixels sampled as before, and why none
+ * when it could not apply. */
+#define SL_CLOSED_FORM_MAX_OBJECTS 16
+typedef struct sl_closed_form_stats {
+    bool used;
+    char reason[96];            /* why not used, or "" */
+    int64_t exact_pixels, control_variate_pixels, sampled_pixels;
+    int objects[SL_CLOSED_FORM_MAX_OBJECTS]; /* shapes with closed-form pixels */
+    int object_count;
+    double tolerance;           /* relative bound the quadrature refined to */
+    double max_rel_bound;       /* largest proven relative bound of a pixel */
+    double max_footprint_error; /* largest pixel-filter quadrature estimate, relative */
+    int top_level, finest_level; /* mip levels of the lat-long cells (< 0: inside a texel) */
+    int64_t evaluations, cells;  /* irradiance evaluations, cells visited */
+    double seconds;
+} sl_closed_form_stats;
 
 typedef struct sl_render_stats {
     sl_render_pass *passes;
@@ -313,7 +340,8 @@ typedef struct sl_render_stats {
     int64_t nonfinite_samples;   /* NaN/Inf sample values dropped (a bug if not 0) */
     int64_t dome_bad_texels;
     bool dome_sampled;           /* false when the dome is black (nothing to sample) */
-    char stop_reason[32];        /* "spp", "time", "target-error" */
+    char stop_reason[32];        /* "spp", "time", "target-error", "exact" */
+    sl_closed_form_stats closed_form;
 } sl_render_stats;
 
 void sl_render_stats_free(sl_render_stats *stats);

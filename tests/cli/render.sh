@@ -36,7 +36,7 @@ check "adaptive render" 0 $?
 python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if d["pixels_stopped_early"] >= 50 and 0 < d["samples"] < d["spp"] * 256 and d["passes"][-1]["est_rel_rmse"] <= 0.001 else 1)' "$T/ad.json" || { echo "FAIL adaptive stats: $(head -c 400 "$T/ad.json")"; fail=1; }
 "$S" render --help > "$T/help.txt"
 check "help" 0 $?
-for o in --env --scene --material --width --view --background --pixel-centers --spp --time --target-error --bounces --strategy --sampler --seed --reference --stats --output; do
+for o in --env --scene --material --width --view --background --pixel-centers --spp --time --target-error --bounces --strategy --sampler --closed-form --seed --reference --stats --output; do
     grep -q -- "$o" "$T/help.txt" || { echo "FAIL --help lacks $o"; fail=1; }
 done
 
@@ -104,4 +104,33 @@ printf '{"version": 1, "lights": [], "dome": {"file": "gone.exr"}}' > "$T/rig_do
 run_bad "rig with missing dome" 3 "rig_dome.json: dome.file.*gone.exr" --rig "$T/rig_dome.json"
 printf '{"lights": [], "dome": {"file": "env.hdr"}}' > "$T/rig_old.json"
 run_bad "rig without version 1" 3 "rig_old.json: version" --rig "$T/rig_old.json"
+# The closed form: a grey ball under a uniform dome is exact inside (no
+# samples there), --json and --stats say so; the shadow scene samples only the
+# shadowed part; a chrome ball, a rig or --closed-form off are sampled.
+"$S" render --env "$T/env.hdr" --scene grey --width 16 --spp 4 --json --stats "$T/cf.json" -o "$T/cf.exr" --quiet > "$T/cf_out.json"
+check "closed form render" 0 $?
+python3 - "$T/cf_out.json" "$T/cf.json" <<'PY' || { echo "FAIL closed form not reported: $(cat "$T/cf_out.json")"; fail=1; }
+import json, sys
+out, st = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+cf = out["closed_form"]
+assert cf["used"] and cf["exact_pixels"] > 100 and cf["control_variate_pixels"] == 0, cf
+assert cf["exact_pixels"] + cf["sampled_pixels"] == 256, cf
+assert 0 < cf["max_rel_bound"] <= 0.02 and cf["tolerance"] == 0.01, cf
+s = st["closed_form"]
+assert s["used"] and s["objects"] == [0] and s["exact_pixels"] == cf["exact_pixels"], s
+assert s["evaluations"] >= s["exact_pixels"] and s["cells"] > 0 and s["top_level"] >= s["finest_level"], s
+assert st["camera_rays"] == 4 * s["sampled_pixels"], st
+PY
+"$S" render --env "$T/env.hdr" --scene shadow --width 16 --spp 4 --json -o "$T/cfs.exr" --quiet > "$T/cfs.json"
+check "closed form as control variate" 0 $?
+python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["closed_form"]; sys.exit(0 if c["control_variate_pixels"] > 0 else 1)' "$T/cfs.json" || { echo "FAIL shadow: no control variate: $(cat "$T/cfs.json")"; fail=1; }
+for args in "--scene chrome" "--scene grey --closed-form off"; do
+    "$S" render --env "$T/env.hdr" $args --width 8 --spp 2 --json -o "$T/cfn.exr" --quiet > "$T/cfn.json"
+    check "sampled: $args" 0 $?
+    python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["closed_form"]; sys.exit(0 if not c["used"] and c["exact_pixels"] == 0 else 1)' "$T/cfn.json" || { echo "FAIL $args: closed form used: $(cat "$T/cfn.json")"; fail=1; }
+done
+"$S" render --env "$T/env.hdr" --closed-form maybe -o "$T/cfbad.exr" --quiet 2> "$T/cfbad.err"
+check "bad --closed-form" 2 $?
+[ "$(wc -l < "$T/cfbad.err")" = 1 ] && grep -q "closed-form" "$T/cfbad.err" || { echo "FAIL bad --closed-form message: $(cat "$T/cfbad.err")"; fail=1; }
+noout "bad --closed-form" "$T/cfbad.exr"
 exit $fail

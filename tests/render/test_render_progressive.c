@@ -64,7 +64,10 @@ static void test_stop_conditions(void)
     o.spp = 7; /* rounded up to even */
     CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
     CHECK(st.spp == 8 && !strcmp(st.stop_reason, "spp"));
-    CHECK(st.camera_rays == 8 * 16 * 16);
+    /* Exact pixels (the ball's inside, closed form) trace no camera rays. */
+    CHECK(st.closed_form.used && st.closed_form.exact_pixels > 100);
+    CHECK(st.closed_form.exact_pixels + st.closed_form.sampled_pixels == 16 * 16);
+    CHECK(st.camera_rays == 8 * st.closed_form.sampled_pixels);
     sl_image_free(&img);
     sl_render_stats_free(&st);
     sl_scene_free(&s);

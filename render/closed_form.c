@@ -1,0 +1,324 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Leaves out the sampling a pixel does not need. A Lambert object under the
+ * dome alone has the closed-form radiance rho/pi E(n) (irradiance.c); a
+ * pixel gets it when the object is the first hit at the pixel's centre and
+ * four corners (the silhouette of a sphere, rect or disk is convex under an
+ * orthographic or perspective camera, so it covers the pixel) and every other object lies behind the tangent
+ * plane of every point it shows, so no direction of its hemisphere can be
+ * shadowed and no light can bounce onto it. A covered pixel that other
+ * objects may shadow keeps the closed form as a control variate: the
+ * integrator samples only the shadowed difference. Any other pixel is
+ * sampled as before.
+ *
+ * Pixel filter: the sampled renderer averages over a box (or takes the
+ * centre with pixel_centers). Here the box mean is the centre value plus
+ * the 5-point Laplacian term (h^2/24), exact to O(h^4), where the four
+ * neighbours show the same object; else a 3x3 grid of sub-pixel midpoints.
+ * The size of that correction (or the centre - 3x3 difference / 8) is the
+ * footprint error estimate added to the quadrature's proven bound. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "render_internal.h"
+
+#define DEFAULT_TOLERANCE 1e-2
+
+void sl_closed_form_free(sl_closed_form *cf)
+{
+    sl_irradiance_free(cf->ir);
+    free(cf->mode);
+    free(cf->shape);
+    free(cf->value);
+    free(cf->bound);
+    memset(cf, 0, sizeof *cf);
+}
+
+void sl_closed_form_radiance(const sl_closed_form *cf, const sl_scene *scene, int shape,
+                             const double n[3], double out[3], double bound[3],
+                             sl_irradiance_cost *cost)
+{
+    const sl_material *m = &scene->materials[scene->shapes[shape].material];
+    double E[3], B[3];
+    sl_irradiance_eval(cf->ir, n, cf->tol, E, B, cost);
+    for (int c = 0; c < 3; c++) {
+        out[c] = m->base_color[c] / SL_PI * E[c];
+        bound[c] = m->base_color[c] / SL_PI * B[c];
+    }
+}
+
+/* Largest distance of shape b's points from a point, and the farthest
+ * reach of b along n from p: max over q in b of n.(q - p). */
+static double reach_along(const sl_shape *b, const double p[3], const double n[3])
+{
+    double d[3] = {b->center[0] - p[0], b->center[1] - p[1], b->center[2] - p[2]};
+    double base = v3_dot(n, d);
+    switch (b->type) {
+    case SL_SHAPE_SPHERE:
+        return base + b->radius;
+    case SL_SHAPE_RECT:
+        return base + fabs(v3_dot(n, b->u)) + fabs(v3_dot(n, b->v));
+    case SL_SHAPE_DISK: {
+        double c = v3_dot(n, b->normal);
+        return base + b->radius * sqrt(fmax(0.0, 1.0 - c * c));
+    }
+    }
+    return INFINITY;
+}
+
+static double extent(const sl_shape *b)
+{
+    return b->type == SL_SHAPE_RECT ? v3_length(b->u) + v3_length(b->v) : b->radius;
+}
+
+typedef struct plan_job {
+    const sl_scene *scene;
+    const sl_render_options *o;
+    sl_closed_form *cf;
+    double (*centre)[3]; /* centre value per pixel */
+    sl_irradiance_cost *row_cost;
+    double *row_foot; /* largest relative footprint estimate per row */
+} plan_job;
+
+static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], double d[3])
+{
+    return sl_camera_ray(cam, sx / cam->width, sy / cam->height, o, d);
+}
+
+/* Is every other shape behind the tangent plane at each of the points? One
+ * in the plane (the chart's patches) hides no direction above it. */
+static bool unshadowed(const sl_scene *scene, int a, const sl_hit *pts, int npts, double margin)
+{
+    for (int b = 0; b < scene->shape_count; b++) {
+        if (b == a)
+            continue;
+        for (int i = 0; i < npts; i++) {
+            double scale = 1e-9 * (1.0 + fabs(pts[i].p[0]) + fabs(pts[i].p[1]) + fabs(pts[i].p[2]));
+            if (!(reach_along(&scene->shapes[b], pts[i].p, pts[i].n) <= scale - margin))
+                return false;
+        }
+    }
+    return true;
+}
+
+static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    plan_job *j = ctx;
+    const sl_scene *scene = j->scene;
+    const sl_camera *cam = &scene->camera;
+    sl_closed_form *cf = j->cf;
+    for (int64_t y = begin; y < end; y++)
+        for (int x = 0; x < cam->width; x++) {
+            size_t pix = (size_t)y * (size_t)cam->width + (size_t)x;
+            double org[3], dir[3];
+            sl_hit h[5];
+            if (!ray_at(cam, x + 0.5, y + 0.5, org, dir) ||
+                !sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &h[0]) || h[0].inside)
+                continue;
+            int a = h[0].shape;
+            if (scene->materials[scene->shapes[a].material].type != SL_MAT_LAMBERT)
+                continue;
+            int npts = 1;
+            bool covered = true;
+            if (!j->o->pixel_centers)
+                for (int c = 0; c < 4 && covered; c++) {
+                    covered = ray_at(cam, x + (c & 1), y + (c >> 1), org, dir) &&
+                              sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &h[npts]) &&
+                              h[npts].shape == a && !h[npts].inside;
+                    npts++;
+                }
+            if (!covered)
+                continue;
+            /* Normals turn across a sphere's patch: points between the
+             * corners reach a little farther than the corners do. */
+            double margin = 0;
+            const sl_shape *sa = &scene->shapes[a];
+            if (sa->type == SL_SHAPE_SPHERE && npts > 1) {
+                double cmin = 1;
+                for (int i = 1; i < npts; i++)
+                    cmin = fmin(cmin, v3_dot(h[0].n, h[i].n));
+                double far = 0;
+                for (int b = 0; b < scene->shape_count; b++)
+                    if (b != a) {
+                        double d[3] = {scene->shapes[b].center[0] - sa->center[0],
+                                       scene->shapes[b].center[1] - sa->center[1],
+                                       scene->shapes[b].center[2] - sa->center[2]};
+                        far = fmax(far, v3_length(d) + extent(&scene->shapes[b]) + sa->radius);
+                    }
+                margin = cmin > 0.5 ? 2.0 * far * (1.0 / cmin - 1.0) : INFINITY;
+            }
+            cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
+            cf->shape[pix] = a;
+            double B[3];
+            sl_closed_form_radiance(cf, scene, a, h[0].n, j->centre[pix], B, &j->row_cost[y]);
+            for (int c = 0; c < 3; c++)
+                cf->bound[pix][c] = (float)B[c];
+        }
+}
+
+/* The box mean over a pixel from an n x n grid of sub-pixel midpoints on shape a. */
+static bool grid_mean(const plan_job *j, int a, int x, int y, int n, double mean[3], double bound[3],
+                      sl_irradiance_cost *cost)
+{
+    const sl_camera *cam = &j->scene->camera;
+    mean[0] = mean[1] = mean[2] = 0;
+    for (int sy = 0; sy < n; sy++)
+        for (int sx = 0; sx < n; sx++) {
+            double org[3], dir[3], v[3], b[3];
+            sl_hit h;
+            if (!ray_at(cam, x + (sx + 0.5) / n, y + (sy + 0.5) / n, org, dir) ||
+                !sl_shape_intersect(j->scene, a, org, dir, &h))
+                return false;
+            sl_closed_form_radiance(j->cf, j->scene, a, h.n, v, b, cost);
+            for (int c = 0; c < 3; c++) {
+                mean[c] += v[c] / (n * n);
+                bound[c] = fmax(bound[c], b[c]);
+            }
+        }
+    return true;
+}
+
+static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    plan_job *j = ctx;
+    const sl_camera *cam = &j->scene->camera;
+    sl_closed_form *cf = j->cf;
+    int w = cam->width, hgt = cam->height;
+    for (int64_t y = begin; y < end; y++)
+        for (int x = 0; x < w; x++) {
+            size_t pix = (size_t)y * (size_t)w + (size_t)x;
+            if (cf->mode[pix] == SL_PIXEL_SAMPLED)
+                continue;
+            const double *fc = j->centre[pix];
+            if (j->o->pixel_centers) {
+                for (int c = 0; c < 3; c++)
+                    cf->value[pix][c] = (float)fc[c];
+                continue;
+            }
+            int a = cf->shape[pix];
+            bool inner = x > 0 && y > 0 && x + 1 < w && y + 1 < hgt;
+            const size_t nb[4] = {pix - 1, pix + 1, pix - (size_t)w, pix + (size_t)w};
+            for (int k = 0; k < 4 && inner; k++)
+                inner = cf->mode[nb[k]] != SL_PIXEL_SAMPLED && cf->shape[nb[k]] == a;
+            double mean[3], foot[3], bound[3] = {cf->bound[pix][0], cf->bound[pix][1], cf->bound[pix][2]};
+            if (inner) {
+                for (int c = 0; c < 3; c++) {
+                    double lap = j->centre[nb[0]][c] + j->centre[nb[1]][c] + j->centre[nb[2]][c] +
+                                 j->centre[nb[3]][c] - 4.0 * fc[c];
+                    mean[c] = fc[c] + lap / 24.0;
+                    foot[c] = fabs(lap / 24.0);
+                }
+            } else {
+                /* Midpoint rules err as h^2: the 3x3 grid's error is about
+                 * (centre - 3x3) / 8. */
+                if (!grid_mean(j, a, x, (int)y, 3, mean, bound, &j->row_cost[y])) {
+                    cf->mode[pix] = SL_PIXEL_SAMPLED; /* rounding at a corner */
+                    continue;
+                }
+                for (int c = 0; c < 3; c++)
+                    foot[c] = fabs(mean[c] - fc[c]) / 8.0;
+            }
+            for (int c = 0; c < 3; c++) {
+                cf->value[pix][c] = (float)fmax(0.0, mean[c]);
+                cf->bound[pix][c] = (float)(bound[c] + foot[c]);
+                if (mean[c] > 0)
+                    j->row_foot[y] = fmax(j->row_foot[y], foot[c] / mean[c]);
+            }
+        }
+}
+
+static const char *not_applicable(const sl_scene *scene, const sl_render_options *o)
+{
+    if (!o->closed_form)
+        return "off";
+    if (o->strategy != SL_STRATEGY_MIS)
+        return "strategy is not mis";
+    if (!scene->dome.present)
+        return "no dome";
+    if (scene->light_count > 0)
+        return "lights in the scene (sampled)";
+    if (scene->camera.type == SL_CAMERA_FISHEYE)
+        return "fisheye camera (silhouettes not convex in the image)";
+    for (int i = 0; i < scene->shape_count; i++)
+        if (scene->materials[scene->shapes[i].material].type == SL_MAT_LAMBERT)
+            return NULL;
+    return "no Lambert object";
+}
+
+sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const sl_render_options *o,
+                              sl_closed_form_stats *st, sl_error *err)
+{
+    memset(cf, 0, sizeof *cf);
+    memset(st, 0, sizeof *st);
+    const sl_camera *cam = &scene->camera;
+    size_t npix = (size_t)cam->width * (size_t)cam->height;
+    st->sampled_pixels = (int64_t)npix;
+    const char *why = not_applicable(scene, o);
+    if (why) {
+        snprintf(st->reason, sizeof st->reason, "%s", why);
+        return SL_OK;
+    }
+    double t0 = sl_seconds();
+    cf->tol = o->closed_form_tolerance > 0 ? o->closed_form_tolerance : DEFAULT_TOLERANCE;
+    if (o->target_error > 0)
+        cf->tol = fmin(cf->tol, 0.5 * o->target_error);
+    sl_error local = {0};
+    if (sl_irradiance_build(&scene->dome, &cf->ir, &local)) {
+        snprintf(st->reason, sizeof st->reason, "%.95s", local.message);
+        return SL_OK;
+    }
+    plan_job j = {.scene = scene, .o = o, .cf = cf};
+    cf->mode = calloc(npix, 1);
+    cf->shape = calloc(npix, sizeof *cf->shape);
+    cf->value = calloc(npix, sizeof *cf->value);
+    cf->bound = calloc(npix, sizeof *cf->bound);
+    j.centre = calloc(npix, sizeof *j.centre);
+    j.row_cost = calloc((size_t)cam->height, sizeof *j.row_cost);
+    j.row_foot = calloc((size_t)cam->height, sizeof *j.row_foot);
+    if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
+        !j.row_foot) {
+        free(j.centre);
+        free(j.row_cost);
+        free(j.row_foot);
+        sl_closed_form_free(cf);
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
+    }
+    sl_parallel_for(cam->height, 1, classify_rows, &j);
+    sl_parallel_for(cam->height, 1, filter_rows, &j);
+    st->used = true;
+    st->tolerance = cf->tol;
+    st->top_level = sl_irradiance_top_level(cf->ir);
+    st->finest_level = st->top_level;
+    for (int y = 0; y < cam->height; y++) {
+        st->evaluations += j.row_cost[y].evaluations;
+        st->cells += j.row_cost[y].cells;
+        if (j.row_cost[y].evaluations && j.row_cost[y].finest_level < st->finest_level)
+            st->finest_level = j.row_cost[y].finest_level;
+    }
+    st->sampled_pixels = 0;
+    bool *seen = calloc((size_t)scene->shape_count + 1, sizeof *seen);
+    for (size_t i = 0; i < npix; i++) {
+        int m = cf->mode[i];
+        st->sampled_pixels += m == SL_PIXEL_SAMPLED;
+        st->exact_pixels += m == SL_PIXEL_EXACT;
+        st->control_variate_pixels += m == SL_PIXEL_CONTROL;
+        if (m == SL_PIXEL_SAMPLED)
+            continue;
+        if (seen && !seen[cf->shape[i]] && st->object_count < SL_CLOSED_FORM_MAX_OBJECTS) {
+            seen[cf->shape[i]] = true;
+            st->objects[st->object_count++] = cf->shape[i];
+        }
+        for (int c = 0; c < 3; c++)
+            if (cf->value[i][c] > 0)
+                st->max_rel_bound = fmax(st->max_rel_bound, cf->bound[i][c] / cf->value[i][c]);
+    }
+    free(seen);
+    for (int y = 0; y < cam->height; y++)
+        st->max_footprint_error = fmax(st->max_footprint_error, j.row_foot[y]);
+    free(j.centre);
+    free(j.row_cost);
+    free(j.row_foot);
+    st->seconds = sl_seconds() - t0;
+    return SL_OK;
+}
