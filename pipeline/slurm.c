@@ -749,6 +749,28 @@ static sl_result squeue_rows(const sl_pipeline_slurm_options *o, char *ids, char
     return run_command(args, NULL, out, errout, status, err);
 }
 
+/* Whether task is in squeue's ArrayTaskID list of tasks not yet started,
+ * "0-5", "2,4-7" or "3-9%2" (at most 2 at a time). */
+static bool in_task_range(const char *spec, long task)
+{
+    for (const char *p = spec; *p;) {
+        char *end;
+        long lo = strtol(p, &end, 10), hi = lo;
+        if (end == p)
+            return false;
+        if (*end == '-')
+            hi = strtol(end + 1, &end, 10);
+        if (task >= lo && task <= hi)
+            return true;
+        if (*end == '%')
+            return false;
+        p = *end == ',' ? end + 1 : end;
+        if (*end != ',')
+            break;
+    }
+    return false;
+}
+
 static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result *res)
 {
     char *f[10];
@@ -777,13 +799,16 @@ static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result 
             continue;
         long id = g->batches[j->batch].slurm_id;
         bool match = j->task < 0 ? (!one_task && !task_range && id == job_id)
-                                 : (id == array_id && (task_range || (one_task && task == j->task)));
+                                 : (id == array_id && (task_range ? in_task_range(f[2], j->task)
+                                                                  : one_task && task == j->task));
         if (!match)
             continue;
         seen[i] = true;
         sl_pipeline_slurm_job *rj = &res->jobs[i];
         sl_pipeline_slurm_end e;
-        if (task_range || !state_is_final(f[3], &e)) {
+        /* A range row is an array's tasks that never started: final only
+         * when they were cancelled together (a dependency failed). */
+        if (!state_is_final(f[3], &e)) {
             /* A held job (an admin hold, or a launch that failed and was
              * requeued held) waits for `scontrol release`: said once. */
             if (!j->held_warned && (strcasestr(f[8], "held") || strstr(f[3], "HOLD"))) {

@@ -65,11 +65,16 @@ if cmp -s "$T/sums_local" "$T/sums_farm2"; then ok; else
   bad "rerun outputs differ from the local run's: $(diff "$T/sums_local" "$T/sums_farm2" | head -5)"
 fi
 
-# 4. The cluster down: one line, exit 1, nothing written over.
+# 4. Everything up to date: nothing to submit, so no Slurm needed. Then the
+# cluster down with a job to run (the rig's stamp gone): one line, exit 1,
+# nothing written over.
 stop_cluster
 trap - EXIT
-sha_before=$(sha256sum <"$T/farm/ext/stitch/hdri.exr")
+expect 0 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --json -q
+json_eval "$T/out" 'all(j["status"] == "skipped" for j in d["setups"][0]["jobs"])'
+sha_before=$(sha256sum <"$T/farm/ext/rig/rig.usda")
+rm "$T/farm/ext/rig.stamp.json"
 expect 1 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm -q
 err_one_line
-if [ "$(sha256sum <"$T/farm/ext/stitch/hdri.exr")" = "$sha_before" ]; then ok; else bad "a failed farm run changed an output"; fi
+if [ "$(sha256sum <"$T/farm/ext/rig/rig.usda")" = "$sha_before" ]; then ok; else bad "a failed farm run changed an output"; fi
 finish
