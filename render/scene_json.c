@@ -135,6 +135,10 @@ static sl_result read_camera(const ctx *c, json_t *j, int width, sl_camera *cam)
         cam->type = SL_CAMERA_FISHEYE;
     else
         return bad(c, "camera.type", "must be orthographic, perspective or fisheye");
+    /* The image's height follows from the width (at most 65536, as --width)
+     * and the aspect: the same bound, before it becomes an int. */
+    if (!(width * aspect <= 65536.0))
+        return bad(c, "camera.aspect", "makes the image taller than 65536 pixels");
     if ((cam->type == SL_CAMERA_PERSPECTIVE && fov >= 179.0) ||
         (cam->type == SL_CAMERA_FISHEYE && fov > 360.0))
         return bad(c, "camera.fov", "is too wide (perspective < 179, fisheye <= 360 degrees)");
