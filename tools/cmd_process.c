@@ -123,8 +123,10 @@ int cmd_process(int argc, char **argv, const sl_cli *cli)
     sl_pipeline_result res;
     sl_error err;
     sl_result r = sl_pipeline_process(&o, &res, &err);
-    if (r)
+    if (r) {
+        sl_pipeline_result_free(&res); /* a run that could not go on still summed up */
         return cli_fail(cli, &err);
+    }
     for (char *line = res.failures; line && *line;) {
         char *end = strchr(line, '\n');
         fprintf(stderr, "setlight process: %.*s\n", (int)(end ? end - line : (long)strlen(line)),
