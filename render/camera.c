@@ -2,7 +2,8 @@
 /* Orthographic, perspective and equisolid fisheye cameras. Image right is
  * forward x up, so a camera looking along +Z with +Y up has -X on its right,
  * as a camera photographing a mirror ball does (core's SL_PROJ_MIRRORBALL). */
-#include "render_internal.h"
+#include "scene_internal.h"
+#include "vec3.h"
 
 void sl_camera_validation(sl_camera *cam, int width, int height, double ortho_width,
                           double azimuth_deg, double elevation_deg)

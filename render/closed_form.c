@@ -19,7 +19,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "closed_form.h"
+#include "irradiance.h"
+#include "scene_internal.h"
+#include "vec3.h"
 
 #define DEFAULT_TOLERANCE 1e-2
 

@@ -1,12 +1,13 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* Convergence reports: each sampling strategy rendered against one
  * reference, error per pass, a table and an SVG log-log plot. */
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "setlight/render.h"
 
 static const struct {
     const char *name;

@@ -6,7 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "scene_internal.h"
+#include "vec3.h"
 
 /* Radiance and (u,v) pdf side by side, so an escaped ray costs one cache
  * line. Both MIS techniques weight with this float pdf, so their weights

@@ -3,7 +3,11 @@
  * with BSDF sampling by the power heuristic; delta lobes are followed exactly
  * by BSDF sampling only. `bounces` counts the surfaces a path may hit after
  * its first non-delta vertex. */
-#include "render_internal.h"
+#include "closed_form.h"
+#include "integrator.h"
+#include "sampler.h"
+#include "scene_internal.h"
+#include "vec3.h"
 
 /* Delta (mirror) vertices allowed beyond the counted bounces. */
 #define MAX_DELTA_VERTICES 16

@@ -16,7 +16,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "irradiance.h"
+#include "vec3.h"
 
 /* Deepest split inside a texel (1/2^k of its width). */
 #define SUBTEXEL_DEPTH 8

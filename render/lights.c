@@ -6,7 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "scene_internal.h"
+#include "vec3.h"
 
 static double one_minus_cos_cone(double sin2)
 {

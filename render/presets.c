@@ -4,7 +4,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "setlight/render.h"
+#include "vec3.h"
 
 const char *sl_scene_preset_names(void) { return "grey chrome chart refs shadow materials"; }
 

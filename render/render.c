@@ -4,10 +4,13 @@
  * estimates the error of their mean. Each pixel's samples depend only on the
  * seed, the pixel and the sample index, so any thread count gives the same
  * bytes. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "closed_form.h"
+#include "integrator.h"
+#include "sampler.h"
 
 void sl_render_options_init(sl_render_options *o)
 {

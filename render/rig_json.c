@@ -9,7 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "setlight/render.h"
+#include "vec3.h"
 
 static void resolve(const char *rig, const char *file, char *out, size_t n)
 {

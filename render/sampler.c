@@ -4,7 +4,7 @@
  * Scrambling", JCGT 9(4), 2020), and PCG32 for independent random numbers. */
 #include <pthread.h>
 
-#include "render_internal.h"
+#include "sampler.h"
 
 uint64_t sl_hash64(uint64_t x)
 {

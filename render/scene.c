@@ -3,7 +3,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "scene_internal.h"
+#include "vec3.h"
 
 void sl_scene_init(sl_scene *scene)
 {

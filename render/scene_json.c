@@ -6,7 +6,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "setlight/render.h"
+#include "vec3.h"
 
 typedef struct ctx {
     const char *path;

@@ -3,7 +3,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "render_internal.h"
+#include "setlight/render.h"
 
 bool sl_scene_arg_is_file(const char *s)
 {

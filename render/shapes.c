@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* Ray intersection with the analytic shapes, in double precision. */
-#include "render_internal.h"
+#include "scene_internal.h"
+#include "vec3.h"
 
 void frame_from_normal(frame *f, const double n[3])
 {

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render_internal.h"
+#include "setlight/render.h"
 
 sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_options *o,
                                      const char *path, sl_error *err)

@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../render/render_internal.h"
+#include "../render/scene_internal.h"
 #include "rig_scenes.h"
 #include "setlight/render.h"
 #include "testing.h"

@@ -9,7 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../render/render_internal.h"
+#include "../../render/vec3.h"
+#include "setlight/render.h"
 #include "testing.h"
 
 static bool sanitized(void)

@@ -5,7 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../render/render_internal.h"
+#include "setlight/render.h"
 #include "testing.h"
 
 /* Sanitizer builds run about 20x slower: smaller images, same assertions. */

@@ -6,7 +6,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../render/render_internal.h"
+#include "../../render/irradiance.h"
+#include "../../render/sampler.h"
+#include "../../render/vec3.h"
 #include "testing.h"
 
 static void fill(sl_image *img, int w, float r, float g, float b)

@@ -5,7 +5,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../render/render_internal.h"
+#include "../../render/sampler.h"
+#include "../../render/scene_internal.h"
+#include "../../render/vec3.h"
 #include "testing.h"
 
 /* Sanitizer builds run about 20x slower: fewer pixels, same per-pixel checks. */

@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../render/render_internal.h"
+#include "setlight/render.h"
 #include "testing.h"
 
 static void sky(sl_image *env)

@@ -1,0 +1,24 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Closed-form irradiance from the dome with a proven bound (irradiance.c).
+ * Private to render/. */
+#ifndef SETLIGHT_RENDER_IRRADIANCE_H
+#define SETLIGHT_RENDER_IRRADIANCE_H
+
+#include <stdint.h>
+#include "setlight/render.h"
+
+typedef struct sl_irradiance sl_irradiance;
+typedef struct sl_irradiance_cost {
+    int64_t evaluations, cells; /* normals evaluated, lat-long cells visited */
+    int finest_level;           /* finest cell split to: mip level, < 0 inside a texel */
+} sl_irradiance_cost;
+/* Mip levels of the dome's exact cell sums (intensity and rotation kept). */
+sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error *err);
+void sl_irradiance_free(sl_irradiance *ir);
+int sl_irradiance_top_level(const sl_irradiance *ir);
+/* E[c] = integral of L max(0, n.w) dw for the world normal n, and bound[c]
+ * >= |E - exact| per channel, refined until bound <= tol x E (or no room). */
+void sl_irradiance_eval(const sl_irradiance *ir, const double n[3], double tol, double E[3],
+                        double bound[3], sl_irradiance_cost *cost);
+
+#endif
