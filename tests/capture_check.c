@@ -8,12 +8,6 @@
 
 #include "testing.h"
 
-bool cap_sanitized(void)
-{
-    const char *s = getenv("SETLIGHT_SANITIZED");
-    return s && *s && strcmp(s, "0");
-}
-
 /* The exterior (sky and sun) builds in half the time of the stage room: the
  * fault tests use it, the full capture the stage. */
 void cap_vopts(sl_virtual_camera_opts *o)
@@ -21,8 +15,8 @@ void cap_vopts(sl_virtual_camera_opts *o)
     memset(o, 0, sizeof *o);
     snprintf(o->scene, sizeof o->scene, "exterior");
     /* smaller frames under sanitizers, same assertions */
-    o->width = cap_sanitized() ? 160 : 240;
-    o->height = cap_sanitized() ? 112 : 160;
+    o->width = sl_test_sanitized() ? 160 : 240;
+    o->height = sl_test_sanitized() ? 112 : 160;
 }
 
 sl_camera *cap_open_virtual(const sl_virtual_camera_opts *o)

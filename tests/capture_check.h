@@ -10,8 +10,6 @@
 
 #include "setlight/vset.h"
 
-/* SETLIGHT_SANITIZED set: smaller frames, same assertions. */
-bool cap_sanitized(void);
 /* The exterior scene at 240 x 160 (160 x 112 under sanitizers), no faults. */
 void cap_vopts(sl_virtual_camera_opts *o);
 sl_camera *cap_open_virtual(const sl_virtual_camera_opts *o);

@@ -55,17 +55,12 @@ static void test_synthetic(void)
     detect_case(&f, "perspective chrome, off-centre, small", 0.5);
 }
 
-static bool sanitized(void)
-{
-    const char *san = getenv("SETLIGHT_SANITIZED");
-    return san && *san && strcmp(san, "0") != 0;
-}
 
 /* A ball filling its frame, the format most published probes come in: its
  * outline touches the four sides, only the corners hold background. */
 static void test_fill_frame(void)
 {
-    int largest = sanitized() ? 256 : 512;
+    int largest = sl_test_sanitized() ? 256 : 512;
     for (int n = 128; n <= largest; n *= 2)
         for (int clutter = 0; clutter < 2; clutter++) {
             ball_fixture f;
@@ -94,7 +89,7 @@ static void test_fill_frame(void)
  * ring, a clock face) and a second, smaller ball: the large ball is found. */
 static void test_round_clutter(void)
 {
-    if (sanitized())
+    if (sl_test_sanitized())
         return;
     ball_fixture f;
     ball_fixture_init(&f, 1200, 900);
@@ -159,7 +154,7 @@ static void test_real_probes(void)
                                   "probes/chromeball_iphone7/40.JPG",
                                   "probes/chromeball_iphone7/160.JPG"};
     /* Under sanitizers (slow) only the last, whole one. */
-    int first = sanitized() ? 2 : 0;
+    int first = sl_test_sanitized() ? 2 : 0;
     double r0 = 0.0;
     for (int i = first; i < 3; i++) {
         const char *path = sl_test_data(names[i]);

@@ -100,7 +100,7 @@ static const char *const photos[] = {
 static void test_real_photos(void)
 {
     int n = (int)(sizeof(photos) / sizeof(photos[0]));
-    if (getenv("SETLIGHT_SANITIZED"))
+    if (sl_test_sanitized())
         n = 2; /* mcc under sanitizers is slow: the first two photos */
     for (int i = 0; i < n; i++) {
         const char *path = sl_test_data(photos[i]);

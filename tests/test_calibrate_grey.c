@@ -32,7 +32,7 @@ static int render_photo(const sl_image *env, int n, int64_t spp, sl_image *out)
 
 static void test_stage(void)
 {
-    bool san = getenv("SETLIGHT_SANITIZED") != NULL;
+    bool san = sl_test_sanitized();
     /* The error measured includes the render noise of both spheres. */
     int n = san ? 32 : 64;
     int64_t spp = san ? 256 : 512;
@@ -139,7 +139,7 @@ static int render_pinhole(const sl_image *env, int w, double d, double r, int64_
  * is off by the lens's perspective, the pinhole fit recovers 1. */
 static void test_perspective(void)
 {
-    bool san = getenv("SETLIGHT_SANITIZED") != NULL;
+    bool san = sl_test_sanitized();
     int w = san ? 40 : 64;
     double r = 0.4 * w;
     int64_t spp = san ? 128 : 512;

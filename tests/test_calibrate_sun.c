@@ -54,7 +54,7 @@ static void integral(const sl_image *img, double out[3])
 
 static void test_exterior(void)
 {
-    bool san = getenv("SETLIGHT_SANITIZED") != NULL;
+    bool san = sl_test_sanitized();
     int w = san ? 128 : 256, n = san ? 32 : 48;
     int64_t spp = san ? 64 : 128;
     sl_error err;

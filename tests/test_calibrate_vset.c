@@ -74,7 +74,7 @@ static void apply(sl_image *img, const double m[3][3])
 
 static void test_stage(void)
 {
-    bool san = getenv("SETLIGHT_SANITIZED") != NULL;
+    bool san = sl_test_sanitized();
     int cw = san ? 120 : 180, n = san ? 48 : 64;
     int64_t spp = san ? 128 : 256;
     sl_error err;

@@ -8,7 +8,6 @@
 #include "setlight/stitch.h"
 #include "testing.h"
 
-static bool sanitized(void) { return getenv("SETLIGHT_SANITIZED") != NULL; }
 
 static mf_bracket bracket(int frames, double stops, mf_curve curve, int bits, const char *ext)
 {
@@ -436,7 +435,7 @@ static void real_case(const char *name, const char *const *paths, int n, const d
 
 static void test_real_brackets(void)
 {
-    if (sanitized()) {
+    if (sl_test_sanitized()) {
         sl_test_skip("real brackets under sanitizers (too slow)");
         return;
     }

@@ -23,8 +23,8 @@ typedef struct blob {
 
 /* Smaller frames under sanitizers (same assertions; the still bracket's
  * dark frames need two thirds of the size to keep enough usable pixels). */
-static int size(int full) { return getenv("SETLIGHT_SANITIZED") ? full / 2 : full; }
-static int size_still(int full) { return getenv("SETLIGHT_SANITIZED") ? full * 2 / 3 : full; }
+static int size(int full) { return sl_test_sanitized() ? full / 2 : full; }
+static int size_still(int full) { return sl_test_sanitized() ? full * 2 / 3 : full; }
 
 
 static double gauss(uint64_t *s)
@@ -396,7 +396,7 @@ static void measure_real(const char *dir, const char *name, const char *const *f
 
 static void test_real_brackets(void)
 {
-    if (getenv("SETLIGHT_SANITIZED")) {
+    if (sl_test_sanitized()) {
         sl_test_skip("real brackets under sanitizers (too slow)");
         return;
     }

@@ -11,7 +11,6 @@
 #include "testing.h"
 #include "vset_bracket.h"
 
-static bool sanitized(void) { return getenv("SETLIGHT_SANITIZED") != NULL; }
 
 /* Pixels whose clipped flag differs from the truth's, away from the
  * noise margin of the saturation threshold. */
@@ -429,7 +428,7 @@ static void run_scenes(bool jpeg, mode md)
 {
     static const char *const scenes[] = {"exterior", "stage", "night"};
     for (int i = 0; i < 3; i++) {
-        if (sanitized() && strcmp(scenes[i], "exterior") != 0)
+        if (sl_test_sanitized() && strcmp(scenes[i], "exterior") != 0)
             continue;
         scene_case(scenes[i], 7, 3, jpeg, md);
         scene_case(scenes[i], 5, 2, jpeg, md);
@@ -560,7 +559,7 @@ static void test_absolute(void)
 {
     absolute_case("exterior", 7, 3, 0);
     absolute_case("exterior", 5, 2, 2);
-    if (!sanitized()) {
+    if (!sl_test_sanitized()) {
         absolute_case("stage", 7, 3, 0);
         absolute_case("night", 5, 2, -1);
     }

@@ -341,8 +341,7 @@ static bool ledger_one(const char *path, const char *name)
     }
     /* Area-weighted shrinking (to 512 wide, 256 under sanitizers) keeps the
      * energy; the ledger is about the rig, not the resolution. */
-    const char *san = getenv("SETLIGHT_SANITIZED");
-    int maxw = san && *san == '1' ? 256 : 512;
+    int maxw = sl_test_sanitized() ? 256 : 512;
     const sl_image *use = &img;
     if (img.width > maxw) {
         CHECK_OK(sl_image_resample(&img, maxw, maxw / 2, &small, &err), &err);

@@ -36,7 +36,7 @@ static void write_rig(const sl_image *env, sl_rig_method method, int max_lights,
 
 int main(void)
 {
-    if (getenv("SETLIGHT_SANITIZED"))
+    if (sl_test_sanitized())
         W = 16, SPP = 512;
     sl_image env;
     CHECK_OK(sl_image_alloc(&env, 256, 128, 3, NULL), NULL);

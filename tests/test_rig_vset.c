@@ -176,7 +176,7 @@ static void test_night(void) { run_scene("night", W_UNRESOLVED, worst); }
 
 int main(void)
 {
-    if (getenv("SETLIGHT_SANITIZED")) {
+    if (sl_test_sanitized()) {
         W_UNRESOLVED = 512;
         /* fewer pixels, not fewer samples: at 256 spp the grey sphere's noise
          * alone is 1.2%, above the 1% the test asserts */

@@ -84,7 +84,7 @@ static void view_fixture(ball_fixture *f, const sl_image *env, double azimuth)
     f->balls[0].py = 120;
     f->balls[0].distance = 5.0;
     f->azimuth_deg = azimuth;
-    f->ss = getenv("SETLIGHT_SANITIZED") ? 2 : 3; /* sanitizers: a quicker render */
+    f->ss = sl_test_sanitized() ? 2 : 3; /* sanitizers: a quicker render */
     f->env = env;
     sl_reflectance_chrome(&f->reflectance);
 }
@@ -191,7 +191,7 @@ static void test_patch_reflectance(void)
     f.balls[0].px = 170;
     f.balls[0].py = 115;
     f.balls[0].distance = 6.0;
-    f.ss = getenv("SETLIGHT_SANITIZED") ? 2 : 3;
+    f.ss = sl_test_sanitized() ? 2 : 3;
     sl_reflectance_constant(&f.reflectance, 0.62, 0.55, 0.41);
     sl_image photo = {0}, out = {0}, truth = {0}, truth4 = {0};
     sl_error err;

@@ -82,6 +82,19 @@ const char *sl_test_data(const char *relative)
     return b;
 }
 
+bool sl_test_sanitized(void)
+{
+#if defined(__SANITIZE_ADDRESS__)
+    return true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+    return true;
+#endif
+#endif
+    const char *s = getenv("SETLIGHT_SANITIZED");
+    return s && *s && strcmp(s, "0") != 0;
+}
+
 bool sl_test_file_exists(const char *path)
 {
     struct stat st;

@@ -80,6 +80,9 @@ const char *sl_test_path(const char *name);
 /* Path under ../shared/data, or NULL (and a "skip" line) when absent. */
 const char *sl_test_data(const char *relative);
 void sl_test_skip(const char *what);
+/* Built with AddressSanitizer or run with SETLIGHT_SANITIZED set (not "0"):
+ * tests then use smaller sizes (same assertions) or skip what is too slow. */
+bool sl_test_sanitized(void);
 bool sl_test_file_exists(const char *path);
 /* Number of entries in a folder other than . and .. (-1 if it cannot be read). */
 int sl_test_count_files(const char *dir);

@@ -13,15 +13,6 @@
 #include "setlight/render.h"
 #include "testing.h"
 
-static bool sanitized(void)
-{
-#if defined(__SANITIZE_ADDRESS__)
-    return true;
-#else
-    const char *s = getenv("SETLIGHT_SANITIZED");
-    return s && *s && strcmp(s, "0");
-#endif
-}
 
 /* Smooth sky, a sun 1e4 in two texels and a dark ground: sampling's worst case. */
 static void sun_sky(sl_image *env, int w)
@@ -222,8 +213,8 @@ static void test_real_hdri_goal(void)
     closedir(d);
     qsort(names, (size_t)count, sizeof names[0], (int (*)(const void *, const void *))strcmp);
     /* Sanitizers run ~20x slower: two maps, fewer pixels; the same bound. */
-    int stride = sanitized() ? 12 : 7, tested = 0;
-    if (sanitized() && count > 2)
+    int stride = sl_test_sanitized() ? 12 : 7, tested = 0;
+    if (sl_test_sanitized() && count > 2)
         count = 2;
     double worst = 0;
     for (int i = 0; i < count; i++) {
@@ -306,7 +297,7 @@ static void agree(const char *preset, int width, bool centres, int64_t spp, doub
 
 static void test_agrees_with_sampling(void)
 {
-    int64_t spp = sanitized() ? 1024 : 4096;
+    int64_t spp = sl_test_sanitized() ? 1024 : 4096;
     agree("grey", 24, false, spp, 0);
     agree("grey", 24, true, spp, 0);
     agree("grey", 24, true, spp, 90); /* the sun moves to the ball's side */
