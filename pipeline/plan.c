@@ -107,6 +107,23 @@ static void report_on(json_t *report_deps, json_t *report_in, const json_t *job,
     json_array_append(report_in, json_array_get(json_object_get(job, "outputs"), result));
 }
 
+/* A stage job whose outputs are its image and its result
+ * (DIR/STAGE/STAGE.result.json, what --json prints); the report reads the
+ * result. cmd, inputs, deps: new references taken. */
+static json_t *add_stage_job(const setup_plan *sp, json_t *jobs, const char *out,
+                             const char *jobs_path, json_t *report_deps, json_t *report_in,
+                             const char *stage, const char *image, json_t *cmd, json_t *inputs,
+                             json_t *deps, int base_mb)
+{
+    extend_new(cmd, strs("--json", "--threads", "1", NULL));
+    json_t *outs = strs(image, NULL);
+    push(outs, "%s/%s/%s.result.json", sp->dir, stage, stage);
+    json_t *job = add_job(jobs, out, jobs_path, sp->name, stage, -1, NULL, cmd, inputs, outs,
+                          deps, base_mb, 8);
+    report_on(report_deps, report_in, job, 1);
+    return job;
+}
+
 /* The setup's graph. Every command runs single-threaded (--threads 1): the
  * parallelism is across jobs, and the keys do not depend on the machine. */
 static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char *jobs_path)
@@ -170,34 +187,24 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
     json_t *cmd = strs(exe, "stitch", "-o", hdri, NULL), *in = json_array();
     for (size_t i = 0; i < json_array_size(stitch_in); i += 2)
         json_array_append(cmd, json_array_get(stitch_in, i));
-    extend_new(cmd, strs("--json", "--threads", "1", NULL));
     json_array_extend(in, stitch_in);
-    json_t *outs = json_array();
-    push(outs, "%s", hdri);
-    push(outs, "%s/stitch/stitch.result.json", d);
-    json_t *stitch = add_job(jobs, out, jobs_path, s, "stitch", -1, NULL, cmd, in, outs,
-                             view_deps, 200, 8);
-    report_on(report_deps, report_in, stitch, 1);
+    json_t *stitch = add_stage_job(sp, jobs, out, jobs_path, report_deps, report_in, "stitch",
+                                   hdri, cmd, in, view_deps, 200);
     json_decref(stitch_in);
 
     if (chrome >= 0) {
-        cmd = strs(exe, "unwrap", "-o", NULL);
-        push(cmd, "%s/unwrap/chrome.exr", d);
+        char unwrapped[2 * PATH_MAX], dep[600];
+        snprintf(unwrapped, sizeof unwrapped, "%s/unwrap/chrome.exr", d);
+        cmd = strs(exe, "unwrap", "-o", unwrapped, NULL);
         push(cmd, "%s/merge/%d.exr", d, chrome);
         extend_new(cmd, strs("--camera-azimuth", az, "--camera-elevation", el, NULL));
         if (lens)
             extend_new(cmd, strs("--focal-mm", focal, "--sensor-mm", sensor, NULL));
-        extend_new(cmd, strs("--json", "--threads", "1", NULL));
         in = json_array();
         push(in, "%s/merge/%d.exr", d, chrome);
-        outs = json_array();
-        push(outs, "%s/unwrap/chrome.exr", d);
-        push(outs, "%s/unwrap/unwrap.result.json", d);
-        char dep[600];
         snprintf(dep, sizeof dep, "%s/merge/%d", s, chrome);
-        json_t *job = add_job(jobs, out, jobs_path, s, "unwrap", -1, NULL, cmd, in, outs,
-                              strs(dep, NULL), 160, 8);
-        report_on(report_deps, report_in, job, 1);
+        add_stage_job(sp, jobs, out, jobs_path, report_deps, report_in, "unwrap", unwrapped, cmd,
+                      in, strs(dep, NULL), 160);
     }
 
     snprintf(env, sizeof env, "%s", hdri);
@@ -226,13 +233,8 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
             snprintf(dep, sizeof dep, "%s/merge/%d", s, grey);
             json_array_append_new(deps, json_string(dep));
         }
-        extend_new(cmd, strs("--json", "--threads", "1", NULL));
-        outs = json_array();
-        push(outs, "%s", env);
-        push(outs, "%s/calibrate/calibrate.result.json", d);
-        json_t *job = add_job(jobs, out, jobs_path, s, "calibrate", -1, NULL, cmd, in, outs,
-                              deps, 220, 8);
-        report_on(report_deps, report_in, job, 1);
+        json_t *job = add_stage_job(sp, jobs, out, jobs_path, report_deps, report_in,
+                                    "calibrate", env, cmd, in, deps, 220);
         json_decref(env_dep);
         env_dep = json_string(id_of(job));
     }
@@ -245,7 +247,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
     push(cmd, "--preview");
     push(cmd, "%s/rig/preview.png", d);
     extend_new(cmd, strs("--threads", "1", NULL));
-    outs = strs(rig, rig_json, residual, NULL);
+    json_t *outs = strs(rig, rig_json, residual, NULL);
     push(outs, "%s/rig/preview.png", d);
     push(outs, "%s/rig/rig.result.json", d);
     json_t *rig_job = add_job(jobs, out, jobs_path, s, "rig", -1, NULL, cmd, strs(env, NULL),
