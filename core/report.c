@@ -14,50 +14,19 @@
 struct sl_report {
     char dir[2048];
     char name[256];
-    char *html;
-    size_t len, cap;
-    bool failed; /* out of memory while building: finish reports it */
+    sl_text html; /* html.failed: out of memory while building, finish reports it */
     int table_columns;
     size_t top;       /* where the summary goes: after the title and intro */
     size_t top_start; /* start of the summary being written, or SIZE_MAX */
     bool sectioned;   /* a section has begun: the summary's place is fixed */
 };
 
-static void append(sl_report *rep, const char *s, size_t n)
-{
-    if (rep->failed)
-        return;
-    if (rep->len + n + 1 > rep->cap) {
-        size_t cap = rep->cap ? rep->cap : 4096;
-        while (cap < rep->len + n + 1)
-            cap *= 2;
-        char *grown = realloc(rep->html, cap);
-        if (!grown) {
-            rep->failed = true;
-            return;
-        }
-        rep->html = grown;
-        rep->cap = cap;
-    }
-    memcpy(rep->html + rep->len, s, n);
-    rep->len += n;
-    rep->html[rep->len] = 0;
-}
+static void append(sl_report *rep, const char *s, size_t n) { sl_text_add(&rep->html, s, n); }
 
 /* lit must be a string literal (the "" makes anything else a compile error). */
 #define append_lit(rep, lit) append((rep), "" lit, sizeof("" lit) - 1)
 
-static void appendf(sl_report *rep, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static void appendf(sl_report *rep, const char *fmt, ...)
-{
-    char buf[4096];
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(buf, sizeof buf, fmt, ap);
-    va_end(ap);
-    if (n > 0)
-        append(rep, buf, (size_t)n < sizeof buf ? (size_t)n : sizeof buf - 1);
-}
+#define appendf(rep, ...) ((void)sl_text_printf(&(rep)->html, __VA_ARGS__))
 
 static void append_escaped(sl_report *rep, const char *s)
 {
@@ -93,9 +62,9 @@ sl_result sl_report_new(sl_report **out, const char *dir, const char *name, cons
     append(rep, head2, sizeof head2 - 1);
     append_escaped(rep, title);
     append_lit(rep, "</h1>\n");
-    rep->top = rep->len;
+    rep->top = rep->html.len;
     rep->top_start = SIZE_MAX;
-    if (rep->failed) {
+    if (rep->html.failed) {
         sl_report_free(rep);
         return sl_error_set(err, SL_ERR_NOMEM, "out of memory for a report");
     }
@@ -107,7 +76,7 @@ void sl_report_free(sl_report *rep)
 {
     if (!rep)
         return;
-    free(rep->html);
+    sl_text_free(&rep->html);
     free(rep);
 }
 
@@ -116,32 +85,32 @@ sl_result sl_report_finish(sl_report *rep, sl_error *err)
     static const char tail[] = "</body></html>\n";
     append(rep, tail, sizeof tail - 1);
     sl_result r;
-    if (rep->failed)
+    if (rep->html.failed)
         r = sl_error_set(err, SL_ERR_NOMEM, "out of memory while building the report");
     else {
         char path[4096];
         snprintf(path, sizeof path, "%s/%s.html", rep->dir, rep->name);
-        r = sl_write_file_atomic(path, rep->html, rep->len, err);
+        r = sl_write_file_atomic(path, rep->html.s, rep->html.len, err);
     }
     sl_report_free(rep);
     return r;
 }
 
-void sl_report_top_begin(sl_report *rep) { rep->top_start = rep->len; }
+void sl_report_top_begin(sl_report *rep) { rep->top_start = rep->html.len; }
 
 void sl_report_top_end(sl_report *rep)
 {
-    if (rep->failed || rep->top_start == SIZE_MAX || rep->top_start < rep->top)
+    if (rep->html.failed || rep->top_start == SIZE_MAX || rep->top_start < rep->top)
         return;
-    size_t n = rep->len - rep->top_start;
+    size_t n = rep->html.len - rep->top_start;
     char *chunk = malloc(n + 1);
     if (!chunk) {
-        rep->failed = true;
+        rep->html.failed = true;
         return;
     }
-    memcpy(chunk, rep->html + rep->top_start, n);
-    memmove(rep->html + rep->top + n, rep->html + rep->top, rep->top_start - rep->top);
-    memcpy(rep->html + rep->top, chunk, n);
+    memcpy(chunk, rep->html.s + rep->top_start, n);
+    memmove(rep->html.s + rep->top + n, rep->html.s + rep->top, rep->top_start - rep->top);
+    memcpy(rep->html.s + rep->top, chunk, n);
     free(chunk);
     rep->top += n;
     rep->top_start = SIZE_MAX;
@@ -151,7 +120,7 @@ void sl_report_section(sl_report *rep, const char *title)
 {
     /* the summary goes after the title and the text before the first section */
     if (!rep->sectioned && rep->top_start == SIZE_MAX)
-        rep->top = rep->len;
+        rep->top = rep->html.len;
     rep->sectioned = true;
     append_lit(rep, "<h2>");
     append_escaped(rep, title);
@@ -340,9 +309,9 @@ static void svg_build(sl_report *svg, const char *title, const char *xlabel, con
 /* Writes a built SVG atomically and frees it. */
 static sl_result svg_write(sl_report *svg, const char *path, sl_error *err)
 {
-    sl_result r = svg->failed ? sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path)
-                              : sl_write_file_atomic(path, svg->html, svg->len, err);
-    free(svg->html);
+    sl_result r = svg->html.failed ? sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path)
+                                   : sl_write_file_atomic(path, svg->html.s, svg->html.len, err);
+    sl_text_free(&svg->html);
     return r;
 }
 

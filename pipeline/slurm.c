@@ -48,71 +48,20 @@ const char *sl_pipeline_slurm_end_name(sl_pipeline_slurm_end end)
 /* Running a command                                                   */
 /* ------------------------------------------------------------------ */
 
-typedef struct text {
-    char *s;
-    size_t len, cap;
-} text;
-
-static bool text_add(text *t, const char *s, size_t n)
-{
-    if (t->len + n + 1 > t->cap) {
-        size_t cap = t->cap ? t->cap : 256;
-        while (cap < t->len + n + 1)
-            cap *= 2;
-        char *p = realloc(t->s, cap);
-        if (!p)
-            return false;
-        t->s = p;
-        t->cap = cap;
-    }
-    memcpy(t->s + t->len, s, n);
-    t->len += n;
-    t->s[t->len] = '\0';
-    return true;
-}
-
-static bool text_printf(text *t, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-static bool text_printf(text *t, const char *fmt, ...)
-{
-    char buf[1024];
-    va_list ap;
-    va_start(ap, fmt);
-    int n = vsnprintf(buf, sizeof buf, fmt, ap);
-    va_end(ap);
-    if (n < 0)
-        return false;
-    if ((size_t)n < sizeof buf)
-        return text_add(t, buf, (size_t)n);
-    char *big = malloc((size_t)n + 1);
-    if (!big)
-        return false;
-    va_start(ap, fmt);
-    vsnprintf(big, (size_t)n + 1, fmt, ap);
-    va_end(ap);
-    bool ok = text_add(t, big, (size_t)n);
-    free(big);
-    return ok;
-}
-
-static bool text_add_str(text *t, const char *s)
-{
-    return text_add(t, s, strlen(s));
-}
-
 /* The shell word for s: single-quoted, ' as '\''. */
-static bool text_add_quoted(text *t, const char *s)
+static bool text_add_quoted(sl_text *t, const char *s)
 {
-    if (!text_add_str(t, "'"))
+    if (!sl_text_add_str(t, "'"))
         return false;
     for (const char *p = s; *p; p++) {
         if (*p == '\'') {
-            if (!text_add_str(t, "'\\''"))
+            if (!sl_text_add_str(t, "'\\''"))
                 return false;
-        } else if (!text_add(t, p, 1)) {
+        } else if (!sl_text_add(t, p, 1)) {
             return false;
         }
     }
-    return text_add_str(t, "'");
+    return sl_text_add_str(t, "'");
 }
 
 /* The first line of s (at most 300 characters), for a one-line message. */
@@ -144,7 +93,7 @@ static sl_result run_command(char *const argv[], const char *input, char **out, 
                              int *status, sl_error *err)
 {
     int in_pipe[2] = {-1, -1}, out_pipe[2] = {-1, -1}, err_pipe[2] = {-1, -1};
-    text o = {0}, e = {0};
+    sl_text o = {0}, e = {0};
     *out = *errout = NULL;
     if (pipe2(in_pipe, O_CLOEXEC) || pipe2(out_pipe, O_CLOEXEC) || pipe2(err_pipe, O_CLOEXEC)) {
         sl_error_set(err, SL_ERR_IO, "%s: cannot make a pipe: %s", argv[0], strerror(errno));
@@ -217,7 +166,7 @@ static sl_result run_command(char *const argv[], const char *input, char **out, 
             char buf[4096];
             ssize_t n = read(*fd, buf, sizeof buf);
             if (n > 0) {
-                if (!text_add(k == 1 ? &o : &e, buf, (size_t)n)) {
+                if (!sl_text_add(k == 1 ? &o : &e, buf, (size_t)n)) {
                     nomem = true;
                     kill(pid, SIGKILL);
                     close(*fd);
@@ -540,29 +489,29 @@ static sl_result plan_batches(graph *g, sl_error *err)
 /* Submission                                                          */
 /* ------------------------------------------------------------------ */
 
-static bool add_command_line(text *t, const job *j)
+static bool add_command_line(sl_text *t, const job *j)
 {
-    bool ok = text_add_str(t, "exec");
+    bool ok = sl_text_add_str(t, "exec");
     for (size_t k = 0; k < json_array_size(j->argv) && ok; k++)
-        ok = text_add_str(t, " ") && text_add_quoted(t, json_string_value(json_array_get(j->argv, k)));
+        ok = sl_text_add_str(t, " ") && text_add_quoted(t, json_string_value(json_array_get(j->argv, k)));
     return ok;
 }
 
 /* The batch script: the job's command line; for an array, a case on
  * SLURM_ARRAY_TASK_ID with each task's output sent to its own log. */
-static bool batch_script(const graph *g, const batch *b, text *t)
+static bool batch_script(const graph *g, const batch *b, sl_text *t)
 {
-    bool ok = text_printf(t, "#!/bin/sh\n# setlight: %s of %s\n",
+    bool ok = sl_text_printf(t, "#!/bin/sh\n# setlight: %s of %s\n",
                           b->array ? g->jobs[b->first].array : g->jobs[b->first].id, g->path);
     if (!b->array)
-        return ok && add_command_line(t, &g->jobs[b->first]) && text_add_str(t, "\n");
-    ok = ok && text_add_str(t, "case \"$SLURM_ARRAY_TASK_ID\" in\n");
+        return ok && add_command_line(t, &g->jobs[b->first]) && sl_text_add_str(t, "\n");
+    ok = ok && sl_text_add_str(t, "case \"$SLURM_ARRAY_TASK_ID\" in\n");
     for (int m = 0; m < b->count && ok; m++) {
         const job *j = &g->jobs[b->members[m]];
-        ok = text_printf(t, "%d) ", m) && add_command_line(t, j) && text_add_str(t, " >") &&
-             text_add_quoted(t, j->log) && text_add_str(t, " 2>&1 ;;\n");
+        ok = sl_text_printf(t, "%d) ", m) && add_command_line(t, j) && sl_text_add_str(t, " >") &&
+             text_add_quoted(t, j->log) && sl_text_add_str(t, " 2>&1 ;;\n");
     }
-    return ok && text_add_str(t, "esac\necho \"no task $SLURM_ARRAY_TASK_ID in this array\" >&2\n"
+    return ok && sl_text_add_str(t, "esac\necho \"no task $SLURM_ARRAY_TASK_ID in this array\" >&2\n"
                                  "exit 1\n");
 }
 
@@ -616,7 +565,7 @@ static sl_result submit_batch(graph *g, int bi, const sl_pipeline_slurm_options 
         if (j->cpus > cpus)
             cpus = j->cpus;
     }
-    text dep = {0}, script = {0};
+    sl_text dep = {0}, script = {0};
     char *args[16];
     char name[600], output[4200], chdir_arg[4200], mem[48], ncpu[48], part[300], array[48];
     int n = 0;
@@ -649,7 +598,7 @@ static sl_result submit_batch(graph *g, int bi, const sl_pipeline_slurm_options 
     for (int d = 0; d < nd && ok; d++) {
         char s[48];
         slurm_name(g, &g->jobs[deps[d]], s, sizeof s);
-        ok = text_add_str(&dep, d ? ":" : "--dependency=afterok:") && text_add_str(&dep, s);
+        ok = sl_text_add_str(&dep, d ? ":" : "--dependency=afterok:") && sl_text_add_str(&dep, s);
     }
     free(deps);
     if (nd > 0 && ok)
@@ -841,7 +790,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
     sl_result r = SL_OK;
     for (;;) {
         /* squeue -j of the batches with a job still running */
-        text ids = {0};
+        sl_text ids = {0};
         bool ok = true;
         int left = 0;
         for (int b = 0; b < g->batch_count && ok; b++) {
@@ -849,7 +798,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
             for (int m = 0; m < g->batches[b].count; m++)
                 open |= !g->jobs[g->batches[b].members[m]].done;
             if (open)
-                ok = text_printf(&ids, "%s%ld", ids.len ? "," : "", g->batches[b].slurm_id);
+                ok = sl_text_printf(&ids, "%s%ld", ids.len ? "," : "", g->batches[b].slurm_id);
             left += open;
         }
         if (!ok) {
@@ -881,13 +830,13 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
             free(errout);
             out = errout = NULL;
             status = 0;
-            text rows = {0};
+            sl_text rows = {0};
             for (char *id = strtok(ids.s, ","); id && r == SL_OK; id = strtok(NULL, ",")) {
                 char *one = NULL, *one_err = NULL;
                 int one_status = 0;
                 r = squeue_rows(o, id, &one, &one_err, &one_status, err);
                 if (r == SL_OK && WIFEXITED(one_status) && WEXITSTATUS(one_status) == 0 && one &&
-                    !text_printf(&rows, "%s", one))
+                    !sl_text_printf(&rows, "%s", one))
                     r = sl_error_set(err, SL_ERR_NOMEM, "out of memory");
                 free(one);
                 free(one_err);

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* core's small shared helpers: JSON file load and atomic write, luminance,
- * cmp_double, splitmix64, compensated sums, conductor Fresnel. */
+ * cmp_double, splitmix64, compensated sums, conductor Fresnel, sl_text. */
 #include <complex.h>
 #include <jansson.h>
 #include <math.h>
@@ -140,6 +140,26 @@ static void test_fresnel_conductor(void)
     CHECK(sl_fresnel_conductor(1.5, 3.1, 3.3) == sl_fresnel_conductor(1.0, 3.1, 3.3));
 }
 
+static void test_text(void)
+{
+    sl_text t = {0};
+    CHECK(sl_text_add(&t, "ab", 2) && sl_text_add_str(&t, "c") &&
+          sl_text_printf(&t, "%d-%s", 42, "x"));
+    CHECK(t.len == 7 && !strcmp(t.s, "abc42-x"));
+    /* Longer than any stack buffer a formatter could use: nothing cut. */
+    char word[5001];
+    memset(word, 'w', sizeof word - 1);
+    word[sizeof word - 1] = 0;
+    CHECK(sl_text_printf(&t, "[%s]", word));
+    CHECK(t.len == 7 + 5002 && strlen(t.s) == t.len && t.s[7] == '[' && t.s[t.len - 1] == ']');
+    /* A failed text (out of memory) refuses every later append, keeping what it has. */
+    t.failed = true;
+    CHECK(!sl_text_add_str(&t, "more") && !sl_text_printf(&t, "%d", 1));
+    CHECK(t.len == 7 + 5002);
+    sl_text_free(&t);
+    CHECK(!t.s && !t.len && !t.failed);
+}
+
 int main(void)
 {
     RUN(test_json_files);
@@ -148,5 +168,6 @@ int main(void)
     RUN(test_splitmix64);
     RUN(test_ksum);
     RUN(test_fresnel_conductor);
+    RUN(test_text);
     return sl_test_finish();
 }

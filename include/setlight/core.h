@@ -789,6 +789,25 @@ double sl_distrib2d_pdf(const sl_distrib2d *d, double u, double v);
 double sl_chi2_pvalue(double stat, int dof);
 
 /* ------------------------------------------------------------------ */
+/* Text built piece by piece                                           */
+/* ------------------------------------------------------------------ */
+
+/* A growing NUL-terminated string; {0} is empty (s NULL until the first
+ * append). Out of memory sets `failed`, keeps what was there, and makes
+ * every later append fail: check once at the end. */
+typedef struct sl_text {
+    char *s;
+    size_t len, cap;
+    bool failed;
+} sl_text;
+
+/* Each returns false when the text has failed. */
+bool sl_text_add(sl_text *t, const char *s, size_t n);
+bool sl_text_add_str(sl_text *t, const char *s);
+bool sl_text_printf(sl_text *t, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+void sl_text_free(sl_text *t);
+
+/* ------------------------------------------------------------------ */
 /* Reports: one HTML page with PNG images and SVG plots                */
 /* ------------------------------------------------------------------ */
 
