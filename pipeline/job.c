@@ -11,6 +11,7 @@
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "pipeline_private.h"
@@ -190,9 +191,51 @@ sl_result pl_index_prepare(const json_t *graph, sl_error *err)
     return r;
 }
 
+double pl_epoch_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+double pl_runqueue_wait_seconds(pid_t pid)
+{
+    char path[64];
+    if (pid)
+        snprintf(path, sizeof path, "/proc/%d/schedstat", (int)pid);
+    else
+        snprintf(path, sizeof path, "/proc/self/schedstat");
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return 0;
+    unsigned long long run_ns = 0, wait_ns = 0;
+    int n = fscanf(f, "%llu %llu", &run_ns, &wait_ns);
+    fclose(f);
+    return n == 2 ? 1e-9 * (double)wait_ns : 0;
+}
+
+/* This process's own peak resident memory (VmHWM), in MB. Not getrusage's
+ * ru_maxrss: a process started by posix_spawn inherits in it the peak of
+ * the process that spawned it (the runner), whose memory it shared until
+ * its exec. */
+static double own_peak_rss_mb(void)
+{
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f)
+        return 0;
+    char line[256];
+    double kb = 0;
+    while (fgets(line, sizeof line, f))
+        if (sscanf(line, "VmHWM: %lf", &kb) == 1)
+            break;
+    fclose(f);
+    return kb / 1024.0;
+}
+
 sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
                               bool *skipped, sl_error *err)
 {
+    double started = pl_epoch_seconds();
     *exit_code = 0;
     *skipped = false;
     json_t *graph = NULL;
@@ -258,11 +301,14 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     int status = 0;
     struct rusage ru;
     memset(&ru, 0, sizeof ru);
+    siginfo_t info;
+    while (waitid(P_PID, (id_t)pid, &info, WEXITED | WNOWAIT) < 0 && errno == EINTR) {
+    }
+    double cpu_wait = pl_runqueue_wait_seconds(pid); /* readable until the child is reaped */
     while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR) {
     }
     double wall = sl_seconds() - t0;
-    double cpu = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
-                 (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
+    double cpu = pl_cpu_seconds(&ru);
     *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     char message[2048] = "";
     if (!*exit_code && result && rename(partial, result))
@@ -286,9 +332,12 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     }
     if (*exit_code && !message[0])
         last_line(log, message, sizeof message);
-    json_t *st = json_pack("{s:s,s:s,s:s,s:i,s:f,s:f,s:f,s:o}", "id", id, "key", key, "status",
-                           *exit_code ? "failed" : "ok", "exit", *exit_code, "seconds", wall,
-                           "cpu_seconds", cpu, "max_rss_mb", (double)ru.ru_maxrss / 1024.0,
+    cpu_wait += pl_runqueue_wait_seconds(0); /* and this process's own */
+    json_t *st = json_pack("{s:s,s:s,s:s,s:i,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:o}", "id", id, "key",
+                           key, "status", *exit_code ? "failed" : "ok", "exit", *exit_code,
+                           "seconds", wall, "cpu_seconds", cpu, "cpu_wait_seconds", cpu_wait,
+                           "max_rss_mb", (double)ru.ru_maxrss / 1024.0, "job_max_rss_mb",
+                           own_peak_rss_mb(), "started", started, "ended", pl_epoch_seconds(),
                            "outputs", outs);
     if (*exit_code)
         json_object_set_new(st, "message", json_string(message));
