@@ -44,6 +44,7 @@ int main(int argc, char **argv)
     sl_pipeline_slurm_options o;
     sl_pipeline_slurm_options_init(&o);
     o.poll_seconds = 0.1;
+    o.poll_max_seconds = 0.1; /* Slurm's latency, not the poll's */
     sl_pipeline_slurm_result res;
     sl_error err = {0};
     if (argc == 3 && strcmp(argv[1], "--run") == 0) {

@@ -6,6 +6,7 @@
 #include <spawn.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -82,6 +83,8 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
     int parallel = o->jobs > 0 ? o->jobs : (int)sysconf(_SC_NPROCESSORS_ONLN);
     if (parallel < 1)
         parallel = 1;
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    res->slots = cores > 0 && cores < parallel ? (int)cores : parallel;
     long budget = o->memory_mb;
     if (budget <= 0)
         budget = (long)(sysconf(_SC_PHYS_PAGES) / 2 * (sysconf(_SC_PAGESIZE) / 1024) / 1024);
@@ -158,7 +161,8 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
             break;
         }
         int st;
-        pid_t pid = waitpid(-1, &st, 0);
+        struct rusage ru;
+        pid_t pid = wait4(-1, &st, 0, &ru);
         if (pid < 0) {
             if (errno == EINTR)
                 continue;
@@ -169,6 +173,7 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
             if (js[i].state == J_RUNNING && js[i].pid == pid) {
                 running--;
                 used_mb -= js[i].memory_mb;
+                res->job_process_cpu_seconds += pl_cpu_seconds(&ru);
                 done++;
                 if (o->progress)
                     sl_progress_add(&bar, 1);

@@ -9,6 +9,7 @@
 #include <limits.h>
 #include <stdbool.h>
 #include <stdint.h>
+#include <sys/types.h>
 
 #include "setlight/pipeline.h"
 
@@ -64,6 +65,20 @@ json_t *pl_stamp_load(const json_t *graph, const json_t *job);
 sl_result pl_index_prepare(const json_t *graph, sl_error *err);
 /* The job of that id, or NULL. */
 json_t *pl_job_find(const json_t *graph, const char *id);
+
+/* User + system CPU time of a getrusage or wait4 answer. */
+struct rusage;
+double pl_cpu_seconds(const struct rusage *ru);
+
+/* Wall-clock time since the epoch: stamps of jobs run on different nodes
+ * (or by different runners) are compared by it. */
+double pl_epoch_seconds(void);
+
+/* How long process pid (0: this one) waited for a CPU while runnable: the
+ * second field of /proc/PID/schedstat (its main thread), readable until it
+ * is reaped; 0 where it cannot be read. On a machine shared with other work
+ * this is the time it lost to the others, which its CPU time does not show. */
+double pl_runqueue_wait_seconds(pid_t pid);
 
 /* Runs the graph on this machine; fills the job counts of res and a status
  * per job id in *status ("skipped", "ran", "failed", "not run"). */

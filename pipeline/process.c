@@ -4,6 +4,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include "pipeline_private.h"
 #include "report_private.h"
@@ -47,6 +49,150 @@ static bool stamp_ok(const json_t *graph, const char *id)
     return false;
 }
 
+/* s as one shell word: single-quoted, ' as '\''. */
+static void put_quoted(FILE *f, const char *s)
+{
+    fputc('\'', f);
+    for (; *s; s++)
+        if (*s == '\'')
+            fputs("'\\''", f);
+        else
+            fputc(*s, f);
+    fputc('\'', f);
+}
+
+/* --farm-group setup: one Slurm job per setup, a shell script that runs the
+ * setup's jobs in the graph's order through `setlight job`, each only when
+ * the jobs it depends on succeeded, and exits 1 when one failed or did not
+ * run. Slurm's latency (about a second a job on the test cluster,
+ * docs/slurm.md) is paid once per setup, not once per job; the jobs of a
+ * setup then run one at a time. A setup whose jobs are all up to date is
+ * not submitted. farm_jobs (the graph's jobs less the index) is replaced. */
+static sl_result group_by_setup(json_t *farm, const char *out, sl_error *err)
+{
+    json_t *jobs = json_object_get(farm, "jobs"), *groups = json_array();
+    size_t i, k;
+    json_t *job, *g;
+    json_array_foreach(jobs, i, job) {
+        const char *setup = json_string_value(json_object_get(job, "setup"));
+        json_t *found = NULL;
+        json_array_foreach(groups, k, g)
+            if (!strcmp(json_string_value(json_object_get(g, "id")), setup))
+                found = g;
+        if (!found) {
+            char log[PATH_MAX + 300];
+            snprintf(log, sizeof log, "%s/logs/%s.slurm.log", out, setup);
+            found = json_pack("{s:s,s:s,s:s,s:[],s:[],s:n,s:i,s:i,s:s,s:b,s:[]}", "id", setup,
+                              "setup", setup, "stage", "setup", "argv", "deps", "array",
+                              "memory_mb", 1, "cpus", 1, "log", log, "up_to_date", 1, "members");
+            json_array_append_new(groups, found);
+        }
+        json_array_append(json_object_get(found, "members"), job);
+        json_int_t mb = json_integer_value(json_object_get(job, "memory_mb"));
+        if (mb > json_integer_value(json_object_get(found, "memory_mb")))
+            json_object_set_new(found, "memory_mb", json_integer(mb));
+        if (!json_is_true(json_object_get(job, "up_to_date")))
+            json_object_set_new(found, "up_to_date", json_false());
+    }
+    json_array_foreach(groups, k, g) {
+        char *script = NULL;
+        size_t len = 0;
+        FILE *f = open_memstream(&script, &len);
+        if (!f) {
+            json_decref(groups);
+            return sl_error_set(err, SL_ERR_NOMEM, "out of memory");
+        }
+        fputs("f=0\n", f);
+        json_t *members = json_object_get(g, "members"), *m;
+        json_array_foreach(members, i, m) {
+            fprintf(f, "s%zu=1; if [ 0", i);
+            size_t d;
+            json_t *dep;
+            json_array_foreach(json_object_get(m, "deps"), d, dep) {
+                size_t at;
+                json_t *other;
+                json_array_foreach(members, at, other)
+                    if (at < i && json_equal(json_object_get(other, "id"), dep))
+                        fprintf(f, " = \"$s%zu\" ] && [ 0", at);
+            }
+            fputs(" = 0 ]; then", f);
+            size_t a;
+            json_t *arg;
+            json_array_foreach(json_object_get(m, "argv"), a, arg) {
+                fputc(' ', f);
+                put_quoted(f, json_string_value(arg));
+            }
+            fprintf(f, " && s%zu=0; fi; [ \"$s%zu\" = 0 ] || f=1\n", i, i);
+        }
+        fputs("exit $f\n", f);
+        fclose(f);
+        json_array_append_new(json_object_get(g, "argv"), json_string("/bin/sh"));
+        json_array_append_new(json_object_get(g, "argv"), json_string("-c"));
+        json_array_append_new(json_object_get(g, "argv"), json_string(script ? script : "exit 1"));
+        free(script);
+        json_object_del(g, "members");
+    }
+    json_object_set_new(farm, "jobs", groups);
+    return SL_OK;
+}
+
+/* A grouped setup's jobs, from their stamps: "ran" or "failed" when the
+ * stamp was written after the run began (t0, the epoch), "skipped" when up
+ * to date from before, else "not run", as is a job after one that failed
+ * or did not run. A setup whose Slurm job ended
+ * otherwise than by its script (killed: memory, time limit, node) with no
+ * job failed gets its first job not run as the failed one. */
+static void grouped_statuses(const json_t *graph, const sl_pipeline_slurm_result *sr, double t0,
+                             json_t *status, sl_pipeline_result *res)
+{
+    size_t i;
+    json_t *job;
+    for (int b = 0; b < sr->job_count; b++) {
+        const sl_pipeline_slurm_job *sj = &sr->jobs[b];
+        bool failed = false;
+        json_t *first_not_run = NULL;
+        json_array_foreach(json_object_get(graph, "jobs"), i, job) {
+            const char *setup = json_string_value(json_object_get(job, "setup"));
+            if (!setup || strcmp(setup, sj->id))
+                continue;
+            const char *id = json_string_value(json_object_get(job, "id"));
+            json_t *stamp = pl_stamp_load(graph, job);
+            const char *st = json_string_value(json_object_get(stamp, "status"));
+            bool fresh = st && json_number_value(json_object_get(stamp, "started")) >= t0;
+            const char *state = !sj->submitted             ? "skipped"
+                                : fresh && !strcmp(st, "ok") ? "ran"
+                                : fresh                      ? "failed"
+                                : stamp_ok(graph, id)        ? "skipped"
+                                                             : "not run";
+            json_decref(stamp);
+            /* Up to date from before, but after a job that failed: the
+             * script did not run it (the local runner's "not run"). */
+            size_t d;
+            json_t *dep;
+            json_array_foreach(json_object_get(job, "deps"), d, dep) {
+                const char *ds = json_string_value(json_object_get(status, json_string_value(dep)));
+                if (ds && (!strcmp(ds, "failed") || !strcmp(ds, "not run")))
+                    state = "not run";
+            }
+            failed |= !strcmp(state, "failed");
+            if (!first_not_run && !strcmp(state, "not run"))
+                first_not_run = job;
+            json_object_set_new(status, id, json_string(state));
+        }
+        if (sj->submitted && sj->end != SL_SLURM_COMPLETED && !failed && first_not_run)
+            json_object_set_new(status, json_string_value(json_object_get(first_not_run, "id")),
+                                json_string("failed"));
+    }
+    const char *k;
+    json_t *v;
+    json_object_foreach(status, k, v) {
+        const char *state = json_string_value(v);
+        res->jobs_run += !strcmp(state, "ran") || !strcmp(state, "failed");
+        res->jobs_skipped += !strcmp(state, "skipped");
+        res->jobs_failed += !strcmp(state, "failed");
+    }
+}
+
 /* The graph through Slurm, all but the day's index: the index follows
  * every other job whatever its end (an afterok dependency would cancel it
  * with the first failure), so it runs here once Slurm is done. The jobs
@@ -66,16 +212,23 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         }
     }
     json_object_set_new(day, "jobs", index_jobs);
+    double t0 = pl_epoch_seconds();
+    sl_result r = SL_OK;
+    if (o->farm_group == SL_FARM_GROUP_SETUP)
+        r = group_by_setup(farm, json_string_value(json_object_get(graph, "out")), err);
     char farm_path[PATH_MAX + 32];
     snprintf(farm_path, sizeof farm_path, "%s.slurm.json", jobs_path);
     sl_pipeline_slurm_options so;
     sl_pipeline_slurm_options_init(&so);
     sl_pipeline_slurm_result sr;
     memset(&sr, 0, sizeof sr);
-    sl_result r = pl_json_write(farm_path, farm, err);
+    if (!r)
+        r = pl_json_write(farm_path, farm, err);
     if (!r)
         r = sl_pipeline_slurm_run(farm_path, &so, &sr, err);
-    for (int i = 0; !r && i < sr.job_count; i++) {
+    if (!r && o->farm_group == SL_FARM_GROUP_SETUP)
+        grouped_statuses(graph, &sr, t0, status, res);
+    for (int i = 0; !r && o->farm_group != SL_FARM_GROUP_SETUP && i < sr.job_count; i++) {
         const sl_pipeline_slurm_job *j = &sr.jobs[i];
         /* The local runner's words: a job Slurm ran may still have skipped
          * itself, which its stamp does not tell apart from a run. */
@@ -99,6 +252,99 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
     json_decref(farm);
     json_decref(day);
     return r;
+}
+
+typedef struct job_span {
+    double start, end, rss_mb;
+} job_span;
+
+static int cmp_span_start(const void *a, const void *b)
+{
+    double x = ((const job_span *)a)->start, y = ((const job_span *)b)->start;
+    return (x > y) - (x < y);
+}
+
+/* The run's cost from the stamps of the jobs it ran (status "ran" or
+ * "failed"): CPU and wait sums, and the peak of memory: at each job's
+ * start, the sum of the peak RSS (command + `setlight job`) of the jobs
+ * running then. Each job's peak counts for its whole life, so the sum is an
+ * upper bound of what was resident at once. Also the most jobs at once. */
+static json_t *run_cost(const sl_pipeline_options *o, const json_t *graph, const json_t *status,
+                        sl_pipeline_result *res)
+{
+    json_t *jobs = json_object_get(graph, "jobs");
+    size_t n = json_array_size(jobs), i, count = 0;
+    job_span *spans = calloc(n + 1, sizeof *spans);
+    json_t *job;
+    json_array_foreach(jobs, i, job) {
+        const char *st = json_string_value(
+            json_object_get(status, json_string_value(json_object_get(job, "id"))));
+        if (!st || (strcmp(st, "ran") && strcmp(st, "failed")))
+            continue;
+        json_t *stamp = pl_stamp_load(graph, job);
+        if (!stamp)
+            continue;
+        res->cpu_seconds += json_number_value(json_object_get(stamp, "cpu_seconds"));
+        res->cpu_wait_seconds += json_number_value(json_object_get(stamp, "cpu_wait_seconds"));
+        if (spans && json_object_get(stamp, "started")) {
+            job_span *sp = &spans[count++];
+            sp->start = json_number_value(json_object_get(stamp, "started"));
+            sp->end = json_number_value(json_object_get(stamp, "ended"));
+            sp->rss_mb = json_number_value(json_object_get(stamp, "max_rss_mb")) +
+                         json_number_value(json_object_get(stamp, "job_max_rss_mb"));
+        }
+        json_decref(stamp);
+    }
+    double peak_jobs_mb = 0;
+    int most = 0;
+    if (spans) {
+        qsort(spans, count, sizeof *spans, cmp_span_start);
+        for (size_t a = 0; a < count; a++) {
+            double sum = 0;
+            int at_once = 0;
+            for (size_t b = 0; b <= a; b++)
+                if (spans[b].end > spans[a].start || b == a)
+                    sum += spans[b].rss_mb, at_once++;
+            if (sum > peak_jobs_mb)
+                peak_jobs_mb = sum;
+            if (at_once > most)
+                most = at_once;
+        }
+    }
+    free(spans);
+    struct rusage self;
+    getrusage(RUSAGE_SELF, &self);
+    res->runner_cpu_seconds = pl_cpu_seconds(&self);
+    res->runner_cpu_wait_seconds = pl_runqueue_wait_seconds(0);
+    res->peak_memory_mb = peak_jobs_mb + (double)self.ru_maxrss / 1024.0;
+    long budget = o->memory_mb;
+    if (budget <= 0)
+        budget = (long)(sysconf(_SC_PHYS_PAGES) / 2 * (sysconf(_SC_PAGESIZE) / 1024) / 1024);
+    int ran = res->jobs_run;
+    json_t *c = json_pack("{s:f,s:i,s:i,s:f,s:f,s:f,s:f,s:f,s:f,s:I,s:i}", "wall_seconds",
+                          res->seconds, "jobs_ran", ran, "slots", res->slots, "cpu_seconds", res->cpu_seconds,
+                          "cpu_wait_seconds", res->cpu_wait_seconds, "job_process_cpu_seconds",
+                          res->job_process_cpu_seconds, "runner_cpu_seconds",
+                          res->runner_cpu_seconds, "runner_cpu_wait_seconds",
+                          res->runner_cpu_wait_seconds, "peak_memory_mb", res->peak_memory_mb,
+                          "memory_budget_mb", (json_int_t)budget, "most_jobs_at_once", most);
+    /* What the slots gave beyond the commands' CPU, per job run: start-up,
+     * scheduling, I/O; the second leaves out the time the machine's other
+     * work took from the jobs and this runner (their run-queue waits). Only
+     * for a local run, whose slots are known. */
+    if (ran > 0 && res->seconds > 0) {
+        json_object_set_new(c, "jobs_per_minute", json_real(60.0 * ran / res->seconds));
+        if (res->slots > 0) {
+            double idle = res->seconds * res->slots - res->cpu_seconds;
+            json_object_set_new(c, "overhead_seconds_per_job", json_real(idle / ran));
+            json_object_set_new(c, "overhead_share",
+                                json_real(res->cpu_seconds > 0 ? idle / res->cpu_seconds : 0));
+            double waits = res->cpu_wait_seconds + res->runner_cpu_wait_seconds;
+            json_object_set_new(c, "overhead_seconds_per_job_less_wait",
+                                json_real((idle - waits) / ran));
+        }
+    }
+    return c;
 }
 
 sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *res,
@@ -130,7 +376,7 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
         goto done;
     json_t *status = json_object();
     if (!o->emit_jobs && o->farm == SL_FARM_SLURM)
-        r = run_slurm(o, graph, jobs_path, status, res, err);
+        r = run_slurm(o, graph, jobs_path, status, res, err), res->slots = 0;
     else if (!o->emit_jobs)
         r = pl_run_local(o, graph, status, res, err);
     else
@@ -164,6 +410,8 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
                             res->jobs_run, "skipped", res->jobs_skipped, "failed",
                             res->jobs_failed, "setups", list);
     json_object_set_new(doc, "emitted_only", json_boolean(o->emit_jobs != NULL));
+    if (!o->emit_jobs)
+        json_object_set_new(doc, "run", run_cost(o, graph, status, res));
     res->json = json_dumps(doc, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
     json_decref(doc);
     json_decref(status);

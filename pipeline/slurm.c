@@ -30,6 +30,7 @@ void sl_pipeline_slurm_options_init(sl_pipeline_slurm_options *o)
     o->squeue = "squeue";
     o->scontrol = "scontrol";
     o->poll_seconds = 0.25;
+    o->poll_max_seconds = 2;
 }
 
 const char *sl_pipeline_slurm_end_name(sl_pipeline_slurm_end end)
@@ -787,6 +788,10 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
     if (!seen)
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", g->path);
     double failing_since = -1;
+    /* Nothing here waits on a job's end (Slurm starts the dependants), so
+     * the period grows from poll_seconds to poll_max_seconds: on a small
+     * cluster the controller and squeue share the CPUs with the jobs. */
+    double pause = o->poll_seconds;
     sl_result r = SL_OK;
     for (;;) {
         /* squeue -j of the batches with a job still running */
@@ -891,9 +896,11 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
             all_done &= !g->jobs[i].submit || g->jobs[i].done;
         if (all_done)
             continue; /* the loop's head ends it */
-        struct timespec ts = {(time_t)o->poll_seconds,
-                              (long)((o->poll_seconds - (double)(time_t)o->poll_seconds) * 1e9)};
+        struct timespec ts = {(time_t)pause, (long)((pause - (double)(time_t)pause) * 1e9)};
         nanosleep(&ts, NULL);
+        pause = pause * 1.5 < o->poll_max_seconds ? pause * 1.5
+                : o->poll_max_seconds > o->poll_seconds ? o->poll_max_seconds
+                                                        : o->poll_seconds;
     }
     free(seen);
     return r;
@@ -994,7 +1001,9 @@ sl_result sl_pipeline_slurm_run(const char *jobs_json, const sl_pipeline_slurm_o
     sl_pipeline_slurm_options_init(&defaults);
     if (!opts)
         opts = &defaults;
-    if (!(opts->poll_seconds > 0 && opts->poll_seconds < 3600) || !(opts->timeout_seconds >= 0))
+    if (!(opts->poll_seconds > 0 && opts->poll_seconds < 3600) ||
+        !(opts->poll_max_seconds >= 0 && opts->poll_max_seconds < 3600) ||
+        !(opts->timeout_seconds >= 0))
         return sl_error_set(err, SL_ERR_USAGE, "Slurm poll period or timeout out of range");
 
     graph g;

@@ -26,7 +26,8 @@ typedef struct sl_pipeline_slurm_options {
     const char *squeue; /* "squeue" */
     const char *scontrol; /* "scontrol" (ping: is the controller up) */
     const char *partition; /* NULL: the cluster's default */
-    double poll_seconds; /* 0.25: squeue's period while waiting */
+    double poll_seconds; /* 0.25: squeue's first period while waiting */
+    double poll_max_seconds; /* 2: the period grows by 1.5x a poll up to this */
     double timeout_seconds; /* 0: wait as long as the jobs take */
 } sl_pipeline_slurm_options;
 

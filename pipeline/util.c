@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Small file helpers of the pipeline: folders, JSON files. */
+/* Small helpers of the pipeline: folders, JSON files, CPU time. */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 
 #include "pipeline_private.h"
@@ -53,4 +54,10 @@ sl_result pl_json_write(const char *path, const json_t *value, sl_error *err)
     sl_result r = sl_write_file_atomic(path, text, n + 1, err);
     free(text);
     return r;
+}
+
+double pl_cpu_seconds(const struct rusage *ru)
+{
+    return (double)ru->ru_utime.tv_sec + 1e-6 * (double)ru->ru_utime.tv_usec +
+           (double)ru->ru_stime.tv_sec + 1e-6 * (double)ru->ru_stime.tv_usec;
 }

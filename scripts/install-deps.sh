@@ -14,7 +14,7 @@ packages=(
   libjpeg62-turbo-dev   # core/photo_jpeg.c (the libjpeg OpenImageIO uses)
   libjansson-dev
   libssl-dev
-  python3
+  python3 python3-jsonschema   # tests/cli/check_jobs.py: the job graph against docs/jobs.schema.json
   chromium-headless-shell   # the tests open the HTML reports in a real browser
   python3-numpy python3-opencv
   clang libclang-rt-14-dev   # the fuzz targets (libFuzzer: -DSETLIGHT_FUZZ=ON, fuzz/README.md)

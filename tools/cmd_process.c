@@ -29,6 +29,9 @@ static const char process_help[] =
     "  --memory-mb MB         memory budget of the jobs running at once (default: half\n"
     "                         the RAM; a job estimated larger runs alone)\n"
     "  --farm local|slurm     where the jobs run (default local)\n"
+    "  --farm-group job|setup what one Slurm job runs: one job of the graph (default;\n"
+    "                         a setup's merges as one array), or a whole setup, its\n"
+    "                         jobs one after the other (Slurm's ~1 s a job paid once)\n"
     "  --emit-jobs FILE       write the job graph as JSON (docs/process.md) and run\n"
     "                         nothing: for other queues, through 'setlight job FILE ID'\n"
     "  --probe-view AZ,EL     where the probe camera (chrome and grey ball) looked in\n"
@@ -37,22 +40,26 @@ static const char process_help[] =
     "  --probe-sensor-mm W    the probe camera's sensor width (default: the capture's,\n"
     "                         else an orthographic ball)\n"
     "  --json                 print the result: per setup its status, outputs, key\n"
-    "                         numbers, warnings, and each job's status and cost\n"
+    "                         numbers, warnings, and each job's status and cost; the\n"
+    "                         run's cost (wall and CPU time, CPU wait, peak memory,\n"
+    "                         jobs per minute, overhead per job)\n"
     "\n"
     "Exit codes: 0 every setup processed; 3 some setups failed on their input (a\n"
     "folder with no frames, a session.json that does not parse or names missing\n"
     "files, a corrupt frame): one line each on stderr, the others processed and the\n"
     "index written; 1 a setup failed otherwise, or the run could not go on; 2 usage\n"
-    "(two setups of one name, OUT a file: nothing written). See docs/process.md.\n";
+    "(two setups of one name, OUT a file: nothing written). See docs/process.md;\n"
+    "the job graph's JSON Schema is docs/jobs.schema.json.\n";
 
 int cmd_process(int argc, char **argv, const sl_cli *cli)
 {
-    enum { OPT_MEMORY = 1000, OPT_FARM, OPT_EMIT, OPT_PROBE_VIEW, OPT_PROBE_SENSOR };
+    enum { OPT_MEMORY = 1000, OPT_FARM, OPT_FARM_GROUP, OPT_EMIT, OPT_PROBE_VIEW, OPT_PROBE_SENSOR };
     static const struct option opts[] = {{"help", no_argument, NULL, 'h'},
                                          {"output", required_argument, NULL, 'o'},
                                          {"jobs", required_argument, NULL, 'j'},
                                          {"memory-mb", required_argument, NULL, OPT_MEMORY},
                                          {"farm", required_argument, NULL, OPT_FARM},
+                                         {"farm-group", required_argument, NULL, OPT_FARM_GROUP},
                                          {"emit-jobs", required_argument, NULL, OPT_EMIT},
                                          {"probe-view", required_argument, NULL, OPT_PROBE_VIEW},
                                          {"probe-sensor-mm", required_argument, NULL,
@@ -86,6 +93,14 @@ int cmd_process(int argc, char **argv, const sl_cli *cli)
                 o.farm = SL_FARM_SLURM;
             else
                 return cli_usage_error(cli, "--farm is local or slurm, not '%s'", optarg);
+            break;
+        case OPT_FARM_GROUP:
+            if (!strcmp(optarg, "job"))
+                o.farm_group = SL_FARM_GROUP_JOB;
+            else if (!strcmp(optarg, "setup"))
+                o.farm_group = SL_FARM_GROUP_SETUP;
+            else
+                return cli_usage_error(cli, "--farm-group is job or setup, not '%s'", optarg);
             break;
         case OPT_EMIT:
             o.emit_jobs = optarg;

@@ -24,6 +24,9 @@ extern "C" {
 #endif
 
 typedef enum { SL_FARM_LOCAL = 0, SL_FARM_SLURM } sl_farm;
+/* What one Slurm job runs: one job of the graph (the merges of a setup as
+ * an array), or a whole setup, its jobs one after the other. */
+typedef enum { SL_FARM_GROUP_JOB = 0, SL_FARM_GROUP_SETUP } sl_farm_group;
 
 typedef struct sl_pipeline_options {
     const char *const *setups; /* SETUP folders */
@@ -32,6 +35,7 @@ typedef struct sl_pipeline_options {
     const char *exe;           /* the setlight executable the jobs run (absolute) */
     const char *emit_jobs;     /* write the graph there and run nothing (NULL: run) */
     sl_farm farm;              /* local (default) or slurm */
+    sl_farm_group farm_group;  /* slurm: a Slurm job per job (default) or per setup */
     int jobs;                  /* parallel jobs (0: the cores) */
     int memory_mb;             /* memory budget of the running jobs (0: half the RAM) */
     double probe_azimuth_deg;  /* where the probe camera looks in the set (unwrap, */
@@ -47,6 +51,17 @@ typedef struct sl_pipeline_result {
     int jobs, jobs_run, jobs_skipped, jobs_failed;
     bool input_failures_only;  /* every failure was bad input (exit 3, else 1) */
     double seconds;
+    /* The run's cost (its "run" object in --json; docs/process.md), over the
+     * jobs run this time, from their stamps: */
+    int slots;                 /* jobs at once: --jobs or the cores (local), 0 (slurm) */
+    double cpu_seconds;        /* the commands' CPU time */
+    double cpu_wait_seconds;   /* the jobs' wait for a CPU (others' load): commands and
+                                  `setlight job` */
+    double job_process_cpu_seconds; /* local: every job process, `setlight job` included */
+    double runner_cpu_seconds; /* this process: planning, ingest, up-to-date checks */
+    double runner_cpu_wait_seconds; /* and its wait for a CPU */
+    double peak_memory_mb;     /* max over time of the running jobs' peak RSS (command +
+                                  `setlight job`) summed, plus this process's */
     char *json;                /* the --json result (free()) */
     char *failures;            /* one "SETUP: reason" line per failed setup (free()) */
 } sl_pipeline_result;

@@ -70,6 +70,28 @@ if cmp -s "$T/sums_local" "$T/sums_farm2"; then ok; else
   bad "rerun outputs differ from the local run's: $(diff "$T/sums_local" "$T/sums_farm2" | head -5)"
 fi
 
+# 3b. --farm-group setup: the setup as one Slurm job running its jobs in
+# turn, into the same folder (outputs carry their command lines): the same
+# bytes. Then a corrupt frame: that merge fails, what needs it does not run,
+# the unwrap (which does not) runs, exit 3.
+mv "$T/farm" "$T/farm_by_job"
+expect 0 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --farm-group setup --json -q
+json_eval "$T/out" 'd["jobs"]["failed"] == 0 and d["jobs"]["ran"] == d["jobs"]["total"] and d["setups"][0]["status"] == "ok"'
+json_eval "$T/farm/jobs.json.slurm.json" '[j["id"] for j in d["jobs"]] == ["ext"] and d["jobs"][0]["argv"][:2] == ["/bin/sh", "-c"]'
+present "$T/farm/logs/ext_merge_0.log"
+stage_outputs "$T/farm" >"$T/sums_grouped"
+if cmp -s "$T/sums_local" "$T/sums_grouped"; then ok; else
+  bad "grouped farm outputs differ from the local run's: $(diff "$T/sums_local" "$T/sums_grouped" | head -5)"
+fi
+head -c 3000 "$T/frame.good" >"$T/farm/ext/ingest/hdri/v01_b00_f03.tif"
+rm -f "$T/farm/ext/unwrap.stamp.json"
+expect 3 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --farm-group setup --json -q
+err_one_line
+err_has "ext/merge/1"
+json_eval "$T/out" '(lambda s: s["ext/merge/1"] == "failed" and s["ext/stitch"] == "not run" and s["ext/unwrap"] == "ran" and s["ext/merge/0"] == "skipped")({j["id"]: j["status"] for j in d["setups"][0]["jobs"]})'
+rm -rf "$T/farm"
+mv "$T/farm_by_job" "$T/farm"
+
 # 4. Everything up to date: nothing to submit, so no Slurm needed. Then the
 # cluster down with a job to run (the rig's stamp gone): one line, exit 1,
 # nothing written over.

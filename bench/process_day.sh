@@ -1,0 +1,115 @@
+#!/usr/bin/env bash
+# A simulated shoot day through setlight process (docs/process.md, "Cost of
+# a run"): N setups (default 50, --size small: 3 fisheye views x 7 frames and
+# the three probes each), processed locally with --jobs 1 and --jobs 2, and
+# through Slurm on a single-node test cluster (tests/slurm/cluster.sh, 2
+# CPUs), a Slurm job per job (slurm) and per setup (slurm-setup,
+# --farm-group setup). Per mode, medians of RUNS runs (default 1), each from an empty OUT:
+# wall, the commands' CPU, their wait for a CPU (the machine's other load),
+# peak memory (the runner's accounting), jobs per minute, and the overhead
+# per job, (wall x cores - CPU) / jobs, with its share of the CPU; the same
+# less the wait.
+#   bench/process_day.sh BUILD_DIR [N [SIZE [RUNS [MODES]]]]
+# MODES: any of "jobs1 jobs2 slurm slurm-setup" (default all four). Work files in
+# SETLIGHT_BENCH_WORK (default /tmp/setlight-bench/day); the simulated day is
+# kept there and reused.
+set -u
+here=$(cd "$(dirname "$0")/.." && pwd)
+build=$(cd "${1:?usage: process_day.sh BUILD_DIR [N [SIZE [RUNS [MODES]]]]}" && pwd)
+n=${2:-50}
+size=${3:-small}
+runs=${4:-1}
+modes=${5:-jobs1 jobs2 slurm slurm-setup}
+work=${SETLIGHT_BENCH_WORK:-/tmp/setlight-bench/day}
+exe="$build/setlight"
+mkdir -p "$work"
+. "$here/tests/cli/day.bash"
+printf 'leak:cv::fastMalloc\n' >"$work/lsan.supp"
+export LSAN_OPTIONS="suppressions=$work/lsan.supp"
+
+t0=$(date +%s.%N)
+simulate_day "$exe" "$n" "$size" "$work/sets" 10 "exterior stage" || { echo "simulating the day failed" >&2; exit 1; }
+echo "day: $n setups, --size $size ($(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN{printf "%.0f", b-a}') s to simulate or reuse)"
+setups=("$work"/sets/setup_*)
+
+cluster=""
+stop_cluster() { [ -n "$cluster" ] && bash "$here/tests/slurm/cluster.sh" stop "$cluster" >/dev/null 2>&1; [ -n "$cluster" ] && rm -rf "$cluster"; }
+trap stop_cluster EXIT
+
+results="$work/results.jsonl"
+: >"$results"
+for mode in $modes; do
+  args=(--jobs 2)
+  cores=2
+  case $mode in
+  jobs1) args=(--jobs 1) cores=1 ;;
+  jobs2) ;;
+  slurm | slurm-setup)
+    cluster=$(mktemp -d /tmp/sl-day-bench.XXXXXX)
+    chmod 755 "$cluster"
+    if ! bash "$here/tests/slurm/cluster.sh" start "$cluster" >/dev/null 2>"$work/cluster.err"; then
+      echo "slurm: skipped, the cluster did not start: $(head -1 "$work/cluster.err")"
+      rm -rf "$cluster"
+      cluster=""
+      continue
+    fi
+    export SLURM_CONF="$cluster/slurm.conf"
+    args=(--farm slurm)
+    [ "$mode" = slurm-setup ] && args+=(--farm-group setup)
+    ;;
+  *) echo "unknown mode $mode" >&2; exit 2 ;;
+  esac
+  for ((r = 1; r <= runs; r++)); do
+    rm -rf "$work/out"
+    load0=$(cut -d' ' -f1 /proc/loadavg)
+    /usr/bin/time -v -o "$work/time.txt" "$exe" process "${setups[@]}" -o "$work/out" --probe-view 180,0 \
+      "${args[@]}" --json -q >"$work/run.json" 2>"$work/run.err"
+    rc=$?
+    load1=$(cut -d' ' -f1 /proc/loadavg)
+    python3 - "$work/run.json" "$work/time.txt" "$mode" "$cores" "$rc" "$load0" "$load1" >>"$results" <<'PY'
+import json, re, sys
+path, timef, mode, cores, rc, l0, l1 = sys.argv[1:]
+try:
+    d = json.load(open(path))
+except ValueError:
+    d = {"run": {}, "jobs": {}}
+t = open(timef).read()
+rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", t)
+print(json.dumps({"mode": mode, "cores": int(cores), "exit": int(rc), "load": [float(l0), float(l1)],
+                  "largest_process_mb": int(rss.group(1)) / 1024 if rss else None,
+                  "jobs": d.get("jobs"), "run": d.get("run")}))
+PY
+    echo "$mode run $r: exit $rc, load $load0 -> $load1"
+  done
+  if [ "$mode" != "${mode#slurm}" ]; then stop_cluster; cluster=""; unset SLURM_CONF; fi
+done
+
+python3 - "$results" <<'PY'
+import json, statistics, sys
+rows = [json.loads(l) for l in open(sys.argv[1])]
+print()
+print("jobs failed (a setup failed on its input): %s" % {r["mode"]: r["jobs"]["failed"] for r in rows if r["jobs"]})
+print("| mode | runs | wall s | CPU s | CPU wait s | peak memory MB (largest process) | jobs/min | overhead s/job | share of the CPU | s/job less the wait | load |")
+print("|---|---|---|---|---|---|---|---|---|---|---|")
+for mode in dict.fromkeys(r["mode"] for r in rows):
+    # exit 3: a setup failed on its input (reported); its jobs not run are not counted
+    rs = [r for r in rows if r["mode"] == mode and r["exit"] in (0, 3) and r["run"]]
+    if not rs:
+        print("| %s | 0 | (failed: exit %s) |" % (mode, [r["exit"] for r in rows if r["mode"] == mode]))
+        continue
+    med = lambda f: statistics.median(f(r) for r in rs)
+    cores = rs[0]["cores"]
+    jobs = med(lambda r: r["run"]["jobs_ran"])
+    wall = med(lambda r: r["run"]["wall_seconds"])
+    cpu = med(lambda r: r["run"]["cpu_seconds"])
+    wait = med(lambda r: r["run"]["cpu_wait_seconds"] + r["run"]["runner_cpu_wait_seconds"])
+    over = med(lambda r: (r["run"]["wall_seconds"] * cores - r["run"]["cpu_seconds"]) / r["run"]["jobs_ran"])
+    share = med(lambda r: (r["run"]["wall_seconds"] * cores - r["run"]["cpu_seconds"]) / r["run"]["cpu_seconds"])
+    less = med(lambda r: (r["run"]["wall_seconds"] * cores - r["run"]["cpu_seconds"] - r["run"]["cpu_wait_seconds"]
+                          - r["run"]["runner_cpu_wait_seconds"]) / r["run"]["jobs_ran"])
+    print("| %s (%d cores) | %d | %.0f | %.0f | %.0f | %.0f (%.0f) | %.1f | %.2f | %.0f%% | %.2f (%.1f%%) | %.1f-%.1f |" % (
+        mode, cores, len(rs), wall, cpu, wait, med(lambda r: r["run"]["peak_memory_mb"]),
+        med(lambda r: r["largest_process_mb"] or 0), med(lambda r: 60 * r["run"]["jobs_ran"] / r["run"]["wall_seconds"]),
+        over, 100 * share, less, 100 * less * jobs / cpu,
+        min(min(r["load"]) for r in rs), max(max(r["load"]) for r in rs)))
+PY
