@@ -715,8 +715,14 @@ sl_result sl_vset_score_setup(const sl_vset_score_options *o, sl_vset_score_resu
         sl_report_table_row(c.rep, cells);
         sl_report_table_end(c.rep);
         double lavg = sl_vset_log_average(&c.truth);
-        if ((r = sl_report_image(c.rep, "truth.png", &c.truth, log2(0.18 / (lavg > 0 ? lavg : 1)),
-                                 "truth/latlong.exr", err)))
+        double stops = log2(0.18 / (lavg > 0 ? lavg : 1));
+        if ((r = sl_report_image(c.rep, "truth.png", &c.truth, stops, "truth/latlong.exr", err)))
+            goto done;
+        /* the stitch as the truth's exposure shows it: its scale divided out */
+        if (stitched_scale > 0 &&
+            (r = sl_report_image(c.rep, "stitched.png", &stitched, stops - log2(stitched_scale),
+                                 "process/capture/stitch/hdri.exr (camera RGB) at the truth's "
+                                 "exposure", err)))
             goto done;
         r = sl_report_finish(c.rep, err);
         c.rep = NULL;
