@@ -34,6 +34,7 @@ typedef struct score_ctx {
     sl_image truth;
     double rec709_from_camera[3][3];
     double calibrated_scale; /* calibrated lat-long / truth, for the rig */
+    double grey_scale;       /* the grey ball's merge / truth: the units calibrate ties to */
     sl_report *rep;
     char summary[4096];
     int failed;
@@ -295,6 +296,8 @@ static sl_result score_merge(score_ctx *c, sl_error *err)
             json_object_set_new(j, "what", json_string(what));
             json_array_append_new(list, j);
             worst = fmax(worst, s.median);
+            if (!strcmp(kind, "grey"))
+                c->grey_scale = s.scale;
             if (!kind[0] && s.scale > 0) {
                 lo = views++ ? fmin(lo, s.scale) : s.scale;
                 hi = fmax(hi, s.scale);
@@ -371,6 +374,9 @@ static sl_result score_unwrap(score_ctx *c, const sl_image *stitched, sl_error *
     json_array_foreach(json_object_get(c->probes, "probes"), i, p)
         if (!strcmp(json_string_value(json_object_get(p, "kind")) ?: "", "chrome"))
             probe = p;
+    if (!probe)
+        return sl_error_set(err, SL_ERR_INPUT, "%s/truth/probes.json: no chrome ball",
+                            c->o->capture);
     double fwd[3], toward[3];
     json_vec3_get(json_object_get(json_object_get(probe, "camera"), "forward"), fwd);
     for (int k = 0; k < 3; k++)
@@ -459,26 +465,31 @@ static sl_result score_calibrate(score_ctx *c, sl_error *err)
     double worst_balance = 0;
     for (int k = 0; k < 3; k++)
         worst_balance = fmax(worst_balance, fabs(balance[k] - 1));
-    /* In relative units (no ISO in the files) the scale is free: only its
-     * colour and the map's shape are judged. */
+    /* In relative units (no ISO in the files) the calibration ties the map
+     * to the grey ball's photo: the map over the truth should be that
+     * photo's merge over its truth. In cd/m2 it should be 1. */
+    double vs_grey = c->grey_scale > 0 ? s.scale / c->grey_scale : 0;
     bool pass = latlong_ok(&s) && worst_balance <= SL_VSET_TOL_BALANCE &&
-                (!absolute || fabs(s.scale - 1) <= SL_VSET_TOL_ABSOLUTE);
+                (!absolute || fabs(s.scale - 1) <= SL_VSET_TOL_ABSOLUTE) &&
+                (c->grey_scale <= 0 || fabs(vs_grey - 1) <= SL_VSET_TOL_EXPOSURE);
     json_t *n = image_score_json(&s);
     json_t *grey = json_object_get(res, "grey"), *chart = json_object_get(res, "chart");
     json_object_set_new(n, "units", json_string(units));
     json_object_set_new(n, "scale_applied", json_real(applied));
     json_object_set_new(n, "scale_truth", json_real(s.scale > 0 ? applied / s.scale : 0));
+    json_object_set_new(n, "exposure_vs_grey", json_real(vs_grey));
     json_object_set_new(n, "channel_balance", json_pack("[f,f,f]", balance[0], balance[1], balance[2]));
     json_object_set_new(n, "grey_gain", json_deep_copy(json_object_get(grey, "gain")));
     (void)chart;
     json_t *tol = latlong_tolerances();
     json_object_set_new(tol, "channel_balance_off", json_real(SL_VSET_TOL_BALANCE));
     json_object_set_new(tol, "absolute_scale_off", json_real(SL_VSET_TOL_ABSOLUTE));
+    json_object_set_new(tol, "exposure_vs_grey_off", json_real(SL_VSET_TOL_EXPOSURE));
     char line[320];
     snprintf(line, sizeof line, "calibrated lat-long: median %.1f%%, p95 %.1f%%, power %.3f; "
-             "scale %.4g applied, %.4g would give the truth (%s units); channel balance %.3f "
-             "%.3f %.3f", 100 * s.median, 100 * s.p95, s.power, applied,
-             s.scale > 0 ? applied / s.scale : 0, units, balance[0], balance[1], balance[2]);
+             "exposure %.3f of the grey ball's (%s units); channel balance %.3f %.3f %.3f",
+             100 * s.median, 100 * s.p95, s.power, vs_grey, units, balance[0], balance[1],
+             balance[2]);
     add_stage(c, "calibrate", pass, n, tol, line);
     json_decref(res);
     return SL_OK;

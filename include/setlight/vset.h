@@ -435,6 +435,8 @@ sl_result sl_vset_score_rig(const char *rig_json, const char *lights_json, doubl
 #define SL_VSET_TOL_UNWRAP_MEDIAN 0.15       /* chrome-ball unwrap, the half it sees */
 #define SL_VSET_TOL_BALANCE 0.20             /* calibrated channel balance, |b - 1| */
 #define SL_VSET_TOL_ABSOLUTE 0.10            /* calibrated scale, when in absolute units */
+#define SL_VSET_TOL_EXPOSURE 0.05            /* calibrated map / truth against the grey ball's
+                                                merge / truth: the units it is tied to */
 #define SL_VSET_TOL_RIG_MATCHED 0.5          /* share of the lamps the rig must find */
 #define SL_VSET_TOL_RIG_DIRECTION_DEG 4.0    /* worst matched lamp's direction */
 #define SL_VSET_TOL_RIG_POWER 0.5            /* |median power ratio - 1| */

@@ -42,6 +42,8 @@ checks = {
     "calibrate": n["calibrate"]["median_rel_error"] < 0.20 and n["calibrate"]["p95_rel_error"] < 1.0
                  and near(n["calibrate"]["power_ratio"], 1, 0.15)
                  and all(near(b, 1, 0.2) for b in n["calibrate"]["channel_balance"])
+                 # the map carries the grey ball's units (0.994 at tiny)
+                 and near(n["calibrate"]["exposure_vs_grey"], 1, 0.03)
                  and n["calibrate"]["units"] in ("relative", "cd/m2"),
     # the chrome ball's half of the set (6.4%), and against the stitch (12.7%)
     "unwrap": n["unwrap"]["median_rel_error"] < 0.12 and n["unwrap"]["vs_stitch"]["median_rel_error"] < 0.25,
@@ -62,6 +64,14 @@ verdicts = {
               and ll["p95_rel_error"] <= t["stitch"]["p95_rel_error"]
               and abs(ll["power_ratio"] - 1) <= t["stitch"]["power_ratio_off"],
     "unwrap": n["unwrap"]["median_rel_error"] <= t["unwrap"]["median_rel_error"],
+    "calibrate": n["calibrate"]["median_rel_error"] <= t["calibrate"]["median_rel_error"]
+                 and n["calibrate"]["p95_rel_error"] <= t["calibrate"]["p95_rel_error"]
+                 and abs(n["calibrate"]["power_ratio"] - 1) <= t["calibrate"]["power_ratio_off"]
+                 and all(abs(b - 1) <= t["calibrate"]["channel_balance_off"]
+                         for b in n["calibrate"]["channel_balance"])
+                 and abs(n["calibrate"]["exposure_vs_grey"] - 1) <= t["calibrate"]["exposure_vs_grey_off"]
+                 and (n["calibrate"]["units"] == "relative"
+                      or abs(n["calibrate"]["scale"] - 1) <= t["calibrate"]["absolute_scale_off"]),
     "render": all(i["rel_rmse"] <= (t["render"]["chrome_rel_rmse"] if i["scene"] == "chrome"
                                     else t["render"]["rel_rmse"]) for i in n["render"]["images"]),
 }
@@ -80,14 +90,13 @@ sys.exit(1 if bad else 0)
 PY
 then ok; else bad "demo --json numbers off"; fi
 
-# the human output: one line per stage with its verdict, then the report's path
-expect 0 "$S" demo "$T/demo" --size tiny --force
-[ "$(grep -cE '^(simulate|merge|stitch|unwrap|calibrate|rig|render) +(pass|FAIL) ' "$T/out")" = 7 ] && ok || bad "summary: $(head -c 600 "$T/out")"
-out_has "report: $T/demo/report.html"
-# --check: exit 1 and one line when a stage is outside its tolerances, else 0
+# the human output: one line per stage with its verdict, then the report's path;
+# --check: exit 1 and one line on stderr when a stage is outside its tolerances, else 0
 want=0
 python3 -c 'import json,sys; sys.exit(0 if json.load(open(sys.argv[1]))["passed"] else 1)' "$T/score.json" || want=1
-expect $want "$S" demo "$T/demo" --size tiny --force --check --quiet
+expect $want "$S" demo "$T/demo" --size tiny --force --check
+[ "$(grep -cE '^(simulate|merge|stitch|unwrap|calibrate|rig|render) +(pass|FAIL) ' "$T/out")" = 7 ] && ok || bad "summary: $(head -c 600 "$T/out")"
+out_has "report: $T/demo/report.html"
 if [ $want = 1 ]; then err_one_line; err_has "stages outside their tolerances"; fi
 browser_check "$T/demo/report.html" 1
 
