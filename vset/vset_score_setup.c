@@ -49,6 +49,13 @@ static json_t *load(const char *dir, const char *name, sl_error *err)
     return j;
 }
 
+/* A JSON string, "" when absent. */
+static const char *jstr(const json_t *j)
+{
+    const char *s = json_string_value(j);
+    return s ? s : "";
+}
+
 /* The setup's job of this stage (and index, -1 for none). */
 static json_t *job_of(score_ctx *c, const char *stage, int index)
 {
@@ -85,7 +92,7 @@ static const char *arg_of(json_t *job, const char *flag)
 {
     json_t *cmd = json_object_get(job, "command");
     for (size_t i = 0; i + 1 < json_array_size(cmd); i++)
-        if (!strcmp(json_string_value(json_array_get(cmd, i)) ?: "", flag))
+        if (!strcmp(jstr(json_array_get(cmd, i)), flag))
             return json_string_value(json_array_get(cmd, i + 1));
     return NULL;
 }
@@ -130,11 +137,11 @@ static void stage_cost(score_ctx *c, const char *stage, double *seconds, double 
     size_t i;
     json_t *j;
     json_array_foreach(jobs, i, j) {
-        if (strcmp(json_string_value(json_object_get(j, "stage")) ?: "", stage))
+        if (strcmp(jstr(json_object_get(j, "stage")), stage))
             continue;
         *seconds += json_number_value(json_object_get(j, "seconds"));
         *cpu += json_number_value(json_object_get(j, "cpu_seconds"));
-        *ran += !strcmp(json_string_value(json_object_get(j, "status")) ?: "", "ran");
+        *ran += !strcmp(jstr(json_object_get(j, "status")), "ran");
     }
 }
 
@@ -196,7 +203,7 @@ static sl_result frame_origin(score_ctx *c, const char *frame, int *view, char *
     json_array_foreach(json_object_get(ses, "views"), i, v)
         json_array_foreach(json_object_get(v, "brackets"), k, b)
             json_array_foreach(json_object_get(b, "frames"), f, fr)
-                if (!strcmp(json_string_value(json_object_get(fr, "file")) ?: "", base))
+                if (!strcmp(jstr(json_object_get(fr, "file")), base))
                     source = json_string_value(json_object_get(fr, "source"));
     char name[1024] = "";
     if (source) {
@@ -209,12 +216,12 @@ static sl_result frame_origin(score_ctx *c, const char *frame, int *view, char *
     *view = -1;
     kind[0] = 0;
     json_array_foreach(json_object_get(c->cap, "frames"), i, fr)
-        if (!strcmp(json_string_value(json_object_get(fr, "name")) ?: "", name))
+        if (!strcmp(jstr(json_object_get(fr, "name")), name))
             *view = (int)json_integer_value(json_object_get(fr, "view"));
     json_array_foreach(json_object_get(c->cap, "probes"), i, v)
         json_array_foreach(json_object_get(v, "frames"), k, fr)
-            if (!strcmp(json_string_value(json_object_get(fr, "name")) ?: "", name))
-                snprintf(kind, n, "%s", json_string_value(json_object_get(v, "kind")) ?: "");
+            if (!strcmp(jstr(json_object_get(fr, "name")), name))
+                snprintf(kind, n, "%s", jstr(json_object_get(v, "kind")));
     if (*view < 0 && !kind[0])
         return sl_error_set(err, SL_ERR_INPUT, "%s: not a frame of the capture %s", frame,
                             c->o->capture);
@@ -232,7 +239,7 @@ static sl_result merge_truth(score_ctx *c, int view, const char *kind, sl_image 
         return read_exr(path, out, err);
     }
     json_t *lj = json_object_get(c->cam, "lens"), *vj = json_array_get(json_object_get(c->cam, "views"), (size_t)view);
-    int proj = sl_lens_projection_from_name(json_string_value(json_object_get(lj, "projection")) ?: "");
+    int proj = sl_lens_projection_from_name(jstr(json_object_get(lj, "projection")));
     if (proj < 0 || !vj)
         return sl_error_set(err, SL_ERR_INPUT, "%s/truth/camera.json: no lens or view %d",
                             c->o->capture, view);
@@ -372,7 +379,7 @@ static sl_result score_unwrap(score_ctx *c, const sl_image *stitched, sl_error *
     size_t i;
     json_t *p;
     json_array_foreach(json_object_get(c->probes, "probes"), i, p)
-        if (!strcmp(json_string_value(json_object_get(p, "kind")) ?: "", "chrome"))
+        if (!strcmp(jstr(json_object_get(p, "kind")), "chrome"))
             probe = p;
     if (!probe)
         return sl_error_set(err, SL_ERR_INPUT, "%s/truth/probes.json: no chrome ball",
@@ -459,7 +466,7 @@ static sl_result score_calibrate(score_ctx *c, sl_error *err)
     free(work);
     sl_image_free(&cal);
     c->calibrated_scale = s.scale;
-    const char *units = json_string_value(json_object_get(res, "units")) ?: "";
+    const char *units = jstr(json_object_get(res, "units"));
     bool absolute = strcmp(units, "relative") != 0;
     double applied = json_number_value(json_object_get(res, "scale"));
     double worst_balance = 0;
