@@ -18,7 +18,7 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
-    {"demo", cmd_demo, "simulate the stage set, run every stage on it, write report.html"},
+    {"demo", cmd_demo, "simulate the stage set, process it, score every stage against its truth"},
     {"simulate", cmd_simulate, "photograph a virtual film set, with its ground truth"},
     {"capture", cmd_capture, "tethered bracketing through libgphoto2 with journal and resume"},
     {"ingest", cmd_ingest, "group a card or folder of brackets into a session"},

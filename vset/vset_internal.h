@@ -12,6 +12,10 @@
 #define VSET_PI 3.14159265358979323846
 #define VSET_DEG (VSET_PI / 180.0)
 
+/* Scoring: truth luminance this dim or less is not compared (black
+ * borders, outside an image circle): a ratio to nothing says nothing. */
+#define VSET_SCORE_DARK 1e-9
+
 static inline double v3_dot(const double a[3], const double b[3])
 {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];

@@ -380,6 +380,103 @@ typedef struct sl_vset_capture_summary {
 sl_result sl_vset_capture_write(const sl_vset_capture_opts *o, const char *dir,
                                 sl_vset_capture_summary *summary, sl_error *err);
 
+/* ---- scoring: what `setlight process` made of a capture, against its truth */
+
+/* Luminance of a test image against the truth, up to the one free scale of
+ * relative units: scale is the median of test / truth over the pixels
+ * compared, median and p95 are of |test / (scale truth) - 1|, power is the
+ * summed luminance of test / scale over the truth's (lat-longs: over the
+ * whole sphere, solid-angle weighted). */
+typedef struct sl_vset_image_score {
+    double scale, median, p95, power;
+    double solid_angle_sr; /* lat-longs: of the texels compared */
+    int64_t pixels;        /* pixels or texels compared */
+} sl_vset_image_score;
+
+/* A lat-long against the truth lat-long (looked up bilinearly at each test
+ * texel's direction), over the texels within band_deg of the horizon, in
+ * the hemisphere around `toward` when not NULL, and seen (alpha > 0) when
+ * the test has 4 channels. rec709_from_test (NULL: none) takes the test's
+ * RGB to Rec.709 first (a camera's output space). */
+sl_result sl_vset_score_latlong(const sl_image *test, const double rec709_from_test[3][3],
+                                const sl_image *truth, double band_deg, const double toward[3],
+                                sl_vset_image_score *out, sl_error *err);
+/* An image against a truth image of its size, pixel by pixel: a merged
+ * photo against the radiance its frames saw. Pixels flagged in `clipped`
+ * (any channel > 0; may be NULL) or dark in the truth are not compared. */
+sl_result sl_vset_score_image(const sl_image *test, const double rec709_from_test[3][3],
+                              const sl_image *truth, const sl_image *clipped,
+                              sl_vset_image_score *out, sl_error *err);
+
+/* A rig (rig.json) against the true lamps (truth/lights.json): each lamp
+ * matched to the rig light nearest in direction when within match_deg;
+ * a rig light's power (luminance integral / scale, scale the rig's map over
+ * the truth) against the sum of the lamps it took. */
+typedef struct sl_vset_rig_score {
+    int truth_lights, rig_lights, matched;
+    double direction_mean_deg, direction_worst_deg; /* of the matched lamps */
+    double power_median, power_worst;               /* over the rig lights that took lamps */
+} sl_vset_rig_score;
+sl_result sl_vset_score_rig(const char *rig_json, const char *lights_json, double scale,
+                            double match_deg, sl_vset_rig_score *out, sl_error *err);
+
+/* What `setlight demo` holds each stage to (docs/virtual-set.md, "The
+ * demo"): what a right pipeline gives on the virtual set, with a margin.
+ * Errors are after the free scale of relative units; lat-longs within the
+ * band of the horizon. */
+#define SL_VSET_SCORE_BAND_DEG 60.0
+#define SL_VSET_SCORE_MATCH_DEG 5.0          /* a rig light this near a lamp is that lamp */
+#define SL_VSET_TOL_MERGE_MEDIAN 0.05        /* each merge against its truth radiance */
+#define SL_VSET_TOL_MERGE_SCALE_SPREAD 1.10  /* largest / smallest scale of the fisheye views'
+                                                merges: the stitch blends them as they are */
+#define SL_VSET_TOL_LATLONG_MEDIAN 0.15      /* stitched and calibrated lat-longs */
+#define SL_VSET_TOL_LATLONG_P95 1.0
+#define SL_VSET_TOL_POWER 0.25               /* |power ratio - 1| */
+#define SL_VSET_TOL_UNWRAP_MEDIAN 0.15       /* chrome-ball unwrap, the half it sees */
+#define SL_VSET_TOL_BALANCE 0.20             /* calibrated channel balance, |b - 1| */
+#define SL_VSET_TOL_ABSOLUTE 0.10            /* calibrated scale, when in absolute units */
+#define SL_VSET_TOL_EXPOSURE 0.05            /* calibrated map / truth against the grey ball's
+                                                merge / truth: the units it is tied to */
+#define SL_VSET_TOL_RIG_MATCHED 0.5          /* share of the lamps the rig must find */
+#define SL_VSET_TOL_RIG_DIRECTION_DEG 4.0    /* worst matched lamp's direction */
+#define SL_VSET_TOL_RIG_POWER 0.5            /* |median power ratio - 1| */
+#define SL_VSET_TOL_RENDER_RMSE 0.30         /* grey and chart renders against the truth's */
+#define SL_VSET_TOL_RENDER_CHROME_RMSE 0.60  /* the chrome ball: every edge of the map shows */
+
+typedef struct sl_vset_score_options {
+    const char *capture;        /* the capture folder `setlight simulate` wrote */
+    const char *jobs_json;      /* the process's graph (OUT/jobs.json): which job made what */
+    const char *setup;          /* the setup's name in it */
+    const char *process_json;   /* the process's --json result (the cost), or NULL */
+    const char *process_report; /* its report page, named in ours, or NULL */
+    const char *report_dir;     /* write report.html there, or NULL */
+    const char *json_path;      /* write the result's json there (atomically), or NULL */
+    double simulate_seconds, simulate_cpu_seconds; /* the capture's cost */
+    double band_deg;            /* SL_VSET_SCORE_BAND_DEG */
+    int64_t truth_spp;          /* the truth renders' samples per pixel (128) */
+    uint64_t seed;              /* theirs (1) */
+} sl_vset_score_options;
+
+void sl_vset_score_options_init(sl_vset_score_options *o);
+
+typedef struct sl_vset_score_result {
+    int stages, stages_failed; /* stages scored, those outside their tolerances */
+    char *json;    /* one document: every stage's numbers, tolerances, verdict, cost */
+    char *summary; /* a line per stage, for people */
+} sl_vset_score_result;
+
+/* Scores every stage the process ran on the setup: merges (each view
+ * through the true lens and head, each probe's render), stitch and
+ * calibrate (lat-long against the truth; the calibration's scale and
+ * channel balance), the chrome-ball unwrap, the rig against the lamps, the
+ * validation renders against the scenes rendered under the truth. A stage
+ * outside its tolerances is a verdict (stages_failed), not an error; a
+ * missing or unreadable output is (SL_ERR_INPUT or SL_ERR_NOT_FOUND naming
+ * it). */
+sl_result sl_vset_score_setup(const sl_vset_score_options *o, sl_vset_score_result *res,
+                              sl_error *err);
+void sl_vset_score_result_free(sl_vset_score_result *res);
+
 /* ---- the virtual camera ---------------------------------------------- */
 
 /* The virtual set's camera: photographs a virtual scene (sl_vset_*) through
