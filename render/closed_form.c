@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "glossy.h"
 #include "render_internal.h"
 
 #define DEFAULT_TOLERANCE 1e-2
@@ -44,6 +45,22 @@ void sl_closed_form_radiance(const sl_closed_form *cf, const sl_scene *scene, in
         out[c] = m->base_color[c] / SL_PI * E[c];
         bound[c] = m->base_color[c] / SL_PI * B[c];
     }
+}
+
+void sl_closed_form_radiance_view(const sl_closed_form *cf, const sl_scene *scene, int shape,
+                                  const double n[3], const double wo[3], double out[3],
+                                  double bound[3], sl_irradiance_cost *cost)
+{
+    const sl_material *m = &scene->materials[scene->shapes[shape].material];
+    if (m->type == SL_MAT_LAMBERT)
+        sl_closed_form_radiance(cf, scene, shape, n, out, bound, cost);
+    else
+        sl_glossy_eval(cf->ir, m, n, wo, cf->tol, out, bound, cost);
+}
+
+static bool has_closed_form(const sl_material *m)
+{
+    return m->type == SL_MAT_LAMBERT || sl_glossy_applies(m);
 }
 
 /* Largest distance of shape b's points from a point, and the farthest
@@ -115,8 +132,10 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (!ray_at(cam, x + 0.5, y + 0.5, org, dir) ||
                 !sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &h[0]) || h[0].inside)
                 continue;
+            double dir0[3];
+            v3_copy(dir0, dir);
             int a = h[0].shape;
-            if (scene->materials[scene->shapes[a].material].type != SL_MAT_LAMBERT)
+            if (!has_closed_form(&scene->materials[scene->shapes[a].material]))
                 continue;
             int npts = 1;
             bool covered = true;
@@ -149,8 +168,9 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             }
             cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
             cf->shape[pix] = a;
-            double B[3];
-            sl_closed_form_radiance(cf, scene, a, h[0].n, j->centre[pix], B, &j->row_cost[y]);
+            double B[3], wo[3] = {-dir0[0], -dir0[1], -dir0[2]};
+            sl_closed_form_radiance_view(cf, scene, a, h[0].n, wo, j->centre[pix], B,
+                                         &j->row_cost[y]);
             for (int c = 0; c < 3; c++)
                 cf->bound[pix][c] = (float)B[c];
         }
@@ -169,7 +189,8 @@ static bool grid_mean(const plan_job *j, int a, int x, int y, int n, double mean
             if (!ray_at(cam, x + (sx + 0.5) / n, y + (sy + 0.5) / n, org, dir) ||
                 !sl_shape_intersect(j->scene, a, org, dir, &h))
                 return false;
-            sl_closed_form_radiance(j->cf, j->scene, a, h.n, v, b, cost);
+            double wo[3] = {-dir[0], -dir[1], -dir[2]};
+            sl_closed_form_radiance_view(j->cf, j->scene, a, h.n, wo, v, b, cost);
             for (int c = 0; c < 3; c++) {
                 mean[c] += v[c] / (n * n);
                 bound[c] = fmax(bound[c], b[c]);
@@ -241,9 +262,9 @@ static const char *not_applicable(const sl_scene *scene, const sl_render_options
     if (scene->camera.type == SL_CAMERA_FISHEYE)
         return "fisheye camera (silhouettes not convex in the image)";
     for (int i = 0; i < scene->shape_count; i++)
-        if (scene->materials[scene->shapes[i].material].type == SL_MAT_LAMBERT)
+        if (has_closed_form(&scene->materials[scene->shapes[i].material]))
             return NULL;
-    return "no Lambert object";
+    return "no Lambert or rough glossy object";
 }
 
 sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const sl_render_options *o,

@@ -3,6 +3,7 @@
  * with BSDF sampling by the power heuristic; delta lobes are followed exactly
  * by BSDF sampling only. `bounces` counts the surfaces a path may hit after
  * its first non-delta vertex. */
+#include "glossy.h"
 #include "render_internal.h"
 
 /* Delta (mirror) vertices allowed beyond the counted bounces. */
@@ -338,7 +339,8 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         sl_hit ha;
         double Lcf[3], bound[3];
         if (sl_shape_intersect(scene, cv_shape, org0, dir0, &ha)) {
-            sl_closed_form_radiance(it->cf, scene, cv_shape, ha.n, Lcf, bound, NULL);
+            double wo0[3] = {-dir0[0], -dir0[1], -dir0[2]};
+            sl_closed_form_radiance_view(it->cf, scene, cv_shape, ha.n, wo0, Lcf, bound, NULL);
             for (int k = 0; k < 3; k++)
                 L[k] -= Lcf[k];
         }

@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "glossy.h"
 #include "render_internal.h"
 
 /* Deepest split inside a texel (1/2^k of its width). */
@@ -344,21 +345,27 @@ static void add_block(eval_state *st, int k, int x, int y)
 
 /* A piece [t0, t1] x [a, b] of texel (x, y): its sums from the same
  * integrals as a texel's. */
+static void piece_sum(const sl_irradiance *ir, int x, int y, double t0, double t1, double a,
+                      double b, row_info *r, col_info *co, cell_sum *s)
+{
+    row_setup(r, t0, t1, b - a);
+    col_setup(co, a, b, 0.5 * (a + b));
+    const float *L = sl_image_pixel(ir->img, x, y);
+    for (int ch = 0; ch < 3; ch++) {
+        s->v[ch][0] = L[ch] * r->r1 * co->s_int;
+        s->v[ch][1] = L[ch] * r->r2 * (b - a);
+        s->v[ch][2] = L[ch] * r->r1 * co->c_int;
+        s->p[ch] = L[ch] * r->r0 * (b - a);
+    }
+}
+
 static void add_piece(eval_state *st, int level, int x, int y, double t0, double t1, double a,
                       double b)
 {
     row_info r;
     col_info co;
-    row_setup(&r, t0, t1, b - a);
-    col_setup(&co, a, b, 0.5 * (a + b));
-    const float *L = sl_image_pixel(st->ir->img, x, y);
     cell_sum s;
-    for (int ch = 0; ch < 3; ch++) {
-        s.v[ch][0] = L[ch] * r.r1 * co.s_int;
-        s.v[ch][1] = L[ch] * r.r2 * (b - a);
-        s.v[ch][2] = L[ch] * r.r1 * co.c_int;
-        s.p[ch] = L[ch] * r.r0 * (b - a);
-    }
+    piece_sum(st->ir, x, y, t0, t1, a, b, &r, &co, &s);
     double c[3] = {r.st * co.sl, r.ct, r.st * co.cl};
     cut_cell geo = {.level = level, .x = x, .y = y, .t0 = t0, .t1 = t1, .a = a, .b = b};
     double span[6] = {r.ct, r.st, co.cl, co.sl, 0.5 * (t1 - t0), 0.5 * (b - a)};
@@ -481,4 +488,52 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
             cost->finest_level = st->finest;
     }
     free(st);
+}
+
+/* ---- cells for the glossy quadrature (glossy.h) ---- */
+
+void sl_irradiance_frame(const sl_irradiance *ir, double rot[3][3], double *intensity)
+{
+    memcpy(rot, ir->rot, sizeof ir->rot);
+    *intensity = ir->intensity;
+}
+
+void sl_irradiance_level_size(const sl_irradiance *ir, int k, int *w, int *h)
+{
+    *w = ir->lv[k].w, *h = ir->lv[k].h;
+}
+
+static void dome_cell_fill(sl_dome_cell *c, const row_info *r, const col_info *co,
+                           const cell_sum *s)
+{
+    for (int ch = 0; ch < 3; ch++) {
+        c->p[ch] = s->p[ch];
+        for (int d = 0; d < 3; d++)
+            c->v[ch][d] = s->v[ch][d];
+    }
+    v3_set(c->centre, r->st * co->sl, r->ct, r->st * co->cl);
+    c->cos_r = r->cr, c->sin_r = r->sr, c->wide = r->wide;
+    double dw = co->b - co->a, vx = r->r1 * co->s_int, vy = r->r2 * dw, vz = r->r1 * co->c_int;
+    double pu = r->r0 * dw;
+    c->spread_uniform = pu > 0 ? 1.0 - sqrt(vx * vx + vy * vy + vz * vz) / pu : 0.0;
+    c->t0 = r->t0, c->t1 = r->t1, c->a = co->a, c->b = co->b;
+}
+
+void sl_irradiance_cell(const sl_irradiance *ir, int k, int x, int y, sl_dome_cell *c)
+{
+    cell_sum s;
+    cell_at(ir, k, x, y, &s);
+    dome_cell_fill(c, &ir->lv[k].rows[y], &ir->lv[k].cols[x], &s);
+    c->level = k, c->x = x, c->y = y;
+}
+
+void sl_irradiance_piece(const sl_irradiance *ir, int level, int x, int y, double t0, double t1,
+                         double a, double b, sl_dome_cell *c)
+{
+    row_info r;
+    col_info co;
+    cell_sum s;
+    piece_sum(ir, x, y, t0, t1, a, b, &r, &co, &s);
+    dome_cell_fill(c, &r, &co, &s);
+    c->level = level, c->x = x, c->y = y;
 }

@@ -313,7 +313,7 @@ static void test_agrees_with_sampling(void)
 }
 
 /* Where the closed form does not apply, every pixel is sampled as before:
- * rig lights, a non-Lambert material, another strategy. */
+ * rig lights, a delta (mirror) material, another strategy. */
 static void test_sampler_kept(void)
 {
     sl_image env;
@@ -337,10 +337,11 @@ static void test_sampler_kept(void)
             l.angle_deg = 5;
             CHECK_OK(sl_scene_add_light(&s, &l, &err), &err);
         } else if (k == 1) {
-            want = "no Lambert object";
+            want = "no Lambert or rough glossy object";
         } else if (k == 2) {
-            sl_material_plastic(&s.materials[0], (const double[3]){0.5, 0.5, 0.5}, 1.5, 0.3);
-            want = "no Lambert object";
+            /* A smooth coat: its mirror lobe is a delta, sampled. */
+            sl_material_plastic(&s.materials[0], (const double[3]){0.5, 0.5, 0.5}, 1.5, 0.0);
+            want = "no Lambert or rough glossy object";
         } else {
             o.strategy = SL_STRATEGY_BSDF;
             want = "strategy is not mis";
