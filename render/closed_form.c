@@ -94,6 +94,7 @@ typedef struct plan_job {
     double (*centre)[3]; /* centre value per pixel */
     sl_irradiance_cost *row_cost;
     double *row_foot; /* largest relative footprint estimate per row */
+    sl_glossy_pixels glossy; /* glossy pixels at centres: left to sl_glossy_fill */
 } plan_job;
 
 static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], double d[3])
@@ -169,6 +170,12 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
             cf->shape[pix] = a;
             double B[3], wo[3] = {-dir0[0], -dir0[1], -dir0[2]};
+            if (j->glossy.state && sl_glossy_applies(&scene->materials[sa->material])) {
+                j->glossy.state[pix] = SL_GLOSSY_PENDING;
+                v3_copy(j->glossy.n[pix], h[0].n);
+                v3_copy(j->glossy.wo[pix], wo);
+                continue;
+            }
             sl_closed_form_radiance_view(cf, scene, a, h[0].n, wo, j->centre[pix], B,
                                          &j->row_cost[y]);
             for (int c = 0; c < 3; c++)
@@ -297,6 +304,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     j.centre = calloc(npix, sizeof *j.centre);
     j.row_cost = calloc((size_t)cam->height, sizeof *j.row_cost);
     j.row_foot = calloc((size_t)cam->height, sizeof *j.row_foot);
+    bool glossy_ok = true;
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
         !j.row_foot) {
         free(j.centre);
@@ -305,7 +313,31 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
     }
-    sl_parallel_for(cam->height, 1, classify_rows, &j);
+    if (o->pixel_centers) {
+        j.glossy.state = calloc(npix, 1);
+        j.glossy.n = malloc(npix * sizeof *j.glossy.n);
+        j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
+        j.glossy.value = j.centre;
+        if (!j.glossy.state || !j.glossy.n || !j.glossy.wo)
+            glossy_ok = false;
+    }
+    if (glossy_ok) {
+        sl_parallel_for(cam->height, 1, classify_rows, &j);
+        if (j.glossy.state)
+            sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost);
+        for (size_t i = 0; j.glossy.state && i < npix; i++)
+            st->interpolated_pixels += j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
+    }
+    free(j.glossy.state);
+    free(j.glossy.n);
+    free(j.glossy.wo);
+    if (!glossy_ok) {
+        free(j.centre);
+        free(j.row_cost);
+        free(j.row_foot);
+        sl_closed_form_free(cf);
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
+    }
     sl_parallel_for(cam->height, 1, filter_rows, &j);
     st->used = true;
     st->tolerance = cf->tol;
@@ -318,7 +350,6 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
             st->finest_level = j.row_cost[y].finest_level;
     }
     st->sampled_pixels = 0;
-    bool *seen = calloc((size_t)scene->shape_count + 1, sizeof *seen);
     for (size_t i = 0; i < npix; i++) {
         int m = cf->mode[i];
         st->sampled_pixels += m == SL_PIXEL_SAMPLED;
@@ -326,15 +357,25 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         st->control_variate_pixels += m == SL_PIXEL_CONTROL;
         if (m == SL_PIXEL_SAMPLED)
             continue;
-        if (seen && !seen[cf->shape[i]] && st->object_count < SL_CLOSED_FORM_MAX_OBJECTS) {
-            seen[cf->shape[i]] = true;
+        int k = 0;
+        while (k < st->object_count && st->objects[k] != cf->shape[i])
+            k++;
+        if (k == st->object_count && k < SL_CLOSED_FORM_MAX_OBJECTS) {
             st->objects[st->object_count++] = cf->shape[i];
+            st->object_material[k] = scene->materials[scene->shapes[cf->shape[i]].material].type;
+        }
+        if (k < SL_CLOSED_FORM_MAX_OBJECTS) {
+            st->object_exact[k] += m == SL_PIXEL_EXACT;
+            st->object_control[k] += m == SL_PIXEL_CONTROL;
         }
         for (int c = 0; c < 3; c++)
-            if (cf->value[i][c] > 0)
-                st->max_rel_bound = fmax(st->max_rel_bound, cf->bound[i][c] / cf->value[i][c]);
+            if (cf->value[i][c] > 0) {
+                double rel = cf->bound[i][c] / cf->value[i][c];
+                st->max_rel_bound = fmax(st->max_rel_bound, rel);
+                if (k < SL_CLOSED_FORM_MAX_OBJECTS)
+                    st->object_max_rel_bound[k] = fmax(st->object_max_rel_bound[k], rel);
+            }
     }
-    free(seen);
     for (int y = 0; y < cam->height; y++)
         st->max_footprint_error = fmax(st->max_footprint_error, j.row_foot[y]);
     free(j.centre);

@@ -350,3 +350,119 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
     free(idx);
     free(st);
 }
+
+/* ---- pixels: a lattice of blocks, interpolated where that is checked ---- */
+
+/* Block size of the lattice. Across a 4 x 4 block the normal turns by a few
+ * pixels' worth: far less than a rough lobe's width, so bilinear
+ * interpolation of the corners holds unless a highlight sits in it, which
+ * the block's centre (where bilinear interpolation errs most) shows. */
+#define BLOCK 4
+/* The block's check allows this share of the tolerance: elsewhere in the
+ * block bilinear interpolation errs less than at its centre, but not
+ * always (a highlight's edge). */
+#define INTERP_SHARE 0.25
+
+typedef struct fill_job {
+    const sl_closed_form *cf;
+    const sl_scene *scene;
+    sl_glossy_pixels *px;
+    int w, h;
+    sl_irradiance_cost *row_cost;
+} fill_job;
+
+static void eval_pixel(const fill_job *j, size_t pix, sl_irradiance_cost *cost)
+{
+    double B[3];
+    sl_closed_form_radiance_view(j->cf, j->scene, j->cf->shape[pix], j->px->n[pix], j->px->wo[pix],
+                                 j->px->value[pix], B, cost);
+    for (int c = 0; c < 3; c++)
+        j->cf->bound[pix][c] = (float)B[c];
+    j->px->state[pix] = SL_GLOSSY_DONE;
+}
+
+static void lattice_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    fill_job *j = ctx;
+    for (int64_t by = begin; by < end; by++) {
+        int y = (int)by * BLOCK;
+        for (int x = 0; x < j->w; x += BLOCK) {
+            size_t pix = (size_t)y * j->w + x;
+            if (j->px->state[pix] == SL_GLOSSY_PENDING)
+                eval_pixel(j, pix, &j->row_cost[y]);
+        }
+    }
+}
+
+/* Block (x0, y0) owns [x0, x0 + BLOCK) x [y0, y0 + BLOCK) but its first
+ * corner, which the lattice pass computed; its far corners belong to the
+ * next blocks, so blocks never write the same pixel. */
+static void block_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    fill_job *j = ctx;
+    sl_glossy_pixels *px = j->px;
+    for (int64_t by = begin; by < end; by++) {
+        int y0 = (int)by * BLOCK;
+        sl_irradiance_cost *cost = &j->row_cost[y0];
+        for (int x0 = 0; x0 < j->w; x0 += BLOCK) {
+            size_t corner[4];
+            bool whole = x0 + BLOCK < j->w && y0 + BLOCK < j->h;
+            for (int k = 0; k < 4 && whole; k++) {
+                corner[k] = (size_t)(y0 + (k >> 1) * BLOCK) * j->w + (size_t)(x0 + (k & 1) * BLOCK);
+                whole = px->state[corner[k]] == SL_GLOSSY_DONE &&
+                        j->cf->shape[corner[k]] == j->cf->shape[corner[0]];
+            }
+            for (int y = y0; y < y0 + BLOCK && whole; y++)
+                for (int x = x0; x < x0 + BLOCK && whole; x++) {
+                    size_t p = (size_t)y * j->w + x;
+                    whole = px->state[p] != SL_GLOSSY_NONE && j->cf->shape[p] == j->cf->shape[corner[0]];
+                }
+            double bmax[3] = {0, 0, 0};
+            if (whole) {
+                size_t mid = (size_t)(y0 + BLOCK / 2) * j->w + (size_t)(x0 + BLOCK / 2);
+                eval_pixel(j, mid, cost);
+                for (int c = 0; c < 3; c++) {
+                    double lin = 0.25 * (px->value[corner[0]][c] + px->value[corner[1]][c] +
+                                         px->value[corner[2]][c] + px->value[corner[3]][c]);
+                    double d = fabs(lin - px->value[mid][c]);
+                    for (int k = 0; k < 4; k++)
+                        bmax[c] = fmax(bmax[c], j->cf->bound[corner[k]][c]);
+                    if (d > INTERP_SHARE * j->cf->tol * px->value[mid][c])
+                        whole = false;
+                    bmax[c] += d;
+                }
+            }
+            for (int y = y0; y < y0 + BLOCK && y < j->h; y++)
+                for (int x = x0; x < x0 + BLOCK && x < j->w; x++) {
+                    size_t p = (size_t)y * j->w + x;
+                    if (px->state[p] != SL_GLOSSY_PENDING)
+                        continue;
+                    if (!whole) {
+                        eval_pixel(j, p, cost);
+                        continue;
+                    }
+                    double fx = (double)(x - x0) / BLOCK, fy = (double)(y - y0) / BLOCK;
+                    double wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+                    for (int c = 0; c < 3; c++) {
+                        double v = 0;
+                        for (int k = 0; k < 4; k++)
+                            v += wts[k] * px->value[corner[k]][c];
+                        px->value[p][c] = v;
+                        j->cf->bound[p][c] = (float)bmax[c];
+                    }
+                    px->state[p] = SL_GLOSSY_INTERPOLATED;
+                }
+        }
+    }
+}
+
+void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
+                    int h, sl_irradiance_cost *row_cost)
+{
+    fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost};
+    int rows = (h + BLOCK - 1) / BLOCK;
+    sl_parallel_for(rows, 1, lattice_rows, &j);
+    sl_parallel_for(rows, 1, block_rows, &j);
+}

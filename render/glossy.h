@@ -41,6 +41,23 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
                     const double wo[3], double tol, double out[3], double err[3],
                     sl_irradiance_cost *cost);
 
+/* Glossy pixels of the closed form with pixel centres: evaluated on a
+ * lattice of 4 x 4 px blocks and interpolated bilinearly inside a block
+ * whose centre, evaluated too, is within a quarter of the tolerance of the
+ * interpolation (that difference is added to its pixels' bounds); every
+ * pixel of any other block is evaluated. */
+enum { SL_GLOSSY_NONE = 0, SL_GLOSSY_PENDING, SL_GLOSSY_DONE, SL_GLOSSY_INTERPOLATED };
+typedef struct sl_glossy_pixels {
+    uint8_t *state;        /* per pixel: SL_GLOSSY_* */
+    double (*n)[3];        /* world normal of a pending pixel */
+    double (*wo)[3];       /* its view direction */
+    double (*value)[3];    /* out: its radiance */
+} sl_glossy_pixels;
+/* Fills value and cf->bound of every pending pixel (cf->shape set);
+ * costs per image row. */
+void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
+                    int h, sl_irradiance_cost *row_cost);
+
 /* closed_form.c: the closed-form radiance of a shape toward the viewer wo,
  * Lambert (irradiance) or glossy. */
 void sl_closed_form_radiance_view(const sl_closed_form *cf, const sl_scene *scene, int shape,
