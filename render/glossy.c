@@ -29,6 +29,7 @@
 
 #include "glossy.h"
 #include "microfacet.h"
+#include "slot_heap.h"
 
 /* Cells kept at once; past it the error is what it is (reported). */
 #define CELL_CAP 2048
@@ -73,9 +74,7 @@ typedef struct gstate {
     const sl_irradiance *ir;
     lobe l;
     double inv_scale[3];
-    gcell *pool;
-    int *heap, *free_list;
-    int count, nfree, used;
+    sl_slot_heap h;
     double sum_est[3], sum_err[3];
     int64_t cells;
     int finest;
@@ -91,43 +90,17 @@ static double cell_key(const gstate *st, const gcell *g)
 
 static void push(gstate *st, const gcell *g)
 {
-    int slot = st->nfree > 0 ? st->free_list[--st->nfree] : st->used++;
-    st->pool[slot] = *g;
     for (int c = 0; c < 3; c++)
         st->sum_est[c] += g->est[c], st->sum_err[c] += g->err[c];
-    int i = st->count++;
-    while (i > 0) {
-        int p = (i - 1) / 2;
-        if (st->pool[st->heap[p]].key >= g->key)
-            break;
-        st->heap[i] = st->heap[p];
-        i = p;
-    }
-    st->heap[i] = slot;
+    sl_slot_heap_push(&st->h, g);
 }
 
 static gcell pop(gstate *st)
 {
-    int top_slot = st->heap[0], last = st->heap[--st->count];
-    gcell top = st->pool[top_slot];
-    st->free_list[st->nfree++] = top_slot;
+    gcell top;
+    sl_slot_heap_pop(&st->h, &top);
     for (int c = 0; c < 3; c++)
         st->sum_est[c] -= top.est[c], st->sum_err[c] -= top.err[c];
-    double last_key = st->pool[last].key;
-    int i = 0;
-    for (;;) {
-        int c = 2 * i + 1;
-        if (c >= st->count)
-            break;
-        if (c + 1 < st->count && st->pool[st->heap[c + 1]].key > st->pool[st->heap[c]].key)
-            c++;
-        if (st->pool[st->heap[c]].key <= last_key)
-            break;
-        st->heap[i] = st->heap[c];
-        i = c;
-    }
-    if (st->count > 0)
-        st->heap[i] = last;
     return top;
 }
 
@@ -245,11 +218,11 @@ static void totals(gstate *st)
 {
     for (int c = 0; c < 3; c++)
         st->sum_est[c] = st->sum_err[c] = 0;
-    for (int i = 0; i < st->count; i++)
-        for (int c = 0; c < 3; c++) {
-            st->sum_est[c] += st->pool[st->heap[i]].est[c];
-            st->sum_err[c] += st->pool[st->heap[i]].err[c];
-        }
+    for (int i = 0; i < st->h.count; i++) {
+        const gcell *g = sl_slot_heap_at(&st->h, i);
+        for (int c = 0; c < 3; c++)
+            st->sum_est[c] += g->est[c], st->sum_err[c] += g->err[c];
+    }
 }
 
 static bool error_met(const gstate *st, double tol)
@@ -278,7 +251,8 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
     }
     memset(st, 0, sizeof *st);
     st->ir = ir;
-    st->pool = pool, st->heap = idx, st->free_list = idx + CELL_CAP;
+    st->h = (sl_slot_heap){.pool = pool, .stride = sizeof *pool, .heap = idx,
+                           .free_list = idx + CELL_CAP};
     lobe *l = &st->l;
     l->m = m;
     frame fr;
@@ -312,10 +286,10 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
             st->inv_scale[c] = scale > 0 ? 1.0 / scale : 0.0;
         }
         /* At most the top level's 16 x 8 cells, in slots 0..n-1. */
-        int n = st->count;
+        int n = st->h.count;
         gcell first[16 * 8];
-        memcpy(first, st->pool, (size_t)n * sizeof *first);
-        st->count = st->nfree = st->used = 0;
+        memcpy(first, pool, (size_t)n * sizeof *first);
+        sl_slot_heap_clear(&st->h);
         for (int c = 0; c < 3; c++)
             st->sum_est[c] = st->sum_err[c] = 0;
         for (int i = 0; i < n; i++) {
@@ -323,12 +297,12 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
             push(st, &first[i]);
         }
         int steps = 0;
-        while (st->count > 0 && st->count + 4 <= CELL_CAP) {
+        while (st->h.count > 0 && st->h.count + 4 <= CELL_CAP) {
             if (++steps % 128 == 0)
                 totals(st);
             if (error_met(st, tol))
                 break;
-            const gcell *worst = &st->pool[st->heap[0]];
+            const gcell *worst = sl_slot_heap_at(&st->h, 0);
             if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)
                 break;
             gcell g = pop(st);

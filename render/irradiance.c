@@ -18,6 +18,7 @@
 
 #include "glossy.h"
 #include "render_internal.h"
+#include "slot_heap.h"
 
 /* Deepest split inside a texel (1/2^k of its width). */
 #define SUBTEXEL_DEPTH 8
@@ -210,7 +211,7 @@ typedef struct eval_state {
     cut_cell pool[HEAP_CAP]; /* cut cells; heap holds their indices */
     int heap[HEAP_CAP];
     int free_list[HEAP_CAP];
-    int count, nfree, used;
+    sl_slot_heap h;
     double sum_mid[3], sum_bnd[3]; /* over the heap */
     int64_t cells;
     int finest;
@@ -218,43 +219,17 @@ typedef struct eval_state {
 
 static void heap_push(eval_state *st, const cut_cell *c)
 {
-    int slot = st->nfree > 0 ? st->free_list[--st->nfree] : st->used++;
-    st->pool[slot] = *c;
     for (int ch = 0; ch < 3; ch++)
         st->sum_mid[ch] += c->mid[ch], st->sum_bnd[ch] += c->bnd[ch];
-    int i = st->count++;
-    while (i > 0) {
-        int p = (i - 1) / 2;
-        if (st->pool[st->heap[p]].key >= c->key)
-            break;
-        st->heap[i] = st->heap[p];
-        i = p;
-    }
-    st->heap[i] = slot;
+    sl_slot_heap_push(&st->h, c);
 }
 
 static cut_cell heap_pop(eval_state *st)
 {
-    int top_slot = st->heap[0], last = st->heap[--st->count];
-    cut_cell top = st->pool[top_slot];
-    st->free_list[st->nfree++] = top_slot;
+    cut_cell top;
+    sl_slot_heap_pop(&st->h, &top);
     for (int ch = 0; ch < 3; ch++)
         st->sum_mid[ch] -= top.mid[ch], st->sum_bnd[ch] -= top.bnd[ch];
-    double last_key = st->pool[last].key;
-    int i = 0;
-    for (;;) {
-        int c = 2 * i + 1;
-        if (c >= st->count)
-            break;
-        if (c + 1 < st->count && st->pool[st->heap[c + 1]].key > st->pool[st->heap[c]].key)
-            c++;
-        if (st->pool[st->heap[c]].key <= last_key)
-            break;
-        st->heap[i] = st->heap[c];
-        i = c;
-    }
-    if (st->count > 0)
-        st->heap[i] = last;
     return top;
 }
 
@@ -402,11 +377,13 @@ static void totals(const eval_state *st, double mid[3], double B[3])
 {
     for (int ch = 0; ch < 3; ch++)
         mid[ch] = 0, B[ch] = 0;
-    for (int i = 0; i < st->count; i++)
+    for (int i = 0; i < st->h.count; i++) {
+        const cut_cell *c = sl_slot_heap_at(&st->h, i);
         for (int ch = 0; ch < 3; ch++) {
-            mid[ch] += st->pool[st->heap[i]].mid[ch];
-            B[ch] += st->pool[st->heap[i]].bnd[ch];
+            mid[ch] += c->mid[ch];
+            B[ch] += c->bnd[ch];
         }
+    }
 }
 
 static bool bound_met(const double E[3], const double B[3], double tol)
@@ -429,7 +406,8 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
     st->ir = ir;
     m3_mul_transpose(ir->rot, n_world, st->n);
     v3_normalize(st->n);
-    st->count = st->nfree = st->used = 0;
+    st->h = (sl_slot_heap){.pool = st->pool, .stride = sizeof st->pool[0], .heap = st->heap,
+                           .free_list = st->free_list};
     memset(st->sum_mid, 0, sizeof st->sum_mid);
     memset(st->sum_bnd, 0, sizeof st->sum_bnd);
     st->cells = 0;
@@ -447,11 +425,11 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
         double scale = st->exact[ch] + E[ch] + B[ch];
         st->inv_scale[ch] = scale > 0 ? 1.0 / scale : 0.0;
     }
-    int n = st->count; /* at most the top level's 16 x 8 cells */
+    int n = st->h.count; /* at most the top level's 16 x 8 cells */
     cut_cell first[16 * 8];
     for (int i = 0; i < n; i++)
-        first[i] = st->pool[st->heap[i]];
-    st->count = st->nfree = st->used = 0;
+        first[i] = *(const cut_cell *)sl_slot_heap_at(&st->h, i);
+    sl_slot_heap_clear(&st->h);
     for (int ch = 0; ch < 3; ch++)
         st->sum_mid[ch] = st->sum_bnd[ch] = 0;
     for (int i = 0; i < n; i++) {
@@ -461,7 +439,7 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
         heap_push(st, &first[i]);
     }
     int steps = 0;
-    while (st->count > 0 && st->count + 4 <= HEAP_CAP) {
+    while (st->h.count > 0 && st->h.count + 4 <= HEAP_CAP) {
         /* Running sums drift by rounding: recompute them now and then. */
         if (++steps % 128 == 0)
             totals(st, st->sum_mid, st->sum_bnd);
@@ -470,7 +448,7 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
             sumE[ch] = st->exact[ch] + st->sum_mid[ch];
         if (bound_met(sumE, st->sum_bnd, tol))
             break;
-        const cut_cell *worst = &st->pool[st->heap[0]];
+        const cut_cell *worst = sl_slot_heap_at(&st->h, 0);
         if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)
             break;
         cut_cell c = heap_pop(st);
