@@ -10,32 +10,13 @@
 #include <string.h>
 
 #include "../../render/render_internal.h"
+#include "sun_sky.h"
 #include "testing.h"
-
-static bool sanitized(void)
-{
-#if defined(__SANITIZE_ADDRESS__)
-    return true;
-#else
-    const char *s = getenv("SETLIGHT_SANITIZED");
-    return s && *s && strcmp(s, "0");
-#endif
-}
 
 /* Smooth sky, a sun 1e4 in two texels and a dark ground: sampling's worst case. */
 static void sun_sky(sl_image *env, int w)
 {
-    CHECK_OK(sl_image_alloc(env, w, w / 2, 3, NULL), NULL);
-    for (int y = 0; y < w / 2; y++)
-        for (int x = 0; x < w; x++) {
-            float *p = sl_image_pixel(env, x, y);
-            double d[3];
-            sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / (w / 2), d);
-            double up = fmax(0, d[1]);
-            p[0] = (float)(d[1] > 0 ? 0.3 + 0.5 * up : 0.05);
-            p[1] = (float)(d[1] > 0 ? 0.5 + 0.4 * up : 0.04);
-            p[2] = (float)(d[1] > 0 ? 0.9 + 0.2 * d[0] * d[0] : 0.03);
-        }
+    sky_over_ground(env, w);
     for (int k = 0; k < 2; k++) {
         float *s = sl_image_pixel(env, w / 2 - w / 8 + k, w / 8);
         s[0] = 1.2e4f, s[1] = 1.0e4f, s[2] = 0.8e4f;

@@ -9,32 +9,13 @@
 #include <string.h>
 
 #include "../../render/glossy.h"
+#include "sun_sky.h"
 #include "testing.h"
-
-static bool sanitized(void)
-{
-#if defined(__SANITIZE_ADDRESS__)
-    return true;
-#else
-    const char *s = getenv("SETLIGHT_SANITIZED");
-    return s && *s && strcmp(s, "0");
-#endif
-}
 
 /* A smooth sky with a sun of 1e5 x the sky in one texel, a dark ground. */
 static void sun_sky(sl_image *env, int w, double sun)
 {
-    CHECK_OK(sl_image_alloc(env, w, w / 2, 3, NULL), NULL);
-    for (int y = 0; y < w / 2; y++)
-        for (int x = 0; x < w; x++) {
-            float *p = sl_image_pixel(env, x, y);
-            double d[3];
-            sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / (w / 2), d);
-            double up = fmax(0, d[1]);
-            p[0] = (float)(d[1] > 0 ? 0.3 + 0.5 * up : 0.05);
-            p[1] = (float)(d[1] > 0 ? 0.5 + 0.4 * up : 0.04);
-            p[2] = (float)(d[1] > 0 ? 0.9 + 0.2 * d[0] * d[0] : 0.03);
-        }
+    sky_over_ground(env, w);
     /* Up and to the camera's side: its highlight is on the ball. */
     float *s = sl_image_pixel(env, w / 2 - w / 8, w / 8 + 1);
     s[0] = (float)(1.2 * sun), s[1] = (float)sun, s[2] = (float)(0.8 * sun);
@@ -78,6 +59,18 @@ static bool finite_nonnegative(const sl_image *img)
     return true;
 }
 
+static void render_once(const sl_scene *s, int64_t spp, bool centres, bool closed_form,
+                        sl_image *img, sl_render_stats *st)
+{
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = spp;
+    o.pixel_centers = centres;
+    o.closed_form = closed_form;
+    sl_error err = {0};
+    CHECK_OK(sl_render(s, &o, img, st, &err), &err);
+}
+
 /* Closed form against the sampled renderer: the difference within twice
  * the sampled render's own error estimate and the closed form's (its
  * sampled part; its quadrature error estimate is far above its true error,
@@ -87,16 +80,11 @@ static double agree(const char *preset, int width, const sl_image *env, const gl
 {
     sl_scene s;
     scene_for(&s, preset, width, env, g);
-    sl_render_options o;
-    sl_render_options_init(&o);
-    o.spp = spp;
-    o.pixel_centers = centres;
     sl_image a, b;
     sl_render_stats sa, sb;
     sl_error err = {0};
-    CHECK_OK(sl_render(&s, &o, &a, &sa, &err), &err);
-    o.closed_form = false;
-    CHECK_OK(sl_render(&s, &o, &b, &sb, &err), &err);
+    render_once(&s, spp, centres, true, &a, &sa);
+    render_once(&s, spp, centres, false, &b, &sb);
     CHECK(sa.closed_form.used && sa.closed_form.exact_pixels + sa.closed_form.control_variate_pixels > 0);
     CHECK(!sb.closed_form.used && !strcmp(sb.closed_form.reason, "off"));
     CHECK(finite_nonnegative(&a));
@@ -178,14 +166,10 @@ static void test_narrow_and_grazing(void)
     for (int i = 0; i < 2; i++) {
         sl_scene s;
         scene_for(&s, "grey", 24, &env, &cases[i]);
-        sl_render_options o;
-        sl_render_options_init(&o);
-        o.spp = 2;
-        o.pixel_centers = true;
         sl_image img;
         sl_render_stats st;
         sl_error err = {0};
-        CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
+        render_once(&s, 2, true, true, &img, &st);
         CHECK(st.closed_form.used && st.closed_form.exact_pixels > 24 * 24 / 2);
         CHECK(finite_nonnegative(&img));
         CHECK(st.nonfinite_samples == 0);
@@ -215,14 +199,10 @@ static void test_interpolated_pixels(void)
     const glossy_case *g = &CASES[2]; /* metal 0.8: smooth across blocks */
     sl_scene s;
     scene_for(&s, "grey", 48, &env, g);
-    sl_render_options o;
-    sl_render_options_init(&o);
-    o.spp = 2;
-    o.pixel_centers = true;
     sl_image img;
     sl_render_stats st;
     sl_error err = {0};
-    CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
+    render_once(&s, 2, true, true, &img, &st);
     const sl_closed_form_stats *cf = &st.closed_form;
     CHECK(cf->object_count == 1 && cf->object_material[0] == SL_MAT_CONDUCTOR);
     CHECK(cf->object_exact[0] == cf->exact_pixels && cf->object_control[0] == 0);
@@ -267,13 +247,9 @@ static void test_delta_kept(void)
     for (int i = 0; i < 2; i++) {
         sl_scene s;
         scene_for(&s, "grey", 8, &env, &g[i]);
-        sl_render_options o;
-        sl_render_options_init(&o);
-        o.spp = 4;
         sl_image img;
         sl_render_stats st;
-        sl_error err = {0};
-        CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
+        render_once(&s, 4, false, true, &img, &st);
         CHECK_MSG(!st.closed_form.used && !strcmp(st.closed_form.reason, "no Lambert or rough glossy object"),
                   "%s: %s", g[i].name, st.closed_form.reason);
         sl_image_free(&img);
