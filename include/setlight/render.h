@@ -424,7 +424,9 @@ typedef struct sl_converge_report {
 } sl_converge_report;
 
 /* Renders the scene with uniform, cosine, bsdf, light and mis (independent
- * random numbers) and mis+sobol, each up to base->spp samples per pixel,
+ * random numbers) and mis+sobol (closed form off), then, when
+ * base->closed_form, with the closed form ("closed-form": mis+sobol where
+ * it samples), each up to base->spp samples per pixel,
  * measuring the relative RMSE after every pass against `reference` or, when
  * NULL, against a mis+sobol render of reference_spp samples. */
 sl_result sl_converge_run(const sl_scene *scene, const sl_render_options *base,
