@@ -304,40 +304,31 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     j.centre = calloc(npix, sizeof *j.centre);
     j.row_cost = calloc((size_t)cam->height, sizeof *j.row_cost);
     j.row_foot = calloc((size_t)cam->height, sizeof *j.row_foot);
-    bool glossy_ok = true;
-    if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
-        !j.row_foot) {
-        free(j.centre);
-        free(j.row_cost);
-        free(j.row_foot);
-        sl_closed_form_free(cf);
-        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
-    }
     if (o->pixel_centers) {
         j.glossy.state = calloc(npix, 1);
         j.glossy.n = malloc(npix * sizeof *j.glossy.n);
         j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
         j.glossy.value = j.centre;
-        if (!j.glossy.state || !j.glossy.n || !j.glossy.wo)
-            glossy_ok = false;
     }
-    if (glossy_ok) {
-        sl_parallel_for(cam->height, 1, classify_rows, &j);
-        if (j.glossy.state)
-            sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost);
-        for (size_t i = 0; j.glossy.state && i < npix; i++)
-            st->interpolated_pixels += j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
-    }
-    free(j.glossy.state);
-    free(j.glossy.n);
-    free(j.glossy.wo);
-    if (!glossy_ok) {
+    if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
+        !j.row_foot || (o->pixel_centers && (!j.glossy.state || !j.glossy.n || !j.glossy.wo))) {
         free(j.centre);
         free(j.row_cost);
         free(j.row_foot);
+        free(j.glossy.state);
+        free(j.glossy.n);
+        free(j.glossy.wo);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
     }
+    sl_parallel_for(cam->height, 1, classify_rows, &j);
+    if (j.glossy.state)
+        sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost);
+    for (size_t i = 0; j.glossy.state && i < npix; i++)
+        st->interpolated_pixels += j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
+    free(j.glossy.state);
+    free(j.glossy.n);
+    free(j.glossy.wo);
     sl_parallel_for(cam->height, 1, filter_rows, &j);
     st->used = true;
     st->tolerance = cf->tol;
