@@ -3,15 +3,7 @@
 # reported per object (--json, --stats, the log); --closed-form off samples.
 source "$(dirname "$0")/lib.bash"
 S="$SETLIGHT"
-python3 - "$T/env.hdr" <<'PY'
-import sys
-w, h = 32, 16
-with open(sys.argv[1], "wb") as f:
-    f.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w))
-    for y in range(h):
-        for x in range(w):
-            f.write(bytes([255, 255, 255, 140]) if (x, y) == (10, 4) else bytes([128, 128, 160, 129]))
-PY
+sky_hdr "$T/env.hdr" 140
 expect 0 "$S" render --env "$T/env.hdr" --material conductor:0.9,0.7,0.5:0.3 --width 12 --pixel-centers \
     --spp 2 --json --stats "$T/s.json" -o "$T/metal.exr"
 cp "$T/out" "$T/out.json"
