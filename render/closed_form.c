@@ -20,6 +20,7 @@
 #include <string.h>
 
 #include "closed_form.h"
+#include "glossy.h"
 #include "irradiance.h"
 #include "scene_internal.h"
 #include "vec3.h"
@@ -47,6 +48,22 @@ void sl_closed_form_radiance(const sl_closed_form *cf, const sl_scene *scene, in
         out[c] = m->base_color[c] / SL_PI * E[c];
         bound[c] = m->base_color[c] / SL_PI * B[c];
     }
+}
+
+void sl_closed_form_radiance_view(const sl_closed_form *cf, const sl_scene *scene, int shape,
+                                  const double n[3], const double wo[3], double out[3],
+                                  double bound[3], sl_irradiance_cost *cost)
+{
+    const sl_material *m = &scene->materials[scene->shapes[shape].material];
+    if (m->type == SL_MAT_LAMBERT)
+        sl_closed_form_radiance(cf, scene, shape, n, out, bound, cost);
+    else
+        sl_glossy_eval(cf->ir, m, n, wo, cf->tol, out, bound, cost);
+}
+
+static bool has_closed_form(const sl_material *m)
+{
+    return m->type == SL_MAT_LAMBERT || sl_glossy_applies(m);
 }
 
 /* Largest distance of shape b's points from a point, and the farthest
@@ -80,6 +97,7 @@ typedef struct plan_job {
     double (*centre)[3]; /* centre value per pixel */
     sl_irradiance_cost *row_cost;
     double *row_foot; /* largest relative footprint estimate per row */
+    sl_glossy_pixels glossy; /* glossy pixels at centres: left to sl_glossy_fill */
 } plan_job;
 
 static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], double d[3])
@@ -118,8 +136,10 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (!ray_at(cam, x + 0.5, y + 0.5, org, dir) ||
                 !sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &h[0]) || h[0].inside)
                 continue;
+            double dir0[3];
+            v3_copy(dir0, dir);
             int a = h[0].shape;
-            if (scene->materials[scene->shapes[a].material].type != SL_MAT_LAMBERT)
+            if (!has_closed_form(&scene->materials[scene->shapes[a].material]))
                 continue;
             int npts = 1;
             bool covered = true;
@@ -152,8 +172,15 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             }
             cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
             cf->shape[pix] = a;
-            double B[3];
-            sl_closed_form_radiance(cf, scene, a, h[0].n, j->centre[pix], B, &j->row_cost[y]);
+            double B[3], wo[3] = {-dir0[0], -dir0[1], -dir0[2]};
+            if (j->glossy.state && sl_glossy_applies(&scene->materials[sa->material])) {
+                j->glossy.state[pix] = SL_GLOSSY_PENDING;
+                v3_copy(j->glossy.n[pix], h[0].n);
+                v3_copy(j->glossy.wo[pix], wo);
+                continue;
+            }
+            sl_closed_form_radiance_view(cf, scene, a, h[0].n, wo, j->centre[pix], B,
+                                         &j->row_cost[y]);
             for (int c = 0; c < 3; c++)
                 cf->bound[pix][c] = (float)B[c];
         }
@@ -172,7 +199,8 @@ static bool grid_mean(const plan_job *j, int a, int x, int y, int n, double mean
             if (!ray_at(cam, x + (sx + 0.5) / n, y + (sy + 0.5) / n, org, dir) ||
                 !sl_shape_intersect(j->scene, a, org, dir, &h))
                 return false;
-            sl_closed_form_radiance(j->cf, j->scene, a, h.n, v, b, cost);
+            double wo[3] = {-dir[0], -dir[1], -dir[2]};
+            sl_closed_form_radiance_view(j->cf, j->scene, a, h.n, wo, v, b, cost);
             for (int c = 0; c < 3; c++) {
                 mean[c] += v[c] / (n * n);
                 bound[c] = fmax(bound[c], b[c]);
@@ -244,9 +272,9 @@ static const char *not_applicable(const sl_scene *scene, const sl_render_options
     if (scene->camera.type == SL_CAMERA_FISHEYE)
         return "fisheye camera (silhouettes not convex in the image)";
     for (int i = 0; i < scene->shape_count; i++)
-        if (scene->materials[scene->shapes[i].material].type == SL_MAT_LAMBERT)
+        if (has_closed_form(&scene->materials[scene->shapes[i].material]))
             return NULL;
-    return "no Lambert object";
+    return "no Lambert or rough glossy object";
 }
 
 sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const sl_render_options *o,
@@ -279,15 +307,31 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     j.centre = calloc(npix, sizeof *j.centre);
     j.row_cost = calloc((size_t)cam->height, sizeof *j.row_cost);
     j.row_foot = calloc((size_t)cam->height, sizeof *j.row_foot);
+    if (o->pixel_centers) {
+        j.glossy.state = calloc(npix, 1);
+        j.glossy.n = malloc(npix * sizeof *j.glossy.n);
+        j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
+        j.glossy.value = j.centre;
+    }
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
-        !j.row_foot) {
+        !j.row_foot || (o->pixel_centers && (!j.glossy.state || !j.glossy.n || !j.glossy.wo))) {
         free(j.centre);
         free(j.row_cost);
         free(j.row_foot);
+        free(j.glossy.state);
+        free(j.glossy.n);
+        free(j.glossy.wo);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
     }
     sl_parallel_for(cam->height, 1, classify_rows, &j);
+    if (j.glossy.state)
+        sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost);
+    for (size_t i = 0; j.glossy.state && i < npix; i++)
+        st->interpolated_pixels += j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
+    free(j.glossy.state);
+    free(j.glossy.n);
+    free(j.glossy.wo);
     sl_parallel_for(cam->height, 1, filter_rows, &j);
     st->used = true;
     st->tolerance = cf->tol;
@@ -300,7 +344,6 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
             st->finest_level = j.row_cost[y].finest_level;
     }
     st->sampled_pixels = 0;
-    bool *seen = calloc((size_t)scene->shape_count + 1, sizeof *seen);
     for (size_t i = 0; i < npix; i++) {
         int m = cf->mode[i];
         st->sampled_pixels += m == SL_PIXEL_SAMPLED;
@@ -308,15 +351,25 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         st->control_variate_pixels += m == SL_PIXEL_CONTROL;
         if (m == SL_PIXEL_SAMPLED)
             continue;
-        if (seen && !seen[cf->shape[i]] && st->object_count < SL_CLOSED_FORM_MAX_OBJECTS) {
-            seen[cf->shape[i]] = true;
+        int k = 0;
+        while (k < st->object_count && st->objects[k] != cf->shape[i])
+            k++;
+        if (k == st->object_count && k < SL_CLOSED_FORM_MAX_OBJECTS) {
             st->objects[st->object_count++] = cf->shape[i];
+            st->object_material[k] = scene->materials[scene->shapes[cf->shape[i]].material].type;
+        }
+        if (k < SL_CLOSED_FORM_MAX_OBJECTS) {
+            st->object_exact[k] += m == SL_PIXEL_EXACT;
+            st->object_control[k] += m == SL_PIXEL_CONTROL;
         }
         for (int c = 0; c < 3; c++)
-            if (cf->value[i][c] > 0)
-                st->max_rel_bound = fmax(st->max_rel_bound, cf->bound[i][c] / cf->value[i][c]);
+            if (cf->value[i][c] > 0) {
+                double rel = cf->bound[i][c] / cf->value[i][c];
+                st->max_rel_bound = fmax(st->max_rel_bound, rel);
+                if (k < SL_CLOSED_FORM_MAX_OBJECTS)
+                    st->object_max_rel_bound[k] = fmax(st->object_max_rel_bound[k], rel);
+            }
     }
-    free(seen);
     for (int y = 0; y < cam->height; y++)
         st->max_footprint_error = fmax(st->max_footprint_error, j.row_foot[y]);
     free(j.centre);

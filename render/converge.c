@@ -9,14 +9,17 @@
 
 #include "setlight/render.h"
 
+/* The last one is not a sampler: the closed form (exact, control variate
+ * or sampled per pixel), when the options allow it. */
 static const struct {
     const char *name;
     sl_strategy strategy;
-    bool ld;
+    bool ld, closed_form;
 } configs[] = {
-    {"uniform", SL_STRATEGY_UNIFORM, false}, {"cosine", SL_STRATEGY_COSINE, false},
-    {"bsdf", SL_STRATEGY_BSDF, false},       {"light", SL_STRATEGY_LIGHT, false},
-    {"mis", SL_STRATEGY_MIS, false},         {"mis+sobol", SL_STRATEGY_MIS, true},
+    {"uniform", SL_STRATEGY_UNIFORM, false, false}, {"cosine", SL_STRATEGY_COSINE, false, false},
+    {"bsdf", SL_STRATEGY_BSDF, false, false},       {"light", SL_STRATEGY_LIGHT, false, false},
+    {"mis", SL_STRATEGY_MIS, false, false},         {"mis+sobol", SL_STRATEGY_MIS, true, false},
+    {"closed-form", SL_STRATEGY_MIS, true, true},
 };
 
 void sl_converge_report_free(sl_converge_report *rep)
@@ -57,13 +60,15 @@ sl_result sl_converge_run(const sl_scene *scene, const sl_render_options *base,
         reference = &own;
     }
     for (size_t i = 0; i < sizeof configs / sizeof configs[0]; i++) {
+        if (configs[i].closed_form && !base->closed_form)
+            continue;
         sl_converge_curve *c = &rep->curves[rep->count];
         sl_render_options o = *base;
         o.strategy = configs[i].strategy;
         o.low_discrepancy = configs[i].ld;
         o.reference = reference;
         o.time_limit = o.target_error = 0;
-        o.closed_form = false;
+        o.closed_form = configs[i].closed_form;
         snprintf(c->name, sizeof c->name, "%s", configs[i].name);
         c->strategy = o.strategy;
         c->low_discrepancy = o.low_discrepancy;

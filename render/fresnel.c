@@ -41,6 +41,24 @@ void sl_fresnel_artist_nk(double r, double g, double *n, double *k)
     *k = sqrt(fmax(0.0, k2));
 }
 
+/* The artist mapping per channel, kept per thread for the last material:
+ * it is evaluated with every conductor BSDF value (same bytes). */
+typedef struct nk_memo {
+    bool valid;
+    double r, g, n, k;
+} nk_memo;
+
+static void artist_nk_memo(int c, double r, double g, double *n, double *k)
+{
+    static _Thread_local nk_memo memo[3];
+    nk_memo *e = &memo[c];
+    if (!e->valid || e->r != r || e->g != g) {
+        sl_fresnel_artist_nk(r, g, &e->n, &e->k);
+        e->r = r, e->g = g, e->valid = true;
+    }
+    *n = e->n, *k = e->k;
+}
+
 void sl_fresnel_eval(const sl_material *m, double cos_i, double f[3])
 {
     for (int c = 0; c < 3; c++) {
@@ -53,7 +71,7 @@ void sl_fresnel_eval(const sl_material *m, double cos_i, double f[3])
                 f[c] = 1.0;
             } else {
                 double n, k;
-                sl_fresnel_artist_nk(m->base_color[c], m->edge_tint[c], &n, &k);
+                artist_nk_memo(c, m->base_color[c], m->edge_tint[c], &n, &k);
                 f[c] = sl_fresnel_conductor(cos_i, n, k);
             }
             break;

@@ -4,6 +4,7 @@
  * by BSDF sampling only. `bounces` counts the surfaces a path may hit after
  * its first non-delta vertex. */
 #include "closed_form.h"
+#include "glossy.h"
 #include "integrator.h"
 #include "sampler.h"
 #include "scene_internal.h"
@@ -342,7 +343,8 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         sl_hit ha;
         double Lcf[3], bound[3];
         if (sl_shape_intersect(scene, cv_shape, org0, dir0, &ha)) {
-            sl_closed_form_radiance(it->cf, scene, cv_shape, ha.n, Lcf, bound, NULL);
+            double wo0[3] = {-dir0[0], -dir0[1], -dir0[2]};
+            sl_closed_form_radiance_view(it->cf, scene, cv_shape, ha.n, wo0, Lcf, bound, NULL);
             for (int k = 0; k < 3; k++)
                 L[k] -= Lcf[k];
         }

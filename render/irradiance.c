@@ -16,7 +16,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "glossy.h"
 #include "irradiance.h"
+#include "slot_heap.h"
 #include "vec3.h"
 
 /* Deepest split inside a texel (1/2^k of its width). */
@@ -210,7 +212,7 @@ typedef struct eval_state {
     cut_cell pool[HEAP_CAP]; /* cut cells; heap holds their indices */
     int heap[HEAP_CAP];
     int free_list[HEAP_CAP];
-    int count, nfree, used;
+    sl_slot_heap h;
     double sum_mid[3], sum_bnd[3]; /* over the heap */
     int64_t cells;
     int finest;
@@ -218,43 +220,17 @@ typedef struct eval_state {
 
 static void heap_push(eval_state *st, const cut_cell *c)
 {
-    int slot = st->nfree > 0 ? st->free_list[--st->nfree] : st->used++;
-    st->pool[slot] = *c;
     for (int ch = 0; ch < 3; ch++)
         st->sum_mid[ch] += c->mid[ch], st->sum_bnd[ch] += c->bnd[ch];
-    int i = st->count++;
-    while (i > 0) {
-        int p = (i - 1) / 2;
-        if (st->pool[st->heap[p]].key >= c->key)
-            break;
-        st->heap[i] = st->heap[p];
-        i = p;
-    }
-    st->heap[i] = slot;
+    sl_slot_heap_push(&st->h, c);
 }
 
 static cut_cell heap_pop(eval_state *st)
 {
-    int top_slot = st->heap[0], last = st->heap[--st->count];
-    cut_cell top = st->pool[top_slot];
-    st->free_list[st->nfree++] = top_slot;
+    cut_cell top;
+    sl_slot_heap_pop(&st->h, &top);
     for (int ch = 0; ch < 3; ch++)
         st->sum_mid[ch] -= top.mid[ch], st->sum_bnd[ch] -= top.bnd[ch];
-    double last_key = st->pool[last].key;
-    int i = 0;
-    for (;;) {
-        int c = 2 * i + 1;
-        if (c >= st->count)
-            break;
-        if (c + 1 < st->count && st->pool[st->heap[c + 1]].key > st->pool[st->heap[c]].key)
-            c++;
-        if (st->pool[st->heap[c]].key <= last_key)
-            break;
-        st->heap[i] = st->heap[c];
-        i = c;
-    }
-    if (st->count > 0)
-        st->heap[i] = last;
     return top;
 }
 
@@ -345,21 +321,27 @@ static void add_block(eval_state *st, int k, int x, int y)
 
 /* A piece [t0, t1] x [a, b] of texel (x, y): its sums from the same
  * integrals as a texel's. */
+static void piece_sum(const sl_irradiance *ir, int x, int y, double t0, double t1, double a,
+                      double b, row_info *r, col_info *co, cell_sum *s)
+{
+    row_setup(r, t0, t1, b - a);
+    col_setup(co, a, b, 0.5 * (a + b));
+    const float *L = sl_image_pixel(ir->img, x, y);
+    for (int ch = 0; ch < 3; ch++) {
+        s->v[ch][0] = L[ch] * r->r1 * co->s_int;
+        s->v[ch][1] = L[ch] * r->r2 * (b - a);
+        s->v[ch][2] = L[ch] * r->r1 * co->c_int;
+        s->p[ch] = L[ch] * r->r0 * (b - a);
+    }
+}
+
 static void add_piece(eval_state *st, int level, int x, int y, double t0, double t1, double a,
                       double b)
 {
     row_info r;
     col_info co;
-    row_setup(&r, t0, t1, b - a);
-    col_setup(&co, a, b, 0.5 * (a + b));
-    const float *L = sl_image_pixel(st->ir->img, x, y);
     cell_sum s;
-    for (int ch = 0; ch < 3; ch++) {
-        s.v[ch][0] = L[ch] * r.r1 * co.s_int;
-        s.v[ch][1] = L[ch] * r.r2 * (b - a);
-        s.v[ch][2] = L[ch] * r.r1 * co.c_int;
-        s.p[ch] = L[ch] * r.r0 * (b - a);
-    }
+    piece_sum(st->ir, x, y, t0, t1, a, b, &r, &co, &s);
     double c[3] = {r.st * co.sl, r.ct, r.st * co.cl};
     cut_cell geo = {.level = level, .x = x, .y = y, .t0 = t0, .t1 = t1, .a = a, .b = b};
     double span[6] = {r.ct, r.st, co.cl, co.sl, 0.5 * (t1 - t0), 0.5 * (b - a)};
@@ -396,11 +378,13 @@ static void totals(const eval_state *st, double mid[3], double B[3])
 {
     for (int ch = 0; ch < 3; ch++)
         mid[ch] = 0, B[ch] = 0;
-    for (int i = 0; i < st->count; i++)
+    for (int i = 0; i < st->h.count; i++) {
+        const cut_cell *c = sl_slot_heap_at(&st->h, i);
         for (int ch = 0; ch < 3; ch++) {
-            mid[ch] += st->pool[st->heap[i]].mid[ch];
-            B[ch] += st->pool[st->heap[i]].bnd[ch];
+            mid[ch] += c->mid[ch];
+            B[ch] += c->bnd[ch];
         }
+    }
 }
 
 static bool bound_met(const double E[3], const double B[3], double tol)
@@ -423,7 +407,8 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
     st->ir = ir;
     m3_mul_transpose(ir->rot, n_world, st->n);
     v3_normalize(st->n);
-    st->count = st->nfree = st->used = 0;
+    st->h = (sl_slot_heap){.pool = st->pool, .stride = sizeof st->pool[0], .heap = st->heap,
+                           .free_list = st->free_list};
     memset(st->sum_mid, 0, sizeof st->sum_mid);
     memset(st->sum_bnd, 0, sizeof st->sum_bnd);
     st->cells = 0;
@@ -441,11 +426,11 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
         double scale = st->exact[ch] + E[ch] + B[ch];
         st->inv_scale[ch] = scale > 0 ? 1.0 / scale : 0.0;
     }
-    int n = st->count; /* at most the top level's 16 x 8 cells */
+    int n = st->h.count; /* at most the top level's 16 x 8 cells */
     cut_cell first[16 * 8];
     for (int i = 0; i < n; i++)
-        first[i] = st->pool[st->heap[i]];
-    st->count = st->nfree = st->used = 0;
+        first[i] = *(const cut_cell *)sl_slot_heap_at(&st->h, i);
+    sl_slot_heap_clear(&st->h);
     for (int ch = 0; ch < 3; ch++)
         st->sum_mid[ch] = st->sum_bnd[ch] = 0;
     for (int i = 0; i < n; i++) {
@@ -455,7 +440,7 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
         heap_push(st, &first[i]);
     }
     int steps = 0;
-    while (st->count > 0 && st->count + 4 <= HEAP_CAP) {
+    while (st->h.count > 0 && st->h.count + 4 <= HEAP_CAP) {
         /* Running sums drift by rounding: recompute them now and then. */
         if (++steps % 128 == 0)
             totals(st, st->sum_mid, st->sum_bnd);
@@ -464,7 +449,7 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
             sumE[ch] = st->exact[ch] + st->sum_mid[ch];
         if (bound_met(sumE, st->sum_bnd, tol))
             break;
-        const cut_cell *worst = &st->pool[st->heap[0]];
+        const cut_cell *worst = sl_slot_heap_at(&st->h, 0);
         if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)
             break;
         cut_cell c = heap_pop(st);
@@ -482,4 +467,52 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
             cost->finest_level = st->finest;
     }
     free(st);
+}
+
+/* ---- cells for the glossy quadrature (glossy.h) ---- */
+
+void sl_irradiance_frame(const sl_irradiance *ir, double rot[3][3], double *intensity)
+{
+    memcpy(rot, ir->rot, sizeof ir->rot);
+    *intensity = ir->intensity;
+}
+
+void sl_irradiance_level_size(const sl_irradiance *ir, int k, int *w, int *h)
+{
+    *w = ir->lv[k].w, *h = ir->lv[k].h;
+}
+
+static void dome_cell_fill(sl_dome_cell *c, const row_info *r, const col_info *co,
+                           const cell_sum *s)
+{
+    for (int ch = 0; ch < 3; ch++) {
+        c->p[ch] = s->p[ch];
+        for (int d = 0; d < 3; d++)
+            c->v[ch][d] = s->v[ch][d];
+    }
+    v3_set(c->centre, r->st * co->sl, r->ct, r->st * co->cl);
+    c->cos_r = r->cr, c->sin_r = r->sr, c->wide = r->wide;
+    double dw = co->b - co->a, vx = r->r1 * co->s_int, vy = r->r2 * dw, vz = r->r1 * co->c_int;
+    double pu = r->r0 * dw;
+    c->spread_uniform = pu > 0 ? 1.0 - sqrt(vx * vx + vy * vy + vz * vz) / pu : 0.0;
+    c->t0 = r->t0, c->t1 = r->t1, c->a = co->a, c->b = co->b;
+}
+
+void sl_irradiance_cell(const sl_irradiance *ir, int k, int x, int y, sl_dome_cell *c)
+{
+    cell_sum s;
+    cell_at(ir, k, x, y, &s);
+    dome_cell_fill(c, &ir->lv[k].rows[y], &ir->lv[k].cols[x], &s);
+    c->level = k, c->x = x, c->y = y;
+}
+
+void sl_irradiance_piece(const sl_irradiance *ir, int level, int x, int y, double t0, double t1,
+                         double a, double b, sl_dome_cell *c)
+{
+    row_info r;
+    col_info co;
+    cell_sum s;
+    piece_sum(ir, x, y, t0, t1, a, b, &r, &co, &s);
+    dome_cell_fill(c, &r, &co, &s);
+    c->level = level, c->x = x, c->y = y;
 }

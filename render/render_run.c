@@ -2,6 +2,7 @@
 /* The render stage from files to files: a preset or scene file lit by an
  * environment or a rig, rendered to an EXR with its provenance and the
  * per-pass statistics, replaced together. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -110,7 +111,14 @@ sl_result sl_render_run(const sl_render_run_options *ro, sl_render_run_result *r
     if (r)
         goto fail;
     const sl_closed_form_stats *cf = &st->closed_form;
-    size_t n = strlen(ro->out_path) + strlen(st->stop_reason) + 640;
+    int64_t glossy_px = 0;
+    double glossy_err = 0;
+    for (int i = 0; i < cf->object_count; i++)
+        if (cf->object_material[i] != SL_MAT_LAMBERT) {
+            glossy_px += cf->object_exact[i] + cf->object_control[i];
+            glossy_err = fmax(glossy_err, cf->object_max_rel_bound[i]);
+        }
+    size_t n = strlen(ro->out_path) + strlen(st->stop_reason) + 768;
     if ((res->json = malloc(n)))
         snprintf(res->json, n,
                  "{\"output\": \"%s\", \"spp\": %lld, \"seconds\": %.6g, \"est_rel_rmse\": %.6g, "
@@ -118,12 +126,14 @@ sl_result sl_render_run(const sl_render_run_options *ro, sl_render_run_result *r
                  "\"closed_form\": {\"used\": %s, \"exact_pixels\": %lld, "
                  "\"control_variate_pixels\": %lld, \"sampled_pixels\": %lld, "
                  "\"max_rel_bound\": %.6g, \"tolerance\": %.6g, \"finest_level\": %d, "
-                 "\"seconds\": %.6g}}",
+                 "\"glossy_pixels\": %lld, \"glossy_max_rel_error\": %.6g, "
+                 "\"interpolated_pixels\": %lld, \"seconds\": %.6g}}",
                  ro->out_path, (long long)st->spp, st->seconds, res->est_rel_rmse,
                  res->ref_rel_rmse, st->stop_reason, (long long)scene.dome.bad_texels,
                  cf->used ? "true" : "false", (long long)cf->exact_pixels,
                  (long long)cf->control_variate_pixels, (long long)cf->sampled_pixels,
-                 cf->max_rel_bound, cf->tolerance, cf->finest_level, cf->seconds);
+                 cf->max_rel_bound, cf->tolerance, cf->finest_level, (long long)glossy_px,
+                 glossy_err, (long long)cf->interpolated_pixels, cf->seconds);
     else
         r = sl_error_set(&err, SL_ERR_NOMEM, "%s: out of memory", ro->out_path);
 fail:

@@ -42,6 +42,21 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     for (int i = 0; i < cf->object_count; i++)
         json_array_append_new(objs, json_integer(cf->objects[i]));
     json_object_set_new(jc, "objects", objs);
+    static const char *const kind[SL_MAT_COUNT] = {"lambert", "conductor", "plastic"};
+    json_t *per = json_array();
+    for (int i = 0; i < cf->object_count; i++) {
+        json_t *jo = json_object();
+        sl_material_type t = cf->object_material[i];
+        json_object_set_new(jo, "shape", json_integer(cf->objects[i]));
+        json_object_set_new(jo, "material", json_string(t < SL_MAT_COUNT ? kind[t] : "?"));
+        json_object_set_new(jo, "exact_pixels", json_integer(cf->object_exact[i]));
+        json_object_set_new(jo, "control_variate_pixels", json_integer(cf->object_control[i]));
+        json_object_set_new(jo, "max_rel_bound", json_real(cf->object_max_rel_bound[i]));
+        json_object_set_new(jo, "bound", json_string(t == SL_MAT_LAMBERT ? "proven" : "estimate"));
+        json_array_append_new(per, jo);
+    }
+    json_object_set_new(jc, "per_object", per);
+    json_object_set_new(jc, "interpolated_pixels", json_integer(cf->interpolated_pixels));
     json_object_set_new(jc, "tolerance", json_real(cf->tolerance));
     json_object_set_new(jc, "max_rel_bound", json_real(cf->max_rel_bound));
     json_object_set_new(jc, "max_footprint_error", json_real(cf->max_footprint_error));

@@ -45,9 +45,10 @@ static void help(FILE *out)
             "  --bounces N         indirect bounces after the first hit (default 0: direct)\n"
             "  --strategy NAME     mis (default), bsdf, light, cosine or uniform\n"
             "  --sampler NAME      sobol (Owen-scrambled, default) or random\n"
-            "  --closed-form MODE  on (default): pixels of an unoccluded Lambert object under\n"
-            "                      the dome alone are computed exactly (no samples), shadowed\n"
-            "                      ones sample only the shadowed part; off: sample everything\n"
+            "  --closed-form MODE  on (default): pixels of an unoccluded Lambert or rough\n"
+            "                      glossy (conductor, plastic) object under the dome alone\n"
+            "                      are computed by quadrature (no samples), shadowed ones\n"
+            "                      sample only the shadowed part; off: sample everything\n"
             "  --seed N            sample seed (default 1); same seed, same bytes\n"
             "  --reference IMG     image of the same size: true relative RMSE per pass\n"
             "  --stats FILE.json   error against time per pass, rays, skipped work\n"
@@ -268,6 +269,16 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                    cf->finest_level, (long long)cf->evaluations, cf->seconds);
         else
             sl_log(SL_LOG_INFO, "closed form not used: %s", cf->reason);
+        static const char *const kind[SL_MAT_COUNT] = {"Lambert", "conductor", "plastic"};
+        for (int i = 0; cf->used && i < cf->object_count; i++)
+            sl_log(SL_LOG_INFO, "closed form, object %d (%s): %lld exact, %lld control variate; %s %.3g",
+                   cf->objects[i], cf->object_material[i] < SL_MAT_COUNT ? kind[cf->object_material[i]] : "?",
+                   (long long)cf->object_exact[i], (long long)cf->object_control[i],
+                   cf->object_material[i] == SL_MAT_LAMBERT ? "proven bound" : "error estimate",
+                   cf->object_max_rel_bound[i]);
+        if (cf->interpolated_pixels)
+            sl_log(SL_LOG_INFO, "closed form: %lld glossy pixels interpolated in checked 4x4 blocks",
+                   (long long)cf->interpolated_pixels);
     }
     sl_render_run_result_free(&res);
     return r ? cli_fail(cli, &err) : 0;

@@ -320,6 +320,15 @@ typedef struct sl_closed_form_stats {
     int top_level, finest_level; /* mip levels of the lat-long cells (< 0: inside a texel) */
     int64_t evaluations, cells;  /* irradiance evaluations, cells visited */
     double seconds;
+    /* Per object (as objects[]): its material's type, its exact and
+     * control-variate pixels, its largest relative bound. A Lambert
+     * object's bound is proven; a rough glossy one's (glossy.c) is an
+     * error estimate. */
+    sl_material_type object_material[SL_CLOSED_FORM_MAX_OBJECTS];
+    int64_t object_exact[SL_CLOSED_FORM_MAX_OBJECTS], object_control[SL_CLOSED_FORM_MAX_OBJECTS];
+    double object_max_rel_bound[SL_CLOSED_FORM_MAX_OBJECTS];
+    /* Glossy pixels at pixel centres interpolated inside a checked 4 x 4 block. */
+    int64_t interpolated_pixels;
 } sl_closed_form_stats;
 
 typedef struct sl_render_stats {
@@ -415,7 +424,9 @@ typedef struct sl_converge_report {
 } sl_converge_report;
 
 /* Renders the scene with uniform, cosine, bsdf, light and mis (independent
- * random numbers) and mis+sobol, each up to base->spp samples per pixel,
+ * random numbers) and mis+sobol (closed form off), then, when
+ * base->closed_form, with the closed form ("closed-form": mis+sobol where
+ * it samples), each up to base->spp samples per pixel,
  * measuring the relative RMSE after every pass against `reference` or, when
  * NULL, against a mis+sobol render of reference_spp samples. */
 sl_result sl_converge_run(const sl_scene *scene, const sl_render_options *base,

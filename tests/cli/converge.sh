@@ -1,25 +1,15 @@
 #!/bin/bash
 # setlight converge end to end: table and SVG written; bad input leaves nothing.
-set -u
+source "$(dirname "$0")/lib.bash"
 S="$SETLIGHT"
-T="$SETLIGHT_TEST_TMP/cli_converge"
-rm -rf "$T" && mkdir -p "$T"
 fail=0
-python3 - "$T/env.hdr" <<'PY'
-import sys
-w, h = 32, 16
-with open(sys.argv[1], "wb") as f:
-    f.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w))
-    for y in range(h):
-        for x in range(w):
-            f.write(bytes([255, 255, 255, 136]) if (x, y) == (10, 4) else bytes([128, 128, 160, 129]))
-PY
+sky_hdr "$T/env.hdr" 136
 "$S" converge --env "$T/env.hdr" --scene grey --width 8 --spp 16 --reference-spp 64 --pixel-centers \
     --svg "$T/plot.svg" --table "$T/table.md" --json > "$T/out.json"
 rc=$?
 [ $rc -eq 0 ] || { echo "FAIL converge exit $rc"; fail=1; }
 grep -q "<polyline" "$T/plot.svg" || { echo "FAIL no curves in the SVG"; fail=1; }
-for s in uniform cosine bsdf light mis mis+sobol; do
+for s in uniform cosine bsdf light mis mis+sobol closed-form; do
     grep -q "| $s |" "$T/table.md" || { echo "FAIL table lacks $s"; fail=1; }
     grep -q "\"strategy\": \"$s\"" "$T/out.json" || { echo "FAIL json lacks $s"; fail=1; }
 done

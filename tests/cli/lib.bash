@@ -37,6 +37,19 @@ json_eval() {
   if python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); sys.exit(0 if eval(sys.argv[2]) else 1)' "$1" "$2"; then ok
   else bad "JSON check failed: $2 on $(head -c 300 "$1")"; fi
 }
+# sky_hdr FILE EXP: a 32 x 16 Radiance lat-long, a sky of 1.0 (blue 1.25)
+# with one bright texel (10, 4) of 255 x 2^(EXP - 136).
+sky_hdr() {
+  python3 - "$1" "$2" <<'PY'
+import sys
+w, h, e = 32, 16, int(sys.argv[2])
+with open(sys.argv[1], "wb") as f:
+    f.write(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y %d +X %d\n" % (h, w))
+    for y in range(h):
+        for x in range(w):
+            f.write(bytes([255, 255, 255, e]) if (x, y) == (10, 4) else bytes([128, 128, 160, 129]))
+PY
+}
 # png_bracket DIR W H: DIR/br_0.png .. br_2.png, 8-bit sRGB-ish PNGs (gamma
 # 1/2.2) of a smooth scene at gains 1/4, 1 and 4 (two stops apart).
 png_bracket() {

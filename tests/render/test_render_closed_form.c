@@ -11,23 +11,13 @@
 
 #include "../../render/vec3.h"
 #include "setlight/render.h"
+#include "sun_sky.h"
 #include "testing.h"
-
 
 /* Smooth sky, a sun 1e4 in two texels and a dark ground: sampling's worst case. */
 static void sun_sky(sl_image *env, int w)
 {
-    CHECK_OK(sl_image_alloc(env, w, w / 2, 3, NULL), NULL);
-    for (int y = 0; y < w / 2; y++)
-        for (int x = 0; x < w; x++) {
-            float *p = sl_image_pixel(env, x, y);
-            double d[3];
-            sl_latlong_to_dir((x + 0.5) / w, (y + 0.5) / (w / 2), d);
-            double up = fmax(0, d[1]);
-            p[0] = (float)(d[1] > 0 ? 0.3 + 0.5 * up : 0.05);
-            p[1] = (float)(d[1] > 0 ? 0.5 + 0.4 * up : 0.04);
-            p[2] = (float)(d[1] > 0 ? 0.9 + 0.2 * d[0] * d[0] : 0.03);
-        }
+    sky_over_ground(env, w);
     for (int k = 0; k < 2; k++) {
         float *s = sl_image_pixel(env, w / 2 - w / 8 + k, w / 8);
         s[0] = 1.2e4f, s[1] = 1.0e4f, s[2] = 0.8e4f;
@@ -305,7 +295,7 @@ static void test_agrees_with_sampling(void)
 }
 
 /* Where the closed form does not apply, every pixel is sampled as before:
- * rig lights, a non-Lambert material, another strategy. */
+ * rig lights, a delta (mirror) material, another strategy. */
 static void test_sampler_kept(void)
 {
     sl_image env;
@@ -329,10 +319,11 @@ static void test_sampler_kept(void)
             l.angle_deg = 5;
             CHECK_OK(sl_scene_add_light(&s, &l, &err), &err);
         } else if (k == 1) {
-            want = "no Lambert object";
+            want = "no Lambert or rough glossy object";
         } else if (k == 2) {
-            sl_material_plastic(&s.materials[0], (const double[3]){0.5, 0.5, 0.5}, 1.5, 0.3);
-            want = "no Lambert object";
+            /* A smooth coat: its mirror lobe is a delta, sampled. */
+            sl_material_plastic(&s.materials[0], (const double[3]){0.5, 0.5, 0.5}, 1.5, 0.0);
+            want = "no Lambert or rough glossy object";
         } else {
             o.strategy = SL_STRATEGY_BSDF;
             want = "strategy is not mis";

@@ -49,8 +49,8 @@ static void converge_scene(const char *preset, int width)
     o.pixel_centers = true;
     sl_converge_report rep;
     CHECK_OK(sl_converge_run(&s, &o, NULL, 512, &rep, &err), &err);
-    CHECK(rep.count == 6);
-    const sl_converge_curve *mis = NULL, *bsdf = NULL, *light = NULL;
+    CHECK(rep.count == 7);
+    const sl_converge_curve *mis = NULL, *bsdf = NULL, *light = NULL, *closed = NULL;
     for (int i = 0; i < rep.count; i++) {
         if (!strcmp(rep.curves[i].name, "mis+sobol"))
             mis = &rep.curves[i];
@@ -58,9 +58,11 @@ static void converge_scene(const char *preset, int width)
             bsdf = &rep.curves[i];
         if (!strcmp(rep.curves[i].name, "light"))
             light = &rep.curves[i];
+        if (!strcmp(rep.curves[i].name, "closed-form"))
+            closed = &rep.curves[i];
     }
-    CHECK(mis && bsdf && light);
-    if (!mis || !bsdf || !light)
+    CHECK(mis && bsdf && light && closed);
+    if (!mis || !bsdf || !light || !closed)
         return;
     /* the error MIS+Sobol has after 16 samples per pixel */
     double target = -1;
@@ -75,6 +77,14 @@ static void converge_scene(const char *preset, int width)
     CHECK(n_mis > 0 && n_mis <= 16);
     CHECK(n_bsdf < 0 || n_bsdf > n_mis);
     CHECK(n_light < 0 || n_light > n_mis);
+    /* The closed form (exact Lambert and rough glossy pixels, the rest as
+     * mis+sobol) reaches that error in fewer samples. */
+    double n_closed = sl_converge_spp_to_reach(closed, target);
+    printf("  %s: closed form reaches it at %.1f spp, %.3f s (mis+sobol: %.3f s); %lld exact pixels\n",
+           preset, n_closed, sl_converge_seconds_to_reach(closed, target),
+           sl_converge_seconds_to_reach(mis, target), (long long)closed->stats.closed_form.exact_pixels);
+    CHECK(closed->stats.closed_form.used && closed->stats.closed_form.exact_pixels > 0);
+    CHECK(n_closed >= 0 && n_closed <= n_mis);
     char name[64];
     snprintf(name, sizeof name, "%s.svg", preset);
     CHECK_OK(sl_converge_write_svg(&rep, sl_test_path(name), &err), &err);

@@ -1,0 +1,442 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Closed form for glossy lobes: the radiance a rough conductor or plastic
+ * reflects toward the viewer under the dome alone is the 2D integral of
+ * the piecewise-constant lat-long against the lobe k(w) = f(wo, w) max(0, n.w)
+ * for that pixel's (normal, view) pair. It is computed deterministically
+ * over the irradiance mip levels' cells (irradiance.c), as the Lambert
+ * closed form is:
+ *
+ * - a cell with power P (exact, analytic) contributes P k(d), d its
+ *   power-weighted mean direction (exact when L is one point in the cell,
+ *   a sun; second order in the cell size otherwise);
+ * - its error is estimated as P times the range of k over the cell's
+ *   centre, four corners, mean direction and, when the cone holds it, the
+ *   mirror direction (the lobe's peak); cells wholly below the horizon add
+ *   nothing, exactly;
+ * - the cell with the largest error is split (mip level by level, then
+ *   inside a texel, down to 1/256 of it) until the summed error is below
+ *   tol x the value in every channel, so bright texels (a sun) under the
+ *   lobe end at full resolution and beyond, and dim or far ones stay coarse.
+ *
+ * f is sl_bsdf_eval itself (GGX with Fresnel, the Kulla-Conty multiple
+ * scattering term, the plastic's diffuse under its coat), in the frame the
+ * integrator uses, so the closed form and the sampled renderer integrate
+ * the same function. The error is an estimate, not a proven bound: a lobe
+ * narrower than the sample points' spacing could hide between them, which
+ * is why the mirror direction is always among them. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "glossy.h"
+#include "microfacet.h"
+#include "slot_heap.h"
+
+/* Cells kept at once; past it the error is what it is (reported). */
+#define CELL_CAP 2048
+/* Deepest split inside a texel (1/2^k of its width). */
+#define SUBTEXEL_DEPTH 8
+
+bool sl_glossy_applies(const sl_material *m)
+{
+    return (m->type == SL_MAT_CONDUCTOR || m->type == SL_MAT_PLASTIC) &&
+           m->roughness >= SL_ROUGHNESS_DELTA;
+}
+
+typedef struct lobe {
+    const sl_material *m;
+    double t[3], b[3], n[3]; /* the integrator's shading frame, in the map's frame */
+    double wo[3];            /* view direction, local */
+    double mirror[3];        /* the lobe's peak (about), map frame */
+    double cos_width;        /* cos of the lobe's narrowest width (alpha) */
+} lobe;
+
+/* k(w) = f(wo, w) max(0, n.w) per channel, w in the map's frame. */
+static void kernel(const lobe *l, const double w[3], double k[3])
+{
+    double wl[3] = {v3_dot(w, l->t), v3_dot(w, l->b), v3_dot(w, l->n)};
+    if (!(wl[2] > 0)) {
+        k[0] = k[1] = k[2] = 0;
+        return;
+    }
+    sl_bsdf_eval(l->m, l->wo, wl, k);
+    for (int c = 0; c < 3; c++)
+        k[c] *= wl[2];
+}
+
+typedef struct gcell {
+    double key;
+    double est[3], err[3];
+    int level, x, y;
+    double t0, t1, a, b;
+} gcell;
+
+typedef struct gstate {
+    const sl_irradiance *ir;
+    lobe l;
+    double inv_scale[3];
+    sl_slot_heap h;
+    double sum_est[3], sum_err[3];
+    int64_t cells;
+    int finest;
+} gstate;
+
+static double cell_key(const gstate *st, const gcell *g)
+{
+    double key = 0;
+    for (int c = 0; c < 3; c++)
+        key = fmax(key, g->err[c] * st->inv_scale[c]);
+    return key;
+}
+
+static void push(gstate *st, const gcell *g)
+{
+    for (int c = 0; c < 3; c++)
+        st->sum_est[c] += g->est[c], st->sum_err[c] += g->err[c];
+    sl_slot_heap_push(&st->h, g);
+}
+
+static gcell pop(gstate *st)
+{
+    gcell top;
+    sl_slot_heap_pop(&st->h, &top);
+    for (int c = 0; c < 3; c++)
+        st->sum_est[c] -= top.est[c], st->sum_err[c] -= top.err[c];
+    return top;
+}
+
+static void dir_at(double t, double phi, double d[3])
+{
+    double s = sin(t);
+    v3_set(d, s * sin(phi), cos(t), s * cos(phi));
+}
+
+/* Estimates a cell's share and its error; false when it adds nothing. */
+static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
+{
+    st->cells++;
+    const lobe *l = &st->l;
+    if (!(c->p[0] > 0 || c->p[1] > 0 || c->p[2] > 0))
+        return false;
+    double ca = v3_dot(l->n, c->centre);
+    if (!c->wide) {
+        double sa = sqrt(fmax(0.0, 1.0 - ca * ca));
+        double hi = ca > c->cos_r ? 1.0 : ca * c->cos_r + sa * c->sin_r;
+        if (hi <= 0)
+            return false; /* wholly below the horizon */
+    }
+    double vl[3], d[3];
+    for (int i = 0; i < 3; i++)
+        vl[i] = 0.2126 * c->v[0][i] + 0.7152 * c->v[1][i] + 0.0722 * c->v[2][i];
+    v3_copy(d, vl);
+    if (!v3_normalize(d))
+        v3_copy(d, c->centre);
+    double kd[3], k[5][3];
+    kernel(l, d, kd);
+    double pts[5][3];
+    v3_copy(pts[0], c->centre);
+    dir_at(c->t0, c->a, pts[1]);
+    dir_at(c->t0, c->b, pts[2]);
+    dir_at(c->t1, c->a, pts[3]);
+    dir_at(c->t1, c->b, pts[4]);
+    for (int i = 0; i < 5; i++)
+        kernel(l, pts[i], k[i]);
+    /* A cell wider than the lobe that may hold its peak: the sample
+     * points cannot tell its shape. Narrower cells see a smooth k. */
+    bool peak = c->wide || (c->cos_r < l->cos_width && v3_dot(l->mirror, c->centre) >= c->cos_r);
+    double km[3] = {0, 0, 0};
+    if (peak)
+        kernel(l, l->mirror, km);
+    /* How spread the cell's light is against a uniform cell's: 0 for a
+     * point (a sun), where k(d) is exact, 1 for uniform light, where the
+     * mean of k over the cell is the better estimate. */
+    double pl = 0.2126 * c->p[0] + 0.7152 * c->p[1] + 0.0722 * c->p[2];
+    double spread = pl > 0 && c->spread_uniform > 0
+                        ? (1.0 - v3_length(vl) / pl) / c->spread_uniform
+                        : 0.0;
+    spread = fmin(fmax(spread, 0.0), 2.0);
+    for (int ch = 0; ch < 3; ch++) {
+        g->est[ch] = c->p[ch] * kd[ch];
+        if (peak) {
+            /* The lobe's peak is in the cell: anything between its
+             * smallest and largest value. */
+            double lo = fmin(kd[ch], km[ch]), hi = fmax(kd[ch], km[ch]);
+            for (int i = 0; i < 5; i++)
+                lo = fmin(lo, k[i][ch]), hi = fmax(hi, k[i][ch]);
+            g->err[ch] = c->p[ch] * (hi - lo);
+        } else {
+            /* k is smooth here: P k(d) errs in the second order (d is
+             * the mean direction, so the first-order term vanishes); its
+             * size is that of k(d) against the cell's mean of k (a
+             * quadratic's mean over a square: 2/3 of the centre, 1/12 of
+             * each corner). The estimate moves toward that mean as far
+             * as the cell's light is spread. */
+            double mean = (8.0 * k[0][ch] + k[1][ch] + k[2][ch] + k[3][ch] + k[4][ch]) / 12.0;
+            g->err[ch] = c->p[ch] * fabs(kd[ch] - mean);
+            g->est[ch] += spread * c->p[ch] * (mean - k[0][ch]);
+        }
+    }
+    g->level = c->level, g->x = c->x, g->y = c->y;
+    g->t0 = c->t0, g->t1 = c->t1, g->a = c->a, g->b = c->b;
+    g->key = cell_key(st, g);
+    return true;
+}
+
+static void add(gstate *st, const sl_dome_cell *c)
+{
+    gcell g;
+    if (estimate(st, c, &g))
+        push(st, &g);
+}
+
+static void split(gstate *st, const gcell *g)
+{
+    sl_dome_cell c;
+    if (g->level > 0) {
+        int w, h;
+        sl_irradiance_level_size(st->ir, g->level - 1, &w, &h);
+        for (int j = 0; j < 2; j++)
+            for (int i = 0; i < 2; i++)
+                if (2 * g->x + i < w && 2 * g->y + j < h) {
+                    sl_irradiance_cell(st->ir, g->level - 1, 2 * g->x + i, 2 * g->y + j, &c);
+                    add(st, &c);
+                }
+    } else {
+        double tm = 0.5 * (g->t0 + g->t1), am = 0.5 * (g->a + g->b);
+        const double t[3] = {g->t0, tm, g->t1}, a[3] = {g->a, am, g->b};
+        for (int j = 0; j < 2; j++)
+            for (int i = 0; i < 2; i++) {
+                sl_irradiance_piece(st->ir, g->level - 1, g->x, g->y, t[j], t[j + 1], a[i],
+                                    a[i + 1], &c);
+                add(st, &c);
+            }
+    }
+    if (g->level - 1 < st->finest)
+        st->finest = g->level - 1;
+}
+
+static void totals(gstate *st)
+{
+    for (int c = 0; c < 3; c++)
+        st->sum_est[c] = st->sum_err[c] = 0;
+    for (int i = 0; i < st->h.count; i++) {
+        const gcell *g = sl_slot_heap_at(&st->h, i);
+        for (int c = 0; c < 3; c++)
+            st->sum_est[c] += g->est[c], st->sum_err[c] += g->err[c];
+    }
+}
+
+static bool error_met(const gstate *st, double tol)
+{
+    for (int c = 0; c < 3; c++)
+        if (st->sum_err[c] > 0 && st->sum_err[c] > tol * fmax(0.0, st->sum_est[c]))
+            return false;
+    return true;
+}
+
+void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double n_world[3],
+                    const double wo_world[3], double tol, double out[3], double err[3],
+                    sl_irradiance_cost *cost)
+{
+    out[0] = out[1] = out[2] = 0;
+    err[0] = err[1] = err[2] = 0;
+    double rot[3][3], intensity;
+    sl_irradiance_frame(ir, rot, &intensity);
+    gstate *st = malloc(sizeof *st);
+    gcell *pool = malloc(CELL_CAP * sizeof *pool);
+    int *idx = malloc(2 * CELL_CAP * sizeof *idx);
+    if (!st || !pool || !idx) { /* no room to integrate: the error says so */
+        free(st), free(pool), free(idx);
+        err[0] = err[1] = err[2] = INFINITY;
+        return;
+    }
+    memset(st, 0, sizeof *st);
+    st->ir = ir;
+    st->h = (sl_slot_heap){.pool = pool, .stride = sizeof *pool, .heap = idx,
+                           .free_list = idx + CELL_CAP};
+    lobe *l = &st->l;
+    l->m = m;
+    frame fr;
+    frame_from_normal(&fr, n_world);
+    frame_to_local(&fr, wo_world, l->wo);
+    m3_mul_transpose(rot, fr.t, l->t);
+    m3_mul_transpose(rot, fr.b, l->b);
+    m3_mul_transpose(rot, fr.n, l->n);
+    double cn = v3_dot(n_world, wo_world), mw[3];
+    for (int i = 0; i < 3; i++)
+        mw[i] = 2.0 * cn * n_world[i] - wo_world[i];
+    m3_mul_transpose(rot, mw, l->mirror);
+    v3_normalize(l->mirror);
+    sl_ggx g = sl_ggx_make(m->roughness, m->anisotropy);
+    l->cos_width = cos(fmin(g.ax, g.ay));
+    int top = sl_irradiance_top_level(ir), tw, th;
+    st->finest = top;
+    if (l->wo[2] > 0) {
+        sl_irradiance_level_size(ir, top, &tw, &th);
+        for (int c = 0; c < 3; c++)
+            st->inv_scale[c] = 1;
+        for (int y = 0; y < th; y++)
+            for (int x = 0; x < tw; x++) {
+                sl_dome_cell c;
+                sl_irradiance_cell(ir, top, x, y, &c);
+                add(st, &c);
+            }
+        /* Cells are ranked by their error relative to the first estimate. */
+        for (int c = 0; c < 3; c++) {
+            double scale = st->sum_est[c] + st->sum_err[c];
+            st->inv_scale[c] = scale > 0 ? 1.0 / scale : 0.0;
+        }
+        /* At most the top level's 16 x 8 cells, in slots 0..n-1. */
+        int n = st->h.count;
+        gcell first[16 * 8];
+        memcpy(first, pool, (size_t)n * sizeof *first);
+        sl_slot_heap_clear(&st->h);
+        for (int c = 0; c < 3; c++)
+            st->sum_est[c] = st->sum_err[c] = 0;
+        for (int i = 0; i < n; i++) {
+            first[i].key = cell_key(st, &first[i]);
+            push(st, &first[i]);
+        }
+        int steps = 0;
+        while (st->h.count > 0 && st->h.count + 4 <= CELL_CAP) {
+            if (++steps % 128 == 0)
+                totals(st);
+            if (error_met(st, tol))
+                break;
+            const gcell *worst = sl_slot_heap_at(&st->h, 0);
+            if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)
+                break;
+            gcell g = pop(st);
+            split(st, &g);
+        }
+        totals(st);
+        for (int c = 0; c < 3; c++) {
+            out[c] = fmax(0.0, st->sum_est[c]) * intensity;
+            err[c] = st->sum_err[c] * intensity;
+        }
+    }
+    if (cost) {
+        cost->cells += st->cells;
+        cost->evaluations++;
+        if (st->finest < cost->finest_level)
+            cost->finest_level = st->finest;
+    }
+    free(pool);
+    free(idx);
+    free(st);
+}
+
+/* ---- pixels: a lattice of blocks, interpolated where that is checked ---- */
+
+/* Block size of the lattice. Across a 4 x 4 block the normal turns by a few
+ * pixels' worth: far less than a rough lobe's width, so bilinear
+ * interpolation of the corners holds unless a highlight sits in it, which
+ * the block's centre (where bilinear interpolation errs most) shows. */
+#define BLOCK 4
+/* The block's check allows this share of the tolerance: elsewhere in the
+ * block bilinear interpolation errs less than at its centre, but not
+ * always (a highlight's edge). */
+#define INTERP_SHARE 0.25
+
+typedef struct fill_job {
+    const sl_closed_form *cf;
+    const sl_scene *scene;
+    sl_glossy_pixels *px;
+    int w, h;
+    sl_irradiance_cost *row_cost;
+} fill_job;
+
+static void eval_pixel(const fill_job *j, size_t pix, sl_irradiance_cost *cost)
+{
+    double B[3];
+    sl_closed_form_radiance_view(j->cf, j->scene, j->cf->shape[pix], j->px->n[pix], j->px->wo[pix],
+                                 j->px->value[pix], B, cost);
+    for (int c = 0; c < 3; c++)
+        j->cf->bound[pix][c] = (float)B[c];
+    j->px->state[pix] = SL_GLOSSY_DONE;
+}
+
+static void lattice_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    fill_job *j = ctx;
+    for (int64_t by = begin; by < end; by++) {
+        int y = (int)by * BLOCK;
+        for (int x = 0; x < j->w; x += BLOCK) {
+            size_t pix = (size_t)y * j->w + x;
+            if (j->px->state[pix] == SL_GLOSSY_PENDING)
+                eval_pixel(j, pix, &j->row_cost[y]);
+        }
+    }
+}
+
+/* Block (x0, y0) owns [x0, x0 + BLOCK) x [y0, y0 + BLOCK) but its first
+ * corner, which the lattice pass computed; its far corners belong to the
+ * next blocks, so blocks never write the same pixel. */
+static void block_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    fill_job *j = ctx;
+    sl_glossy_pixels *px = j->px;
+    for (int64_t by = begin; by < end; by++) {
+        int y0 = (int)by * BLOCK;
+        sl_irradiance_cost *cost = &j->row_cost[y0];
+        for (int x0 = 0; x0 < j->w; x0 += BLOCK) {
+            size_t corner[4];
+            bool whole = x0 + BLOCK < j->w && y0 + BLOCK < j->h;
+            for (int k = 0; k < 4 && whole; k++) {
+                corner[k] = (size_t)(y0 + (k >> 1) * BLOCK) * j->w + (size_t)(x0 + (k & 1) * BLOCK);
+                whole = px->state[corner[k]] == SL_GLOSSY_DONE &&
+                        j->cf->shape[corner[k]] == j->cf->shape[corner[0]];
+            }
+            for (int y = y0; y < y0 + BLOCK && whole; y++)
+                for (int x = x0; x < x0 + BLOCK && whole; x++) {
+                    size_t p = (size_t)y * j->w + x;
+                    whole = px->state[p] != SL_GLOSSY_NONE && j->cf->shape[p] == j->cf->shape[corner[0]];
+                }
+            double bmax[3] = {0, 0, 0};
+            if (whole) {
+                size_t mid = (size_t)(y0 + BLOCK / 2) * j->w + (size_t)(x0 + BLOCK / 2);
+                eval_pixel(j, mid, cost);
+                for (int c = 0; c < 3; c++) {
+                    double lin = 0.25 * (px->value[corner[0]][c] + px->value[corner[1]][c] +
+                                         px->value[corner[2]][c] + px->value[corner[3]][c]);
+                    double d = fabs(lin - px->value[mid][c]);
+                    for (int k = 0; k < 4; k++)
+                        bmax[c] = fmax(bmax[c], j->cf->bound[corner[k]][c]);
+                    if (d > INTERP_SHARE * j->cf->tol * px->value[mid][c])
+                        whole = false;
+                    bmax[c] += d;
+                }
+            }
+            for (int y = y0; y < y0 + BLOCK && y < j->h; y++)
+                for (int x = x0; x < x0 + BLOCK && x < j->w; x++) {
+                    size_t p = (size_t)y * j->w + x;
+                    if (px->state[p] != SL_GLOSSY_PENDING)
+                        continue;
+                    if (!whole) {
+                        eval_pixel(j, p, cost);
+                        continue;
+                    }
+                    double fx = (double)(x - x0) / BLOCK, fy = (double)(y - y0) / BLOCK;
+                    double wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+                    for (int c = 0; c < 3; c++) {
+                        double v = 0;
+                        for (int k = 0; k < 4; k++)
+                            v += wts[k] * px->value[corner[k]][c];
+                        px->value[p][c] = v;
+                        j->cf->bound[p][c] = (float)bmax[c];
+                    }
+                    px->state[p] = SL_GLOSSY_INTERPOLATED;
+                }
+        }
+    }
+}
+
+void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
+                    int h, sl_irradiance_cost *row_cost)
+{
+    fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost};
+    int rows = (h + BLOCK - 1) / BLOCK;
+    sl_parallel_for(rows, 1, lattice_rows, &j);
+    sl_parallel_for(rows, 1, block_rows, &j);
+}

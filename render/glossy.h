@@ -1,0 +1,70 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Closed form for glossy lobes under the dome (glossy.c) and the cells of
+ * the irradiance mip levels it integrates over (irradiance.c). Private to
+ * render/. */
+#ifndef SETLIGHT_RENDER_GLOSSY_H
+#define SETLIGHT_RENDER_GLOSSY_H
+
+#include "closed_form.h"
+#include "irradiance.h"
+#include "scene_internal.h"
+#include "vec3.h"
+
+/* One lat-long cell of the piecewise-constant dome, in the map's frame:
+ * a block of mip level `level` >= 0, or (level < 0) a piece of texel (x, y)
+ * split -level times. */
+typedef struct sl_dome_cell {
+    double p[3];         /* per channel: integral of L dw (intensity not applied) */
+    double v[3][3];      /* per channel: integral of L w dw */
+    double centre[3];    /* direction of the cell's centre */
+    double cos_r, sin_r; /* bounding cone radius about the centre */
+    bool wide;           /* the cone reaches past 90 degrees */
+    double spread_uniform; /* 1 - |V| / P were the cell's radiance uniform */
+    double t0, t1, a, b; /* colatitude and longitude ranges */
+    int level, x, y;
+} sl_dome_cell;
+
+/* The map's rotation (map to world) and intensity. */
+void sl_irradiance_frame(const sl_irradiance *ir, double rot[3][3], double *intensity);
+void sl_irradiance_level_size(const sl_irradiance *ir, int k, int *w, int *h);
+void sl_irradiance_cell(const sl_irradiance *ir, int k, int x, int y, sl_dome_cell *c);
+void sl_irradiance_piece(const sl_irradiance *ir, int level, int x, int y, double t0, double t1,
+                         double a, double b, sl_dome_cell *c);
+
+/* A material the glossy quadrature integrates: a rough (not delta)
+ * conductor or plastic. */
+bool sl_glossy_applies(const sl_material *m);
+
+/* Radiance toward wo (world, unit, away from the surface) of material m at
+ * world normal n under the dome alone: integral of L(w) f(wo, w) max(0, n.w)
+ * dw, f the full sl_bsdf_eval (single and multiple scattering, the
+ * plastic's diffuse), refined until the error estimate is below tol x the
+ * value. err[c] estimates |out - exact| (not a proven bound). */
+void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double n[3],
+                    const double wo[3], double tol, double out[3], double err[3],
+                    sl_irradiance_cost *cost);
+
+/* Glossy pixels of the closed form with pixel centres: evaluated on a
+ * lattice of 4 x 4 px blocks and interpolated bilinearly inside a block
+ * whose centre, evaluated too, is within a quarter of the tolerance of the
+ * interpolation (that difference is added to its pixels' bounds); every
+ * pixel of any other block is evaluated. */
+enum { SL_GLOSSY_NONE = 0, SL_GLOSSY_PENDING, SL_GLOSSY_DONE, SL_GLOSSY_INTERPOLATED };
+typedef struct sl_glossy_pixels {
+    uint8_t *state;        /* per pixel: SL_GLOSSY_* */
+    double (*n)[3];        /* world normal of a pending pixel */
+    double (*wo)[3];       /* its view direction */
+    double (*value)[3];    /* out: its radiance */
+} sl_glossy_pixels;
+/* Fills value and cf->bound of every pending pixel (cf->shape set);
+ * costs per image row. */
+void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
+                    int h, sl_irradiance_cost *row_cost);
+
+/* closed_form.c: the closed-form radiance of a shape toward the viewer wo,
+ * Lambert (irradiance) or glossy. */
+void sl_closed_form_radiance_view(const sl_closed_form *cf, const sl_scene *scene, int shape,
+                                  const double n[3], const double wo[3], double out[3],
+                                  double bound[3], sl_irradiance_cost *cost);
+
+#endif

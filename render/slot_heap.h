@@ -1,0 +1,30 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* A max-heap of elements kept in a pool of slots, each element beginning
+ * with its double key; popped slots are reused. The closed forms' cell
+ * refinement (irradiance.c, glossy.c) keeps its open cells in one.
+ * Private to render/. */
+#ifndef SETLIGHT_RENDER_SLOT_HEAP_H
+#define SETLIGHT_RENDER_SLOT_HEAP_H
+
+#include <stddef.h>
+
+typedef struct sl_slot_heap {
+    void *pool;    /* elements of `stride` bytes; the caller's storage */
+    size_t stride;
+    int *heap;     /* heap order: slots; as many as the pool holds */
+    int *free_list;
+    int count, nfree, used;
+} sl_slot_heap;
+
+static inline void sl_slot_heap_clear(sl_slot_heap *h) { h->count = h->nfree = h->used = 0; }
+/* The element at heap position i (0: the largest key). */
+static inline void *sl_slot_heap_at(const sl_slot_heap *h, int i)
+{
+    return (char *)h->pool + (size_t)h->heap[i] * h->stride;
+}
+/* Copies elem in; the caller keeps count below the pool's size. */
+void sl_slot_heap_push(sl_slot_heap *h, const void *elem);
+/* Copies the element with the largest key out and frees its slot. */
+void sl_slot_heap_pop(sl_slot_heap *h, void *out);
+
+#endif

@@ -1,0 +1,271 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* The glossy closed form (render/glossy.c): a rough conductor or plastic
+ * under the dome alone is integrated deterministically against its lobe.
+ * Known answers: the sampled renderer (--closed-form off) at high spp on
+ * the same scenes, under a sun-and-sky map (the sun 1e5 x the sky) and a
+ * real HDRI; the shadow preset's control variate; no NaN and no negative
+ * at roughness 0.01 and at grazing (rim) pixels. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../render/glossy.h"
+#include "sun_sky.h"
+#include "testing.h"
+
+/* A smooth sky with a sun of 1e5 x the sky in one texel, a dark ground. */
+static void sun_sky(sl_image *env, int w, double sun)
+{
+    sky_over_ground(env, w);
+    /* Up and to the camera's side: its highlight is on the ball. */
+    float *s = sl_image_pixel(env, w / 2 - w / 8, w / 8 + 1);
+    s[0] = (float)(1.2 * sun), s[1] = (float)sun, s[2] = (float)(0.8 * sun);
+}
+
+typedef struct glossy_case {
+    const char *name;
+    bool plastic;
+    double roughness;
+} glossy_case;
+
+static void set_material(sl_material *m, const glossy_case *g)
+{
+    if (g->plastic) {
+        sl_material_plastic(m, (const double[3]){0.5, 0.3, 0.2}, 1.5, g->roughness);
+    } else {
+        const double r[3] = {0.9, 0.7, 0.5}, e[3] = {1, 1, 1};
+        sl_material_conductor(m, r, e, g->roughness);
+    }
+}
+
+static void scene_for(sl_scene *s, const char *preset, int width, const sl_image *env,
+                      const glossy_case *g)
+{
+    sl_error err = {0};
+    sl_scene_init(s);
+    CHECK_OK(sl_scene_preset(s, preset, width, &err), &err);
+    CHECK_OK(sl_scene_set_dome(s, env, 0, 1, "env", &err), &err);
+    set_material(&s->materials[0], g);
+}
+
+static bool finite_nonnegative(const sl_image *img)
+{
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++)
+            for (int c = 0; c < 4; c++) {
+                float v = sl_image_pixel(img, x, y)[c];
+                if (!isfinite(v) || v < 0)
+                    return false;
+            }
+    return true;
+}
+
+static void render_once(const sl_scene *s, int64_t spp, bool centres, bool closed_form,
+                        sl_image *img, sl_render_stats *st)
+{
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = spp;
+    o.pixel_centers = centres;
+    o.closed_form = closed_form;
+    sl_error err = {0};
+    CHECK_OK(sl_render(s, &o, img, st, &err), &err);
+}
+
+/* Closed form against the sampled renderer: the difference within twice
+ * the sampled render's own error estimate and the closed form's (its
+ * sampled part; its quadrature error estimate is far above its true error,
+ * so a quarter of it). Returns the difference. */
+static double agree(const char *preset, int width, const sl_image *env, const glossy_case *g,
+                    int64_t spp, bool centres)
+{
+    sl_scene s;
+    scene_for(&s, preset, width, env, g);
+    sl_image a, b;
+    sl_render_stats sa, sb;
+    sl_error err = {0};
+    render_once(&s, spp, centres, true, &a, &sa);
+    render_once(&s, spp, centres, false, &b, &sb);
+    CHECK(sa.closed_form.used && sa.closed_form.exact_pixels + sa.closed_form.control_variate_pixels > 0);
+    CHECK(!sb.closed_form.used && !strcmp(sb.closed_form.reason, "off"));
+    CHECK(finite_nonnegative(&a));
+    double diff = 1;
+    CHECK_OK(sl_relative_rmse(&a, &b, &diff, &err), &err);
+    double est_b = sb.passes[sb.pass_count - 1].est_rel_rmse;
+    double est_a = sa.passes[sa.pass_count - 1].est_rel_rmse;
+    printf("  %-12s %s %d px%s: closed form vs sampled %.3f%%; sampled's estimate %.3f%%, closed "
+           "form's %.3f%% (%lld exact, %lld control variate, %lld sampled px, largest error "
+           "estimate %.3f%%, %.2f s)\n",
+           g->name, preset, width, centres ? " (centres)" : "", 100 * diff, 100 * est_b, 100 * est_a,
+           (long long)sa.closed_form.exact_pixels, (long long)sa.closed_form.control_variate_pixels,
+           (long long)sa.closed_form.sampled_pixels, 100 * sa.closed_form.max_rel_bound,
+           sa.closed_form.seconds);
+    double est_a_noise = sa.closed_form.control_variate_pixels > 0 ? est_a : 0.25 * est_a;
+    CHECK_MSG(diff <= 2.0 * sqrt(est_a_noise * est_a_noise + est_b * est_b), "%s: difference %.4f%% above the estimates",
+              g->name, 100 * diff);
+    sl_image_free(&a);
+    sl_image_free(&b);
+    sl_render_stats_free(&sa);
+    sl_render_stats_free(&sb);
+    sl_scene_free(&s);
+    return diff;
+}
+
+static const glossy_case CASES[] = {
+    {"metal 0.05", false, 0.05}, {"metal 0.3", false, 0.3},
+    {"metal 0.8", false, 0.8},   {"plastic 0.4", true, 0.4},
+};
+
+/* Sun 1e5 x the sky: the stiff case for sampling and for the quadrature. */
+static void test_sun_and_sky(void)
+{
+    sl_image env;
+    sun_sky(&env, 64, 1e5);
+    int64_t spp = sanitized() ? 1024 : 4096;
+    for (size_t i = 0; i < sizeof CASES / sizeof CASES[0]; i++)
+        agree("grey", 16, &env, &CASES[i], spp, true);
+    agree("grey", 16, &env, &CASES[1], spp, false); /* box filter */
+    sl_image_free(&env);
+}
+
+/* A real HDRI (skips when the shared data is absent), resized to 128 x 64
+ * so the sampled reference converges in the test's time. */
+static void test_real_hdri(void)
+{
+    const char *path = sl_test_data("hdri/venice_sunset_1k.hdr");
+    if (!path)
+        return;
+    sl_image full, env;
+    sl_error err = {0};
+    CHECK_OK(sl_latlong_read(path, NULL, &full, NULL, NULL, &err), &err);
+    CHECK_OK(sl_image_resample(&full, 128, 64, &env, &err), &err);
+    int64_t spp = sanitized() ? 512 : 4096;
+    for (size_t i = 0; i < sizeof CASES / sizeof CASES[0]; i++)
+        agree("grey", 12, &env, &CASES[i], spp, true);
+    sl_image_free(&env);
+    sl_image_free(&full);
+}
+
+/* A glossy ball on the shadow preset's ground: the ball's pixels are
+ * control variates (the ground shadows part of its lower hemisphere). */
+static void test_control_variate(void)
+{
+    sl_image env;
+    sun_sky(&env, 64, 1e3);
+    agree("shadow", 20, &env, &CASES[1], sanitized() ? 512 : 4096, true);
+    sl_image_free(&env);
+}
+
+/* Roughness 0.01 (a lobe far narrower than a texel) and grazing views at
+ * the rim: every closed-form pixel finite and >= 0, and the whole ball
+ * computed (rim pixels partly covered stay sampled). */
+static void test_narrow_and_grazing(void)
+{
+    sl_image env;
+    sun_sky(&env, 256, 1e5);
+    const glossy_case cases[2] = {{"metal 0.01", false, 0.01}, {"plastic 0.01", true, 0.01}};
+    for (int i = 0; i < 2; i++) {
+        sl_scene s;
+        scene_for(&s, "grey", 24, &env, &cases[i]);
+        sl_image img;
+        sl_render_stats st;
+        sl_error err = {0};
+        render_once(&s, 2, true, true, &img, &st);
+        CHECK(st.closed_form.used && st.closed_form.exact_pixels > 24 * 24 / 2);
+        CHECK(finite_nonnegative(&img));
+        CHECK(st.nonfinite_samples == 0);
+        /* A rim pixel (the view at 80+ degrees from the normal) is exact. */
+        sl_irradiance *ir;
+        CHECK_OK(sl_irradiance_build(&s.dome, &ir, &err), &err);
+        double n[3] = {0, 0.999, -0.0447}, wo[3] = {0, 0, -1}, out[3], e[3];
+        v3_normalize(n);
+        sl_glossy_eval(ir, &s.materials[0], n, wo, 1e-2, out, e, NULL);
+        CHECK(v3_finite(out) && out[0] >= 0 && out[1] >= 0 && out[2] >= 0);
+        CHECK(isfinite(e[0]) && e[0] >= 0);
+        sl_irradiance_free(ir);
+        sl_image_free(&img);
+        sl_render_stats_free(&st);
+        sl_scene_free(&s);
+    }
+    sl_image_free(&env);
+}
+
+/* Pixel centres: glossy pixels inside a checked 4 x 4 block are
+ * interpolated; each agrees with the quadrature at its own normal within
+ * the tolerance, and the stats name the object's material and counts. */
+static void test_interpolated_pixels(void)
+{
+    sl_image env;
+    sun_sky(&env, 128, 1e4);
+    const glossy_case *g = &CASES[2]; /* metal 0.8: smooth across blocks */
+    sl_scene s;
+    scene_for(&s, "grey", 48, &env, g);
+    sl_image img;
+    sl_render_stats st;
+    sl_error err = {0};
+    render_once(&s, 2, true, true, &img, &st);
+    const sl_closed_form_stats *cf = &st.closed_form;
+    CHECK(cf->object_count == 1 && cf->object_material[0] == SL_MAT_CONDUCTOR);
+    CHECK(cf->object_exact[0] == cf->exact_pixels && cf->object_control[0] == 0);
+    CHECK(cf->interpolated_pixels > cf->exact_pixels / 10);
+    sl_irradiance *ir;
+    CHECK_OK(sl_irradiance_build(&s.dome, &ir, &err), &err);
+    double worst = 0;
+    int checked = 0;
+    for (int y = 1; y < 48; y += 4)
+        for (int x = 2; x < 48; x += 4) {
+            double org[3], dir[3];
+            sl_hit h;
+            if (!sl_camera_ray(&s.camera, (x + 0.5) / 48, (y + 0.5) / 48, org, dir) ||
+                !sl_scene_intersect(&s, org, dir, 0, INFINITY, &h))
+                continue;
+            double wo[3] = {-dir[0], -dir[1], -dir[2]}, v[3], e[3];
+            sl_glossy_eval(ir, &s.materials[0], h.n, wo, 1e-3, v, e, NULL);
+            const float *p = sl_image_pixel(&img, x, y);
+            if (p[3] < 1 || !(v[1] > 0))
+                continue;
+            worst = fmax(worst, fabs(p[1] - v[1]) / v[1]);
+            checked++;
+        }
+    printf("  %lld of %lld exact pixels interpolated; %d checked, worst %.3f%% (tolerance %.1f%%)\n",
+           (long long)cf->interpolated_pixels, (long long)cf->exact_pixels, checked, 100 * worst,
+           100 * cf->tolerance);
+    CHECK(checked > 50);
+    CHECK_MSG(worst <= cf->tolerance, "worst %.4f%%", 100 * worst);
+    sl_irradiance_free(ir);
+    sl_image_free(&img);
+    sl_render_stats_free(&st);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
+/* The mirror (roughness 0) stays sampled: exact at pixel centres already. */
+static void test_delta_kept(void)
+{
+    sl_image env;
+    sun_sky(&env, 32, 1e3);
+    const glossy_case g[2] = {{"chrome", false, 0}, {"smooth plastic", true, 0}};
+    for (int i = 0; i < 2; i++) {
+        sl_scene s;
+        scene_for(&s, "grey", 8, &env, &g[i]);
+        sl_image img;
+        sl_render_stats st;
+        render_once(&s, 4, false, true, &img, &st);
+        CHECK_MSG(!st.closed_form.used && !strcmp(st.closed_form.reason, "no Lambert or rough glossy object"),
+                  "%s: %s", g[i].name, st.closed_form.reason);
+        sl_image_free(&img);
+        sl_render_stats_free(&st);
+        sl_scene_free(&s);
+    }
+    sl_image_free(&env);
+}
+
+int main(void)
+{
+    RUN(test_sun_and_sky);
+    RUN(test_control_variate);
+    RUN(test_narrow_and_grazing);
+    RUN(test_interpolated_pixels);
+    RUN(test_delta_kept);
+    RUN(test_real_hdri);
+    return sl_test_finish();
+}
