@@ -154,6 +154,7 @@ sl_result align_measure(align_plane *planes, int count, const char *const *paths
 typedef struct merge_ctx {
     int width, height, bits;
     bool is_float;
+    bool marked_linear;    /* every frame's file says it is linear light (raw, linear ICC) */
     int code_bytes;        /* frames' integer container: 1 or 2 bytes, 0 float */
     bool codes;            /* frames read as integer codes (integer and none warped) */
     uint8_t *code_class;   /* with codes, per code: 1 saturated, 2 black */
