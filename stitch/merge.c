@@ -978,6 +978,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     out->width = m->width;
     out->height = m->height;
     choose_encoding(m, out, &opt);
+    merge_judge_response(m, out, recovered);
     release_samples(m);
     merge_clock_charge(&out->timing, fit, SL_MERGE_FIT);
     return SL_OK;

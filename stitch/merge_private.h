@@ -214,6 +214,10 @@ static inline sl_merge_options merge_options_or_default(const sl_merge_options *
     return o;
 }
 
+/* Fills res->response_check from the samples (before they are released);
+ * `recovered`: the curve was fitted to this bracket. */
+void merge_judge_response(const merge_ctx *m, sl_merge_result *res, bool recovered);
+
 /* Everything before the pixels are merged: frames, samples, response,
  * exposure check. With `hold`, frames that fit opt->hold_mb keep their codes
  * from the sample pass for the merge pass. */
