@@ -109,6 +109,26 @@ static void write_tiff(const char *path, const setup *s, double t, const char *d
     free(buf);
 }
 
+/* A grey w x h image of the level a t-second exposure gives, and its EXIF. */
+static bool shot_image(sl_image *img, sl_meta *meta, int w, int h, const char *model, double t,
+                       int orientation, const char *date)
+{
+    sl_error err;
+    if (sl_image_alloc(img, w, h, 3, &err))
+        return false;
+    for (size_t i = 0; i < (size_t)w * h * 3; i++)
+        img->data[i] = (float)fmin(1.0, t * 3);
+    sl_meta_init(meta);
+    snprintf(meta->make, sizeof meta->make, "Maker");
+    snprintf(meta->model, sizeof meta->model, "%s", model);
+    meta->exposure_time = t;
+    meta->f_number = 8;
+    meta->iso = 100;
+    meta->orientation = orientation;
+    snprintf(meta->datetime, sizeof meta->datetime, "%s", date);
+    return true;
+}
+
 /* Frame `number` of a setup, exposed t seconds at `when` seconds. */
 static void write_shot(const char *dir, const setup *s, int number, double t, int when)
 {
@@ -120,20 +140,10 @@ static void write_shot(const char *dir, const setup *s, int number, double t, in
         return;
     }
     sl_image img;
-    sl_error err;
-    if (sl_image_alloc(&img, s->width, s->height, 3, &err))
-        return;
-    for (size_t i = 0; i < (size_t)s->width * s->height * 3; i++)
-        img.data[i] = (float)fmin(1.0, t * 3);
     sl_meta meta;
-    sl_meta_init(&meta);
-    snprintf(meta.make, sizeof meta.make, "Maker");
-    snprintf(meta.model, sizeof meta.model, "%s", s->model);
-    meta.exposure_time = t;
-    meta.f_number = 8;
-    meta.iso = 100;
-    meta.orientation = s->orientation;
-    snprintf(meta.datetime, sizeof meta.datetime, "%s", date);
+    sl_error err;
+    if (!shot_image(&img, &meta, s->width, s->height, s->model, t, s->orientation, date))
+        return;
     CHECK_OK(sl_photo_write(path, &img, &meta, 8, &err), &err);
     sl_meta_free(&meta);
     sl_image_free(&img);
@@ -146,6 +156,15 @@ static json_t *load_session(const char *dir)
     json_t *s = json_load_file(sp, 0, NULL);
     CHECK_MSG(s != NULL, "%s: no session.json", dir);
     return s;
+}
+
+/* The frames of the first bracket of session s's first view. */
+static json_t *only_bracket(json_t *s)
+{
+    return json_object_get(
+        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
+                       0),
+        "frames");
 }
 
 /* Two setups shooting 5-frame brackets at once, their frames interleaved
@@ -300,10 +319,7 @@ static void test_siblings_one_serial(void)
     CHECK_OK(sl_ingest(card, out, 10, NULL, &frames, &views, &err), &err);
     CHECK_MSG(frames == 5 && views == 1, "%d frames in %d views", frames, views);
     json_t *s = load_session(out);
-    json_t *fr = json_object_get(
-        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
-                       0),
-        "frames");
+    json_t *fr = only_bracket(s);
     int paired = 0;
     for (size_t i = 0; i < json_array_size(fr); i++)
         paired += json_array_size(json_object_get(json_array_get(fr, i), "siblings")) == 1;
@@ -320,20 +336,10 @@ static void write_formats(const char *dir, int number, double t, int when, bool 
     char path[4096], date[32];
     snprintf(date, sizeof date, "2026:03:04 11:%02d:%02d", when / 60, when % 60);
     sl_image img;
-    sl_error err;
-    if (sl_image_alloc(&img, 32, 8, 3, &err))
-        return;
-    for (size_t i = 0; i < 32 * 8 * 3; i++)
-        img.data[i] = (float)fmin(1.0, t * 3);
     sl_meta meta;
-    sl_meta_init(&meta);
-    snprintf(meta.make, sizeof meta.make, "Maker");
-    snprintf(meta.model, sizeof meta.model, "Delta");
-    meta.exposure_time = t;
-    meta.f_number = 8;
-    meta.iso = 100;
-    meta.orientation = 1;
-    snprintf(meta.datetime, sizeof meta.datetime, "%s", date);
+    sl_error err;
+    if (!shot_image(&img, &meta, 32, 8, "Delta", t, 1, date))
+        return;
     snprintf(path, sizeof path, "%s/IMG_%04d.jpg", dir, number);
     CHECK_OK(sl_photo_write(path, &img, &meta, 8, &err), &err);
     snprintf(path, sizeof path, "%s/IMG_%04d.tif", dir, number);
@@ -345,15 +351,6 @@ static void write_formats(const char *dir, int number, double t, int when, bool 
     }
     sl_meta_free(&meta);
     sl_image_free(&img);
-}
-
-/* The frames of the one bracket of session `out`. */
-static json_t *only_bracket(json_t *s)
-{
-    return json_object_get(
-        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
-                       0),
-        "frames");
 }
 
 /* A card of JPEG + display TIFF + linear TIFF shots: each frame's file is
