@@ -20,7 +20,8 @@ typedef struct photo {
     char name[256];
     double when;   /* EXIF time in seconds (0 unknown) */
     long sequence; /* the number in the file name, -1 if none */
-    int rank;      /* format preference among a shot's files: raw first */
+    int rank;      /* preference among a shot's files: rawest first (content_rank) */
+    char kind[160]; /* what the file holds, for session.json */
     sl_meta meta;
     sl_frame_setup setup;
 } photo;
@@ -62,6 +63,36 @@ int sl_capture_file_rank(const char *name)
         if (!strcasecmp(dot + 1, order[i]))
             return i < 3 ? 1 : 2;
     return 3;
+}
+
+/* Where a file stands among a shot's files, by what the file says it holds
+ * (not its name): 0 camera raw, 1 scene-linear (float samples, as EXR; or
+ * integer samples whose file names a scene-linear colour space, as a raw
+ * converter's linear TIFF export does with its ICC profile), 2
+ * display-referred deeper than 8 bits, 3 display-referred 8-bit. `kind`
+ * says which in words. */
+static int content_rank(const char *name, const sl_meta *meta, char *kind, size_t size)
+{
+    const char *format = meta->format[0] ? meta->format : "image";
+    int bits = meta->bits_per_sample;
+    if (sl_image_format_of_file(name) == SL_FORMAT_RAW || !strcmp(meta->format, "raw")) {
+        snprintf(kind, size, "camera raw (%s)", format);
+        return 0;
+    }
+    if (meta->is_float) {
+        snprintf(kind, size, "scene-linear: %s %s samples", bits == 16 ? "half" : "float",
+                 format);
+        return 1;
+    }
+    bool assumed;
+    const char *cs = sl_file_color_space(meta, &assumed);
+    if (sl_file_is_scene_linear(meta)) {
+        snprintf(kind, size, "scene-linear: %d-bit %s marked %s", bits, format, cs);
+        return 1;
+    }
+    snprintf(kind, size, "display-referred: %d-bit %s (%s%s)", bits, format,
+             cs ? cs : meta->colorspace, assumed ? ", assumed" : "");
+    return bits > 8 ? 2 : 3;
 }
 
 static sl_result scan(const char *dir, const char *rel, photos *s, int depth, sl_error *err)
@@ -120,7 +151,7 @@ static sl_result scan(const char *dir, const char *rel, photos *s, int depth, sl
             x->when += extra.subsec;
         sl_frame_setup_fill(&x->setup, &meta, &extra, w, h);
         x->sequence = sequence_of(e->d_name);
-        x->rank = sl_capture_file_rank(e->d_name);
+        x->rank = content_rank(e->d_name, &meta, x->kind, sizeof x->kind);
         /* a broken EXIF rational reads back as infinity: unknown */
         if (!isfinite(meta.exposure_time))
             meta.exposure_time = 0;
@@ -130,11 +161,16 @@ static sl_result scan(const char *dir, const char *rel, photos *s, int depth, sl
     return r;
 }
 
-/* A shot's files: rawest first, then by name. */
+/* A shot's files: rawest first, then the deepest samples, then by name. */
 static int cmp_format(const void *a, const void *b)
 {
     const photo *x = a, *y = b;
-    return x->rank != y->rank ? (x->rank < y->rank ? -1 : 1) : strcmp(x->name, y->name);
+    if (x->rank != y->rank)
+        return x->rank < y->rank ? -1 : 1;
+    int bx = x->meta.bits_per_sample, by = y->meta.bits_per_sample;
+    if (bx != by)
+        return bx > by ? -1 : 1;
+    return strcmp(x->name, y->name);
 }
 
 /* The camera model that took a photograph (make, model). */
@@ -378,9 +414,11 @@ static sl_result copy_shot(const photo *files, int n, const char *dir, const cha
             json_object_set_new(f, "file", json_string(name));
             json_object_set_new(f, "source", json_string(y->name));
             json_object_set_new(f, "sha256", json_string(sha));
+            json_object_set_new(f, "content", json_string(y->kind));
         } else {
-            json_array_append_new(siblings, json_pack("{s:s, s:s, s:s}", "file", name, "source",
-                                                      y->name, "sha256", sha));
+            json_array_append_new(siblings,
+                                  json_pack("{s:s, s:s, s:s, s:s}", "file", name, "source",
+                                            y->name, "sha256", sha, "content", y->kind));
         }
     }
     if (r) {
@@ -392,10 +430,19 @@ static sl_result copy_shot(const photo *files, int n, const char *dir, const cha
     json_object_set_new(f, "f_number", fn > 0 ? json_real(fn) : json_null());
     json_object_set_new(f, "iso", iso > 0 ? json_real(iso) : json_null());
     json_object_set_new(f, "measured_ratio", json_null());
-    if (json_array_size(siblings))
+    if (json_array_size(siblings)) {
+        /* Why this file and not the others (kept as alternates). */
+        char why[400];
+        snprintf(why, sizeof why, "the most linear and deepest of the shot's %d files (%s)", n,
+                 files[1].rank > files[0].rank    ? "more linear than the others"
+                 : files[1].meta.bits_per_sample < files[0].meta.bits_per_sample
+                     ? "as linear, more bits"
+                     : "as linear and deep as another: first by name");
+        json_object_set_new(f, "chosen", json_string(why));
         json_object_set_new(f, "siblings", siblings);
-    else
+    } else {
         json_decref(siblings);
+    }
     *frame = f;
     return SL_OK;
 }

@@ -48,6 +48,16 @@ const char *sl_file_color_space(const sl_meta *meta, bool *assumed)
     return sl_color_space_name(SL_WORKING_SPACE);
 }
 
+bool sl_file_is_scene_linear(const sl_meta *meta)
+{
+    if (meta->is_float || !strcmp(meta->format, "raw"))
+        return true;
+    bool assumed;
+    const char *cs = sl_file_color_space(meta, &assumed);
+    const char *encoding = cs && !assumed ? sl_color_space_encoding(cs) : NULL;
+    return encoding && !strcmp(encoding, "scene-linear");
+}
+
 /* "8-bit png", "half openexr", "float tiff". */
 static void sample_text(const sl_meta *meta, char *buf, size_t size)
 {

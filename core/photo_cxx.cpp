@@ -131,6 +131,15 @@ sl_result fill_meta(const char *path, ImageInput &in, const ImageSpec &spec, sl_
         spec.get_int_attribute("oiio:BitsPerSample", (int)spec.format.size() * 8);
     copy_string(meta->colorspace, sizeof meta->colorspace,
                 spec.get_string_attribute("oiio:ColorSpace"));
+    /* A linear export says so in its ICC profile (core/icc.c), more
+     * precisely than the EXIF ColorSpace tag OIIO reads as "sRGB". */
+    const OIIO::ParamValue *icc = spec.find_attribute("ICCProfile");
+    if (icc && icc->type().basetype == TypeDesc::UINT8) {
+        const char *linear = sl_icc_linear_space((const unsigned char *)icc->data(),
+                                                 (size_t)icc->type().numelements());
+        if (linear)
+            copy_string(meta->colorspace, sizeof meta->colorspace, linear);
+    }
     meta->exposure_time = number(spec, "ExposureTime");
     meta->f_number = number(spec, "FNumber");
     meta->iso = number(spec, "Exif:PhotographicSensitivity");
@@ -311,6 +320,18 @@ sl_result write_impl(const char *path, const sl_image *img, const sl_meta *meta,
         spec.attribute("compression", "zip");
     if (meta)
         set_exif(spec, meta);
+    /* A TIFF of linear Rec.709 data carries the profile a raw converter's
+     * linear export has, so readers (ingest among them) know it is linear. */
+    unsigned char icc[1024];
+    size_t icc_size = 0;
+    if (tiff && bits != 32 && meta && meta->colorspace[0] &&
+        sl_color_space_name(meta->colorspace) &&
+        !std::strcmp(sl_color_space_name(meta->colorspace), SL_WORKING_SPACE) &&
+        (icc_size = sl_icc_linear_rec709(icc, sizeof icc)) <= sizeof icc)
+    {
+        spec.attribute("ICCProfile", TypeDesc(TypeDesc::UINT8, (int)icc_size), icc);
+        spec.attribute("Exif:ColorSpace", 0xFFFF); /* uncalibrated: not sRGB */
+    }
 
     /* Integer formats clamp to [0, 1]; no NaN or Inf ever reaches a file. */
     std::vector<float> pixels((size_t)img->width * (size_t)img->height * (size_t)nc);

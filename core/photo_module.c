@@ -47,6 +47,7 @@ __attribute__((used)) static const void *const module_needs[] = {
     (const void *)sl_image_alloc,   (const void *)sl_image_free,
     (const void *)sl_meta_free,     (const void *)sl_meta_init,
     (const void *)sl_meta_set,      (const void *)sl_memory_check,
+    (const void *)sl_icc_linear_rec709, (const void *)sl_icc_linear_space,
 };
 
 static void load(void)

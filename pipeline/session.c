@@ -199,9 +199,18 @@ static sl_result read_session(setup_plan *sp, const char *dir, const json_t *cap
                 return r;
             }
             json_array_append_new(vw->frames, json_string(fp));
+            /* The shot's files are named after the frame (IMG_0022.tif) or
+             * not (IMG_0022_linear.tif): the frame's file or a sibling. */
             const char *source = json_string_value(json_object_get(f, "source"));
             if (!vw->probe && capture && source)
                 vw->probe = probe_kind_of(capture, source);
+            size_t k;
+            json_t *sib;
+            json_array_foreach(json_object_get(f, "siblings"), k, sib) {
+                source = json_string_value(json_object_get(sib, "source"));
+                if (!vw->probe && capture && source)
+                    vw->probe = probe_kind_of(capture, source);
+            }
         }
         sp->view_count++;
     }

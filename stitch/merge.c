@@ -92,6 +92,7 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
         sl_photo_strips_close(rd);
         m->block[2 * i] = info.block_w;
         m->block[2 * i + 1] = info.block_h;
+        m->marked_linear = (i == 0 || m->marked_linear) && sl_file_is_scene_linear(&meta);
         f->exif_time = meta.exposure_time;
         f->f_number = meta.f_number;
         f->iso = meta.iso;
@@ -869,6 +870,12 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     if (opt.response_mode == SL_RESPONSE_GIVEN && (!opt.response || opt.response->channels != 3))
         return sl_error_set(err, SL_ERR_USAGE, "merge: a given response needs three curves");
     sl_result r = setup_frames(paths, count, &opt, out, m, err);
+    /* Frames whose files say they are linear (camera raw, a linear
+     * export's ICC profile) need no curve: one fitted to them can only
+     * add error. */
+    bool linear_by_file = !r && opt.response_mode == SL_RESPONSE_AUTO && m->marked_linear && !m->is_float;
+    if (linear_by_file)
+        opt.response_mode = SL_RESPONSE_LINEAR;
     bool recovered = opt.response_mode == SL_RESPONSE_AUTO || opt.response_mode == SL_RESPONSE_ROBERTSON;
     if (!r && m->is_float && recovered)
         r = sl_error_set(err, SL_ERR_INPUT,
@@ -918,6 +925,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     switch (opt.response_mode) {
     case SL_RESPONSE_LINEAR:
         r = sl_response_linear(&out->response, RESPONSE_NODES, err);
+        if (!r && linear_by_file)
+            snprintf(out->response.source, sizeof out->response.source, "linear (as the files say)");
         break;
     case SL_RESPONSE_GIVEN:
         out->response.inverse = malloc((size_t)opt.response->nodes * 3 * sizeof(double));
@@ -969,6 +978,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     out->width = m->width;
     out->height = m->height;
     choose_encoding(m, out, &opt);
+    merge_judge_response(m, out, recovered);
     release_samples(m);
     merge_clock_charge(&out->timing, fit, SL_MERGE_FIT);
     return SL_OK;

@@ -51,6 +51,7 @@ typedef struct pass_ctx {
                                           below 1, and the first at 0 (the fade falls) */
     double clip_sigma2;     /* predicts_clip's margin: deghost's sigma, squared */
     double *xsat;           /* per rank and channel: the saturation code's value, output scale */
+    double *xblack;         /* per rank and channel: the black code's value, output scale */
     uint16_t *hide_from;    /* with 8-bit codes, per rank pair (s * frames + r): the lowest
                                code of s whose value exceeds xsat of r in some channel
                                (256: none); below it in all three, s cannot predict r
@@ -172,6 +173,31 @@ static int drop_hidden_clips(const pass_ctx *p, double xs[3][MERGE_MAX_FRAMES],
         drop[r] = ref >= 0 && predicts_frame_clip(p, xs, ws, ref, r);
         n += drop[r];
         ref = drop[r] ? ref : r;
+    }
+    return n;
+}
+
+/* A longer frame that reads black in a channel bounds the radiance there:
+ * a shorter frame's value more than twice that bound is its noise (a dark
+ * frame's read noise, hot pixels: a linear frame keeps them, where a
+ * curve's toe crushes them to black), which its tiny exposure would scale
+ * into a bright speck. Such values get no weight. Returns how many. */
+static int drop_noise_above_black(const pass_ctx *p, double xs[3][MERGE_MAX_FRAMES],
+                                  double ws[3][MERGE_MAX_FRAMES], const bool *satr)
+{
+    int n = 0;
+    for (int c = 0; c < 3; c++) {
+        double bound = INFINITY;
+        for (int r = p->frames - 1; r >= 0; r--) {
+            if (satr[r])
+                continue;
+            if (ws[c][r] > 0 && xs[c][r] > 2 * bound) {
+                ws[c][r] = 0;
+                n++;
+            }
+            if (xs[c][r] <= p->xblack[r * 3 + c])
+                bound = fmin(bound, p->xblack[r * 3 + c]);
+        }
     }
     return n;
 }
@@ -393,6 +419,7 @@ static void merge_rows(void *ctx, int64_t begin, int64_t end, int worker)
             /* Deghost: a frame far from the weighted median (beyond the noise
              * model plus a model error) in any channel is left out. */
             bool reject[MERGE_MAX_FRAMES] = {false}, ghosted = false;
+            drop_noise_above_black(p, xs, ws, satr);
             if (drop_hidden_clips(p, xs, ws, satr, reject))
                 for (int r = 0; r < f; r++)
                     for (int c = 0; c < 3 && reject[r]; c++)
@@ -656,11 +683,14 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, merge_sink
             r = merge_frame_open(fr->path, &fr->align, STRIP, &p.rd[q], err);
     }
     merge_clock tables = merge_clock_start();
-    if (!r && !(p.xsat = malloc((size_t)f * 3 * sizeof *p.xsat)))
+    if (!r && (!(p.xsat = malloc((size_t)f * 3 * sizeof *p.xsat)) ||
+               !(p.xblack = malloc((size_t)f * 3 * sizeof *p.xblack))))
         r = sl_error_set(err, SL_ERR_NOMEM, "merge: out of memory");
     for (int q = 0; q < f && !r; q++)
-        for (int c = 0; c < 3; c++)
+        for (int c = 0; c < 3; c++) {
             p.xsat[q * 3 + c] = sl_response_eval(&res->response, c, m->saturation) * p.inv_e[q];
+            p.xblack[q * 3 + c] = sl_response_eval(&res->response, c, m->black) * p.inv_e[q];
+        }
     if (!r)
         r = build_luts(&p, err);
     merge_clock_charge(&res->timing, tables, SL_MERGE_PIXELS);
@@ -722,6 +752,7 @@ sl_result merge_pass(const merge_ctx *m, const sl_merge_options *opt, merge_sink
     }
     free(p.cfade);
     free(p.xsat);
+    free(p.xblack);
     free(p.hide_from);
     free(p.rx);
     free(p.rw);

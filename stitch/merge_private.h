@@ -154,6 +154,7 @@ sl_result align_measure(align_plane *planes, int count, const char *const *paths
 typedef struct merge_ctx {
     int width, height, bits;
     bool is_float;
+    bool marked_linear;    /* every frame's file says it is linear light (raw, linear ICC) */
     int code_bytes;        /* frames' integer container: 1 or 2 bytes, 0 float */
     bool codes;            /* frames read as integer codes (integer and none warped) */
     uint8_t *code_class;   /* with codes, per code: 1 saturated, 2 black */
@@ -212,6 +213,10 @@ static inline sl_merge_options merge_options_or_default(const sl_merge_options *
                                                              : MERGE_SATURATION_CURVE;
     return o;
 }
+
+/* Fills res->response_check from the samples (before they are released);
+ * `recovered`: the curve was fitted to this bracket. */
+void merge_judge_response(const merge_ctx *m, sl_merge_result *res, bool recovered);
 
 /* Everything before the pixels are merged: frames, samples, response,
  * exposure check. With `hold`, frames that fit opt->hold_mb keep their codes

@@ -28,6 +28,13 @@ static const char *align_mode_name(sl_align_mode mode)
 }
 
 /* The alignment for --json: mode, decision, why, and what it cost. */
+static json_t *response_check_json(const sl_merge_response_check *rc)
+{
+    return json_pack("{s:b, s:b, s:f, s:f, s:I, s:s}", "plausible", rc->plausible, "monotone",
+                     rc->monotone, "frame_rms_stops", rc->frame_rms_stops, "frame_p90_stops",
+                     rc->frame_p90_stops, "compared", (json_int_t)rc->compared, "note", rc->note);
+}
+
 static json_t *align_json(const sl_merge_result *res)
 {
     return json_pack("{s:s, s:b, s:o, s:s, s:f, s:f, s:f}", "mode",
@@ -168,11 +175,14 @@ sl_result sl_merge_run(const sl_merge_run_options *o, sl_merge_run_result *res, 
            o->out_path, m->frame_count, m->response.source, (long long)m->clipped_pixels,
            100 * m->clipped_fraction, measured ? shifts : "not measured",
            m->aligned ? "aligned" : "merged as shot", m->seconds);
+    const sl_merge_response_check *rc = &m->response_check;
+    if (!rc->plausible)
+        sl_log(SL_LOG_WARN, "%s: response %s: %s", o->out_path, m->response.source, rc->note);
     json_t *j = json_pack(
-        "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:s, s:o, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f, s:o}",
+        "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:o, s:s, s:o, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f, s:o}",
         "output", o->out_path, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
         (json_int_t)m->ghost_pixels, "width", m->width, "height", m->height, "response",
-        m->response.source, "exposures", o->merge.exposures == SL_EXPOSURES_DATA ? "data" : "exif",
+        m->response.source, "response_check", response_check_json(rc), "exposures", o->merge.exposures == SL_EXPOSURES_DATA ? "data" : "exif",
         "frames", frames_json(m, measured), "align", align_json(m), "reference_frame",
         m->reference, "clipped_pixels", (json_int_t)m->clipped_pixels, "clipped_samples",
         (json_int_t)m->clipped_samples[0], (json_int_t)m->clipped_samples[1],
@@ -210,8 +220,12 @@ sl_result sl_response_run(const sl_merge_run_options *o, sl_merge_run_result *re
     double mid[3];
     for (int c = 0; c < 3; c++)
         mid[c] = sl_response_eval(&m->response, c, 0.5);
-    json_t *j = json_pack("{s:s, s:s, s:i, s:[f,f,f], s:o, s:o, s:I, s:f, s:o}", "output",
-                          o->out_path, "source", m->response.source, "nodes", m->response.nodes,
+    if (!m->response_check.plausible)
+        sl_log(SL_LOG_WARN, "%s: response %s: %s", o->out_path, m->response.source,
+               m->response_check.note);
+    json_t *j = json_pack("{s:s, s:s, s:o, s:i, s:[f,f,f], s:o, s:o, s:I, s:f, s:o}", "output",
+                          o->out_path, "source", m->response.source, "response_check",
+                          response_check_json(&m->response_check), "nodes", m->response.nodes,
                           "linear_at_half", mid[0], mid[1], mid[2], "frames",
                           frames_json(m, m->align_mode != SL_ALIGN_OFF), "align", align_json(m),
                           "disagreeing_frames", (json_int_t)m->disagreeing_frames, "seconds",

@@ -109,6 +109,26 @@ static void write_tiff(const char *path, const setup *s, double t, const char *d
     free(buf);
 }
 
+/* A grey w x h image of the level a t-second exposure gives, and its EXIF. */
+static bool shot_image(sl_image *img, sl_meta *meta, int w, int h, const char *model, double t,
+                       int orientation, const char *date)
+{
+    sl_error err;
+    if (sl_image_alloc(img, w, h, 3, &err))
+        return false;
+    for (size_t i = 0; i < (size_t)w * h * 3; i++)
+        img->data[i] = (float)fmin(1.0, t * 3);
+    sl_meta_init(meta);
+    snprintf(meta->make, sizeof meta->make, "Maker");
+    snprintf(meta->model, sizeof meta->model, "%s", model);
+    meta->exposure_time = t;
+    meta->f_number = 8;
+    meta->iso = 100;
+    meta->orientation = orientation;
+    snprintf(meta->datetime, sizeof meta->datetime, "%s", date);
+    return true;
+}
+
 /* Frame `number` of a setup, exposed t seconds at `when` seconds. */
 static void write_shot(const char *dir, const setup *s, int number, double t, int when)
 {
@@ -120,20 +140,10 @@ static void write_shot(const char *dir, const setup *s, int number, double t, in
         return;
     }
     sl_image img;
-    sl_error err;
-    if (sl_image_alloc(&img, s->width, s->height, 3, &err))
-        return;
-    for (size_t i = 0; i < (size_t)s->width * s->height * 3; i++)
-        img.data[i] = (float)fmin(1.0, t * 3);
     sl_meta meta;
-    sl_meta_init(&meta);
-    snprintf(meta.make, sizeof meta.make, "Maker");
-    snprintf(meta.model, sizeof meta.model, "%s", s->model);
-    meta.exposure_time = t;
-    meta.f_number = 8;
-    meta.iso = 100;
-    meta.orientation = s->orientation;
-    snprintf(meta.datetime, sizeof meta.datetime, "%s", date);
+    sl_error err;
+    if (!shot_image(&img, &meta, s->width, s->height, s->model, t, s->orientation, date))
+        return;
     CHECK_OK(sl_photo_write(path, &img, &meta, 8, &err), &err);
     sl_meta_free(&meta);
     sl_image_free(&img);
@@ -146,6 +156,15 @@ static json_t *load_session(const char *dir)
     json_t *s = json_load_file(sp, 0, NULL);
     CHECK_MSG(s != NULL, "%s: no session.json", dir);
     return s;
+}
+
+/* The frames of the first bracket of session s's first view. */
+static json_t *only_bracket(json_t *s)
+{
+    return json_object_get(
+        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
+                       0),
+        "frames");
 }
 
 /* Two setups shooting 5-frame brackets at once, their frames interleaved
@@ -300,14 +319,105 @@ static void test_siblings_one_serial(void)
     CHECK_OK(sl_ingest(card, out, 10, NULL, &frames, &views, &err), &err);
     CHECK_MSG(frames == 5 && views == 1, "%d frames in %d views", frames, views);
     json_t *s = load_session(out);
-    json_t *fr = json_object_get(
-        json_array_get(json_object_get(json_array_get(json_object_get(s, "views"), 0), "brackets"),
-                       0),
-        "frames");
+    json_t *fr = only_bracket(s);
     int paired = 0;
     for (size_t i = 0; i < json_array_size(fr); i++)
         paired += json_array_size(json_object_get(json_array_get(fr, i), "siblings")) == 1;
     CHECK_MSG(paired == 5, "%d of 5 frames have their JPEG as sibling", paired);
+    json_decref(s);
+}
+
+/* Shot `number` as a camera and a raw converter leave it: an 8-bit JPEG,
+ * a 16-bit display TIFF (IMG_N.tif) and, with `linear`, a 16-bit linear
+ * TIFF carrying a linear ICC profile, named so that it sorts last
+ * (IMG_N_x.tif): the pick must come from the files, not their names. */
+static void write_formats(const char *dir, int number, double t, int when, bool linear)
+{
+    char path[4096], date[32];
+    snprintf(date, sizeof date, "2026:03:04 11:%02d:%02d", when / 60, when % 60);
+    sl_image img;
+    sl_meta meta;
+    sl_error err;
+    if (!shot_image(&img, &meta, 32, 8, "Delta", t, 1, date))
+        return;
+    snprintf(path, sizeof path, "%s/IMG_%04d.jpg", dir, number);
+    CHECK_OK(sl_photo_write(path, &img, &meta, 8, &err), &err);
+    snprintf(path, sizeof path, "%s/IMG_%04d.tif", dir, number);
+    CHECK_OK(sl_photo_write(path, &img, &meta, 16, &err), &err);
+    if (linear) {
+        snprintf(meta.colorspace, sizeof meta.colorspace, "lin_rec709");
+        snprintf(path, sizeof path, "%s/IMG_%04d_x.tif", dir, number);
+        CHECK_OK(sl_photo_write(path, &img, &meta, 16, &err), &err);
+    }
+    sl_meta_free(&meta);
+    sl_image_free(&img);
+}
+
+/* A card of JPEG + display TIFF + linear TIFF shots: each frame's file is
+ * the linear TIFF (by its ICC profile, though its name sorts last), the
+ * others stay as siblings, session.json says what each holds and why the
+ * frame's was chosen; without linear files the 16-bit TIFF comes before
+ * the JPEG; a card of JPEGs alone still ingests. */
+static void test_most_linear_file(void)
+{
+    const char *card = sl_test_path("formats");
+    mkdir(card, 0755);
+    for (int i = 0; i < 3; i++)
+        write_formats(card, 300 + i, speeds[i], 2 * i, true);
+    const char *out = sl_test_path("formats.out");
+    sl_error err;
+    int frames, views;
+    CHECK_OK(sl_ingest(card, out, 10, NULL, &frames, &views, &err), &err);
+    CHECK_MSG(frames == 3 && views == 1, "%d frames in %d views", frames, views);
+    json_t *s = load_session(out);
+    json_t *fr = only_bracket(s);
+    for (size_t i = 0; i < json_array_size(fr); i++) {
+        json_t *f = json_array_get(fr, i);
+        const char *source = json_string_value(json_object_get(f, "source"));
+        const char *content = json_string_value(json_object_get(f, "content"));
+        const char *chosen = json_string_value(json_object_get(f, "chosen"));
+        json_t *sib = json_object_get(f, "siblings");
+        CHECK_MSG(source && strstr(source, "_x.tif"), "frame %zu is %s, not the linear TIFF", i,
+                  source ? source : "(none)");
+        CHECK_MSG(content && strstr(content, "scene-linear") && strstr(content, "lin_rec709"),
+                  "frame %zu content: %s", i, content ? content : "(none)");
+        CHECK_MSG(chosen && strstr(chosen, "more linear"), "frame %zu chosen: %s", i,
+                  chosen ? chosen : "(none)");
+        const char *alt0 = json_string_value(json_object_get(json_array_get(sib, 0), "content"));
+        const char *alt1 = json_string_value(json_object_get(json_array_get(sib, 1), "content"));
+        CHECK_MSG(json_array_size(sib) == 2 && alt0 && strstr(alt0, "16-bit tiff") && alt1 &&
+                      strstr(alt1, "8-bit jpeg"),
+                  "frame %zu alternates: %s, %s", i, alt0 ? alt0 : "-", alt1 ? alt1 : "-");
+    }
+    json_decref(s);
+
+    const char *display = sl_test_path("display");
+    mkdir(display, 0755);
+    for (int i = 0; i < 3; i++)
+        write_formats(display, 400 + i, speeds[i], 2 * i, false);
+    out = sl_test_path("display.out");
+    CHECK_OK(sl_ingest(display, out, 10, NULL, &frames, &views, &err), &err);
+    s = load_session(out);
+    const char *file = json_string_value(json_object_get(json_array_get(only_bracket(s), 0), "file"));
+    CHECK_MSG(frames == 3 && file && strstr(file, ".tif"), "%d frames, the first %s", frames,
+              file ? file : "(none)");
+    json_decref(s);
+
+    /* JPEGs alone: a frame each, no siblings, no choice to explain. */
+    const char *jpegs = sl_test_path("jpegs");
+    mkdir(jpegs, 0755);
+    const setup j = {"Delta", NULL, 32, 8, 1};
+    for (int i = 0; i < 3; i++)
+        write_shot(jpegs, &j, 500 + i, speeds[i], 2 * i);
+    out = sl_test_path("jpegs.out");
+    CHECK_OK(sl_ingest(jpegs, out, 10, NULL, &frames, &views, &err), &err);
+    CHECK_MSG(frames == 3 && views == 1, "JPEGs: %d frames in %d views", frames, views);
+    s = load_session(out);
+    json_t *f0 = json_array_get(only_bracket(s), 0);
+    const char *content = json_string_value(json_object_get(f0, "content"));
+    CHECK_MSG(content && strstr(content, "8-bit jpeg") && !json_object_get(f0, "siblings") &&
+                  !json_object_get(f0, "chosen"),
+              "JPEG frame: %s", content ? content : "(none)");
     json_decref(s);
 }
 
@@ -401,6 +511,7 @@ int main(void)
     RUN(test_setups_apart);
     RUN(test_one_setup);
     RUN(test_siblings_one_serial);
+    RUN(test_most_linear_file);
     RUN(test_takes_back);
     RUN(test_exif_cuts);
     RUN(test_real_sets);

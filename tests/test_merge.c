@@ -174,6 +174,85 @@ static void test_tiff16_linear_5x2(void)
     accuracy_case("linear5x2", bracket(5, 2, MF_LINEAR, 16, "tif"), SL_RESPONSE_LINEAR);
 }
 
+/* The response check: a 16-bit gamma bracket merged through the curve
+ * recovered from it has frames that agree within their noise (0.07 stops
+ * RMS, most of it the dark codes' shot noise: plausible); the same frames
+ * through a linear response, a curve known to be wrong, disagree by far
+ * more than 0.15 stops and are flagged. */
+static void test_response_check(void)
+{
+    sl_error err;
+    mf_result truth;
+    mf_bracket b = bracket(5, 2, MF_GAMMA, 16, "tif");
+    CHECK_OK(mf_make_bracket(sl_test_tmpdir(), "check5x2", &b, &truth, &err), &err);
+    const char *paths[MF_MAX_FRAMES];
+    paths_of(&truth, paths);
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.response_mode = SL_RESPONSE_AUTO;
+    sl_merge_result res;
+    CHECK_OK(sl_merge_response(paths, b.frames, &opt, &res, &err), &err);
+    const sl_merge_response_check *rc = &res.response_check;
+    printf("  recovered curve: %.4f stops RMS (p90 %.4f) over %lld values: %s\n",
+           rc->frame_rms_stops, rc->frame_p90_stops, (long long)rc->compared, rc->note);
+    CHECK(rc->monotone && rc->plausible && rc->compared > 1000 && rc->frame_rms_stops < 0.1);
+    sl_merge_result_free(&res);
+    opt.response_mode = SL_RESPONSE_LINEAR;
+    CHECK_OK(sl_merge_response(paths, b.frames, &opt, &res, &err), &err);
+    printf("  linear taken for a gamma curve: %.4f stops RMS: %s\n", rc->frame_rms_stops,
+           rc->note);
+    CHECK(!rc->plausible && rc->frame_rms_stops > 0.15 && strstr(rc->note, "disagree"));
+    sl_merge_result_free(&res);
+    mf_result_free(&truth);
+}
+
+/* Linear 16-bit TIFFs marked linear by their ICC profile (as a raw
+ * converter's export): --response auto takes them as linear. A pixel black
+ * in the longer frames with a noise spike in the shortest one (read noise,
+ * a hot pixel) stays dark: the longer frames' black bounds it. */
+static void test_linear_files_and_dark_noise(void)
+{
+    const double times[3] = {0.001, 0.01, 0.1};
+    char paths_buf[3][4096];
+    const char *paths[3];
+    sl_error err;
+    for (int k = 0; k < 3; k++) {
+        sl_image img;
+        CHECK_OK(sl_image_alloc(&img, 16, 16, 3, &err), &err);
+        for (int y = 0; y < 16; y++)
+            for (int x = 0; x < 16; x++)
+                for (int c = 0; c < 3; c++) /* left half mid-grey, right half black */
+                    sl_image_pixel(&img, x, y)[c] = x < 8 ? (float)(2.0 * times[k]) : 0.0f;
+        if (k == 0)
+            sl_image_pixel(&img, 12, 8)[0] = 0.01f; /* 2.5 times black, in the shortest */
+        sl_meta meta;
+        sl_meta_init(&meta);
+        meta.exposure_time = times[k];
+        snprintf(meta.colorspace, sizeof meta.colorspace, "lin_rec709");
+        snprintf(paths_buf[k], sizeof paths_buf[k], "%s/darknoise_%d.tif", sl_test_tmpdir(), k);
+        paths[k] = paths_buf[k];
+        CHECK_OK(sl_photo_write(paths[k], &img, &meta, 16, &err), &err);
+        sl_meta_free(&meta);
+        sl_image_free(&img);
+    }
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.response_mode = SL_RESPONSE_AUTO;
+    opt.align = SL_ALIGN_OFF;
+    sl_merge_result res;
+    CHECK_OK(sl_merge(paths, 3, &opt, &res, &err), &err);
+    CHECK_MSG(!strcmp(res.response.source, "linear (as the files say)"), "response %s",
+              res.response.source);
+    if (res.radiance.data) {
+        /* Reference: the middle frame (0.01 s): grey reads 0.02 there. */
+        double grey = sl_image_pixel(&res.radiance, 3, 8)[0];
+        double speck = sl_image_pixel(&res.radiance, 12, 8)[0];
+        printf("  grey %.5f (0.02), noise speck %.5f (was 0.1 before the bound)\n", grey, speck);
+        CHECK_NEAR(grey, 0.02, 2e-4);
+        CHECK_MSG(speck < 0.001, "the shortest frame's noise became %.5f", speck);
+    }
+    sl_merge_result_free(&res);
+}
 
 /* One frame's EXIF claims a stop more than it got: the check names that
  * frame alone, and --exposures data still merges within the bounds. */
@@ -623,6 +702,8 @@ int main(void)
     RUN(test_jpeg_scurve_5x2);
     RUN(test_tiff16_linear_7x3);
     RUN(test_tiff16_linear_5x2);
+    RUN(test_response_check);
+    RUN(test_linear_files_and_dark_noise);
     RUN(test_float_tiff_7x3);
     RUN(test_exif_lie);
     RUN(test_deghost);

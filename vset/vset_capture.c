@@ -267,7 +267,8 @@ static void frame_meta(sl_meta *meta, const sl_vset_camera *cam, const char *len
 }
 
 /* A frame as the camera writes it: 8-bit JPEG and 16-bit TIFF through the
- * response, and the linear 16-bit TIFF. */
+ * response, and the linear 16-bit TIFF (a raw converter's linear export:
+ * its ICC profile says it is linear Rec.709). */
 static sl_result write_frame(const char *tmp, const char *folder, const char *name,
                              const sl_vset_shot *shot, const sl_meta *meta, sl_error *err)
 {
@@ -280,7 +281,9 @@ static sl_result write_frame(const char *tmp, const char *folder, const char *na
     }
     if (!r) {
         snprintf(path, sizeof path, "%s/%s/%s_linear.tif", tmp, folder, name);
-        r = sl_photo_write(path, &shot->linear, meta, 16, err);
+        sl_meta linear = *meta; /* shallow: only colorspace differs */
+        snprintf(linear.colorspace, sizeof linear.colorspace, "%s", SL_WORKING_SPACE);
+        r = sl_photo_write(path, &shot->linear, &linear, 16, err);
     }
     return r;
 }

@@ -564,6 +564,19 @@ typedef struct sl_read_info {
  * raw (*assumed set). NULL when the file names a space the config does not
  * know or has chromaticities of no known space. */
 const char *sl_file_color_space(const sl_meta *meta, bool *assumed);
+/* The file says its samples are linear light: float samples, camera raw
+ * (read linear), or a scene-linear colour space it names (e.g. a linear
+ * ICC profile); an assumed space does not count. */
+bool sl_file_is_scene_linear(const sl_meta *meta);
+
+/* ICC profiles: the mark of a linear-light file. sl_icc_linear_rec709 writes
+ * a v4 matrix/TRC profile of Rec.709 primaries with identity tone curves
+ * (what a raw converter embeds in a linear export; sl_photo_write puts it
+ * in a TIFF whose meta names lin_rec709) to `out` when `size` suffices, and
+ * returns its length. sl_icc_linear_space returns SL_WORKING_SPACE for a
+ * profile with identity TRCs and Rec.709 primaries, else NULL. */
+size_t sl_icc_linear_rec709(unsigned char *out, size_t size);
+const char *sl_icc_linear_space(const unsigned char *profile, size_t size);
 
 /* Converts an image just read (img and meta from sl_image_read of `path`) to
  * the working space: through OpenColorIO from its colour space (`from` when

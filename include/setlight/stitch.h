@@ -166,12 +166,26 @@ typedef struct sl_merge_timing {
  * "other". */
 const char *sl_merge_phase_name(sl_merge_phase phase);
 
+/* How far to trust the response (merge_judge.c): increasing, and the
+ * frames, linearised through it and divided by their exposures, agreeing on
+ * each sample pixel's radiance (well-exposed samples; deviations from the
+ * pixel's mean log radiance, in stops). Not plausible: not monotone, or the
+ * frames disagree by more than 0.1 stops RMS; the merge then warns. */
+typedef struct sl_merge_response_check {
+    bool monotone;
+    bool plausible;
+    double frame_rms_stops, frame_p90_stops;
+    int64_t compared; /* frame values compared */
+    char note[200];
+} sl_merge_response_check;
+
 typedef struct sl_merge_result {
     sl_image radiance;          /* RGB, relative radiance (the reference frame's scale), or
                                    absolute (cd/m^2) with options.absolute */
     sl_image clipped;           /* RGB, 1 where the channel is saturated in every frame */
     sl_image ghost;             /* with deghost: 1 channel, 1 where a frame was left out */
     sl_response response;
+    sl_merge_response_check response_check;
     sl_merge_frame *frames;     /* in the given order */
     int frame_count;
     int reference;              /* frame whose exposure scales the radiance (median) */

@@ -51,7 +51,7 @@ then ok; else bad "ingest of the virtual capture"; fi
 
 # --- ingest of a virtual-set capture folder: every shot is a JPEG, a 16-bit
 # TIFF and a linear TIFF (as RAW+JPEG on a card), renumbered at random but
-# alike for a shot's files: 21 frames, the TIFF the frame's file, the other
+# alike for a shot's files: 21 frames, the linear TIFF (by its ICC profile) the frame's file, the other
 # two its siblings, ISO (which TIFF EXIF loses) taken from the JPEG
 expect 0 "$SETLIGHT" simulate --scene stage --size tiny --out "$T/sim"
 mkdir -p "$T/simcard/DCIM/100VSET"
@@ -72,15 +72,17 @@ ing = json.load(open(sys.argv[2] + "/session.json"))
 sha = lambda p: hashlib.sha256(open(p, "rb").read()).hexdigest()
 want = {}
 for f in cap["frames"]:
-    want.setdefault(f["view"], []).append(sha(f"{sys.argv[1]}/hdri/{f['name']}.tif"))
+    want.setdefault(f["view"], []).append(sha(f"{sys.argv[1]}/hdri/{f['name']}_linear.tif"))
 assert [len(v["brackets"]) for v in ing["views"]] == [1, 1, 1]
 got = {v["view"]: [f["sha256"] for f in v["brackets"][0]["frames"]] for v in ing["views"]}
 assert got == want, "frames grouped differently from the plan"
 for v in ing["views"]:
     for f in v["brackets"][0]["frames"]:
-        assert f["file"].endswith(".tif") and f["iso"] == 100.0, f
+        # The linear TIFF (its ICC profile says so) is the frame's file.
+        assert f["file"].endswith(".tif") and f["source"].endswith("_linear.tif") and f["iso"] == 100.0, f
+        assert f["content"].startswith("scene-linear"), f
         sib = f["siblings"]
-        assert len(sib) == 2 and sib[0]["source"].endswith("_linear.tif"), sib
+        assert len(sib) == 2 and sib[0]["content"].startswith("display-referred: 16-bit"), sib
         assert sib[1]["file"].endswith("_2.jpg"), sib
         assert sha(sys.argv[2] + "/" + sib[1]["file"]) == sib[1]["sha256"]
 assert ing["problems"] == []
