@@ -183,6 +183,14 @@ static json_t *image_score_json(const sl_vset_image_score *s)
                      (json_int_t)s->pixels);
 }
 
+/* A file of a shot: the shot's name, or its name and a suffix after '_'
+ * (the virtual set writes IMG_0001.jpg, IMG_0001.tif, IMG_0001_linear.tif). */
+static bool is_file_of_shot(const char *stem, const char *shot)
+{
+    size_t n = strlen(shot);
+    return n && !strncmp(stem, shot, n) && (stem[n] == 0 || stem[n] == '_');
+}
+
 /* Where a frame came from: its session.json names the capture's file, the
  * capture's plan its view (>= 0) or probe kind. */
 static sl_result frame_origin(score_ctx *c, const char *frame, int *view, char *kind, size_t n,
@@ -216,11 +224,11 @@ static sl_result frame_origin(score_ctx *c, const char *frame, int *view, char *
     *view = -1;
     kind[0] = 0;
     json_array_foreach(json_object_get(c->cap, "frames"), i, fr)
-        if (!strcmp(jstr(json_object_get(fr, "name")), name))
+        if (is_file_of_shot(name, jstr(json_object_get(fr, "name"))))
             *view = (int)json_integer_value(json_object_get(fr, "view"));
     json_array_foreach(json_object_get(c->cap, "probes"), i, v)
         json_array_foreach(json_object_get(v, "frames"), k, fr)
-            if (!strcmp(jstr(json_object_get(fr, "name")), name))
+            if (is_file_of_shot(name, jstr(json_object_get(fr, "name"))))
                 snprintf(kind, n, "%s", jstr(json_object_get(v, "kind")));
     if (*view < 0 && !kind[0])
         return sl_error_set(err, SL_ERR_INPUT, "%s: not a frame of the capture %s", frame,
