@@ -75,6 +75,16 @@ static double emission_weight(const sl_integrator *it, bool prev_delta, double p
     return it->o->strategy == SL_STRATEGY_LIGHT ? 0.0 : mis_power(prev_pdf, pdf_light);
 }
 
+/* Weight of light i's emission reached at distance t by a BSDF ray from o:
+ * 1 when the vertex did not sample that light (culled, behind). */
+static double light_weight(const sl_integrator *it, int i, uint64_t unsampled, bool prev_delta,
+                           double prev_pdf, const double o[3], const double d[3], double t)
+{
+    if (i < 64 && (unsampled >> i & 1))
+        return 1.0;
+    return emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(&it->scene->lights[i], o, d, t));
+}
+
 /* Control variate, on a BSDF ray leaving the object's camera vertex: the
  * closed form counted every source unshadowed, so each closed-form source
  * the ray points at but does not reach first (the dome and distant lights
@@ -105,9 +115,7 @@ static void cv_take_off_hidden(const sl_integrator *it, const double o[3], const
         if (i == first_light || !sl_light_has_closed_form(l) ||
             !sl_light_intersect(l, o, d, INFINITY, &t, Le) || !(t > tfirst))
             continue;
-        double w = i < 64 && (unsampled >> i & 1)
-                       ? 1.0
-                       : emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(l, o, d, t));
+        double w = light_weight(it, i, unsampled, prev_delta, prev_pdf, o, d, t);
         for (int k = 0; k < 3; k++)
             L[k] -= beta[k] * w * Le[k];
     }
@@ -170,10 +178,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         if (nearest >= 0 && cv_prev && sl_light_has_closed_form(&scene->lights[nearest]))
             break; /* unshadowed: in the closed form */
         if (nearest >= 0) {
-            double w = nearest < 64 && (prev_unsampled >> nearest & 1)
-                           ? 1.0
-                           : emission_weight(it, prev_delta, prev_pdf,
-                                             sl_light_pdf(&scene->lights[nearest], org, dir, tmax));
+            double w = light_weight(it, nearest, prev_unsampled, prev_delta, prev_pdf, org, dir, tmax);
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Ln[k];
             break;
@@ -183,9 +188,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                 const sl_light *l = &scene->lights[i];
                 double t, Le[3];
                 if (l->type == SL_LIGHT_DISTANT && sl_light_intersect(l, org, dir, INFINITY, &t, Le)) {
-                    double w = i < 64 && (prev_unsampled >> i & 1)
-                                   ? 1.0
-                                   : emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(l, org, dir, t));
+                    double w = light_weight(it, i, prev_unsampled, prev_delta, prev_pdf, org, dir, t);
                     for (int k = 0; k < 3; k++)
                         L[k] += beta[k] * w * Le[k];
                 }
