@@ -110,7 +110,7 @@ sl_result sl_render_run(const sl_render_run_options *ro, sl_render_run_result *r
     if (r)
         goto fail;
     const sl_closed_form_stats *cf = &st->closed_form;
-    size_t n = strlen(ro->out_path) + strlen(st->stop_reason) + 640;
+    size_t n = strlen(ro->out_path) + strlen(st->stop_reason) + 1024;
     if ((res->json = malloc(n)))
         snprintf(res->json, n,
                  "{\"output\": \"%s\", \"spp\": %lld, \"seconds\": %.6g, \"est_rel_rmse\": %.6g, "

@@ -33,7 +33,7 @@ const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, s
         else
             n = (size_t)snprintf(buf, size, "dome cells of %s", top);
     } else {
-        n = (size_t)snprintf(buf, size, "no dome");
+        n = (size_t)snprintf(buf, size, "no dome cells evaluated");
     }
     if (st->lights_exact + st->lights_sampled > 0)
         snprintf(lights, sizeof lights, "; rig lights: %d exact, %d sampled (textured)", st->lights_exact,
