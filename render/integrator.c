@@ -85,6 +85,19 @@ static double light_weight(const sl_integrator *it, int i, uint64_t unsampled, b
     return emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(&it->scene->lights[i], o, d, t));
 }
 
+/* The dome's radiance a BSDF ray finds in direction d, and its MIS weight. */
+static double dome_emission(const sl_integrator *it, const double d[3], bool prev_delta,
+                            double prev_pdf, double Le[3])
+{
+    if (!it->dome_sampling) {
+        sl_dome_radiance(&it->scene->dome, d, Le);
+        return 1.0;
+    }
+    double pdf;
+    sl_dome_radiance_pdf(&it->scene->dome, d, Le, &pdf);
+    return emission_weight(it, prev_delta, prev_pdf, pdf);
+}
+
 /* Control variate, on a BSDF ray leaving the object's camera vertex: the
  * closed form counted every source unshadowed, so each closed-form source
  * the ray points at but does not reach first (the dome and distant lights
@@ -98,14 +111,7 @@ static void cv_take_off_hidden(const sl_integrator *it, const double o[3], const
     if (isinf(tfirst))
         return; /* nothing in the way */
     if (scene->dome.present) {
-        double Ld[3], w = 1.0;
-        if (it->dome_sampling) {
-            double pdf_d;
-            sl_dome_radiance_pdf(&scene->dome, d, Ld, &pdf_d);
-            w = emission_weight(it, prev_delta, prev_pdf, pdf_d);
-        } else {
-            sl_dome_radiance(&scene->dome, d, Ld);
-        }
+        double Ld[3], w = dome_emission(it, d, prev_delta, prev_pdf, Ld);
         for (int k = 0; k < 3; k++)
             L[k] -= beta[k] * w * Ld[k];
     }
@@ -204,14 +210,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
             }
             if (cv_prev)
                 break; /* unshadowed: in the closed form */
-            double w = 1.0;
-            if (it->dome_sampling) {
-                double pdf_dome;
-                sl_dome_radiance_pdf(&scene->dome, dir, Le, &pdf_dome);
-                w = emission_weight(it, prev_delta, prev_pdf, pdf_dome);
-            } else {
-                sl_dome_radiance(&scene->dome, dir, Le);
-            }
+            double w = dome_emission(it, dir, prev_delta, prev_pdf, Le);
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Le[k];
             break;
