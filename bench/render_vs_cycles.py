@@ -2,7 +2,8 @@
 """setlight render vs Blender Cycles: relative RMSE at equal wall time.
 
     /usr/bin/python3 bench/render_vs_cycles.py [--runs 3] [--cycles-spp 16]
-        [--ref-spp 1024] [--cases grey,chrome,metal0.3,metal0.8,plastic0.4]
+        [--ref-spp 1024] [--cases grey,shadow,chrome,metal0.3,metal0.8,plastic0.4]
+        [--quad-stride 16]
         [--work /tmp/setlight-bench/render] [--setlight build/setlight]
 
 Same scene in both: a unit sphere at the origin, orthographic camera framing it at
@@ -55,15 +56,51 @@ SCENE = {"preset": "grey",
 # name -> (cycles_scene.py options, setlight --material)
 CASES = {
     "grey": (dict(mat="diffuse"), "lambert:0.18,0.18,0.18"),
+    # the grey ball on an 8 x 8 grey ground 1 below its centre (setlight's `shadow`
+    # preset's ball and ground; Cycles z = -1), direct light only in both (Cycles
+    # max_bounces 0, setlight --bounces 0): the ground hides the lower sky from the ball
+    "shadow": (dict(mat="diffuse"), "lambert:0.18,0.18,0.18"),
     "chrome": (dict(mat="mirror"), "conductor:1,1,1:0"),
     "metal0.3": (dict(mat="metal", rough=0.3), "conductor:0.9,0.9,0.9:0.3"),
     "metal0.8": (dict(mat="metal", rough=0.8), "conductor:0.9,0.9,0.9:0.8"),
     "plastic0.4": (dict(mat="plastic", rough=0.4), "plastic:0.5,0.5,0.5:0.4"),
 }
+# cases whose reference is the quadrature below (setlight computes them in closed form,
+# so a setlight reference would only compare setlight with itself)
+QUADRATURE_CASES = ("grey", "shadow")
+SHADOW_SCENE = {"preset": "shadow", "camera": SCENE["camera"]}
+
+# Blender script for the shadow case: the peers' cycles_scene.py, its build() followed by
+# the ground (the same material) and direct lighting only.
+GROUND_WRAPPER = r'''
+import os, sys
+import bpy
+path = os.path.join(os.environ.get("SETLIGHT_PEERS", "/work/shared/peers/render"), "cycles_scene.py")
+src = open(path).read().rstrip()
+assert src.endswith("main()"), "cycles_scene.py no longer ends with main()"
+ns = {"__name__": "cycles_scene", "__file__": path}
+exec(compile(src[:-len("main()")], path, "exec"), ns)
+peers_build = ns["build"]
 
 
-def setlight_render(a, material, out, seed, spp=None, seconds=None):
-    cmd = [a.setlight, "render", "--quiet", "--env", a.env, "--scene", a.scene, "--material", material,
+def build(a):
+    sc = peers_build(a)
+    me = bpy.data.meshes.new("Ground")
+    me.from_pydata([(-4, -4, -1), (4, -4, -1), (4, 4, -1), (-4, 4, -1)], [], [(0, 1, 2, 3)])
+    me.materials.append(bpy.data.materials["M"])
+    ob = bpy.data.objects.new("Ground", me)
+    sc.collection.objects.link(ob)
+    sc.cycles.max_bounces = 0
+    return sc
+
+
+ns["build"] = build
+ns["main"]()
+'''
+
+
+def setlight_render(a, material, out, seed, spp=None, seconds=None, scene=None):
+    cmd = [a.setlight, "render", "--quiet", "--env", a.env, "--scene", scene or a.scene, "--material", material,
            "--width", str(RES), "--pixel-centers", "--seed", str(seed), "--stats", out + ".json",
            "-o", out]
     cmd += ["--spp", str(spp)] if spp else ["--time", "%.4f" % seconds]
@@ -71,14 +108,93 @@ def setlight_render(a, material, out, seed, spp=None, seconds=None):
     subprocess.run(cmd, check=True)
     wall = time.perf_counter() - t0
     st = json.load(open(out + ".json"))
+    cf = st.get("closed_form", {})
     return dict(wall=wall, render_s=st["seconds"], spp=st["spp"],
-                sps=st["samples_per_second"], cpu_s=st["cpu_seconds"])
+                sps=st["samples_per_second"], cpu_s=st["cpu_seconds"],
+                cf_exact=cf.get("exact_pixels", 0), cf_control=cf.get("control_variate_pixels", 0),
+                cf_cut=cf.get("cut_by_time", False))
 
 
 def rel_rmse(img, ref, ref_var, mask):
     d = (img - ref)[mask]
     mse = float(np.mean(d * d)) - float(np.mean(ref_var[mask]))
     return max(mse, 0.0) ** 0.5 / float(np.mean(ref[mask]))
+
+
+def latlong_cells(env, down, bright_frac):
+    """Lat-long cells of down x down texels as vector irradiance sums (per channel:
+    sum of L w dOmega over the texels, exact for n.w linear, i.e. wherever the cell
+    is wholly above the horizon), except the brightest texels (bright_frac of the
+    power: the sun), which stay single texels. setlight's lat-long convention:
+    u -> longitude pi (1 - 2u), v -> latitude pi (0.5 - v), w = (sin lon cos lat,
+    sin lat, cos lon cos lat)."""
+    h, w = env.shape[:2]
+    v = (np.arange(h) + 0.5) / h
+    u = (np.arange(w) + 0.5) / w
+    lat = np.pi * (0.5 - v)[:, None]
+    lon = np.pi * (1.0 - 2.0 * u)[None, :]
+    dirs = np.stack([np.sin(lon) * np.cos(lat), np.sin(lat) * np.ones_like(lon), np.cos(lon) * np.cos(lat)], -1)
+    om = ((np.cos(np.pi * np.arange(h) / h) - np.cos(np.pi * (np.arange(h) + 1) / h)) * 2 * np.pi / w)[:, None]
+    power = env * om[..., None]                      # L dOmega per texel and channel
+    lumw = power @ np.array([0.2126, 0.7152, 0.0722])
+    order = np.argsort(lumw, axis=None)[::-1]
+    cum = np.cumsum(lumw.ravel()[order])
+    nb = int(np.searchsorted(cum, bright_frac * cum[-1])) + 1
+    bright = np.zeros(h * w, bool)
+    bright[order[:nb]] = True
+    bright = bright.reshape(h, w)
+    rest = np.where(bright[..., None], 0.0, power)
+    # vector sums: V[c, k] = sum over the cell of L_c dOmega w_k
+    vec = rest[..., :, None] * dirs[..., None, :]    # h, w, 3 (c), 3 (k)
+    vec = vec.reshape(h // down, down, w // down, down, 3, 3).sum(axis=(1, 3)).reshape(-1, 3, 3)
+    bvec = (power[bright][:, :, None] * dirs[bright][:, None, :])
+    return np.concatenate([vec, bvec]), nb
+
+
+def quadrature(a, name, mask, stride):
+    """Reference of the Lambert cases, independent of setlight's code: per pixel centre
+    (every stride-th pixel of the mask), E = sum over cells of max(0, n.V_c), with the
+    ground's visibility (shadow case) taken at each cell's mean direction. Cells of 4x4
+    texels (8x8 with the ground), the brightest texels holding 60% of the power alone.
+    Its own accuracy: the same at twice the cell size, printed."""
+    env = load_exr(a.env)
+    sel = np.zeros_like(mask)
+    sel[stride // 2::stride, stride // 2::stride] = True
+    sel &= mask
+    iy, ix = np.nonzero(sel)
+    c = (np.arange(RES) + 0.5) / RES - 0.5
+    # setlight camera: at (-10, 0, 0) looking +X, +Y up, image right = +Z, width 2.5
+    Z = (c * 2.5)[ix]
+    Y = (-c * 2.5)[iy]
+    X = -np.sqrt(np.clip(1 - Y * Y - Z * Z, 0, 1))
+    P = np.stack([X, Y, Z], -1)                      # on the unit sphere: p = n
+
+    def run(down):
+        V, nb = latlong_cells(env, down, 0.6)
+        Vl = np.einsum("nck,c->nk", V, np.array([0.2126, 0.7152, 0.0722]))  # mean direction
+        D = Vl / np.maximum(np.linalg.norm(Vl, axis=1, keepdims=True), 1e-300)
+        out = np.zeros((len(P), 3))
+        for i0 in range(0, len(P), 256):
+            n = P[i0:i0 + 256]
+            vis = np.ones((len(n), len(V)))
+            if name == "shadow":                      # ground: y = -1, |x|, |z| <= 4
+                wy = np.minimum(D[None, :, 1], -1e-12)
+                t = (-1.0 - n[:, 1:2]) / wy
+                gx = n[:, 0:1] + t * D[None, :, 0]
+                gz = n[:, 2:3] + t * D[None, :, 2]
+                vis = ~((D[None, :, 1] < 0) & (np.abs(gx) <= 4) & (np.abs(gz) <= 4))
+            for ch in range(3):
+                out[i0:i0 + 256, ch] = (np.maximum(n @ V[:, ch, :].T, 0.0) * vis).sum(1)
+        return out * 0.18 / np.pi, nb
+
+    e1, nb = run(4 if name == "grey" else 8)
+    e2, _ = run(8 if name == "grey" else 16)
+    acc = float(np.sqrt(np.mean((e1 - e2) ** 2)) / np.mean(e1))
+    ref = np.zeros((RES, RES, 3))
+    ref[iy, ix] = e1
+    print("  reference: quadrature over %d pixels (every %dth), %d sun texels alone; "
+          "difference at twice the cell size %.4f%%" % (len(P), stride, nb, 100 * acc), flush=True)
+    return ref, np.zeros_like(ref), sel, acc
 
 
 def reference(a, name, material):
@@ -94,7 +210,18 @@ def reference(a, name, material):
 
 def cycles_render(a, name, opts, seed):
     p = os.path.join(a.work, "cy_%s_%dspp_s%d.exr" % (name, a.cycles_spp, seed))
-    r = driver.render(p, log=p + ".log", env=a.env, res=RES, spp=a.cycles_spp, seed=seed, threads=2, **opts)
+    here = driver.HERE
+    if name == "shadow":
+        # driver runs HERE/cycles_scene.py: point it at the ground wrapper
+        d = os.path.join(a.work, "cycles_ground")
+        os.makedirs(d, exist_ok=True)
+        open(os.path.join(d, "cycles_scene.py"), "w").write(GROUND_WRAPPER)
+        os.environ["SETLIGHT_PEERS"] = PEERS
+        driver.HERE = d
+    try:
+        r = driver.render(p, log=p + ".log", env=a.env, res=RES, spp=a.cycles_spp, seed=seed, threads=2, **opts)
+    finally:
+        driver.HERE = here
     json.dump(r, open(p + ".json", "w"))
     return r
 
@@ -107,23 +234,38 @@ def main():
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--work", default="/tmp/setlight-bench/render")
     ap.add_argument("--setlight", default=os.path.join(HERE, "..", "build", "setlight"))
+    ap.add_argument("--quad-stride", type=int, default=16,
+                    help="quadrature reference: every Nth pixel in x and y (grey, shadow)")
     a = ap.parse_args()
+    print("render_vs_cycles %s, load average at start: %s" % (
+        time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), open("/proc/loadavg").read().split()[:3]),
+        flush=True)
     os.makedirs(a.work, exist_ok=True)
     a.env = os.path.join(a.work, "env_test.exr")
     if not os.path.exists(a.env):
         subprocess.run(["/usr/bin/python3", os.path.join(PEERS, "envgen.py"), a.work], check=True)
     a.scene = os.path.join(a.work, "scene_cycles_camera.json")
     json.dump(SCENE, open(a.scene, "w"))
+    a.shadow_scene = os.path.join(a.work, "scene_cycles_camera_shadow.json")
+    json.dump(SHADOW_SCENE, open(a.shadow_scene, "w"))
     mask = sphere_mask(RES)
     rows = []
     for name in a.cases.split(","):
         opts, material = CASES[name]
+        scene = a.shadow_scene if name == "shadow" else a.scene
         print("%s:" % name, flush=True)
-        ref, ref_var = reference(a, name, material)
+        if name in QUADRATURE_CASES:
+            ref, ref_var, emask, ref_acc = quadrature(a, name, mask, a.quad_stride)
+            ref_kind = "quadrature (%.3f%%)" % (100 * ref_acc)
+        else:
+            ref, ref_var = reference(a, name, material)
+            emask = mask
+            ref_kind = "setlight %d spp" % (2 * a.ref_spp)
+        mask_all, mask = mask, emask
         mref = float(np.mean(ref[mask]))
         # setlight's fixed cost (read, build, write) from a short run, so the whole
         # process fits the budget
-        probe = setlight_render(a, material, os.path.join(a.work, "sl_probe.exr"), 99, spp=2)
+        probe = setlight_render(a, material, os.path.join(a.work, "sl_probe.exr"), 99, spp=2, scene=scene)
         overhead = probe["wall"] - probe["render_s"]
         # each Cycles run is followed at once by a setlight run given the same time,
         # so both see the same load from other jobs on the machine
@@ -134,13 +276,22 @@ def main():
             cy_img.append(load_exr(r["out"]))
             cy_err.append(rel_rmse(cy_img[-1], ref, ref_var, mask))
             p = os.path.join(a.work, "sl_%s_s%d.exr" % (name, seed))
-            q = setlight_render(a, material, p, seed, seconds=max(0.02, r["cycles_time_s"] - overhead))
+            q = setlight_render(a, material, p, seed, seconds=max(0.02, r["cycles_time_s"] - overhead),
+                                scene=scene)
             q["cycles_s"] = r["cycles_time_s"]
             sl.append(q)
             sl_err.append(rel_rmse(load_exr(p), ref, ref_var, mask))
             print("  seed %d: Cycles %.2f s (other load %.2f cores) %.4f | setlight %.2f s, %d spp %.4f" % (
                 seed, r["cycles_time_s"], r["others_cores"], cy_err[-1], q["wall"], q["spp"], sl_err[-1]),
                 flush=True)
+        # the issue's second goal: within 0.5% of the reference with --time 1
+        p1 = os.path.join(a.work, "sl_%s_time1.exr" % name)
+        t1 = setlight_render(a, material, p1, 1, seconds=1.0, scene=scene)
+        t1_err = rel_rmse(load_exr(p1), ref, ref_var, mask)
+        print("  setlight --time 1: %.4f (%.2f s wall, %.2f s render, %d spp, closed form: %d exact, "
+              "%d control variate px%s)" % (t1_err, t1["wall"], t1["render_s"], t1["spp"], t1["cf_exact"],
+                                             t1["cf_control"], ", cut by --time" if t1["cf_cut"] else ""),
+              flush=True)
         budget = statistics.median(r["cycles_time_s"] for r in cy)
         # agreement of Cycles with the reference: error of the mean of the runs minus
         # its noise (spread of the runs / runs) and the reference's
@@ -164,7 +315,9 @@ def main():
                    agree_sys=max(sys_mse, 0.0) ** 0.5 / mref,
                    agree_bias=float(np.mean(cm[mask])) / mref - 1.0,
                    agree_median_px=float(np.median(np.abs(cm - ref)[mask] / np.maximum(ref[mask], 1e-9))),
-                   cycles_errs=cy_err, setlight_errs=sl_err)
+                   cycles_errs=cy_err, setlight_errs=sl_err, reference=ref_kind,
+                   time1_err=t1_err, time1_wall_s=t1["wall"], time1_render_s=t1["render_s"],
+                   time1_spp=t1["spp"], time1_cut=t1["cf_cut"])
         # Cycles' noise against setlight's error, so model differences between the two
         # BSDFs do not count against Cycles: per run, its error with the systematic
         # part removed (median: robust to a run with a firefly), and the spread of its
@@ -178,25 +331,32 @@ def main():
         # the same at equal CPU time (error ~ 1/sqrt(time)), less sensitive to other load
         row["ratio_cpu"] = row["ratio"] * (cy_cpu / sl_cpu) ** -0.5 if e_sl > 0 else float("inf")
         rows.append(row)
+        mask = mask_all
         print("  Cycles %d spp %.2f s: noise %.4f (vs reference %.4f) | setlight %d spp %.2f s: %.4f | "
               "ratio %.2f | Cycles vs reference: systematic %.4f, bias %+.4f, median px %.4f" % (
                   a.cycles_spp, budget, row["cycles_noise"], row["cycles_err"], row["setlight_spp"],
                   row["setlight_wall_s"], row["setlight_err"], row["ratio"], row["agree_sys"],
                   row["agree_bias"], row["agree_median_px"]), flush=True)
     json.dump(rows, open(os.path.join(a.work, "results_%dspp_%s.json" % (a.cycles_spp, a.cases.replace(",", "_"))), "w"), indent=1)
-    print("\n| case | Cycles spp | Cycles render s (process wall; CPU s) | Cycles rel RMSE: per run; "
+    print("\nColumns: Cycles' error is its noise (the systematic difference to the reference taken out, "
+          "per run; and the spread of its runs), setlight's is its whole error against the reference; "
+          "ratio = Cycles' / setlight's at equal wall time (CPU: rescaled to equal CPU seconds); "
+          "'--time 1' is setlight given one second (goal: <= 0.5%); reference: quadrature (grey, shadow: "
+          "independent of setlight, its own accuracy in brackets) or setlight at high spp.")
+    print("\n| case | reference | setlight --time 1: rel RMSE (wall s, spp) | Cycles spp | Cycles render s (process wall; CPU s) | Cycles rel RMSE: per run; "
           "spread (vs ref) | setlight spp | setlight wall s (CPU s) | setlight rel RMSE | ratio Cycles/setlight "
           "at equal wall: per run; spread (CPU) | Cycles vs ref: systematic, bias, median px |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print("| %s | %d | %.1f (%.1f; %.1f) | %.1f%%; %.1f%% (%.1f%%) | %d | %.1f (%.1f) | %.2f%% | %.2f; %.2f (%.2f) "
+        print("| %s | %s | %.3f%% (%.2f, %d%s) | %d | %.1f (%.1f; %.1f) | %.1f%%; %.1f%% (%.1f%%) | %d | %.1f (%.1f) | %.2f%% | %.2f; %.2f (%.2f) "
               "| %.2f%%, %+.2f%%, %.2f%% |" % (
-                  r["case"], r["cycles_spp"], r["cycles_render_s"], r["cycles_wall_s"], r["cycles_cpu_s"],
+                  r["case"], r["reference"], 100 * r["time1_err"], r["time1_wall_s"], r["time1_spp"],
+                  ", plan cut" if r["time1_cut"] else "", r["cycles_spp"], r["cycles_render_s"], r["cycles_wall_s"], r["cycles_cpu_s"],
                   100 * r["cycles_noise_run"], 100 * r["cycles_noise"], 100 * r["cycles_err"], r["setlight_spp"],
                   r["setlight_wall_s"], r["setlight_cpu_s"], 100 * r["setlight_err"], r["ratio_run"], r["ratio"],
                   r["ratio_cpu"], 100 * r["agree_sys"], 100 * r["agree_bias"], 100 * r["agree_median_px"]))
-    print("medians of %d runs; reference: setlight, %d spp per case (pixel centres); Cycles other load "
-          "(cores): %s" % (a.runs, 2 * a.ref_spp, ", ".join("%.2f" % r["cycles_other_load"] for r in rows)))
+    print("medians of %d runs; Cycles other load (cores): %s; load average at the end: %s" % (
+        a.runs, ", ".join("%.2f" % r["cycles_other_load"] for r in rows), open("/proc/loadavg").read().split()[:3]))
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "area_closed_form.h"
 #include "closed_form.h"
 #include "glossy.h"
 #include "irradiance.h"
@@ -98,7 +99,13 @@ typedef struct plan_job {
     sl_irradiance_cost *row_cost;
     double *row_foot; /* largest relative footprint estimate per row */
     sl_glossy_pixels glossy; /* glossy pixels at centres: left to sl_glossy_fill */
+    double deadline;  /* --time: rows not planned by then are sampled */
+    uint8_t *row_cut; /* the row ran into the deadline */
 } plan_job;
+
+/* The plan's share of a --time budget: the first pass (one sample per half
+ * of every pixel left to sampling) always follows it. */
+#define PLAN_TIME_SHARE 0.8
 
 static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], double d[3])
 {
@@ -128,7 +135,11 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
     const sl_scene *scene = j->scene;
     const sl_camera *cam = &scene->camera;
     sl_closed_form *cf = j->cf;
-    for (int64_t y = begin; y < end; y++)
+    for (int64_t y = begin; y < end; y++) {
+        if (sl_seconds() > j->deadline) {
+            j->row_cut[y] = 1; /* left to sampling */
+            continue;
+        }
         for (int x = 0; x < cam->width; x++) {
             size_t pix = (size_t)y * (size_t)cam->width + (size_t)x;
             double org[3], dir[3];
@@ -170,20 +181,32 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     }
                 margin = cmin > 0.5 ? 2.0 * far * (1.0 / cmin - 1.0) : INFINITY;
             }
-            cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
-            cf->shape[pix] = a;
+            const sl_material *ma = &scene->materials[sa->material];
+            /* The glossy quadrature integrates the dome alone: with a rig's
+             * lights a glossy pixel is sampled. */
+            if (ma->type != SL_MAT_LAMBERT && scene->light_count)
+                continue;
             double B[3], wo[3] = {-dir0[0], -dir0[1], -dir0[2]};
-            if (j->glossy.state && sl_glossy_applies(&scene->materials[sa->material])) {
+            if (j->glossy.state && sl_glossy_applies(ma)) {
+                cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
+                cf->shape[pix] = a;
                 j->glossy.state[pix] = SL_GLOSSY_PENDING;
                 v3_copy(j->glossy.n[pix], h[0].n);
                 v3_copy(j->glossy.wo[pix], wo);
                 continue;
             }
-            sl_closed_form_radiance_view(cf, scene, a, h[0].n, wo, j->centre[pix], B,
-                                         &j->row_cost[y]);
+            if (!sl_closed_form_radiance_at(cf, scene, a, h[0].p, h[0].n, wo, j->centre[pix], B,
+                                            &j->row_cost[y]))
+                continue;
+            cf->mode[pix] = unshadowed(scene, a, h, npts, margin) &&
+                                    !sl_lights_may_shadow(scene, h, npts, margin)
+                                ? SL_PIXEL_EXACT
+                                : SL_PIXEL_CONTROL;
+            cf->shape[pix] = a;
             for (int c = 0; c < 3; c++)
                 cf->bound[pix][c] = (float)B[c];
         }
+    }
 }
 
 /* The box mean over a pixel from an n x n grid of sub-pixel midpoints on shape a. */
@@ -200,7 +223,8 @@ static bool grid_mean(const plan_job *j, int a, int x, int y, int n, double mean
                 !sl_shape_intersect(j->scene, a, org, dir, &h))
                 return false;
             double wo[3] = {-dir[0], -dir[1], -dir[2]};
-            sl_closed_form_radiance_view(j->cf, j->scene, a, h.n, wo, v, b, cost);
+            if (!sl_closed_form_radiance_at(j->cf, j->scene, a, h.p, h.n, wo, v, b, cost))
+                return false;
             for (int c = 0; c < 3; c++) {
                 mean[c] += v[c] / (n * n);
                 bound[c] = fmax(bound[c], b[c]);
@@ -216,7 +240,10 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
     const sl_camera *cam = &j->scene->camera;
     sl_closed_form *cf = j->cf;
     int w = cam->width, hgt = cam->height;
-    for (int64_t y = begin; y < end; y++)
+    for (int64_t y = begin; y < end; y++) {
+        if (j->row_cut[y])
+            continue; /* sampled: set after every row is done */
+        bool late = sl_seconds() > j->deadline; /* then rim pixels are sampled */
         for (int x = 0; x < w; x++) {
             size_t pix = (size_t)y * (size_t)w + (size_t)x;
             if (cf->mode[pix] == SL_PIXEL_SAMPLED)
@@ -243,8 +270,8 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
             } else {
                 /* Midpoint rules err as h^2: the 3x3 grid's error is about
                  * (centre - 3x3) / 8. */
-                if (!grid_mean(j, a, x, (int)y, 3, mean, bound, &j->row_cost[y])) {
-                    cf->mode[pix] = SL_PIXEL_SAMPLED; /* rounding at a corner */
+                if (late || !grid_mean(j, a, x, (int)y, 3, mean, bound, &j->row_cost[y])) {
+                    cf->mode[pix] = SL_PIXEL_SAMPLED; /* rounding at a corner, or --time */
                     continue;
                 }
                 for (int c = 0; c < 3; c++)
@@ -257,6 +284,7 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     j->row_foot[y] = fmax(j->row_foot[y], foot[c] / mean[c]);
             }
         }
+    }
 }
 
 static const char *not_applicable(const sl_scene *scene, const sl_render_options *o)
@@ -265,10 +293,9 @@ static const char *not_applicable(const sl_scene *scene, const sl_render_options
         return "off";
     if (o->strategy != SL_STRATEGY_MIS)
         return "strategy is not mis";
-    if (!scene->dome.present)
-        return "no dome";
-    if (scene->light_count > 0)
-        return "lights in the scene (sampled)";
+    const char *lights = sl_closed_form_lights_unfit(scene);
+    if (lights)
+        return lights;
     if (scene->camera.type == SL_CAMERA_FISHEYE)
         return "fisheye camera (silhouettes not convex in the image)";
     for (int i = 0; i < scene->shape_count; i++)
@@ -295,7 +322,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     if (o->target_error > 0)
         cf->tol = fmin(cf->tol, 0.5 * o->target_error);
     sl_error local = {0};
-    if (sl_irradiance_build(&scene->dome, &cf->ir, &local)) {
+    if (scene->dome.present && sl_irradiance_build(&scene->dome, &cf->ir, &local)) {
         snprintf(st->reason, sizeof st->reason, "%.95s", local.message);
         return SL_OK;
     }
@@ -313,11 +340,15 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
         j.glossy.value = j.centre;
     }
+    j.row_cut = calloc((size_t)cam->height, 1);
+    j.deadline = o->time_limit > 0 ? t0 + PLAN_TIME_SHARE * o->time_limit : INFINITY;
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
-        !j.row_foot || (o->pixel_centers && (!j.glossy.state || !j.glossy.n || !j.glossy.wo))) {
+        !j.row_foot || !j.row_cut ||
+        (o->pixel_centers && (!j.glossy.state || !j.glossy.n || !j.glossy.wo))) {
         free(j.centre);
         free(j.row_cost);
         free(j.row_foot);
+        free(j.row_cut);
         free(j.glossy.state);
         free(j.glossy.n);
         free(j.glossy.wo);
@@ -333,9 +364,15 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     free(j.glossy.n);
     free(j.glossy.wo);
     sl_parallel_for(cam->height, 1, filter_rows, &j);
+    for (int y = 0; y < cam->height; y++)
+        if (j.row_cut[y]) {
+            memset(cf->mode + (size_t)y * (size_t)cam->width, SL_PIXEL_SAMPLED, (size_t)cam->width);
+            st->cut_by_time = true;
+        }
     st->used = true;
     st->tolerance = cf->tol;
-    st->top_level = sl_irradiance_top_level(cf->ir);
+    st->top_level = cf->ir ? sl_irradiance_top_level(cf->ir) : 0;
+    sl_closed_form_count_lights(scene, &st->lights_exact, &st->lights_sampled);
     st->finest_level = st->top_level;
     for (int y = 0; y < cam->height; y++) {
         st->evaluations += j.row_cost[y].evaluations;
@@ -375,6 +412,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     free(j.centre);
     free(j.row_cost);
     free(j.row_foot);
+    free(j.row_cut);
     st->seconds = sl_seconds() - t0;
     return SL_OK;
 }

@@ -3,6 +3,7 @@
  * with BSDF sampling by the power heuristic; delta lobes are followed exactly
  * by BSDF sampling only. `bounces` counts the surfaces a path may hit after
  * its first non-delta vertex. */
+#include "area_closed_form.h"
 #include "closed_form.h"
 #include "glossy.h"
 #include "integrator.h"
@@ -80,6 +81,58 @@ static double emission_weight(const sl_integrator *it, bool prev_delta, double p
     return it->o->strategy == SL_STRATEGY_LIGHT ? 0.0 : mis_power(prev_pdf, pdf_light);
 }
 
+/* Weight of light i's emission reached at distance t by a BSDF ray from o:
+ * 1 when the vertex did not sample that light (culled, behind). */
+static double light_weight(const sl_integrator *it, int i, uint64_t unsampled, bool prev_delta,
+                           double prev_pdf, const double o[3], const double d[3], double t)
+{
+    if (i < 64 && (unsampled >> i & 1))
+        return 1.0;
+    return emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(&it->scene->lights[i], o, d, t));
+}
+
+/* The dome's radiance a BSDF ray finds in direction d, and its MIS weight. */
+static double dome_emission(const sl_integrator *it, const double d[3], bool prev_delta,
+                            double prev_pdf, double Le[3])
+{
+    if (!it->dome_sampling) {
+        sl_dome_radiance(&it->scene->dome, d, Le);
+        return 1.0;
+    }
+    double pdf;
+    sl_dome_radiance_pdf(&it->scene->dome, d, Le, &pdf);
+    return emission_weight(it, prev_delta, prev_pdf, pdf);
+}
+
+/* Control variate, on a BSDF ray leaving the object's camera vertex: the
+ * closed form counted every source unshadowed, so each closed-form source
+ * the ray points at but does not reach first (the dome and distant lights
+ * behind whatever it hits, area lights behind the first one) is taken off,
+ * with the weight its emission would have had. */
+static void cv_take_off_hidden(const sl_integrator *it, const double o[3], const double d[3],
+                               double tfirst, int first_light, bool prev_delta, double prev_pdf,
+                               uint64_t unsampled, const double beta[3], double L[3])
+{
+    const sl_scene *scene = it->scene;
+    if (isinf(tfirst))
+        return; /* nothing in the way */
+    if (scene->dome.present) {
+        double Ld[3], w = dome_emission(it, d, prev_delta, prev_pdf, Ld);
+        for (int k = 0; k < 3; k++)
+            L[k] -= beta[k] * w * Ld[k];
+    }
+    for (int i = 0; i < scene->light_count; i++) {
+        const sl_light *l = &scene->lights[i];
+        double t, Le[3];
+        if (i == first_light || !sl_light_has_closed_form(l) ||
+            !sl_light_intersect(l, o, d, INFINITY, &t, Le) || !(t > tfirst))
+            continue;
+        double w = light_weight(it, i, unsampled, prev_delta, prev_pdf, o, d, t);
+        for (int k = 0; k < 3; k++)
+            L[k] -= beta[k] * w * Le[k];
+    }
+}
+
 void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py, double rgba[4],
                          sl_counters *c)
 {
@@ -131,23 +184,23 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                 v3_copy(Ln, Le);
             }
         }
+        if (cv_prev)
+            cv_take_off_hidden(it, org, dir, nearest >= 0 ? tmax : hit_shape ? hit.t : INFINITY,
+                               nearest, prev_delta, prev_pdf, prev_unsampled, beta, L);
+        if (nearest >= 0 && cv_prev && sl_light_has_closed_form(&scene->lights[nearest]))
+            break; /* unshadowed: in the closed form */
         if (nearest >= 0) {
-            double w = nearest < 64 && (prev_unsampled >> nearest & 1)
-                           ? 1.0
-                           : emission_weight(it, prev_delta, prev_pdf,
-                                             sl_light_pdf(&scene->lights[nearest], org, dir, tmax));
+            double w = light_weight(it, nearest, prev_unsampled, prev_delta, prev_pdf, org, dir, tmax);
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Ln[k];
             break;
         }
-        if (!hit_shape && (vertex > 0 || scene->background_env))
+        if (!hit_shape && !cv_prev && (vertex > 0 || scene->background_env))
             for (int i = 0; i < scene->light_count; i++) {
                 const sl_light *l = &scene->lights[i];
                 double t, Le[3];
                 if (l->type == SL_LIGHT_DISTANT && sl_light_intersect(l, org, dir, INFINITY, &t, Le)) {
-                    double w = i < 64 && (prev_unsampled >> i & 1)
-                                   ? 1.0
-                                   : emission_weight(it, prev_delta, prev_pdf, sl_light_pdf(l, org, dir, t));
+                    double w = light_weight(it, i, prev_unsampled, prev_delta, prev_pdf, org, dir, t);
                     for (int k = 0; k < 3; k++)
                         L[k] += beta[k] * w * Le[k];
                 }
@@ -163,14 +216,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
             }
             if (cv_prev)
                 break; /* unshadowed: in the closed form */
-            double w = 1.0;
-            if (it->dome_sampling) {
-                double pdf_dome;
-                sl_dome_radiance_pdf(&scene->dome, dir, Le, &pdf_dome);
-                w = emission_weight(it, prev_delta, prev_pdf, pdf_dome);
-            } else {
-                sl_dome_radiance(&scene->dome, dir, Le);
-            }
+            double w = dome_emission(it, dir, prev_delta, prev_pdf, Le);
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Le[k];
             break;
@@ -178,16 +224,6 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         if (vertex == 0) {
             rgba[3] = 1;
             cv_vertex = cv_hit = hit.shape == cv_shape;
-        }
-        if (cv_prev) {
-            /* The BSDF ray from the object found a shadowing surface: the
-             * dome light it hides was counted by the closed form. */
-            double Ld[3], pdf_d;
-            sl_dome_radiance_pdf(&scene->dome, dir, Ld, &pdf_d);
-            double w = emission_weight(it, prev_delta, prev_pdf, pdf_d);
-            for (int k = 0; k < 3; k++)
-                L[k] -= beta[k] * w * Ld[k];
-            cv_prev = false;
         }
         const sl_material *m = &scene->materials[scene->shapes[hit.shape].material];
         bool delta = sl_bsdf_is_delta(m);
@@ -288,20 +324,26 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
                     continue;
                 }
                 int others = it->area_lights - (l->type != SL_LIGHT_DISTANT);
+                bool blocked = false;
                 if (it->can_occlude || hit.inside || others > 0) {
                     double so[3], tmax = isinf(dist) ? INFINITY : dist * (1 - 1e-9);
                     sl_offset_origin(hit.p, hit.n, wi, so);
                     c->shadow_rays++;
-                    if ((others > 0 && light_blocks(scene, so, wi, tmax, i)) ||
-                        sl_scene_occluded(scene, so, wi, tmax))
-                        continue;
+                    blocked = (others > 0 && light_blocks(scene, so, wi, tmax, i)) ||
+                              sl_scene_occluded(scene, so, wi, tmax);
                 } else {
                     c->shadow_skipped++;
                 }
+                /* At a control variate's vertex a closed-form light counts
+                 * only where it is blocked, with a minus sign. */
+                bool cf_light = cv_vertex && sl_light_has_closed_form(l);
+                if (blocked != cf_light)
+                    continue;
                 double w = (dl || o->strategy == SL_STRATEGY_LIGHT) ? 1.0
                                                                     : mis_power(pdf_l, sl_bsdf_pdf(m, wo, wil));
+                double sign = cf_light ? -1.0 : 1.0;
                 for (int k = 0; k < 3; k++)
-                    L[k] += beta[k] * f[k] * wil[2] * Le[k] * w / pdf_l;
+                    L[k] += sign * beta[k] * f[k] * wil[2] * Le[k] * w / pdf_l;
             }
 
         sl_bsdf_sample_rec bs;
@@ -342,12 +384,11 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
          * closed form's integrand here, keeps the pixel's mean right. */
         sl_hit ha;
         double Lcf[3], bound[3];
-        if (sl_shape_intersect(scene, cv_shape, org0, dir0, &ha)) {
-            double wo0[3] = {-dir0[0], -dir0[1], -dir0[2]};
-            sl_closed_form_radiance_view(it->cf, scene, cv_shape, ha.n, wo0, Lcf, bound, NULL);
+        double wo0[3] = {-dir0[0], -dir0[1], -dir0[2]};
+        if (sl_shape_intersect(scene, cv_shape, org0, dir0, &ha) &&
+            sl_closed_form_radiance_at(it->cf, scene, cv_shape, ha.p, ha.n, wo0, Lcf, bound, NULL))
             for (int k = 0; k < 3; k++)
                 L[k] -= Lcf[k];
-        }
     }
     if (!v3_finite(L)) {
         c->nonfinite++;

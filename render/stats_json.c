@@ -2,10 +2,47 @@
 /* Render statistics as JSON: error against time per pass, throughput and
  * what the integrator skipped (docs/render.md). */
 #include <jansson.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "setlight/render.h"
+
+/* A mip level of the dome's cells in words: k > 0 blocks of 2^k x 2^k
+ * texels, 0 a texel, k < 0 pieces 1/2^-k of a texel on a side. */
+static void level_words(int k, char *buf, size_t size)
+{
+    if (k > 0)
+        snprintf(buf, size, "%dx%d texels", 1 << (k > 30 ? 30 : k), 1 << (k > 30 ? 30 : k));
+    else if (k == 0)
+        snprintf(buf, size, "single texels");
+    else
+        snprintf(buf, size, "1/%d texel", 1 << (-k > 30 ? 30 : -k));
+}
+
+const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, size_t size)
+{
+    char top[48], fine[48], lights[96] = "";
+    size_t n = 0;
+    if (st->evaluations > 0 && st->cells > 0) {
+        level_words(st->top_level, top, sizeof top);
+        level_words(st->finest_level, fine, sizeof fine);
+        if (st->finest_level < st->top_level)
+            n = (size_t)snprintf(buf, size, "dome cells of %s, split down to %s where the horizon cuts them",
+                                 top, fine);
+        else
+            n = (size_t)snprintf(buf, size, "dome cells of %s", top);
+    } else {
+        n = (size_t)snprintf(buf, size, "no dome cells evaluated");
+    }
+    if (st->lights_exact + st->lights_sampled > 0)
+        snprintf(lights, sizeof lights, "; rig lights: %d exact, %d sampled (textured)", st->lights_exact,
+                 st->lights_sampled);
+    if (n < size)
+        snprintf(buf + n, size - n, "%s%s", lights,
+                 st->cut_by_time ? "; --time ran out while planning: the rest is sampled" : "");
+    return buf;
+}
 
 sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_options *o,
                                      const char *path, sl_error *err)
@@ -64,6 +101,11 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "finest_level", json_integer(cf->finest_level));
     json_object_set_new(jc, "evaluations", json_integer(cf->evaluations));
     json_object_set_new(jc, "cells", json_integer(cf->cells));
+    json_object_set_new(jc, "lights_exact", json_integer(cf->lights_exact));
+    json_object_set_new(jc, "lights_sampled", json_integer(cf->lights_sampled));
+    json_object_set_new(jc, "cut_by_time", json_boolean(cf->cut_by_time));
+    char words[320];
+    json_object_set_new(jc, "summary", json_string(sl_closed_form_describe(cf, words, sizeof words)));
     json_object_set_new(jc, "seconds", json_real(cf->seconds));
     json_object_set_new(root, "closed_form", jc);
     for (int i = 0; i < st->pass_count; i++) {

@@ -38,17 +38,22 @@ static void help(FILE *out)
             "                      renderer with a vanishing pixel filter does\n"
             "  --spp N             stop at N samples per pixel (default 64 unless --time or\n"
             "                      --target-error is given)\n"
-            "  --time SECONDS      stop when the next pass would pass this wall time\n"
+            "  --time SECONDS      the render's wall-time budget, closed form included:\n"
+            "                      rows the closed form has not reached by 80%% of it are\n"
+            "                      sampled; no pass starts that would end past it (the\n"
+            "                      first pass, 2 spp, always runs)\n"
             "  --target-error E    stop when the estimated relative RMSE is at most E; from\n"
             "                      16 spp on, each pixel stops once its error (pooled over\n"
             "                      3x3 pixels) is within its share of E (adaptive sampling)\n"
             "  --bounces N         indirect bounces after the first hit (default 0: direct)\n"
             "  --strategy NAME     mis (default), bsdf, light, cosine or uniform\n"
             "  --sampler NAME      sobol (Owen-scrambled, default) or random\n"
-            "  --closed-form MODE  on (default): pixels of an unoccluded Lambert or rough\n"
-            "                      glossy (conductor, plastic) object under the dome alone\n"
-            "                      are computed by quadrature (no samples), shadowed ones\n"
-            "                      sample only the shadowed part; off: sample everything\n"
+            "  --closed-form MODE  on (default): pixels of an unoccluded Lambert object under\n"
+            "                      the dome and the rig's lights (all but textured rects), or\n"
+            "                      of a rough glossy (conductor, plastic) object under the\n"
+            "                      dome alone, are computed by quadrature (no samples);\n"
+            "                      shadowed ones sample only the shadowed part; off: sample\n"
+            "                      everything\n"
             "  --seed N            sample seed (default 1); same seed, same bytes\n"
             "  --reference IMG     image of the same size: true relative RMSE per pass\n"
             "  --stats FILE.json   error against time per pass, rays, skipped work\n"
@@ -260,13 +265,15 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                res.est_rel_rmse, res.stats.stop_reason);
     if (!r && !cli->json) {
         const sl_closed_form_stats *cf = &res.stats.closed_form;
+        char words[320];
         if (cf->used)
             sl_log(SL_LOG_INFO,
                    "closed form: %lld pixels exact, %lld control variate, %lld sampled; bound "
-                   "%.3g (tolerance %.3g, mip levels %d..%d), %lld evaluations in %.3f s",
+                   "%.3g (tolerance %.3g); %s; %lld evaluations in %.3f s",
                    (long long)cf->exact_pixels, (long long)cf->control_variate_pixels,
-                   (long long)cf->sampled_pixels, cf->max_rel_bound, cf->tolerance, cf->top_level,
-                   cf->finest_level, (long long)cf->evaluations, cf->seconds);
+                   (long long)cf->sampled_pixels, cf->max_rel_bound, cf->tolerance,
+                   sl_closed_form_describe(cf, words, sizeof words), (long long)cf->evaluations,
+                   cf->seconds);
         else
             sl_log(SL_LOG_INFO, "closed form not used: %s", cf->reason);
         static const char *const kind[SL_MAT_COUNT] = {"Lambert", "conductor", "plastic"};

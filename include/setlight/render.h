@@ -319,6 +319,9 @@ typedef struct sl_closed_form_stats {
     double max_footprint_error; /* largest pixel-filter quadrature estimate, relative */
     int top_level, finest_level; /* mip levels of the lat-long cells (< 0: inside a texel) */
     int64_t evaluations, cells;  /* irradiance evaluations, cells visited */
+    int lights_exact, lights_sampled; /* rig lights in the closed form; left to sampling
+                                         (textured rects) */
+    bool cut_by_time;            /* --time ran out while planning: the rest is sampled */
     double seconds;
     /* Per object (as objects[]): its material's type, its exact and
      * control-variate pixels, its largest relative bound. A Lambert
@@ -330,6 +333,12 @@ typedef struct sl_closed_form_stats {
     /* Glossy pixels at pixel centres interpolated inside a checked 4 x 4 block. */
     int64_t interpolated_pixels;
 } sl_closed_form_stats;
+
+/* What the closed form computed, in words, for logs and reports: the dome's
+ * lat-long cells (e.g. "dome cells of 64x64 texels, split down to 1/2 texel
+ * where the horizon cuts them"), the rig lights exact and sampled, and
+ * whether --time cut the plan short. Returns buf. */
+const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, size_t size);
 
 typedef struct sl_render_stats {
     sl_render_pass *passes;

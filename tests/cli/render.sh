@@ -129,6 +129,15 @@ for args in "--scene chrome" "--scene grey --closed-form off"; do
     check "sampled: $args" 0 $?
     python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["closed_form"]; sys.exit(0 if not c["used"] and c["exact_pixels"] == 0 else 1)' "$T/cfn.json" || { echo "FAIL $args: closed form used: $(cat "$T/cfn.json")"; fail=1; }
 done
+# A rig's lights are in the closed form too: rig.json's sphere and distant light
+# exact, the dome they may hide from the ball sampled (control variate).
+"$S" render --rig "$T/rig.json" --scene grey --width 16 --spp 4 --json -o "$T/cfr.exr" --quiet > "$T/cfr.json"
+check "rig closed form" 0 $?
+python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["closed_form"]; sys.exit(0 if c["used"] and c["lights_exact"] == 2 and c["lights_sampled"] == 0 and c["control_variate_pixels"] > 0 else 1)' "$T/cfr.json" || { echo "FAIL rig closed form: $(cat "$T/cfr.json")"; fail=1; }
+# The log says in words which dome cells the closed form used.
+"$S" render --env "$T/env.hdr" --scene grey --width 16 --spp 4 -o "$T/cfl.exr" 2> "$T/cfl.log"
+check "closed form log" 0 $?
+grep "closed form:" "$T/cfl.log" | grep -q "dome cells of .*texel" && ! grep -q "mip levels" "$T/cfl.log" || { echo "FAIL closed form log: $(cat "$T/cfl.log")"; fail=1; }
 "$S" render --env "$T/env.hdr" --closed-form maybe -o "$T/cfbad.exr" --quiet 2> "$T/cfbad.err"
 check "bad --closed-form" 2 $?
 [ "$(wc -l < "$T/cfbad.err")" = 1 ] && grep -q "closed-form" "$T/cfbad.err" || { echo "FAIL bad --closed-form message: $(cat "$T/cfbad.err")"; fail=1; }

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../../render/scene_internal.h"
 #include "../../render/vec3.h"
 #include "setlight/render.h"
 #include "sun_sky.h"
@@ -224,6 +225,19 @@ static void test_real_hdri_goal(void)
         sl_image img;
         sl_render_stats st;
         CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
+        if (st.closed_form.cut_by_time) {
+            /* --time counts the closed form's set-up: on a loaded machine
+             * the plan runs out of the second (test_render_time checks the
+             * budget); the accuracy is checked with the time it needs. */
+            printf("  %s: plan cut by --time 1 after %.2f s (CPU %.2f s): loaded machine, goal checked "
+                   "with the plan whole (no --time, 2 spp)\n", names[i], st.closed_form.seconds,
+                   st.cpu_seconds);
+            sl_image_free(&img);
+            sl_render_stats_free(&st);
+            o.time_limit = 0;
+            o.spp = 2;
+            CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);
+        }
         double rmse = grey_vs_brute(&img, &env, stride);
         printf("  %-28s %dx%d: rel RMSE %.4f%% (bound %.2f%%, %lld exact px, finest level %d, %.2f s)\n",
                names[i], env.width, env.height, 100 * rmse, 100 * st.closed_form.max_rel_bound,
@@ -307,16 +321,22 @@ static void test_sampler_kept(void)
         sl_render_options o;
         sl_render_options_init(&o);
         o.spp = 4;
-        const char *want = "lights in the scene (sampled)";
+        const char *want = "no dome and no light with a closed form (textured rects are sampled)";
         if (k == 0) {
+            /* A textured rect alone: its light has no closed form. */
             sl_light l;
             memset(&l, 0, sizeof l);
-            l.type = SL_LIGHT_DISTANT;
-            v3_set(l.axis_z, 0, -1, 0);
+            l.type = SL_LIGHT_RECT;
+            v3_set(l.position, 0, 3, 0);
+            v3_set(l.axis_z, 0, 1, 0);
             v3_set(l.axis_y, 0, 0, 1);
             v3_set(l.color, 1, 1, 1);
             l.intensity = 1;
-            l.angle_deg = 5;
+            l.width = l.height = 1;
+            CHECK_OK(sl_image_alloc(&l.texture, 2, 2, 3, NULL), NULL);
+            for (int t = 0; t < 12; t++)
+                l.texture.data[t] = (float)(1 + t % 3);
+            sl_dome_free(&s.dome);
             CHECK_OK(sl_scene_add_light(&s, &l, &err), &err);
         } else if (k == 1) {
             want = "no Lambert or rough glossy object";

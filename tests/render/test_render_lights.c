@@ -53,6 +53,7 @@ static double render_vs_lights(const sl_light *protos, int n_lights, const bool 
     sl_render_options_init(&o);
     o.spp = spp;
     o.pixel_centers = true;
+    o.closed_form = false; /* the sampler against the closed forms */
     sl_image img;
     sl_render_stats st;
     CHECK_OK(sl_render(&s, &o, &img, &st, &err), &err);

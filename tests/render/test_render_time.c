@@ -1,0 +1,88 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* --time budgets the whole render, the closed form's set-up included: a
+ * plan that would take several budgets is cut short (the rest sampled), the
+ * call returns within the budget plus its first pass, and the seconds it
+ * reports are the wall time of the call. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "../../render/scene_internal.h"
+#include "testing.h"
+
+#if defined(__SANITIZE_ADDRESS__)
+#define BUDGET 1.0
+#else
+#define BUDGET 0.25
+#endif
+
+/* A sky with a sun of four texels: the closed form splits cells around it. */
+static void sky(sl_image *env, int w)
+{
+    CHECK_OK(sl_image_alloc(env, w, w / 2, 3, NULL), NULL);
+    for (int y = 0; y < w / 2; y++)
+        for (int x = 0; x < w; x++) {
+            float *p = sl_image_pixel(env, x, y);
+            p[0] = p[1] = p[2] = (float)(y < w / 4 ? 0.5 + 0.4 * sin(0.1 * x) : 0.05);
+        }
+    for (int k = 0; k < 4; k++) {
+        float *s = sl_image_pixel(env, w / 3 + (k & 1), w / 6 + (k >> 1));
+        s[0] = s[1] = s[2] = 2e4f;
+    }
+}
+
+static double render_timed(const sl_scene *s, sl_render_options *o, sl_render_stats *st)
+{
+    sl_image img;
+    sl_error err = {0};
+    double t0 = sl_seconds();
+    CHECK_OK(sl_render(s, o, &img, st, &err), &err);
+    double wall = sl_seconds() - t0;
+    int bad = 0;
+    for (size_t i = 0; i < (size_t)img.width * img.height * 4; i++)
+        bad += !(isfinite(img.data[i]) && img.data[i] >= 0);
+    CHECK(bad == 0);
+    sl_image_free(&img);
+    return wall;
+}
+
+static void test_time_counts_the_closed_form(void)
+{
+    sl_image env;
+    sky(&env, 512);
+    sl_scene s;
+    sl_scene_init(&s);
+    sl_error err = {0};
+    CHECK_OK(sl_scene_preset(&s, "grey", 160, &err), &err);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "sky", &err), &err);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    /* A plan of about 9 CPU seconds (2026-11-28), far over the budget. */
+    o.closed_form_tolerance = 1e-4;
+    o.spp = 0;
+    o.time_limit = BUDGET;
+    sl_render_stats st;
+    double wall = render_timed(&s, &o, &st);
+    const sl_render_pass *last = &st.passes[st.pass_count - 1];
+    printf("  --time %.2f: %.3f s wall, reported %.3f s (plan %.3f s, cut %d; %lld exact, %lld sampled "
+           "px; %lld spp)\n",
+           BUDGET, wall, st.seconds, st.closed_form.seconds, st.closed_form.cut_by_time,
+           (long long)st.closed_form.exact_pixels, (long long)st.closed_form.sampled_pixels,
+           (long long)st.spp);
+    /* The reported time is the call's wall time. */
+    CHECK_NEAR(st.seconds, wall, 0.02 + 0.02 * wall);
+    CHECK(last->seconds <= st.seconds + 1e-9);
+    /* Cut at 80% of the budget; the first pass (2 spp) may add its own time. */
+    CHECK(st.closed_form.cut_by_time && !strcmp(st.stop_reason, "time"));
+    CHECK(st.closed_form.seconds <= 0.8 * BUDGET + 0.1);
+    CHECK_MSG(wall <= 2 * BUDGET, "%.3f s for a %.2f s budget", wall, BUDGET);
+    CHECK(st.closed_form.exact_pixels + st.closed_form.sampled_pixels == 160 * 160);
+    sl_render_stats_free(&st);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
+int main(void)
+{
+    RUN(test_time_counts_the_closed_form);
+    return sl_test_finish();
+}
