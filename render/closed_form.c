@@ -357,7 +357,8 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     }
     sl_parallel_for(cam->height, 1, classify_rows, &j);
     if (j.glossy.state)
-        sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost);
+        sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost, j.deadline,
+                       j.row_cut);
     for (size_t i = 0; j.glossy.state && i < npix; i++)
         st->interpolated_pixels += j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
     free(j.glossy.state);

@@ -343,7 +343,27 @@ typedef struct fill_job {
     sl_glossy_pixels *px;
     int w, h;
     sl_irradiance_cost *row_cost;
+    double deadline;  /* --time: block rows not filled by then are sampled */
+    uint8_t *row_cut; /* per image row: ran into the deadline */
 } fill_job;
+
+/* Past the deadline a block row is left to sampling, whole. */
+static bool cut_block_row(const fill_job *j, int y0)
+{
+    if (sl_seconds() <= j->deadline)
+        return false;
+    for (int y = y0; y < y0 + BLOCK && y < j->h; y++)
+        j->row_cut[y] = 1;
+    return true;
+}
+
+static bool block_row_cut(const fill_job *j, int y0)
+{
+    for (int y = y0; y < y0 + BLOCK && y < j->h; y++)
+        if (j->row_cut[y])
+            return true;
+    return false;
+}
 
 static void eval_pixel(const fill_job *j, size_t pix, sl_irradiance_cost *cost)
 {
@@ -361,6 +381,8 @@ static void lattice_rows(void *ctx, int64_t begin, int64_t end, int worker)
     fill_job *j = ctx;
     for (int64_t by = begin; by < end; by++) {
         int y = (int)by * BLOCK;
+        if (cut_block_row(j, y))
+            continue;
         for (int x = 0; x < j->w; x += BLOCK) {
             size_t pix = (size_t)y * j->w + x;
             if (j->px->state[pix] == SL_GLOSSY_PENDING)
@@ -380,7 +402,11 @@ static void block_rows(void *ctx, int64_t begin, int64_t end, int worker)
     for (int64_t by = begin; by < end; by++) {
         int y0 = (int)by * BLOCK;
         sl_irradiance_cost *cost = &j->row_cost[y0];
+        if (block_row_cut(j, y0))
+            continue;
         for (int x0 = 0; x0 < j->w; x0 += BLOCK) {
+            if (cut_block_row(j, y0))
+                break;
             size_t corner[4];
             bool whole = x0 + BLOCK < j->w && y0 + BLOCK < j->h;
             for (int k = 0; k < 4 && whole; k++) {
@@ -433,9 +459,10 @@ static void block_rows(void *ctx, int64_t begin, int64_t end, int worker)
 }
 
 void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
-                    int h, sl_irradiance_cost *row_cost)
+                    int h, sl_irradiance_cost *row_cost, double deadline, uint8_t *row_cut)
 {
-    fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost};
+    fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost,
+                  .deadline = deadline, .row_cut = row_cut};
     int rows = (h + BLOCK - 1) / BLOCK;
     sl_parallel_for(rows, 1, lattice_rows, &j);
     sl_parallel_for(rows, 1, block_rows, &j);

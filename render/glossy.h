@@ -57,9 +57,10 @@ typedef struct sl_glossy_pixels {
     double (*value)[3];    /* out: its radiance */
 } sl_glossy_pixels;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
- * costs per image row. */
+ * costs per image row. Rows it has not filled by the deadline (seconds, as
+ * sl_seconds) are marked in row_cut, to be sampled. */
 void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
-                    int h, sl_irradiance_cost *row_cost);
+                    int h, sl_irradiance_cost *row_cost, double deadline, uint8_t *row_cut);
 
 /* closed_form.c: the closed-form radiance of a shape toward the viewer wo,
  * Lambert (irradiance) or glossy. */

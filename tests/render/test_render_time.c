@@ -81,8 +81,39 @@ static void test_time_counts_the_closed_form(void)
     sl_image_free(&env);
 }
 
+/* The glossy quadrature (filled after the plan) keeps to the budget too. */
+static void test_time_counts_the_glossy_fill(void)
+{
+    sl_image env;
+    sky(&env, 512);
+    sl_scene s;
+    sl_scene_init(&s);
+    sl_error err = {0};
+    CHECK_OK(sl_scene_preset(&s, "grey", 160, &err), &err);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "sky", &err), &err);
+    sl_material_conductor(&s.materials[0], (const double[3]){0.9, 0.9, 0.9},
+                          (const double[3]){0.9, 0.9, 0.9}, 0.3);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.pixel_centers = true;
+    o.closed_form_tolerance = 1e-4;
+    o.spp = 0;
+    o.time_limit = BUDGET;
+    sl_render_stats st;
+    double wall = render_timed(&s, &o, &st);
+    printf("  glossy, --time %.2f: %.3f s wall (plan %.3f s, cut %d; %lld glossy exact px)\n", BUDGET,
+           wall, st.closed_form.seconds, st.closed_form.cut_by_time,
+           (long long)st.closed_form.exact_pixels);
+    CHECK(st.closed_form.cut_by_time && !strcmp(st.stop_reason, "time"));
+    CHECK_MSG(wall <= 2 * BUDGET, "%.3f s for a %.2f s budget", wall, BUDGET);
+    sl_render_stats_free(&st);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
 int main(void)
 {
     RUN(test_time_counts_the_closed_form);
+    RUN(test_time_counts_the_glossy_fill);
     return sl_test_finish();
 }
