@@ -18,18 +18,6 @@
 
 extern char **environ;
 
-json_t *pl_job_find(const json_t *graph, const char *id)
-{
-    size_t i;
-    json_t *job;
-    json_array_foreach(json_object_get(graph, "jobs"), i, job) {
-        const char *jid = json_string_value(json_object_get(job, "id"));
-        if (jid && !strcmp(jid, id))
-            return job;
-    }
-    return NULL;
-}
-
 /* What is hashed: "setlight-job 1", the version, each argument after
  * argv[0], then each input's path and the SHA-256 of its contents, every
  * field ended by a NUL. */
@@ -195,29 +183,29 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
 {
     *exit_code = 0;
     *skipped = false;
-    json_t *graph = NULL;
-    sl_result r = pl_json_load(jobs_json, &graph, err);
+    sl_pipeline_graph *g = NULL;
+    sl_result r = pl_graph_load(jobs_json, &g, err);
     if (r)
         return r;
-    json_t *job = pl_job_find(graph, id);
+    json_t *graph = g->root, *job = pl_graph_job(g, id);
     if (!job) {
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         return sl_error_set(err, SL_ERR_USAGE, "%s: no job '%s'", jobs_json, id);
     }
     char key[65];
     if (!strcmp(json_string_value(json_object_get(job, "stage")), "index") &&
         (r = pl_index_prepare(graph, err))) {
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         return r;
     }
     if (!pl_job_key(job, key)) {
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         return sl_error_set(err, SL_ERR_INPUT, "%s: an input is missing (did its dependencies run?)",
                             id);
     }
     if (pl_stamp_current(graph, job, key)) {
         *skipped = true;
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         return SL_OK;
     }
     json_t *command = json_object_get(job, "command");
@@ -227,10 +215,9 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     const char *result = result_output(job);
     char partial[PATH_MAX + 16] = "", stamp[PATH_MAX + 600];
     json_t *x;
-    if (!argv || !log) {
-        free(argv);
-        json_decref(graph);
-        return sl_error_set(err, SL_ERR_INPUT, "%s: job '%s' has no command or log", jobs_json, id);
+    if (!argv) {
+        sl_pipeline_graph_free(g);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", id);
     }
     json_array_foreach(command, i, x)
         argv[i] = (char *)json_string_value(x);
@@ -297,6 +284,6 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     json_decref(st);
 done:
     free(argv);
-    json_decref(graph);
+    sl_pipeline_graph_free(g);
     return r;
 }

@@ -43,6 +43,22 @@ sl_result pl_json_load(const char *path, json_t **out, sl_error *err);
 /* Writes a JSON value atomically (indented, sorted as built). */
 sl_result pl_json_write(const char *path, const json_t *value, sl_error *err);
 
+/* A graph read back (graph.c): the document, checked whole. */
+struct sl_pipeline_graph {
+    json_t *root;    /* the file's JSON */
+    json_t *jobs;    /* root's "jobs" */
+    json_t *ids;     /* id -> its index in jobs (a JSON integer) */
+    const char *out; /* root's "out" */
+    int count;
+    int *order;      /* indices into jobs, each after its dependencies */
+};
+
+/* Reads the file (refused over SL_MAX_JSON_BYTES before it is read;
+ * SL_ERR_NOT_FOUND when missing) and sl_pipeline_graph_parse's it. */
+sl_result pl_graph_load(const char *path, sl_pipeline_graph **graph, sl_error *err);
+/* The job of that id, or NULL. */
+json_t *pl_graph_job(const sl_pipeline_graph *graph, const char *id);
+
 /* The graph (its jobs' argv name jobs_path; "" there: OUT/jobs.json, set)
  * and the setups as planned: name, source, status "ok" or "failed" and the
  * reason (also OUT/setups.json). */
@@ -62,8 +78,6 @@ json_t *pl_stamp_load(const json_t *graph, const json_t *job);
 /* Writes OUT/status.json, the index job's input: every other job's stamp
  * status and key (rewritten only when one changed). */
 sl_result pl_index_prepare(const json_t *graph, sl_error *err);
-/* The job of that id, or NULL. */
-json_t *pl_job_find(const json_t *graph, const char *id);
 
 /* Runs the graph on this machine; fills the job counts of res and a status
  * per job id in *status ("skipped", "ran", "failed", "not run"). */

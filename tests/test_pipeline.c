@@ -39,7 +39,7 @@ static void write_graph(const char *jobs, const char *out, const char *const *id
                        sl_version(), out);
     for (int i = 0; i < n; i++)
         len += snprintf(text + len, sizeof text - (size_t)len,
-                        "%s{\"id\":\"%s\",\"setup\":\"s\",\"stage\":\"merge\",\"argv\":[],"
+                        "%s{\"id\":\"%s\",\"setup\":\"s\",\"stage\":\"merge\",\"argv\":[\"setlight\"],"
                         "\"command\":%s,\"inputs\":%s,\"outputs\":%s,\"deps\":[],\"array\":null,"
                         "\"memory_mb\":1,\"cpus\":1,\"log\":\"%s/logs/%d.log\",\"key\":null,"
                         "\"up_to_date\":false}",
