@@ -31,6 +31,8 @@ j.update(json.loads("{%s}" % (sys.argv[5][1:] if len(sys.argv) > 5 else "")))
 print(json.dumps(j))
 P
 }
+expect 0 "$S" job --help
+out_has "The graph is checked whole first"
 echo first >"$T/in.txt"
 
 # A good graph: the job runs, then is up to date.
