@@ -143,6 +143,11 @@ static sl_result check_job(const char *name, size_t i, const json_t *job, sl_err
     return SL_OK;
 }
 
+static const char *job_id(const sl_pipeline_graph *g, size_t i)
+{
+    return json_string_value(json_object_get(json_array_get(g->jobs, i), "id"));
+}
+
 /* Every dependency a job of the graph, then Kahn's order over them; a job
  * left over waits on a cycle, which is followed back to name it. */
 static sl_result order_jobs(const char *name, sl_pipeline_graph *g, sl_error *err)
@@ -163,7 +168,7 @@ static sl_result order_jobs(const char *name, sl_pipeline_graph *g, sl_error *er
     size_t e = 0;
     for (size_t i = 0; i < n && !r; i++) {
         const json_t *job = json_array_get(g->jobs, i);
-        const char *id = json_string_value(json_object_get(job, "id"));
+        const char *id = job_id(g, i);
         first[i] = e;
         size_t k;
         json_t *d;
@@ -208,45 +213,36 @@ static sl_result order_jobs(const char *name, sl_pipeline_graph *g, sl_error *er
                 g->order[done_count++] = (int)user[u];
     }
     if (done_count < n) {
-        /* Every job left waits on another left: n steps back land on a cycle. */
-        size_t at = 0;
-        while (!left[at])
-            at++;
-        for (size_t step = 0; step < n; step++) {
-            size_t k = first[at];
+        /* Every job left waits on another left (fill[i]: its first such
+         * dependency): n steps along them land on a cycle. */
+        size_t at = n;
+        for (size_t i = 0; i < n; i++) {
+            if (!left[i])
+                continue;
+            size_t k = first[i];
             while (!left[dep[k]])
                 k++;
-            at = dep[k];
+            fill[i] = dep[k];
+            if (at == n)
+                at = i;
         }
+        for (size_t step = 0; step < n; step++)
+            at = fill[at];
         /* Named from its job listed first. */
-        size_t start = at, j = at;
-        do {
-            size_t k = first[j];
-            while (!left[dep[k]])
-                k++;
-            j = dep[k];
+        size_t start = at;
+        for (size_t j = fill[at]; j != at; j = fill[j])
             if (j < start)
                 start = j;
-        } while (j != at);
-        at = start;
-        j = at;
         char path[512] = "";
-        size_t len = 0;
+        size_t len = 0, j = start;
         do {
-            const char *id = json_string_value(json_object_get(json_array_get(g->jobs, j), "id"));
             if (len < sizeof path)
-                len += (size_t)snprintf(path + len, sizeof path - len, "%s -> ", id);
-            size_t k = first[j];
-            while (!left[dep[k]])
-                k++;
-            j = dep[k];
-        } while (j != at);
+                len += (size_t)snprintf(path + len, sizeof path - len, "%s -> ", job_id(g, j));
+            j = fill[j];
+        } while (j != start);
         if (len < sizeof path)
-            snprintf(path + len, sizeof path - len, "%s",
-                     json_string_value(json_object_get(json_array_get(g->jobs, at), "id")));
-        r = bad_job(name, at,
-                    json_string_value(json_object_get(json_array_get(g->jobs, at), "id")), err,
-                    "its dependencies form a cycle (%s)", path);
+            snprintf(path + len, sizeof path - len, "%s", job_id(g, start));
+        r = bad_job(name, start, job_id(g, start), err, "its dependencies form a cycle (%s)", path);
     }
 done:
     free(first);
@@ -325,7 +321,7 @@ const char *sl_pipeline_graph_job_id(const sl_pipeline_graph *g, int k)
 {
     if (!g || k < 0 || k >= g->count)
         return NULL;
-    return json_string_value(json_object_get(json_array_get(g->jobs, (size_t)g->order[k]), "id"));
+    return job_id(g, (size_t)g->order[k]);
 }
 
 void sl_pipeline_graph_free(sl_pipeline_graph *g)
