@@ -18,6 +18,23 @@
 
 extern char **environ;
 
+/* The first input that is not a regular file, or NULL; *exists: whether
+ * it is there at all (a folder, a FIFO or /dev/zero in an edited graph
+ * would block or never end the hashing). */
+static const char *input_not_regular(const json_t *job, bool *exists)
+{
+    size_t i;
+    json_t *x;
+    json_array_foreach(json_object_get(job, "inputs"), i, x) {
+        struct stat sb;
+        const char *path = json_string_value(x);
+        *exists = path && !stat(path, &sb);
+        if (!*exists || !S_ISREG(sb.st_mode))
+            return path ? path : "(not a string)";
+    }
+    return NULL;
+}
+
 /* What is hashed: "setlight-job 1", the version, each argument after
  * argv[0], then each input's path and the SHA-256 of its contents, every
  * field ended by a NUL. */
@@ -51,6 +68,11 @@ bool pl_job_key(const json_t *job, char key[65])
     json_array_foreach(json_object_get(job, "command"), i, x) {
         if (i > 0)
             ADD(json_string_value(x) ? json_string_value(x) : "");
+    }
+    bool exists;
+    if (input_not_regular(job, &exists)) {
+        free(buf);
+        return false;
     }
     json_array_foreach(json_object_get(job, "inputs"), i, x) {
         const char *path = json_string_value(x);
@@ -198,10 +220,19 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
         sl_pipeline_graph_free(g);
         return r;
     }
+    bool exists = false;
+    const char *input = input_not_regular(job, &exists);
+    if (input) {
+        r = exists ? sl_error_set(err, SL_ERR_INPUT, "%s: job '%s': input %s is not a regular file",
+                                  jobs_json, id, input)
+                   : sl_error_set(err, SL_ERR_INPUT,
+                                  "%s: input %s is missing (did its dependencies run?)", id, input);
+        sl_pipeline_graph_free(g);
+        return r;
+    }
     if (!pl_job_key(job, key)) {
         sl_pipeline_graph_free(g);
-        return sl_error_set(err, SL_ERR_INPUT, "%s: an input is missing (did its dependencies run?)",
-                            id);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: an input cannot be read", id);
     }
     if (pl_stamp_current(graph, job, key)) {
         *skipped = true;

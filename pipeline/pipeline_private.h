@@ -67,7 +67,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
 
 /* A job's key: SHA-256 hex of the version, its command (argv[0] left out:
  * the same setlight anywhere) and its input files' contents. false when an
- * input does not exist (yet). */
+ * input does not exist (yet) or is not a regular file. */
 bool pl_job_key(const json_t *job, char key[65]);
 /* Where a job's stamp lives: OUT/<id>.stamp.json. */
 void pl_stamp_path(const json_t *graph, const json_t *job, char *path, size_t size);

@@ -135,6 +135,8 @@ static void test_job_stamps(void)
     /* An input gone: no key, exit 3 (did its dependencies run?). */
     remove(in);
     CHECK_RESULT(sl_pipeline_job_run(jobs, "s/copy", &code, &skipped, &err), SL_ERR_INPUT, &err);
+    CHECK_MSG(strstr(err.message, "s/copy: input ") && strstr(err.message, "in.txt is missing"), "%s",
+              err.message);
 }
 
 /* Known answer: the test map is 2x the reference times 1, 1.1 or 0.9 (a

@@ -45,6 +45,14 @@ err_one_line
 err_has "good.json: no job 's/none'"
 rm -rf "$D"
 
+# An input that is no regular file (a device never ends, a FIFO blocks):
+# refused before it is hashed or anything is written.
+graph "$T/device.json" "$(job s/a "" ',"inputs":["/dev/zero"]')"
+expect 3 timeout 20 "$S" job "$T/device.json" s/a
+err_one_line
+err_has "setlight job: $T/device.json: job 's/a': input /dev/zero is not a regular file"
+absent "$D"
+
 # Edited graphs: refused, one line, exit 3, nothing written under OUT.
 refused() { # FILE MESSAGE: job, process-report and process-index all refuse FILE
   for cmd in "job $1 s/a" "process-report $1 s" "process-index $1"; do
