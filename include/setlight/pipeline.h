@@ -96,7 +96,8 @@ sl_result sl_pipeline_graph_parse(const char *name, const char *text, size_t siz
                                   sl_pipeline_graph **graph, sl_error *err);
 int sl_pipeline_graph_job_count(const sl_pipeline_graph *graph);
 /* The k-th job's id in an order where every job comes after its
- * dependencies (the file's order where it allows); NULL out of range. */
+ * dependencies (Kahn's: the jobs with none first, in the file's order, then
+ * each as its last dependency is placed); NULL out of range. */
 const char *sl_pipeline_graph_job_id(const sl_pipeline_graph *graph, int k);
 void sl_pipeline_graph_free(sl_pipeline_graph *graph);
 
