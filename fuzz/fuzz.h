@@ -50,6 +50,7 @@ SL_FUZZ_DECLARE(response_json)
 SL_FUZZ_DECLARE(response_text)
 SL_FUZZ_DECLARE(chart_reference)
 SL_FUZZ_DECLARE(lens_profile)
+SL_FUZZ_DECLARE(job_graph)
 #undef SL_FUZZ_DECLARE
 
 #endif

@@ -6,7 +6,7 @@
 #   fuzz/long_run.sh BUILD_DIR WORK_DIR [SCALE]
 # BUILD_DIR: a -DSETLIGHT_FUZZ=ON build; WORK_DIR gets per target its
 # growing corpus (seeded from fuzz/corpus), crash artifacts and log.
-# SCALE multiplies every target's minutes (default 1: 80 minutes a lane).
+# SCALE multiplies every target's minutes (default 1: 60 minutes a lane).
 set -euo pipefail
 B=$(realpath "${1:?usage: fuzz/long_run.sh BUILD_DIR WORK_DIR [SCALE]}")
 W=$(realpath -m "${2:?usage: fuzz/long_run.sh BUILD_DIR WORK_DIR [SCALE]}")
@@ -15,11 +15,12 @@ SRC=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$W"
 export TMPDIR=${TMPDIR:-/dev/shm}
 
-# target minutes max_len
-lane_a="exr:25:16384 photo:25:16384 hdr:15:8192 rig_json:15:8192"
-lane_b="ingest:14:16384 journal:12:8192 scene_json:12:4096 vset_scene:10:4096
-        response_json:12:16384 response_text:10:4096 chart_reference:10:4096
-        lens_profile:8:4096"
+# target minutes max_len; the newest target first, so a crash it finds is
+# known while the run goes on
+lane_a="job_graph:10:16384 exr:16:16384 photo:16:16384 hdr:9:8192 rig_json:9:8192"
+lane_b="ingest:9:16384 journal:8:8192 scene_json:8:4096 vset_scene:7:4096
+        response_json:7:16384 response_text:7:4096 chart_reference:7:4096
+        lens_profile:7:4096"
 
 run_target() {
   local t=$1 minutes=$2 max_len=$3 secs

@@ -13,7 +13,7 @@ OUT=$(realpath -m "${2:-corpus}")
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
 for t in exr hdr photo ingest scene_json vset_scene rig_json journal response_json response_text \
-         chart_reference; do
+         chart_reference job_graph; do
   rm -rf "${OUT:?}/$t"
   mkdir -p "$OUT/$t"
 done
@@ -178,6 +178,66 @@ python3 - "$c/xyz.json" <<'P'
 import json, sys
 json.dump({"space": "xyz_d50", "patches": [[20 + i, 21 + i, 18 + i] for i in range(24)]},
           open(sys.argv[1], "w"))
+P
+
+# --- job graphs (docs/process.md): process --emit-jobs on two tiny simulated
+# setups, one graph each, written compact and with the temporary folder's
+# path shortened to /t (under the 16 KB max_len of the fuzz runs); then
+# hand-made edge cases, good and bad
+g="$OUT/job_graph"
+"$S" simulate --scene exterior --size tiny -o "$T/ext" -q
+"$S" simulate --scene stage --size tiny -o "$T/stage" -q
+for s in ext stage; do
+  "$S" process "$T/$s" -o "$T/day" --probe-view 180,0 --emit-jobs "$T/jobs_$s.json" -q
+  python3 -c 'import json, sys; json.dump(json.loads(open(sys.argv[1]).read().replace(sys.argv[3], "/t")),
+                                          open(sys.argv[2], "w"), separators=(",", ":"))' \
+    "$T/jobs_$s.json" "$g/emitted_$s.json" "$T"
+done
+python3 - "$g" <<'P'
+import json, sys
+out = sys.argv[1]
+def job(id, deps=(), stage="merge", setup="s", **kw):
+    j = {"id": id, "setup": setup, "stage": stage, "argv": ["/usr/bin/setlight", "job", "/d/jobs.json", id],
+         "command": ["/usr/bin/setlight", stage, "-o", "/d/%s.exr" % id], "inputs": ["/d/in.tif"],
+         "outputs": ["/d/%s.exr" % id, "/d/%s.result.json" % id], "deps": list(deps), "array": None,
+         "memory_mb": 100, "cpus": 1, "log": "/d/logs/%s.log" % id.replace("/", "_"), "key": None,
+         "up_to_date": False}
+    j.update(kw)
+    return j
+def graph(jobs, **kw):
+    g = {"format": "setlight-jobs", "version": 1, "setlight": "0.1.0", "out": "/d", "jobs": jobs}
+    g.update(kw)
+    return g
+cases = {
+    "one_job": graph([job("s/merge/0")]),
+    "index_only": graph([job("index", stage="index", setup=None)]),
+    "no_jobs": graph([]),
+    # listed against dependency order: a diamond, then the index
+    "diamond_reordered": graph([job("s/report", ["s/render/0", "s/render/1"], "report"),
+                                job("s/render/1", ["s/rig"], "render", array="s/render"),
+                                job("s/render/0", ["s/rig"], "render", array="s/render"),
+                                job("s/rig", ["s/merge/0", "s/merge/0"], "rig"),
+                                job("s/merge/0", key="ab" * 32, up_to_date=True),
+                                job("index", ["s/report"], "index", setup=None)]),
+    "cycle": graph([job("a", ["c"]), job("b", ["a"]), job("c", ["b"]), job("d", ["a"])]),
+    "self_dependency": graph([job("a", ["a"])]),
+    "unknown_dependency": graph([job("a", ["nowhere"])]),
+    "duplicate_id": graph([job("a"), job("a")]),
+    "id_escapes_out": graph([job("../../etc/a")]),
+    "relative_out": graph([job("a")], out="day"),
+    "relative_input": graph([job("a", inputs=["in.tif"])]),
+    "unknown_stage": graph([job("a", stage="paint")]),
+    "empty_command": graph([job("a", command=[])]),
+    "number_in_argv": graph([job("a", argv=["/usr/bin/setlight", 1])]),
+    "cpus_zero": graph([job("a", cpus=0)]),
+    "version_2": graph([job("a")], version=2),
+    "other_format": {"format": "setlight-rig", "version": 1, "jobs": []},
+}
+for name, doc in cases.items():
+    with open("%s/%s.json" % (out, name), "w") as f:
+        json.dump(doc, f, separators=(",", ":"))
+with open(out + "/duplicate_key.json", "w") as f:
+    f.write('{"format":"setlight-jobs","version":1,"out":"/d","out":"/e","jobs":[]}')
 P
 
 find "$OUT" -type f -size +20k -print -delete | sed 's/^/dropped (over 20 KB): /'

@@ -19,14 +19,19 @@
 
 extern char **environ;
 
-json_t *pl_job_find(const json_t *graph, const char *id)
+/* The first input that is not a regular file, or NULL; *exists: whether
+ * it is there at all (a folder, a FIFO or /dev/zero in an edited graph
+ * would block or never end the hashing). */
+static const char *input_not_regular(const json_t *job, bool *exists)
 {
     size_t i;
-    json_t *job;
-    json_array_foreach(json_object_get(graph, "jobs"), i, job) {
-        const char *jid = json_string_value(json_object_get(job, "id"));
-        if (jid && !strcmp(jid, id))
-            return job;
+    json_t *x;
+    json_array_foreach(json_object_get(job, "inputs"), i, x) {
+        struct stat sb;
+        const char *path = json_string_value(x);
+        *exists = path && !stat(path, &sb);
+        if (!*exists || !S_ISREG(sb.st_mode))
+            return path ? path : "(not a string)";
     }
     return NULL;
 }
@@ -64,6 +69,11 @@ bool pl_job_key(const json_t *job, char key[65])
     json_array_foreach(json_object_get(job, "command"), i, x) {
         if (i > 0)
             ADD(json_string_value(x) ? json_string_value(x) : "");
+    }
+    bool exists;
+    if (input_not_regular(job, &exists)) {
+        free(buf);
+        return false;
     }
     json_array_foreach(json_object_get(job, "inputs"), i, x) {
         const char *path = json_string_value(x);
@@ -232,101 +242,44 @@ static double own_peak_rss_mb(void)
     return kb / 1024.0;
 }
 
-/* The value that starts at text (a JSON prefix), or NULL. */
-static json_t *value_at(const char *text, size_t len)
-{
-    json_error_t e;
-    return json_loadb(text, len, JSON_DISABLE_EOF_CHECK | JSON_DECODE_ANY, &e);
-}
-
-/* The graph cut down to the job asked for, {"out", "jobs": [job]}, found in
- * the file's text without parsing the rest: a day of 50 setups is 1 MB of
- * JSON, 20-30 ms of CPU to parse for each of its 800 jobs. Relies on the
- * layout pl_json_write gives the graph (the job's object begins with its
- * "id", "out" comes before "jobs"); NULL when the text is not laid out so,
- * and the whole file is parsed instead. Inside a JSON string a quote is
- * escaped, so the key patterns cannot match string contents. */
-static json_t *load_one_job(const char *jobs_json, const char *id)
-{
-    FILE *f = fopen(jobs_json, "rb");
-    if (!f)
-        return NULL;
-    char *text = NULL;
-    size_t cap = 0, len = 0, n;
-    do {
-        if (len + 65536 + 1 > cap) {
-            char *p = realloc(text, cap = 2 * cap + 65536 + 1);
-            if (!p) {
-                free(text);
-                fclose(f);
-                return NULL;
-            }
-            text = p;
-        }
-        n = fread(text + len, 1, cap - len - 1, f);
-        len += n;
-    } while (n > 0);
-    fclose(f);
-    text[len] = 0;
-    json_t *graph = NULL, *job = NULL, *idj = json_string(id);
-    char *quoted = idj ? json_dumps(idj, JSON_ENCODE_ANY) : NULL;
-    char *pattern = quoted ? malloc(strlen(quoted) + 8) : NULL;
-    const char *jobs_at = strstr(text, "\"jobs\": [");
-    const char *out_at = strstr(text, "\"out\": ");
-    if (pattern && jobs_at && out_at && out_at < jobs_at) {
-        sprintf(pattern, "\"id\": %s", quoted);
-        for (const char *at = strstr(jobs_at, pattern); at && !job; at = strstr(at + 1, pattern)) {
-            const char *open = at;
-            while (open > jobs_at && (open[-1] == ' ' || open[-1] == '\n'))
-                open--;
-            if (open > jobs_at && open[-1] == '{')
-                job = value_at(open - 1, len - (size_t)(open - 1 - text));
-            if (job && !json_equal(json_object_get(job, "id"), idj))
-                json_decref(job), job = NULL;
-        }
-        json_t *out = value_at(out_at + 7, len - (size_t)(out_at + 7 - text));
-        if (job && json_is_string(out))
-            graph = json_pack("{s:O,s:[O]}", "out", out, "jobs", job);
-        json_decref(out);
-    }
-    json_decref(job);
-    json_decref(idj);
-    free(quoted);
-    free(pattern);
-    free(text);
-    return graph;
-}
-
 sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
                               bool *skipped, sl_error *err)
 {
     double started = pl_epoch_seconds();
     *exit_code = 0;
     *skipped = false;
-    /* The index reads every job's stamp: it needs the whole graph. */
-    json_t *graph = strcmp(id, "index") ? load_one_job(jobs_json, id) : NULL;
-    sl_result r = graph ? SL_OK : pl_json_load(jobs_json, &graph, err);
+    sl_pipeline_graph *g = NULL;
+    sl_result r = pl_graph_load(jobs_json, &g, err);
     if (r)
         return r;
-    json_t *job = pl_job_find(graph, id);
+    json_t *graph = g->root, *job = pl_graph_job(g, id);
     if (!job) {
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         return sl_error_set(err, SL_ERR_USAGE, "%s: no job '%s'", jobs_json, id);
     }
     char key[65];
     if (!strcmp(json_string_value(json_object_get(job, "stage")), "index") &&
         (r = pl_index_prepare(graph, err))) {
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
+        return r;
+    }
+    bool exists = false;
+    const char *input = input_not_regular(job, &exists);
+    if (input) {
+        r = exists ? sl_error_set(err, SL_ERR_INPUT, "%s: job '%s': input %s is not a regular file",
+                                  jobs_json, id, input)
+                   : sl_error_set(err, SL_ERR_INPUT,
+                                  "%s: input %s is missing (did its dependencies run?)", id, input);
+        sl_pipeline_graph_free(g);
         return r;
     }
     if (!pl_job_key(job, key)) {
-        json_decref(graph);
-        return sl_error_set(err, SL_ERR_INPUT, "%s: an input is missing (did its dependencies run?)",
-                            id);
+        sl_pipeline_graph_free(g);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: an input cannot be read", id);
     }
     if (pl_stamp_current(graph, job, key)) {
         *skipped = true;
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         return SL_OK;
     }
     json_t *command = json_object_get(job, "command");
@@ -336,10 +289,9 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     const char *result = result_output(job);
     char partial[PATH_MAX + 16] = "", stamp[PATH_MAX + 600];
     json_t *x;
-    if (!argv || !log) {
-        free(argv);
-        json_decref(graph);
-        return sl_error_set(err, SL_ERR_INPUT, "%s: job '%s' has no command or log", jobs_json, id);
+    if (!argv) {
+        sl_pipeline_graph_free(g);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", id);
     }
     json_array_foreach(command, i, x)
         argv[i] = (char *)json_string_value(x);
@@ -412,6 +364,6 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     json_decref(st);
 done:
     free(argv);
-    json_decref(graph);
+    sl_pipeline_graph_free(g);
     return r;
 }

@@ -44,6 +44,22 @@ sl_result pl_json_load(const char *path, json_t **out, sl_error *err);
 /* Writes a JSON value atomically (indented, sorted as built). */
 sl_result pl_json_write(const char *path, const json_t *value, sl_error *err);
 
+/* A graph read back (graph.c): the document, checked whole. */
+struct sl_pipeline_graph {
+    json_t *root;    /* the file's JSON */
+    json_t *jobs;    /* root's "jobs" */
+    json_t *ids;     /* id -> its index in jobs (a JSON integer) */
+    const char *out; /* root's "out" */
+    int count;
+    int *order;      /* indices into jobs, each after its dependencies */
+};
+
+/* Reads the file (refused over SL_MAX_JSON_BYTES before it is read;
+ * SL_ERR_NOT_FOUND when missing) and sl_pipeline_graph_parse's it. */
+sl_result pl_graph_load(const char *path, sl_pipeline_graph **graph, sl_error *err);
+/* The job of that id, or NULL. */
+json_t *pl_graph_job(const sl_pipeline_graph *graph, const char *id);
+
 /* The graph (its jobs' argv name jobs_path; "" there: OUT/jobs.json, set)
  * and the setups as planned: name, source, status "ok" or "failed" and the
  * reason (also OUT/setups.json). */
@@ -52,7 +68,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
 
 /* A job's key: SHA-256 hex of the version, its command (argv[0] left out:
  * the same setlight anywhere) and its input files' contents. false when an
- * input does not exist (yet). */
+ * input does not exist (yet) or is not a regular file. */
 bool pl_job_key(const json_t *job, char key[65]);
 /* Where a job's stamp lives: OUT/<id>.stamp.json. */
 void pl_stamp_path(const json_t *graph, const json_t *job, char *path, size_t size);
@@ -63,8 +79,6 @@ json_t *pl_stamp_load(const json_t *graph, const json_t *job);
 /* Writes OUT/status.json, the index job's input: every other job's stamp
  * status and key (rewritten only when one changed). */
 sl_result pl_index_prepare(const json_t *graph, sl_error *err);
-/* The job of that id, or NULL. */
-json_t *pl_job_find(const json_t *graph, const char *id);
 
 /* User + system CPU time of a getrusage or wait4 answer. */
 struct rusage;

@@ -250,7 +250,7 @@ json_t *pl_setup_summary(const json_t *graph, const json_t *entry, const json_t 
         rss = fmax(rss, jr);
         json_t *row = json_pack("{s:s,s:s,s:s,s:f,s:f,s:f}", "id", id, "stage", stage, "status",
                                 state, "seconds", js, "cpu_seconds", jc, "max_rss_mb", jr);
-        if (str(stamp, "message") && !strcmp(str(stamp, "status"), "failed"))
+        if (str(stamp, "message") && str(stamp, "status") && !strcmp(str(stamp, "status"), "failed"))
             json_object_set_new(row, "message", json_string(str(stamp, "message")));
         json_array_append_new(jobs, row);
         json_decref(stamp);
@@ -374,29 +374,43 @@ static json_t *find_setup_entry(const json_t *setups_doc, const char *name)
     return NULL;
 }
 
-static sl_result load_graph_and_setups(const char *jobs_json, json_t **graph, json_t **setups,
-                                       sl_error *err)
+/* The graph checked whole (graph.c), then OUT/setups.json beside it. */
+static sl_result load_graph_and_setups(const char *jobs_json, sl_pipeline_graph **g,
+                                       json_t **setups, sl_error *err)
 {
-    sl_result r = pl_json_load(jobs_json, graph, err);
+    sl_result r = pl_graph_load(jobs_json, g, err);
     if (r)
         return r;
     char path[PATH_MAX + 16];
-    snprintf(path, sizeof path, "%s/setups.json", str(*graph, "out"));
+    snprintf(path, sizeof path, "%s/setups.json", (*g)->out);
     r = pl_json_load(path, setups, err);
-    if (r)
-        json_decref(*graph);
+    /* Written by process beside the graph; its fields are compared below. */
+    size_t i;
+    json_t *s;
+    json_array_foreach(json_object_get(*setups, "setups"), i, s)
+        if (!r && (!str(s, "name") || !str(s, "source") || !str(s, "status")))
+            r = sl_error_set(err, SL_ERR_INPUT, "%s: setup %zu has no name, source or status",
+                             path, i + 1);
+    if (r) {
+        json_decref(*setups);
+        *setups = NULL;
+        sl_pipeline_graph_free(*g);
+        *g = NULL;
+    }
     return r;
 }
 
 sl_result sl_pipeline_report_setup(const char *jobs_json, const char *setup, sl_error *err)
 {
-    json_t *graph, *setups;
-    sl_result r = load_graph_and_setups(jobs_json, &graph, &setups, err);
+    sl_pipeline_graph *g;
+    json_t *setups;
+    sl_result r = load_graph_and_setups(jobs_json, &g, &setups, err);
     if (r)
         return r;
+    const json_t *graph = g->root;
     json_t *entry = find_setup_entry(setups, setup);
     if (!entry) {
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         json_decref(setups);
         return sl_error_set(err, SL_ERR_USAGE, "%s: no setup '%s'", jobs_json, setup);
     }
@@ -476,21 +490,23 @@ sl_result sl_pipeline_report_setup(const char *jobs_json, const char *setup, sl_
     r = pl_json_write(path, sum, err);
 done:
     json_decref(sum);
-    json_decref(graph);
+    sl_pipeline_graph_free(g);
     json_decref(setups);
     return r;
 }
 
 sl_result sl_pipeline_report_index(const char *jobs_json, sl_error *err)
 {
-    json_t *graph, *setups;
-    sl_result r = load_graph_and_setups(jobs_json, &graph, &setups, err);
+    sl_pipeline_graph *g;
+    json_t *setups;
+    sl_result r = load_graph_and_setups(jobs_json, &g, &setups, err);
     if (r)
         return r;
+    const json_t *graph = g->root;
     const char *out = str(graph, "out");
     sl_report *rep;
     if ((r = sl_report_new(&rep, out, "index", "setlight process: the day", err))) {
-        json_decref(graph);
+        sl_pipeline_graph_free(g);
         json_decref(setups);
         return r;
     }
@@ -543,7 +559,7 @@ sl_result sl_pipeline_report_index(const char *jobs_json, sl_error *err)
         json_decref(doc);
     } else
         json_decref(list);
-    json_decref(graph);
+    sl_pipeline_graph_free(g);
     json_decref(setups);
     return r;
 }

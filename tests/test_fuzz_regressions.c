@@ -61,7 +61,7 @@ static void test_replay(void)
         snprintf(dir, sizeof dir, "%s/tests/fuzz_regressions/%s", SETLIGHT_SOURCE_DIR, t->name);
         replay_dir(t, dir);
     }
-    CHECK(targets == 12);
+    CHECK(targets == 13);
 }
 
 int main(void)

@@ -39,7 +39,7 @@ static void write_graph(const char *jobs, const char *out, const char *const *id
                        sl_version(), out);
     for (int i = 0; i < n; i++)
         len += snprintf(text + len, sizeof text - (size_t)len,
-                        "%s{\"id\":\"%s\",\"setup\":\"s\",\"stage\":\"merge\",\"argv\":[],"
+                        "%s{\"id\":\"%s\",\"setup\":\"s\",\"stage\":\"merge\",\"argv\":[\"setlight\"],"
                         "\"command\":%s,\"inputs\":%s,\"outputs\":%s,\"deps\":[],\"array\":null,"
                         "\"memory_mb\":1,\"cpus\":1,\"log\":\"%s/logs/%d.log\",\"key\":null,"
                         "\"up_to_date\":false}",
@@ -135,6 +135,8 @@ static void test_job_stamps(void)
     /* An input gone: no key, exit 3 (did its dependencies run?). */
     remove(in);
     CHECK_RESULT(sl_pipeline_job_run(jobs, "s/copy", &code, &skipped, &err), SL_ERR_INPUT, &err);
+    CHECK_MSG(strstr(err.message, "s/copy: input ") && strstr(err.message, "in.txt is missing"), "%s",
+              err.message);
 }
 
 /* Known answer: the test map is 2x the reference times 1, 1.1 or 0.9 (a

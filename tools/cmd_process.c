@@ -34,6 +34,8 @@ static const char process_help[] =
     "                         jobs one after the other (Slurm's ~1 s a job paid once)\n"
     "  --emit-jobs FILE       write the job graph as JSON (docs/process.md) and run\n"
     "                         nothing: for other queues, through 'setlight job FILE ID'\n"
+    "                         (a graph edited by hand is checked whole there: see\n"
+    "                         'setlight job --help')\n"
     "  --probe-view AZ,EL     where the probe camera (chrome and grey ball) looked in\n"
     "                         the set, degrees as 'setlight unwrap' takes them\n"
     "                         (default 0,0: along +Z)\n"
@@ -159,10 +161,29 @@ int cmd_process(int argc, char **argv, const sl_cli *cli)
     return rc;
 }
 
+static const char job_help[] =
+    "usage: setlight job JOBS.json ID\n"
+    "\n"
+    "Runs one job of a graph that 'setlight process --emit-jobs' wrote (docs/process.md):\n"
+    "nothing when its stamp says it is up to date with its inputs, else its command\n"
+    "(stdout to its *.result.json output, stderr to its log), then its stamp. What a\n"
+    "queue runs for each job, in dependency order. The graph is checked whole first:\n"
+    "a file edited into one that does not hold together (a field missing or of the\n"
+    "wrong type, a path not absolute, an id leading out of OUT, two jobs of one id,\n"
+    "a dependency on no job or on a cycle, over 32768 jobs or 4096 entries in a list,\n"
+    "over 16 MB) is refused before anything is written or run.\n"
+    "\n"
+    "Exit codes: the command's (0 also when up to date); 3 a graph that does not hold\n"
+    "together, one line naming the file and the job; 2 usage, or no job of that id.\n";
+
 /* setlight job JOBS.json ID: exits 0 at once when the job is up to date,
  * else with its command's code. */
 int cmd_job(int argc, char **argv, const sl_cli *cli)
 {
+    if (argc == 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
+        fputs(job_help, stdout);
+        return 0;
+    }
     if (argc != 3)
         return cli_usage_error(cli, "usage: setlight job JOBS.json ID");
     int code;

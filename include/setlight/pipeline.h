@@ -16,6 +16,7 @@
 #define SETLIGHT_PIPELINE_H
 
 #include <stdbool.h>
+#include <stddef.h>
 
 #include "setlight/core.h"
 
@@ -82,6 +83,38 @@ void sl_pipeline_result_free(sl_pipeline_result *res);
  * SL_OK also when the command failed (a failed stamp is written). */
 sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
                               bool *skipped, sl_error *err);
+
+/* A job graph read back ("setlight-jobs" version 1, docs/process.md): what
+ * `setlight job`, the report and the index act on, checked whole first. */
+typedef struct sl_pipeline_graph sl_pipeline_graph;
+
+/* The caps of a graph, checked where it is parsed: the jobs (256 setups of
+ * 64 views make about 19 500), the entries of one job's argv, command,
+ * inputs, outputs or deps, and the bytes of an id. */
+#define SL_PIPELINE_MAX_JOBS 32768
+#define SL_PIPELINE_MAX_LIST 4096
+#define SL_PIPELINE_MAX_ID 511
+
+/* Parses and checks a job graph held in memory (`size` bytes of `text`,
+ * no NUL needed); `name` (its file) starts every message. Reads and writes
+ * no file and runs nothing. SL_ERR_INPUT with one line "NAME: problem" or
+ * "NAME: job 'ID': problem" for: more than SL_MAX_JSON_BYTES, JSON that does
+ * not parse or repeats a key, another format or version, "out" not an
+ * absolute path, more than SL_PIPELINE_MAX_JOBS jobs; a job whose id is
+ * missing, repeated or not a safe relative path, whose stage is unknown,
+ * whose argv or command is not a non-empty list of strings, whose inputs,
+ * outputs or log are not absolute paths, whose lists hold more than
+ * SL_PIPELINE_MAX_LIST entries, whose memory_mb, cpus, up_to_date, setup,
+ * array or key have the wrong type; a dependency that is not a job of the
+ * graph, on itself, or on a cycle (named). *graph is the caller's to free. */
+sl_result sl_pipeline_graph_parse(const char *name, const char *text, size_t size,
+                                  sl_pipeline_graph **graph, sl_error *err);
+int sl_pipeline_graph_job_count(const sl_pipeline_graph *graph);
+/* The k-th job's id in an order where every job comes after its
+ * dependencies (Kahn's: the jobs with none first, in the file's order, then
+ * each as its last dependency is placed); NULL out of range. */
+const char *sl_pipeline_graph_job_id(const sl_pipeline_graph *graph, int k);
+void sl_pipeline_graph_free(sl_pipeline_graph *graph);
 
 /* The report job: OUT/SETUP/report.html and report.json from the setup's
  * job results. */
