@@ -1,7 +1,6 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Shared by the closed-form tests: whether the run is under sanitizers
- * (tests then take fewer samples), and a smooth sky over a dark ground
- * that each test puts its own sun in. */
+/* Shared by the closed-form tests: a smooth sky over a dark ground that
+ * each test puts its own sun in. */
 #ifndef SETLIGHT_TESTS_RENDER_SUN_SKY_H
 #define SETLIGHT_TESTS_RENDER_SUN_SKY_H
 
@@ -9,16 +8,6 @@
 #include <string.h>
 
 #include "testing.h"
-
-static inline bool sanitized(void)
-{
-#if defined(__SANITIZE_ADDRESS__)
-    return true;
-#else
-    const char *s = getenv("SETLIGHT_SANITIZED");
-    return s && *s && strcmp(s, "0");
-#endif
-}
 
 static inline void sky_over_ground(sl_image *env, int w)
 {

@@ -9,10 +9,14 @@
 #include "../../render/scene_internal.h"
 #include "testing.h"
 
+/* PLAN_SLACK: how far past its 80% the plan may run, the time of the rows
+ * in flight when the deadline passes (a row is far slower under ASan). */
 #if defined(__SANITIZE_ADDRESS__)
 #define BUDGET 1.0
+#define PLAN_SLACK 0.4
 #else
 #define BUDGET 0.25
+#define PLAN_SLACK 0.1
 #endif
 
 /* A sky with a sun of four texels: the closed form splits cells around it. */
@@ -73,7 +77,7 @@ static void test_time_counts_the_closed_form(void)
     CHECK(last->seconds <= st.seconds + 1e-9);
     /* Cut at 80% of the budget; the first pass (2 spp) may add its own time. */
     CHECK(st.closed_form.cut_by_time && !strcmp(st.stop_reason, "time"));
-    CHECK(st.closed_form.seconds <= 0.8 * BUDGET + 0.1);
+    CHECK(st.closed_form.seconds <= 0.8 * BUDGET + PLAN_SLACK);
     CHECK_MSG(wall <= 2 * BUDGET, "%.3f s for a %.2f s budget", wall, BUDGET);
     CHECK(st.closed_form.exact_pixels + st.closed_form.sampled_pixels == 160 * 160);
     sl_render_stats_free(&st);
