@@ -38,3 +38,15 @@ sl_result sl_json_write_atomic(const char *path, const json_t *root, size_t flag
     free(line);
     return r;
 }
+
+const char *sl_json_string_ending(const json_t *array, const char *suffix)
+{
+    size_t i, n = strlen(suffix);
+    json_t *x;
+    json_array_foreach(array, i, x) {
+        const char *p = json_string_value(x);
+        if (p && strlen(p) >= n && !strcmp(p + strlen(p) - n, suffix))
+            return p;
+    }
+    return NULL;
+}

@@ -22,24 +22,7 @@ static json_t *load_quiet(const char *path)
     return v;
 }
 
-/* The job's output whose name ends with suffix, or NULL. */
-static const char *output_ending(const json_t *job, const char *suffix)
-{
-    size_t i, n = strlen(suffix);
-    json_t *x;
-    json_array_foreach(json_object_get(job, "outputs"), i, x) {
-        const char *p = json_string_value(x);
-        if (p && strlen(p) >= n && !strcmp(p + strlen(p) - n, suffix))
-            return p;
-    }
-    return NULL;
-}
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 static double luminance(const float *p)
 {
@@ -87,16 +70,16 @@ sl_result sl_pipeline_latlong_compare(const char *test_path, const char *ref_pat
         /* |t - r| / r = |t/r - 1|; after the scale s: |t/(s r) - 1|. */
         for (size_t i = 0; i < n; i++)
             rel[i] = ratio[i];
-        qsort(ratio, n, sizeof *ratio, cmp_double);
+        qsort(ratio, n, sizeof *ratio, sl_cmp_double);
         double s = ratio[n / 2];
         *median_ratio = s;
         for (size_t i = 0; i < n; i++)
             ratio[i] = fabs(rel[i] - 1);
-        qsort(ratio, n, sizeof *ratio, cmp_double);
+        qsort(ratio, n, sizeof *ratio, sl_cmp_double);
         *median_rel_error = ratio[n / 2];
         for (size_t i = 0; i < n; i++)
             rel[i] = s > 0 ? fabs(rel[i] / s - 1) : INFINITY;
-        qsort(rel, n, sizeof *rel, cmp_double);
+        qsort(rel, n, sizeof *rel, sl_cmp_double);
         *median_rel_error_scaled = rel[n / 2];
     }
     free(ratio);
@@ -148,7 +131,7 @@ static void set_num(json_t *o, const char *k, json_t *v)
 static void numbers_of(const json_t *job, json_t *nums)
 {
     const char *stage = str(job, "stage");
-    const char *res = output_ending(job, ".result.json");
+    const char *res = sl_json_string_ending(json_object_get(job, "outputs"), ".result.json");
     json_t *r = res ? load_quiet(res) : NULL;
     if (!strcmp(stage, "merge") && r) {
         double worst = json_number_value(json_object_get(nums, "merge_clipped_fraction_max"));
@@ -315,7 +298,7 @@ static double display_stops(const sl_image *img)
         }
     double stops = 0;
     if (n) {
-        qsort(l, n, sizeof *l, cmp_double);
+        qsort(l, n, sizeof *l, sl_cmp_double);
         stops = log2(0.18 / l[n / 2]);
     }
     free(l);

@@ -55,6 +55,19 @@ static void test_json_files(void)
     json_decref(o);
 }
 
+/* A job's output by the end of its name: the first match, NULL for none. */
+static void test_json_string_ending(void)
+{
+    json_t *a = json_pack("[s,i,s,s]", "/d/stitch/hdri.exr", 3, "/d/calibrate/hdri.exr",
+                          "/d/calibrate.result.json");
+    CHECK(!strcmp(sl_json_string_ending(a, "/hdri.exr") ? sl_json_string_ending(a, "/hdri.exr") : "", "/d/stitch/hdri.exr"));
+    CHECK(!strcmp(sl_json_string_ending(a, ".result.json") ? sl_json_string_ending(a, ".result.json") : "", "/d/calibrate.result.json"));
+    CHECK(sl_json_string_ending(a, "/rig.json") == NULL);
+    CHECK(sl_json_string_ending(a, "a longer suffix than any of the paths in the array") == NULL);
+    CHECK(sl_json_string_ending(NULL, ".exr") == NULL);
+    json_decref(a);
+}
+
 static void test_luminance(void)
 {
     const double d[3] = {1, 1, 1}, r[3] = {2, 0, 0};
@@ -163,6 +176,7 @@ static void test_text(void)
 int main(void)
 {
     RUN(test_json_files);
+    RUN(test_json_string_ending);
     RUN(test_luminance);
     RUN(test_cmp_double);
     RUN(test_splitmix64);

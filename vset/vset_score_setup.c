@@ -74,18 +74,6 @@ static json_t *job_of(score_ctx *c, const char *stage, int index)
     return NULL;
 }
 
-/* The job's output whose name ends with suffix, or NULL. */
-static const char *output_of(json_t *job, const char *suffix)
-{
-    size_t i, n = strlen(suffix);
-    json_t *p;
-    json_array_foreach(json_object_get(job, "outputs"), i, p) {
-        const char *s = json_string_value(p);
-        if (s && strlen(s) >= n && !strcmp(s + strlen(s) - n, suffix))
-            return s;
-    }
-    return NULL;
-}
 
 /* The value after `flag` in the job's command, or NULL. */
 static const char *arg_of(json_t *job, const char *flag)
@@ -360,7 +348,7 @@ static sl_result score_stitch(score_ctx *c, sl_image *stitched, double *scale, s
 {
     json_t *job = job_of(c, "stitch", -1);
     sl_vset_image_score s;
-    sl_result r = read_exr(job ? output_of(job, "/hdri.exr") : NULL, stitched, err);
+    sl_result r = read_exr(job ? sl_json_string_ending(json_object_get(job, "outputs"), "/hdri.exr") : NULL, stitched, err);
     if (!r)
         r = sl_vset_score_latlong(stitched, (const double(*)[3])c->rec709_from_camera, &c->truth,
                                   c->o->band_deg, NULL, &s, err);
@@ -398,7 +386,7 @@ static sl_result score_unwrap(score_ctx *c, const sl_image *stitched, sl_error *
         toward[k] = -fwd[k];
     sl_image ball = {0};
     sl_vset_image_score s, x;
-    sl_result r = read_exr(output_of(job, "/chrome.exr"), &ball, err);
+    sl_result r = read_exr(sl_json_string_ending(json_object_get(job, "outputs"), "/chrome.exr"), &ball, err);
     if (!r)
         r = sl_vset_score_latlong(&ball, (const double(*)[3])c->rec709_from_camera, &c->truth,
                                   c->o->band_deg, toward, &s, err);
@@ -455,8 +443,8 @@ static sl_result score_calibrate(score_ctx *c, sl_error *err)
     sl_vset_image_score s;
     json_t *res = NULL;
     double *work = NULL, balance[3];
-    const char *rpath = output_of(job, "calibrate.result.json");
-    sl_result r = read_exr(output_of(job, "/hdri.exr"), &cal, err);
+    const char *rpath = sl_json_string_ending(json_object_get(job, "outputs"), "calibrate.result.json");
+    sl_result r = read_exr(sl_json_string_ending(json_object_get(job, "outputs"), "/hdri.exr"), &cal, err);
     if (!r)
         r = sl_vset_score_latlong(&cal, NULL, &c->truth, c->o->band_deg, NULL, &s, err);
     if (!r && !rpath)
@@ -520,7 +508,7 @@ static sl_result score_rig(score_ctx *c, double stitched_scale, sl_error *err)
     /* the rig is made from the calibrated lat-long when there is one */
     double scale = job_of(c, "calibrate", -1) ? c->calibrated_scale : stitched_scale;
     sl_vset_rig_score s;
-    const char *rig = output_of(job, "/rig.json");
+    const char *rig = sl_json_string_ending(json_object_get(job, "outputs"), "/rig.json");
     if (!rig)
         return sl_error_set(err, SL_ERR_INPUT, "%s: the rig job has no rig.json", c->o->jobs_json);
     sl_result r = sl_vset_score_rig(rig, lights, scale, SL_VSET_SCORE_MATCH_DEG, &s, err);

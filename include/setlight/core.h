@@ -903,6 +903,9 @@ sl_result sl_json_load_file(const char *path, const char *what, size_t flags,
  * atomically (sl_write_file_atomic). Does not take the reference. */
 sl_result sl_json_write_atomic(const char *path, const struct json_t *root, size_t flags,
                                sl_error *err);
+/* The first string of a JSON array that ends with `suffix` (a job's output
+ * by its file name), or NULL. */
+const char *sl_json_string_ending(const struct json_t *array, const char *suffix);
 
 /* Relative luminance of linear Rec.709 RGB (BT.709's Y row to 4 places). */
 static inline double sl_luminance(const double rgb[3])
