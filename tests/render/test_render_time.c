@@ -34,6 +34,17 @@ static void sky(sl_image *env, int w)
     }
 }
 
+/* The grey preset, 160 px, under sky(): with a tight tolerance its plan
+ * takes about 9 CPU seconds (2026-11-28), far over the budget. */
+static void grey_ball_under_sky(sl_scene *s, sl_image *env)
+{
+    sky(env, 512);
+    sl_scene_init(s);
+    sl_error err = {0};
+    CHECK_OK(sl_scene_preset(s, "grey", 160, &err), &err);
+    CHECK_OK(sl_scene_set_dome(s, env, 0, 1, "sky", &err), &err);
+}
+
 static double render_timed(const sl_scene *s, sl_render_options *o, sl_render_stats *st)
 {
     sl_image img;
@@ -52,15 +63,10 @@ static double render_timed(const sl_scene *s, sl_render_options *o, sl_render_st
 static void test_time_counts_the_closed_form(void)
 {
     sl_image env;
-    sky(&env, 512);
     sl_scene s;
-    sl_scene_init(&s);
-    sl_error err = {0};
-    CHECK_OK(sl_scene_preset(&s, "grey", 160, &err), &err);
-    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "sky", &err), &err);
+    grey_ball_under_sky(&s, &env);
     sl_render_options o;
     sl_render_options_init(&o);
-    /* A plan of about 9 CPU seconds (2026-11-28), far over the budget. */
     o.closed_form_tolerance = 1e-4;
     o.spp = 0;
     o.time_limit = BUDGET;
@@ -89,12 +95,8 @@ static void test_time_counts_the_closed_form(void)
 static void test_time_counts_the_glossy_fill(void)
 {
     sl_image env;
-    sky(&env, 512);
     sl_scene s;
-    sl_scene_init(&s);
-    sl_error err = {0};
-    CHECK_OK(sl_scene_preset(&s, "grey", 160, &err), &err);
-    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "sky", &err), &err);
+    grey_ball_under_sky(&s, &env);
     sl_material_conductor(&s.materials[0], (const double[3]){0.9, 0.9, 0.9},
                           (const double[3]){0.9, 0.9, 0.9}, 0.3);
     sl_render_options o;
