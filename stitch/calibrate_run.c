@@ -461,8 +461,13 @@ sl_result sl_calibrate_run(const sl_calibrate_run_options *o, sl_calibrate_run_r
                              plate_on_hdri ? "chart" : "working", &err)))
             goto fail;
     }
+    /* The chart's reference reflectances are for a white light, so a chart
+     * fit makes the light on the chart white; the grey sphere alone keeps
+     * its photo's white balance. */
+    const char *white = chart_used ? "chart" : "camera";
     snprintf(buf, sizeof buf, "%.9g", o->grey_path ? gfit.scale : 1.0);
-    if ((r = sl_meta_set(&out_meta, "setlight:calibration_scale", buf, &err)) ||
+    if ((r = sl_meta_set(&out_meta, "setlight:calibration_white", white, &err)) ||
+        (r = sl_meta_set(&out_meta, "setlight:calibration_scale", buf, &err)) ||
         (r = sl_meta_set(&out_meta, "setlight:source", o->hdri_path, &err)) ||
         (r = sl_meta_set(&out_meta, "setlight:units", abs_scale > 0 ? "cd/m^2" : "relative",
                          &err)))
@@ -519,6 +524,7 @@ sl_result sl_calibrate_run(const sl_calibrate_run_options *o, sl_calibrate_run_r
     json_object_set_new(js, "hdri", json_string(o->hdri_path));
     json_object_set_new(js, "output", json_string(o->out_path));
     json_object_set_new(js, "hdri_in", json_string(plate_on_hdri ? "chart" : "working"));
+    json_object_set_new(js, "white", json_string(white));
     json_object_set_new(js, "matrix", json_matrix(t));
     if (chart_used)
         json_object_set_new(js, "plate_matrix", json_matrix(plate));

@@ -2,7 +2,8 @@
 /* The virtual set's scoring (vset/vset_score.c) on images and rigs whose
  * answers are known: a lat-long twice the truth with a quarter of the band
  * 10% bright, a merged photo with clipped pixels, a rig with two lamps in
- * one light and one lamp it missed. */
+ * one light and one lamp it missed, the light a chart receives (the white
+ * a chart-calibrated map is scored in). */
 #include <jansson.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -168,10 +169,39 @@ static void rig_known(void)
     CHECK(strstr(err.message, "nope.json") != NULL);
 }
 
+/* A flat surface facing +Z under a set whose half in front (z > 0) has
+ * radiance (1, 2, 3) and whose half behind is 100: the irradiance is
+ * pi (1, 2, 3), the half behind adds nothing; turned to face -Z it is
+ * pi 100. */
+static void irradiance_known(void)
+{
+    sl_image ll;
+    sl_error err = {0};
+    CHECK_OK(sl_image_alloc(&ll, 512, 256, 3, &err), &err);
+    for (int y = 0; y < ll.height; y++)
+        for (int x = 0; x < ll.width; x++) {
+            double d[3];
+            sl_latlong_to_dir((x + 0.5) / ll.width, (y + 0.5) / ll.height, d);
+            float *p = sl_image_pixel(&ll, x, y);
+            for (int c = 0; c < 3; c++)
+                p[c] = d[2] > 0 ? (float)(c + 1) : 100.0f;
+        }
+    const double front[3] = {0, 0, 1}, back[3] = {0, 0, -1};
+    double e[3];
+    sl_vset_irradiance(&ll, front, e);
+    for (int c = 0; c < 3; c++)
+        CHECK_NEAR(e[c] / (M_PI * (c + 1)), 1, 1e-4);
+    sl_vset_irradiance(&ll, back, e);
+    for (int c = 0; c < 3; c++)
+        CHECK_NEAR(e[c] / (M_PI * 100), 1, 1e-4);
+    sl_image_free(&ll);
+}
+
 int main(void)
 {
     RUN(latlong_known);
     RUN(image_known);
     RUN(rig_known);
+    RUN(irradiance_known);
     return sl_test_finish();
 }

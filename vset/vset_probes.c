@@ -99,8 +99,7 @@ static sl_result add_chart(sl_scene *s, const sl_vset_probe *p, const double c[3
     return SL_OK;
 }
 
-/* Irradiance on a surface facing `n`, summed over every texel. */
-static void irradiance(const sl_image *ll, const double n[3], double e[3])
+void sl_vset_irradiance(const sl_image *ll, const double n[3], double e[3])
 {
     e[0] = e[1] = e[2] = 0;
     for (int y = 0; y < ll->height; y++) {
@@ -124,7 +123,7 @@ static void compose_chart(const sl_vset_probe *p, const sl_image *ll, const doub
                           sl_image *img)
 {
     double n[3] = {-f[0], -f[1], -f[2]}, e[3];
-    irradiance(ll, n, e);
+    sl_vset_irradiance(ll, n, e);
     for (int y = 0; y < img->height; y++)
         for (int x = 0; x < img->width; x++) {
             float *px = sl_image_pixel(img, x, y);

@@ -34,7 +34,8 @@ typedef struct score_ctx {
     sl_image truth;
     double rec709_from_camera[3][3];
     double calibrated_scale; /* calibrated lat-long / truth, for the rig */
-    double grey_scale;       /* the grey ball's merge / truth: the units calibrate ties to */
+    json_t *grey_job;        /* the grey ball's merge: the photo calibrate ties the map to */
+    sl_image stitch_error;   /* where the stitch is off, for the report */
     sl_report *rep;
     char summary[4096];
     int failed;
@@ -300,7 +301,7 @@ static sl_result score_merge(score_ctx *c, sl_error *err)
             json_array_append_new(list, j);
             worst = fmax(worst, s.median);
             if (!strcmp(kind, "grey"))
-                c->grey_scale = s.scale;
+                c->grey_job = job;
             if (!kind[0] && s.scale > 0) {
                 lo = views++ ? fmin(lo, s.scale) : s.scale;
                 hi = fmax(hi, s.scale);
@@ -343,15 +344,56 @@ static json_t *latlong_tolerances(void)
                      SL_VSET_TOL_POWER);
 }
 
-/* The stitched lat-long (camera RGB) against the truth. */
+#define FAR_OFF_BANDS 8 /* bands of latitude over the scored band (15 degrees each for 60) */
+
+/* Where the stitch is off: per texel of the band |test / (scale truth) - 1|
+ * capped at 1 (white: off by its own value or more; black outside the
+ * band), and per eighth of the band's latitudes the share of texels off
+ * by more than their own value (what sets the p95). */
+static sl_result stitch_error_map(score_ctx *c, const sl_image *test, double scale,
+                                  double far_off[FAR_OFF_BANDS], sl_image *map, sl_error *err)
+{
+    sl_result r = sl_image_alloc(map, test->width, test->height, 3, err);
+    if (r)
+        return r;
+    double count[FAR_OFF_BANDS] = {0}, band = c->o->band_deg, step = 2 * band / FAR_OFF_BANDS;
+    for (int k = 0; k < FAR_OFF_BANDS; k++)
+        far_off[k] = 0;
+    for (int y = 0; y < test->height; y++) {
+        double v = (y + 0.5) / test->height, lat = 90 - 180 * v;
+        for (int x = 0; x < test->width; x++) {
+            const float *p = sl_image_pixel(test, x, y);
+            float t[4], *o = sl_image_pixel(map, x, y);
+            sl_latlong_lookup(&c->truth, (x + 0.5) / test->width, v, t);
+            double in[3] = {p[0], p[1], p[2]}, rec[3];
+            sl_mat3_apply((const double(*)[3])c->rec709_from_camera, in, rec);
+            double b = scale * sl_luminance_px(t);
+            if (fabs(lat) > band || (test->channels == 4 && !(p[3] > 0)) || !(b > VSET_SCORE_DARK))
+                continue;
+            double e = fabs(sl_luminance(rec) / b - 1);
+            o[0] = o[1] = o[2] = (float)fmin(e, 1);
+            int k = (int)fmin(FAR_OFF_BANDS - 1, floor((lat + band) / step));
+            count[k]++;
+            far_off[k] += e > 1;
+        }
+    }
+    for (int k = 0; k < FAR_OFF_BANDS; k++)
+        far_off[k] = count[k] > 0 ? far_off[k] / count[k] : 0;
+    return SL_OK;
+}
+
+/* The stitched lat-long (camera RGB) against the truth, and where it is off. */
 static sl_result score_stitch(score_ctx *c, sl_image *stitched, double *scale, sl_error *err)
 {
     json_t *job = job_of(c, "stitch", -1);
     sl_vset_image_score s;
+    double far_off[FAR_OFF_BANDS];
     sl_result r = read_exr(job ? sl_json_string_ending(json_object_get(job, "outputs"), "/hdri.exr") : NULL, stitched, err);
     if (!r)
         r = sl_vset_score_latlong(stitched, (const double(*)[3])c->rec709_from_camera, &c->truth,
                                   c->o->band_deg, NULL, &s, err);
+    if (!r)
+        r = stitch_error_map(c, stitched, s.scale, far_off, &c->stitch_error, err);
     if (r)
         return r;
     *scale = s.scale;
@@ -359,7 +401,13 @@ static sl_result score_stitch(score_ctx *c, sl_image *stitched, double *scale, s
     snprintf(line, sizeof line, "lat-long within %.0f deg of the horizon: median %.1f%%, p95 "
              "%.1f%%, power %.3f of the truth's (after the scale %.4g)", c->o->band_deg,
              100 * s.median, 100 * s.p95, s.power, s.scale);
-    add_stage(c, "stitch", latlong_ok(&s), image_score_json(&s), latlong_tolerances(), line);
+    json_t *n = image_score_json(&s), *share = json_array();
+    for (int k = 0; k < FAR_OFF_BANDS; k++)
+        json_array_append_new(share, json_real(far_off[k]));
+    json_object_set_new(n, "far_off_by_latitude",
+                        json_pack("{s:f, s:f, s:o}", "from_deg", -c->o->band_deg, "step_deg",
+                                  2 * c->o->band_deg / FAR_OFF_BANDS, "share", share));
+    add_stage(c, "stitch", latlong_ok(&s), n, latlong_tolerances(), line);
     return SL_OK;
 }
 
@@ -432,36 +480,131 @@ static void channel_balance(const sl_image *test, const sl_image *truth, double 
     }
 }
 
-/* The calibrated lat-long against the truth, and its scale and colour:
- * the scale that would have made it the truth, the channel balance. */
+/* In place: every pixel's channels times `gain`. */
+static void scale_channels(sl_image *img, const double gain[3])
+{
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            float *p = sl_image_pixel(img, x, y);
+            for (int ch = 0; ch < 3; ch++)
+                p[ch] = (float)(p[ch] * gain[ch]);
+        }
+}
+
+/* The white a chart fit balances to: fitting the chart's photo to the
+ * reference reflectances (given for a white light) makes the light on the
+ * chart white at its luminance. So the truth a chart-calibrated map should
+ * match is the truth with that light made white: per channel times
+ * Y(E) / E, E the chart's irradiance. Without a chart the gains are 1. */
+static sl_result chart_white(score_ctx *c, bool chart_used, double light[3], double gain[3],
+                             sl_error *err)
+{
+    for (int ch = 0; ch < 3; ch++)
+        light[ch] = gain[ch] = 1;
+    if (!chart_used)
+        return SL_OK;
+    json_t *probe = NULL, *p;
+    size_t i;
+    json_array_foreach(json_object_get(c->probes, "probes"), i, p)
+        if (!strcmp(jstr(json_object_get(p, "kind")), "chart"))
+            probe = p;
+    double fwd[3], n[3], e[3] = {0, 0, 0};
+    json_vec3_get(json_object_get(json_object_get(probe, "camera"), "forward"), fwd);
+    for (int k = 0; k < 3; k++)
+        n[k] = -fwd[k]; /* the chart faces its camera */
+    if (probe)
+        sl_vset_irradiance(&c->truth, n, e);
+    double y = sl_luminance(e);
+    if (!(y > 0) || !(e[0] > 0) || !(e[1] > 0) || !(e[2] > 0))
+        return sl_error_set(err, SL_ERR_INPUT, "%s/truth/probes.json: no chart lit by the set "
+                            "(its irradiance %g %g %g)", c->o->capture, e[0], e[1], e[2]);
+    for (int ch = 0; ch < 3; ch++) {
+        light[ch] = e[ch] / y;
+        gain[ch] = y / e[ch];
+    }
+    return SL_OK;
+}
+
+/* The grey ball's photo as calibrate reads it (through the plate matrix
+ * when a chart was used) against its radiance at the sensor in the
+ * calibration's white: the units the calibration ties the map to. */
+static sl_result grey_photo_scale(score_ctx *c, json_t *plate, const double gain[3],
+                                  double *scale, sl_error *err)
+{
+    *scale = 0;
+    if (!c->grey_job)
+        return SL_OK;
+    double m[3][3];
+    for (int i = 0; i < 3; i++)
+        json_vec3_get(json_array_get(plate, (size_t)i), m[i]);
+    sl_image photo = {0}, clipped = {0}, truth = {0};
+    sl_vset_image_score s;
+    sl_result r = read_exr(merge_output(c->grey_job, false), &photo, err);
+    if (!r)
+        r = read_exr(merge_output(c->grey_job, true), &clipped, err);
+    if (!r)
+        r = merge_truth(c, -1, "grey", &truth, err);
+    if (!r) {
+        scale_channels(&truth, gain);
+        r = sl_vset_score_image(&photo, json_is_array(plate) ? (const double(*)[3])m : NULL,
+                                &truth, &clipped, &s, err);
+    }
+    if (!r)
+        *scale = s.scale;
+    sl_image_free(&photo);
+    sl_image_free(&clipped);
+    sl_image_free(&truth);
+    return r;
+}
+
+/* The calibrated lat-long against the truth in the white the calibration
+ * balanced to, and its scale and colour: the channel balance (and the same
+ * against the physical radiance), the scale against the grey ball's photo
+ * read the same way. */
 static sl_result score_calibrate(score_ctx *c, sl_error *err)
 {
     json_t *job = job_of(c, "calibrate", -1);
     if (!job)
         return SL_OK;
-    sl_image cal = {0};
-    sl_vset_image_score s;
+    sl_image cal = {0}, white_truth = {0};
+    sl_vset_image_score s, radiance;
     json_t *res = NULL;
-    double *work = NULL, balance[3];
+    double *work = NULL, balance[3], balance_radiance[3], light[3], gain[3], grey_scale = 0;
     const char *rpath = sl_json_string_ending(json_object_get(job, "outputs"), "calibrate.result.json");
-    sl_result r = read_exr(sl_json_string_ending(json_object_get(job, "outputs"), "/hdri.exr"), &cal, err);
+    sl_result r = rpath ? sl_json_load_file(rpath, "calibrate result", 0, &res, err)
+                        : sl_error_set(err, SL_ERR_INPUT, "%s: the calibrate job has no result",
+                                       c->o->jobs_json);
+    json_t *plate = json_object_get(res, "plate_matrix");
+    bool chart_used = json_is_true(json_object_get(json_object_get(res, "chart"), "used"));
     if (!r)
-        r = sl_vset_score_latlong(&cal, NULL, &c->truth, c->o->band_deg, NULL, &s, err);
-    if (!r && !rpath)
-        r = sl_error_set(err, SL_ERR_INPUT, "%s: the calibrate job has no result", c->o->jobs_json);
+        r = chart_white(c, chart_used, light, gain, err);
     if (!r)
-        r = sl_json_load_file(rpath, "calibrate result", 0, &res, err);
+        r = sl_image_copy(&c->truth, &white_truth, err);
+    if (!r) {
+        scale_channels(&white_truth, gain);
+        r = read_exr(sl_json_string_ending(json_object_get(job, "outputs"), "/hdri.exr"), &cal, err);
+    }
+    if (!r)
+        r = sl_vset_score_latlong(&cal, NULL, &white_truth, c->o->band_deg, NULL, &s, err);
+    if (!r)
+        r = sl_vset_score_latlong(&cal, NULL, &c->truth, c->o->band_deg, NULL, &radiance, err);
+    if (!r)
+        r = grey_photo_scale(c, plate, gain, &grey_scale, err);
     if (!r && !(work = malloc(sizeof *work * (size_t)cal.width * cal.height)))
         r = sl_error_set(err, SL_ERR_NOMEM, "score: out of memory");
+    if (!r) {
+        channel_balance(&cal, &white_truth, c->o->band_deg, work, balance);
+        channel_balance(&cal, &c->truth, c->o->band_deg, work, balance_radiance);
+    }
+    free(work);
+    sl_image_free(&cal);
+    sl_image_free(&white_truth);
     if (r) {
-        sl_image_free(&cal);
         json_decref(res);
         return r;
     }
-    channel_balance(&cal, &c->truth, c->o->band_deg, work, balance);
-    free(work);
-    sl_image_free(&cal);
-    c->calibrated_scale = s.scale;
+    /* the rig's lamps are the physical ones */
+    c->calibrated_scale = radiance.scale;
     const char *units = jstr(json_object_get(res, "units"));
     bool absolute = strcmp(units, "relative") != 0;
     double applied = json_number_value(json_object_get(res, "scale"));
@@ -470,27 +613,34 @@ static sl_result score_calibrate(score_ctx *c, sl_error *err)
         worst_balance = fmax(worst_balance, fabs(balance[k] - 1));
     /* In relative units (no ISO in the files) the calibration ties the map
      * to the grey ball's photo: the map over the truth should be that
-     * photo's merge over its truth. In cd/m2 it should be 1. */
-    double vs_grey = c->grey_scale > 0 ? s.scale / c->grey_scale : 0;
+     * photo, read as calibrate reads it, over its truth. In cd/m2 it should
+     * be 1. */
+    double vs_grey = grey_scale > 0 ? s.scale / grey_scale : 0;
     bool pass = latlong_ok(&s) && worst_balance <= SL_VSET_TOL_BALANCE &&
                 (!absolute || fabs(s.scale - 1) <= SL_VSET_TOL_ABSOLUTE) &&
-                (c->grey_scale <= 0 || fabs(vs_grey - 1) <= SL_VSET_TOL_EXPOSURE);
+                (grey_scale <= 0 || fabs(vs_grey - 1) <= SL_VSET_TOL_EXPOSURE);
     json_t *n = image_score_json(&s);
-    json_t *grey = json_object_get(res, "grey"), *chart = json_object_get(res, "chart");
+    json_t *grey = json_object_get(res, "grey");
     json_object_set_new(n, "units", json_string(units));
+    json_object_set_new(n, "white", json_string(chart_used ? "chart" : "radiance"));
+    json_object_set_new(n, "chart_light", json_pack("[f,f,f]", light[0], light[1], light[2]));
     json_object_set_new(n, "scale_applied", json_real(applied));
     json_object_set_new(n, "scale_truth", json_real(s.scale > 0 ? applied / s.scale : 0));
     json_object_set_new(n, "exposure_vs_grey", json_real(vs_grey));
     json_object_set_new(n, "channel_balance", json_pack("[f,f,f]", balance[0], balance[1], balance[2]));
+    json_object_set_new(n, "vs_radiance", image_score_json(&radiance));
+    json_object_set_new(json_object_get(n, "vs_radiance"), "channel_balance",
+                        json_pack("[f,f,f]", balance_radiance[0], balance_radiance[1],
+                                  balance_radiance[2]));
     json_object_set_new(n, "grey_gain", json_deep_copy(json_object_get(grey, "gain")));
-    (void)chart;
     json_t *tol = latlong_tolerances();
     json_object_set_new(tol, "channel_balance_off", json_real(SL_VSET_TOL_BALANCE));
     json_object_set_new(tol, "absolute_scale_off", json_real(SL_VSET_TOL_ABSOLUTE));
     json_object_set_new(tol, "exposure_vs_grey_off", json_real(SL_VSET_TOL_EXPOSURE));
-    char line[320];
-    snprintf(line, sizeof line, "calibrated lat-long: median %.1f%%, p95 %.1f%%, power %.3f; "
-             "exposure %.3f of the grey ball's (%s units); channel balance %.3f %.3f %.3f",
+    char line[400];
+    snprintf(line, sizeof line, "calibrated lat-long against the truth in the %s white: median "
+             "%.1f%%, p95 %.1f%%, power %.3f; exposure %.3f of the grey ball's (%s units); "
+             "channel balance %.3f %.3f %.3f", chart_used ? "chart's" : "radiance's",
              100 * s.median, 100 * s.p95, s.power, vs_grey, units, balance[0], balance[1],
              balance[2]);
     add_stage(c, "calibrate", pass, n, tol, line);
@@ -738,6 +888,12 @@ sl_result sl_vset_score_setup(const sl_vset_score_options *o, sl_vset_score_resu
                                  "process/capture/stitch/hdri.exr (camera RGB) at the truth's "
                                  "exposure", err)))
             goto done;
+        if (c.stitch_error.data &&
+            (r = sl_report_image(c.rep, "stitch_error.png", &c.stitch_error, 0,
+                                 "where the stitch is off: |stitch / (scale x truth) - 1| within "
+                                 "60 deg of the horizon; black 0, white off by its own value or "
+                                 "more (what sets the p95)", err)))
+            goto done;
         r = sl_report_finish(c.rep, err);
         c.rep = NULL;
         if (r)
@@ -776,6 +932,7 @@ done:
     if (c.rep)
         sl_report_free(c.rep);
     sl_image_free(&stitched);
+    sl_image_free(&c.stitch_error);
     sl_image_free(&c.truth);
     json_decref(c.cap);
     json_decref(c.cam);

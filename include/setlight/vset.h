@@ -315,6 +315,10 @@ void sl_vset_probe_default(sl_vset_probe *p, sl_vset_probe_kind kind, int width,
  * (noise-free; the render gives what each pixel sees). geo may be NULL. */
 sl_result sl_vset_probe_render(const sl_vset_probe *p, const sl_image *latlong,
                                sl_image *radiance, sl_vset_probe_geometry *geo, sl_error *err);
+/* RGB irradiance on a flat surface facing `n` (unit) under a lat-long at
+ * infinity: every texel's radiance times its cosine and solid angle. The
+ * light a chart facing n receives, as the probe render lights it. */
+void sl_vset_irradiance(const sl_image *latlong, const double n[3], double e[3]);
 
 /* ---- set captures ---------------------------------------------------- */
 
