@@ -36,6 +36,7 @@ typedef struct score_ctx {
     double calibrated_scale; /* calibrated lat-long / truth, for the rig */
     json_t *grey_job;        /* the grey ball's merge: the photo calibrate ties the map to */
     sl_image stitch_error;   /* where the stitch is off, for the report */
+    sl_image white_truth;    /* the truth in the calibration's white (empty: no calibration) */
     sl_report *rep;
     char summary[4096];
     int failed;
@@ -598,11 +599,13 @@ static sl_result score_calibrate(score_ctx *c, sl_error *err)
     }
     free(work);
     sl_image_free(&cal);
-    sl_image_free(&white_truth);
     if (r) {
+        sl_image_free(&white_truth);
         json_decref(res);
         return r;
     }
+    /* the validation renders are made from the calibrated map */
+    c->white_truth = white_truth;
     /* the rig's lamps are the physical ones */
     c->calibrated_scale = radiance.scale;
     const char *units = jstr(json_object_get(res, "units"));
@@ -684,8 +687,9 @@ static sl_result score_rig(score_ctx *c, double stitched_scale, sl_error *err)
     return SL_OK;
 }
 
-/* A validation scene rendered under the truth lat-long, at the process
- * render's size. */
+/* A validation scene rendered under the truth lat-long (in the
+ * calibration's white, as the map the process rendered from), at the
+ * process render's size. */
 static sl_result truth_render(score_ctx *c, const char *scene_name, int width, sl_image *out,
                               sl_error *err)
 {
@@ -699,7 +703,8 @@ static sl_result truth_render(score_ctx *c, const char *scene_name, int width, s
     memset(&st, 0, sizeof st);
     sl_result r = sl_scene_preset(&scene, scene_name, width, err);
     if (!r)
-        r = sl_scene_set_dome(&scene, &c->truth, 0, 1, "truth/latlong.exr", err);
+        r = sl_scene_set_dome(&scene, c->white_truth.data ? &c->white_truth : &c->truth, 0, 1,
+                              "truth/latlong.exr", err);
     if (!r)
         r = sl_render(&scene, &ro, out, &st, err);
     sl_render_stats_free(&st);
@@ -933,6 +938,7 @@ done:
         sl_report_free(c.rep);
     sl_image_free(&stitched);
     sl_image_free(&c.stitch_error);
+    sl_image_free(&c.white_truth);
     sl_image_free(&c.truth);
     json_decref(c.cap);
     json_decref(c.cam);

@@ -437,14 +437,14 @@ sl_result sl_vset_score_rig(const char *rig_json, const char *lights_json, doubl
 #define SL_VSET_TOL_LATLONG_P95 1.0
 #define SL_VSET_TOL_POWER 0.25               /* |power ratio - 1| */
 #define SL_VSET_TOL_UNWRAP_MEDIAN 0.15       /* chrome-ball unwrap, the half it sees */
-#define SL_VSET_TOL_BALANCE 0.20             /* calibrated channel balance, |b - 1| */
+#define SL_VSET_TOL_BALANCE 0.05             /* calibrated channel balance in its white, |b - 1| */
 #define SL_VSET_TOL_ABSOLUTE 0.10            /* calibrated scale, when in absolute units */
 #define SL_VSET_TOL_EXPOSURE 0.05            /* calibrated map / truth against the grey ball's
                                                 merge / truth: the units it is tied to */
 #define SL_VSET_TOL_RIG_MATCHED 0.5          /* share of the lamps the rig must find */
 #define SL_VSET_TOL_RIG_DIRECTION_DEG 4.0    /* worst matched lamp's direction */
 #define SL_VSET_TOL_RIG_POWER 0.5            /* |median power ratio - 1| */
-#define SL_VSET_TOL_RENDER_RMSE 0.30         /* grey and chart renders against the truth's */
+#define SL_VSET_TOL_RENDER_RMSE 0.10         /* grey and chart renders against the truth's */
 #define SL_VSET_TOL_RENDER_CHROME_RMSE 0.60  /* the chrome ball: every edge of the map shows */
 
 typedef struct sl_vset_score_options {

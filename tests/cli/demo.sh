@@ -61,9 +61,10 @@ checks = {
     # 4 of the 7 lamps (the others are within a few degrees of each other), 2.2 deg, power 0.86
     "rig": n["rig"]["matched"] >= 4 and n["rig"]["truth_lights"] == 7
            and n["rig"]["direction_worst_deg"] < 4 and near(n["rig"]["power_median"], 1, 0.4),
-    # the six renders against the scenes under the truth (12.9% grey/chart, 36.8% chrome)
-    "render": n["render"]["renders"] == 6 and n["render"]["worst_rel_rmse"] < 0.2
-              and n["render"]["worst_chrome_rel_rmse"] < 0.5,
+    # the six renders against the scenes under the truth in the calibration's white
+    # (4.9% grey/chart, 30.0% chrome at tiny; 17.6% and 37.8% in the truth's own white)
+    "render": n["render"]["renders"] == 6 and n["render"]["worst_rel_rmse"] < 0.10
+              and n["render"]["worst_chrome_rel_rmse"] < 0.45,
 }
 # each verdict is the stage's numbers against its stated tolerances
 t = {k: s["tolerances"] for k, s in st.items()}
