@@ -91,14 +91,18 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
     double lo = INFINITY, hi = -INFINITY;
     int valid = 0;
     for (int i = 0; i < n; i++) {
-        double best = 2, k = NAN;
+        double best = 2, k = NAN, z_best = 0;
+        int r_best = -1;
         for (int r = 0; r < f; r++) {
             double z = s->z[((size_t)i * f + r) * 3 + c];
             if (z > black && merge_usable(s, i, r, saturation) && fabs(z - 0.5) < best) {
                 best = fabs(z - 0.5);
-                k = log(z) - log_exposure[r];
+                z_best = z;
+                r_best = r;
             }
         }
+        if (r_best >= 0) /* one logarithm a sample, of the frame chosen */
+            k = log(z_best) - log_exposure[r_best];
         key[i] = k;
         if (!isnan(k)) {
             order[valid++] = i;
