@@ -7,6 +7,24 @@
 # by bench/startup_vs_opencv.py, never here.
 . "$(dirname "$0")/lib.bash"
 
+# A TIFF cut short or garbled (libtiff's reading): one line naming the file, exit 3,
+# nothing written.
+"$MAKE_FIXTURE" latlong "$T/tif.exr" 64 32 || bad "fixture"
+"$SETLIGHT" convert "$T/tif.exr" "$T/good.tif" 2>/dev/null || bad "fixture"
+head -c 200 "$T/good.tif" >"$T/cut.tif"
+python3 -c 'import sys; b = bytearray(open(sys.argv[1], "rb").read()); b[8:40] = b"\xa5" * 32; open(sys.argv[2], "wb").write(b)' \
+  "$T/good.tif" "$T/garbled.tif" || bad "fixture"
+for f in cut garbled; do
+  p="$T/$f.tif"
+  expect 3 "$SETLIGHT" info "$p"; err_has "setlight info: $p: truncated or corrupt"; err_one_line
+  expect 3 "$SETLIGHT" convert "$p" "$T/${f}_c.exr"; err_has "setlight convert: $p: "; err_one_line
+  absent "$T/${f}_c.exr"
+  expect 3 "$SETLIGHT" merge --quiet --times 1,2 -o "$T/${f}_m.exr" "$T/good.tif" "$p"
+  err_has "setlight merge: $p: "; err_one_line
+  absent "$T/${f}_m.exr"
+done
+no_temp "$T"
+
 # Sanitizer builds link OpenImageIO and OpenCV in (CMakeLists.txt).
 if ldd "$SETLIGHT" | grep -q 'libasan'; then
   skip "sanitizer build: OpenImageIO and OpenCV are linked in"
