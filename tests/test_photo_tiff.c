@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include "../core/photo_private.h"
+#include "test_photo_common.h"
 #include "testing.h"
 
 /* ---- synthetic TIFFs -------------------------------------------------- */
@@ -216,14 +217,6 @@ static bool write_variant(const char *path, const variant *v)
 
 /* ---- comparisons ------------------------------------------------------ */
 
-static bool same_pixels(const sl_image *a, const sl_image *b)
-{
-    return a->width == b->width && a->height == b->height && a->channels == b->channels &&
-           a->data && b->data &&
-           memcmp(a->data, b->data,
-                  sizeof(float) * (size_t)a->width * (size_t)a->height * (size_t)a->channels) == 0;
-}
-
 /* Row y of an image as strips give it: RGB, grey repeated. */
 static void strip_row(const sl_image *img, int y, float *rgb)
 {
@@ -299,7 +292,7 @@ static void compare_reads(const char *path, const sl_image *native, const sl_met
     sl_meta ref_meta, meta, oiio_meta;
     int w, h, c, ow, oh, oc;
     CHECK_OK(sl_oiio_read(path, &ref, &ref_meta, &err), &err);
-    CHECK_MSG(same_pixels(native, &ref), "%s: pixels differ from OpenImageIO's", path);
+    CHECK_MSG(photo_same_pixels(native, &ref), "%s: pixels differ from OpenImageIO's", path);
     CHECK_MSG(native_meta->iso == iso && ref_meta.iso == 0, "%s: ISO %g, OIIO %g", path,
               native_meta->iso, ref_meta.iso);
     ref_meta.iso = iso;
@@ -523,22 +516,9 @@ static void test_corrupt_tiff(void)
         {"cut_directory.tif", whole, size - 60, "truncated or corrupt TIFF"},
         {"garbled_strip.tif", bad, size, "truncated or corrupt image at rows 0-"},
     };
-    fflush(stderr);
-    int saved = dup(2);
-    FILE *caught = freopen(sl_test_path("stderr.txt"), "w", stderr);
-    for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
-        const char *path = sl_test_path(cuts[i].name);
-        CHECK_OK(sl_write_file_atomic(path, cuts[i].bytes, cuts[i].keep, &err), &err);
-        sl_image img;
-        sl_meta meta;
-        int before = sl_oiio_start_count();
-        CHECK_RESULT(sl_photo_read(path, &img, &meta, &err), SL_ERR_INPUT, &err);
-        CHECK_MSG(strstr(err.message, path) && strstr(err.message, cuts[i].what) &&
-                      !strchr(err.message, '\n'),
-                  "%s", err.message);
-        CHECK(img.data == NULL && meta.attrs == NULL);
-        CHECK(sl_oiio_start_count() == before);
-    }
+    stderr_catch caught = stderr_catch_begin();
+    for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++)
+        photo_check_refused(cuts[i].name, cuts[i].bytes, cuts[i].keep, cuts[i].what);
     /* The strips see the damage at the rows it hits. */
     sl_photo_strips *s;
     sl_photo_strip_info info;
@@ -551,12 +531,8 @@ static void test_corrupt_tiff(void)
         CHECK_MSG(strstr(err.message, path) != NULL, "%s", err.message);
         sl_photo_strips_close(s);
     }
-    fflush(stderr);
-    if (caught)
-        dup2(saved, 2);
-    close(saved);
-    size_t printed = 0;
-    char *text = sl_test_read_file(sl_test_path("stderr.txt"), &printed);
+    size_t printed;
+    char *text = stderr_catch_end(&caught, &printed);
     CHECK_MSG(printed == 0, "libtiff printed: %s", text ? text : "");
     free(text);
     free(bad);
