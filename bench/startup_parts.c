@@ -1,9 +1,11 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* The parts of a command's start-up that happen on first use, in one
  * process, CPU time of each: the OCIO config (first colour-space name), a
- * PNG header (libpng), a first non-PNG photo header (starts OpenImageIO:
- * dlopen of its ~260 libraries) and a second one (OpenImageIO started).
- *   build/bench/bench_startup X.png X.tif
+ * PNG header (libpng), a first header of the second file and a second one:
+ * a TIFF is read by libtiff; a file core leaves to OpenImageIO (a Radiance
+ * .hdr, a palette TIFF) starts it on the first (dlopen of its ~260
+ * libraries).
+ *   build/bench/bench_startup X.png X.tif|X.hdr
  * docs/performance.md has the numbers; never run as a timed test. */
 #include <stdio.h>
 
@@ -30,7 +32,7 @@ static void header(const char *what, const char *path)
 int main(int argc, char **argv)
 {
     if (argc != 3) {
-        fprintf(stderr, "usage: bench_startup X.png X.tif\n");
+        fprintf(stderr, "usage: bench_startup X.png X.tif|X.hdr\n");
         return 2;
     }
     printf("%-44s %8.2f ms CPU\n", "process start to main", 1e3 * sl_cpu_seconds());
@@ -39,7 +41,7 @@ int main(int argc, char **argv)
     printf("%-44s %8.2f ms CPU (%s)\n", "OCIO config (first colour-space name)", ms_since(&t),
            name ? name : "none");
     header("PNG header (libpng)", argv[1]);
-    header("first TIFF header (starts OpenImageIO)", argv[2]);
-    header("second TIFF header", argv[2]);
+    header("first header of the second file", argv[2]);
+    header("second header", argv[2]);
     return 0;
 }

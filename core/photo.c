@@ -1,17 +1,20 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* core.h's photo calls: PNG through libpng (photo_png.c), JPEG through
- * libjpeg (photo_jpeg.c), everything else, and the files those decline,
- * through OpenImageIO (photo_module.c). Writing always goes through
- * OpenImageIO. */
+ * libjpeg (photo_jpeg.c), TIFF through libtiff (photo_tiff.c), everything
+ * else, and the files those decline, through OpenImageIO (photo_module.c).
+ * Writing always goes through OpenImageIO. */
 #include "photo_private.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-/* 1 / 255 and 1 / 65535 as multipliers: OIIO's conversion, to the bit. */
+/* 1 / 255 and 1 / 65535 as multipliers: OIIO's conversion, to the bit;
+ * float samples (4 bytes) as they are. */
 static void codes_to_float(const void *codes, int code_bytes, size_t n, float *dst)
 {
-    if (code_bytes == 1) {
+    if (code_bytes == 4) {
+        memcpy(dst, codes, n * sizeof *dst);
+    } else if (code_bytes == 1) {
         const unsigned char *c = codes;
         for (size_t i = 0; i < n; i++)
             dst[i] = (float)c[i] * (1.0f / 255.0f);
@@ -22,19 +25,24 @@ static void codes_to_float(const void *codes, int code_bytes, size_t n, float *d
     }
 }
 
-/* A file core decodes itself: one of the two readers. */
+/* A file core decodes itself: one of the three readers. code_bytes 4:
+ * float samples. */
 typedef struct native {
     sl_png_reader *png;
     sl_jpeg_reader *jpeg;
+    sl_tiff_reader *tiff;
     int width, height, channels, code_bytes, block_w, block_h;
+    bool is_float;
 } native;
 
 static void native_close(native *n)
 {
     sl_png_close(n->png);
     sl_jpeg_close(n->jpeg);
+    sl_tiff_reader_close(n->tiff);
     n->png = NULL;
     n->jpeg = NULL;
+    n->tiff = NULL;
 }
 
 /* The reader for path, or *declined (a format or file left to
@@ -62,6 +70,11 @@ static sl_result native_open(const char *path, native *n, sl_meta *meta, bool pi
         if (n->jpeg)
             sl_jpeg_size(n->jpeg, &n->width, &n->height, &n->channels, &n->block_w,
                          &n->block_h);
+    } else if (sl_tiff_is_tiff(path)) {
+        res = sl_tiff_reader_open(path, &n->tiff, meta, declined, err);
+        if (n->tiff)
+            sl_tiff_reader_size(n->tiff, &n->width, &n->height, &n->channels, &n->code_bytes,
+                                &n->is_float);
     } else
         *declined = true;
     return res;
@@ -72,6 +85,8 @@ static sl_result native_rows(native *n, int y0, int y1, int keep, void *codes, s
 {
     if (n->jpeg)
         return sl_jpeg_read_rows(n->jpeg, y0, y1, keep, codes, err);
+    if (n->tiff)
+        return sl_tiff_reader_rows(n->tiff, y0, y1, keep, codes, err);
     return sl_png_read_rows(n->png, y0, y1, keep, codes, err);
 }
 
@@ -169,7 +184,8 @@ sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
         info->height = s->file.height;
         info->file_channels = s->file.channels;
         info->bits = 8 * s->code_bytes;
-        info->code_bytes = s->code_bytes;
+        info->is_float = s->file.is_float;
+        info->code_bytes = s->file.is_float ? 0 : s->code_bytes;
         info->block_w = s->file.block_w;
         info->block_h = s->file.block_h;
     }
@@ -216,6 +232,8 @@ sl_result sl_photo_strips_read_codes(sl_photo_strips *s, int y0, int y1, void *r
 {
     if (s->oiio)
         return sl_oiio_strips_read_codes(s->oiio, y0, y1, rgb, err);
+    if (s->file.is_float)
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no integer codes (float samples)", s->path);
     sl_result res = native_strip(s, y0, y1, err);
     if (!res)
         memcpy(rgb, s->codes, (size_t)(y1 - y0) * (size_t)s->width * 3 * (size_t)s->code_bytes);

@@ -326,10 +326,9 @@ static bool xml_name_char(unsigned char c)
            c == ':' || c == '_' || c == '-' || c == '.' || c >= 0x80;
 }
 
-/* Whether OIIO's reading of this XMP packet could differ from the EXIF-only
- * metadata: some element or attribute name that reaches fill_meta. Every
- * name in the packet is looked at, inside rdf:Description or not. */
-static bool xmp_matters(const unsigned char *p, size_t n, bool have_original)
+/* photo_private.h: every name in the packet is looked at, inside
+ * rdf:Description or not. */
+bool sl_xmp_matters(const unsigned char *p, size_t n, bool have_original)
 {
     for (size_t i = 0; i < n; i++) {
         /* a name follows '<' or '</' (an element), or blank space (an attribute) */
@@ -369,7 +368,7 @@ static bool declined_metadata(const struct jpeg_decompress_struct *cinfo, const 
     for (jpeg_saved_marker_ptr m = cinfo->marker_list; m; m = m->next)
         if (m->marker == JPEG_APP0 + 1 && m->data_length >= sizeof xmp &&
             !memcmp(m->data, xmp, sizeof xmp) &&
-            xmp_matters(m->data + sizeof xmp, m->data_length - sizeof xmp, have_original))
+            sl_xmp_matters(m->data + sizeof xmp, m->data_length - sizeof xmp, have_original))
             return true;
     return false;
 }

@@ -75,6 +75,41 @@ sl_result sl_jpeg_read_rows(sl_jpeg_reader *reader, int y0, int y1, int keep,
                             unsigned char *codes, sl_error *err);
 void sl_jpeg_close(sl_jpeg_reader *reader);
 
+/* TIFF through libtiff, giving what OpenImageIO 2.4 gives for the same
+ * file: the same samples (the same libtiff; 8- and 16-bit codes scaled by
+ * OIIO's multipliers, 32-bit float as stored, alpha as stored), strips or
+ * tiles, no rotation (Orientation is reported), and the same sl_meta:
+ * Make, Model, DateTime, Orientation from the image directory; ExposureTime,
+ * FNumber, FocalLength, LensModel, DateTimeOriginal from EXIF's; the colour
+ * space "sRGB" when there is EXIF whose ColorSpace is not "uncalibrated",
+ * or the linear space the ICC profile names (core/icc.c). One difference:
+ * EXIF's ISO is read, where OIIO 2.4 drops it. Declined (*declined set,
+ * err untouched, for OpenImageIO): palette, CMYK, YCbCr, Lab and
+ * white-is-zero photometrics, planar-separate samples, bit depths other
+ * than 8/16-bit unsigned and 32-bit float, fill order LSB-first,
+ * compressions other than none, LZW, deflate, PackBits, ZSTD and LZMA
+ * (JPEG-in-TIFF among them), and XMP that names an attribute setlight
+ * reads. Any rows can be read, in any order. */
+typedef struct sl_tiff_reader sl_tiff_reader;
+/* Whether the file starts with a TIFF or BigTIFF header (false when unreadable). */
+bool sl_tiff_is_tiff(const char *path);
+sl_result sl_tiff_reader_open(const char *path, sl_tiff_reader **reader, sl_meta *meta,
+                              bool *declined, sl_error *err);
+void sl_tiff_reader_size(const sl_tiff_reader *reader, int *width, int *height, int *channels,
+                         int *code_bytes, bool *is_float);
+/* Rows [y0, y1) as the file's samples (uint8, uint16 or float, native
+ * order), channels [0, keep) of each pixel kept. */
+sl_result sl_tiff_reader_rows(sl_tiff_reader *reader, int y0, int y1, int keep, void *codes,
+                              sl_error *err);
+void sl_tiff_reader_close(sl_tiff_reader *reader);
+
+/* Whether OIIO's reading of this XMP packet (without its namespace prefix)
+ * could differ from the EXIF-only metadata: some element or attribute name
+ * that reaches photo_cxx.cpp's fill_meta (the date names only when there is
+ * no EXIF DateTimeOriginal). photo_jpeg.c and photo_tiff.c decline such
+ * files. */
+bool sl_xmp_matters(const unsigned char *p, size_t n, bool have_original);
+
 /* SL_ERR_INPUT naming the file when a JPEG, PNG, TIFF or Radiance header
  * claims more pixels than a file of its size can hold, or an image over
  * the memory budget (photo_claim.c); SL_OK for other files, left to their

@@ -12,6 +12,7 @@ packages=(
   libraw-dev
   libpng-dev
   libjpeg62-turbo-dev   # core/photo_jpeg.c (the libjpeg OpenImageIO uses)
+  libtiff-dev   # core/photo_tiff.c (the libtiff OpenImageIO uses)
   libjansson-dev
   libssl-dev
   python3 python3-jsonschema   # tests/cli/check_jobs.py: the job graph against docs/jobs.schema.json

@@ -252,8 +252,8 @@ typedef struct rigid {
  * the rms derivative by the angle, radians): a tone map off by that
  * residual in smooth content moves the estimate by about as much, whatever
  * the pixel count, so a smaller motion is not believed. */
-static int64_t refine(const plane *a, const plane *b, int level, double tol, rigid *t,
-                      double spread[2])
+static int64_t refine(const plane *a, const plane *b, int level, double tol, bool quick,
+                      rigid *t, double spread[2])
 {
     double s = ldexp(1, level), cx = 0.5 * a->w, cy = 0.5 * a->h;
     int64_t used = 0;
@@ -332,7 +332,11 @@ static int64_t refine(const plane *a, const plane *b, int level, double tol, rig
         t->tx += dx * s;
         t->ty += dy * s;
         t->th += dth;
-        if (fabs(dx) < tol && fabs(dy) < tol && fabs(dth) * a->w < tol)
+        /* The measurement counts a motion only beyond twice the spread:
+         * steps under a tenth of it cannot change that, and on smooth
+         * content (a sky's gradient) they wander for every iteration. */
+        double stop = quick ? fmax(tol, 0.1 * spread[0] / s) : tol;
+        if (fabs(dx) < stop && fabs(dy) < stop && fabs(dth) * a->w < stop)
             break;
     }
     return used;
@@ -389,8 +393,9 @@ static void joint_tones(const plane *a, const plane *b, const rigid *t, float *m
 typedef struct effort {
     double tol;
     int rounds;
+    bool quick;
 } effort;
-static const effort FULL = {1e-4, 4}, QUICK = {5e-3, 1};
+static const effort FULL = {1e-4, 4, false}, QUICK = {5e-3, 1, true};
 
 static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
                        const sl_merge_options *opt, double scale, effort how, rigid *out,
@@ -443,11 +448,11 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
     while (start + 1 < a->levels && a->lv[start].w > 256)
         start++;
     for (int lv = start; lv >= 0; lv--)
-        *used = refine(&a->lv[lv], &bm->lv[lv], lv, how.tol, out, spread);
+        *used = refine(&a->lv[lv], &bm->lv[lv], lv, how.tol, how.quick, out, spread);
     for (int round = 0; round < how.rounds && *used >= min_overlap(&a->lv[0]); round++) {
         joint_tones(&a->lv[0], &b->lv[0], out, map);
         apply_map(&b->lv[0], map, &bm->lv[0]);
-        *used = refine(&a->lv[0], &bm->lv[0], 0, how.tol, out, spread);
+        *used = refine(&a->lv[0], &bm->lv[0], 0, how.tol, how.quick, out, spread);
     }
     if (*used < min_overlap(&a->lv[0])) {
         snprintf(note, note_size, "%lld pixels well exposed in both frames (too few)",

@@ -698,10 +698,20 @@ static void mark_spoilt(merge_ctx *m, const sl_merge_result *res, const sl_respo
     }
     if (!any)
         return;
+    /* The blocks' codes once (the rounds change only the curve and the
+     * exposures): finding them was a tenth of a small JPEG bracket's fit. */
+    size_t n = (size_t)m->samples.count * (size_t)f;
+    if (!m->spoil_codes && (m->spoil_codes = malloc(n * 2 * sizeof *m->spoil_codes)))
+        for (int i = 0; i < m->samples.count; i++)
+            for (int q = 0; q < f; q++)
+                merge_block_codes(m, q, m->sample_pos[i], m->spoil_codes + 2 * ((size_t)i * f + q));
     for (int i = 0; i < m->samples.count; i++)
-        for (int q = 0; q < f; q++)
-            m->samples.spoilt[(size_t)i * f + q] =
-                merge_block_spoilt(m, resp, loge, q, m->sample_pos[i]);
+        for (int q = 0; q < f; q++) {
+            size_t e = (size_t)i * f + q;
+            m->samples.spoilt[e] =
+                m->spoil_codes ? merge_block_spoilt_codes(m, resp, loge, q, m->spoil_codes + 2 * e)
+                               : merge_block_spoilt(m, resp, loge, q, m->sample_pos[i]);
+        }
 }
 
 static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,
@@ -784,6 +794,8 @@ static void release_samples(merge_ctx *m)
     for (int i = 0; m->block_max && i < m->samples.frames; i++)
         free(m->block_max[i]);
     free(m->block_max);
+    free(m->spoil_codes);
+    m->spoil_codes = NULL;
     m->sample_pos = NULL;
     m->samples.z = NULL;
     m->samples.spoilt = NULL;

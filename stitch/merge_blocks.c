@@ -101,16 +101,21 @@ static float block_at(const merge_ctx *m, int i, int64_t pos)
     return m->block_max[i][(size_t)(y / bh) * ((m->width + bw - 1) / bw) + x / bw];
 }
 
-bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const double *loge, int r,
-                        int64_t pos)
+void merge_block_codes(const merge_ctx *m, int r, int64_t pos, float codes[2])
 {
-    int i = m->order[r];
-    if (!m->block_max[i] || block_at(m, i, pos) < m->saturation)
+    int i = m->order[r], s = r > 0 ? m->order[r - 1] : -1;
+    codes[0] = m->block_max[i] ? block_at(m, i, pos) : -1;
+    codes[1] = s >= 0 && m->block_max[s] ? block_at(m, s, pos) : -1;
+}
+
+bool merge_block_spoilt_codes(const merge_ctx *m, const sl_response *resp, const double *loge,
+                              int r, const float codes[2])
+{
+    if (codes[0] < 0 || codes[0] < m->saturation)
         return false;
-    int s = r > 0 ? m->order[r - 1] : -1;
-    if (s < 0 || !m->block_max[s])
+    if (codes[1] < 0)
         return true;
-    float z = block_at(m, s, pos);
+    float z = codes[1];
     if (z >= m->saturation)
         return true;
     double y = 0, ysat = 0;
@@ -119,4 +124,12 @@ bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const doubl
         ysat = fmax(ysat, sl_response_eval(resp, c, m->saturation));
     }
     return y * exp(loge[r] - loge[r - 1]) > SPOIL_EXCESS * ysat;
+}
+
+bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const double *loge, int r,
+                        int64_t pos)
+{
+    float codes[2];
+    merge_block_codes(m, r, pos, codes);
+    return merge_block_spoilt_codes(m, resp, loge, r, codes);
 }

@@ -6,6 +6,8 @@
  * curve shows as the frames' spread); a curve that fits leaves the noise. */
 #include "merge_private.h"
 
+#include <limits.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -63,9 +65,16 @@ void merge_judge_response(const merge_ctx *m, sl_merge_result *res, bool recover
             ss += dev[k] * dev[k];
             dev[k] = fabs(dev[k]);
         }
-        qsort(dev, n, sizeof *dev, sl_cmp_double);
+        /* The 90th percentile by selection: sorting a million deviations
+         * was a fifth of a small bracket's fit. */
+        size_t k = (size_t)(0.9 * (n - 1));
+        if (n <= INT_MAX)
+            j->frame_p90_stops = merge_select_kth(dev, (int)n, (int)k);
+        else {
+            qsort(dev, n, sizeof *dev, sl_cmp_double);
+            j->frame_p90_stops = dev[k];
+        }
         j->frame_rms_stops = sqrt(ss / n);
-        j->frame_p90_stops = dev[(size_t)(0.9 * (n - 1))];
         j->compared = (int64_t)n;
     }
     free(dev);

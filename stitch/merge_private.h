@@ -99,9 +99,12 @@ static inline int merge_response_node(double z, int nodes, double *frac)
 void merge_response_finish(double *inv, int nodes, const char *source, sl_response *out);
 
 /* Up to max_samples positions for channel c, spread over a crude log
- * radiance and over the frame; returns how many (-1 out of memory). */
+ * radiance and over the frame; returns how many (-1 out of memory).
+ * usable: merge_usable(s, i, r, saturation) at [i * frames + r], found once
+ * for the three channels, or NULL. */
 int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,
-                         double saturation, int max_samples, uint64_t seed, int *chosen);
+                         double saturation, int max_samples, uint64_t seed,
+                         const uint8_t *usable, int *chosen);
 
 /* The k-th smallest of v[0..n) (Hoare's selection; reorders v). */
 double merge_select_kth(double *v, int n, int k);
@@ -175,6 +178,9 @@ typedef struct merge_ctx {
     double *scratch;       /* frames^2 doubles */
     align_plane *measure;  /* per frame, filled by the sample pass (SL_ALIGN_AUTO), or NULL */
     int measure_frames;
+    /* per sample and rank: its block's brightest code in that frame and in
+     * the next shorter one (merge_block_codes; -1 none), or NULL */
+    float *spoil_codes;
 } merge_ctx;
 
 /* Whether frame rank r's JPEG block at pixel pos (y * width + x) is
@@ -189,6 +195,14 @@ typedef struct merge_ctx {
  * spoils the block. loge: log exposure per rank. */
 bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const double *loge, int r,
                         int64_t pos);
+/* The two codes merge_block_spoilt looks at for rank r at pixel pos:
+ * codes[0] the frame's block's brightest (-1 when the frame has no
+ * blocks), codes[1] the next shorter frame's (-1 none). They depend on the
+ * frames only, not on the curve or the exposures: the fit's rounds judge
+ * them again (merge_block_spoilt_codes) without finding them again. */
+void merge_block_codes(const merge_ctx *m, int r, int64_t pos, float codes[2]);
+bool merge_block_spoilt_codes(const merge_ctx *m, const sl_response *resp, const double *loge,
+                              int r, const float codes[2]);
 
 /* Saturation when the options leave it 0: frames through a curve (JPEG)
  * ring a few codes below white inside clipped areas; linear frames (raw,

@@ -78,7 +78,8 @@ bool merge_cholesky_solve(double *a, double *b, int n)
  * crude log radiance (each value read in the frame where it is nearest
  * mid-grey), in a seeded random order so they also spread over the frame. */
 int merge_choose_samples(const merge_samples *s, int c, const double *log_exposure, double black,
-                         double saturation, int max_samples, uint64_t seed, int *chosen)
+                         double saturation, int max_samples, uint64_t seed,
+                         const uint8_t *usable, int *chosen)
 {
     int n = s->count, f = s->frames;
     double *key = malloc((size_t)n * sizeof *key);
@@ -91,14 +92,20 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
     double lo = INFINITY, hi = -INFINITY;
     int valid = 0;
     for (int i = 0; i < n; i++) {
-        double best = 2, k = NAN;
+        double best = 2, k = NAN, z_best = 0;
+        int r_best = -1;
         for (int r = 0; r < f; r++) {
             double z = s->z[((size_t)i * f + r) * 3 + c];
-            if (z > black && merge_usable(s, i, r, saturation) && fabs(z - 0.5) < best) {
+            if (z > black &&
+                (usable ? usable[(size_t)i * f + r] != 0 : merge_usable(s, i, r, saturation)) &&
+                fabs(z - 0.5) < best) {
                 best = fabs(z - 0.5);
-                k = log(z) - log_exposure[r];
+                z_best = z;
+                r_best = r;
             }
         }
+        if (r_best >= 0) /* one logarithm a sample, of the frame chosen */
+            k = log(z_best) - log_exposure[r_best];
         key[i] = k;
         if (!isnan(k)) {
             order[valid++] = i;
@@ -361,6 +368,7 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
     float *pos = malloc(eqs * sizeof *pos);
     float *target = malloc(eqs * sizeof *target);
     double *rising = malloc((size_t)nodes * sizeof *rising);
+    uint8_t *usable = malloc(per * (size_t)f); /* optional: NULL finds them per channel */
     sl_result r = SL_OK;
     if (!a || !b || !inv || !chosen || !idx || !val || !wt || !rw || !res || !cut || !mag ||
         !pos || !target || !rising) {
@@ -369,9 +377,11 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
     }
     int m[3], total = 0;
     size_t base[3];
+    for (size_t e = 0; usable && e < (size_t)s->count * f; e++)
+        usable[e] = merge_usable(s, (int)(e / (size_t)f), (int)(e % (size_t)f), saturation);
     for (int c = 0; c < 3 && !r; c++) {
         m[c] = merge_choose_samples(s, c, log_exposure, black, saturation, max_samples, seed,
-                                    chosen + (size_t)c * per);
+                                    usable, chosen + (size_t)c * per);
         if (m[c] < 0)
             r = sl_error_set(err, SL_ERR_NOMEM, "response: out of memory");
         base[c] = (size_t)total * f;
@@ -487,6 +497,7 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         inv = NULL;
     }
 done:
+    free(usable);
     free(a);
     free(b);
     free(inv);

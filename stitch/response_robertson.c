@@ -48,7 +48,7 @@ sl_result merge_fit_robertson(const merge_samples *s, const double *log_exposure
     int samples = 0;
     for (int c = 0; c < 3; c++) {
         int m = merge_choose_samples(s, c, log_exposure, black, saturation, max_samples, seed,
-                                     chosen);
+                                     NULL, chosen);
         if (m < 0) {
             r = sl_error_set(err, SL_ERR_NOMEM, "response: out of memory");
             goto done;

@@ -15,6 +15,7 @@
 #include <jpeglib.h> /* after stdio.h */
 
 #include "../core/photo_private.h"
+#include "test_photo_common.h"
 #include "testing.h"
 
 /* ---- synthetic JPEGs ------------------------------------------------- */
@@ -234,14 +235,6 @@ static bool write_variant(const char *path, const variant *v)
 
 /* ---- comparisons ------------------------------------------------------ */
 
-static bool same_pixels(const sl_image *a, const sl_image *b)
-{
-    return a->width == b->width && a->height == b->height && a->channels == b->channels &&
-           a->data && b->data &&
-           memcmp(a->data, b->data,
-                  sizeof(float) * (size_t)a->width * (size_t)a->height * (size_t)a->channels) == 0;
-}
-
 /* Strips of `path` both ways: the same info, rows skipped, floats and codes.
  * `native`: read by libjpeg, whose rows go forward only (OIIO reopens). */
 static void compare_strips(const char *path, bool native)
@@ -295,7 +288,7 @@ static void compare_reads(const char *path, const sl_image *native, const sl_met
     sl_meta ref_meta, meta, oiio_meta;
     int w, h, c, ow, oh, oc;
     CHECK_OK(sl_oiio_read(path, &ref, &ref_meta, &err), &err);
-    CHECK_MSG(same_pixels(native, &ref), "%s: pixels differ from OpenImageIO's", path);
+    CHECK_MSG(photo_same_pixels(native, &ref), "%s: pixels differ from OpenImageIO's", path);
     CHECK_MSG(sl_test_same_meta(path, native_meta, &ref_meta), "%s: metadata differs", path);
     CHECK_OK(sl_photo_read_meta(path, &meta, &w, &h, &c, &err), &err);
     CHECK_OK(sl_oiio_read_meta(path, &oiio_meta, &ow, &oh, &oc, &err), &err);
@@ -451,19 +444,9 @@ static void test_corrupt_jpeg(void)
         {"cut_pixels.jpg", whole, size - 200, "truncated or corrupt image at rows"},
         {"stray_marker.jpg", bad, size, "truncated or corrupt image at rows"},
     };
-    fflush(stderr);
-    int saved = dup(2);
-    FILE *caught = freopen(sl_test_path("stderr.txt"), "w", stderr);
-    for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
-        const char *path = sl_test_path(cuts[i].name);
-        CHECK_OK(sl_write_file_atomic(path, cuts[i].bytes, cuts[i].keep, &err), &err);
-        sl_image img;
-        sl_meta meta;
-        CHECK_RESULT(sl_photo_read(path, &img, &meta, &err), SL_ERR_INPUT, &err);
-        CHECK_MSG(strstr(err.message, path) && strstr(err.message, cuts[i].what), "%s",
-                  err.message);
-        CHECK(img.data == NULL && meta.attrs == NULL);
-    }
+    stderr_catch caught = stderr_catch_begin();
+    for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++)
+        photo_check_refused(cuts[i].name, cuts[i].bytes, cuts[i].keep, cuts[i].what);
     /* The strips see the cut at the rows it hits. */
     sl_photo_strips *s;
     sl_photo_strip_info info;
@@ -475,12 +458,8 @@ static void test_corrupt_jpeg(void)
         CHECK_MSG(strstr(err.message, path) != NULL, "%s", err.message);
         sl_photo_strips_close(s);
     }
-    fflush(stderr);
-    if (caught)
-        dup2(saved, 2);
-    close(saved);
-    size_t printed = 0;
-    char *text = sl_test_read_file(sl_test_path("stderr.txt"), &printed);
+    size_t printed;
+    char *text = stderr_catch_end(&caught, &printed);
     CHECK_MSG(printed == 0, "libjpeg printed: %s", text ? text : "");
     free(text);
     free(bad);

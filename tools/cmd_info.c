@@ -14,8 +14,9 @@ static const char *info_help =
     "date, orientation, envmap type and colour space, and setlight provenance attributes.\n"
     "Reads OpenEXR (R,G,B[,A], else Y[,A], else the first layer's; other channels are\n"
     "dropped; every compression, scanline or tiled: docs/formats.md), PNG (libpng), JPEG\n"
-    "(libjpeg) and anything else OpenImageIO reads (TIFF, HDR, DNG, camera raw, CMYK JPEG:\n"
-    "the first such file costs ~0.4 s of CPU loading OpenImageIO, once per process).\n\n"
+    "(libjpeg), TIFF (libtiff: 8/16-bit, float, strips or tiles) and anything else\n"
+    "OpenImageIO reads (HDR, DNG, camera raw, CMYK JPEG, palette or CMYK TIFF: the first\n"
+    "such file costs ~0.4 s of CPU loading OpenImageIO, once per process).\n\n"
     "Every file is examined even when one fails; the exit code is that of the first failure.\n"
     "  --json   one JSON object on stdout: {\"files\": [{...}, ...]}\n";
 

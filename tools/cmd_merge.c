@@ -11,9 +11,9 @@
 
 static const char *merge_help =
     "usage: setlight merge [options] -o OUT.exr FRAME...\n\n"
-    "Merges a bracket of exposures (any order; PNG and JPEG read by libpng and\n"
-    "libjpeg, any other format OpenImageIO reads, which costs ~0.4 s of CPU to load\n"
-    "once) into one EXR of relative radiance, scaled like the middle exposure,\n"
+    "Merges a bracket of exposures (any order; PNG, JPEG and TIFF read by libpng,\n"
+    "libjpeg and libtiff, any other format OpenImageIO reads, which costs ~0.4 s of\n"
+    "CPU to load once) into one EXR of relative radiance, scaled like the middle exposure,\n"
     "written strip by strip as it is merged.\n\n"
     "  -o, --output OUT.exr   the radiance image (required)\n"
     "  --times T1,T2,...      exposure times in seconds (e.g. 1/30,1/250), in frame order;\n"
