@@ -596,28 +596,39 @@ typedef struct search {
     found_list *found;
 } search;
 
-/* Fits one candidate on the copy, then on the full image, and files it: a
- * ball, another round thing, or nothing. Fits are in full pixels. */
-static void consider(const search *sc, double cx, double cy, double r, double window)
+/* Walks a candidate in to an outline on `im`: a quick look with few rays
+ * and a window of `first` px each side (most candidates end there), then
+ * `then` of the radius (3 px at least), then fits with 3 px windows until
+ * the circle stops moving. False when no outline is there. */
+static bool walk_in(const det_image *im, double cx, double cy, double r, double first, double then,
+                    fit *f)
 {
-    const det_image *im = sc->work;
-    found_list *fl = sc->found;
-    fit f;
-    /* A quick look with few rays first; most candidates end there. */
-    if (!refine(im, cx, cy, r, fmax(3.0, window * r), 128, &f) || f.support < 0.4 * MIN_SUPPORT ||
-        !refine(im, f.cx, f.cy, f.r, fmax(3.0, 0.015 * f.r), 512, &f))
-        return;
+    if (!refine(im, cx, cy, r, first, 128, f) || f->support < 0.4 * MIN_SUPPORT ||
+        !refine(im, f->cx, f->cy, f->r, fmax(3.0, then * f->r), 512, f))
+        return false;
     /* A start a few pixels off walks in over a few fits. */
     for (int it = 0; it < 6; it++) {
         fit g;
-        if (!refine(im, f.cx, f.cy, f.r, 3.0, 1024, &g))
-            return;
-        double moved = hypot(g.cx - f.cx, g.cy - f.cy) + fabs(g.r - f.r);
-        f = g;
-        if (moved < 0.2 || f.support < 0.6 * MIN_SUPPORT)
+        if (!refine(im, f->cx, f->cy, f->r, 3.0, 1024, &g))
+            return false;
+        double moved = hypot(g.cx - f->cx, g.cy - f->cy) + fabs(g.r - f->r);
+        *f = g;
+        if (moved < 0.2 || f->support < 0.6 * MIN_SUPPORT)
             break;
     }
-    if (f.support < MIN_SUPPORT || f.arc < MIN_ARC || f.r < sc->min_r)
+    return f->support >= MIN_SUPPORT && f->arc >= MIN_ARC;
+}
+
+static void file_fit(const search *sc, const det_image *im, const fit *fitted);
+
+/* Fits one candidate on the copy (windows of `window` of r, then 1.5%),
+ * then on the full image, and files it: a ball, another round thing, or
+ * nothing. Fits are in full pixels. */
+static void consider(const search *sc, double cx, double cy, double r, double window)
+{
+    fit f;
+    if (!walk_in(sc->work, cx, cy, r, fmax(3.0, window * r), 0.015, &f) ||
+        f.r < sc->min_r)
         return;
     /* Clutter a few copy pixels wide meets any circle; on the full image
      * it is `factor` times sparser. The window covers the copy's error. */
@@ -627,8 +638,37 @@ static void consider(const search *sc, double cx, double cy, double r, double wi
             !refine(sc->full, f.cx, f.cy, f.r, 3.0, 1024, &f) || f.support < MIN_SUPPORT ||
             f.arc < MIN_ARC)
             return;
-        im = sc->full;
     }
+    file_fit(sc, sc->factor > 1 ? sc->full : sc->work, &f);
+}
+
+/* The frame's own candidate, a tight crop's ball of about radius r (copy
+ * px) centred in it. On a copy of a large frame the clutter in the corners,
+ * averaged, blurs into the outline and pulls the fit past the frame (a
+ * 3000 px frame); so on the full image too: the radii where the most rays
+ * from the frame's centre cross a step (a median, blind to a hot spot on a
+ * few rays), each walked in with 3 px windows (a wide one there meets
+ * sharp clutter on every ray). */
+static void consider_frame(const search *sc, double r)
+{
+    const det_image *full = sc->full;
+    int k = sc->factor;
+    double cx = 0.5 * full->w, cy = 0.5 * full->h, radii[3];
+    int n = k > 1 ? radius_search(full, cx, cy, 0.95 * r * k, 1.05 * r * k, radii) : 0;
+    for (int i = 0; i < n; i++) {
+        fit f;
+        if (walk_in(full, cx, cy, radii[i], 3.0, 0.0, &f) && f.r >= sc->min_r * k)
+            file_fit(sc, full, &f);
+    }
+    consider(sc, 0.5 * sc->work->w, 0.5 * sc->work->h, r, 0.05);
+}
+
+/* Files a fitted outline (full pixels, measured on `im`): a ball, another
+ * round thing, or nothing. */
+static void file_fit(const search *sc, const det_image *im, const fit *fitted)
+{
+    found_list *fl = sc->found;
+    fit f = *fitted;
     for (int j = 0; j < fl->nballs; j++) {
         const fit *b = &fl->balls[j];
         if (hypot(f.cx - b->cx, f.cy - b->cy) < 0.5 * fmax(f.r, b->r) &&
@@ -941,9 +981,8 @@ sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle
     double min_r = small / 10.0 > 6.0 ? small / 10.0 : 6.0;
     search sc = {&im, &full, factor, min_r, fl};
     /* The frame first: a tight crop's ball touches its four sides. */
-    double fx = 0.5 * im.w, fy = 0.5 * im.h;
-    consider(&sc, fx, fy, 0.5 * small, 0.05);
-    consider(&sc, fx, fy, 0.5 * wbig, 0.05);
+    consider_frame(&sc, 0.5 * small);
+    consider_frame(&sc, 0.5 * wbig);
     if (search_candidates(&sc, gray, 0.6 * wbig) < 0) {
         r = sl_error_set(err, SL_ERR_INTERNAL, "%s: OpenCV circle detection failed", name);
         goto done;

@@ -83,6 +83,19 @@ static void test_fill_frame(void)
     f.balls[0].r = 235.5;
     sl_reflectance_chrome(&f.reflectance);
     detect_case(&f, "crop 480x472, chrome", 0.4);
+    if (sl_test_sanitized())
+        return;
+    /* The same crop five times larger, clutter in the corners: on the copy
+     * (a fifth of the size) the averaged clutter pulls the outline past the
+     * frame; the frame's candidate is also walked in on the full image. */
+    ball_fixture_init(&f, 2400, 2360);
+    f.ss = 3;
+    f.ss_rim_only = true;
+    f.balls[0].px = 1201.5;
+    f.balls[0].py = 1181.0;
+    f.balls[0].r = 1177.5;
+    sl_reflectance_chrome(&f.reflectance);
+    detect_case(&f, "crop 2400x2360, chrome, clutter", 0.3);
 }
 
 /* The ball among round things that are not balls (a disc, a dark disc, a
@@ -147,6 +160,22 @@ static void test_refusals(void)
     f.balls[1].px = 170;
     f.balls[1].r = 45;
     expect_refusal(&f, "two.exr", "2 balls");
+    /* One ball fills the frame's height, another beside it: the frame's
+     * own candidate finds the first, and the search goes on (room for a
+     * rival) to the second. */
+    ball_fixture_init(&f, 800, 300);
+    f.ss = 2;
+    f.ss_rim_only = true;
+    f.ball_count = 2;
+    f.balls[0].px = 400;
+    f.balls[0].py = 150;
+    f.balls[0].r = 148;
+    f.balls[1] = f.balls[0];
+    f.balls[1].px = 130;
+    f.balls[1].r = 110;
+    expect_refusal(&f, "two_wide.exr", "2 balls");
+    ball_fixture_init(&f, 240, 180);
+    f.ss = 2;
     f.ball_count = 1;
     f.balls[0].px = 205;
     f.balls[0].py = 80;
@@ -185,6 +214,7 @@ static void test_real_probes(void)
                names[i], img.width, img.height, c.cx, c.cy, c.r, c.residual, c.edge_points,
                r ? err.message : "");
         CHECK(r == (cut ? SL_ERR_INPUT : SL_OK));
+        CHECK_MSG(cut == (i == 0), "%s: %s", names[i], cut ? "cut" : "whole"); /* 10.JPG's top is cut */
         if (r)
             CHECK(strstr(err.message, "cut by the frame edge") != NULL);
         CHECK(c.r > 0.45 * img.height && c.r < 0.55 * img.height);
@@ -299,7 +329,7 @@ static void row(const ball_fixture *f, const char *what, const char *filter)
 
 static void rows(const char *filter)
 {
-    static const int fills[] = {1024, 2048, 3000, 4096};
+    static const int fills[] = {1024, 2048, 2600, 3000, 4096};
     for (size_t i = 0; i < sizeof fills / sizeof fills[0]; i++)
         for (int clutter = 0; clutter < 2; clutter++) {
             ball_fixture f;
@@ -313,6 +343,16 @@ static void rows(const char *filter)
                      clutter ? "clutter" : "flat");
             row(&f, what, filter);
         }
+    /* A hand crop of the same ball, five times the suite's 480x472. */
+    ball_fixture f;
+    ball_fixture_init(&f, 2400, 2360);
+    f.ss = 3;
+    f.ss_rim_only = true;
+    f.balls[0].px = 1201.5;
+    f.balls[0].py = 1181.0;
+    f.balls[0].r = 1177.5;
+    sl_reflectance_chrome(&f.reflectance);
+    row(&f, "crop 2400x2360, chrome, clutter", filter);
     static const int scenes[] = {800, 1200, 1600};
     for (size_t i = 0; i < sizeof scenes / sizeof scenes[0]; i++) {
         ball_fixture f;
