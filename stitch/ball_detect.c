@@ -58,6 +58,15 @@
 /* Support of an outline clean enough that what lies inside it is part of
  * the same thing (measured: discs and dials 0.87-0.97, clutter 0.5-0.56). */
 #define CLEAN_SUPPORT 0.75
+/* Once a whole ball is found, a candidate under this fraction of its
+ * radius can change nothing: a rival is at least SMALLER_BALL_RATIO of the
+ * probe's radius, the probe at least about 0.9 of this ball's (the same ball
+ * refitted), and a fit moves a candidate's radius by a few percent. */
+#define RIVAL_FLOOR 0.5
+/* The copy's own Hough pass is skipped when the smallest ball sought is
+ * this many px across or more on the half copy (found there at a quarter of
+ * the cost; the classic transform's time grows fastest with size). */
+#define HOUGH_MIN_R 16.0
 /* Standard error (px) of the centre or radius above which the outline is
  * too weakly measured to unwrap; 0.1 % of the radius for large balls. */
 #define WEAK_SD 0.25
@@ -587,28 +596,39 @@ typedef struct search {
     found_list *found;
 } search;
 
-/* Fits one candidate on the copy, then on the full image, and files it: a
- * ball, another round thing, or nothing. Fits are in full pixels. */
-static void consider(const search *sc, double cx, double cy, double r, double window)
+/* Walks a candidate in to an outline on `im`: a quick look with few rays
+ * and a window of `first` px each side (most candidates end there), then
+ * `then` of the radius (3 px at least), then fits with 3 px windows until
+ * the circle stops moving. False when no outline is there. */
+static bool walk_in(const det_image *im, double cx, double cy, double r, double first, double then,
+                    fit *f)
 {
-    const det_image *im = sc->work;
-    found_list *fl = sc->found;
-    fit f;
-    /* A quick look with few rays first; most candidates end there. */
-    if (!refine(im, cx, cy, r, fmax(3.0, window * r), 128, &f) || f.support < 0.4 * MIN_SUPPORT ||
-        !refine(im, f.cx, f.cy, f.r, fmax(3.0, 0.015 * f.r), 512, &f))
-        return;
+    if (!refine(im, cx, cy, r, first, 128, f) || f->support < 0.4 * MIN_SUPPORT ||
+        !refine(im, f->cx, f->cy, f->r, fmax(3.0, then * f->r), 512, f))
+        return false;
     /* A start a few pixels off walks in over a few fits. */
     for (int it = 0; it < 6; it++) {
         fit g;
-        if (!refine(im, f.cx, f.cy, f.r, 3.0, 1024, &g))
-            return;
-        double moved = hypot(g.cx - f.cx, g.cy - f.cy) + fabs(g.r - f.r);
-        f = g;
-        if (moved < 0.2 || f.support < 0.6 * MIN_SUPPORT)
+        if (!refine(im, f->cx, f->cy, f->r, 3.0, 1024, &g))
+            return false;
+        double moved = hypot(g.cx - f->cx, g.cy - f->cy) + fabs(g.r - f->r);
+        *f = g;
+        if (moved < 0.2 || f->support < 0.6 * MIN_SUPPORT)
             break;
     }
-    if (f.support < MIN_SUPPORT || f.arc < MIN_ARC || f.r < sc->min_r)
+    return f->support >= MIN_SUPPORT && f->arc >= MIN_ARC;
+}
+
+static void file_fit(const search *sc, const det_image *im, const fit *fitted);
+
+/* Fits one candidate on the copy (windows of `window` of r, then 1.5%),
+ * then on the full image, and files it: a ball, another round thing, or
+ * nothing. Fits are in full pixels. */
+static void consider(const search *sc, double cx, double cy, double r, double window)
+{
+    fit f;
+    if (!walk_in(sc->work, cx, cy, r, fmax(3.0, window * r), 0.015, &f) ||
+        f.r < sc->min_r)
         return;
     /* Clutter a few copy pixels wide meets any circle; on the full image
      * it is `factor` times sparser. The window covers the copy's error. */
@@ -618,8 +638,37 @@ static void consider(const search *sc, double cx, double cy, double r, double wi
             !refine(sc->full, f.cx, f.cy, f.r, 3.0, 1024, &f) || f.support < MIN_SUPPORT ||
             f.arc < MIN_ARC)
             return;
-        im = sc->full;
     }
+    file_fit(sc, sc->factor > 1 ? sc->full : sc->work, &f);
+}
+
+/* The frame's own candidate, a tight crop's ball of about radius r (copy
+ * px) centred in it. On a copy of a large frame the clutter in the corners,
+ * averaged, blurs into the outline and pulls the fit past the frame (a
+ * 3000 px frame); so on the full image too: the radii where the most rays
+ * from the frame's centre cross a step (a median, blind to a hot spot on a
+ * few rays), each walked in with 3 px windows (a wide one there meets
+ * sharp clutter on every ray). */
+static void consider_frame(const search *sc, double r)
+{
+    const det_image *full = sc->full;
+    int k = sc->factor;
+    double cx = 0.5 * full->w, cy = 0.5 * full->h, radii[3];
+    int n = k > 1 ? radius_search(full, cx, cy, 0.95 * r * k, 1.05 * r * k, radii) : 0;
+    for (int i = 0; i < n; i++) {
+        fit f;
+        if (walk_in(full, cx, cy, radii[i], 3.0, 0.0, &f) && f.r >= sc->min_r * k)
+            file_fit(sc, full, &f);
+    }
+    consider(sc, 0.5 * sc->work->w, 0.5 * sc->work->h, r, 0.05);
+}
+
+/* Files a fitted outline (full pixels, measured on `im`): a ball, another
+ * round thing, or nothing. */
+static void file_fit(const search *sc, const det_image *im, const fit *fitted)
+{
+    found_list *fl = sc->found;
+    fit f = *fitted;
     for (int j = 0; j < fl->nballs; j++) {
         const fit *b = &fl->balls[j];
         if (hypot(f.cx - b->cx, f.cy - b->cy) < 0.5 * fmax(f.r, b->r) &&
@@ -654,8 +703,9 @@ static void consider(const search *sc, double cx, double cy, double r, double wi
 }
 
 /* Circle candidates (x, y, r) on the copy, OpenCV's pixel centres on
- * integers: the accurate transform on the copy, the classic one on copies
- * of half and a quarter its size (fine clutter averages out there, a ball
+ * integers: the accurate transform on the copy (on the half copy when the
+ * smallest ball sought is HOUGH_MIN_R there), the classic one on copies of
+ * half and a quarter its size (fine clutter averages out there, a ball
  * stays round, and the classic transform's time falls with the size),
  * interleaved. -1 when OpenCV failed. */
 static int hough_levels(int w0, int h0, const unsigned char *gray, double min_r, double max_r,
@@ -740,6 +790,7 @@ static int hough_levels(int w0, int h0, const unsigned char *gray, double min_r,
         return -1;
     memcpy(level, gray, (size_t)w0 * h0);
     int w = w0, h = h0;
+    int first = min_r / 2.0 >= HOUGH_MIN_R ? 1 : 0;
     for (int l = 0; l < LEVELS; l++) {
         int scale = 1 << l;
         if (l > 0) { /* halve in place */
@@ -752,12 +803,19 @@ static int hough_levels(int w0, int h0, const unsigned char *gray, double min_r,
             w = hw;
             h = hh;
         }
-        if (max_r / scale < 4.0 || w < 16 || h < 16 || (l == 0 && !alt_first))
+        if (max_r / scale < 4.0 || w < 16 || h < 16 || l < first || (l == 0 && !alt_first))
             continue;
-        /* Centres only 4 px apart on the copy: a clutter peak must not hide the ball's. */
+        /* The tonemap: the accurate transform at the finest level, the
+         * classic one below it; the texture map (soft): both, from the half
+         * copy down. Centres only 4 px apart on the copy: a clutter peak
+         * must not hide the ball's. */
+        int kinds = BALL_HOUGH_CLASSIC | BALL_HOUGH_ALT;
+        if (alt_first && l == 0)
+            kinds = BALL_HOUGH_ALT;
+        else if (alt_first && l > first)
+            kinds = BALL_HOUGH_CLASSIC;
         count[l] = ball_hough_cxx(level, w, h, fmax(3.0, min_r / scale), max_r / scale,
-                                  fmax(1.0, 4.0 / scale), l ? (alt_first ? BALL_HOUGH_CLASSIC : BALL_HOUGH_CLASSIC | BALL_HOUGH_ALT) : BALL_HOUGH_ALT,
-                                  edge_threshold, found[l], ASK);
+                                  fmax(1.0, 4.0 / scale), kinds, edge_threshold, found[l], ASK);
         if (count[l] < 0) {
             free(level);
             return -1;
@@ -799,6 +857,100 @@ static bool is_cut(const fit *b, int width, int height)
            b->cx + b->r > width + CLIP_TOLERANCE || b->cy + b->r > height + CLIP_TOLERANCE;
 }
 
+/* The largest ball found so far that the frame does not cut, or NULL. */
+static const fit *largest_whole(const found_list *fl, int width, int height)
+{
+    const fit *best = NULL;
+    for (int j = 0; j < fl->nballs; j++)
+        if (!is_cut(&fl->balls[j], width, height) && (!best || fl->balls[j].r > best->r))
+            best = &fl->balls[j];
+    return best;
+}
+
+/* The farthest point from (x, y) of the centres where a whole circle of
+ * radius rho fits in the frame; -1 when none does. */
+static double farthest_centre(double x, double y, double rho, int width, int height)
+{
+    double x0 = rho - CLIP_TOLERANCE, x1 = width - rho + CLIP_TOLERANCE;
+    double y0 = rho - CLIP_TOLERANCE, y1 = height - rho + CLIP_TOLERANCE;
+    if (x0 > x1 || y0 > y1)
+        return -1.0;
+    return hypot(fmax(fabs(x - x0), fabs(x - x1)), fmax(fabs(y - y0), fabs(y - y1)));
+}
+
+/* Whether the frame has room for a ball that would change the answer
+ * given the whole ball b: one about as large elsewhere (it would be the
+ * probe, b its reflection or a lesser object) or one of RIVAL_FLOOR of its
+ * radius beside it (a rival). A ball filling a tight crop leaves none, and
+ * then the Hough passes can find nothing that matters. */
+static bool room_for_another(const fit *b, int width, int height)
+{
+    double large = 0.9 * b->r, rival = RIVAL_FLOOR * b->r;
+    return farthest_centre(b->cx, b->cy, large, width, height) > 0.5 * b->r ||
+           farthest_centre(b->cx, b->cy, rival, width, height) > b->r + 0.9 * rival;
+}
+
+/* The Hough candidates (and the frame's centre again), each with the best
+ * radii along rays from it and the transform's own, fitted and filed. A
+ * whole ball found bounds what is worth searching for: nothing under
+ * RIVAL_FLOOR of its radius, nothing at all when it fills the frame.
+ * -1 when OpenCV failed. */
+static int search_candidates(const search *sc, const unsigned char *gray, double max_r)
+{
+    const det_image *im = sc->work;
+    found_list *fl = sc->found;
+    int width = sc->full->w, height = sc->full->h, factor = sc->factor;
+    double fx = 0.5 * im->w, fy = 0.5 * im->h, floor_r = sc->min_r;
+    const fit *known = largest_whole(fl, width, height);
+    if (known && !room_for_another(known, width, height))
+        return 0;
+    if (known)
+        floor_r = fmax(floor_r, RIVAL_FLOOR * known->r / factor);
+    float cand[3 * MAX_CANDIDATES];
+    int nc = hough_candidates(im, gray, floor_r, max_r, cand);
+    if (nc < 0)
+        return -1;
+    double tried[MAX_CANDIDATES + 1][2] = {{fx, fy}};
+    int nt = 1;
+    for (int i = -1; i < nc; i++) {
+        /* OpenCV puts pixel centres on integers. */
+        double cx = i < 0 ? fx : cand[3 * i] + 0.5, cy = i < 0 ? fy : cand[3 * i + 1] + 0.5;
+        bool seen = false;
+        for (int t = i < 0 ? nt : 0; t < nt; t++)
+            if (hypot(cx - tried[t][0], cy - tried[t][1]) < 3.0)
+                seen = true;
+        if (seen)
+            continue;
+        if (i >= 0) {
+            tried[nt][0] = cx;
+            tried[nt][1] = cy;
+            nt++;
+        }
+        /* A Hough circle inside a ball is a reflection; inside a disc, ring
+         * or dial, part of it. */
+        fit hc = {.cx = cx * factor, .cy = cy * factor, .r = i < 0 ? 0.0 : cand[3 * i + 2] * factor};
+        bool within = false;
+        for (int j = 0; j < fl->nballs && !within; j++)
+            within = inside(&hc, &fl->balls[j]);
+        for (int j = 0; j < fl->nothers && !within; j++)
+            within = inside(&hc, &fl->others[j]);
+        if (within)
+            continue;
+        if ((known = largest_whole(fl, width, height)))
+            floor_r = fmax(floor_r, RIVAL_FLOOR * known->r / factor);
+        /* The transform's own radius too: its centre may be a few pixels
+         * off, which blurs the search's radius profile. */
+        double radii[4];
+        int nrad = radius_search(im, cx, cy, floor_r, max_r, radii);
+        if (i >= 0)
+            radii[nrad++] = cand[3 * i + 2];
+        for (int k = 0; k < nrad; k++)
+            if (radii[k] >= floor_r)
+                consider(sc, cx, cy, radii[k], k < nrad - (i >= 0) ? 0.05 : 0.12);
+    }
+    return nc;
+}
+
 static int cmp_radius(const void *a, const void *b)
 {
     double x = ((const fit *)a)->r, y = ((const fit *)b)->r;
@@ -829,49 +981,11 @@ sl_result sl_ball_detect(const sl_image *photo, const char *name, sl_ball_circle
     double min_r = small / 10.0 > 6.0 ? small / 10.0 : 6.0;
     search sc = {&im, &full, factor, min_r, fl};
     /* The frame first: a tight crop's ball touches its four sides. */
-    double fx = 0.5 * im.w, fy = 0.5 * im.h;
-    consider(&sc, fx, fy, 0.5 * small, 0.05);
-    consider(&sc, fx, fy, 0.5 * wbig, 0.05);
-    float cand[3 * MAX_CANDIDATES];
-    int nc = hough_candidates(&im, gray, min_r, 0.6 * wbig, cand);
-    if (nc < 0) {
+    consider_frame(&sc, 0.5 * small);
+    consider_frame(&sc, 0.5 * wbig);
+    if (search_candidates(&sc, gray, 0.6 * wbig) < 0) {
         r = sl_error_set(err, SL_ERR_INTERNAL, "%s: OpenCV circle detection failed", name);
         goto done;
-    }
-    double tried[MAX_CANDIDATES + 1][2] = {{fx, fy}};
-    int nt = 1;
-    for (int i = -1; i < nc; i++) {
-        /* OpenCV puts pixel centres on integers. */
-        double cx = i < 0 ? fx : cand[3 * i] + 0.5, cy = i < 0 ? fy : cand[3 * i + 1] + 0.5;
-        bool seen = false;
-        for (int t = i < 0 ? nt : 0; t < nt; t++)
-            if (hypot(cx - tried[t][0], cy - tried[t][1]) < 3.0)
-                seen = true;
-        if (seen)
-            continue;
-        if (i >= 0) {
-            tried[nt][0] = cx;
-            tried[nt][1] = cy;
-            nt++;
-        }
-        /* A Hough circle inside a ball is a reflection; inside a disc, ring
-         * or dial, part of it. */
-        fit hc = {.cx = cx * factor, .cy = cy * factor, .r = i < 0 ? 0.0 : cand[3 * i + 2] * factor};
-        bool within = false;
-        for (int j = 0; j < fl->nballs && !within; j++)
-            within = inside(&hc, &fl->balls[j]);
-        for (int j = 0; j < fl->nothers && !within; j++)
-            within = inside(&hc, &fl->others[j]);
-        if (within)
-            continue;
-        /* The transform's own radius too: its centre may be a few pixels
-         * off, which blurs the search's radius profile. */
-        double radii[4];
-        int nrad = radius_search(&im, cx, cy, min_r, 0.6 * wbig, radii);
-        if (i >= 0)
-            radii[nrad++] = cand[3 * i + 2];
-        for (int k = 0; k < nrad; k++)
-            consider(&sc, cx, cy, radii[k], k < nrad - (i >= 0) ? 0.05 : 0.12);
     }
     int nf = fl->nballs;
     if (nf == 0) {

@@ -3,6 +3,8 @@
 // sub-pixel fit and the decisions are in ball_detect.c.
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <exception>
 #include <vector>
 
@@ -29,10 +31,26 @@ extern "C" int ball_hough_cxx(const unsigned char *gray, int width, int height,
             cv::HoughCircles(blurred, lists[0], cv::HOUGH_GRADIENT_ALT, 1.5, min_dist, 150.0, 0.5,
                              (int)min_radius, (int)max_radius);
         if (kinds & BALL_HOUGH_CLASSIC) {
-            cv::HoughCircles(blurred, lists[1], cv::HOUGH_GRADIENT, 1.0, min_radius,
-                             edge_threshold, 18.0, (int)min_radius, (int)max_radius);
+            // The classic transform estimates a radius for every centre over
+            // its accumulator threshold (its cost: centres times edge pixels),
+            // then drops centres nearer than min_dist to a stronger one. One
+            // run with the dense spacing, thinned by the same rule to the
+            // sparse one, gives both lists (the sparse one as a run of its
+            // own would, but for centres whose dense neighbour it dropped).
+            // A circle of the smallest radius sought has 2 pi r edge pixels
+            // voting; centres with under 30% of that are clutter.
+            double votes = std::max(18.0, 0.3 * 2.0 * M_PI * min_radius);
             cv::HoughCircles(blurred, lists[2], cv::HOUGH_GRADIENT, 1.0, min_dist, edge_threshold,
-                             18.0, (int)min_radius, (int)max_radius);
+                             votes, (int)min_radius, (int)max_radius);
+            const float sparse2 = (float)(min_radius * min_radius);
+            for (const cv::Vec3f &c : lists[2]) {
+                bool near = false;
+                for (const cv::Vec3f &k : lists[1])
+                    near = near || (c[0] - k[0]) * (c[0] - k[0]) + (c[1] - k[1]) * (c[1] - k[1]) <
+                                       sparse2;
+                if (!near)
+                    lists[1].push_back(c);
+            }
         }
         for (size_t i = 0; i < lists[1].size() || i < lists[2].size() || i < lists[0].size(); i++)
             for (const auto &l : lists)
