@@ -12,8 +12,9 @@
 
 #include "pipeline_private.h"
 
-static const char *const stages[] = {"merge", "stitch", "unwrap", "calibrate", "rig",
-                                     "render", "report", "index", NULL};
+/* "setup": a whole setup as one job, what --farm-group setup submits. */
+static const char *const stages[] = {"merge",  "stitch", "unwrap", "calibrate", "rig",
+                                     "render", "report", "index",  "setup",     NULL};
 
 /* "NAME: job 'ID': what", or "NAME: job N: what" (1-based) before its id
  * is known to be good. */
@@ -115,7 +116,7 @@ static sl_result check_job(const char *name, size_t i, const json_t *job, sl_err
     if (!stage || !stages[s])
         return bad_job(name, i, id, err,
                        "\"stage\" is not one of merge, stitch, unwrap, calibrate, rig, render, "
-                       "report, index");
+                       "report, index, setup");
     if (!string_or_null(json_object_get(job, "setup")))
         return bad_job(name, i, id, err, "\"setup\" is neither a string nor null");
     sl_result r;

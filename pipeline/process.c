@@ -82,9 +82,10 @@ static sl_result group_by_setup(json_t *farm, const char *out, sl_error *err)
         if (!found) {
             char log[PATH_MAX + 300];
             snprintf(log, sizeof log, "%s/logs/%s.slurm.log", out, setup);
-            found = json_pack("{s:s,s:s,s:s,s:[],s:[],s:n,s:i,s:i,s:s,s:b,s:[]}", "id", setup,
-                              "setup", setup, "stage", "setup", "argv", "deps", "array",
-                              "memory_mb", 1, "cpus", 1, "log", log, "up_to_date", 1, "members");
+            found = json_pack("{s:s,s:s,s:s,s:[],s:[],s:[],s:[],s:[],s:n,s:i,s:i,s:s,s:n,s:b,s:[]}",
+                              "id", setup, "setup", setup, "stage", "setup", "argv", "command",
+                              "inputs", "outputs", "deps", "array", "memory_mb", 1, "cpus", 1,
+                              "log", log, "key", "up_to_date", 1, "members");
             json_array_append_new(groups, found);
         }
         json_array_append(json_object_get(found, "members"), job);
@@ -129,6 +130,7 @@ static sl_result group_by_setup(json_t *farm, const char *out, sl_error *err)
         json_array_append_new(json_object_get(g, "argv"), json_string("/bin/sh"));
         json_array_append_new(json_object_get(g, "argv"), json_string("-c"));
         json_array_append_new(json_object_get(g, "argv"), json_string(script ? script : "exit 1"));
+        json_object_set(g, "command", json_object_get(g, "argv"));
         free(script);
         json_object_del(g, "members");
     }
