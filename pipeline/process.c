@@ -374,7 +374,7 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     if (r)
         return r;
     snprintf(out_abs, sizeof out_abs, "%s", json_string_value(json_object_get(graph, "out")));
-    if ((r = pl_json_write(jobs_path, graph, err)))
+    if ((r = pl_graph_write(jobs_path, graph, err)))
         goto done;
     json_t *status = json_object();
     if (!o->emit_jobs && o->farm == SL_FARM_SLURM)
