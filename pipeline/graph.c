@@ -2,8 +2,9 @@
 /* The job graph read back (docs/process.md, "The job graph"): a user or
  * another queue may have edited it, so it is parsed from memory and checked
  * whole (fields, sizes, ids, dependencies) before `setlight job`, the
- * report or the index acts on any of it. No file is touched here but the
- * one pl_graph_load reads. */
+ * report or the index acts on any of it. The parser writes nothing; the
+ * graph is written here too (pl_graph_write), checked as it is written, so
+ * that a job may read its own job alone while the file is unchanged. */
 #include <errno.h>
 #include <limits.h>
 #include <stdarg.h>

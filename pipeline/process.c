@@ -294,8 +294,9 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         r = sl_pipeline_slurm_run(farm_path, &so, &sr, err);
     if (!r && o->farm_group == SL_FARM_GROUP_SETUP)
         grouped_statuses(graph, &sr, t0, status, res);
-    if (o->farm_group == SL_FARM_GROUP_SETUP && !r)
-        sl_remove_tree(group_dir); /* every job has ended */
+    /* Kept only while a job submitted may still be on the cluster. */
+    if (o->farm_group == SL_FARM_GROUP_SETUP && (!r || !sr.sbatch_calls))
+        sl_remove_tree(group_dir);
     for (int i = 0; !r && o->farm_group != SL_FARM_GROUP_SETUP && i < sr.job_count; i++) {
         const sl_pipeline_slurm_job *j = &sr.jobs[i];
         /* The local runner's words: a job Slurm ran may still have skipped

@@ -121,4 +121,8 @@ rm "$T/farm/ext/rig.stamp.json"
 expect 1 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm -q
 err_one_line
 if [ "$(sha256sum <"$T/farm/ext/rig/rig.usda")" = "$sha_before" ]; then ok; else bad "a failed farm run changed an output"; fi
+# The same grouped by setup: the setups' scripts are not left behind.
+expect 1 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --farm-group setup -q
+err_one_line
+if ls -d "$T/farm/logs"/farm-* >/dev/null 2>&1; then bad "the grouped setups' scripts were left"; else ok; fi
 finish
