@@ -66,9 +66,28 @@ for mode in $modes; do
       "${args[@]}" --json -q >"$work/run.json" 2>"$work/run.err"
     rc=$?
     load1=$(cut -d' ' -f1 /proc/loadavg)
-    python3 - "$work/run.json" "$work/time.txt" "$mode" "$cores" "$rc" "$load0" "$load1" >>"$results" <<'PY'
-import json, re, sys
-path, timef, mode, cores, rc, l0, l1 = sys.argv[1:]
+    python3 - "$work/run.json" "$work/time.txt" "$mode" "$cores" "$rc" "$load0" "$load1" "$work/out" >>"$results" <<'PY'
+import glob, json, re, sys
+path, timef, mode, cores, rc, l0, l1, out = sys.argv[1:]
+# From the jobs' stamps (each job's own clock: started when `setlight job`
+# began, ended when its stamp was made, seconds the command's wall): from
+# the first job's start to the last one's end, the slot time no job held
+# (scheduling passes, process start-up between jobs, the tail) and the
+# wrapper's own time inside each job (graph, input hashes, stamp).
+st = []
+for f in glob.glob(out + "/**/*.stamp.json", recursive=True):
+    try:
+        s = json.load(open(f))
+        st.append((s["started"], s["ended"], s["seconds"]))
+    except (ValueError, KeyError):
+        pass
+stamps = None
+if st:
+    span = max(e for _, e, _ in st) - min(b for b, _, _ in st)
+    busy = sum(e - b for b, e, _ in st)
+    stamps = {"jobs": len(st), "span": span, "busy": busy,
+              "slot_gaps": int(cores) * span - busy, "wrapper": sum(e - b - w for b, e, w in st),
+              "command": sum(w for _, _, w in st)}
 try:
     d = json.load(open(path))
 except ValueError:
@@ -77,7 +96,7 @@ t = open(timef).read()
 rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", t)
 print(json.dumps({"mode": mode, "cores": int(cores), "exit": int(rc), "load": [float(l0), float(l1)],
                   "largest_process_mb": int(rss.group(1)) / 1024 if rss else None,
-                  "jobs": d.get("jobs"), "run": d.get("run")}))
+                  "jobs": d.get("jobs"), "run": d.get("run"), "stamps": stamps}))
 PY
     echo "$mode run $r: exit $rc, load $load0 -> $load1"
   done
@@ -112,4 +131,18 @@ for mode in dict.fromkeys(r["mode"] for r in rows):
         med(lambda r: r["largest_process_mb"] or 0), med(lambda r: 60 * r["run"]["jobs_ran"] / r["run"]["wall_seconds"]),
         over, 100 * share, less, 100 * less * jobs / cpu,
         min(min(r["load"]) for r in rs), max(max(r["load"]) for r in rs)))
+print()
+print("From the jobs' stamps (first start to last end): per job, the slot time no job held and the")
+print("wrapper's own time (graph, input hashes, stamp), against the commands' own wall time:")
+print("| mode | jobs | span s | commands s/job | slot gaps s/job | wrapper s/job | gaps + wrapper, share of the commands |")
+print("|---|---|---|---|---|---|---|")
+for mode in dict.fromkeys(r["mode"] for r in rows):
+    rs = [r for r in rows if r["mode"] == mode and r.get("stamps")]
+    if not rs:
+        continue
+    med = lambda f: statistics.median(f(r["stamps"]) for r in rs)
+    print("| %s | %d | %.0f | %.3f | %.3f | %.3f | %.1f%% |" % (
+        mode, med(lambda s: s["jobs"]), med(lambda s: s["span"]), med(lambda s: s["command"] / s["jobs"]),
+        med(lambda s: s["slot_gaps"] / s["jobs"]), med(lambda s: s["wrapper"] / s["jobs"]),
+        med(lambda s: 100 * (s["slot_gaps"] + s["wrapper"]) / s["command"])))
 PY

@@ -31,7 +31,8 @@ static int write_graph(const char *path, const char *dir, int n, double seconds,
         if (shape == 2 && i > 0)
             snprintf(deps, sizeof deps, "\"j%d\"", i - 1);
         fprintf(f,
-                "%s{\"id\":\"j%d\",\"argv\":[\"sleep\",\"%g\"],\"deps\":[%s],\"array\":%s,"
+                "%s{\"id\":\"j%d\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"sleep\"],"
+                "\"inputs\":[],\"outputs\":[],\"key\":null,\"argv\":[\"sleep\",\"%g\"],\"deps\":[%s],\"array\":%s,"
                 "\"memory_mb\":16,\"cpus\":1,\"log\":\"%s/logs/j%d.log\",\"up_to_date\":false}",
                 i ? "," : "", i, seconds, deps, shape == 1 ? "\"all\"" : "null", dir, i);
     }

@@ -2,18 +2,24 @@
 /* The job graph read back (docs/process.md, "The job graph"): a user or
  * another queue may have edited it, so it is parsed from memory and checked
  * whole (fields, sizes, ids, dependencies) before `setlight job`, the
- * report or the index acts on any of it. No file is touched here but the
- * one pl_graph_load reads. */
+ * report or the index acts on any of it. The parser writes nothing; the
+ * graph is written here too (pl_graph_write), checked as it is written, so
+ * that a job may read its own job alone while the file is unchanged. */
 #include <errno.h>
+#include <limits.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "pipeline_private.h"
+#include "setlight/capture.h" /* sl_sha256_hex */
 
-static const char *const stages[] = {"merge", "stitch", "unwrap", "calibrate", "rig",
-                                     "render", "report", "index", NULL};
+/* "setup": a whole setup as one job, what --farm-group setup submits. */
+static const char *const stages[] = {"merge",  "stitch", "unwrap", "calibrate", "rig",
+                                     "render", "report", "index",  "setup",     NULL};
 
 /* "NAME: job 'ID': what", or "NAME: job N: what" (1-based) before its id
  * is known to be good. */
@@ -115,7 +121,7 @@ static sl_result check_job(const char *name, size_t i, const json_t *job, sl_err
     if (!stage || !stages[s])
         return bad_job(name, i, id, err,
                        "\"stage\" is not one of merge, stitch, unwrap, calibrate, rig, render, "
-                       "report, index");
+                       "report, index, setup");
     if (!string_or_null(json_object_get(job, "setup")))
         return bad_job(name, i, id, err, "\"setup\" is neither a string nor null");
     sl_result r;
@@ -340,9 +346,11 @@ json_t *pl_graph_job(const sl_pipeline_graph *g, const char *id)
     return at ? json_array_get(g->jobs, (size_t)json_integer_value(at)) : NULL;
 }
 
-sl_result pl_graph_load(const char *path, sl_pipeline_graph **g, sl_error *err)
+/* The whole file, up to SL_MAX_JSON_BYTES, in *text (the caller's to free). */
+static sl_result read_graph_text(const char *path, char **out, size_t *out_size, sl_error *err)
 {
-    *g = NULL;
+    *out = NULL;
+    *out_size = 0;
     sl_result r = sl_check_input_size(path, SL_MAX_JSON_BYTES, "job graph", err);
     if (r)
         return r;
@@ -377,8 +385,184 @@ sl_result pl_graph_load(const char *path, sl_pipeline_graph **g, sl_error *err)
         }
     }
     fclose(f);
+    if (r) {
+        free(text);
+        return r;
+    }
+    *out = text;
+    *out_size = size;
+    return SL_OK;
+}
+
+sl_result pl_graph_load(const char *path, sl_pipeline_graph **g, sl_error *err)
+{
+    *g = NULL;
+    char *text = NULL;
+    size_t size = 0;
+    sl_result r = read_graph_text(path, &text, &size, err);
     if (!r)
         r = sl_pipeline_graph_parse(path, text, size, g, err);
     free(text);
     return r;
+}
+
+/* ------------------------------------------------------------------ */
+/* Checked once: the graph as process writes it, and its sidecar       */
+/* ------------------------------------------------------------------ */
+
+#define CHECKED_FORMAT "setlight-jobs-checked"
+
+static void checked_path(const char *path, char *buf, size_t size)
+{
+    snprintf(buf, size, "%s.checked", path);
+}
+
+sl_result pl_graph_write(const char *path, const json_t *graph, sl_error *err)
+{
+    /* The graph's own fields on the first line, then a job a line: each
+     * job's bytes are where the sidecar says. */
+    json_t *head = json_copy((json_t *)graph), *offsets = json_object();
+    json_object_del(head, "jobs");
+    char *head_text = json_dumps(head, JSON_COMPACT | JSON_PRESERVE_ORDER);
+    json_decref(head);
+    sl_text t = {0};
+    if (head_text && strlen(head_text) > 2) {
+        sl_text_add(&t, head_text, strlen(head_text) - 1); /* less its '}' */
+        sl_text_add_str(&t, ",\"jobs\":[\n");
+    } else
+        t.failed = true;
+    free(head_text);
+    const json_t *jobs = json_object_get(graph, "jobs");
+    size_t i;
+    json_t *job;
+    json_array_foreach(jobs, i, job) {
+        char *one = json_dumps(job, JSON_COMPACT | JSON_PRESERVE_ORDER);
+        const char *id = json_string_value(json_object_get(job, "id"));
+        if (!one || !id) {
+            free(one);
+            t.failed = true;
+            break;
+        }
+        json_object_set_new(offsets, id, json_pack("[I,I]", (json_int_t)t.len,
+                                                   (json_int_t)strlen(one)));
+        sl_text_add_str(&t, one);
+        sl_text_add_str(&t, i + 1 < json_array_size(jobs) ? ",\n" : "\n");
+        free(one);
+    }
+    sl_text_add_str(&t, "]}\n");
+    sl_result r = SL_OK;
+    if (t.failed || !t.s)
+        r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+    /* Checked whole here, by the parser every reader uses, so that a job
+     * need not check it again while the file is unchanged. */
+    sl_pipeline_graph *g = NULL;
+    if (!r)
+        r = sl_pipeline_graph_parse(path, t.s, t.len, &g, err);
+    sl_pipeline_graph_free(g);
+    char hex[65], side[PATH_MAX + 16];
+    checked_path(path, side, sizeof side);
+    if (!r) {
+        unlink(side); /* never a sidecar beside a graph it does not describe */
+        r = sl_write_file_atomic(path, t.s, t.len, err);
+    }
+    if (!r) {
+        sl_sha256_hex(t.s, t.len, hex);
+        json_t *doc = json_pack("{s:s,s:i,s:s,s:I,s:O}", "format", CHECKED_FORMAT, "version", 1,
+                                "graph_sha256", hex, "graph_bytes", (json_int_t)t.len, "jobs",
+                                offsets);
+        char *text = doc ? json_dumps(doc, JSON_COMPACT) : NULL;
+        r = text ? sl_write_file_atomic(side, text, strlen(text), err)
+                 : sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", side);
+        free(text);
+        json_decref(doc);
+    }
+    json_decref(offsets);
+    sl_text_free(&t);
+    return r;
+}
+
+/* The job from the sidecar's offsets when the graph is byte for byte the
+ * one it was written with (its SHA-256), or NULL: anything else (no
+ * sidecar, another graph, an offset that does not hold the job) sends the
+ * caller to the whole check. */
+static json_t *checked_job(const char *path, const char *text, size_t size, const char *id)
+{
+    char side[PATH_MAX + 16], hex[65];
+    checked_path(path, side, sizeof side);
+    struct stat sb;
+    if (stat(side, &sb) || (unsigned long long)sb.st_size > SL_MAX_JSON_BYTES)
+        return NULL;
+    json_error_t je;
+    json_t *doc = json_load_file(side, 0, &je), *job = NULL;
+    const char *format = json_string_value(json_object_get(doc, "format"));
+    const char *sum = json_string_value(json_object_get(doc, "graph_sha256"));
+    const json_t *at = json_object_get(json_object_get(doc, "jobs"), id);
+    json_int_t off = json_integer_value(json_array_get(at, 0));
+    json_int_t len = json_integer_value(json_array_get(at, 1));
+    if (format && !strcmp(format, CHECKED_FORMAT) &&
+        json_integer_value(json_object_get(doc, "version")) == 1 && sum &&
+        json_integer_value(json_object_get(doc, "graph_bytes")) == (json_int_t)size && off > 0 &&
+        len > 0 && (size_t)off + (size_t)len <= size) {
+        sl_sha256_hex(text, size, hex);
+        if (!strcmp(hex, sum))
+            job = json_loadb(text + off, (size_t)len, JSON_REJECT_DUPLICATES, &je);
+    }
+    json_decref(doc);
+    const char *jid = json_string_value(json_object_get(job, "id"));
+    if (!json_is_object(job) || !jid || strcmp(jid, id)) {
+        json_decref(job);
+        return NULL;
+    }
+    return job;
+}
+
+sl_result pl_graph_load_job(const char *path, const char *id, json_t **graph, json_t **job,
+                            bool *checked_whole, sl_error *err)
+{
+    *graph = *job = NULL;
+    *checked_whole = false;
+    char *text = NULL;
+    size_t size = 0;
+    sl_result r = read_graph_text(path, &text, &size, err);
+    if (r)
+        return r;
+    json_t *one = checked_job(path, text, size, id);
+    const char *stage = json_string_value(json_object_get(one, "stage"));
+    if (one && stage && strcmp(stage, "index")) {
+        /* The fields a job reads of the graph: its "out" (the stamps). */
+        json_error_t je;
+        const char *end = strstr(text, ",\"jobs\":[\n");
+        json_t *head = NULL;
+        if (end) {
+            char *h = strndup(text, (size_t)(end - text) + 1);
+            if (h) {
+                h[end - text] = '}';
+                head = json_loads(h, 0, &je);
+                free(h);
+            }
+        }
+        if (head && json_string_value(json_object_get(head, "out"))) {
+            *graph = head;
+            *job = one;
+            free(text);
+            return SL_OK;
+        }
+        json_decref(head);
+    }
+    json_decref(one);
+    sl_pipeline_graph *g = NULL;
+    r = sl_pipeline_graph_parse(path, text, size, &g, err);
+    free(text);
+    if (r)
+        return r;
+    *checked_whole = true;
+    json_t *found = pl_graph_job(g, id);
+    if (!found) {
+        sl_pipeline_graph_free(g);
+        return sl_error_set(err, SL_ERR_USAGE, "%s: no job '%s'", path, id);
+    }
+    *graph = json_incref(g->root);
+    *job = json_incref(found);
+    sl_pipeline_graph_free(g);
+    return SL_OK;
 }

@@ -248,19 +248,18 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     double started = pl_epoch_seconds();
     *exit_code = 0;
     *skipped = false;
-    sl_pipeline_graph *g = NULL;
-    sl_result r = pl_graph_load(jobs_json, &g, err);
+    /* Checked whole when it was written (pl_graph_write): while unchanged,
+     * only this job is read; an edited graph is checked whole again. */
+    json_t *graph = NULL, *job = NULL;
+    bool checked_whole;
+    sl_result r = pl_graph_load_job(jobs_json, id, &graph, &job, &checked_whole, err);
     if (r)
         return r;
-    json_t *graph = g->root, *job = pl_graph_job(g, id);
-    if (!job) {
-        sl_pipeline_graph_free(g);
-        return sl_error_set(err, SL_ERR_USAGE, "%s: no job '%s'", jobs_json, id);
-    }
     char key[65];
     if (!strcmp(json_string_value(json_object_get(job, "stage")), "index") &&
         (r = pl_index_prepare(graph, err))) {
-        sl_pipeline_graph_free(g);
+        json_decref(job);
+        json_decref(graph);
         return r;
     }
     bool exists = false;
@@ -270,16 +269,19 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
                                   jobs_json, id, input)
                    : sl_error_set(err, SL_ERR_INPUT,
                                   "%s: input %s is missing (did its dependencies run?)", id, input);
-        sl_pipeline_graph_free(g);
+        json_decref(job);
+        json_decref(graph);
         return r;
     }
     if (!pl_job_key(job, key)) {
-        sl_pipeline_graph_free(g);
+        json_decref(job);
+        json_decref(graph);
         return sl_error_set(err, SL_ERR_INPUT, "%s: an input cannot be read", id);
     }
     if (pl_stamp_current(graph, job, key)) {
         *skipped = true;
-        sl_pipeline_graph_free(g);
+        json_decref(job);
+        json_decref(graph);
         return SL_OK;
     }
     json_t *command = json_object_get(job, "command");
@@ -290,7 +292,8 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     char partial[PATH_MAX + 16] = "", stamp[PATH_MAX + 600];
     json_t *x;
     if (!argv) {
-        sl_pipeline_graph_free(g);
+        json_decref(job);
+        json_decref(graph);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", id);
     }
     json_array_foreach(command, i, x)
@@ -364,6 +367,7 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     json_decref(st);
 done:
     free(argv);
-    sl_pipeline_graph_free(g);
+    json_decref(job);
+    json_decref(graph);
     return r;
 }

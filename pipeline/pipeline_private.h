@@ -59,6 +59,18 @@ struct sl_pipeline_graph {
 sl_result pl_graph_load(const char *path, sl_pipeline_graph **graph, sl_error *err);
 /* The job of that id, or NULL. */
 json_t *pl_graph_job(const sl_pipeline_graph *graph, const char *id);
+/* Writes the graph (a job a line) after checking it whole with
+ * sl_pipeline_graph_parse, and beside it PATH.checked: the file's SHA-256
+ * and each job's bytes in it. Nothing is written when the check fails. */
+sl_result pl_graph_write(const char *path, const json_t *graph, sl_error *err);
+/* The job `id` of the graph at path and the graph's document (new
+ * references): while the file is byte for byte what pl_graph_write wrote,
+ * only the job is parsed and *graph holds the graph's fields but "jobs";
+ * otherwise (edited, no sidecar, the index's job, which reads every job)
+ * the graph is checked whole as pl_graph_load does and *checked_whole is
+ * set. SL_ERR_USAGE when the graph has no such job. */
+sl_result pl_graph_load_job(const char *path, const char *id, json_t **graph, json_t **job,
+                            bool *checked_whole, sl_error *err);
 
 /* The graph (its jobs' argv name jobs_path; "" there: OUT/jobs.json, set)
  * and the setups as planned: name, source, status "ok" or "failed" and the

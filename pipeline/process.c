@@ -61,18 +61,80 @@ static void put_quoted(FILE *f, const char *s)
     fputc('\'', f);
 }
 
-/* --farm-group setup: one Slurm job per setup, a shell script that runs the
- * setup's jobs in the graph's order through `setlight job`, each only when
- * the jobs it depends on succeeded, and exits 1 when one failed or did not
- * run. Slurm's latency (about a second a job on the test cluster,
- * docs/slurm.md) is paid once per setup, not once per job; the jobs of a
- * setup then run one at a time. A setup whose jobs are all up to date is
- * not submitted. farm_jobs (the graph's jobs less the index) is replaced. */
-static sl_result group_by_setup(json_t *farm, const char *out, sl_error *err)
+/* A grouped setup's script: its jobs in the graph's order through `setlight
+ * job`, each only when the jobs it depends on succeeded; exit 1 when one
+ * failed or did not run. The Slurm job's log names each setup it ran. NULL
+ * when out of memory. */
+static char *setup_script(const char *name, const json_t *members)
+{
+    char *script = NULL;
+    size_t len = 0, i;
+    FILE *f = open_memstream(&script, &len);
+    if (!f)
+        return NULL;
+    fputs("echo 'setlight: setup '", f);
+    put_quoted(f, name);
+    fputs("\nf=0\n", f);
+    json_t *m;
+    json_array_foreach(members, i, m) {
+        fprintf(f, "s%zu=1; if [ 0", i);
+        size_t d;
+        json_t *dep;
+        json_array_foreach(json_object_get(m, "deps"), d, dep) {
+            size_t at;
+            json_t *other;
+            json_array_foreach(members, at, other)
+                if (at < i && json_equal(json_object_get(other, "id"), dep))
+                    fprintf(f, " = \"$s%zu\" ] && [ 0", at);
+        }
+        fputs(" = 0 ]; then", f);
+        size_t a;
+        json_t *arg;
+        json_array_foreach(json_object_get(m, "argv"), a, arg) {
+            fputc(' ', f);
+            put_quoted(f, json_string_value(arg));
+        }
+        fprintf(f, " && s%zu=0; fi; [ \"$s%zu\" = 0 ] || f=1\n", i, i);
+    }
+    fputs("exit $f\n", f);
+    fclose(f);
+    return script;
+}
+
+/* What the Slurm job of setup `own` runs: that setup, then each of `all`
+ * (" 0 3 4": the setups submitted) that no job has taken yet. */
+static char *runner_script(const char *dir, size_t own, const char *all)
+{
+    char *script = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&script, &len);
+    if (!f)
+        return NULL;
+    fputs("d=", f);
+    put_quoted(f, dir);
+    fprintf(f, "\nf=0\nrun() { mkdir \"$d/claims/$1\" 2>/dev/null || return 0; "
+               "/bin/sh \"$d/$1.sh\" || f=1; }\nrun %zu\nfor k in%s; do run \"$k\"; done\n"
+               "exit $f\n",
+            own, all);
+    fclose(f);
+    return script;
+}
+
+/* --farm-group setup: one Slurm job per setup, its jobs one at a time
+ * (setup_script, in dir/K.sh). Slurm's latency (up to a second a job on the
+ * test cluster, docs/slurm.md) is paid once per setup, not once per job.
+ * And a CPU does not wait for Slurm's next pass while setups are left: the
+ * Slurm job of setup K runs its own setup, then any setup no job has taken
+ * yet (taken by mkdir dir/claims/K, atomic, on a shared file system too); a
+ * job whose setup was taken ends at once. So the jobs ask for the day's
+ * largest memory. A setup whose jobs are all up to date is not submitted.
+ * farm_jobs (the graph's jobs less the index) is replaced. */
+static sl_result group_by_setup(json_t *farm, const char *out, const char *dir, sl_error *err)
 {
     json_t *jobs = json_object_get(farm, "jobs"), *groups = json_array();
     size_t i, k;
     json_t *job, *g;
+    json_int_t day_mb = 1;
     json_array_foreach(jobs, i, job) {
         const char *setup = json_string_value(json_object_get(job, "setup"));
         json_t *found = NULL;
@@ -82,55 +144,53 @@ static sl_result group_by_setup(json_t *farm, const char *out, sl_error *err)
         if (!found) {
             char log[PATH_MAX + 300];
             snprintf(log, sizeof log, "%s/logs/%s.slurm.log", out, setup);
-            found = json_pack("{s:s,s:s,s:s,s:[],s:[],s:n,s:i,s:i,s:s,s:b,s:[]}", "id", setup,
-                              "setup", setup, "stage", "setup", "argv", "deps", "array",
-                              "memory_mb", 1, "cpus", 1, "log", log, "up_to_date", 1, "members");
+            found = json_pack("{s:s,s:s,s:s,s:[],s:[],s:[],s:[],s:[],s:n,s:i,s:i,s:s,s:n,s:b,s:[]}",
+                              "id", setup, "setup", setup, "stage", "setup", "argv", "command",
+                              "inputs", "outputs", "deps", "array", "memory_mb", 1, "cpus", 1,
+                              "log", log, "key", "up_to_date", 1, "members");
             json_array_append_new(groups, found);
         }
         json_array_append(json_object_get(found, "members"), job);
         json_int_t mb = json_integer_value(json_object_get(job, "memory_mb"));
-        if (mb > json_integer_value(json_object_get(found, "memory_mb")))
-            json_object_set_new(found, "memory_mb", json_integer(mb));
+        day_mb = mb > day_mb ? mb : day_mb;
         if (!json_is_true(json_object_get(job, "up_to_date")))
             json_object_set_new(found, "up_to_date", json_false());
     }
+    char claims[PATH_MAX + 300];
+    snprintf(claims, sizeof claims, "%s/claims", dir);
+    sl_result r = pl_mkdirs(claims, err);
+    sl_text all = {0};
     json_array_foreach(groups, k, g) {
-        char *script = NULL;
-        size_t len = 0;
-        FILE *f = open_memstream(&script, &len);
-        if (!f) {
-            json_decref(groups);
-            return sl_error_set(err, SL_ERR_NOMEM, "out of memory");
-        }
-        fputs("f=0\n", f);
-        json_t *members = json_object_get(g, "members"), *m;
-        json_array_foreach(members, i, m) {
-            fprintf(f, "s%zu=1; if [ 0", i);
-            size_t d;
-            json_t *dep;
-            json_array_foreach(json_object_get(m, "deps"), d, dep) {
-                size_t at;
-                json_t *other;
-                json_array_foreach(members, at, other)
-                    if (at < i && json_equal(json_object_get(other, "id"), dep))
-                        fprintf(f, " = \"$s%zu\" ] && [ 0", at);
-            }
-            fputs(" = 0 ]; then", f);
-            size_t a;
-            json_t *arg;
-            json_array_foreach(json_object_get(m, "argv"), a, arg) {
-                fputc(' ', f);
-                put_quoted(f, json_string_value(arg));
-            }
-            fprintf(f, " && s%zu=0; fi; [ \"$s%zu\" = 0 ] || f=1\n", i, i);
-        }
-        fputs("exit $f\n", f);
-        fclose(f);
-        json_array_append_new(json_object_get(g, "argv"), json_string("/bin/sh"));
-        json_array_append_new(json_object_get(g, "argv"), json_string("-c"));
-        json_array_append_new(json_object_get(g, "argv"), json_string(script ? script : "exit 1"));
+        if (r)
+            break;
+        if (!json_is_true(json_object_get(g, "up_to_date")))
+            sl_text_printf(&all, " %zu", k);
+        char *script = setup_script(json_string_value(json_object_get(g, "id")),
+                                    json_object_get(g, "members"));
+        char path[PATH_MAX + 300];
+        snprintf(path, sizeof path, "%s/%zu.sh", dir, k);
+        r = script ? sl_write_file_atomic(path, script, strlen(script), err)
+                   : sl_error_set(err, SL_ERR_NOMEM, "out of memory");
         free(script);
         json_object_del(g, "members");
+        json_object_set_new(g, "memory_mb", json_integer(day_mb));
+    }
+    json_array_foreach(groups, k, g) {
+        char *script = r || all.failed ? NULL : runner_script(dir, k, all.s ? all.s : "");
+        if (!r && !script)
+            r = sl_error_set(err, SL_ERR_NOMEM, "out of memory");
+        if (r)
+            break;
+        json_array_append_new(json_object_get(g, "argv"), json_string("/bin/sh"));
+        json_array_append_new(json_object_get(g, "argv"), json_string("-c"));
+        json_array_append_new(json_object_get(g, "argv"), json_string(script));
+        json_object_set(g, "command", json_object_get(g, "argv"));
+        free(script);
+    }
+    sl_text_free(&all);
+    if (r) {
+        json_decref(groups);
+        return r;
     }
     json_object_set_new(farm, "jobs", groups);
     return SL_OK;
@@ -139,9 +199,9 @@ static sl_result group_by_setup(json_t *farm, const char *out, sl_error *err)
 /* A grouped setup's jobs, from their stamps: "ran" or "failed" when the
  * stamp was written after the run began (t0, the epoch), "skipped" when up
  * to date from before, else "not run", as is a job after one that failed
- * or did not run. A setup whose Slurm job ended
- * otherwise than by its script (killed: memory, time limit, node) with no
- * job failed gets its first job not run as the failed one. */
+ * or did not run. A setup with jobs not run and none failed (the Slurm
+ * job running it was killed: memory, time limit, node) gets its first job
+ * not run as the failed one. */
 static void grouped_statuses(const json_t *graph, const sl_pipeline_slurm_result *sr, double t0,
                              json_t *status, sl_pipeline_result *res)
 {
@@ -179,7 +239,9 @@ static void grouped_statuses(const json_t *graph, const sl_pipeline_slurm_result
                 first_not_run = job;
             json_object_set_new(status, id, json_string(state));
         }
-        if (sj->submitted && sj->end != SL_SLURM_COMPLETED && !failed && first_not_run)
+        /* Not all run, none failed: the Slurm job that ran the setup (its
+         * own or one that took it) was killed. */
+        if (sj->submitted && !failed && first_not_run)
             json_object_set_new(status, json_string_value(json_object_get(first_not_run, "id")),
                                 json_string("failed"));
     }
@@ -214,8 +276,12 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
     json_object_set_new(day, "jobs", index_jobs);
     double t0 = pl_epoch_seconds();
     sl_result r = SL_OK;
+    /* The grouped setups' scripts and claims, this run's own folder. */
+    const char *out = json_string_value(json_object_get(graph, "out"));
+    char group_dir[PATH_MAX + 64];
+    snprintf(group_dir, sizeof group_dir, "%s/logs/farm-%ld-%.0f", out, (long)getpid(), t0 * 1e3);
     if (o->farm_group == SL_FARM_GROUP_SETUP)
-        r = group_by_setup(farm, json_string_value(json_object_get(graph, "out")), err);
+        r = group_by_setup(farm, out, group_dir, err);
     char farm_path[PATH_MAX + 32];
     snprintf(farm_path, sizeof farm_path, "%s.slurm.json", jobs_path);
     sl_pipeline_slurm_options so;
@@ -228,6 +294,9 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         r = sl_pipeline_slurm_run(farm_path, &so, &sr, err);
     if (!r && o->farm_group == SL_FARM_GROUP_SETUP)
         grouped_statuses(graph, &sr, t0, status, res);
+    /* Kept only while a job submitted may still be on the cluster. */
+    if (o->farm_group == SL_FARM_GROUP_SETUP && (!r || !sr.sbatch_calls))
+        sl_remove_tree(group_dir);
     for (int i = 0; !r && o->farm_group != SL_FARM_GROUP_SETUP && i < sr.job_count; i++) {
         const sl_pipeline_slurm_job *j = &sr.jobs[i];
         /* The local runner's words: a job Slurm ran may still have skipped
@@ -372,7 +441,7 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     if (r)
         return r;
     snprintf(out_abs, sizeof out_abs, "%s", json_string_value(json_object_get(graph, "out")));
-    if ((r = pl_json_write(jobs_path, graph, err)))
+    if ((r = pl_graph_write(jobs_path, graph, err)))
         goto done;
     json_t *status = json_object();
     if (!o->emit_jobs && o->farm == SL_FARM_SLURM)

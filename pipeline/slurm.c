@@ -3,6 +3,8 @@
  * squeue polling. See slurm.h and docs/slurm.md. */
 #include "slurm.h"
 
+#include "pipeline_private.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <jansson.h>
@@ -274,133 +276,50 @@ static void graph_free(graph *g)
     json_decref(g->root);
 }
 
-static int job_index(const graph *g, const char *id)
-{
-    for (int i = 0; i < g->count; i++)
-        if (strcmp(g->jobs[i].id, id) == 0)
-            return i;
-    return -1;
-}
-
-static sl_result bad_job(const graph *g, int i, const char *what, sl_error *err)
-{
-    const char *id = g->jobs[i].id;
-    if (id)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: job '%s': %s", g->path, id, what);
-    return sl_error_set(err, SL_ERR_INPUT, "%s: job %d: %s", g->path, i + 1, what);
-}
-
-static bool positive_integer(json_t *v, long *out)
-{
-    if (!json_is_integer(v) || json_integer_value(v) < 0 || json_integer_value(v) > INT_MAX)
-        return false;
-    *out = (long)json_integer_value(v);
-    return true;
-}
-
+/* The graph through sl_pipeline_graph_parse, the one parser every reader
+ * of a graph uses (and the fuzzer feeds): fields, caps, ids, dependencies
+ * and their order are checked there; here its jobs become the submission's
+ * records, in the parsed order. */
 static sl_result graph_load(const char *path, graph *g, sl_error *err)
 {
     memset(g, 0, sizeof(*g));
     g->path = path;
-    sl_result r = sl_check_input_size(path, SL_MAX_JSON_BYTES, "job graph", err);
+    sl_pipeline_graph *pg = NULL;
+    sl_result r = pl_graph_load(path, &pg, err);
     if (r != SL_OK)
         return r;
-    json_error_t je;
-    g->root = json_load_file(path, JSON_REJECT_DUPLICATES, &je);
-    if (!g->root)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: not a job graph: line %d: %s", path, je.line,
-                            je.text);
-    const char *format = json_string_value(json_object_get(g->root, "format"));
-    if (!format || strcmp(format, "setlight-jobs") != 0)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: not a job graph (format is not \"setlight-jobs\")",
-                            path);
-    if (json_integer_value(json_object_get(g->root, "version")) != 1)
-        return sl_error_set(err, SL_ERR_INPUT, "%s: job graph version is not 1", path);
-    g->out = json_string_value(json_object_get(g->root, "out"));
-    if (!g->out || g->out[0] != '/')
-        return sl_error_set(err, SL_ERR_INPUT, "%s: \"out\" is not an absolute path", path);
-    json_t *jobs = json_object_get(g->root, "jobs");
-    if (!json_is_array(jobs))
-        return sl_error_set(err, SL_ERR_INPUT, "%s: \"jobs\" is not a list", path);
-    g->count = (int)json_array_size(jobs);
+    g->root = json_incref(pg->root);
+    g->out = pg->out;
+    g->count = pg->count;
     g->jobs = calloc((size_t)g->count + 1, sizeof(job));
     g->order = calloc((size_t)g->count + 1, sizeof(int));
-    if (!g->jobs || !g->order)
+    if (!g->jobs || !g->order) {
+        sl_pipeline_graph_free(pg);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for %d jobs", path, g->count);
-    for (int i = 0; i < g->count; i++) {
-        json_t *o = json_array_get(jobs, (size_t)i);
+    }
+    memcpy(g->order, pg->order, (size_t)g->count * sizeof(int));
+    for (int i = 0; i < g->count && !r; i++) {
+        json_t *o = json_array_get(pg->jobs, (size_t)i), *deps = json_object_get(o, "deps");
         job *j = &g->jobs[i];
         j->batch = j->task = -1;
         j->id = json_string_value(json_object_get(o, "id"));
-        if (!j->id || !j->id[0])
-            return bad_job(g, i, "\"id\" is missing or not a string", err);
-        if (job_index(g, j->id) != i)
-            return bad_job(g, i, "two jobs have this id", err);
         j->argv = json_object_get(o, "argv");
-        if (!json_is_array(j->argv) || json_array_size(j->argv) == 0)
-            return bad_job(g, i, "\"argv\" is not a non-empty list", err);
-        for (size_t k = 0; k < json_array_size(j->argv); k++)
-            if (!json_is_string(json_array_get(j->argv, k)))
-                return bad_job(g, i, "\"argv\" holds something other than strings", err);
         j->log = json_string_value(json_object_get(o, "log"));
-        if (!j->log || j->log[0] != '/')
-            return bad_job(g, i, "\"log\" is not an absolute path", err);
-        json_t *array = json_object_get(o, "array");
-        if (array && !json_is_null(array) && !json_is_string(array))
-            return bad_job(g, i, "\"array\" is neither a string nor null", err);
-        j->array = json_string_value(array);
-        if (!positive_integer(json_object_get(o, "memory_mb"), &j->memory_mb))
-            return bad_job(g, i, "\"memory_mb\" is not a whole number >= 0", err);
-        if (!positive_integer(json_object_get(o, "cpus"), &j->cpus) || j->cpus < 1)
-            return bad_job(g, i, "\"cpus\" is not a whole number >= 1", err);
-        json_t *utd = json_object_get(o, "up_to_date");
-        if (!json_is_boolean(utd))
-            return bad_job(g, i, "\"up_to_date\" is not true or false", err);
-        j->up_to_date = json_is_true(utd);
-    }
-    for (int i = 0; i < g->count; i++) {
-        json_t *deps = json_object_get(json_array_get(jobs, (size_t)i), "deps");
-        if (!json_is_array(deps))
-            return bad_job(g, i, "\"deps\" is not a list", err);
-        job *j = &g->jobs[i];
+        j->array = json_string_value(json_object_get(o, "array"));
+        j->memory_mb = (long)json_integer_value(json_object_get(o, "memory_mb"));
+        j->cpus = (long)json_integer_value(json_object_get(o, "cpus"));
+        j->up_to_date = json_is_true(json_object_get(o, "up_to_date"));
         j->deps = calloc(json_array_size(deps) + 1, sizeof(int));
-        if (!j->deps)
-            return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-        for (size_t k = 0; k < json_array_size(deps); k++) {
-            const char *d = json_string_value(json_array_get(deps, k));
-            int di = d ? job_index(g, d) : -1;
-            if (di < 0) {
-                char what[512];
-                snprintf(what, sizeof what, "dependency '%s' is not a job of the graph",
-                         d ? d : "(not a string)");
-                return bad_job(g, i, what, err);
-            }
-            j->deps[j->dep_count++] = di;
+        if (!j->deps) {
+            r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
+            break;
         }
+        for (size_t k = 0; k < json_array_size(deps); k++)
+            j->deps[j->dep_count++] = (int)json_integer_value(
+                json_object_get(pg->ids, json_string_value(json_array_get(deps, k))));
     }
-    /* Kahn's order; what is left over is on a cycle. */
-    int *left = calloc((size_t)g->count + 1, sizeof(int));
-    if (!left)
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
-    for (int i = 0; i < g->count; i++)
-        left[i] = g->jobs[i].dep_count;
-    int n = 0;
-    for (int i = 0; i < g->count; i++)
-        if (left[i] == 0)
-            g->order[n++] = i;
-    for (int k = 0; k < n; k++)
-        for (int i = 0; i < g->count; i++)
-            for (int d = 0; d < g->jobs[i].dep_count; d++)
-                if (g->jobs[i].deps[d] == g->order[k] && --left[i] == 0)
-                    g->order[n++] = i;
-    int cyclic = -1;
-    for (int i = 0; i < g->count && cyclic < 0; i++)
-        if (left[i] > 0)
-            cyclic = i;
-    free(left);
-    if (cyclic >= 0)
-        return bad_job(g, cyclic, "its dependencies form a cycle", err);
-    return SL_OK;
+    sl_pipeline_graph_free(pg); /* g->root holds the strings */
+    return r;
 }
 
 static int cmp_int(const void *a, const void *b)

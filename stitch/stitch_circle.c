@@ -167,9 +167,46 @@ static bool robust_fit(const ball_point *pts, bool *use, int n, double c[3], int
     return true;
 }
 
+/* The dark frame's noise floor, taken off the coarse copy when the frame's
+ * border is noise round a low level: a long exposure at night leaves read
+ * and shot noise there, not black, and the inside (a night sky) is only a
+ * few times brighter, so the border's 90th percentile against the centre's
+ * median (sl_fisheye_check's test) would call the frame bright. The floor
+ * is the border's median plus FLOOR_SIGMAS robust deviations (from its
+ * median absolute deviation): a step edge stays a step above it; a light
+ * leak or a scene on part of the border stays above it too. A border whose
+ * median is not under BORDER_FLOOR_MAX of the centre's is no dark frame
+ * and is left as it is (a chrome ball's crop, a lat-long). */
+#define FLOOR_SIGMAS 3.0
+#define BORDER_FLOOR_MAX 0.15 /* sl_fisheye_check's BORDER_DARK */
+#define BORDER_BAND 2         /* px of the coarse copy, as sl_fisheye_check's */
+
+static double floor_of(const sl_image *lum, double *scratch)
+{
+    int w = lum->width, h = lum->height, nb = 0, nc = 0;
+    double half = 0.5 * (w < h ? w : h);
+    double *border = scratch, *centre = scratch + (size_t)w * h;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double v = sl_image_pixel(lum, x, y)[0];
+            if (x < BORDER_BAND || y < BORDER_BAND || x >= w - BORDER_BAND || y >= h - BORDER_BAND)
+                border[nb++] = v;
+            else if (hypot(x + 0.5 - 0.5 * w, y + 0.5 - 0.5 * h) < 0.5 * half)
+                centre[nc++] = v;
+        }
+    double *sorted = centre + nc;
+    double level = median_of(border, nb, sorted), inside = median_of(centre, nc, sorted);
+    if (!(inside > 0.0) || !(level < BORDER_FLOOR_MAX * inside))
+        return 0.0;
+    for (int i = 0; i < nb; i++)
+        border[i] = fabs(border[i] - level);
+    return level + FLOOR_SIGMAS * 1.4826 * median_of(border, nb, sorted);
+}
+
 /* Luminance block-averaged to at most COARSE_SIZE px across, then 3 x 3
- * median filtered, for sl_fisheye_check's coarse disc: its walk in from the
- * frame's edge stops at the first bright pixel, a merge's hot pixel too. */
+ * median filtered, less the dark frame's noise floor, for
+ * sl_fisheye_check's coarse disc: its walk in from the frame's edge stops
+ * at the first bright pixel, a merge's hot pixel too. */
 #define COARSE_SIZE 800
 static sl_result coarse_copy(const sl_image *img, sl_image *out, int *factor, sl_error *err)
 {
@@ -196,6 +233,19 @@ static sl_result coarse_copy(const sl_image *img, sl_image *out, int *factor, sl
             sl_image_pixel(out, x, y)[0] = (float)lum_median3(&mean, x, y);
     sl_image_free(&mean);
     *factor = f;
+    double *scratch = malloc(3 * (size_t)out->width * out->height * sizeof *scratch);
+    if (!scratch) {
+        sl_image_free(out);
+        return sl_error_set(err, SL_ERR_NOMEM, "out of memory finding the image circle");
+    }
+    double floor_level = floor_of(out, scratch);
+    free(scratch);
+    if (floor_level > 0.0)
+        for (int y = 0; y < out->height; y++)
+            for (int x = 0; x < out->width; x++) {
+                float *p = sl_image_pixel(out, x, y);
+                p[0] = p[0] > floor_level ? (float)(p[0] - floor_level) : 0.0f;
+            }
     return SL_OK;
 }
 

@@ -184,8 +184,8 @@ static void write_graph(const char *path, const bool *up_to_date)
         char array[64];
         snprintf(array, sizeof array, day[i].array ? "\"%s\"" : "null", day[i].array);
         fprintf(f,
-                "%s{\"id\":\"%s\",\"setup\":\"%.1s\",\"stage\":\"test\","
-                "\"argv\":[\"/bin/sh\",\"-c\",\"%s\"],\"command\":[],\"inputs\":[],\"outputs\":[],"
+                "%s{\"id\":\"%s\",\"setup\":\"%.1s\",\"stage\":\"merge\","
+                "\"argv\":[\"/bin/sh\",\"-c\",\"%s\"],\"command\":[\"sh\"],\"inputs\":[],\"outputs\":[],"
                 "\"deps\":[%s],\"array\":%s,\"memory_mb\":64,\"cpus\":1,\"log\":\"%s\","
                 "\"key\":null,\"up_to_date\":%s}",
                 i ? "," : "", day[i].id, day[i].id, escaped, day[i].deps, array, log,
@@ -319,9 +319,9 @@ static void test_day_on_slurm(void)
     if (f) {
         fprintf(f,
                 "{\"format\":\"setlight-jobs\",\"version\":1,\"out\":\"%s\",\"jobs\":["
-                "{\"id\":\"first\",\"argv\":[\"sleep\",\"30\"],\"deps\":[],\"array\":null,"
+                "{\"id\":\"first\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"x\"],\"inputs\":[],\"outputs\":[],\"key\":null,\"argv\":[\"sleep\",\"30\"],\"deps\":[],\"array\":null,"
                 "\"memory_mb\":16,\"cpus\":1,\"log\":\"%s/logs/first.log\",\"up_to_date\":false},"
-                "{\"id\":\"huge\",\"argv\":[\"true\"],\"deps\":[\"first\"],\"array\":null,"
+                "{\"id\":\"huge\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"x\"],\"inputs\":[],\"outputs\":[],\"key\":null,\"argv\":[\"true\"],\"deps\":[\"first\"],\"array\":null,"
                 "\"memory_mb\":100000000,\"cpus\":1,\"log\":\"%s/logs/huge.log\",\"up_to_date\":false}]}\n",
                 out_dir(), out_dir(), out_dir());
         fclose(f);
@@ -349,7 +349,7 @@ static void test_day_on_slurm(void)
     if (f) {
         fprintf(f,
                 "{\"format\":\"setlight-jobs\",\"version\":1,\"out\":\"%s\",\"jobs\":["
-                "{\"id\":\"slow\",\"argv\":[\"sleep\",\"30\"],\"deps\":[],\"array\":null,"
+                "{\"id\":\"slow\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"x\"],\"inputs\":[],\"outputs\":[],\"key\":null,\"argv\":[\"sleep\",\"30\"],\"deps\":[],\"array\":null,"
                 "\"memory_mb\":16,\"cpus\":1,\"log\":\"%s/logs/slow.log\",\"up_to_date\":false}]}\n",
                 out_dir(), out_dir());
         fclose(f);
@@ -416,7 +416,7 @@ static void expect_bad_graph(const char *name, const char *jobs, const char *mes
 }
 
 #define JOB(id, deps)                                                                        \
-    "{\"id\":\"" id "\",\"argv\":[\"true\"],\"deps\":[" deps "],\"array\":null,"         \
+    "{\"id\":\"" id "\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"x\"],\"inputs\":[],\"outputs\":[],\"key\":null,\"argv\":[\"true\"],\"deps\":[" deps "],\"array\":null,"         \
     "\"memory_mb\":0,\"cpus\":1,\"log\":\"/tmp/x.log\",\"up_to_date\":false}"
 
 static void test_bad_graphs(void)
@@ -427,10 +427,20 @@ static void test_bad_graphs(void)
                      "dependencies form a cycle");
     expect_bad_graph("duplicate.json", JOB("a", "") "," JOB("a", ""), "two jobs have this id");
     expect_bad_graph("no_argv.json",
-                     "{\"id\":\"a\",\"argv\":[],\"deps\":[],\"array\":null,\"memory_mb\":0,"
+                     "{\"id\":\"a\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"x\"],\"inputs\":[],\"outputs\":[],\"key\":null,\"argv\":[],\"deps\":[],\"array\":null,\"memory_mb\":0,"
                      "\"cpus\":1,\"log\":\"/tmp/x.log\",\"up_to_date\":false}",
-                     "job 'a': \"argv\" is not a non-empty list");
+                     "job 'a': \"argv\" is empty");
     expect_bad_graph("not_json.json", "{", "not a job graph");
+    /* Refused by the graph parser the rest of the pipeline (and the fuzzer)
+     * uses: an id that climbs out of OUT, an input path that is relative. */
+    expect_bad_graph("climbing_id.json", JOB("../a", ""),
+                     "\"id\" is not a relative path of at most");
+    expect_bad_graph("relative_input.json",
+                     "{\"id\":\"a\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"x\"],"
+                     "\"inputs\":[\"frame.tif\"],\"outputs\":[],\"key\":null,\"argv\":[\"true\"],"
+                     "\"deps\":[],\"array\":null,\"memory_mb\":0,\"cpus\":1,\"log\":\"/tmp/x.log\","
+                     "\"up_to_date\":false}",
+                     "job 'a': \"inputs\" entry 1 is not an absolute path");
 
     const char *path = keep_path("other_format.json");
     FILE *f = fopen(path, "w");

@@ -90,6 +90,23 @@ err_one_line
 err_has "ext/merge/1"
 json_eval "$T/out" '(lambda s: s["ext/merge/1"] == "failed" and s["ext/stitch"] == "not run" and s["ext/unwrap"] == "ran" and s["ext/merge/0"] == "skipped")({j["id"]: j["status"] for j in d["setups"][0]["jobs"]})'
 rm -rf "$T/farm"
+
+# 3c. Three setups (hard-linked copies of ext) grouped on the 2 CPUs: the
+# Slurm job that ends its setup first goes on with the third setup at once
+# (no wait for Slurm's next pass), so the third setup's own Slurm job finds
+# it taken and ends; each setup runs once, all ok, with its outputs; the
+# setups' scripts and claims are removed.
+cp -al "$T/ext" "$T/s1" && cp -al "$T/ext" "$T/s2" && cp -al "$T/ext" "$T/s3"
+expect 0 "$S" process "$T/s1" "$T/s2" "$T/s3" -o "$T/three" "${P[@]}" --farm slurm --farm-group setup --json -q
+json_eval "$T/out" 'd["jobs"]["failed"] == 0 and d["jobs"]["ran"] == d["jobs"]["total"] and all(s["status"] == "ok" for s in d["setups"])'
+ran_by=$(cd "$T/three/logs" && grep -H '^setlight: setup ' s?.slurm.log | sed 's/\.slurm\.log:setlight: setup / /' | sort)
+if [ "$(echo "$ran_by" | awk '{print $2}' | sort | tr '\n' ' ')" = "s1 s2 s3 " ] &&
+  [ -n "$(echo "$ran_by" | awk '$1 != $2')" ]; then ok; else
+  bad "each setup once, one by another setup's Slurm job: $(echo "$ran_by" | tr '\n' ';')"
+fi
+if ls -d "$T/three/logs"/farm-* >/dev/null 2>&1; then bad "the grouped setups' scripts were left"; else ok; fi
+for s in s1 s2 s3; do present "$T/three/$s/stitch/hdri.exr"; present "$T/three/$s/rig/rig.usda"; done
+rm -rf "$T/three"
 mv "$T/farm_by_job" "$T/farm"
 
 # 4. Everything up to date: nothing to submit, so no Slurm needed. Then the
@@ -104,4 +121,8 @@ rm "$T/farm/ext/rig.stamp.json"
 expect 1 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm -q
 err_one_line
 if [ "$(sha256sum <"$T/farm/ext/rig/rig.usda")" = "$sha_before" ]; then ok; else bad "a failed farm run changed an output"; fi
+# The same grouped by setup: the setups' scripts are not left behind.
+expect 1 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --farm-group setup -q
+err_one_line
+if ls -d "$T/farm/logs"/farm-* >/dev/null 2>&1; then bad "the grouped setups' scripts were left"; else ok; fi
 finish
