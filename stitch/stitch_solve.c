@@ -16,6 +16,16 @@
 /* Matches of a fallen-back pair that must agree with the solved poses for
  * the pair to count as solved. */
 #define KEEP_MIN_AGREE 8
+/* A pair with fewer than min_inliers inliers is still solved when its
+ * rotation is known to within PAIR_SIGMA_OF_BAND of the RANSAC band
+ * (ransac_deg; one standard deviation, all three axes together) from at
+ * least PAIR_MIN_FRACTION of min_inliers: 20 consistent rays spread over
+ * an overlap fix a rotation well; the same count bunched in one spot does
+ * not, nor does a chance consensus of a handful of look-alikes. Before the
+ * lens is solved the residuals are mostly the nominal lens's error, so
+ * the band, not a pixel, is the scale. */
+#define PAIR_SIGMA_OF_BAND 0.5
+#define PAIR_MIN_FRACTION 0.6
 
 void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
 {
@@ -191,6 +201,32 @@ static int ransac_rotation(const double (*ra)[3], const double (*rb)[3], int n,
     return count_inliers(ra, rb, n, r, threshold, inlier);
 }
 
+/* One standard deviation (radians, the three axes together) of the
+ * rotation fitted to the inliers: the residual angle's spread times
+ * sqrt(trace((sum (I - v v^T))^-1)); HUGE_VAL when it is not determined. */
+static double rotation_sigma(const double (*ra)[3], const double (*rb)[3], int n,
+                             const bool *inlier, const double r[3][3])
+{
+    double a[3][3] = {{0}}, inv[3][3], sq = 0.0;
+    int used = 0;
+    for (int i = 0; i < n; i++) {
+        if (!inlier[i])
+            continue;
+        double v[3];
+        sl_mat3_apply(r, rb[i], v);
+        double e = angle_between(ra[i], v);
+        sq += e * e;
+        used++;
+        for (int p = 0; p < 3; p++)
+            for (int q = 0; q < 3; q++)
+                a[p][q] += (p == q) - ra[i][p] * ra[i][q];
+    }
+    if (used < 4 || !sl_mat3_invert((const double (*)[3])a, inv))
+        return HUGE_VAL;
+    double trace = inv[0][0] + inv[1][1] + inv[2][2];
+    return trace > 0.0 ? sqrt(sq / (used - 3) * trace) : HUGE_VAL;
+}
+
 typedef struct solve_state {
     sl_stitch_view *views;
     int count;
@@ -281,14 +317,26 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
                              : 0;
     pr->inliers = inliers;
     double off = inliers ? solve_rotation_angle(rel, nominal) : 0.0;
+    int floor = (int)ceil(PAIR_MIN_FRACTION * st->opt->min_inliers);
+    double sigma = inliers >= floor ? rotation_sigma((const double (*)[3])ra,
+                                                     (const double (*)[3])rb, m, inlier, rel) / DEG
+                                    : HUGE_VAL;
+    double max_sigma = PAIR_SIGMA_OF_BAND * st->opt->ransac_deg;
+    bool enough = inliers >= st->opt->min_inliers || sigma <= max_sigma;
     if (r != SL_OK) {
         /* the error is the caller's */
-    } else if (inliers < st->opt->min_inliers) {
+    } else if (!enough) {
         pr->status = SL_STITCH_PAIR_FEW_MATCHES;
         pr->fallback = true;
-        snprintf(pr->why, sizeof pr->why,
-                 "%d features and %d, %d matches, %d consistent (at least %d needed)", fa->count,
-                 fb->count, m, inliers, st->opt->min_inliers);
+        if (inliers >= floor)
+            snprintf(pr->why, sizeof pr->why,
+                     "%d features and %d, %d matches, %d consistent fixing the rotation to %.2f "
+                     "deg (at least %d needed, or %.2f deg)",
+                     fa->count, fb->count, m, inliers, sigma, st->opt->min_inliers, max_sigma);
+        else
+            snprintf(pr->why, sizeof pr->why,
+                     "%d features and %d, %d matches, %d consistent (at least %d needed)",
+                     fa->count, fb->count, m, inliers, st->opt->min_inliers);
         /* Too few to fix a rotation on their own, but once the other pairs
          * have placed both views its matches are judged against that
          * (keep_agreeing_pairs): they start as outliers. */
@@ -307,6 +355,11 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
     } else {
         pr->status = SL_STITCH_PAIR_SOLVED;
         memcpy(st->pair_rot[p], rel, sizeof rel);
+        if (inliers < st->opt->min_inliers)
+            snprintf(pr->why, sizeof pr->why,
+                     "%d matches, %d consistent: fewer than %d, but they fix the rotation to "
+                     "%.2f deg (at most %.2f)",
+                     m, inliers, st->opt->min_inliers, sigma, max_sigma);
         for (int i = 0; i < m && r == SL_OK; i++) {
             const float *xa = fa->xy + 2 * idx[2 * kept[i]], *xb = fb->xy + 2 * idx[2 * kept[i] + 1];
             solve_match sm = {.pair = p, .a = pr->a, .b = pr->b,
@@ -318,21 +371,13 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
     return r;
 }
 
-/* Starting rotations: view 0's nominal one, then along the solved pairs
- * (breadth first); views no solved pair reaches keep their nominal pose
- * and stay fixed. */
-static void initial_rotations(solve_state *st, bool *free_view, bool *reached)
+/* Places the views the solved pairs reach from root (held at its nominal
+ * pose), breadth first; group[v] = root for each. */
+static void place_from(solve_state *st, int root, bool *free_view, int *group, int *queue)
 {
-    int count = st->count;
-    int *queue = malloc((size_t)count * sizeof *queue);
-    memcpy(st->rot, st->rot_nominal, (size_t)count * sizeof *st->rot);
-    for (int v = 0; v < count; v++)
-        free_view[v] = reached[v] = false;
-    if (!queue)
-        return;
     int head = 0, tail = 0;
-    queue[tail++] = 0;
-    reached[0] = true;
+    queue[tail++] = root;
+    group[root] = root;
     while (head < tail) {
         int v = queue[head++];
         for (int p = 0; p < st->res->pairs; p++) {
@@ -340,7 +385,7 @@ static void initial_rotations(solve_state *st, bool *free_view, bool *reached)
             if (pr->status != SL_STITCH_PAIR_SOLVED || (pr->a != v && pr->b != v))
                 continue;
             int o = pr->a == v ? pr->b : pr->a;
-            if (reached[o])
+            if (group[o] >= 0)
                 continue;
             double (*rel)[3] = st->pair_rot[p], t[3][3];
             if (pr->a == v) { /* M_b = M_a R */
@@ -351,24 +396,47 @@ static void initial_rotations(solve_state *st, bool *free_view, bool *reached)
                         t[i][j] = rel[j][i];
                 sl_mat3_mul((const double (*)[3])st->rot[v], (const double (*)[3])t, st->rot[o]);
             }
-            reached[o] = true;
+            group[o] = root;
             free_view[o] = st->opt->solve_poses;
             queue[tail++] = o;
         }
     }
+}
+
+/* Starting rotations: view 0's nominal one, then along the solved pairs
+ * (breadth first). A group of views that solved pairs join to each other
+ * but not to view 0 is placed the same way from its first view, held at
+ * its nominal pose: the seams inside the group are solved, its pairs with
+ * the rest fall back (else its pairs would count as solved and place
+ * nothing). Views no solved pair reaches keep their nominal pose and stay
+ * fixed. */
+static void initial_rotations(solve_state *st, bool *free_view, int *group)
+{
+    int count = st->count;
+    int *queue = malloc((size_t)count * sizeof *queue);
+    memcpy(st->rot, st->rot_nominal, (size_t)count * sizeof *st->rot);
+    for (int v = 0; v < count; v++) {
+        free_view[v] = false;
+        group[v] = -1;
+    }
+    if (!queue)
+        return;
+    for (int v = 0; v < count; v++)
+        if (group[v] < 0)
+            place_from(st, v, free_view, group, queue);
     free(queue);
 }
 
 /* The matches of a pair that fell back take part only when the solved
- * pairs reach both its views (else nothing places them); the rest are
- * dropped. */
-static void drop_unplaced_matches(solve_state *st, const bool *reached)
+ * pairs join its two views (else nothing places one against the other);
+ * the rest are dropped. */
+static void drop_unplaced_matches(solve_state *st, const int *group)
 {
     int kept = 0;
     for (int i = 0; i < st->match_count; i++) {
         const solve_match *m = &st->matches[i];
         if (st->res->pair[m->pair].status == SL_STITCH_PAIR_SOLVED ||
-            (reached[m->a] && reached[m->b]))
+            group[m->a] == group[m->b])
             st->matches[kept++] = *m;
     }
     st->match_count = kept;
@@ -400,6 +468,23 @@ static void keep_agreeing_pairs(solve_state *st, int min_agree)
                 if (st->matches[i].pair == p)
                     st->matches[i].inlier = false;
         }
+    }
+}
+
+/* A pair solved on its own whose inliers all disagree with the poses
+ * solved in the end places nothing: it is reported as fallen back, not as
+ * solved with no inliers. */
+static void drop_disagreeing_pairs(solve_state *st)
+{
+    for (int p = 0; p < st->res->pairs; p++) {
+        sl_stitch_pair *pr = &st->res->pair[p];
+        if (pr->status != SL_STITCH_PAIR_SOLVED || pr->inliers > 0)
+            continue;
+        pr->status = SL_STITCH_PAIR_INCONSISTENT;
+        pr->fallback = true;
+        snprintf(pr->why, sizeof pr->why,
+                 "%d matches, none of them consistent with the poses solved from all pairs",
+                 pr->matches);
     }
 }
 
@@ -562,8 +647,8 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     st.rot_nominal = malloc((size_t)count * sizeof *st.rot_nominal);
     st.pair_rot = malloc((size_t)(pairs + 1) * sizeof *st.pair_rot);
     bool *free_view = calloc((size_t)count, sizeof *free_view);
-    bool *reached = calloc((size_t)count, sizeof *reached);
-    if (!reached || !res->pose_nominal || !res->pose || !res->gain || !res->features || !res->pair ||
+    int *group = calloc((size_t)count, sizeof *group);
+    if (!group || !res->pose_nominal || !res->pose || !res->gain || !res->features || !res->pair ||
         !st.feat || !st.rot || !st.rot_nominal || !st.pair_rot || !free_view) {
         r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory");
         goto done;
@@ -616,8 +701,8 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
         res->pairs_solved += res->pair[p].status == SL_STITCH_PAIR_SOLVED;
         res->pairs_fallback += res->pair[p].fallback;
     }
-    initial_rotations(&st, free_view, reached);
-    drop_unplaced_matches(&st, reached);
+    initial_rotations(&st, free_view, group);
+    drop_unplaced_matches(&st, group);
     /* A few matches in one corner of the overlaps fit the lens to
      * themselves: the lens moves only on enough inliers spread over the
      * circle, else the poses alone are solved. */
@@ -664,6 +749,7 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
         }
         keep_agreeing_pairs(&st, KEEP_MIN_AGREE);
         measure(&st, &lens);
+        drop_disagreeing_pairs(&st);
         res->pairs_solved = res->pairs_fallback = 0;
         for (int p = 0; p < pairs; p++) {
             res->pairs_solved += res->pair[p].status == SL_STITCH_PAIR_SOLVED;
@@ -683,7 +769,7 @@ done:
     for (int v = 0; st.feat && v < count; v++)
         solve_features_free(&st.feat[v]);
     free(st.feat), free(st.rot), free(st.rot_nominal), free(st.pair_rot), free(st.matches);
-    free(free_view), free(reached);
+    free(free_view), free(group);
     res->seconds_total = sl_seconds() - start;
     return r;
 }
