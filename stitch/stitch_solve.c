@@ -584,6 +584,40 @@ static void prune_inliers(solve_state *st, const sl_lens *lens, double threshold
                 solve_match_error(&st->matches[i], st->rot, &u, NULL, NULL) < threshold;
 }
 
+/* The image circle's edge is where the lens's field ends (max_theta_deg:
+ * 90 deg for a nominal fisheye, a profile's own field), so its radius
+ * gives the focal length given that field. Used only when the overlaps
+ * cannot solve the lens, and only when it agrees with the nominal focal
+ * within CIRCLE_FOCAL_AGREE: further off, the field is not what the lens
+ * model says (a 190 deg fisheye's circle is 3.3% wider than a 180 deg
+ * one's) or the circle is not the lens's. The result says which. */
+#define CIRCLE_FOCAL_AGREE 0.03
+static void focal_from_circle(sl_lens *lens, sl_stitch_solve_result *res)
+{
+    if (lens->projection == SL_LENS_RECTILINEAR || !(lens->circle_radius_px > 0.0))
+        return;
+    double edge = sl_lens_radius(lens, lens->max_theta_deg * DEG);
+    if (!(edge > 0.0))
+        return;
+    double focal = lens->focal_px * lens->circle_radius_px / edge;
+    double change = focal / lens->focal_px - 1.0;
+    size_t used = strlen(res->lens_note);
+    const char *sep = used ? "; " : "";
+    if (fabs(change) > CIRCLE_FOCAL_AGREE) {
+        snprintf(res->lens_note + used, sizeof res->lens_note - used,
+                 "%sthe circle's focal (%.4g deg field) is %+.1f%% off: not used",
+                 sep, 2.0 * lens->max_theta_deg, 100.0 * change);
+        return;
+    }
+    if (fabs(change) < 1e-9)
+        return;
+    snprintf(res->lens_note + used, sizeof res->lens_note - used,
+             "%sfocal %.2f px from the circle (%.4g deg field, %+.2f%%)", sep,
+             focal, 2.0 * lens->max_theta_deg, 100.0 * change);
+    lens->focal_px = focal;
+    res->lens_held = true;
+}
+
 static sl_result check_views(const sl_stitch_view *views, int count, sl_error *err)
 {
     if (count < 1 || !views)
@@ -708,6 +742,7 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
      * circle, else the poses alone are solved. */
     sl_stitch_solve_options adjust_opt = *opt;
     opt = &adjust_opt;
+    bool focal_wanted = opt->solve_focal;
     bool lens_wanted = opt->solve_focal || opt->solve_centre || opt->radial_terms > 0;
     if (res->pairs_solved > 0 && lens_wanted) {
         res->lens_inliers = lens_evidence(&st, &lens, &res->lens_spread);
@@ -723,6 +758,8 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
             adjust_opt.radial_terms = 0;
         }
     }
+    if ((res->pairs_solved == 0 || res->lens_held) && focal_wanted)
+        focal_from_circle(&lens, res);
     if (res->pairs_solved > 0) {
         /* The nominal lens puts the circle's edge degrees off: a loose first
          * round, then the matches re-judged in pixels with the lens solved. */
