@@ -16,6 +16,16 @@
 /* Matches of a fallen-back pair that must agree with the solved poses for
  * the pair to count as solved. */
 #define KEEP_MIN_AGREE 8
+/* A pair with fewer than min_inliers inliers is still solved when its
+ * rotation is known to within PAIR_SIGMA_OF_BAND of the RANSAC band
+ * (ransac_deg; one standard deviation, all three axes together) from at
+ * least PAIR_MIN_FRACTION of min_inliers: 20 consistent rays spread over
+ * an overlap fix a rotation well; the same count bunched in one spot does
+ * not, nor does a chance consensus of a handful of look-alikes. Before the
+ * lens is solved the residuals are mostly the nominal lens's error, so
+ * the band, not a pixel, is the scale. */
+#define PAIR_SIGMA_OF_BAND 0.5
+#define PAIR_MIN_FRACTION 0.6
 
 void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
 {
@@ -191,6 +201,32 @@ static int ransac_rotation(const double (*ra)[3], const double (*rb)[3], int n,
     return count_inliers(ra, rb, n, r, threshold, inlier);
 }
 
+/* One standard deviation (radians, the three axes together) of the
+ * rotation fitted to the inliers: the residual angle's spread times
+ * sqrt(trace((sum (I - v v^T))^-1)); HUGE_VAL when it is not determined. */
+static double rotation_sigma(const double (*ra)[3], const double (*rb)[3], int n,
+                             const bool *inlier, const double r[3][3])
+{
+    double a[3][3] = {{0}}, inv[3][3], sq = 0.0;
+    int used = 0;
+    for (int i = 0; i < n; i++) {
+        if (!inlier[i])
+            continue;
+        double v[3];
+        sl_mat3_apply(r, rb[i], v);
+        double e = angle_between(ra[i], v);
+        sq += e * e;
+        used++;
+        for (int p = 0; p < 3; p++)
+            for (int q = 0; q < 3; q++)
+                a[p][q] += (p == q) - ra[i][p] * ra[i][q];
+    }
+    if (used < 4 || !sl_mat3_invert((const double (*)[3])a, inv))
+        return HUGE_VAL;
+    double trace = inv[0][0] + inv[1][1] + inv[2][2];
+    return trace > 0.0 ? sqrt(sq / (used - 3) * trace) : HUGE_VAL;
+}
+
 typedef struct solve_state {
     sl_stitch_view *views;
     int count;
@@ -281,14 +317,26 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
                              : 0;
     pr->inliers = inliers;
     double off = inliers ? solve_rotation_angle(rel, nominal) : 0.0;
+    int floor = (int)ceil(PAIR_MIN_FRACTION * st->opt->min_inliers);
+    double sigma = inliers >= floor ? rotation_sigma((const double (*)[3])ra,
+                                                     (const double (*)[3])rb, m, inlier, rel) / DEG
+                                    : HUGE_VAL;
+    double max_sigma = PAIR_SIGMA_OF_BAND * st->opt->ransac_deg;
+    bool enough = inliers >= st->opt->min_inliers || sigma <= max_sigma;
     if (r != SL_OK) {
         /* the error is the caller's */
-    } else if (inliers < st->opt->min_inliers) {
+    } else if (!enough) {
         pr->status = SL_STITCH_PAIR_FEW_MATCHES;
         pr->fallback = true;
-        snprintf(pr->why, sizeof pr->why,
-                 "%d features and %d, %d matches, %d consistent (at least %d needed)", fa->count,
-                 fb->count, m, inliers, st->opt->min_inliers);
+        if (inliers >= floor)
+            snprintf(pr->why, sizeof pr->why,
+                     "%d features and %d, %d matches, %d consistent fixing the rotation to %.2f "
+                     "deg (at least %d needed, or %.2f deg)",
+                     fa->count, fb->count, m, inliers, sigma, st->opt->min_inliers, max_sigma);
+        else
+            snprintf(pr->why, sizeof pr->why,
+                     "%d features and %d, %d matches, %d consistent (at least %d needed)",
+                     fa->count, fb->count, m, inliers, st->opt->min_inliers);
         /* Too few to fix a rotation on their own, but once the other pairs
          * have placed both views its matches are judged against that
          * (keep_agreeing_pairs): they start as outliers. */
@@ -307,6 +355,11 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
     } else {
         pr->status = SL_STITCH_PAIR_SOLVED;
         memcpy(st->pair_rot[p], rel, sizeof rel);
+        if (inliers < st->opt->min_inliers)
+            snprintf(pr->why, sizeof pr->why,
+                     "%d matches, %d consistent: fewer than %d, but they fix the rotation to "
+                     "%.2f deg (at most %.2f)",
+                     m, inliers, st->opt->min_inliers, sigma, max_sigma);
         for (int i = 0; i < m && r == SL_OK; i++) {
             const float *xa = fa->xy + 2 * idx[2 * kept[i]], *xb = fb->xy + 2 * idx[2 * kept[i] + 1];
             solve_match sm = {.pair = p, .a = pr->a, .b = pr->b,
@@ -318,21 +371,13 @@ static sl_result solve_pair(solve_state *st, int p, uint64_t *rng, sl_error *err
     return r;
 }
 
-/* Starting rotations: view 0's nominal one, then along the solved pairs
- * (breadth first); views no solved pair reaches keep their nominal pose
- * and stay fixed. */
-static void initial_rotations(solve_state *st, bool *free_view, bool *reached)
+/* Places the views the solved pairs reach from root (held at its nominal
+ * pose), breadth first; group[v] = root for each. */
+static void place_from(solve_state *st, int root, bool *free_view, int *group, int *queue)
 {
-    int count = st->count;
-    int *queue = malloc((size_t)count * sizeof *queue);
-    memcpy(st->rot, st->rot_nominal, (size_t)count * sizeof *st->rot);
-    for (int v = 0; v < count; v++)
-        free_view[v] = reached[v] = false;
-    if (!queue)
-        return;
     int head = 0, tail = 0;
-    queue[tail++] = 0;
-    reached[0] = true;
+    queue[tail++] = root;
+    group[root] = root;
     while (head < tail) {
         int v = queue[head++];
         for (int p = 0; p < st->res->pairs; p++) {
@@ -340,7 +385,7 @@ static void initial_rotations(solve_state *st, bool *free_view, bool *reached)
             if (pr->status != SL_STITCH_PAIR_SOLVED || (pr->a != v && pr->b != v))
                 continue;
             int o = pr->a == v ? pr->b : pr->a;
-            if (reached[o])
+            if (group[o] >= 0)
                 continue;
             double (*rel)[3] = st->pair_rot[p], t[3][3];
             if (pr->a == v) { /* M_b = M_a R */
@@ -351,24 +396,47 @@ static void initial_rotations(solve_state *st, bool *free_view, bool *reached)
                         t[i][j] = rel[j][i];
                 sl_mat3_mul((const double (*)[3])st->rot[v], (const double (*)[3])t, st->rot[o]);
             }
-            reached[o] = true;
+            group[o] = root;
             free_view[o] = st->opt->solve_poses;
             queue[tail++] = o;
         }
     }
+}
+
+/* Starting rotations: view 0's nominal one, then along the solved pairs
+ * (breadth first). A group of views that solved pairs join to each other
+ * but not to view 0 is placed the same way from its first view, held at
+ * its nominal pose: the seams inside the group are solved, its pairs with
+ * the rest fall back (else its pairs would count as solved and place
+ * nothing). Views no solved pair reaches keep their nominal pose and stay
+ * fixed. */
+static void initial_rotations(solve_state *st, bool *free_view, int *group)
+{
+    int count = st->count;
+    int *queue = malloc((size_t)count * sizeof *queue);
+    memcpy(st->rot, st->rot_nominal, (size_t)count * sizeof *st->rot);
+    for (int v = 0; v < count; v++) {
+        free_view[v] = false;
+        group[v] = -1;
+    }
+    if (!queue)
+        return;
+    for (int v = 0; v < count; v++)
+        if (group[v] < 0)
+            place_from(st, v, free_view, group, queue);
     free(queue);
 }
 
 /* The matches of a pair that fell back take part only when the solved
- * pairs reach both its views (else nothing places them); the rest are
- * dropped. */
-static void drop_unplaced_matches(solve_state *st, const bool *reached)
+ * pairs join its two views (else nothing places one against the other);
+ * the rest are dropped. */
+static void drop_unplaced_matches(solve_state *st, const int *group)
 {
     int kept = 0;
     for (int i = 0; i < st->match_count; i++) {
         const solve_match *m = &st->matches[i];
         if (st->res->pair[m->pair].status == SL_STITCH_PAIR_SOLVED ||
-            (reached[m->a] && reached[m->b]))
+            group[m->a] == group[m->b])
             st->matches[kept++] = *m;
     }
     st->match_count = kept;
@@ -400,6 +468,23 @@ static void keep_agreeing_pairs(solve_state *st, int min_agree)
                 if (st->matches[i].pair == p)
                     st->matches[i].inlier = false;
         }
+    }
+}
+
+/* A pair solved on its own whose inliers all disagree with the poses
+ * solved in the end places nothing: it is reported as fallen back, not as
+ * solved with no inliers. */
+static void drop_disagreeing_pairs(solve_state *st)
+{
+    for (int p = 0; p < st->res->pairs; p++) {
+        sl_stitch_pair *pr = &st->res->pair[p];
+        if (pr->status != SL_STITCH_PAIR_SOLVED || pr->inliers > 0)
+            continue;
+        pr->status = SL_STITCH_PAIR_INCONSISTENT;
+        pr->fallback = true;
+        snprintf(pr->why, sizeof pr->why,
+                 "%d matches, none of them consistent with the poses solved from all pairs",
+                 pr->matches);
     }
 }
 
@@ -499,6 +584,40 @@ static void prune_inliers(solve_state *st, const sl_lens *lens, double threshold
                 solve_match_error(&st->matches[i], st->rot, &u, NULL, NULL) < threshold;
 }
 
+/* The image circle's edge is where the lens's field ends (max_theta_deg:
+ * 90 deg for a nominal fisheye, a profile's own field), so its radius
+ * gives the focal length given that field. Used only when the overlaps
+ * cannot solve the lens, and only when it agrees with the nominal focal
+ * within CIRCLE_FOCAL_AGREE: further off, the field is not what the lens
+ * model says (a 190 deg fisheye's circle is 3.3% wider than a 180 deg
+ * one's) or the circle is not the lens's. The result says which. */
+#define CIRCLE_FOCAL_AGREE 0.03
+static void focal_from_circle(sl_lens *lens, sl_stitch_solve_result *res)
+{
+    if (lens->projection == SL_LENS_RECTILINEAR || !(lens->circle_radius_px > 0.0))
+        return;
+    double edge = sl_lens_radius(lens, lens->max_theta_deg * DEG);
+    if (!(edge > 0.0))
+        return;
+    double focal = lens->focal_px * lens->circle_radius_px / edge;
+    double change = focal / lens->focal_px - 1.0;
+    size_t used = strlen(res->lens_note);
+    const char *sep = used ? "; " : "";
+    if (fabs(change) > CIRCLE_FOCAL_AGREE) {
+        snprintf(res->lens_note + used, sizeof res->lens_note - used,
+                 "%sthe circle's focal (%.4g deg field) is %+.1f%% off: not used",
+                 sep, 2.0 * lens->max_theta_deg, 100.0 * change);
+        return;
+    }
+    if (fabs(change) < 1e-9)
+        return;
+    snprintf(res->lens_note + used, sizeof res->lens_note - used,
+             "%sfocal %.2f px from the circle (%.4g deg field, %+.2f%%)", sep,
+             focal, 2.0 * lens->max_theta_deg, 100.0 * change);
+    lens->focal_px = focal;
+    res->lens_held = true;
+}
+
 static sl_result check_views(const sl_stitch_view *views, int count, sl_error *err)
 {
     if (count < 1 || !views)
@@ -562,8 +681,8 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     st.rot_nominal = malloc((size_t)count * sizeof *st.rot_nominal);
     st.pair_rot = malloc((size_t)(pairs + 1) * sizeof *st.pair_rot);
     bool *free_view = calloc((size_t)count, sizeof *free_view);
-    bool *reached = calloc((size_t)count, sizeof *reached);
-    if (!reached || !res->pose_nominal || !res->pose || !res->gain || !res->features || !res->pair ||
+    int *group = calloc((size_t)count, sizeof *group);
+    if (!group || !res->pose_nominal || !res->pose || !res->gain || !res->features || !res->pair ||
         !st.feat || !st.rot || !st.rot_nominal || !st.pair_rot || !free_view) {
         r = sl_error_set(err, SL_ERR_NOMEM, "stitch solve: out of memory");
         goto done;
@@ -616,13 +735,14 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
         res->pairs_solved += res->pair[p].status == SL_STITCH_PAIR_SOLVED;
         res->pairs_fallback += res->pair[p].fallback;
     }
-    initial_rotations(&st, free_view, reached);
-    drop_unplaced_matches(&st, reached);
+    initial_rotations(&st, free_view, group);
+    drop_unplaced_matches(&st, group);
     /* A few matches in one corner of the overlaps fit the lens to
      * themselves: the lens moves only on enough inliers spread over the
      * circle, else the poses alone are solved. */
     sl_stitch_solve_options adjust_opt = *opt;
     opt = &adjust_opt;
+    bool focal_wanted = opt->solve_focal;
     bool lens_wanted = opt->solve_focal || opt->solve_centre || opt->radial_terms > 0;
     if (res->pairs_solved > 0 && lens_wanted) {
         res->lens_inliers = lens_evidence(&st, &lens, &res->lens_spread);
@@ -638,6 +758,8 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
             adjust_opt.radial_terms = 0;
         }
     }
+    if ((res->pairs_solved == 0 || res->lens_held) && focal_wanted)
+        focal_from_circle(&lens, res);
     if (res->pairs_solved > 0) {
         /* The nominal lens puts the circle's edge degrees off: a loose first
          * round, then the matches re-judged in pixels with the lens solved. */
@@ -664,6 +786,7 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
         }
         keep_agreeing_pairs(&st, KEEP_MIN_AGREE);
         measure(&st, &lens);
+        drop_disagreeing_pairs(&st);
         res->pairs_solved = res->pairs_fallback = 0;
         for (int p = 0; p < pairs; p++) {
             res->pairs_solved += res->pair[p].status == SL_STITCH_PAIR_SOLVED;
@@ -683,7 +806,7 @@ done:
     for (int v = 0; st.feat && v < count; v++)
         solve_features_free(&st.feat[v]);
     free(st.feat), free(st.rot), free(st.rot_nominal), free(st.pair_rot), free(st.matches);
-    free(free_view), free(reached);
+    free(free_view), free(group);
     res->seconds_total = sl_seconds() - start;
     return r;
 }

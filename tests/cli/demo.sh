@@ -38,23 +38,22 @@ checks = {
     "merge median": n["merge"]["merges"] == 5 and n["merge"]["worst_median_rel_error"] < 0.03,
     # the fisheye views' merges disagree in scale (1.45x at tiny): not worse
     "merge spread": 1 <= n["merge"]["view_scale_spread"] < 2.0,
-    # the lat-longs within 60 deg of the horizon (3.9% / 74% / 1.03 at tiny; the p95 is the
-    # stitch's nominal lens and poses, docs/virtual-set.md "What is left")
-    "stitch": n["stitch"]["median_rel_error"] < 0.08 and n["stitch"]["p95_rel_error"] < 1.0
-              and near(n["stitch"]["power_ratio"], 1, 0.15),
+    # the lat-longs within 60 deg of the horizon (2.9% / 47% / 1.02 at tiny: no pair
+    # solved, the poses planned, the focal from the image circle; docs/virtual-set.md)
+    "stitch": n["stitch"]["median_rel_error"] < 0.05 and n["stitch"]["p95_rel_error"] < 0.65
+              and near(n["stitch"]["power_ratio"], 1, 0.08),
     # against the truth with the chart's light made white, as the chart fit balances:
     # balance 0.994 1.003 0.986 at tiny (0.84 1.04 1.19 against the radiance itself)
-    "calibrate": n["calibrate"]["median_rel_error"] < 0.08 and n["calibrate"]["p95_rel_error"] < 1.0
-                 and near(n["calibrate"]["power_ratio"], 1, 0.15)
+    "calibrate": n["calibrate"]["median_rel_error"] < 0.05 and n["calibrate"]["p95_rel_error"] < 0.65
+                 and near(n["calibrate"]["power_ratio"], 1, 0.08)
                  and n["calibrate"]["white"] == "chart"
                  and all(near(b, 1, 0.05) for b in n["calibrate"]["channel_balance"])
                  # the stage's light on the chart is warm (kinos, bulbs at 2700-3200 K)
                  and n["calibrate"]["chart_light"][0] > 1.05 > 0.95 > n["calibrate"]["chart_light"][2]
                  and n["calibrate"]["vs_radiance"]["channel_balance"][2] > 1.1
                  # the map against the grey ball's photo read through the same plate matrix:
-                 # 0.937 at tiny, the stitch's lamps 5-7% too strong toward the ball (1.00 on
-                 # a stitch with the true lens and poses)
-                 and near(n["calibrate"]["exposure_vs_grey"], 1, 0.09)
+                 # 0.960 at tiny, the stitch's planned poses (0.9995 at small, solved)
+                 and near(n["calibrate"]["exposure_vs_grey"], 1, 0.06)
                  and n["calibrate"]["units"] in ("relative", "cd/m2"),
     # the chrome ball's half of the set (6.4%), and against the stitch (12.7%)
     "unwrap": n["unwrap"]["median_rel_error"] < 0.12 and n["unwrap"]["vs_stitch"]["median_rel_error"] < 0.25,
