@@ -101,12 +101,6 @@ static gcell pop(gstate *st)
     return top;
 }
 
-static void sincos_of(double x, double *s, double *c)
-{
-    *s = sin(x);
-    *c = cos(x); /* the compiler fuses the pair into one sincos */
-}
-
 /* Estimates a cell's share and its error; false when it adds nothing. */
 static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
 {
@@ -129,16 +123,10 @@ static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
         v3_copy(d, c->centre);
     double kd[3], k[5][3];
     kernel(l, d, kd);
-    double pts[5][3], st0, ct0, st1, ct1, sa0, ca0, sb0, cb0;
-    sincos_of(c->t0, &st0, &ct0);
-    sincos_of(c->t1, &st1, &ct1);
-    sincos_of(c->a, &sa0, &ca0);
-    sincos_of(c->b, &sb0, &cb0);
+    double pts[5][3];
     v3_copy(pts[0], c->centre);
-    v3_set(pts[1], st0 * sa0, ct0, st0 * ca0);
-    v3_set(pts[2], st0 * sb0, ct0, st0 * cb0);
-    v3_set(pts[3], st1 * sa0, ct1, st1 * ca0);
-    v3_set(pts[4], st1 * sb0, ct1, st1 * cb0);
+    for (int i = 0; i < 4; i++)
+        v3_copy(pts[1 + i], c->corner[i]);
     for (int i = 0; i < 5; i++)
         kernel(l, pts[i], k[i]);
     /* A cell wider than the lobe that may hold its peak: the sample

@@ -22,6 +22,7 @@ typedef struct sl_dome_cell {
     bool wide;           /* the cone reaches past 90 degrees */
     double spread_uniform; /* 1 - |V| / P were the cell's radiance uniform */
     double t0, t1, a, b; /* colatitude and longitude ranges */
+    double corner[4][3]; /* directions of (t0, a), (t0, b), (t1, a), (t1, b) */
     int level, x, y;
 } sl_dome_cell;
 
