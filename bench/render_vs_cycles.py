@@ -16,7 +16,8 @@ sits at (-10, 0, 0) looking +X with +Y up; both then see the same lat-long texel
 Cycles' pixel filter is 0.01 px wide, so setlight samples pixel centres
 (--pixel-centers) and both estimate the same pixel values.
 
-Per case: a setlight reference (two halves of --ref-spp samples, seeds 1001/1002,
+Per case: a setlight reference (the sampler alone, --closed-form off: two halves of
+--ref-spp samples, seeds 1001/1002,
 whose own noise (h1-h2)^2/4 is subtracted from every MSE); --runs Cycles renders of
 --cycles-spp samples (seeds 1..runs, 2 threads, a fresh `blender -b` each); the
 median Cycles render time T (sync + path tracing, Blender's start-up excluded) is

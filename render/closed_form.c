@@ -119,6 +119,17 @@ typedef struct plan_job {
     uint8_t *row_cut; /* the row ran into the deadline */
 } plan_job;
 
+static void plan_job_free(plan_job *j)
+{
+    free(j->centre);
+    free(j->row_cost);
+    free(j->row_foot);
+    free(j->row_cut);
+    free(j->glossy.state);
+    free(j->glossy.n);
+    free(j->glossy.wo);
+}
+
 /* The plan's share of a --time budget: the first pass (one sample per half
  * of every pixel left to sampling) always follows it. */
 #define PLAN_TIME_SHARE 0.8
@@ -376,13 +387,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
         !j.row_foot || !j.row_cut ||
         (o->pixel_centers && (!j.glossy.state || !j.glossy.n || !j.glossy.wo))) {
-        free(j.centre);
-        free(j.row_cost);
-        free(j.row_foot);
-        free(j.row_cut);
-        free(j.glossy.state);
-        free(j.glossy.n);
-        free(j.glossy.wo);
+        plan_job_free(&j);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
     }
@@ -406,13 +411,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         }
     }
     if (res) {
-        free(j.centre);
-        free(j.row_cost);
-        free(j.row_foot);
-        free(j.row_cut);
-        free(j.glossy.state);
-        free(j.glossy.n);
-        free(j.glossy.wo);
+        plan_job_free(&j);
         sl_closed_form_free(cf);
         return res;
     }
@@ -421,6 +420,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     free(j.glossy.state);
     free(j.glossy.n);
     free(j.glossy.wo);
+    j.glossy = (sl_glossy_pixels){0};
     sl_parallel_for(cam->height, 1, filter_rows, &j);
     for (int y = 0; y < cam->height; y++)
         if (j.row_cut[y]) {
@@ -467,10 +467,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     }
     for (int y = 0; y < cam->height; y++)
         st->max_footprint_error = fmax(st->max_footprint_error, j.row_foot[y]);
-    free(j.centre);
-    free(j.row_cost);
-    free(j.row_foot);
-    free(j.row_cut);
+    plan_job_free(&j);
     st->seconds = sl_seconds() - t0;
     return SL_OK;
 }

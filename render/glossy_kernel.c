@@ -13,8 +13,8 @@
  *   the same function, found by a guide table instead of a cube root.
  * - The multiple-scattering (conductor) or diffuse (plastic) lobe's factors
  *   that depend on wo alone are computed once per view.
- * GGX D and the height-correlated G2 are the isotropic forms of
- * microfacet.c's. */
+ * GGX D is the isotropic form of microfacet.c's; G2 is its height-correlated
+ * Smith term, Lambda(wo) once per view. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -46,8 +46,8 @@ sl_result sl_glossy_material_init(sl_glossy_material *gm, const sl_material *m, 
                m->anisotropy <= 0.0 && m->roughness >= SL_ROUGHNESS_DELTA;
     if (!gm->fast)
         return SL_OK;
-    sl_ggx g = sl_ggx_make(m->roughness, 0.0);
-    gm->alpha2 = g.ax * g.ay;
+    gm->ggx = sl_ggx_make(m->roughness, 0.0);
+    gm->alpha2 = gm->ggx.ax * gm->ggx.ay;
     gm->fresnel = malloc((SL_GLOSSY_FRESNEL_N + 1) * sizeof *gm->fresnel);
     if (!gm->fresnel)
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the glossy tables");
@@ -114,17 +114,6 @@ static double e_lookup(const sl_glossy_material *gm, double mu)
     return gm->e_row[k] + (gm->e_row[k + 1] - gm->e_row[k]) * f;
 }
 
-static double lambda_iso(double alpha2, const double w[3])
-{
-    double s = alpha2 * (w[0] * w[0] + w[1] * w[1]), z2 = w[2] * w[2];
-    if (s <= 0.0)
-        return 0.0;
-    if (z2 <= 0.0)
-        return INFINITY;
-    double a = s / z2;
-    return a / (2.0 * (1.0 + sqrt(1.0 + a)));
-}
-
 void sl_glossy_view_init(sl_glossy_view *v, const sl_glossy_material *gm, const double wo[3])
 {
     memset(v, 0, sizeof *v);
@@ -132,7 +121,7 @@ void sl_glossy_view_init(sl_glossy_view *v, const sl_glossy_material *gm, const 
     memcpy(v->wo, wo, sizeof v->wo);
     if (!gm->fast || !(wo[2] > 0))
         return;
-    v->lambda_o = lambda_iso(gm->alpha2, wo);
+    v->lambda_o = sl_ggx_lambda(gm->ggx, wo);
     v->spec_scale = 1.0 / (4.0 * wo[2]);
     double eo = e_lookup(gm, wo[2]);
     for (int c = 0; c < 3; c++)
@@ -161,7 +150,7 @@ void sl_glossy_kernel(const sl_glossy_view *v, const double wi[3], double k[3])
         /* D of the unit half vector: alpha^2 / (pi (hz^2 (alpha^2 - 1) + 1)^2). */
         double t = hz * hz * (gm->alpha2 - 1.0) + 1.0;
         double d = hz > 0.0 ? gm->alpha2 / (SL_PI * t * t) : 0.0;
-        double g2 = 1.0 / (1.0 + v->lambda_o + lambda_iso(gm->alpha2, wi));
+        double g2 = 1.0 / (1.0 + v->lambda_o + sl_ggx_lambda(gm->ggx, wi));
         spec = d * g2 * v->spec_scale;
         double x = fmin(fmax(cos_h, 0.0), 1.0) * SL_GLOSSY_FRESNEL_N;
         int i = (int)x;

@@ -5,6 +5,7 @@
 #define SETLIGHT_RENDER_GLOSSY_KERNEL_H
 
 #include <stdbool.h>
+#include "microfacet.h"
 #include "setlight/render.h"
 
 /* Cosines of the Fresnel table: 1/4096 apart. */
@@ -16,6 +17,7 @@
 typedef struct sl_glossy_material {
     const sl_material *m;
     bool fast;
+    sl_ggx ggx;
     double alpha2;            /* GGX alpha^2 */
     float (*fresnel)[3];      /* F(i / N), i = 0..N, per channel */
     double fresnel_rel_error; /* largest relative error of its linear interpolation */

@@ -235,7 +235,7 @@ static void test_grazing_sun(void)
     p[0] = 1.2e5f, p[1] = 1e5f, p[2] = 0.8e5f;
     const glossy_case cases[3] = {{"metal 0.05", false, 0.05}, {"metal 1.0", false, 1.0},
                                   {"plastic 0.4", true, 0.4}};
-    int64_t spp = sl_test_sanitized() ? 1024 : 4096;
+    int64_t spp = sl_test_sanitized() ? 1024 : 2048;
     for (int i = 0; i < 3; i++)
         agree("grey", 16, &env, &cases[i], spp, true);
     sl_image_free(&env);
