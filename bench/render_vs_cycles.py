@@ -16,7 +16,8 @@ sits at (-10, 0, 0) looking +X with +Y up; both then see the same lat-long texel
 Cycles' pixel filter is 0.01 px wide, so setlight samples pixel centres
 (--pixel-centers) and both estimate the same pixel values.
 
-Per case: a setlight reference (two halves of --ref-spp samples, seeds 1001/1002,
+Per case: a setlight reference (the sampler alone, --closed-form off: two halves of
+--ref-spp samples, seeds 1001/1002,
 whose own noise (h1-h2)^2/4 is subtracted from every MSE); --runs Cycles renders of
 --cycles-spp samples (seeds 1..runs, 2 threads, a fresh `blender -b` each); the
 median Cycles render time T (sync + path tracing, Blender's start-up excluded) is
@@ -99,10 +100,10 @@ ns["main"]()
 '''
 
 
-def setlight_render(a, material, out, seed, spp=None, seconds=None, scene=None):
+def setlight_render(a, material, out, seed, spp=None, seconds=None, scene=None, extra=()):
     cmd = [a.setlight, "render", "--quiet", "--env", a.env, "--scene", scene or a.scene, "--material", material,
            "--width", str(RES), "--pixel-centers", "--seed", str(seed), "--stats", out + ".json",
-           "-o", out]
+           "-o", out] + list(extra)
     cmd += ["--spp", str(spp)] if spp else ["--time", "%.4f" % seconds]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True)
@@ -200,9 +201,10 @@ def quadrature(a, name, mask, stride):
 def reference(a, name, material):
     halves = []
     for s in (1001, 1002):
-        p = os.path.join(a.work, "ref_%s_%d_s%d.exr" % (name, a.ref_spp, s))
+        p = os.path.join(a.work, "ref_sampled_%s_%d_s%d.exr" % (name, a.ref_spp, s))
         if not os.path.exists(p):
-            r = setlight_render(a, material, p, s, spp=a.ref_spp)
+            # the sampler alone: a reference independent of the glossy closed form
+            r = setlight_render(a, material, p, s, spp=a.ref_spp, extra=("--closed-form", "off"))
             print("  reference half seed %d: %d spp in %.1f s" % (s, r["spp"], r["wall"]), flush=True)
         halves.append(load_exr(p))
     return 0.5 * (halves[0] + halves[1]), (halves[0] - halves[1]) ** 2 / 4.0
@@ -260,7 +262,7 @@ def main():
         else:
             ref, ref_var = reference(a, name, material)
             emask = mask
-            ref_kind = "setlight %d spp" % (2 * a.ref_spp)
+            ref_kind = "setlight sampled %d spp" % (2 * a.ref_spp)
         mask_all, mask = mask, emask
         mref = float(np.mean(ref[mask]))
         # setlight's fixed cost (read, build, write) from a short run, so the whole

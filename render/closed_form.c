@@ -30,6 +30,12 @@
 
 void sl_closed_form_free(sl_closed_form *cf)
 {
+    for (int i = 0; cf->gmat && i < cf->gmat_count; i++)
+        sl_glossy_material_free(&cf->gmat[i]);
+    free(cf->gmat);
+    if (cf->gdome)
+        sl_glossy_dome_free(cf->gdome);
+    free(cf->gdome);
     sl_irradiance_free(cf->ir);
     free(cf->mode);
     free(cf->shape);
@@ -56,10 +62,20 @@ void sl_closed_form_radiance_view(const sl_closed_form *cf, const sl_scene *scen
                                   double bound[3], sl_irradiance_cost *cost)
 {
     const sl_material *m = &scene->materials[scene->shapes[shape].material];
-    if (m->type == SL_MAT_LAMBERT)
+    if (m->type == SL_MAT_LAMBERT) {
         sl_closed_form_radiance(cf, scene, shape, n, out, bound, cost);
-    else
-        sl_glossy_eval(cf->ir, m, n, wo, cf->tol, out, bound, cost);
+        return;
+    }
+    sl_glossy_scratch *s = sl_glossy_scratch_new();
+    if (!s) { /* no room to integrate: the bound says so */
+        out[0] = out[1] = out[2] = 0;
+        bound[0] = bound[1] = bound[2] = INFINITY;
+        return;
+    }
+    sl_glossy_quad q = {.tol = cf->tol};
+    sl_glossy_integrate(cf->ir, &cf->gmat[scene->shapes[shape].material], n, wo, &q, s, out, bound,
+                        cost);
+    sl_glossy_scratch_free(s);
 }
 
 static bool has_closed_form(const sl_material *m)
@@ -102,6 +118,17 @@ typedef struct plan_job {
     double deadline;  /* --time: rows not planned by then are sampled */
     uint8_t *row_cut; /* the row ran into the deadline */
 } plan_job;
+
+static void plan_job_free(plan_job *j)
+{
+    free(j->centre);
+    free(j->row_cost);
+    free(j->row_foot);
+    free(j->row_cut);
+    free(j->glossy.state);
+    free(j->glossy.n);
+    free(j->glossy.wo);
+}
 
 /* The plan's share of a --time budget: the first pass (one sample per half
  * of every pixel left to sampling) always follows it. */
@@ -326,6 +353,21 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         snprintf(st->reason, sizeof st->reason, "%.95s", local.message);
         return SL_OK;
     }
+    cf->gmat_count = scene->material_count;
+    cf->gmat = calloc((size_t)(scene->material_count > 0 ? scene->material_count : 1), sizeof *cf->gmat);
+    if (!cf->gmat) {
+        sl_closed_form_free(cf);
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
+    }
+    for (int i = 0; i < scene->material_count; i++) {
+        sl_result r = sl_glossy_applies(&scene->materials[i])
+                          ? sl_glossy_material_init(&cf->gmat[i], &scene->materials[i], err)
+                          : SL_OK;
+        if (r) {
+            sl_closed_form_free(cf);
+            return r;
+        }
+    }
     plan_job j = {.scene = scene, .o = o, .cf = cf};
     cf->mode = calloc(npix, 1);
     cf->shape = calloc(npix, sizeof *cf->shape);
@@ -345,25 +387,40 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
         !j.row_foot || !j.row_cut ||
         (o->pixel_centers && (!j.glossy.state || !j.glossy.n || !j.glossy.wo))) {
-        free(j.centre);
-        free(j.row_cost);
-        free(j.row_foot);
-        free(j.row_cut);
-        free(j.glossy.state);
-        free(j.glossy.n);
-        free(j.glossy.wo);
+        plan_job_free(&j);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
     }
     sl_parallel_for(cam->height, 1, classify_rows, &j);
-    if (j.glossy.state)
-        sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost, j.deadline,
-                       j.row_cut);
+    sl_result res = SL_OK;
+    bool glossy_pending = false;
+    for (size_t i = 0; j.glossy.state && i < npix && !glossy_pending; i++)
+        glossy_pending = j.glossy.state[i] == SL_GLOSSY_PENDING;
+    if (glossy_pending) {
+        cf->gdome = calloc(1, sizeof *cf->gdome);
+        res = cf->gdome ? SL_OK : sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
+        /* Without room for the split the whole map is the rest: slower, as exact. */
+        sl_error split_err = {0};
+        if (!res && sl_glossy_dome_build(&scene->dome, cf->ir, cf->gdome, &split_err))
+            cf->gdome->rest = cf->ir;
+        if (!res) {
+            res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost,
+                                 j.deadline, j.row_cut, err);
+            st->sun_texels = cf->gdome->sun_texels;
+            st->sun_share = cf->gdome->sun_share;
+        }
+    }
+    if (res) {
+        plan_job_free(&j);
+        sl_closed_form_free(cf);
+        return res;
+    }
     for (size_t i = 0; j.glossy.state && i < npix; i++)
         st->interpolated_pixels += j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
     free(j.glossy.state);
     free(j.glossy.n);
     free(j.glossy.wo);
+    j.glossy = (sl_glossy_pixels){0};
     sl_parallel_for(cam->height, 1, filter_rows, &j);
     for (int y = 0; y < cam->height; y++)
         if (j.row_cut[y]) {
@@ -410,10 +467,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     }
     for (int y = 0; y < cam->height; y++)
         st->max_footprint_error = fmax(st->max_footprint_error, j.row_foot[y]);
-    free(j.centre);
-    free(j.row_cost);
-    free(j.row_foot);
-    free(j.row_cut);
+    plan_job_free(&j);
     st->seconds = sl_seconds() - t0;
     return SL_OK;
 }

@@ -17,6 +17,9 @@ struct sl_closed_form {
     int32_t *shape;    /* the object an exact or control pixel shows */
     float (*value)[3]; /* its closed-form value, pixel filter applied */
     float (*bound)[3]; /* proven quadrature bound + pixel-filter estimate */
+    struct sl_glossy_material *gmat; /* per scene material: the glossy tables */
+    struct sl_glossy_dome *gdome;    /* the dome's sun and rest, for glossy pixel centres */
+    int gmat_count;
 };
 
 /* Decides per pixel what is exact, what is a control variate and what is

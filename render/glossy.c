@@ -43,9 +43,8 @@ bool sl_glossy_applies(const sl_material *m)
 }
 
 typedef struct lobe {
-    const sl_material *m;
+    sl_glossy_view view;     /* the material and wo in the shading frame */
     double t[3], b[3], n[3]; /* the integrator's shading frame, in the map's frame */
-    double wo[3];            /* view direction, local */
     double mirror[3];        /* the lobe's peak (about), map frame */
     double cos_width;        /* cos of the lobe's narrowest width (alpha) */
 } lobe;
@@ -58,9 +57,7 @@ static void kernel(const lobe *l, const double w[3], double k[3])
         k[0] = k[1] = k[2] = 0;
         return;
     }
-    sl_bsdf_eval(l->m, l->wo, wl, k);
-    for (int c = 0; c < 3; c++)
-        k[c] *= wl[2];
+    sl_glossy_kernel(&l->view, wl, k);
 }
 
 typedef struct gcell {
@@ -104,12 +101,6 @@ static gcell pop(gstate *st)
     return top;
 }
 
-static void dir_at(double t, double phi, double d[3])
-{
-    double s = sin(t);
-    v3_set(d, s * sin(phi), cos(t), s * cos(phi));
-}
-
 /* Estimates a cell's share and its error; false when it adds nothing. */
 static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
 {
@@ -134,10 +125,8 @@ static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
     kernel(l, d, kd);
     double pts[5][3];
     v3_copy(pts[0], c->centre);
-    dir_at(c->t0, c->a, pts[1]);
-    dir_at(c->t0, c->b, pts[2]);
-    dir_at(c->t1, c->a, pts[3]);
-    dir_at(c->t1, c->b, pts[4]);
+    for (int i = 0; i < 4; i++)
+        v3_copy(pts[1 + i], c->corner[i]);
     for (int i = 0; i < 5; i++)
         kernel(l, pts[i], k[i]);
     /* A cell wider than the lobe that may hold its peak: the sample
@@ -225,39 +214,44 @@ static void totals(gstate *st)
     }
 }
 
-static bool error_met(const gstate *st, double tol)
+static bool error_met(const gstate *st, double tol, const double floor[3])
 {
     for (int c = 0; c < 3; c++)
-        if (st->sum_err[c] > 0 && st->sum_err[c] > tol * fmax(0.0, st->sum_est[c]))
+        if (st->sum_err[c] > 0 && st->sum_err[c] > tol * fmax(0.0, st->sum_est[c] + floor[c]))
             return false;
     return true;
 }
 
-void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double n_world[3],
-                    const double wo_world[3], double tol, double out[3], double err[3],
-                    sl_irradiance_cost *cost)
+struct sl_glossy_scratch {
+    gstate st;
+    gcell pool[CELL_CAP];
+    int idx[2 * CELL_CAP];
+};
+
+sl_glossy_scratch *sl_glossy_scratch_new(void) { return malloc(sizeof(sl_glossy_scratch)); }
+void sl_glossy_scratch_free(sl_glossy_scratch *s) { free(s); }
+
+void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
+                         const double n_world[3], const double wo_world[3], const sl_glossy_quad *q,
+                         sl_glossy_scratch *scratch, double out[3], double err[3],
+                         sl_irradiance_cost *cost)
 {
     out[0] = out[1] = out[2] = 0;
     err[0] = err[1] = err[2] = 0;
     double rot[3][3], intensity;
     sl_irradiance_frame(ir, rot, &intensity);
-    gstate *st = malloc(sizeof *st);
-    gcell *pool = malloc(CELL_CAP * sizeof *pool);
-    int *idx = malloc(2 * CELL_CAP * sizeof *idx);
-    if (!st || !pool || !idx) { /* no room to integrate: the error says so */
-        free(st), free(pool), free(idx);
-        err[0] = err[1] = err[2] = INFINITY;
-        return;
-    }
+    gstate *st = &scratch->st;
+    gcell *pool = scratch->pool;
     memset(st, 0, sizeof *st);
     st->ir = ir;
-    st->h = (sl_slot_heap){.pool = pool, .stride = sizeof *pool, .heap = idx,
-                           .free_list = idx + CELL_CAP};
+    st->h = (sl_slot_heap){.pool = pool, .stride = sizeof *pool, .heap = scratch->idx,
+                           .free_list = scratch->idx + CELL_CAP};
     lobe *l = &st->l;
-    l->m = m;
     frame fr;
+    double wo[3];
     frame_from_normal(&fr, n_world);
-    frame_to_local(&fr, wo_world, l->wo);
+    frame_to_local(&fr, wo_world, wo);
+    sl_glossy_view_init(&l->view, gm, wo);
     m3_mul_transpose(rot, fr.t, l->t);
     m3_mul_transpose(rot, fr.b, l->b);
     m3_mul_transpose(rot, fr.n, l->n);
@@ -266,28 +260,40 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
         mw[i] = 2.0 * cn * n_world[i] - wo_world[i];
     m3_mul_transpose(rot, mw, l->mirror);
     v3_normalize(l->mirror);
-    sl_ggx g = sl_ggx_make(m->roughness, m->anisotropy);
+    sl_ggx g = sl_ggx_make(gm->m->roughness, gm->m->anisotropy);
     l->cos_width = cos(fmin(g.ax, g.ay));
     int top = sl_irradiance_top_level(ir), tw, th;
     st->finest = top;
-    if (l->wo[2] > 0) {
+    static const double zero[3] = {0, 0, 0};
+    /* The floor is in the map's units (intensity not applied). */
+    double floor[3] = {0, 0, 0};
+    for (int c = 0; c < 3 && q->floor && intensity > 0; c++)
+        floor[c] = q->floor[c] / intensity;
+    if (wo[2] > 0) {
         sl_irradiance_level_size(ir, top, &tw, &th);
         for (int c = 0; c < 3; c++)
             st->inv_scale[c] = 1;
-        for (int y = 0; y < th; y++)
-            for (int x = 0; x < tw; x++) {
-                sl_dome_cell c;
-                sl_irradiance_cell(ir, top, x, y, &c);
-                add(st, &c);
-            }
+        int level = top;
+        if (q->start_cells) {
+            level = q->start_level;
+            sl_irradiance_level_size(ir, level, &tw, &th);
+        }
+        int ncells = q->start_cells ? q->start_count : tw * th;
+        for (int i = 0; i < ncells; i++) {
+            int t = q->start_cells ? q->start_cells[i] : i;
+            sl_dome_cell c;
+            sl_irradiance_cell(ir, level, t % tw, t / tw, &c);
+            add(st, &c);
+        }
         /* Cells are ranked by their error relative to the first estimate. */
         for (int c = 0; c < 3; c++) {
-            double scale = st->sum_est[c] + st->sum_err[c];
+            double scale = st->sum_est[c] + st->sum_err[c] + floor[c];
             st->inv_scale[c] = scale > 0 ? 1.0 / scale : 0.0;
         }
-        /* At most the top level's 16 x 8 cells, in slots 0..n-1. */
+        /* At most the top level's 16 x 8 cells or the start list's (kept
+         * as short), in slots 0..n-1. */
         int n = st->h.count;
-        gcell first[16 * 8];
+        gcell first[SL_GLOSSY_START_MAX > 16 * 8 ? SL_GLOSSY_START_MAX : 16 * 8];
         memcpy(first, pool, (size_t)n * sizeof *first);
         sl_slot_heap_clear(&st->h);
         for (int c = 0; c < 3; c++)
@@ -300,7 +306,7 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
         while (st->h.count > 0 && st->h.count + 4 <= CELL_CAP) {
             if (++steps % 128 == 0)
                 totals(st);
-            if (error_met(st, tol))
+            if (error_met(st, q->tol, q->floor ? floor : zero))
                 break;
             const gcell *worst = sl_slot_heap_at(&st->h, 0);
             if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)
@@ -311,7 +317,8 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
         totals(st);
         for (int c = 0; c < 3; c++) {
             out[c] = fmax(0.0, st->sum_est[c]) * intensity;
-            err[c] = st->sum_err[c] * intensity;
+            /* The Fresnel table's interpolation error, relative. */
+            err[c] = (st->sum_err[c] + gm->fresnel_rel_error * fabs(st->sum_est[c])) * intensity;
         }
     }
     if (cost) {
@@ -320,150 +327,22 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
         if (st->finest < cost->finest_level)
             cost->finest_level = st->finest;
     }
-    free(pool);
-    free(idx);
-    free(st);
 }
 
-/* ---- pixels: a lattice of blocks, interpolated where that is checked ---- */
-
-/* Block size of the lattice. Across a 4 x 4 block the normal turns by a few
- * pixels' worth: far less than a rough lobe's width, so bilinear
- * interpolation of the corners holds unless a highlight sits in it, which
- * the block's centre (where bilinear interpolation errs most) shows. */
-#define BLOCK 4
-/* The block's check allows this share of the tolerance: elsewhere in the
- * block bilinear interpolation errs less than at its centre, but not
- * always (a highlight's edge). */
-#define INTERP_SHARE 0.25
-
-typedef struct fill_job {
-    const sl_closed_form *cf;
-    const sl_scene *scene;
-    sl_glossy_pixels *px;
-    int w, h;
-    sl_irradiance_cost *row_cost;
-    double deadline;  /* --time: block rows not filled by then are sampled */
-    uint8_t *row_cut; /* per image row: ran into the deadline */
-} fill_job;
-
-/* Past the deadline a block row is left to sampling, whole. */
-static bool cut_block_row(const fill_job *j, int y0)
+void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double n[3],
+                    const double wo[3], double tol, double out[3], double err[3],
+                    sl_irradiance_cost *cost)
 {
-    if (sl_seconds() <= j->deadline)
-        return false;
-    for (int y = y0; y < y0 + BLOCK && y < j->h; y++)
-        j->row_cut[y] = 1;
-    return true;
-}
-
-static bool block_row_cut(const fill_job *j, int y0)
-{
-    for (int y = y0; y < y0 + BLOCK && y < j->h; y++)
-        if (j->row_cut[y])
-            return true;
-    return false;
-}
-
-static void eval_pixel(const fill_job *j, size_t pix, sl_irradiance_cost *cost)
-{
-    double B[3];
-    sl_closed_form_radiance_view(j->cf, j->scene, j->cf->shape[pix], j->px->n[pix], j->px->wo[pix],
-                                 j->px->value[pix], B, cost);
-    for (int c = 0; c < 3; c++)
-        j->cf->bound[pix][c] = (float)B[c];
-    j->px->state[pix] = SL_GLOSSY_DONE;
-}
-
-static void lattice_rows(void *ctx, int64_t begin, int64_t end, int worker)
-{
-    (void)worker;
-    fill_job *j = ctx;
-    for (int64_t by = begin; by < end; by++) {
-        int y = (int)by * BLOCK;
-        if (cut_block_row(j, y))
-            continue;
-        for (int x = 0; x < j->w; x += BLOCK) {
-            size_t pix = (size_t)y * j->w + x;
-            if (j->px->state[pix] == SL_GLOSSY_PENDING)
-                eval_pixel(j, pix, &j->row_cost[y]);
-        }
+    sl_glossy_material gm;
+    sl_glossy_scratch *s = sl_glossy_scratch_new();
+    if (!s || sl_glossy_material_init(&gm, m, NULL)) { /* no room to integrate: the error says so */
+        sl_glossy_scratch_free(s);
+        out[0] = out[1] = out[2] = 0;
+        err[0] = err[1] = err[2] = INFINITY;
+        return;
     }
-}
-
-/* Block (x0, y0) owns [x0, x0 + BLOCK) x [y0, y0 + BLOCK) but its first
- * corner, which the lattice pass computed; its far corners belong to the
- * next blocks, so blocks never write the same pixel. */
-static void block_rows(void *ctx, int64_t begin, int64_t end, int worker)
-{
-    (void)worker;
-    fill_job *j = ctx;
-    sl_glossy_pixels *px = j->px;
-    for (int64_t by = begin; by < end; by++) {
-        int y0 = (int)by * BLOCK;
-        sl_irradiance_cost *cost = &j->row_cost[y0];
-        if (block_row_cut(j, y0))
-            continue;
-        for (int x0 = 0; x0 < j->w; x0 += BLOCK) {
-            if (cut_block_row(j, y0))
-                break;
-            size_t corner[4];
-            bool whole = x0 + BLOCK < j->w && y0 + BLOCK < j->h;
-            for (int k = 0; k < 4 && whole; k++) {
-                corner[k] = (size_t)(y0 + (k >> 1) * BLOCK) * j->w + (size_t)(x0 + (k & 1) * BLOCK);
-                whole = px->state[corner[k]] == SL_GLOSSY_DONE &&
-                        j->cf->shape[corner[k]] == j->cf->shape[corner[0]];
-            }
-            for (int y = y0; y < y0 + BLOCK && whole; y++)
-                for (int x = x0; x < x0 + BLOCK && whole; x++) {
-                    size_t p = (size_t)y * j->w + x;
-                    whole = px->state[p] != SL_GLOSSY_NONE && j->cf->shape[p] == j->cf->shape[corner[0]];
-                }
-            double bmax[3] = {0, 0, 0};
-            if (whole) {
-                size_t mid = (size_t)(y0 + BLOCK / 2) * j->w + (size_t)(x0 + BLOCK / 2);
-                eval_pixel(j, mid, cost);
-                for (int c = 0; c < 3; c++) {
-                    double lin = 0.25 * (px->value[corner[0]][c] + px->value[corner[1]][c] +
-                                         px->value[corner[2]][c] + px->value[corner[3]][c]);
-                    double d = fabs(lin - px->value[mid][c]);
-                    for (int k = 0; k < 4; k++)
-                        bmax[c] = fmax(bmax[c], j->cf->bound[corner[k]][c]);
-                    if (d > INTERP_SHARE * j->cf->tol * px->value[mid][c])
-                        whole = false;
-                    bmax[c] += d;
-                }
-            }
-            for (int y = y0; y < y0 + BLOCK && y < j->h; y++)
-                for (int x = x0; x < x0 + BLOCK && x < j->w; x++) {
-                    size_t p = (size_t)y * j->w + x;
-                    if (px->state[p] != SL_GLOSSY_PENDING)
-                        continue;
-                    if (!whole) {
-                        eval_pixel(j, p, cost);
-                        continue;
-                    }
-                    double fx = (double)(x - x0) / BLOCK, fy = (double)(y - y0) / BLOCK;
-                    double wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-                    for (int c = 0; c < 3; c++) {
-                        double v = 0;
-                        for (int k = 0; k < 4; k++)
-                            v += wts[k] * px->value[corner[k]][c];
-                        px->value[p][c] = v;
-                        j->cf->bound[p][c] = (float)bmax[c];
-                    }
-                    px->state[p] = SL_GLOSSY_INTERPOLATED;
-                }
-        }
-    }
-}
-
-void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
-                    int h, sl_irradiance_cost *row_cost, double deadline, uint8_t *row_cut)
-{
-    fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost,
-                  .deadline = deadline, .row_cut = row_cut};
-    int rows = (h + BLOCK - 1) / BLOCK;
-    sl_parallel_for(rows, 1, lattice_rows, &j);
-    sl_parallel_for(rows, 1, block_rows, &j);
+    sl_glossy_quad q = {.tol = tol};
+    sl_glossy_integrate(ir, &gm, n, wo, &q, s, out, err, cost);
+    sl_glossy_material_free(&gm);
+    sl_glossy_scratch_free(s);
 }

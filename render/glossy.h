@@ -6,6 +6,7 @@
 #define SETLIGHT_RENDER_GLOSSY_H
 
 #include "closed_form.h"
+#include "glossy_kernel.h"
 #include "irradiance.h"
 #include "scene_internal.h"
 #include "vec3.h"
@@ -21,6 +22,7 @@ typedef struct sl_dome_cell {
     bool wide;           /* the cone reaches past 90 degrees */
     double spread_uniform; /* 1 - |V| / P were the cell's radiance uniform */
     double t0, t1, a, b; /* colatitude and longitude ranges */
+    double corner[4][3]; /* directions of (t0, a), (t0, b), (t1, a), (t1, b) */
     int level, x, y;
 } sl_dome_cell;
 
@@ -39,16 +41,59 @@ bool sl_glossy_applies(const sl_material *m);
  * world normal n under the dome alone: integral of L(w) f(wo, w) max(0, n.w)
  * dw, f the full sl_bsdf_eval (single and multiple scattering, the
  * plastic's diffuse), refined until the error estimate is below tol x the
- * value. err[c] estimates |out - exact| (not a proven bound). */
+ * value. err[c] estimates |out - exact| (not a proven bound). Builds the
+ * material's tables each call: sl_glossy_integrate is the one to loop. */
 void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double n[3],
                     const double wo[3], double tol, double out[3], double err[3],
                     sl_irradiance_cost *cost);
 
-/* Glossy pixels of the closed form with pixel centres: evaluated on a
- * lattice of 4 x 4 px blocks and interpolated bilinearly inside a block
- * whose centre, evaluated too, is within a quarter of the tolerance of the
- * interpolation (that difference is added to its pixels' bounds); every
- * pixel of any other block is evaluated. */
+/* One evaluation's cells; one per thread. */
+typedef struct sl_glossy_scratch sl_glossy_scratch;
+sl_glossy_scratch *sl_glossy_scratch_new(void);
+void sl_glossy_scratch_free(sl_glossy_scratch *s);
+
+/* How far sl_glossy_integrate refines: until its error estimate is below
+ * tol x (its value + floor) per channel (floor: radiance known from
+ * elsewhere, e.g. the rest of the map, or NULL); start_cells (NULL: every
+ * top-level cell) lists the cells (y * width + x) of mip level start_level
+ * that hold any light, where the refinement starts (at most
+ * SL_GLOSSY_START_MAX). */
+#define SL_GLOSSY_START_MAX 128
+typedef struct sl_glossy_quad {
+    double tol;
+    const double *floor;
+    const int *start_cells;
+    int start_count, start_level;
+} sl_glossy_quad;
+void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm, const double n[3],
+                         const double wo[3], const sl_glossy_quad *q, sl_glossy_scratch *scratch,
+                         double out[3], double err[3], sl_irradiance_cost *cost);
+
+/* The dome split for the glossy pixels (glossy_fill.c): the few brightest
+ * texels (a sun) in one map, evaluated at every pixel, and the rest, whose
+ * reflection is smooth across the image and is interpolated where checked.
+ * With no texel that stands out, sun is NULL and rest is the whole map. */
+typedef struct sl_glossy_dome {
+    const sl_irradiance *rest;
+    sl_irradiance *sun;
+    sl_irradiance *own_rest; /* rest when it is not the whole map */
+    sl_dome sun_dome, rest_dome;
+    int *sun_cells;          /* the sun map's cells with light at sun_level */
+    int sun_cell_count, sun_level;
+    int64_t sun_texels;
+    double sun_share;        /* the sun texels' share of the luminous power */
+} sl_glossy_dome;
+sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, sl_glossy_dome *gd,
+                               sl_error *err);
+void sl_glossy_dome_free(sl_glossy_dome *gd);
+
+/* Glossy pixels of the closed form with pixel centres. The rest of the map
+ * is evaluated on a lattice of 16 x 16 px blocks, refined to 8, 4 and 2 px
+ * blocks, and interpolated bilinearly inside a block whose centre and edge
+ * midpoints, evaluated too, are within a quarter of the tolerance of the
+ * interpolation (the largest difference is added to its pixels' error);
+ * the sun is evaluated at every pixel, to a quarter of the tolerance of the
+ * pixel's whole value. */
 enum { SL_GLOSSY_NONE = 0, SL_GLOSSY_PENDING, SL_GLOSSY_DONE, SL_GLOSSY_INTERPOLATED };
 typedef struct sl_glossy_pixels {
     uint8_t *state;        /* per pixel: SL_GLOSSY_* */
@@ -59,8 +104,9 @@ typedef struct sl_glossy_pixels {
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
  * costs per image row. Rows it has not filled by the deadline (seconds, as
  * sl_seconds) are marked in row_cut, to be sampled. */
-void sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px, int w,
-                    int h, sl_irradiance_cost *row_cost, double deadline, uint8_t *row_cut);
+sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px,
+                         int w, int h, sl_irradiance_cost *row_cost, double deadline,
+                         uint8_t *row_cut, sl_error *err);
 
 /* closed_form.c: the closed-form radiance of a shape toward the viewer wo,
  * Lambert (irradiance) or glossy. */

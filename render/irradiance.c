@@ -32,12 +32,14 @@ typedef struct row_info {
     double cr, sr;         /* cos, sin of the bounding-cone radius (standard width) */
     bool wide;             /* radius >= pi/2: always treated as cut */
     double r0, r1, r2;     /* texel level: integrals of sin, sin^2, cos sin over theta */
+    double s0, c0, s1, c1; /* sin, cos of t0 and t1 (the glossy quadrature's corners) */
 } row_info;
 
 typedef struct col_info {
     double a, b;           /* longitude range (a < b) */
     double sl, cl;         /* sin, cos of the centre longitude */
     double s_int, c_int;   /* integrals of sin and cos of longitude over [a, b] */
+    double sa, ca, sb, cb; /* sin, cos of a and b */
 } col_info;
 
 typedef struct cell_sum {
@@ -73,15 +75,17 @@ static void row_setup(row_info *r, double t0, double t1, double width)
     r->cr = cos(radius), r->sr = sin(radius);
     r->r0 = cos(t0) - cos(t1);
     r->r1 = 0.5 * (t1 - t0) - 0.25 * (sin(2 * t1) - sin(2 * t0));
-    r->r2 = 0.5 * (sin(t1) * sin(t1) - sin(t0) * sin(t0));
+    r->s0 = sin(t0), r->c0 = cos(t0), r->s1 = sin(t1), r->c1 = cos(t1);
+    r->r2 = 0.5 * (r->s1 * r->s1 - r->s0 * r->s0);
 }
 
 static void col_setup(col_info *c, double a, double b, double centre)
 {
     c->a = a, c->b = b;
     c->sl = sin(centre), c->cl = cos(centre);
-    c->s_int = cos(a) - cos(b);
-    c->c_int = sin(b) - sin(a);
+    c->sa = sin(a), c->ca = cos(a), c->sb = sin(b), c->cb = cos(b);
+    c->s_int = c->ca - c->cb;
+    c->c_int = c->sb - c->sa;
 }
 
 void sl_irradiance_free(sl_irradiance *ir)
@@ -496,6 +500,10 @@ static void dome_cell_fill(sl_dome_cell *c, const row_info *r, const col_info *c
     double pu = r->r0 * dw;
     c->spread_uniform = pu > 0 ? 1.0 - sqrt(vx * vx + vy * vy + vz * vz) / pu : 0.0;
     c->t0 = r->t0, c->t1 = r->t1, c->a = co->a, c->b = co->b;
+    v3_set(c->corner[0], r->s0 * co->sa, r->c0, r->s0 * co->ca);
+    v3_set(c->corner[1], r->s0 * co->sb, r->c0, r->s0 * co->cb);
+    v3_set(c->corner[2], r->s1 * co->sa, r->c1, r->s1 * co->ca);
+    v3_set(c->corner[3], r->s1 * co->sb, r->c1, r->s1 * co->cb);
 }
 
 void sl_irradiance_cell(const sl_irradiance *ir, int k, int x, int y, sl_dome_cell *c)

@@ -94,6 +94,8 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     }
     json_object_set_new(jc, "per_object", per);
     json_object_set_new(jc, "interpolated_pixels", json_integer(cf->interpolated_pixels));
+    json_object_set_new(jc, "sun_texels", json_integer(cf->sun_texels));
+    json_object_set_new(jc, "sun_share", json_real(cf->sun_share));
     json_object_set_new(jc, "tolerance", json_real(cf->tolerance));
     json_object_set_new(jc, "max_rel_bound", json_real(cf->max_rel_bound));
     json_object_set_new(jc, "max_footprint_error", json_real(cf->max_footprint_error));

@@ -51,7 +51,9 @@ static void help(FILE *out)
             "  --closed-form MODE  on (default): pixels of an unoccluded Lambert object under\n"
             "                      the dome and the rig's lights (all but textured rects), or\n"
             "                      of a rough glossy (conductor, plastic) object under the\n"
-            "                      dome alone, are computed by quadrature (no samples);\n"
+            "                      dome alone, are computed by quadrature (no samples;\n"
+            "                      glossy with --pixel-centers: the sun per pixel, the\n"
+            "                      rest of the map interpolated in checked blocks);\n"
             "                      shadowed ones sample only the shadowed part; off: sample\n"
             "                      everything\n"
             "  --seed N            sample seed (default 1); same seed, same bytes\n"
@@ -284,8 +286,9 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                    cf->object_material[i] == SL_MAT_LAMBERT ? "proven bound" : "error estimate",
                    cf->object_max_rel_bound[i]);
         if (cf->interpolated_pixels)
-            sl_log(SL_LOG_INFO, "closed form: %lld glossy pixels interpolated in checked 4x4 blocks",
-                   (long long)cf->interpolated_pixels);
+            sl_log(SL_LOG_INFO, "closed form: %lld glossy pixels with the map's rest interpolated in checked "
+                   "blocks; the sun (%lld texels, %.0f%% of the power) at every pixel",
+                   (long long)cf->interpolated_pixels, (long long)cf->sun_texels, 100 * cf->sun_share);
     }
     sl_render_run_result_free(&res);
     return r ? cli_fail(cli, &err) : 0;

@@ -330,8 +330,13 @@ typedef struct sl_closed_form_stats {
     sl_material_type object_material[SL_CLOSED_FORM_MAX_OBJECTS];
     int64_t object_exact[SL_CLOSED_FORM_MAX_OBJECTS], object_control[SL_CLOSED_FORM_MAX_OBJECTS];
     double object_max_rel_bound[SL_CLOSED_FORM_MAX_OBJECTS];
-    /* Glossy pixels at pixel centres interpolated inside a checked 4 x 4 block. */
+    /* Glossy pixels at pixel centres whose reflection of the map's rest was
+     * interpolated inside a checked block (the sun is evaluated at every
+     * pixel); the sun: its texels and their share of the map's luminous
+     * power (0 when no texel stands out). */
     int64_t interpolated_pixels;
+    int64_t sun_texels;
+    double sun_share;
 } sl_closed_form_stats;
 
 /* What the closed form computed, in words, for logs and reports: the dome's

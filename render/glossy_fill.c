@@ -1,0 +1,412 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* Glossy pixels of the closed form at pixel centres, in two parts of the
+ * dome:
+ *
+ * - the sun: the texels brighter than SUN_RATIO x the map's mean radiance
+ *   (at most SUN_CAP of them), whose highlight moves across the ball
+ *   faster than any lattice could follow. Evaluated at every pixel; few
+ *   cells hold light, so an evaluation costs a handful of cells;
+ * - the rest: its reflection varies slowly across the ball (the lobe, tens
+ *   of degrees at roughness 0.3, averages it), so it is evaluated on a
+ *   lattice of 16 x 16 px blocks and interpolated bilinearly where the
+ *   block's centre and edge midpoints, evaluated too, agree with the
+ *   interpolation; a block that fails is split in four, down to 2 x 2 px;
+ *   a block that crosses the silhouette (the corners would mix objects) is
+ *   split too, and pixels no block interpolates are evaluated.
+ *
+ * Tolerance shares of a pixel's error estimate: the rest's quadrature half,
+ * the interpolation check a quarter (relative to the rest), the sun a
+ * quarter of the pixel's whole value. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "glossy.h"
+#include "scene_internal.h"
+#include "vec3.h"
+
+#define SUN_RATIO 100.0
+#define SUN_CAP 1024
+#define SUN_START_CELLS 4
+#define BLOCK0 16
+/* Below 4 px a block's nine points are more than the pixels it owns. */
+#define BLOCK_MIN 4
+#define REST_SHARE 0.5
+#define INTERP_SHARE 0.25
+#define SUN_SHARE 0.25
+
+/* ---- the split ---- */
+
+typedef struct texel_rank {
+    double lum;
+    int64_t i;
+} texel_rank;
+
+static int brighter_first(const void *a, const void *b)
+{
+    const texel_rank *x = a, *y = b;
+    if (x->lum != y->lum)
+        return x->lum < y->lum ? 1 : -1;
+    return x->i < y->i ? -1 : x->i > y->i;
+}
+
+void sl_glossy_dome_free(sl_glossy_dome *gd)
+{
+    sl_irradiance_free(gd->sun);
+    sl_irradiance_free(gd->own_rest);
+    sl_image_free(&gd->sun_dome.image);
+    sl_image_free(&gd->rest_dome.image);
+    free(gd->sun_cells);
+    memset(gd, 0, sizeof *gd);
+}
+
+sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, sl_glossy_dome *gd,
+                               sl_error *err)
+{
+    memset(gd, 0, sizeof *gd);
+    gd->rest = whole;
+    const sl_image *img = &dome->image;
+    int W = img->width, H = img->height;
+    /* Mean radiance (luminance) over the sphere, and the candidates. */
+    double power = 0, sun_power = 0;
+    int64_t count = 0, cap = 1024;
+    texel_rank *cand = malloc((size_t)cap * sizeof *cand);
+    if (!cand)
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
+    for (int y = 0; y < H; y++) {
+        double dw = (cos(SL_PI * y / H) - cos(SL_PI * (y + 1) / H)) * 2.0 * SL_PI / W;
+        for (int x = 0; x < W; x++)
+            power += sl_luminance_px(sl_image_pixel(img, x, y)) * dw;
+    }
+    double threshold = SUN_RATIO * power / (4.0 * SL_PI);
+    for (int y = 0; y < H && threshold > 0; y++)
+        for (int x = 0; x < W; x++) {
+            double lum = sl_luminance_px(sl_image_pixel(img, x, y));
+            if (!(lum > threshold))
+                continue;
+            if (count == cap) {
+                texel_rank *grown = realloc(cand, (size_t)(2 * cap) * sizeof *cand);
+                if (!grown) {
+                    free(cand);
+                    return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
+                }
+                cand = grown, cap *= 2;
+            }
+            cand[count++] = (texel_rank){lum, (int64_t)y * W + x};
+        }
+    if (count == 0) {
+        free(cand);
+        return SL_OK;
+    }
+    qsort(cand, (size_t)count, sizeof *cand, brighter_first);
+    if (count > SUN_CAP)
+        count = SUN_CAP;
+    sl_result res;
+    gd->sun_dome = *dome, gd->rest_dome = *dome;
+    memset(&gd->sun_dome.image, 0, sizeof(sl_image));
+    memset(&gd->rest_dome.image, 0, sizeof(sl_image));
+    gd->sun_dome.sampler = gd->rest_dome.sampler = NULL;
+    if ((res = sl_image_copy(img, &gd->rest_dome.image, err)) ||
+        (res = sl_image_alloc(&gd->sun_dome.image, W, H, img->channels, err))) {
+        free(cand);
+        sl_glossy_dome_free(gd);
+        return res;
+    }
+    sl_image_fill(&gd->sun_dome.image, 0.0f);
+    for (int64_t k = 0; k < count; k++) {
+        int x = (int)(cand[k].i % W), y = (int)(cand[k].i / W);
+        float *r = sl_image_pixel(&gd->rest_dome.image, x, y), *s = sl_image_pixel(&gd->sun_dome.image, x, y);
+        double dw = (cos(SL_PI * y / H) - cos(SL_PI * (y + 1) / H)) * 2.0 * SL_PI / W;
+        sun_power += cand[k].lum * dw;
+        for (int c = 0; c < img->channels; c++)
+            s[c] = r[c], r[c] = 0.0f;
+    }
+    free(cand);
+    gd->sun_texels = count;
+    gd->sun_share = power > 0 ? sun_power / power : 0;
+    if ((res = sl_irradiance_build(&gd->sun_dome, &gd->sun, err)) ||
+        (res = sl_irradiance_build(&gd->rest_dome, &gd->own_rest, err))) {
+        sl_glossy_dome_free(gd);
+        return res;
+    }
+    gd->rest = gd->own_rest;
+    /* The refinement starts at the finest level where the sun spans at most
+     * SUN_START_CELLS cells: a pixel far from its highlight costs no more. */
+    int top = sl_irradiance_top_level(gd->sun), tw, th;
+    sl_irradiance_level_size(gd->sun, top, &tw, &th);
+    gd->sun_cells = malloc((size_t)tw * th * sizeof *gd->sun_cells);
+    if (!gd->sun_cells) {
+        sl_glossy_dome_free(gd);
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
+    }
+    for (int level = 0; level <= top; level++) {
+        int lw, lh, n = 0, most = level == top ? tw * th : SUN_START_CELLS;
+        sl_irradiance_level_size(gd->sun, level, &lw, &lh);
+        for (int y = 0; y < lh && n <= most; y++)
+            for (int x = 0; x < lw && n <= most; x++) {
+                sl_dome_cell c;
+                sl_irradiance_cell(gd->sun, level, x, y, &c);
+                if (c.p[0] > 0 || c.p[1] > 0 || c.p[2] > 0) {
+                    if (n < most)
+                        gd->sun_cells[n] = y * lw + x;
+                    n++;
+                }
+            }
+        if (n <= SUN_START_CELLS || level == top) {
+            gd->sun_level = level;
+            gd->sun_cell_count = n;
+            break;
+        }
+    }
+    return SL_OK;
+}
+
+/* ---- the pixels ---- */
+
+typedef struct fill_job {
+    const sl_closed_form *cf;
+    const sl_scene *scene;
+    sl_glossy_pixels *px;
+    int w, h;
+    sl_irradiance_cost *row_cost;
+    double deadline;  /* --time: rows not filled by then are sampled */
+    uint8_t *row_cut; /* per image row: ran into the deadline */
+    uint8_t *need;    /* per pixel: its rest to be evaluated in this pass */
+    uint8_t *rest_state; /* 0 unknown, 1 evaluated, 2 interpolated */
+    double (*rest)[3], (*rest_err)[3];
+    sl_glossy_scratch **scratch; /* per worker */
+    int workers;
+    bool failed;      /* no memory for a scratch: the rows are left to sampling */
+} fill_job;
+
+static sl_glossy_scratch *scratch_for(fill_job *j, int worker)
+{
+    if (worker < 0 || worker >= j->workers)
+        return NULL;
+    if (!j->scratch[worker])
+        j->scratch[worker] = sl_glossy_scratch_new();
+    return j->scratch[worker];
+}
+
+static const sl_glossy_material *material_of(const fill_job *j, size_t pix)
+{
+    return &j->cf->gmat[j->scene->shapes[j->cf->shape[pix]].material];
+}
+
+static void eval_rest(fill_job *j, size_t pix, sl_glossy_scratch *s, sl_irradiance_cost *cost)
+{
+    sl_glossy_quad q = {.tol = REST_SHARE * j->cf->tol};
+    sl_glossy_integrate(j->cf->gdome->rest, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
+                        j->rest[pix], j->rest_err[pix], cost);
+    j->rest_state[pix] = 1;
+}
+
+/* Evaluates the rest at every pixel marked in need (or, with need NULL,
+ * every pending pixel whose rest is unknown), row by row. */
+static void rest_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    fill_job *j = ctx;
+    sl_glossy_scratch *s = scratch_for(j, worker);
+    for (int64_t y = begin; y < end; y++) {
+        if (j->row_cut[y])
+            continue;
+        for (int x = 0; x < j->w; x++) {
+            size_t pix = (size_t)y * j->w + x;
+            bool want = j->need ? j->need[pix] : j->px->state[pix] == SL_GLOSSY_PENDING && !j->rest_state[pix];
+            if (!want || j->rest_state[pix] == 1)
+                continue;
+            if (!s || sl_seconds() > j->deadline) {
+                j->row_cut[y] = 1; /* left to sampling */
+                j->failed |= !s;
+                break;
+            }
+            eval_rest(j, pix, s, &j->row_cost[y]);
+        }
+    }
+}
+
+typedef struct block {
+    int x0, y0;
+} block;
+
+static bool pending_on(const fill_job *j, int x, int y, int shape)
+{
+    if (x < 0 || y < 0 || x >= j->w || y >= j->h)
+        return false;
+    size_t p = (size_t)y * j->w + x;
+    return j->px->state[p] == SL_GLOSSY_PENDING && j->cf->shape[p] == shape && !j->row_cut[y];
+}
+
+/* The block's nine points (corners, edge midpoints, centre) as offsets in
+ * units of half the block. */
+static const int POINT[9][2] = {{0, 0}, {2, 0}, {0, 2}, {2, 2}, {1, 0}, {0, 1}, {2, 1}, {1, 2}, {1, 1}};
+
+/* Whole: every pixel of the closed block on the corner's object. */
+static bool block_whole(const fill_job *j, const block *b, int S)
+{
+    if (!pending_on(j, b->x0, b->y0, j->cf->shape[(size_t)b->y0 * j->w + b->x0]))
+        return false;
+    int shape = j->cf->shape[(size_t)b->y0 * j->w + b->x0];
+    for (int y = b->y0; y <= b->y0 + S; y++)
+        for (int x = b->x0; x <= b->x0 + S; x++)
+            if (!pending_on(j, x, y, shape))
+                return false;
+    return true;
+}
+
+/* Checks a whole block's interpolation at its centre and edge midpoints;
+ * on success fills its own pixels [x0, x0 + S)^2 not evaluated. */
+static bool try_block(fill_job *j, const block *b, int S)
+{
+    size_t p[9];
+    for (int k = 0; k < 9; k++) {
+        p[k] = (size_t)(b->y0 + POINT[k][1] * S / 2) * j->w + (size_t)(b->x0 + POINT[k][0] * S / 2);
+        if (j->rest_state[p[k]] != 1)
+            return false;
+    }
+    const double(*v)[3] = (const double(*)[3])j->rest;
+    double bmax[3] = {0, 0, 0}, tol = INTERP_SHARE * j->cf->tol;
+    for (int c = 0; c < 3; c++) {
+        /* Interpolations at the edge midpoints (top, left, right, bottom)
+         * and the centre. */
+        double lin[5] = {0.5 * (v[p[0]][c] + v[p[1]][c]), 0.5 * (v[p[0]][c] + v[p[2]][c]),
+                         0.5 * (v[p[1]][c] + v[p[3]][c]), 0.5 * (v[p[2]][c] + v[p[3]][c]),
+                         0.25 * (v[p[0]][c] + v[p[1]][c] + v[p[2]][c] + v[p[3]][c])};
+        for (int k = 0; k < 9; k++)
+            bmax[c] = fmax(bmax[c], j->rest_err[p[k]][c]);
+        /* The points' own quadrature errors are in the difference too:
+         * past them, the interpolation's error must be within its share. */
+        double d = 0;
+        for (int k = 0; k < 5; k++) {
+            double dk = fabs(lin[k] - v[p[4 + k]][c]);
+            if (dk > tol * v[p[4 + k]][c] + 2.0 * bmax[c])
+                return false;
+            d = fmax(d, dk);
+        }
+        bmax[c] += d;
+    }
+    for (int y = b->y0; y < b->y0 + S; y++)
+        for (int x = b->x0; x < b->x0 + S; x++) {
+            size_t q = (size_t)y * j->w + x;
+            if (j->rest_state[q] == 1)
+                continue;
+            double fx = (double)(x - b->x0) / S, fy = (double)(y - b->y0) / S;
+            double wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+            for (int c = 0; c < 3; c++) {
+                double s = 0;
+                for (int k = 0; k < 4; k++)
+                    s += wts[k] * v[p[k]][c];
+                j->rest[q][c] = s;
+                j->rest_err[q][c] = bmax[c];
+            }
+            j->rest_state[q] = 2;
+        }
+    return true;
+}
+
+/* The sun at every pixel whose rest is known, and the pixel's totals. */
+static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    fill_job *j = ctx;
+    const sl_glossy_dome *gd = j->cf->gdome;
+    sl_glossy_scratch *s = scratch_for(j, worker);
+    for (int64_t y = begin; y < end; y++) {
+        if (j->row_cut[y])
+            continue;
+        if (sl_seconds() > j->deadline || (!s && gd->sun)) {
+            j->row_cut[y] = 1;
+            j->failed |= !s;
+            continue;
+        }
+        for (int x = 0; x < j->w; x++) {
+            size_t pix = (size_t)y * j->w + x;
+            if (j->px->state[pix] != SL_GLOSSY_PENDING)
+                continue;
+            if (!j->rest_state[pix]) { /* cannot happen: every pending pixel's rest is known */
+                j->row_cut[y] = 1;
+                break;
+            }
+            double sun[3] = {0, 0, 0}, serr[3] = {0, 0, 0};
+            if (gd->sun) {
+                sl_glossy_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = j->rest[pix],
+                                    .start_cells = gd->sun_cells, .start_count = gd->sun_cell_count,
+                                    .start_level = gd->sun_level};
+                sl_glossy_integrate(gd->sun, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
+                                    sun, serr, &j->row_cost[y]);
+            }
+            for (int c = 0; c < 3; c++) {
+                j->px->value[pix][c] = j->rest[pix][c] + sun[c];
+                j->cf->bound[pix][c] = (float)(j->rest_err[pix][c] + serr[c]);
+            }
+            j->px->state[pix] = j->rest_state[pix] == 2 ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
+        }
+    }
+}
+
+sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px,
+                         int w, int h, sl_irradiance_cost *row_cost, double deadline,
+                         uint8_t *row_cut, sl_error *err)
+{
+    size_t npix = (size_t)w * h;
+    fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost,
+                  .deadline = deadline, .row_cut = row_cut};
+    j.workers = sl_threads_get();
+    j.scratch = calloc((size_t)j.workers, sizeof *j.scratch);
+    j.need = calloc(npix, 1);
+    j.rest_state = calloc(npix, 1);
+    j.rest = malloc(npix * sizeof *j.rest);
+    j.rest_err = malloc(npix * sizeof *j.rest_err);
+    /* At most every 2 x 2 block at once. */
+    size_t nblocks = ((size_t)w / 2 + 1) * ((size_t)h / 2 + 1);
+    block *cur = malloc(nblocks * sizeof *cur), *next = malloc(nblocks * sizeof *next);
+    sl_result res = SL_OK;
+    if (!j.scratch || !j.need || !j.rest_state || !j.rest || !j.rest_err || !cur || !next) {
+        res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the glossy pixels");
+        goto done;
+    }
+    int ncur = 0;
+    for (int y = 0; y < h; y += BLOCK0)
+        for (int x = 0; x < w; x += BLOCK0)
+            cur[ncur++] = (block){x, y};
+    for (int S = BLOCK0; S >= BLOCK_MIN && ncur > 0; S /= 2) {
+        /* The nine points of every whole block. */
+        int nnext = 0;
+        for (int i = 0; i < ncur; i++) {
+            if (!block_whole(&j, &cur[i], S))
+                continue;
+            for (int k = 0; k < 9; k++)
+                j.need[(size_t)(cur[i].y0 + POINT[k][1] * S / 2) * w + (cur[i].x0 + POINT[k][0] * S / 2)] = 1;
+        }
+        sl_parallel_for(h, 1, rest_rows, &j);
+        memset(j.need, 0, npix);
+        for (int i = 0; i < ncur; i++) {
+            const block *b = &cur[i];
+            bool any = false;
+            for (int y = b->y0; y < b->y0 + S && y < h && !any; y++)
+                for (int x = b->x0; x < b->x0 + S && x < w && !any; x++) {
+                    size_t p = (size_t)y * w + x;
+                    any = px->state[p] == SL_GLOSSY_PENDING && !j.rest_state[p] && !row_cut[y];
+                }
+            if (!any || (block_whole(&j, b, S) && try_block(&j, b, S)))
+                continue;
+            for (int k = 0; k < 4 && S > BLOCK_MIN; k++)
+                next[nnext++] = (block){b->x0 + (k & 1) * S / 2, b->y0 + (k >> 1) * S / 2};
+        }
+        block *t = cur;
+        cur = next, next = t;
+        ncur = nnext;
+    }
+    j.need = (free(j.need), NULL);
+    sl_parallel_for(h, 1, rest_rows, &j); /* every pixel no block interpolated */
+    sl_parallel_for(h, 1, sun_rows, &j);
+done:
+    for (int i = 0; j.scratch && i < j.workers; i++)
+        sl_glossy_scratch_free(j.scratch[i]);
+    free(j.scratch);
+    free(j.need);
+    free(j.rest_state);
+    free(j.rest);
+    free(j.rest_err);
+    free(cur);
+    free(next);
+    return res;
+}
