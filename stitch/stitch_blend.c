@@ -5,7 +5,10 @@
  * and unseen or masked directions filled from the seen border. */
 #include "stitch_blend_private.h"
 
+#define IMATH_HALF_NO_LOOKUP_TABLE /* Imath's conversions alone, without libImath */
+#include <Imath/half.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -80,8 +83,24 @@ static bool lens_table(stitch_view_prep *p)
     return true;
 }
 
+static float half_values[65536];
+static pthread_once_t half_values_once = PTHREAD_ONCE_INIT;
+
+static void half_values_fill(void)
+{
+    for (int h = 0; h < 65536; h++)
+        half_values[h] = imath_half_to_float((imath_half_bits_t)h);
+}
+
+const float *stitch_half_table(void)
+{
+    pthread_once(&half_values_once, half_values_fill);
+    return half_values;
+}
+
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
-                               const sl_stitch_blend_options *opt, stitch_view_prep *prep,
+                               const sl_stitch_blend_options *opt,
+                               const stitch_half_image *half, stitch_view_prep *prep,
                                sl_error *err)
 {
     if (count < 1 || count > SL_STITCH_MAX_VIEWS)
@@ -93,21 +112,22 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
         memset(p, 0, sizeof *p);
         const char *name = v->name ? v->name : "view";
         const sl_image *img = v->radiance;
-        if (!img || !img->data || img->channels < 3)
+        const stitch_half_image *hv = half && half[i].rgb ? &half[i] : NULL;
+        if (!hv && (!img || !img->data || img->channels < 3))
             return sl_error_set(err, SL_ERR_INPUT, "%s: not an RGB image", name);
-        if (img->width != v->lens.width || img->height != v->lens.height)
+        int iw = hv ? hv->width : img->width, ih = hv ? hv->height : img->height;
+        if (iw != v->lens.width || ih != v->lens.height)
             return sl_error_set(err, SL_ERR_INPUT,
                                 "%s: the image is %dx%d but its lens is for %dx%d", name,
-                                img->width, img->height, v->lens.width, v->lens.height);
-        if (v->weight && (v->weight->width != img->width || v->weight->height != img->height))
+                                iw, ih, v->lens.width, v->lens.height);
+        if (v->weight && (v->weight->width != iw || v->weight->height != ih))
             return sl_error_set(err, SL_ERR_INPUT, "%s: the confidence image is %dx%d, not %dx%d",
-                                name, v->weight->width, v->weight->height, img->width,
-                                img->height);
+                                name, v->weight->width, v->weight->height, iw, ih);
         if (!(v->lens.focal_px > 0) || !(v->lens.max_theta_deg > 0))
             return sl_error_set(err, SL_ERR_INPUT, "%s: lens without a focal length or field",
                                 name);
         int64_t bad = 0;
-        for (int y = 0; y < img->height; y++) {
+        for (int y = 0; !hv && y < img->height; y++) {
             const float *row = sl_image_pixel(img, 0, y);
             for (int x = 0; x < img->width; x++)
                 for (int c = 0; c < 3; c++)
@@ -119,7 +139,9 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
                                 "them)",
                                 name, (long long)bad);
         p->lens = v->lens;
-        p->radiance = img;
+        p->radiance = hv ? NULL : img;
+        p->half = hv;
+        p->half_table = hv ? stitch_half_table() : NULL;
         p->weight = v->weight;
         double m[3][3];
         sl_view_pose_matrix(&v->pose, m);
@@ -209,6 +231,28 @@ static inline void bilinear(const sl_image *img, double x, double y, int n, doub
     }
 }
 
+/* bilinear() of a half view's RGB, each sample converted by the table:
+ * the same sums as on the float view it was made from. */
+static inline void bilinear_half(const stitch_half_image *img, const float *table, double x,
+                                 double y, double *out, double *contrast)
+{
+    sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
+    size_t w = (size_t)img->width;
+    const uint16_t *h00 = img->rgb + ((size_t)b.y0 * w + b.x0) * 3;
+    const uint16_t *h10 = img->rgb + ((size_t)b.y0 * w + b.x1) * 3;
+    const uint16_t *h01 = img->rgb + ((size_t)b.y1 * w + b.x0) * 3;
+    const uint16_t *h11 = img->rgb + ((size_t)b.y1 * w + b.x1) * 3;
+    double w00 = (1 - b.ay) * (1 - b.ax), w10 = (1 - b.ay) * b.ax;
+    double w01 = b.ay * (1 - b.ax), w11 = b.ay * b.ax;
+    for (int c = 0; c < 3; c++)
+        out[c] = w00 * table[h00[c]] + w10 * table[h10[c]] + w01 * table[h01[c]] +
+                 w11 * table[h11[c]];
+    float a = table[h00[1]], bb = table[h10[1]], c = table[h01[1]], d = table[h11[1]];
+    float lo0 = a < bb ? a : bb, lo1 = c < d ? c : d, hi0 = a < bb ? bb : a, hi1 = c < d ? d : c;
+    float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
+    *contrast = hi / (lo > 1e-30f ? (double)lo : 1e-30);
+}
+
 static double luminance(const double *rgb)
 {
     return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
@@ -290,7 +334,10 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
                 if (!(w > 0))
                     continue;
                 double rgb[3], contrast;
-                bilinear(vw->radiance, px, py, 3, rgb, &contrast);
+                if (vw->half)
+                    bilinear_half(vw->half, vw->half_table, px, py, rgb, &contrast);
+                else
+                    bilinear(vw->radiance, px, py, 3, rgb, &contrast);
                 hot |= contrast > HOT_CONTRAST;
                 double s2 = r2 / (vw->lens.focal_px * vw->lens.focal_px);
                 const double *vg = vw->lens.vignette;
@@ -540,7 +587,7 @@ sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
                                  const sl_stitch_blend_options *opt_in, sl_stitch_rows_fn sink,
                                  void *user, sl_stitch_coverage *cov, sl_error *err)
 {
-    return stitch_blend_run(views, count, opt_in, sink, user, NULL, cov, err);
+    return stitch_blend_run(views, count, NULL, opt_in, sink, user, NULL, cov, err);
 }
 
 static sl_result blend_prepared(const stitch_view_prep *prep, int count,
@@ -549,6 +596,7 @@ static sl_result blend_prepared(const stitch_view_prep *prep, int count,
                                 sl_error *err);
 
 sl_result stitch_blend_run(const sl_stitch_view *views, int count,
+                           const stitch_half_image *half,
                            const sl_stitch_blend_options *opt_in, sl_stitch_rows_fn sink,
                            void *user, sl_image *whole, sl_stitch_coverage *cov_out,
                            sl_error *err)
@@ -564,7 +612,7 @@ sl_result stitch_blend_run(const sl_stitch_view *views, int count,
         memset(cov_out, 0, sizeof *cov_out);
     stitch_view_prep prep[SL_STITCH_MAX_VIEWS];
     memset(prep, 0, sizeof prep);
-    sl_result r = stitch_prepare_views(views, count, &opt, prep, err);
+    sl_result r = stitch_prepare_views(views, count, &opt, half, prep, err);
     if (!r)
         r = blend_prepared(prep, count, &opt, sink, user, whole, &cov, err);
     stitch_release_views(prep, count < SL_STITCH_MAX_VIEWS ? count : SL_STITCH_MAX_VIEWS);
@@ -630,5 +678,5 @@ sl_result sl_stitch_blend(const sl_stitch_view *views, int count,
                           sl_stitch_coverage *cov, sl_error *err)
 {
     memset(out, 0, sizeof *out);
-    return stitch_blend_run(views, count, opt, NULL, NULL, out, cov, err);
+    return stitch_blend_run(views, count, NULL, opt, NULL, NULL, out, cov, err);
 }

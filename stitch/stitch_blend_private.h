@@ -5,11 +5,38 @@
 
 #include "setlight/stitch.h"
 
+#include <stdint.h>
+
+/* A view's radiance as half RGB, 3 samples a pixel, rows packed: what the
+ * stitch holds a view as when every sample of it is a half value (as
+ * merge writes them), half the memory of float and the same lookups. */
+typedef struct stitch_half_image {
+    uint16_t *rgb;
+    int width, height;
+} stitch_half_image;
+
+/* The float value of every half bit pattern (the blend's lookups). */
+const float *stitch_half_table(void);
+
+/* Counts the non-finite samples of a view and finds its largest RGB sample. */
+sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, sl_error *err);
+/* The view as half when every RGB sample converts exactly (what merge
+ * writes), else false and nothing held (the float view is used). */
+bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *err);
+void stitch_half_free(stitch_half_image *h);
+/* The factor, 2 or 4, that divides the view's width and height and brings
+ * the width to max_width or under, or 1. */
+int stitch_solve_factor(int width, int height, int max_width);
+/* A lens scaled by s for an image of width x height (focal, centre, circle). */
+void stitch_lens_scale(sl_lens *lens, double s, int width, int height);
+
 /* A view ready for lookups: its lens, world -> camera rotation, optical
  * axis in the world and its field. */
 typedef struct stitch_view_prep {
     sl_lens lens;
     const sl_image *radiance, *weight;
+    const stitch_half_image *half; /* not NULL: the radiance, in place of `radiance` */
+    const float *half_table;
     double to_cam[3][3];
     double axis[3];
     double theta_max, cos_max, ramp; /* radians */
@@ -30,9 +57,13 @@ typedef struct stitch_row_stats {
     double power[3], seen_power[3];
 } stitch_row_stats;
 
-/* Checks the views (size against the lens, NaN/Inf samples) and prepares them. */
+/* Checks the views (size against the lens, NaN/Inf samples) and prepares
+ * them. half (NULL, or count entries): a view whose entry has pixels is
+ * looked up there (the caller checked it for NaN/Inf) and its radiance
+ * image is not used. */
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
-                               const sl_stitch_blend_options *opt, stitch_view_prep *prep,
+                               const sl_stitch_blend_options *opt,
+                               const stitch_half_image *half, stitch_view_prep *prep,
                                sl_error *err);
 /* Frees what stitch_prepare_views allocated (prep may be half filled). */
 void stitch_release_views(stitch_view_prep *prep, int count);
@@ -43,8 +74,10 @@ bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x
                        double *r2);
 /* Blend weight of a view for a ray theta (radians) off its axis. */
 double stitch_view_weight(const stitch_view_prep *v, double theta);
-/* The blend into a sink or, when `whole` is not NULL, into that image. */
+/* The blend into a sink or, when `whole` is not NULL, into that image;
+ * half as for stitch_prepare_views. */
 sl_result stitch_blend_run(const sl_stitch_view *views, int count,
+                           const stitch_half_image *half,
                            const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
                            void *user, sl_image *whole, sl_stitch_coverage *cov, sl_error *err);
 
