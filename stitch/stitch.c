@@ -683,7 +683,7 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
     stitch_half_image half[SL_STITCH_MAX_VIEWS];
     for (int i = 0; i < count; i++)
         half[i] = files[i].half;
-    r = stitch_blend_run(views, count, half, &opt.blend, write_rows, &out, NULL, &res->coverage,
+    r = stitch_blend_run(views, count, half, true, &opt.blend, write_rows, &out, NULL, &res->coverage,
                          err);
     if (r)
         goto done;

@@ -5,6 +5,7 @@
 
 #include "setlight/stitch.h"
 
+#include <math.h>
 #include <stdint.h>
 
 /* A view's radiance as half RGB, 3 samples a pixel, rows packed: what the
@@ -57,27 +58,50 @@ typedef struct stitch_row_stats {
     double power[3], seen_power[3];
 } stitch_row_stats;
 
-/* Checks the views (size against the lens, NaN/Inf samples) and prepares
- * them. half (NULL, or count entries): a view whose entry has pixels is
- * looked up there (the caller checked it for NaN/Inf) and its radiance
- * image is not used. */
+/* Checks the views (size against the lens, NaN/Inf samples unless the
+ * caller has: `scanned`) and prepares them. half (NULL, or count
+ * entries): a view whose entry has pixels is looked up there and its
+ * radiance image is not used. */
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
                                const sl_stitch_blend_options *opt,
-                               const stitch_half_image *half, stitch_view_prep *prep,
-                               sl_error *err);
+                               const stitch_half_image *half, bool scanned,
+                               stitch_view_prep *prep, sl_error *err);
 /* Frees what stitch_prepare_views allocated (prep may be half filled). */
 void stitch_release_views(stitch_view_prep *prep, int count);
 /* The pixel of view v a unit camera-frame ray sees, from its lens table;
  * false outside its field, circle or frame. r2 is the squared distance
- * from the centre (for the vignetting). */
-bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x, double *y,
-                       double *r2);
+ * from the centre (for the vignetting). Inline: the blend's inner loop. */
+static inline bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x,
+                                     double *y, double *r2)
+{
+    double u = 1.0 - ray[2], t = u / v->u_step;
+    if (!(t >= 0.0) || t >= v->q_entries - 1 || !(ray[2] > -1.0)) /* straight back: no pixel */
+        return false;
+    int i = (int)t;
+    double q0 = v->q_table[i], q1 = v->q_table[i + 1];
+    if (q0 < 0.0 || q1 < 0.0)
+        return false;
+    double q = q0 + (t - i) * (q1 - q0), rr = u * q;
+    const sl_lens *l = &v->lens;
+    if (l->circle_radius_px > 0.0 && rr > l->circle_radius_px * l->circle_radius_px)
+        return false;
+    /* r / sin(theta) = sqrt(q u / (1 - z^2)) = sqrt(q / (1 + z)) */
+    double k = sqrt(q / (1.0 + ray[2]));
+    double px = l->cx + k * ray[0], py = l->cy + k * ray[1];
+    if (px < 0.0 || py < 0.0 || px > l->width || py > l->height)
+        return false;
+    *x = px;
+    *y = py;
+    *r2 = rr;
+    return true;
+}
+
 /* Blend weight of a view for a ray theta (radians) off its axis. */
 double stitch_view_weight(const stitch_view_prep *v, double theta);
 /* The blend into a sink or, when `whole` is not NULL, into that image;
- * half as for stitch_prepare_views. */
+ * half and scanned as for stitch_prepare_views. */
 sl_result stitch_blend_run(const sl_stitch_view *views, int count,
-                           const stitch_half_image *half,
+                           const stitch_half_image *half, bool scanned,
                            const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
                            void *user, sl_image *whole, sl_stitch_coverage *cov, sl_error *err);
 
