@@ -98,6 +98,49 @@ const float *stitch_half_table(void)
     return half_values;
 }
 
+/* Entries of a view's ramp table: sin(pi/2 (theta_max - theta) / ramp) at
+ * even steps of cos(theta), nearly linear there (the weight, its square,
+ * is not near the rim), so linear interpolation keeps the weight within
+ * 1e-6 of its own value. */
+#define RAMP_ENTRIES 4097
+
+static bool ramp_table(stitch_view_prep *p)
+{
+    double span = p->cos_ramp - p->cos_max;
+    if (!(span > 0.0))
+        return true; /* no ramp: the weight is never looked up */
+    p->ramp_entries = RAMP_ENTRIES;
+    p->ramp_step_inv = (RAMP_ENTRIES - 1) / span;
+    p->ramp_table = malloc(RAMP_ENTRIES * sizeof *p->ramp_table);
+    if (!p->ramp_table)
+        return false;
+    for (int i = 0; i < RAMP_ENTRIES; i++) {
+        double c = i == RAMP_ENTRIES - 1 ? p->cos_ramp : p->cos_max + i / p->ramp_step_inv;
+        double theta = acos(fmax(-1.0, fmin(1.0, c)));
+        p->ramp_table[i] = theta >= p->theta_max ? 0.0
+                                                 : sin(0.5 * M_PI * (p->theta_max - theta) / p->ramp);
+    }
+    return true;
+}
+
+/* stitch_view_weight at cos(theta) = c: (1 + c) / 2, times the square of
+ * the ramp's sine from the table over the ramp. */
+static inline double ramp_weight(const stitch_view_prep *v, double c)
+{
+    if (c > v->cos_ramp)
+        return 0.5 * (1.0 + c);
+    if (!v->ramp_table)
+        return stitch_view_weight(v, acos(c < 1.0 ? c : 1.0));
+    double t = (c - v->cos_max) * v->ramp_step_inv;
+    if (!(t > 0.0))
+        return 0.0;
+    int i = (int)t;
+    double r = i >= v->ramp_entries - 1
+                   ? v->ramp_table[v->ramp_entries - 1]
+                   : v->ramp_table[i] + (t - i) * (v->ramp_table[i + 1] - v->ramp_table[i]);
+    return 0.5 * (1.0 + c) * r * r;
+}
+
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
                                const sl_stitch_blend_options *opt,
                                const stitch_half_image *half, bool scanned,
@@ -156,7 +199,7 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
         p->cos_max = cos(fmin(tmax, M_PI));
         p->ramp = ramp;
         p->cos_ramp = cos(fmax(0.0, tmax - ramp));
-        if (!lens_table(p))
+        if (!lens_table(p) || !ramp_table(p))
             return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
     }
     return SL_OK;
@@ -167,6 +210,8 @@ void stitch_release_views(stitch_view_prep *prep, int count)
     for (int i = 0; i < count; i++) {
         free(prep[i].q_table);
         prep[i].q_table = NULL;
+        free(prep[i].ramp_table);
+        prep[i].ramp_table = NULL;
     }
 }
 
@@ -368,9 +413,7 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, const bool 
                              vw->to_cam[r][2] * d[2];
                 if (!stitch_view_pixel(vw, ray, &px, &py, &r2))
                     continue;
-                /* theta (an acos) only where the edge ramp needs it */
-                double w = c > vw->cos_ramp ? 0.5 * (1.0 + c)
-                                            : stitch_view_weight(vw, acos(c < 1.0 ? c : 1.0));
+                double w = ramp_weight(vw, c);
                 if (vw->weight) {
                     double conf;
                     bilinear(vw->weight, px, py, 1, &conf, NULL);

@@ -42,6 +42,11 @@ typedef struct stitch_view_prep {
     double axis[3];
     double theta_max, cos_max, ramp; /* radians */
     double cos_ramp;                 /* cos of where the edge ramp starts */
+    /* The weight over the edge ramp as a function of cos(theta), so the
+     * blend takes a lookup where it took an acos, a cos and a sin. */
+    double *ramp_table;
+    double ramp_step_inv;            /* entries per unit of cos(theta) */
+    int ramp_entries;
     /* The lens as q(u) = r^2 / u at u = 1 - cos(theta) (smooth for every
      * projection), so a ray's pixel takes a table lookup and one sqrt
      * instead of atan2, hypot and the radial polynomial; -1: no pixel. */
