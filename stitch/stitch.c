@@ -41,12 +41,26 @@ void sl_stitch_options_init(sl_stitch_options *opt)
     opt->compression = SL_EXR_ZIP;
 }
 
-/* One view as read: its radiance, metadata and confidence. */
+/* Views wider than this are solved on a copy reduced by a whole factor:
+ * twice the features' width, so the features see the same pixels. */
+#define SOLVE_MAX_WIDTH 3072
+
+/* One view as read: its radiance (float, or half once read), metadata,
+ * confidence, the solve's reduced copies and its image circle. */
 typedef struct view_file {
     const char *path;
-    sl_image radiance, weight;
+    int width, height;
+    sl_image radiance, weight;   /* radiance empty when `half` holds it */
+    stitch_half_image half;
+    int solve_factor;            /* 1: the solve uses radiance and weight */
+    bool as_half;                /* a large view: held as half when exact */
+    sl_image solve_radiance, solve_weight;
     sl_meta meta;
     double peak; /* largest RGB sample */
+    sl_stitch_circle circle;     /* found as the view is read, used for a fisheye */
+    sl_result circle_status;
+    sl_error circle_err;
+    double circle_cpu, circle_wall;
 } view_file;
 
 /* The merge's clipped mask named by the radiance (as given to merge, or
@@ -115,7 +129,7 @@ static sl_result nominal_lens(const view_file *views, int count, const sl_stitch
                               sl_lens *lens, char *source, size_t source_size, sl_error *err)
 {
     const view_file *v0 = &views[0];
-    int w = v0->radiance.width, h = v0->radiance.height;
+    int w = v0->width, h = v0->height;
     /* One camera and lens: the EXIF of every view must agree. */
     for (int i = 1; i < count; i++) {
         const sl_meta *a = &v0->meta, *b = &views[i].meta;
@@ -180,6 +194,142 @@ static sl_result nominal_lens(const view_file *views, int count, const sl_stitch
         return r;
     if (!ok)
         return sl_error_set(err, SL_ERR_INPUT, "%s: %s, or --lens-profile", v0->path, why);
+    return SL_OK;
+}
+
+/* What a view keeps once read: the report's thumbnail, the solve's
+ * reduced copies, the half copy; beside it its image circle is found on
+ * the float radiance (both only read it). */
+typedef struct hold_job {
+    view_file *v;
+    sl_image *thumb;
+    sl_result status;
+    sl_error err;
+} hold_job;
+
+static sl_result hold_copies(view_file *v, sl_image *thumb, sl_error *err)
+{
+    sl_result r = SL_OK;
+    const sl_image *img = &v->radiance;
+    if (thumb) {
+        int tw = img->width < 320 ? img->width : 320;
+        int th = (int)lround((double)img->height * tw / img->width);
+        if ((r = sl_image_resample(img, tw, th > 0 ? th : 1, thumb, err)))
+            return r;
+    }
+    int k = v->solve_factor;
+    if (k > 1 && (r = sl_image_resample(img, img->width / k, img->height / k,
+                                        &v->solve_radiance, err)))
+        return r;
+    if (k > 1 && v->weight.data &&
+        (r = sl_image_resample(&v->weight, img->width / k, img->height / k, &v->solve_weight,
+                               err)))
+        return r;
+    if (v->as_half)
+        stitch_view_to_half(img, &v->half, err);
+    return SL_OK;
+}
+
+static void hold_task(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    hold_job *j = ctx;
+    view_file *v = j->v;
+    for (int64_t t = begin; t < end; t++) {
+        if (t == 0) {
+            double w0 = sl_seconds(), c0 = sl_thread_cpu_seconds();
+            v->circle_status =
+                sl_stitch_circle_find(&v->radiance, v->path, NULL, &v->circle, &v->circle_err);
+            v->circle_wall = sl_seconds() - w0;
+            v->circle_cpu = sl_thread_cpu_seconds() - c0;
+        } else {
+            j->status = hold_copies(v, j->thumb, &j->err);
+        }
+    }
+}
+
+/* Reads one view, refuses NaN/Inf and a size other than view 0's, finds
+ * its circle and keeps it as it will be used. */
+static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solving,
+                           sl_stitch_view_result *vr, const view_file *v0, sl_image *thumb,
+                           sl_error *err)
+{
+    sl_result r = sl_image_read_linear(v->path, opt->input_colorspace, &v->radiance, &v->meta,
+                                       NULL, err);
+    if (!r)
+        r = sl_image_ensure_rgb(&v->radiance, v->path, err);
+    int64_t bad = 0;
+    if (!r)
+        r = stitch_view_scan(&v->radiance, &bad, &v->peak, err);
+    if (r)
+        return r;
+    if (bad)
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s: %lld NaN/Inf samples (a damaged file: merge never writes them)",
+                            v->path, (long long)bad);
+    v->width = vr->width = v->radiance.width;
+    v->height = vr->height = v->radiance.height;
+    if (v0 && (v->width != v0->width || v->height != v0->height))
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "%s: %dx%d, but %s is %dx%d: one stitch is one camera, lens and size",
+                            v->path, v->width, v->height, v0->path, v0->width, v0->height);
+    if ((r = read_confidence(v, vr, err)))
+        return r;
+    /* A large view is solved on a reduced copy and blended from half; a
+     * small one (or one whose size the factors do not divide) is solved at
+     * full resolution, so it stays float. */
+    bool big = v->width > SOLVE_MAX_WIDTH;
+    v->solve_factor = solving && big ? stitch_solve_factor(v->width, v->height, SOLVE_MAX_WIDTH)
+                                     : 1;
+    v->as_half = big && (v->solve_factor > 1 || !solving);
+    hold_job j = {v, thumb, SL_OK, {0}};
+    sl_parallel_for(2, 1, hold_task, &j);
+    if (j.status) {
+        *err = j.err;
+        return j.status;
+    }
+    if (v->half.rgb)
+        sl_image_free(&v->radiance);
+    return SL_OK;
+}
+
+/* The solve on the views' reduced copies (when they have them), its lens
+ * and pixel errors scaled back to the full views. */
+static sl_result solve_reduced(const view_file *files, sl_stitch_view *views, int count,
+                               const sl_stitch_solve_options *so, sl_stitch_solve_result *res,
+                               sl_error *err)
+{
+    int k = files[0].solve_factor, w = files[0].width, h = files[0].height;
+    sl_stitch_view sv[SL_STITCH_MAX_VIEWS];
+    for (int i = 0; i < count; i++) {
+        sv[i] = views[i];
+        if (k > 1) {
+            sv[i].radiance = &files[i].solve_radiance;
+            sv[i].weight = files[i].weight.data ? &files[i].solve_weight : NULL;
+            stitch_lens_scale(&sv[i].lens, 1.0 / k, w / k, h / k);
+        }
+    }
+    sl_result r = sl_stitch_solve(sv, count, so, res, err);
+    if (r || k == 1) {
+        for (int i = 0; !r && i < count; i++) {
+            views[i].lens = sv[i].lens;
+            views[i].pose = sv[i].pose;
+        }
+        return r;
+    }
+    for (int i = 0; i < count; i++) {
+        views[i].pose = sv[i].pose;
+        views[i].lens = sv[i].lens;
+        stitch_lens_scale(&views[i].lens, k, w, h);
+    }
+    stitch_lens_scale(&res->lens_nominal, k, w, h);
+    stitch_lens_scale(&res->lens, k, w, h);
+    res->rms_px *= k;
+    res->max_px *= k;
+    for (int p = 0; p < res->pairs; p++) {
+        res->pair[p].rms_px *= k;
+        res->pair[p].max_px *= k;
+    }
     return SL_OK;
 }
 
@@ -385,46 +535,34 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         goto done;
     }
     res->view_count = count;
+    /* The report's thumbnails, while the views are float. */
+    if (opt.report && !(report = calloc(1, sizeof *report))) {
+        r = sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
+        goto done;
+    }
     for (int i = 0; i < count && !r; i++) {
         view_file *v = &files[i];
         v->path = view_paths[i];
         sl_meta_init(&v->meta);
         snprintf(res->views[i].path, sizeof res->views[i].path, "%s", v->path);
-        if ((r = sl_image_read_linear(v->path, opt.input_colorspace, &v->radiance, &v->meta,
-                                      NULL, err)))
-            break;
-        if ((r = sl_image_ensure_rgb(&v->radiance, v->path, err)))
-            break;
-        sl_image_stats st;
-        sl_image_stats_compute(&v->radiance, &st);
-        if (st.nan_count + st.inf_count) {
-            r = sl_error_set(err, SL_ERR_INPUT,
-                             "%s: %lld NaN/Inf samples (a damaged file: merge never writes them)",
-                             v->path, (long long)(st.nan_count + st.inf_count));
-            break;
-        }
-        v->peak = fmax(st.max[0], fmax(st.max[1], st.max[2]));
-        res->views[i].width = v->radiance.width;
-        res->views[i].height = v->radiance.height;
-        if (i > 0 && (v->radiance.width != files[0].radiance.width ||
-                      v->radiance.height != files[0].radiance.height)) {
-            r = sl_error_set(err, SL_ERR_INPUT,
-                             "%s: %dx%d, but %s is %dx%d: one stitch is one camera, lens and size",
-                             v->path, v->radiance.width, v->radiance.height, files[0].path,
-                             files[0].radiance.width, files[0].radiance.height);
-            break;
-        }
-        r = read_confidence(v, &res->views[i], err);
+        r = read_view(v, &opt, opt.solve && count >= 2, &res->views[i], i > 0 ? &files[0] : NULL,
+                      report ? &report->thumb[i] : NULL, err);
     }
     if (r)
         goto done;
+    /* The circles were found beside the conversions: their CPU and wall
+     * time are the circle phase's, not the read's. */
+    for (int i = 0; i < count; i++) {
+        res->cpu[SL_STITCH_CIRCLE] += files[i].circle_cpu;
+        res->wall[SL_STITCH_CIRCLE] += files[i].circle_wall;
+    }
     if ((r = nominal_lens(files, count, &opt, &res->lens_nominal, res->lens_source,
                           sizeof res->lens_source, err)))
         goto done;
     for (int i = 0; i < count; i++) {
         sl_stitch_view *v = &views[i];
         v->name = files[i].path;
-        v->radiance = &files[i].radiance;
+        v->radiance = files[i].radiance.data ? &files[i].radiance : NULL;
         v->weight = files[i].weight.data ? &files[i].weight : NULL;
         v->lens = res->lens_nominal;
         v->pose.yaw_deg = i < opt.yaw_count ? opt.yaw_deg[i] : 360.0 * i / count;
@@ -432,18 +570,9 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         v->pose.roll_deg = i < opt.roll_count ? opt.roll_deg[i] : 0.0;
         res->views[i].nominal = v->pose;
     }
-    /* The report's thumbnails, while the views are here. */
-    if (opt.report && !(report = calloc(1, sizeof *report)))
-        r = sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
-    for (int i = 0; report && !r && i < count; i++) {
-        const sl_image *v = &files[i].radiance;
-        int tw = v->width < 320 ? v->width : 320;
-        int th = (int)lround((double)v->height * tw / v->width);
-        r = sl_image_resample(v, tw, th > 0 ? th : 1, &report->thumb[i], err);
-    }
-    if (r)
-        goto done;
     phase_end(res, SL_STITCH_READ, &t, &c);
+    res->cpu[SL_STITCH_READ] -= res->cpu[SL_STITCH_CIRCLE];
+    res->wall[SL_STITCH_READ] -= res->wall[SL_STITCH_CIRCLE];
     /* A circular fisheye's image circle, found in every view: the optical
      * centre and the circle the solve starts from (a profile keeps its own). */
     bool given = opt.lens || opt.lens_profile;
@@ -451,14 +580,17 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         res->lens_nominal.circle_radius_px > 0) {
         double sx = 0, sy = 0, sr = 0;
         for (int i = 0; i < count; i++) {
-            sl_stitch_circle circ;
-            if ((r = sl_stitch_circle_find(&files[i].radiance, files[i].path, &res->lens_nominal,
-                                           &circ, err)))
+            sl_stitch_circle circ = files[i].circle;
+            if ((r = files[i].circle_status)) {
+                *err = files[i].circle_err;
                 goto done;
+            }
+            if (res->lens_nominal.circle_radius_px > 0.0)
+                circ.radius_vs_nominal = circ.radius / res->lens_nominal.circle_radius_px;
             if (i == 0)
                 res->circle = circ;
             if (report) {
-                double f = (double)report->thumb[i].width / files[i].radiance.width;
+                double f = (double)report->thumb[i].width / res->views[i].width;
                 report->circle[i][0] = circ.cx * f;
                 report->circle[i][1] = circ.cy * f;
                 report->circle[i][2] = circ.radius * f;
@@ -486,7 +618,7 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
             so.solve_focal = so.solve_centre = so.solve_vignette = false;
             so.radial_terms = 0;
         }
-        if ((r = sl_stitch_solve(views, count, &so, &res->solve, err)))
+        if ((r = solve_reduced(files, views, count, &so, &res->solve, err)))
             goto done;
         res->solved = true;
         snprintf(res->solve_note, sizeof res->solve_note,
@@ -548,7 +680,11 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         sl_image_fill(&report->filled, 0.0f);
     }
     out = (out_file){out_path, &opt, &meta, width, width / 2, NULL, report};
-    r = sl_stitch_blend_stream(views, count, &opt.blend, write_rows, &out, &res->coverage, err);
+    stitch_half_image half[SL_STITCH_MAX_VIEWS];
+    for (int i = 0; i < count; i++)
+        half[i] = files[i].half;
+    r = stitch_blend_run(views, count, half, true, &opt.blend, write_rows, &out, NULL, &res->coverage,
+                         err);
     if (r)
         goto done;
     {
@@ -583,6 +719,9 @@ done:
     for (int i = 0; i < SL_STITCH_MAX_VIEWS; i++) {
         sl_image_free(&files[i].radiance);
         sl_image_free(&files[i].weight);
+        stitch_half_free(&files[i].half);
+        sl_image_free(&files[i].solve_radiance);
+        sl_image_free(&files[i].solve_weight);
         if (files[i].path)
             sl_meta_free(&files[i].meta);
     }

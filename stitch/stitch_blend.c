@@ -5,7 +5,10 @@
  * and unseen or masked directions filled from the seen border. */
 #include "stitch_blend_private.h"
 
+#define IMATH_HALF_NO_LOOKUP_TABLE /* Imath's conversions alone, without libImath */
+#include <Imath/half.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -80,9 +83,68 @@ static bool lens_table(stitch_view_prep *p)
     return true;
 }
 
+static float half_values[65536];
+static pthread_once_t half_values_once = PTHREAD_ONCE_INIT;
+
+static void half_values_fill(void)
+{
+    for (int h = 0; h < 65536; h++)
+        half_values[h] = imath_half_to_float((imath_half_bits_t)h);
+}
+
+const float *stitch_half_table(void)
+{
+    pthread_once(&half_values_once, half_values_fill);
+    return half_values;
+}
+
+/* Entries of a view's ramp table: sin(pi/2 (theta_max - theta) / ramp) at
+ * even steps of cos(theta), nearly linear there (the weight, its square,
+ * is not near the rim), so linear interpolation keeps the weight within
+ * 1e-6 of its own value. */
+#define RAMP_ENTRIES 4097
+
+static bool ramp_table(stitch_view_prep *p)
+{
+    double span = p->cos_ramp - p->cos_max;
+    if (!(span > 0.0))
+        return true; /* no ramp: the weight is never looked up */
+    p->ramp_entries = RAMP_ENTRIES;
+    p->ramp_step_inv = (RAMP_ENTRIES - 1) / span;
+    p->ramp_table = malloc(RAMP_ENTRIES * sizeof *p->ramp_table);
+    if (!p->ramp_table)
+        return false;
+    for (int i = 0; i < RAMP_ENTRIES; i++) {
+        double c = i == RAMP_ENTRIES - 1 ? p->cos_ramp : p->cos_max + i / p->ramp_step_inv;
+        double theta = acos(fmax(-1.0, fmin(1.0, c)));
+        p->ramp_table[i] = theta >= p->theta_max ? 0.0
+                                                 : sin(0.5 * M_PI * (p->theta_max - theta) / p->ramp);
+    }
+    return true;
+}
+
+/* stitch_view_weight at cos(theta) = c: (1 + c) / 2, times the square of
+ * the ramp's sine from the table over the ramp. */
+static inline double ramp_weight(const stitch_view_prep *v, double c)
+{
+    if (c > v->cos_ramp)
+        return 0.5 * (1.0 + c);
+    if (!v->ramp_table)
+        return stitch_view_weight(v, acos(c < 1.0 ? c : 1.0));
+    double t = (c - v->cos_max) * v->ramp_step_inv;
+    if (!(t > 0.0))
+        return 0.0;
+    int i = (int)t;
+    double r = i >= v->ramp_entries - 1
+                   ? v->ramp_table[v->ramp_entries - 1]
+                   : v->ramp_table[i] + (t - i) * (v->ramp_table[i + 1] - v->ramp_table[i]);
+    return 0.5 * (1.0 + c) * r * r;
+}
+
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
-                               const sl_stitch_blend_options *opt, stitch_view_prep *prep,
-                               sl_error *err)
+                               const sl_stitch_blend_options *opt,
+                               const stitch_half_image *half, bool scanned,
+                               stitch_view_prep *prep, sl_error *err)
 {
     if (count < 1 || count > SL_STITCH_MAX_VIEWS)
         return sl_error_set(err, SL_ERR_USAGE, "stitch: 1 to %d views, not %d",
@@ -93,21 +155,22 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
         memset(p, 0, sizeof *p);
         const char *name = v->name ? v->name : "view";
         const sl_image *img = v->radiance;
-        if (!img || !img->data || img->channels < 3)
+        const stitch_half_image *hv = half && half[i].rgb ? &half[i] : NULL;
+        if (!hv && (!img || !img->data || img->channels < 3))
             return sl_error_set(err, SL_ERR_INPUT, "%s: not an RGB image", name);
-        if (img->width != v->lens.width || img->height != v->lens.height)
+        int iw = hv ? hv->width : img->width, ih = hv ? hv->height : img->height;
+        if (iw != v->lens.width || ih != v->lens.height)
             return sl_error_set(err, SL_ERR_INPUT,
                                 "%s: the image is %dx%d but its lens is for %dx%d", name,
-                                img->width, img->height, v->lens.width, v->lens.height);
-        if (v->weight && (v->weight->width != img->width || v->weight->height != img->height))
+                                iw, ih, v->lens.width, v->lens.height);
+        if (v->weight && (v->weight->width != iw || v->weight->height != ih))
             return sl_error_set(err, SL_ERR_INPUT, "%s: the confidence image is %dx%d, not %dx%d",
-                                name, v->weight->width, v->weight->height, img->width,
-                                img->height);
+                                name, v->weight->width, v->weight->height, iw, ih);
         if (!(v->lens.focal_px > 0) || !(v->lens.max_theta_deg > 0))
             return sl_error_set(err, SL_ERR_INPUT, "%s: lens without a focal length or field",
                                 name);
         int64_t bad = 0;
-        for (int y = 0; y < img->height; y++) {
+        for (int y = 0; !hv && !scanned && y < img->height; y++) {
             const float *row = sl_image_pixel(img, 0, y);
             for (int x = 0; x < img->width; x++)
                 for (int c = 0; c < 3; c++)
@@ -119,7 +182,9 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
                                 "them)",
                                 name, (long long)bad);
         p->lens = v->lens;
-        p->radiance = img;
+        p->radiance = hv ? NULL : img;
+        p->half = hv;
+        p->half_table = hv ? stitch_half_table() : NULL;
         p->weight = v->weight;
         double m[3][3];
         sl_view_pose_matrix(&v->pose, m);
@@ -134,7 +199,7 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
         p->cos_max = cos(fmin(tmax, M_PI));
         p->ramp = ramp;
         p->cos_ramp = cos(fmax(0.0, tmax - ramp));
-        if (!lens_table(p))
+        if (!lens_table(p) || !ramp_table(p))
             return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
     }
     return SL_OK;
@@ -145,33 +210,11 @@ void stitch_release_views(stitch_view_prep *prep, int count)
     for (int i = 0; i < count; i++) {
         free(prep[i].q_table);
         prep[i].q_table = NULL;
+        free(prep[i].ramp_table);
+        prep[i].ramp_table = NULL;
     }
 }
 
-bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x, double *y,
-                       double *r2)
-{
-    double u = 1.0 - ray[2], t = u / v->u_step;
-    if (!(t >= 0.0) || t >= v->q_entries - 1 || !(ray[2] > -1.0)) /* straight back: no pixel */
-        return false;
-    int i = (int)t;
-    double q0 = v->q_table[i], q1 = v->q_table[i + 1];
-    if (q0 < 0.0 || q1 < 0.0)
-        return false;
-    double q = q0 + (t - i) * (q1 - q0), rr = u * q;
-    const sl_lens *l = &v->lens;
-    if (l->circle_radius_px > 0.0 && rr > l->circle_radius_px * l->circle_radius_px)
-        return false;
-    /* r / sin(theta) = sqrt(q u / (1 - z^2)) = sqrt(q / (1 + z)) */
-    double k = sqrt(q / (1.0 + ray[2]));
-    double px = l->cx + k * ray[0], py = l->cy + k * ray[1];
-    if (px < 0.0 || py < 0.0 || px > l->width || py > l->height)
-        return false;
-    *x = px;
-    *y = py;
-    *r2 = rr;
-    return true;
-}
 
 double stitch_view_weight(const stitch_view_prep *v, double theta)
 {
@@ -207,6 +250,28 @@ static inline void bilinear(const sl_image *img, double x, double y, int n, doub
         float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
         *contrast = hi / (lo > 1e-30f ? (double)lo : 1e-30);
     }
+}
+
+/* bilinear() of a half view's RGB, each sample converted by the table:
+ * the same sums as on the float view it was made from. */
+static inline void bilinear_half(const stitch_half_image *img, const float *table, double x,
+                                 double y, double *out, double *contrast)
+{
+    sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
+    size_t w = (size_t)img->width;
+    const uint16_t *h00 = img->rgb + ((size_t)b.y0 * w + b.x0) * 3;
+    const uint16_t *h10 = img->rgb + ((size_t)b.y0 * w + b.x1) * 3;
+    const uint16_t *h01 = img->rgb + ((size_t)b.y1 * w + b.x0) * 3;
+    const uint16_t *h11 = img->rgb + ((size_t)b.y1 * w + b.x1) * 3;
+    double w00 = (1 - b.ay) * (1 - b.ax), w10 = (1 - b.ay) * b.ax;
+    double w01 = b.ay * (1 - b.ax), w11 = b.ay * b.ax;
+    for (int c = 0; c < 3; c++)
+        out[c] = w00 * table[h00[c]] + w10 * table[h10[c]] + w01 * table[h01[c]] +
+                 w11 * table[h11[c]];
+    float a = table[h00[1]], bb = table[h10[1]], c = table[h01[1]], d = table[h11[1]];
+    float lo0 = a < bb ? a : bb, lo1 = c < d ? c : d, hi0 = a < bb ? bb : a, hi1 = c < d ? d : c;
+    float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
+    *contrast = hi / (lo > 1e-30f ? (double)lo : 1e-30);
 }
 
 static double luminance(const double *rgb)
@@ -246,29 +311,98 @@ static bool masked(const blend_pass *p, double u, double v, double lat)
     return sl_image_pixel(m, mx, my)[0] > 0.5f;
 }
 
+/* The columns of one lat-long row a view can see: every texel within
+ * half_cols of centre (wrapping round), or all, or none. */
+typedef struct row_span {
+    bool all, none;
+    double centre, half_cols;
+} row_span;
+
+/* The largest cosine between a view's axis (latitude sin_a / cos_a) and a
+ * direction dlon off its longitude, over latitudes [lat0, lat1]:
+ * sin_a sin(lat) + cos_a cos(dlon) cos(lat) = R cos(lat - lat*). */
+static double max_cos_in_band(double sin_a, double cos_a, double dlon, double lat0, double lat1)
+{
+    double a = sin_a, b = cos_a * cos(dlon);
+    double peak = atan2(a, b);
+    if (peak >= lat0 && peak <= lat1)
+        return hypot(a, b);
+    return fmax(a * sin(lat0) + b * cos(lat0), a * sin(lat1) + b * cos(lat1));
+}
+
+/* Per view, the columns of row y its field reaches: its cosine to a
+ * direction falls as the longitude moves away from its axis's (cos(lat)
+ * >= 0), so the reach is found by bisection, then widened by a column so
+ * no sample the view sees is skipped. */
+static void row_spans(const blend_pass *p, int y, row_span *span)
+{
+    const int W = p->width, H = p->height;
+    double lat0 = M_PI * (0.5 - (y + 1.0) / H), lat1 = M_PI * (0.5 - (double)y / H);
+    for (int k = 0; k < p->count; k++) {
+        const stitch_view_prep *v = &p->views[k];
+        row_span *s = &span[k];
+        double sin_a = fmax(-1.0, fmin(1.0, v->axis[1])), cos_a = sqrt(1.0 - sin_a * sin_a);
+        double floor_cos = v->cos_max - 1e-9;
+        s->all = max_cos_in_band(sin_a, cos_a, M_PI, lat0, lat1) >= floor_cos;
+        s->none = !s->all && max_cos_in_band(sin_a, cos_a, 0.0, lat0, lat1) < floor_cos;
+        if (s->all || s->none)
+            continue;
+        double lo = 0.0, hi = M_PI; /* reached at lo, not at hi */
+        for (int it = 0; it < 40; it++) {
+            double mid = 0.5 * (lo + hi);
+            if (max_cos_in_band(sin_a, cos_a, mid, lat0, lat1) >= floor_cos)
+                lo = mid;
+            else
+                hi = mid;
+        }
+        /* column x's centre is at longitude pi (1 - 2 (x + 0.5) / W) */
+        double lon_a = atan2(v->axis[0], v->axis[2]);
+        s->centre = (0.5 - lon_a / (2.0 * M_PI)) * W - 0.5;
+        s->half_cols = hi / (2.0 * M_PI) * W + 1.5;
+    }
+}
+
+static inline bool span_has(const row_span *s, int x, int W)
+{
+    if (s->all)
+        return true;
+    if (s->none)
+        return false;
+    double d = x - s->centre; /* centre in [-0.5, W): d in (-W, W + 0.5) */
+    if (d < 0.0)
+        d += W;
+    else if (d >= W)
+        d -= W;
+    return d <= s->half_cols || W - d <= s->half_cols;
+}
+
 /* Adds texel (x, y)'s ss x ss samples to the views' sums; true when a
- * sample fell on a high-contrast spot of a view (worth more samples). */
-static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc_w,
-                          double (*acc_l)[3], double *area, double *masked_area)
+ * sample fell on a high-contrast spot of a view (worth more samples).
+ * seen: the views whose field reaches the texel. */
+static bool texel_samples(const blend_pass *p, int x, int y, int ss, const bool *seen,
+                          double *acc_w, double (*acc_l)[3], double *area, double *masked_area)
 {
     const int W = p->width, H = p->height, n = p->count;
     bool hot = false;
     bool base = ss == p->ss;
     const double *slon = base ? p->sin_lon : p->sin_lon_hot, *clon = base ? p->cos_lon : p->cos_lon_hot;
     const double *slat = base ? p->sin_lat : p->sin_lat_hot, *clat = base ? p->cos_lat : p->cos_lat_hot;
+    const bool masking = p->opt->mask || p->nadir_lat > -INFINITY;
     for (int j = 0; j < ss; j++) {
         double v = (y + (j + 0.5) / ss) / H, lat = M_PI * (0.5 - v);
         double sin_lat = slat[y * ss + j], cos_lat = clat[y * ss + j];
         for (int i = 0; i < ss; i++) {
-            double a = cos_lat, u = (x + (i + 0.5) / ss) / W;
+            double a = cos_lat;
             *area += a;
-            if (masked(p, u, v, lat)) {
+            if (masking && masked(p, (x + (i + 0.5) / ss) / W, v, lat)) {
                 *masked_area += a;
                 continue;
             }
             double sin_lon = slon[x * ss + i], cos_lon = clon[x * ss + i];
             double d[3] = {sin_lon * cos_lat, sin_lat, cos_lon * cos_lat};
             for (int k = 0; k < n; k++) {
+                if (!seen[k])
+                    continue;
                 const stitch_view_prep *vw = &p->views[k];
                 double c = vw->axis[0] * d[0] + vw->axis[1] * d[1] + vw->axis[2] * d[2];
                 if (c < vw->cos_max)
@@ -279,9 +413,7 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
                              vw->to_cam[r][2] * d[2];
                 if (!stitch_view_pixel(vw, ray, &px, &py, &r2))
                     continue;
-                /* theta (an acos) only where the edge ramp needs it */
-                double w = c > vw->cos_ramp ? 0.5 * (1.0 + c)
-                                            : stitch_view_weight(vw, acos(c < 1.0 ? c : 1.0));
+                double w = ramp_weight(vw, c);
                 if (vw->weight) {
                     double conf;
                     bilinear(vw->weight, px, py, 1, &conf, NULL);
@@ -290,7 +422,10 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, double *acc
                 if (!(w > 0))
                     continue;
                 double rgb[3], contrast;
-                bilinear(vw->radiance, px, py, 3, rgb, &contrast);
+                if (vw->half)
+                    bilinear_half(vw->half, vw->half_table, px, py, rgb, &contrast);
+                else
+                    bilinear(vw->radiance, px, py, 3, rgb, &contrast);
                 hot |= contrast > HOT_CONTRAST;
                 double s2 = r2 / (vw->lens.focal_px * vw->lens.focal_px);
                 const double *vg = vw->lens.vignette;
@@ -313,7 +448,12 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
     const int W = p->width, H = p->height, n = p->count;
     memset(st, 0, sizeof *st);
     double texel_sr = sl_latlong_texel_solid_angle(y, W, H);
+    row_span span[SL_STITCH_MAX_VIEWS];
+    row_spans(p, y, span);
     for (int x = 0; x < W; x++) {
+        bool seen[SL_STITCH_MAX_VIEWS];
+        for (int k = 0; k < n; k++)
+            seen[k] = span_has(&span[k], x, W);
         /* only the views there are: a texel is a few hundred nanoseconds */
         double acc_w[SL_STITCH_MAX_VIEWS], acc_l[SL_STITCH_MAX_VIEWS][3];
         memset(acc_w, 0, (size_t)n * sizeof *acc_w);
@@ -321,12 +461,12 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
         double area = 0, masked_area = 0;
         /* A bright small source or a hard edge: sampled finer, so its
          * energy does not depend on where the samples fall. */
-        if (texel_samples(p, x, y, p->ss, acc_w, acc_l, &area, &masked_area) &&
+        if (texel_samples(p, x, y, p->ss, seen, acc_w, acc_l, &area, &masked_area) &&
             p->ss_hot > p->ss) {
             memset(acc_w, 0, (size_t)n * sizeof *acc_w);
             memset(acc_l, 0, (size_t)n * sizeof *acc_l);
             area = masked_area = 0;
-            texel_samples(p, x, y, p->ss_hot, acc_w, acc_l, &area, &masked_area);
+            texel_samples(p, x, y, p->ss_hot, seen, acc_w, acc_l, &area, &masked_area);
             st->hot_texels++;
         }
         /* Per view: its mean weight over the texel and its mean radiance. */
@@ -540,7 +680,7 @@ sl_result sl_stitch_blend_stream(const sl_stitch_view *views, int count,
                                  const sl_stitch_blend_options *opt_in, sl_stitch_rows_fn sink,
                                  void *user, sl_stitch_coverage *cov, sl_error *err)
 {
-    return stitch_blend_run(views, count, opt_in, sink, user, NULL, cov, err);
+    return stitch_blend_run(views, count, NULL, false, opt_in, sink, user, NULL, cov, err);
 }
 
 static sl_result blend_prepared(const stitch_view_prep *prep, int count,
@@ -549,6 +689,7 @@ static sl_result blend_prepared(const stitch_view_prep *prep, int count,
                                 sl_error *err);
 
 sl_result stitch_blend_run(const sl_stitch_view *views, int count,
+                           const stitch_half_image *half, bool scanned,
                            const sl_stitch_blend_options *opt_in, sl_stitch_rows_fn sink,
                            void *user, sl_image *whole, sl_stitch_coverage *cov_out,
                            sl_error *err)
@@ -564,7 +705,7 @@ sl_result stitch_blend_run(const sl_stitch_view *views, int count,
         memset(cov_out, 0, sizeof *cov_out);
     stitch_view_prep prep[SL_STITCH_MAX_VIEWS];
     memset(prep, 0, sizeof prep);
-    sl_result r = stitch_prepare_views(views, count, &opt, prep, err);
+    sl_result r = stitch_prepare_views(views, count, &opt, half, scanned, prep, err);
     if (!r)
         r = blend_prepared(prep, count, &opt, sink, user, whole, &cov, err);
     stitch_release_views(prep, count < SL_STITCH_MAX_VIEWS ? count : SL_STITCH_MAX_VIEWS);
@@ -630,5 +771,5 @@ sl_result sl_stitch_blend(const sl_stitch_view *views, int count,
                           sl_stitch_coverage *cov, sl_error *err)
 {
     memset(out, 0, sizeof *out);
-    return stitch_blend_run(views, count, opt, NULL, NULL, out, cov, err);
+    return stitch_blend_run(views, count, NULL, false, opt, NULL, NULL, out, cov, err);
 }

@@ -5,15 +5,48 @@
 
 #include "setlight/stitch.h"
 
+#include <math.h>
+#include <stdint.h>
+
+/* A view's radiance as half RGB, 3 samples a pixel, rows packed: what the
+ * stitch holds a view as when every sample of it is a half value (as
+ * merge writes them), half the memory of float and the same lookups. */
+typedef struct stitch_half_image {
+    uint16_t *rgb;
+    int width, height;
+} stitch_half_image;
+
+/* The float value of every half bit pattern (the blend's lookups). */
+const float *stitch_half_table(void);
+
+/* Counts the non-finite samples of a view and finds its largest RGB sample. */
+sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, sl_error *err);
+/* The view as half when every RGB sample converts exactly (what merge
+ * writes), else false and nothing held (the float view is used). */
+bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *err);
+void stitch_half_free(stitch_half_image *h);
+/* The factor, 2 or 4, that divides the view's width and height and brings
+ * the width to max_width or under, or 1. */
+int stitch_solve_factor(int width, int height, int max_width);
+/* A lens scaled by s for an image of width x height (focal, centre, circle). */
+void stitch_lens_scale(sl_lens *lens, double s, int width, int height);
+
 /* A view ready for lookups: its lens, world -> camera rotation, optical
  * axis in the world and its field. */
 typedef struct stitch_view_prep {
     sl_lens lens;
     const sl_image *radiance, *weight;
+    const stitch_half_image *half; /* not NULL: the radiance, in place of `radiance` */
+    const float *half_table;
     double to_cam[3][3];
     double axis[3];
     double theta_max, cos_max, ramp; /* radians */
     double cos_ramp;                 /* cos of where the edge ramp starts */
+    /* The weight over the edge ramp as a function of cos(theta), so the
+     * blend takes a lookup where it took an acos, a cos and a sin. */
+    double *ramp_table;
+    double ramp_step_inv;            /* entries per unit of cos(theta) */
+    int ramp_entries;
     /* The lens as q(u) = r^2 / u at u = 1 - cos(theta) (smooth for every
      * projection), so a ray's pixel takes a table lookup and one sqrt
      * instead of atan2, hypot and the radial polynomial; -1: no pixel. */
@@ -30,21 +63,50 @@ typedef struct stitch_row_stats {
     double power[3], seen_power[3];
 } stitch_row_stats;
 
-/* Checks the views (size against the lens, NaN/Inf samples) and prepares them. */
+/* Checks the views (size against the lens, NaN/Inf samples unless the
+ * caller has: `scanned`) and prepares them. half (NULL, or count
+ * entries): a view whose entry has pixels is looked up there and its
+ * radiance image is not used. */
 sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
-                               const sl_stitch_blend_options *opt, stitch_view_prep *prep,
-                               sl_error *err);
+                               const sl_stitch_blend_options *opt,
+                               const stitch_half_image *half, bool scanned,
+                               stitch_view_prep *prep, sl_error *err);
 /* Frees what stitch_prepare_views allocated (prep may be half filled). */
 void stitch_release_views(stitch_view_prep *prep, int count);
 /* The pixel of view v a unit camera-frame ray sees, from its lens table;
  * false outside its field, circle or frame. r2 is the squared distance
- * from the centre (for the vignetting). */
-bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x, double *y,
-                       double *r2);
+ * from the centre (for the vignetting). Inline: the blend's inner loop. */
+static inline bool stitch_view_pixel(const stitch_view_prep *v, const double ray[3], double *x,
+                                     double *y, double *r2)
+{
+    double u = 1.0 - ray[2], t = u / v->u_step;
+    if (!(t >= 0.0) || t >= v->q_entries - 1 || !(ray[2] > -1.0)) /* straight back: no pixel */
+        return false;
+    int i = (int)t;
+    double q0 = v->q_table[i], q1 = v->q_table[i + 1];
+    if (q0 < 0.0 || q1 < 0.0)
+        return false;
+    double q = q0 + (t - i) * (q1 - q0), rr = u * q;
+    const sl_lens *l = &v->lens;
+    if (l->circle_radius_px > 0.0 && rr > l->circle_radius_px * l->circle_radius_px)
+        return false;
+    /* r / sin(theta) = sqrt(q u / (1 - z^2)) = sqrt(q / (1 + z)) */
+    double k = sqrt(q / (1.0 + ray[2]));
+    double px = l->cx + k * ray[0], py = l->cy + k * ray[1];
+    if (px < 0.0 || py < 0.0 || px > l->width || py > l->height)
+        return false;
+    *x = px;
+    *y = py;
+    *r2 = rr;
+    return true;
+}
+
 /* Blend weight of a view for a ray theta (radians) off its axis. */
 double stitch_view_weight(const stitch_view_prep *v, double theta);
-/* The blend into a sink or, when `whole` is not NULL, into that image. */
+/* The blend into a sink or, when `whole` is not NULL, into that image;
+ * half and scanned as for stitch_prepare_views. */
 sl_result stitch_blend_run(const sl_stitch_view *views, int count,
+                           const stitch_half_image *half, bool scanned,
                            const sl_stitch_blend_options *opt, sl_stitch_rows_fn sink,
                            void *user, sl_image *whole, sl_stitch_coverage *cov, sl_error *err);
 

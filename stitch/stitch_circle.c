@@ -48,14 +48,40 @@ static double lum_median3(const sl_image *img, int x, int y)
     return v[4];
 }
 
+/* The medians a ray's profile used last: its samples are a quarter pixel
+ * apart, so each pixel's median serves several of them. */
+#define MEDIAN_SLOTS 16
+typedef struct median_cache {
+    int x[MEDIAN_SLOTS], y[MEDIAN_SLOTS];
+    double v[MEDIAN_SLOTS];
+} median_cache;
+
+static void median_cache_clear(median_cache *c)
+{
+    for (int i = 0; i < MEDIAN_SLOTS; i++)
+        c->x[i] = c->y[i] = -1000000;
+}
+
+static double median_at(const sl_image *img, int x, int y, median_cache *c)
+{
+    int slot = (int)(((unsigned)x * 5u + (unsigned)y * 3u) % MEDIAN_SLOTS);
+    if (c->x[slot] != x || c->y[slot] != y) {
+        c->x[slot] = x;
+        c->y[slot] = y;
+        c->v[slot] = lum_median3(img, x, y);
+    }
+    return c->v[slot];
+}
+
 /* Bilinear between pixel centres; (x, y) in pixel coordinates. */
-static double lum_at(const sl_image *img, double x, double y)
+static double lum_at(const sl_image *img, double x, double y, median_cache *c)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int ix = (int)floor(fx), iy = (int)floor(fy);
     double ax = fx - ix, ay = fy - iy;
-    return (1 - ay) * ((1 - ax) * lum_median3(img, ix, iy) + ax * lum_median3(img, ix + 1, iy)) +
-           ay * ((1 - ax) * lum_median3(img, ix, iy + 1) + ax * lum_median3(img, ix + 1, iy + 1));
+    return (1 - ay) * ((1 - ax) * median_at(img, ix, iy, c) + ax * median_at(img, ix + 1, iy, c)) +
+           ay * ((1 - ax) * median_at(img, ix, iy + 1, c) +
+                 ax * median_at(img, ix + 1, iy + 1, c));
 }
 
 static double median_of(const double *v, int n, double *scratch)
@@ -97,11 +123,13 @@ static double ray_edge(const sl_image *img, double cx, double cy, double r, doub
     *blur = -1.0;
     double t0 = r - w;
     int n = (int)(2.0 * w / STEP) + 1;
+    median_cache cache;
+    median_cache_clear(&cache);
     for (int j = 0; j < n; j++) {
         double t = t0 + j * STEP, x = cx + t * dx, y = cy + t * dy;
         if (x < 0.5 || y < 0.5 || x > img->width - 0.5 || y > img->height - 0.5)
             return -1.0; /* the circle meets the frame's edge here */
-        prof[j] = lum_at(img, x, y);
+        prof[j] = lum_at(img, x, y, &cache);
     }
     int q = n / 4;
     double in = median_of(prof, q, scratch), out = median_of(prof + n - q, q, scratch);

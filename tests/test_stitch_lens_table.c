@@ -45,7 +45,7 @@ static void table_matches_lens(void)
         sl_stitch_blend_options_init(&opt);
         stitch_view_prep prep;
         memset(&prep, 0, sizeof prep);
-        CHECK_OK(stitch_prepare_views(&view, 1, &opt, &prep, &err), &err);
+        CHECK_OK(stitch_prepare_views(&view, 1, &opt, NULL, false, &prep, &err), &err);
         uint64_t seed = 7 + k;
         double worst = 0.0;
         int disagree = 0, seen = 0;
