@@ -574,8 +574,28 @@ struct sl_photo_strips {
     std::string path;
     int width = 0, channels = 0, code_bytes = 0;
     std::vector<float> scratch;
-    std::vector<unsigned char> code_scratch;
+    std::vector<unsigned char> code_scratch, tile_rows;
 };
+
+/* Rows y0..y1-1 of the file's first channels. OIIO 2.4's read_scanlines
+ * divides by zero on some tiled TIFFs (one whose photometric core's own
+ * reader declines: fuzz_photo), so a tiled file is read a row of tiles at a
+ * time through read_tiles, which reads those files. */
+static bool read_rows(sl_photo_strips *s, int y0, int y1, TypeDesc type, void *dst)
+{
+    const ImageSpec &spec = s->in->spec();
+    if (spec.tile_width <= 0 || spec.tile_height <= 0)
+        return s->in->read_scanlines(0, 0, y0, y1, 0, 0, s->channels, type, dst);
+    size_t px = type.size() * (size_t)s->channels, row = px * (size_t)spec.width;
+    int th = spec.tile_height;
+    int t0 = y0 - y0 % th, t1 = std::min(spec.height, ((y1 + th - 1) / th) * th);
+    s->tile_rows.resize(row * (size_t)(t1 - t0));
+    if (!s->in->read_tiles(0, 0, spec.x, spec.x + spec.width, spec.y + t0, spec.y + t1, spec.z,
+                           spec.z + 1, 0, s->channels, type, s->tile_rows.data()))
+        return false;
+    std::memcpy(dst, s->tile_rows.data() + row * (size_t)(y0 - t0), row * (size_t)(y1 - y0));
+    return true;
+}
 
 extern "C" sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
                                           sl_photo_strip_info *info, sl_error *err)
@@ -627,8 +647,7 @@ extern "C" sl_result sl_photo_strips_read(sl_photo_strips *s, int y0, int y1, fl
         dst = s->scratch.data();
     }
     /* Some readers (TIFF) report a short strip as an error yet return true. */
-    if (!s->in->read_scanlines(0, 0, y0, y1, 0, 0, s->channels, TypeDesc::FLOAT, dst) ||
-        s->in->has_error()) {
+    if (!read_rows(s, y0, y1, TypeDesc::FLOAT, dst) || s->in->has_error()) {
         std::string why = one_line(s->in->geterror());
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image at rows %d-%d (%s)",
                             s->path.c_str(), y0, y1 - 1, why.c_str());
@@ -656,7 +675,7 @@ extern "C" sl_result sl_photo_strips_read_codes(sl_photo_strips *s, int y0, int 
         dst = s->code_scratch.data();
     }
     TypeDesc type = b == 1 ? TypeDesc::UINT8 : TypeDesc::UINT16;
-    if (!s->in->read_scanlines(0, 0, y0, y1, 0, 0, s->channels, type, dst) || s->in->has_error()) {
+    if (!read_rows(s, y0, y1, type, dst) || s->in->has_error()) {
         std::string why = one_line(s->in->geterror());
         return sl_error_set(err, SL_ERR_INPUT, "%s: truncated or corrupt image at rows %d-%d (%s)",
                             s->path.c_str(), y0, y1 - 1, why.c_str());

@@ -59,14 +59,16 @@ static void on_message(j_common_ptr cinfo, int level)
 
 static void no_output(j_common_ptr cinfo) { (void)cinfo; }
 
+/* SOI alone, as OIIO tells a JPEG: a file with bytes between SOI and its
+ * first marker is libjpeg's "extraneous bytes" error here rather than a
+ * file OIIO opens (and whose Photoshop block it then overreads). */
 bool sl_jpeg_is_jpeg(const char *path)
 {
-    unsigned char sig[3];
+    unsigned char sig[2];
     FILE *f = fopen(path, "rb");
     if (!f)
         return false;
-    bool jpeg = fread(sig, 1, sizeof sig, f) == sizeof sig && sig[0] == 0xFF && sig[1] == 0xD8 &&
-                sig[2] == 0xFF;
+    bool jpeg = fread(sig, 1, sizeof sig, f) == sizeof sig && sig[0] == 0xFF && sig[1] == 0xD8;
     fclose(f);
     return jpeg;
 }
@@ -392,6 +394,41 @@ static void mcu_size(const struct jpeg_decompress_struct *cinfo, int *w, int *h)
         *w = 32; /* 4:1:1 */
 }
 
+/* OIIO 2.4 reads a Photoshop APP13 block's IPTC data for the size the
+ * block states, not the marker's (a heap overflow, found by fuzz_photo):
+ * a file going to OIIO whose IPTC block claims more than its marker holds
+ * is refused here. Layout: "Photoshop 3.0\0", "8BIM", type 0x0404, 4
+ * bytes, a 2-byte size, the data. */
+static bool iptc_overruns(const struct jpeg_decompress_struct *cinfo, unsigned *claimed,
+                          unsigned *holds)
+{
+    static const char photoshop[] = "Photoshop 3.0";
+    for (jpeg_saved_marker_ptr m = cinfo->marker_list; m; m = m->next) {
+        const unsigned char *d = m->data;
+        unsigned n = m->data_length;
+        if (m->marker != JPEG_APP0 + 13 || n < sizeof photoshop ||
+            memcmp(d, photoshop, sizeof photoshop) != 0)
+            continue;
+        /* OIIO reads the header's 12 bytes without checking the length */
+        if (n < sizeof photoshop + 12) {
+            *claimed = sizeof photoshop + 12;
+            *holds = n;
+            return true;
+        }
+        d += sizeof photoshop;
+        if (memcmp(d, "8BIM", 4) != 0 || ((d[4] << 8) | d[5]) != 0x0404)
+            continue;
+        unsigned size = (unsigned)((d[10] << 8) | d[11]);
+        unsigned left = n - (unsigned)(sizeof photoshop + 12);
+        if (size > left) {
+            *claimed = size;
+            *holds = left;
+            return true;
+        }
+    }
+    return false;
+}
+
 /* The header, then the decoder started (a progressive file is read whole
  * here, as in OIIO). */
 static sl_result read_header(sl_jpeg_reader *r, bool *declined, sl_error *err)
@@ -414,6 +451,12 @@ static sl_result read_header(sl_jpeg_reader *r, bool *declined, sl_error *err)
     if (r->cinfo.jpeg_color_space == JCS_CMYK || r->cinfo.jpeg_color_space == JCS_YCCK ||
         (r->cinfo.num_components != 1 && r->cinfo.num_components != 3) ||
         declined_metadata(&r->cinfo, &r->exif)) {
+        unsigned claimed, holds;
+        if (iptc_overruns(&r->cinfo, &claimed, &holds))
+            return sl_error_set(err, SL_ERR_INPUT,
+                                "%s: truncated or corrupt JPEG (its Photoshop IPTC block claims "
+                                "%u bytes, its marker holds %u)",
+                                r->path, claimed, holds);
         *declined = true;
         return SL_OK;
     }
