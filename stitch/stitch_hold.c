@@ -71,7 +71,11 @@ typedef struct half_job {
 } half_job;
 
 /* Eight floats to half and back in one instruction each, where the CPU
- * has F16C; the tail and other CPUs through Imath's conversion. */
+ * has F16C; the tail and other CPUs through Imath's conversion. (gcc
+ * only, as core/exr.c's rows: clang 14's __builtin_cpu_supports does not
+ * know "f16c", and the fuzz build is clang.) */
+#if (defined(__x86_64__) || defined(__i386__)) && !defined(__clang__) && __GNUC__ >= 12
+#define HAVE_F16C_ROWS 1
 __attribute__((target("f16c,avx"))) static int row_f16c(const float *src, uint16_t *dst, int n,
                                                         bool *inexact)
 {
@@ -87,6 +91,7 @@ __attribute__((target("f16c,avx"))) static int row_f16c(const float *src, uint16
     }
     return i;
 }
+#endif
 
 static void half_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
@@ -99,8 +104,10 @@ static void half_rows(void *ctx, int64_t begin, int64_t end, int worker)
         uint16_t *dst = j->out->rgb + (size_t)y * w * 3;
         bool inexact = false;
         int done = 0;
+#ifdef HAVE_F16C_ROWS
         if (ch == 3 && j->f16c)
             done = row_f16c(row, dst, 3 * w, &inexact);
+#endif
         for (int k = done; k < 3 * w; k++) {
             float v = row[(k / 3) * ch + k % 3];
             dst[k] = imath_float_to_half(v);
@@ -126,7 +133,12 @@ bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *
         return false; /* the float view is kept: right, only larger */
     }
     half_job j = {img, out, stitch_half_table(), inexact,
-                  __builtin_cpu_supports("f16c") && __builtin_cpu_supports("avx")};
+#ifdef HAVE_F16C_ROWS
+                  __builtin_cpu_supports("f16c") && __builtin_cpu_supports("avx")
+#else
+                  false
+#endif
+    };
     sl_parallel_for(img->height, 16, half_rows, &j);
     bool exact = true;
     for (int y = 0; y < img->height; y++)
