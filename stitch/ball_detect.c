@@ -457,7 +457,10 @@ static void det_free(det_image *im)
 }
 
 /* The full-size luminance (non-finite and negative as 0) and the log's
- * offset: small against the scene's median and its brightest. */
+ * offset: small against the scene's median and its brightest, but at most
+ * 5% of the 90th percentile: a night frame's lamps (reflected in the ball)
+ * are millions of times its sky, and an offset from them alone would
+ * flatten the whole frame's log (no edge left anywhere). */
 static sl_result full_image(const sl_image *photo, det_image *im, sl_error *err)
 {
     size_t n = (size_t)photo->width * photo->height;
@@ -480,7 +483,7 @@ static sl_result full_image(const sl_image *photo, det_image *im, sl_error *err)
     for (size_t i = 0; i < ns; i++)
         sample[i] = im->lum[i * (n / ns)];
     qsort(sample, ns, sizeof *sample, sl_cmp_double);
-    im->eps = fmax(1e-3 * sample[ns / 2], 1e-4 * sample[ns - 1]);
+    im->eps = fmax(1e-3 * sample[ns / 2], fmin(1e-4 * sample[ns - 1], 0.05 * sample[ns - 1 - ns / 10]));
     if (!(im->eps > 0.0))
         im->eps = 1e-9;
     free(sample);

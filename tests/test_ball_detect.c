@@ -8,6 +8,7 @@
 
 #include "ball_fixture.h"
 #include "setlight/stitch.h"
+#include "setlight/vset.h"
 #include "testing.h"
 
 /* Finds the ball in f's photo and prints the errors and the CPU seconds:
@@ -345,6 +346,83 @@ static void rows(const char *filter)
     }
 }
 
+/* The night scene's chrome ball, shot and merged as `setlight process`
+ * does at the tiny size: a ball darker than a noisy sky (ISO 400), with
+ * lamps reflected in it millions of times brighter than the sky. The log's
+ * offset taken from those lamps flattened the whole frame (no ball found). */
+static void test_night_ball(void)
+{
+    sl_vset_desc desc;
+    sl_vset_capture_opts o;
+    sl_error err;
+    CHECK_OK(sl_vset_preset("night", &desc, &err), &err);
+    sl_vset_capture_defaults(&o, &desc, SL_VSET_SIZE_TINY);
+    o.views = 1;
+    o.force = true;
+    const char *dir = sl_test_path("night_ball_capture");
+    CHECK_OK(sl_vset_capture_write(&o, dir, NULL, &err), &err);
+    /* The chrome ball's bracket: the first probe frames. */
+    char paths[16][4096];
+    const char *ptrs[16];
+    int n = 0;
+    for (int i = 1; i < 200 && n < o.brackets && n < 16; i++) {
+        snprintf(paths[n], sizeof paths[n], "%s/probes/IMG_%04d_linear.tif", dir, i);
+        FILE *fp = fopen(paths[n], "rb");
+        if (fp) {
+            fclose(fp);
+            ptrs[n] = paths[n];
+            n++;
+        }
+    }
+    CHECK(n == o.brackets);
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    sl_merge_result m;
+    CHECK_OK(sl_merge(ptrs, n, &opt, &m, &err), &err);
+    if (!m.radiance.data)
+        return;
+    sl_vset_probe p;
+    sl_vset_probe_default(&p, SL_VSET_PROBE_CHROME, m.radiance.width, m.radiance.height);
+    /* On the axis: the ball's silhouette is the circle at the frame's
+     * centre of radius f tan(asin(R / d)). */
+    double focal_px = p.lens.focal_mm * m.radiance.width / p.lens.sensor_width_mm;
+    sl_ball_circle truth = {.cx = 0.5 * m.radiance.width, .cy = 0.5 * m.radiance.height,
+                            .r = focal_px * tan(asin(0.5 * p.size_m / p.distance_m))};
+    const sl_ball_circle *geo = &truth;
+    sl_ball_circle got;
+    CHECK_OK(sl_ball_detect(&m.radiance, "night ball", &got, &err), &err);
+    double dc = hypot(got.cx - geo->cx, got.cy - geo->cy), dr = fabs(got.r - geo->r);
+    printf("  night ball: true %.2f,%.2f r %.2f, found %.2f,%.2f r %.2f (centre %.3f px, "
+           "radius %.3f px, standard error %.3f px)\n",
+           geo->cx, geo->cy, geo->r, got.cx, got.cy, got.r, dc, dr, got.uncertainty);
+    CHECK_MSG(dc < 1.0, "night ball: centre off by %.3f px", dc);
+    CHECK_MSG(dr < 1.0, "night ball: radius off by %.3f px", dr);
+
+    /* Pure noise at the night sky's level with a few lamp-bright specks:
+     * no ball. */
+    sl_image noise = {0};
+    CHECK_OK(sl_image_alloc(&noise, m.radiance.width, m.radiance.height, 3, &err), &err);
+    uint64_t seed = 7;
+    for (int y = 0; y < noise.height; y++)
+        for (int x = 0; x < noise.width; x++) {
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            double u = (double)(seed >> 11) / 9007199254740992.0;
+            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+            double v = (double)(seed >> 11) / 9007199254740992.0;
+            double g = sqrt(-2.0 * log(u + 1e-300)) * cos(2.0 * M_PI * v);
+            double l = fmax(0.0, 1e-5 * (1.0 + 0.2 * g));
+            if ((x * 31 + y * 17) % 997 == 0)
+                l = 30.0;
+            float *px = sl_image_pixel(&noise, x, y);
+            px[0] = px[1] = px[2] = (float)l;
+        }
+    CHECK_RESULT(sl_ball_detect(&noise, "noise.exr", &got, &err), SL_ERR_INPUT, &err);
+    printf("  noise.exr: %s\n", err.message);
+    CHECK(strstr(err.message, "no chrome ball") != NULL);
+    sl_image_free(&noise);
+    sl_merge_result_free(&m);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1 && strcmp(argv[1], "--rows") == 0) {
@@ -357,5 +435,6 @@ int main(int argc, char **argv)
     RUN(test_round_clutter);
     RUN(test_refusals);
     RUN(test_real_probes);
+    RUN(test_night_ball);
     return sl_test_finish();
 }
