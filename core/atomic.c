@@ -608,3 +608,51 @@ void sl_remove_tree(const char *path)
 {
     nftw(path, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
 }
+
+/* Whether a temporary's name `.NAME.sl-tmp-PID-N...` starts with prefix
+ * and names a process that no longer exists on this machine. */
+static bool temp_of_dead_process(const char *entry, const char *prefix, size_t prefix_len)
+{
+    if (strncmp(entry, prefix, prefix_len) != 0)
+        return false;
+    char *end;
+    long pid = strtol(entry + prefix_len, &end, 10);
+    if (end == entry + prefix_len || *end != '-' || pid <= 0 || pid > INT32_MAX)
+        return false;
+    return kill((pid_t)pid, 0) != 0 && errno == ESRCH;
+}
+
+int sl_atomic_sweep(const char *final_path)
+{
+    const char *slash = strrchr(final_path, '/');
+    const char *base = slash ? slash + 1 : final_path;
+    char dir[4096];
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - final_path) : 1,
+             slash ? final_path : ".");
+    if (slash == final_path)
+        snprintf(dir, sizeof dir, "/");
+    const char *dot = strrchr(base, '.');
+    size_t stem_len = dot && dot != base ? (size_t)(dot - base) : strlen(base);
+    /* `.stem.sl-tmp-PID-N.ext` (a file being written) and
+     * `.name.sl-tmp-PID-N.old` (an output set's old file set aside) */
+    char temp_prefix[600], old_prefix[600];
+    snprintf(temp_prefix, sizeof temp_prefix, ".%.*s.sl-tmp-", (int)stem_len, base);
+    snprintf(old_prefix, sizeof old_prefix, ".%s.sl-tmp-", base);
+    DIR *d = opendir(dir);
+    if (!d)
+        return 0;
+    int removed = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (!temp_of_dead_process(e->d_name, temp_prefix, strlen(temp_prefix)) &&
+            !temp_of_dead_process(e->d_name, old_prefix, strlen(old_prefix)))
+            continue;
+        char path[8192];
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        struct stat st;
+        if (lstat(path, &st) == 0 && S_ISREG(st.st_mode) && unlink(path) == 0)
+            removed++;
+    }
+    closedir(d);
+    return removed;
+}

@@ -298,9 +298,12 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     }
     json_array_foreach(command, i, x)
         argv[i] = (char *)json_string_value(x);
-    json_array_foreach(json_object_get(job, "outputs"), i, x)
+    /* a run of this job killed outright (SIGKILL, power) left its temporaries */
+    json_array_foreach(json_object_get(job, "outputs"), i, x) {
         if ((r = make_parent(json_string_value(x), err)))
             goto done;
+        sl_atomic_sweep(json_string_value(x));
+    }
     if ((r = make_parent(log, err)))
         goto done;
     posix_spawn_file_actions_t fa;

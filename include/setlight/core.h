@@ -147,6 +147,13 @@ sl_result sl_atomic_begin(sl_atomic_file *f, const char *final_path, sl_error *e
 sl_result sl_atomic_commit(sl_atomic_file *f, sl_error *err); /* fsyncs, renames */
 void sl_atomic_abort(sl_atomic_file *f);
 
+/* Removes what a process killed outright (SIGKILL, a crash, power) left for
+ * final_path: its `.name.sl-tmp-PID-N.ext` temporaries and output-set
+ * `.old` files whose PID is no process on this machine (a live writer's are
+ * kept). For a caller that owns final_path, e.g. a job about to write its
+ * outputs. Returns how many files it removed. */
+int sl_atomic_sweep(const char *final_path);
+
 /* Interrupts. Every temporary (sl_atomic_begin, sl_temp_dir_create) is
  * registered while it exists; sl_interrupt_install (the CLI calls it first
  * thing) makes SIGINT, SIGTERM and SIGHUP remove them all, never rename a
