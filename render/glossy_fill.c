@@ -243,7 +243,9 @@ static const int POINT[9][2] = {{0, 0}, {2, 0}, {0, 2}, {2, 2}, {1, 0}, {0, 1}, 
 /* Whole: every pixel of the closed block on the corner's object. */
 static bool block_whole(const fill_job *j, const block *b, int S)
 {
-    if (!pending_on(j, b->x0, b->y0, j->cf->shape[(size_t)b->y0 * j->w + b->x0]))
+    /* the corner's bounds first: a block may start past the image's edge */
+    if (b->x0 < 0 || b->y0 < 0 || b->x0 >= j->w || b->y0 >= j->h ||
+        !pending_on(j, b->x0, b->y0, j->cf->shape[(size_t)b->y0 * j->w + b->x0]))
         return false;
     int shape = j->cf->shape[(size_t)b->y0 * j->w + b->x0];
     for (int y = b->y0; y <= b->y0 + S; y++)
