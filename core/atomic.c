@@ -626,11 +626,9 @@ int sl_atomic_sweep(const char *final_path)
 {
     const char *slash = strrchr(final_path, '/');
     const char *base = slash ? slash + 1 : final_path;
-    char dir[4096];
-    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - final_path) : 1,
+    char dir[4096]; /* the folder, with its slash ("." for a bare name) */
+    snprintf(dir, sizeof dir, "%.*s", slash ? (int)(slash - final_path + 1) : 1,
              slash ? final_path : ".");
-    if (slash == final_path)
-        snprintf(dir, sizeof dir, "/");
     const char *dot = strrchr(base, '.');
     size_t stem_len = dot && dot != base ? (size_t)(dot - base) : strlen(base);
     /* `.stem.sl-tmp-PID-N.ext` (a file being written) and
@@ -648,7 +646,7 @@ int sl_atomic_sweep(const char *final_path)
             !temp_of_dead_process(e->d_name, old_prefix, strlen(old_prefix)))
             continue;
         char path[8192];
-        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        snprintf(path, sizeof path, "%s%s%s", dir, slash ? "" : "/", e->d_name);
         struct stat st;
         if (lstat(path, &st) == 0 && S_ISREG(st.st_mode) && unlink(path) == 0)
             removed++;

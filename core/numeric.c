@@ -24,3 +24,11 @@ double sl_fresnel_conductor(double cos_i, double n, double k)
     double rp = rs * (t3 - t4) / (t3 + t4);
     return 0.5 * (rs + rp);
 }
+
+int sl_cmp_ranked_desc(const void *a, const void *b)
+{
+    const sl_ranked *x = a, *y = b;
+    if (x->value != y->value)
+        return x->value < y->value ? 1 : -1;
+    return (x->index > y->index) - (x->index < y->index);
+}

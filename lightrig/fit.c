@@ -307,18 +307,6 @@ void rig_place_light(sl_rig_light *L, const sl_rig_options *opt)
     }
 }
 
-typedef struct ranked {
-    double y;
-    int index;
-} ranked;
-
-static int cmp_ranked(const void *a, const void *b)
-{
-    const ranked *x = a, *y = b;
-    if (x->y != y->y)
-        return x->y < y->y ? 1 : -1;
-    return x->index - y->index;
-}
 
 /* GGX roughness of the glossy sphere the lights are ranked for. */
 #define RIG_GLOSSY_ALPHA 0.3
@@ -347,7 +335,7 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
 {
     *skipped = NULL;
     *skipped_count = 0;
-    ranked *r = malloc((size_t)(count ? count : 1) * sizeof *r);
+    sl_ranked *r = malloc((size_t)(count ? count : 1) * sizeof *r);
     if (!r)
         return sl_error_set(err, SL_ERR_NOMEM, "lightrig: out of memory (%d lights)", count);
     /* Two contributions: to a grey (Lambertian) sphere, whose total
@@ -370,10 +358,10 @@ sl_result rig_select(sl_rig_light *cand, int count, const sl_rig_options *opt, c
         cand[i].share = total > 0 && y > 0 ? y / total : 0;
         cand[i].share_glossy = total_g > 0 ? gl[i] / total_g : 0;
         /* ranked by the larger of its two shares */
-        r[i].y = fmax(cand[i].share, cand[i].share_glossy);
+        r[i].value = fmax(cand[i].share, cand[i].share_glossy);
         r[i].index = i;
     }
-    qsort(r, (size_t)count, sizeof *r, cmp_ranked);
+    qsort(r, (size_t)count, sizeof *r, sl_cmp_ranked_desc);
     *skipped = calloc((size_t)(count ? count : 1), sizeof **skipped);
     if (!*skipped) {
         free(r);

@@ -92,18 +92,6 @@ static sl_result sanitized_rgb(const sl_image *env, sl_image *rgb, int64_t *nonf
     return SL_OK;
 }
 
-typedef struct order {
-    double share;
-    int index;
-} order;
-
-static int cmp_order(const void *a, const void *b)
-{
-    const order *x = a, *y = b;
-    if (x->share != y->share)
-        return x->share < y->share ? 1 : -1;
-    return x->index - y->index;
-}
 
 sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig *rig,
                          sl_error *err)
@@ -244,7 +232,7 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
         goto fail;
     }
     /* Kept lights in rank order; labels renumbered to 1..light_count. */
-    order *ord = calloc((size_t)(nvalid ? nvalid : 1), sizeof *ord);
+    sl_ranked *ord = calloc((size_t)(nvalid ? nvalid : 1), sizeof *ord);
     rig->lights = calloc((size_t)(nvalid ? nvalid : 1), sizeof *rig->lights);
     if (!ord || !rig->lights) {
         free(ord);
@@ -253,13 +241,13 @@ sl_result sl_rig_extract(const sl_image *env, const sl_rig_options *opt, sl_rig 
         goto fail;
     }
     for (int i = 0; i < nvalid; i++) {
-        ord[i].share = cand[i].share;
+        ord[i].value = cand[i].share;
         ord[i].index = i;
     }
-    qsort(ord, (size_t)nvalid, sizeof *ord, cmp_order);
+    qsort(ord, (size_t)nvalid, sizeof *ord, sl_cmp_ranked_desc);
     memset(remap, 0, ((size_t)count + 1) * sizeof *remap);
     for (int k = 0; k < nvalid; k++) {
-        int i = ord[k].index;
+        int i = (int)ord[k].index;
         if (!keep[i])
             continue;
         rig->lights[rig->light_count] = cand[i];

@@ -36,18 +36,6 @@
 
 /* ---- the split ---- */
 
-typedef struct texel_rank {
-    double lum;
-    int64_t i;
-} texel_rank;
-
-static int brighter_first(const void *a, const void *b)
-{
-    const texel_rank *x = a, *y = b;
-    if (x->lum != y->lum)
-        return x->lum < y->lum ? 1 : -1;
-    return x->i < y->i ? -1 : x->i > y->i;
-}
 
 void sl_glossy_dome_free(sl_glossy_dome *gd)
 {
@@ -69,7 +57,7 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
     /* Mean radiance (luminance) over the sphere, and the candidates. */
     double power = 0, sun_power = 0;
     int64_t count = 0, cap = 1024;
-    texel_rank *cand = malloc((size_t)cap * sizeof *cand);
+    sl_ranked *cand = malloc((size_t)cap * sizeof *cand);
     if (!cand)
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
     for (int y = 0; y < H; y++) {
@@ -84,20 +72,20 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
             if (!(lum > threshold))
                 continue;
             if (count == cap) {
-                texel_rank *grown = realloc(cand, (size_t)(2 * cap) * sizeof *cand);
+                sl_ranked *grown = realloc(cand, (size_t)(2 * cap) * sizeof *cand);
                 if (!grown) {
                     free(cand);
                     return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
                 }
                 cand = grown, cap *= 2;
             }
-            cand[count++] = (texel_rank){lum, (int64_t)y * W + x};
+            cand[count++] = (sl_ranked){lum, (int64_t)y * W + x};
         }
     if (count == 0) {
         free(cand);
         return SL_OK;
     }
-    qsort(cand, (size_t)count, sizeof *cand, brighter_first);
+    qsort(cand, (size_t)count, sizeof *cand, sl_cmp_ranked_desc);
     if (count > SUN_CAP)
         count = SUN_CAP;
     sl_result res;
@@ -113,10 +101,10 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
     }
     sl_image_fill(&gd->sun_dome.image, 0.0f);
     for (int64_t k = 0; k < count; k++) {
-        int x = (int)(cand[k].i % W), y = (int)(cand[k].i / W);
+        int x = (int)(cand[k].index % W), y = (int)(cand[k].index / W);
         float *r = sl_image_pixel(&gd->rest_dome.image, x, y), *s = sl_image_pixel(&gd->sun_dome.image, x, y);
         double dw = (cos(SL_PI * y / H) - cos(SL_PI * (y + 1) / H)) * 2.0 * SL_PI / W;
-        sun_power += cand[k].lum * dw;
+        sun_power += cand[k].value * dw;
         for (int c = 0; c < img->channels; c++)
             s[c] = r[c], r[c] = 0.0f;
     }

@@ -933,6 +933,14 @@ static inline float sl_luminancef(const float *p)
 /* qsort comparator of doubles, ascending (NaNs compare equal to all). */
 int sl_cmp_double(const void *a, const void *b);
 
+/* A value and where it came from, for ranking: sl_cmp_ranked_desc sorts
+ * the largest value first, ties by index (a stable, repeatable order). */
+typedef struct sl_ranked {
+    double value;
+    int64_t index;
+} sl_ranked;
+int sl_cmp_ranked_desc(const void *a, const void *b);
+
 /* SplitMix64 (Steele, Lea and Flood 2014): sl_splitmix64_mix is its
  * bijective finaliser; sl_splitmix64 advances a state and returns the next
  * value; sl_splitmix64_hash(x) = mix(x + increment), a 64-bit hash. */
