@@ -143,6 +143,87 @@ static double ring_mean(const small_image *s, const double c[3], double a, doubl
     return quantile(per_ray, RAYS, 0.5);
 }
 
+/* A light-probe map (angular or mirror-ball, as published probes and
+ * converters write them) is a disc inscribed in its square frame with every
+ * pixel beyond it black: remapping leaves nothing there. A photo of a ball,
+ * even cropped to the ball, shows the set in the corners. */
+#define MAP_SQUARE 0.01    /* |width - height| within this of the size */
+#define MAP_BLACK 1e-5     /* black: luminance under this of the disc's median */
+/* Fraction of the corners that is black: Debevec's probes sign a corner
+ * (measured: Grace 0.976). */
+#define MAP_CORNERS 0.9
+#define MAP_FILLED 0.9     /* fraction of the disc's outer ring that is not */
+
+static double pixel_luminance(const sl_image *img, int x, int y)
+{
+    const float *p = sl_image_pixel(img, x, y);
+    return img->channels >= 3 ? sl_luminance_px(p) : p[0];
+}
+
+static sl_result probe_map(const sl_image *photo, bool *is_map, sl_error *err)
+{
+    *is_map = false;
+    int w = photo ? photo->width : 0, h = photo ? photo->height : 0;
+    if (w < 16 || h < 16 || abs(w - h) > fmax(1.0, MAP_SQUARE * (w > h ? w : h)))
+        return SL_OK;
+    double cx = 0.5 * w, cy = 0.5 * h, r = 0.5 * (w < h ? w : h);
+    /* Every pixel of a copy at most WORK_SIZE across would do, but the
+     * corners' test must see single non-black pixels: sample the photo. */
+    int step = (w > WORK_SIZE ? w / WORK_SIZE : 1);
+    size_t disc_n = 0, cap = ((size_t)(w / step) + 1) * ((size_t)(h / step) + 1);
+    float *disc = malloc(cap * sizeof *disc);
+    if (!disc)
+        return sl_error_set(err, SL_ERR_NOMEM, "probe map check: out of memory");
+    for (int y = step / 2; y < h; y += step)
+        for (int x = step / 2; x < w; x += step) {
+            double d = hypot(x + 0.5 - cx, y + 0.5 - cy);
+            if (d < 0.9 * r)
+                disc[disc_n++] = (float)pixel_luminance(photo, x, y);
+        }
+    double median = quantile(disc, disc_n, 0.5);
+    free(disc);
+    if (!(median > 0.0))
+        return SL_OK;
+    double black = MAP_BLACK * median;
+    size_t corners = 0, corners_black = 0, ring = 0, ring_lit = 0;
+    double edge = fmax(1.5, 0.01 * r);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            double d = hypot(x + 0.5 - cx, y + 0.5 - cy);
+            bool outside = d > r + edge, in_ring = d > 0.95 * r && d < r - edge;
+            if (!outside && !in_ring)
+                continue;
+            if (in_ring && (x + y) % step)
+                continue;
+            double l = pixel_luminance(photo, x, y);
+            bool dark = !(l > black); /* NaN counts as nothing there */
+            if (outside) {
+                corners++;
+                corners_black += dark;
+            } else {
+                ring++;
+                ring_lit += !dark;
+            }
+        }
+    *is_map = corners > 0 && ring > 0 && corners_black >= MAP_CORNERS * corners &&
+              ring_lit >= MAP_FILLED * ring;
+    return SL_OK;
+}
+
+sl_result sl_probe_map_check(const sl_image *photo, const char *name, bool *is_map,
+                             sl_error *err)
+{
+    sl_result r = probe_map(photo, is_map, err);
+    if (r || !*is_map)
+        return r;
+    return sl_error_set(err, SL_ERR_INPUT,
+                        "%s: a disc filling its frame on pure black is a light-probe map, not a "
+                        "photo of a ball; convert it with 'setlight convert --from angular' "
+                        "(Debevec's probes) or '--from mirrorball', or give --circle to unwrap "
+                        "it as a photo",
+                        name ? name : "image");
+}
+
 sl_result sl_fisheye_check(const sl_image *photo, bool srgb, const char *name,
                            sl_fisheye_evidence *ev, sl_error *err)
 {
@@ -200,6 +281,15 @@ sl_result sl_fisheye_check(const sl_image *photo, bool srgb, const char *name,
         ev->rim_ratio = inner > 0.0 ? rim / inner : INFINITY;
         ev->fisheye = ev->dark_outside >= OUTSIDE_DARK && ev->margin >= MIN_MARGIN &&
                       ev->rim_ratio < RIM_BRIGHT;
+    }
+    /* An angular map whose back hemisphere is dark shows a disc smaller than
+     * its frame at the level above; lit to its frame's edge it is a map. */
+    if (ev->fisheye && !(r = probe_map(photo, &ev->map, err)))
+        ev->fisheye = !ev->map;
+    if (r) {
+        free(tmp);
+        free(s.lum);
+        return r;
     }
     free(tmp);
     free(s.lum);

@@ -80,6 +80,11 @@ static sl_result load_view(view_in *v, sl_unwrap_options *o, bool have_circle,
                                 c->cx, c->cy, c->r, v->photo.width, v->photo.height, v->path);
         return SL_OK;
     }
+    /* A remapped probe would be "found" as a ball filling its frame and
+     * unwrapped with the wrong projection: only --circle says it is a ball. */
+    bool is_map;
+    if ((r = sl_probe_map_check(&v->photo, v->path, &is_map, err)))
+        return r;
     return sl_ball_detect(&v->photo, v->path, &o->circle, err);
 }
 

@@ -310,6 +310,82 @@ static void test_fisheye(void)
     }
 }
 
+static void expect_map(const sl_image *img, const char *what, bool map)
+{
+    bool is_map = !map;
+    sl_error err;
+    sl_result r = sl_probe_map_check(img, what, &is_map, &err);
+    printf("  %s: %s\n", what, r ? err.message : "not a map");
+    CHECK_MSG(is_map == map, "%s: taken for %s", what, is_map ? "a map" : "a photo");
+    CHECK(r == (map ? SL_ERR_INPUT : SL_OK));
+    if (r) {
+        CHECK(strncmp(err.message, what, strlen(what)) == 0);
+        CHECK(strstr(err.message, "light-probe map") &&
+              strstr(err.message, "'setlight convert --from angular'") &&
+              strstr(err.message, "--circle"));
+    }
+}
+
+/* Angular and mirror-ball maps (a disc inscribed in a square frame, black
+ * around it) are told from photos of a ball filling its frame, whose
+ * corners show the set, dark or busy. */
+static void test_probe_maps(void)
+{
+    sl_image ll = {0}, map = {0}, img = {0};
+    sl_error err;
+    ball_fixture f;
+    ball_fixture_init(&f, 256, 8);
+    CHECK_OK(ball_fixture_truth(&f, 256, 2, &ll, &err), &err);
+    CHECK_OK(sl_reproject(&ll, SL_PROJ_LATLONG, SL_PROJ_ANGULAR, 512, NULL, &map, &err), &err);
+    expect_map(&map, "angular.exr", true);
+    sl_image_free(&map);
+    CHECK_OK(sl_reproject(&ll, SL_PROJ_LATLONG, SL_PROJ_MIRRORBALL, 512, NULL, &map, &err), &err);
+    expect_map(&map, "mirrorball.exr", true);
+    sl_image_free(&map);
+    /* The back hemisphere 10^-3 of the front (a sunset's ground): its disc
+     * at the fisheye check's level is smaller than the frame, yet the map
+     * is lit to the frame's edge, so it is a map, not a fisheye. */
+    for (int y = 0; y < ll.height; y++)
+        for (int x = 0; x < ll.width; x++)
+            if (x < ll.width / 4 || x >= 3 * ll.width / 4 || y > ll.height * 3 / 5)
+                for (int k = 0; k < 3; k++)
+                    sl_image_pixel(&ll, x, y)[k] *= 1e-3f;
+    CHECK_OK(sl_reproject(&ll, SL_PROJ_LATLONG, SL_PROJ_ANGULAR, 512, NULL, &map, &err), &err);
+    sl_fisheye_evidence ev;
+    CHECK_OK(sl_fisheye_check(&map, false, "dark_back.exr", &ev, &err), &err);
+    CHECK(!ev.fisheye);
+    expect_map(&map, "dark_back.exr", true);
+    sl_image_free(&map);
+    sl_image_free(&ll);
+    for (int clutter = 0; clutter < 2; clutter++) {
+        ball_fixture_init(&f, 128, 128);
+        f.ss = 2;
+        f.ss_rim_only = true;
+        f.clutter = clutter;
+        f.balls[0].px = f.balls[0].py = f.balls[0].r = 64;
+        CHECK_OK(ball_fixture_render(&f, &img, &err), &err);
+        expect_map(&img, clutter ? "ball_fill_clutter.exr" : "ball_fill_dark.exr", false);
+        sl_image_free(&img);
+    }
+    static const struct {
+        const char *name;
+        bool map;
+    } real[] = {{"probes/chromeball_iphone7/160.JPG", false},
+                {"probes/chromeball_iphone7/10.JPG", false},
+                {"probes/grace_probe_angular.hdr", true},
+                {"fisheye/sigma8mm_canon6d/IMG_2843.JPG", false}};
+    for (size_t i = 0; i < sizeof real / sizeof real[0]; i++) {
+        const char *path = sl_test_data(real[i].name);
+        if (!path)
+            continue;
+        sl_meta meta;
+        CHECK_OK(sl_image_read(path, &img, &meta, &err), &err);
+        expect_map(&img, path, real[i].map);
+        sl_meta_free(&meta);
+        sl_image_free(&img);
+    }
+}
+
 /* The rows of docs/unwrap.md's detection table that are too slow for the
  * suite: `test_ball_detect --rows [TEXT]` runs those whose name holds TEXT
  * and prints each one's errors or refusal and its CPU seconds (no timing is
@@ -430,6 +506,7 @@ int main(int argc, char **argv)
         return sl_test_finish();
     }
     RUN(test_fisheye);
+    RUN(test_probe_maps);
     RUN(test_synthetic);
     RUN(test_fill_frame);
     RUN(test_round_clutter);

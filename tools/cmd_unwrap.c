@@ -67,11 +67,14 @@ static const char *unwrap_help =
     "The ball is found on tight crops (its outline touching the frame) and among\n"
     "clutter; discs, rings and clock faces are not balls, the largest ball is\n"
     "taken over ones under 0.7 of its radius, and the fit's standard error is\n"
-    "reported (circle.uncertainty in --json).\n"
+    "reported (circle.uncertainty in --json). A light-probe map (a disc filling\n"
+    "its square frame on black: Debevec's angular probes, mirror-ball maps) is no\n"
+    "photo: use 'setlight convert --from angular|mirrorball', or --circle.\n"
     "Exit codes: 0 done, 1 failure, 2 usage error (bad option, circle outside the\n"
     "image), 3 bad input (unreadable, a circular fisheye photo (use 'setlight\n"
-    "stitch'), no ball, two balls, ball cut by the frame, outline fitted too\n"
-    "weakly (give --circle), reflectance patch not seen).\n"
+    "stitch'), a light-probe map without --circle, no ball, two balls, ball cut\n"
+    "by the frame, outline fitted too weakly (give --circle), reflectance patch\n"
+    "not seen).\n"
     "See docs/unwrap.md.\n";
 
 int cmd_unwrap(int argc, char **argv, const sl_cli *cli)

@@ -347,6 +347,8 @@ typedef struct sl_fisheye_evidence {
     double dark_outside; /* fraction of the frame beyond the disc that is dark */
     double margin;       /* narrowest dark band between the disc and a frame side, in radii */
     double rim_ratio;    /* luminance at 0.95-0.985 radii over that at 0.80-0.90 */
+    bool map;            /* looked like a fisheye but is lit to its square frame's
+                            edge on black: a map (see sl_probe_map_check) */
     bool fisheye;
 } sl_fisheye_evidence;
 
@@ -355,6 +357,15 @@ typedef struct sl_fisheye_evidence {
  * pixels are sRGB-encoded (linearised for the measurement). */
 sl_result sl_fisheye_check(const sl_image *photo, bool srgb, const char *name,
                            sl_fisheye_evidence *ev, sl_error *err);
+
+/* Is this image a light-probe map (angular or mirror-ball) rather than a
+ * photo of a ball? A map is a disc inscribed in its square frame with every
+ * pixel beyond it black (remapping leaves nothing there); a photo, even
+ * cropped to the ball, shows the set in its corners. Sets *is_map; when it
+ * is one, SL_ERR_INPUT ("NAME: a disc filling its frame on pure black is a
+ * light-probe map, ...") naming 'setlight convert --from angular'. */
+sl_result sl_probe_map_check(const sl_image *photo, const char *name, bool *is_map,
+                             sl_error *err);
 
 typedef enum {
     SL_BALL_ORTHOGRAPHIC = 0, /* camera infinitely far: the classic mirror-ball map */

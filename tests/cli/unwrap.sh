@@ -138,6 +138,17 @@ expect 0 "$SETLIGHT" convert --from angular "$T/env_angular.exr" "$T/env_back.ex
 expect 0 "$SETLIGHT" convert --to mirrorball --width 256 "$T/env.exr" "$T/env_ball.exr"
 expect 0 "$SETLIGHT" convert --from mirrorball "$T/env_ball.exr" "$T/env_back2.exr"
 no_temp "$T/outdir"
+# --- those maps are no photos of a ball: unwrap refuses them, naming convert, unless
+# --circle says the disc is a ball
+for m in env_angular env_ball; do
+  expect 3 "$SETLIGHT" unwrap -o "$T/outdir/m.exr" "$T/$m.exr"
+  err_has "$m.exr: a disc filling its frame on pure black is a light-probe map"
+  err_has "'setlight convert --from angular'"; err_has "--circle"; err_one_line
+  absent "$T/outdir/m.exr"
+done
+no_temp "$T/outdir"
+expect 0 "$SETLIGHT" unwrap --circle 64,64,64 -o "$T/forced.exr" "$T/env_ball.exr"
+present "$T/forced.exr"
 F="${SETLIGHT_SHARED_DATA:-}/fisheye/sigma8mm_canon6d/IMG_2843.JPG"
 G="${SETLIGHT_SHARED_DATA:-}/probes/grace_probe_angular.hdr"
 if [ -f "$F" ] && [ -f "$G" ]; then
@@ -147,6 +158,9 @@ if [ -f "$F" ] && [ -f "$G" ]; then
   expect 3 "$SETLIGHT" convert --from angular "$F" "$T/outdir/c.exr"
   err_has "circular fisheye"; err_one_line; absent "$T/outdir/c.exr"
   expect 0 "$SETLIGHT" convert --from angular "$G" "$T/grace.exr"; present "$T/grace.exr"
+  expect 3 "$SETLIGHT" unwrap -o "$T/outdir/g.exr" "$G"
+  err_has "grace_probe_angular.hdr: a disc filling its frame on pure black is a light-probe map"
+  err_has "'setlight convert --from angular'"; err_one_line; absent "$T/outdir/g.exr"
 else
   skip "real fisheye and angular probe"
 fi
