@@ -5,9 +5,12 @@
  * exterior through that curve (8-bit codes in lossless TIFFs, Poisson noise
  * of a small sensor, read noise) merged self-calibrated and with the true
  * curve, against the ideal estimator (tests/vset_bracket.c: true curve,
- * exposures and noise model). Prints per curve the per-pixel median and p99
- * errors, their ratios to the ideal estimator's and the recovered curve's
- * error; then the median ratios and the worst curve.
+ * exposures and noise model, judged at the noise-free value) and against the
+ * realizable oracle (the same estimator judging at its own estimate from the
+ * frames: the best merge of these frames). Prints per curve the per-pixel
+ * median and p99 errors, their ratios and the recovered curve's error; then
+ * how many curves are at the goal (1.1x median, 1.2x p99) against each, the
+ * median ratios and the worst curves.
  *
  *   ./build/bench/bench_merge_crf [--width 1024] [--curves all|I,J,..] [--seed 3]
  *                                 [--well 4000] [--read 3] [--scene exterior]
@@ -27,7 +30,8 @@
 enum { MAX_CURVES = 256 };
 
 typedef struct result {
-    double self_median, self_p99, true_median, true_p99, ideal_median, ideal_p99, curve;
+    double self_median, self_p99, true_median, true_p99, ideal_median, ideal_p99, real_median,
+        real_p99, curve;
     int named; /* frames the self-calibrated merge's exposure check names (EXIF is true) */
 } result;
 
@@ -88,11 +92,12 @@ static int run_curve(const char *dorf, const char *name, const vb_spec *base, co
         for (int k = 0; k < 256; k++)
             truth.inverse[c * 256 + k] = sl_vset_response_invert(&resp, k / 255.0);
     vb_stats self, tru, ideal = vb_compare(&b.oracle, &b, 1, false);
+    vb_stats real = vb_compare(&b.realizable, &b, 1, false);
     int named = 0, named_true;
     rc = rc || merge_score(&b, NULL, &self, &out->curve, &named) ||
          merge_score(&b, &truth, &tru, NULL, &named_true);
-    *out = (result){self.median, self.p99, tru.median, tru.p99, ideal.median, ideal.p99,
-                    out->curve, named};
+    *out = (result){self.median,  self.p99,  tru.median, tru.p99,    ideal.median,
+                    ideal.p99,    real.median, real.p99, out->curve, named};
     sl_response_free(&truth);
     vb_free(&b);
     return rc;
@@ -176,38 +181,60 @@ int main(int argc, char **argv)
     printf("# %s %dx%d, %d x %d stops, 8-bit lossless, well %.0f e, read %.1f e, seed %llu\n",
            sp.scene, sp.width, sp.width / 2, sp.frames, sp.stops, sp.full_well_e,
            sp.read_noise_e, (unsigned long long)sp.seed);
-    printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal; "
-           "self / ideal median, p99; curve error %%; frames named\n");
-    static double rmed[MAX_CURVES], rp99[MAX_CURVES];
-    double worst = 0;
-    int worst_i = -1, done = 0, failed = 0;
+    printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal, "
+           "realizable; median, p99 ratios: self / ideal, realizable / ideal, self / realizable; "
+           "curve error %%; frames named\n");
+    /* The ratios, per comparison: self / ideal, true curve / ideal,
+     * realizable / ideal, self / realizable, true curve / realizable. */
+    enum { SELF_IDEAL, TRUE_IDEAL, REAL_IDEAL, SELF_REAL, TRUE_REAL, RATIOS };
+    static const char *const label[RATIOS] = {"self-calibrated / ideal", "true curve / ideal",
+                                              "realizable / ideal", "self-calibrated / realizable",
+                                              "true curve / realizable"};
+    static double rmed[RATIOS][MAX_CURVES], rp99[RATIOS][MAX_CURVES];
+    double worst[RATIOS] = {0};
+    int worst_i[RATIOS] = {0}, at_goal[RATIOS] = {0}, done = 0, failed = 0;
     for (int j = 0; j < n; j++) {
         result r;
         if (run_curve(dorf, names[pick[j]], &sp, dir, &r)) {
             failed++;
             continue;
         }
-        double m = r.self_median / r.ideal_median, p = r.self_p99 / r.ideal_p99;
-        rmed[done] = m;
-        rp99[done++] = p;
-        printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.3f %.3f  %.2f  %d\n",
+        double num[RATIOS][2] = {{r.self_median, r.self_p99}, {r.true_median, r.true_p99},
+                                 {r.real_median, r.real_p99}, {r.self_median, r.self_p99},
+                                 {r.true_median, r.true_p99}};
+        double den[RATIOS][2] = {{r.ideal_median, r.ideal_p99}, {r.ideal_median, r.ideal_p99},
+                                 {r.ideal_median, r.ideal_p99}, {r.real_median, r.real_p99},
+                                 {r.real_median, r.real_p99}};
+        for (int k = 0; k < RATIOS; k++) {
+            double m = num[k][0] / den[k][0], p = num[k][1] / den[k][1];
+            rmed[k][done] = m;
+            rp99[k][done] = p;
+            at_goal[k] += m <= 1.1 && p <= 1.2;
+            /* The worst curve: furthest over the goal (1.1x median, 1.2x p99). */
+            double over = fmax(m / 1.1, p / 1.2);
+            if (over > worst[k])
+                worst[k] = over, worst_i[k] = pick[j];
+        }
+        printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.3f %.3f  %.3f "
+               "%.3f  %.3f %.3f  %.2f  %d\n",
                pick[j], names[pick[j]], 100 * r.self_median, 100 * r.self_p99,
-               100 * r.true_median, 100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99, m,
-               p, 100 * r.curve, r.named);
+               100 * r.true_median, 100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99,
+               100 * r.real_median, 100 * r.real_p99, rmed[SELF_IDEAL][done],
+               rp99[SELF_IDEAL][done], rmed[REAL_IDEAL][done], rp99[REAL_IDEAL][done],
+               rmed[SELF_REAL][done], rp99[SELF_REAL][done], 100 * r.curve, r.named);
         fflush(stdout);
-        /* The worst curve: furthest over the goal (1.1x median, 1.2x p99). */
-        double over = fmax(m / 1.1, p / 1.2);
-        if (over > worst)
-            worst = over, worst_i = pick[j];
+        done++;
     }
-    double maxm = 0, maxp = 0;
-    for (int i = 0; i < done; i++)
-        maxm = fmax(maxm, rmed[i]), maxp = fmax(maxp, rp99[i]);
-    printf("# %d curves (%d failed): self / ideal median ratio: median %.3f, max %.3f; p99 "
-           "ratio: median %.3f, max %.3f\n",
-           done, failed, median_of(rmed, done), maxm, median_of(rp99, done), maxp);
-    if (worst_i >= 0)
-        printf("# worst curve: %d %s (%.3f of the goal)\n", worst_i, names[worst_i], worst);
+    printf("# %d curves (%d failed)\n", done, failed);
+    for (int k = 0; k < RATIOS && done; k++) {
+        double maxm = 0, maxp = 0;
+        for (int i = 0; i < done; i++)
+            maxm = fmax(maxm, rmed[k][i]), maxp = fmax(maxp, rp99[k][i]);
+        printf("# %-28s at the goal on %3d of %d; median ratio: median %.3f, max %.3f; p99 "
+               "ratio: median %.3f, max %.3f; worst curve %d %s (%.3f of the goal)\n",
+               label[k], at_goal[k], done, median_of(rmed[k], done), maxm,
+               median_of(rp99[k], done), maxp, worst_i[k], names[worst_i[k]], worst[k]);
+    }
     sl_vset_scene_free(&scene);
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);

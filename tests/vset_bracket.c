@@ -102,92 +102,196 @@ static void exposed_codes(vb_bracket *b, const sl_image *ll, double sat_lin)
     b->code_hi = fmax(b->code_lo, fmin(0.9, (bin + 1.0) / CODE_BINS));
 }
 
-/* Running sums of the oracle merge: per channel sum of w x, sum of w, and
- * the shortest frame's value (where no frame is usable: a lower bound). */
-typedef struct oracle_sums {
-    double *num, *den, *low;
-} oracle_sums;
-
-/* Adds frame k (as written, read back) to the oracle: each channel
- * linearised with the true curve, scaled to the reference exposure and
- * weighted by the inverse of its variance under the camera's model (shot
- * and read noise of the raw channels through white balance and colour
- * matrix, 14-bit and 8-bit quantisation) at the noise-free value; a frame
- * is left out of a pixel where the noise-free value is within 3 sigma of
- * a clip (raw, balanced or output, or near code 1 for JPEG). */
-static sl_result oracle_add(const vb_bracket *b, const sl_image *ll, int k, oracle_sums *o,
-                            sl_error *err)
+/* The camera's model of a frame at exposure scale sk for a pixel of Rec.709
+ * radiance lv: each output channel's expected linear value out[c] and its
+ * variance var[c] (shot and read noise of the raw channels through white
+ * balance and colour matrix, 14-bit quantisation and, through the curve,
+ * the 8-bit code step at out[c]). False where the value is within 3 sigma
+ * of a clip (raw, balanced or output, or near code 1 for JPEG). */
+static bool frame_model(const vb_bracket *b, const double lv[3], double sk, double out[3],
+                        double var[3])
 {
-    sl_image f = {0};
-    sl_result r = sl_photo_read(b->paths[k], &f, NULL, err);
-    if (r)
-        return r;
     const sl_vset_camera *cam = &b->cam;
-    sl_vset_exposure e = {b->times[k], b->f_number, b->iso};
-    double sk = sl_vset_exposure_scale(cam, &e), to_ref = b->ref_scale / sk;
     double q = 1.0 / ((1u << cam->raw_bits) - 1u), qvar = q * q / 12;
-    for (int y = 0; y < f.height; y++)
-        for (int x = 0; x < f.width; x++) {
-            double raw[3], var_raw[3], out[3], var[3];
-            const float *l = sl_image_pixel(ll, x, y);
-            double lv[3] = {l[0], l[1], l[2]};
-            sl_mat3_apply(cam->cam_from_rec709, lv, raw);
-            bool usable = true;
-            for (int j = 0; j < 3; j++) {
-                raw[j] *= sk;
-                double sd = b->spec.noise_free ? 0 : sl_vset_sensor_noise_std(cam, b->iso, raw[j]);
-                var_raw[j] = sd * sd + qvar;
-                usable = usable && cam->wb[j] * (raw[j] + 3 * sqrt(var_raw[j])) < 1;
-            }
-            for (int c = 0; c < 3; c++) {
-                out[c] = var[c] = 0;
-                for (int j = 0; j < 3; j++) {
-                    double m = cam->ccm[c][j] * cam->wb[j];
-                    out[c] += m * raw[j];
-                    var[c] += m * m * var_raw[j];
-                }
-                var[c] += qvar; /* the output's own 14 bits */
-                double top = out[c] + 3 * sqrt(var[c]);
-                usable = usable && (b->spec.jpeg ? sl_vset_response_apply(&cam->response, top) < 0.98
-                                                 : top < 1);
-            }
-            const float *z = sl_image_pixel(&f, x, y);
-            size_t i = ((size_t)y * f.width + x) * 3;
-            for (int c = 0; c < 3; c++) {
-                double v = z[c], vv = var[c];
-                if (b->spec.jpeg) {
-                    v = sl_vset_response_invert(&cam->response, z[c]);
-                    double step = 1 / (255 * fmax(sl_vset_response_slope(&cam->response,
-                                                                           fmax(out[c], 0)), 1e-3));
-                    vv += step * step / 12;
-                }
-                if (k == 0)
-                    o->low[i + c] = v * to_ref;
-                if (usable) {
-                    double w = 1 / (vv * to_ref * to_ref);
-                    o->num[i + c] += w * v * to_ref;
-                    o->den[i + c] += w;
-                }
-            }
+    double raw[3], var_raw[3];
+    sl_mat3_apply(cam->cam_from_rec709, lv, raw);
+    bool usable = true;
+    for (int j = 0; j < 3; j++) {
+        raw[j] *= sk;
+        double sd = b->spec.noise_free ? 0 : sl_vset_sensor_noise_std(cam, b->iso, raw[j]);
+        var_raw[j] = sd * sd + qvar;
+        usable = usable && cam->wb[j] * (raw[j] + 3 * sqrt(var_raw[j])) < 1;
+    }
+    for (int c = 0; c < 3; c++) {
+        out[c] = var[c] = 0;
+        for (int j = 0; j < 3; j++) {
+            double m = cam->ccm[c][j] * cam->wb[j];
+            out[c] += m * raw[j];
+            var[c] += m * m * var_raw[j];
         }
-    sl_image_free(&f);
+        var[c] += qvar; /* the output's own 14 bits */
+        double top = out[c] + 3 * sqrt(var[c]);
+        usable = usable && (b->spec.jpeg ? sl_vset_response_apply(&cam->response, top) < 0.98
+                                         : top < 1);
+        if (b->spec.jpeg) {
+            double step =
+                1 / (255 * fmax(sl_vset_response_slope(&cam->response, fmax(out[c], 0)), 1e-3));
+            var[c] += step * step / 12;
+        }
+    }
+    return usable;
+}
+
+/* The frames as written, read back and linearised through the true curve,
+ * each scaled to the reference exposure (value[k], three channels a pixel;
+ * to_ref[k] the scale), and whether each pixel reads at a clip (a code of
+ * 0.98 or more through the curve, 1 for linear data) in any channel
+ * (at_clip[k]). */
+typedef struct frames_read {
+    double *value[VB_MAX_FRAMES];
+    uint8_t *at_clip[VB_MAX_FRAMES];
+    double scale[VB_MAX_FRAMES], to_ref[VB_MAX_FRAMES];
+} frames_read;
+
+static void frames_free(frames_read *fr)
+{
+    for (int k = 0; k < VB_MAX_FRAMES; k++) {
+        free(fr->value[k]);
+        free(fr->at_clip[k]);
+    }
+}
+
+static sl_result frames_load(const vb_bracket *b, frames_read *fr, sl_error *err)
+{
+    memset(fr, 0, sizeof *fr);
+    for (int k = 0; k < b->frames; k++) {
+        sl_image f = {0};
+        sl_result r = sl_photo_read(b->paths[k], &f, NULL, err);
+        if (r)
+            return r;
+        size_t n = (size_t)f.width * f.height;
+        fr->at_clip[k] = calloc(n, 1);
+        fr->value[k] = malloc(n * 3 * sizeof(double));
+        if (!fr->at_clip[k] || !fr->value[k]) {
+            sl_image_free(&f);
+            return sl_error_set(err, SL_ERR_NOMEM, "oracle: out of memory");
+        }
+        sl_vset_exposure e = {b->times[k], b->f_number, b->iso};
+        fr->scale[k] = sl_vset_exposure_scale(&b->cam, &e);
+        fr->to_ref[k] = b->ref_scale / fr->scale[k];
+        for (size_t i = 0; i < 3 * n; i++) {
+            double v = f.data[i];
+            fr->at_clip[k][i / 3] |= b->spec.jpeg ? v >= 0.98 : v >= 1;
+            if (b->spec.jpeg)
+                v = sl_vset_response_invert(&b->cam.response, v);
+            fr->value[k][i] = v * fr->to_ref[k];
+        }
+        sl_image_free(&f);
+    }
     return SL_OK;
+}
+
+/* One pixel's estimate (three channels, output-linear at the reference
+ * exposure) from the frames, each weighted by the inverse of its variance
+ * under the camera's model for radiance lv, used where the model leaves it
+ * 3 sigma clear of every clip (and, with censor, where it does not read at a
+ * clip); where no frame is, the shortest frame's value (a lower bound).
+ * Returns how many frames were used. */
+static int pixel_estimate(const vb_bracket *b, const frames_read *fr, size_t i, const double lv[3],
+                          bool censor, double est[3])
+{
+    double num[3] = {0}, den[3] = {0};
+    int used = 0;
+    for (int k = 0; k < b->frames; k++) {
+        double out[3], var[3];
+        if (!frame_model(b, lv, fr->scale[k], out, var) || (censor && fr->at_clip[k][i]))
+            continue;
+        used++;
+        for (int c = 0; c < 3; c++) {
+            double w = 1 / (var[c] * fr->to_ref[k] * fr->to_ref[k]);
+            num[c] += w * fr->value[k][3 * i + c];
+            den[c] += w;
+        }
+    }
+    for (int c = 0; c < 3; c++)
+        est[c] = den[c] > 0 ? num[c] / den[c] : fr->value[0][3 * i + c];
+    return used;
+}
+
+/* The ideal estimator (vb_bracket.oracle): weights and clips judged at the
+ * noise-free radiance, which only the truth knows. */
+static void oracle_ideal(vb_bracket *b, const sl_image *ll, const frames_read *fr)
+{
+    for (int y = 0; y < ll->height; y++)
+        for (int x = 0; x < ll->width; x++) {
+            const float *l = sl_image_pixel(ll, x, y);
+            double lv[3] = {l[0], l[1], l[2]}, est[3];
+            size_t i = (size_t)y * ll->width + x;
+            pixel_estimate(b, fr, i, lv, false, est);
+            for (int c = 0; c < 3; c++)
+                b->oracle.data[3 * i + c] = (float)est[c];
+        }
+}
+
+/* Rounds of the realizable oracle's maximum-likelihood iteration: the
+ * weights move by a few percent per round once the clip decisions settle. */
+enum { REALIZABLE_ROUNDS = 8 };
+
+/* The realizable oracle (vb_bracket.realizable): the ideal estimator with
+ * the noise-free radiance it judges weights and clips at replaced by its
+ * own estimate from the frames, iterated (maximum likelihood under the
+ * Gaussian model: the weights evaluated at the current estimate, not at the
+ * noisy observed codes, which favour the values noise pushed down). It
+ * starts from the longest frame whose codes read below 0.9 (none: the
+ * shortest) and leaves out frames that read at a clip (censored). */
+static void oracle_realizable(vb_bracket *b, const sl_image *ll, const frames_read *fr)
+{
+    double m[3][3], to_radiance[3][3];
+    sl_vset_camera_output_matrix(&b->cam, m);
+    if (!sl_mat3_invert(m, to_radiance))
+        return;
+    for (size_t i = 0; i < (size_t)ll->width * ll->height; i++) {
+        double est[3];
+        int k0 = 0;
+        for (int k = b->frames - 1; k > 0 && !k0; k--) {
+            bool low = true;
+            for (int c = 0; c < 3; c++) {
+                double v = fr->value[k][3 * i + c] / fr->to_ref[k];
+                low = low && (b->spec.jpeg ? sl_vset_response_apply(&b->cam.response, v) : v) < 0.9;
+            }
+            if (low)
+                k0 = k;
+        }
+        for (int c = 0; c < 3; c++)
+            est[c] = fr->value[k0][3 * i + c];
+        for (int round = 0; round < REALIZABLE_ROUNDS; round++) {
+            double t[3] = {est[0] / b->ref_scale, est[1] / b->ref_scale, est[2] / b->ref_scale},
+                   lv[3], next[3];
+            sl_mat3_apply(to_radiance, t, lv);
+            pixel_estimate(b, fr, i, lv, true, next);
+            double moved = 0;
+            for (int c = 0; c < 3; c++) {
+                moved = fmax(moved, fabs(next[c] - est[c]) / fmax(fabs(est[c]), 1e-9));
+                est[c] = next[c];
+            }
+            if (moved < 1e-6)
+                break;
+        }
+        for (int c = 0; c < 3; c++)
+            b->realizable.data[3 * i + c] = (float)est[c];
+    }
 }
 
 static sl_result oracle_make(vb_bracket *b, const sl_image *ll, sl_error *err)
 {
-    size_t n = (size_t)ll->width * ll->height * 3;
-    oracle_sums o = {calloc(n, sizeof(double)), calloc(n, sizeof(double)),
-                     calloc(n, sizeof(double))};
-    sl_result r = o.num && o.den && o.low ? sl_image_alloc(&b->oracle, ll->width, ll->height, 3, err)
-                                          : sl_error_set(err, SL_ERR_NOMEM, "oracle: out of memory");
-    for (int k = 0; k < b->frames && !r; k++)
-        r = oracle_add(b, ll, k, &o, err);
-    for (size_t i = 0; i < n && !r; i++)
-        b->oracle.data[i] = (float)(o.den[i] > 0 ? o.num[i] / o.den[i] : o.low[i]);
-    free(o.num);
-    free(o.den);
-    free(o.low);
+    frames_read fr;
+    sl_result r = frames_load(b, &fr, err);
+    if (!r && !(r = sl_image_alloc(&b->oracle, ll->width, ll->height, 3, err)) &&
+        !(r = sl_image_alloc(&b->realizable, ll->width, ll->height, 3, err))) {
+        oracle_ideal(b, ll, &fr);
+        oracle_realizable(b, ll, &fr);
+    }
+    frames_free(&fr);
     return r;
 }
 
@@ -321,6 +425,7 @@ void vb_free(vb_bracket *b)
     sl_image_free(&b->margin);
     sl_image_free(&b->best);
     sl_image_free(&b->oracle);
+    sl_image_free(&b->realizable);
 }
 int vb_cmp_double(const void *a, const void *b)
 {

@@ -57,6 +57,10 @@ typedef struct vb_bracket {
                          curve, exposures and noise model (inverse-variance weights from the
                          noise-free value), frames used only where the truth leaves them
                          unclipped; its error is the floor set by the frames' noise */
+    sl_image realizable; /* the realizable oracle: the same estimator judging weights and clips
+                            at its own estimate from the frames (iterated maximum likelihood),
+                            not at the noise-free value; the best merge of these frames the
+                            true curve, exposures and noise model allow */
 } vb_bracket;
 
 /* The scene's lat-long, to share between brackets (vb_spec.latlong). */
