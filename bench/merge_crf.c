@@ -113,7 +113,7 @@ int main(int argc, char **argv)
 {
     vb_spec sp = {.scene = "exterior", .frames = 7, .stops = 3, .jpeg = true, .lossless = true,
                   .width = 1024, .saturation = 0.95, .seed = 3, .full_well_e = 4000,
-                  .read_noise_e = 3};
+                  .read_noise_e = 3, .realizable = true};
     const char *curves = "all";
     static const struct option longs[] = {{"width", 1, 0, 'w'}, {"curves", 1, 0, 'c'},
                                           {"seed", 1, 0, 's'},  {"well", 1, 0, 'f'},

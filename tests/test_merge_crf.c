@@ -119,7 +119,7 @@ static void test_dorf_curves(void)
         vb_spec sp = {.scene = "exterior", .response = &curves[i], .frames = 7, .stops = 3,
                       .jpeg = true, .lossless = true, .width = 256, .saturation = 0.95,
                       .seed = 3, .full_well_e = 4000, .read_noise_e = 3,
-                      .latlong = &scene.latlong};
+                      .latlong = &scene.latlong, .realizable = true};
         vb_bracket b;
         CHECK_OK(vb_make(sl_test_tmpdir(), "crf", &sp, &b, &err), &err);
         sl_response truth = {0};

@@ -286,11 +286,11 @@ static sl_result oracle_make(vb_bracket *b, const sl_image *ll, sl_error *err)
 {
     frames_read fr;
     sl_result r = frames_load(b, &fr, err);
-    if (!r && !(r = sl_image_alloc(&b->oracle, ll->width, ll->height, 3, err)) &&
-        !(r = sl_image_alloc(&b->realizable, ll->width, ll->height, 3, err))) {
+    if (!r && !(r = sl_image_alloc(&b->oracle, ll->width, ll->height, 3, err)))
         oracle_ideal(b, ll, &fr);
+    if (!r && b->spec.realizable &&
+        !(r = sl_image_alloc(&b->realizable, ll->width, ll->height, 3, err)))
         oracle_realizable(b, ll, &fr);
-    }
     frames_free(&fr);
     return r;
 }

@@ -32,6 +32,7 @@ typedef struct vb_spec {
     bool noise_free;      /* the camera's expected value (no shot or read noise), still
                              quantised to 14 bits and, for JPEG, to 8-bit codes */
     const sl_image *latlong; /* the scene's lat-long (vb_scene), or NULL: made from scene, width */
+    bool realizable;      /* also vb_bracket.realizable (iterated per pixel: costs a second) */
 } vb_spec;
 
 typedef struct vb_bracket {
@@ -57,7 +58,7 @@ typedef struct vb_bracket {
                          curve, exposures and noise model (inverse-variance weights from the
                          noise-free value), frames used only where the truth leaves them
                          unclipped; its error is the floor set by the frames' noise */
-    sl_image realizable; /* the realizable oracle: the same estimator judging weights and clips
+    sl_image realizable; /* with vb_spec.realizable, the realizable oracle: the same estimator judging weights and clips
                             at its own estimate from the frames (iterated maximum likelihood),
                             not at the noise-free value; the best merge of these frames the
                             true curve, exposures and noise model allow */
