@@ -9,7 +9,7 @@
  * and noise model: tests/vset_bracket.c) and the realizable oracle's (the
  * same estimator judging weights and clips at its own estimate from the
  * frames instead of the noise-free value: the best merge of these frames).
- * bench/merge_crf.c runs all 201 at 1024x512 (docs/merge.md). */
+ * bench/merge_crf.c runs all 201 (docs/merge.md). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
