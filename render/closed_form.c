@@ -224,23 +224,10 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             }
             /* A Lambert pixel's dome part is left to the fill (interpolated
              * where checked); its lights' part is computed here. */
-            if (ma->type == SL_MAT_LAMBERT && cf->ir) {
-                if (!sl_lights_irradiance(scene, h[0].p, h[0].n, cf->tol, j->centre[pix], B))
-                    continue;
-                cf->mode[pix] = unshadowed(scene, a, h, npts, margin) &&
-                                        !sl_lights_may_shadow(scene, h, npts, margin)
-                                    ? SL_PIXEL_EXACT
-                                    : SL_PIXEL_CONTROL;
-                cf->shape[pix] = a;
-                for (int c = 0; c < 3; c++)
-                    cf->bound[pix][c] = (float)B[c];
-                j->glossy.state[pix] = SL_GLOSSY_PENDING;
-                v3_copy(j->glossy.n[pix], h[0].n);
-                v3_copy(j->glossy.wo[pix], wo);
-                continue;
-            }
-            if (!sl_closed_form_radiance_at(cf, scene, a, h[0].p, h[0].n, wo, j->centre[pix], B,
-                                            &j->row_cost[y]))
+            bool to_fill = ma->type == SL_MAT_LAMBERT && cf->ir;
+            if (!(to_fill ? sl_lights_irradiance(scene, h[0].p, h[0].n, cf->tol, j->centre[pix], B)
+                          : sl_closed_form_radiance_at(cf, scene, a, h[0].p, h[0].n, wo, j->centre[pix],
+                                                       B, &j->row_cost[y])))
                 continue;
             cf->mode[pix] = unshadowed(scene, a, h, npts, margin) &&
                                     !sl_lights_may_shadow(scene, h, npts, margin)
@@ -249,6 +236,11 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             cf->shape[pix] = a;
             for (int c = 0; c < 3; c++)
                 cf->bound[pix][c] = (float)B[c];
+            if (to_fill) {
+                j->glossy.state[pix] = SL_GLOSSY_PENDING;
+                v3_copy(j->glossy.n[pix], h[0].n);
+                v3_copy(j->glossy.wo[pix], wo);
+            }
         }
     }
 }
@@ -311,6 +303,13 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     mean[c] = fc[c] + lap / 24.0;
                     foot[c] = fabs(lap / 24.0);
                 }
+            } else if (j->scene->shapes[a].type != SL_SHAPE_SPHERE && !j->scene->light_count &&
+                       j->scene->materials[j->scene->shapes[a].material].type == SL_MAT_LAMBERT) {
+                /* A flat Lambert shape under the dome alone has one normal,
+                 * so one irradiance: its box mean is its centre value (the
+                 * chart's patch edges). */
+                for (int c = 0; c < 3; c++)
+                    mean[c] = fc[c], foot[c] = 0;
             } else {
                 /* Midpoint rules err as h^2: the 3x3 grid's error is about
                  * (centre - 3x3) / 8. */
