@@ -287,8 +287,9 @@ typedef struct sl_render_options {
      * with the MIS strategy. Default on. */
     bool closed_form;
     /* Bound on the closed form's relative irradiance error per pixel (the
-     * quadrature refines until its proven bound is below it); 0 = default
-     * 1e-2, or half --target-error when that is smaller. */
+     * quadrature refines until its proven bound is below its share of it,
+     * the interpolation of the map's rest is checked to its share);
+     * 0 = default 1e-2, or half --target-error when that is smaller. */
     double closed_form_tolerance;
     /* Called after every pass (from the calling thread), e.g. for progress. */
     void (*on_pass)(void *ctx, const struct sl_render_pass *pass);
