@@ -161,6 +161,24 @@ bool sl_light_irradiance(const sl_light *l, const double p[3], const double n[3]
     return true;
 }
 
+bool sl_lights_irradiance(const sl_scene *scene, const double p[3], const double n[3], double tol,
+                          double E[3], double bound[3])
+{
+    for (int c = 0; c < 3; c++)
+        E[c] = bound[c] = 0;
+    for (int i = 0; i < scene->light_count; i++) {
+        const sl_light *l = &scene->lights[i];
+        double El[3], Bl[3];
+        if (!sl_light_has_closed_form(l))
+            continue;
+        if (!sl_light_irradiance(l, p, n, tol, El, Bl))
+            return false;
+        for (int c = 0; c < 3; c++)
+            E[c] += El[c], bound[c] += Bl[c];
+    }
+    return true;
+}
+
 bool sl_closed_form_radiance_at(const sl_closed_form *cf, const sl_scene *scene, int shape,
                                 const double p[3], const double n[3], const double wo[3],
                                 double out[3], double bound[3], sl_irradiance_cost *cost)
@@ -173,20 +191,13 @@ bool sl_closed_form_radiance_at(const sl_closed_form *cf, const sl_scene *scene,
         sl_glossy_eval(cf->ir, m, n, wo, cf->tol, out, bound, cost);
         return true;
     }
-    double E[3] = {0, 0, 0}, B[3] = {0, 0, 0};
+    double E[3], B[3], Ed[3] = {0, 0, 0}, Bd[3] = {0, 0, 0};
+    if (!sl_lights_irradiance(scene, p, n, cf->tol, E, B))
+        return false;
     if (cf->ir)
-        sl_irradiance_eval(cf->ir, n, cf->tol, E, B, cost);
-    for (int i = 0; i < scene->light_count; i++) {
-        const sl_light *l = &scene->lights[i];
-        double El[3], Bl[3];
-        if (!sl_light_has_closed_form(l))
-            continue;
-        if (!sl_light_irradiance(l, p, n, cf->tol, El, Bl))
-            return false;
-        for (int c = 0; c < 3; c++)
-            E[c] += El[c], B[c] += Bl[c];
-    }
+        sl_irradiance_eval(cf->ir, n, cf->tol, Ed, Bd, cost);
     for (int c = 0; c < 3; c++) {
+        E[c] += Ed[c], B[c] += Bd[c];
         out[c] = m->base_color[c] / SL_PI * E[c];
         bound[c] = m->base_color[c] / SL_PI * B[c];
     }

@@ -29,6 +29,11 @@ bool sl_light_has_closed_form(const sl_light *l);
 bool sl_light_irradiance(const sl_light *l, const double p[3], const double n[3], double tol,
                          double E[3], double bound[3]);
 
+/* The sum of the closed-form lights' unoccluded irradiance at p with normal
+ * n and its bound; false where one has none (p inside a sphere light). */
+bool sl_lights_irradiance(const sl_scene *scene, const double p[3], const double n[3], double tol,
+                          double E[3], double bound[3]);
+
 /* Radiance towards wo of a shape's material at world point p, normal n:
  * Lambert, rho/pi (E_dome(n) + sum of the closed-form lights' E(p, n));
  * a rough glossy lobe, the dome integrated against it (dome alone); bound as

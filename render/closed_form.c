@@ -114,7 +114,7 @@ typedef struct plan_job {
     double (*centre)[3]; /* centre value per pixel */
     sl_irradiance_cost *row_cost;
     double *row_foot; /* largest relative footprint estimate per row */
-    sl_glossy_pixels glossy; /* glossy pixels at centres: left to sl_glossy_fill */
+    sl_glossy_pixels glossy; /* pixels left to sl_glossy_fill: glossy at centres, Lambert */
     double deadline;  /* --time: rows not planned by then are sampled */
     uint8_t *row_cut; /* the row ran into the deadline */
 } plan_job;
@@ -214,7 +214,7 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (ma->type != SL_MAT_LAMBERT && scene->light_count)
                 continue;
             double B[3], wo[3] = {-dir0[0], -dir0[1], -dir0[2]};
-            if (j->glossy.state && sl_glossy_applies(ma)) {
+            if (j->o->pixel_centers && sl_glossy_applies(ma)) {
                 cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
                 cf->shape[pix] = a;
                 j->glossy.state[pix] = SL_GLOSSY_PENDING;
@@ -222,8 +222,12 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 v3_copy(j->glossy.wo[pix], wo);
                 continue;
             }
-            if (!sl_closed_form_radiance_at(cf, scene, a, h[0].p, h[0].n, wo, j->centre[pix], B,
-                                            &j->row_cost[y]))
+            /* A Lambert pixel's dome part is left to the fill (interpolated
+             * where checked); its lights' part is computed here. */
+            bool to_fill = ma->type == SL_MAT_LAMBERT && cf->ir;
+            if (!(to_fill ? sl_lights_irradiance(scene, h[0].p, h[0].n, cf->tol, j->centre[pix], B)
+                          : sl_closed_form_radiance_at(cf, scene, a, h[0].p, h[0].n, wo, j->centre[pix],
+                                                       B, &j->row_cost[y])))
                 continue;
             cf->mode[pix] = unshadowed(scene, a, h, npts, margin) &&
                                     !sl_lights_may_shadow(scene, h, npts, margin)
@@ -232,6 +236,11 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             cf->shape[pix] = a;
             for (int c = 0; c < 3; c++)
                 cf->bound[pix][c] = (float)B[c];
+            if (to_fill) {
+                j->glossy.state[pix] = SL_GLOSSY_PENDING;
+                v3_copy(j->glossy.n[pix], h[0].n);
+                v3_copy(j->glossy.wo[pix], wo);
+            }
         }
     }
 }
@@ -294,6 +303,13 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     mean[c] = fc[c] + lap / 24.0;
                     foot[c] = fabs(lap / 24.0);
                 }
+            } else if (j->scene->shapes[a].type != SL_SHAPE_SPHERE && !j->scene->light_count &&
+                       j->scene->materials[j->scene->shapes[a].material].type == SL_MAT_LAMBERT) {
+                /* A flat Lambert shape under the dome alone has one normal,
+                 * so one irradiance: its box mean is its centre value (the
+                 * chart's patch edges). */
+                for (int c = 0; c < 3; c++)
+                    mean[c] = fc[c], foot[c] = 0;
             } else {
                 /* Midpoint rules err as h^2: the 3x3 grid's error is about
                  * (centre - 3x3) / 8. */
@@ -376,27 +392,24 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     j.centre = calloc(npix, sizeof *j.centre);
     j.row_cost = calloc((size_t)cam->height, sizeof *j.row_cost);
     j.row_foot = calloc((size_t)cam->height, sizeof *j.row_foot);
-    if (o->pixel_centers) {
-        j.glossy.state = calloc(npix, 1);
-        j.glossy.n = malloc(npix * sizeof *j.glossy.n);
-        j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
-        j.glossy.value = j.centre;
-    }
+    j.glossy.state = calloc(npix, 1);
+    j.glossy.n = malloc(npix * sizeof *j.glossy.n);
+    j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
+    j.glossy.value = j.centre;
     j.row_cut = calloc((size_t)cam->height, 1);
     j.deadline = o->time_limit > 0 ? t0 + PLAN_TIME_SHARE * o->time_limit : INFINITY;
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
-        !j.row_foot || !j.row_cut ||
-        (o->pixel_centers && (!j.glossy.state || !j.glossy.n || !j.glossy.wo))) {
+        !j.row_foot || !j.row_cut || !j.glossy.state || !j.glossy.n || !j.glossy.wo) {
         plan_job_free(&j);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
     }
     sl_parallel_for(cam->height, 1, classify_rows, &j);
     sl_result res = SL_OK;
-    bool glossy_pending = false;
-    for (size_t i = 0; j.glossy.state && i < npix && !glossy_pending; i++)
-        glossy_pending = j.glossy.state[i] == SL_GLOSSY_PENDING;
-    if (glossy_pending) {
+    bool pending = false;
+    for (size_t i = 0; i < npix && !pending; i++)
+        pending = j.glossy.state[i] == SL_GLOSSY_PENDING;
+    if (pending) {
         cf->gdome = calloc(1, sizeof *cf->gdome);
         res = cf->gdome ? SL_OK : sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
         /* Without room for the split the whole map is the rest: slower, as exact. */
@@ -415,12 +428,9 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         sl_closed_form_free(cf);
         return res;
     }
-    for (size_t i = 0; j.glossy.state && i < npix; i++)
-        st->interpolated_pixels += j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
-    free(j.glossy.state);
     free(j.glossy.n);
     free(j.glossy.wo);
-    j.glossy = (sl_glossy_pixels){0};
+    j.glossy.n = j.glossy.wo = NULL;
     sl_parallel_for(cam->height, 1, filter_rows, &j);
     for (int y = 0; y < cam->height; y++)
         if (j.row_cut[y]) {
@@ -453,9 +463,12 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
             st->objects[st->object_count++] = cf->shape[i];
             st->object_material[k] = scene->materials[scene->shapes[cf->shape[i]].material].type;
         }
+        bool interpolated = j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
+        st->interpolated_pixels += interpolated;
         if (k < SL_CLOSED_FORM_MAX_OBJECTS) {
             st->object_exact[k] += m == SL_PIXEL_EXACT;
             st->object_control[k] += m == SL_PIXEL_CONTROL;
+            st->object_interpolated[k] += interpolated;
         }
         for (int c = 0; c < 3; c++)
             if (cf->value[i][c] > 0) {

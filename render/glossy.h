@@ -52,19 +52,10 @@ typedef struct sl_glossy_scratch sl_glossy_scratch;
 sl_glossy_scratch *sl_glossy_scratch_new(void);
 void sl_glossy_scratch_free(sl_glossy_scratch *s);
 
-/* How far sl_glossy_integrate refines: until its error estimate is below
- * tol x (its value + floor) per channel (floor: radiance known from
- * elsewhere, e.g. the rest of the map, or NULL); start_cells (NULL: every
- * top-level cell) lists the cells (y * width + x) of mip level start_level
- * that hold any light, where the refinement starts (at most
- * SL_GLOSSY_START_MAX). */
-#define SL_GLOSSY_START_MAX 128
-typedef struct sl_glossy_quad {
-    double tol;
-    const double *floor;
-    const int *start_cells;
-    int start_count, start_level;
-} sl_glossy_quad;
+/* How far sl_glossy_integrate refines: irradiance.h's controls, the floor
+ * in radiance. */
+#define SL_GLOSSY_START_MAX SL_QUAD_START_MAX
+typedef sl_quad sl_glossy_quad;
 void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm, const double n[3],
                          const double wo[3], const sl_glossy_quad *q, sl_glossy_scratch *scratch,
                          double out[3], double err[3], sl_irradiance_cost *cost);
@@ -87,19 +78,21 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
                                sl_error *err);
 void sl_glossy_dome_free(sl_glossy_dome *gd);
 
-/* Glossy pixels of the closed form with pixel centres. The rest of the map
- * is evaluated on a lattice of 16 x 16 px blocks, refined to 8, 4 and 2 px
- * blocks, and interpolated bilinearly inside a block whose centre and edge
- * midpoints, evaluated too, are within a quarter of the tolerance of the
- * interpolation (the largest difference is added to its pixels' error);
- * the sun is evaluated at every pixel, to a quarter of the tolerance of the
- * pixel's whole value. */
+/* Closed-form pixels left to the fill: glossy ones at pixel centres, and
+ * Lambert ones under the dome. The rest of the map is evaluated on a lattice
+ * of 16 x 16 px blocks, refined to 8 and 4 px blocks, and interpolated
+ * bilinearly inside a block whose centre and edge midpoints, evaluated too,
+ * agree with the interpolation (glossy_fill.c says how closely; the largest
+ * difference is added to its pixels' error); the sun is evaluated at every
+ * pixel, to a quarter of the tolerance of the pixel's whole value. */
 enum { SL_GLOSSY_NONE = 0, SL_GLOSSY_PENDING, SL_GLOSSY_DONE, SL_GLOSSY_INTERPOLATED };
 typedef struct sl_glossy_pixels {
     uint8_t *state;        /* per pixel: SL_GLOSSY_* */
     double (*n)[3];        /* world normal of a pending pixel */
     double (*wo)[3];       /* its view direction */
-    double (*value)[3];    /* out: its radiance */
+    double (*value)[3];    /* out: its radiance; in, for a Lambert pixel: the
+                              irradiance of the rig's lights (its bound in
+                              cf->bound) */
 } sl_glossy_pixels;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
  * costs per image row. Rows it has not filled by the deadline (seconds, as
@@ -107,6 +100,28 @@ typedef struct sl_glossy_pixels {
 sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px,
                          int w, int h, sl_irradiance_cost *row_cost, double deadline,
                          uint8_t *row_cut, sl_error *err);
+
+/* The blocks' check (glossy_fill.c): v, e the values and error estimates
+ * at a block's corners (top left, top right, bottom left, bottom right),
+ * edge midpoints (top, left, right, bottom) and centre. True when the
+ * bilinear interpolation of the corners agrees at the other five within
+ * tol x the value past slack x the points' largest error; err is then the
+ * interpolated values' error (that largest error plus the largest
+ * difference). */
+bool sl_fill_check(const double v[9][3], const double e[9][3], double tol, double slack, double err[3]);
+/* Bilinear interpolation of corners v (as above) at (fx, fy) in [0, 1]^2. */
+void sl_fill_bilinear(const double v[4][3], double fx, double fy, double out[3]);
+
+/* The rest of the map's irradiance at count Lambert pixels (indices pix,
+ * their world normals in n[pix]) interpolated over the sphere of normals
+ * (normal_fill.c): the quadrature's bound quad_tol, the interpolation
+ * check's tolerance interp_tol. Fills out, out_err and interpolated (1) of
+ * the pixels it interpolates, sets interpolated 0 for the others (the
+ * caller evaluates them). Costs added to cost. */
+sl_result sl_normal_fill(const sl_irradiance *rest, double quad_tol, double interp_tol,
+                         const double (*n)[3], const size_t *pix, int64_t count, double (*out)[3],
+                         double (*out_err)[3], uint8_t *interpolated, double deadline,
+                         sl_irradiance_cost *cost, sl_error *err);
 
 /* closed_form.c: the closed-form radiance of a shape toward the viewer wo,
  * Lambert (irradiance) or glossy. */

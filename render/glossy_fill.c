@@ -1,22 +1,29 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Glossy pixels of the closed form at pixel centres, in two parts of the
- * dome:
+/* Closed-form pixels at pixel centres (glossy lobes, and Lambert objects
+ * under the dome), in two parts of the dome:
  *
  * - the sun: the texels brighter than SUN_RATIO x the map's mean radiance
- *   (at most SUN_CAP of them), whose highlight moves across the ball
- *   faster than any lattice could follow. Evaluated at every pixel; few
- *   cells hold light, so an evaluation costs a handful of cells;
+ *   (at most SUN_CAP of them), whose highlight (or, on a Lambert object,
+ *   terminator) moves across the ball faster than any lattice could
+ *   follow. Evaluated at every pixel; few cells hold light, so an
+ *   evaluation costs a handful of cells;
  * - the rest: its reflection varies slowly across the ball (the lobe, tens
- *   of degrees at roughness 0.3, averages it), so it is evaluated on a
- *   lattice of 16 x 16 px blocks and interpolated bilinearly where the
- *   block's centre and edge midpoints, evaluated too, agree with the
- *   interpolation; a block that fails is split in four, down to 2 x 2 px;
- *   a block that crosses the silhouette (the corners would mix objects) is
- *   split too, and pixels no block interpolates are evaluated.
+ *   of degrees at roughness 0.3, or the cosine lobe, averages it), so it is
+ *   evaluated on a lattice of 16 x 16 px blocks and interpolated bilinearly
+ *   where the block's centre and edge midpoints, evaluated too, agree with
+ *   the interpolation; a block that fails is split in four, down to 4 x 4
+ *   px; a block that crosses the silhouette (the corners would mix objects)
+ *   is split too, and pixels no block interpolates are evaluated.
  *
- * Tolerance shares of a pixel's error estimate: the rest's quadrature half,
- * the interpolation check a quarter (relative to the rest), the sun a
- * quarter of the pixel's whole value. */
+ * Tolerance shares of a pixel's error estimate: glossy, the rest's
+ * quadrature half, the interpolation check a quarter (relative to the
+ * rest) past twice the points' quadrature estimates, the sun a quarter of
+ * the pixel's whole value. A Lambert pixel's rest is interpolated over
+ * normals (normal_fill.c), its quadrature bound half the tolerance, its
+ * interpolation check a tenth with no slack: the bound is about 100 times
+ * the quadrature's true error, and as slack it would let interpolation
+ * errors of a percent through. A Lambert pixel's rig lights are their own
+ * closed form, computed per pixel before (closed_form.c). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -33,6 +40,8 @@
 #define REST_SHARE 0.5
 #define INTERP_SHARE 0.25
 #define SUN_SHARE 0.25
+#define LAMBERT_REST_SHARE 0.5
+#define LAMBERT_INTERP_SHARE 0.25
 
 /* ---- the split ---- */
 
@@ -180,11 +189,22 @@ static const sl_glossy_material *material_of(const fill_job *j, size_t pix)
     return &j->cf->gmat[j->scene->shapes[j->cf->shape[pix]].material];
 }
 
+static bool lambert_at(const fill_job *j, size_t pix)
+{
+    return j->scene->materials[j->scene->shapes[j->cf->shape[pix]].material].type == SL_MAT_LAMBERT;
+}
+
+/* The rest: a glossy pixel's radiance, a Lambert pixel's irradiance. */
 static void eval_rest(fill_job *j, size_t pix, sl_glossy_scratch *s, sl_irradiance_cost *cost)
 {
-    sl_glossy_quad q = {.tol = REST_SHARE * j->cf->tol};
-    sl_glossy_integrate(j->cf->gdome->rest, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
-                        j->rest[pix], j->rest_err[pix], cost);
+    if (lambert_at(j, pix)) {
+        sl_quad q = {.tol = LAMBERT_REST_SHARE * j->cf->tol};
+        sl_irradiance_integrate(j->cf->gdome->rest, j->px->n[pix], &q, j->rest[pix], j->rest_err[pix], cost);
+    } else {
+        sl_glossy_quad q = {.tol = REST_SHARE * j->cf->tol};
+        sl_glossy_integrate(j->cf->gdome->rest, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
+                            j->rest[pix], j->rest_err[pix], cost);
+    }
     j->rest_state[pix] = 1;
 }
 
@@ -216,12 +236,19 @@ typedef struct block {
     int x0, y0;
 } block;
 
+/* A glossy pixel whose rest the image blocks interpolate (a Lambert
+ * pixel's is interpolated over normals, normal_fill.c). */
+static bool image_blocked(const fill_job *j, size_t p)
+{
+    return j->px->state[p] == SL_GLOSSY_PENDING && !lambert_at(j, p);
+}
+
 static bool pending_on(const fill_job *j, int x, int y, int shape)
 {
     if (x < 0 || y < 0 || x >= j->w || y >= j->h)
         return false;
     size_t p = (size_t)y * j->w + x;
-    return j->px->state[p] == SL_GLOSSY_PENDING && j->cf->shape[p] == shape && !j->row_cut[y];
+    return image_blocked(j, p) && j->cf->shape[p] == shape && !j->row_cut[y];
 }
 
 /* The block's nine points (corners, edge midpoints, centre) as offsets in
@@ -243,51 +270,59 @@ static bool block_whole(const fill_job *j, const block *b, int S)
     return true;
 }
 
+bool sl_fill_check(const double v[9][3], const double e[9][3], double tol, double slack, double err[3])
+{
+    for (int c = 0; c < 3; c++) {
+        /* Interpolations at the edge midpoints (top, left, right, bottom)
+         * and the centre. */
+        double lin[5] = {0.5 * (v[0][c] + v[1][c]), 0.5 * (v[0][c] + v[2][c]), 0.5 * (v[1][c] + v[3][c]),
+                         0.5 * (v[2][c] + v[3][c]), 0.25 * (v[0][c] + v[1][c] + v[2][c] + v[3][c])};
+        double bmax = 0;
+        for (int k = 0; k < 9; k++)
+            bmax = fmax(bmax, e[k][c]);
+        /* The points' own quadrature errors are in the difference too:
+         * past them (slack x the largest), the interpolation's error must
+         * be within its share. */
+        double d = 0;
+        for (int k = 0; k < 5; k++) {
+            double dk = fabs(lin[k] - v[4 + k][c]);
+            if (dk > tol * v[4 + k][c] + slack * bmax)
+                return false;
+            d = fmax(d, dk);
+        }
+        err[c] = bmax + d;
+    }
+    return true;
+}
+
+void sl_fill_bilinear(const double v[4][3], double fx, double fy, double out[3])
+{
+    double wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+    for (int c = 0; c < 3; c++)
+        out[c] = wts[0] * v[0][c] + wts[1] * v[1][c] + wts[2] * v[2][c] + wts[3] * v[3][c];
+}
+
 /* Checks a whole block's interpolation at its centre and edge midpoints;
  * on success fills its own pixels [x0, x0 + S)^2 not evaluated. */
 static bool try_block(fill_job *j, const block *b, int S)
 {
-    size_t p[9];
+    double v[9][3], e[9][3], bmax[3];
     for (int k = 0; k < 9; k++) {
-        p[k] = (size_t)(b->y0 + POINT[k][1] * S / 2) * j->w + (size_t)(b->x0 + POINT[k][0] * S / 2);
-        if (j->rest_state[p[k]] != 1)
+        size_t p = (size_t)(b->y0 + POINT[k][1] * S / 2) * j->w + (size_t)(b->x0 + POINT[k][0] * S / 2);
+        if (j->rest_state[p] != 1)
             return false;
+        memcpy(v[k], j->rest[p], sizeof v[k]);
+        memcpy(e[k], j->rest_err[p], sizeof e[k]);
     }
-    const double(*v)[3] = (const double(*)[3])j->rest;
-    double bmax[3] = {0, 0, 0}, tol = INTERP_SHARE * j->cf->tol;
-    for (int c = 0; c < 3; c++) {
-        /* Interpolations at the edge midpoints (top, left, right, bottom)
-         * and the centre. */
-        double lin[5] = {0.5 * (v[p[0]][c] + v[p[1]][c]), 0.5 * (v[p[0]][c] + v[p[2]][c]),
-                         0.5 * (v[p[1]][c] + v[p[3]][c]), 0.5 * (v[p[2]][c] + v[p[3]][c]),
-                         0.25 * (v[p[0]][c] + v[p[1]][c] + v[p[2]][c] + v[p[3]][c])};
-        for (int k = 0; k < 9; k++)
-            bmax[c] = fmax(bmax[c], j->rest_err[p[k]][c]);
-        /* The points' own quadrature errors are in the difference too:
-         * past them, the interpolation's error must be within its share. */
-        double d = 0;
-        for (int k = 0; k < 5; k++) {
-            double dk = fabs(lin[k] - v[p[4 + k]][c]);
-            if (dk > tol * v[p[4 + k]][c] + 2.0 * bmax[c])
-                return false;
-            d = fmax(d, dk);
-        }
-        bmax[c] += d;
-    }
+    if (!sl_fill_check(v, e, INTERP_SHARE * j->cf->tol, 2.0, bmax))
+        return false;
     for (int y = b->y0; y < b->y0 + S; y++)
         for (int x = b->x0; x < b->x0 + S; x++) {
             size_t q = (size_t)y * j->w + x;
             if (j->rest_state[q] == 1)
                 continue;
-            double fx = (double)(x - b->x0) / S, fy = (double)(y - b->y0) / S;
-            double wts[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
-            for (int c = 0; c < 3; c++) {
-                double s = 0;
-                for (int k = 0; k < 4; k++)
-                    s += wts[k] * v[p[k]][c];
-                j->rest[q][c] = s;
-                j->rest_err[q][c] = bmax[c];
-            }
+            sl_fill_bilinear((const double(*)[3])v, (double)(x - b->x0) / S, (double)(y - b->y0) / S, j->rest[q]);
+            memcpy(j->rest_err[q], bmax, sizeof bmax);
             j->rest_state[q] = 2;
         }
     return true;
@@ -316,16 +351,26 @@ static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 break;
             }
             double sun[3] = {0, 0, 0}, serr[3] = {0, 0, 0};
-            if (gd->sun) {
-                sl_glossy_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = j->rest[pix],
-                                    .start_cells = gd->sun_cells, .start_count = gd->sun_cell_count,
-                                    .start_level = gd->sun_level};
+            bool lambert = lambert_at(j, pix);
+            /* A Lambert pixel comes in with its lights' irradiance and bound. */
+            double lights[3] = {0, 0, 0}, lights_err[3] = {0, 0, 0}, floor[3];
+            for (int c = 0; c < 3 && lambert; c++)
+                lights[c] = j->px->value[pix][c], lights_err[c] = j->cf->bound[pix][c];
+            for (int c = 0; c < 3; c++)
+                floor[c] = j->rest[pix][c] + lights[c];
+            sl_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = floor, .start_cells = gd->sun_cells,
+                         .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
+            if (gd->sun && lambert)
+                sl_irradiance_integrate(gd->sun, j->px->n[pix], &q, sun, serr, &j->row_cost[y]);
+            else if (gd->sun)
                 sl_glossy_integrate(gd->sun, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
                                     sun, serr, &j->row_cost[y]);
-            }
+            /* Lambert: radiance rho/pi E. */
+            const double *rho = j->scene->materials[j->scene->shapes[j->cf->shape[pix]].material].base_color;
             for (int c = 0; c < 3; c++) {
-                j->px->value[pix][c] = j->rest[pix][c] + sun[c];
-                j->cf->bound[pix][c] = (float)(j->rest_err[pix][c] + serr[c]);
+                double k = lambert ? rho[c] / SL_PI : 1.0;
+                j->px->value[pix][c] = k * (floor[c] + sun[c]);
+                j->cf->bound[pix][c] = (float)(k * (lights_err[c] + j->rest_err[pix][c] + serr[c]));
             }
             j->px->state[pix] = j->rest_state[pix] == 2 ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
         }
@@ -353,6 +398,29 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the glossy pixels");
         goto done;
     }
+    /* Lambert pixels: the rest's irradiance over normals. */
+    size_t *lambert = malloc(npix * sizeof *lambert);
+    uint8_t *done = malloc(npix);
+    int64_t nl = 0;
+    if (!lambert || !done) {
+        free(lambert);
+        free(done);
+        res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the Lambert pixels");
+        goto done;
+    }
+    for (size_t p = 0; p < npix; p++)
+        if (px->state[p] == SL_GLOSSY_PENDING && lambert_at(&j, p))
+            lambert[nl++] = p;
+    if (nl)
+        res = sl_normal_fill(cf->gdome->rest, LAMBERT_REST_SHARE * cf->tol, LAMBERT_INTERP_SHARE * cf->tol,
+                             (const double(*)[3])px->n, lambert, nl, j.rest, j.rest_err, done, deadline,
+                             &row_cost[0], err);
+    for (int64_t i = 0; i < nl && !res; i++)
+        j.rest_state[lambert[i]] = done[lambert[i]] ? 2 : 0;
+    free(lambert);
+    free(done);
+    if (res)
+        goto done;
     int ncur = 0;
     for (int y = 0; y < h; y += BLOCK0)
         for (int x = 0; x < w; x += BLOCK0)
@@ -374,7 +442,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
             for (int y = b->y0; y < b->y0 + S && y < h && !any; y++)
                 for (int x = b->x0; x < b->x0 + S && x < w && !any; x++) {
                     size_t p = (size_t)y * w + x;
-                    any = px->state[p] == SL_GLOSSY_PENDING && !j.rest_state[p] && !row_cut[y];
+                    any = image_blocked(&j, p) && !j.rest_state[p] && !row_cut[y];
                 }
             if (!any || (block_whole(&j, b, S) && try_block(&j, b, S)))
                 continue;

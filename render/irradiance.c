@@ -391,16 +391,23 @@ static void totals(const eval_state *st, double mid[3], double B[3])
     }
 }
 
-static bool bound_met(const double E[3], const double B[3], double tol)
+static bool bound_met(const double E[3], const double B[3], const double floor[3], double tol)
 {
     for (int ch = 0; ch < 3; ch++)
-        if (B[ch] > tol * fmax(0.0, E[ch] - B[ch]) && B[ch] > 0)
+        if (B[ch] > tol * (fmax(0.0, E[ch] - B[ch]) + floor[ch]) && B[ch] > 0)
             return false;
     return true;
 }
 
 void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double tol, double E[3],
                         double bound[3], sl_irradiance_cost *cost)
+{
+    sl_quad q = {.tol = tol};
+    sl_irradiance_integrate(ir, n_world, &q, E, bound, cost);
+}
+
+void sl_irradiance_integrate(const sl_irradiance *ir, const double n_world[3], const sl_quad *q,
+                             double E[3], double bound[3], sl_irradiance_cost *cost)
 {
     eval_state *st = malloc(sizeof *st);
     if (!st) { /* no room to refine: the bound says so */
@@ -417,21 +424,35 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
     memset(st->sum_bnd, 0, sizeof st->sum_bnd);
     st->cells = 0;
     st->finest = ir->nlevels - 1;
-    for (int ch = 0; ch < 3; ch++)
+    /* The floor is in the map's units (intensity not applied). */
+    double floor[3] = {0, 0, 0};
+    for (int ch = 0; ch < 3; ch++) {
         st->exact[ch] = 0, st->inv_scale[ch] = 1;
-    const level *top = &ir->lv[ir->nlevels - 1];
-    for (int y = 0; y < top->h; y++)
-        for (int x = 0; x < top->w; x++)
-            add_block(st, ir->nlevels - 1, x, y);
+        if (q->floor && ir->intensity > 0)
+            floor[ch] = fmax(0.0, q->floor[ch] / ir->intensity);
+    }
+    if (q->start_cells) {
+        const level *l = &ir->lv[q->start_level];
+        for (int i = 0; i < q->start_count; i++)
+            add_block(st, q->start_level, q->start_cells[i] % l->w, q->start_cells[i] / l->w);
+        if (q->start_level < st->finest)
+            st->finest = q->start_level;
+    } else {
+        const level *top = &ir->lv[ir->nlevels - 1];
+        for (int y = 0; y < top->h; y++)
+            for (int x = 0; x < top->w; x++)
+                add_block(st, ir->nlevels - 1, x, y);
+    }
     double B[3];
     totals(st, E, B);
     /* Cut cells are ranked by their bound relative to the first estimate. */
     for (int ch = 0; ch < 3; ch++) {
-        double scale = st->exact[ch] + E[ch] + B[ch];
+        double scale = st->exact[ch] + E[ch] + B[ch] + floor[ch];
         st->inv_scale[ch] = scale > 0 ? 1.0 / scale : 0.0;
     }
-    int n = st->h.count; /* at most the top level's 16 x 8 cells */
-    cut_cell first[16 * 8];
+    /* At most the top level's 16 x 8 cells or the start list's. */
+    int n = st->h.count;
+    cut_cell first[SL_QUAD_START_MAX > 16 * 8 ? SL_QUAD_START_MAX : 16 * 8];
     for (int i = 0; i < n; i++)
         first[i] = *(const cut_cell *)sl_slot_heap_at(&st->h, i);
     sl_slot_heap_clear(&st->h);
@@ -451,7 +472,7 @@ void sl_irradiance_eval(const sl_irradiance *ir, const double n_world[3], double
         double sumE[3];
         for (int ch = 0; ch < 3; ch++)
             sumE[ch] = st->exact[ch] + st->sum_mid[ch];
-        if (bound_met(sumE, st->sum_bnd, tol))
+        if (bound_met(sumE, st->sum_bnd, floor, q->tol))
             break;
         const cut_cell *worst = sl_slot_heap_at(&st->h, 0);
         if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)

@@ -21,4 +21,21 @@ int sl_irradiance_top_level(const sl_irradiance *ir);
 void sl_irradiance_eval(const sl_irradiance *ir, const double n[3], double tol, double E[3],
                         double bound[3], sl_irradiance_cost *cost);
 
+/* How far a quadrature over the dome's cells refines (sl_irradiance_integrate,
+ * and the glossy one, glossy.h): until its error is below tol x (its value
+ * + floor) per channel (floor: radiance or irradiance known from elsewhere,
+ * e.g. the rest of the map, or NULL); start_cells (NULL: every top-level
+ * cell) lists the cells (y * width + x) of mip level start_level that hold
+ * any light, where the refinement starts (at most SL_QUAD_START_MAX). */
+#define SL_QUAD_START_MAX 128
+typedef struct sl_quad {
+    double tol;
+    const double *floor;
+    const int *start_cells;
+    int start_count, start_level;
+} sl_quad;
+/* sl_irradiance_eval with those controls (floor in E's units). */
+void sl_irradiance_integrate(const sl_irradiance *ir, const double n[3], const sl_quad *q,
+                             double E[3], double bound[3], sl_irradiance_cost *cost);
+
 #endif

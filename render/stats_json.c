@@ -89,7 +89,10 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
         json_object_set_new(jo, "exact_pixels", json_integer(cf->object_exact[i]));
         json_object_set_new(jo, "control_variate_pixels", json_integer(cf->object_control[i]));
         json_object_set_new(jo, "max_rel_bound", json_real(cf->object_max_rel_bound[i]));
-        json_object_set_new(jo, "bound", json_string(t == SL_MAT_LAMBERT ? "proven" : "estimate"));
+        json_object_set_new(jo, "interpolated_pixels", json_integer(cf->object_interpolated[i]));
+        json_object_set_new(jo, "bound", json_string(t == SL_MAT_LAMBERT && !cf->object_interpolated[i]
+                                                         ? "proven"
+                                                         : "estimate"));
         json_array_append_new(per, jo);
     }
     json_object_set_new(jc, "per_object", per);

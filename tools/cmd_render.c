@@ -52,8 +52,9 @@ static void help(FILE *out)
             "                      the dome and the rig's lights (all but textured rects), or\n"
             "                      of a rough glossy (conductor, plastic) object under the\n"
             "                      dome alone, are computed by quadrature (no samples;\n"
-            "                      glossy with --pixel-centers: the sun per pixel, the\n"
-            "                      rest of the map interpolated in checked blocks);\n"
+            "                      Lambert, and glossy with --pixel-centers: the sun per\n"
+            "                      pixel, the rest of the map interpolated in checked\n"
+            "                      blocks);\n"
             "                      shadowed ones sample only the shadowed part; off: sample\n"
             "                      everything\n"
             "  --seed N            sample seed (default 1); same seed, same bytes\n"
@@ -280,13 +281,17 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
             sl_log(SL_LOG_INFO, "closed form not used: %s", cf->reason);
         static const char *const kind[SL_MAT_COUNT] = {"Lambert", "conductor", "plastic"};
         for (int i = 0; cf->used && i < cf->object_count; i++)
-            sl_log(SL_LOG_INFO, "closed form, object %d (%s): %lld exact, %lld control variate; %s %.3g",
+            sl_log(SL_LOG_INFO,
+                   "closed form, object %d (%s): %lld exact, %lld control variate, %lld of them "
+                   "interpolated; %s %.3g",
                    cf->objects[i], cf->object_material[i] < SL_MAT_COUNT ? kind[cf->object_material[i]] : "?",
                    (long long)cf->object_exact[i], (long long)cf->object_control[i],
-                   cf->object_material[i] == SL_MAT_LAMBERT ? "proven bound" : "error estimate",
+                   (long long)cf->object_interpolated[i],
+                   cf->object_material[i] == SL_MAT_LAMBERT && !cf->object_interpolated[i] ? "proven bound"
+                                                                                           : "error estimate",
                    cf->object_max_rel_bound[i]);
         if (cf->interpolated_pixels)
-            sl_log(SL_LOG_INFO, "closed form: %lld glossy pixels with the map's rest interpolated in checked "
+            sl_log(SL_LOG_INFO, "closed form: %lld pixels with the map's rest interpolated in checked "
                    "blocks; the sun (%lld texels, %.0f%% of the power) at every pixel",
                    (long long)cf->interpolated_pixels, (long long)cf->sun_texels, 100 * cf->sun_share);
     }

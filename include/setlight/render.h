@@ -287,8 +287,9 @@ typedef struct sl_render_options {
      * with the MIS strategy. Default on. */
     bool closed_form;
     /* Bound on the closed form's relative irradiance error per pixel (the
-     * quadrature refines until its proven bound is below it); 0 = default
-     * 1e-2, or half --target-error when that is smaller. */
+     * quadrature refines until its proven bound is below its share of it,
+     * the interpolation of the map's rest is checked to its share);
+     * 0 = default 1e-2, or half --target-error when that is smaller. */
     double closed_form_tolerance;
     /* Called after every pass (from the calling thread), e.g. for progress. */
     void (*on_pass)(void *ctx, const struct sl_render_pass *pass);
@@ -324,16 +325,19 @@ typedef struct sl_closed_form_stats {
     bool cut_by_time;            /* --time ran out while planning: the rest is sampled */
     double seconds;
     /* Per object (as objects[]): its material's type, its exact and
-     * control-variate pixels, its largest relative bound. A Lambert
-     * object's bound is proven; a rough glossy one's (glossy.c) is an
-     * error estimate. */
+     * control-variate pixels, those of them interpolated, its largest
+     * relative bound. A Lambert object's bound is proven where none of its
+     * pixels is interpolated; a rough glossy one's (glossy.c), or one with
+     * interpolated pixels, is an error estimate. */
     sl_material_type object_material[SL_CLOSED_FORM_MAX_OBJECTS];
     int64_t object_exact[SL_CLOSED_FORM_MAX_OBJECTS], object_control[SL_CLOSED_FORM_MAX_OBJECTS];
+    int64_t object_interpolated[SL_CLOSED_FORM_MAX_OBJECTS];
     double object_max_rel_bound[SL_CLOSED_FORM_MAX_OBJECTS];
-    /* Glossy pixels at pixel centres whose reflection of the map's rest was
-     * interpolated inside a checked block (the sun is evaluated at every
-     * pixel); the sun: its texels and their share of the map's luminous
-     * power (0 when no texel stands out). */
+    /* Exact or control-variate pixels whose value of the map's rest (a
+     * glossy pixel's reflection, a Lambert pixel's irradiance) was
+     * interpolated inside a checked block (the sun, and a Lambert pixel's
+     * rig lights, are evaluated at every pixel); the sun: its texels and
+     * their share of the map's luminous power (0 when no texel stands out). */
     int64_t interpolated_pixels;
     int64_t sun_texels;
     double sun_share;

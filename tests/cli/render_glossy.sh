@@ -13,7 +13,7 @@ json_eval "$T/s.json" 'd["closed_form"]["per_object"][0]["exact_pixels"] == d["c
 present "$T/metal.exr"
 expect 0 "$S" render --env "$T/env.hdr" --material plastic:0.5,0.5,0.5:0.4 --width 12 --spp 2 -o "$T/plastic.exr"
 err_has 'closed form, object 0 (plastic): '
-err_has ', 0 control variate; error estimate '
+err_has ', 0 control variate, 0 of them interpolated; error estimate '
 expect 0 "$S" render --env "$T/env.hdr" --material conductor:0.9,0.7,0.5:0.3 --width 12 --spp 2 \
     --closed-form off --stats "$T/off.json" -o "$T/off.exr"
 json_eval "$T/off.json" 'not d["closed_form"]["used"] and d["closed_form"]["reason"] == "off" and d["closed_form"]["per_object"] == []'
