@@ -216,25 +216,39 @@ static float threshold(const plane *a, const plane *bm)
     return 0.5f;
 }
 
-/* Fraction of differing bits between a and b' shifted by (sx, sy), over
- * pixels valid in both and away from the threshold; *count gets how many. */
-static double mtb_cost(const plane *a, const plane *b, float t, float eps, int sx, int sy,
-                       int64_t *count)
+/* A plane's bits for the bitmap test, once per pair rather than per shift
+ * tried: 0 where a pixel is invalid or within eps of the threshold (it
+ * says nothing), else 1 below the threshold and 2 above. */
+static void mtb_bits(const plane *p, float t, float eps, uint8_t *out)
+{
+    size_t n = (size_t)p->w * p->h;
+    for (size_t i = 0; i < n; i++) {
+        float v = p->v[i];
+        out[i] = !valid(v) || fabsf(v - t) < eps ? 0 : v > t ? 2 : 1;
+    }
+}
+
+/* Fraction of differing bits between a and b' (their mtb_bits ba, bb)
+ * shifted by (sx, sy), over pixels that say something in both; *count
+ * gets how many. */
+static double mtb_cost(const plane *a, const uint8_t *ba, const plane *b, const uint8_t *bb,
+                       int sx, int sy, int64_t *count)
 {
     int64_t diff = 0, n = 0;
     for (int y = 0; y < a->h; y++) {
         int yb = y + sy;
         if (yb < 0 || yb >= b->h)
             continue;
-        const float *ra = a->v + (size_t)y * a->w, *rb = b->v + (size_t)yb * b->w;
+        const uint8_t *ra = ba + (size_t)y * a->w, *rb = bb + (size_t)yb * b->w + sx;
         int x0 = sx < 0 ? -sx : 0, x1 = a->w < b->w - sx ? a->w : b->w - sx;
+        int row_n = 0, row_diff = 0;
         for (int x = x0; x < x1; x++) {
-            float va = ra[x], vb = rb[x + sx];
-            if (!valid(va) || !valid(vb) || fabsf(va - t) < eps || fabsf(vb - t) < eps)
-                continue;
-            n++;
-            diff += (va > t) != (vb > t);
+            int u = ra[x], v = rb[x];
+            row_n += (u != 0) & (v != 0);
+            row_diff += (u ^ v) == 3;
         }
+        n += row_n;
+        diff += row_diff;
     }
     *count = n;
     return n ? (double)diff / (double)n : 1;
@@ -397,7 +411,9 @@ typedef struct effort {
 } effort;
 static const effort FULL = {1e-4, 4, false}, QUICK = {5e-3, 1, true};
 
-static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
+/* bits: scratch for both frames' mtb_bits at every level (2 x the
+ * pyramid's pixels). */
+static void align_pair(const luma *a, const luma *b, float *map, luma *bm, uint8_t *bits,
                        const sl_merge_options *opt, double scale, effort how, rigid *out,
                        int64_t *used, double spread[2], char *note, size_t note_size)
 {
@@ -408,6 +424,15 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
     for (int i = 0; i < bm->levels; i++)
         apply_map(&b->lv[i], map, &bm->lv[i]);
     float t = threshold(&a->lv[0], &bm->lv[0]), eps = 4.0f / 255;
+    uint8_t *ba[MAX_LEVELS], *bb[MAX_LEVELS];
+    for (int i = 0; i < a->levels; i++) {
+        size_t n = (size_t)a->lv[i].w * a->lv[i].h;
+        ba[i] = bits;
+        bb[i] = bits + n;
+        bits += 2 * n;
+        mtb_bits(&a->lv[i], t, eps, ba[i]);
+        mtb_bits(&bm->lv[i], t, eps, bb[i]);
+    }
     int top = a->levels - 1;
     int range = (int)ceil(opt->align_max_shift / (scale * ldexp(1, top))) + 1;
     int sx = 0, sy = 0;
@@ -416,7 +441,7 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
     for (int y = -range; y <= range; y++)
         for (int x = -range; x <= range; x++) {
             int64_t cnt;
-            double cost = mtb_cost(&a->lv[top], &bm->lv[top], t, eps, x, y, &cnt);
+            double cost = mtb_cost(&a->lv[top], ba[top], &bm->lv[top], bb[top], x, y, &cnt);
             cost += 1e-9 * (x * x + y * y); /* ties go to the smaller shift */
             if (cnt * 4 >= n && cost < best) {
                 best = cost;
@@ -431,7 +456,8 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
         for (int y = -1; y <= 1; y++)
             for (int x = -1; x <= 1; x++) {
                 int64_t cnt;
-                double cost = mtb_cost(&a->lv[lv], &bm->lv[lv], t, eps, cx + x, cy + y, &cnt);
+                double cost = mtb_cost(&a->lv[lv], ba[lv], &bm->lv[lv], bb[lv], cx + x, cy + y,
+                                       &cnt);
                 cost += 1e-9 * (x * x + y * y);
                 if (cnt > 0 && cost < best) {
                     best = cost;
@@ -500,7 +526,12 @@ static sl_result estimate(luma *l, int count, const double *exposures, const sl_
     luma bm = {0};
     float *map = malloc(HIST * sizeof *map);
     int *order = malloc((size_t)count * sizeof *order);
-    sl_result r = !map || !order ? sl_error_set(err, SL_ERR_NOMEM, "align: out of memory") : SL_OK;
+    size_t pixels = 0;
+    for (int i = 0; i < l[0].levels; i++)
+        pixels += (size_t)l[0].lv[i].w * l[0].lv[i].h;
+    uint8_t *bits = malloc(2 * pixels);
+    sl_result r = !map || !order || !bits ? sl_error_set(err, SL_ERR_NOMEM, "align: out of memory")
+                                          : SL_OK;
     for (int i = 0; i < l[0].levels && !r; i++) {
         bm.lv[i] = l[0].lv[i];
         if (!(bm.lv[i].v = malloc((size_t)bm.lv[i].w * bm.lv[i].h * sizeof(float))))
@@ -525,7 +556,7 @@ static sl_result estimate(luma *l, int count, const double *exposures, const sl_
                 rigid step, prev = chain[q - dir];
                 int64_t used;
                 double spread[2];
-                align_pair(&l[fa], &l[fb], map, &bm, opt, scale, how, &step, &used, spread,
+                align_pair(&l[fa], &l[fb], map, &bm, bits, opt, scale, how, &step, &used, spread,
                            o->note, sizeof o->note);
                 double c = cos(step.th), s = sin(step.th);
                 chain[q].th = prev.th + step.th;
@@ -562,6 +593,7 @@ static sl_result estimate(luma *l, int count, const double *exposures, const sl_
     luma_free(&bm);
     free(map);
     free(order);
+    free(bits);
     return r;
 }
 

@@ -67,7 +67,7 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
                 double z1 = s->z[((size_t)i * f + q + 1) * 3 + c];
                 if (!(z0 > z0lo && z1 > lo))
                     continue;
-                double y0 = sl_response_eval(resp, c, z0), y1 = sl_response_eval(resp, c, z1);
+                double y0 = merge_response_at(resp, c, z0), y1 = merge_response_at(resp, c, z1);
                 if (y0 > y0lo && y1 > y1lo)
                     r[n++] = y1 / y0;
             }

@@ -48,7 +48,7 @@ void merge_judge_response(const merge_ctx *m, sl_merge_result *res, bool recover
                  * or a hot pixel is not the curve's error. */
                 if (!merge_usable(s, i, r, m->saturation) || !(z > MIN_CODE))
                     continue;
-                double y = sl_response_eval(resp, c, z);
+                double y = merge_response_at(resp, c, z);
                 if (!(y > 0))
                     continue;
                 lx[used] = log(y) - loge[r];

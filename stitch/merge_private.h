@@ -29,8 +29,11 @@ typedef struct merge_samples {
  * spoils the pixel's others: saturation is judged on this. */
 static inline float merge_zmax(const merge_samples *s, int i, int r)
 {
+    /* Samples are finite (sample_frame): no fmaxf, which at -O2 is a call
+     * into libm, made for every sample by every round of the fit. */
     const float *v = s->z + ((size_t)i * s->frames + r) * 3;
-    return fmaxf(v[0], fmaxf(v[1], v[2]));
+    float hi = v[0] > v[1] ? v[0] : v[1];
+    return hi > v[2] ? hi : v[2];
 }
 
 /* Position i in frame rank r below `limit` and its JPEG block not spoilt
@@ -89,6 +92,21 @@ static inline int merge_response_node(double z, int nodes, double *frac)
         k = nodes - 2;
     *frac = p - k;
     return k;
+}
+
+/* sl_response_eval, inline for the loops that evaluate the curve at every
+ * sample (the exposure check, the response check, the JPEG blocks): the
+ * call across files was a tenth of a small bracket's fit. */
+static inline double merge_response_at(const sl_response *resp, int channel, double z)
+{
+    const double *row = resp->inverse + (size_t)channel * (size_t)resp->nodes;
+    if (!(z > 0))
+        return row[0];
+    if (z >= 1)
+        return row[resp->nodes - 1];
+    double a;
+    int k = merge_response_node(z, resp->nodes, &a);
+    return row[k] * (1 - a) + row[k + 1] * a;
 }
 
 /* Finishes a fitted inverse response: inv[0 .. nodes) (inv holds 3 x nodes)
@@ -203,6 +221,10 @@ bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const doubl
 void merge_block_codes(const merge_ctx *m, int r, int64_t pos, float codes[2]);
 bool merge_block_spoilt_codes(const merge_ctx *m, const sl_response *resp, const double *loge,
                               int r, const float codes[2]);
+/* merge_block_spoilt_codes for every sample and rank: spoilt[e] from
+ * codes[2 e .. 2 e + 1], e = i * frames + rank. */
+void merge_block_spoilt_all(const merge_ctx *m, const sl_response *resp, const double *loge,
+                            const float *codes, uint8_t *spoilt);
 
 /* Saturation when the options leave it 0: frames through a curve (JPEG)
  * ring a few codes below white inside clipped areas; linear frames (raw,

@@ -43,14 +43,7 @@ void sl_response_free(sl_response *resp)
 
 double sl_response_eval(const sl_response *resp, int channel, double z)
 {
-    const double *row = resp->inverse + (size_t)channel * (size_t)resp->nodes;
-    if (!(z > 0))
-        return row[0];
-    if (z >= 1)
-        return row[resp->nodes - 1];
-    double a;
-    int k = merge_response_node(z, resp->nodes, &a);
-    return row[k] * (1 - a) + row[k + 1] * a;
+    return merge_response_at(resp, channel, z);
 }
 
 sl_result sl_response_write(const char *path, const sl_response *resp, sl_error *err)
