@@ -109,6 +109,38 @@ static inline double merge_response_at(const sl_response *resp, int channel, dou
     return row[k] * (1 - a) + row[k + 1] * a;
 }
 
+/* The curve at the codes of 8-bit samples, looked up by the loops that
+ * evaluate it at every sample and frame (the exposure check, the response
+ * check, the fit's choice of samples): per code k its sample value
+ * (float)k * (1.0f / 255), as the sample pass stores it, ln z, and per
+ * channel the curve's value y and ln y (NAN where y <= 0). A value that is
+ * no code's (float or resampled frames) is evaluated as before, so the
+ * results are the same bit for bit. */
+typedef struct merge_code_curve {
+    bool codes; /* 8-bit samples: the tables are filled */
+    float z[256];
+    double log_z[256];
+    double y[3][256], log_y[3][256];
+} merge_code_curve;
+/* resp NULL: ln z only. */
+void merge_code_curve_init(merge_code_curve *t, const merge_samples *s, const sl_response *resp);
+
+/* The code whose sample value z is, or -1. */
+static inline int merge_code_of(const merge_code_curve *t, float z)
+{
+    if (!t->codes || !(z >= 0 && z <= 1))
+        return -1;
+    int k = (int)(z * 255.0f + 0.5f);
+    return t->z[k] == z ? k : -1;
+}
+
+static inline double merge_code_curve_y(const merge_code_curve *t, const sl_response *resp, int c,
+                                        float z)
+{
+    int k = merge_code_of(t, z);
+    return k >= 0 ? t->y[c][k] : merge_response_at(resp, c, z);
+}
+
 /* Finishes a fitted inverse response: inv[0 .. nodes) (inv holds 3 x nodes)
  * made increasing from 0 (noise at the ends must not fold it) and 1 at
  * the top, copied to all three channels (one curve for the three: the
@@ -124,7 +156,8 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
                          double saturation, int max_samples, uint64_t seed,
                          const uint8_t *usable, int *chosen);
 
-/* The k-th smallest of v[0..n) (Hoare's selection; reorders v). */
+/* The k-th smallest of v[0..n) (Hoare's selection; reorders v, leaving the
+ * k smallest in v[0..k)). */
 double merge_select_kth(double *v, int n, int k);
 
 /* Exposure ratio between neighbouring ranks from pixels well exposed in

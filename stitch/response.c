@@ -46,6 +46,20 @@ double sl_response_eval(const sl_response *resp, int channel, double z)
     return merge_response_at(resp, channel, z);
 }
 
+void merge_code_curve_init(merge_code_curve *t, const merge_samples *s, const sl_response *resp)
+{
+    t->codes = s->code_step == 1.0 / 255;
+    for (int k = 0; t->codes && k < 256; k++) {
+        t->z[k] = (float)k * (1.0f / 255);
+        t->log_z[k] = log(t->z[k]);
+        for (int c = 0; c < 3 && resp; c++) {
+            double y = merge_response_at(resp, c, t->z[k]);
+            t->y[c][k] = y;
+            t->log_y[c][k] = y > 0 ? log(y) : NAN;
+        }
+    }
+}
+
 sl_result sl_response_write(const char *path, const sl_response *resp, sl_error *err)
 {
     json_t *curves = json_array();
