@@ -76,11 +76,12 @@ int main(int argc, char **argv)
     sl_interrupt_install();
     /* glibc maps every block above 128 kB fresh and gives it back on free,
      * so each round of a merge's fit faulted its buffers in again (12 000
-     * page faults, a tenth of a small bracket's CPU): blocks up to 16 MB
-     * come from the heap, and up to 32 MB freed at its top is kept for
-     * the next. Frame-sized buffers of large photos are still mapped. */
-    mallopt(M_MMAP_THRESHOLD, 16 << 20);
-    mallopt(M_TRIM_THRESHOLD, 32 << 20);
+     * page faults, a tenth of a small bracket's CPU): blocks up to 2 MB
+     * (the rounds' own) come from the heap, and up to 8 MB freed at its
+     * top is kept for the next. Larger blocks are mapped as before, so the
+     * peak grows by a few MB at most (docs/performance.md). */
+    mallopt(M_MMAP_THRESHOLD, 2 << 20);
+    mallopt(M_TRIM_THRESHOLD, 8 << 20);
 #ifdef SETLIGHT_HAVE_VSET
     /* The virtual camera joins the camera backends ("--camera virtual"). */
     if (sl_vset_camera_register(NULL))
