@@ -558,89 +558,134 @@ static int cmp_exposure(const void *a, const void *b, void *ctx)
     return (x > y) - (x < y);
 }
 
+/* One direction's chain of estimates (below or above the reference), with
+ * its own scratch: the two run side by side (estimate). */
+typedef struct chain_job {
+    luma *l;
+    int count, scale, width, height, ref;
+    const int *order;
+    const sl_merge_options *opt;
+    effort how;
+    sl_align_transform *out;
+    rigid chain[MERGE_MAX_FRAMES];
+    double spreads[MERGE_MAX_FRAMES][2];
+    float *map[2];
+    luma bm[2];
+    uint8_t *bits[2];
+} chain_job;
+
+static void chain_direction(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    chain_job *j = ctx;
+    const sl_merge_options *opt = j->opt;
+    luma *l = j->l;
+    int scale = j->scale;
+    rigid *chain = j->chain;
+    double(*spreads)[2] = j->spreads;
+    for (int64_t task = begin; task < end; task++) {
+        int dir = task ? 1 : -1;
+        for (int q = j->ref + dir; q >= 0 && q < j->count; q += dir) {
+            int fa = j->order[q - dir], fb = j->order[q];
+            sl_align_transform *o = &j->out[fb];
+            rigid step, prev = chain[q - dir];
+            int64_t used;
+            double spread[2];
+            align_pair(&l[fa], &l[fb], j->map[task], &j->bm[task], j->bits[task], opt, scale,
+                       j->how, &step, &used, spread, o->note, sizeof o->note);
+            double c = cos(step.th), s = sin(step.th);
+            chain[q].th = prev.th + step.th;
+            chain[q].tx = c * prev.tx - s * prev.ty + step.tx;
+            chain[q].ty = s * prev.tx + c * prev.ty + step.ty;
+            o->pixels = used;
+            if (fabs(step.tx * scale) > opt->align_max_shift ||
+                fabs(step.ty * scale) > opt->align_max_shift ||
+                fabs(step.th * 180 / M_PI) > opt->align_max_angle)
+                snprintf(o->note, sizeof o->note, "beyond the limits (%.1f px, %.2f deg)",
+                         opt->align_max_shift, opt->align_max_angle);
+            o->refused = o->note[0] != '\0';
+            /* Steps' spreads add like independent errors. */
+            for (int k = 0; k < 2; k++)
+                spreads[q][k] = o->refused ? spreads[q - dir][k]
+                                           : hypot(spreads[q - dir][k], spread[k] * (k ? 1 : scale));
+            o->shift_spread_px = spreads[q][0];
+            o->angle_spread_deg = spreads[q][1] * 180 / M_PI;
+            if (o->refused)
+                chain[q] = prev; /* unaligned: where its neighbour sits */
+            /* To full resolution, where the centre may sit up to half a
+             * block off the alignment image's: R (p - c') + c' + t = R
+             * (p - c) + c + t + (I - R)(c' - c). */
+            double th = chain[q].th, ct = cos(th), st = sin(th);
+            double ex = 0.5 * l[0].lv[0].w * scale - 0.5 * j->width;
+            double ey = 0.5 * l[0].lv[0].h * scale - 0.5 * j->height;
+            o->dx = chain[q].tx * scale + ex - (ct * ex - st * ey);
+            o->dy = chain[q].ty * scale + ey - (st * ex + ct * ey);
+            o->angle = th * 180 / M_PI;
+            /* Sub-0.05 px everywhere on the frame: resampling would only blur. */
+            o->applied = sl_align_displacement(o, j->width, j->height) > 0.05;
+        }
+    }
+}
+
 /* Chains pairwise estimates outward from the reference (the median
  * exposure) over frames l[] at 1/scale of width x height; out[i] in full
- * resolution pixels. */
+ * resolution pixels. The chains below and above the reference share
+ * nothing but it, so they run in parallel (the same answers on any
+ * number of threads). */
 static sl_result estimate(luma *l, int count, const double *exposures, const sl_merge_options *opt,
                           int scale, int width, int height, effort how, sl_align_transform *out,
                           sl_error *err)
 {
-    luma bm = {0};
-    float *map = malloc(HIST * sizeof *map);
+    chain_job *j = calloc(1, sizeof *j);
     int *order = malloc((size_t)count * sizeof *order);
+    sl_result r = !j || !order ? sl_error_set(err, SL_ERR_NOMEM, "align: out of memory") : SL_OK;
     size_t pixels = 0;
     for (int i = 0; i < l[0].levels; i++)
         pixels += (size_t)l[0].lv[i].w * l[0].lv[i].h;
-    uint8_t *bits = malloc(2 * pixels);
-    sl_result r = !map || !order || !bits ? sl_error_set(err, SL_ERR_NOMEM, "align: out of memory")
-                                          : SL_OK;
+    for (int d = 0; d < 2 && !r; d++) {
+        j->map[d] = malloc(HIST * sizeof *j->map[d]);
+        j->bits[d] = malloc(2 * pixels);
+        if (!j->map[d] || !j->bits[d])
+            r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
+        for (int i = 0; i < l[0].levels && !r; i++) {
+            j->bm[d].lv[i] = l[0].lv[i];
+            if (!(j->bm[d].lv[i].v = malloc((size_t)l[0].lv[i].w * l[0].lv[i].h * sizeof(float))))
+                r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
+            else
+                j->bm[d].levels = i + 1;
+        }
+    }
     /* refine's levels: from the first at most 256 wide (align_pair) down. */
     for (int i = 0; i < count && !r; i++)
         for (int lv = 0; lv < l[i].levels && (lv == 0 || l[i].lv[lv - 1].w > 256); lv++)
             if (!l[i].inner[lv] && !(l[i].inner[lv] = inner_mask(&l[i].lv[lv])))
                 r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
-    for (int i = 0; i < l[0].levels && !r; i++) {
-        bm.lv[i] = l[0].lv[i];
-        if (!(bm.lv[i].v = malloc((size_t)bm.lv[i].w * bm.lv[i].h * sizeof(float))))
-            r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
-        else
-            bm.levels = i + 1;
-    }
     if (!r) {
         for (int i = 0; i < count; i++)
             order[i] = i;
         qsort_r(order, (size_t)count, sizeof *order, cmp_exposure, (void *)exposures);
-        int ref = (count - 1) / 2;
-        snprintf(out[order[ref]].note, sizeof out[order[ref]].note, "reference");
+        j->ref = (count - 1) / 2;
+        snprintf(out[order[j->ref]].note, sizeof out[order[j->ref]].note, "reference");
         /* Outward from the reference, each frame against its neighbour;
          * transforms compose: q = R(a+b) (p - c) + R(b) t_a + t_b + c. */
-        rigid chain[MERGE_MAX_FRAMES] = {{0}};
-        double spreads[MERGE_MAX_FRAMES][2] = {{0}};
-        for (int dir = -1; dir <= 1; dir += 2)
-            for (int q = ref + dir; q >= 0 && q < count; q += dir) {
-                int fa = order[q - dir], fb = order[q];
-                sl_align_transform *o = &out[fb];
-                rigid step, prev = chain[q - dir];
-                int64_t used;
-                double spread[2];
-                align_pair(&l[fa], &l[fb], map, &bm, bits, opt, scale, how, &step, &used, spread,
-                           o->note, sizeof o->note);
-                double c = cos(step.th), s = sin(step.th);
-                chain[q].th = prev.th + step.th;
-                chain[q].tx = c * prev.tx - s * prev.ty + step.tx;
-                chain[q].ty = s * prev.tx + c * prev.ty + step.ty;
-                o->pixels = used;
-                if (fabs(step.tx * scale) > opt->align_max_shift ||
-                    fabs(step.ty * scale) > opt->align_max_shift ||
-                    fabs(step.th * 180 / M_PI) > opt->align_max_angle)
-                    snprintf(o->note, sizeof o->note, "beyond the limits (%.1f px, %.2f deg)",
-                             opt->align_max_shift, opt->align_max_angle);
-                o->refused = o->note[0] != '\0';
-                /* Steps' spreads add like independent errors. */
-                for (int k = 0; k < 2; k++)
-                    spreads[q][k] = o->refused ? spreads[q - dir][k]
-                                               : hypot(spreads[q - dir][k], spread[k] * (k ? 1 : scale));
-                o->shift_spread_px = spreads[q][0];
-                o->angle_spread_deg = spreads[q][1] * 180 / M_PI;
-                if (o->refused)
-                    chain[q] = prev; /* unaligned: where its neighbour sits */
-                /* To full resolution, where the centre may sit up to half a
-                 * block off the alignment image's: R (p - c') + c' + t = R
-                 * (p - c) + c + t + (I - R)(c' - c). */
-                double th = chain[q].th, ct = cos(th), st = sin(th);
-                double ex = 0.5 * l[0].lv[0].w * scale - 0.5 * width;
-                double ey = 0.5 * l[0].lv[0].h * scale - 0.5 * height;
-                o->dx = chain[q].tx * scale + ex - (ct * ex - st * ey);
-                o->dy = chain[q].ty * scale + ey - (st * ex + ct * ey);
-                o->angle = th * 180 / M_PI;
-                /* Sub-0.05 px everywhere on the frame: resampling would only blur. */
-                o->applied = sl_align_displacement(o, width, height) > 0.05;
-            }
+        j->l = l;
+        j->count = count;
+        j->scale = scale;
+        j->width = width;
+        j->height = height;
+        j->order = order;
+        j->opt = opt;
+        j->how = how;
+        j->out = out;
+        sl_parallel_for(2, 1, chain_direction, j);
     }
-    luma_free(&bm);
-    free(map);
+    for (int d = 0; j && d < 2; d++) {
+        luma_free(&j->bm[d]);
+        free(j->map[d]);
+        free(j->bits[d]);
+    }
+    free(j);
     free(order);
-    free(bits);
     return r;
 }
 
