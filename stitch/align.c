@@ -8,6 +8,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #include "merge_private.h"
 
@@ -31,12 +34,16 @@ typedef struct plane {
 typedef struct luma {
     int levels;
     plane lv[MAX_LEVELS]; /* lv[0] at the alignment resolution */
+    /* per level: 1 where a pixel and its four neighbours are valid (inner_mask), or NULL */
+    uint8_t *inner[MAX_LEVELS];
 } luma;
 
 static void luma_free(luma *l)
 {
-    for (int i = 0; i < l->levels; i++)
+    for (int i = 0; i < l->levels; i++) {
         free(l->lv[i].v);
+        free(l->inner[i]);
+    }
     memset(l, 0, sizeof *l);
 }
 
@@ -50,6 +57,22 @@ static int64_t min_overlap(const plane *p)
 }
 
 static inline bool valid(float v) { return v >= 0 && v <= 1; }
+
+/* The pixels of p refine can use as the reference frame's: 1 where the
+ * pixel and its four neighbours are valid (0 on the border); found once
+ * per frame rather than in every iteration. NULL: out of memory. */
+static uint8_t *inner_mask(const plane *p)
+{
+    uint8_t *m = calloc((size_t)p->w * p->h, 1);
+    for (int y = 1; m && y < p->h - 1; y++) {
+        const float *r = p->v + (size_t)y * p->w;
+        uint8_t *o = m + (size_t)y * p->w;
+        for (int x = 1; x < p->w - 1; x++)
+            o[x] = valid(r[x]) && valid(r[x - 1]) && valid(r[x + 1]) && valid(r[x - p->w]) &&
+                   valid(r[x + p->w]);
+    }
+    return m;
+}
 
 /* Reads a frame into block-averaged luminance; a block with any black or
  * saturated pixel takes that state (saturation wins). */
@@ -216,25 +239,57 @@ static float threshold(const plane *a, const plane *bm)
     return 0.5f;
 }
 
-/* Fraction of differing bits between a and b' shifted by (sx, sy), over
- * pixels valid in both and away from the threshold; *count gets how many. */
-static double mtb_cost(const plane *a, const plane *b, float t, float eps, int sx, int sy,
-                       int64_t *count)
+/* A plane's bits for the bitmap test, once per pair rather than per shift
+ * tried: 0 where a pixel is invalid or within eps of the threshold (it
+ * says nothing), else 1 below the threshold and 2 above. */
+static void mtb_bits(const plane *p, float t, float eps, uint8_t *out)
+{
+    size_t n = (size_t)p->w * p->h;
+    for (size_t i = 0; i < n; i++) {
+        float v = p->v[i];
+        out[i] = !valid(v) || fabsf(v - t) < eps ? 0 : v > t ? 2 : 1;
+    }
+}
+
+/* Fraction of differing bits between a and b' (their mtb_bits ba, bb)
+ * shifted by (sx, sy), over pixels that say something in both; *count
+ * gets how many. */
+static double mtb_cost(const plane *a, const uint8_t *ba, const plane *b, const uint8_t *bb,
+                       int sx, int sy, int64_t *count)
 {
     int64_t diff = 0, n = 0;
     for (int y = 0; y < a->h; y++) {
         int yb = y + sy;
         if (yb < 0 || yb >= b->h)
             continue;
-        const float *ra = a->v + (size_t)y * a->w, *rb = b->v + (size_t)yb * b->w;
+        const uint8_t *ra = ba + (size_t)y * a->w, *rb = bb + (size_t)yb * b->w + sx;
         int x0 = sx < 0 ? -sx : 0, x1 = a->w < b->w - sx ? a->w : b->w - sx;
-        for (int x = x0; x < x1; x++) {
-            float va = ra[x], vb = rb[x + sx];
-            if (!valid(va) || !valid(vb) || fabsf(va - t) < eps || fabsf(vb - t) < eps)
-                continue;
-            n++;
-            diff += (va > t) != (vb > t);
+        int row_n = 0, row_diff = 0, x = x0;
+#ifdef __SSE2__
+        /* Sixteen pixels a step; byte counters (a hit subtracts -1), summed
+         * every 255 steps, before they could wrap. */
+        const __m128i zero = _mm_setzero_si128(), three = _mm_set1_epi8(3);
+        while (x + 16 <= x1) {
+            __m128i cn = zero, cd = zero;
+            for (int k = 0; k < 255 && x + 16 <= x1; k++, x += 16) {
+                __m128i u = _mm_loadu_si128((const __m128i *)(ra + x));
+                __m128i v = _mm_loadu_si128((const __m128i *)(rb + x));
+                __m128i none = _mm_or_si128(_mm_cmpeq_epi8(u, zero), _mm_cmpeq_epi8(v, zero));
+                cn = _mm_sub_epi8(cn, _mm_andnot_si128(none, _mm_set1_epi8(-1)));
+                cd = _mm_sub_epi8(cd, _mm_cmpeq_epi8(_mm_xor_si128(u, v), three));
+            }
+            __m128i sn = _mm_sad_epu8(cn, zero), sd = _mm_sad_epu8(cd, zero);
+            row_n += _mm_cvtsi128_si32(sn) + _mm_cvtsi128_si32(_mm_srli_si128(sn, 8));
+            row_diff += _mm_cvtsi128_si32(sd) + _mm_cvtsi128_si32(_mm_srli_si128(sd, 8));
         }
+#endif
+        for (; x < x1; x++) {
+            int u = ra[x], v = rb[x];
+            row_n += (u != 0) & (v != 0);
+            row_diff += (u ^ v) == 3;
+        }
+        n += row_n;
+        diff += row_diff;
     }
     *count = n;
     return n ? (double)diff / (double)n : 1;
@@ -252,8 +307,8 @@ typedef struct rigid {
  * the rms derivative by the angle, radians): a tone map off by that
  * residual in smooth content moves the estimate by about as much, whatever
  * the pixel count, so a smaller motion is not believed. */
-static int64_t refine(const plane *a, const plane *b, int level, double tol, bool quick,
-                      rigid *t, double spread[2])
+static int64_t refine(const plane *a, const uint8_t *inner, const plane *b, int level, double tol,
+                      bool quick, rigid *t, double spread[2])
 {
     double s = ldexp(1, level), cx = 0.5 * a->w, cy = 0.5 * a->h;
     int64_t used = 0;
@@ -263,10 +318,11 @@ static int64_t refine(const plane *a, const plane *b, int level, double tol, boo
         used = 0;
         for (int y = 1; y < a->h - 1; y++) {
             const float *ra = a->v + (size_t)y * a->w;
+            const uint8_t *ok = inner + (size_t)y * a->w;
             for (int x = 1; x < a->w - 1; x++) {
-                float va = ra[x], l = ra[x - 1], rr = ra[x + 1], u = ra[x - a->w], d = ra[x + a->w];
-                if (!valid(va) || !valid(l) || !valid(rr) || !valid(u) || !valid(d))
+                if (!ok[x])
                     continue;
+                float va = ra[x], l = ra[x - 1], rr = ra[x + 1], u = ra[x - a->w], d = ra[x + a->w];
                 double px = x + 0.5 - cx, py = y + 0.5 - cy;
                 double qx = c * px - sn * py + cx + tx - 0.5, qy = sn * px + c * py + cy + ty - 0.5;
                 int ix = (int)floor(qx), iy = (int)floor(qy);
@@ -397,7 +453,9 @@ typedef struct effort {
 } effort;
 static const effort FULL = {1e-4, 4, false}, QUICK = {5e-3, 1, true};
 
-static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
+/* bits: scratch for both frames' mtb_bits at every level (2 x the
+ * pyramid's pixels). */
+static void align_pair(const luma *a, const luma *b, float *map, luma *bm, uint8_t *bits,
                        const sl_merge_options *opt, double scale, effort how, rigid *out,
                        int64_t *used, double spread[2], char *note, size_t note_size)
 {
@@ -408,6 +466,15 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
     for (int i = 0; i < bm->levels; i++)
         apply_map(&b->lv[i], map, &bm->lv[i]);
     float t = threshold(&a->lv[0], &bm->lv[0]), eps = 4.0f / 255;
+    uint8_t *ba[MAX_LEVELS], *bb[MAX_LEVELS];
+    for (int i = 0; i < a->levels; i++) {
+        size_t n = (size_t)a->lv[i].w * a->lv[i].h;
+        ba[i] = bits;
+        bb[i] = bits + n;
+        bits += 2 * n;
+        mtb_bits(&a->lv[i], t, eps, ba[i]);
+        mtb_bits(&bm->lv[i], t, eps, bb[i]);
+    }
     int top = a->levels - 1;
     int range = (int)ceil(opt->align_max_shift / (scale * ldexp(1, top))) + 1;
     int sx = 0, sy = 0;
@@ -416,7 +483,7 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
     for (int y = -range; y <= range; y++)
         for (int x = -range; x <= range; x++) {
             int64_t cnt;
-            double cost = mtb_cost(&a->lv[top], &bm->lv[top], t, eps, x, y, &cnt);
+            double cost = mtb_cost(&a->lv[top], ba[top], &bm->lv[top], bb[top], x, y, &cnt);
             cost += 1e-9 * (x * x + y * y); /* ties go to the smaller shift */
             if (cnt * 4 >= n && cost < best) {
                 best = cost;
@@ -431,7 +498,8 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
         for (int y = -1; y <= 1; y++)
             for (int x = -1; x <= 1; x++) {
                 int64_t cnt;
-                double cost = mtb_cost(&a->lv[lv], &bm->lv[lv], t, eps, cx + x, cy + y, &cnt);
+                double cost = mtb_cost(&a->lv[lv], ba[lv], &bm->lv[lv], bb[lv], cx + x, cy + y,
+                                       &cnt);
                 cost += 1e-9 * (x * x + y * y);
                 if (cnt > 0 && cost < best) {
                     best = cost;
@@ -448,11 +516,11 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm,
     while (start + 1 < a->levels && a->lv[start].w > 256)
         start++;
     for (int lv = start; lv >= 0; lv--)
-        *used = refine(&a->lv[lv], &bm->lv[lv], lv, how.tol, how.quick, out, spread);
+        *used = refine(&a->lv[lv], a->inner[lv], &bm->lv[lv], lv, how.tol, how.quick, out, spread);
     for (int round = 0; round < how.rounds && *used >= min_overlap(&a->lv[0]); round++) {
         joint_tones(&a->lv[0], &b->lv[0], out, map);
         apply_map(&b->lv[0], map, &bm->lv[0]);
-        *used = refine(&a->lv[0], &bm->lv[0], 0, how.tol, how.quick, out, spread);
+        *used = refine(&a->lv[0], a->inner[0], &bm->lv[0], 0, how.tol, how.quick, out, spread);
     }
     if (*used < min_overlap(&a->lv[0])) {
         snprintf(note, note_size, "%lld pixels well exposed in both frames (too few)",
@@ -490,77 +558,133 @@ static int cmp_exposure(const void *a, const void *b, void *ctx)
     return (x > y) - (x < y);
 }
 
+/* One direction's chain of estimates (below or above the reference), with
+ * its own scratch: the two run side by side (estimate). */
+typedef struct chain_job {
+    luma *l;
+    int count, scale, width, height, ref;
+    const int *order;
+    const sl_merge_options *opt;
+    effort how;
+    sl_align_transform *out;
+    rigid chain[MERGE_MAX_FRAMES];
+    double spreads[MERGE_MAX_FRAMES][2];
+    float *map[2];
+    luma bm[2];
+    uint8_t *bits[2];
+} chain_job;
+
+static void chain_direction(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    chain_job *j = ctx;
+    const sl_merge_options *opt = j->opt;
+    luma *l = j->l;
+    int scale = j->scale;
+    rigid *chain = j->chain;
+    double(*spreads)[2] = j->spreads;
+    for (int64_t task = begin; task < end; task++) {
+        int dir = task ? 1 : -1;
+        for (int q = j->ref + dir; q >= 0 && q < j->count; q += dir) {
+            int fa = j->order[q - dir], fb = j->order[q];
+            sl_align_transform *o = &j->out[fb];
+            rigid step, prev = chain[q - dir];
+            int64_t used;
+            double spread[2];
+            align_pair(&l[fa], &l[fb], j->map[task], &j->bm[task], j->bits[task], opt, scale,
+                       j->how, &step, &used, spread, o->note, sizeof o->note);
+            double c = cos(step.th), s = sin(step.th);
+            chain[q].th = prev.th + step.th;
+            chain[q].tx = c * prev.tx - s * prev.ty + step.tx;
+            chain[q].ty = s * prev.tx + c * prev.ty + step.ty;
+            o->pixels = used;
+            if (fabs(step.tx * scale) > opt->align_max_shift ||
+                fabs(step.ty * scale) > opt->align_max_shift ||
+                fabs(step.th * 180 / M_PI) > opt->align_max_angle)
+                snprintf(o->note, sizeof o->note, "beyond the limits (%.1f px, %.2f deg)",
+                         opt->align_max_shift, opt->align_max_angle);
+            o->refused = o->note[0] != '\0';
+            /* Steps' spreads add like independent errors. */
+            for (int k = 0; k < 2; k++)
+                spreads[q][k] = o->refused ? spreads[q - dir][k]
+                                           : hypot(spreads[q - dir][k], spread[k] * (k ? 1 : scale));
+            o->shift_spread_px = spreads[q][0];
+            o->angle_spread_deg = spreads[q][1] * 180 / M_PI;
+            if (o->refused)
+                chain[q] = prev; /* unaligned: where its neighbour sits */
+            /* To full resolution, where the centre may sit up to half a
+             * block off the alignment image's: R (p - c') + c' + t = R
+             * (p - c) + c + t + (I - R)(c' - c). */
+            double th = chain[q].th, ct = cos(th), st = sin(th);
+            double ex = 0.5 * l[0].lv[0].w * scale - 0.5 * j->width;
+            double ey = 0.5 * l[0].lv[0].h * scale - 0.5 * j->height;
+            o->dx = chain[q].tx * scale + ex - (ct * ex - st * ey);
+            o->dy = chain[q].ty * scale + ey - (st * ex + ct * ey);
+            o->angle = th * 180 / M_PI;
+            /* Sub-0.05 px everywhere on the frame: resampling would only blur. */
+            o->applied = sl_align_displacement(o, j->width, j->height) > 0.05;
+        }
+    }
+}
+
 /* Chains pairwise estimates outward from the reference (the median
  * exposure) over frames l[] at 1/scale of width x height; out[i] in full
- * resolution pixels. */
+ * resolution pixels. The chains below and above the reference share
+ * nothing but it, so they run in parallel (the same answers on any
+ * number of threads). */
 static sl_result estimate(luma *l, int count, const double *exposures, const sl_merge_options *opt,
                           int scale, int width, int height, effort how, sl_align_transform *out,
                           sl_error *err)
 {
-    luma bm = {0};
-    float *map = malloc(HIST * sizeof *map);
+    chain_job *j = calloc(1, sizeof *j);
     int *order = malloc((size_t)count * sizeof *order);
-    sl_result r = !map || !order ? sl_error_set(err, SL_ERR_NOMEM, "align: out of memory") : SL_OK;
-    for (int i = 0; i < l[0].levels && !r; i++) {
-        bm.lv[i] = l[0].lv[i];
-        if (!(bm.lv[i].v = malloc((size_t)bm.lv[i].w * bm.lv[i].h * sizeof(float))))
+    sl_result r = !j || !order ? sl_error_set(err, SL_ERR_NOMEM, "align: out of memory") : SL_OK;
+    size_t pixels = 0;
+    for (int i = 0; i < l[0].levels; i++)
+        pixels += (size_t)l[0].lv[i].w * l[0].lv[i].h;
+    for (int d = 0; d < 2 && !r; d++) {
+        j->map[d] = malloc(HIST * sizeof *j->map[d]);
+        j->bits[d] = malloc(2 * pixels);
+        if (!j->map[d] || !j->bits[d])
             r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
-        else
-            bm.levels = i + 1;
+        for (int i = 0; i < l[0].levels && !r; i++) {
+            j->bm[d].lv[i] = l[0].lv[i];
+            if (!(j->bm[d].lv[i].v = malloc((size_t)l[0].lv[i].w * l[0].lv[i].h * sizeof(float))))
+                r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
+            else
+                j->bm[d].levels = i + 1;
+        }
     }
+    /* refine's levels: from the first at most 256 wide (align_pair) down. */
+    for (int i = 0; i < count && !r; i++)
+        for (int lv = 0; lv < l[i].levels && (lv == 0 || l[i].lv[lv - 1].w > 256); lv++)
+            if (!l[i].inner[lv] && !(l[i].inner[lv] = inner_mask(&l[i].lv[lv])))
+                r = sl_error_set(err, SL_ERR_NOMEM, "align: out of memory");
     if (!r) {
         for (int i = 0; i < count; i++)
             order[i] = i;
         qsort_r(order, (size_t)count, sizeof *order, cmp_exposure, (void *)exposures);
-        int ref = (count - 1) / 2;
-        snprintf(out[order[ref]].note, sizeof out[order[ref]].note, "reference");
+        j->ref = (count - 1) / 2;
+        snprintf(out[order[j->ref]].note, sizeof out[order[j->ref]].note, "reference");
         /* Outward from the reference, each frame against its neighbour;
          * transforms compose: q = R(a+b) (p - c) + R(b) t_a + t_b + c. */
-        rigid chain[MERGE_MAX_FRAMES] = {{0}};
-        double spreads[MERGE_MAX_FRAMES][2] = {{0}};
-        for (int dir = -1; dir <= 1; dir += 2)
-            for (int q = ref + dir; q >= 0 && q < count; q += dir) {
-                int fa = order[q - dir], fb = order[q];
-                sl_align_transform *o = &out[fb];
-                rigid step, prev = chain[q - dir];
-                int64_t used;
-                double spread[2];
-                align_pair(&l[fa], &l[fb], map, &bm, opt, scale, how, &step, &used, spread,
-                           o->note, sizeof o->note);
-                double c = cos(step.th), s = sin(step.th);
-                chain[q].th = prev.th + step.th;
-                chain[q].tx = c * prev.tx - s * prev.ty + step.tx;
-                chain[q].ty = s * prev.tx + c * prev.ty + step.ty;
-                o->pixels = used;
-                if (fabs(step.tx * scale) > opt->align_max_shift ||
-                    fabs(step.ty * scale) > opt->align_max_shift ||
-                    fabs(step.th * 180 / M_PI) > opt->align_max_angle)
-                    snprintf(o->note, sizeof o->note, "beyond the limits (%.1f px, %.2f deg)",
-                             opt->align_max_shift, opt->align_max_angle);
-                o->refused = o->note[0] != '\0';
-                /* Steps' spreads add like independent errors. */
-                for (int k = 0; k < 2; k++)
-                    spreads[q][k] = o->refused ? spreads[q - dir][k]
-                                               : hypot(spreads[q - dir][k], spread[k] * (k ? 1 : scale));
-                o->shift_spread_px = spreads[q][0];
-                o->angle_spread_deg = spreads[q][1] * 180 / M_PI;
-                if (o->refused)
-                    chain[q] = prev; /* unaligned: where its neighbour sits */
-                /* To full resolution, where the centre may sit up to half a
-                 * block off the alignment image's: R (p - c') + c' + t = R
-                 * (p - c) + c + t + (I - R)(c' - c). */
-                double th = chain[q].th, ct = cos(th), st = sin(th);
-                double ex = 0.5 * l[0].lv[0].w * scale - 0.5 * width;
-                double ey = 0.5 * l[0].lv[0].h * scale - 0.5 * height;
-                o->dx = chain[q].tx * scale + ex - (ct * ex - st * ey);
-                o->dy = chain[q].ty * scale + ey - (st * ex + ct * ey);
-                o->angle = th * 180 / M_PI;
-                /* Sub-0.05 px everywhere on the frame: resampling would only blur. */
-                o->applied = sl_align_displacement(o, width, height) > 0.05;
-            }
+        j->l = l;
+        j->count = count;
+        j->scale = scale;
+        j->width = width;
+        j->height = height;
+        j->order = order;
+        j->opt = opt;
+        j->how = how;
+        j->out = out;
+        sl_parallel_for(2, 1, chain_direction, j);
     }
-    luma_free(&bm);
-    free(map);
+    for (int d = 0; j && d < 2; d++) {
+        luma_free(&j->bm[d]);
+        free(j->map[d]);
+        free(j->bits[d]);
+    }
+    free(j);
     free(order);
     return r;
 }

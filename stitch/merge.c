@@ -723,13 +723,13 @@ static void mark_spoilt(merge_ctx *m, const sl_merge_result *res, const sl_respo
         for (int i = 0; i < m->samples.count; i++)
             for (int q = 0; q < f; q++)
                 merge_block_codes(m, q, m->sample_pos[i], m->spoil_codes + 2 * ((size_t)i * f + q));
+    if (m->spoil_codes) {
+        merge_block_spoilt_all(m, resp, loge, m->spoil_codes, m->samples.spoilt);
+        return;
+    }
     for (int i = 0; i < m->samples.count; i++)
-        for (int q = 0; q < f; q++) {
-            size_t e = (size_t)i * f + q;
-            m->samples.spoilt[e] =
-                m->spoil_codes ? merge_block_spoilt_codes(m, resp, loge, q, m->spoil_codes + 2 * e)
-                               : merge_block_spoilt(m, resp, loge, q, m->sample_pos[i]);
-        }
+        for (int q = 0; q < f; q++)
+            m->samples.spoilt[(size_t)i * f + q] = merge_block_spoilt(m, resp, loge, q, m->sample_pos[i]);
 }
 
 static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,

@@ -5,6 +5,7 @@
  * DCT ringing and its colour, averaged into the block's chroma, spread
  * over the block's other pixels, whose codes then stop being a function
  * of their exposure. */
+#include <math.h>
 #include <string.h>
 #ifdef __SSE2__
 #include <emmintrin.h>
@@ -108,8 +109,17 @@ void merge_block_codes(const merge_ctx *m, int r, int64_t pos, float codes[2])
     codes[1] = s >= 0 && m->block_max[s] ? block_at(m, s, pos) : -1;
 }
 
-bool merge_block_spoilt_codes(const merge_ctx *m, const sl_response *resp, const double *loge,
-                              int r, const float codes[2])
+/* The linear value of the saturation code, the brightest of the channels. */
+static double saturation_value(const merge_ctx *m, const sl_response *resp)
+{
+    double ysat = 0;
+    for (int c = 0; c < 3; c++)
+        ysat = fmax(ysat, merge_response_at(resp, c, m->saturation));
+    return ysat;
+}
+
+static inline bool spoilt_codes(const merge_ctx *m, const sl_response *resp, const double *loge,
+                                int r, const float codes[2], double ysat)
 {
     if (codes[0] < 0 || codes[0] < m->saturation)
         return false;
@@ -118,12 +128,25 @@ bool merge_block_spoilt_codes(const merge_ctx *m, const sl_response *resp, const
     float z = codes[1];
     if (z >= m->saturation)
         return true;
-    double y = 0, ysat = 0;
-    for (int c = 0; c < 3; c++) {
-        y = fmax(y, sl_response_eval(resp, c, z));
-        ysat = fmax(ysat, sl_response_eval(resp, c, m->saturation));
-    }
+    double y = 0;
+    for (int c = 0; c < 3; c++)
+        y = fmax(y, merge_response_at(resp, c, z));
     return y * exp(loge[r] - loge[r - 1]) > SPOIL_EXCESS * ysat;
+}
+
+bool merge_block_spoilt_codes(const merge_ctx *m, const sl_response *resp, const double *loge,
+                              int r, const float codes[2])
+{
+    return spoilt_codes(m, resp, loge, r, codes, saturation_value(m, resp));
+}
+
+void merge_block_spoilt_all(const merge_ctx *m, const sl_response *resp, const double *loge,
+                            const float *codes, uint8_t *spoilt)
+{
+    double ysat = saturation_value(m, resp);
+    int f = m->samples.frames;
+    for (size_t e = 0; e < (size_t)m->samples.count * (size_t)f; e++)
+        spoilt[e] = spoilt_codes(m, resp, loge, (int)(e % (size_t)f), codes + 2 * e, ysat);
 }
 
 bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const double *loge, int r,

@@ -50,6 +50,8 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
      * at +0.34 stops). */
     double lo = fmax(2 * black, 0.02), hi = saturation - 0.04, ylo = 0.01;
     double *r = malloc((size_t)s->count * 3 * sizeof *r);
+    merge_code_curve curve;
+    merge_code_curve_init(&curve, s, resp);
     for (int q = 0; q + 1 < f; q++) {
         ratio[q] = 0;
         if (!r)
@@ -67,7 +69,8 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
                 double z1 = s->z[((size_t)i * f + q + 1) * 3 + c];
                 if (!(z0 > z0lo && z1 > lo))
                     continue;
-                double y0 = sl_response_eval(resp, c, z0), y1 = sl_response_eval(resp, c, z1);
+                double y0 = merge_code_curve_y(&curve, resp, c, (float)z0),
+                       y1 = merge_code_curve_y(&curve, resp, c, (float)z1);
                 if (y0 > y0lo && y1 > y1lo)
                     r[n++] = y1 / y0;
             }
@@ -75,7 +78,11 @@ int merge_fit_ratios(const merge_samples *s, const sl_response *resp, double bla
         if (n < MIN_PAIRS)
             continue;
         double upper = merge_select_kth(r, n, n / 2);
-        ratio[q] = n % 2 ? upper : 0.5 * (upper + merge_select_kth(r, n / 2, n / 2 - 1));
+        /* The selection leaves the n / 2 smallest first: the lower middle is their largest. */
+        double lower = r[0];
+        for (int k = 1; k < n / 2; k++)
+            lower = r[k] > lower ? r[k] : lower;
+        ratio[q] = n % 2 ? upper : 0.5 * (upper + lower);
         fitted++;
     }
     free(r);

@@ -32,6 +32,8 @@ void merge_judge_response(const merge_ctx *m, sl_merge_result *res, bool recover
     int f = s->frames;
     double *dev = s->count > 0 && f > 1 ? malloc((size_t)s->count * f * 3 * sizeof *dev) : NULL;
     size_t n = 0;
+    merge_code_curve curve;
+    merge_code_curve_init(&curve, s, resp);
     double loge[MERGE_MAX_FRAMES];
     for (int r = 0; r < f; r++)
         loge[r] = log(res->frames[m->order[r]].exposure);
@@ -48,10 +50,11 @@ void merge_judge_response(const merge_ctx *m, sl_merge_result *res, bool recover
                  * or a hot pixel is not the curve's error. */
                 if (!merge_usable(s, i, r, m->saturation) || !(z > MIN_CODE))
                     continue;
-                double y = sl_response_eval(resp, c, z);
+                int k = merge_code_of(&curve, z);
+                double y = k >= 0 ? curve.y[c][k] : merge_response_at(resp, c, z);
                 if (!(y > 0))
                     continue;
-                lx[used] = log(y) - loge[r];
+                lx[used] = (k >= 0 ? curve.log_y[c][k] : log(y)) - loge[r];
                 sum += lx[used++];
             }
             if (used < 2)

@@ -29,8 +29,11 @@ typedef struct merge_samples {
  * spoils the pixel's others: saturation is judged on this. */
 static inline float merge_zmax(const merge_samples *s, int i, int r)
 {
+    /* Samples are finite (sample_frame): no fmaxf, which at -O2 is a call
+     * into libm, made for every sample by every round of the fit. */
     const float *v = s->z + ((size_t)i * s->frames + r) * 3;
-    return fmaxf(v[0], fmaxf(v[1], v[2]));
+    float hi = v[0] > v[1] ? v[0] : v[1];
+    return hi > v[2] ? hi : v[2];
 }
 
 /* Position i in frame rank r below `limit` and its JPEG block not spoilt
@@ -91,6 +94,53 @@ static inline int merge_response_node(double z, int nodes, double *frac)
     return k;
 }
 
+/* sl_response_eval, inline for the loops that evaluate the curve at every
+ * sample (the exposure check, the response check, the JPEG blocks): the
+ * call across files was a tenth of a small bracket's fit. */
+static inline double merge_response_at(const sl_response *resp, int channel, double z)
+{
+    const double *row = resp->inverse + (size_t)channel * (size_t)resp->nodes;
+    if (!(z > 0))
+        return row[0];
+    if (z >= 1)
+        return row[resp->nodes - 1];
+    double a;
+    int k = merge_response_node(z, resp->nodes, &a);
+    return row[k] * (1 - a) + row[k + 1] * a;
+}
+
+/* The curve at the codes of 8-bit samples, looked up by the loops that
+ * evaluate it at every sample and frame (the exposure check, the response
+ * check, the fit's choice of samples): per code k its sample value
+ * (float)k * (1.0f / 255), as the sample pass stores it, ln z, and per
+ * channel the curve's value y and ln y (NAN where y <= 0). A value that is
+ * no code's (float or resampled frames) is evaluated as before, so the
+ * results are the same bit for bit. */
+typedef struct merge_code_curve {
+    bool codes; /* 8-bit samples: the tables are filled */
+    float z[256];
+    double log_z[256];
+    double y[3][256], log_y[3][256];
+} merge_code_curve;
+/* resp NULL: ln z only. */
+void merge_code_curve_init(merge_code_curve *t, const merge_samples *s, const sl_response *resp);
+
+/* The code whose sample value z is, or -1. */
+static inline int merge_code_of(const merge_code_curve *t, float z)
+{
+    if (!t->codes || !(z >= 0 && z <= 1))
+        return -1;
+    int k = (int)(z * 255.0f + 0.5f);
+    return t->z[k] == z ? k : -1;
+}
+
+static inline double merge_code_curve_y(const merge_code_curve *t, const sl_response *resp, int c,
+                                        float z)
+{
+    int k = merge_code_of(t, z);
+    return k >= 0 ? t->y[c][k] : merge_response_at(resp, c, z);
+}
+
 /* Finishes a fitted inverse response: inv[0 .. nodes) (inv holds 3 x nodes)
  * made increasing from 0 (noise at the ends must not fold it) and 1 at
  * the top, copied to all three channels (one curve for the three: the
@@ -106,7 +156,8 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
                          double saturation, int max_samples, uint64_t seed,
                          const uint8_t *usable, int *chosen);
 
-/* The k-th smallest of v[0..n) (Hoare's selection; reorders v). */
+/* The k-th smallest of v[0..n) (Hoare's selection; reorders v, leaving the
+ * k smallest in v[0..k)). */
 double merge_select_kth(double *v, int n, int k);
 
 /* Exposure ratio between neighbouring ranks from pixels well exposed in
@@ -203,6 +254,10 @@ bool merge_block_spoilt(const merge_ctx *m, const sl_response *resp, const doubl
 void merge_block_codes(const merge_ctx *m, int r, int64_t pos, float codes[2]);
 bool merge_block_spoilt_codes(const merge_ctx *m, const sl_response *resp, const double *loge,
                               int r, const float codes[2]);
+/* merge_block_spoilt_codes for every sample and rank: spoilt[e] from
+ * codes[2 e .. 2 e + 1], e = i * frames + rank. */
+void merge_block_spoilt_all(const merge_ctx *m, const sl_response *resp, const double *loge,
+                            const float *codes, uint8_t *spoilt);
 
 /* Saturation when the options leave it 0: frames through a curve (JPEG)
  * ring a few codes below white inside clipped areas; linear frames (raw,

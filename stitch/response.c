@@ -43,14 +43,21 @@ void sl_response_free(sl_response *resp)
 
 double sl_response_eval(const sl_response *resp, int channel, double z)
 {
-    const double *row = resp->inverse + (size_t)channel * (size_t)resp->nodes;
-    if (!(z > 0))
-        return row[0];
-    if (z >= 1)
-        return row[resp->nodes - 1];
-    double a;
-    int k = merge_response_node(z, resp->nodes, &a);
-    return row[k] * (1 - a) + row[k + 1] * a;
+    return merge_response_at(resp, channel, z);
+}
+
+void merge_code_curve_init(merge_code_curve *t, const merge_samples *s, const sl_response *resp)
+{
+    t->codes = s->code_step == 1.0 / 255;
+    for (int k = 0; t->codes && k < 256; k++) {
+        t->z[k] = (float)k * (1.0f / 255);
+        t->log_z[k] = log(t->z[k]);
+        for (int c = 0; c < 3 && resp; c++) {
+            double y = merge_response_at(resp, c, t->z[k]);
+            t->y[c][k] = y;
+            t->log_y[c][k] = y > 0 ? log(y) : NAN;
+        }
+    }
 }
 
 sl_result sl_response_write(const char *path, const sl_response *resp, sl_error *err)

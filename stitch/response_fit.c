@@ -91,6 +91,8 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
     }
     double lo = INFINITY, hi = -INFINITY;
     int valid = 0;
+    merge_code_curve curve;
+    merge_code_curve_init(&curve, s, NULL);
     for (int i = 0; i < n; i++) {
         double best = 2, k = NAN, z_best = 0;
         int r_best = -1;
@@ -104,8 +106,10 @@ int merge_choose_samples(const merge_samples *s, int c, const double *log_exposu
                 r_best = r;
             }
         }
-        if (r_best >= 0) /* one logarithm a sample, of the frame chosen */
-            k = log(z_best) - log_exposure[r_best];
+        if (r_best >= 0) { /* one logarithm a sample, of the frame chosen */
+            int code = merge_code_of(&curve, (float)z_best);
+            k = (code >= 0 ? curve.log_z[code] : log(z_best)) - log_exposure[r_best];
+        }
         key[i] = k;
         if (!isnan(k)) {
             order[valid++] = i;
