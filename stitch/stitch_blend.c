@@ -451,7 +451,7 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, const bool 
  * pixel, weight and 1 / gain (stitch_rays), per texel and view the sums. */
 typedef struct row_scratch {
     float *px, *py, *weight, *inv_gain; /* width * ss */
-    double *acc;                        /* width * count * 4: weight, then RGB */
+    double *acc;                        /* count * width * 4: weight, then RGB */
     double *masked_area;                /* width */
     bool *hot;                          /* width */
     bool *seen;                         /* width * count */
@@ -484,6 +484,15 @@ static bool scratch_alloc(row_scratch *s, int width, int ss, int count)
     return false;
 }
 
+/* Whether four pixels' G differ by more than HOT_CONTRAST (as bilinear()'s
+ * contrast; no libm calls: fminf is not inlined). */
+static inline bool hot_pixels(float a, float b, float c, float d)
+{
+    float lo0 = a < b ? a : b, lo1 = c < d ? c : d, hi0 = a < b ? b : a, hi1 = c < d ? d : c;
+    float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
+    return hi > HOT_CONTRAST * (lo > 1e-30f ? lo : 1e-30f);
+}
+
 /* The half view's bilinear lookup in float (the table's values, the
  * weights of sl_bilinear_at); true when its four pixels' G differ by more
  * than HOT_CONTRAST. */
@@ -501,9 +510,7 @@ static inline bool fetch_half(const stitch_half_image *img, const float *table, 
     for (int c = 0; c < 3; c++)
         rgb[c] = w00 * table[h00[c]] + w10 * table[h10[c]] + w01 * table[h01[c]] +
                  w11 * table[h11[c]];
-    float a = table[h00[1]], bb = table[h10[1]], c = table[h01[1]], d = table[h11[1]];
-    float lo = fminf(fminf(a, bb), fminf(c, d)), hi = fmaxf(fmaxf(a, bb), fmaxf(c, d));
-    return hi > HOT_CONTRAST * (lo > 1e-30f ? lo : 1e-30f);
+    return hot_pixels(table[h00[1]], table[h10[1]], table[h01[1]], table[h11[1]]);
 }
 
 /* The same of a float view. */
@@ -516,9 +523,7 @@ static inline bool fetch_float(const sl_image *img, float x, float y, float rgb[
     float w00 = (1 - ay) * (1 - ax), w10 = (1 - ay) * ax, w01 = ay * (1 - ax), w11 = ay * ax;
     for (int c = 0; c < 3; c++)
         rgb[c] = w00 * p00[c] + w10 * p10[c] + w01 * p01[c] + w11 * p11[c];
-    float lo = fminf(fminf(p00[1], p10[1]), fminf(p01[1], p11[1]));
-    float hi = fmaxf(fmaxf(p00[1], p10[1]), fmaxf(p01[1], p11[1]));
-    return hi > HOT_CONTRAST * (lo > 1e-30f ? lo : 1e-30f);
+    return hot_pixels(p00[1], p10[1], p01[1], p11[1]);
 }
 
 bool stitch_blend_reference = false;
@@ -531,9 +536,12 @@ bool stitch_blend_reference = false;
  * texel's sums. */
 static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int j, int x0, int x1)
 {
-    const int ss = p->ss, n = p->count;
+    const int ss = p->ss;
     const stitch_view_prep *vw = &p->views[k];
     int s0 = x0 * ss, ns = (x1 - x0) * ss;
+    double *acc_k = sc->acc + (size_t)k * p->width * 4;
+    if (j == 0) /* the run's texels: only they are read for this view */
+        memset(acc_k + (size_t)x0 * 4, 0, (size_t)(x1 - x0) * 4 * sizeof(double));
     float sin_lat = (float)p->sin_lat[y * ss + j], cos_lat = (float)p->cos_lat[y * ss + j];
     double a = p->cos_lat[y * ss + j];
     stitch_rays(&p->rays[k], p->sin_lon_f + s0, p->cos_lon_f + s0, sin_lat, cos_lat, ns,
@@ -567,7 +575,7 @@ static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int 
                           : fetch_float(vw->radiance, x, yy, rgb);
         if (!(sc->inv_gain[s] > 0.0f))
             continue;
-        double *acc = sc->acc + ((size_t)tx * n + k) * 4;
+        double *acc = acc_k + (size_t)tx * 4;
         wd *= a;
         acc[0] += wd;
         double wg = wd * sc->inv_gain[s];
@@ -583,7 +591,6 @@ static void row_samples(const blend_pass *p, int y, row_scratch *sc, double *are
 {
     const int W = p->width, H = p->height, ss = p->ss, n = p->count;
     const bool masking = p->opt->mask || p->nadir_lat > -INFINITY;
-    memset(sc->acc, 0, (size_t)W * n * 4 * sizeof(double));
     memset(sc->hot, 0, (size_t)W);
     *area = 0;
     for (int j = 0; j < ss; j++)
@@ -644,10 +651,10 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             hot = texel_samples(p, x, y, p->ss, seen, acc_w, acc_l, &area, &masked_area);
         } else {
             for (int k = 0; k < n; k++) {
-                const double *acc = sc->acc + ((size_t)x * n + k) * 4;
-                acc_w[k] = acc[0];
+                const double *acc = sc->acc + ((size_t)k * W + x) * 4;
+                acc_w[k] = seen[k] ? acc[0] : 0.0;
                 for (int ch = 0; ch < 3; ch++)
-                    acc_l[k][ch] = acc[1 + ch];
+                    acc_l[k][ch] = seen[k] ? acc[1 + ch] : 0.0;
             }
             masked_area = sc->masked_area[x];
             hot = sc->hot[x];
