@@ -252,17 +252,26 @@ static inline void bilinear(const sl_image *img, double x, double y, int n, doub
     }
 }
 
+/* The four pixels of a bilinear lookup in a half view. */
+static inline void half_corners(const stitch_half_image *img, const sl_bilinear *b,
+                                const uint16_t **h00, const uint16_t **h10,
+                                const uint16_t **h01, const uint16_t **h11)
+{
+    size_t w = (size_t)img->width;
+    *h00 = img->rgb + ((size_t)b->y0 * w + b->x0) * 3;
+    *h10 = img->rgb + ((size_t)b->y0 * w + b->x1) * 3;
+    *h01 = img->rgb + ((size_t)b->y1 * w + b->x0) * 3;
+    *h11 = img->rgb + ((size_t)b->y1 * w + b->x1) * 3;
+}
+
 /* bilinear() of a half view's RGB, each sample converted by the table:
  * the same sums as on the float view it was made from. */
 static inline void bilinear_half(const stitch_half_image *img, const float *table, double x,
                                  double y, double *out, double *contrast)
 {
     sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
-    size_t w = (size_t)img->width;
-    const uint16_t *h00 = img->rgb + ((size_t)b.y0 * w + b.x0) * 3;
-    const uint16_t *h10 = img->rgb + ((size_t)b.y0 * w + b.x1) * 3;
-    const uint16_t *h01 = img->rgb + ((size_t)b.y1 * w + b.x0) * 3;
-    const uint16_t *h11 = img->rgb + ((size_t)b.y1 * w + b.x1) * 3;
+    const uint16_t *h00, *h10, *h01, *h11;
+    half_corners(img, &b, &h00, &h10, &h01, &h11);
     double w00 = (1 - b.ay) * (1 - b.ax), w10 = (1 - b.ay) * b.ax;
     double w01 = b.ay * (1 - b.ax), w11 = b.ay * b.ax;
     for (int c = 0; c < 3; c++)
@@ -272,6 +281,14 @@ static inline void bilinear_half(const stitch_half_image *img, const float *tabl
     float lo0 = a < bb ? a : bb, lo1 = c < d ? c : d, hi0 = a < bb ? bb : a, hi1 = c < d ? d : c;
     float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
     *contrast = hi / (lo > 1e-30f ? (double)lo : 1e-30);
+}
+
+/* A view's merge confidence at (x, y), within [0, 1]. */
+static inline double confidence_at(const sl_image *weight, double x, double y)
+{
+    double conf;
+    bilinear(weight, x, y, 1, &conf, NULL);
+    return conf < 0.0 ? 0.0 : (conf > 1.0 ? 1.0 : conf);
 }
 
 static double luminance(const double *rgb)
@@ -418,11 +435,8 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, const bool 
                 if (!stitch_view_pixel(vw, ray, &px, &py, &r2))
                     continue;
                 double w = ramp_weight(vw, c);
-                if (vw->weight) {
-                    double conf;
-                    bilinear(vw->weight, px, py, 1, &conf, NULL);
-                    w *= conf < 0.0 ? 0.0 : (conf > 1.0 ? 1.0 : conf);
-                }
+                if (vw->weight)
+                    w *= confidence_at(vw->weight, px, py);
                 if (!(w > 0))
                     continue;
                 double rgb[3], contrast;
@@ -500,11 +514,8 @@ static inline bool fetch_half(const stitch_half_image *img, const float *table, 
                               float rgb[3])
 {
     sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
-    size_t w = (size_t)img->width;
-    const uint16_t *h00 = img->rgb + ((size_t)b.y0 * w + b.x0) * 3;
-    const uint16_t *h10 = img->rgb + ((size_t)b.y0 * w + b.x1) * 3;
-    const uint16_t *h01 = img->rgb + ((size_t)b.y1 * w + b.x0) * 3;
-    const uint16_t *h11 = img->rgb + ((size_t)b.y1 * w + b.x1) * 3;
+    const uint16_t *h00, *h10, *h01, *h11;
+    half_corners(img, &b, &h00, &h10, &h01, &h11);
     float ax = (float)b.ax, ay = (float)b.ay;
     float w00 = (1 - ay) * (1 - ax), w10 = (1 - ay) * ax, w01 = ay * (1 - ax), w11 = ay * ax;
     for (int c = 0; c < 3; c++)
@@ -562,13 +573,8 @@ static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int 
             continue;
         float x = sc->px[s], yy = sc->py[s];
         double wd = w;
-        if (vw->weight) {
-            double conf;
-            bilinear(vw->weight, x, yy, 1, &conf, NULL);
-            wd *= conf < 0.0 ? 0.0 : (conf > 1.0 ? 1.0 : conf);
-            if (!(wd > 0))
-                continue;
-        }
+        if (vw->weight && !((wd *= confidence_at(vw->weight, x, yy)) > 0))
+            continue;
         float rgb[3];
         int tx = s / ss;
         sc->hot[tx] |= hv ? fetch_half(hv, vw->half_table, x, yy, rgb)
