@@ -12,6 +12,24 @@
 #define SL_MAX_DIM 65536
 #define SL_MAX_FLOATS ((size_t)4 << 30)
 
+void sl_advise_huge_pages(void *data, size_t bytes)
+{
+#ifdef MADV_HUGEPAGE
+    /* A block of a few MB or more (a 4096^2 photo is 200 MB) is faulted
+     * in 2 MB pages where the system allows it: 100 page faults instead of
+     * 50 000. Only the whole 2 MB pages inside the block are advised. */
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    if (bytes >= 2 * huge) {
+        uintptr_t a = ((uintptr_t)data + huge - 1) & ~(huge - 1);
+        uintptr_t b = ((uintptr_t)data + bytes) & ~(huge - 1);
+        if (b > a)
+            madvise((void *)a, b - a, MADV_HUGEPAGE);
+    }
+#else
+    (void)data, (void)bytes;
+#endif
+}
+
 sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_error *err)
 {
     memset(img, 0, sizeof *img);
@@ -27,18 +45,7 @@ sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_
     float *data = calloc(stride * (size_t)height, sizeof(float));
     if (!data)
         return sl_error_set(err, SL_ERR_NOMEM, "out of memory for a %dx%d image", width, height);
-#ifdef MADV_HUGEPAGE
-    /* An image of a few MB or more (a 4096^2 photo is 200 MB) is faulted
-     * in 2 MB pages where the system allows it: 100 page faults instead of
-     * 50 000. Only the whole 2 MB pages inside the block are advised. */
-    const uintptr_t huge = (uintptr_t)2 << 20;
-    if (bytes >= 2 * huge) {
-        uintptr_t a = ((uintptr_t)data + huge - 1) & ~(huge - 1);
-        uintptr_t b = ((uintptr_t)data + bytes) & ~(huge - 1);
-        if (b > a)
-            madvise((void *)a, b - a, MADV_HUGEPAGE);
-    }
-#endif
+    sl_advise_huge_pages(data, bytes);
     img->width = width;
     img->height = height;
     img->channels = channels;

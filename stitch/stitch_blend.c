@@ -252,17 +252,26 @@ static inline void bilinear(const sl_image *img, double x, double y, int n, doub
     }
 }
 
+/* The four pixels of a bilinear lookup in a half view. */
+static inline void half_corners(const stitch_half_image *img, const sl_bilinear *b,
+                                const uint16_t **h00, const uint16_t **h10,
+                                const uint16_t **h01, const uint16_t **h11)
+{
+    size_t w = (size_t)img->width;
+    *h00 = img->rgb + ((size_t)b->y0 * w + b->x0) * 3;
+    *h10 = img->rgb + ((size_t)b->y0 * w + b->x1) * 3;
+    *h01 = img->rgb + ((size_t)b->y1 * w + b->x0) * 3;
+    *h11 = img->rgb + ((size_t)b->y1 * w + b->x1) * 3;
+}
+
 /* bilinear() of a half view's RGB, each sample converted by the table:
  * the same sums as on the float view it was made from. */
 static inline void bilinear_half(const stitch_half_image *img, const float *table, double x,
                                  double y, double *out, double *contrast)
 {
     sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
-    size_t w = (size_t)img->width;
-    const uint16_t *h00 = img->rgb + ((size_t)b.y0 * w + b.x0) * 3;
-    const uint16_t *h10 = img->rgb + ((size_t)b.y0 * w + b.x1) * 3;
-    const uint16_t *h01 = img->rgb + ((size_t)b.y1 * w + b.x0) * 3;
-    const uint16_t *h11 = img->rgb + ((size_t)b.y1 * w + b.x1) * 3;
+    const uint16_t *h00, *h10, *h01, *h11;
+    half_corners(img, &b, &h00, &h10, &h01, &h11);
     double w00 = (1 - b.ay) * (1 - b.ax), w10 = (1 - b.ay) * b.ax;
     double w01 = b.ay * (1 - b.ax), w11 = b.ay * b.ax;
     for (int c = 0; c < 3; c++)
@@ -272,6 +281,14 @@ static inline void bilinear_half(const stitch_half_image *img, const float *tabl
     float lo0 = a < bb ? a : bb, lo1 = c < d ? c : d, hi0 = a < bb ? bb : a, hi1 = c < d ? d : c;
     float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
     *contrast = hi / (lo > 1e-30f ? (double)lo : 1e-30);
+}
+
+/* A view's merge confidence at (x, y), within [0, 1]. */
+static inline double confidence_at(const sl_image *weight, double x, double y)
+{
+    double conf;
+    bilinear(weight, x, y, 1, &conf, NULL);
+    return conf < 0.0 ? 0.0 : (conf > 1.0 ? 1.0 : conf);
 }
 
 static double luminance(const double *rgb)
@@ -296,6 +313,10 @@ typedef struct blend_pass {
     float *rows;               /* STRIP_ROWS rows of width * 4 */
     int y0;                    /* first row of the strip */
     stitch_row_stats *stats;   /* per row of the strip */
+    stitch_ray_view rays[SL_STITCH_MAX_VIEWS]; /* the views for the float row loop */
+    float *sin_lon_f, *cos_lon_f;              /* sin_lon, cos_lon in float */
+    struct row_scratch *scratch;               /* per worker */
+    int workers;
 } blend_pass;
 
 static bool masked(const blend_pass *p, double u, double v, double lat)
@@ -414,11 +435,8 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, const bool 
                 if (!stitch_view_pixel(vw, ray, &px, &py, &r2))
                     continue;
                 double w = ramp_weight(vw, c);
-                if (vw->weight) {
-                    double conf;
-                    bilinear(vw->weight, px, py, 1, &conf, NULL);
-                    w *= conf < 0.0 ? 0.0 : (conf > 1.0 ? 1.0 : conf);
-                }
+                if (vw->weight)
+                    w *= confidence_at(vw->weight, px, py);
                 if (!(w > 0))
                     continue;
                 double rgb[3], contrast;
@@ -443,26 +461,214 @@ static bool texel_samples(const blend_pass *p, int x, int y, int ss, const bool 
     return hot;
 }
 
-static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *st)
+/* What a worker's rows are computed in: per sample of a sub-row the view
+ * pixel, weight and 1 / gain (stitch_rays), per texel and view the sums. */
+typedef struct row_scratch {
+    float *px, *py, *weight, *inv_gain; /* width * ss */
+    double *acc;                        /* count * width * 4: weight, then RGB */
+    double *masked_area;                /* width */
+    bool *hot;                          /* width */
+    bool *seen;                         /* width * count */
+    bool *skip;                         /* width * ss: masked samples */
+} row_scratch;
+
+static void scratch_free(row_scratch *s)
+{
+    free(s->px), free(s->py), free(s->weight), free(s->inv_gain);
+    free(s->acc), free(s->masked_area), free(s->hot), free(s->seen), free(s->skip);
+    memset(s, 0, sizeof *s);
+}
+
+static bool scratch_alloc(row_scratch *s, int width, int ss, int count)
+{
+    size_t n = (size_t)width * ss;
+    s->px = malloc(n * sizeof(float));
+    s->py = malloc(n * sizeof(float));
+    s->weight = malloc(n * sizeof(float));
+    s->inv_gain = malloc(n * sizeof(float));
+    s->acc = malloc((size_t)width * count * 4 * sizeof(double));
+    s->masked_area = malloc((size_t)width * sizeof(double));
+    s->hot = malloc((size_t)width);
+    s->seen = malloc((size_t)width * count);
+    s->skip = malloc(n);
+    if (s->px && s->py && s->weight && s->inv_gain && s->acc && s->masked_area && s->hot &&
+        s->seen && s->skip)
+        return true;
+    scratch_free(s);
+    return false;
+}
+
+/* Whether four pixels' G differ by more than HOT_CONTRAST (as bilinear()'s
+ * contrast; no libm calls: fminf is not inlined). */
+static inline bool hot_pixels(float a, float b, float c, float d)
+{
+    float lo0 = a < b ? a : b, lo1 = c < d ? c : d, hi0 = a < b ? b : a, hi1 = c < d ? d : c;
+    float lo = lo0 < lo1 ? lo0 : lo1, hi = hi0 < hi1 ? hi1 : hi0;
+    return hi > HOT_CONTRAST * (lo > 1e-30f ? lo : 1e-30f);
+}
+
+/* The half view's bilinear lookup in float (the table's values, the
+ * weights of sl_bilinear_at); true when its four pixels' G differ by more
+ * than HOT_CONTRAST. */
+static inline bool fetch_half(const stitch_half_image *img, const float *table, float x, float y,
+                              float rgb[3])
+{
+    sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
+    const uint16_t *h00, *h10, *h01, *h11;
+    half_corners(img, &b, &h00, &h10, &h01, &h11);
+    float ax = (float)b.ax, ay = (float)b.ay;
+    float w00 = (1 - ay) * (1 - ax), w10 = (1 - ay) * ax, w01 = ay * (1 - ax), w11 = ay * ax;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = w00 * table[h00[c]] + w10 * table[h10[c]] + w01 * table[h01[c]] +
+                 w11 * table[h11[c]];
+    return hot_pixels(table[h00[1]], table[h10[1]], table[h01[1]], table[h11[1]]);
+}
+
+/* The same of a float view. */
+static inline bool fetch_float(const sl_image *img, float x, float y, float rgb[3])
+{
+    sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
+    const float *p00 = sl_image_pixel(img, b.x0, b.y0), *p10 = sl_image_pixel(img, b.x1, b.y0);
+    const float *p01 = sl_image_pixel(img, b.x0, b.y1), *p11 = sl_image_pixel(img, b.x1, b.y1);
+    float ax = (float)b.ax, ay = (float)b.ay;
+    float w00 = (1 - ay) * (1 - ax), w10 = (1 - ay) * ax, w01 = ay * (1 - ax), w11 = ay * ax;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = w00 * p00[c] + w10 * p10[c] + w01 * p01[c] + w11 * p11[c];
+    return hot_pixels(p00[1], p10[1], p01[1], p11[1]);
+}
+
+bool stitch_blend_reference = false;
+
+/* Samples ahead whose view pixels are fetched into the cache. */
+#define PREFETCH_AHEAD 16
+
+/* The row's base samples of view k over texels [x0, x1): their pixels and
+ * weights 8 at a time (stitch_rays), then each sample's lookup added to its
+ * texel's sums. */
+static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int j, int x0, int x1)
+{
+    const int ss = p->ss;
+    const stitch_view_prep *vw = &p->views[k];
+    int s0 = x0 * ss, ns = (x1 - x0) * ss;
+    double *acc_k = sc->acc + (size_t)k * p->width * 4;
+    if (j == 0) /* the run's texels: only they are read for this view */
+        memset(acc_k + (size_t)x0 * 4, 0, (size_t)(x1 - x0) * 4 * sizeof(double));
+    float sin_lat = (float)p->sin_lat[y * ss + j], cos_lat = (float)p->cos_lat[y * ss + j];
+    double a = p->cos_lat[y * ss + j];
+    stitch_rays(&p->rays[k], p->sin_lon_f + s0, p->cos_lon_f + s0, sin_lat, cos_lat, ns,
+                sc->px + s0, sc->py + s0, sc->weight + s0, sc->inv_gain + s0);
+    const stitch_half_image *hv = vw->half;
+    for (int s = s0; s < s0 + ns; s++) {
+        if (hv && s + PREFETCH_AHEAD < s0 + ns && sc->weight[s + PREFETCH_AHEAD] > 0.0f) {
+            /* the first load of a view pixel is what the loop waits on */
+            int px = (int)sc->px[s + PREFETCH_AHEAD], py = (int)sc->py[s + PREFETCH_AHEAD];
+            px = px < 1 ? 0 : (px >= hv->width ? hv->width - 1 : px - 1);
+            py = py < 1 ? 0 : (py >= hv->height ? hv->height - 1 : py - 1);
+            const uint16_t *row = hv->rgb + ((size_t)py * hv->width + px) * 3;
+            __builtin_prefetch(row);
+            __builtin_prefetch(row + (size_t)hv->width * 3);
+        }
+        float w = sc->weight[s];
+        if (!(w > 0.0f) || sc->skip[s])
+            continue;
+        float x = sc->px[s], yy = sc->py[s];
+        double wd = w;
+        if (vw->weight && !((wd *= confidence_at(vw->weight, x, yy)) > 0))
+            continue;
+        float rgb[3];
+        int tx = s / ss;
+        sc->hot[tx] |= hv ? fetch_half(hv, vw->half_table, x, yy, rgb)
+                          : fetch_float(vw->radiance, x, yy, rgb);
+        if (!(sc->inv_gain[s] > 0.0f))
+            continue;
+        double *acc = acc_k + (size_t)tx * 4;
+        wd *= a;
+        acc[0] += wd;
+        double wg = wd * sc->inv_gain[s];
+        for (int ch = 0; ch < 3; ch++)
+            acc[1 + ch] += rgb[ch] > 0.0f ? wg * rgb[ch] : 0.0;
+    }
+}
+
+/* Adds every texel's base samples of row y to the sums in sc (area: the
+ * texels' common area). The views run over the row one after the other,
+ * each over the columns its field reaches. */
+static void row_samples(const blend_pass *p, int y, row_scratch *sc, double *area)
+{
+    const int W = p->width, H = p->height, ss = p->ss, n = p->count;
+    const bool masking = p->opt->mask || p->nadir_lat > -INFINITY;
+    memset(sc->hot, 0, (size_t)W);
+    *area = 0;
+    for (int j = 0; j < ss; j++)
+        for (int i = 0; i < ss; i++)
+            *area += p->cos_lat[y * ss + j];
+    for (int x = 0; x < W; x++)
+        sc->masked_area[x] = 0;
+    for (int j = 0; j < ss; j++) {
+        double v = (y + (j + 0.5) / ss) / H, lat = M_PI * (0.5 - v);
+        memset(sc->skip, 0, (size_t)W * ss);
+        for (int s = 0; masking && s < W * ss; s++)
+            if (masked(p, (s / ss + (s % ss + 0.5) / ss) / W, v, lat)) {
+                sc->skip[s] = true;
+                sc->masked_area[s / ss] += p->cos_lat[y * ss + j];
+            }
+        for (int k = 0; k < n; k++) {
+            const bool *seen = sc->seen + (size_t)k * W;
+            for (int x = 0; x < W;) {
+                if (!seen[x]) {
+                    x++;
+                    continue;
+                }
+                int x1 = x;
+                while (x1 < W && seen[x1])
+                    x1++;
+                run_samples(p, sc, k, y, j, x, x1);
+                x = x1;
+            }
+        }
+    }
+}
+
+static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *st,
+                      row_scratch *sc)
 {
     const int W = p->width, H = p->height, n = p->count;
     memset(st, 0, sizeof *st);
     double texel_sr = sl_latlong_texel_solid_angle(y, W, H);
     row_span span[SL_STITCH_MAX_VIEWS];
     row_spans(p, y, span);
+    for (int k = 0; k < n; k++)
+        for (int x = 0; x < W; x++)
+            sc->seen[(size_t)k * W + x] = span_has(&span[k], x, W);
+    double row_area = 0;
+    if (!stitch_blend_reference)
+        row_samples(p, y, sc, &row_area);
     for (int x = 0; x < W; x++) {
         bool seen[SL_STITCH_MAX_VIEWS];
         for (int k = 0; k < n; k++)
-            seen[k] = span_has(&span[k], x, W);
-        /* only the views there are: a texel is a few hundred nanoseconds */
+            seen[k] = sc->seen[(size_t)k * W + x];
         double acc_w[SL_STITCH_MAX_VIEWS], acc_l[SL_STITCH_MAX_VIEWS][3];
-        memset(acc_w, 0, (size_t)n * sizeof *acc_w);
-        memset(acc_l, 0, (size_t)n * sizeof *acc_l);
-        double area = 0, masked_area = 0;
-        /* A bright small source or a hard edge: sampled finer, so its
-         * energy does not depend on where the samples fall. */
-        if (texel_samples(p, x, y, p->ss, seen, acc_w, acc_l, &area, &masked_area) &&
-            p->ss_hot > p->ss) {
+        double area = row_area, masked_area = 0;
+        bool hot;
+        if (stitch_blend_reference) {
+            memset(acc_w, 0, (size_t)n * sizeof *acc_w);
+            memset(acc_l, 0, (size_t)n * sizeof *acc_l);
+            area = 0;
+            hot = texel_samples(p, x, y, p->ss, seen, acc_w, acc_l, &area, &masked_area);
+        } else {
+            for (int k = 0; k < n; k++) {
+                const double *acc = sc->acc + ((size_t)k * W + x) * 4;
+                acc_w[k] = seen[k] ? acc[0] : 0.0;
+                for (int ch = 0; ch < 3; ch++)
+                    acc_l[k][ch] = seen[k] ? acc[1 + ch] : 0.0;
+            }
+            masked_area = sc->masked_area[x];
+            hot = sc->hot[x];
+        }
+        /* A bright small source or a hard edge: sampled finer (in double,
+         * one sample at a time), so its energy does not depend on where the
+         * samples fall. */
+        if (hot && p->ss_hot > p->ss) {
             memset(acc_w, 0, (size_t)n * sizeof *acc_w);
             memset(acc_l, 0, (size_t)n * sizeof *acc_l);
             area = masked_area = 0;
@@ -536,10 +742,10 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
 
 static void blend_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
-    (void)worker;
     blend_pass *p = ctx;
     for (int64_t r = begin; r < end; r++)
-        blend_row(p, p->y0 + (int)r, p->rows + (size_t)r * p->width * 4, &p->stats[r]);
+        blend_row(p, p->y0 + (int)r, p->rows + (size_t)r * p->width * 4, &p->stats[r],
+                  &p->scratch[worker]);
 }
 
 static void add_stats(sl_stitch_coverage *cov, const stitch_row_stats *s, int n)
@@ -595,7 +801,20 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
               angle_table(p->height * ss, 0.5, -1.0, &p->sin_lat, &p->cos_lat) &&
               angle_table(width * ss_hot, 1.0, -2.0, &p->sin_lon_hot, &p->cos_lon_hot) &&
               angle_table(p->height * ss_hot, 0.5, -1.0, &p->sin_lat_hot, &p->cos_lat_hot);
-    if (!ok || !p->rows || !p->stats)
+    p->sin_lon_f = malloc((size_t)width * ss * sizeof(float));
+    p->cos_lon_f = malloc((size_t)width * ss * sizeof(float));
+    ok = ok && p->sin_lon_f && p->cos_lon_f;
+    for (int i = 0; ok && i < width * ss; i++) {
+        p->sin_lon_f[i] = (float)p->sin_lon[i];
+        p->cos_lon_f[i] = (float)p->cos_lon[i];
+    }
+    for (int k = 0; ok && k < count; k++)
+        ok = stitch_ray_view_init(&views[k], &p->rays[k]);
+    p->workers = sl_threads_get();
+    p->scratch = ok ? calloc((size_t)p->workers, sizeof *p->scratch) : NULL;
+    for (int w = 0; p->scratch && w < p->workers; w++)
+        ok = ok && scratch_alloc(&p->scratch[w], width, ss, count);
+    if (!ok || !p->rows || !p->stats || !p->scratch)
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory for a %d wide lat-long",
                             width);
     return SL_OK;
@@ -613,6 +832,13 @@ static void pass_free(blend_pass *p)
     free(p->cos_lat_hot);
     free(p->rows);
     free(p->stats);
+    free(p->sin_lon_f);
+    free(p->cos_lon_f);
+    for (int k = 0; k < p->count; k++)
+        stitch_ray_view_free(&p->rays[k]);
+    for (int w = 0; p->scratch && w < p->workers; w++)
+        scratch_free(&p->scratch[w]);
+    free(p->scratch);
 }
 
 /* Runs a pass over every row, strip by strip, into sink (or into `whole`). */

@@ -101,6 +101,34 @@ static inline bool stitch_view_pixel(const stitch_view_prep *v, const double ray
     return true;
 }
 
+/* A view as the blend's float inner loop reads it (stitch_rays.c): its
+ * prep's tables, rotation, lens and vignetting in float. */
+typedef struct stitch_ray_view {
+    float *q, *ramp;           /* q_table; ramp_table plus its last entry again */
+    float q_last, u_step_inv;  /* the lens table's last index, entries per unit of u */
+    float ramp_last, ramp_step_inv;
+    float to_cam[3][3], axis[3];
+    float cos_max, cos_ramp;
+    float cx, cy, width, height, circle_r2, inv_f2, vignette[3];
+} stitch_ray_view;
+
+bool stitch_ray_view_init(const stitch_view_prep *p, stitch_ray_view *v);
+void stitch_ray_view_free(stitch_ray_view *v);
+/* For n samples of one lat-long sub-row (latitude's sine and cosine, each
+ * sample's longitude's): the view pixel each sees (px, py), its blend
+ * weight, 0 where the view does not see it (ramp_weight()), and 1 / its
+ * vignetting gain, 0 where the gain is 1e-6 or under. */
+void stitch_rays(const stitch_ray_view *v, const float *sin_lon, const float *cos_lon,
+                 float sin_lat, float cos_lat, int n, float *px, float *py, float *weight,
+                 float *inv_gain);
+/* Tests: stitch_rays without AVX2 (it gives the same bytes). */
+extern bool stitch_rays_portable_only;
+
+/* Tests and benchmarks only: every texel's base samples through the double
+ * loop, one sample at a time, that the float row loop is checked against
+ * (hot texels are resampled in double either way). */
+extern bool stitch_blend_reference;
+
 /* Blend weight of a view for a ray theta (radians) off its axis. */
 double stitch_view_weight(const stitch_view_prep *v, double theta);
 /* The blend into a sink or, when `whole` is not NULL, into that image;

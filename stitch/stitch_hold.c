@@ -126,6 +126,8 @@ bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *
     out->height = img->height;
     out->rgb = malloc((size_t)img->width * img->height * 3 * sizeof(uint16_t));
     bool *inexact = calloc((size_t)img->height, sizeof(bool));
+    if (out->rgb) /* the blend's lookups follow curves through it */
+        sl_advise_huge_pages(out->rgb, (size_t)img->width * img->height * 3 * sizeof(uint16_t));
     if (!out->rgb || !inexact) {
         free(out->rgb), free(inexact);
         memset(out, 0, sizeof *out);

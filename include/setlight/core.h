@@ -246,6 +246,11 @@ typedef struct sl_image {
 } sl_image;
 
 sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_error *err);
+/* Asks the kernel to back the whole 2 MB pages inside a block of `bytes`
+ * with huge pages where the system allows it (before the block is first
+ * written): lookups that follow curves through a large image otherwise miss
+ * the TLB on almost every row. sl_image_alloc does it for its images. */
+void sl_advise_huge_pages(void *data, size_t bytes);
 void sl_image_free(sl_image *img);
 static inline float *sl_image_pixel(const sl_image *img, int x, int y)
 {
