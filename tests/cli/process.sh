@@ -82,10 +82,9 @@ json_eval "$D/jobs.json" 'all(j["up_to_date"] for j in d["jobs"])'
 if python3 -c "import sys; a=$t1-$t0; b=$t3-$t2; print('first %.1f s, second %.2f s' % (a, b)); sys.exit(0 if b < a / 10 else 1)"; then ok; else bad "second run not under a tenth of the first"; fi
 
 # 3. Killed with SIGKILL mid-way (the runner and its running jobs), then
-# resumed: the same bytes as the uninterrupted run.
-# (outputs only: a temporary of a file a killed job wrote beside its declared
-# outputs, e.g. the report's pictures, is not swept; the declared ones are, below)
-stage_outputs() { (cd "$1" && find ext stage \( -name '*.exr' -o -name '*.usda' -o -name '*.png' \) -not -name '.*' -not -path '*/ingest/*' | sort | xargs sha256sum); }
+# resumed: the same bytes as the uninterrupted run, and no temporary of a
+# killed writer left (hidden files count).
+stage_outputs() { (cd "$1" && find ext stage \( -name '*.exr' -o -name '*.usda' -o -name '*.png' \) -not -path '*/ingest/*' | sort | xargs sha256sum); }
 stage_outputs "$D" >"$T/sums_uninterrupted"
 mv "$D" "$T/day_uninterrupted"
 setsid "$S" process "$T/sets/ext" "$T/sets/stage" -o "$D" "${P[@]}" -q >/dev/null 2>&1 &
@@ -98,16 +97,32 @@ kill -9 -- -"$pid" 2>/dev/null
 wait "$pid" 2>/dev/null
 if [ -e "$D/ext/stitch.stamp.json" ] && [ ! -e "$D/index.html" ]; then ok; else bad "the kill did not land mid-way"; fi
 # what a job killed outright while writing leaves (its process is gone):
-# the job's next run removes it; a live process's temporary is kept
+# the job's next run removes it; a live process's temporary is kept. The
+# report's pictures are its declared outputs too, and so is its stamp.
 dead=$(sh -c 'echo $$')
 mkdir -p "$D/ext/calibrate"
 echo partial >"$D/ext/calibrate/.hdri.sl-tmp-$dead-1.exr"
 echo busy >"$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr"
+echo partial >"$D/ext/.report_latlong.sl-tmp-$dead-1.png"
+echo partial >"$D/ext/.report_rig_chart.sl-tmp-$dead-2.png"
+echo busy >"$D/ext/.report_env_grey.sl-tmp-$$-1.png"
+echo partial >"$D/ext/.report.stamp.sl-tmp-$dead-1.json"
+# and the runner's own files (the graph, its sidecar, the setups, the index's status)
+for f in .jobs.sl-tmp-$dead-1.json .jobs.json.sl-tmp-$dead-1.checked .setups.sl-tmp-$dead-1.json .status.sl-tmp-$dead-1.json; do
+  echo partial >"$D/$f"
+done
 expect 0 "$S" process "$T/sets/ext" "$T/sets/stage" -o "$D" "${P[@]}" --json -q
 json_eval "$T/out" 'd["jobs"]["skipped"] >= 4 and d["jobs"]["failed"] == 0'
 absent "$D/ext/calibrate/.hdri.sl-tmp-$dead-1.exr"
 present "$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr"
-rm -f "$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr"
+absent "$D/ext/.report_latlong.sl-tmp-$dead-1.png"
+absent "$D/ext/.report_rig_chart.sl-tmp-$dead-2.png"
+absent "$D/ext/.report.stamp.sl-tmp-$dead-1.json"
+present "$D/ext/.report_env_grey.sl-tmp-$$-1.png"
+for f in .jobs.sl-tmp-$dead-1.json .jobs.json.sl-tmp-$dead-1.checked .setups.sl-tmp-$dead-1.json .status.sl-tmp-$dead-1.json; do
+  absent "$D/$f"
+done
+rm -f "$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr" "$D/ext/.report_env_grey.sl-tmp-$$-1.png"
 stage_outputs "$D" >"$T/sums_resumed"
 if cmp -s "$T/sums_uninterrupted" "$T/sums_resumed"; then ok; else bad "resumed outputs differ: $(diff "$T/sums_uninterrupted" "$T/sums_resumed" | head -5)"; fi
 
