@@ -50,6 +50,12 @@ done
 present "$D/index.html"
 for s in ext stage blank; do if grep -q ">$s<" "$D/index.html"; then ok; else bad "index.html does not list $s"; fi; done
 if grep -q 'FAILED: .*blank' "$D/index.html"; then ok; else bad "index.html does not give blank's reason"; fi
+# each setup's thumbnail is its report's picture, a declared output of the report job
+for s in ext stage; do
+  if grep -q "src=\"$s/report_latlong.png\"" "$D/index.html"; then ok; else bad "index.html does not show $s's lat-long"; fi
+done
+json_eval "$D/jobs.json" 'all(sorted(o.rsplit("/", 1)[1] for o in j["outputs"] if o.endswith(".png")) == sorted(["report_latlong.png"] + ["report_%s_%s.png" % (w, s) for w in ("env", "rig") for s in ("grey", "chrome", "chart")]) for j in d["jobs"] if j["stage"] == "report")'
+if ls "$D"/*.png >/dev/null 2>&1; then bad "the index wrote pictures of its own: $(ls "$D"/*.png)"; else ok; fi
 json_eval "$D/index.json" 'd["setups_total"] == 3 and d["setups_failed"] == 1 and d["setups"][0]["numbers"]["rig_lights"] >= 1'
 json_eval "$T/run1.json" 'all(s["numbers"]["chart_delta_e_after"] < s["numbers"]["chart_delta_e_before"] for s in d["setups"][:2])'
 json_eval "$T/run1.json" 'all(len(s["jobs"]) == 16 and s["cost"]["cpu_seconds"] > 0 for s in d["setups"][:2])'
