@@ -1,18 +1,19 @@
 #!/usr/bin/env bash
 # A simulated shoot day through setlight process (docs/process.md, "Cost of
-# a run"): N setups (default 50, --size small: 3 fisheye views x 7 frames and
-# the three probes each), processed locally with --jobs 1 and --jobs 2, and
-# through Slurm on a single-node test cluster (tests/slurm/cluster.sh, 2
-# CPUs), a Slurm job per job (slurm) and per setup (slurm-setup,
-# --farm-group setup). Per mode, medians of RUNS runs (default 1), each from an empty OUT:
-# wall, the commands' CPU, their wait for a CPU (the machine's other load),
-# peak memory (the runner's accounting), jobs per minute, and the overhead
-# per job, (wall x cores - CPU) / jobs, with its share of the CPU; the same
-# less the wait.
+# a run"): N setups (default 50, --size small, exterior, stage and night in
+# turn: 3 fisheye views x 7 frames and the three probes each), processed
+# locally with --jobs 1 and --jobs 2, and through Slurm on a single-node test
+# cluster (tests/slurm/cluster.sh, 2 CPUs), a Slurm job per job (slurm) and
+# per setup (slurm-setup, --farm-group setup). Per mode, medians of RUNS runs
+# (default 1), each from an empty OUT: wall, the commands' CPU, their wait
+# for a CPU (the machine's other load), peak memory (the runner's
+# accounting), jobs per minute, and the overhead per job, (wall x cores -
+# CPU) / jobs, with its share of the CPU; the same less the wait.
 #   bench/process_day.sh BUILD_DIR [N [SIZE [RUNS [MODES]]]]
-# MODES: any of "jobs1 jobs2 slurm slurm-setup" (default all four). Work files in
-# SETLIGHT_BENCH_WORK (default /tmp/setlight-bench/day); the simulated day is
-# kept there and reused.
+# MODES: any of "jobs1 jobs2 slurm slurm-setup" (default all four).
+# SETLIGHT_BENCH_SCENES: the scenes the day cycles (default "exterior stage
+# night"). Work files in SETLIGHT_BENCH_WORK (default
+# /tmp/setlight-bench/day); the simulated day is kept there and reused.
 set -u
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=$(cd "${1:?usage: process_day.sh BUILD_DIR [N [SIZE [RUNS [MODES]]]]}" && pwd)
@@ -28,7 +29,7 @@ printf 'leak:cv::fastMalloc\n' >"$work/lsan.supp"
 export LSAN_OPTIONS="suppressions=$work/lsan.supp"
 
 t0=$(date +%s.%N)
-simulate_day "$exe" "$n" "$size" "$work/sets" 10 "exterior stage" || { echo "simulating the day failed" >&2; exit 1; }
+simulate_day "$exe" "$n" "$size" "$work/sets" 10 "${SETLIGHT_BENCH_SCENES:-exterior stage night}" || { echo "simulating the day failed" >&2; exit 1; }
 echo "day: $n setups, --size $size ($(awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN{printf "%.0f", b-a}') s to simulate or reuse)"
 setups=("$work"/sets/setup_*)
 

@@ -182,6 +182,17 @@ sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img,
     return SL_OK;
 }
 
+void sl_report_figure(sl_report *rep, const char *file, int width, const char *caption)
+{
+    append_lit(rep, "<figure><img src=\"");
+    append_escaped(rep, file);
+    if (width > 0)
+        appendf(rep, "\" width=\"%d", width);
+    append_lit(rep, "\"><figcaption>");
+    append_escaped(rep, caption ? caption : file);
+    append_lit(rep, "</figcaption></figure>\n");
+}
+
 void sl_report_table_begin(sl_report *rep, int columns, const char *const *header)
 {
     append_lit(rep, "<table><tr>");

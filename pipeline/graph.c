@@ -463,6 +463,8 @@ sl_result pl_graph_write(const char *path, const json_t *graph, sl_error *err)
     checked_path(path, side, sizeof side);
     if (!r) {
         unlink(side); /* never a sidecar beside a graph it does not describe */
+        sl_atomic_sweep(path); /* what a runner killed while writing them left */
+        sl_atomic_sweep(side);
         r = sl_write_file_atomic(path, t.s, t.len, err);
     }
     if (!r) {

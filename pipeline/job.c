@@ -194,6 +194,7 @@ sl_result pl_index_prepare(const json_t *graph, sl_error *err)
     sl_error ignored;
     sl_result r = SL_OK;
     pl_json_load(path, &old, &ignored);
+    sl_atomic_sweep(path); /* what an index job killed while writing it left */
     if (!old || !json_equal(old, doc))
         r = pl_json_write(path, doc, err);
     json_decref(old);
@@ -304,6 +305,8 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
             goto done;
         sl_atomic_sweep(json_string_value(x));
     }
+    pl_stamp_path(graph, job, stamp, sizeof stamp);
+    sl_atomic_sweep(stamp);
     if ((r = make_parent(log, err)))
         goto done;
     posix_spawn_file_actions_t fa;
@@ -365,7 +368,6 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
                            "outputs", outs);
     if (*exit_code)
         json_object_set_new(st, "message", json_string(message));
-    pl_stamp_path(graph, job, stamp, sizeof stamp);
     r = pl_json_write(stamp, st, err);
     json_decref(st);
 done:

@@ -78,6 +78,13 @@ sl_result pl_graph_load_job(const char *path, const char *id, json_t **graph, js
 sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_path_size,
                   json_t **graph, json_t **setups, sl_error *err);
 
+/* The pictures a setup's report writes beside report.html (OUT/SETUP/):
+ * the lat-long, then the renders under the HDRI and under the rig. They are
+ * the report job's declared outputs, so a killed report's temporaries are
+ * swept; the index shows the first as the setup's thumbnail. */
+#define PL_REPORT_PICTURES 7
+extern const char *const pl_report_pictures[PL_REPORT_PICTURES];
+
 /* A job's key: SHA-256 hex of the version, its command (argv[0] left out:
  * the same setlight anywhere) and its input files' contents. false when an
  * input does not exist (yet) or is not a regular file. */

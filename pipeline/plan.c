@@ -278,6 +278,8 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
     outs = json_array();
     push(outs, "%s/report.html", d);
     push(outs, "%s/report.json", d);
+    for (int k = 0; k < PL_REPORT_PICTURES; k++)
+        push(outs, "%s/%s", d, pl_report_pictures[k]);
     add_job(jobs, out, jobs_path, s, "report", -1, NULL,
             strs(exe, "process-report", jobs_path, s, NULL), report_in, outs, report_deps, 120, 4);
 }
@@ -389,6 +391,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
     snprintf(setups_path, sizeof setups_path, "%s/setups.json", out);
     json_t *setups_doc = json_pack("{s:s,s:i,s:O}", "format", "setlight-setups", "version", 1,
                                    "setups", list);
+    sl_atomic_sweep(setups_path); /* what a runner killed while writing it left */
     r = pl_json_write(setups_path, setups_doc, err);
     json_decref(setups_doc);
     json_t *in = json_array(), *outs = json_array();

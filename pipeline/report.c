@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "report_private.h"
 
@@ -23,6 +24,11 @@ static json_t *load_quiet(const char *path)
 }
 
 
+
+const char *const pl_report_pictures[PL_REPORT_PICTURES] = {
+    "report_latlong.png",    "report_env_grey.png", "report_env_chrome.png",
+    "report_env_chart.png",  "report_rig_grey.png", "report_rig_chrome.png",
+    "report_rig_chart.png"};
 
 static double luminance(const float *p)
 {
@@ -430,17 +436,16 @@ sl_result sl_pipeline_report_setup(const char *jobs_json, const char *setup, sl_
         goto done;
     sl_report_text(rep, "Setup %s from %s: %s.", setup, str(sum, "source"), str(sum, "status"));
     if (str(outs, "latlong"))
-        r = show_exr(rep, "report_latlong.png", str(outs, "latlong"), 512,
+        r = show_exr(rep, pl_report_pictures[0], str(outs, "latlong"), 512,
                      "the lat-long (calibrated when a grey ball or chart was shot)", err);
     sl_report_section(rep, "Numbers");
     numbers_table(rep, nums);
     sl_report_section(rep, "Validation renders: under the HDRI, under the rig");
     for (int k = 0; k < 6 && !r; k++) {
-        char file[64], cap[128];
+        char cap[128];
         snprintf(path, sizeof path, "%s/render/%s_%s.exr", dir, k < 3 ? "env" : "rig", scenes[k % 3]);
-        snprintf(file, sizeof file, "report_%s_%s.png", k < 3 ? "env" : "rig", scenes[k % 3]);
         snprintf(cap, sizeof cap, "%s under the %s", scenes[k % 3], k < 3 ? "HDRI" : "rig");
-        r = show_exr(rep, file, path, 256, cap, err);
+        r = show_exr(rep, pl_report_pictures[1 + k], path, 256, cap, err);
     }
     sl_report_section(rep, "Warnings");
     size_t i;
@@ -507,13 +512,15 @@ sl_result sl_pipeline_report_index(const char *jobs_json, sl_error *err)
         if (!ok)
             sl_report_text(rep, "FAILED: %s", str(sum, "reason"));
         else {
-            json_t *outs = json_object_get(sum, "outputs");
-            char file[600];
-            snprintf(file, sizeof file, "index_%s.png", name);
-            sl_error ie;
-            if (str(outs, "latlong") &&
-                show_exr(rep, file, str(outs, "latlong"), 256, "lat-long", &ie))
-                sl_report_text(rep, "(no thumbnail: %s)", ie.message);
+            /* The report's own picture of the lat-long: written by a job
+             * that declares it, and current when the setup is ok. */
+            char file[600], path[PATH_MAX + 700];
+            snprintf(file, sizeof file, "%s/%s", name, pl_report_pictures[0]);
+            snprintf(path, sizeof path, "%s/%s", out, file);
+            if (access(path, R_OK) == 0)
+                sl_report_figure(rep, file, 256, "lat-long");
+            else
+                sl_report_text(rep, "(no thumbnail: %s is missing)", path);
             sl_report_text(rep, "Report: %s/report.html", name);
             numbers_table(rep, json_object_get(sum, "numbers"));
         }

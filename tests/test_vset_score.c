@@ -153,18 +153,24 @@ static void rig_known(void)
     json_decref(truth);
     json_decref(rig);
     sl_vset_rig_score s;
-    CHECK_OK(sl_vset_score_rig(rp, tp, 2, 5, &s, &err), &err);
+    CHECK_OK(sl_vset_score_rig(rp, tp, 2, NULL, 5, &s, &err), &err);
     CHECK(s.truth_lights == 4 && s.rig_lights == 3 && s.matched == 3);
     CHECK_NEAR(s.direction_worst_deg, 1.5, 1e-6);
     CHECK_NEAR(s.direction_mean_deg, (1.5 + 1.5 + 1) / 3, 1e-6);
     /* 80 / 2 against 10 + 30: 1; 12 / 2 against 5: 1.2 */
     CHECK_NEAR(s.power_worst, 1.2, 1e-9);
     CHECK_NEAR(s.power_median, 1.2, 1e-9); /* the upper of two */
+    /* in a white that halves red and doubles blue, the grey lamps' luminance
+     * is 0.2126 / 2 + 0.7152 + 0.0722 * 2 = 0.9659 of theirs */
+    const double white[3] = {0.5, 1, 2};
+    CHECK_OK(sl_vset_score_rig(rp, tp, 2, white, 5, &s, &err), &err);
+    CHECK_NEAR(s.power_worst, 1.2 / 0.9659, 1e-9);
+    CHECK_NEAR(s.power_median, 1.2 / 0.9659, 1e-9);
     /* a stricter match leaves the 1.5-degree pair out */
-    CHECK_OK(sl_vset_score_rig(rp, tp, 2, 1.2, &s, &err), &err);
+    CHECK_OK(sl_vset_score_rig(rp, tp, 2, NULL, 1.2, &s, &err), &err);
     CHECK(s.matched == 1);
     /* a file that is no rig names itself */
-    CHECK_RESULT(sl_vset_score_rig(sl_test_path("nope.json"), tp, 1, 5, &s, &err),
+    CHECK_RESULT(sl_vset_score_rig(sl_test_path("nope.json"), tp, 1, NULL, 5, &s, &err),
                  SL_ERR_NOT_FOUND, &err);
     CHECK(strstr(err.message, "nope.json") != NULL);
 }

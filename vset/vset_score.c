@@ -132,7 +132,8 @@ static void json_vec3(json_t *a, double v[3])
 }
 
 sl_result sl_vset_score_rig(const char *rig_json, const char *lights_json, double scale,
-                            double match_deg, sl_vset_rig_score *out, sl_error *err)
+                            const double white[3], double match_deg, sl_vset_rig_score *out,
+                            sl_error *err)
 {
     memset(out, 0, sizeof *out);
     json_t *rig = NULL, *truth = NULL;
@@ -163,6 +164,8 @@ sl_result sl_vset_score_rig(const char *rig_json, const char *lights_json, doubl
         double td[3], ti[3];
         json_vec3(json_object_get(l, "direction"), td);
         json_vec3(json_object_get(l, "integral_rgb"), ti);
+        for (int ch = 0; ch < 3 && white; ch++)
+            ti[ch] *= white[ch];
         int best = -1;
         double best_cos = -2;
         for (int k = 0; k < out->rig_lights; k++) {

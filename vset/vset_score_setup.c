@@ -34,6 +34,9 @@ typedef struct score_ctx {
     sl_image truth;
     double rec709_from_camera[3][3];
     double calibrated_scale; /* calibrated lat-long / truth, for the rig */
+    double white_gain[3];    /* the truth to the calibration's white, per channel */
+    double white_scale;      /* calibrated lat-long / truth in that white */
+    bool chart_white;        /* that white is the chart's light made white */
     json_t *grey_job;        /* the grey ball's merge: the photo calibrate ties the map to */
     sl_image stitch_error;   /* where the stitch is off, for the report */
     sl_image white_truth;    /* the truth in the calibration's white (empty: no calibration) */
@@ -604,10 +607,12 @@ static sl_result score_calibrate(score_ctx *c, sl_error *err)
         json_decref(res);
         return r;
     }
-    /* the validation renders are made from the calibrated map */
+    /* the validation renders and the rig are made from the calibrated map */
     c->white_truth = white_truth;
-    /* the rig's lamps are the physical ones */
     c->calibrated_scale = radiance.scale;
+    c->white_scale = s.scale;
+    memcpy(c->white_gain, gain, sizeof c->white_gain);
+    c->chart_white = chart_used;
     const char *units = jstr(json_object_get(res, "units"));
     bool absolute = strcmp(units, "relative") != 0;
     double applied = json_number_value(json_object_get(res, "scale"));
@@ -658,28 +663,39 @@ static sl_result score_rig(score_ctx *c, double stitched_scale, sl_error *err)
         return SL_OK;
     char lights[4400];
     snprintf(lights, sizeof lights, "%s/truth/lights.json", c->o->capture);
-    /* the rig is made from the calibrated lat-long when there is one */
-    double scale = job_of(c, "calibrate", -1) ? c->calibrated_scale : stitched_scale;
-    sl_vset_rig_score s;
+    /* The rig is made from the calibrated lat-long when there is one: its
+     * lights are the lamps in the calibration's white, as the calibrate and
+     * render scores compare; the physical lamps beside it (vs_radiance). */
+    bool calibrated = job_of(c, "calibrate", -1) != NULL;
+    sl_vset_rig_score s, radiance;
     const char *rig = sl_json_string_ending(json_object_get(job, "outputs"), "/rig.json");
     if (!rig)
         return sl_error_set(err, SL_ERR_INPUT, "%s: the rig job has no rig.json", c->o->jobs_json);
-    sl_result r = sl_vset_score_rig(rig, lights, scale, SL_VSET_SCORE_MATCH_DEG, &s, err);
+    sl_result r = sl_vset_score_rig(rig, lights, calibrated ? c->white_scale : stitched_scale,
+                                    calibrated ? c->white_gain : NULL, SL_VSET_SCORE_MATCH_DEG, &s,
+                                    err);
+    if (!r)
+        r = sl_vset_score_rig(rig, lights, calibrated ? c->calibrated_scale : stitched_scale, NULL,
+                              SL_VSET_SCORE_MATCH_DEG, &radiance, err);
     if (r)
         return r;
     bool pass = s.matched >= SL_VSET_TOL_RIG_MATCHED * s.truth_lights &&
                 s.direction_worst_deg <= SL_VSET_TOL_RIG_DIRECTION_DEG &&
                 fabs(s.power_median - 1) <= SL_VSET_TOL_RIG_POWER;
-    char line[256];
+    bool chart_white = calibrated && c->chart_white;
+    char line[300];
     snprintf(line, sizeof line, "%d rig lights; %d of %d true lamps matched, direction off by "
-             "%.2f deg at worst; power %.3f of the truth's (median)", s.rig_lights, s.matched,
-             s.truth_lights, s.direction_worst_deg, s.power_median);
+             "%.2f deg at worst; power %.3f of the truth's in the %s white (median; %.3f of the "
+             "physical lamps')", s.rig_lights, s.matched, s.truth_lights, s.direction_worst_deg,
+             s.power_median, chart_white ? "chart's" : "radiance's", radiance.power_median);
     add_stage(c, "rig", pass,
-              json_pack("{s:i, s:i, s:i, s:f, s:f, s:f, s:f}", "rig_lights", s.rig_lights,
-                        "truth_lights", s.truth_lights, "matched", s.matched,
+              json_pack("{s:i, s:i, s:i, s:f, s:f, s:f, s:f, s:s, s:{s:f, s:f}}", "rig_lights",
+                        s.rig_lights, "truth_lights", s.truth_lights, "matched", s.matched,
                         "direction_mean_deg", s.direction_mean_deg, "direction_worst_deg",
                         s.direction_worst_deg, "power_median", s.power_median, "power_worst",
-                        s.power_worst),
+                        s.power_worst, "white", chart_white ? "chart" : "radiance",
+                        "vs_radiance", "power_median", radiance.power_median, "power_worst",
+                        radiance.power_worst),
               json_pack("{s:f, s:f, s:f, s:f}", "matched_fraction", SL_VSET_TOL_RIG_MATCHED,
                         "direction_deg", SL_VSET_TOL_RIG_DIRECTION_DEG, "power_off",
                         SL_VSET_TOL_RIG_POWER, "match_within_deg", SL_VSET_SCORE_MATCH_DEG),

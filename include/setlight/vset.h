@@ -415,14 +415,18 @@ sl_result sl_vset_score_image(const sl_image *test, const double rec709_from_tes
 /* A rig (rig.json) against the true lamps (truth/lights.json): each lamp
  * matched to the rig light nearest in direction when within match_deg;
  * a rig light's power (luminance integral / scale, scale the rig's map over
- * the truth) against the sum of the lamps it took. */
+ * the truth) against the sum of the lamps it took. white: per channel gains
+ * that take the lamps to the white the rig's map was balanced to (a chart
+ * calibration's: the truth's white_gain), NULL for the lamps as they are;
+ * scale is then the map over the truth in that white. */
 typedef struct sl_vset_rig_score {
     int truth_lights, rig_lights, matched;
     double direction_mean_deg, direction_worst_deg; /* of the matched lamps */
     double power_median, power_worst;               /* over the rig lights that took lamps */
 } sl_vset_rig_score;
 sl_result sl_vset_score_rig(const char *rig_json, const char *lights_json, double scale,
-                            double match_deg, sl_vset_rig_score *out, sl_error *err);
+                            const double white[3], double match_deg, sl_vset_rig_score *out,
+                            sl_error *err);
 
 /* What `setlight demo` holds each stage to (docs/virtual-set.md, "The
  * demo"): what a right pipeline gives on the virtual set, with a margin.

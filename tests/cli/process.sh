@@ -50,6 +50,12 @@ done
 present "$D/index.html"
 for s in ext stage blank; do if grep -q ">$s<" "$D/index.html"; then ok; else bad "index.html does not list $s"; fi; done
 if grep -q 'FAILED: .*blank' "$D/index.html"; then ok; else bad "index.html does not give blank's reason"; fi
+# each setup's thumbnail is its report's picture, a declared output of the report job
+for s in ext stage; do
+  if grep -q "src=\"$s/report_latlong.png\"" "$D/index.html"; then ok; else bad "index.html does not show $s's lat-long"; fi
+done
+json_eval "$D/jobs.json" 'all(sorted(o.rsplit("/", 1)[1] for o in j["outputs"] if o.endswith(".png")) == sorted(["report_latlong.png"] + ["report_%s_%s.png" % (w, s) for w in ("env", "rig") for s in ("grey", "chrome", "chart")]) for j in d["jobs"] if j["stage"] == "report")'
+if ls "$D"/*.png >/dev/null 2>&1; then bad "the index wrote pictures of its own: $(ls "$D"/*.png)"; else ok; fi
 json_eval "$D/index.json" 'd["setups_total"] == 3 and d["setups_failed"] == 1 and d["setups"][0]["numbers"]["rig_lights"] >= 1'
 json_eval "$T/run1.json" 'all(s["numbers"]["chart_delta_e_after"] < s["numbers"]["chart_delta_e_before"] for s in d["setups"][:2])'
 json_eval "$T/run1.json" 'all(len(s["jobs"]) == 16 and s["cost"]["cpu_seconds"] > 0 for s in d["setups"][:2])'
@@ -82,10 +88,9 @@ json_eval "$D/jobs.json" 'all(j["up_to_date"] for j in d["jobs"])'
 if python3 -c "import sys; a=$t1-$t0; b=$t3-$t2; print('first %.1f s, second %.2f s' % (a, b)); sys.exit(0 if b < a / 10 else 1)"; then ok; else bad "second run not under a tenth of the first"; fi
 
 # 3. Killed with SIGKILL mid-way (the runner and its running jobs), then
-# resumed: the same bytes as the uninterrupted run.
-# (outputs only: a temporary of a file a killed job wrote beside its declared
-# outputs, e.g. the report's pictures, is not swept; the declared ones are, below)
-stage_outputs() { (cd "$1" && find ext stage \( -name '*.exr' -o -name '*.usda' -o -name '*.png' \) -not -name '.*' -not -path '*/ingest/*' | sort | xargs sha256sum); }
+# resumed: the same bytes as the uninterrupted run, and no temporary of a
+# killed writer left (hidden files count).
+stage_outputs() { (cd "$1" && find ext stage \( -name '*.exr' -o -name '*.usda' -o -name '*.png' \) -not -path '*/ingest/*' | sort | xargs sha256sum); }
 stage_outputs "$D" >"$T/sums_uninterrupted"
 mv "$D" "$T/day_uninterrupted"
 setsid "$S" process "$T/sets/ext" "$T/sets/stage" -o "$D" "${P[@]}" -q >/dev/null 2>&1 &
@@ -98,16 +103,32 @@ kill -9 -- -"$pid" 2>/dev/null
 wait "$pid" 2>/dev/null
 if [ -e "$D/ext/stitch.stamp.json" ] && [ ! -e "$D/index.html" ]; then ok; else bad "the kill did not land mid-way"; fi
 # what a job killed outright while writing leaves (its process is gone):
-# the job's next run removes it; a live process's temporary is kept
+# the job's next run removes it; a live process's temporary is kept. The
+# report's pictures are its declared outputs too, and so is its stamp.
 dead=$(sh -c 'echo $$')
 mkdir -p "$D/ext/calibrate"
 echo partial >"$D/ext/calibrate/.hdri.sl-tmp-$dead-1.exr"
 echo busy >"$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr"
+echo partial >"$D/ext/.report_latlong.sl-tmp-$dead-1.png"
+echo partial >"$D/ext/.report_rig_chart.sl-tmp-$dead-2.png"
+echo busy >"$D/ext/.report_env_grey.sl-tmp-$$-1.png"
+echo partial >"$D/ext/.report.stamp.sl-tmp-$dead-1.json"
+# and the runner's own files (the graph, its sidecar, the setups, the index's status)
+for f in .jobs.sl-tmp-$dead-1.json .jobs.json.sl-tmp-$dead-1.checked .setups.sl-tmp-$dead-1.json .status.sl-tmp-$dead-1.json; do
+  echo partial >"$D/$f"
+done
 expect 0 "$S" process "$T/sets/ext" "$T/sets/stage" -o "$D" "${P[@]}" --json -q
 json_eval "$T/out" 'd["jobs"]["skipped"] >= 4 and d["jobs"]["failed"] == 0'
 absent "$D/ext/calibrate/.hdri.sl-tmp-$dead-1.exr"
 present "$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr"
-rm -f "$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr"
+absent "$D/ext/.report_latlong.sl-tmp-$dead-1.png"
+absent "$D/ext/.report_rig_chart.sl-tmp-$dead-2.png"
+absent "$D/ext/.report.stamp.sl-tmp-$dead-1.json"
+present "$D/ext/.report_env_grey.sl-tmp-$$-1.png"
+for f in .jobs.sl-tmp-$dead-1.json .jobs.json.sl-tmp-$dead-1.checked .setups.sl-tmp-$dead-1.json .status.sl-tmp-$dead-1.json; do
+  absent "$D/$f"
+done
+rm -f "$D/ext/calibrate/.hdri.sl-tmp-$$-1.exr" "$D/ext/.report_env_grey.sl-tmp-$$-1.png"
 stage_outputs "$D" >"$T/sums_resumed"
 if cmp -s "$T/sums_uninterrupted" "$T/sums_resumed"; then ok; else bad "resumed outputs differ: $(diff "$T/sums_uninterrupted" "$T/sums_resumed" | head -5)"; fi
 

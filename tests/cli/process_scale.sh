@@ -1,19 +1,19 @@
 #!/bin/bash
-# setlight process at the scale of a shoot day: 50 simulated setups (3
-# fisheye views x 7 frames and the three probes each, --size small), two jobs
-# at a time. The whole day is processed, its peak memory (the runner's
-# accounting: the running jobs' peak RSS summed, plus the runner's) stays
-# within --memory-mb, and the run keeps its slots busy: its wall time is
-# within 1.15x the jobs' CPU time divided by the slots, the CPU the
-# machine's other work took from the jobs added to it (their run-queue
-# wait; 0 on an idle machine, docs/process.md "Cost of a run"). The graph
-# --emit-jobs writes validates against docs/jobs.schema.json, and the
-# validator rejects broken graphs.
+# setlight process at the scale of a shoot day: 50 simulated setups
+# (exterior, stage and night; 3 fisheye views x 7 frames and the three probes
+# each, --size small), two jobs at a time. The whole day is processed, its
+# peak memory (the runner's accounting: the running jobs' peak RSS summed,
+# plus the runner's) stays within --memory-mb, and the run keeps its slots
+# busy: its wall time is within 1.15x the jobs' CPU time divided by the
+# slots, the CPU the machine's other work took from the jobs added to it
+# (their run-queue wait; 0 on an idle machine, docs/process.md "Cost of a
+# run"). The graph --emit-jobs writes validates against
+# docs/jobs.schema.json, and the validator rejects broken graphs.
 #
 # About 11 minutes of CPU (docs/process.md): run by the release pass of
 # .ci/run only, skipped under the sanitizers (SETLIGHT_SANITIZED).
 # SETLIGHT_SCALE_SETUPS=N and SETLIGHT_SCALE_SIZE=tiny run a smaller day (for
-# development).
+# development); SETLIGHT_SCALE_SCENES another cycle of scenes.
 . "$(dirname "$0")/lib.bash"
 . "$(dirname "$0")/day.bash"
 S="$SETLIGHT"
@@ -35,9 +35,9 @@ SIZE=${SETLIGHT_SCALE_SIZE:-small}
 BUDGET=1024
 P=(--probe-view 180,0)
 
-# The day: 10 distinct captures (exterior and stage, seeds 1-5), each setup
-# a copy of one of them.
-if ! simulate_day "$S" "$N" "$SIZE" "$T/day" 10 "exterior stage"; then
+# The day: 10 distinct captures (exterior, stage and night in turn: seeds
+# 1-4, 1-3 and 1-3), each setup a copy of one of them.
+if ! simulate_day "$S" "$N" "$SIZE" "$T/day" 10 "${SETLIGHT_SCALE_SCENES:-exterior stage night}"; then
   bad "simulating the day failed"
   finish
   exit
