@@ -3,6 +3,7 @@
  * beside it, the page written atomically at the end. */
 #include "setlight/core.h"
 
+#include <ctype.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdarg.h>
@@ -139,12 +140,26 @@ void sl_report_text(sl_report *rep, const char *fmt, ...)
     append_lit(rep, "</p>\n");
 }
 
+/* A relative file name as a URL in an attribute: every byte but the
+ * unreserved ones and '/' percent-encoded, so a setup named "a#1" or
+ * "b?c" (legal folder names) still links to its picture. */
+static void append_url(sl_report *rep, const char *file)
+{
+    static const char hex[] = "0123456789ABCDEF";
+    for (const unsigned char *c = (const unsigned char *)file; *c; c++) {
+        if (isalnum(*c) || strchr("-._~/", *c))
+            append(rep, (const char *)c, 1);
+        else
+            appendf(rep, "%%%c%c", hex[*c >> 4], hex[*c & 15]);
+    }
+}
+
 /* "<figure><img src=FILE><figcaption>CAPTION</figcaption>", left open for
  * more captions. */
 static void figure_begin(sl_report *rep, const char *file, const char *caption)
 {
     append_lit(rep, "<figure><img src=\"");
-    append_escaped(rep, file);
+    append_url(rep, file);
     append_lit(rep, "\"><figcaption>");
     append_escaped(rep, caption);
     append_lit(rep, "</figcaption>");
@@ -185,7 +200,7 @@ sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img,
 void sl_report_figure(sl_report *rep, const char *file, int width, const char *caption)
 {
     append_lit(rep, "<figure><img src=\"");
-    append_escaped(rep, file);
+    append_url(rep, file);
     if (width > 0)
         appendf(rep, "\" width=\"%d", width);
     append_lit(rep, "\"><figcaption>");

@@ -30,11 +30,6 @@ const char *const pl_report_pictures[PL_REPORT_PICTURES] = {
     "report_env_chart.png",  "report_rig_grey.png", "report_rig_chrome.png",
     "report_rig_chart.png"};
 
-static double luminance(const float *p)
-{
-    return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-}
-
 sl_result sl_pipeline_latlong_compare(const char *test_path, const char *ref_path,
                                       double band_deg, double *median_ratio,
                                       double *median_rel_error, double *median_rel_error_scaled,
@@ -63,8 +58,8 @@ sl_result sl_pipeline_latlong_compare(const char *test_path, const char *ref_pat
         if (fabs(lat) > band_deg)
             continue;
         for (int x = 0; x < a.width; x++) {
-            double la = luminance(sl_image_pixel((sl_image *)&a, x, y));
-            double lb = luminance(sl_image_pixel((sl_image *)ref, x, y));
+            double la = sl_luminance_px(sl_image_pixel((sl_image *)&a, x, y));
+            double lb = sl_luminance_px(sl_image_pixel((sl_image *)ref, x, y));
             if (!(la >= 0) || !(lb > 0) || !isfinite(la) || !isfinite(lb))
                 continue;
             ratio[n++] = la / lb;
@@ -298,7 +293,7 @@ static double display_stops(const sl_image *img)
         return 0;
     for (int y = 0; y < img->height; y++)
         for (int x = 0; x < img->width; x++) {
-            double v = luminance(sl_image_pixel((sl_image *)img, x, y));
+            double v = sl_luminance_px(sl_image_pixel((sl_image *)img, x, y));
             if (v > 0 && isfinite(v))
                 l[n++] = v;
         }

@@ -29,6 +29,8 @@ static void test_report_page(void)
     sl_image_fill(&img, 0.18f);
     CHECK_OK(sl_report_image(rep, "grey.png", &img, 1.0, "grey at +1 stop", &err), &err);
     sl_image_free(&img);
+    /* a setup folder may be named anything: its picture's URL is encoded */
+    sl_report_figure(rep, "a#1 b?c/report_latlong.png", 256, "a#1 b?c");
     CHECK_OK(sl_report_finish(rep, &err), &err);
 
     char *html = sl_test_read_file(sl_test_path("report.html"), NULL);
@@ -39,6 +41,8 @@ static void test_report_page(void)
         CHECK(strstr(html, "<td>&lt;1</td>") != NULL);
         CHECK(strstr(html, "src=\"conv.svg\"") != NULL);
         CHECK(strstr(html, "src=\"grey.png\"") != NULL);
+        CHECK(strstr(html, "src=\"a%231%20b%3Fc/report_latlong.png\" width=\"256\"") != NULL);
+        CHECK(strstr(html, "<figcaption>a#1 b?c</figcaption>") != NULL);
         CHECK(strstr(html, "</html>") != NULL);
         free(html);
     }
