@@ -208,6 +208,15 @@ void sl_report_figure(sl_report *rep, const char *file, int width, const char *c
     append_lit(rep, "</figcaption></figure>\n");
 }
 
+void sl_report_link(sl_report *rep, const char *file, const char *text)
+{
+    append_lit(rep, "<p><a href=\"");
+    append_url(rep, file);
+    append_lit(rep, "\">");
+    append_escaped(rep, text);
+    append_lit(rep, "</a></p>\n");
+}
+
 void sl_report_table_begin(sl_report *rep, int columns, const char *const *header)
 {
     append_lit(rep, "<table><tr>");

@@ -25,6 +25,8 @@ static json_t *load_quiet(const char *path)
 
 
 
+#define INDEX_WARNINGS 5 /* a setup's warnings shown on the day's index */
+
 const char *const pl_report_pictures[PL_REPORT_PICTURES] = {
     "report_latlong.png",    "report_env_grey.png", "report_env_chrome.png",
     "report_env_chart.png",  "report_rig_grey.png", "report_rig_chrome.png",
@@ -516,7 +518,9 @@ sl_result sl_pipeline_report_index(const char *jobs_json, sl_error *err)
                 sl_report_figure(rep, file, 256, "lat-long");
             else
                 sl_report_text(rep, "(no thumbnail: %s is missing)", path);
-            sl_report_text(rep, "Report: %s/report.html", name);
+            char page[PATH_MAX];
+            snprintf(page, sizeof page, "%s/report.html", name);
+            sl_report_link(rep, page, "the setup's report");
             numbers_table(rep, json_object_get(sum, "numbers"));
         }
         json_t *cost = json_object_get(sum, "cost");
@@ -525,10 +529,18 @@ sl_result sl_pipeline_report_index(const char *jobs_json, sl_error *err)
                            json_number_value(json_object_get(cost, "seconds")),
                            json_number_value(json_object_get(cost, "cpu_seconds")),
                            json_number_value(json_object_get(cost, "max_rss_mb")));
-        size_t k;
+        /* A night setup can carry dozens (a merge's frames not aligned):
+         * the first few here, all of them in the setup's report. */
+        size_t k, nwarn = json_array_size(json_object_get(sum, "warnings"));
         json_t *w;
-        json_array_foreach(json_object_get(sum, "warnings"), k, w)
+        json_array_foreach(json_object_get(sum, "warnings"), k, w) {
+            if (k == INDEX_WARNINGS && nwarn > INDEX_WARNINGS + 1) {
+                sl_report_text(rep, "... and %zu more warnings (all in %s/report.html)",
+                               nwarn - k, name);
+                break;
+            }
             sl_report_text(rep, "%s", json_string_value(w));
+        }
         json_array_append_new(list, sum);
     }
     sl_report_top_begin(rep);

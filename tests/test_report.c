@@ -31,6 +31,7 @@ static void test_report_page(void)
     sl_image_free(&img);
     /* a setup folder may be named anything: its picture's URL is encoded */
     sl_report_figure(rep, "a#1 b?c/report_latlong.png", 256, "a#1 b?c");
+    sl_report_link(rep, "a#1 b?c/report.html", "the setup's <report>");
     CHECK_OK(sl_report_finish(rep, &err), &err);
 
     char *html = sl_test_read_file(sl_test_path("report.html"), NULL);
@@ -43,6 +44,8 @@ static void test_report_page(void)
         CHECK(strstr(html, "src=\"grey.png\"") != NULL);
         CHECK(strstr(html, "src=\"a%231%20b%3Fc/report_latlong.png\" width=\"256\"") != NULL);
         CHECK(strstr(html, "<figcaption>a#1 b?c</figcaption>") != NULL);
+        CHECK(strstr(html, "<a href=\"a%231%20b%3Fc/report.html\">the setup's &lt;report&gt;</a>") !=
+              NULL);
         CHECK(strstr(html, "</html>") != NULL);
         free(html);
     }

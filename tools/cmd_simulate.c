@@ -49,12 +49,14 @@ static const char *size_name(int size)
     return size == SL_VSET_SIZE_TINY ? "tiny" : size == SL_VSET_SIZE_FULL ? "full" : "small";
 }
 
+/* A folder named like a scene (often the --out of an earlier run:
+ * "--scene night --out night") does not hide the built-in scene. */
 static bool looks_like_file(const char *s)
 {
     struct stat sb;
     size_t n = strlen(s);
     return strchr(s, '/') || (n > 5 && !strcmp(s + n - 5, ".json")) ||
-           (n > 4 && !strcmp(s + n - 4, ".txt")) || stat(s, &sb) == 0;
+           (n > 4 && !strcmp(s + n - 4, ".txt")) || (stat(s, &sb) == 0 && !S_ISDIR(sb.st_mode));
 }
 
 int cmd_simulate(int argc, char **argv, const sl_cli *cli)

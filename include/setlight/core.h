@@ -861,6 +861,8 @@ sl_result sl_report_image(sl_report *rep, const char *file, const sl_image *img,
 /* A picture already written (by another step) at DIR/FILE, a path
  * relative to the page, shown WIDTH px wide (0: its own width). */
 void sl_report_figure(sl_report *rep, const char *file, int width, const char *caption);
+/* A paragraph linking to FILE (a path relative to the page) with TEXT. */
+void sl_report_link(sl_report *rep, const char *file, const char *text);
 /* A table: header then rows, every cell text (escaped). */
 void sl_report_table_begin(sl_report *rep, int columns, const char *const *header);
 void sl_report_table_row(sl_report *rep, const char *const *cells);

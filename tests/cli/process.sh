@@ -53,6 +53,7 @@ if grep -q 'FAILED: .*blank' "$D/index.html"; then ok; else bad "index.html does
 # each setup's thumbnail is its report's picture, a declared output of the report job
 for s in ext stage; do
   if grep -q "src=\"$s/report_latlong.png\"" "$D/index.html"; then ok; else bad "index.html does not show $s's lat-long"; fi
+  if grep -q "href=\"$s/report.html\"" "$D/index.html"; then ok; else bad "index.html does not link $s's report"; fi
 done
 json_eval "$D/jobs.json" 'all(sorted(o.rsplit("/", 1)[1] for o in j["outputs"] if o.endswith(".png")) == sorted(["report_latlong.png"] + ["report_%s_%s.png" % (w, s) for w in ("env", "rig") for s in ("grey", "chrome", "chart")]) for j in d["jobs"] if j["stage"] == "report")'
 if ls "$D"/*.png >/dev/null 2>&1; then bad "the index wrote pictures of its own: $(ls "$D"/*.png)"; else ok; fi

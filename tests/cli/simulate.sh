@@ -18,6 +18,10 @@ present "$T/night/truth/probes.json"
 for k in chrome grey chart; do present "$T/night/truth/probe_$k.exr"; done
 json_eval "$T/night/truth/probes.json" '[p["kind"] for p in d["probes"]] == ["chrome", "grey", "chart"] and len(d["probes"][2]["chart"]["corners"]) == 4 and d["probes"][0]["ball"]["r_px"] > 10'
 present "$T/night/capture.json"
+# a folder named like a scene (an earlier run's --out, here the current directory's)
+# does not hide the built-in scene
+(cd "$T" && expect 0 "$S" simulate --scene night --out night2 --seed 3 --size tiny --quiet)
+present "$T/night2/capture.json"
 present "$T/night/truth/latlong.exr"
 present "$T/night/truth/lights.json"
 present "$T/night/truth/camera.json"
