@@ -117,6 +117,9 @@ typedef struct plan_job {
     sl_glossy_pixels glossy; /* pixels left to sl_glossy_fill: glossy at centres, Lambert */
     double deadline;  /* --time: rows not planned by then are sampled */
     uint8_t *row_cut; /* the row ran into the deadline */
+    int32_t *row_late; /* rim pixels of a finished row the deadline left to sampling */
+    uint8_t *drop;     /* filter_rows: pixels it leaves to sampling, applied after it, so
+                          that no pixel's neighbours change while it runs */
 } plan_job;
 
 static void plan_job_free(plan_job *j)
@@ -125,6 +128,8 @@ static void plan_job_free(plan_job *j)
     free(j->row_cost);
     free(j->row_foot);
     free(j->row_cut);
+    free(j->row_late);
+    free(j->drop);
     free(j->glossy.state);
     free(j->glossy.n);
     free(j->glossy.wo);
@@ -291,7 +296,9 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 continue;
             }
             int a = cf->shape[pix];
-            bool inner = x > 0 && y > 0 && x + 1 < w && y + 1 < hgt;
+            /* A cut row's centres were never finished: no neighbour there. */
+            bool inner = x > 0 && y > 0 && x + 1 < w && y + 1 < hgt && !j->row_cut[y - 1] &&
+                         !j->row_cut[y + 1];
             const size_t nb[4] = {pix - 1, pix + 1, pix - (size_t)w, pix + (size_t)w};
             for (int k = 0; k < 4 && inner; k++)
                 inner = cf->mode[nb[k]] != SL_PIXEL_SAMPLED && cf->shape[nb[k]] == a;
@@ -314,7 +321,8 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 /* Midpoint rules err as h^2: the 3x3 grid's error is about
                  * (centre - 3x3) / 8. */
                 if (late || !grid_mean(j, a, x, (int)y, 3, mean, bound, &j->row_cost[y])) {
-                    cf->mode[pix] = SL_PIXEL_SAMPLED; /* rounding at a corner, or --time */
+                    j->drop[pix] = 1; /* rounding at a corner, or --time */
+                    j->row_late[y] += late;
                     continue;
                 }
                 for (int c = 0; c < 3; c++)
@@ -397,9 +405,11 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
     j.glossy.value = j.centre;
     j.row_cut = calloc((size_t)cam->height, 1);
+    j.row_late = calloc((size_t)cam->height, sizeof *j.row_late);
+    j.drop = calloc(npix, 1);
     j.deadline = o->time_limit > 0 ? t0 + PLAN_TIME_SHARE * o->time_limit : INFINITY;
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
-        !j.row_foot || !j.row_cut || !j.glossy.state || !j.glossy.n || !j.glossy.wo) {
+        !j.row_foot || !j.row_cut || !j.row_late || !j.drop || !j.glossy.state || !j.glossy.n || !j.glossy.wo) {
         plan_job_free(&j);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
@@ -418,7 +428,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
             cf->gdome->rest = cf->ir;
         if (!res) {
             res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost,
-                                 j.deadline, j.row_cut, err);
+                                 j.deadline, o->plan_row_limit, j.row_cut, err);
             st->sun_texels = cf->gdome->sun_texels;
             st->sun_share = cf->gdome->sun_share;
         }
@@ -432,9 +442,19 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     free(j.glossy.wo);
     j.glossy.n = j.glossy.wo = NULL;
     sl_parallel_for(cam->height, 1, filter_rows, &j);
+    for (size_t i = 0; i < npix; i++)
+        if (j.drop[i])
+            cf->mode[i] = SL_PIXEL_SAMPLED;
+    for (int y = 0; y < cam->height; y++) {
+        st->cut_pixels += j.row_late[y];
+        st->cut_by_time |= j.row_late[y] > 0;
+    }
     for (int y = 0; y < cam->height; y++)
         if (j.row_cut[y]) {
-            memset(cf->mode + (size_t)y * (size_t)cam->width, SL_PIXEL_SAMPLED, (size_t)cam->width);
+            uint8_t *row = cf->mode + (size_t)y * (size_t)cam->width;
+            for (int x = 0; x < cam->width; x++)
+                st->cut_pixels += row[x] != SL_PIXEL_SAMPLED;
+            memset(row, SL_PIXEL_SAMPLED, (size_t)cam->width);
             st->cut_by_time = true;
         }
     st->used = true;

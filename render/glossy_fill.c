@@ -42,6 +42,9 @@
 #define SUN_SHARE 0.25
 #define LAMBERT_REST_SHARE 0.5
 #define LAMBERT_INTERP_SHARE 0.25
+/* Rows per band of the Lambert fill: each band is finished (its rest over
+ * normals, then its rows) before the next starts. */
+#define BAND_ROWS 16
 
 /* ---- the split ---- */
 
@@ -166,6 +169,8 @@ typedef struct fill_job {
     int w, h;
     sl_irradiance_cost *row_cost;
     double deadline;  /* --time: rows not filled by then are sampled */
+    int row_limit;    /* tests: rows from this one on are cut as by the deadline (0: none) */
+    int row0;         /* finish_rows: the band's first row */
     uint8_t *row_cut; /* per image row: ran into the deadline */
     uint8_t *need;    /* per pixel: its rest to be evaluated in this pass */
     uint8_t *rest_state; /* 0 unknown, 1 evaluated, 2 interpolated */
@@ -208,8 +213,8 @@ static void eval_rest(fill_job *j, size_t pix, sl_glossy_scratch *s, sl_irradian
     j->rest_state[pix] = 1;
 }
 
-/* Evaluates the rest at every pixel marked in need (or, with need NULL,
- * every pending pixel whose rest is unknown), row by row. */
+/* Evaluates the rest at every pixel marked in need (the image blocks'
+ * points), row by row. */
 static void rest_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     fill_job *j = ctx;
@@ -219,8 +224,7 @@ static void rest_rows(void *ctx, int64_t begin, int64_t end, int worker)
             continue;
         for (int x = 0; x < j->w; x++) {
             size_t pix = (size_t)y * j->w + x;
-            bool want = j->need ? j->need[pix] : j->px->state[pix] == SL_GLOSSY_PENDING && !j->rest_state[pix];
-            if (!want || j->rest_state[pix] == 1)
+            if (!j->need[pix] || j->rest_state[pix] == 1)
                 continue;
             if (!s || sl_seconds() > j->deadline) {
                 j->row_cut[y] = 1; /* left to sampling */
@@ -328,16 +332,19 @@ static bool try_block(fill_job *j, const block *b, int S)
     return true;
 }
 
-/* The sun at every pixel whose rest is known, and the pixel's totals. */
-static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
+/* Each row in full, in image order: the rest at every pixel no block
+ * interpolated, then the sun at every pixel, and the pixel's totals. A
+ * --time cut then leaves the rows finished before it exact, and only the
+ * rows after it to sampling. */
+static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     fill_job *j = ctx;
     const sl_glossy_dome *gd = j->cf->gdome;
     sl_glossy_scratch *s = scratch_for(j, worker);
-    for (int64_t y = begin; y < end; y++) {
+    for (int64_t y = j->row0 + begin; y < j->row0 + end; y++) {
         if (j->row_cut[y])
             continue;
-        if (sl_seconds() > j->deadline || (!s && gd->sun)) {
+        if (sl_seconds() > j->deadline || (j->row_limit > 0 && y >= j->row_limit) || !s) {
             j->row_cut[y] = 1;
             j->failed |= !s;
             continue;
@@ -346,10 +353,8 @@ static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
             size_t pix = (size_t)y * j->w + x;
             if (j->px->state[pix] != SL_GLOSSY_PENDING)
                 continue;
-            if (!j->rest_state[pix]) { /* cannot happen: every pending pixel's rest is known */
-                j->row_cut[y] = 1;
-                break;
-            }
+            if (!j->rest_state[pix])
+                eval_rest(j, pix, s, &j->row_cost[y]);
             double sun[3] = {0, 0, 0}, serr[3] = {0, 0, 0};
             bool lambert = lambert_at(j, pix);
             /* A Lambert pixel comes in with its lights' irradiance and bound. */
@@ -377,13 +382,55 @@ static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
+/* Band by band in image order: the Lambert pixels' rest over normals (the
+ * grid keeps its points from band to band, so the bands together cost what
+ * the whole image would), then each row of the band in full. A --time cut
+ * thus keeps every band finished before it. */
+static sl_result finish_bands(fill_job *j, sl_error *err)
+{
+    size_t npix = (size_t)j->w * j->h;
+    size_t *lambert = malloc((size_t)BAND_ROWS * j->w * sizeof *lambert);
+    uint8_t *interpolated = malloc(npix);
+    sl_normal_grid *grid = NULL;
+    sl_result res = SL_OK;
+    if (!lambert || !interpolated)
+        res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the Lambert pixels");
+    for (int y0 = 0; y0 < j->h && !res; y0 += BAND_ROWS) {
+        int y1 = y0 + BAND_ROWS < j->h ? y0 + BAND_ROWS : j->h;
+        int64_t nl = 0;
+        for (int y = y0; y < y1; y++)
+            for (int x = 0; x < j->w && !j->row_cut[y]; x++) {
+                size_t p = (size_t)y * j->w + x;
+                if (j->px->state[p] == SL_GLOSSY_PENDING && lambert_at(j, p))
+                    lambert[nl++] = p;
+            }
+        if (nl && sl_seconds() <= j->deadline && !(j->row_limit > 0 && y0 >= j->row_limit)) {
+            if (!grid)
+                res = sl_normal_grid_new(j->cf->gdome->rest, LAMBERT_REST_SHARE * j->cf->tol,
+                                         LAMBERT_INTERP_SHARE * j->cf->tol, &grid, err);
+            if (!res)
+                res = sl_normal_grid_fill(grid, (const double(*)[3])j->px->n, lambert, nl, j->rest,
+                                          j->rest_err, interpolated, j->deadline, &j->row_cost[y0], err);
+            for (int64_t i = 0; i < nl && !res; i++)
+                j->rest_state[lambert[i]] = interpolated[lambert[i]] ? 2 : 0;
+        }
+        j->row0 = y0;
+        if (!res)
+            sl_parallel_for(y1 - y0, 1, finish_rows, j);
+    }
+    sl_normal_grid_free(grid);
+    free(lambert);
+    free(interpolated);
+    return res;
+}
+
 sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px,
                          int w, int h, sl_irradiance_cost *row_cost, double deadline,
-                         uint8_t *row_cut, sl_error *err)
+                         int row_limit, uint8_t *row_cut, sl_error *err)
 {
     size_t npix = (size_t)w * h;
     fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost,
-                  .deadline = deadline, .row_cut = row_cut};
+                  .deadline = deadline, .row_limit = row_limit, .row_cut = row_cut};
     j.workers = sl_threads_get();
     j.scratch = calloc((size_t)j.workers, sizeof *j.scratch);
     j.need = calloc(npix, 1);
@@ -398,29 +445,6 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the glossy pixels");
         goto done;
     }
-    /* Lambert pixels: the rest's irradiance over normals. */
-    size_t *lambert = malloc(npix * sizeof *lambert);
-    uint8_t *done = malloc(npix);
-    int64_t nl = 0;
-    if (!lambert || !done) {
-        free(lambert);
-        free(done);
-        res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the Lambert pixels");
-        goto done;
-    }
-    for (size_t p = 0; p < npix; p++)
-        if (px->state[p] == SL_GLOSSY_PENDING && lambert_at(&j, p))
-            lambert[nl++] = p;
-    if (nl)
-        res = sl_normal_fill(cf->gdome->rest, LAMBERT_REST_SHARE * cf->tol, LAMBERT_INTERP_SHARE * cf->tol,
-                             (const double(*)[3])px->n, lambert, nl, j.rest, j.rest_err, done, deadline,
-                             &row_cost[0], err);
-    for (int64_t i = 0; i < nl && !res; i++)
-        j.rest_state[lambert[i]] = done[lambert[i]] ? 2 : 0;
-    free(lambert);
-    free(done);
-    if (res)
-        goto done;
     int ncur = 0;
     for (int y = 0; y < h; y += BLOCK0)
         for (int x = 0; x < w; x += BLOCK0)
@@ -454,8 +478,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         ncur = nnext;
     }
     j.need = (free(j.need), NULL);
-    sl_parallel_for(h, 1, rest_rows, &j); /* every pixel no block interpolated */
-    sl_parallel_for(h, 1, sun_rows, &j);
+    res = finish_bands(&j, err);
 done:
     for (int i = 0; j.scratch && i < j.workers; i++)
         sl_glossy_scratch_free(j.scratch[i]);

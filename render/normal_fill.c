@@ -11,7 +11,10 @@
  * interpolation of the corners, sl_fill_check); a block that fails is split
  * in four, down to 1/64 of a face (about 1.4 degrees). Only blocks holding
  * some pixel's normal are evaluated. Pixels that no block interpolates keep
- * their state: the caller evaluates them one by one. */
+ * their state: the caller evaluates them one by one. The grid keeps its
+ * evaluated points from call to call, so the caller can fill the image band
+ * by band at the cost of one call: whether a pixel is interpolated, and its
+ * value, depend on its normal alone, not on the other pixels of the call. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -61,8 +64,10 @@ static void eval_vertices(void *ctx, int64_t begin, int64_t end, int worker)
     sl_irradiance_cost scratch = {0}, *cost = worker >= 0 && worker < j->workers ? &j->worker_cost[worker] : &scratch;
     for (int64_t k = begin; k < end; k++) {
         int v = j->queue[k];
-        if (sl_seconds() > j->deadline)
-            continue; /* unknown: its blocks fail, their pixels are the caller's */
+        if (sl_seconds() > j->deadline) {
+            j->known[v] = 0; /* unknown: its blocks fail, their pixels are the caller's */
+            continue;
+        }
         int face = v / VERTS, r = v % VERTS;
         double n[3];
         from_face(face, r % (RES + 1), r / (RES + 1), n);
@@ -81,31 +86,74 @@ static int vertex(int face, int bx, int by, int S, int k)
     return face * VERTS + (by * S + POINT[k][1] * S / 2) * (RES + 1) + bx * S + POINT[k][0] * S / 2;
 }
 
-sl_result sl_normal_fill(const sl_irradiance *rest, double quad_tol, double interp_tol,
-                         const double (*n)[3], const size_t *pix, int64_t count, double (*out)[3],
-                         double (*out_err)[3], uint8_t *interpolated, double deadline,
-                         sl_irradiance_cost *cost, sl_error *err)
+struct sl_normal_grid {
+    normal_job j;
+    double interp_tol;
+    /* Per block of the current level: 0 none, 1 holds a pixel left, 2
+     * interpolated; its error. Scratch of each call. */
+    uint8_t *block;
+    double (*block_err)[3];
+};
+
+void sl_normal_grid_free(sl_normal_grid *g)
 {
-    normal_job j = {.rest = rest, .quad_tol = quad_tol, .deadline = deadline};
-    j.workers = sl_threads_get();
-    j.val = malloc(6 * (size_t)VERTS * sizeof *j.val);
-    j.err = malloc(6 * (size_t)VERTS * sizeof *j.err);
-    j.known = calloc(6 * (size_t)VERTS, 1);
-    j.queue = malloc(6 * (size_t)VERTS * sizeof *j.queue);
-    j.worker_cost = calloc((size_t)j.workers, sizeof *j.worker_cost);
-    /* Per pixel: face and (s, t); per block of the current level: 0 none,
-     * 1 holds a pixel left, 2 interpolated; per block its error. */
-    int *face = malloc((size_t)count * sizeof *face);
-    double (*st)[2] = malloc((size_t)count * sizeof *st);
-    uint8_t *block = malloc(6 * (size_t)RES * RES);
-    double (*block_err)[3] = malloc(6 * (size_t)RES * RES * sizeof *block_err);
+    if (!g)
+        return;
+    free(g->j.val);
+    free(g->j.err);
+    free(g->j.known);
+    free(g->j.queue);
+    free(g->j.worker_cost);
+    free(g->block);
+    free(g->block_err);
+    free(g);
+}
+
+sl_result sl_normal_grid_new(const sl_irradiance *rest, double quad_tol, double interp_tol,
+                             sl_normal_grid **out, sl_error *err)
+{
+    sl_normal_grid *g = calloc(1, sizeof *g);
+    *out = NULL;
+    if (!g)
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the irradiance over normals");
+    normal_job *j = &g->j;
+    j->rest = rest;
+    j->quad_tol = quad_tol;
+    g->interp_tol = interp_tol;
+    j->workers = sl_threads_get();
+    j->val = malloc(6 * (size_t)VERTS * sizeof *j->val);
+    j->err = malloc(6 * (size_t)VERTS * sizeof *j->err);
+    j->known = calloc(6 * (size_t)VERTS, 1);
+    j->queue = malloc(6 * (size_t)VERTS * sizeof *j->queue);
+    j->worker_cost = calloc((size_t)j->workers, sizeof *j->worker_cost);
+    g->block = malloc(6 * (size_t)RES * RES);
+    g->block_err = malloc(6 * (size_t)RES * RES * sizeof *g->block_err);
+    if (!j->val || !j->err || !j->known || !j->queue || !j->worker_cost || !g->block || !g->block_err) {
+        sl_normal_grid_free(g);
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the irradiance over normals");
+    }
+    *out = g;
+    return SL_OK;
+}
+
+sl_result sl_normal_grid_fill(sl_normal_grid *g, const double (*n)[3], const size_t *pix, int64_t count,
+                              double (*out)[3], double (*out_err)[3], uint8_t *interpolated,
+                              double deadline, sl_irradiance_cost *cost, sl_error *err)
+{
+    normal_job *jp = &g->j;
+    jp->deadline = deadline;
+    uint8_t *block = g->block;
+    double(*block_err)[3] = g->block_err;
+    /* Per pixel: face and (s, t). */
+    int *face = malloc((size_t)(count > 0 ? count : 1) * sizeof *face);
+    double (*st)[2] = malloc((size_t)(count > 0 ? count : 1) * sizeof *st);
     sl_result res = SL_OK;
-    if (!j.val || !j.err || !j.known || !j.queue || !j.worker_cost || !face || !st || !block || !block_err) {
+    if (!face || !st) {
         res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the irradiance over normals");
         goto done;
     }
-    for (int w = 0; w < j.workers; w++)
-        j.worker_cost[w].finest_level = sl_irradiance_top_level(rest);
+    for (int w = 0; w < jp->workers; w++)
+        jp->worker_cost[w] = (sl_irradiance_cost){.finest_level = sl_irradiance_top_level(jp->rest)};
     for (int64_t i = 0; i < count; i++) {
         face[i] = to_face(n[pix[i]], &st[i][0], &st[i][1]);
         interpolated[pix[i]] = 0;
@@ -122,10 +170,10 @@ sl_result sl_normal_fill(const sl_irradiance *rest, double quad_tol, double inte
         for (int b = 0; b < 6 * G * G; b++)
             for (int k = 0; k < 9 && block[b]; k++) {
                 int v = vertex(b / (G * G), b % G, (b / G) % G, S, k);
-                if (!j.known[v])
-                    j.known[v] = 1, j.queue[nq++] = v;
+                if (!jp->known[v])
+                    jp->known[v] = 1, jp->queue[nq++] = v;
             }
-        sl_parallel_for(nq, 16, eval_vertices, &j);
+        sl_parallel_for(nq, 16, eval_vertices, jp);
         for (int b = 0; b < 6 * G * G; b++) {
             if (!block[b])
                 continue;
@@ -133,11 +181,11 @@ sl_result sl_normal_fill(const sl_irradiance *rest, double quad_tol, double inte
             bool all = true;
             for (int k = 0; k < 9 && all; k++) {
                 int q = vertex(b / (G * G), b % G, (b / G) % G, S, k);
-                all = j.known[q] == 2;
-                memcpy(v[k], j.val[q], sizeof v[k]);
-                memcpy(e[k], j.err[q], sizeof e[k]);
+                all = jp->known[q] == 2;
+                memcpy(v[k], jp->val[q], sizeof v[k]);
+                memcpy(e[k], jp->err[q], sizeof e[k]);
             }
-            if (all && sl_fill_check(v, e, interp_tol, 0.0, block_err[b]))
+            if (all && sl_fill_check(v, e, g->interp_tol, 0.0, block_err[b]))
                 block[b] = 2;
         }
         for (int64_t i = 0; i < count; i++) {
@@ -153,28 +201,21 @@ sl_result sl_normal_fill(const sl_irradiance *rest, double quad_tol, double inte
             for (int c = 0; c < 3; c++) {
                 double s = 0;
                 for (int k = 0; k < 4; k++)
-                    s += wts[k] * j.val[vertex(face[i], bx, by, S, k)][c];
+                    s += wts[k] * jp->val[vertex(face[i], bx, by, S, k)][c];
                 out[p][c] = s;
                 out_err[p][c] = block_err[b][c];
             }
             interpolated[p] = 1;
         }
     }
-    for (int w = 0; w < j.workers; w++) {
-        cost->evaluations += j.worker_cost[w].evaluations;
-        cost->cells += j.worker_cost[w].cells;
-        if (j.worker_cost[w].evaluations && j.worker_cost[w].finest_level < cost->finest_level)
-            cost->finest_level = j.worker_cost[w].finest_level;
+    for (int w = 0; w < jp->workers; w++) {
+        cost->evaluations += jp->worker_cost[w].evaluations;
+        cost->cells += jp->worker_cost[w].cells;
+        if (jp->worker_cost[w].evaluations && jp->worker_cost[w].finest_level < cost->finest_level)
+            cost->finest_level = jp->worker_cost[w].finest_level;
     }
 done:
-    free(j.val);
-    free(j.err);
-    free(j.known);
-    free(j.queue);
-    free(j.worker_cost);
     free(face);
     free(st);
-    free(block);
-    free(block_err);
     return res;
 }

@@ -128,14 +128,15 @@ sl_result sl_render_run(const sl_render_run_options *ro, sl_render_run_result *r
                  "\"max_rel_bound\": %.6g, \"tolerance\": %.6g, \"finest_level\": %d, "
                  "\"glossy_pixels\": %lld, \"glossy_max_rel_error\": %.6g, "
                  "\"interpolated_pixels\": %lld, \"lights_exact\": %d, \"lights_sampled\": %d, "
-                 "\"cut_by_time\": %s, \"seconds\": %.6g}}",
+                 "\"cut_by_time\": %s, \"cut_pixels\": %lld, \"seconds\": %.6g}}",
                  ro->out_path, (long long)st->spp, st->seconds, res->est_rel_rmse,
                  res->ref_rel_rmse, st->stop_reason, (long long)scene.dome.bad_texels,
                  cf->used ? "true" : "false", (long long)cf->exact_pixels,
                  (long long)cf->control_variate_pixels, (long long)cf->sampled_pixels,
                  cf->max_rel_bound, cf->tolerance, cf->finest_level, (long long)glossy_px,
                  glossy_err, (long long)cf->interpolated_pixels, cf->lights_exact,
-                 cf->lights_sampled, cf->cut_by_time ? "true" : "false", cf->seconds);
+                 cf->lights_sampled, cf->cut_by_time ? "true" : "false", (long long)cf->cut_pixels,
+                 cf->seconds);
     else
         r = sl_error_set(&err, SL_ERR_NOMEM, "%s: out of memory", ro->out_path);
 fail:

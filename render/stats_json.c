@@ -22,7 +22,7 @@ static void level_words(int k, char *buf, size_t size)
 
 const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, size_t size)
 {
-    char top[48], fine[48], lights[96] = "";
+    char top[48], fine[48], lights[96] = "", cut[128] = "";
     size_t n = 0;
     if (st->evaluations > 0 && st->cells > 0) {
         level_words(st->top_level, top, sizeof top);
@@ -38,9 +38,12 @@ const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, s
     if (st->lights_exact + st->lights_sampled > 0)
         snprintf(lights, sizeof lights, "; rig lights: %d exact, %d sampled (textured)", st->lights_exact,
                  st->lights_sampled);
+    if (st->cut_by_time)
+        snprintf(cut, sizeof cut,
+                 "; --time ran out while planning: %lld pixels left to sampling, the finished rows kept",
+                 (long long)st->cut_pixels);
     if (n < size)
-        snprintf(buf + n, size - n, "%s%s", lights,
-                 st->cut_by_time ? "; --time ran out while planning: the rest is sampled" : "");
+        snprintf(buf + n, size - n, "%s%s", lights, cut);
     return buf;
 }
 
@@ -109,6 +112,7 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "lights_exact", json_integer(cf->lights_exact));
     json_object_set_new(jc, "lights_sampled", json_integer(cf->lights_sampled));
     json_object_set_new(jc, "cut_by_time", json_boolean(cf->cut_by_time));
+    json_object_set_new(jc, "cut_pixels", json_integer(cf->cut_pixels));
     char words[320];
     json_object_set_new(jc, "summary", json_string(sl_closed_form_describe(cf, words, sizeof words)));
     json_object_set_new(jc, "seconds", json_real(cf->seconds));

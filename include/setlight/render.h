@@ -294,6 +294,10 @@ typedef struct sl_render_options {
     /* Called after every pass (from the calling thread), e.g. for progress. */
     void (*on_pass)(void *ctx, const struct sl_render_pass *pass);
     void *on_pass_ctx;
+    /* Tests: the plan's per-pixel pass stops at this image row, as if --time
+     * ran out there (rows from it on are sampled); 0 = no such cut. A
+     * deterministic stand-in for the deadline. */
+    int plan_row_limit;
 } sl_render_options;
 
 void sl_render_options_init(sl_render_options *o); /* spp 64, MIS, low discrepancy */
@@ -323,6 +327,8 @@ typedef struct sl_closed_form_stats {
     int lights_exact, lights_sampled; /* rig lights in the closed form; left to sampling
                                          (textured rects) */
     bool cut_by_time;            /* --time ran out while planning: the rest is sampled */
+    int64_t cut_pixels;          /* pixels the plan would have made exact or control
+                                    variates, sampled because of that cut */
     double seconds;
     /* Per object (as objects[]): its material's type, its exact and
      * control-variate pixels, those of them interpolated, its largest

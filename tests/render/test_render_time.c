@@ -117,9 +117,77 @@ static void test_time_counts_the_glossy_fill(void)
     sl_image_free(&env);
 }
 
+/* A plan cut part-way keeps what it finished: the rows before the cut are
+ * exact and the same bytes as the uncut render's (any thread count), the
+ * rest is sampled, and the stats count both. plan_row_limit cuts the plan
+ * at a fixed row, as the deadline would, so the test does not depend on the
+ * machine's speed. */
+static void test_cut_keeps_finished_rows(void)
+{
+    enum { W = 64, LIMIT = 24 };
+    sl_image env, whole, cut;
+    sl_scene s;
+    sky(&env, 256);
+    sl_scene_init(&s);
+    sl_error err = {0};
+    CHECK_OK(sl_scene_preset(&s, "grey", W, &err), &err);
+    CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "sky", &err), &err);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.spp = 2;
+    sl_render_stats st_whole, st_cut;
+    int threads = sl_threads_get();
+    sl_threads_set(1);
+    CHECK_OK(sl_render(&s, &o, &whole, &st_whole, &err), &err);
+    sl_threads_set(2);
+    o.plan_row_limit = LIMIT;
+    CHECK_OK(sl_render(&s, &o, &cut, &st_cut, &err), &err);
+    sl_threads_set(threads);
+    const sl_closed_form_stats *a = &st_whole.closed_form, *b = &st_cut.closed_form;
+    printf("  uncut: %lld exact; cut at row %d: %lld exact (%lld interpolated), %lld cut, %lld sampled; "
+           "est. error %.3g%% against %.3g%%\n",
+           (long long)a->exact_pixels, LIMIT, (long long)b->exact_pixels, (long long)b->interpolated_pixels,
+           (long long)b->cut_pixels, (long long)b->sampled_pixels,
+           100 * st_cut.passes[st_cut.pass_count - 1].est_rel_rmse,
+           100 * st_whole.passes[st_whole.pass_count - 1].est_rel_rmse);
+    CHECK(!a->cut_by_time && a->cut_pixels == 0 && a->exact_pixels > W * W / 2);
+    CHECK(b->cut_by_time);
+    /* The ball's rows above the cut: about LIMIT / W of its pixels. */
+    CHECK(b->exact_pixels > a->exact_pixels / 5 && b->exact_pixels < a->exact_pixels / 2);
+    CHECK(b->interpolated_pixels > 0 && b->interpolated_pixels <= b->exact_pixels);
+    CHECK_MSG(b->exact_pixels + b->cut_pixels == a->exact_pixels, "%lld + %lld != %lld",
+              (long long)b->exact_pixels, (long long)b->cut_pixels, (long long)a->exact_pixels);
+    CHECK(b->exact_pixels + b->sampled_pixels == W * W);
+    /* Rows before the cut are byte-identical (the row just above it takes
+     * its box filter from a 3 x 3 grid, its neighbours below being cut);
+     * rows after it are sampled, at 2 spp far from the closed form. */
+    size_t kept_diff = 0, after_diff = 0;
+    for (int y = 0; y < W; y++)
+        for (int x = 0; x < W; x++)
+            for (int c = 0; c < 4; c++) {
+                float u = sl_image_pixel(&whole, x, y)[c], v = sl_image_pixel(&cut, x, y)[c];
+                if (y < LIMIT - 1)
+                    kept_diff += memcmp(&u, &v, sizeof u) != 0;
+                else if (y >= LIMIT)
+                    after_diff += u != v;
+            }
+    CHECK_MSG(kept_diff == 0, "%zu values of the finished rows differ", kept_diff);
+    CHECK(after_diff > 0);
+    /* The estimate stays an upper estimate: more than the uncut render's. */
+    CHECK(st_cut.passes[st_cut.pass_count - 1].est_rel_rmse >
+          st_whole.passes[st_whole.pass_count - 1].est_rel_rmse);
+    sl_image_free(&whole);
+    sl_image_free(&cut);
+    sl_render_stats_free(&st_whole);
+    sl_render_stats_free(&st_cut);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
 int main(void)
 {
     RUN(test_time_counts_the_closed_form);
     RUN(test_time_counts_the_glossy_fill);
+    RUN(test_cut_keeps_finished_rows);
     return sl_test_finish();
 }
