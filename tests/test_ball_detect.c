@@ -289,25 +289,6 @@ static void test_fisheye(void)
     expect_fisheye(&img, false, "ball_dark.exr", false);
     sl_image_free(&img);
 
-    /* Real photos when present: the Sigma 8 mm fisheyes, the iPhone ball
-     * crops, Debevec's angular Grace probe. */
-    static const struct {
-        const char *name;
-        bool fisheye;
-    } real[] = {{"fisheye/sigma8mm_canon6d/IMG_2843.JPG", true},
-                {"fisheye/sigma8mm_canon6d/IMG_2938.JPG", true},
-                {"probes/chromeball_iphone7/160.JPG", false},
-                {"probes/grace_probe_angular.hdr", false}};
-    for (size_t i = 0; i < sizeof real / sizeof real[0]; i++) {
-        const char *path = sl_test_data(real[i].name);
-        if (!path)
-            continue;
-        sl_meta meta;
-        CHECK_OK(sl_image_read(path, &img, &meta, &err), &err);
-        expect_fisheye(&img, !meta.is_float, path, real[i].fisheye);
-        sl_meta_free(&meta);
-        sl_image_free(&img);
-    }
 }
 
 static void expect_map(const sl_image *img, const char *what, bool map)
@@ -367,19 +348,30 @@ static void test_probe_maps(void)
         expect_map(&img, clutter ? "ball_fill_clutter.exr" : "ball_fill_dark.exr", false);
         sl_image_free(&img);
     }
+}
+
+/* Real round images when present: the Sigma 8 mm fisheyes, the iPhone
+ * ball crops, Debevec's angular Grace probe; each told as a fisheye (or
+ * not) and as a light-probe map (or not). */
+static void test_real_round_images(void)
+{
     static const struct {
         const char *name;
-        bool map;
-    } real[] = {{"probes/chromeball_iphone7/160.JPG", false},
-                {"probes/chromeball_iphone7/10.JPG", false},
-                {"probes/grace_probe_angular.hdr", true},
-                {"fisheye/sigma8mm_canon6d/IMG_2843.JPG", false}};
+        bool fisheye, map;
+    } real[] = {{"fisheye/sigma8mm_canon6d/IMG_2843.JPG", true, false},
+                {"fisheye/sigma8mm_canon6d/IMG_2938.JPG", true, false},
+                {"probes/chromeball_iphone7/160.JPG", false, false},
+                {"probes/chromeball_iphone7/10.JPG", false, false},
+                {"probes/grace_probe_angular.hdr", false, true}};
     for (size_t i = 0; i < sizeof real / sizeof real[0]; i++) {
         const char *path = sl_test_data(real[i].name);
         if (!path)
             continue;
+        sl_image img;
         sl_meta meta;
+        sl_error err;
         CHECK_OK(sl_image_read(path, &img, &meta, &err), &err);
+        expect_fisheye(&img, !meta.is_float, path, real[i].fisheye);
         expect_map(&img, path, real[i].map);
         sl_meta_free(&meta);
         sl_image_free(&img);
@@ -507,6 +499,7 @@ int main(int argc, char **argv)
     }
     RUN(test_fisheye);
     RUN(test_probe_maps);
+    RUN(test_real_round_images);
     RUN(test_synthetic);
     RUN(test_fill_frame);
     RUN(test_round_clutter);
