@@ -160,6 +160,14 @@ static double pixel_luminance(const sl_image *img, int x, int y)
     return img->channels >= 3 ? sl_luminance_px(p) : p[0];
 }
 
+/* Row y's pixels whose centres lie within radius r of (cx, cy): [lo, hi). */
+static void chord(double cx, double cy, double r, int w, int y, int *lo, int *hi)
+{
+    double dy = y + 0.5 - cy, half = dy * dy < r * r ? sqrt(r * r - dy * dy) : -1.0;
+    *lo = (int)fmax(0.0, fmin(w, ceil(cx - half - 0.5)));
+    *hi = (int)fmax(*lo, fmin(w, floor(cx + half - 0.5) + 1.0));
+}
+
 static sl_result probe_map(const sl_image *photo, bool *is_map, sl_error *err)
 {
     *is_map = false;
@@ -185,27 +193,40 @@ static sl_result probe_map(const sl_image *photo, bool *is_map, sl_error *err)
     if (!(median > 0.0))
         return SL_OK;
     double black = MAP_BLACK * median;
-    size_t corners = 0, corners_black = 0, ring = 0, ring_lit = 0;
-    double edge = fmax(1.5, 0.01 * r);
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            double d = hypot(x + 0.5 - cx, y + 0.5 - cy);
-            bool outside = d > r + edge, in_ring = d > 0.95 * r && d < r - edge;
-            if (!outside && !in_ring)
+    /* The corners: per row, the pixels left and right of the circle's chord
+     * (r plus a margin for its anti-aliased edge). Their count first, so
+     * that a photo, whose corners show the set, stops at the first tenth
+     * found lit. */
+    double edge = fmax(1.5, 0.01 * r), outer = r + edge;
+    size_t corners = 0, corners_lit = 0;
+    for (int y = 0; y < h; y++) {
+        int lo, hi;
+        chord(cx, cy, outer, w, y, &lo, &hi);
+        corners += (size_t)(lo + w - hi);
+    }
+    size_t lit_max = (size_t)((1.0 - MAP_CORNERS) * (double)corners);
+    for (int y = 0; y < h && corners_lit <= lit_max; y++) {
+        int lo, hi;
+        chord(cx, cy, outer, w, y, &lo, &hi);
+        /* NaN counts as nothing there */
+        for (int x = 0; x < lo; x++)
+            corners_lit += pixel_luminance(photo, x, y) > black;
+        for (int x = hi; x < w; x++)
+            corners_lit += pixel_luminance(photo, x, y) > black;
+    }
+    /* The disc's outer ring, 0.95-0.99 r, along 720 rays. */
+    size_t ring = 0, ring_lit = 0;
+    for (int i = 0; i < 720; i++) {
+        double a = 2.0 * M_PI * (i + 0.5) / 720.0;
+        for (double f = 0.95; f < 0.995; f += 0.01) {
+            int x = (int)floor(cx + f * r * cos(a)), y = (int)floor(cy + f * r * sin(a));
+            if (x < 0 || y < 0 || x >= w || y >= h)
                 continue;
-            if (in_ring && (x + y) % step)
-                continue;
-            double l = pixel_luminance(photo, x, y);
-            bool dark = !(l > black); /* NaN counts as nothing there */
-            if (outside) {
-                corners++;
-                corners_black += dark;
-            } else {
-                ring++;
-                ring_lit += !dark;
-            }
+            ring++;
+            ring_lit += pixel_luminance(photo, x, y) > black;
         }
-    *is_map = corners > 0 && ring > 0 && corners_black >= MAP_CORNERS * corners &&
+    }
+    *is_map = corners > 0 && ring > 0 && corners_lit <= lit_max &&
               ring_lit >= MAP_FILLED * ring;
     return SL_OK;
 }
