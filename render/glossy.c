@@ -64,8 +64,20 @@ typedef struct gcell {
     double key;
     double est[3], err[3];
     int level, x, y;
+    bool clipped; /* a mip cell cut by the map's edge: its centre is not its midpoint */
     double t0, t1, a, b;
+    double k[5][3]; /* k at the centre and the four corners, reused by the children */
 } gcell;
+
+/* k at the points of one split, by their (colatitude, longitude): a
+ * child's corner is often its parent's corner or centre or a sibling's
+ * corner, so 4 children cost 12 new evaluations instead of 24. */
+#define POINT_CACHE 16
+typedef struct point_cache {
+    int n;
+    double t[POINT_CACHE], a[POINT_CACHE];
+    double k[POINT_CACHE][3];
+} point_cache;
 
 typedef struct gstate {
     const sl_irradiance *ir;
@@ -75,7 +87,28 @@ typedef struct gstate {
     double sum_est[3], sum_err[3];
     int64_t cells;
     int finest;
+    int map_w, map_h;  /* texels */
+    bool have_k_mirror;
+    double k_mirror[3]; /* k at the lobe's peak, once per integral */
 } gstate;
+
+/* Same parameters within rounding: the same direction. */
+#define SAME_PARAM 1e-12
+
+static void point_k(const gstate *st, point_cache *pc, double t, double a, const double w[3], double k[3])
+{
+    for (int i = 0; pc && i < pc->n; i++)
+        if (fabs(t - pc->t[i]) <= SAME_PARAM && fabs(a - pc->a[i]) <= SAME_PARAM) {
+            memcpy(k, pc->k[i], sizeof pc->k[i]);
+            return;
+        }
+    kernel(&st->l, w, k);
+    if (pc && pc->n < POINT_CACHE) {
+        pc->t[pc->n] = t, pc->a[pc->n] = a;
+        memcpy(pc->k[pc->n], k, sizeof pc->k[0]);
+        pc->n++;
+    }
+}
 
 static double cell_key(const gstate *st, const gcell *g)
 {
@@ -101,8 +134,9 @@ static gcell pop(gstate *st)
     return top;
 }
 
-/* Estimates a cell's share and its error; false when it adds nothing. */
-static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
+/* Estimates a cell's share and its error; false when it adds nothing.
+ * pc: the split's known points (NULL: none). */
+static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *g)
 {
     st->cells++;
     const lobe *l = &st->l;
@@ -121,20 +155,21 @@ static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
     v3_copy(d, vl);
     if (!v3_normalize(d))
         v3_copy(d, c->centre);
-    double kd[3], k[5][3];
+    double kd[3];
+    double (*k)[3] = g->k;
     kernel(l, d, kd);
-    double pts[5][3];
-    v3_copy(pts[0], c->centre);
+    kernel(l, c->centre, k[0]);
+    const double pt[4] = {c->t0, c->t0, c->t1, c->t1}, pa[4] = {c->a, c->b, c->a, c->b};
     for (int i = 0; i < 4; i++)
-        v3_copy(pts[1 + i], c->corner[i]);
-    for (int i = 0; i < 5; i++)
-        kernel(l, pts[i], k[i]);
+        point_k(st, pc, pt[i], pa[i], c->corner[i], k[1 + i]);
     /* A cell wider than the lobe that may hold its peak: the sample
      * points cannot tell its shape. Narrower cells see a smooth k. */
     bool peak = c->wide || (c->cos_r < l->cos_width && v3_dot(l->mirror, c->centre) >= c->cos_r);
-    double km[3] = {0, 0, 0};
-    if (peak)
-        kernel(l, l->mirror, km);
+    if (peak && !st->have_k_mirror) {
+        kernel(l, l->mirror, st->k_mirror);
+        st->have_k_mirror = true;
+    }
+    const double *km = st->k_mirror;
     /* How spread the cell's light is against a uniform cell's: 0 for a
      * point (a sun), where k(d) is exact, 1 for uniform light, where the
      * mean of k over the cell is the better estimate. */
@@ -165,21 +200,32 @@ static bool estimate(gstate *st, const sl_dome_cell *c, gcell *g)
         }
     }
     g->level = c->level, g->x = c->x, g->y = c->y;
+    g->clipped = c->level > 0 && (((c->x + 1) << c->level) > st->map_w || ((c->y + 1) << c->level) > st->map_h);
     g->t0 = c->t0, g->t1 = c->t1, g->a = c->a, g->b = c->b;
     g->key = cell_key(st, g);
     return true;
 }
 
-static void add(gstate *st, const sl_dome_cell *c)
+static void add(gstate *st, const sl_dome_cell *c, point_cache *pc)
 {
     gcell g;
-    if (estimate(st, c, &g))
+    if (estimate(st, c, pc, &g))
         push(st, &g);
 }
 
 static void split(gstate *st, const gcell *g)
 {
     sl_dome_cell c;
+    /* The parent's corners and (unless the map's edge clips it) its
+     * centre are corners of its children. */
+    point_cache pcache = {0}, *pc = &pcache;
+    const double gt[5] = {0.5 * (g->t0 + g->t1), g->t0, g->t0, g->t1, g->t1};
+    const double ga[5] = {0.5 * (g->a + g->b), g->a, g->b, g->a, g->b};
+    for (int i = g->clipped ? 1 : 0; i < 5; i++) {
+        pc->t[pc->n] = gt[i], pc->a[pc->n] = ga[i];
+        memcpy(pc->k[pc->n], g->k[i], sizeof g->k[i]);
+        pc->n++;
+    }
     if (g->level > 0) {
         int w, h;
         sl_irradiance_level_size(st->ir, g->level - 1, &w, &h);
@@ -187,7 +233,7 @@ static void split(gstate *st, const gcell *g)
             for (int i = 0; i < 2; i++)
                 if (2 * g->x + i < w && 2 * g->y + j < h) {
                     sl_irradiance_cell(st->ir, g->level - 1, 2 * g->x + i, 2 * g->y + j, &c);
-                    add(st, &c);
+                    add(st, &c, pc);
                 }
     } else {
         double tm = 0.5 * (g->t0 + g->t1), am = 0.5 * (g->a + g->b);
@@ -196,7 +242,7 @@ static void split(gstate *st, const gcell *g)
             for (int i = 0; i < 2; i++) {
                 sl_irradiance_piece(st->ir, g->level - 1, g->x, g->y, t[j], t[j + 1], a[i],
                                     a[i + 1], &c);
-                add(st, &c);
+                add(st, &c, pc);
             }
     }
     if (g->level - 1 < st->finest)
@@ -244,6 +290,7 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
     gcell *pool = scratch->pool;
     memset(st, 0, sizeof *st);
     st->ir = ir;
+    sl_irradiance_level_size(ir, 0, &st->map_w, &st->map_h);
     st->h = (sl_slot_heap){.pool = pool, .stride = sizeof *pool, .heap = scratch->idx,
                            .free_list = scratch->idx + CELL_CAP};
     lobe *l = &st->l;
@@ -283,7 +330,7 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
             int t = q->start_cells ? q->start_cells[i] : i;
             sl_dome_cell c;
             sl_irradiance_cell(ir, level, t % tw, t / tw, &c);
-            add(st, &c);
+            add(st, &c, NULL);
         }
         /* Cells are ranked by their error relative to the first estimate. */
         for (int c = 0; c < 3; c++) {
