@@ -31,6 +31,11 @@
 #include "microfacet.h"
 #include "slot_heap.h"
 
+/* fmin/fmax are libm calls without -ffinite-math-only; the quadrature's
+ * values are finite. */
+static inline double max2(double a, double b) { return a > b ? a : b; }
+static inline double min2(double a, double b) { return a < b ? a : b; }
+
 /* Cells kept at once; past it the error is what it is (reported). */
 #define CELL_CAP 2048
 /* Deepest split inside a texel (1/2^k of its width). */
@@ -114,7 +119,7 @@ static double cell_key(const gstate *st, const gcell *g)
 {
     double key = 0;
     for (int c = 0; c < 3; c++)
-        key = fmax(key, g->err[c] * st->inv_scale[c]);
+        key = max2(key, g->err[c] * st->inv_scale[c]);
     return key;
 }
 
@@ -144,7 +149,7 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
         return false;
     double ca = v3_dot(l->n, c->centre);
     if (!c->wide) {
-        double sa = sqrt(fmax(0.0, 1.0 - ca * ca));
+        double sa = sqrt(max2(0.0, 1.0 - ca * ca));
         double hi = ca > c->cos_r ? 1.0 : ca * c->cos_r + sa * c->sin_r;
         if (hi <= 0)
             return false; /* wholly below the horizon */
@@ -177,15 +182,15 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
     double spread = pl > 0 && c->spread_uniform > 0
                         ? (1.0 - v3_length(vl) / pl) / c->spread_uniform
                         : 0.0;
-    spread = fmin(fmax(spread, 0.0), 2.0);
+    spread = min2(max2(spread, 0.0), 2.0);
     for (int ch = 0; ch < 3; ch++) {
         g->est[ch] = c->p[ch] * kd[ch];
         if (peak) {
             /* The lobe's peak is in the cell: anything between its
              * smallest and largest value. */
-            double lo = fmin(kd[ch], km[ch]), hi = fmax(kd[ch], km[ch]);
+            double lo = min2(kd[ch], km[ch]), hi = max2(kd[ch], km[ch]);
             for (int i = 0; i < 5; i++)
-                lo = fmin(lo, k[i][ch]), hi = fmax(hi, k[i][ch]);
+                lo = min2(lo, k[i][ch]), hi = max2(hi, k[i][ch]);
             g->err[ch] = c->p[ch] * (hi - lo);
         } else {
             /* k is smooth here: P k(d) errs in the second order (d is
@@ -263,7 +268,7 @@ static void totals(gstate *st)
 static bool error_met(const gstate *st, double tol, const double floor[3])
 {
     for (int c = 0; c < 3; c++)
-        if (st->sum_err[c] > 0 && st->sum_err[c] > tol * fmax(0.0, st->sum_est[c] + floor[c]))
+        if (st->sum_err[c] > 0 && st->sum_err[c] > tol * max2(0.0, st->sum_est[c] + floor[c]))
             return false;
     return true;
 }
