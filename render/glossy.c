@@ -95,19 +95,26 @@ typedef struct gstate {
     int map_w, map_h;  /* texels */
     bool have_k_mirror;
     double k_mirror[3]; /* k at the lobe's peak, once per integral */
+    int64_t kernel_calls;
 } gstate;
+
+static void kernel_counted(gstate *st, const double w[3], double k[3])
+{
+    st->kernel_calls++;
+    kernel(&st->l, w, k);
+}
 
 /* Same parameters within rounding: the same direction. */
 #define SAME_PARAM 1e-12
 
-static void point_k(const gstate *st, point_cache *pc, double t, double a, const double w[3], double k[3])
+static void point_k(gstate *st, point_cache *pc, double t, double a, const double w[3], double k[3])
 {
     for (int i = 0; pc && i < pc->n; i++)
         if (fabs(t - pc->t[i]) <= SAME_PARAM && fabs(a - pc->a[i]) <= SAME_PARAM) {
             memcpy(k, pc->k[i], sizeof pc->k[i]);
             return;
         }
-    kernel(&st->l, w, k);
+    kernel_counted(st, w, k);
     if (pc && pc->n < POINT_CACHE) {
         pc->t[pc->n] = t, pc->a[pc->n] = a;
         memcpy(pc->k[pc->n], k, sizeof pc->k[0]);
@@ -162,8 +169,8 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
         v3_copy(d, c->centre);
     double kd[3];
     double (*k)[3] = g->k;
-    kernel(l, d, kd);
-    kernel(l, c->centre, k[0]);
+    kernel_counted(st, d, kd);
+    kernel_counted(st, c->centre, k[0]);
     const double pt[4] = {c->t0, c->t0, c->t1, c->t1}, pa[4] = {c->a, c->b, c->a, c->b};
     for (int i = 0; i < 4; i++)
         point_k(st, pc, pt[i], pa[i], c->corner[i], k[1 + i]);
@@ -171,7 +178,7 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
      * points cannot tell its shape. Narrower cells see a smooth k. */
     bool peak = c->wide || (c->cos_r < l->cos_width && v3_dot(l->mirror, c->centre) >= c->cos_r);
     if (peak && !st->have_k_mirror) {
-        kernel(l, l->mirror, st->k_mirror);
+        kernel_counted(st, l->mirror, st->k_mirror);
         st->have_k_mirror = true;
     }
     const double *km = st->k_mirror;
@@ -275,11 +282,13 @@ static bool error_met(const gstate *st, double tol, const double floor[3])
 
 struct sl_glossy_scratch {
     gstate st;
+    int64_t kernel_calls; /* over every integral made with it */
     gcell pool[CELL_CAP];
     int idx[2 * CELL_CAP];
 };
 
-sl_glossy_scratch *sl_glossy_scratch_new(void) { return malloc(sizeof(sl_glossy_scratch)); }
+sl_glossy_scratch *sl_glossy_scratch_new(void) { return calloc(1, sizeof(sl_glossy_scratch)); }
+int64_t sl_glossy_scratch_kernel_calls(const sl_glossy_scratch *s) { return s->kernel_calls; }
 void sl_glossy_scratch_free(sl_glossy_scratch *s) { free(s); }
 
 void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
@@ -373,6 +382,7 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
             err[c] = (st->sum_err[c] + gm->fresnel_rel_error * fabs(st->sum_est[c])) * intensity;
         }
     }
+    scratch->kernel_calls += st->kernel_calls;
     if (cost) {
         cost->cells += st->cells;
         cost->evaluations++;

@@ -51,6 +51,9 @@ void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double 
 typedef struct sl_glossy_scratch sl_glossy_scratch;
 sl_glossy_scratch *sl_glossy_scratch_new(void);
 void sl_glossy_scratch_free(sl_glossy_scratch *s);
+/* Integrand evaluations made with s so far (tests: a split reuses its
+ * parent's points). */
+int64_t sl_glossy_scratch_kernel_calls(const sl_glossy_scratch *s);
 
 /* How far sl_glossy_integrate refines: irradiance.h's controls, the floor
  * in radiance. */

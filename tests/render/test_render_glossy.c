@@ -227,6 +227,110 @@ static void test_split_adds_up(void)
     sl_image_free(&env);
 }
 
+/* The glossy integral by brute force: every texel of ir split in
+ * pieces x pieces, each P k(d) (d its mean direction), with the kernel
+ * the quadrature uses. */
+static void glossy_brute(const sl_irradiance *ir, const sl_glossy_material *gm, const double n[3],
+                         const double wo[3], int pieces, double out[3])
+{
+    double rot[3][3], intensity;
+    sl_irradiance_frame(ir, rot, &intensity);
+    frame fr;
+    double wl[3];
+    frame_from_normal(&fr, n);
+    frame_to_local(&fr, wo, wl);
+    sl_glossy_view v;
+    sl_glossy_view_init(&v, gm, wl);
+    int W, H;
+    sl_irradiance_level_size(ir, 0, &W, &H);
+    out[0] = out[1] = out[2] = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            sl_dome_cell t;
+            sl_irradiance_cell(ir, 0, x, y, &t);
+            for (int j = 0; j < pieces; j++)
+                for (int i = 0; i < pieces; i++) {
+                    sl_dome_cell c;
+                    double t0 = t.t0 + (t.t1 - t.t0) * j / pieces, t1 = t.t0 + (t.t1 - t.t0) * (j + 1) / pieces;
+                    double a0 = t.a + (t.b - t.a) * i / pieces, a1 = t.a + (t.b - t.a) * (i + 1) / pieces;
+                    sl_irradiance_piece(ir, -1, x, y, t0, t1, a0, a1, &c);
+                    double d[3] = {c.v[1][0], c.v[1][1], c.v[1][2]}, dw[3], dl[3], k[3];
+                    if (!v3_normalize(d))
+                        continue;
+                    for (int r = 0; r < 3; r++)
+                        dw[r] = rot[r][0] * d[0] + rot[r][1] * d[1] + rot[r][2] * d[2];
+                    frame_to_local(&fr, dw, dl);
+                    sl_glossy_kernel(&v, dl, k);
+                    for (int ch = 0; ch < 3; ch++)
+                        out[ch] += c.p[ch] * k[ch] * intensity;
+                }
+        }
+}
+
+/* The quadrature against the brute force on a map whose rest is not
+ * smooth (two lamps 30 x the sky, 5 x 4 texels, the horizon's step):
+ * at every normal, grazing views included, the difference is within the
+ * reported error estimate (the brute force's pieces 1/4 of a texel, 1/16
+ * at 89 degrees, where the lobe hugs the horizon: 1/4 is off by 2% there,
+ * 1/16 within 0.01% of 1/8 and the quadrature); and a split reuses its parent's corners and
+ * centre (at most 3.6 integrand evaluations per cell, against 6 to 7
+ * without). */
+static void test_quadrature_within_estimate(void)
+{
+    sl_image env;
+    int w = sl_test_sanitized() ? 64 : 128;
+    sky_over_ground(&env, w);
+    for (int lamp = 0; lamp < 2; lamp++)
+        for (int y = 0; y < 4; y++)
+            for (int x = 0; x < 5; x++) {
+                float *p = sl_image_pixel(&env, w / 2 - w / 8 + lamp * w / 5 + x, w / 8 + lamp * w / 16 + y);
+                p[0] *= 30, p[1] *= 30, p[2] *= 25;
+            }
+    sl_scene s;
+    scene_for(&s, "grey", 8, &env, &CASES[1]);
+    sl_error err = {0};
+    sl_irradiance *ir;
+    CHECK_OK(sl_irradiance_build(&s.dome, &ir, &err), &err);
+    sl_glossy_scratch *scr = sl_glossy_scratch_new();
+    const glossy_case cases[3] = {{"metal 0.3", false, 0.3}, {"metal 0.8", false, 0.8}, {"plastic 0.4", true, 0.4}};
+    int64_t cells = 0;
+    uint64_t rng = 11;
+    for (int i = 0; i < 3; i++) {
+        sl_material m;
+        set_material(&m, &cases[i]);
+        sl_glossy_material gm;
+        CHECK_OK(sl_glossy_material_init(&gm, &m, NULL), NULL);
+        double worst = 0, worst_est = 0;
+        for (int k = 0; k < 12; k++) {
+            /* The view along -Z; normals from facing it to 89 degrees off. */
+            double th = (k < 11 ? k * 8.0 : 89.0) * SL_PI / 180, ph = 2 * SL_PI * sl_test_uniform(&rng);
+            double n[3] = {sin(th) * cos(ph), sin(th) * sin(ph), cos(th)}, wo[3] = {0, 0, 1};
+            double q[3], e[3], b[3];
+            sl_irradiance_cost cost = {0};
+            sl_glossy_quad quad = {.tol = 5e-3};
+            sl_glossy_integrate(ir, &gm, n, wo, &quad, scr, q, e, &cost);
+            glossy_brute(ir, &gm, n, wo, k < 11 ? 4 : 16, b);
+            cells += cost.cells;
+            for (int c = 0; c < 3; c++) {
+                CHECK_MSG(fabs(q[c] - b[c]) <= e[c] + 1e-12 * b[c], "%s, normal %d: %g vs %g, estimate %g",
+                          cases[i].name, k, q[c], b[c], e[c]);
+                worst = fmax(worst, fabs(q[c] - b[c]) / b[c]);
+                worst_est = fmax(worst_est, e[c] / b[c]);
+            }
+        }
+        printf("  %-12s quadrature vs brute force: worst %.4f%%, largest estimate %.3f%%\n",
+               cases[i].name, 100 * worst, 100 * worst_est);
+        sl_glossy_material_free(&gm);
+    }
+    double per_cell = (double)sl_glossy_scratch_kernel_calls(scr) / (double)cells;
+    printf("  %lld cells, %.2f integrand evaluations per cell\n", (long long)cells, per_cell);
+    CHECK_MSG(per_cell <= 3.6, "%.2f evaluations per cell", per_cell);
+    sl_glossy_scratch_free(scr);
+    sl_irradiance_free(ir);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
 /* The sun behind the ball's edge (10 degrees past the view's normal
  * plane): its highlight sits at the rim, on grazing views, where the
  * split's sun part and the rim's per-pixel evaluations meet. Roughness
@@ -389,6 +493,7 @@ int main(void)
 {
     RUN(test_kernel_matches_bsdf);
     RUN(test_split_adds_up);
+    RUN(test_quadrature_within_estimate);
     RUN(test_sun_and_sky);
     RUN(test_grazing_sun);
     RUN(test_control_variate);
