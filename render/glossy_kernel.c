@@ -118,19 +118,6 @@ static inline double e_lookup(const sl_glossy_material *gm, double mu)
     return gm->e_row[k] + (gm->e_row[k + 1] - gm->e_row[k]) * f;
 }
 
-/* Smith Lambda of the isotropic GGX, as sl_ggx_lambda computes it
- * (alpha2 = alpha^2), inlined: the quadrature's innermost call. */
-static inline double lambda_iso(double alpha2, const double w[3])
-{
-    double s = alpha2 * (w[0] * w[0] + w[1] * w[1]), z2 = w[2] * w[2];
-    if (s <= 0.0)
-        return 0.0;
-    if (z2 <= 0.0)
-        return INFINITY;
-    double a = s / z2;
-    return a / (2.0 * (1.0 + sqrt(1.0 + a)));
-}
-
 void sl_glossy_view_init(sl_glossy_view *v, const sl_glossy_material *gm, const double wo[3])
 {
     memset(v, 0, sizeof *v);
@@ -167,7 +154,7 @@ void sl_glossy_kernel(const sl_glossy_view *v, const double wi[3], double k[3])
         /* D of the unit half vector: alpha^2 / (pi (hz^2 (alpha^2 - 1) + 1)^2). */
         double t = hz * hz * (gm->alpha2 - 1.0) + 1.0;
         double d = hz > 0.0 ? gm->alpha2 / (SL_PI * t * t) : 0.0;
-        double g2 = 1.0 / (1.0 + v->lambda_o + lambda_iso(gm->alpha2, wi));
+        double g2 = 1.0 / (1.0 + v->lambda_o + sl_ggx_lambda(gm->ggx, wi));
         spec = d * g2 * v->spec_scale;
         double x = clamp01(cos_h) * SL_GLOSSY_FRESNEL_N;
         int i = (int)x;

@@ -38,6 +38,13 @@ static void set_material(sl_material *m, const glossy_case *g)
     }
 }
 
+/* m and its tables; gm refers to m. */
+static void glossy_material_for(const glossy_case *g, sl_material *m, sl_glossy_material *gm)
+{
+    set_material(m, g);
+    CHECK_OK(sl_glossy_material_init(gm, m, NULL), NULL);
+}
+
 static void scene_for(sl_scene *s, const char *preset, int width, const sl_image *env,
                       const glossy_case *g)
 {
@@ -149,9 +156,8 @@ static void test_kernel_matches_bsdf(void)
     uint64_t rng = 7;
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         sl_material m;
-        set_material(&m, &cases[i]);
         sl_glossy_material gm;
-        CHECK_OK(sl_glossy_material_init(&gm, &m, NULL), NULL);
+        glossy_material_for(&cases[i], &m, &gm);
         CHECK(gm.fast && gm.fresnel_rel_error < 1e-5);
         double worst = 0;
         for (int k = 0; k < 2000; k++) {
@@ -198,9 +204,8 @@ static void test_split_adds_up(void)
     uint64_t rng = 3;
     for (int i = 0; i < 3; i++) {
         sl_material m;
-        set_material(&m, &cases[i]);
         sl_glossy_material gm;
-        CHECK_OK(sl_glossy_material_init(&gm, &m, NULL), NULL);
+        glossy_material_for(&cases[i], &m, &gm);
         for (int k = 0; k < 12; k++) {
             double n[3] = {sl_test_uniform(&rng) - 0.5, sl_test_uniform(&rng) - 0.5, -sl_test_uniform(&rng)};
             double wo[3] = {0, 0, -1};
@@ -297,9 +302,8 @@ static void test_quadrature_within_estimate(void)
     uint64_t rng = 11;
     for (int i = 0; i < 3; i++) {
         sl_material m;
-        set_material(&m, &cases[i]);
         sl_glossy_material gm;
-        CHECK_OK(sl_glossy_material_init(&gm, &m, NULL), NULL);
+        glossy_material_for(&cases[i], &m, &gm);
         double worst = 0, worst_est = 0;
         for (int k = 0; k < 12; k++) {
             /* The view along -Z; normals from facing it to 89 degrees off. */
