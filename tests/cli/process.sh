@@ -14,7 +14,12 @@ printf 'leak:cv::fastMalloc\n' >"$T/lsan.supp"
 export LSAN_OPTIONS="suppressions=$T/lsan.supp"
 
 expect 0 "$S" process --help
-for o in --output --jobs --memory-mb --farm --emit-jobs --probe-view --probe-sensor-mm --json; do out_has "$o"; done
+for o in --output --jobs --memory-mb --farm --farm-group --emit-jobs --probe-view --probe-sensor-mm --json; do out_has "$o"; done
+out_has "auto|job|setup"
+expect 2 "$S" process --farm-group each -o "$T/never" "$T/nowhere"
+err_one_line
+err_has "--farm-group is auto, job or setup, not 'each'"
+absent "$T/never"
 expect 0 "$S" --help
 out_has "process"
 
