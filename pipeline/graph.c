@@ -17,7 +17,7 @@
 #include "pipeline_private.h"
 #include "setlight/capture.h" /* sl_sha256_hex */
 
-/* "setup": a whole setup as one job, what --farm-group setup submits. */
+/* "setup": a whole setup as one job, as the Slurm runner submits a grouped setup. */
 static const char *const stages[] = {"merge",  "stitch", "unwrap", "calibrate", "rig",
                                      "render", "report", "index",  "setup",     NULL};
 
