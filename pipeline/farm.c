@@ -274,7 +274,7 @@ sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, co
     return SL_OK;
 }
 
-void pl_farm_group_statuses(const json_t *graph, const char *setup, bool submitted, double t0,
+bool pl_farm_group_statuses(const json_t *graph, const char *setup, bool submitted, double t0,
                             json_t *status)
 {
     size_t i;
@@ -311,7 +311,10 @@ void pl_farm_group_statuses(const json_t *graph, const char *setup, bool submitt
     }
     /* Not all run, none failed: the Slurm job that ran the setup (its own
      * or one that took it) was killed. */
-    if (submitted && !failed && first_not_run)
+    if (submitted && !failed && first_not_run) {
         json_object_set_new(status, json_string_value(json_object_get(first_not_run, "id")),
                             json_string("failed"));
+        return true;
+    }
+    return false;
 }

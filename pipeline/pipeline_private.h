@@ -134,8 +134,8 @@ sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, co
  * from before (or the setup was not submitted), else "not run", as is a job
  * after one that failed or did not run; when none failed but some did not
  * run (the Slurm job was killed: memory, time limit, node), the first not
- * run is the failed one. */
-void pl_farm_group_statuses(const json_t *graph, const char *setup, bool submitted, double t0,
+ * run is the failed one, and true is returned. */
+bool pl_farm_group_statuses(const json_t *graph, const char *setup, bool submitted, double t0,
                             json_t *status);
 
 /* Runs the graph on this machine; fills the job counts of res and a status

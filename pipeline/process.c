@@ -41,9 +41,10 @@ static void add_failure(sl_pipeline_result *res, const char *setup, const char *
  * with the first failure), so it runs here once Slurm is done. The jobs
  * Slurm runs are the same `setlight job JOBS.json ID` the local runner
  * starts, so they skip themselves when up to date and stamp what they ran.
- * choices: per setup, grouped into one Slurm job or not (pl_farm_choices). */
+ * choices: per setup, grouped into one Slurm job or not (pl_farm_choices);
+ * a grouped setup whose Slurm job was killed gets its "slurm_state". */
 static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
-                           const json_t *choices, const char *jobs_path, json_t *status,
+                           json_t *choices, const char *jobs_path, json_t *status,
                            sl_pipeline_result *res, sl_error *err)
 {
     json_t *farm = json_deep_copy(graph), *day = json_deep_copy(graph);
@@ -59,7 +60,7 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
     const char *name;
     json_t *choice;
     bool grouping = false;
-    json_object_foreach((json_t *)choices, name, choice) {
+    json_object_foreach(choices, name, choice) {
         sl_log(SL_LOG_INFO, "farm: %s %s", name,
                json_string_value(json_object_get(choice, "reason")));
         grouping |= !strcmp(json_string_value(json_object_get(choice, "group")), "setup");
@@ -87,9 +88,10 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         sl_remove_tree(group_dir);
     for (int i = 0; !r && i < sr.job_count; i++) {
         const sl_pipeline_slurm_job *j = &sr.jobs[i];
-        const json_t *c = json_object_get(choices, j->id);
+        json_t *c = json_object_get(choices, j->id);
         if (c && !strcmp(json_string_value(json_object_get(c, "group")), "setup")) {
-            pl_farm_group_statuses(graph, j->id, j->submitted, t0, status);
+            if (pl_farm_group_statuses(graph, j->id, j->submitted, t0, status))
+                json_object_set_new(c, "slurm_state", json_string(j->state[0] ? j->state : "UNKNOWN"));
             continue;
         }
         /* The local runner's words: a job Slurm ran may still have skipped
@@ -260,6 +262,15 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
         json_t *choice = json_object_get(choices, name);
         if (choice)
             json_object_set(sum, "farm", choice);
+        /* Killed with the Slurm job running it: say so, no stamp can. */
+        const char *killed = json_string_value(json_object_get(choice, "slurm_state"));
+        const char *why = json_string_value(json_object_get(sum, "reason"));
+        if (killed && why) {
+            char line[2600];
+            snprintf(line, sizeof line, "%s (the setup's Slurm job ended %s before it ran)", why,
+                     killed);
+            json_object_set_new(sum, "reason", json_string(line));
+        }
         /* Emitted only: nothing ran, nothing to judge but the planning. */
         if (o->emit_jobs && !strcmp(json_string_value(json_object_get(s, "status")), "ok")) {
             json_object_set_new(sum, "status", json_string("planned"));

@@ -120,6 +120,30 @@ if cmp -s "$T/sums_local" "$T/sums_grouped2"; then ok; else
 fi
 rm -rf "$T/farm"
 
+# 3b'. The grouped setup's Slurm job killed mid-way (as a time or memory
+# limit would): what it ran stays done, the first job it had not run is the
+# failed one, what follows is not run, the setup fails (exit 1: not its
+# input); the rerun runs the rest only and ends with the local run's bytes
+# (into the same folder: outputs carry their command lines).
+"$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --json -q >"$T/killed.json" 2>"$T/killed.err" &
+runner=$!
+for _ in $(seq 1200); do [ -e "$T/farm/ext/stitch.stamp.json" ] && break; sleep 0.1; done
+scancel --name=ext
+wait "$runner"
+rc=$?
+if [ "$rc" = 1 ] && [ "$(wc -l <"$T/killed.err")" = 1 ] && grep -q "^setlight process: ext: ext/.*: failed (the setup's Slurm job ended CANCELLED before it ran)$" "$T/killed.err"; then ok; else
+  bad "killed setup: exit $rc, stderr $(head -c 300 "$T/killed.err")"
+fi
+json_eval "$T/killed.json" 'd["setups"][0]["farm"]["slurm_state"] == "CANCELLED"'
+json_eval "$T/killed.json" '(lambda s: list(s.values()).count("failed") == 1 and all(s["ext/merge/%d" % k] == "ran" for k in range(5)) and s["ext/stitch"] == "ran" and s["ext/report"] == "not run")({j["id"]: j["status"] for j in d["setups"][0]["jobs"]}) and d["setups"][0]["status"] == "failed"'
+expect 0 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --json -q
+json_eval "$T/out" '(lambda s: all(s["ext/merge/%d" % k] == "skipped" for k in range(5)) and s["ext/stitch"] == "skipped" and s["ext/report"] == "ran")({j["id"]: j["status"] for j in d["setups"][0]["jobs"]})'
+stage_outputs "$T/farm" >"$T/sums_killed"
+if cmp -s "$T/sums_local" "$T/sums_killed"; then ok; else
+  bad "outputs after the killed setup's rerun differ from the local run's: $(diff "$T/sums_local" "$T/sums_killed" | head -5)"
+fi
+rm -rf "$T/farm"
+
 # 3c. Three setups (hard-linked copies of ext) grouped on the 2 CPUs: the
 # Slurm job that ends its setup first goes on with the third setup at once
 # (no wait for Slurm's next pass), so the third setup's own Slurm job finds
