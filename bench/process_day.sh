@@ -3,14 +3,15 @@
 # a run"): N setups (default 50, --size small, exterior, stage and night in
 # turn: 3 fisheye views x 7 frames and the three probes each), processed
 # locally with --jobs 1 and --jobs 2, and through Slurm on a single-node test
-# cluster (tests/slurm/cluster.sh, 2 CPUs), a Slurm job per job (slurm) and
-# per setup (slurm-setup, --farm-group setup). Per mode, medians of RUNS runs
-# (default 1), each from an empty OUT: wall, the commands' CPU, their wait
+# cluster (tests/slurm/cluster.sh, 2 CPUs): a Slurm job per job (slurm,
+# --farm-group job), per setup (slurm-setup, --farm-group setup), and as
+# the default chooses per setup (slurm-auto, --farm-group auto: the choices
+# are printed). Per mode, medians of RUNS runs (default 1), each from an empty OUT: wall, the commands' CPU, their wait
 # for a CPU (the machine's other load), peak memory (the runner's
 # accounting), jobs per minute, and the overhead per job, (wall x cores -
 # CPU) / jobs, with its share of the CPU; the same less the wait.
 #   bench/process_day.sh BUILD_DIR [N [SIZE [RUNS [MODES]]]]
-# MODES: any of "jobs1 jobs2 slurm slurm-setup" (default all four).
+# MODES: any of "jobs1 jobs2 slurm slurm-setup slurm-auto" (default all five).
 # SETLIGHT_BENCH_SCENES: the scenes the day cycles (default "exterior stage
 # night"). Work files in SETLIGHT_BENCH_WORK (default
 # /tmp/setlight-bench/day); the simulated day is kept there and reused.
@@ -20,7 +21,7 @@ build=$(cd "${1:?usage: process_day.sh BUILD_DIR [N [SIZE [RUNS [MODES]]]]}" && 
 n=${2:-50}
 size=${3:-small}
 runs=${4:-1}
-modes=${5:-jobs1 jobs2 slurm slurm-setup}
+modes=${5:-jobs1 jobs2 slurm slurm-setup slurm-auto}
 work=${SETLIGHT_BENCH_WORK:-/tmp/setlight-bench/day}
 exe="$build/setlight"
 mkdir -p "$work"
@@ -45,7 +46,7 @@ for mode in $modes; do
   case $mode in
   jobs1) args=(--jobs 1) cores=1 ;;
   jobs2) ;;
-  slurm | slurm-setup)
+  slurm | slurm-setup | slurm-auto)
     cluster=$(mktemp -d /tmp/sl-day-bench.XXXXXX)
     chmod 755 "$cluster"
     if ! bash "$here/tests/slurm/cluster.sh" start "$cluster" >/dev/null 2>"$work/cluster.err"; then
@@ -55,8 +56,7 @@ for mode in $modes; do
       continue
     fi
     export SLURM_CONF="$cluster/slurm.conf"
-    args=(--farm slurm)
-    [ "$mode" = slurm-setup ] && args+=(--farm-group setup)
+    args=(--farm slurm --farm-group "$(case $mode in slurm) echo job ;; slurm-setup) echo setup ;; *) echo auto ;; esac)")
     ;;
   *) echo "unknown mode $mode" >&2; exit 2 ;;
   esac
@@ -97,7 +97,9 @@ t = open(timef).read()
 rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", t)
 print(json.dumps({"mode": mode, "cores": int(cores), "exit": int(rc), "load": [float(l0), float(l1)],
                   "largest_process_mb": int(rss.group(1)) / 1024 if rss else None,
-                  "jobs": d.get("jobs"), "run": d.get("run"), "stamps": stamps}))
+                  "jobs": d.get("jobs"), "run": d.get("run"), "stamps": stamps,
+                  "farm": [s["farm"]["group"] for s in d.get("setups", []) if s.get("farm")],
+                  "farm_reason": next((s["farm"]["reason"] for s in d.get("setups", []) if s.get("farm")), None)}))
 PY
     echo "$mode run $r: exit $rc, load $load0 -> $load1"
   done
@@ -109,6 +111,9 @@ import json, statistics, sys
 rows = [json.loads(l) for l in open(sys.argv[1])]
 print()
 print("jobs failed (a setup failed on its input): %s" % {r["mode"]: r["jobs"]["failed"] for r in rows if r["jobs"]})
+for r in rows:
+    if r.get("farm"):
+        print("%s: setups grouped %d of %d (first: %s)" % (r["mode"], r["farm"].count("setup"), len(r["farm"]), r["farm_reason"]))
 print("| mode | runs | wall s | CPU s | CPU wait s | peak memory MB (largest process) | jobs/min | overhead s/job | share of the CPU | s/job less the wait | load |")
 print("|---|---|---|---|---|---|---|---|---|---|---|")
 for mode in dict.fromkeys(r["mode"] for r in rows):

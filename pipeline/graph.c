@@ -17,7 +17,7 @@
 #include "pipeline_private.h"
 #include "setlight/capture.h" /* sl_sha256_hex */
 
-/* "setup": a whole setup as one job, what --farm-group setup submits. */
+/* "setup": a whole setup as one job, as the Slurm runner submits a grouped setup. */
 static const char *const stages[] = {"merge",  "stitch", "unwrap", "calibrate", "rig",
                                      "render", "report", "index",  "setup",     NULL};
 
@@ -144,6 +144,10 @@ static sl_result check_job(const char *name, size_t i, const json_t *job, sl_err
     if (!json_is_integer(cpus) || json_integer_value(cpus) < 1 ||
         json_integer_value(cpus) > INT_MAX)
         return bad_job(name, i, id, err, "\"cpus\" is not a whole number >= 1");
+    /* Optional: other queues' graphs need not estimate. */
+    const json_t *cpu_s = json_object_get(job, "cpu_seconds");
+    if (cpu_s && !(json_is_number(cpu_s) && json_number_value(cpu_s) >= 0))
+        return bad_job(name, i, id, err, "\"cpu_seconds\" is not a number >= 0");
     if (!json_is_boolean(json_object_get(job, "up_to_date")))
         return bad_job(name, i, id, err, "\"up_to_date\" is not true or false");
     return SL_OK;

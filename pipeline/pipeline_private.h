@@ -113,6 +113,31 @@ double pl_epoch_seconds(void);
  * this is the time it lost to the others, which its CPU time does not show. */
 double pl_runqueue_wait_seconds(pid_t pid);
 
+/* Whether job id's stamp says it ran to the end with its current key. */
+bool pl_job_stamp_ok(const json_t *graph, const char *id);
+
+/* farm.c: per setup of the graph, what the Slurm runner does with it
+ * (docs/slurm.md): {"group": "setup" (one Slurm job), "job" (a Slurm job a
+ * job) or "none" (up to date), "jobs" and "cpu_seconds" (the jobs to submit
+ * and their CPU estimate), "slurm_seconds" (Slurm's cost of them one by
+ * one), "overhead_share" (that over the estimate, null without one),
+ * "reason" (one line)}. mode SL_FARM_GROUP_AUTO groups a setup when its
+ * jobs one by one would cost Slurm more than 2% of their estimate. */
+json_t *pl_farm_choices(const json_t *graph, sl_farm_group mode);
+/* Replaces the grouped setups' jobs in farm's "jobs" by one job each, a
+ * script in dir running them one at a time (then any grouped setup not yet
+ * taken); out: the day's folder (the groups' logs). */
+sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, const char *dir,
+                        sl_error *err);
+/* A grouped setup's jobs' statuses into status, from their stamps: "ran"
+ * or "failed" when written after t0 (the epoch), "skipped" when up to date
+ * from before (or the setup was not submitted), else "not run", as is a job
+ * after one that failed or did not run; when none failed but some did not
+ * run (the Slurm job was killed: memory, time limit, node), the first not
+ * run is the failed one, and true is returned. */
+bool pl_farm_group_statuses(const json_t *graph, const char *setup, bool submitted, double t0,
+                            json_t *status);
+
 /* Runs the graph on this machine; fills the job counts of res and a status
  * per job id in *status ("skipped", "ran", "failed", "not run"). */
 sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *status,

@@ -3,6 +3,7 @@
  * is a plain folder or a virtual-set capture), then to its jobs. */
 #include <errno.h>
 #include <limits.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -50,12 +51,50 @@ static double file_mb(const char *p)
     return stat(p, &st) ? 0 : (double)st.st_size / (1 << 20);
 }
 
+/* A frame's megapixels from its header (no pixels read); a file whose
+ * header does not read (the merge will say why) counts 3 bytes a pixel. */
+static double frame_mp(const char *path)
+{
+    sl_meta meta;
+    sl_error err;
+    int w = 0, h = 0, c = 0;
+    sl_meta_init(&meta);
+    sl_result r = sl_photo_read_meta(path, &meta, &w, &h, &c, &err);
+    sl_meta_free(&meta);
+    return r || w <= 0 || h <= 0 ? file_mb(path) * (1 << 20) / 3e6 : (double)w * h / 1e6;
+}
+
+/* A job's CPU estimate (one thread): a stage's fixed part (start-up,
+ * libraries, fixed-size work such as the 128 px renders) plus seconds per
+ * megapixel of the pixels it works on. Fitted to the jobs' stamps at the
+ * virtual set's tiny (192x128) and small (720x480) sizes, within about 30%
+ * of a setup's total there (docs/process.md, "The graph"); beyond, the
+ * per-pixel part is extrapolated. */
+typedef struct cpu_model {
+    double fixed_s, per_mp_s;
+} cpu_model;
+static const cpu_model cpu_merge = {0.04, 0.07};      /* per MP of the bracket's frames */
+static const cpu_model cpu_stitch = {0.1, 1.3};       /* per MP of the fisheye views */
+static const cpu_model cpu_unwrap = {0.03, 0.3};      /* per MP of the chrome ball's view */
+static const cpu_model cpu_calibrate = {0.8, 0.5};    /* per MP of the fisheye views */
+static const cpu_model cpu_rig = {0.35, 0.45};        /* per MP of the fisheye views */
+static const cpu_model cpu_render = {0.8, 0};         /* 128 px, 32 spp */
+static const cpu_model cpu_report = {0.5, 0.1};       /* per MP of the fisheye views */
+static const cpu_model cpu_index = {0.02, 0};
+
+static double cpu_estimate(cpu_model m, double mp)
+{
+    return round((m.fixed_s + m.per_mp_s * mp) * 100) / 100;
+}
+
 /* Adds a job. command, inputs, outputs, deps: new references taken. The
  * memory estimate: the stage's base (start-up, libraries) plus a multiple of
- * its input files' size (decoded pixels are 2-12x their files). */
+ * its input files' size (decoded pixels are 2-12x their files); cpu_s: its
+ * CPU estimate (cpu_estimate). */
 static json_t *add_job(json_t *jobs, const char *out, const char *jobs_path, const char *setup,
                        const char *stage, int n, const char *array, json_t *command,
-                       json_t *inputs, json_t *outputs, json_t *deps, int base_mb, double per_mb)
+                       json_t *inputs, json_t *outputs, json_t *deps, int base_mb, double per_mb,
+                       double cpu_s)
 {
     char id[512], log[2 * PATH_MAX];
     if (n >= 0)
@@ -88,6 +127,7 @@ static json_t *add_job(json_t *jobs, const char *out, const char *jobs_path, con
     json_object_set_new(job, "array", array ? json_string(array) : json_null());
     json_object_set_new(job, "memory_mb", json_integer(base_mb + (int)(per_mb * in_mb + 0.5)));
     json_object_set_new(job, "cpus", json_integer(1));
+    json_object_set_new(job, "cpu_seconds", json_real(cpu_s));
     json_object_set_new(job, "log", json_string(log));
     json_object_set_new(job, "key", json_null());
     json_object_set_new(job, "up_to_date", json_false());
@@ -113,13 +153,13 @@ static void report_on(json_t *report_deps, json_t *report_in, const json_t *job,
 static json_t *add_stage_job(const setup_plan *sp, json_t *jobs, const char *out,
                              const char *jobs_path, json_t *report_deps, json_t *report_in,
                              const char *stage, const char *image, json_t *cmd, json_t *inputs,
-                             json_t *deps, int base_mb)
+                             json_t *deps, int base_mb, double cpu_s)
 {
     extend_new(cmd, strs("--json", "--threads", "1", NULL));
     json_t *outs = strs(image, NULL);
     push(outs, "%s/%s/%s.result.json", sp->dir, stage, stage);
     json_t *job = add_job(jobs, out, jobs_path, sp->name, stage, -1, NULL, cmd, inputs, outs,
-                          deps, base_mb, 8);
+                          deps, base_mb, 8, cpu_s);
     report_on(report_deps, report_in, job, 1);
     return job;
 }
@@ -136,11 +176,22 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         if (!sp->views[i].probe && sp->views[i].focal_mm > 0 &&
             (!wide || sp->views[i].focal_mm < wide))
             wide = sp->views[i].focal_mm;
+    /* Megapixels of a frame of each view, and of the fisheye views together. */
+    double view_mp[sizeof sp->views / sizeof sp->views[0]] = {0}, fisheye_mp = 0;
+    for (int i = 0; i < sp->view_count; i++) {
+        view *v = &sp->views[i];
+        if (v->probe == PROBE_CHART || (!v->probe && wide && v->focal_mm != wide))
+            continue;
+        view_mp[i] = frame_mp(json_string_value(json_array_get(v->frames, 0)));
+        if (!v->probe)
+            fisheye_mp += view_mp[i];
+    }
     char arr[600];
     snprintf(arr, sizeof arr, "%s/merge", s);
     json_t *view_deps = json_array(), *stitch_in = json_array(), *report_in = json_array(),
            *report_deps = json_array();
     int n = 0, chrome = -1, grey = -1, chart = -1;
+    double chrome_mp = 0;
     for (int i = 0; i < sp->view_count; i++) {
         view *v = &sp->views[i];
         if (v->probe == PROBE_CHART) {
@@ -157,10 +208,11 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         push(out_files, "%s/merge/%d_clipped.exr", d, n);
         push(out_files, "%s/merge/%d.result.json", d, n);
         json_t *job = add_job(jobs, out, jobs_path, s, "merge", n, arr, cmd,
-                              json_deep_copy(v->frames), out_files, json_array(), 160, 6);
+                              json_deep_copy(v->frames), out_files, json_array(), 160, 6,
+                              cpu_estimate(cpu_merge, view_mp[i] * (double)json_array_size(v->frames)));
         report_on(report_deps, report_in, job, 2);
         if (v->probe == PROBE_CHROME)
-            chrome = n;
+            chrome = n, chrome_mp = view_mp[i];
         else if (v->probe == PROBE_GREY)
             grey = n;
         else {
@@ -189,7 +241,8 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         json_array_append(cmd, json_array_get(stitch_in, i));
     json_array_extend(in, stitch_in);
     json_t *stitch = add_stage_job(sp, jobs, out, jobs_path, report_deps, report_in, "stitch",
-                                   hdri, cmd, in, view_deps, 200);
+                                   hdri, cmd, in, view_deps, 200,
+                                   cpu_estimate(cpu_stitch, fisheye_mp));
     json_decref(stitch_in);
 
     if (chrome >= 0) {
@@ -204,7 +257,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         push(in, "%s/merge/%d.exr", d, chrome);
         snprintf(dep, sizeof dep, "%s/merge/%d", s, chrome);
         add_stage_job(sp, jobs, out, jobs_path, report_deps, report_in, "unwrap", unwrapped, cmd,
-                      in, strs(dep, NULL), 160);
+                      in, strs(dep, NULL), 160, cpu_estimate(cpu_unwrap, chrome_mp));
     }
 
     snprintf(env, sizeof env, "%s", hdri);
@@ -234,7 +287,8 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
             json_array_append_new(deps, json_string(dep));
         }
         json_t *job = add_stage_job(sp, jobs, out, jobs_path, report_deps, report_in,
-                                    "calibrate", env, cmd, in, deps, 220);
+                                    "calibrate", env, cmd, in, deps, 220,
+                                    cpu_estimate(cpu_calibrate, fisheye_mp));
         json_decref(env_dep);
         env_dep = json_string(id_of(job));
     }
@@ -251,7 +305,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
     push(outs, "%s/rig/preview.png", d);
     push(outs, "%s/rig/rig.result.json", d);
     json_t *rig_job = add_job(jobs, out, jobs_path, s, "rig", -1, NULL, cmd, strs(env, NULL),
-                              outs, json_array(), 160, 8);
+                              outs, json_array(), 160, 8, cpu_estimate(cpu_rig, fisheye_mp));
     json_array_append(json_object_get(rig_job, "deps"), env_dep);
     report_on(report_deps, report_in, rig_job, 4);
 
@@ -269,7 +323,7 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
         json_array_append(deps, env_dep);
         json_array_append_new(deps, json_string(id_of(rig_job)));
         json_t *job = add_job(jobs, out, jobs_path, s, "render", k, arr, cmd, in,
-                              strs(file, NULL), deps, 80, 8);
+                              strs(file, NULL), deps, 80, 8, cpu_estimate(cpu_render, 0));
         report_on(report_deps, report_in, job, 0);
     }
     json_decref(env_dep);
@@ -281,7 +335,8 @@ static void plan_jobs(setup_plan *sp, json_t *jobs, const char *out, const char 
     for (int k = 0; k < PL_REPORT_PICTURES; k++)
         push(outs, "%s/%s", d, pl_report_pictures[k]);
     add_job(jobs, out, jobs_path, s, "report", -1, NULL,
-            strs(exe, "process-report", jobs_path, s, NULL), report_in, outs, report_deps, 120, 4);
+            strs(exe, "process-report", jobs_path, s, NULL), report_in, outs, report_deps, 120, 4,
+            cpu_estimate(cpu_report, fisheye_mp));
 }
 
 static bool valid_name(const char *name)
@@ -400,7 +455,8 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
     push(outs, "%s/index.html", out);
     push(outs, "%s/index.json", out);
     add_job(jobs, out, jobs_path, NULL, "index", -1, NULL,
-            strs(o->exe, "process-index", jobs_path, NULL), in, outs, index_deps, 120, 4);
+            strs(o->exe, "process-index", jobs_path, NULL), in, outs, index_deps, 120, 4,
+            cpu_estimate(cpu_index, 0));
     *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
                        "setlight", sl_version(), "out", out, "jobs", jobs);
     /* Keys where the inputs exist, and whether the stamp matches. */

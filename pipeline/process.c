@@ -35,234 +35,17 @@ static void add_failure(sl_pipeline_result *res, const char *setup, const char *
     res->failures = p;
 }
 
-/* Whether job id's stamp says it ran to the end with its current key. */
-static bool stamp_ok(const json_t *graph, const char *id)
-{
-    size_t i;
-    json_t *job;
-    json_array_foreach(json_object_get(graph, "jobs"), i, job) {
-        if (strcmp(json_string_value(json_object_get(job, "id")), id))
-            continue;
-        char key[65];
-        return pl_job_key(job, key) && pl_stamp_current(graph, job, key);
-    }
-    return false;
-}
-
-/* s as one shell word: single-quoted, ' as '\''. */
-static void put_quoted(FILE *f, const char *s)
-{
-    fputc('\'', f);
-    for (; *s; s++)
-        if (*s == '\'')
-            fputs("'\\''", f);
-        else
-            fputc(*s, f);
-    fputc('\'', f);
-}
-
-/* A grouped setup's script: its jobs in the graph's order through `setlight
- * job`, each only when the jobs it depends on succeeded; exit 1 when one
- * failed or did not run. The Slurm job's log names each setup it ran. NULL
- * when out of memory. */
-static char *setup_script(const char *name, const json_t *members)
-{
-    char *script = NULL;
-    size_t len = 0, i;
-    FILE *f = open_memstream(&script, &len);
-    if (!f)
-        return NULL;
-    fputs("echo 'setlight: setup '", f);
-    put_quoted(f, name);
-    fputs("\nf=0\n", f);
-    json_t *m;
-    json_array_foreach(members, i, m) {
-        fprintf(f, "s%zu=1; if [ 0", i);
-        size_t d;
-        json_t *dep;
-        json_array_foreach(json_object_get(m, "deps"), d, dep) {
-            size_t at;
-            json_t *other;
-            json_array_foreach(members, at, other)
-                if (at < i && json_equal(json_object_get(other, "id"), dep))
-                    fprintf(f, " = \"$s%zu\" ] && [ 0", at);
-        }
-        fputs(" = 0 ]; then", f);
-        size_t a;
-        json_t *arg;
-        json_array_foreach(json_object_get(m, "argv"), a, arg) {
-            fputc(' ', f);
-            put_quoted(f, json_string_value(arg));
-        }
-        fprintf(f, " && s%zu=0; fi; [ \"$s%zu\" = 0 ] || f=1\n", i, i);
-    }
-    fputs("exit $f\n", f);
-    fclose(f);
-    return script;
-}
-
-/* What the Slurm job of setup `own` runs: that setup, then each of `all`
- * (" 0 3 4": the setups submitted) that no job has taken yet. */
-static char *runner_script(const char *dir, size_t own, const char *all)
-{
-    char *script = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&script, &len);
-    if (!f)
-        return NULL;
-    fputs("d=", f);
-    put_quoted(f, dir);
-    fprintf(f, "\nf=0\nrun() { mkdir \"$d/claims/$1\" 2>/dev/null || return 0; "
-               "/bin/sh \"$d/$1.sh\" || f=1; }\nrun %zu\nfor k in%s; do run \"$k\"; done\n"
-               "exit $f\n",
-            own, all);
-    fclose(f);
-    return script;
-}
-
-/* --farm-group setup: one Slurm job per setup, its jobs one at a time
- * (setup_script, in dir/K.sh). Slurm's latency (up to a second a job on the
- * test cluster, docs/slurm.md) is paid once per setup, not once per job.
- * And a CPU does not wait for Slurm's next pass while setups are left: the
- * Slurm job of setup K runs its own setup, then any setup no job has taken
- * yet (taken by mkdir dir/claims/K, atomic, on a shared file system too); a
- * job whose setup was taken ends at once. So the jobs ask for the day's
- * largest memory. A setup whose jobs are all up to date is not submitted.
- * farm_jobs (the graph's jobs less the index) is replaced. */
-static sl_result group_by_setup(json_t *farm, const char *out, const char *dir, sl_error *err)
-{
-    json_t *jobs = json_object_get(farm, "jobs"), *groups = json_array();
-    size_t i, k;
-    json_t *job, *g;
-    json_int_t day_mb = 1;
-    json_array_foreach(jobs, i, job) {
-        const char *setup = json_string_value(json_object_get(job, "setup"));
-        json_t *found = NULL;
-        json_array_foreach(groups, k, g)
-            if (!strcmp(json_string_value(json_object_get(g, "id")), setup))
-                found = g;
-        if (!found) {
-            char log[PATH_MAX + 300];
-            snprintf(log, sizeof log, "%s/logs/%s.slurm.log", out, setup);
-            found = json_pack("{s:s,s:s,s:s,s:[],s:[],s:[],s:[],s:[],s:n,s:i,s:i,s:s,s:n,s:b,s:[]}",
-                              "id", setup, "setup", setup, "stage", "setup", "argv", "command",
-                              "inputs", "outputs", "deps", "array", "memory_mb", 1, "cpus", 1,
-                              "log", log, "key", "up_to_date", 1, "members");
-            json_array_append_new(groups, found);
-        }
-        json_array_append(json_object_get(found, "members"), job);
-        json_int_t mb = json_integer_value(json_object_get(job, "memory_mb"));
-        day_mb = mb > day_mb ? mb : day_mb;
-        if (!json_is_true(json_object_get(job, "up_to_date")))
-            json_object_set_new(found, "up_to_date", json_false());
-    }
-    char claims[PATH_MAX + 300];
-    snprintf(claims, sizeof claims, "%s/claims", dir);
-    sl_result r = pl_mkdirs(claims, err);
-    sl_text all = {0};
-    json_array_foreach(groups, k, g) {
-        if (r)
-            break;
-        if (!json_is_true(json_object_get(g, "up_to_date")))
-            sl_text_printf(&all, " %zu", k);
-        char *script = setup_script(json_string_value(json_object_get(g, "id")),
-                                    json_object_get(g, "members"));
-        char path[PATH_MAX + 300];
-        snprintf(path, sizeof path, "%s/%zu.sh", dir, k);
-        r = script ? sl_write_file_atomic(path, script, strlen(script), err)
-                   : sl_error_set(err, SL_ERR_NOMEM, "out of memory");
-        free(script);
-        json_object_del(g, "members");
-        json_object_set_new(g, "memory_mb", json_integer(day_mb));
-    }
-    json_array_foreach(groups, k, g) {
-        char *script = r || all.failed ? NULL : runner_script(dir, k, all.s ? all.s : "");
-        if (!r && !script)
-            r = sl_error_set(err, SL_ERR_NOMEM, "out of memory");
-        if (r)
-            break;
-        json_array_append_new(json_object_get(g, "argv"), json_string("/bin/sh"));
-        json_array_append_new(json_object_get(g, "argv"), json_string("-c"));
-        json_array_append_new(json_object_get(g, "argv"), json_string(script));
-        json_object_set(g, "command", json_object_get(g, "argv"));
-        free(script);
-    }
-    sl_text_free(&all);
-    if (r) {
-        json_decref(groups);
-        return r;
-    }
-    json_object_set_new(farm, "jobs", groups);
-    return SL_OK;
-}
-
-/* A grouped setup's jobs, from their stamps: "ran" or "failed" when the
- * stamp was written after the run began (t0, the epoch), "skipped" when up
- * to date from before, else "not run", as is a job after one that failed
- * or did not run. A setup with jobs not run and none failed (the Slurm
- * job running it was killed: memory, time limit, node) gets its first job
- * not run as the failed one. */
-static void grouped_statuses(const json_t *graph, const sl_pipeline_slurm_result *sr, double t0,
-                             json_t *status, sl_pipeline_result *res)
-{
-    size_t i;
-    json_t *job;
-    for (int b = 0; b < sr->job_count; b++) {
-        const sl_pipeline_slurm_job *sj = &sr->jobs[b];
-        bool failed = false;
-        json_t *first_not_run = NULL;
-        json_array_foreach(json_object_get(graph, "jobs"), i, job) {
-            const char *setup = json_string_value(json_object_get(job, "setup"));
-            if (!setup || strcmp(setup, sj->id))
-                continue;
-            const char *id = json_string_value(json_object_get(job, "id"));
-            json_t *stamp = pl_stamp_load(graph, job);
-            const char *st = json_string_value(json_object_get(stamp, "status"));
-            bool fresh = st && json_number_value(json_object_get(stamp, "started")) >= t0;
-            const char *state = !sj->submitted             ? "skipped"
-                                : fresh && !strcmp(st, "ok") ? "ran"
-                                : fresh                      ? "failed"
-                                : stamp_ok(graph, id)        ? "skipped"
-                                                             : "not run";
-            json_decref(stamp);
-            /* Up to date from before, but after a job that failed: the
-             * script did not run it (the local runner's "not run"). */
-            size_t d;
-            json_t *dep;
-            json_array_foreach(json_object_get(job, "deps"), d, dep) {
-                const char *ds = json_string_value(json_object_get(status, json_string_value(dep)));
-                if (ds && (!strcmp(ds, "failed") || !strcmp(ds, "not run")))
-                    state = "not run";
-            }
-            failed |= !strcmp(state, "failed");
-            if (!first_not_run && !strcmp(state, "not run"))
-                first_not_run = job;
-            json_object_set_new(status, id, json_string(state));
-        }
-        /* Not all run, none failed: the Slurm job that ran the setup (its
-         * own or one that took it) was killed. */
-        if (sj->submitted && !failed && first_not_run)
-            json_object_set_new(status, json_string_value(json_object_get(first_not_run, "id")),
-                                json_string("failed"));
-    }
-    const char *k;
-    json_t *v;
-    json_object_foreach(status, k, v) {
-        const char *state = json_string_value(v);
-        res->jobs_run += !strcmp(state, "ran") || !strcmp(state, "failed");
-        res->jobs_skipped += !strcmp(state, "skipped");
-        res->jobs_failed += !strcmp(state, "failed");
-    }
-}
 
 /* The graph through Slurm, all but the day's index: the index follows
  * every other job whatever its end (an afterok dependency would cancel it
  * with the first failure), so it runs here once Slurm is done. The jobs
  * Slurm runs are the same `setlight job JOBS.json ID` the local runner
- * starts, so they skip themselves when up to date and stamp what they ran. */
+ * starts, so they skip themselves when up to date and stamp what they ran.
+ * choices: per setup, grouped into one Slurm job or not (pl_farm_choices);
+ * a grouped setup whose Slurm job was killed gets its "slurm_state". */
 static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
-                           const char *jobs_path, json_t *status, sl_pipeline_result *res,
-                           sl_error *err)
+                           json_t *choices, const char *jobs_path, json_t *status,
+                           sl_pipeline_result *res, sl_error *err)
 {
     json_t *farm = json_deep_copy(graph), *day = json_deep_copy(graph);
     json_t *farm_jobs = json_object_get(farm, "jobs"), *index_jobs = json_array();
@@ -274,14 +57,22 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         }
     }
     json_object_set_new(day, "jobs", index_jobs);
+    const char *name;
+    json_t *choice;
+    bool grouping = false;
+    json_object_foreach(choices, name, choice) {
+        sl_log(SL_LOG_INFO, "farm: %s %s", name,
+               json_string_value(json_object_get(choice, "reason")));
+        grouping |= !strcmp(json_string_value(json_object_get(choice, "group")), "setup");
+    }
     double t0 = pl_epoch_seconds();
     sl_result r = SL_OK;
     /* The grouped setups' scripts and claims, this run's own folder. */
     const char *out = json_string_value(json_object_get(graph, "out"));
     char group_dir[PATH_MAX + 64];
     snprintf(group_dir, sizeof group_dir, "%s/logs/farm-%ld-%.0f", out, (long)getpid(), t0 * 1e3);
-    if (o->farm_group == SL_FARM_GROUP_SETUP)
-        r = group_by_setup(farm, out, group_dir, err);
+    if (grouping)
+        r = pl_farm_group(farm, choices, out, group_dir, err);
     char farm_path[PATH_MAX + 32];
     snprintf(farm_path, sizeof farm_path, "%s.slurm.json", jobs_path);
     sl_pipeline_slurm_options so;
@@ -292,26 +83,34 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         r = pl_json_write(farm_path, farm, err);
     if (!r)
         r = sl_pipeline_slurm_run(farm_path, &so, &sr, err);
-    if (!r && o->farm_group == SL_FARM_GROUP_SETUP)
-        grouped_statuses(graph, &sr, t0, status, res);
     /* Kept only while a job submitted may still be on the cluster. */
-    if (o->farm_group == SL_FARM_GROUP_SETUP && (!r || !sr.sbatch_calls))
+    if (grouping && (!r || !sr.sbatch_calls))
         sl_remove_tree(group_dir);
-    for (int i = 0; !r && o->farm_group != SL_FARM_GROUP_SETUP && i < sr.job_count; i++) {
+    for (int i = 0; !r && i < sr.job_count; i++) {
         const sl_pipeline_slurm_job *j = &sr.jobs[i];
+        json_t *c = json_object_get(choices, j->id);
+        if (c && !strcmp(json_string_value(json_object_get(c, "group")), "setup")) {
+            if (pl_farm_group_statuses(graph, j->id, j->submitted, t0, status))
+                json_object_set_new(c, "slurm_state", json_string(j->state[0] ? j->state : "UNKNOWN"));
+            continue;
+        }
         /* The local runner's words: a job Slurm ran may still have skipped
          * itself, which its stamp does not tell apart from a run. */
         const char *state = j->end == SL_SLURM_SKIPPED     ? "skipped"
                             : j->end == SL_SLURM_COMPLETED ? "ran"
                             : j->end == SL_SLURM_CANCELLED ? "not run"
                                                            : "failed";
-        if (j->end == SL_SLURM_LOST && stamp_ok(graph, j->id))
+        if (j->end == SL_SLURM_LOST && pl_job_stamp_ok(graph, j->id))
             state = "ran"; /* purged from squeue before it was seen ending */
         json_object_set_new(status, j->id, json_string(state));
-        res->jobs_run += j->end == SL_SLURM_COMPLETED || j->end == SL_SLURM_FAILED ||
-                         j->end == SL_SLURM_LOST;
-        res->jobs_skipped += j->end == SL_SLURM_SKIPPED;
-        res->jobs_failed += j->end == SL_SLURM_FAILED || j->end == SL_SLURM_LOST;
+    }
+    const char *k;
+    json_t *v;
+    json_object_foreach(status, k, v) {
+        const char *state = json_string_value(v);
+        res->jobs_run += !strcmp(state, "ran") || !strcmp(state, "failed");
+        res->jobs_skipped += !strcmp(state, "skipped");
+        res->jobs_failed += !strcmp(state, "failed");
     }
     sl_pipeline_slurm_result_free(&sr);
     if (!r) {
@@ -444,8 +243,11 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     if ((r = pl_graph_write(jobs_path, graph, err)))
         goto done;
     json_t *status = json_object();
-    if (!o->emit_jobs && o->farm == SL_FARM_SLURM)
-        r = run_slurm(o, graph, jobs_path, status, res, err), res->slots = 0;
+    json_t *choices = o->farm == SL_FARM_SLURM && !o->emit_jobs
+                          ? pl_farm_choices(graph, o->farm_group)
+                          : NULL;
+    if (choices)
+        r = run_slurm(o, graph, choices, jobs_path, status, res, err), res->slots = 0;
     else if (!o->emit_jobs)
         r = pl_run_local(o, graph, status, res, err);
     else
@@ -457,6 +259,18 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     json_array_foreach(setups, i, s) {
         const char *name = json_string_value(json_object_get(s, "name"));
         json_t *sum = pl_setup_summary(graph, s, status);
+        json_t *choice = json_object_get(choices, name);
+        if (choice)
+            json_object_set(sum, "farm", choice);
+        /* Killed with the Slurm job running it: say so, no stamp can. */
+        const char *killed = json_string_value(json_object_get(choice, "slurm_state"));
+        const char *why = json_string_value(json_object_get(sum, "reason"));
+        if (killed && why) {
+            char line[2600];
+            snprintf(line, sizeof line, "%s (the setup's Slurm job ended %s before it ran)", why,
+                     killed);
+            json_object_set_new(sum, "reason", json_string(line));
+        }
         /* Emitted only: nothing ran, nothing to judge but the planning. */
         if (o->emit_jobs && !strcmp(json_string_value(json_object_get(s, "status")), "ok")) {
             json_object_set_new(sum, "status", json_string("planned"));
@@ -484,6 +298,7 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     res->json = json_dumps(doc, JSON_INDENT(2) | JSON_PRESERVE_ORDER);
     json_decref(doc);
     json_decref(status);
+    json_decref(choices);
 done:
     json_decref(graph);
     json_decref(setups);

@@ -224,6 +224,8 @@ static void test_fields(void)
         {",\"memory_mb\":1.5", "job 'a': \"memory_mb\" is not a whole number >= 0"},
         {",\"memory_mb\":4294967296", "job 'a': \"memory_mb\" is not a whole number >= 0"},
         {",\"cpus\":0", "job 'a': \"cpus\" is not a whole number >= 1"},
+        {",\"cpu_seconds\":-0.5", "job 'a': \"cpu_seconds\" is not a number >= 0"},
+        {",\"cpu_seconds\":\"1\"", "job 'a': \"cpu_seconds\" is not a number >= 0"},
         {",\"up_to_date\":1", "job 'a': \"up_to_date\" is not true or false"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {

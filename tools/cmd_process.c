@@ -31,10 +31,16 @@ static const char process_help[] =
     "  --memory-mb MB         memory budget of the jobs running at once (default: half\n"
     "                         the RAM; a job estimated larger runs alone)\n"
     "  --farm local|slurm     where the jobs run (default local)\n"
-    "  --farm-group job|setup what one Slurm job runs: one job of the graph (default;\n"
-    "                         a setup's merges as one array), or a whole setup, its\n"
-    "                         jobs one after the other, then any setup not yet\n"
-    "                         taken (Slurm's ~1 s a job paid about once a CPU)\n"
+    "  --farm-group auto|job|setup\n"
+    "                         what one Slurm job runs: 'setup', a whole setup, its\n"
+    "                         jobs one after the other, then any grouped setup not\n"
+    "                         yet taken (Slurm's 0.5-0.9 s a job paid about once a\n"
+    "                         CPU); 'job', one job of the graph (a setup's merges\n"
+    "                         as one array); 'auto' (default), per setup: grouped\n"
+    "                         when its jobs one by one would cost Slurm over 2% of\n"
+    "                         their CPU time as the graph estimates it (cpu_seconds),\n"
+    "                         e.g. 16 jobs of ~0.5 s; the choice and its reason per\n"
+    "                         setup are logged and in --json (setups[].farm)\n"
     "  --emit-jobs FILE       write the job graph as JSON (docs/process.md) and run\n"
     "                         nothing: for other queues, through 'setlight job FILE ID'\n"
     "                         (a graph edited by hand is checked whole there: see\n"
@@ -100,12 +106,14 @@ int cmd_process(int argc, char **argv, const sl_cli *cli)
                 return cli_usage_error(cli, "--farm is local or slurm, not '%s'", optarg);
             break;
         case OPT_FARM_GROUP:
-            if (!strcmp(optarg, "job"))
+            if (!strcmp(optarg, "auto"))
+                o.farm_group = SL_FARM_GROUP_AUTO;
+            else if (!strcmp(optarg, "job"))
                 o.farm_group = SL_FARM_GROUP_JOB;
             else if (!strcmp(optarg, "setup"))
                 o.farm_group = SL_FARM_GROUP_SETUP;
             else
-                return cli_usage_error(cli, "--farm-group is job or setup, not '%s'", optarg);
+                return cli_usage_error(cli, "--farm-group is auto, job or setup, not '%s'", optarg);
             break;
         case OPT_EMIT:
             o.emit_jobs = optarg;

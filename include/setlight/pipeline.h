@@ -25,9 +25,12 @@ extern "C" {
 #endif
 
 typedef enum { SL_FARM_LOCAL = 0, SL_FARM_SLURM } sl_farm;
-/* What one Slurm job runs: one job of the graph (the merges of a setup as
- * an array), or a whole setup, its jobs one after the other. */
-typedef enum { SL_FARM_GROUP_JOB = 0, SL_FARM_GROUP_SETUP } sl_farm_group;
+/* What one Slurm job runs: per setup, chosen from the graph's CPU estimates
+ * against Slurm's cost of a job (auto, the default: grouped when its jobs
+ * one by one would cost over 2% of their CPU time), or for every setup one
+ * job of the graph (the merges of a setup as an array), or a whole setup,
+ * its jobs one after the other. */
+typedef enum { SL_FARM_GROUP_AUTO = 0, SL_FARM_GROUP_JOB, SL_FARM_GROUP_SETUP } sl_farm_group;
 
 typedef struct sl_pipeline_options {
     const char *const *setups; /* SETUP folders */
@@ -36,7 +39,7 @@ typedef struct sl_pipeline_options {
     const char *exe;           /* the setlight executable the jobs run (absolute) */
     const char *emit_jobs;     /* write the graph there and run nothing (NULL: run) */
     sl_farm farm;              /* local (default) or slurm */
-    sl_farm_group farm_group;  /* slurm: a Slurm job per job (default) or per setup */
+    sl_farm_group farm_group;  /* slurm: a Slurm job per setup or per job (default: auto) */
     int jobs;                  /* parallel jobs (0: the cores) */
     int memory_mb;             /* memory budget of the running jobs (0: half the RAM) */
     double probe_azimuth_deg;  /* where the probe camera looks in the set (unwrap, */
