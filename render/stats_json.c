@@ -104,6 +104,12 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "sun_share", json_real(cf->sun_share));
     json_object_set_new(jc, "tolerance", json_real(cf->tolerance));
     json_object_set_new(jc, "max_rel_bound", json_real(cf->max_rel_bound));
+    json_object_set_new(jc, "rms_rel_bound", json_real(cf->rms_rel_bound));
+    json_object_set_new(jc, "at_tolerance_share",
+                        json_real(cf->exact_pixels + cf->control_variate_pixels > 0
+                                      ? (double)cf->at_tolerance_pixels /
+                                            (double)(cf->exact_pixels + cf->control_variate_pixels)
+                                      : 1.0));
     json_object_set_new(jc, "max_footprint_error", json_real(cf->max_footprint_error));
     json_object_set_new(jc, "top_level", json_integer(cf->top_level));
     json_object_set_new(jc, "finest_level", json_integer(cf->finest_level));
