@@ -243,7 +243,8 @@ done:
 #define REST_SHARE 0.5    /* of the tolerance: the rest's quadrature bound */
 #define INTERP_SHARE 0.25 /* the interpolation check */
 #define SUN_SHARE 0.25    /* the sun's bound, of the point's whole irradiance */
-#define SUN_CUT_TOL 0.5   /* the tolerance of the first pass's evaluations past the deadline */
+#define SUN_LATE_TOL 1e30 /* the sun past the deadline: no refinement */
+#define LATE_TOL 0.05    /* the tolerance of the first pass's evaluations past the deadline */
 /* Refinement batches: enough new points to keep every thread busy. */
 #define BATCH_POINTS 32
 
@@ -389,8 +390,9 @@ static void eval_own(void *ctx, int64_t begin, int64_t end, int worker)
 }
 
 /* The sun at each point's own normal, to its share of the point's whole
- * irradiance (the rest known by now); past the deadline to a coarse
- * tolerance, its bound saying so. */
+ * irradiance (the rest known by now); past the deadline its few start
+ * cells alone (each exact when wholly above or below the horizon), their
+ * bound saying what is left. */
 static void eval_sun(void *ctx, int64_t begin, int64_t end, int worker)
 {
     fill *f = ctx;
@@ -401,7 +403,7 @@ static void eval_sun(void *ctx, int64_t begin, int64_t end, int worker)
         for (int c = 0; c < 3; c++)
             floor[c] = f->rest[p][c] + f->pts->E[p][c];
         bool late = sl_seconds() > f->deadline;
-        sl_quad q = {.tol = late ? SUN_CUT_TOL : SUN_SHARE * f->tol, .floor = floor, .start_cells = gd->sun_cells,
+        sl_quad q = {.tol = late ? SUN_LATE_TOL : SUN_SHARE * f->tol, .floor = floor, .start_cells = gd->sun_cells,
                      .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
         sl_irradiance_integrate(gd->sun, f->pts->n[p], &q, f->sun[p], f->sun_err[p], cost);
         if (late)
@@ -516,7 +518,7 @@ sl_result sl_lambert_fill(const sl_glossy_dome *gd, double tol, sl_lambert_point
     /* Every point needs these: past the deadline they are made coarser,
      * their bounds saying so, rather than left out. */
     f.j.deadline = deadline;
-    f.j.late_tol = SUN_CUT_TOL;
+    f.j.late_tol = LATE_TOL;
     sl_parallel_for(nq, 4, eval_vertices, &f.j);
     f.j.late_tol = 0;
     st->coarse_evaluations = nq;
