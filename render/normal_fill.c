@@ -88,6 +88,28 @@ static int vertex(int face, int bx, int by, int S, int k)
     return face * VERTS + (by * S + POINT[k][1] * S / 2) * (RES + 1) + bx * S + POINT[k][0] * S / 2;
 }
 
+/* The vertex arrays of every face; false without memory. */
+static bool normal_job_alloc(normal_job *j, const sl_irradiance *rest, double quad_tol)
+{
+    size_t nv = 6 * (size_t)VERTS;
+    *j = (normal_job){.rest = rest, .quad_tol = quad_tol, .workers = sl_threads_get()};
+    j->val = malloc(nv * sizeof *j->val);
+    j->err = malloc(nv * sizeof *j->err);
+    j->known = calloc(nv, 1);
+    j->queue = malloc(nv * sizeof *j->queue);
+    j->worker_cost = calloc((size_t)j->workers, sizeof *j->worker_cost);
+    return j->val && j->err && j->known && j->queue && j->worker_cost;
+}
+
+static void normal_job_free(normal_job *j)
+{
+    free(j->val);
+    free(j->err);
+    free(j->known);
+    free(j->queue);
+    free(j->worker_cost);
+}
+
 struct sl_normal_grid {
     normal_job j;
     double interp_tol;
@@ -101,11 +123,7 @@ void sl_normal_grid_free(sl_normal_grid *g)
 {
     if (!g)
         return;
-    free(g->j.val);
-    free(g->j.err);
-    free(g->j.known);
-    free(g->j.queue);
-    free(g->j.worker_cost);
+    normal_job_free(&g->j);
     free(g->block);
     free(g->block_err);
     free(g);
@@ -118,19 +136,11 @@ sl_result sl_normal_grid_new(const sl_irradiance *rest, double quad_tol, double 
     *out = NULL;
     if (!g)
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the irradiance over normals");
-    normal_job *j = &g->j;
-    j->rest = rest;
-    j->quad_tol = quad_tol;
+    bool ok = normal_job_alloc(&g->j, rest, quad_tol);
     g->interp_tol = interp_tol;
-    j->workers = sl_threads_get();
-    j->val = malloc(6 * (size_t)VERTS * sizeof *j->val);
-    j->err = malloc(6 * (size_t)VERTS * sizeof *j->err);
-    j->known = calloc(6 * (size_t)VERTS, 1);
-    j->queue = malloc(6 * (size_t)VERTS * sizeof *j->queue);
-    j->worker_cost = calloc((size_t)j->workers, sizeof *j->worker_cost);
     g->block = malloc(6 * (size_t)RES * RES);
     g->block_err = malloc(6 * (size_t)RES * RES * sizeof *g->block_err);
-    if (!j->val || !j->err || !j->known || !j->queue || !j->worker_cost || !g->block || !g->block_err) {
+    if (!ok || !g->block || !g->block_err) {
         sl_normal_grid_free(g);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the irradiance over normals");
     }
@@ -413,11 +423,7 @@ static void eval_sun(void *ctx, int64_t begin, int64_t end, int worker)
 
 static void fill_free(fill *f)
 {
-    free(f->j.val);
-    free(f->j.err);
-    free(f->j.known);
-    free(f->j.queue);
-    free(f->j.worker_cost);
+    normal_job_free(&f->j);
     free(f->order);
     free(f->offset);
     free(f->st);
@@ -444,14 +450,9 @@ sl_result sl_lambert_fill(const sl_glossy_dome *gd, double tol, sl_lambert_point
     memset(st, 0, sizeof *st);
     int64_t n = pts->count;
     fill f = {.gd = gd, .pts = pts, .tol = tol, .deadline = deadline};
-    size_t nv = 6 * (size_t)VERTS, ncells = 6 * (size_t)CELLS * CELLS, np = (size_t)(n > 0 ? n : 1);
+    size_t ncells = 6 * (size_t)CELLS * CELLS, np = (size_t)(n > 0 ? n : 1);
     f.workers = sl_threads_get();
-    f.j = (normal_job){.rest = gd->rest, .quad_tol = REST_SHARE * tol, .workers = f.workers};
-    f.j.val = malloc(nv * sizeof *f.j.val);
-    f.j.err = malloc(nv * sizeof *f.j.err);
-    f.j.known = calloc(nv, 1);
-    f.j.queue = malloc(nv * sizeof *f.j.queue);
-    f.j.worker_cost = calloc((size_t)f.workers, sizeof *f.j.worker_cost);
+    bool ok = normal_job_alloc(&f.j, gd->rest, REST_SHARE * tol);
     f.worker_cost = calloc((size_t)f.workers, sizeof *f.worker_cost);
     f.order = malloc(np * sizeof *f.order);
     f.offset = calloc(ncells + 1, sizeof *f.offset);
@@ -469,7 +470,7 @@ sl_result sl_lambert_fill(const sl_glossy_dome *gd, double tol, sl_lambert_point
     int *heap_slots = malloc(pool_size * sizeof *heap_slots), *free_slots = malloc(pool_size * sizeof *free_slots);
     uint32_t *key = malloc(np * sizeof *key);
     sl_result res = SL_OK;
-    if (!f.j.val || !f.j.err || !f.j.known || !f.j.queue || !f.j.worker_cost || !f.worker_cost || !f.order ||
+    if (!ok || !f.worker_cost || !f.order ||
         !f.offset || !f.st || !f.face || !f.rest || !f.rest_err || !f.sun || !f.sun_err || !f.own || !pool ||
         !heap_slots || !free_slots || !key) {
         res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the Lambert fill");
