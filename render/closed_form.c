@@ -182,10 +182,20 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
     const sl_scene *scene = j->scene;
     const sl_camera *cam = &scene->camera;
     sl_closed_form *cf = j->cf;
+    /* The pixel corners of a row's top and bottom edges, each traced once
+     * for the two pixels that share it. */
+    int w = cam->width;
+    sl_hit *corner = j->o->pixel_centers ? NULL : malloc(2 * ((size_t)w + 1) * sizeof *corner);
+    uint8_t *corner_ok = j->o->pixel_centers ? NULL : malloc(2 * ((size_t)w + 1));
     for (int64_t y = begin; y < end; y++) {
         /* Past the deadline only the Lambert fill's pixels go on: their
          * first pass is cheap, a glossy or box-filtered quadrature is not. */
         bool late = sl_seconds() > j->deadline;
+        for (int k = 0; corner && corner_ok && k < 2 * (w + 1); k++) {
+            double org[3], dir[3];
+            corner_ok[k] = ray_at(cam, k % (w + 1), (double)y + k / (w + 1), org, dir) &&
+                           sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &corner[k]);
+        }
         for (int x = 0; x < cam->width; x++) {
             size_t pix = (size_t)y * (size_t)cam->width + (size_t)x;
             double org[3], dir[3];
@@ -202,9 +212,11 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             bool covered = true;
             if (!j->o->pixel_centers)
                 for (int c = 0; c < 4 && covered; c++) {
-                    covered = ray_at(cam, x + (c & 1), y + (c >> 1), org, dir) &&
-                              sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &h[npts]) &&
-                              h[npts].shape == a && !h[npts].inside;
+                    /* no memory for the corners: not known to be covered */
+                    int k = (c >> 1) * (w + 1) + x + (c & 1);
+                    covered = corner && corner_ok && corner_ok[k] && corner[k].shape == a && !corner[k].inside;
+                    if (covered)
+                        h[npts] = corner[k];
                     npts++;
                 }
             if (!covered)
@@ -265,6 +277,8 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             }
         }
     }
+    free(corner);
+    free(corner_ok);
 }
 
 /* The box mean over a pixel from an n x n grid of sub-pixel midpoints on shape a. */
