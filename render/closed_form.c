@@ -23,6 +23,7 @@
 #include "closed_form.h"
 #include "glossy.h"
 #include "irradiance.h"
+#include "normal_fill.h"
 #include "scene_internal.h"
 #include "vec3.h"
 
@@ -120,6 +121,11 @@ typedef struct plan_job {
     int32_t *row_late; /* rim pixels of a finished row the deadline left to sampling */
     uint8_t *drop;     /* filter_rows: pixels it leaves to sampling, applied after it, so
                           that no pixel's neighbours change while it runs */
+    uint8_t *lambert;  /* the pixel's dome part is left to the Lambert fill */
+    int64_t *point;    /* its point in the fill, and its first sub-point (box filter), or -1 */
+    int64_t *sub;
+    sl_lambert_points pts;
+    double (*pt_n)[3];
 } plan_job;
 
 static void plan_job_free(plan_job *j)
@@ -130,6 +136,14 @@ static void plan_job_free(plan_job *j)
     free(j->row_cut);
     free(j->row_late);
     free(j->drop);
+    free(j->lambert);
+    free(j->point);
+    free(j->sub);
+    free(j->pt_n);
+    free(j->pts.E);
+    free(j->pts.bound);
+    free(j->pts.interpolated);
+    free(j->pts.at_tol);
     free(j->glossy.state);
     free(j->glossy.n);
     free(j->glossy.wo);
@@ -138,6 +152,7 @@ static void plan_job_free(plan_job *j)
 /* The plan's share of a --time budget: the first pass (one sample per half
  * of every pixel left to sampling) always follows it. */
 #define PLAN_TIME_SHARE 0.8
+#define CONTROL_TIME_SHARE 0.4
 
 static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], double d[3])
 {
@@ -167,10 +182,19 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
     const sl_scene *scene = j->scene;
     const sl_camera *cam = &scene->camera;
     sl_closed_form *cf = j->cf;
+    /* The pixel corners of a row's top and bottom edges, each traced once
+     * for the two pixels that share it. */
+    int w = cam->width;
+    sl_hit *corner = j->o->pixel_centers ? NULL : malloc(2 * ((size_t)w + 1) * sizeof *corner);
+    uint8_t *corner_ok = j->o->pixel_centers ? NULL : malloc(2 * ((size_t)w + 1));
     for (int64_t y = begin; y < end; y++) {
-        if (sl_seconds() > j->deadline) {
-            j->row_cut[y] = 1; /* left to sampling */
-            continue;
+        /* Past the deadline only the Lambert fill's pixels go on: their
+         * first pass is cheap, a glossy or box-filtered quadrature is not. */
+        bool late = sl_seconds() > j->deadline;
+        for (int k = 0; corner && corner_ok && k < 2 * (w + 1); k++) {
+            double org[3], dir[3];
+            corner_ok[k] = ray_at(cam, k % (w + 1), (double)y + k / (w + 1), org, dir) &&
+                           sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &corner[k]);
         }
         for (int x = 0; x < cam->width; x++) {
             size_t pix = (size_t)y * (size_t)cam->width + (size_t)x;
@@ -188,9 +212,11 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             bool covered = true;
             if (!j->o->pixel_centers)
                 for (int c = 0; c < 4 && covered; c++) {
-                    covered = ray_at(cam, x + (c & 1), y + (c >> 1), org, dir) &&
-                              sl_scene_intersect(scene, org, dir, 0.0, INFINITY, &h[npts]) &&
-                              h[npts].shape == a && !h[npts].inside;
+                    /* no memory for the corners: not known to be covered */
+                    int k = (c >> 1) * (w + 1) + x + (c & 1);
+                    covered = corner && corner_ok && corner_ok[k] && corner[k].shape == a && !corner[k].inside;
+                    if (covered)
+                        h[npts] = corner[k];
                     npts++;
                 }
             if (!covered)
@@ -219,6 +245,11 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (ma->type != SL_MAT_LAMBERT && scene->light_count)
                 continue;
             double B[3], wo[3] = {-dir0[0], -dir0[1], -dir0[2]};
+            bool to_fill = ma->type == SL_MAT_LAMBERT && cf->ir;
+            if (late && !to_fill) {
+                j->row_late[y]++; /* left to sampling */
+                continue;
+            }
             if (j->o->pixel_centers && sl_glossy_applies(ma)) {
                 cf->mode[pix] = unshadowed(scene, a, h, npts, margin) ? SL_PIXEL_EXACT : SL_PIXEL_CONTROL;
                 cf->shape[pix] = a;
@@ -229,7 +260,6 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             }
             /* A Lambert pixel's dome part is left to the fill (interpolated
              * where checked); its lights' part is computed here. */
-            bool to_fill = ma->type == SL_MAT_LAMBERT && cf->ir;
             if (!(to_fill ? sl_lights_irradiance(scene, h[0].p, h[0].n, cf->tol, j->centre[pix], B)
                           : sl_closed_form_radiance_at(cf, scene, a, h[0].p, h[0].n, wo, j->centre[pix],
                                                        B, &j->row_cost[y])))
@@ -242,12 +272,13 @@ static void classify_rows(void *ctx, int64_t begin, int64_t end, int worker)
             for (int c = 0; c < 3; c++)
                 cf->bound[pix][c] = (float)B[c];
             if (to_fill) {
-                j->glossy.state[pix] = SL_GLOSSY_PENDING;
+                j->lambert[pix] = 1;
                 v3_copy(j->glossy.n[pix], h[0].n);
-                v3_copy(j->glossy.wo[pix], wo);
             }
         }
     }
+    free(corner);
+    free(corner_ok);
 }
 
 /* The box mean over a pixel from an n x n grid of sub-pixel midpoints on shape a. */
@@ -274,13 +305,57 @@ static bool grid_mean(const plan_job *j, int a, int x, int y, int n, double mean
     return true;
 }
 
+/* The box mean of a pixel from its centre and its four neighbours' (they
+ * show the same object), or, on a flat Lambert shape under the dome alone,
+ * its centre value; else it needs a 3 x 3 grid of sub-pixel points. */
+static bool inner_pixel(const plan_job *j, int x, int y)
+{
+    const sl_closed_form *cf = j->cf;
+    int w = j->scene->camera.width, hgt = j->scene->camera.height;
+    size_t pix = (size_t)y * (size_t)w + (size_t)x;
+    int a = cf->shape[pix];
+    /* A cut row's centres were never finished: no neighbour there. */
+    bool inner = x > 0 && y > 0 && x + 1 < w && y + 1 < hgt && !j->row_cut[y - 1] && !j->row_cut[y + 1];
+    const size_t nb[4] = {pix - 1, pix + 1, pix - (size_t)w, pix + (size_t)w};
+    for (int k = 0; k < 4 && inner; k++)
+        inner = cf->mode[nb[k]] != SL_PIXEL_SAMPLED && cf->shape[nb[k]] == a;
+    return inner;
+}
+
+static bool flat_under_dome(const plan_job *j, int a)
+{
+    const sl_scene *scene = j->scene;
+    return scene->shapes[a].type != SL_SHAPE_SPHERE && !scene->light_count &&
+           scene->materials[scene->shapes[a].material].type == SL_MAT_LAMBERT;
+}
+
+/* The sub-pixel points of a 3 x 3 grid on shape a, for the Lambert fill:
+ * normals and the rig lights' irradiance. False when a point misses the
+ * shape (rounding at a corner). */
+#define GRID 3
+static bool grid_points(const plan_job *j, int a, int x, int y, double (*n)[3], double (*E)[3],
+                        double (*B)[3])
+{
+    const sl_camera *cam = &j->scene->camera;
+    for (int k = 0; k < GRID * GRID; k++) {
+        double org[3], dir[3];
+        sl_hit h;
+        if (!ray_at(cam, x + (k % GRID + 0.5) / GRID, y + (k / GRID + 0.5) / GRID, org, dir) ||
+            !sl_shape_intersect(j->scene, a, org, dir, &h) ||
+            !sl_lights_irradiance(j->scene, h.p, h.n, j->cf->tol, E[k], B[k]))
+            return false;
+        v3_copy(n[k], h.n);
+    }
+    return true;
+}
+
 static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
     plan_job *j = ctx;
     const sl_camera *cam = &j->scene->camera;
     sl_closed_form *cf = j->cf;
-    int w = cam->width, hgt = cam->height;
+    int w = cam->width;
     for (int64_t y = begin; y < end; y++) {
         if (j->row_cut[y])
             continue; /* sampled: set after every row is done */
@@ -296,12 +371,8 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 continue;
             }
             int a = cf->shape[pix];
-            /* A cut row's centres were never finished: no neighbour there. */
-            bool inner = x > 0 && y > 0 && x + 1 < w && y + 1 < hgt && !j->row_cut[y - 1] &&
-                         !j->row_cut[y + 1];
+            bool inner = inner_pixel(j, x, (int)y);
             const size_t nb[4] = {pix - 1, pix + 1, pix - (size_t)w, pix + (size_t)w};
-            for (int k = 0; k < 4 && inner; k++)
-                inner = cf->mode[nb[k]] != SL_PIXEL_SAMPLED && cf->shape[nb[k]] == a;
             double mean[3], foot[3], bound[3] = {cf->bound[pix][0], cf->bound[pix][1], cf->bound[pix][2]};
             if (inner) {
                 for (int c = 0; c < 3; c++) {
@@ -310,13 +381,24 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
                     mean[c] = fc[c] + lap / 24.0;
                     foot[c] = fabs(lap / 24.0);
                 }
-            } else if (j->scene->shapes[a].type != SL_SHAPE_SPHERE && !j->scene->light_count &&
-                       j->scene->materials[j->scene->shapes[a].material].type == SL_MAT_LAMBERT) {
+            } else if (flat_under_dome(j, a)) {
                 /* A flat Lambert shape under the dome alone has one normal,
                  * so one irradiance: its box mean is its centre value (the
                  * chart's patch edges). */
                 for (int c = 0; c < 3; c++)
                     mean[c] = fc[c], foot[c] = 0;
+            } else if (j->sub[pix] >= 0) {
+                /* The fill's 3 x 3 points. */
+                const double *rho = j->scene->materials[j->scene->shapes[a].material].base_color;
+                for (int c = 0; c < 3; c++) {
+                    mean[c] = 0;
+                    for (int k = 0; k < GRID * GRID; k++) {
+                        int64_t q = j->sub[pix] + k;
+                        mean[c] += rho[c] / SL_PI * j->pts.E[q][c] / (GRID * GRID);
+                        bound[c] = fmax(bound[c], rho[c] / SL_PI * j->pts.bound[q][c]);
+                    }
+                    foot[c] = fabs(mean[c] - fc[c]) / 8.0;
+                }
             } else {
                 /* Midpoint rules err as h^2: the 3x3 grid's error is about
                  * (centre - 3x3) / 8. */
@@ -336,6 +418,84 @@ static void filter_rows(void *ctx, int64_t begin, int64_t end, int worker)
             }
         }
     }
+}
+
+/* The Lambert pixels' dome part (normal_fill.c): the points are their
+ * centres and, where the box filter needs them, 3 x 3 sub-pixel points;
+ * every one gets a value whenever the deadline falls. Writes each centre's
+ * radiance, bound and interpolation state. */
+static sl_result fill_lambert(plan_job *j, double deadline, sl_closed_form_stats *st, sl_error *err)
+{
+    const sl_scene *scene = j->scene;
+    const sl_camera *cam = &scene->camera;
+    sl_closed_form *cf = j->cf;
+    size_t npix = (size_t)cam->width * (size_t)cam->height;
+    int64_t count = 0;
+    for (int y = 0; y < cam->height; y++)
+        for (int x = 0; x < cam->width; x++) {
+            size_t pix = (size_t)y * (size_t)cam->width + (size_t)x;
+            j->point[pix] = j->sub[pix] = -1;
+            if (!j->lambert[pix])
+                continue;
+            j->point[pix] = count++;
+            if (!j->o->pixel_centers && !inner_pixel(j, x, y) && !flat_under_dome(j, cf->shape[pix]))
+                j->sub[pix] = (count += GRID * GRID) - GRID * GRID;
+        }
+    size_t np = (size_t)(count > 0 ? count : 1);
+    j->pt_n = malloc(np * sizeof *j->pt_n);
+    j->pts.E = malloc(np * sizeof *j->pts.E);
+    j->pts.bound = malloc(np * sizeof *j->pts.bound);
+    j->pts.interpolated = calloc(np, 1);
+    j->pts.at_tol = calloc(np, 1);
+    if (!j->pt_n || !j->pts.E || !j->pts.bound || !j->pts.interpolated || !j->pts.at_tol)
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the Lambert points");
+    j->pts.count = count;
+    j->pts.n = (const double(*)[3])j->pt_n;
+    for (size_t pix = 0; pix < npix; pix++) {
+        int64_t q = j->point[pix];
+        if (q < 0)
+            continue;
+        v3_copy(j->pt_n[q], j->glossy.n[pix]);
+        for (int c = 0; c < 3; c++)
+            j->pts.E[q][c] = j->centre[pix][c], j->pts.bound[q][c] = cf->bound[pix][c];
+        if (j->sub[pix] >= 0 &&
+            !grid_points(j, cf->shape[pix], (int)(pix % (size_t)cam->width), (int)(pix / (size_t)cam->width),
+                         j->pt_n + j->sub[pix], j->pts.E + j->sub[pix], j->pts.bound + j->sub[pix])) {
+            /* Rounding at a corner: sampled, its sub-points given a harmless normal. */
+            j->drop[pix] = 1;
+            for (int k = 0; k < GRID * GRID; k++) {
+                v3_copy(j->pt_n[j->sub[pix] + k], j->glossy.n[pix]);
+                memset(j->pts.E[j->sub[pix] + k], 0, sizeof j->pts.E[0]);
+                memset(j->pts.bound[j->sub[pix] + k], 0, sizeof j->pts.bound[0]);
+            }
+            j->sub[pix] = -1;
+        }
+    }
+    sl_lambert_fill_stats fs;
+    sl_result res = sl_lambert_fill(cf->gdome, cf->tol, &j->pts, deadline, j->o->plan_eval_limit, &fs, err);
+    if (res)
+        return res;
+    st->evaluations += fs.cost.evaluations;
+    st->cells += fs.cost.cells;
+    if (fs.cost.evaluations && fs.cost.finest_level < st->finest_level)
+        st->finest_level = fs.cost.finest_level;
+    st->cut_by_time |= fs.cut;
+    for (size_t pix = 0; pix < npix; pix++) {
+        int64_t q = j->point[pix];
+        if (q < 0)
+            continue;
+        const double *rho = scene->materials[scene->shapes[cf->shape[pix]].material].base_color;
+        for (int c = 0; c < 3; c++) {
+            j->centre[pix][c] = rho[c] / SL_PI * j->pts.E[q][c];
+            cf->bound[pix][c] = (float)(rho[c] / SL_PI * j->pts.bound[q][c]);
+        }
+        j->glossy.state[pix] = j->pts.interpolated[q] ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
+        bool at_tol = j->pts.at_tol[q];
+        for (int k = 0; k < GRID * GRID && j->sub[pix] >= 0; k++)
+            at_tol &= j->pts.at_tol[j->sub[pix] + k];
+        j->lambert[pix] = at_tol ? 1 : 2; /* 2: a cut left it short of the tolerance */
+    }
+    return SL_OK;
 }
 
 static const char *not_applicable(const sl_scene *scene, const sl_render_options *o)
@@ -407,19 +567,28 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     j.row_cut = calloc((size_t)cam->height, 1);
     j.row_late = calloc((size_t)cam->height, sizeof *j.row_late);
     j.drop = calloc(npix, 1);
+    j.lambert = calloc(npix, 1);
+    j.point = malloc(npix * sizeof *j.point);
+    j.sub = malloc(npix * sizeof *j.sub);
     j.deadline = o->time_limit > 0 ? t0 + PLAN_TIME_SHARE * o->time_limit : INFINITY;
+    if (j.point && j.sub) /* no fill point (memset -1: every byte 0xff) */
+        memset(j.point, 0xff, npix * sizeof *j.point), memset(j.sub, 0xff, npix * sizeof *j.sub);
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
-        !j.row_foot || !j.row_cut || !j.row_late || !j.drop || !j.glossy.state || !j.glossy.n || !j.glossy.wo) {
+        !j.row_foot || !j.row_cut || !j.row_late || !j.drop || !j.lambert || !j.point || !j.sub || !j.glossy.state || !j.glossy.n || !j.glossy.wo) {
         plan_job_free(&j);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
     }
     sl_parallel_for(cam->height, 1, classify_rows, &j);
     sl_result res = SL_OK;
-    bool pending = false;
-    for (size_t i = 0; i < npix && !pending; i++)
-        pending = j.glossy.state[i] == SL_GLOSSY_PENDING;
-    if (pending) {
+    bool pending = false, lambert = false, control = false;
+    for (size_t i = 0; i < npix; i++) {
+        pending |= j.glossy.state[i] == SL_GLOSSY_PENDING;
+        lambert |= j.lambert[i];
+        control |= cf->mode[i] == SL_PIXEL_CONTROL;
+    }
+    st->finest_level = st->top_level = cf->ir ? sl_irradiance_top_level(cf->ir) : 0;
+    if (pending || lambert) {
         cf->gdome = calloc(1, sizeof *cf->gdome);
         res = cf->gdome ? SL_OK : sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
         /* Without room for the split the whole map is the rest: slower, as exact. */
@@ -427,10 +596,24 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         if (!res && sl_glossy_dome_build(&scene->dome, cf->ir, cf->gdome, &split_err))
             cf->gdome->rest = cf->ir;
         if (!res) {
-            res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost,
-                                 j.deadline, o->plan_row_limit, j.row_cut, err);
             st->sun_texels = cf->gdome->sun_texels;
             st->sun_share = cf->gdome->sun_share;
+        }
+    }
+    if (!res && lambert) {
+        /* Control variates leave the shadowed part to sampling: it gets
+         * the larger part of the budget. The glossy fill, after, half of
+         * what is left. */
+        double until = o->time_limit > 0 ? t0 + (control ? CONTROL_TIME_SHARE : PLAN_TIME_SHARE) * o->time_limit
+                                         : INFINITY;
+        if (pending)
+            until = sl_seconds() + 0.5 * (until - sl_seconds());
+        res = fill_lambert(&j, until, st, err);
+    }
+    if (!res && pending) {
+        {
+            res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost,
+                                 j.deadline, o->plan_row_limit, j.row_cut, err);
         }
     }
     if (res) {
@@ -459,9 +642,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         }
     st->used = true;
     st->tolerance = cf->tol;
-    st->top_level = cf->ir ? sl_irradiance_top_level(cf->ir) : 0;
     sl_closed_form_count_lights(scene, &st->lights_exact, &st->lights_sampled);
-    st->finest_level = st->top_level;
     for (int y = 0; y < cam->height; y++) {
         st->evaluations += j.row_cost[y].evaluations;
         st->cells += j.row_cost[y].cells;
@@ -485,19 +666,25 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         }
         bool interpolated = j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
         st->interpolated_pixels += interpolated;
+        st->at_tolerance_pixels += j.lambert[i] != 2;
         if (k < SL_CLOSED_FORM_MAX_OBJECTS) {
             st->object_exact[k] += m == SL_PIXEL_EXACT;
             st->object_control[k] += m == SL_PIXEL_CONTROL;
             st->object_interpolated[k] += interpolated;
         }
+        double worst = 0;
         for (int c = 0; c < 3; c++)
             if (cf->value[i][c] > 0) {
                 double rel = cf->bound[i][c] / cf->value[i][c];
+                worst = fmax(worst, rel);
                 st->max_rel_bound = fmax(st->max_rel_bound, rel);
                 if (k < SL_CLOSED_FORM_MAX_OBJECTS)
                     st->object_max_rel_bound[k] = fmax(st->object_max_rel_bound[k], rel);
             }
+        st->rms_rel_bound += worst * worst;
     }
+    int64_t closed = st->exact_pixels + st->control_variate_pixels;
+    st->rms_rel_bound = closed ? sqrt(st->rms_rel_bound / (double)closed) : 0;
     for (int y = 0; y < cam->height; y++)
         st->max_footprint_error = fmax(st->max_footprint_error, j.row_foot[y]);
     plan_job_free(&j);

@@ -22,7 +22,7 @@ static void level_words(int k, char *buf, size_t size)
 
 const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, size_t size)
 {
-    char top[48], fine[48], lights[96] = "", cut[128] = "";
+    char top[48], fine[48], lights[96] = "", cut[256] = "";
     size_t n = 0;
     if (st->evaluations > 0 && st->cells > 0) {
         level_words(st->top_level, top, sizeof top);
@@ -40,7 +40,9 @@ const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, s
                  st->lights_sampled);
     if (st->cut_by_time)
         snprintf(cut, sizeof cut,
-                 "; --time ran out while planning: %lld pixels left to sampling, the finished rows kept",
+                 "; --time ran out while planning: %lld of %lld closed-form pixels refined to the "
+                 "tolerance (the others keep a coarser value and its bound), %lld left to sampling",
+                 (long long)st->at_tolerance_pixels, (long long)(st->exact_pixels + st->control_variate_pixels),
                  (long long)st->cut_pixels);
     if (n < size)
         snprintf(buf + n, size - n, "%s%s", lights, cut);
@@ -104,6 +106,12 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "sun_share", json_real(cf->sun_share));
     json_object_set_new(jc, "tolerance", json_real(cf->tolerance));
     json_object_set_new(jc, "max_rel_bound", json_real(cf->max_rel_bound));
+    json_object_set_new(jc, "rms_rel_bound", json_real(cf->rms_rel_bound));
+    json_object_set_new(jc, "at_tolerance_share",
+                        json_real(cf->exact_pixels + cf->control_variate_pixels > 0
+                                      ? (double)cf->at_tolerance_pixels /
+                                            (double)(cf->exact_pixels + cf->control_variate_pixels)
+                                      : 1.0));
     json_object_set_new(jc, "max_footprint_error", json_real(cf->max_footprint_error));
     json_object_set_new(jc, "top_level", json_integer(cf->top_level));
     json_object_set_new(jc, "finest_level", json_integer(cf->finest_level));
@@ -113,7 +121,7 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "lights_sampled", json_integer(cf->lights_sampled));
     json_object_set_new(jc, "cut_by_time", json_boolean(cf->cut_by_time));
     json_object_set_new(jc, "cut_pixels", json_integer(cf->cut_pixels));
-    char words[320];
+    char words[512];
     json_object_set_new(jc, "summary", json_string(sl_closed_form_describe(cf, words, sizeof words)));
     json_object_set_new(jc, "seconds", json_real(cf->seconds));
     json_object_set_new(root, "closed_form", jc);

@@ -39,10 +39,13 @@ static void help(FILE *out)
             "  --spp N             stop at N samples per pixel (default 64 unless --time or\n"
             "                      --target-error is given)\n"
             "  --time SECONDS      the render's wall-time budget, closed form included:\n"
-            "                      the closed form works band by band and stops at 80%%\n"
-            "                      of it; finished rows stay exact, the rest is sampled;\n"
-            "                      no pass starts that would end past it (the first\n"
-            "                      pass, 2 spp, always runs)\n"
+            "                      a Lambert object's closed form is first coarse over\n"
+            "                      the whole object, then refined worst block first,\n"
+            "                      until 80%% of it (40%% with a shadowed part to\n"
+            "                      sample); a cut leaves each pixel its value and bound\n"
+            "                      (stats: rms_rel_bound, at_tolerance_share); glossy\n"
+            "                      rows not finished are sampled; no pass starts that\n"
+            "                      would end past it (the first pass, 2 spp, always runs)\n"
             "  --target-error E    stop when the estimated relative RMSE is at most E; from\n"
             "                      16 spp on, each pixel stops once its error (pooled over\n"
             "                      3x3 pixels) is within its share of E (adaptive sampling)\n"
@@ -269,7 +272,7 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                res.est_rel_rmse, res.stats.stop_reason);
     if (!r && !cli->json) {
         const sl_closed_form_stats *cf = &res.stats.closed_form;
-        char words[320];
+        char words[512];
         if (cf->used)
             sl_log(SL_LOG_INFO,
                    "closed form: %lld pixels exact, %lld control variate, %lld sampled; bound "

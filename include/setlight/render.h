@@ -298,6 +298,10 @@ typedef struct sl_render_options {
      * ran out there (rows from it on are sampled); 0 = no such cut. A
      * deterministic stand-in for the deadline. */
     int plan_row_limit;
+    /* Tests: the Lambert fill's refinement stops after this many
+     * evaluations past its first pass, as if --time ran out there; 0 = no
+     * such cut. */
+    int64_t plan_eval_limit;
 } sl_render_options;
 
 void sl_render_options_init(sl_render_options *o); /* spp 64, MIS, low discrepancy */
@@ -326,9 +330,13 @@ typedef struct sl_closed_form_stats {
     int64_t evaluations, cells;  /* irradiance evaluations, cells visited */
     int lights_exact, lights_sampled; /* rig lights in the closed form; left to sampling
                                          (textured rects) */
-    bool cut_by_time;            /* --time ran out while planning: the rest is sampled */
+    bool cut_by_time;            /* --time ran out while planning */
     int64_t cut_pixels;          /* pixels the plan would have made exact or control
-                                    variates, sampled because of that cut */
+                                    variates, sampled because of that cut (glossy rows;
+                                    a Lambert pixel keeps its coarser value and bound) */
+    int64_t at_tolerance_pixels; /* closed-form pixels refined to the tolerance (the
+                                    others: a cut left their interpolation coarser) */
+    double rms_rel_bound;        /* RMS over closed-form pixels of the relative bound */
     double seconds;
     /* Per object (as objects[]): its material's type, its exact and
      * control-variate pixels, those of them interpolated, its largest
