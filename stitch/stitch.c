@@ -218,12 +218,9 @@ static sl_result hold_copies(view_file *v, sl_image *thumb, sl_error *err)
             return r;
     }
     int k = v->solve_factor;
-    if (k > 1 && (r = sl_image_resample(img, img->width / k, img->height / k,
-                                        &v->solve_radiance, err)))
+    if (k > 1 && (r = stitch_reduce(img, k, &v->solve_radiance, err)))
         return r;
-    if (k > 1 && v->weight.data &&
-        (r = sl_image_resample(&v->weight, img->width / k, img->height / k, &v->solve_weight,
-                               err)))
+    if (k > 1 && v->weight.data && (r = stitch_reduce(&v->weight, k, &v->solve_weight, err)))
         return r;
     if (v->as_half)
         stitch_view_to_half(img, &v->half, err);

@@ -28,6 +28,10 @@ void stitch_half_free(stitch_half_image *h);
 /* The factor, 2 or 4, that divides the view's width and height and brings
  * the width to max_width or under, or 1. */
 int stitch_solve_factor(int width, int height, int max_width);
+/* src reduced by k (2 or 4: the same bytes as sl_image_resample to
+ * width / k x height / k, in one pass and no intermediate image; another
+ * factor: sl_image_resample). */
+sl_result stitch_reduce(const sl_image *src, int k, sl_image *dst, sl_error *err);
 /* A lens scaled by s for an image of width x height (focal, centre, circle). */
 void stitch_lens_scale(sl_lens *lens, double s, int width, int height);
 

@@ -72,6 +72,26 @@ static void half_only_when_exact(void)
     sl_image_free(&img);
 }
 
+/* The solve's copy reduced in one pass: the bytes of sl_image_resample. */
+static void reduce_is_resample(void)
+{
+    sl_error err;
+    for (int k = 2; k <= 4; k += 2)
+        for (int ch = 1; ch <= 3; ch += 2) {
+            sl_image img, a, b;
+            CHECK_OK(sl_image_alloc(&img, 40 * k, 52 * k, ch, &err), &err);
+            uint64_t seed = 7;
+            for (size_t i = 0; i < (size_t)img.width * img.height * ch; i++)
+                img.data[i] = (float)exp(20.0 * uniform(&seed) - 10.0); /* 1e-4 .. 2e4 */
+            CHECK_OK(stitch_reduce(&img, k, &a, &err), &err);
+            CHECK_OK(sl_image_resample(&img, img.width / k, img.height / k, &b, &err), &err);
+            CHECK(a.width == b.width && a.height == b.height && a.channels == ch);
+            CHECK_MSG(!memcmp(a.data, b.data, (size_t)a.width * a.height * ch * sizeof(float)),
+                      "k %d, %d channels: not the bytes of sl_image_resample", k, ch);
+            sl_image_free(&img), sl_image_free(&a), sl_image_free(&b);
+        }
+}
+
 static void solve_factor(void)
 {
     CHECK(stitch_solve_factor(6000, 4000, 3072) == 2);
@@ -312,6 +332,7 @@ int main(void)
 {
     RUN(half_only_when_exact);
     RUN(solve_factor);
+    RUN(reduce_is_resample);
     RUN(blend_of_half_is_blend_of_float);
     RUN(spans_lose_nothing);
     RUN(rays_match_the_lens);
