@@ -19,8 +19,15 @@ typedef struct stitch_half_image {
 /* The float value of every half bit pattern (the blend's lookups). */
 const float *stitch_half_table(void);
 
-/* Counts the non-finite samples of a view and finds its largest RGB sample. */
-sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, sl_error *err);
+/* Counts the non-finite samples of a view, finds its largest RGB sample
+ * and whether every RGB sample is a half value. */
+sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, bool *half_exact,
+                           sl_error *err);
+/* A view whose RGB samples are all half values (stitch_view_scan) as half,
+ * converted in its own memory (no new pages; the float tail freed): img
+ * is emptied. False (img kept) only for fewer than 3 channels or no memory
+ * for one row. */
+bool stitch_view_take_half(sl_image *img, stitch_half_image *out);
 /* The view as half when every RGB sample converts exactly (what merge
  * writes), else false and nothing held (the float view is used). */
 bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *err);
