@@ -397,6 +397,34 @@ static inline bool span_has(const row_span *s, int x, int W)
     return d <= s->half_cols || W - d <= s->half_cols;
 }
 
+/* seen[x] = span_has(s, x, W) for every column, span_has asked only at
+ * the arc's two ends: the columns within half_cols of the centre are one
+ * run round the seam. */
+static void span_fill(const row_span *s, int W, bool *seen)
+{
+    if (s->all || s->none || 2.0 * s->half_cols + 4.0 >= W) {
+        for (int x = 0; x < W; x++)
+            seen[x] = span_has(s, x, W);
+        return;
+    }
+    memset(seen, 0, (size_t)W);
+    /* the arc [lo, hi] in unwrapped columns, each end moved to where
+     * span_has changes */
+    int lo = (int)floor(s->centre - s->half_cols), hi = (int)ceil(s->centre + s->half_cols);
+#define WRAP(x) (((x) % W + W) % W)
+    while (span_has(s, WRAP(lo), W))
+        lo--;
+    while (!span_has(s, WRAP(lo + 1), W) && lo + 1 < hi)
+        lo++;
+    while (span_has(s, WRAP(hi), W))
+        hi++;
+    while (!span_has(s, WRAP(hi - 1), W) && hi - 1 > lo)
+        hi--;
+    for (int x = lo + 1; x < hi; x++)
+        seen[WRAP(x)] = true;
+#undef WRAP
+}
+
 /* Adds texel (x, y)'s ss x ss samples to the views' sums; true when a
  * sample fell on a high-contrast spot of a view (worth more samples).
  * seen: the views whose field reaches the texel. */
@@ -638,8 +666,7 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
     row_span span[SL_STITCH_MAX_VIEWS];
     row_spans(p, y, span);
     for (int k = 0; k < n; k++)
-        for (int x = 0; x < W; x++)
-            sc->seen[(size_t)k * W + x] = span_has(&span[k], x, W);
+        span_fill(&span[k], W, sc->seen + (size_t)k * W);
     double row_area = 0;
     if (!stitch_blend_reference)
         row_samples(p, y, sc, &row_area);
@@ -675,7 +702,9 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             texel_samples(p, x, y, p->ss_hot, seen, acc_w, acc_l, &area, &masked_area);
             st->hot_texels++;
         }
-        /* Per view: its mean weight over the texel and its mean radiance. */
+        /* Per view: its mean weight over the texel; the mean radiance of
+         * the views weighing GHOST_MIN_WEIGHT or more only when there are
+         * two of them (the ghost test needs two). */
         double wsum = 0, best_w = 0, lmin = INFINITY, lmax = 0;
         int best = -1, good = 0;
         for (int k = 0; k < n; k++) {
@@ -687,14 +716,16 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
                 best_w = wk;
                 best = k;
             }
-            if (wk >= GHOST_MIN_WEIGHT) {
-                double l[3] = {acc_l[k][0] / acc_w[k], acc_l[k][1] / acc_w[k],
-                               acc_l[k][2] / acc_w[k]};
-                double y_k = luminance(l);
-                lmin = fmin(lmin, y_k);
-                lmax = fmax(lmax, y_k);
-                good++;
-            }
+            good += wk >= GHOST_MIN_WEIGHT;
+        }
+        for (int k = 0; good >= 2 && p->ghosts && k < n; k++) {
+            if (!(acc_w[k] > 0) || !(acc_w[k] / area >= GHOST_MIN_WEIGHT))
+                continue;
+            double l[3] = {acc_l[k][0] / acc_w[k], acc_l[k][1] / acc_w[k],
+                           acc_l[k][2] / acc_w[k]};
+            double y_k = luminance(l); /* finite, >= 0: no libm fmin */
+            lmin = y_k < lmin ? y_k : lmin;
+            lmax = y_k > lmax ? y_k : lmax;
         }
         float *o = out + (size_t)x * 4;
         if (wsum > 0) {
