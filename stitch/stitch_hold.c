@@ -213,11 +213,13 @@ bool stitch_view_take_half(sl_image *img, stitch_half_image *out)
         free(row);
         return false;
     }
-    bool f16c = cpu_f16c(), inexact = false;
     uint16_t *dst = (uint16_t *)img->data;
-    /* Row by row in order, each through `row`: half row y ends where float
-     * row y / 2 + 1 starts at the latest, so it only overwrites rows
-     * already read. */
+#ifdef HAVE_F16C_ROWS
+    bool f16c = cpu_f16c(), inexact = false; /* known exact: the flag is not read */
+#endif
+    /* Row by row in order, each through `row`: half row y ends at or
+     * before the start of float row (y + 1) / 2, so it only overwrites
+     * rows already read. */
     for (int y = 0; y < h; y++) {
         const float *src = sl_image_pixel(img, 0, y);
         int done = 0;
@@ -229,7 +231,6 @@ bool stitch_view_take_half(sl_image *img, stitch_half_image *out)
             row[k] = imath_float_to_half(src[(k / 3) * img->channels + k % 3]);
         memcpy(dst + (size_t)y * row_halves, row, row_halves * sizeof *row);
     }
-    (void)f16c;
     free(row);
     /* the float tail goes back to the system (a large block shrinks in place) */
     uint16_t *kept = realloc(dst, (size_t)h * row_halves * sizeof *kept);
