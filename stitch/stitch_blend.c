@@ -408,7 +408,7 @@ static void span_fill(const row_span *s, int W, bool *seen)
         return;
     }
     memset(seen, 0, (size_t)W);
-    /* the arc [lo, hi] in unwrapped columns, each end moved to where
+    /* the arc (lo, hi) in unwrapped columns, each end moved to where
      * span_has changes */
     int lo = (int)floor(s->centre - s->half_cols), hi = (int)ceil(s->centre + s->half_cols);
 #define WRAP(x) (((x) % W + W) % W)
@@ -420,9 +420,12 @@ static void span_fill(const row_span *s, int W, bool *seen)
         hi++;
     while (!span_has(s, WRAP(hi - 1), W) && hi - 1 > lo)
         hi--;
-    for (int x = lo + 1; x < hi; x++)
-        seen[WRAP(x)] = true;
+    /* fewer than W columns: one run, or two across the seam */
+    int a = WRAP(lo + 1), len = hi - lo - 1;
 #undef WRAP
+    int first = a + len <= W ? len : W - a;
+    memset(seen + a, 1, (size_t)first);
+    memset(seen, 1, (size_t)(len - first));
 }
 
 /* Adds texel (x, y)'s ss x ss samples to the views' sums; true when a
@@ -670,6 +673,9 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
     double row_area = 0;
     if (!stitch_blend_reference)
         row_samples(p, y, sc, &row_area);
+    /* the row's sums in locals, not through st: the same order, from 0 */
+    double seen_sr = 0, low_sr = 0, seen_power[3] = {0, 0, 0}, power[3] = {0, 0, 0};
+    double view_sr[SL_STITCH_MAX_VIEWS] = {0};
     for (int x = 0; x < W; x++) {
         bool seen[SL_STITCH_MAX_VIEWS];
         for (int k = 0; k < n; k++)
@@ -741,19 +747,19 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             }
             for (int ch = 0; ch < 3; ch++)
                 o[ch] = (float)(sl[ch] / sw);
-            o[3] = (float)fmin(1.0, wsum);
-            st->seen_sr += texel_sr;
+            o[3] = (float)(wsum < 1.0 ? wsum : 1.0); /* no libm call */
+            seen_sr += texel_sr;
             if (wsum < 0.5)
-                st->low_sr += texel_sr;
+                low_sr += texel_sr;
             if (ghost) {
                 st->ghost_texels++;
                 st->ghost_sr += texel_sr;
             }
             for (int k = 0; k < n; k++)
                 if (acc_w[k] > 0)
-                    st->view_sr[k] += texel_sr;
+                    view_sr[k] += texel_sr;
             for (int ch = 0; ch < 3; ch++)
-                st->seen_power[ch] += texel_sr * o[ch];
+                seen_power[ch] += texel_sr * o[ch];
         } else {
             float f[4] = {0, 0, 0, 0};
             if (p->fill)
@@ -767,8 +773,16 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
                 st->masked_sr += texel_sr;
         }
         for (int ch = 0; ch < 3; ch++)
-            st->power[ch] += texel_sr * o[ch];
+            power[ch] += texel_sr * o[ch];
     }
+    st->seen_sr = seen_sr;
+    st->low_sr = low_sr;
+    for (int ch = 0; ch < 3; ch++) {
+        st->seen_power[ch] = seen_power[ch];
+        st->power[ch] = power[ch];
+    }
+    for (int k = 0; k < n; k++)
+        st->view_sr[k] = view_sr[k];
 }
 
 static void blend_rows(void *ctx, int64_t begin, int64_t end, int worker)
