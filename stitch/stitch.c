@@ -53,7 +53,7 @@ typedef struct view_file {
     sl_image radiance, weight;   /* radiance empty when `half` holds it */
     stitch_half_image half;
     int solve_factor;            /* 1: the solve uses radiance and weight */
-    bool as_half;                /* a large view: held as half when exact */
+    bool as_half;                /* a large view whose samples are all half values */
     sl_image solve_radiance, solve_weight;
     sl_meta meta;
     double peak; /* largest RGB sample */
@@ -197,9 +197,9 @@ static sl_result nominal_lens(const view_file *views, int count, const sl_stitch
     return SL_OK;
 }
 
-/* What a view keeps once read: the report's thumbnail, the solve's
- * reduced copies, the half copy; beside it its image circle is found on
- * the float radiance (both only read it). */
+/* What a view keeps once read: the report's thumbnail and the solve's
+ * reduced copies; beside them its image circle is found on the float
+ * radiance (both only read it; the half view is made after, in place). */
 typedef struct hold_job {
     view_file *v;
     sl_image *thumb;
@@ -218,15 +218,10 @@ static sl_result hold_copies(view_file *v, sl_image *thumb, sl_error *err)
             return r;
     }
     int k = v->solve_factor;
-    if (k > 1 && (r = sl_image_resample(img, img->width / k, img->height / k,
-                                        &v->solve_radiance, err)))
+    if (k > 1 && (r = stitch_reduce(img, k, &v->solve_radiance, err)))
         return r;
-    if (k > 1 && v->weight.data &&
-        (r = sl_image_resample(&v->weight, img->width / k, img->height / k, &v->solve_weight,
-                               err)))
+    if (k > 1 && v->weight.data && (r = stitch_reduce(&v->weight, k, &v->solve_weight, err)))
         return r;
-    if (v->as_half)
-        stitch_view_to_half(img, &v->half, err);
     return SL_OK;
 }
 
@@ -259,8 +254,9 @@ static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solv
     if (!r)
         r = sl_image_ensure_rgb(&v->radiance, v->path, err);
     int64_t bad = 0;
+    bool half_exact = false;
     if (!r)
-        r = stitch_view_scan(&v->radiance, &bad, &v->peak, err);
+        r = stitch_view_scan(&v->radiance, &bad, &v->peak, &half_exact, err);
     if (r)
         return r;
     if (bad)
@@ -281,15 +277,16 @@ static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solv
     bool big = v->width > SOLVE_MAX_WIDTH;
     v->solve_factor = solving && big ? stitch_solve_factor(v->width, v->height, SOLVE_MAX_WIDTH)
                                      : 1;
-    v->as_half = big && (v->solve_factor > 1 || !solving);
+    v->as_half = big && half_exact && (v->solve_factor > 1 || !solving);
     hold_job j = {v, thumb, SL_OK, {0}};
     sl_parallel_for(2, 1, hold_task, &j);
     if (j.status) {
         *err = j.err;
         return j.status;
     }
-    if (v->half.rgb)
-        sl_image_free(&v->radiance);
+    /* in the float view's memory once the circle and the copies are made */
+    if (v->as_half)
+        stitch_view_take_half(&v->radiance, &v->half);
     return SL_OK;
 }
 

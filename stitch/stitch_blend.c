@@ -397,6 +397,37 @@ static inline bool span_has(const row_span *s, int x, int W)
     return d <= s->half_cols || W - d <= s->half_cols;
 }
 
+/* seen[x] = span_has(s, x, W) for every column, span_has asked only at
+ * the arc's two ends: the columns within half_cols of the centre are one
+ * run round the seam. */
+static void span_fill(const row_span *s, int W, bool *seen)
+{
+    if (s->all || s->none || 2.0 * s->half_cols + 4.0 >= W) {
+        for (int x = 0; x < W; x++)
+            seen[x] = span_has(s, x, W);
+        return;
+    }
+    memset(seen, 0, (size_t)W);
+    /* the arc (lo, hi) in unwrapped columns, each end moved to where
+     * span_has changes */
+    int lo = (int)floor(s->centre - s->half_cols), hi = (int)ceil(s->centre + s->half_cols);
+#define WRAP(x) (((x) % W + W) % W)
+    while (span_has(s, WRAP(lo), W))
+        lo--;
+    while (!span_has(s, WRAP(lo + 1), W) && lo + 1 < hi)
+        lo++;
+    while (span_has(s, WRAP(hi), W))
+        hi++;
+    while (!span_has(s, WRAP(hi - 1), W) && hi - 1 > lo)
+        hi--;
+    /* fewer than W columns: one run, or two across the seam */
+    int a = WRAP(lo + 1), len = hi - lo - 1;
+#undef WRAP
+    int first = a + len <= W ? len : W - a;
+    memset(seen + a, 1, (size_t)first);
+    memset(seen, 1, (size_t)(len - first));
+}
+
 /* Adds texel (x, y)'s ss x ss samples to the views' sums; true when a
  * sample fell on a high-contrast spot of a view (worth more samples).
  * seen: the views whose field reaches the texel. */
@@ -638,11 +669,13 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
     row_span span[SL_STITCH_MAX_VIEWS];
     row_spans(p, y, span);
     for (int k = 0; k < n; k++)
-        for (int x = 0; x < W; x++)
-            sc->seen[(size_t)k * W + x] = span_has(&span[k], x, W);
+        span_fill(&span[k], W, sc->seen + (size_t)k * W);
     double row_area = 0;
     if (!stitch_blend_reference)
         row_samples(p, y, sc, &row_area);
+    /* the row's sums in locals, not through st: the same order, from 0 */
+    double seen_sr = 0, low_sr = 0, seen_power[3] = {0, 0, 0}, power[3] = {0, 0, 0};
+    double view_sr[SL_STITCH_MAX_VIEWS] = {0};
     for (int x = 0; x < W; x++) {
         bool seen[SL_STITCH_MAX_VIEWS];
         for (int k = 0; k < n; k++)
@@ -675,7 +708,9 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             texel_samples(p, x, y, p->ss_hot, seen, acc_w, acc_l, &area, &masked_area);
             st->hot_texels++;
         }
-        /* Per view: its mean weight over the texel and its mean radiance. */
+        /* Per view: its mean weight over the texel; the mean radiance of
+         * the views weighing GHOST_MIN_WEIGHT or more only when there are
+         * two of them (the ghost test needs two). */
         double wsum = 0, best_w = 0, lmin = INFINITY, lmax = 0;
         int best = -1, good = 0;
         for (int k = 0; k < n; k++) {
@@ -687,14 +722,16 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
                 best_w = wk;
                 best = k;
             }
-            if (wk >= GHOST_MIN_WEIGHT) {
-                double l[3] = {acc_l[k][0] / acc_w[k], acc_l[k][1] / acc_w[k],
-                               acc_l[k][2] / acc_w[k]};
-                double y_k = luminance(l);
-                lmin = fmin(lmin, y_k);
-                lmax = fmax(lmax, y_k);
-                good++;
-            }
+            good += wk >= GHOST_MIN_WEIGHT;
+        }
+        for (int k = 0; good >= 2 && p->ghosts && k < n; k++) {
+            if (!(acc_w[k] > 0) || !(acc_w[k] / area >= GHOST_MIN_WEIGHT))
+                continue;
+            double l[3] = {acc_l[k][0] / acc_w[k], acc_l[k][1] / acc_w[k],
+                           acc_l[k][2] / acc_w[k]};
+            double y_k = luminance(l); /* finite, >= 0: no libm fmin */
+            lmin = y_k < lmin ? y_k : lmin;
+            lmax = y_k > lmax ? y_k : lmax;
         }
         float *o = out + (size_t)x * 4;
         if (wsum > 0) {
@@ -710,19 +747,19 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             }
             for (int ch = 0; ch < 3; ch++)
                 o[ch] = (float)(sl[ch] / sw);
-            o[3] = (float)fmin(1.0, wsum);
-            st->seen_sr += texel_sr;
+            o[3] = (float)(wsum < 1.0 ? wsum : 1.0); /* no libm call */
+            seen_sr += texel_sr;
             if (wsum < 0.5)
-                st->low_sr += texel_sr;
+                low_sr += texel_sr;
             if (ghost) {
                 st->ghost_texels++;
                 st->ghost_sr += texel_sr;
             }
             for (int k = 0; k < n; k++)
                 if (acc_w[k] > 0)
-                    st->view_sr[k] += texel_sr;
+                    view_sr[k] += texel_sr;
             for (int ch = 0; ch < 3; ch++)
-                st->seen_power[ch] += texel_sr * o[ch];
+                seen_power[ch] += texel_sr * o[ch];
         } else {
             float f[4] = {0, 0, 0, 0};
             if (p->fill)
@@ -736,8 +773,16 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
                 st->masked_sr += texel_sr;
         }
         for (int ch = 0; ch < 3; ch++)
-            st->power[ch] += texel_sr * o[ch];
+            power[ch] += texel_sr * o[ch];
     }
+    st->seen_sr = seen_sr;
+    st->low_sr = low_sr;
+    for (int ch = 0; ch < 3; ch++) {
+        st->seen_power[ch] = seen_power[ch];
+        st->power[ch] = power[ch];
+    }
+    for (int k = 0; k < n; k++)
+        st->view_sr[k] = view_sr[k];
 }
 
 static void blend_rows(void *ctx, int64_t begin, int64_t end, int worker)

@@ -19,8 +19,15 @@ typedef struct stitch_half_image {
 /* The float value of every half bit pattern (the blend's lookups). */
 const float *stitch_half_table(void);
 
-/* Counts the non-finite samples of a view and finds its largest RGB sample. */
-sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, sl_error *err);
+/* Counts the non-finite samples of a view, finds its largest RGB sample
+ * and whether every RGB sample is a half value. */
+sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, bool *half_exact,
+                           sl_error *err);
+/* A view whose RGB samples are all half values (stitch_view_scan) as half,
+ * converted in its own memory (no new pages; the float tail freed): img
+ * is emptied. False (img kept) only for fewer than 3 channels or no memory
+ * for one row. */
+bool stitch_view_take_half(sl_image *img, stitch_half_image *out);
 /* The view as half when every RGB sample converts exactly (what merge
  * writes), else false and nothing held (the float view is used). */
 bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *err);
@@ -28,6 +35,10 @@ void stitch_half_free(stitch_half_image *h);
 /* The factor, 2 or 4, that divides the view's width and height and brings
  * the width to max_width or under, or 1. */
 int stitch_solve_factor(int width, int height, int max_width);
+/* src reduced by k (2 or 4: the same bytes as sl_image_resample to
+ * width / k x height / k, in one pass and no intermediate image; another
+ * factor: sl_image_resample). */
+sl_result stitch_reduce(const sl_image *src, int k, sl_image *dst, sl_error *err);
 /* A lens scaled by s for an image of width x height (focal, centre, circle). */
 void stitch_lens_scale(sl_lens *lens, double s, int width, int height);
 

@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* How the stitch holds a view between reading it and blending it: its
- * float radiance scanned for NaN/Inf and its peak, then kept as half when
- * every sample is a half value (merge writes half: 0.14 GB for 24 MP
- * instead of 0.29), and a copy reduced by a whole factor for the solve. */
+ * float radiance scanned for NaN/Inf, its peak and whether every sample is
+ * a half value, then kept as half when it is (merge writes half: 0.14 GB
+ * for 24 MP instead of 0.29; converted in the float view's own memory), and
+ * a copy reduced by a whole factor for the solve. */
 #include "stitch_blend_private.h"
 
 #define IMATH_HALF_NO_LOOKUP_TABLE /* Imath's conversions alone, without libImath */
@@ -18,47 +19,103 @@ typedef struct scan_job {
     const sl_image *img;
     int64_t *bad;   /* per chunk */
     float *peak;    /* per chunk */
+    bool *inexact;  /* per chunk: an RGB sample that is not a half value */
+    bool f16c;
 } scan_job;
+
+/* Eight samples of a row scanned at once where the CPU has F16C: their
+ * non-finite count, peak and whether each is a half value (the same
+ * answers as the loop of scan_rows). */
+#if (defined(__x86_64__) || defined(__i386__)) && !defined(__clang__) && __GNUC__ >= 12
+#define HAVE_F16C_ROWS 1
+__attribute__((target("f16c,avx"))) static int scan_f16c(const float *src, int n, int64_t *bad,
+                                                         float *peak, bool *inexact)
+{
+    const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+    const __m256 big = _mm256_set1_ps(3.40282347e38f);
+    __m256 top = _mm256_set1_ps(*peak);
+    int i = 0, nonfinite = 0;
+    bool off = false;
+    for (; i + 8 <= n; i += 8) {
+        __m256 v = _mm256_loadu_ps(src + i);
+        __m256 finite = _mm256_cmp_ps(_mm256_and_ps(v, abs_mask), big, _CMP_LE_OQ);
+        nonfinite += 8 - __builtin_popcount((unsigned)_mm256_movemask_ps(finite));
+        top = _mm256_max_ps(top, _mm256_and_ps(finite, v)); /* a NaN lane counts 0 */
+        __m256 back = _mm256_cvtph_ps(_mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
+        off |= _mm256_movemask_ps(_mm256_cmp_ps(back, v, _CMP_NEQ_UQ)) != 0;
+    }
+    float t[8];
+    _mm256_storeu_ps(t, top);
+    for (int k = 0; k < 8; k++)
+        *peak = t[k] > *peak ? t[k] : *peak;
+    *bad += nonfinite;
+    *inexact |= off;
+    return i;
+}
+#endif
 
 static void scan_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
     scan_job *j = ctx;
     const sl_image *img = j->img;
+    const float *table = stitch_half_table();
     int64_t bad = 0;
     float peak = 0.0f;
+    bool inexact = false;
     for (int64_t y = begin; y < end; y++) {
         const float *row = sl_image_pixel(img, 0, (int)y);
-        for (int x = 0; x < img->width; x++)
+        int done = 0;
+#ifdef HAVE_F16C_ROWS
+        if (img->channels == 3 && j->f16c) /* whole pixels: 8 of them a step of 3 */
+            done = scan_f16c(row, 3 * img->width / 24 * 24, &bad, &peak, &inexact) / 3;
+#endif
+        for (int x = done; x < img->width; x++)
             for (int c = 0; c < img->channels; c++) {
                 float v = row[x * img->channels + c];
                 bool finite = isfinite(v);
                 bad += !finite;
                 if (finite && c < 3 && v > peak)
                     peak = v;
+                if (c < 3)
+                    inexact |= !finite || table[imath_float_to_half(v)] != v;
             }
     }
     j->bad[begin / SCAN_ROWS] = bad;
     j->peak[begin / SCAN_ROWS] = peak;
+    j->inexact[begin / SCAN_ROWS] = inexact;
 }
 
-sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, sl_error *err)
+static bool cpu_f16c(void)
+{
+#ifdef HAVE_F16C_ROWS
+    return __builtin_cpu_supports("f16c") && __builtin_cpu_supports("avx");
+#else
+    return false;
+#endif
+}
+
+sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, bool *half_exact,
+                           sl_error *err)
 {
     int64_t chunks = (img->height + SCAN_ROWS - 1) / SCAN_ROWS;
     scan_job j = {img, calloc((size_t)chunks, sizeof(int64_t)),
-                  calloc((size_t)chunks, sizeof(float))};
-    if (!j.bad || !j.peak) {
-        free(j.bad), free(j.peak);
+                  calloc((size_t)chunks, sizeof(float)), calloc((size_t)chunks, sizeof(bool)),
+                  cpu_f16c()};
+    if (!j.bad || !j.peak || !j.inexact) {
+        free(j.bad), free(j.peak), free(j.inexact);
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
     }
     sl_parallel_for(img->height, SCAN_ROWS, scan_rows, &j);
     *bad = 0;
     *peak = 0.0;
+    *half_exact = img->channels >= 3;
     for (int64_t i = 0; i < chunks; i++) {
         *bad += j.bad[i];
         *peak = fmax(*peak, j.peak[i]);
+        *half_exact &= !j.inexact[i];
     }
-    free(j.bad), free(j.peak);
+    free(j.bad), free(j.peak), free(j.inexact);
     return SL_OK;
 }
 
@@ -74,8 +131,7 @@ typedef struct half_job {
  * has F16C; the tail and other CPUs through Imath's conversion. (gcc
  * only, as core/exr.c's rows: clang 14's __builtin_cpu_supports does not
  * know "f16c", and the fuzz build is clang.) */
-#if (defined(__x86_64__) || defined(__i386__)) && !defined(__clang__) && __GNUC__ >= 12
-#define HAVE_F16C_ROWS 1
+#ifdef HAVE_F16C_ROWS
 __attribute__((target("f16c,avx"))) static int row_f16c(const float *src, uint16_t *dst, int n,
                                                         bool *inexact)
 {
@@ -134,13 +190,7 @@ bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *
         (void)err;
         return false; /* the float view is kept: right, only larger */
     }
-    half_job j = {img, out, stitch_half_table(), inexact,
-#ifdef HAVE_F16C_ROWS
-                  __builtin_cpu_supports("f16c") && __builtin_cpu_supports("avx")
-#else
-                  false
-#endif
-    };
+    half_job j = {img, out, stitch_half_table(), inexact, cpu_f16c()};
     sl_parallel_for(img->height, 16, half_rows, &j);
     bool exact = true;
     for (int y = 0; y < img->height; y++)
@@ -151,6 +201,44 @@ bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *
         memset(out, 0, sizeof *out);
     }
     return exact;
+}
+
+bool stitch_view_take_half(sl_image *img, stitch_half_image *out)
+{
+    memset(out, 0, sizeof *out);
+    int w = img->width, h = img->height;
+    size_t row_halves = (size_t)w * 3;
+    uint16_t *row = malloc(row_halves * sizeof *row);
+    if (!row || img->channels < 3) {
+        free(row);
+        return false;
+    }
+    uint16_t *dst = (uint16_t *)img->data;
+#ifdef HAVE_F16C_ROWS
+    bool f16c = cpu_f16c(), inexact = false; /* known exact: the flag is not read */
+#endif
+    /* Row by row in order, each through `row`: half row y ends at or
+     * before the start of float row (y + 1) / 2, so it only overwrites
+     * rows already read. */
+    for (int y = 0; y < h; y++) {
+        const float *src = sl_image_pixel(img, 0, y);
+        int done = 0;
+#ifdef HAVE_F16C_ROWS
+        if (img->channels == 3 && f16c)
+            done = row_f16c(src, row, 3 * w, &inexact);
+#endif
+        for (int k = done; k < 3 * w; k++)
+            row[k] = imath_float_to_half(src[(k / 3) * img->channels + k % 3]);
+        memcpy(dst + (size_t)y * row_halves, row, row_halves * sizeof *row);
+    }
+    free(row);
+    /* the float tail goes back to the system (a large block shrinks in place) */
+    uint16_t *kept = realloc(dst, (size_t)h * row_halves * sizeof *kept);
+    out->rgb = kept ? kept : dst;
+    out->width = w;
+    out->height = h;
+    memset(img, 0, sizeof *img);
+    return true;
 }
 
 void stitch_half_free(stitch_half_image *h)
@@ -168,6 +256,66 @@ int stitch_solve_factor(int width, int height, int max_width)
         if (width / k <= max_width && width % k == 0 && height % k == 0)
             return k;
     return 1;
+}
+
+typedef struct reduce_job {
+    const sl_image *src;
+    sl_image *dst;
+    int k;
+    float *mid; /* per worker: k rows of the x pass */
+} reduce_job;
+
+/* sl_image_resample's box taps for a factor k of 2 or 4, both passes per
+ * output row (the k rows of the x pass in the worker's scratch): the same
+ * operations in the same order (double sums of 1/k times each sample, each
+ * pass rounded to float), the same bytes, without its full-height
+ * intermediate image (0.14 GB of fresh pages for a 24 MP view). */
+static void reduce_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    const reduce_job *j = ctx;
+    const int k = j->k, ch = j->src->channels, w = j->dst->width;
+    const size_t n = (size_t)w * ch;
+    const double tap = 1.0 / k; /* exact: the taps' (hi - lo) / scale */
+    float *mid = j->mid + (size_t)worker * k * n;
+    for (int64_t y = begin; y < end; y++) {
+        for (int t = 0; t < k; t++) {
+            const float *in = sl_image_pixel(j->src, 0, (int)y * k + t);
+            float *m = mid + (size_t)t * n;
+            for (int x = 0; x < w; x++)
+                for (int c = 0; c < ch; c++) {
+                    double acc = 0.0;
+                    for (int i = 0; i < k; i++)
+                        acc += tap * in[((size_t)x * k + i) * ch + c];
+                    m[(size_t)x * ch + c] = (float)acc;
+                }
+        }
+        float *out = sl_image_pixel(j->dst, 0, (int)y);
+        for (size_t i = 0; i < n; i++) {
+            double acc = 0.0;
+            for (int t = 0; t < k; t++)
+                acc += tap * mid[(size_t)t * n + i];
+            out[i] = (float)acc;
+        }
+    }
+}
+
+sl_result stitch_reduce(const sl_image *src, int k, sl_image *dst, sl_error *err)
+{
+    if ((k != 2 && k != 4) || src->width % k || src->height % k)
+        return sl_image_resample(src, src->width / k, src->height / k, dst, err);
+    sl_result r = sl_image_alloc(dst, src->width / k, src->height / k, src->channels, err);
+    if (r)
+        return r;
+    int workers = sl_threads_get();
+    reduce_job j = {src, dst, k,
+                    malloc((size_t)workers * k * dst->width * src->channels * sizeof(float))};
+    if (!j.mid) {
+        sl_image_free(dst);
+        return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
+    }
+    sl_parallel_for(dst->height, 16, reduce_rows, &j);
+    free(j.mid);
+    return SL_OK;
 }
 
 void stitch_lens_scale(sl_lens *lens, double s, int width, int height)

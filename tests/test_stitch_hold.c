@@ -59,8 +59,24 @@ static void half_only_when_exact(void)
                 same += table[h.rgb[((size_t)y * img.width + x) * 3 + c]] ==
                         sl_image_pixel(&img, x, y)[c];
     CHECK_MSG(same == 97 * 13 * 3, "%d of %d samples kept", same, 97 * 13 * 3);
+    /* the scan finds it exact, and the view converted in its own memory
+     * is the same half */
+    int64_t bad = -1;
+    double peak = 0;
+    bool exact = false;
+    CHECK_OK(stitch_view_scan(&img, &bad, &peak, &exact, &err), &err);
+    CHECK(exact && bad == 0);
+    sl_image copy;
+    CHECK_OK(sl_image_copy(&img, &copy, &err), &err);
+    stitch_half_image in_place;
+    CHECK(stitch_view_take_half(&copy, &in_place));
+    CHECK(copy.data == NULL && in_place.width == 97 && in_place.height == 13);
+    CHECK(h.rgb && in_place.rgb &&
+          !memcmp(h.rgb, in_place.rgb, (size_t)97 * 13 * 3 * sizeof(uint16_t)));
+    stitch_half_free(&in_place);
     stitch_half_free(&h);
-    /* one sample half cannot hold, at the tail or in the vector body */
+    /* one sample half cannot hold, at the tail or in the vector body: not
+     * taken, and the scan says so */
     const float odd[] = {0.1f, 70000.0f, 1e-9f, 1.0f + 1.0f / 4096.0f};
     for (size_t k = 0; k < sizeof odd / sizeof *odd; k++) {
         half_valued(&img, 3);
@@ -68,8 +84,42 @@ static void half_only_when_exact(void)
         sl_image_pixel(&img, x, 7)[k % 3] = odd[k];
         CHECK_MSG(!stitch_view_to_half(&img, &h, &err), "%g was taken as half", odd[k]);
         CHECK(h.rgb == NULL);
+        CHECK_OK(stitch_view_scan(&img, &bad, &peak, &exact, &err), &err);
+        CHECK_MSG(!exact && bad == 0, "%g: scanned as half", odd[k]);
+        CHECK(peak == (odd[k] > 512.0f ? odd[k] : peak));
     }
+    /* NaN and Inf counted, in the vector body and the tail, and left out
+     * of the peak */
+    half_valued(&img, 3);
+    double clean_peak;
+    CHECK_OK(stitch_view_scan(&img, &bad, &clean_peak, &exact, &err), &err);
+    sl_image_pixel(&img, 3, 2)[1] = NAN;
+    sl_image_pixel(&img, 96, 4)[2] = INFINITY;
+    sl_image_pixel(&img, 40, 9)[0] = -INFINITY;
+    CHECK_OK(stitch_view_scan(&img, &bad, &peak, &exact, &err), &err);
+    CHECK_MSG(bad == 3 && !exact && peak == clean_peak, "%lld bad, peak %g (clean %g)",
+              (long long)bad, peak, clean_peak);
     sl_image_free(&img);
+}
+
+/* The solve's copy reduced in one pass: the bytes of sl_image_resample. */
+static void reduce_is_resample(void)
+{
+    sl_error err;
+    for (int k = 2; k <= 4; k += 2)
+        for (int ch = 1; ch <= 3; ch += 2) {
+            sl_image img, a, b;
+            CHECK_OK(sl_image_alloc(&img, 40 * k, 52 * k, ch, &err), &err);
+            uint64_t seed = 7;
+            for (size_t i = 0; i < (size_t)img.width * img.height * ch; i++)
+                img.data[i] = (float)exp(20.0 * uniform(&seed) - 10.0); /* 1e-4 .. 2e4 */
+            CHECK_OK(stitch_reduce(&img, k, &a, &err), &err);
+            CHECK_OK(sl_image_resample(&img, img.width / k, img.height / k, &b, &err), &err);
+            CHECK(a.width == b.width && a.height == b.height && a.channels == ch);
+            CHECK_MSG(!memcmp(a.data, b.data, (size_t)a.width * a.height * ch * sizeof(float)),
+                      "k %d, %d channels: not the bytes of sl_image_resample", k, ch);
+            sl_image_free(&img), sl_image_free(&a), sl_image_free(&b);
+        }
 }
 
 static void solve_factor(void)
@@ -312,6 +362,7 @@ int main(void)
 {
     RUN(half_only_when_exact);
     RUN(solve_factor);
+    RUN(reduce_is_resample);
     RUN(blend_of_half_is_blend_of_float);
     RUN(spans_lose_nothing);
     RUN(rays_match_the_lens);
