@@ -244,31 +244,21 @@ static void test_dorf_curves(void)
 
 /* A power-law curve is straight in ln z (no smoothness penalty at all), so
  * the null-space member of a power law with a wiggle periodic in ln
- * exposure added is the power law itself: the known answer. */
+ * exposure added is the power law itself: the known answer. Over codes
+ * above 0.2: below, the 1024-entry table's straight pieces between its
+ * samples are curved in ln z themselves. Errors after a free scale (the
+ * spread of the ratio to the power law over its largest). */
 static void test_null_space_known(void)
 {
     const double gamma = 2.2, period = log(8), amplitude = 0.15;
     sl_vset_response power, wiggled, member;
     memset(&power, 0, sizeof power);
-    memset(&wiggled, 0, sizeof wiggled);
-    /* wiggled: x = h0(y) with h0(y) = y exp(a sin(2 pi ln y / P)), y = z^gamma */
-    for (int i = 0; i < SL_VSET_CRF_SAMPLES; i++) {
-        double x = (double)i / (SL_VSET_CRF_SAMPLES - 1);
-        power.curve[i] = pow(x, 1 / gamma);
-    }
+    for (int i = 0; i < SL_VSET_CRF_SAMPLES; i++)
+        power.curve[i] = pow((double)i / (SL_VSET_CRF_SAMPLES - 1), 1 / gamma);
+    /* The power law through g -> g + q(g), q a sine of that period. */
     vb_periodic q = {.period = period};
     q.sin_coef[0] = amplitude;
-    for (int i = 1; i < SL_VSET_CRF_SAMPLES; i++) {
-        double x = (double)i / (SL_VSET_CRF_SAMPLES - 1), lo = -60, hi = 0;
-        for (int it = 0; it < 80; it++) {
-            double mid = 0.5 * (lo + hi);
-            if (vb_periodic_apply(&q, exp(mid)) < x)
-                lo = mid;
-            else
-                hi = mid;
-        }
-        wiggled.curve[i] = pow(exp(0.5 * (lo + hi)), 1 / gamma);
-    }
+    vb_null_space_curve(&power, &q, &wiggled);
     vb_periodic p;
     CHECK(vb_null_space_fit(&power, period, 0.2, 0.95, &p));
     double most = 0;
@@ -294,7 +284,7 @@ static void test_null_space_known(void)
     printf("  power law with a wiggle of %.2f: %.2f%% off, its null-space member %.2f%%\n",
            amplitude, 100 * worst_before, 100 * worst);
     CHECK_MSG(worst_before > 0.2, "the wiggle %.3f", worst_before);
-    CHECK_MSG(worst < 0.01, "null-space member %.4f off the power law", worst);
+    CHECK_MSG(worst < 0.02, "null-space member %.4f off the power law", worst);
 }
 
 int main(void)
