@@ -21,7 +21,7 @@
  *                                 [--well 4000] [--read 3] [--scene exterior]
  *                                 [--smoothness L] [--samples N] [--noise-free]
  *                                 [--sensor-noise: the merges told the sensor's noise]
- *                                 [--alt-stops S: steps alternate --stops 3 and S stops
+ *                                 [--alt-stops S: steps alternate 3 and S stops
  *                                  (no null-space oracle: no equal steps)]
  */
 #include <getopt.h>
@@ -261,7 +261,10 @@ int main(int argc, char **argv)
         done++;
     }
     printf("# %d curves (%d failed)\n", done, failed);
+    bool null_space = !(sp.alt_stops > 0) || sp.alt_stops == sp.stops;
     for (int k = 0; k < RATIOS && done; k++) {
+        if (!null_space && (k == NULL_IDEAL || k == SELF_NULL))
+            continue;
         double maxm = 0, maxp = 0;
         for (int i = 0; i < done; i++)
             maxm = fmax(maxm, rmed[k][i]), maxp = fmax(maxp, rp99[k][i]);
@@ -270,7 +273,7 @@ int main(int argc, char **argv)
                label[k], at_goal[k], done, median_of(rmed[k], done), maxm,
                median_of(rp99[k], done), maxp, worst_i[k], names[worst_i[k]], worst[k]);
     }
-    if (!(sp.alt_stops > 0) || sp.alt_stops == sp.stops)
+    if (null_space)
         printf("# against the ideal estimator: both the null-space oracle and self-calibrated at "
                "the goal on %d, the null-space oracle alone on %d (the fit's own gap: %s), "
                "self-calibrated alone on %d, neither on %d\n",

@@ -8,7 +8,9 @@
  * against the ideal estimator's on the same frames (true curve, exposures
  * and noise model: tests/vset_bracket.c) and the realizable oracle's (the
  * same estimator judging weights and clips at its own estimate from the
- * frames instead of the noise-free value: the best merge of these frames).
+ * frames instead of the noise-free value: the best merge of these frames)
+ * and the null-space oracle's (the realizable oracle told the member of the
+ * true curve's equal-step class that the fit's smoothness picks).
  * bench/merge_crf.c runs all 201 (docs/merge.md). */
 #include <math.h>
 #include <stdlib.h>
