@@ -63,9 +63,7 @@ bool vb_null_space_fit(const sl_vset_response *truth, double period, double blac
         pinned[k] = z > black && z < saturation && x > 0;
         g[k] = pinned[k] ? log(x) : 0;
     }
-    static double a[N * N];
-    double rhs[N] = {0}, row[N];
-    memset(a, 0, sizeof a);
+    double a[N * N] = {0}, rhs[N] = {0}, row[N];
     for (int k = 2; k < FIT_NODES - 1; k++) {
         if (!pinned[k - 1] || !pinned[k] || !pinned[k + 1])
             continue;
