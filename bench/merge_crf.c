@@ -7,15 +7,22 @@
  * curve, against the ideal estimator (tests/vset_bracket.c: true curve,
  * exposures and noise model, judged at the noise-free value) and against the
  * realizable oracle (the same estimator judging at its own estimate from the
- * frames: the best merge of these frames). Prints per curve the per-pixel
- * median and p99 errors, their ratios and the recovered curve's error; then
- * how many curves are at the goal (1.1x median, 1.2x p99) against each, the
- * median ratios and the worst curves.
+ * frames: the best merge of these frames) and against the null-space
+ * oracle (the realizable oracle told the true curve with its component
+ * periodic in ln exposure replaced by the one the fit's smoothness picks:
+ * the best a self-calibration with no prior on curve shapes can do from
+ * equal steps). Prints per curve the per-pixel median and p99 errors, their
+ * ratios and the recovered curve's error; then how many curves are at the
+ * goal (1.1x median, 1.2x p99) against each, the median ratios, the worst
+ * curves, and the curves the null-space oracle meets the goal on and the
+ * self-calibrated merge does not (the fit's own gap).
  *
  *   ./build/bench/bench_merge_crf [--width 1024] [--curves all|I,J,..] [--seed 3]
  *                                 [--well 4000] [--read 3] [--scene exterior]
  *                                 [--smoothness L] [--samples N] [--noise-free]
  *                                 [--sensor-noise: the merges told the sensor's noise]
+ *                                 [--alt-stops S: steps alternate 3 and S stops
+ *                                  (no null-space oracle: no equal steps)]
  */
 #include <getopt.h>
 #include <math.h>
@@ -31,7 +38,7 @@ enum { MAX_CURVES = 256 };
 
 typedef struct result {
     double self_median, self_p99, true_median, true_p99, ideal_median, ideal_p99, real_median,
-        real_p99, curve;
+        real_p99, null_median, null_p99, curve, null_curve;
     int named; /* frames the self-calibrated merge's exposure check names (EXIF is true) */
 } result;
 
@@ -93,11 +100,15 @@ static int run_curve(const char *dorf, const char *name, const vb_spec *base, co
             truth.inverse[c * 256 + k] = sl_vset_response_invert(&resp, k / 255.0);
     vb_stats self, tru, ideal = vb_compare(&b.oracle, &b, 1, false);
     vb_stats real = vb_compare(&b.realizable, &b, 1, false);
+    vb_stats null = {0, NAN, NAN, 1};
+    if (b.null_space.data)
+        null = vb_compare(&b.null_space, &b, 1, true);
     int named = 0, named_true;
     rc = rc || merge_score(&b, NULL, &self, &out->curve, &named) ||
          merge_score(&b, &truth, &tru, NULL, &named_true);
-    *out = (result){self.median,  self.p99,  tru.median, tru.p99,    ideal.median,
-                    ideal.p99,    real.median, real.p99, out->curve, named};
+    *out = (result){self.median, self.p99,  tru.median,  tru.p99,    ideal.median,
+                    ideal.p99,   real.median, real.p99, null.median, null.p99,
+                    out->curve,  b.null_space.data ? b.null_space_curve : NAN, named};
     sl_response_free(&truth);
     vb_free(&b);
     return rc;
@@ -113,7 +124,7 @@ int main(int argc, char **argv)
 {
     vb_spec sp = {.scene = "exterior", .frames = 7, .stops = 3, .jpeg = true, .lossless = true,
                   .width = 1024, .saturation = 0.95, .seed = 3, .full_well_e = 4000,
-                  .read_noise_e = 3, .realizable = true};
+                  .read_noise_e = 3, .realizable = true, .null_space = true};
     const char *curves = "all";
     static const struct option longs[] = {{"width", 1, 0, 'w'}, {"curves", 1, 0, 'c'},
                                           {"seed", 1, 0, 's'},  {"well", 1, 0, 'f'},
@@ -121,6 +132,7 @@ int main(int argc, char **argv)
                                           {"smoothness", 1, 0, 'L'}, {"noise-free", 0, 0, 'N'},
                                           {"samples", 1, 0, 'n'},
                                           {"sensor-noise", 0, 0, 'z'},
+                                          {"alt-stops", 1, 0, 'a'},
                                           {0, 0, 0, 0}};
     for (int o; (o = getopt_long(argc, argv, "", longs, NULL)) != -1;) {
         if (o == 'w')
@@ -143,6 +155,8 @@ int main(int argc, char **argv)
             samples = atoi(optarg);
         else if (o == 'N')
             sp.noise_free = true;
+        else if (o == 'a')
+            sp.alt_stops = atof(optarg);
         else
             return 2;
     }
@@ -178,18 +192,27 @@ int main(int argc, char **argv)
     char dir[] = "/tmp/bench_merge_crf_XXXXXX";
     if (!mkdtemp(dir))
         return 1;
-    printf("# %s %dx%d, %d x %d stops, 8-bit lossless, well %.0f e, read %.1f e, seed %llu\n",
-           sp.scene, sp.width, sp.width / 2, sp.frames, sp.stops, sp.full_well_e,
+    printf("# %s %dx%d, %d x %d stops", sp.scene, sp.width, sp.width / 2, sp.frames, sp.stops);
+    if (sp.alt_stops > 0)
+        printf(" alternating with %g", sp.alt_stops);
+    printf(", 8-bit lossless, well %.0f e, read %.1f e, seed %llu\n", sp.full_well_e,
            sp.read_noise_e, (unsigned long long)sp.seed);
     printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal, "
-           "realizable; median, p99 ratios: self / ideal, realizable / ideal, self / realizable; "
-           "curve error %%; frames named\n");
+           "realizable, null-space; median, p99 ratios: self / ideal, realizable / ideal, "
+           "self / realizable, null-space / ideal, self / null-space; curve error %%: "
+           "self-calibrated, null-space; frames named\n");
     /* The ratios, per comparison: self / ideal, true curve / ideal,
      * realizable / ideal, self / realizable, true curve / realizable. */
-    enum { SELF_IDEAL, TRUE_IDEAL, REAL_IDEAL, SELF_REAL, TRUE_REAL, RATIOS };
-    static const char *const label[RATIOS] = {"self-calibrated / ideal", "true curve / ideal",
-                                              "realizable / ideal", "self-calibrated / realizable",
-                                              "true curve / realizable"};
+    enum { SELF_IDEAL, TRUE_IDEAL, REAL_IDEAL, SELF_REAL, TRUE_REAL, NULL_IDEAL, SELF_NULL,
+           RATIOS };
+    static const char *const label[RATIOS] = {
+        "self-calibrated / ideal",      "true curve / ideal",      "realizable / ideal",
+        "self-calibrated / realizable", "true curve / realizable", "null-space / ideal",
+        "self-calibrated / null-space"};
+    /* Curves by who meets the goal against the ideal estimator: the
+     * null-space oracle and the self-calibrated merge. */
+    int both = 0, null_only = 0, self_only = 0, neither = 0;
+    char gap[4096] = "";
     static double rmed[RATIOS][MAX_CURVES], rp99[RATIOS][MAX_CURVES];
     double worst[RATIOS] = {0};
     int worst_i[RATIOS] = {0}, at_goal[RATIOS] = {0}, done = 0, failed = 0;
@@ -201,10 +224,12 @@ int main(int argc, char **argv)
         }
         double num[RATIOS][2] = {{r.self_median, r.self_p99}, {r.true_median, r.true_p99},
                                  {r.real_median, r.real_p99}, {r.self_median, r.self_p99},
-                                 {r.true_median, r.true_p99}};
+                                 {r.true_median, r.true_p99}, {r.null_median, r.null_p99},
+                                 {r.self_median, r.self_p99}};
         double den[RATIOS][2] = {{r.ideal_median, r.ideal_p99}, {r.ideal_median, r.ideal_p99},
                                  {r.ideal_median, r.ideal_p99}, {r.real_median, r.real_p99},
-                                 {r.real_median, r.real_p99}};
+                                 {r.real_median, r.real_p99},   {r.ideal_median, r.ideal_p99},
+                                 {r.null_median, r.null_p99}};
         for (int k = 0; k < RATIOS; k++) {
             double m = num[k][0] / den[k][0], p = num[k][1] / den[k][1];
             rmed[k][done] = m;
@@ -215,18 +240,31 @@ int main(int argc, char **argv)
             if (over > worst[k])
                 worst[k] = over, worst_i[k] = pick[j];
         }
-        printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.3f %.3f  %.3f "
-               "%.3f  %.3f %.3f  %.2f  %d\n",
+        bool self_ok = rmed[SELF_IDEAL][done] <= 1.1 && rp99[SELF_IDEAL][done] <= 1.2;
+        bool null_ok = rmed[NULL_IDEAL][done] <= 1.1 && rp99[NULL_IDEAL][done] <= 1.2;
+        both += self_ok && null_ok, self_only += self_ok && !null_ok;
+        neither += !self_ok && !null_ok;
+        if (null_ok && !self_ok) {
+            size_t at = strlen(gap);
+            snprintf(gap + at, sizeof gap - at, "%s%d", null_only++ ? "," : "", pick[j]);
+        }
+        printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  "
+               "%.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.2f %.2f  %d\n",
                pick[j], names[pick[j]], 100 * r.self_median, 100 * r.self_p99,
                100 * r.true_median, 100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99,
-               100 * r.real_median, 100 * r.real_p99, rmed[SELF_IDEAL][done],
-               rp99[SELF_IDEAL][done], rmed[REAL_IDEAL][done], rp99[REAL_IDEAL][done],
-               rmed[SELF_REAL][done], rp99[SELF_REAL][done], 100 * r.curve, r.named);
+               100 * r.real_median, 100 * r.real_p99, 100 * r.null_median, 100 * r.null_p99,
+               rmed[SELF_IDEAL][done], rp99[SELF_IDEAL][done], rmed[REAL_IDEAL][done],
+               rp99[REAL_IDEAL][done], rmed[SELF_REAL][done], rp99[SELF_REAL][done],
+               rmed[NULL_IDEAL][done], rp99[NULL_IDEAL][done], rmed[SELF_NULL][done],
+               rp99[SELF_NULL][done], 100 * r.curve, 100 * r.null_curve, r.named);
         fflush(stdout);
         done++;
     }
     printf("# %d curves (%d failed)\n", done, failed);
+    bool null_space = !(sp.alt_stops > 0) || sp.alt_stops == sp.stops;
     for (int k = 0; k < RATIOS && done; k++) {
+        if (!null_space && (k == NULL_IDEAL || k == SELF_NULL))
+            continue;
         double maxm = 0, maxp = 0;
         for (int i = 0; i < done; i++)
             maxm = fmax(maxm, rmed[k][i]), maxp = fmax(maxp, rp99[k][i]);
@@ -235,6 +273,11 @@ int main(int argc, char **argv)
                label[k], at_goal[k], done, median_of(rmed[k], done), maxm,
                median_of(rp99[k], done), maxp, worst_i[k], names[worst_i[k]], worst[k]);
     }
+    if (null_space)
+        printf("# against the ideal estimator: both the null-space oracle and self-calibrated at "
+               "the goal on %d, the null-space oracle alone on %d (the fit's own gap: %s), "
+               "self-calibrated alone on %d, neither on %d\n",
+               both, null_only, null_only ? gap : "none", self_only, neither);
     sl_vset_scene_free(&scene);
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);

@@ -60,6 +60,13 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                              double noise_gain, double noise_floor, uint64_t seed,
                              sl_response *out, sl_error *err);
 
+/* The fit's smoothness term at node k (2 <= k <= nodes - 2): the second
+ * derivative of g against ln z from nodes k - 1, k, k + 1 is
+ * cs[0] g[k-1] + cs[1] g[k] + cs[2] g[k+1]; returns its weight times
+ * scale (the fit's lambda^2 times its equations over nodes). Also what the
+ * tests' null-space oracle minimises (tests/vset_null_space.c). */
+double merge_smoothness_row(int k, int nodes, double scale, double cs[3]);
+
 /* Cholesky of the symmetric positive definite n x n matrix a (row-major;
  * its lower part overwritten by the factor), then solves a x = b in place
  * (b gets x). False when a is not positive definite. */

@@ -339,6 +339,17 @@ static void forward_equations(const merge_samples *s, int c, const int *ch, int 
     }
 }
 
+double merge_smoothness_row(int k, int nodes, double scale, double cs[3])
+{
+    double h1 = log((double)k / (k - 1)), h2 = log((double)(k + 1) / k);
+    double share = 0.5 * (h1 + h2), base_k = 2 / (h1 + h2);
+    double w = hat((double)k / (nodes - 1), 0, 1) + 1e-3;
+    cs[0] = base_k / h1;
+    cs[1] = -base_k * (1 / h1 + 1 / h2);
+    cs[2] = base_k / h2;
+    return scale * w * w * share * share * share; /* (g'' * share)^2 * share */
+}
+
 /* Sum of the equations' squared weights, robust weights included. */
 static double weight_sum(const float *w, const float *rw, size_t n)
 {
@@ -431,12 +442,8 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
          * reweighting set aside. */
         double l2 = lambda * lambda * equations / nodes;
         for (int k = 2; k < nodes - 1; k++) {
-            double h1 = log((double)k / (k - 1)), h2 = log((double)(k + 1) / k);
-            double share = 0.5 * (h1 + h2), base_k = 2 / (h1 + h2);
-            double w = hat((double)k / (nodes - 1), 0, 1) + 1e-3;
-            double wl = l2 * w * w * share * share * share; /* (g'' * share)^2 * share */
+            double cs[3], wl = merge_smoothness_row(k, nodes, l2, cs);
             int ks[3] = {k - 1, k, k + 1};
-            double cs[3] = {base_k / h1, -base_k * (1 / h1 + 1 / h2), base_k / h2};
             for (int e = 0; e < 3; e++)
                 for (int e2 = 0; e2 < 3; e2++)
                     a[ks[e] * nodes + ks[e2]] += wl * cs[e] * cs[e2];

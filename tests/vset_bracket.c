@@ -34,6 +34,18 @@ static void plan(const vb_spec *s, const sl_vset_camera *cam, const sl_image *ll
     for (int i = 1; i < SHUTTERS; i++)
         if (fabs(log(shutter[i] / t)) < fabs(log(shutter[centre] / t)))
             centre = i;
+    if (s->alt_stops > 0) {
+        double at = 0, ref = 0;
+        for (int k = 0; k < s->frames; k++) {
+            times[k] = at;
+            if (k == (s->frames - 1) / 2)
+                ref = at;
+            at += k % 2 ? s->alt_stops : s->stops;
+        }
+        for (int k = 0; k < s->frames; k++)
+            times[k] = shutter[centre] * exp2(times[k] - ref + s->shift);
+        return;
+    }
     int first = centre - (s->frames - 1) / 2 * s->stops + s->shift;
     int last = first + (s->frames - 1) * s->stops;
     if (last > SHUTTERS - 1)
@@ -161,7 +173,10 @@ static void frames_free(frames_read *fr)
     }
 }
 
-static sl_result frames_load(const vb_bracket *b, frames_read *fr, sl_error *err)
+/* Linearised through the true curve, or with believed through the true
+ * curve's g + p(g) (the null-space oracle). */
+static sl_result frames_load(const vb_bracket *b, const vb_periodic *believed, frames_read *fr,
+                             sl_error *err)
 {
     memset(fr, 0, sizeof *fr);
     for (int k = 0; k < b->frames; k++) {
@@ -184,6 +199,8 @@ static sl_result frames_load(const vb_bracket *b, frames_read *fr, sl_error *err
             fr->at_clip[k][i / 3] |= b->spec.jpeg ? v >= 0.98 : v >= 1;
             if (b->spec.jpeg)
                 v = sl_vset_response_invert(&b->cam.response, v);
+            if (believed)
+                v = vb_periodic_apply(believed, v);
             fr->value[k][i] = v * fr->to_ref[k];
         }
         sl_image_free(&f);
@@ -244,13 +261,13 @@ enum { REALIZABLE_ROUNDS = 8 };
  * noisy observed codes, which favour the values noise pushed down). It
  * starts from the longest frame whose codes read below 0.9 (none: the
  * shortest) and leaves out frames that read at a clip (censored). */
-static void oracle_realizable(vb_bracket *b, const sl_image *ll, const frames_read *fr)
+static void oracle_realizable(const vb_bracket *b, const frames_read *fr, sl_image *out)
 {
     double m[3][3], to_radiance[3][3];
     sl_vset_camera_output_matrix(&b->cam, m);
     if (!sl_mat3_invert(m, to_radiance))
         return;
-    for (size_t i = 0; i < (size_t)ll->width * ll->height; i++) {
+    for (size_t i = 0; i < (size_t)out->width * out->height; i++) {
         double est[3];
         int k0 = 0;
         for (int k = b->frames - 1; k > 0 && !k0; k--) {
@@ -278,20 +295,58 @@ static void oracle_realizable(vb_bracket *b, const sl_image *ll, const frames_re
                 break;
         }
         for (int c = 0; c < 3; c++)
-            b->realizable.data[3 * i + c] = (float)est[c];
+            out->data[3 * i + c] = (float)est[c];
     }
+}
+
+/* The null-space oracle (vb_bracket.null_space): the realizable oracle of
+ * frames linearised through the curve the self-calibration's smoothness
+ * picks from the true curve's class (vb_null_space_fit), with that curve's
+ * code steps and clip in its noise model. */
+static sl_result oracle_null_space(vb_bracket *b, const sl_image *ll, sl_error *err)
+{
+    sl_merge_options defaults;
+    sl_merge_options_init(&defaults);
+    double black = defaults.black > 0 ? defaults.black : 0.004;
+    double period = log(b->times[b->frames - 1] / b->times[0]) / (b->frames - 1);
+    vb_periodic p;
+    b->null_space_rises =
+        vb_null_space_fit(&b->cam.response, period, black, b->spec.saturation, &p);
+    vb_bracket believed = *b;
+    vb_null_space_curve(&b->cam.response, &p, &believed.cam.response);
+    sl_response curve = {0};
+    sl_result r = sl_response_linear(&curve, 256, err);
+    for (int c = 0; c < 3 && !r; c++)
+        for (int k = 0; k < 256; k++)
+            curve.inverse[c * 256 + k] = vb_periodic_apply(
+                &p, sl_vset_response_invert(&b->cam.response, k / 255.0));
+    double wz;
+    if (!r)
+        b->null_space_curve =
+            vb_response_error(&curve, &b->cam.response, b->code_lo, b->code_hi, &wz);
+    sl_response_free(&curve);
+    frames_read fr;
+    memset(&fr, 0, sizeof fr);
+    if (!r && !(r = frames_load(b, &p, &fr, err)) &&
+        !(r = sl_image_alloc(&b->null_space, ll->width, ll->height, 3, err)))
+        oracle_realizable(&believed, &fr, &b->null_space);
+    frames_free(&fr);
+    return r;
 }
 
 static sl_result oracle_make(vb_bracket *b, const sl_image *ll, sl_error *err)
 {
     frames_read fr;
-    sl_result r = frames_load(b, &fr, err);
+    sl_result r = frames_load(b, NULL, &fr, err);
     if (!r && !(r = sl_image_alloc(&b->oracle, ll->width, ll->height, 3, err)))
         oracle_ideal(b, ll, &fr);
     if (!r && b->spec.realizable &&
         !(r = sl_image_alloc(&b->realizable, ll->width, ll->height, 3, err)))
-        oracle_realizable(b, ll, &fr);
+        oracle_realizable(b, &fr, &b->realizable);
     frames_free(&fr);
+    if (!r && b->spec.null_space && b->spec.jpeg &&
+        (!(b->spec.alt_stops > 0) || b->spec.alt_stops == b->spec.stops))
+        r = oracle_null_space(b, ll, err);
     return r;
 }
 
@@ -426,6 +481,7 @@ void vb_free(vb_bracket *b)
     sl_image_free(&b->best);
     sl_image_free(&b->oracle);
     sl_image_free(&b->realizable);
+    sl_image_free(&b->null_space);
 }
 int vb_cmp_double(const void *a, const void *b)
 {

@@ -33,6 +33,10 @@ typedef struct vb_spec {
                              quantised to 14 bits and, for JPEG, to 8-bit codes */
     const sl_image *latlong; /* the scene's lat-long (vb_scene), or NULL: made from scene, width */
     bool realizable;      /* also vb_bracket.realizable (iterated per pixel: costs a second) */
+    bool null_space;      /* with jpeg and equal steps: also vb_bracket.null_space (as much again) */
+    double alt_stops;     /* > 0: the steps alternate `stops` and this many stops, centred on
+                             the metered shutter speed (times off the full-stop scale, as a
+                             camera's third- or half-stop scale sets them) */
 } vb_spec;
 
 typedef struct vb_bracket {
@@ -62,6 +66,15 @@ typedef struct vb_bracket {
                             at its own estimate from the frames (iterated maximum likelihood),
                             not at the noise-free value; the best merge of these frames the
                             true curve, exposures and noise model allow */
+    sl_image null_space; /* with vb_spec.null_space, the null-space oracle: the realizable
+                            oracle told the true curve with its component periodic in ln
+                            exposure (period the bracket's mean step) replaced by the one the
+                            self-calibration's smoothness picks (vb_null_space_fit): the best
+                            an estimator with no prior on curve shapes can do from equal steps.
+                            Scored with a free scale, as a self-calibrated merge */
+    double null_space_curve; /* that curve's error against the true one, as
+                                vb_response_error, over code_lo..code_hi */
+    bool null_space_rises;   /* that curve rises everywhere (else it is no camera's) */
 } vb_bracket;
 
 /* The scene's lat-long, to share between brackets (vb_spec.latlong). */
@@ -95,6 +108,29 @@ vb_stats vb_compare(const sl_image *merged, const vb_bracket *b, int block, bool
  * where. */
 double vb_response_error(const sl_response *resp, const sl_vset_response *truth, double zlo,
                          double zhi, double *worst_z);
+
+/* A function of ln exposure u periodic with `period`:
+ * sum_j cos_coef[j] cos(2 pi (j+1) u / period) + sin_coef[j] sin(...). */
+enum { VB_HARMONICS = 24 };
+typedef struct vb_periodic {
+    double period;
+    double cos_coef[VB_HARMONICS], sin_coef[VB_HARMONICS];
+} vb_periodic;
+double vb_periodic_at(const vb_periodic *p, double u);
+/* x exp(p(ln x) - p(0)): a linear value through g -> g + p(g) (1 stays 1). */
+double vb_periodic_apply(const vb_periodic *p, double x);
+/* The p for which g + p(g) (g = ln of truth's inverse) has the least of the
+ * Debevec-Malik fit's smoothness penalty (merge_smoothness_row) over the
+ * codes the fit weighs (above black, below saturation): the member of the
+ * true curve's class under steps of `period` in ln exposure that a
+ * self-calibration with no prior on curve shapes picks from noise-free
+ * frames (tests/vset_null_space.c). False when it does not rise
+ * everywhere or the system is singular. */
+bool vb_null_space_fit(const sl_vset_response *truth, double period, double black,
+                       double saturation, vb_periodic *p);
+/* That member as a curve (forward table, as the truth). */
+void vb_null_space_curve(const sl_vset_response *truth, const vb_periodic *p,
+                         sl_vset_response *out);
 
 /* The curve names of a DoRF database file (six lines a curve)
  * in file order, at most max; -1 when it cannot be read. */
