@@ -819,9 +819,9 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     }
     if (have_prior && (res->pairs_solved == 0 || !adjust_opt.solve_centre)) {
         res->centre_from_circle = true;
-        solve_centre_note(res, "centre from the image circles alone (%.2f, %.2f +- %.3f px, %d "
-                               "views): the overlaps do not solve it",
-                          prior.cx, prior.cy, prior.sigma_x, res->circle_views);
+        solve_centre_note(res, "centre from the image circles alone (%d views): the overlaps "
+                               "do not solve it",
+                          res->circle_views);
     }
     const solve_centre_prior *pull = have_prior && adjust_opt.solve_centre ? &prior : NULL;
     if (res->pairs_solved > 0) {

@@ -90,9 +90,9 @@ bool solve_centre_from_circles(const sl_stitch_view *views, int count,
         keep[i] = true, kept++;
     for (int i = 0; i < found; i++)
         if (!keep[i])
-            solve_centre_note(res, "%s's circle is %.2f px from the views' median (+- %.3f px): left out",
-                     views[index[i]].name ? views[index[i]].name : "a view",
-                     hypot(cx[i] - mx, cy[i] - my), sigma[i]);
+            solve_centre_note(res, "%s's circle is %.0f sigma from the views' median: left out",
+                              views[index[i]].name ? views[index[i]].name : "a view",
+                              hypot(cx[i] - mx, cy[i] - my) / sigma[i]);
     /* Inverse-variance mean, its spread widened by the scatter of the
      * views' centres beyond their own uncertainty. */
     double sw = 0, sx = 0, sy = 0, chi2 = 0;
@@ -131,11 +131,10 @@ bool solve_centre_agrees(const solve_centre_prior *prior, const sl_lens *overlap
     double chi2 = det > 0.0 ? (c * dx * dx - 2.0 * b * dx * dy + a * dy * dy) / det : HUGE_VAL;
     bool agree = chi2 <= CENTRE_AGREE_CHI2;
     solve_centre_note(res,
-             agree ? "centre from the image circles (%.2f, %.2f +- %.3f px, %d views) and the "
-                     "overlaps (%.2f, %.2f +- %.2f, %.2f px)"
-                   : "the image circles' centre (%.2f, %.2f +- %.3f px, %d views) is not the "
-                     "overlaps' (%.2f, %.2f +- %.2f, %.2f px): the centre from the overlaps alone",
-             prior->cx, prior->cy, prior->sigma_x, res->circle_views, overlaps->cx, overlaps->cy,
-             res->overlap_sigma[0], res->overlap_sigma[1]);
+                      agree ? "centre from the image circles (%d views) and the overlaps (%.1f "
+                              "sigma apart)"
+                            : "the image circles' centre (%d views) is %.1f sigma from the "
+                              "overlaps': not used, the centre from the overlaps alone",
+                      res->circle_views, sqrt(chi2));
     return agree;
 }

@@ -1063,7 +1063,8 @@ typedef struct sl_stitch_solve_result {
     double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
     /* The centre: from the image circles (their views, centre and one
      * standard deviation per axis), from the overlaps alone (and its
-     * standard deviations), and whether the circles' was used. */
+     * standard deviations), whether the circles' was used, and why (the
+     * note gives no pixels: the solve may run on reduced copies). */
     int circle_views;
     double circle_centre[2], circle_sigma[2];
     double overlap_centre[2], overlap_sigma[2];
