@@ -298,6 +298,20 @@ static sl_result solve_reduced(const view_file *files, sl_stitch_view *views, in
 {
     int k = files[0].solve_factor, w = files[0].width, h = files[0].height;
     sl_stitch_view sv[SL_STITCH_MAX_VIEWS];
+    /* The circles found as the views were read, in the solve's pixels. */
+    sl_stitch_circle circles[SL_STITCH_MAX_VIEWS];
+    sl_stitch_solve_options opt = *so;
+    opt.circles = circles;
+    for (int i = 0; i < count; i++) {
+        circles[i] = files[i].circle;
+        circles[i].cx /= k;
+        circles[i].cy /= k;
+        circles[i].radius /= k;
+        circles[i].rms_px /= k;
+        if (files[i].circle_status != SL_OK)
+            opt.circles = NULL;
+    }
+    so = &opt;
     for (int i = 0; i < count; i++) {
         sv[i] = views[i];
         if (k > 1) {
@@ -323,6 +337,12 @@ static sl_result solve_reduced(const view_file *files, sl_stitch_view *views, in
     stitch_lens_scale(&res->lens, k, w, h);
     res->rms_px *= k;
     res->max_px *= k;
+    for (int a = 0; a < 2; a++) {
+        res->circle_centre[a] *= k;
+        res->circle_sigma[a] *= k;
+        res->overlap_centre[a] *= k;
+        res->overlap_sigma[a] *= k;
+    }
     for (int p = 0; p < res->pairs; p++) {
         res->pair[p].rms_px *= k;
         res->pair[p].max_px *= k;

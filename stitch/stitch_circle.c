@@ -19,6 +19,9 @@
 #define MIN_CONTRAST 4.0  /* the inside at least this many times the dark frame */
 #define MIN_SUPPORT 0.5   /* fraction of the rays with an edge on the circle */
 #define ROUNDS 3          /* ray casts, each from the previous fit */
+#define CLEAN_MIN (RAYS / 4) /* clean steps that fit the circle alone... */
+#define CLEAN_GAP_DEG 120.0 /* ...when no arc this long has none */
+#define CLEAN_BINS 72
 
 static double lum_at_pixel(const sl_image *img, int x, int y)
 {
@@ -113,14 +116,41 @@ static double crossing(const double *prof, int n, double t0, double level)
     return -1.0;
 }
 
+/* Whether the profile is a clean step at te: flat (within STEP_FLAT of
+ * `in`) over STEP_BAND px inside its blur (te - d), and never above that
+ * level between there and the edge. The scene's own structure within a
+ * pixel or two of the rim (a panel's edge, a bright line) moves the
+ * halfway point along that stretch of the rim by tenths of a pixel, all
+ * the same way: a bias the fit's residuals do not show. */
+#define STEP_FLAT 0.1
+#define STEP_BAND 3.0
+static bool clean_step(const double *prof, int n, double t0, double te, double d, double in)
+{
+    int i0 = (int)ceil((te - d - STEP_BAND - t0) / STEP), i1 = (int)floor((te - t0) / STEP);
+    int inner = (int)floor((te - d - t0) / STEP);
+    i0 = i0 < 0 ? 0 : i0;
+    if (inner - i0 < (int)(1.0 / STEP) || i1 >= n || !(in > 0.0))
+        return false;
+    for (int i = i0; i <= i1; i++) {
+        if (prof[i] > (1.0 + STEP_FLAT) * in)
+            return false;
+        if (i <= inner && prof[i] < (1.0 - STEP_FLAT) * in)
+            return false;
+    }
+    return true;
+}
+
 /* The edge along one ray from (cx, cy) near radius r, searched within +-w:
  * where the radiance is halfway between the inside just within the edge
  * and the dark frame just outside it. -1 when the ray has no clear edge
- * there (leaves the frame, a dark or clipped stretch of the rim). */
+ * there (leaves the frame, a dark or clipped stretch of the rim); *clean
+ * says whether it is a clean step (clean_step). */
 static double ray_edge(const sl_image *img, double cx, double cy, double r, double w,
-                       double dx, double dy, double *prof, double *scratch, double *blur)
+                       double dx, double dy, double *prof, double *scratch, double *blur,
+                       bool *clean)
 {
     *blur = -1.0;
+    *clean = false;
     double t0 = r - w;
     int n = (int)(2.0 * w / STEP) + 1;
     median_cache cache;
@@ -151,6 +181,7 @@ static double ray_edge(const sl_image *img, double cx, double cy, double r, doub
         double t2 = crossing(prof, n, t0, 0.5 * (li + lout));
         if (t2 > 0.0 && fabs(t2 - te) < d)
             te = t2;
+        *clean = clean_step(prof, n, t0, te, d, li);
     }
     return te > r - 0.75 * w && te < r + 0.75 * w ? te : -1.0;
 }
@@ -314,12 +345,16 @@ sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
     }
     double c[3] = {ev.cx, ev.cy, ev.r};
     ball_point *pts = malloc(RAYS * sizeof *pts);
-    bool *use = malloc(RAYS * sizeof *use);
+    bool *use = malloc(2 * RAYS * sizeof *use);
     int max_n = (int)(2.0 * fmax(8.0, 0.04 * ev.r) / STEP) + 2;
     double *blurs = malloc(RAYS * sizeof *blurs);
     double *prof = malloc((size_t)max_n * sizeof *prof);
     double *scratch = malloc((size_t)(max_n > 2 * RAYS ? max_n : 2 * RAYS) * sizeof *scratch);
-    if (!pts || !use || !prof || !scratch || !blurs) {
+    bool *clean = malloc(RAYS * sizeof *clean);
+    ball_point *clean_pts = malloc(RAYS * sizeof *clean_pts);
+    if (!pts || !use || !prof || !scratch || !blurs || !clean || !clean_pts) {
+        free(clean);
+        free(clean_pts);
         free(blurs);
         free(pts);
         free(use);
@@ -339,7 +374,8 @@ sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
         int nb = 0;
         for (int i = 0; i < RAYS; i++) {
             double a = 2.0 * M_PI * (i + 0.5) / RAYS, dx = cos(a), dy = sin(a), blur;
-            double t = ray_edge(radiance, c[0], c[1], c[2], w, dx, dy, prof, scratch, &blur);
+            double t = ray_edge(radiance, c[0], c[1], c[2], w, dx, dy, prof, scratch, &blur,
+                                &clean[n]);
             if (t > 0.0) {
                 pts[n].x = c[0] + t * dx;
                 pts[n].y = c[1] + t * dy;
@@ -354,6 +390,27 @@ sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
         fitted = n >= 8 && robust_fit(pts, use, n, next, &inliers, &rms, scratch);
         if (!fitted)
             break;
+        /* The centre and radius from the clean steps alone when they go
+         * round the circle (no gap over CLEAN_GAP_DEG): the support and the
+         * spread stay those of every edge point. */
+        int m = 0;
+        bool bin[CLEAN_BINS] = {false};
+        for (int i = 0; i < n; i++)
+            if (clean[i] && use[i]) {
+                clean_pts[m++] = pts[i];
+                double a = atan2(pts[i].y - next[1], pts[i].x - next[0]) + M_PI;
+                bin[(int)(a / (2.0 * M_PI) * CLEAN_BINS) % CLEAN_BINS] = true;
+            }
+        int gap = 0, run = 0;
+        for (int k = 0; k < 2 * CLEAN_BINS; k++) {
+            run = bin[k % CLEAN_BINS] ? 0 : run + 1;
+            gap = run > gap ? run : gap;
+        }
+        double clean_fit[3] = {next[0], next[1], next[2]}, clean_rms;
+        int clean_inliers;
+        if (m >= CLEAN_MIN && gap * 360.0 / CLEAN_BINS <= CLEAN_GAP_DEG &&
+            robust_fit(clean_pts, use + n, m, clean_fit, &clean_inliers, &clean_rms, scratch))
+            memcpy(next, clean_fit, sizeof next);
         memcpy(c, next, sizeof c);
         w = fmax(fmax(4.0, 2.0 * edge_width + 2.0), fmin(w, 4.0 * rms + 3.0));
         w = fmin(w, fmax(8.0, 0.04 * ev.r));
@@ -363,6 +420,8 @@ sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
     free(use);
     free(prof);
     free(scratch);
+    free(clean);
+    free(clean_pts);
     if (!fitted || inliers < MIN_SUPPORT * RAYS)
         return sl_error_set(err, SL_ERR_INPUT,
                             "%s: no image circle: only %d of %d rays have an edge on one circle",

@@ -89,15 +89,42 @@ void solve_rotate(double r[3][3], const double w[3]);
 /* Angle in degrees between two rotations. */
 double solve_rotation_angle(const double a[3][3], const double b[3][3]);
 
+/* A measurement of the optical centre beside the overlaps (the image
+ * circle's centre): pixels, one standard deviation per axis. */
+typedef struct solve_centre_prior {
+    double cx, cy, sigma_x, sigma_y;
+} solve_centre_prior;
+
 /* The bundle adjustment: rotations rot[view] (cam_to_world) of the views
  * with free[view] set, and the lens values opt asks for, over the matches
- * marked inlier. Huber loss of scale huber_px. Returns iterations. */
+ * marked inlier. Huber loss of scale huber_px. prior (may be NULL) adds the
+ * centre's measurement, weighed against the matches' own residual
+ * variance. centre_cov (may be NULL) gets the solved centre's covariance
+ * (px^2: xx, xy, yy; zeros when the centre is not solved). Returns
+ * iterations. */
 int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const bool *free_view,
-                 int views, sl_lens *lens, const sl_stitch_solve_options *opt, double huber_px);
+                 int views, sl_lens *lens, const sl_stitch_solve_options *opt, double huber_px,
+                 const solve_centre_prior *prior, double centre_cov[3]);
 /* Reprojection error of one match (both directions), pixels; -1 if a ray
  * cannot be formed. */
 double solve_match_error(const solve_match *m, double (*rot)[3][3], const sl_lens *unbounded,
                          double *err_b_in_a, double *err_a_in_b);
+
+/* The optical centre measured by the views' image circles (opt->circles,
+ * else found): the inverse-variance mean of the views' centres (a view far
+ * from the others' median left out), its spread widened by their scatter;
+ * false (res->centre_note says why) when there is none. */
+bool solve_centre_from_circles(const sl_stitch_view *views, int count,
+                               const sl_stitch_solve_options *opt, solve_centre_prior *prior,
+                               sl_stitch_solve_result *res);
+/* Appends to res->centre_note ("; " between notes). */
+void solve_centre_note(sl_stitch_solve_result *res, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+/* Whether the centre the overlaps solve alone (covariance cov: xx, xy,
+ * yy) agrees with the circles' within chance; fills res's centre fields
+ * and note. */
+bool solve_centre_agrees(const solve_centre_prior *prior, const sl_lens *overlaps,
+                         const double cov[3], sl_stitch_solve_result *res);
 
 /* Vignetting v1, v2 and per-view gains from the radiance ratios in the
  * overlaps of res's solved pairs; fills res's vignette fields and gain. */

@@ -76,6 +76,10 @@ static void summary(sl_report *rep, const sl_stitch_result *res, const char *out
                        res->solve.pairs_solved, res->solve.pairs_fallback,
                        res->solve.lens_held ? " " : "",
                        res->solve.lens_held ? res->solve.lens_note : "");
+    if (res->solved && res->solve.circle_views > 0)
+        sl_report_text(rep, "Optical centre: %s; the circles' (%.2f, %.2f) +- %.3f px.",
+                       res->solve.centre_note, res->solve.circle_centre[0],
+                       res->solve.circle_centre[1], res->solve.circle_sigma[0]);
     double sphere = 4.0 * M_PI;
     sl_report_text(rep,
                    "Coverage: seen %.3f sr, filled %.3f sr (%.2f%% of the sphere; %.3f sr "

@@ -74,6 +74,20 @@ static json_t *result_json(const sl_stitch_result *res, const char *out_path)
                                       "max_px", res->solve.max_px, "matches", res->solve.inliers,
                                       "pairs_solved", res->solve.pairs_solved, "pairs_fallback",
                                       res->solve.pairs_fallback));
+    if (res->solved && res->solve.circle_views > 0) {
+        const sl_stitch_solve_result *sr = &res->solve;
+        json_t *centre = json_pack(
+            "{s:b, s:s, s:i, s:[f, f], s:[f, f]}", "from_circle", sr->centre_from_circle, "note",
+            sr->centre_note, "circle_views", sr->circle_views, "circle_px", sr->circle_centre[0],
+            sr->circle_centre[1], "circle_sigma_px", sr->circle_sigma[0], sr->circle_sigma[1]);
+        /* the overlaps' own centre only where they solved one */
+        if (centre && sr->overlap_sigma[0] > 0.0)
+            json_object_update_new(
+                centre, json_pack("{s:[f, f], s:[f, f]}", "overlap_px", sr->overlap_centre[0],
+                                  sr->overlap_centre[1], "overlap_sigma_px", sr->overlap_sigma[0],
+                                  sr->overlap_sigma[1]));
+        json_object_set_new(j, "centre", centre);
+    }
     if (res->circle_found)
         json_object_set_new(j, "circle",
                             json_pack("{s:f, s:f, s:f, s:f, s:f}", "cx", res->circle.cx, "cy",

@@ -48,6 +48,7 @@ void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
     o->min_lens_spread = 0.1;
     o->max_correction_deg = 10.0;
     o->seed = 1;
+    o->centre_from_circle = true;
 }
 
 const char *sl_stitch_pair_status_name(sl_stitch_pair_status s)
@@ -618,6 +619,53 @@ static void focal_from_circle(sl_lens *lens, sl_stitch_solve_result *res)
     res->lens_held = true;
 }
 
+/* The adjustment: a loose first round (the nominal lens puts the circle's
+ * edge degrees off), the matches re-judged in pixels of the features'
+ * copies (scale s) as the lens is solved, then the inliers refined to a
+ * hundredth of a pixel at full resolution and adjusted again, dropping what
+ * the refinement could not place. */
+static void adjust_rounds(solve_state *st, const bool *free_view, sl_lens *lens,
+                          const sl_stitch_solve_options *opt, const solve_centre_prior *pull,
+                          double s)
+{
+    sl_stitch_solve_result *res = st->res;
+    const double rounds[] = {0.0, 8.0, 4.0, 1.0};
+    for (int k = 0; k < 4; k++) {
+        if (k > 0)
+            select_inliers(st, lens, rounds[k] * opt->inlier_px * s);
+        res->iterations += solve_adjust(st->matches, st->match_count, st->rot, free_view,
+                                        st->count, lens, opt, 1.5 * s, pull, NULL);
+    }
+    solve_refine_matches(st->views, st->matches, st->match_count, st->rot, lens,
+                         s > 2.0 ? 0.5 * s : 1.0);
+    for (int k = 0; k < 2; k++) {
+        res->iterations += solve_adjust(st->matches, st->match_count, st->rot, free_view,
+                                        st->count, lens, opt, 0.5, pull, NULL);
+        measure(st, lens);
+        prune_inliers(st, lens, fmax(0.5, 3.0 * res->rms_px));
+    }
+}
+
+/* Whether the centre the overlaps solve alone, from the solution with the
+ * circles' centre, agrees with the circles': when not, the circle is not
+ * centred on the lens's axis (or not the lens's). */
+static bool centre_agrees(solve_state *st, const bool *free_view, const sl_lens *lens,
+                          const sl_stitch_solve_options *opt, const solve_centre_prior *prior)
+{
+    size_t bytes = (size_t)st->count * sizeof *st->rot;
+    double (*rot)[3][3] = malloc(bytes);
+    if (!rot)
+        return true;
+    memcpy(rot, st->rot, bytes);
+    sl_lens alone = *lens;
+    double cov[3];
+    st->res->iterations += solve_adjust(st->matches, st->match_count, rot, free_view, st->count,
+                                        &alone, opt, 0.5, NULL, cov);
+    free(rot);
+    st->res->centre_from_circle = solve_centre_agrees(prior, &alone, cov, st->res);
+    return st->res->centre_from_circle;
+}
+
 static sl_result check_views(const sl_stitch_view *views, int count, sl_error *err)
 {
     if (count < 1 || !views)
@@ -760,6 +808,22 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     }
     if ((res->pairs_solved == 0 || res->lens_held) && focal_wanted)
         focal_from_circle(&lens, res);
+    /* The circles' centre: a measurement of the optical centre beside the
+     * overlaps' (and the centre itself when they cannot solve it). */
+    solve_centre_prior prior;
+    bool have_prior = opt->centre_from_circle && opt->solve_centre &&
+                      solve_centre_from_circles(views, count, opt, &prior, res);
+    if (have_prior) {
+        lens.cx = prior.cx;
+        lens.cy = prior.cy;
+    }
+    if (have_prior && (res->pairs_solved == 0 || !adjust_opt.solve_centre)) {
+        res->centre_from_circle = true;
+        solve_centre_note(res, "centre from the image circles alone (%d views): the overlaps "
+                               "do not solve it",
+                          res->circle_views);
+    }
+    const solve_centre_prior *pull = have_prior && adjust_opt.solve_centre ? &prior : NULL;
     if (res->pairs_solved > 0) {
         /* The nominal lens puts the circle's edge degrees off: a loose first
          * round, then the matches re-judged in pixels with the lens solved. */
@@ -767,23 +831,31 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
         for (int p = 0; p < pairs; p++)
             if (res->pair[p].status == SL_STITCH_PAIR_SOLVED && st.feat[res->pair[p].a].scale > 0)
                 s = st.feat[res->pair[p].a].scale;
-        const double rounds[] = {0.0, 8.0, 4.0, 1.0};
-        for (int k = 0; k < 4; k++) {
-            if (k > 0)
-                select_inliers(&st, &lens, rounds[k] * opt->inlier_px * s);
-            res->iterations += solve_adjust(st.matches, st.match_count, st.rot, free_view, count,
-                                            &lens, opt, 1.5 * s);
+        /* With the circles' centre, unless the overlaps alone disagree
+         * with it: then all again from the same start without it. */
+        size_t rot_bytes = (size_t)count * sizeof *st.rot,
+               match_bytes = (size_t)st.match_count * sizeof *st.matches;
+        double (*rot_start)[3][3] = pull ? malloc(rot_bytes) : NULL;
+        solve_match *matches_start = pull ? malloc(match_bytes + 1) : NULL;
+        sl_lens lens_start = lens;
+        if (rot_start && matches_start) {
+            memcpy(rot_start, st.rot, rot_bytes);
+            memcpy(matches_start, st.matches, match_bytes);
         }
-        /* Then the inliers' positions to a hundredth of a pixel, at full
-         * resolution, and the adjustment again. */
-        solve_refine_matches(views, st.matches, st.match_count, st.rot, &lens, s > 2.0 ? 0.5 * s : 1.0);
-        for (int k = 0; k < 2; k++) {
-            res->iterations += solve_adjust(st.matches, st.match_count, st.rot, free_view, count,
-                                            &lens, opt, 0.5);
-            measure(&st, &lens);
-            /* what the refinement could not place */
-            prune_inliers(&st, &lens, fmax(0.5, 3.0 * res->rms_px));
+        adjust_rounds(&st, free_view, &lens, opt, pull, s);
+        if (pull && !centre_agrees(&st, free_view, &lens, opt, pull)) {
+            if (rot_start && matches_start) {
+                memcpy(st.rot, rot_start, rot_bytes);
+                memcpy(st.matches, matches_start, match_bytes);
+                lens = lens_start;
+                lens.cx = res->lens_nominal.cx;
+                lens.cy = res->lens_nominal.cy;
+                adjust_rounds(&st, free_view, &lens, opt, NULL, s);
+                res->overlap_centre[0] = lens.cx;
+                res->overlap_centre[1] = lens.cy;
+            }
         }
+        free(rot_start), free(matches_start);
         keep_agreeing_pairs(&st, KEEP_MIN_AGREE);
         measure(&st, &lens);
         drop_disagreeing_pairs(&st);

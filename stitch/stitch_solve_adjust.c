@@ -162,12 +162,22 @@ typedef struct adjust_layout {
     int *view_param; /* first parameter of each view, -1 when fixed */
     int lens_param[LENS_PARAMS];
     int n;
+    /* the centre prior's weight per axis (0: none) and its centre */
+    double prior_weight[2], prior_centre[2];
 } adjust_layout;
 
-/* Huber-weighted cost and, when jtj is set, the normal equations. */
+/* The matches' weighted squared residuals and their count (the residual
+ * variance of the last evaluate). */
+typedef struct adjust_spread {
+    double sum_sq;
+    int count;
+} adjust_spread;
+
+/* Huber-weighted cost and, when jtj is set, the normal equations; spread
+ * (may be NULL) gets the matches' residual sums. */
 static double evaluate(const solve_match *matches, int count, double (*rot)[3][3],
                        const sl_lens *lens, const adjust_layout *lay, double huber, double *jtj,
-                       double *jtr)
+                       double *jtr, adjust_spread *spread)
 {
     int n = lay->n;
     if (jtj) {
@@ -187,10 +197,15 @@ static double evaluate(const solve_match *matches, int count, double (*rot)[3][3
             !residuals(m, rot, lens, ra, rb, r0))
             continue;
         double w[2];
+        bool edge = m->normal[0] != 0.0 || m->normal[1] != 0.0;
         for (int d = 0; d < 2; d++) {
             double e = hypot(r0[2 * d], r0[2 * d + 1]);
             w[d] = e <= huber ? 1.0 : huber / e;
             cost += e <= huber ? 0.5 * e * e : huber * (e - 0.5 * huber);
+            if (spread && (d == 0 || !edge)) {
+                spread->sum_sq += w[d] * e * e;
+                spread->count += edge ? 1 : 2;
+            }
         }
         if (!jtj)
             continue;
@@ -236,7 +251,43 @@ static double evaluate(const solve_match *matches, int count, double (*rot)[3][3
             }
         }
     }
+    /* The centre's measurement: a quadratic pull toward it. */
+    for (int a = 0; a < 2; a++) {
+        int k = lay->lens_param[LENS_CX + a];
+        if (k < 0 || !(lay->prior_weight[a] > 0.0))
+            continue;
+        double d = (a ? lens->cy : lens->cx) - lay->prior_centre[a];
+        cost += 0.5 * lay->prior_weight[a] * d * d;
+        if (jtj) {
+            jtr[k] += lay->prior_weight[a] * d;
+            jtj[k * n + k] += lay->prior_weight[a];
+        }
+    }
     return cost;
+}
+
+/* The centre's covariance from the normal equations at the solution:
+ * sigma^2 (J^T J)^-1 over the centre's two parameters. */
+static void centre_covariance(const double *jtj, const adjust_layout *lay, double sigma2,
+                              double cov[3])
+{
+    int n = lay->n, kx = lay->lens_param[LENS_CX], ky = lay->lens_param[LENS_CY];
+    cov[0] = cov[1] = cov[2] = 0.0;
+    double *a = malloc((size_t)n * n * sizeof *a), *col = malloc((size_t)n * sizeof *col);
+    for (int c = 0; a && col && kx >= 0 && ky >= 0 && c < 2; c++) {
+        memcpy(a, jtj, (size_t)n * n * sizeof *a);
+        for (int i = 0; i < n; i++)
+            col[i] = i == (c ? ky : kx);
+        if (!merge_cholesky_solve(a, col, n))
+            break;
+        if (c == 0) {
+            cov[0] = sigma2 * col[kx];
+            cov[1] = sigma2 * col[ky];
+        } else {
+            cov[2] = sigma2 * col[ky];
+        }
+    }
+    free(a), free(col);
 }
 
 static void apply_step(double (*rot)[3][3], sl_lens *lens, const adjust_layout *lay,
@@ -254,9 +305,12 @@ static void apply_step(double (*rot)[3][3], sl_lens *lens, const adjust_layout *
 }
 
 int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const bool *free_view,
-                 int views, sl_lens *lens, const sl_stitch_solve_options *opt, double huber_px)
+                 int views, sl_lens *lens, const sl_stitch_solve_options *opt, double huber_px,
+                 const solve_centre_prior *prior, double centre_cov[3])
 {
     adjust_layout lay = {.views = views, .n = 0};
+    if (centre_cov)
+        centre_cov[0] = centre_cov[1] = centre_cov[2] = 0.0;
     lay.view_param = malloc((size_t)views * sizeof *lay.view_param);
     if (!lay.view_param)
         return 0;
@@ -278,7 +332,20 @@ int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const boo
     sl_lens lens_u;
     solve_lens_unbounded(lens, &lens_u);
     double lambda = 1e-3;
-    double cost = evaluate(matches, count, rot, &lens_u, &lay, huber_px, jtj, jtr);
+    adjust_spread spread = {0.0, 0};
+    double cost = evaluate(matches, count, rot, &lens_u, &lay, huber_px, jtj, jtr, &spread);
+    if (prior && lay.lens_param[LENS_CX] >= 0 && spread.count > 0) {
+        /* Weighed as one more measurement of the residuals' variance: the
+         * matches' at the start (a loose first round pulls less), floored
+         * at (0.02 px)^2 so a handful of exact matches do not make it a
+         * hard constraint. */
+        double var = fmax(spread.sum_sq / spread.count, 0.02 * 0.02);
+        lay.prior_centre[0] = prior->cx;
+        lay.prior_centre[1] = prior->cy;
+        lay.prior_weight[0] = var / (prior->sigma_x * prior->sigma_x);
+        lay.prior_weight[1] = var / (prior->sigma_y * prior->sigma_y);
+        cost = evaluate(matches, count, rot, &lens_u, &lay, huber_px, jtj, jtr, NULL);
+    }
     for (iterations = 0; iterations < 100; iterations++) {
         bool accepted = false;
         for (int attempt = 0; attempt < 12 && !accepted; attempt++) {
@@ -294,7 +361,8 @@ int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const boo
             memcpy(rot_try, rot, (size_t)views * sizeof *rot_try);
             sl_lens try_lens = lens_u;
             apply_step(rot_try, &try_lens, &lay, step);
-            double c = evaluate(matches, count, rot_try, &try_lens, &lay, huber_px, NULL, NULL);
+            double c = evaluate(matches, count, rot_try, &try_lens, &lay, huber_px, NULL, NULL,
+                                NULL);
             if (c <= cost) {
                 double gain = cost - c;
                 memcpy(rot, rot_try, (size_t)views * sizeof *rot_try);
@@ -305,7 +373,7 @@ int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const boo
                     cost = c;
                     goto converged;
                 }
-                cost = evaluate(matches, count, rot, &lens_u, &lay, huber_px, jtj, jtr);
+                cost = evaluate(matches, count, rot, &lens_u, &lay, huber_px, jtj, jtr, NULL);
             } else {
                 lambda *= 10.0;
             }
@@ -314,6 +382,12 @@ int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const boo
             break;
     }
 converged:
+    if (centre_cov) {
+        spread = (adjust_spread){0.0, 0};
+        evaluate(matches, count, rot, &lens_u, &lay, huber_px, jtj, jtr, &spread);
+        if (spread.count > n)
+            centre_covariance(jtj, &lay, spread.sum_sq / (spread.count - n), centre_cov);
+    }
     /* Keep the caller's bounds: only the solved values change. */
     for (int p = 0; p < LENS_PARAMS; p++)
         *lens_field(lens, p) = *lens_field(&lens_u, p);

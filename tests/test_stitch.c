@@ -111,6 +111,16 @@ static void oracle_views(const rig *g, sl_stitch_view *v)
         v[i] = (sl_stitch_view){names[i], &g->views[i], NULL, g->lens, g->pose[i]};
 }
 
+/* The views as the solve gets them: the nominal lens and the plan's poses. */
+static void nominal_views(const rig *g, sl_stitch_view *v)
+{
+    oracle_views(g, v);
+    for (int i = 0; i < g->count; i++) {
+        v[i].lens = g->nominal;
+        v[i].pose = g->nominal_pose[i];
+    }
+}
+
 /* Median and p95 of the relative luminance error against the truth (area
  * resampled to the stitch's size) over latitudes within +-75 deg, seen
  * texels only. */
@@ -236,10 +246,7 @@ static void solved_vs_oracle(void)
     oracle_views(&g, v);
     sl_image oracle_img, solved_img;
     CHECK_OK(sl_stitch_blend(v, 3, NULL, &oracle_img, NULL, &err), &err);
-    for (int i = 0; i < 3; i++) {
-        v[i].lens = g.nominal;
-        v[i].pose = g.nominal_pose[i];
-    }
+    nominal_views(&g, v);
     sl_stitch_solve_result sr;
     CHECK_OK(sl_stitch_solve(v, 3, NULL, &sr, &err), &err);
     sl_stitch_blend_options o;
@@ -295,21 +302,70 @@ static void solved_vs_oracle(void)
                 }
             }
         }
-        /* The issue's goal is 1.15x and 1.25x. p95 meets it (1.06x); the
-         * median reaches 1.38x: the centre's vertical error (0.15 px) and the
-         * side views' pitch trade against each other in a 3-view ring, and
-         * the median of this smooth stage (0.0006 for the oracle) moves with
-         * a tenth of a pixel (docs/stitch.md). */
+        /* The issue's goal: 1.15x and 1.25x (1.06x and 1.01x measured).
+         * Without the image circles' centre the centre's vertical error
+         * (0.15 px) and the side views' pitch trade in a 3-view ring, and
+         * the median of this smooth stage (0.0006 for the oracle) moves
+         * with a tenth of a pixel: 1.38x (docs/stitch.md). */
         /* pair 1-2 has 23 consistent matches of its own (25 needed), but
          * they agree with the poses the two other pairs solve: kept */
+        printf("  centre: %s\n", sr.centre_note);
         CHECK_MSG(!sr.lens_held, "%s", sr.lens_note);
         CHECK(sr.pairs_solved == 3 && sr.pairs_fallback == 0);
-        CHECK(sm <= 1.5 * om);
+        CHECK(sr.centre_from_circle);
+        CHECK(sm <= 1.15 * om);
         CHECK(sp <= 1.25 * op);
     }
     sl_stitch_solve_result_free(&sr);
     sl_image_free(&oracle_img);
     sl_image_free(&solved_img);
+    rig_free(&g);
+}
+
+/* The centre of a lens 6, -4 px off its nominal one, solved on the smooth
+ * stage: with the image circles' centre within 0.2 px (a stage view whose
+ * rim carries a panel's edge has its circle moved 0.3 px and is left out);
+ * from the overlaps alone 0.15 px off, the side views' pitch 0.04 deg; and
+ * with circles 3 px off the lens's centre (a decentred lens), the circles'
+ * centre is refused as disagreeing with the overlaps and the overlaps'
+ * solution kept. */
+static void circle_centre(void)
+{
+    rig g;
+    sl_error err;
+    if (!rig_checked(&g, "stage", 3))
+        return;
+    sl_stitch_circle circles[3];
+    for (int i = 0; i < 3; i++)
+        CHECK_OK(sl_stitch_circle_find(&g.views[i], "view", NULL, &circles[i], &err), &err);
+    double off[3] = {0, 0, 0}, pitch[3] = {0, 0, 0};
+    bool used[3] = {false, false, false};
+    for (int run = 0; run < 3; run++) {
+        sl_stitch_view v[3];
+        nominal_views(&g, v);
+        for (int i = 0; i < 3; i++)
+            circles[i].cx += run == 2 ? 3.0 : 0.0; /* run 2: a circle off the axis */
+        sl_stitch_solve_options o;
+        sl_stitch_solve_options_init(&o);
+        o.centre_from_circle = run != 1;
+        o.circles = run == 2 ? circles : NULL;
+        sl_stitch_solve_result sr;
+        CHECK_OK(sl_stitch_solve(v, 3, &o, &sr, &err), &err);
+        off[run] = hypot(sr.lens.cx - g.lens.cx, sr.lens.cy - g.lens.cy);
+        for (int i = 1; i < 3; i++)
+            pitch[run] = fmax(pitch[run], fabs(sr.pose[i].pitch_deg - g.pose[i].pitch_deg));
+        used[run] = sr.centre_from_circle;
+        printf("  circles' centre %s: centre %.3f px off, side pitch %.4f deg off, RMS %.3f px; "
+               "%s\n",
+               run == 0 ? "on" : run == 1 ? "off" : "3 px off the axis", off[run], pitch[run],
+               sr.rms_px, sr.centre_note);
+        if (run == 2)
+            CHECK(strstr(sr.centre_note, "sigma from the overlaps': not used") != NULL);
+        sl_stitch_solve_result_free(&sr);
+    }
+    CHECK(used[0] && off[0] < 0.2 && pitch[0] < 0.01);
+    CHECK(!used[1] && off[1] > 0.1 && pitch[1] > 0.03);
+    CHECK(!used[2] && fabs(off[2] - off[1]) < 0.01);
     rig_free(&g);
 }
 
@@ -560,6 +616,7 @@ int main(void)
     RUN(oracle_exterior_3);
     RUN(oracle_stage_4);
     RUN(solved_vs_oracle);
+    RUN(circle_centre);
     RUN(one_view);
     RUN(moving_person);
     RUN(nadir_mask);

@@ -1006,6 +1006,15 @@ typedef struct sl_stitch_solve_options {
                                   than 1.5 times this from their nominal place are dropped
                                   (default 10) */
     uint64_t seed;           /* RANSAC sampling */
+    /* The image circle is the lens's field stop, centred on its optical
+     * axis: its centre measures the optical centre apart from the
+     * overlaps. centre_from_circle (default true) weighs it into the
+     * centre's solve by its own uncertainty, unless the overlaps' centre
+     * disagrees with it beyond that (then the overlaps' alone; the result
+     * says which). circles: each view's circle in the views' pixels
+     * (count entries), or NULL: found by the solve (sl_stitch_circle_find). */
+    bool centre_from_circle;
+    const struct sl_stitch_circle *circles;
 } sl_stitch_solve_options;
 
 void sl_stitch_solve_options_init(sl_stitch_solve_options *o);
@@ -1052,6 +1061,16 @@ typedef struct sl_stitch_solve_result {
     bool vignette_solved;        /* false: too few overlap samples, or not asked */
     int vignette_samples;
     double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
+    /* The centre: from the image circles (their views, centre and one
+     * standard deviation per axis), from the overlaps alone (and its
+     * standard deviations), whether the circles' was used, and why (the
+     * note gives no pixels: the solve may run on reduced copies). */
+    int circle_views;
+    double circle_centre[2], circle_sigma[2];
+    double overlap_centre[2], overlap_sigma[2];
+    bool centre_from_circle;
+    char centre_note[320];
+
     double seconds_features, seconds_match, seconds_adjust, seconds_total;
 } sl_stitch_solve_result;
 
@@ -1074,13 +1093,14 @@ void sl_stitch_solve_result_free(sl_stitch_solve_result *res);
 /* ------------------------------------------------------------------ */
 
 /* The image circle of a circular fisheye view, fitted to its edge. */
-typedef struct sl_stitch_circle {
+typedef struct sl_stitch_circle sl_stitch_circle;
+struct sl_stitch_circle {
     double cx, cy, radius; /* px; (0, 0) is the top-left corner of the top-left pixel */
     double rms_px;         /* RMS distance of the edge points on the circle from it */
     double support;        /* fraction of the rays cast with an edge point on the circle */
     int rays, edges;       /* rays cast, edge points on the circle */
     double radius_vs_nominal; /* radius / the nominal lens's circle_radius_px; 0 without */
-} sl_stitch_circle;
+};
 
 /* Finds the image circle of an HDR (scene-linear) fisheye view: a coarse
  * disc from sl_fisheye_check's evidence (dark frame border, dark outside,
