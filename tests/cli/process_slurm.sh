@@ -82,8 +82,14 @@ expect 0 "$S" process "$T/ext" -o "$T/farm" "${P[@]}" --farm slurm --json -q
 json_eval "$T/out" 'd["jobs"]["failed"] == 0 and d["jobs"]["ran"] == d["jobs"]["total"] and d["setups"][0]["status"] == "ok"'
 json_eval "$T/out" '(lambda f: f["group"] == "setup" and f["jobs"] == 16 and f["slurm_seconds"] == 12.4 and 0 < f["cpu_seconds"] < 12.4 and f["reason"].startswith("grouped: 16 jobs of ~") and f["reason"].endswith("(grouped above 2%)"))(d["setups"][0]["farm"])'
 json_eval "$T/farm/jobs.json.slurm.json" '[j["id"] for j in d["jobs"]] == ["ext"] and d["jobs"][0]["argv"][:2] == ["/bin/sh", "-c"]'
-# The estimate is the jobs' CPU within a factor of 3 (docs/process.md).
-json_eval "$T/out" '(lambda s: 1 / 3 < s["farm"]["cpu_seconds"] / s["cost"]["cpu_seconds"] < 3)(d["setups"][0])'
+# The estimate is the jobs' CPU within a factor of 3 (docs/process.md); a
+# sanitized build runs the same jobs several times slower than the estimate
+# (a release build's), so there only its being positive is checked.
+if [ -z "${SETLIGHT_SANITIZED:-}" ]; then
+  json_eval "$T/out" '(lambda s: 1 / 3 < s["farm"]["cpu_seconds"] / s["cost"]["cpu_seconds"] < 3)(d["setups"][0])'
+else
+  json_eval "$T/out" 'd["setups"][0]["farm"]["cpu_seconds"] > 0'
+fi
 present "$T/farm/logs/ext_merge_0.log"
 stage_outputs "$T/farm" >"$T/sums_grouped"
 if cmp -s "$T/sums_local" "$T/sums_grouped"; then ok; else
