@@ -121,6 +121,28 @@ static void nominal_views(const rig *g, sl_stitch_view *v)
     }
 }
 
+/* |L(st) - L(ref)| / L(ref) over latitudes within +-75 deg, sorted, for
+ * the texels st saw (and ref, where it has alpha); *n gets their count. */
+static double *relative_errors(const sl_image *st, const sl_image *ref, size_t *n)
+{
+    double *e = malloc(sizeof(double) * (size_t)st->width * st->height);
+    *n = 0;
+    for (int y = 0; y < st->height; y++) {
+        double lat = 90.0 - 180.0 * (y + 0.5) / st->height;
+        if (fabs(lat) > 75.0)
+            continue;
+        for (int x = 0; x < st->width; x++) {
+            const float *s = sl_image_pixel(st, x, y), *t = sl_image_pixel(ref, x, y);
+            if (s[3] <= 0 || (ref->channels > 3 && t[3] <= 0))
+                continue;
+            double lt = sl_luminance_px(t);
+            e[(*n)++] = fabs(sl_luminance_px(s) - lt) / fmax(lt, 1e-9);
+        }
+    }
+    qsort(e, *n, sizeof *e, sl_cmp_double);
+    return e;
+}
+
 /* Median and p95 of the relative luminance error against the truth (area
  * resampled to the stitch's size) over latitudes within +-75 deg, seen
  * texels only. */
@@ -132,21 +154,8 @@ static void error_vs_truth(const sl_image *st, const sl_image *truth_full, doubl
     *median = *p95 = INFINITY;
     if (sl_image_resample(truth_full, st->width, st->height, &truth, &err))
         return;
-    double *e = malloc(sizeof(double) * (size_t)st->width * st->height);
-    size_t n = 0;
-    for (int y = 0; y < st->height; y++) {
-        double lat = 90.0 - 180.0 * (y + 0.5) / st->height;
-        if (fabs(lat) > 75.0)
-            continue;
-        for (int x = 0; x < st->width; x++) {
-            const float *s = sl_image_pixel(st, x, y), *t = sl_image_pixel(&truth, x, y);
-            if (s[3] <= 0)
-                continue;
-            double lt = sl_luminance_px(t);
-            e[n++] = fabs(sl_luminance_px(s) - lt) / fmax(lt, 1e-9);
-        }
-    }
-    qsort(e, n, sizeof *e, sl_cmp_double);
+    size_t n;
+    double *e = relative_errors(st, &truth, &n);
     if (n) {
         *median = e[n / 2];
         *p95 = e[(size_t)(0.95 * (n - 1))];
@@ -272,24 +281,12 @@ static double rotation_error_deg(const rig *g, const sl_stitch_view *v)
     return worst;
 }
 
-/* Median over the rows within +-75 deg of |a - b| / b (luminance), texels
- * both saw. */
+/* Median relative luminance difference of two stitches (within +-75 deg,
+ * texels both saw). */
 static double median_difference(const sl_image *a, const sl_image *b)
 {
-    double *e = malloc(sizeof(double) * (size_t)a->width * a->height);
-    size_t n = 0;
-    for (int y = 0; y < a->height; y++) {
-        if (fabs(90.0 - 180.0 * (y + 0.5) / a->height) > 75.0)
-            continue;
-        for (int x = 0; x < a->width; x++) {
-            const float *s = sl_image_pixel(a, x, y), *t = sl_image_pixel(b, x, y);
-            if (s[3] <= 0 || t[3] <= 0)
-                continue;
-            double lt = sl_luminance_px(t);
-            e[n++] = fabs(sl_luminance_px(s) - lt) / fmax(lt, 1e-9);
-        }
-    }
-    qsort(e, n, sizeof *e, sl_cmp_double);
+    size_t n;
+    double *e = relative_errors(a, b, &n);
     double m = n ? e[n / 2] : INFINITY;
     free(e);
     return m;
