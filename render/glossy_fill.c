@@ -43,6 +43,7 @@
 /* Before the rest is known, the sun is refined against this share of the
  * rest's mean radiance. */
 #define SUN_FLOOR_SHARE 0.25
+#define SUN_PASS_TOL 1e-2
 #define LAMBERT_REST_SHARE 0.5
 #define LAMBERT_INTERP_SHARE 0.25
 /* Rows per band of the Lambert fill: each band is finished (its rest over
@@ -181,6 +182,7 @@ typedef struct fill_job {
     double (*sun)[3], (*sun_err)[3]; /* glossy pixels: their sun, before the rest */
     uint8_t *sun_state;              /* 1: sun evaluated at sun_floor's scale */
     double sun_floor[3];             /* the sun pass's refinement scale (the rest unknown yet) */
+    double sun_tol;                  /* the sun pass's tolerance */
     sl_glossy_scratch **scratch; /* per worker */
     int workers;
     bool failed;      /* no memory for a scratch: the rows are left to sampling */
@@ -359,7 +361,7 @@ static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
             size_t pix = (size_t)y * j->w + x;
             if (j->px->state[pix] != SL_GLOSSY_PENDING || lambert_at(j, pix))
                 continue;
-            sl_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = j->sun_floor, .start_cells = gd->sun_cells,
+            sl_quad q = {.tol = SUN_SHARE * j->sun_tol, .floor = j->sun_floor, .start_cells = gd->sun_cells,
                          .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
             sl_glossy_integrate(gd->sun, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s, j->sun[pix],
                                 j->sun_err[pix], &j->row_cost[y]);
@@ -535,6 +537,9 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         rest_mean(cf->gdome->rest, j.sun_floor);
         for (int c = 0; c < 3; c++)
             j.sun_floor[c] *= SUN_FLOOR_SHARE;
+        /* Under a deadline every pixel's sun first at no finer than the
+         * default tolerance: a finished row refines it to its own. */
+        j.sun_tol = isfinite(deadline) ? fmax(cf->tol, SUN_PASS_TOL) : cf->tol;
         sl_parallel_for(h, 1, sun_rows, &j);
     }
     int ncur = 0;
