@@ -64,18 +64,17 @@ static void render(const sl_scene *s, int64_t spp, int row_limit, sl_image *img,
 }
 
 typedef struct diff {
-    double bias, se, rmse, mean; /* over the ball's pixels: mean difference, its standard error,
-                                    RMS difference, the reference's mean */
+    double bias, se, rmse, mean, rms; /* over the ball's pixels: mean difference, its standard
+                                         error, RMS difference, the reference's mean and RMS */
     int64_t n;
     bool finite;
 } diff;
 
-/* img against ref over the pixels ref's plan made exact. */
-static diff compare(const sl_image *img, const sl_image *ref, const sl_render_stats *ref_st)
+/* img against ref over the pixels ref covers wholly (the ball). */
+static diff compare(const sl_image *img, const sl_image *ref)
 {
-    (void)ref_st;
     diff d = {.finite = true};
-    double s = 0, s2 = 0, m = 0;
+    double s = 0, s2 = 0, m = 0, m2 = 0;
     for (int y = 0; y < img->height; y++)
         for (int x = 0; x < img->width; x++) {
             const float *a = sl_image_pixel(img, x, y), *b = sl_image_pixel(ref, x, y);
@@ -84,7 +83,7 @@ static diff compare(const sl_image *img, const sl_image *ref, const sl_render_st
             for (int c = 0; c < 3; c++) {
                 d.finite &= isfinite(a[c]) && a[c] >= 0;
                 double e = (double)a[c] - b[c];
-                s += e, s2 += e * e, m += b[c];
+                s += e, s2 += e * e, m += b[c], m2 += (double)b[c] * b[c];
                 d.n++;
             }
         }
@@ -92,6 +91,7 @@ static diff compare(const sl_image *img, const sl_image *ref, const sl_render_st
     d.rmse = sqrt(s2 / d.n);
     d.se = sqrt(fmax(0.0, s2 / d.n - d.bias * d.bias) / (d.n - 1));
     d.mean = m / d.n;
+    d.rms = sqrt(m2 / d.n);
     return d;
 }
 
@@ -106,8 +106,10 @@ static void check_case(const sl_image *env, const cut_case *c)
     int64_t ball = rs.closed_form.exact_pixels;
     CHECK(ball > 1000);
 
-    /* (a) Sun exact, the rest sampled: unbiased, within its own error. */
-    render(&s, 256, 1, &cut, &cs);
+    /* (a) Sun exact, the rest sampled: unbiased, within its own error
+     * (fewer samples under sanitizers: the limit follows the standard error). */
+    int64_t spp = sl_test_sanitized() ? 64 : 256;
+    render(&s, spp, 1, &cut, &cs);
     CHECK(cs.closed_form.cut_by_time);
     /* Row 0 (the limit) is finished: its pixels exact, every other one cut. */
     CHECK_MSG(cs.closed_form.sun_exact_pixels + cs.closed_form.exact_pixels == ball &&
@@ -115,23 +117,27 @@ static void check_case(const sl_image *env, const cut_case *c)
               "%s: %lld sun-exact, %lld exact, %lld cut pixels, %lld on the ball", c->name,
               (long long)cs.closed_form.sun_exact_pixels, (long long)cs.closed_form.exact_pixels,
               (long long)cs.closed_form.cut_pixels, (long long)ball);
-    diff a = compare(&cut, &ref, &rs);
+    diff a = compare(&cut, &ref);
     CHECK(a.finite);
-    printf("  %s: sun exact + rest at 256 spp: bias %.4f%% (se %.4f%%), rel RMSE %.3f%%, estimate %.3f%%\n",
-           c->name, 100 * a.bias / a.mean, 100 * a.se / a.mean, 100 * a.rmse / a.mean,
+    printf("  %s: sun exact + rest at %lld spp: bias %.4f%% (se %.4f%%), rel RMSE %.3f%% (over the RMS, as "
+           "the estimate: %.3f%%; estimate %.3f%%)\n",
+           c->name, (long long)spp, 100 * a.bias / a.mean, 100 * a.se / a.mean, 100 * a.rmse / a.mean,
+           100 * a.rmse / a.rms,
            100 * cs.passes[cs.pass_count - 1].est_rel_rmse);
     /* The uncut closed form's own error is ~0.1% (its estimate 1%, glossy.c). */
     CHECK_MSG(fabs(a.bias) <= 4 * a.se + 1e-3 * a.mean, "%s: bias %g, se %g", c->name, a.bias, a.se);
     double est = cs.passes[cs.pass_count - 1].est_rel_rmse;
-    CHECK_MSG(a.rmse / a.mean < 2.0 * est + 2e-3, "%s: rel RMSE %g above the estimate %g", c->name,
-              a.rmse / a.mean, est);
+    /* The estimate's normalisation (RMS over RMS); the reference's own
+     * error (~0.1-0.3%) comes on top. */
+    CHECK_MSG(a.rmse / a.rms < 1.5 * est + 3e-3, "%s: rel RMSE %g above the estimate %g", c->name,
+              a.rmse / a.rms, est);
 
     /* (b) At equal spp the whole map's sampler carries the sun's variance. */
     sl_image_free(&cut);
     sl_render_stats_free(&cs);
     render(&s, 16, 1, &cut, &cs);
     render(&s, 16, -1, &whole, &ws);
-    diff b = compare(&cut, &ref, &rs), o = compare(&whole, &ref, &rs);
+    diff b = compare(&cut, &ref), o = compare(&whole, &ref);
     printf("  %s at 16 spp: rest sampled %.3f%%, whole map sampled %.3f%%: %.1fx\n", c->name,
            100 * b.rmse / b.mean, 100 * o.rmse / o.mean, o.rmse / b.rmse);
     CHECK_MSG(o.rmse > 4.0 * b.rmse, "%s: whole map %g vs rest %g", c->name, o.rmse, b.rmse);
