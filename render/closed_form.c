@@ -37,6 +37,7 @@ void sl_closed_form_free(sl_closed_form *cf)
     if (cf->gdome)
         sl_glossy_dome_free(cf->gdome);
     free(cf->gdome);
+    sl_dome_free(&cf->rest_dome);
     sl_irradiance_free(cf->ir);
     free(cf->mode);
     free(cf->shape);
@@ -632,14 +633,32 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         st->cut_pixels += j.row_late[y];
         st->cut_by_time |= j.row_late[y] > 0;
     }
+    bool sun_only = false;
     for (int y = 0; y < cam->height; y++)
         if (j.row_cut[y]) {
-            uint8_t *row = cf->mode + (size_t)y * (size_t)cam->width;
-            for (int x = 0; x < cam->width; x++)
-                st->cut_pixels += row[x] != SL_PIXEL_SAMPLED;
-            memset(row, SL_PIXEL_SAMPLED, (size_t)cam->width);
+            /* Glossy pixels keep what the fill gave them in a cut row: all
+             * (the blocks had their rest) or their sun, the rest sampled. */
+            for (int x = 0; x < cam->width; x++) {
+                size_t pix = (size_t)y * (size_t)cam->width + (size_t)x;
+                int gs = j.glossy.state[pix];
+                bool keep = cf->mode[pix] == SL_PIXEL_SUN ||
+                            (cf->mode[pix] == SL_PIXEL_EXACT && (gs == SL_GLOSSY_DONE || gs == SL_GLOSSY_INTERPOLATED));
+                if (keep)
+                    for (int c = 0; c < 3; c++)
+                        cf->value[pix][c] = (float)j.centre[pix][c];
+                else if (cf->mode[pix] != SL_PIXEL_SAMPLED)
+                    cf->mode[pix] = SL_PIXEL_SAMPLED, st->cut_pixels++;
+                st->cut_pixels += cf->mode[pix] == SL_PIXEL_SUN;
+                st->sun_exact_pixels += cf->mode[pix] == SL_PIXEL_SUN;
+                sun_only |= cf->mode[pix] == SL_PIXEL_SUN;
+            }
             st->cut_by_time = true;
         }
+    if (sun_only && (res = sl_dome_init_like(&cf->rest_dome, &scene->dome, &cf->gdome->rest_dome.image, err))) {
+        plan_job_free(&j);
+        sl_closed_form_free(cf);
+        return res;
+    }
     st->used = true;
     st->tolerance = cf->tol;
     sl_closed_form_count_lights(scene, &st->lights_exact, &st->lights_sampled);
@@ -652,10 +671,10 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     st->sampled_pixels = 0;
     for (size_t i = 0; i < npix; i++) {
         int m = cf->mode[i];
-        st->sampled_pixels += m == SL_PIXEL_SAMPLED;
+        st->sampled_pixels += m == SL_PIXEL_SAMPLED || m == SL_PIXEL_SUN;
         st->exact_pixels += m == SL_PIXEL_EXACT;
         st->control_variate_pixels += m == SL_PIXEL_CONTROL;
-        if (m == SL_PIXEL_SAMPLED)
+        if (m == SL_PIXEL_SAMPLED || m == SL_PIXEL_SUN)
             continue;
         int k = 0;
         while (k < st->object_count && st->objects[k] != cf->shape[i])

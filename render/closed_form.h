@@ -9,7 +9,9 @@
 #include "setlight/render.h"
 
 typedef struct sl_closed_form sl_closed_form;
-enum { SL_PIXEL_SAMPLED = 0, SL_PIXEL_EXACT, SL_PIXEL_CONTROL };
+/* SL_PIXEL_SUN: a glossy pixel the --time plan cut, its sun exact (value,
+ * bound) and the rest of the map sampled from rest_dome. */
+enum { SL_PIXEL_SAMPLED = 0, SL_PIXEL_EXACT, SL_PIXEL_CONTROL, SL_PIXEL_SUN };
 struct sl_closed_form {
     sl_irradiance *ir;
     double tol;
@@ -20,6 +22,8 @@ struct sl_closed_form {
     struct sl_glossy_material *gmat; /* per scene material: the glossy tables */
     struct sl_glossy_dome *gdome;    /* the dome's sun and rest, for glossy pixel centres */
     int gmat_count;
+    sl_dome rest_dome; /* the map without its sun, with its sampling tables
+                          (present when some pixel is SL_PIXEL_SUN) */
 };
 
 /* Decides per pixel what is exact, what is a control variate and what is

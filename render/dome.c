@@ -125,6 +125,65 @@ void sl_dome_free(sl_dome *dome)
     memset(dome, 0, sizeof *dome);
 }
 
+/* The sampling tables of dome->image (RGB, sanitised); frees the dome on
+ * failure. */
+static sl_result build_sampler(sl_dome *dome, const char *name, sl_error *err)
+{
+    int w = dome->image.width, h = dome->image.height;
+    double *func = malloc((size_t)w * (size_t)h * sizeof *func);
+    dome->sampler = calloc(1, sizeof *dome->sampler);
+    if (!func || !dome->sampler) {
+        free(func);
+        sl_dome_free(dome);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for the dome distribution", name);
+    }
+    bool any = false;
+    for (int y = 0; y < h; y++) {
+        double st = sin(SL_PI * (y + 0.5) / h);
+        for (int x = 0; x < w; x++) {
+            const float *t = sl_image_pixel(&dome->image, x, y);
+            double c[3] = {t[0], t[1], t[2]};
+            /* The largest channel keeps the pdf positive wherever radiance is. */
+            double lum = fmax(luminance709(c), fmax(c[0], fmax(c[1], c[2])) * 1e-3);
+            func[(size_t)y * w + x] = lum * st;
+            any = any || lum > 0;
+        }
+    }
+    sl_result r = sl_distrib2d_init(&dome->sampler->dist, func, w, h, err);
+    free(func);
+    if (r) {
+        sl_dome_free(dome);
+        return r;
+    }
+    dome->sampler->valid = any;
+    dome->sampler->w = w, dome->sampler->h = h;
+    dome->sampler->texels = malloc((size_t)w * (size_t)h * sizeof *dome->sampler->texels);
+    if (!dome->sampler->texels) {
+        sl_dome_free(dome);
+        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for the dome", name);
+    }
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            const float *t = sl_image_pixel(&dome->image, x, y);
+            float *d = dome->sampler->texels[(size_t)y * w + x];
+            d[0] = t[0], d[1] = t[1], d[2] = t[2];
+            d[3] = (float)sl_distrib2d_pdf(&dome->sampler->dist, (x + 0.5) / w, (y + 0.5) / h);
+        }
+    return SL_OK;
+}
+
+sl_result sl_dome_init_like(sl_dome *out, const sl_dome *like, const sl_image *rgb, sl_error *err)
+{
+    memset(out, 0, sizeof *out);
+    sl_result r = sl_image_copy(rgb, &out->image, err);
+    if (r || (r = build_sampler(out, "render", err)))
+        return r;
+    memcpy(out->rot, like->rot, sizeof out->rot);
+    out->intensity = like->intensity;
+    out->present = true;
+    return SL_OK;
+}
+
 sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotation_deg,
                             double intensity, const char *source, sl_error *err)
 {
@@ -163,45 +222,8 @@ sl_result sl_scene_set_dome(sl_scene *scene, const sl_image *env, double rotatio
                 d[c] = v;
             }
         }
-    double *func = malloc((size_t)w * (size_t)h * sizeof *func);
-    dome->sampler = calloc(1, sizeof *dome->sampler);
-    if (!func || !dome->sampler) {
-        free(func);
-        sl_dome_free(dome);
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for the dome distribution", name);
-    }
-    bool any = false;
-    for (int y = 0; y < h; y++) {
-        double st = sin(SL_PI * (y + 0.5) / h);
-        for (int x = 0; x < w; x++) {
-            const float *t = sl_image_pixel(&dome->image, x, y);
-            double c[3] = {t[0], t[1], t[2]};
-            /* The largest channel keeps the pdf positive wherever radiance is. */
-            double lum = fmax(luminance709(c), fmax(c[0], fmax(c[1], c[2])) * 1e-3);
-            func[(size_t)y * w + x] = lum * st;
-            any = any || lum > 0;
-        }
-    }
-    r = sl_distrib2d_init(&dome->sampler->dist, func, w, h, err);
-    free(func);
-    if (r) {
-        sl_dome_free(dome);
+    if ((r = build_sampler(dome, name, err)))
         return r;
-    }
-    dome->sampler->valid = any;
-    dome->sampler->w = w, dome->sampler->h = h;
-    dome->sampler->texels = malloc((size_t)w * (size_t)h * sizeof *dome->sampler->texels);
-    if (!dome->sampler->texels) {
-        sl_dome_free(dome);
-        return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for the dome", name);
-    }
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            const float *t = sl_image_pixel(&dome->image, x, y);
-            float *d = dome->sampler->texels[(size_t)y * w + x];
-            d[0] = t[0], d[1] = t[1], d[2] = t[2];
-            d[3] = (float)sl_distrib2d_pdf(&dome->sampler->dist, (x + 0.5) / w, (y + 0.5) / h);
-        }
     sl_rotation_y(rotation_deg, dome->rot);
     dome->intensity = intensity;
     dome->present = true;

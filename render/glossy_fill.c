@@ -40,6 +40,10 @@
 #define REST_SHARE 0.5
 #define INTERP_SHARE 0.25
 #define SUN_SHARE 0.25
+/* Before the rest is known, the sun is refined against this share of the
+ * rest's mean radiance. */
+#define SUN_FLOOR_SHARE 0.25
+#define SUN_PASS_TOL 1e-2
 #define LAMBERT_REST_SHARE 0.5
 #define LAMBERT_INTERP_SHARE 0.25
 /* Rows per band of the Lambert fill: each band is finished (its rest over
@@ -175,6 +179,10 @@ typedef struct fill_job {
     uint8_t *need;    /* per pixel: its rest to be evaluated in this pass */
     uint8_t *rest_state; /* 0 unknown, 1 evaluated, 2 interpolated */
     double (*rest)[3], (*rest_err)[3];
+    double (*sun)[3], (*sun_err)[3]; /* glossy pixels: their sun, before the rest */
+    uint8_t *sun_state;              /* 1: sun evaluated at sun_floor's scale */
+    double sun_floor[3];             /* the sun pass's refinement scale (the rest unknown yet) */
+    double sun_tol;                  /* the sun pass's tolerance */
     sl_glossy_scratch **scratch; /* per worker */
     int workers;
     bool failed;      /* no memory for a scratch: the rows are left to sampling */
@@ -220,6 +228,8 @@ static void rest_rows(void *ctx, int64_t begin, int64_t end, int worker)
     fill_job *j = ctx;
     sl_glossy_scratch *s = scratch_for(j, worker);
     for (int64_t y = begin; y < end; y++) {
+        if (j->row_limit > 0 && y >= j->row_limit)
+            j->row_cut[y] = 1; /* tests: cut before the rest's plan reaches it */
         if (j->row_cut[y])
             continue;
         for (int x = 0; x < j->w; x++) {
@@ -332,6 +342,33 @@ static bool try_block(fill_job *j, const block *b, int S)
     return true;
 }
 
+/* The sun at every glossy pixel, first: a --time cut then leaves each one
+ * its exact sun and only the rest to sample. The rest is not known yet, so
+ * the refinement is scaled by a quarter of the rest's mean radiance
+ * (sun_floor); finish_rows refines again where the pixel's own rest asks
+ * for more. Never cut: the sun is a few cells per pixel. */
+static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    fill_job *j = ctx;
+    const sl_glossy_dome *gd = j->cf->gdome;
+    sl_glossy_scratch *s = scratch_for(j, worker);
+    if (!s) {
+        j->failed = true;
+        return;
+    }
+    for (int64_t y = begin; y < end; y++)
+        for (int x = 0; x < j->w; x++) {
+            size_t pix = (size_t)y * j->w + x;
+            if (j->px->state[pix] != SL_GLOSSY_PENDING || lambert_at(j, pix))
+                continue;
+            sl_quad q = {.tol = SUN_SHARE * j->sun_tol, .floor = j->sun_floor, .start_cells = gd->sun_cells,
+                         .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
+            sl_glossy_integrate(gd->sun, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s, j->sun[pix],
+                                j->sun_err[pix], &j->row_cost[y]);
+            j->sun_state[pix] = 1;
+        }
+}
+
 /* Each row in full, in image order: the rest at every pixel no block
  * interpolated, then the sun at every pixel, and the pixel's totals. A
  * --time cut then leaves the rows finished before it exact, and only the
@@ -365,7 +402,12 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 floor[c] = j->rest[pix][c] + lights[c];
             sl_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = floor, .start_cells = gd->sun_cells,
                          .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
-            if (gd->sun && lambert)
+            bool reuse = j->sun_state[pix];
+            for (int c = 0; c < 3 && reuse; c++)
+                reuse = j->sun_err[pix][c] <= q.tol * (floor[c] + j->sun[pix][c]);
+            if (reuse)
+                memcpy(sun, j->sun[pix], sizeof sun), memcpy(serr, j->sun_err[pix], sizeof serr);
+            else if (gd->sun && lambert)
                 sl_irradiance_integrate(gd->sun, j->px->n[pix], &q, sun, serr, &j->row_cost[y]);
             else if (gd->sun)
                 sl_glossy_integrate(gd->sun, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
@@ -424,6 +466,48 @@ static sl_result finish_bands(fill_job *j, sl_error *err)
     return res;
 }
 
+/* The map's mean radiance per channel (intensity applied). */
+static void rest_mean(const sl_irradiance *ir, double out[3])
+{
+    double rot[3][3], intensity;
+    int top = sl_irradiance_top_level(ir), tw, th;
+    sl_irradiance_frame(ir, rot, &intensity);
+    sl_irradiance_level_size(ir, top, &tw, &th);
+    out[0] = out[1] = out[2] = 0;
+    for (int y = 0; y < th; y++)
+        for (int x = 0; x < tw; x++) {
+            sl_dome_cell c;
+            sl_irradiance_cell(ir, top, x, y, &c);
+            for (int k = 0; k < 3; k++)
+                out[k] += c.p[k] * intensity / (4.0 * SL_PI);
+        }
+}
+
+/* The glossy pixels of the rows a --time cut left: where the blocks gave
+ * the rest too the pixel is exact; else its sun is exact and the rest of
+ * the map is left to sampling (SL_PIXEL_SUN, value the sun, bound its
+ * error estimate). */
+static void keep_cut_suns(fill_job *j)
+{
+    for (int y = 0; y < j->h; y++)
+        for (int x = 0; x < j->w && j->row_cut[y]; x++) {
+            size_t pix = (size_t)y * j->w + x;
+            /* A control variate's sun may be shadowed: it stays sampled. */
+            if (j->px->state[pix] != SL_GLOSSY_PENDING || !j->sun_state[pix] ||
+                j->cf->mode[pix] != SL_PIXEL_EXACT)
+                continue;
+            bool rest = j->rest_state[pix] != 0;
+            for (int c = 0; c < 3; c++) {
+                j->px->value[pix][c] = j->sun[pix][c] + (rest ? j->rest[pix][c] : 0.0);
+                j->cf->bound[pix][c] = (float)(j->sun_err[pix][c] + (rest ? j->rest_err[pix][c] : 0.0));
+            }
+            if (rest)
+                j->px->state[pix] = j->rest_state[pix] == 2 ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
+            else
+                j->cf->mode[pix] = SL_PIXEL_SUN;
+        }
+}
+
 sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px,
                          int w, int h, sl_irradiance_cost *row_cost, double deadline,
                          int row_limit, uint8_t *row_cut, sl_error *err)
@@ -437,13 +521,26 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
     j.rest_state = calloc(npix, 1);
     j.rest = malloc(npix * sizeof *j.rest);
     j.rest_err = malloc(npix * sizeof *j.rest_err);
+    j.sun = malloc(npix * sizeof *j.sun);
+    j.sun_err = malloc(npix * sizeof *j.sun_err);
+    j.sun_state = calloc(npix, 1);
     /* At most every 2 x 2 block at once. */
     size_t nblocks = ((size_t)w / 2 + 1) * ((size_t)h / 2 + 1);
     block *cur = malloc(nblocks * sizeof *cur), *next = malloc(nblocks * sizeof *next);
     sl_result res = SL_OK;
-    if (!j.scratch || !j.need || !j.rest_state || !j.rest || !j.rest_err || !cur || !next) {
+    if (!j.scratch || !j.need || !j.rest_state || !j.rest || !j.rest_err || !j.sun || !j.sun_err ||
+        !j.sun_state || !cur || !next) {
         res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the glossy pixels");
         goto done;
+    }
+    if (cf->gdome->sun) {
+        rest_mean(cf->gdome->rest, j.sun_floor);
+        for (int c = 0; c < 3; c++)
+            j.sun_floor[c] *= SUN_FLOOR_SHARE;
+        /* Under a deadline every pixel's sun first at no finer than the
+         * default tolerance: a finished row refines it to its own. */
+        j.sun_tol = isfinite(deadline) ? fmax(cf->tol, SUN_PASS_TOL) : cf->tol;
+        sl_parallel_for(h, 1, sun_rows, &j);
     }
     int ncur = 0;
     for (int y = 0; y < h; y += BLOCK0)
@@ -479,6 +576,8 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
     }
     j.need = (free(j.need), NULL);
     res = finish_bands(&j, err);
+    if (!res && cf->gdome->sun)
+        keep_cut_suns(&j);
 done:
     for (int i = 0; j.scratch && i < j.workers; i++)
         sl_glossy_scratch_free(j.scratch[i]);
@@ -487,6 +586,9 @@ done:
     free(j.rest_state);
     free(j.rest);
     free(j.rest_err);
+    free(j.sun);
+    free(j.sun_err);
+    free(j.sun_state);
     free(cur);
     free(next);
     return res;

@@ -92,15 +92,15 @@ static double light_weight(const sl_integrator *it, int i, uint64_t unsampled, b
 }
 
 /* The dome's radiance a BSDF ray finds in direction d, and its MIS weight. */
-static double dome_emission(const sl_integrator *it, const double d[3], bool prev_delta,
-                            double prev_pdf, double Le[3])
+static double dome_emission(const sl_integrator *it, const sl_dome *dome, const double d[3],
+                            bool prev_delta, double prev_pdf, double Le[3])
 {
-    if (!it->dome_sampling) {
-        sl_dome_radiance(&it->scene->dome, d, Le);
+    if (!sl_dome_can_sample(dome) || !it->dome_sampling) {
+        sl_dome_radiance(dome, d, Le);
         return 1.0;
     }
     double pdf;
-    sl_dome_radiance_pdf(&it->scene->dome, d, Le, &pdf);
+    sl_dome_radiance_pdf(dome, d, Le, &pdf);
     return emission_weight(it, prev_delta, prev_pdf, pdf);
 }
 
@@ -117,7 +117,7 @@ static void cv_take_off_hidden(const sl_integrator *it, const double o[3], const
     if (isinf(tfirst))
         return; /* nothing in the way */
     if (scene->dome.present) {
-        double Ld[3], w = dome_emission(it, d, prev_delta, prev_pdf, Ld);
+        double Ld[3], w = dome_emission(it, &scene->dome, d, prev_delta, prev_pdf, Ld);
         for (int k = 0; k < 3; k++)
             L[k] -= beta[k] * w * Ld[k];
     }
@@ -153,13 +153,19 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
     /* Control variate (closed_form.c): the pixel's closed form holds the
      * dome's unshadowed light on its object, so at that object's camera
      * vertex only shadowed directions are sampled, with a minus sign. */
-    int cv_shape = -1;
+    int cv_shape = -1, sun_shape = -1;
     bool cv_vertex = false, cv_prev = false, cv_hit = false;
     double org0[3], dir0[3];
+    /* Sun exact (closed_form.c): at the object's camera vertex the dome is
+     * the map without its sun, for the light samples and for the emission
+     * its BSDF ray finds, so the sun is never counted twice. */
+    const sl_dome *dome = &scene->dome, *prev_dome = dome;
     if (it->cf) {
         size_t pix = (size_t)py * (size_t)cam->width + (size_t)px;
         if (it->cf->mode[pix] == SL_PIXEL_CONTROL)
             cv_shape = it->cf->shape[pix];
+        if (it->cf->mode[pix] == SL_PIXEL_SUN)
+            sun_shape = it->cf->shape[pix];
         v3_copy(org0, org);
         v3_copy(dir0, dir);
     }
@@ -216,7 +222,7 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
             }
             if (cv_prev)
                 break; /* unshadowed: in the closed form */
-            double w = dome_emission(it, dir, prev_delta, prev_pdf, Le);
+            double w = dome_emission(it, prev_dome, dir, prev_delta, prev_pdf, Le);
             for (int k = 0; k < 3; k++)
                 L[k] += beta[k] * w * Le[k];
             break;
@@ -224,6 +230,8 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         if (vertex == 0) {
             rgba[3] = 1;
             cv_vertex = cv_hit = hit.shape == cv_shape;
+            if (hit.shape == sun_shape)
+                dome = &it->cf->rest_dome;
         }
         const sl_material *m = &scene->materials[scene->shapes[hit.shape].material];
         bool delta = sl_bsdf_is_delta(m);
@@ -246,9 +254,9 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         u_bsdf[2] = sl_sampler_1d(s);
         double u_rr = sl_sampler_1d(s);
 
-        if (!delta && it->dome_sampling) {
+        if (!delta && it->dome_sampling && sl_dome_can_sample(dome)) {
             double wi[3], Le[3], pdf_l, pdf_mis;
-            if (sl_dome_sample(&scene->dome, u_light, wi, Le, &pdf_l, &pdf_mis)) {
+            if (sl_dome_sample(dome, u_light, wi, Le, &pdf_l, &pdf_mis)) {
                 double wil[3], f[3];
                 frame_to_local(&fr, wi, wil);
                 if (wil[2] > 0 && (Le[0] > 0 || Le[1] > 0 || Le[2] > 0))
@@ -370,6 +378,8 @@ void sl_integrate_sample(const sl_integrator *it, sl_sampler *s, int px, int py,
         }
         cv_prev = cv_vertex;
         cv_vertex = false;
+        prev_dome = dome;
+        dome = &scene->dome;
         prev_delta = bs.delta;
         prev_pdf = bs.pdf;
         prev_unsampled = unsampled;

@@ -118,7 +118,7 @@ static void render_rows(void *ctx, int64_t begin, int64_t end, int worker)
 }
 
 /* The image is the mean of the halves, plus the closed-form value of
- * exact and control-variate pixels, and the estimated relative RMSE, which
+ * exact, control-variate and sun-exact pixels, and the estimated relative RMSE, which
  * counts each exact or control-variate pixel's proven bound as error too;
  * var_px gets each pixel's squared noise estimate sum_c ((A - B)/2)^2 (the
  * bound left out: sampling cannot lower it), and *mean_m2 the mean over
@@ -138,7 +138,7 @@ static void resolve(const double *sa, const double *sb, const uint32_t *n_px,
                 double a = sa[i + k] * inv, b = sb[i + k] * inv, m = 0.5 * (a + b);
                 if (mode == SL_PIXEL_EXACT)
                     a = b = m = k < 3 ? cf->value[px][k] : 1.0;
-                else if (mode == SL_PIXEL_CONTROL && k < 3)
+                else if ((mode == SL_PIXEL_CONTROL || mode == SL_PIXEL_SUN) && k < 3)
                     m += cf->value[px][k];
                 /* A control variate's noise may dip below zero: never written. */
                 p[k] = (float)fmax(0.0, m);

@@ -48,6 +48,9 @@ double sl_dome_pdf(const sl_dome *dome, const double wi[3]);
 /* Radiance and the MIS pdf at once (one lookup); only when sl_dome_can_sample. */
 void sl_dome_radiance_pdf(const sl_dome *dome, const double d[3], double L[3], double *pdf);
 void sl_dome_free(sl_dome *dome);
+/* A dome of map rgb (RGB, sanitised, like's size) with like's rotation and
+ * intensity and its own sampling tables (the glossy pixels' rest map). */
+sl_result sl_dome_init_like(sl_dome *out, const sl_dome *like, const sl_image *rgb, sl_error *err);
 
 /* ---- lights (lights.c) ---- */
 /* Samples a direction toward the light from p; dist is the distance to the

@@ -22,7 +22,7 @@ static void level_words(int k, char *buf, size_t size)
 
 const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, size_t size)
 {
-    char top[48], fine[48], lights[96] = "", cut[256] = "";
+    char top[48], fine[48], lights[96] = "", cut[352] = "";
     size_t n = 0;
     if (st->evaluations > 0 && st->cells > 0) {
         level_words(st->top_level, top, sizeof top);
@@ -41,9 +41,10 @@ const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, s
     if (st->cut_by_time)
         snprintf(cut, sizeof cut,
                  "; --time ran out while planning: %lld of %lld closed-form pixels refined to the "
-                 "tolerance (the others keep a coarser value and its bound), %lld left to sampling",
+                 "tolerance (the others keep a coarser value and its bound), %lld left to sampling (%lld "
+                 "of them glossy with the sun exact, the rest of the map sampled)",
                  (long long)st->at_tolerance_pixels, (long long)(st->exact_pixels + st->control_variate_pixels),
-                 (long long)st->cut_pixels);
+                 (long long)st->cut_pixels, (long long)st->sun_exact_pixels);
     if (n < size)
         snprintf(buf + n, size - n, "%s%s", lights, cut);
     return buf;
@@ -121,6 +122,7 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "lights_sampled", json_integer(cf->lights_sampled));
     json_object_set_new(jc, "cut_by_time", json_boolean(cf->cut_by_time));
     json_object_set_new(jc, "cut_pixels", json_integer(cf->cut_pixels));
+    json_object_set_new(jc, "sun_exact_pixels", json_integer(cf->sun_exact_pixels));
     char words[512];
     json_object_set_new(jc, "summary", json_string(sl_closed_form_describe(cf, words, sizeof words)));
     json_object_set_new(jc, "seconds", json_real(cf->seconds));

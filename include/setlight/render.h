@@ -295,8 +295,10 @@ typedef struct sl_render_options {
     void (*on_pass)(void *ctx, const struct sl_render_pass *pass);
     void *on_pass_ctx;
     /* Tests: the plan's per-pixel pass stops at this image row, as if --time
-     * ran out there (rows from it on are sampled); 0 = no such cut. A
-     * deterministic stand-in for the deadline. */
+     * ran out there before the rest's plan reached it (rows from it on are
+     * sampled; their glossy pixels keep their sun exact and sample the rest
+     * of the map); 0 = no such cut. A deterministic stand-in for the
+     * deadline. */
     int plan_row_limit;
     /* Tests: the Lambert fill's refinement stops after this many
      * evaluations past its first pass, as if --time ran out there; 0 = no
@@ -334,6 +336,8 @@ typedef struct sl_closed_form_stats {
     int64_t cut_pixels;          /* pixels the plan would have made exact or control
                                     variates, sampled because of that cut (glossy rows;
                                     a Lambert pixel keeps its coarser value and bound) */
+    int64_t sun_exact_pixels;    /* glossy pixels a cut left with their sun exact and the
+                                    rest of the map sampled (at the render's spp) */
     int64_t at_tolerance_pixels; /* closed-form pixels refined to the tolerance (the
                                     others: a cut left their interpolation coarser) */
     double rms_rel_bound;        /* RMS over closed-form pixels of the relative bound */
