@@ -118,23 +118,6 @@ bool sl_fill_check(const double v[9][3], const double e[9][3], double tol, doubl
 /* Bilinear interpolation of corners v (as above) at (fx, fy) in [0, 1]^2. */
 void sl_fill_bilinear(const double v[4][3], double fx, double fy, double out[3]);
 
-/* The rest of the map's irradiance at Lambert pixels interpolated over the
- * sphere of normals (normal_fill.c): the quadrature's bound quad_tol, the
- * interpolation check's tolerance interp_tol. The grid keeps the points it
- * has evaluated across calls. */
-typedef struct sl_normal_grid sl_normal_grid;
-sl_result sl_normal_grid_new(const sl_irradiance *rest, double quad_tol, double interp_tol,
-                             sl_normal_grid **out, sl_error *err);
-void sl_normal_grid_free(sl_normal_grid *g);
-/* At count pixels (indices pix, their world normals in n[pix]): fills out,
- * out_err and interpolated (1) of the pixels it interpolates, sets
- * interpolated 0 for the others (the caller evaluates them; so are those
- * whose points the deadline left unevaluated). A pixel's result depends on
- * its normal alone. Costs added to cost. */
-sl_result sl_normal_grid_fill(sl_normal_grid *g, const double (*n)[3], const size_t *pix, int64_t count,
-                              double (*out)[3], double (*out_err)[3], uint8_t *interpolated,
-                              double deadline, sl_irradiance_cost *cost, sl_error *err);
-
 /* closed_form.c: the closed-form radiance of a shape toward the viewer wo,
  * Lambert (irradiance) or glossy. */
 void sl_closed_form_radiance_view(const sl_closed_form *cf, const sl_scene *scene, int shape,

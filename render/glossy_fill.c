@@ -44,10 +44,7 @@
  * rest's mean radiance. */
 #define SUN_FLOOR_SHARE 0.25
 #define SUN_PASS_TOL 1e-2
-#define LAMBERT_REST_SHARE 0.5
-#define LAMBERT_INTERP_SHARE 0.25
-/* Rows per band of the Lambert fill: each band is finished (its rest over
- * normals, then its rows) before the next starts. */
+/* Rows per band: each band is finished before the next starts. */
 #define BAND_ROWS 16
 
 /* ---- the split ---- */
@@ -202,22 +199,12 @@ static const sl_glossy_material *material_of(const fill_job *j, size_t pix)
     return &j->cf->gmat[j->scene->shapes[j->cf->shape[pix]].material];
 }
 
-static bool lambert_at(const fill_job *j, size_t pix)
-{
-    return j->scene->materials[j->scene->shapes[j->cf->shape[pix]].material].type == SL_MAT_LAMBERT;
-}
-
-/* The rest: a glossy pixel's radiance, a Lambert pixel's irradiance. */
+/* The rest: the pixel's radiance from the map less its sun. */
 static void eval_rest(fill_job *j, size_t pix, sl_glossy_scratch *s, sl_irradiance_cost *cost)
 {
-    if (lambert_at(j, pix)) {
-        sl_quad q = {.tol = LAMBERT_REST_SHARE * j->cf->tol};
-        sl_irradiance_integrate(j->cf->gdome->rest, j->px->n[pix], &q, j->rest[pix], j->rest_err[pix], cost);
-    } else {
-        sl_glossy_quad q = {.tol = REST_SHARE * j->cf->tol};
-        sl_glossy_integrate(j->cf->gdome->rest, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
-                            j->rest[pix], j->rest_err[pix], cost);
-    }
+    sl_glossy_quad q = {.tol = REST_SHARE * j->cf->tol};
+    sl_glossy_integrate(j->cf->gdome->rest, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
+                        j->rest[pix], j->rest_err[pix], cost);
     j->rest_state[pix] = 1;
 }
 
@@ -254,7 +241,7 @@ typedef struct block {
  * pixel's is interpolated over normals, normal_fill.c). */
 static bool image_blocked(const fill_job *j, size_t p)
 {
-    return j->px->state[p] == SL_GLOSSY_PENDING && !lambert_at(j, p);
+    return j->px->state[p] == SL_GLOSSY_PENDING;
 }
 
 static bool pending_on(const fill_job *j, int x, int y, int shape)
@@ -359,7 +346,7 @@ static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
     for (int64_t y = begin; y < end; y++)
         for (int x = 0; x < j->w; x++) {
             size_t pix = (size_t)y * j->w + x;
-            if (j->px->state[pix] != SL_GLOSSY_PENDING || lambert_at(j, pix))
+            if (j->px->state[pix] != SL_GLOSSY_PENDING)
                 continue;
             sl_quad q = {.tol = SUN_SHARE * j->sun_tol, .floor = j->sun_floor, .start_cells = gd->sun_cells,
                          .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
@@ -393,13 +380,9 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (!j->rest_state[pix])
                 eval_rest(j, pix, s, &j->row_cost[y]);
             double sun[3] = {0, 0, 0}, serr[3] = {0, 0, 0};
-            bool lambert = lambert_at(j, pix);
-            /* A Lambert pixel comes in with its lights' irradiance and bound. */
-            double lights[3] = {0, 0, 0}, lights_err[3] = {0, 0, 0}, floor[3];
-            for (int c = 0; c < 3 && lambert; c++)
-                lights[c] = j->px->value[pix][c], lights_err[c] = j->cf->bound[pix][c];
+            double floor[3];
             for (int c = 0; c < 3; c++)
-                floor[c] = j->rest[pix][c] + lights[c];
+                floor[c] = j->rest[pix][c];
             sl_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = floor, .start_cells = gd->sun_cells,
                          .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
             bool reuse = j->sun_state[pix];
@@ -407,63 +390,27 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 reuse = j->sun_err[pix][c] <= q.tol * (floor[c] + j->sun[pix][c]);
             if (reuse)
                 memcpy(sun, j->sun[pix], sizeof sun), memcpy(serr, j->sun_err[pix], sizeof serr);
-            else if (gd->sun && lambert)
-                sl_irradiance_integrate(gd->sun, j->px->n[pix], &q, sun, serr, &j->row_cost[y]);
             else if (gd->sun)
                 sl_glossy_integrate(gd->sun, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
                                     sun, serr, &j->row_cost[y]);
-            /* Lambert: radiance rho/pi E. */
-            const double *rho = j->scene->materials[j->scene->shapes[j->cf->shape[pix]].material].base_color;
             for (int c = 0; c < 3; c++) {
-                double k = lambert ? rho[c] / SL_PI : 1.0;
-                j->px->value[pix][c] = k * (floor[c] + sun[c]);
-                j->cf->bound[pix][c] = (float)(k * (lights_err[c] + j->rest_err[pix][c] + serr[c]));
+                j->px->value[pix][c] = floor[c] + sun[c];
+                j->cf->bound[pix][c] = (float)(j->rest_err[pix][c] + serr[c]);
             }
             j->px->state[pix] = j->rest_state[pix] == 2 ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
         }
     }
 }
 
-/* Band by band in image order: the Lambert pixels' rest over normals (the
- * grid keeps its points from band to band, so the bands together cost what
- * the whole image would), then each row of the band in full. A --time cut
- * thus keeps every band finished before it. */
-static sl_result finish_bands(fill_job *j, sl_error *err)
+/* Band by band in image order, each row of a band in full: a --time cut
+ * keeps every band finished before it. */
+static void finish_bands(fill_job *j)
 {
-    size_t npix = (size_t)j->w * j->h;
-    size_t *lambert = malloc((size_t)BAND_ROWS * j->w * sizeof *lambert);
-    uint8_t *interpolated = malloc(npix);
-    sl_normal_grid *grid = NULL;
-    sl_result res = SL_OK;
-    if (!lambert || !interpolated)
-        res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the Lambert pixels");
-    for (int y0 = 0; y0 < j->h && !res; y0 += BAND_ROWS) {
+    for (int y0 = 0; y0 < j->h; y0 += BAND_ROWS) {
         int y1 = y0 + BAND_ROWS < j->h ? y0 + BAND_ROWS : j->h;
-        int64_t nl = 0;
-        for (int y = y0; y < y1; y++)
-            for (int x = 0; x < j->w && !j->row_cut[y]; x++) {
-                size_t p = (size_t)y * j->w + x;
-                if (j->px->state[p] == SL_GLOSSY_PENDING && lambert_at(j, p))
-                    lambert[nl++] = p;
-            }
-        if (nl && sl_seconds() <= j->deadline && !(j->row_limit > 0 && y0 >= j->row_limit)) {
-            if (!grid)
-                res = sl_normal_grid_new(j->cf->gdome->rest, LAMBERT_REST_SHARE * j->cf->tol,
-                                         LAMBERT_INTERP_SHARE * j->cf->tol, &grid, err);
-            if (!res)
-                res = sl_normal_grid_fill(grid, (const double(*)[3])j->px->n, lambert, nl, j->rest,
-                                          j->rest_err, interpolated, j->deadline, &j->row_cost[y0], err);
-            for (int64_t i = 0; i < nl && !res; i++)
-                j->rest_state[lambert[i]] = interpolated[lambert[i]] ? 2 : 0;
-        }
         j->row0 = y0;
-        if (!res)
-            sl_parallel_for(y1 - y0, 1, finish_rows, j);
+        sl_parallel_for(y1 - y0, 1, finish_rows, j);
     }
-    sl_normal_grid_free(grid);
-    free(lambert);
-    free(interpolated);
-    return res;
 }
 
 /* The map's mean radiance per channel (intensity applied). */
@@ -575,7 +522,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         ncur = nnext;
     }
     j.need = (free(j.need), NULL);
-    res = finish_bands(&j, err);
+    finish_bands(&j);
     if (!res && cf->gdome->sun)
         keep_cut_suns(&j);
 done:
