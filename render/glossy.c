@@ -227,7 +227,6 @@ static void add(gstate *st, const sl_dome_cell *c, point_cache *pc)
 
 static void split(gstate *st, const gcell *g)
 {
-    sl_dome_cell c;
     /* The parent's corners and (unless the map's edge clips it) its
      * centre are corners of its children. */
     point_cache pcache = {0}, *pc = &pcache;
@@ -238,25 +237,10 @@ static void split(gstate *st, const gcell *g)
         memcpy(pc->k[pc->n], g->k[i], sizeof g->k[i]);
         pc->n++;
     }
-    if (g->level > 0) {
-        int w, h;
-        sl_irradiance_level_size(st->ir, g->level - 1, &w, &h);
-        for (int j = 0; j < 2; j++)
-            for (int i = 0; i < 2; i++)
-                if (2 * g->x + i < w && 2 * g->y + j < h) {
-                    sl_irradiance_cell(st->ir, g->level - 1, 2 * g->x + i, 2 * g->y + j, &c);
-                    add(st, &c, pc);
-                }
-    } else {
-        double tm = 0.5 * (g->t0 + g->t1), am = 0.5 * (g->a + g->b);
-        const double t[3] = {g->t0, tm, g->t1}, a[3] = {g->a, am, g->b};
-        for (int j = 0; j < 2; j++)
-            for (int i = 0; i < 2; i++) {
-                sl_irradiance_piece(st->ir, g->level - 1, g->x, g->y, t[j], t[j + 1], a[i],
-                                    a[i + 1], &c);
-                add(st, &c, pc);
-            }
-    }
+    sl_dome_cell c[4];
+    int n = sl_irradiance_children(st->ir, g->level, g->x, g->y, g->t0, g->t1, g->a, g->b, c);
+    for (int i = 0; i < n; i++)
+        add(st, &c[i], pc);
     if (g->level - 1 < st->finest)
         st->finest = g->level - 1;
 }
@@ -383,12 +367,8 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
         }
     }
     scratch->kernel_calls += st->kernel_calls;
-    if (cost) {
-        cost->cells += st->cells;
-        cost->evaluations++;
-        if (st->finest < cost->finest_level)
-            cost->finest_level = st->finest;
-    }
+    if (cost)
+        sl_irradiance_cost_add(cost, 1, st->cells, st->finest);
 }
 
 void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double n[3],

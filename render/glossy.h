@@ -32,6 +32,17 @@ void sl_irradiance_level_size(const sl_irradiance *ir, int k, int *w, int *h);
 void sl_irradiance_cell(const sl_irradiance *ir, int k, int x, int y, sl_dome_cell *c);
 void sl_irradiance_piece(const sl_irradiance *ir, int level, int x, int y, double t0, double t1,
                          double a, double b, sl_dome_cell *c);
+/* The cells a cell splits into (a block's four, fewer at the map's edge;
+ * a texel's or a piece's four quarters, its geometry t0, t1, a, b), in
+ * row order; returns their count. */
+int sl_irradiance_children(const sl_irradiance *ir, int level, int x, int y, double t0, double t1, double a,
+                           double b, sl_dome_cell out[4]);
+/* The irradiance quadrature's share of cell c at normal n (map frame),
+ * max(0, n.w) integrated over it: -1 wholly below the horizon (all 0), 1
+ * wholly above (exactly n.V), 0 cut by it; lower <= exact <= upper per
+ * channel, est between them (intensity not applied). */
+int sl_irradiance_cell_share(const double n[3], const sl_dome_cell *c, double lower[3], double est[3],
+                             double upper[3]);
 
 /* A material the glossy quadrature integrates: a rough (not delta)
  * conductor or plastic. */
@@ -111,10 +122,11 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
  * at a block's corners (top left, top right, bottom left, bottom right),
  * edge midpoints (top, left, right, bottom) and centre. True when the
  * bilinear interpolation of the corners agrees at the other five within
- * tol x the value past slack x the points' largest error; err is then the
- * interpolated values' error (that largest error plus the largest
- * difference). */
-bool sl_fill_check(const double v[9][3], const double e[9][3], double tol, double slack, double err[3]);
+ * tol x the point's scale (NULL: its value) past slack x the points'
+ * largest error; err is then the interpolated values' error (that largest
+ * error plus the largest difference). */
+bool sl_fill_check(const double v[9][3], const double e[9][3], const double (*scale)[3], double tol, double slack,
+                   double err[3]);
 /* Bilinear interpolation of corners v (as above) at (fx, fy) in [0, 1]^2. */
 void sl_fill_bilinear(const double v[4][3], double fx, double fy, double out[3]);
 

@@ -271,8 +271,11 @@ static bool block_whole(const fill_job *j, const block *b, int S)
     return true;
 }
 
-bool sl_fill_check(const double v[9][3], const double e[9][3], double tol, double slack, double err[3])
+bool sl_fill_check(const double v[9][3], const double e[9][3], const double (*scale)[3], double tol, double slack,
+                   double err[3])
 {
+    if (!scale)
+        scale = v;
     for (int c = 0; c < 3; c++) {
         /* Interpolations at the edge midpoints (top, left, right, bottom)
          * and the centre. */
@@ -287,7 +290,7 @@ bool sl_fill_check(const double v[9][3], const double e[9][3], double tol, doubl
         double d = 0;
         for (int k = 0; k < 5; k++) {
             double dk = fabs(lin[k] - v[4 + k][c]);
-            if (dk > tol * v[4 + k][c] + slack * bmax)
+            if (dk > tol * scale[4 + k][c] + slack * bmax)
                 return false;
             d = fmax(d, dk);
         }
@@ -315,7 +318,7 @@ static bool try_block(fill_job *j, const block *b, int S)
         memcpy(v[k], j->rest[p], sizeof v[k]);
         memcpy(e[k], j->rest_err[p], sizeof e[k]);
     }
-    if (!sl_fill_check(v, e, INTERP_SHARE * j->cf->tol, 2.0, bmax))
+    if (!sl_fill_check(v, e, NULL, INTERP_SHARE * j->cf->tol, 2.0, bmax))
         return false;
     for (int y = b->y0; y < b->y0 + S; y++)
         for (int x = b->x0; x < b->x0 + S; x++) {

@@ -199,6 +199,14 @@ sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error
 
 int sl_irradiance_top_level(const sl_irradiance *ir) { return ir->nlevels - 1; }
 
+void sl_irradiance_cost_add(sl_irradiance_cost *cost, int64_t evaluations, int64_t cells, int finest)
+{
+    cost->evaluations += evaluations;
+    cost->cells += cells;
+    if (evaluations > 0 && finest < cost->finest_level)
+        cost->finest_level = finest;
+}
+
 /* A cell the horizon may cut. level >= 0: block (x, y) of that mip level;
  * level < 0: a piece of texel (x, y), split -level times, at [t0, t1] x [a, b]. */
 typedef struct cut_cell {
@@ -217,15 +225,14 @@ typedef struct eval_state {
     int heap[HEAP_CAP];
     int free_list[HEAP_CAP];
     sl_slot_heap h;
-    double sum_mid[3], sum_bnd[3]; /* over the heap */
+    sl_open_sums sums; /* over the heap */
     int64_t cells;
     int finest;
 } eval_state;
 
 static void heap_push(eval_state *st, const cut_cell *c)
 {
-    for (int ch = 0; ch < 3; ch++)
-        st->sum_mid[ch] += c->mid[ch], st->sum_bnd[ch] += c->bnd[ch];
+    sl_open_sums_add(&st->sums, c->mid, c->bnd, 1.0);
     sl_slot_heap_push(&st->h, c);
 }
 
@@ -233,8 +240,7 @@ static cut_cell heap_pop(eval_state *st)
 {
     cut_cell top;
     sl_slot_heap_pop(&st->h, &top);
-    for (int ch = 0; ch < 3; ch++)
-        st->sum_mid[ch] -= top.mid[ch], st->sum_bnd[ch] -= top.bnd[ch];
+    sl_open_sums_add(&st->sums, top.mid, top.bnd, -1.0);
     return top;
 }
 
@@ -256,14 +262,16 @@ static double mean_positive_part(double mu, double a, double b)
            (4.0 * a * b);
 }
 
-/* Classifies a cell (sums s, centre direction c, cone radius cos/sin) and
- * adds it: exactly when wholly above or below the horizon, else as a cut
- * cell whose geometry is in *geo. */
-static void add_cell(eval_state *st, const cell_sum *s, const double c[3], double cr, double sr,
-                     bool wide, const double span[6], const cut_cell *geo)
+/* How much of a cell's light (sums v, p; centre direction c, cone radius
+ * cos/sin; span: cos, sin of the centre colatitude and longitude, and the
+ * half-widths) falls on normal n in max(0, n.w): -1 wholly below the
+ * horizon (nothing), 1 wholly above (exactly n.V: est only), 0 cut, with
+ * lower <= exact <= upper per channel and est between them. */
+static int horizon_share(const double n[3], const double (*v)[3], const double p[3], const double c[3],
+                         double cr, double sr, bool wide, const double span[6], double lower[3],
+                         double est[3], double upper[3])
 {
-    st->cells++;
-    double ca = v3_dot(st->n, c);
+    double ca = v3_dot(n, c);
     double lo = -1, hi = 1;
     if (!wide) {
         double sa = sqrt(fmax(0.0, 1.0 - ca * ca));
@@ -271,38 +279,72 @@ static void add_cell(eval_state *st, const cell_sum *s, const double c[3], doubl
         hi = ca > cr ? 1.0 : ca * cr + sa * sr;   /* cos(a - r) */
     }
     if (hi < 0)
-        return;
+        return -1;
     if (lo > 0) {
         for (int ch = 0; ch < 3; ch++)
-            st->exact[ch] += v3_dot(st->n, s->v[ch]);
-        return;
+            est[ch] = v3_dot(n, v[ch]);
+        return 1;
     }
-    cut_cell cell = *geo;
-    cell.key = 0;
     double ct = span[0], stt = span[1], cl = span[2], sl = span[3];
     double dt[3] = {ct * sl, -stt, ct * cl}, dl[3] = {stt * cl, 0, -stt * sl};
-    double ht = fabs(v3_dot(st->n, dt)) * span[4], hl = fabs(v3_dot(st->n, dl)) * span[5];
+    double ht = fabs(v3_dot(n, dt)) * span[4], hl = fabs(v3_dot(n, dl)) * span[5];
     double mu_prev = NAN, ratio = 0;
     for (int ch = 0; ch < 3; ch++) {
         /* With mu = n.V / P the mean of n.w over the cell: max(0, x) lies
          * above max(0, mu) on average (Jensen) and below its chord over
          * [lo, hi]. */
-        double A = v3_dot(st->n, s->v[ch]), P = s->p[ch];
-        double lower = A > 0 ? A : 0.0, upper = hi > lo ? hi * (A - lo * P) / (hi - lo) : lower;
-        upper = upper > lower ? upper : lower;
-        /* The estimate: n.w linear over the cell's angles (span: cos, sin
-         * of the centre colatitude and longitude, half-widths), clamped to
-         * the bounds. A texel's channels share mu: computed once. */
-        double est = 0;
+        double A = v3_dot(n, v[ch]), P = p[ch];
+        double low = A > 0 ? A : 0.0, up = hi > lo ? hi * (A - lo * P) / (hi - lo) : low;
+        up = up > low ? up : low;
+        /* The estimate: n.w linear over the cell's angles, clamped to the
+         * bounds. A texel's channels share mu: computed once. */
+        double e = 0;
         if (P > 0) {
             double mu = A / P;
             if (mu != mu_prev)
                 ratio = mean_positive_part(mu, ht, hl), mu_prev = mu;
-            est = P * ratio;
+            e = P * ratio;
         }
-        est = est < lower ? lower : est > upper ? upper : est;
-        cell.mid[ch] = est;
-        cell.bnd[ch] = upper - est > est - lower ? upper - est : est - lower;
+        est[ch] = e < low ? low : e > up ? up : e;
+        lower[ch] = low, upper[ch] = up;
+    }
+    return 0;
+}
+
+int sl_irradiance_cell_share(const double n[3], const sl_dome_cell *c, double lower[3], double est[3],
+                             double upper[3])
+{
+    double ct = c->centre[1], st = sqrt(fmax(0.0, 1.0 - ct * ct));
+    double span[6] = {ct, st, st > 0 ? c->centre[2] / st : 1.0, st > 0 ? c->centre[0] / st : 0.0,
+                      0.5 * (c->t1 - c->t0), 0.5 * (c->b - c->a)};
+    int side = horizon_share(n, (const double(*)[3])c->v, c->p, c->centre, c->cos_r, c->sin_r, c->wide, span,
+                             lower, est, upper);
+    for (int ch = 0; ch < 3 && side != 0; ch++)
+        lower[ch] = upper[ch] = est[ch] = side > 0 ? est[ch] : 0.0;
+    return side;
+}
+
+/* Classifies a cell (sums s, centre direction c, cone radius cos/sin) and
+ * adds it: exactly when wholly above or below the horizon, else as a cut
+ * cell whose geometry is in *geo. */
+static void add_cell(eval_state *st, const cell_sum *s, const double c[3], double cr, double sr,
+                     bool wide, const double span[6], const cut_cell *geo)
+{
+    st->cells++;
+    double lower[3], est[3], upper[3];
+    int side = horizon_share(st->n, (const double(*)[3])s->v, s->p, c, cr, sr, wide, span, lower, est, upper);
+    if (side < 0)
+        return;
+    if (side > 0) {
+        for (int ch = 0; ch < 3; ch++)
+            st->exact[ch] += est[ch];
+        return;
+    }
+    cut_cell cell = *geo;
+    cell.key = 0;
+    for (int ch = 0; ch < 3; ch++) {
+        cell.mid[ch] = est[ch];
+        cell.bnd[ch] = upper[ch] - est[ch] > est[ch] - lower[ch] ? upper[ch] - est[ch] : est[ch] - lower[ch];
         double key = cell.bnd[ch] * st->inv_scale[ch];
         cell.key = key > cell.key ? key : cell.key;
     }
@@ -420,8 +462,7 @@ void sl_irradiance_integrate(const sl_irradiance *ir, const double n_world[3], c
     v3_normalize(st->n);
     st->h = (sl_slot_heap){.pool = st->pool, .stride = sizeof st->pool[0], .heap = st->heap,
                            .free_list = st->free_list};
-    memset(st->sum_mid, 0, sizeof st->sum_mid);
-    memset(st->sum_bnd, 0, sizeof st->sum_bnd);
+    memset(&st->sums, 0, sizeof st->sums);
     st->cells = 0;
     st->finest = ir->nlevels - 1;
     /* The floor is in the map's units (intensity not applied). */
@@ -456,8 +497,7 @@ void sl_irradiance_integrate(const sl_irradiance *ir, const double n_world[3], c
     for (int i = 0; i < n; i++)
         first[i] = *(const cut_cell *)sl_slot_heap_at(&st->h, i);
     sl_slot_heap_clear(&st->h);
-    for (int ch = 0; ch < 3; ch++)
-        st->sum_mid[ch] = st->sum_bnd[ch] = 0;
+    memset(&st->sums, 0, sizeof st->sums);
     for (int i = 0; i < n; i++) {
         first[i].key = 0;
         for (int ch = 0; ch < 3; ch++)
@@ -468,11 +508,11 @@ void sl_irradiance_integrate(const sl_irradiance *ir, const double n_world[3], c
     while (st->h.count > 0 && st->h.count + 4 <= HEAP_CAP) {
         /* Running sums drift by rounding: recompute them now and then. */
         if (++steps % 128 == 0)
-            totals(st, st->sum_mid, st->sum_bnd);
+            totals(st, st->sums.mid, st->sums.bnd);
         double sumE[3];
         for (int ch = 0; ch < 3; ch++)
-            sumE[ch] = st->exact[ch] + st->sum_mid[ch];
-        if (bound_met(sumE, st->sum_bnd, floor, q->tol))
+            sumE[ch] = st->exact[ch] + st->sums.mid[ch];
+        if (bound_met(sumE, st->sums.bnd, floor, q->tol))
             break;
         const cut_cell *worst = sl_slot_heap_at(&st->h, 0);
         if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)
@@ -485,12 +525,8 @@ void sl_irradiance_integrate(const sl_irradiance *ir, const double n_world[3], c
         E[ch] = fmax(0.0, st->exact[ch] + E[ch]) * ir->intensity;
         bound[ch] = B[ch] * ir->intensity;
     }
-    if (cost) {
-        cost->cells += st->cells;
-        cost->evaluations++;
-        if (st->finest < cost->finest_level)
-            cost->finest_level = st->finest;
-    }
+    if (cost)
+        sl_irradiance_cost_add(cost, 1, st->cells, st->finest);
     free(st);
 }
 
@@ -544,4 +580,24 @@ void sl_irradiance_piece(const sl_irradiance *ir, int level, int x, int y, doubl
     piece_sum(ir, x, y, t0, t1, a, b, &r, &co, &s);
     dome_cell_fill(c, &r, &co, &s);
     c->level = level, c->x = x, c->y = y;
+}
+
+int sl_irradiance_children(const sl_irradiance *ir, int k, int x, int y, double t0, double t1, double a,
+                           double b, sl_dome_cell out[4])
+{
+    int n = 0;
+    if (k > 0) {
+        const level *f = &ir->lv[k - 1];
+        for (int j = 0; j < 2; j++)
+            for (int i = 0; i < 2; i++)
+                if (2 * x + i < f->w && 2 * y + j < f->h)
+                    sl_irradiance_cell(ir, k - 1, 2 * x + i, 2 * y + j, &out[n++]);
+        return n;
+    }
+    double tm = 0.5 * (t0 + t1), am = 0.5 * (a + b);
+    const double t[3] = {t0, tm, t1}, al[3] = {a, am, b};
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 2; i++)
+            sl_irradiance_piece(ir, k - 1, x, y, t[j], t[j + 1], al[i], al[i + 1], &out[n++]);
+    return n;
 }

@@ -12,6 +12,8 @@ typedef struct sl_irradiance_cost {
     int64_t evaluations, cells; /* normals evaluated, lat-long cells visited */
     int finest_level;           /* finest cell split to: mip level, < 0 inside a texel */
 } sl_irradiance_cost;
+/* Counts evaluations that visited `cells` cells, split down to level finest. */
+void sl_irradiance_cost_add(sl_irradiance_cost *cost, int64_t evaluations, int64_t cells, int finest);
 /* Mip levels of the dome's exact cell sums (intensity and rotation kept). */
 sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error *err);
 void sl_irradiance_free(sl_irradiance *ir);

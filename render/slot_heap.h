@@ -27,4 +27,15 @@ void sl_slot_heap_push(sl_slot_heap *h, const void *elem);
 /* Copies the element with the largest key out and frees its slot. */
 void sl_slot_heap_pop(sl_slot_heap *h, void *out);
 
+/* Per-channel running sums of the open cells' estimates and bounds, on
+ * which a refinement stops; sign +1 when a cell is pushed, -1 popped. */
+typedef struct sl_open_sums {
+    double mid[3], bnd[3];
+} sl_open_sums;
+static inline void sl_open_sums_add(sl_open_sums *s, const double mid[3], const double bnd[3], double sign)
+{
+    for (int c = 0; c < 3; c++)
+        s->mid[c] += sign * mid[c], s->bnd[c] += sign * bnd[c];
+}
+
 #endif
