@@ -25,6 +25,7 @@
 #include "irradiance.h"
 #include "normal_fill.h"
 #include "scene_internal.h"
+#include "shadow_fill.h"
 #include "vec3.h"
 
 #define DEFAULT_TOLERANCE 1e-2
@@ -154,6 +155,10 @@ static void plan_job_free(plan_job *j)
  * of every pixel left to sampling) always follows it. */
 #define PLAN_TIME_SHARE 0.8
 #define CONTROL_TIME_SHARE 0.4
+/* Where control variates' shadowed part is computed (fill_shadows), the
+ * Lambert fill stops here and the shadows' finer tolerance at the plan's
+ * share; they always finish, coarser past it. */
+#define SHADOW_FILL_START 0.6
 
 static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], double d[3])
 {
@@ -499,6 +504,60 @@ static sl_result fill_lambert(plan_job *j, double deadline, sl_closed_form_stats
     return SL_OK;
 }
 
+/* With no bounces, no rig light and pixel centres, a Lambert control
+ * variate's shadowed part is computed (shadow_fill.c) instead of sampled:
+ * the pixel becomes exact. Pixels the deadline leaves stay control
+ * variates. */
+static sl_result fill_shadows(plan_job *j, double deadline, sl_closed_form_stats *st, sl_error *err)
+{
+    const sl_scene *scene = j->scene;
+    sl_closed_form *cf = j->cf;
+    int w = scene->camera.width, h = scene->camera.height;
+    size_t npix = (size_t)w * h;
+    sl_shadow_pixels px = {.w = w, .h = h, .shape = cf->shape};
+    px.state = calloc(npix, 1);
+    double(*floor)[3] = malloc(npix * sizeof *floor);
+    px.S = malloc(npix * sizeof *px.S);
+    px.bound = malloc(npix * sizeof *px.bound);
+    px.floor = (const double(*)[3])floor;
+    sl_result res = SL_OK;
+    if (!px.state || !floor || !px.S || !px.bound) {
+        res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the shadowed pixels");
+        goto done;
+    }
+    for (size_t pix = 0; pix < npix; pix++) {
+        if (!j->lambert[pix] || cf->mode[pix] != SL_PIXEL_CONTROL || j->point[pix] < 0)
+            continue;
+        px.state[pix] = SL_SHADOW_PENDING;
+        memcpy(floor[pix], j->pts.E[j->point[pix]], sizeof floor[pix]);
+    }
+    sl_irradiance_cost cost = {.finest_level = sl_irradiance_top_level(cf->ir)};
+    if ((res = sl_shadow_fill(scene, cf->ir, cf->tol, &px, deadline, &cost, err)))
+        goto done;
+    st->shadow_evaluations += cost.evaluations;
+    st->shadow_cells += cost.cells;
+    for (size_t pix = 0; pix < npix; pix++) {
+        int s = px.state[pix];
+        if (s != SL_SHADOW_DONE && s != SL_SHADOW_INTERPOLATED)
+            continue;
+        const double *rho = scene->materials[scene->shapes[cf->shape[pix]].material].base_color;
+        for (int c = 0; c < 3; c++) {
+            j->centre[pix][c] = rho[c] / SL_PI * fmax(0.0, floor[pix][c] - px.S[pix][c]);
+            cf->bound[pix][c] += (float)(rho[c] / SL_PI * px.bound[pix][c]);
+        }
+        cf->mode[pix] = SL_PIXEL_EXACT;
+        st->shadow_exact_pixels++;
+        if (s == SL_SHADOW_INTERPOLATED)
+            j->glossy.state[pix] = SL_GLOSSY_INTERPOLATED;
+    }
+done:
+    free(px.state);
+    free(floor);
+    free(px.S);
+    free(px.bound);
+    return res;
+}
+
 static const char *not_applicable(const sl_scene *scene, const sl_render_options *o)
 {
     if (!o->closed_form)
@@ -605,11 +664,14 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         /* Control variates leave the shadowed part to sampling: it gets
          * the larger part of the budget. The glossy fill, after, half of
          * what is left. */
-        double until = o->time_limit > 0 ? t0 + (control ? CONTROL_TIME_SHARE : PLAN_TIME_SHARE) * o->time_limit
-                                         : INFINITY;
+        bool shadows = control && o->bounces == 0 && !scene->light_count && o->pixel_centers;
+        double share = shadows ? SHADOW_FILL_START : control ? CONTROL_TIME_SHARE : PLAN_TIME_SHARE;
+        double until = o->time_limit > 0 ? t0 + share * o->time_limit : INFINITY;
         if (pending)
             until = sl_seconds() + 0.5 * (until - sl_seconds());
         res = fill_lambert(&j, until, st, err);
+        if (!res && shadows)
+            res = fill_shadows(&j, pending ? until : j.deadline, st, err);
     }
     if (!res && pending) {
         {

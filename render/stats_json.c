@@ -123,6 +123,9 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "cut_by_time", json_boolean(cf->cut_by_time));
     json_object_set_new(jc, "cut_pixels", json_integer(cf->cut_pixels));
     json_object_set_new(jc, "sun_exact_pixels", json_integer(cf->sun_exact_pixels));
+    json_object_set_new(jc, "shadow_exact_pixels", json_integer(cf->shadow_exact_pixels));
+    json_object_set_new(jc, "shadow_evaluations", json_integer(cf->shadow_evaluations));
+    json_object_set_new(jc, "shadow_cells", json_integer(cf->shadow_cells));
     char words[512];
     json_object_set_new(jc, "summary", json_string(sl_closed_form_describe(cf, words, sizeof words)));
     json_object_set_new(jc, "seconds", json_real(cf->seconds));

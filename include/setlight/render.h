@@ -359,6 +359,10 @@ typedef struct sl_closed_form_stats {
     int64_t interpolated_pixels;
     int64_t sun_texels;
     double sun_share;
+    /* Lambert pixels other objects shadow whose shadowed part was computed
+     * (no bounces, no rig light, pixel centres), so exact instead of
+     * control variates; that quadrature's evaluations and cells. */
+    int64_t shadow_exact_pixels, shadow_evaluations, shadow_cells;
 } sl_closed_form_stats;
 
 /* What the closed form computed, in words, for logs and reports: the dome's

@@ -276,15 +276,22 @@ static void agree(const char *preset, int width, bool centres, int64_t spp, doub
     CHECK_OK(sl_render(&s, &o, &b, &sb, &err), &err);
     CHECK(!sb.closed_form.used && !strcmp(sb.closed_form.reason, "off"));
     CHECK(sa.closed_form.used);
+    if (!strcmp(preset, "shadow")) {
+        /* no bounces: at pixel centres the shadowed part is computed
+         * (shadow_fill.c), with the box filter it is sampled */
+        const sl_closed_form_stats *cf = &sa.closed_form;
+        CHECK(centres ? cf->control_variate_pixels == 0 && cf->shadow_exact_pixels > 0
+                      : cf->control_variate_pixels > 0 && cf->shadow_exact_pixels == 0);
+    }
     double diff;
     CHECK_OK(sl_relative_rmse(&a, &b, &diff, &err), &err);
     double est_b = sb.passes[sb.pass_count - 1].est_rel_rmse;
     double est_a = sa.passes[sa.pass_count - 1].est_rel_rmse;
     printf("  %s %d px%s, dome turned %g: closed form vs sampled %.3f%%; sampled's estimate %.3f%%, closed form's "
-           "%.3f%% (%lld exact, %lld control variate, %lld sampled px)\n",
+           "%.3f%% (%lld exact, %lld of them shadowed, %lld control variate, %lld sampled px)\n",
            preset, width, centres ? " (centres)" : "", rotation, 100 * diff, 100 * est_b, 100 * est_a,
-           (long long)sa.closed_form.exact_pixels, (long long)sa.closed_form.control_variate_pixels,
-           (long long)sa.closed_form.sampled_pixels);
+           (long long)sa.closed_form.exact_pixels, (long long)sa.closed_form.shadow_exact_pixels,
+           (long long)sa.closed_form.control_variate_pixels, (long long)sa.closed_form.sampled_pixels);
     /* Two independent errors: the sampled render's noise, and the closed
      * form's own (its sampled part, its proven bound: far above its true
      * error, so a quarter of it is allowed). */
@@ -306,6 +313,8 @@ static void test_agrees_with_sampling(void)
     agree("grey", 24, true, spp, 0);
     agree("grey", 24, true, spp, 90); /* the sun moves to the ball's side */
     agree("shadow", 24, false, spp, 0);
+    agree("shadow", 24, true, spp, 0);
+    agree("shadow", 24, true, spp, 120); /* the sun's shadow elsewhere on the ground */
 }
 
 /* Where the closed form does not apply, every pixel is sampled as before:
