@@ -504,17 +504,18 @@ static sl_result fill_lambert(plan_job *j, double deadline, sl_closed_form_stats
     return SL_OK;
 }
 
-/* With no bounces, no rig light and pixel centres, a Lambert control
- * variate's shadowed part is computed (shadow_fill.c) instead of sampled:
- * the pixel becomes exact. Pixels the deadline leaves stay control
- * variates. */
+/* With no bounces and no rig light, a Lambert control variate's shadowed
+ * part is computed (shadow_fill.c) instead of sampled, after the pixel
+ * filter gave its unoccluded value (with the box filter S is a box mean
+ * too): the pixel becomes exact. Pixels whose blockers are not handled
+ * stay control variates. */
 static sl_result fill_shadows(plan_job *j, double deadline, sl_closed_form_stats *st, sl_error *err)
 {
     const sl_scene *scene = j->scene;
     sl_closed_form *cf = j->cf;
     int w = scene->camera.width, h = scene->camera.height;
     size_t npix = (size_t)w * h;
-    sl_shadow_pixels px = {.w = w, .h = h, .shape = cf->shape};
+    sl_shadow_pixels px = {.w = w, .h = h, .shape = cf->shape, .box = !j->o->pixel_centers};
     px.state = calloc(npix, 1);
     double(*floor)[3] = malloc(npix * sizeof *floor);
     px.S = malloc(npix * sizeof *px.S);
@@ -542,7 +543,7 @@ static sl_result fill_shadows(plan_job *j, double deadline, sl_closed_form_stats
             continue;
         const double *rho = scene->materials[scene->shapes[cf->shape[pix]].material].base_color;
         for (int c = 0; c < 3; c++) {
-            j->centre[pix][c] = rho[c] / SL_PI * fmax(0.0, floor[pix][c] - px.S[pix][c]);
+            cf->value[pix][c] = (float)fmax(0.0, cf->value[pix][c] - rho[c] / SL_PI * px.S[pix][c]);
             cf->bound[pix][c] += (float)(rho[c] / SL_PI * px.bound[pix][c]);
         }
         cf->mode[pix] = SL_PIXEL_EXACT;
@@ -641,7 +642,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     }
     sl_parallel_for(cam->height, 1, classify_rows, &j);
     sl_result res = SL_OK;
-    bool pending = false, lambert = false, control = false;
+    bool pending = false, lambert = false, control = false, shadows = false;
     for (size_t i = 0; i < npix; i++) {
         pending |= j.glossy.state[i] == SL_GLOSSY_PENDING;
         lambert |= j.lambert[i];
@@ -664,14 +665,12 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         /* Control variates leave the shadowed part to sampling: it gets
          * the larger part of the budget. The glossy fill, after, half of
          * what is left. */
-        bool shadows = control && o->bounces == 0 && !scene->light_count && o->pixel_centers;
+        shadows = control && o->bounces == 0 && !scene->light_count;
         double share = shadows ? SHADOW_FILL_START : control ? CONTROL_TIME_SHARE : PLAN_TIME_SHARE;
         double until = o->time_limit > 0 ? t0 + share * o->time_limit : INFINITY;
         if (pending)
             until = sl_seconds() + 0.5 * (until - sl_seconds());
         res = fill_lambert(&j, until, st, err);
-        if (!res && shadows)
-            res = fill_shadows(&j, pending ? until : j.deadline, st, err);
     }
     if (!res && pending) {
         {
@@ -691,6 +690,11 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     for (size_t i = 0; i < npix; i++)
         if (j.drop[i])
             cf->mode[i] = SL_PIXEL_SAMPLED;
+    if (shadows && (res = fill_shadows(&j, j.deadline, st, err))) {
+        plan_job_free(&j);
+        sl_closed_form_free(cf);
+        return res;
+    }
     for (int y = 0; y < cam->height; y++) {
         st->cut_pixels += j.row_late[y];
         st->cut_by_time |= j.row_late[y] > 0;

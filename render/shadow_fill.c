@@ -371,27 +371,66 @@ typedef struct shadow_job {
     double deadline;
     uint8_t *need;    /* this pass's points */
     uint8_t *refused; /* sl_blockers_at refused the pixel: it stays pending */
+    uint8_t *smooth;  /* in a block that passed its check */
+    uint8_t *grid;    /* box filter: pixels to take a 3 x 3 grid's mean */
     sl_irradiance_cost *row_cost;
 } shadow_job;
 
-/* S at pixel pix's centre, to the finer tolerance until the deadline;
- * a pixel whose blockers are refused is marked so. */
-static void eval_pixel(shadow_job *j, size_t pix, sl_irradiance_cost *cost)
+/* S at image point (sx, sy) of pixel pix's shape, to the finer tolerance
+ * until the deadline; false when the point misses the shape or its
+ * blockers are refused. */
+static bool eval_point(shadow_job *j, size_t pix, double sx, double sy, double S[3], double B[3],
+                       sl_irradiance_cost *cost)
 {
     const sl_camera *cam = &j->scene->camera;
-    int x = (int)(pix % (size_t)j->px->w), y = (int)(pix / (size_t)j->px->w);
     double o[3], d[3];
     sl_hit h;
     sl_blockers bl;
     int shape = j->px->shape[pix];
-    if (!sl_camera_ray(cam, (x + 0.5) / cam->width, (y + 0.5) / cam->height, o, d) ||
-        !sl_shape_intersect(j->scene, shape, o, d, &h) || !sl_blockers_at(j->scene, j->ir, shape, h.p, h.n, &bl)) {
-        j->refused[pix] = 1;
+    if (!sl_camera_ray(cam, sx / cam->width, sy / cam->height, o, d) || !sl_shape_intersect(j->scene, shape, o, d, &h) ||
+        !sl_blockers_at(j->scene, j->ir, shape, h.p, h.n, &bl))
+        return false;
+    sl_quad q = {.tol = (sl_seconds() > j->deadline ? LATE_SHARE : EVAL_SHARE) * j->tol, .floor = j->px->floor[pix]};
+    sl_shadow_integrate(j->ir, &bl, h.n, &q, S, B, cost);
+    return true;
+}
+
+/* The pixel's S: at its centre, or with box the mean of a 3 x 3 grid
+ * (its middle point the centre). A pixel that cannot be had is marked
+ * refused. */
+#define GRID 3
+static void eval_pixel(shadow_job *j, size_t pix, bool box, sl_irradiance_cost *cost)
+{
+    sl_shadow_pixels *px = j->px;
+    int x = (int)(pix % (size_t)px->w), y = (int)(pix / (size_t)px->w);
+    if (!box) {
+        if (eval_point(j, pix, x + 0.5, y + 0.5, px->S[pix], px->bound[pix], cost))
+            px->state[pix] = SL_SHADOW_DONE;
+        else
+            j->refused[pix] = 1;
         return;
     }
-    sl_quad q = {.tol = (sl_seconds() > j->deadline ? LATE_SHARE : EVAL_SHARE) * j->tol, .floor = j->px->floor[pix]};
-    sl_shadow_integrate(j->ir, &bl, h.n, &q, j->px->S[pix], j->px->bound[pix], cost);
-    j->px->state[pix] = SL_SHADOW_DONE;
+    double mean[3] = {0, 0, 0}, bmean[3] = {0, 0, 0}, centre[3] = {0, 0, 0};
+    for (int k = 0; k < GRID * GRID; k++) {
+        double S[3], B[3];
+        if (!eval_point(j, pix, x + (k % GRID + 0.5) / GRID, y + (k / GRID + 0.5) / GRID, S, B, cost)) {
+            /* a sub-point off the shape (rounding at a corner): no box
+             * mean, so the pixel stays a control variate */
+            j->refused[pix] = 1;
+            px->state[pix] = SL_SHADOW_PENDING;
+            return;
+        }
+        for (int c = 0; c < 3; c++) {
+            mean[c] += S[c] / (GRID * GRID), bmean[c] += B[c] / (GRID * GRID);
+            if (k == GRID * GRID / 2)
+                centre[c] = S[c];
+        }
+    }
+    for (int c = 0; c < 3; c++) {
+        px->S[pix][c] = mean[c];
+        px->bound[pix][c] = bmean[c] + fabs(centre[c] - mean[c]) / 8.0;
+    }
+    px->state[pix] = SL_SHADOW_DONE;
 }
 
 /* Evaluates the pixels marked in need (or, need NULL, every pending one),
@@ -403,13 +442,15 @@ static void eval_rows(void *ctx, int64_t begin, int64_t end, int worker)
     for (int64_t y = begin; y < end; y++)
         for (int x = 0; x < j->px->w; x++) {
             size_t pix = (size_t)y * (size_t)j->px->w + (size_t)x;
-            /* a block's point another block interpolated: evaluated again */
+            /* a block's point another block interpolated: evaluated again;
+             * last (grid), the box filter's 3 x 3 grids */
             uint8_t s = j->px->state[pix];
-            bool want = j->need ? j->need[pix] && (s == SL_SHADOW_PENDING || s == SL_SHADOW_INTERPOLATED)
-                                : s == SL_SHADOW_PENDING;
+            bool want = j->grid ? j->grid[pix]
+                        : j->need ? j->need[pix] && (s == SL_SHADOW_PENDING || s == SL_SHADOW_INTERPOLATED)
+                                  : s == SL_SHADOW_PENDING;
             if (!want || j->refused[pix])
                 continue;
-            eval_pixel(j, pix, &j->row_cost[y]);
+            eval_pixel(j, pix, j->grid != NULL, &j->row_cost[y]);
         }
 }
 
@@ -450,6 +491,9 @@ static bool fill_block(shadow_job *j, int x0, int y0, int size)
     /* No slack for the points' bounds: they are far above their true error. */
     if (!sl_fill_check(v, e, (const double(*)[3])scale, INTERP_SHARE * j->tol, 0.0, err))
         return false;
+    for (int y = y0; y <= y0 + size; y++)
+        for (int x = x0; x <= x0 + size; x++)
+            j->smooth[(size_t)y * px->w + x] = 1;
     for (int y = y0; y < y0 + size; y++)
         for (int x = x0; x < x0 + size; x++) {
             size_t p = (size_t)y * px->w + x;
@@ -471,6 +515,55 @@ static bool any_pending(const shadow_job *j, int x0, int y0, int size)
     return false;
 }
 
+/* The box filter's mean of S over each pixel no passed block covers: its
+ * centre plus the 5-point Laplacian term (sum of the 4 neighbours' centre
+ * values - 4 x centre) / 24 where the neighbours show the same shape and
+ * have S (the term's size its error estimate, as closed_form.c's filter),
+ * else a 3 x 3 grid's mean. */
+static sl_result box_means(shadow_job *j, sl_error *err)
+{
+    sl_shadow_pixels *px = j->px;
+    int w = px->w, h = px->h;
+    size_t npix = (size_t)w * h;
+    double(*centre)[3] = malloc(npix * sizeof *centre);
+    j->grid = calloc(npix, 1);
+    if (!centre || !j->grid) {
+        free(centre);
+        return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the shadowed pixels");
+    }
+    memcpy(centre, px->S, npix * sizeof *centre);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            size_t p = (size_t)y * w + x;
+            if (px->state[p] != SL_SHADOW_DONE || j->smooth[p])
+                continue;
+            bool inner = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+            const size_t nb[4] = {p - 1, p + 1, p - (size_t)w, p + (size_t)w};
+            for (int k = 0; k < 4 && inner; k++)
+                inner = (px->state[nb[k]] == SL_SHADOW_DONE || px->state[nb[k]] == SL_SHADOW_INTERPOLATED) &&
+                        px->shape[nb[k]] == px->shape[p];
+            double lap[3] = {0, 0, 0};
+            for (int c = 0; c < 3 && inner; c++) {
+                lap[c] = (centre[nb[0]][c] + centre[nb[1]][c] + centre[nb[2]][c] + centre[nb[3]][c] -
+                          4.0 * centre[p][c]) / 24.0;
+                /* a shadow's edge: the correction is no estimate there */
+                inner = fabs(lap[c]) <= INTERP_SHARE * j->tol * px->floor[p][c];
+            }
+            if (!inner) {
+                j->grid[p] = 1;
+                continue;
+            }
+            for (int c = 0; c < 3; c++) {
+                px->S[p][c] = centre[p][c] + lap[c];
+                px->bound[p][c] += fabs(lap[c]);
+            }
+        }
+    free(centre);
+    sl_parallel_for(h, 1, eval_rows, j);
+    j->grid = (free(j->grid), NULL);
+    return SL_OK;
+}
+
 sl_result sl_shadow_fill(const sl_scene *scene, const sl_irradiance *ir, double tol, sl_shadow_pixels *px,
                          double deadline, sl_irradiance_cost *cost, sl_error *err)
 {
@@ -479,12 +572,13 @@ sl_result sl_shadow_fill(const sl_scene *scene, const sl_irradiance *ir, double 
     shadow_job j = {.scene = scene, .ir = ir, .tol = tol, .px = px, .deadline = deadline};
     j.need = calloc(npix, 1);
     j.refused = calloc(npix, 1);
+    j.smooth = calloc(npix, 1);
     j.row_cost = calloc((size_t)h, sizeof *j.row_cost);
     /* at most one block per BLOCK_MIN x BLOCK_MIN tile of the image */
     size_t nblocks = ((size_t)w / BLOCK_MIN + 1) * ((size_t)h / BLOCK_MIN + 1);
     int *cur = malloc(2 * nblocks * sizeof *cur), *next = malloc(2 * nblocks * sizeof *next);
     sl_result res = SL_OK;
-    if (!j.need || !j.refused || !j.row_cost || !cur || !next) {
+    if (!j.need || !j.refused || !j.smooth || !j.row_cost || !cur || !next) {
         res = sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the shadowed pixels");
         goto done;
     }
@@ -520,11 +614,14 @@ sl_result sl_shadow_fill(const sl_scene *scene, const sl_irradiance *ir, double 
     /* What no block interpolated: one by one. */
     j.need = (free(j.need), NULL);
     sl_parallel_for(h, 1, eval_rows, &j);
+    if (px->box && (res = box_means(&j, err)))
+        goto done;
     for (int y = 0; y < h; y++)
         sl_irradiance_cost_add(cost, j.row_cost[y].evaluations, j.row_cost[y].cells, j.row_cost[y].finest_level);
 done:
     free(j.need);
     free(j.refused);
+    free(j.smooth);
     free(j.row_cost);
     free(cur);
     free(next);

@@ -48,6 +48,7 @@ typedef struct sl_shadow_pixels {
     const double (*floor)[3]; /* its unoccluded irradiance (the tolerance's scale) */
     double (*S)[3];           /* out: its shadowed irradiance */
     double (*bound)[3];       /* out: its error (an estimate where interpolated) */
+    bool box;                 /* the box filter: S is the pixel's mean */
 } sl_shadow_pixels;
 
 /* Fills S at every pending pixel: on a lattice of 16 x 16 px blocks, each
@@ -55,8 +56,16 @@ typedef struct sl_shadow_pixels {
  * the interpolation (within a quarter of tol x the floor), else split down
  * to 4 x 4 px; pixels no block interpolates are evaluated one by one. Each
  * point's bound is within tol x the floor, or 4 tol x the floor once the
- * deadline (as sl_seconds) has passed: the fill always finishes. Pixels
- * whose blockers sl_blockers_at refuses stay pending. */
+ * deadline (as sl_seconds) has passed: the fill always finishes. With
+ * the box filter an interpolated pixel keeps its centre value (the box
+ * mean of the bilinear interpolation); one that no checked block covers
+ * takes its centre plus the 5-point Laplacian term where its 4 neighbours
+ * have S on the same shape and the term is within a quarter of tol x the
+ * floor (its size added to the bound; larger, at a shadow's edge, it is
+ * no estimate of the box mean), else
+ * the mean of a 3 x 3 grid of sub-pixel points (bound: their mean bound
+ * plus |centre - mean| / 8, the midpoint rule's h^2 error). Pixels whose
+ * blockers sl_blockers_at refuses stay pending. */
 sl_result sl_shadow_fill(const sl_scene *scene, const sl_irradiance *ir, double tol, sl_shadow_pixels *px,
                          double deadline, sl_irradiance_cost *cost, sl_error *err);
 

@@ -121,9 +121,13 @@ assert s["used"] and s["objects"] == [0] and s["exact_pixels"] == cf["exact_pixe
 assert s["evaluations"] >= s["exact_pixels"] and s["cells"] > 0 and s["top_level"] >= s["finest_level"], s
 assert st["camera_rays"] == 4 * s["sampled_pixels"], st
 PY
-"$S" render --env "$T/env.hdr" --scene shadow --width 16 --spp 4 --json -o "$T/cfs.exr" --quiet > "$T/cfs.json"
+"$S" render --env "$T/env.hdr" --scene shadow --width 16 --spp 4 --bounces 1 --json -o "$T/cfs.exr" --quiet > "$T/cfs.json"
 check "closed form as control variate" 0 $?
 python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["closed_form"]; sys.exit(0 if c["control_variate_pixels"] > 0 else 1)' "$T/cfs.json" || { echo "FAIL shadow: no control variate: $(cat "$T/cfs.json")"; fail=1; }
+# no bounces: the shadowed part is computed, the shadowed pixels exact
+"$S" render --env "$T/env.hdr" --scene shadow --width 16 --spp 4 --json -o "$T/cfs0.exr" --quiet > "$T/cfs0.json"
+check "closed form with the shadowed part computed" 0 $?
+python3 -c 'import json,sys; c=json.load(open(sys.argv[1]))["closed_form"]; sys.exit(0 if c["control_variate_pixels"] == 0 and c["exact_pixels"] > 100 else 1)' "$T/cfs0.json" || { echo "FAIL shadow: not exact: $(cat "$T/cfs0.json")"; fail=1; }
 for args in "--scene chrome" "--scene grey --closed-form off"; do
     "$S" render --env "$T/env.hdr" $args --width 8 --spp 2 --json -o "$T/cfn.exr" --quiet > "$T/cfn.json"
     check "sampled: $args" 0 $?
