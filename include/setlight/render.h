@@ -360,7 +360,7 @@ typedef struct sl_closed_form_stats {
     int64_t sun_texels;
     double sun_share;
     /* Lambert pixels other objects shadow whose shadowed part was computed
-     * (no bounces, no rig light, pixel centres), so exact instead of
+     * (no bounces, no rig light), so exact instead of
      * control variates; that quadrature's evaluations and cells. */
     int64_t shadow_exact_pixels, shadow_evaluations, shadow_cells;
 } sl_closed_form_stats;
