@@ -663,8 +663,9 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     }
     if (!res && lambert) {
         /* Control variates leave the shadowed part to sampling: it gets
-         * the larger part of the budget. The glossy fill, after, half of
-         * what is left. */
+         * the larger part of the budget; with no bounces and no rig light
+         * it is computed after the pixel filter (fill_shadows). The glossy
+         * fill, after, half of what is left. */
         shadows = control && o->bounces == 0 && !scene->light_count;
         double share = shadows ? SHADOW_FILL_START : control ? CONTROL_TIME_SHARE : PLAN_TIME_SHARE;
         double until = o->time_limit > 0 ? t0 + share * o->time_limit : INFINITY;

@@ -16,8 +16,8 @@
  * Inside cells add what they add to the irradiance (exact above the
  * horizon), outside cells nothing; a cell that straddles an edge adds
  * between nothing and its whole share: its estimate is the share times the
- * part of its cone on the blocked side, and the rest of that range is its
- * bound. The cell with the largest bound is split (mip levels, then pieces
+ * part of the cell on the blocked side (the edge's function linear over
+ * the cell's two angles), and the rest of that range is its bound. The cell with the largest bound is split (mip levels, then pieces
  * of a texel) until the bounds sum to the tolerance, so the refinement
  * follows the blocked set's outline and a sun's texels are split only
  * where a shadow's edge crosses them. */
