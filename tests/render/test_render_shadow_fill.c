@@ -7,7 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../../render/area_closed_form.h"
 #include "../../render/irradiance.h"
+#include "../../render/sampler.h"
 #include "../../render/scene_internal.h"
 #include "../../render/shadow_fill.h"
 #include "../../render/vec3.h"
@@ -96,6 +98,54 @@ static void test_uniform_known(void)
     double p[3] = {0, 1, 0}, n[3] = {0, 1, 0}, S[3], B[3];
     shadow_at(&s, ir, 0, p, n, 1e-3, SL_PI, S, B);
     CHECK(S[0] == 0 && B[0] == 0);
+    sl_irradiance_free(ir);
+    sl_scene_free(&s);
+    sl_image_free(&env);
+}
+
+/* Uniform dome L = 1, the preset's 8 x 8 ground: at random points of the
+ * ball S is the ground quad's cosine-weighted solid angle (Lambert's
+ * polygon formula, area_closed_form.c), and at random ground points the
+ * ball's cap's (Snyder's formula), within S's bound. */
+static void test_uniform_polygon_and_cap(void)
+{
+    sl_image env;
+    uniform(&env, 128, 1.0f);
+    sl_scene s;
+    ball_on_ground(&s, &env, 4, 0);
+    sl_irradiance *ir = NULL;
+    sl_error err = {0};
+    CHECK_OK(sl_irradiance_build(&s.dome, &ir, &err), &err);
+    double quad[4][3] = {{4, -1, 4}, {-4, -1, 4}, {-4, -1, -4}, {4, -1, -4}};
+    uint64_t seed = 11;
+    double worst = 0;
+    int outside = 0;
+    for (int k = 0; k < 60; k++) {
+        double u[3];
+        for (int i = 0; i < 3; i++)
+            u[i] = ((seed = sl_hash64(seed)) >> 11) * (1.0 / 9007199254740992.0);
+        double S[3], B[3], want;
+        if (k < 40) { /* a ball point: p = n */
+            double z = 2 * u[0] - 1, ph = 2 * SL_PI * u[1], r = sqrt(1 - z * z);
+            double n[3] = {r * cos(ph), z, r * sin(ph)};
+            shadow_at(&s, ir, 0, n, n, 1e-3, SL_PI, S, B);
+            want = sl_polygon_cosine_integral((const double(*)[3])quad, 4, n, n);
+        } else { /* a ground point, off the contact */
+            double p[3] = {8 * u[0] - 4, -1, 8 * u[1] - 4}, n[3] = {0, 1, 0};
+            if (p[0] * p[0] + p[2] * p[2] < 0.01)
+                continue;
+            double a[3] = {-p[0], 1, -p[2]}, D = v3_length(a);
+            for (int i = 0; i < 3; i++)
+                a[i] /= D;
+            shadow_at(&s, ir, 1, p, n, 1e-3, SL_PI, S, B);
+            want = sl_cap_cosine_integral(a, 1.0 / (D * D), n);
+        }
+        outside += want == 0;
+        CHECK_MSG(fabs(S[0] - want) <= B[0] + 1e-9, "point %d: S %.6f, want %.6f, bound %.2g", k, S[0], want, B[0]);
+        worst = fmax(worst, fabs(S[0] - want) / SL_PI);
+    }
+    CHECK(outside > 0 && outside < 30); /* the ball's top sees no ground */
+    printf("  ball and ground points vs the polygon and cap formulas: worst %.2e of pi\n", worst);
     sl_irradiance_free(ir);
     sl_scene_free(&s);
     sl_image_free(&env);
@@ -238,6 +288,7 @@ static void test_deadline(void)
 int main(void)
 {
     RUN(test_uniform_known);
+    RUN(test_uniform_polygon_and_cap);
     RUN(test_sun_brute);
     RUN(test_control_kept);
     RUN(test_deadline);
