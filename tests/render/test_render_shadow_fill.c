@@ -42,6 +42,23 @@ static void ball_on_ground(sl_scene *s, const sl_image *env, double half, double
     CHECK_OK(sl_scene_set_dome(s, env, rotation, 1.0, "env", &err), &err);
 }
 
+/* The ball on its ground under env, and the dome's irradiance cells. */
+static sl_irradiance *lit_scene(sl_scene *s, const sl_image *env, double half, double rotation)
+{
+    ball_on_ground(s, env, half, rotation);
+    sl_irradiance *ir = NULL;
+    sl_error err = {0};
+    CHECK_OK(sl_irradiance_build(&s->dome, &ir, &err), &err);
+    return ir;
+}
+
+static void lit_free(sl_irradiance *ir, sl_scene *s, sl_image *env)
+{
+    sl_irradiance_free(ir);
+    sl_scene_free(s);
+    sl_image_free(env);
+}
+
 /* S at point p, normal n of shape `shape`, at tolerance tol of floor. */
 static void shadow_at(const sl_scene *s, const sl_irradiance *ir, int shape, const double p[3], const double n[3],
                       double tol, double floor, double S[3], double B[3])
@@ -62,10 +79,7 @@ static void test_uniform_known(void)
     sl_image env;
     uniform(&env, 256, 1.0f);
     sl_scene s;
-    ball_on_ground(&s, &env, 1e6, 30);
-    sl_irradiance *ir = NULL;
-    sl_error err = {0};
-    CHECK_OK(sl_irradiance_build(&s.dome, &ir, &err), &err);
+    sl_irradiance *ir = lit_scene(&s, &env, 1e6, 30);
     double worst = 0, worst_rel_bound = 0;
     for (int k = 0; k <= 12; k++) {
         double a = SL_PI * k / 12.0 + 0.1; /* 0.1 .. 180 degrees past the top, not the contact */
@@ -98,9 +112,7 @@ static void test_uniform_known(void)
     double p[3] = {0, 1, 0}, n[3] = {0, 1, 0}, S[3], B[3];
     shadow_at(&s, ir, 0, p, n, 1e-3, SL_PI, S, B);
     CHECK(S[0] == 0 && B[0] == 0);
-    sl_irradiance_free(ir);
-    sl_scene_free(&s);
-    sl_image_free(&env);
+    lit_free(ir, &s, &env);
 }
 
 /* Uniform dome L = 1, the preset's 8 x 8 ground: at random points of the
@@ -112,10 +124,7 @@ static void test_uniform_polygon_and_cap(void)
     sl_image env;
     uniform(&env, 128, 1.0f);
     sl_scene s;
-    ball_on_ground(&s, &env, 4, 0);
-    sl_irradiance *ir = NULL;
-    sl_error err = {0};
-    CHECK_OK(sl_irradiance_build(&s.dome, &ir, &err), &err);
+    sl_irradiance *ir = lit_scene(&s, &env, 4, 0);
     double quad[4][3] = {{4, -1, 4}, {-4, -1, 4}, {-4, -1, -4}, {4, -1, -4}};
     uint64_t seed = 11;
     double worst = 0;
@@ -146,9 +155,7 @@ static void test_uniform_polygon_and_cap(void)
     }
     CHECK(outside > 0 && outside < 30); /* the ball's top sees no ground */
     printf("  ball and ground points vs the polygon and cap formulas: worst %.2e of pi\n", worst);
-    sl_irradiance_free(ir);
-    sl_scene_free(&s);
-    sl_image_free(&env);
+    lit_free(ir, &s, &env);
 }
 
 /* A sun of 3 x 3 texels (1e4) over the sky: at ground points the ball
@@ -165,10 +172,7 @@ static void test_sun_brute(void)
             t[0] = t[1] = t[2] = 1e4f;
         }
     sl_scene s;
-    ball_on_ground(&s, &env, 4, 0);
-    sl_irradiance *ir = NULL;
-    sl_error err = {0};
-    CHECK_OK(sl_irradiance_build(&s.dome, &ir, &err), &err);
+    sl_irradiance *ir = lit_scene(&s, &env, 4, 0);
     /* the sun's direction, and ground points on its shadow's axis */
     double sun[3];
     sl_latlong_to_dir((w / 2 + 11.5) / w, (w / 8 + 1.5) / (w / 2), sun);
@@ -208,9 +212,7 @@ static void test_sun_brute(void)
     }
     CHECK(inside >= 2);        /* some points in the sun's shadow */
     printf("  worst %.4f of E\n", worst);
-    sl_irradiance_free(ir);
-    sl_scene_free(&s);
-    sl_image_free(&env);
+    lit_free(ir, &s, &env);
 }
 
 /* With bounces the shadowed part stays sampled (control variates), as
@@ -256,31 +258,33 @@ static void test_deadline(void)
     sl_scene_init(&s);
     CHECK_OK(sl_scene_preset(&s, "shadow", 48, &err), &err);
     CHECK_OK(sl_scene_set_dome(&s, &env, 0, 1, "env", &err), &err);
-    sl_render_options o;
-    sl_render_options_init(&o);
-    o.spp = 2;
-    o.pixel_centers = true;
-    sl_image a, b;
-    sl_render_stats sa, sb;
-    CHECK_OK(sl_render(&s, &o, &a, &sa, &err), &err);
-    o.spp = 0;
-    o.time_limit = 1e-6;
-    CHECK_OK(sl_render(&s, &o, &b, &sb, &err), &err);
+    /* [0] uncut, [1] the deadline past */
+    sl_image img[2];
+    sl_render_stats st[2];
+    for (int k = 0; k < 2; k++) {
+        sl_render_options o;
+        sl_render_options_init(&o);
+        o.pixel_centers = true;
+        o.spp = k == 0 ? 2 : 0;
+        o.time_limit = k == 0 ? 0 : 1e-6;
+        CHECK_OK(sl_render(&s, &o, &img[k], &st[k], &err), &err);
+    }
+    const sl_closed_form_stats *uncut = &st[0].closed_form, *cut = &st[1].closed_form;
     double diff;
-    CHECK_OK(sl_relative_rmse(&b, &a, &diff, &err), &err);
+    CHECK_OK(sl_relative_rmse(&img[1], &img[0], &diff, &err), &err);
     printf("  deadline past: %lld shadowed pixels exact (uncut %lld), %lld control variates; %.4f%% from the "
            "uncut image, RMS bound %.3f%%\n",
-           (long long)sb.closed_form.shadow_exact_pixels, (long long)sa.closed_form.shadow_exact_pixels,
-           (long long)sb.closed_form.control_variate_pixels, 100 * diff, 100 * sb.closed_form.rms_rel_bound);
-    CHECK(sb.closed_form.cut_by_time && sb.closed_form.control_variate_pixels == 0);
-    CHECK(sb.closed_form.shadow_exact_pixels == sa.closed_form.shadow_exact_pixels);
+           (long long)cut->shadow_exact_pixels, (long long)uncut->shadow_exact_pixels,
+           (long long)cut->control_variate_pixels, 100 * diff, 100 * cut->rms_rel_bound);
+    CHECK(cut->cut_by_time && cut->control_variate_pixels == 0);
+    CHECK(cut->shadow_exact_pixels == uncut->shadow_exact_pixels);
     /* the issue's 0.5%; the reported bounds (the cut Lambert fill's
      * coarse sun among them) are far above it */
     CHECK_MSG(diff <= 0.005, "%.4f%% from the uncut image", 100 * diff);
-    sl_image_free(&a);
-    sl_image_free(&b);
-    sl_render_stats_free(&sa);
-    sl_render_stats_free(&sb);
+    for (int k = 0; k < 2; k++) {
+        sl_image_free(&img[k]);
+        sl_render_stats_free(&st[k]);
+    }
     sl_scene_free(&s);
     sl_image_free(&env);
 }
