@@ -405,6 +405,14 @@ typedef enum { SL_PIXEL_HALF = 0, SL_PIXEL_FLOAT = 1 } sl_pixel_type;
 /* OpenEXR through its C API (openexr.h). Reads scanline or tiled, half,
  * float or uint channels; RGB(A), Y, or any single layer of R,G,B[,A]. */
 sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
+/* A file of half R, G, B channels only (no A, no layer), scanline, ZIP or
+ * uncompressed, data window = display window (what merge writes), read
+ * without float: *rgb gets its samples' bits as stored, 3 a pixel, rows
+ * packed (malloc'd, in huge pages where the system allows), and meta as
+ * sl_exr_read's. Any other file, or a damaged header: SL_OK with *rgb
+ * NULL (sl_exr_read reads it, or says what is wrong). */
+sl_result sl_exr_read_half_rgb(const char *path, uint16_t **rgb, int *width, int *height,
+                               sl_meta *meta, sl_error *err);
 /* Writes atomically. Writes `envmap`, `chromaticities` (Rec.709 unless
  * meta says otherwise) and every attr as a string attribute. meta may be NULL. */
 sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *meta,
