@@ -81,8 +81,8 @@ sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_
     if (r == SL_OK) {
         /* The log range of the circle's middle 98%: a sun or a black
          * corner does not squeeze the rest into a few codes. */
-        qsort(logs, kept, sizeof *logs, solve_compare_float);
-        float lo = logs[kept / 100], hi = logs[kept - 1 - kept / 100];
+        float hi = solve_select_float(logs, kept, kept - 1 - kept / 100);
+        float lo = solve_select_float(logs, kept - kept / 100, kept / 100); /* the smaller part */
         float span = hi > lo ? hi - lo : 1.0f;
         for (int y = 0; y < h; y++)
             for (int x = 0; x < w; x++) {

@@ -57,8 +57,7 @@ static double median_luminance(const sl_image *l)
                 v[n++] = *sl_image_pixel(l, x, y);
     double m = 0.0;
     if (n) {
-        qsort(v, n, sizeof *v, solve_compare_float);
-        m = v[n / 2];
+        m = solve_select_float(v, n, n / 2);
     }
     free(v);
     return m;
