@@ -173,6 +173,26 @@ static void half_read_is_the_float_read(void)
     CHECK_OK(stitch_view_scan(&back, &fbad, &fpeak, &exact, &err), &err);
     CHECK_MSG(bad == 3 && fbad == 3 && peak == fpeak && peak > 100.0 && peak < 65504.0, "%lld/%lld bad, peak %g/%g",
               (long long)bad, (long long)fbad, peak, fpeak);
+    /* the same in a view whose samples are not a multiple of the scan's
+     * eight: odd values in the tail too */
+    stitch_half_image small = {calloc(13 * 7 * 3, sizeof(uint16_t)), 13, 7};
+    sl_image fsmall;
+    CHECK_OK(sl_image_alloc(&fsmall, 13, 7, 3, &err), &err);
+    uint64_t seed = 17;
+    for (int i = 0; small.rgb && i < 13 * 7 * 3; i++) {
+        small.rgb[i] = (uint16_t)(uniform(&seed) * 0x10000);
+        if ((small.rgb[i] & 0x7c00) == 0x7c00)
+            small.rgb[i] ^= 0x4000; /* finite: the odd ones are placed below */
+        if (i == 5 || i == 13 * 7 * 3 - 1)
+            small.rgb[i] = i == 5 ? 0x7e01 : 0xfc00;
+        sl_image_pixel(&fsmall, (i / 3) % 13, i / 39)[i % 3] = table[small.rgb[i]];
+    }
+    CHECK_OK(stitch_half_scan(&small, &bad, &peak, &err), &err);
+    CHECK_OK(stitch_view_scan(&fsmall, &fbad, &fpeak, &exact, &err), &err);
+    CHECK_MSG(bad == 2 && fbad == 2 && peak == fpeak && peak > 0.0, "%lld/%lld bad, peak %g/%g",
+              (long long)bad, (long long)fbad, peak, fpeak);
+    stitch_half_free(&small);
+    sl_image_free(&fsmall);
     /* a clean view: its reduced copies and circle */
     disc_view(&img, 163.0, 98.5, 90.0, 5);
     CHECK_OK(sl_exr_write(path, &img, NULL, SL_PIXEL_HALF, &err), &err);
