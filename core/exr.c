@@ -817,7 +817,8 @@ sl_result sl_exr_read_half_rgb(const char *path, uint16_t **rgb, int *width, int
     if (fits && !r && !px)
         r = sl_error_set(err, SL_ERR_NOMEM, "%s: cannot allocate a %dx%d half image", path, w, h);
     if (px) {
-        sl_advise_huge_pages(px, bytes);
+        /* In 4 KB pages: on the 2-core VM fresh 2 MB pages cost more to fault
+         * in than the stitch's lookups gain from them (docs/stitch.md, Speed). */
         r = read_pixels(ctx, path, cl, &pick, &fr, NULL, px, err);
         if (r == SL_ERR_UNSUPPORTED) { /* not a layout zip_scanlines reads */
             free(px);

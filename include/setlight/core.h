@@ -408,8 +408,7 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
 /* A file of half R, G, B channels only (no A, no layer), scanline, ZIP or
  * uncompressed, data window = display window (what merge writes), read
  * without float: *rgb gets its samples' bits as stored, 3 a pixel, rows
- * packed (malloc'd, in huge pages where the system allows), and meta as
- * sl_exr_read's. Any other file, or a damaged header: SL_OK with *rgb
+ * packed (malloc'd), and meta as sl_exr_read's. Any other file, or a damaged header: SL_OK with *rgb
  * NULL (sl_exr_read reads it, or says what is wrong). */
 sl_result sl_exr_read_half_rgb(const char *path, uint16_t **rgb, int *width, int *height,
                                sl_meta *meta, sl_error *err);
