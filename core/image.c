@@ -30,6 +30,19 @@ void sl_advise_huge_pages(void *data, size_t bytes)
 #endif
 }
 
+void sl_advise_small_pages(void *data, size_t bytes)
+{
+#ifdef MADV_NOHUGEPAGE
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    uintptr_t a = ((uintptr_t)data + huge - 1) & ~(huge - 1);
+    uintptr_t b = ((uintptr_t)data + bytes) & ~(huge - 1);
+    if (b > a)
+        madvise((void *)a, b - a, MADV_NOHUGEPAGE);
+#else
+    (void)data, (void)bytes;
+#endif
+}
+
 sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_error *err)
 {
     memset(img, 0, sizeof *img);

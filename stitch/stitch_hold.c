@@ -400,6 +400,8 @@ static sl_result reduce(const sl_image *src, const stitch_half_image *half, int 
     sl_result r = sl_image_alloc(dst, w / k, h / k, ch, err);
     if (r)
         return r;
+    /* written in order, read by the solve's reduction and a few patches */
+    sl_advise_small_pages(dst->data, dst->stride * (size_t)dst->height * sizeof(float));
     int workers = sl_threads_get();
     reduce_job j = {src, half, dst, k,
                     malloc((size_t)workers * k * dst->width * ch * sizeof(float)),

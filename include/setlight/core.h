@@ -251,6 +251,11 @@ sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_
  * written): lookups that follow curves through a large image otherwise miss
  * the TLB on almost every row. sl_image_alloc does it for its images. */
 void sl_advise_huge_pages(void *data, size_t bytes);
+/* The opposite, for a block not yet written that is written once in order
+ * and read mostly in order: on the 2-core VM this project is measured on,
+ * a fresh 2 MB page costs about four times as much to fault in as its 512
+ * small ones (430 MB: 0.52-0.71 s against 0.16 s). */
+void sl_advise_small_pages(void *data, size_t bytes);
 void sl_image_free(sl_image *img);
 static inline float *sl_image_pixel(const sl_image *img, int x, int y)
 {
