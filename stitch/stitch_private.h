@@ -82,9 +82,6 @@ int solve_refine_matches(const sl_stitch_view *views, solve_match *matches, int 
 void solve_to_camera(const double rot[3][3], const double world[3], double cam[3]);
 /* Direction i of n spread evenly over the sphere (a Fibonacci lattice). */
 void solve_sphere_dir(int i, int n, double dir[3]);
-/* The k-th smallest of n floats (none NaN), as v[k] sorted would be;
- * reorders v so that no value before k is above it and none after below. */
-float solve_select_float(float *v, size_t n, size_t k);
 /* R <- Exp(w) R for a rotation vector w (radians). */
 void solve_rotate(double r[3][3], const double w[3]);
 /* Angle in degrees between two rotations. */

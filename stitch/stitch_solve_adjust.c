@@ -74,35 +74,6 @@ void solve_sphere_dir(int i, int n, double dir[3])
     dir[2] = r * sin(golden * i);
 }
 
-float solve_select_float(float *v, size_t n, size_t k)
-{
-    /* Hoare's selection (merge_select_kth's, on floats): a percentile of a
-     * 1.5 M pixel copy without sorting it all */
-    ptrdiff_t lo = 0, hi = (ptrdiff_t)n - 1, kk = (ptrdiff_t)k;
-    while (lo < hi) {
-        float pivot = v[lo + (hi - lo) / 2];
-        ptrdiff_t i = lo, j = hi;
-        while (i <= j) {
-            while (v[i] < pivot)
-                i++;
-            while (v[j] > pivot)
-                j--;
-            if (i <= j) {
-                float t = v[i];
-                v[i++] = v[j];
-                v[j--] = t;
-            }
-        }
-        if (kk <= j)
-            hi = j;
-        else if (kk >= i)
-            lo = i;
-        else
-            break;
-    }
-    return v[k];
-}
-
 bool solve_transfer(const sl_lens *unbounded, const double from[3][3], const double to[3][3],
                     const double px_from[2], double px_to[2])
 {
