@@ -280,6 +280,7 @@ typedef struct exr_decode_job {
     const exr_pick *pick;
     const exr_frame *fr;
     sl_image *img;
+    uint16_t *rgb16; /* not NULL: half R, G, B land here packed, not in img */
     bool tiled;
     int32_t chunk_w, chunk_h, tiles_x;
     exr_result_t *rv; /* per chunk */
@@ -417,6 +418,20 @@ static exr_result_t zip_scanlines(const exr_decode_job *job, const exr_chunk_inf
         if (fy < fr->display.min.y || fy > fr->display.max.y || x0 > x1)
             continue;
         const uint8_t *line = lines + (size_t)y * job->line_bytes;
+        if (job->rgb16) { /* half planes to packed half RGB: the bits as stored */
+            size_t row_px = (size_t)fr->display.max.x - fr->display.min.x + 1;
+            uint16_t *d = job->rgb16 + ((size_t)(fy - fr->display.min.y) * row_px +
+                                        (size_t)(x0 - fr->display.min.x)) * 3;
+            size_t at = 2 * (size_t)(x0 - fr->data.min.x);
+            const uint8_t *pr = line + job->offset[0] + at, *pg = line + job->offset[1] + at,
+                          *pb = line + job->offset[2] + at;
+            for (int i = 0; i <= x1 - x0; i++, d += 3) {
+                memcpy(d, pr + 2 * (size_t)i, 2);
+                memcpy(d + 1, pg + 2 * (size_t)i, 2);
+                memcpy(d + 2, pb + 2 * (size_t)i, 2);
+            }
+            continue;
+        }
         float *dst = sl_image_pixel(job->img, x0 - fr->display.min.x, fy - fr->display.min.y);
         int done = 0; /* pixels already interleaved */
         if (nc == 3 && !job->half[0] && !job->half[1] && !job->half[2]) {
@@ -560,7 +575,7 @@ static void decode_chunks(void *ctx, int64_t begin, int64_t end, int worker)
 
 static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_attr_chlist_t *cl,
                              const exr_pick *pick, const exr_frame *fr, sl_image *img,
-                             sl_error *err)
+                             uint16_t *rgb16, sl_error *err)
 {
     exr_storage_t storage;
     exr_result_t rv = exr_get_storage(ctx, 0, &storage);
@@ -597,10 +612,12 @@ static sl_result read_pixels(exr_context_t ctx, const char *path, const exr_attr
     int64_t chunks = storage == EXR_STORAGE_SCANLINE
                          ? ((int64_t)fr->data.max.y - fr->data.min.y + chunk_h) / chunk_h
                          : (int64_t)tiles_x * tiles_y;
-    exr_decode_job job = {.ctx = ctx, .pick = pick, .fr = fr, .img = img,
+    exr_decode_job job = {.ctx = ctx, .pick = pick, .fr = fr, .img = img, .rgb16 = rgb16,
                           .tiled = storage == EXR_STORAGE_TILED, .chunk_w = chunk_w,
                           .chunk_h = chunk_h, .tiles_x = tiles_x};
     job.own = own_decoder(ctx, cl, &job);
+    if (rgb16 && !job.own) /* only zip_scanlines writes packed half */
+        return SL_ERR_UNSUPPORTED;
     int workers = sl_threads_get();
     job.rv = malloc(sizeof *job.rv * (size_t)chunks);
     job.scratch = calloc((size_t)workers, sizeof *job.scratch);
@@ -748,7 +765,7 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
         r = sl_exr_read_pixels_oiio(path, pick.names, pick.count, fr.display.min.x,
                                     fr.display.min.y, img, err);
     else if (!r)
-        r = read_pixels(ctx, path, cl, &pick, &fr, img, err);
+        r = read_pixels(ctx, path, cl, &pick, &fr, img, NULL, err);
     if (!r && meta)
         r = read_header_meta(ctx, &pick, meta, err);
     exr_finish(&ctx);
@@ -759,6 +776,69 @@ sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *
         return r;
     }
     /* Half and float files can hold NaN/Inf; they are the caller's to count. */
+    return SL_OK;
+}
+
+sl_result sl_exr_read_half_rgb(const char *path, uint16_t **rgb, int *width, int *height,
+                               sl_meta *meta, sl_error *err)
+{
+    *rgb = NULL;
+    *width = *height = 0;
+    sl_meta_init(meta);
+    exr_message[0] = 0;
+    exr_context_initializer_t init = make_initializer();
+    exr_context_t ctx = NULL;
+    /* Anything this does not read (a damaged header too) is left to
+     * sl_exr_read, which says what is wrong with it. */
+    if (exr_start_read(&ctx, path, &init) != EXR_ERR_SUCCESS || exr_message[0]) {
+        exr_finish(&ctx);
+        return SL_OK;
+    }
+    const exr_attr_chlist_t *cl = NULL;
+    exr_frame fr;
+    exr_pick pick;
+    exr_compression_t comp = EXR_COMPRESSION_NONE;
+    int w = 0, h = 0;
+    bool fits = exr_get_channels(ctx, 0, &cl) == EXR_ERR_SUCCESS && cl &&
+                exr_get_data_window(ctx, 0, &fr.data) == EXR_ERR_SUCCESS &&
+                exr_get_display_window(ctx, 0, &fr.display) == EXR_ERR_SUCCESS &&
+                exr_get_compression(ctx, 0, &comp) == EXR_ERR_SUCCESS &&
+                !window_size(&fr.display, &w, &h) &&
+                !memcmp(&fr.data, &fr.display, sizeof fr.data) && pick_channels(cl, &pick) &&
+                pick.count == 3 && !strcmp(pick.names[0], "R") &&
+                !needs_cxx_decoder(cl, comp);
+    for (int c = 0; fits && c < 3; c++)
+        fits = pick.types[c] == EXR_PIXEL_HALF;
+    sl_result r = SL_OK;
+    size_t bytes = (size_t)w * (size_t)h * 3 * sizeof(uint16_t);
+    if (fits)
+        r = sl_memory_check(bytes, path, "the half RGB view", err);
+    uint16_t *px = fits && !r ? malloc(bytes) : NULL;
+    if (fits && !r && !px)
+        r = sl_error_set(err, SL_ERR_NOMEM, "%s: cannot allocate a %dx%d half image", path, w, h);
+    if (px) {
+        /* In 4 KB pages: on the 2-core VM fresh 2 MB pages cost more to fault
+         * in than the stitch's lookups gain from them (docs/stitch.md, Speed). */
+        r = read_pixels(ctx, path, cl, &pick, &fr, NULL, px, err);
+        if (r == SL_ERR_UNSUPPORTED) { /* not a layout zip_scanlines reads */
+            free(px);
+            px = NULL;
+            r = SL_OK;
+        }
+    }
+    if (px && !r)
+        r = read_header_meta(ctx, &pick, meta, err);
+    exr_finish(&ctx);
+    if (r) {
+        free(px);
+        sl_meta_free(meta);
+        return r;
+    }
+    if (!px)
+        return SL_OK;
+    *rgb = px;
+    *width = w;
+    *height = h;
     return SL_OK;
 }
 

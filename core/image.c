@@ -12,19 +12,35 @@
 #define SL_MAX_DIM 65536
 #define SL_MAX_FLOATS ((size_t)4 << 30)
 
+#if defined(MADV_HUGEPAGE) && defined(MADV_NOHUGEPAGE)
+/* madvise of the whole 2 MB pages inside a block. */
+static void advise_whole_huge_pages(void *data, size_t bytes, int advice)
+{
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    uintptr_t a = ((uintptr_t)data + huge - 1) & ~(huge - 1);
+    uintptr_t b = ((uintptr_t)data + bytes) & ~(huge - 1);
+    if (b > a)
+        madvise((void *)a, b - a, advice);
+}
+#endif
+
 void sl_advise_huge_pages(void *data, size_t bytes)
 {
-#ifdef MADV_HUGEPAGE
+#if defined(MADV_HUGEPAGE) && defined(MADV_NOHUGEPAGE)
     /* A block of a few MB or more (a 4096^2 photo is 200 MB) is faulted
      * in 2 MB pages where the system allows it: 100 page faults instead of
-     * 50 000. Only the whole 2 MB pages inside the block are advised. */
-    const uintptr_t huge = (uintptr_t)2 << 20;
-    if (bytes >= 2 * huge) {
-        uintptr_t a = ((uintptr_t)data + huge - 1) & ~(huge - 1);
-        uintptr_t b = ((uintptr_t)data + bytes) & ~(huge - 1);
-        if (b > a)
-            madvise((void *)a, b - a, MADV_HUGEPAGE);
-    }
+     * 50 000. */
+    if (bytes >= (size_t)4 << 20)
+        advise_whole_huge_pages(data, bytes, MADV_HUGEPAGE);
+#else
+    (void)data, (void)bytes;
+#endif
+}
+
+void sl_advise_small_pages(void *data, size_t bytes)
+{
+#if defined(MADV_HUGEPAGE) && defined(MADV_NOHUGEPAGE)
+    advise_whole_huge_pages(data, bytes, MADV_NOHUGEPAGE);
 #else
     (void)data, (void)bytes;
 #endif

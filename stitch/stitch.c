@@ -94,11 +94,10 @@ static sl_result read_confidence(view_file *v, sl_stitch_view_result *vr, sl_err
     sl_result r = sl_exr_read(found, &m, NULL, err);
     if (r)
         return r;
-    if (m.width != v->radiance.width || m.height != v->radiance.height) {
+    if (m.width != v->width || m.height != v->height) {
         sl_image_free(&m);
         return sl_error_set(err, SL_ERR_INPUT, "%s: its clipped mask %s is %dx%d, not %dx%d",
-                            v->path, found, m.width, m.height, v->radiance.width,
-                            v->radiance.height);
+                            v->path, found, m.width, m.height, v->width, v->height);
     }
     if ((r = sl_image_alloc(&v->weight, m.width, m.height, 1, err))) {
         sl_image_free(&m);
@@ -198,8 +197,9 @@ static sl_result nominal_lens(const view_file *views, int count, const sl_stitch
 }
 
 /* What a view keeps once read: the report's thumbnail and the solve's
- * reduced copies; beside them its image circle is found on the float
- * radiance (both only read it; the half view is made after, in place). */
+ * reduced copies; beside them its image circle is found on the radiance
+ * (float, or the half view as read: both only read it; a float view
+ * becomes half after, in place). */
 typedef struct hold_job {
     view_file *v;
     sl_image *thumb;
@@ -210,16 +210,18 @@ typedef struct hold_job {
 static sl_result hold_copies(view_file *v, sl_image *thumb, sl_error *err)
 {
     sl_result r = SL_OK;
-    const sl_image *img = &v->radiance;
+    int k = v->solve_factor;
+    if (k > 1 && (r = v->half.rgb ? stitch_reduce_half(&v->half, k, &v->solve_radiance, err)
+                                  : stitch_reduce(&v->radiance, k, &v->solve_radiance, err)))
+        return r;
+    /* a view read as half has a solve copy when a thumbnail is wanted */
+    const sl_image *img = v->half.rgb ? &v->solve_radiance : &v->radiance;
     if (thumb) {
         int tw = img->width < 320 ? img->width : 320;
         int th = (int)lround((double)img->height * tw / img->width);
         if ((r = sl_image_resample(img, tw, th > 0 ? th : 1, thumb, err)))
             return r;
     }
-    int k = v->solve_factor;
-    if (k > 1 && (r = stitch_reduce(img, k, &v->solve_radiance, err)))
-        return r;
     if (k > 1 && v->weight.data && (r = stitch_reduce(&v->weight, k, &v->solve_weight, err)))
         return r;
     return SL_OK;
@@ -234,7 +236,10 @@ static void hold_task(void *ctx, int64_t begin, int64_t end, int worker)
         if (t == 0) {
             double w0 = sl_seconds(), c0 = sl_thread_cpu_seconds();
             v->circle_status =
-                sl_stitch_circle_find(&v->radiance, v->path, NULL, &v->circle, &v->circle_err);
+                v->half.rgb
+                    ? stitch_circle_find_half(&v->half, v->path, &v->circle, &v->circle_err)
+                    : sl_stitch_circle_find(&v->radiance, v->path, NULL, &v->circle,
+                                            &v->circle_err);
             v->circle_wall = sl_seconds() - w0;
             v->circle_cpu = sl_thread_cpu_seconds() - c0;
         } else {
@@ -243,28 +248,64 @@ static void hold_task(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
+/* A view read as half (sl_exr_read_half_rgb) is kept so when it is in the
+ * working space (no conversion), large, and solved on a reduced copy (or
+ * not solved and no thumbnail wanted); else its float values go the float
+ * view's way. */
+static sl_result read_half_view(view_file *v, const sl_stitch_options *opt, bool solving,
+                                bool thumb, bool *kept, sl_error *err)
+{
+    *kept = false;
+    if (opt->input_colorspace)
+        return SL_OK;
+    int w, h;
+    sl_result r = sl_exr_read_half_rgb(v->path, &v->half.rgb, &w, &h, &v->meta, err);
+    if (r || !v->half.rgb)
+        return r;
+    v->half.width = w;
+    v->half.height = h;
+    bool assumed;
+    const char *cs = sl_file_color_space(&v->meta, &assumed);
+    int k = w > SOLVE_MAX_WIDTH && solving ? stitch_solve_factor(w, h, SOLVE_MAX_WIDTH) : 1;
+    if (cs && !strcmp(cs, SL_WORKING_SPACE) && w > SOLVE_MAX_WIDTH &&
+        (k > 1 || (!solving && !thumb))) {
+        *kept = true;
+        return SL_OK;
+    }
+    /* what sl_image_read_linear gives */
+    if (!(r = stitch_half_to_float(&v->half, &v->radiance, err)))
+        r = sl_image_linearize(&v->radiance, &v->meta, v->path, NULL, NULL, err);
+    return r;
+}
+
 /* Reads one view, refuses NaN/Inf and a size other than view 0's, finds
  * its circle and keeps it as it will be used. */
 static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solving,
                            sl_stitch_view_result *vr, const view_file *v0, sl_image *thumb,
                            sl_error *err)
 {
-    sl_result r = sl_image_read_linear(v->path, opt->input_colorspace, &v->radiance, &v->meta,
-                                       NULL, err);
-    if (!r)
+    bool as_read_half = false;
+    sl_result r = read_half_view(v, opt, solving, thumb != NULL, &as_read_half, err);
+    if (!r && !as_read_half && !v->radiance.data) {
+        sl_meta_free(&v->meta);
+        r = sl_image_read_linear(v->path, opt->input_colorspace, &v->radiance, &v->meta, NULL,
+                                 err);
+    }
+    if (!r && !as_read_half)
         r = sl_image_ensure_rgb(&v->radiance, v->path, err);
     int64_t bad = 0;
-    bool half_exact = false;
+    bool half_exact = as_read_half;
     if (!r)
-        r = stitch_view_scan(&v->radiance, &bad, &v->peak, &half_exact, err);
+        r = as_read_half ? stitch_half_scan(&v->half, &bad, &v->peak, err)
+                         : stitch_view_scan(&v->radiance, &bad, &v->peak, &half_exact, err);
     if (r)
         return r;
     if (bad)
         return sl_error_set(err, SL_ERR_INPUT,
                             "%s: %lld NaN/Inf samples (a damaged file: merge never writes them)",
                             v->path, (long long)bad);
-    v->width = vr->width = v->radiance.width;
-    v->height = vr->height = v->radiance.height;
+    v->width = vr->width = as_read_half ? v->half.width : v->radiance.width;
+    v->height = vr->height = as_read_half ? v->half.height : v->radiance.height;
     if (v0 && (v->width != v0->width || v->height != v0->height))
         return sl_error_set(err, SL_ERR_INPUT,
                             "%s: %dx%d, but %s is %dx%d: one stitch is one camera, lens and size",
@@ -285,7 +326,7 @@ static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solv
         return j.status;
     }
     /* in the float view's memory once the circle and the copies are made */
-    if (v->as_half)
+    if (v->as_half && !as_read_half)
         stitch_view_take_half(&v->radiance, &v->half);
     return SL_OK;
 }

@@ -32,6 +32,16 @@ bool stitch_view_take_half(sl_image *img, stitch_half_image *out);
  * writes), else false and nothing held (the float view is used). */
 bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *err);
 void stitch_half_free(stitch_half_image *h);
+/* A half view read as such (sl_exr_read_half_rgb): its Inf/NaN samples
+ * counted and its largest RGB sample, as stitch_view_scan on its float. */
+sl_result stitch_half_scan(const stitch_half_image *img, int64_t *bad, double *peak,
+                           sl_error *err);
+/* The half view as a float RGB image (the same values); h is freed. */
+sl_result stitch_half_to_float(stitch_half_image *h, sl_image *img, sl_error *err);
+/* The image circle (sl_stitch_circle_find) of a half view: the same
+ * answer as on its float values. */
+sl_result stitch_circle_find_half(const stitch_half_image *img, const char *name,
+                                  sl_stitch_circle *out, sl_error *err);
 /* The factor, 2 or 4, that divides the view's width and height and brings
  * the width to max_width or under, or 1. */
 int stitch_solve_factor(int width, int height, int max_width);
@@ -39,6 +49,9 @@ int stitch_solve_factor(int width, int height, int max_width);
  * width / k x height / k, in one pass and no intermediate image; another
  * factor: sl_image_resample). */
 sl_result stitch_reduce(const sl_image *src, int k, sl_image *dst, sl_error *err);
+/* The same from a half view (k 2 or 4, dividing its size): the bytes
+ * stitch_reduce gives on its float values. */
+sl_result stitch_reduce_half(const stitch_half_image *src, int k, sl_image *dst, sl_error *err);
 /* A lens scaled by s for an image of width x height (focal, centre, circle). */
 void stitch_lens_scale(sl_lens *lens, double s, int width, int height);
 

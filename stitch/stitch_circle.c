@@ -3,7 +3,8 @@
  * disc and the verdict "is this a fisheye at all" are sl_fisheye_check's;
  * here the edge is measured to a fraction of a pixel along many rays and a
  * circle fitted through it. The radiance is sampled where it is (bilinear
- * on the view itself): no copy of a 24 MP view is made. */
+ * on the view itself, float or half): no copy of a 24 MP view is made. */
+#include "stitch_blend_private.h"
 #include "unwrap_private.h"
 
 #include <math.h>
@@ -23,19 +24,59 @@
 #define CLEAN_GAP_DEG 120.0 /* ...when no arc this long has none */
 #define CLEAN_BINS 72
 
-static double lum_at_pixel(const sl_image *img, int x, int y)
+/* The radiance the circle is found on: a float image, or a half view
+ * (its samples through the table: the same values). */
+typedef struct lum_source {
+    const sl_image *img;
+    const stitch_half_image *half;
+    const float *table;
+    int width, height;
+} lum_source;
+
+static lum_source float_source(const sl_image *img)
 {
-    x = x < 0 ? 0 : (x >= img->width ? img->width - 1 : x);
-    y = y < 0 ? 0 : (y >= img->height ? img->height - 1 : y);
-    const float *p = sl_image_pixel(img, x, y);
-    double l = img->channels >= 3 ? sl_luminance_px(p) : p[0];
+    return (lum_source){img, NULL, NULL, img->width, img->height};
+}
+
+static double lum_at_pixel(const lum_source *src, int x, int y)
+{
+    x = x < 0 ? 0 : (x >= src->width ? src->width - 1 : x);
+    y = y < 0 ? 0 : (y >= src->height ? src->height - 1 : y);
+    double l;
+    if (src->half) {
+        const uint16_t *h = src->half->rgb + ((size_t)y * src->width + (size_t)x) * 3;
+        const float p[3] = {src->table[h[0]], src->table[h[1]], src->table[h[2]]};
+        l = sl_luminance_px(p);
+    } else {
+        const float *p = sl_image_pixel(src->img, x, y);
+        l = src->img->channels >= 3 ? sl_luminance_px(p) : p[0];
+    }
     return isfinite(l) && l > 0.0 ? l : 0.0;
+}
+
+/* lum_at_pixel of the first n pixels of row y (all inside the image). */
+static void lum_row(const lum_source *src, int y, int n, double *out)
+{
+    if (src->half) {
+        const uint16_t *h = src->half->rgb + (size_t)y * src->width * 3;
+        for (int x = 0; x < n; x++, h += 3) {
+            const float p[3] = {src->table[h[0]], src->table[h[1]], src->table[h[2]]};
+            double l = sl_luminance_px(p);
+            out[x] = isfinite(l) && l > 0.0 ? l : 0.0;
+        }
+        return;
+    }
+    for (int x = 0; x < n; x++) {
+        const float *p = sl_image_pixel(src->img, x, y);
+        double l = src->img->channels >= 3 ? sl_luminance_px(p) : p[0];
+        out[x] = isfinite(l) && l > 0.0 ? l : 0.0;
+    }
 }
 
 /* The median of the 3 x 3 pixels round (x, y): a merge leaves hot pixels
  * and noise speckles in the dark frame, which would end a ray early; a
  * median keeps a step edge where it is. */
-static double lum_median3(const sl_image *img, int x, int y)
+static double lum_median3(const lum_source *img, int x, int y)
 {
     double v[9];
     int n = 0;
@@ -65,7 +106,7 @@ static void median_cache_clear(median_cache *c)
         c->x[i] = c->y[i] = -1000000;
 }
 
-static double median_at(const sl_image *img, int x, int y, median_cache *c)
+static double median_at(const lum_source *img, int x, int y, median_cache *c)
 {
     int slot = (int)(((unsigned)x * 5u + (unsigned)y * 3u) % MEDIAN_SLOTS);
     if (c->x[slot] != x || c->y[slot] != y) {
@@ -77,7 +118,7 @@ static double median_at(const sl_image *img, int x, int y, median_cache *c)
 }
 
 /* Bilinear between pixel centres; (x, y) in pixel coordinates. */
-static double lum_at(const sl_image *img, double x, double y, median_cache *c)
+static double lum_at(const lum_source *img, double x, double y, median_cache *c)
 {
     double fx = x - 0.5, fy = y - 0.5;
     int ix = (int)floor(fx), iy = (int)floor(fy);
@@ -145,7 +186,7 @@ static bool clean_step(const double *prof, int n, double t0, double te, double d
  * and the dark frame just outside it. -1 when the ray has no clear edge
  * there (leaves the frame, a dark or clipped stretch of the rim); *clean
  * says whether it is a clean step (clean_step). */
-static double ray_edge(const sl_image *img, double cx, double cy, double r, double w,
+static double ray_edge(const lum_source *img, double cx, double cy, double r, double w,
                        double dx, double dy, double *prof, double *scratch, double *blur,
                        bool *clean)
 {
@@ -267,7 +308,7 @@ static double floor_of(const sl_image *lum, double *scratch)
  * sl_fisheye_check's coarse disc: its walk in from the frame's edge stops
  * at the first bright pixel, a merge's hot pixel too. */
 #define COARSE_SIZE 800
-static sl_result coarse_copy(const sl_image *img, sl_image *out, int *factor, sl_error *err)
+static sl_result coarse_copy(const lum_source *img, sl_image *out, int *factor, sl_error *err)
 {
     int big = img->width > img->height ? img->width : img->height;
     int f = (big + COARSE_SIZE - 1) / COARSE_SIZE;
@@ -279,17 +320,32 @@ static sl_result coarse_copy(const sl_image *img, sl_image *out, int *factor, sl
         sl_image_free(&mean);
         return r;
     }
-    for (int y = 0; y < mean.height; y++)
-        for (int x = 0; x < mean.width; x++) {
-            double s = 0.0;
-            for (int j = 0; j < f; j++)
+    /* Each block's sum in lum_at_pixel's order (row by row, left to right)
+     * with the rows' luminances taken once: every pixel is inside. */
+    int n = mean.width * f;
+    double *lum = malloc((size_t)n * sizeof *lum), *sum = malloc((size_t)mean.width * sizeof *sum);
+    if (!lum || !sum) {
+        free(lum), free(sum);
+        sl_image_free(&mean), sl_image_free(out);
+        return sl_error_set(err, SL_ERR_NOMEM, "out of memory finding the image circle");
+    }
+    for (int y = 0; y < mean.height; y++) {
+        for (int x = 0; x < mean.width; x++)
+            sum[x] = 0.0;
+        for (int j = 0; j < f; j++) {
+            lum_row(img, y * f + j, n, lum);
+            for (int x = 0; x < mean.width; x++)
                 for (int i = 0; i < f; i++)
-                    s += lum_at_pixel(img, x * f + i, y * f + j);
-            sl_image_pixel(&mean, x, y)[0] = (float)(s / (f * f));
+                    sum[x] += lum[x * f + i];
         }
+        for (int x = 0; x < mean.width; x++)
+            sl_image_pixel(&mean, x, y)[0] = (float)(sum[x] / (f * f));
+    }
+    free(lum), free(sum);
+    lum_source means = float_source(&mean);
     for (int y = 0; y < out->height; y++)
         for (int x = 0; x < out->width; x++)
-            sl_image_pixel(out, x, y)[0] = (float)lum_median3(&mean, x, y);
+            sl_image_pixel(out, x, y)[0] = (float)lum_median3(&means, x, y);
     sl_image_free(&mean);
     *factor = f;
     double *scratch = malloc(3 * (size_t)out->width * out->height * sizeof *scratch);
@@ -308,13 +364,13 @@ static sl_result coarse_copy(const sl_image *img, sl_image *out, int *factor, sl
     return SL_OK;
 }
 
-sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
-                                const sl_lens *nominal, sl_stitch_circle *out, sl_error *err)
+static sl_result circle_find(const lum_source *radiance, const char *name,
+                             const sl_lens *nominal, sl_stitch_circle *out, sl_error *err)
 {
     memset(out, 0, sizeof *out);
     if (!name)
         name = "view";
-    if (!radiance || !radiance->data || radiance->width < 16 || radiance->height < 16)
+    if (radiance->width < 16 || radiance->height < 16)
         return sl_error_set(err, SL_ERR_INPUT, "%s: no image circle: the image is too small",
                             name);
     sl_fisheye_evidence ev;
@@ -436,4 +492,23 @@ sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
     if (nominal && nominal->circle_radius_px > 0.0)
         out->radius_vs_nominal = c[2] / nominal->circle_radius_px;
     return SL_OK;
+}
+
+sl_result sl_stitch_circle_find(const sl_image *radiance, const char *name,
+                                const sl_lens *nominal, sl_stitch_circle *out, sl_error *err)
+{
+    if (!radiance || !radiance->data) {
+        memset(out, 0, sizeof *out);
+        return sl_error_set(err, SL_ERR_INPUT, "%s: no image circle: the image is too small",
+                            name ? name : "view");
+    }
+    lum_source src = float_source(radiance);
+    return circle_find(&src, name, nominal, out, err);
+}
+
+sl_result stitch_circle_find_half(const stitch_half_image *img, const char *name,
+                                  sl_stitch_circle *out, sl_error *err)
+{
+    lum_source src = {NULL, img, stitch_half_table(), img->width, img->height};
+    return circle_find(&src, name, NULL, out, err);
 }

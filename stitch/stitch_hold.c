@@ -119,6 +119,86 @@ sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, bool
     return SL_OK;
 }
 
+typedef struct half_scan_job {
+    const stitch_half_image *img;
+    int64_t *bad;     /* per chunk */
+    uint16_t *top;    /* per chunk: the largest finite positive sample's bits */
+} half_scan_job;
+
+/* A positive finite half's bits order as its value: the peak is the
+ * largest pattern under 0x7c00 (Inf); the exponent all ones is Inf or NaN. */
+static void half_scan_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    half_scan_job *j = ctx;
+    size_t n = (size_t)(end - begin) * j->img->width * 3;
+    const uint16_t *p = j->img->rgb + (size_t)begin * j->img->width * 3;
+    int64_t bad = 0;
+    uint16_t top = 0;
+    size_t i = 0;
+#ifdef __SSE2__
+    /* Eight at a time: as int16 a negative half is below 0, a positive
+     * finite one its value's order; Inf and NaN are zeroed for the max. */
+    const __m128i exp_mask = _mm_set1_epi16(0x7c00);
+    __m128i top8 = _mm_setzero_si128();
+    for (; i + 8 <= n; i += 8) {
+        __m128i v = _mm_loadu_si128((const __m128i *)(p + i));
+        __m128i odd = _mm_cmpeq_epi16(_mm_and_si128(v, exp_mask), exp_mask);
+        bad += __builtin_popcount((unsigned)_mm_movemask_epi8(odd)) / 2;
+        top8 = _mm_max_epi16(top8, _mm_andnot_si128(odd, v));
+    }
+    uint16_t t[8];
+    _mm_storeu_si128((__m128i *)t, top8);
+    for (int k = 0; k < 8; k++)
+        top = t[k] > top ? t[k] : top;
+#endif
+    for (; i < n; i++) {
+        uint16_t h = p[i];
+        bad += (h & 0x7c00u) == 0x7c00u;
+        top = h < 0x7c00u && h > top ? h : top;
+    }
+    j->bad[begin / SCAN_ROWS] = bad;
+    j->top[begin / SCAN_ROWS] = top;
+}
+
+sl_result stitch_half_scan(const stitch_half_image *img, int64_t *bad, double *peak,
+                           sl_error *err)
+{
+    int64_t chunks = (img->height + SCAN_ROWS - 1) / SCAN_ROWS;
+    half_scan_job j = {img, calloc((size_t)chunks, sizeof(int64_t)),
+                       calloc((size_t)chunks, sizeof(uint16_t))};
+    if (!j.bad || !j.top) {
+        free(j.bad), free(j.top);
+        return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
+    }
+    sl_parallel_for(img->height, SCAN_ROWS, half_scan_rows, &j);
+    uint16_t top = 0;
+    *bad = 0;
+    for (int64_t i = 0; i < chunks; i++) {
+        *bad += j.bad[i];
+        top = j.top[i] > top ? j.top[i] : top;
+    }
+    *peak = stitch_half_table()[top];
+    free(j.bad), free(j.top);
+    return SL_OK;
+}
+
+sl_result stitch_half_to_float(stitch_half_image *h, sl_image *img, sl_error *err)
+{
+    sl_result r = sl_image_alloc(img, h->width, h->height, 3, err);
+    if (r)
+        return r;
+    const float *table = stitch_half_table();
+    for (int y = 0; y < h->height; y++) {
+        const uint16_t *src = h->rgb + (size_t)y * h->width * 3;
+        float *dst = sl_image_pixel(img, 0, y);
+        for (int i = 0; i < 3 * h->width; i++)
+            dst[i] = table[src[i]];
+    }
+    stitch_half_free(h);
+    return SL_OK;
+}
+
 typedef struct half_job {
     const sl_image *img;
     stitch_half_image *out;
@@ -259,10 +339,12 @@ int stitch_solve_factor(int width, int height, int max_width)
 }
 
 typedef struct reduce_job {
-    const sl_image *src;
+    const sl_image *src;          /* or, not NULL, half: */
+    const stitch_half_image *half;
     sl_image *dst;
     int k;
     float *mid; /* per worker: k rows of the x pass */
+    float *row; /* per worker: a half source row as float */
 } reduce_job;
 
 /* sl_image_resample's box taps for a factor k of 2 or 4, both passes per
@@ -273,13 +355,24 @@ typedef struct reduce_job {
 static void reduce_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     const reduce_job *j = ctx;
-    const int k = j->k, ch = j->src->channels, w = j->dst->width;
+    const int k = j->k, ch = j->dst->channels, w = j->dst->width;
     const size_t n = (size_t)w * ch;
     const double tap = 1.0 / k; /* exact: the taps' (hi - lo) / scale */
     float *mid = j->mid + (size_t)worker * k * n;
+    const float *table = j->half ? stitch_half_table() : NULL;
     for (int64_t y = begin; y < end; y++) {
         for (int t = 0; t < k; t++) {
-            const float *in = sl_image_pixel(j->src, 0, (int)y * k + t);
+            const float *in;
+            if (j->half) { /* the float view's row, exactly */
+                size_t m = (size_t)j->half->width * 3;
+                const uint16_t *src = j->half->rgb + ((size_t)y * k + t) * m;
+                float *row = j->row + (size_t)worker * m;
+                for (size_t i = 0; i < m; i++)
+                    row[i] = table[src[i]];
+                in = row;
+            } else {
+                in = sl_image_pixel(j->src, 0, (int)y * k + t);
+            }
             float *m = mid + (size_t)t * n;
             for (int x = 0; x < w; x++)
                 for (int c = 0; c < ch; c++) {
@@ -299,23 +392,42 @@ static void reduce_rows(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
-sl_result stitch_reduce(const sl_image *src, int k, sl_image *dst, sl_error *err)
+static sl_result reduce(const sl_image *src, const stitch_half_image *half, int k, sl_image *dst,
+                        sl_error *err)
 {
-    if ((k != 2 && k != 4) || src->width % k || src->height % k)
-        return sl_image_resample(src, src->width / k, src->height / k, dst, err);
-    sl_result r = sl_image_alloc(dst, src->width / k, src->height / k, src->channels, err);
+    int w = half ? half->width : src->width, h = half ? half->height : src->height;
+    int ch = half ? 3 : src->channels;
+    sl_result r = sl_image_alloc(dst, w / k, h / k, ch, err);
     if (r)
         return r;
+    /* written in order, read by the solve's reduction and a few patches */
+    sl_advise_small_pages(dst->data, dst->stride * (size_t)dst->height * sizeof(float));
     int workers = sl_threads_get();
-    reduce_job j = {src, dst, k,
-                    malloc((size_t)workers * k * dst->width * src->channels * sizeof(float))};
-    if (!j.mid) {
+    reduce_job j = {src, half, dst, k,
+                    malloc((size_t)workers * k * dst->width * ch * sizeof(float)),
+                    half ? malloc((size_t)workers * w * 3 * sizeof(float)) : NULL};
+    if (!j.mid || (half && !j.row)) {
+        free(j.mid), free(j.row);
         sl_image_free(dst);
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
     }
     sl_parallel_for(dst->height, 16, reduce_rows, &j);
-    free(j.mid);
+    free(j.mid), free(j.row);
     return SL_OK;
+}
+
+sl_result stitch_reduce(const sl_image *src, int k, sl_image *dst, sl_error *err)
+{
+    if ((k != 2 && k != 4) || src->width % k || src->height % k)
+        return sl_image_resample(src, src->width / k, src->height / k, dst, err);
+    return reduce(src, NULL, k, dst, err);
+}
+
+sl_result stitch_reduce_half(const stitch_half_image *src, int k, sl_image *dst, sl_error *err)
+{
+    if ((k != 2 && k != 4) || src->width % k || src->height % k)
+        return sl_error_set(err, SL_ERR_INTERNAL, "stitch: a half view reduced by %d", k);
+    return reduce(NULL, src, k, dst, err);
 }
 
 void stitch_lens_scale(sl_lens *lens, double s, int width, int height)

@@ -82,8 +82,6 @@ int solve_refine_matches(const sl_stitch_view *views, solve_match *matches, int 
 void solve_to_camera(const double rot[3][3], const double world[3], double cam[3]);
 /* Direction i of n spread evenly over the sphere (a Fibonacci lattice). */
 void solve_sphere_dir(int i, int n, double dir[3]);
-/* qsort comparison of floats, ascending. */
-int solve_compare_float(const void *a, const void *b);
 /* R <- Exp(w) R for a rotation vector w (radians). */
 void solve_rotate(double r[3][3], const double w[3]);
 /* Angle in degrees between two rotations. */

@@ -74,12 +74,6 @@ void solve_sphere_dir(int i, int n, double dir[3])
     dir[2] = r * sin(golden * i);
 }
 
-int solve_compare_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 bool solve_transfer(const sl_lens *unbounded, const double from[3][3], const double to[3][3],
                     const double px_from[2], double px_to[2])
 {

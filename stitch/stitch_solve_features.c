@@ -3,6 +3,7 @@
  * feature_width pixels, masked to its image circle and to the merge's
  * confident pixels, through OpenCV's SIFT or AKAZE; and the cross-checked
  * matches between two views. */
+#include "merge_private.h"
 #include "stitch_private.h"
 
 #include <math.h>
@@ -54,7 +55,7 @@ sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_
     size_t n = (size_t)w * h;
     unsigned char *gray = r == SL_OK ? calloc(n, 1) : NULL;
     unsigned char *mask = r == SL_OK ? calloc(n, 1) : NULL;
-    float *logs = r == SL_OK ? malloc(n * sizeof *logs) : NULL;
+    double *logs = r == SL_OK ? malloc(n * sizeof *logs) : NULL; /* float values */
     if (r == SL_OK && (!gray || !mask || !logs))
         r = sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory for its features", view->name);
     /* Inside the circle, less a margin: the circle's own edge is the
@@ -81,8 +82,9 @@ sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_
     if (r == SL_OK) {
         /* The log range of the circle's middle 98%: a sun or a black
          * corner does not squeeze the rest into a few codes. */
-        qsort(logs, kept, sizeof *logs, solve_compare_float);
-        float lo = logs[kept / 100], hi = logs[kept - 1 - kept / 100];
+        int k_hi = (int)(kept - 1 - kept / 100), k_lo = (int)(kept / 100);
+        float hi = (float)merge_select_kth(logs, (int)kept, k_hi);
+        float lo = (float)merge_select_kth(logs, k_hi + 1, k_lo); /* among the k_hi + 1 smallest */
         float span = hi > lo ? hi - lo : 1.0f;
         for (int y = 0; y < h; y++)
             for (int x = 0; x < w; x++) {

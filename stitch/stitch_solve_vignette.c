@@ -48,18 +48,14 @@ static bool smooth_sample(const solve_features *f, double x, double y, double da
 static double median_luminance(const sl_image *l)
 {
     size_t n = 0, total = (size_t)l->width * l->height;
-    float *v = malloc(total * sizeof *v);
+    double *v = malloc(total * sizeof *v); /* float values */
     if (!v)
         return 0.0;
     for (int y = 0; y < l->height; y++)
         for (int x = 0; x < l->width; x++)
             if (*sl_image_pixel(l, x, y) > 0.0f)
                 v[n++] = *sl_image_pixel(l, x, y);
-    double m = 0.0;
-    if (n) {
-        qsort(v, n, sizeof *v, solve_compare_float);
-        m = v[n / 2];
-    }
+    double m = n ? merge_select_kth(v, (int)n, (int)(n / 2)) : 0.0;
     free(v);
     return m;
 }

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* How the stitch holds its views (stitch/stitch_hold.c) and what the blend
  * does with them: a view kept as half only when every sample converts
- * exactly, the blend of half views the same bytes as of the float views,
+ * exactly, a half file read as half the same as read as float, the blend of half views the same bytes as of the float views,
  * the solve's reduction factor, and the per-row spans of the views' fields
  * never losing a direction a view sees (the seen solid angle of one view is
  * its field's, wherever it points); the blend's float row loop against the
@@ -120,6 +120,156 @@ static void reduce_is_resample(void)
                       "k %d, %d channels: not the bytes of sl_image_resample", k, ch);
             sl_image_free(&img), sl_image_free(&a), sl_image_free(&b);
         }
+}
+
+/* A fisheye-like frame: a disc of half_valued radiance round (cx, cy) of
+ * radius r on black. */
+static void disc_view(sl_image *img, double cx, double cy, double r, uint64_t seed)
+{
+    half_valued(img, seed);
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++)
+            if (hypot(x + 0.5 - cx, y + 0.5 - cy) > r)
+                memset(sl_image_pixel(img, x, y), 0, 3 * sizeof(float));
+}
+
+/* A half EXR read straight into half: the samples' bits as the float read
+ * has them, and the scan, the solve's reduced copies and the image circle
+ * on it the float view's; a file it does not read is left to sl_exr_read. */
+static void half_read_is_the_float_read(void)
+{
+    sl_error err;
+    sl_image img, back;
+    CHECK_OK(sl_image_alloc(&img, 320, 200, 3, &err), &err);
+    disc_view(&img, 163.0, 98.5, 90.0, 5);
+    const char *path = sl_test_path("half_view.exr");
+    CHECK_OK(sl_exr_write(path, &img, NULL, SL_PIXEL_HALF, &err), &err);
+    stitch_half_image h = {0};
+    sl_meta meta, fmeta;
+    CHECK_OK(sl_exr_read_half_rgb(path, &h.rgb, &h.width, &h.height, &meta, &err), &err);
+    CHECK_OK(sl_exr_read(path, &back, &fmeta, &err), &err);
+    CHECK(h.rgb && h.width == 320 && h.height == 200 && back.channels == 3);
+    CHECK(sl_test_same_meta("half read", &meta, &fmeta));
+    const float *table = stitch_half_table();
+    int same = 0;
+    for (int y = 0; h.rgb && y < 200; y++)
+        for (int x = 0; x < 320; x++)
+            for (int c = 0; c < 3; c++) {
+                float a = table[h.rgb[((size_t)y * 320 + x) * 3 + c]];
+                float b = sl_image_pixel(&back, x, y)[c];
+                same += a == b || (isnan(a) && isnan(b));
+            }
+    CHECK_MSG(same == 320 * 200 * 3, "%d of %d samples the float read's", same, 320 * 200 * 3);
+    /* NaN, Inf and -Inf (sl_exr_write writes none): counted, not the peak */
+    const uint16_t odd[3] = {0x7e00, 0x7c00, 0xfc00};
+    for (int i = 0; h.rgb && i < 3; i++) {
+        h.rgb[(100 * 320 + 150 + i) * 3 + i] = odd[i];
+        sl_image_pixel(&back, 150 + i, 100)[i] = table[odd[i]];
+    }
+    int64_t bad = 0, fbad = 0;
+    double peak = 0, fpeak = 0;
+    bool exact;
+    CHECK_OK(stitch_half_scan(&h, &bad, &peak, &err), &err);
+    CHECK_OK(stitch_view_scan(&back, &fbad, &fpeak, &exact, &err), &err);
+    CHECK_MSG(bad == 3 && fbad == 3 && peak == fpeak && peak > 100.0 && peak < 65504.0, "%lld/%lld bad, peak %g/%g",
+              (long long)bad, (long long)fbad, peak, fpeak);
+    /* the same in a view whose samples are not a multiple of the scan's
+     * eight: odd values in the tail too */
+    stitch_half_image small = {calloc(13 * 7 * 3, sizeof(uint16_t)), 13, 7};
+    sl_image fsmall;
+    CHECK_OK(sl_image_alloc(&fsmall, 13, 7, 3, &err), &err);
+    uint64_t seed = 17;
+    for (int i = 0; small.rgb && i < 13 * 7 * 3; i++) {
+        small.rgb[i] = (uint16_t)(uniform(&seed) * 0x10000);
+        if ((small.rgb[i] & 0x7c00) == 0x7c00)
+            small.rgb[i] ^= 0x4000; /* finite: the odd ones are placed below */
+        if (i == 5 || i == 13 * 7 * 3 - 1)
+            small.rgb[i] = i == 5 ? 0x7e01 : 0xfc00;
+        sl_image_pixel(&fsmall, (i / 3) % 13, i / 39)[i % 3] = table[small.rgb[i]];
+    }
+    CHECK_OK(stitch_half_scan(&small, &bad, &peak, &err), &err);
+    CHECK_OK(stitch_view_scan(&fsmall, &fbad, &fpeak, &exact, &err), &err);
+    CHECK_MSG(bad == 2 && fbad == 2 && peak == fpeak && peak > 0.0, "%lld/%lld bad, peak %g/%g",
+              (long long)bad, (long long)fbad, peak, fpeak);
+    stitch_half_free(&small);
+    sl_image_free(&fsmall);
+    /* a clean view: its reduced copies and circle */
+    disc_view(&img, 163.0, 98.5, 90.0, 5);
+    CHECK_OK(sl_exr_write(path, &img, NULL, SL_PIXEL_HALF, &err), &err);
+    stitch_half_free(&h);
+    sl_meta_free(&meta);
+    CHECK_OK(sl_exr_read_half_rgb(path, &h.rgb, &h.width, &h.height, &meta, &err), &err);
+    for (int k = 2; h.rgb && k <= 4; k += 2) {
+        sl_image a, b;
+        CHECK_OK(stitch_reduce_half(&h, k, &a, &err), &err);
+        CHECK_OK(stitch_reduce(&img, k, &b, &err), &err);
+        CHECK_MSG(a.width == b.width && a.height == b.height &&
+                      !memcmp(a.data, b.data, (size_t)a.width * a.height * 3 * sizeof(float)),
+                  "reduced by %d: not the float view's copy", k);
+        sl_image_free(&a), sl_image_free(&b);
+    }
+    sl_stitch_circle ch, cf;
+    CHECK_OK(stitch_circle_find_half(&h, "half", &ch, &err), &err);
+    CHECK_OK(sl_stitch_circle_find(&img, "half", NULL, &cf, &err), &err);
+    CHECK_MSG(!memcmp(&ch, &cf, sizeof ch) && fabs(ch.cx - 163.0) < 2.0 &&
+                  fabs(ch.radius - 90.0) < 2.0,
+              "circle %g,%g r %g, on float %g,%g r %g", ch.cx, ch.cy, ch.radius, cf.cx, cf.cy,
+              cf.radius);
+    stitch_half_free(&h);
+    sl_meta_free(&meta);
+    /* float samples, an A channel, no file: not read here */
+    const char *other = sl_test_path("float_view.exr");
+    CHECK_OK(sl_exr_write(other, &img, NULL, SL_PIXEL_FLOAT, &err), &err);
+    CHECK_OK(sl_exr_read_half_rgb(other, &h.rgb, &h.width, &h.height, &meta, &err), &err);
+    CHECK(h.rgb == NULL);
+    sl_image rgba;
+    CHECK_OK(sl_image_convert_channels(&img, 4, &rgba, &err), &err);
+    CHECK_OK(sl_exr_write(other, &rgba, NULL, SL_PIXEL_HALF, &err), &err);
+    CHECK_OK(sl_exr_read_half_rgb(other, &h.rgb, &h.width, &h.height, &meta, &err), &err);
+    CHECK(h.rgb == NULL);
+    CHECK_OK(sl_exr_read_half_rgb(sl_test_path("none.exr"), &h.rgb, &h.width, &h.height, &meta,
+                                  &err),
+             &err);
+    CHECK(h.rgb == NULL);
+    sl_image_free(&rgba);
+    sl_image_free(&back);
+    sl_meta_free(&fmeta);
+    sl_image_free(&img);
+}
+
+/* sl_stitch of a large half EXR view (read as half) and of the same
+ * samples as a float EXR (read as float, then held as half): the same
+ * lat-long. */
+static void stitch_of_half_file_is_of_float_file(void)
+{
+    sl_error err;
+    sl_image img;
+    CHECK_OK(sl_image_alloc(&img, 3200, 240, 3, &err), &err); /* wider than 3072 */
+    disc_view(&img, 1601.0, 120.0, 110.0, 9);
+    const char *half_path = sl_test_path("wide_half.exr"), *float_path =
+                                                                sl_test_path("wide_float.exr");
+    CHECK_OK(sl_exr_write(half_path, &img, NULL, SL_PIXEL_HALF, &err), &err);
+    CHECK_OK(sl_exr_write(float_path, &img, NULL, SL_PIXEL_FLOAT, &err), &err);
+    sl_image_free(&img);
+    sl_stitch_options opt;
+    sl_stitch_options_init(&opt);
+    opt.focal_mm = 8.0;
+    opt.sensor_mm[0] = 36.0;
+    opt.blend.width = 256;
+    sl_image out[2];
+    const char *views[2] = {half_path, float_path};
+    for (int i = 0; i < 2; i++) {
+        const char *o = sl_test_path(i ? "from_float.exr" : "from_half.exr");
+        sl_stitch_result res;
+        CHECK_OK(sl_stitch(&views[i], 1, o, &opt, &res, &err), &err);
+        /* the 110 px circle's 8.9 degrees: 0.075 sr */
+        CHECK_MSG(fabs(res.coverage.seen_sr - 0.075) < 0.02, "%g sr seen", res.coverage.seen_sr);
+        sl_stitch_result_free(&res);
+        CHECK_OK(sl_exr_read(o, &out[i], NULL, &err), &err);
+    }
+    CHECK(out[0].width == 256 && out[1].width == 256 &&
+          !memcmp(out[0].data, out[1].data, (size_t)256 * 128 * 4 * sizeof(float)));
+    sl_image_free(&out[0]), sl_image_free(&out[1]);
 }
 
 static void solve_factor(void)
@@ -363,6 +513,8 @@ int main(void)
     RUN(half_only_when_exact);
     RUN(solve_factor);
     RUN(reduce_is_resample);
+    RUN(half_read_is_the_float_read);
+    RUN(stitch_of_half_file_is_of_float_file);
     RUN(blend_of_half_is_blend_of_float);
     RUN(spans_lose_nothing);
     RUN(rays_match_the_lens);

@@ -251,6 +251,11 @@ sl_result sl_image_alloc(sl_image *img, int width, int height, int channels, sl_
  * written): lookups that follow curves through a large image otherwise miss
  * the TLB on almost every row. sl_image_alloc does it for its images. */
 void sl_advise_huge_pages(void *data, size_t bytes);
+/* The opposite, for a block not yet written that is written once in order
+ * and read mostly in order: on the 2-core VM this project is measured on,
+ * a fresh 2 MB page costs about four times as much to fault in as its 512
+ * small ones (430 MB: 0.52-0.71 s against 0.16 s). */
+void sl_advise_small_pages(void *data, size_t bytes);
 void sl_image_free(sl_image *img);
 static inline float *sl_image_pixel(const sl_image *img, int x, int y)
 {
@@ -405,6 +410,13 @@ typedef enum { SL_PIXEL_HALF = 0, SL_PIXEL_FLOAT = 1 } sl_pixel_type;
 /* OpenEXR through its C API (openexr.h). Reads scanline or tiled, half,
  * float or uint channels; RGB(A), Y, or any single layer of R,G,B[,A]. */
 sl_result sl_exr_read(const char *path, sl_image *img, sl_meta *meta, sl_error *err);
+/* A file of half R, G, B channels only (no A, no layer), scanline, ZIP or
+ * uncompressed, data window = display window (what merge writes), read
+ * without float: *rgb gets its samples' bits as stored, 3 a pixel, rows
+ * packed (malloc'd), and meta as sl_exr_read's. Any other file, or a damaged header: SL_OK with *rgb
+ * NULL (sl_exr_read reads it, or says what is wrong). */
+sl_result sl_exr_read_half_rgb(const char *path, uint16_t **rgb, int *width, int *height,
+                               sl_meta *meta, sl_error *err);
 /* Writes atomically. Writes `envmap`, `chromaticities` (Rec.709 unless
  * meta says otherwise) and every attr as a string attribute. meta may be NULL. */
 sl_result sl_exr_write(const char *path, const sl_image *img, const sl_meta *meta,
