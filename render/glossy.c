@@ -67,10 +67,10 @@ static void kernel(const lobe *l, const double w[3], double k[3])
 }
 
 /* A cell's share for one lobe. */
-typedef struct glob {
+typedef struct cell_lobe {
     double est[3], err[3];
     double k[5][3]; /* k at the centre and the four corners, reused by the children */
-} glob;
+} cell_lobe;
 
 /* The heap holds only the lobes in use: its stride ends after lb[lobes - 1]. */
 typedef struct gcell {
@@ -78,7 +78,7 @@ typedef struct gcell {
     int level, x, y;
     bool clipped; /* a mip cell cut by the map's edge: its centre is not its midpoint */
     double t0, t1, a, b;
-    glob lb[SL_GLOSSY_BATCH];
+    cell_lobe lb[SL_GLOSSY_BATCH];
 } gcell;
 
 /* k at the points of one split, by their (colatitude, longitude): a
@@ -215,16 +215,16 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
                         : 0.0;
     spread = min2(max2(spread, 0.0), 2.0);
     for (int l = 0; l < st->nl; l++) {
-        const lobe *lo_ = &st->l[l];
-        glob *b = &g->lb[l];
+        const lobe *lp = &st->l[l];
+        cell_lobe *b = &g->lb[l];
         double (*k)[3] = b->k;
         /* A cell wider than the lobe that may hold its peak: the sample
          * points cannot tell its shape. Narrower cells see a smooth k. */
-        bool peak = !below[l] && (c->wide || (c->cos_r < lo_->cos_width &&
-                                              v3_dot(lo_->mirror, c->centre) >= c->cos_r));
+        bool peak = !below[l] && (c->wide || (c->cos_r < lp->cos_width &&
+                                              v3_dot(lp->mirror, c->centre) >= c->cos_r));
         if (peak && !st->have_k_mirror[l]) {
             st->kernel_calls++;
-            kernel(lo_, lo_->mirror, st->k_mirror[l]);
+            kernel(lp, lp->mirror, st->k_mirror[l]);
             st->have_k_mirror[l] = true;
         }
         const double *km = st->k_mirror[l];
@@ -381,7 +381,7 @@ void sl_glossy_integrate_batch(const sl_irradiance *ir, const sl_glossy_material
     for (int i = 0; i < count && i < SL_GLOSSY_BATCH; i++)
         if (lobe_init(&st->l[st->nl], gm[i], rot, n_world[i], wo_world[i]))
             map[st->nl++] = i;
-    size_t stride = offsetof(gcell, lb) + (size_t)st->nl * sizeof(glob);
+    size_t stride = offsetof(gcell, lb) + (size_t)st->nl * sizeof(cell_lobe);
     st->h = (sl_slot_heap){.pool = pool, .stride = stride, .heap = scratch->idx,
                            .free_list = scratch->idx + CELL_CAP};
     int top = sl_irradiance_top_level(ir), tw, th;
