@@ -24,6 +24,7 @@
  * the same function. The error is an estimate, not a proven bound: a lobe
  * narrower than the sample points' spacing could hide between them, which
  * is why the mirror direction is always among them. */
+#include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -65,13 +66,19 @@ static void kernel(const lobe *l, const double w[3], double k[3])
     sl_glossy_kernel(&l->view, wl, k);
 }
 
+/* A cell's share for one lobe. */
+typedef struct cell_lobe {
+    double est[3], err[3];
+    double k[5][3]; /* k at the centre and the four corners, reused by the children */
+} cell_lobe;
+
+/* The heap holds only the lobes in use: its stride ends after lb[lobes - 1]. */
 typedef struct gcell {
     double key;
-    double est[3], err[3];
     int level, x, y;
     bool clipped; /* a mip cell cut by the map's edge: its centre is not its midpoint */
     double t0, t1, a, b;
-    double k[5][3]; /* k at the centre and the four corners, reused by the children */
+    cell_lobe lb[SL_GLOSSY_BATCH];
 } gcell;
 
 /* k at the points of one split, by their (colatitude, longitude): a
@@ -81,43 +88,61 @@ typedef struct gcell {
 typedef struct point_cache {
     int n;
     double t[POINT_CACHE], a[POINT_CACHE];
-    double k[POINT_CACHE][3];
+    double k[POINT_CACHE][SL_GLOSSY_BATCH][3];
 } point_cache;
 
+/* One integral over shared cells for nl lobes (neighbouring pixels): the
+ * cells' geometry and the refinement are paid once, k per lobe. */
 typedef struct gstate {
     const sl_irradiance *ir;
-    lobe l;
-    double inv_scale[3];
+    int nl;
+    lobe l[SL_GLOSSY_BATCH];
+    double inv_scale[SL_GLOSSY_BATCH][3];
     sl_slot_heap h;
-    double sum_est[3], sum_err[3];
+    double sum_est[SL_GLOSSY_BATCH][3], sum_err[SL_GLOSSY_BATCH][3];
     int64_t cells;
     int finest;
     int map_w, map_h;  /* texels */
-    bool have_k_mirror;
-    double k_mirror[3]; /* k at the lobe's peak, once per integral */
+    bool have_k_mirror[SL_GLOSSY_BATCH];
+    double k_mirror[SL_GLOSSY_BATCH][3]; /* k at each lobe's peak, once per integral */
     int64_t kernel_calls;
 } gstate;
 
-static void kernel_counted(gstate *st, const double w[3], double k[3])
+/* k of every lobe at w; lobes whose horizon the cell is wholly below
+ * (below[i]) have k = 0 there without evaluating. */
+static void kernel_counted(gstate *st, const bool *below, const double w[3], double k[][3])
 {
-    st->kernel_calls++;
-    kernel(&st->l, w, k);
+    for (int i = 0; i < st->nl; i++) {
+        if (below[i]) {
+            k[i][0] = k[i][1] = k[i][2] = 0;
+            continue;
+        }
+        st->kernel_calls++;
+        kernel(&st->l[i], w, k[i]);
+    }
 }
 
 /* Same parameters within rounding: the same direction. */
 #define SAME_PARAM 1e-12
 
-static void point_k(gstate *st, point_cache *pc, double t, double a, const double w[3], double k[3])
+/* k of every lobe at corner `corner` of g, from the split's cache when it
+ * has the point. */
+static void point_k(gstate *st, point_cache *pc, const bool *below, double t, double a, const double w[3],
+                    gcell *g, int corner)
 {
     for (int i = 0; pc && i < pc->n; i++)
         if (fabs(t - pc->t[i]) <= SAME_PARAM && fabs(a - pc->a[i]) <= SAME_PARAM) {
-            memcpy(k, pc->k[i], sizeof pc->k[i]);
+            for (int l = 0; l < st->nl; l++)
+                memcpy(g->lb[l].k[corner], pc->k[i][l], sizeof pc->k[i][l]);
             return;
         }
-    kernel_counted(st, w, k);
+    double k[SL_GLOSSY_BATCH][3];
+    kernel_counted(st, below, w, k);
+    for (int l = 0; l < st->nl; l++)
+        memcpy(g->lb[l].k[corner], k[l], sizeof k[l]);
     if (pc && pc->n < POINT_CACHE) {
         pc->t[pc->n] = t, pc->a[pc->n] = a;
-        memcpy(pc->k[pc->n], k, sizeof pc->k[0]);
+        memcpy(pc->k[pc->n], k, (size_t)st->nl * sizeof k[0]);
         pc->n++;
     }
 }
@@ -125,63 +150,62 @@ static void point_k(gstate *st, point_cache *pc, double t, double a, const doubl
 static double cell_key(const gstate *st, const gcell *g)
 {
     double key = 0;
-    for (int c = 0; c < 3; c++)
-        key = max2(key, g->err[c] * st->inv_scale[c]);
+    for (int l = 0; l < st->nl; l++)
+        for (int c = 0; c < 3; c++)
+            key = max2(key, g->lb[l].err[c] * st->inv_scale[l][c]);
     return key;
 }
 
 static void push(gstate *st, const gcell *g)
 {
-    for (int c = 0; c < 3; c++)
-        st->sum_est[c] += g->est[c], st->sum_err[c] += g->err[c];
+    for (int l = 0; l < st->nl; l++)
+        for (int c = 0; c < 3; c++)
+            st->sum_est[l][c] += g->lb[l].est[c], st->sum_err[l][c] += g->lb[l].err[c];
     sl_slot_heap_push(&st->h, g);
 }
 
-static gcell pop(gstate *st)
+static void pop(gstate *st, gcell *top)
 {
-    gcell top;
-    sl_slot_heap_pop(&st->h, &top);
-    for (int c = 0; c < 3; c++)
-        st->sum_est[c] -= top.est[c], st->sum_err[c] -= top.err[c];
-    return top;
+    sl_slot_heap_pop(&st->h, top);
+    for (int l = 0; l < st->nl; l++)
+        for (int c = 0; c < 3; c++)
+            st->sum_est[l][c] -= top->lb[l].est[c], st->sum_err[l][c] -= top->lb[l].err[c];
 }
 
-/* Estimates a cell's share and its error; false when it adds nothing.
- * pc: the split's known points (NULL: none). */
+/* Estimates a cell's share and its error for every lobe; false when it
+ * adds nothing to any. pc: the split's known points (NULL: none). */
 static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *g)
 {
     st->cells++;
-    const lobe *l = &st->l;
     if (!(c->p[0] > 0 || c->p[1] > 0 || c->p[2] > 0))
         return false;
-    double ca = v3_dot(l->n, c->centre);
-    if (!c->wide) {
-        double sa = sqrt(max2(0.0, 1.0 - ca * ca));
-        double hi = ca > c->cos_r ? 1.0 : ca * c->cos_r + sa * c->sin_r;
-        if (hi <= 0)
-            return false; /* wholly below the horizon */
+    bool below[SL_GLOSSY_BATCH], any = false;
+    for (int l = 0; l < st->nl; l++) {
+        double ca = v3_dot(st->l[l].n, c->centre);
+        below[l] = false;
+        if (!c->wide) {
+            double sa = sqrt(max2(0.0, 1.0 - ca * ca));
+            double hi = ca > c->cos_r ? 1.0 : ca * c->cos_r + sa * c->sin_r;
+            below[l] = hi <= 0; /* wholly below this lobe's horizon */
+        }
+        any |= !below[l];
     }
+    if (!any)
+        return false;
     double vl[3], d[3];
     for (int i = 0; i < 3; i++)
         vl[i] = 0.2126 * c->v[0][i] + 0.7152 * c->v[1][i] + 0.0722 * c->v[2][i];
     v3_copy(d, vl);
     if (!v3_normalize(d))
         v3_copy(d, c->centre);
-    double kd[3];
-    double (*k)[3] = g->k;
-    kernel_counted(st, d, kd);
-    kernel_counted(st, c->centre, k[0]);
+    double kd[SL_GLOSSY_BATCH][3], kc[SL_GLOSSY_BATCH][3];
+    kernel_counted(st, below, d, kd);
+    kernel_counted(st, below, c->centre, kc);
+    for (int l = 0; l < st->nl; l++)
+        memcpy(g->lb[l].k[0], kc[l], sizeof kc[l]);
     const double pt[4] = {c->t0, c->t0, c->t1, c->t1}, pa[4] = {c->a, c->b, c->a, c->b};
     for (int i = 0; i < 4; i++)
-        point_k(st, pc, pt[i], pa[i], c->corner[i], k[1 + i]);
-    /* A cell wider than the lobe that may hold its peak: the sample
-     * points cannot tell its shape. Narrower cells see a smooth k. */
-    bool peak = c->wide || (c->cos_r < l->cos_width && v3_dot(l->mirror, c->centre) >= c->cos_r);
-    if (peak && !st->have_k_mirror) {
-        kernel_counted(st, l->mirror, st->k_mirror);
-        st->have_k_mirror = true;
-    }
-    const double *km = st->k_mirror;
+        point_k(st, pc, below, pt[i], pa[i], c->corner[i], g, 1 + i);
     /* How spread the cell's light is against a uniform cell's: 0 for a
      * point (a sun), where k(d) is exact, 1 for uniform light, where the
      * mean of k over the cell is the better estimate. */
@@ -190,25 +214,40 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
                         ? (1.0 - v3_length(vl) / pl) / c->spread_uniform
                         : 0.0;
     spread = min2(max2(spread, 0.0), 2.0);
-    for (int ch = 0; ch < 3; ch++) {
-        g->est[ch] = c->p[ch] * kd[ch];
-        if (peak) {
-            /* The lobe's peak is in the cell: anything between its
-             * smallest and largest value. */
-            double lo = min2(kd[ch], km[ch]), hi = max2(kd[ch], km[ch]);
-            for (int i = 0; i < 5; i++)
-                lo = min2(lo, k[i][ch]), hi = max2(hi, k[i][ch]);
-            g->err[ch] = c->p[ch] * (hi - lo);
-        } else {
-            /* k is smooth here: P k(d) errs in the second order (d is
-             * the mean direction, so the first-order term vanishes); its
-             * size is that of k(d) against the cell's mean of k (a
-             * quadratic's mean over a square: 2/3 of the centre, 1/12 of
-             * each corner). The estimate moves toward that mean as far
-             * as the cell's light is spread. */
-            double mean = (8.0 * k[0][ch] + k[1][ch] + k[2][ch] + k[3][ch] + k[4][ch]) / 12.0;
-            g->err[ch] = c->p[ch] * fabs(kd[ch] - mean);
-            g->est[ch] += spread * c->p[ch] * (mean - k[0][ch]);
+    for (int l = 0; l < st->nl; l++) {
+        const lobe *lp = &st->l[l];
+        cell_lobe *b = &g->lb[l];
+        double (*k)[3] = b->k;
+        /* A cell wider than the lobe that may hold its peak: the sample
+         * points cannot tell its shape. Narrower cells see a smooth k. */
+        bool peak = !below[l] && (c->wide || (c->cos_r < lp->cos_width &&
+                                              v3_dot(lp->mirror, c->centre) >= c->cos_r));
+        if (peak && !st->have_k_mirror[l]) {
+            st->kernel_calls++;
+            kernel(lp, lp->mirror, st->k_mirror[l]);
+            st->have_k_mirror[l] = true;
+        }
+        const double *km = st->k_mirror[l];
+        for (int ch = 0; ch < 3; ch++) {
+            b->est[ch] = c->p[ch] * kd[l][ch];
+            if (peak) {
+                /* The lobe's peak is in the cell: anything between its
+                 * smallest and largest value. */
+                double lo = min2(kd[l][ch], km[ch]), hi = max2(kd[l][ch], km[ch]);
+                for (int i = 0; i < 5; i++)
+                    lo = min2(lo, k[i][ch]), hi = max2(hi, k[i][ch]);
+                b->err[ch] = c->p[ch] * (hi - lo);
+            } else {
+                /* k is smooth here: P k(d) errs in the second order (d is
+                 * the mean direction, so the first-order term vanishes); its
+                 * size is that of k(d) against the cell's mean of k (a
+                 * quadratic's mean over a square: 2/3 of the centre, 1/12 of
+                 * each corner). The estimate moves toward that mean as far
+                 * as the cell's light is spread. */
+                double mean = (8.0 * k[0][ch] + k[1][ch] + k[2][ch] + k[3][ch] + k[4][ch]) / 12.0;
+                b->err[ch] = c->p[ch] * fabs(kd[l][ch] - mean);
+                b->est[ch] += spread * c->p[ch] * (mean - k[0][ch]);
+            }
         }
     }
     g->level = c->level, g->x = c->x, g->y = c->y;
@@ -234,7 +273,8 @@ static void split(gstate *st, const gcell *g)
     const double ga[5] = {0.5 * (g->a + g->b), g->a, g->b, g->a, g->b};
     for (int i = g->clipped ? 1 : 0; i < 5; i++) {
         pc->t[pc->n] = gt[i], pc->a[pc->n] = ga[i];
-        memcpy(pc->k[pc->n], g->k[i], sizeof g->k[i]);
+        for (int l = 0; l < st->nl; l++)
+            memcpy(pc->k[pc->n][l], g->lb[l].k[i], sizeof g->lb[l].k[i]);
         pc->n++;
     }
     sl_dome_cell c[4];
@@ -247,27 +287,34 @@ static void split(gstate *st, const gcell *g)
 
 static void totals(gstate *st)
 {
-    for (int c = 0; c < 3; c++)
-        st->sum_est[c] = st->sum_err[c] = 0;
+    memset(st->sum_est, 0, sizeof st->sum_est);
+    memset(st->sum_err, 0, sizeof st->sum_err);
     for (int i = 0; i < st->h.count; i++) {
         const gcell *g = sl_slot_heap_at(&st->h, i);
-        for (int c = 0; c < 3; c++)
-            st->sum_est[c] += g->est[c], st->sum_err[c] += g->err[c];
+        for (int l = 0; l < st->nl; l++)
+            for (int c = 0; c < 3; c++)
+                st->sum_est[l][c] += g->lb[l].est[c], st->sum_err[l][c] += g->lb[l].err[c];
     }
 }
 
+/* Every lobe within its tolerance. */
 static bool error_met(const gstate *st, double tol, const double floor[3])
 {
-    for (int c = 0; c < 3; c++)
-        if (st->sum_err[c] > 0 && st->sum_err[c] > tol * max2(0.0, st->sum_est[c] + floor[c]))
-            return false;
+    for (int l = 0; l < st->nl; l++)
+        for (int c = 0; c < 3; c++)
+            if (st->sum_err[l][c] > 0 && st->sum_err[l][c] > tol * max2(0.0, st->sum_est[l][c] + floor[c]))
+                return false;
     return true;
 }
+
+/* At most the top level's 16 x 8 cells or a start list's (kept as short). */
+#define FIRST_MAX (SL_GLOSSY_START_MAX > 16 * 8 ? SL_GLOSSY_START_MAX : 16 * 8)
 
 struct sl_glossy_scratch {
     gstate st;
     int64_t kernel_calls; /* over every integral made with it */
     gcell pool[CELL_CAP];
+    gcell first[FIRST_MAX];
     int idx[2 * CELL_CAP];
 };
 
@@ -275,23 +322,11 @@ sl_glossy_scratch *sl_glossy_scratch_new(void) { return calloc(1, sizeof(sl_glos
 int64_t sl_glossy_scratch_kernel_calls(const sl_glossy_scratch *s) { return s->kernel_calls; }
 void sl_glossy_scratch_free(sl_glossy_scratch *s) { free(s); }
 
-void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
-                         const double n_world[3], const double wo_world[3], const sl_glossy_quad *q,
-                         sl_glossy_scratch *scratch, double out[3], double err[3],
-                         sl_irradiance_cost *cost)
+/* The lobe of (n, wo) in the map's frame; false when wo is below the
+ * shading horizon (the pixel reflects nothing). */
+static bool lobe_init(lobe *l, const sl_glossy_material *gm, const double rot[3][3], const double n_world[3],
+                      const double wo_world[3])
 {
-    out[0] = out[1] = out[2] = 0;
-    err[0] = err[1] = err[2] = 0;
-    double rot[3][3], intensity;
-    sl_irradiance_frame(ir, rot, &intensity);
-    gstate *st = &scratch->st;
-    gcell *pool = scratch->pool;
-    memset(st, 0, sizeof *st);
-    st->ir = ir;
-    sl_irradiance_level_size(ir, 0, &st->map_w, &st->map_h);
-    st->h = (sl_slot_heap){.pool = pool, .stride = sizeof *pool, .heap = scratch->idx,
-                           .free_list = scratch->idx + CELL_CAP};
-    lobe *l = &st->l;
     frame fr;
     double wo[3];
     frame_from_normal(&fr, n_world);
@@ -307,6 +342,32 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
     v3_normalize(l->mirror);
     sl_ggx g = sl_ggx_make(gm->m->roughness, gm->m->anisotropy);
     l->cos_width = cos(fmin(g.ax, g.ay));
+    return wo[2] > 0;
+}
+
+void sl_glossy_integrate_batch(const sl_irradiance *ir, const sl_glossy_material *const *gm,
+                               const double (*n_world)[3], const double (*wo_world)[3], int count,
+                               const sl_glossy_quad *q, sl_glossy_scratch *scratch, double (*out)[3],
+                               double (*err)[3], sl_irradiance_cost *cost)
+{
+    memset(out, 0, (size_t)count * sizeof *out);
+    memset(err, 0, (size_t)count * sizeof *err);
+    double rot[3][3], intensity;
+    sl_irradiance_frame(ir, rot, &intensity);
+    gstate *st = &scratch->st;
+    gcell *pool = scratch->pool;
+    memset(st, 0, sizeof *st);
+    st->ir = ir;
+    sl_irradiance_level_size(ir, 0, &st->map_w, &st->map_h);
+    /* Only the lobes given: pixels whose view is below their horizon
+     * reflect nothing and take no part. */
+    int map[SL_GLOSSY_BATCH];
+    for (int i = 0; i < count && i < SL_GLOSSY_BATCH; i++)
+        if (lobe_init(&st->l[st->nl], gm[i], rot, n_world[i], wo_world[i]))
+            map[st->nl++] = i;
+    size_t stride = offsetof(gcell, lb) + (size_t)st->nl * sizeof(cell_lobe);
+    st->h = (sl_slot_heap){.pool = pool, .stride = stride, .heap = scratch->idx,
+                           .free_list = scratch->idx + CELL_CAP};
     int top = sl_irradiance_top_level(ir), tw, th;
     st->finest = top;
     static const double zero[3] = {0, 0, 0};
@@ -314,10 +375,11 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
     double floor[3] = {0, 0, 0};
     for (int c = 0; c < 3 && q->floor && intensity > 0; c++)
         floor[c] = q->floor[c] / intensity;
-    if (wo[2] > 0) {
+    if (st->nl > 0) {
         sl_irradiance_level_size(ir, top, &tw, &th);
-        for (int c = 0; c < 3; c++)
-            st->inv_scale[c] = 1;
+        for (int l = 0; l < st->nl; l++)
+            for (int c = 0; c < 3; c++)
+                st->inv_scale[l][c] = 1;
         int level = top;
         if (q->start_cells) {
             level = q->start_level;
@@ -331,18 +393,19 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
             add(st, &c, NULL);
         }
         /* Cells are ranked by their error relative to the first estimate. */
-        for (int c = 0; c < 3; c++) {
-            double scale = st->sum_est[c] + st->sum_err[c] + floor[c];
-            st->inv_scale[c] = scale > 0 ? 1.0 / scale : 0.0;
-        }
-        /* At most the top level's 16 x 8 cells or the start list's (kept
-         * as short), in slots 0..n-1. */
+        for (int l = 0; l < st->nl; l++)
+            for (int c = 0; c < 3; c++) {
+                double scale = st->sum_est[l][c] + st->sum_err[l][c] + floor[c];
+                st->inv_scale[l][c] = scale > 0 ? 1.0 / scale : 0.0;
+            }
+        /* The first cells are in slots 0..n-1. */
         int n = st->h.count;
-        gcell first[SL_GLOSSY_START_MAX > 16 * 8 ? SL_GLOSSY_START_MAX : 16 * 8];
-        memcpy(first, pool, (size_t)n * sizeof *first);
+        gcell *first = scratch->first;
+        for (int i = 0; i < n; i++)
+            memcpy(&first[i], (const char *)pool + (size_t)i * stride, stride);
         sl_slot_heap_clear(&st->h);
-        for (int c = 0; c < 3; c++)
-            st->sum_est[c] = st->sum_err[c] = 0;
+        memset(st->sum_est, 0, sizeof st->sum_est);
+        memset(st->sum_err, 0, sizeof st->sum_err);
         for (int i = 0; i < n; i++) {
             first[i].key = cell_key(st, &first[i]);
             push(st, &first[i]);
@@ -356,19 +419,31 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
             const gcell *worst = sl_slot_heap_at(&st->h, 0);
             if (worst->level <= -SUBTEXEL_DEPTH || worst->key <= 0)
                 break;
-            gcell g = pop(st);
+            gcell g;
+            pop(st, &g);
             split(st, &g);
         }
         totals(st);
-        for (int c = 0; c < 3; c++) {
-            out[c] = fmax(0.0, st->sum_est[c]) * intensity;
-            /* The Fresnel table's interpolation error, relative. */
-            err[c] = (st->sum_err[c] + gm->fresnel_rel_error * fabs(st->sum_est[c])) * intensity;
-        }
+        for (int l = 0; l < st->nl; l++)
+            for (int c = 0; c < 3; c++) {
+                int i = map[l];
+                out[i][c] = fmax(0.0, st->sum_est[l][c]) * intensity;
+                /* The Fresnel table's interpolation error, relative. */
+                err[i][c] = (st->sum_err[l][c] + gm[i]->fresnel_rel_error * fabs(st->sum_est[l][c])) * intensity;
+            }
     }
     scratch->kernel_calls += st->kernel_calls;
     if (cost)
-        sl_irradiance_cost_add(cost, 1, st->cells, st->finest);
+        sl_irradiance_cost_add(cost, count, st->cells, st->finest);
+}
+
+void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm,
+                         const double n_world[3], const double wo_world[3], const sl_glossy_quad *q,
+                         sl_glossy_scratch *scratch, double out[3], double err[3],
+                         sl_irradiance_cost *cost)
+{
+    sl_glossy_integrate_batch(ir, &gm, (const double(*)[3])n_world, (const double(*)[3])wo_world, 1, q,
+                              scratch, (double(*)[3])out, (double(*)[3])err, cost);
 }
 
 void sl_glossy_eval(const sl_irradiance *ir, const sl_material *m, const double n[3],

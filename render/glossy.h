@@ -74,6 +74,17 @@ void sl_glossy_integrate(const sl_irradiance *ir, const sl_glossy_material *gm, 
                          const double wo[3], const sl_glossy_quad *q, sl_glossy_scratch *scratch,
                          double out[3], double err[3], sl_irradiance_cost *cost);
 
+/* Up to SL_GLOSSY_BATCH neighbouring pixels' integrals over one set of
+ * cells: a cell is split while any of them asks for it, so each pixel's
+ * value and error estimate are those of sl_glossy_integrate on a finer
+ * partition, and the cells' geometry and refinement are paid once. One q
+ * for all; out[i], err[i] per pixel. */
+#define SL_GLOSSY_BATCH 4
+void sl_glossy_integrate_batch(const sl_irradiance *ir, const sl_glossy_material *const *gm,
+                               const double (*n)[3], const double (*wo)[3], int count,
+                               const sl_glossy_quad *q, sl_glossy_scratch *scratch, double (*out)[3],
+                               double (*err)[3], sl_irradiance_cost *cost);
+
 /* The dome split for the glossy pixels (glossy_fill.c): the few brightest
  * texels (a sun) in one map, evaluated at every pixel, and the rest, whose
  * reflection is smooth across the image and is interpolated where checked.

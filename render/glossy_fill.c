@@ -13,7 +13,10 @@
  *   where the block's centre and edge midpoints, evaluated too, agree with
  *   the interpolation; a block that fails is split in four, down to 4 x 4
  *   px; a block that crosses the silhouette (the corners would mix objects)
- *   is split too, and pixels no block interpolates are evaluated.
+ *   is split too, and pixels no block interpolates are evaluated. Up to
+ *   four neighbours of a row whose lobes nearly coincide are evaluated
+ *   over one set of cells (sl_glossy_integrate_batch): the cells' geometry
+ *   and refinement are then paid once.
  *
  * Tolerance shares of a pixel's error estimate: glossy, the rest's
  * quadrature half, the interpolation check a quarter (relative to the
@@ -35,6 +38,10 @@
 #define SUN_CAP 1024
 #define SUN_START_CELLS 4
 #define BLOCK0 16
+/* Rest evaluations share cells across at most this span of a row (px),
+ * between pixels whose normals are within BATCH_TURN x the GGX alpha. */
+#define BATCH_SPAN 4
+#define BATCH_TURN 0.25
 /* Below 4 px a block's nine points are more than the pixels it owns. */
 #define BLOCK_MIN 4
 #define REST_SHARE 0.5
@@ -199,13 +206,65 @@ static const sl_glossy_material *material_of(const fill_job *j, size_t pix)
     return &j->cf->gmat[j->scene->shapes[j->cf->shape[pix]].material];
 }
 
-/* The rest: the pixel's radiance from the map less its sun. */
-static void eval_rest(fill_job *j, size_t pix, sl_glossy_scratch *s, sl_irradiance_cost *cost)
+/* The rest (the pixel's radiance from the map less its sun) at pixels
+ * pix[0..count-1] of one row, over shared cells. */
+static void eval_rest(fill_job *j, const size_t *pix, int count, sl_glossy_scratch *s, sl_irradiance_cost *cost)
 {
     sl_glossy_quad q = {.tol = REST_SHARE * j->cf->tol};
-    sl_glossy_integrate(j->cf->gdome->rest, material_of(j, pix), j->px->n[pix], j->px->wo[pix], &q, s,
-                        j->rest[pix], j->rest_err[pix], cost);
-    j->rest_state[pix] = 1;
+    const sl_glossy_material *gm[SL_GLOSSY_BATCH] = {0};
+    double n[SL_GLOSSY_BATCH][3], wo[SL_GLOSSY_BATCH][3], out[SL_GLOSSY_BATCH][3], err[SL_GLOSSY_BATCH][3];
+    for (int i = 0; i < count; i++) {
+        gm[i] = material_of(j, pix[i]);
+        memcpy(n[i], j->px->n[pix[i]], sizeof n[i]);
+        memcpy(wo[i], j->px->wo[pix[i]], sizeof wo[i]);
+    }
+    sl_glossy_integrate_batch(j->cf->gdome->rest, gm, (const double(*)[3])n, (const double(*)[3])wo, count, &q, s,
+                              out, err, cost);
+    for (int i = 0; i < count; i++) {
+        memcpy(j->rest[pix[i]], out[i], sizeof out[i]);
+        memcpy(j->rest_err[pix[i]], err[i], sizeof err[i]);
+        j->rest_state[pix[i]] = 1;
+    }
+}
+
+/* Pixels p and q share cells well when their lobes nearly coincide: the
+ * same material, normals within BATCH_TURN x its GGX alpha (at the rim,
+ * where the normal turns by degrees per pixel, they do not), views
+ * likewise. */
+static bool lobes_overlap(const fill_job *j, size_t p, size_t q)
+{
+    const sl_glossy_material *gm = material_of(j, p);
+    if (gm != material_of(j, q))
+        return false;
+    double turn = BATCH_TURN * fmin(gm->ggx.ax, gm->ggx.ay), c = cos(turn);
+    return v3_dot(j->px->n[p], j->px->n[q]) >= c && v3_dot(j->px->wo[p], j->px->wo[q]) >= c;
+}
+
+/* The rests of row y's pixels whose rest is still to do: the image
+ * blocks' points (need, points) or the pixels no block interpolated, in
+ * batches of neighbours: at most SL_GLOSSY_BATCH pixels of one material
+ * within BATCH_SPAN px, whose lobes overlap, so their shared cells are
+ * about those of each one alone. False when cut by the deadline. */
+static bool rest_of_row(fill_job *j, int64_t y, bool points, double deadline, sl_glossy_scratch *s)
+{
+    size_t pix[SL_GLOSSY_BATCH];
+    int count = 0;
+    for (int x = 0; x <= j->w; x++) {
+        size_t p = (size_t)y * j->w + x;
+        bool want = x < j->w && (points ? j->need[p] && j->rest_state[p] != 1
+                                        : j->px->state[p] == SL_GLOSSY_PENDING && !j->rest_state[p]);
+        /* the batch so far is done when this pixel cannot join it */
+        if (count > 0 && (x == j->w || (int)(p - pix[0]) > BATCH_SPAN ||
+                          (want && (count == SL_GLOSSY_BATCH || !lobes_overlap(j, pix[0], p))))) {
+            if (sl_seconds() > deadline)
+                return false;
+            eval_rest(j, pix, count, s, &j->row_cost[y]);
+            count = 0;
+        }
+        if (want)
+            pix[count++] = p;
+    }
+    return true;
 }
 
 /* Evaluates the rest at every pixel marked in need (the image blocks'
@@ -219,16 +278,9 @@ static void rest_rows(void *ctx, int64_t begin, int64_t end, int worker)
             j->row_cut[y] = 1; /* tests: cut before the rest's plan reaches it */
         if (j->row_cut[y])
             continue;
-        for (int x = 0; x < j->w; x++) {
-            size_t pix = (size_t)y * j->w + x;
-            if (!j->need[pix] || j->rest_state[pix] == 1)
-                continue;
-            if (!s || sl_seconds() > j->deadline) {
-                j->row_cut[y] = 1; /* left to sampling */
-                j->failed |= !s;
-                break;
-            }
-            eval_rest(j, pix, s, &j->row_cost[y]);
+        if (!s || !rest_of_row(j, y, true, j->deadline, s)) {
+            j->row_cut[y] = 1; /* left to sampling */
+            j->failed |= !s;
         }
     }
 }
@@ -376,12 +428,11 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
             j->failed |= !s;
             continue;
         }
+        rest_of_row(j, y, false, INFINITY, s); /* a started row is finished */
         for (int x = 0; x < j->w; x++) {
             size_t pix = (size_t)y * j->w + x;
             if (j->px->state[pix] != SL_GLOSSY_PENDING)
                 continue;
-            if (!j->rest_state[pix])
-                eval_rest(j, pix, s, &j->row_cost[y]);
             double sun[3] = {0, 0, 0}, serr[3] = {0, 0, 0};
             double floor[3];
             for (int c = 0; c < 3; c++)

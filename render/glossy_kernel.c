@@ -125,8 +125,9 @@ void sl_glossy_view_init(sl_glossy_view *v, const sl_glossy_material *gm, const 
     memcpy(v->wo, wo, sizeof v->wo);
     if (!gm->fast || !(wo[2] > 0))
         return;
-    v->lambda_o = sl_ggx_lambda(gm->ggx, wo);
-    v->spec_scale = 1.0 / (4.0 * wo[2]);
+    v->one_lambda_o = 1.0 + sl_ggx_lambda(gm->ggx, wo);
+    /* alpha^2 / pi x 1 / (4 wo.z) x the 2 of G2's numerator */
+    v->spec_coef = gm->alpha2 / (2.0 * SL_PI * wo[2]);
     double eo = e_lookup(gm, wo[2]);
     for (int c = 0; c < 3; c++)
         v->cos_lobe[c] = gm->albedo_scale[c] * eo;
@@ -148,14 +149,18 @@ void sl_glossy_kernel(const sl_glossy_view *v, const double wi[3], double k[3])
     double l2 = h[0] * h[0] + h[1] * h[1] + h[2] * h[2];
     double spec = 0, f[3] = {0, 0, 0};
     if (l2 > 0.0) {
-        double inv = 1.0 / sqrt(l2);
-        double hz = h[2] * inv;
-        double cos_h = (v->wo[0] * h[0] + v->wo[1] * h[1] + v->wo[2] * h[2]) * inv;
-        /* D of the unit half vector: alpha^2 / (pi (hz^2 (alpha^2 - 1) + 1)^2). */
-        double t = hz * hz * (gm->alpha2 - 1.0) + 1.0;
-        double d = hz > 0.0 ? gm->alpha2 / (SL_PI * t * t) : 0.0;
-        double g2 = 1.0 / (1.0 + v->lambda_o + sl_ggx_lambda(gm->ggx, wi));
-        spec = d * g2 * v->spec_scale;
+        double cos_h = (v->wo[0] * h[0] + v->wo[1] * h[1] + v->wo[2] * h[2]) / sqrt(l2);
+        if (h[2] > 0.0) {
+            /* D G2 / (4 wo.z) with one division: for the unit half vector
+             * D = alpha^2 l2^2 / (pi u^2), u = h.z^2 (alpha^2 - 1) + l2; for
+             * wi, 1 + Lambda = (z + r) / (2 z) with r = sqrt(z^2 + q), q =
+             * alpha^2 (x^2 + y^2), so G2 = 2 z (z + r) / (2 z (z + r)
+             * (1 + Lambda(wo)) + q). */
+            double z = wi[2], q = gm->alpha2 * (wi[0] * wi[0] + wi[1] * wi[1]);
+            double zr = z * (z + sqrt(z * z + q));
+            double u = h[2] * h[2] * (gm->alpha2 - 1.0) + l2;
+            spec = v->spec_coef * l2 * l2 * zr / (u * u * (2.0 * zr * v->one_lambda_o + q));
+        }
         double x = clamp01(cos_h) * SL_GLOSSY_FRESNEL_N;
         int i = (int)x;
         if (i > SL_GLOSSY_FRESNEL_N - 1)
@@ -168,3 +173,4 @@ void sl_glossy_kernel(const sl_glossy_view *v, const double wi[3], double k[3])
     for (int c = 0; c < 3; c++)
         k[c] = f[c] * spec + v->cos_lobe[c] * ei;
 }
+

@@ -31,8 +31,8 @@ typedef struct sl_glossy_material {
 typedef struct sl_glossy_view {
     const sl_glossy_material *gm;
     double wo[3];
-    double lambda_o;  /* Smith Lambda(wo) */
-    double spec_scale; /* 1 / (4 wo.z) */
+    double one_lambda_o; /* 1 + Smith Lambda(wo) */
+    double spec_coef;    /* alpha^2 / (2 pi wo.z) */
     double cos_lobe[3]; /* albedo_scale (1 - E(mu_o)) */
 } sl_glossy_view;
 
