@@ -131,4 +131,16 @@ bool solve_centre_agrees(const solve_centre_prior *prior, const sl_lens *overlap
 void solve_vignette(int count, const solve_features *feat, double (*rot)[3][3], sl_lens *lens,
                     sl_stitch_solve_result *res);
 
+/* Turns the views with moving set (one group, rigidly) to where their
+ * overlaps' log radiance agrees with the placed views' (lens, vignetting and
+ * the other views' gains held; each moving view's gain solved with it):
+ * coarse to fine Gauss-Newton over the group's rotation. Applied (rot and
+ * gain updated) and true only when the turn is within max_turn_deg, its
+ * worst-determined axis known to max_sigma_deg (the Hessian's smallest
+ * eigenvalue against the residuals' spread) and the residual fell; why
+ * says which. */
+bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3][3],
+                         const bool *moving, const bool *placed, const sl_lens *lens,
+                         double *gain, double max_turn_deg, double max_sigma_deg, char *why, size_t why_size);
+
 #endif
