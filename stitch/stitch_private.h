@@ -131,6 +131,22 @@ bool solve_centre_agrees(const solve_centre_prior *prior, const sl_lens *overlap
 void solve_vignette(int count, const solve_features *feat, double (*rot)[3][3], sl_lens *lens,
                     sl_stitch_solve_result *res);
 
+/* A view's ln luminance at the features' scale reduced `factor` times by
+ * 2 x 2 means; NaN where the merge was not confident or the view is dark,
+ * and wherever a reduction reaches such a pixel. */
+typedef struct solve_log_image {
+    float *log;
+    int width, height;
+    double scale; /* full pixels per pixel */
+} solve_log_image;
+bool solve_log_image_make(const solve_features *f, int factor, solve_log_image *out);
+/* ln radiance a view (cam_to_world rot) sees in world direction d, its
+ * vignetting (lens) removed, bilinear; false outside inner's circle, off
+ * the data, or on a hard edge (its 2 x 2 pixels spanning more than
+ * edge_log). */
+bool solve_log_radiance(const solve_log_image *l, const sl_lens *lens, const sl_lens *inner,
+                        const double rot[3][3], const double d[3], double edge_log, double *out);
+
 /* Turns the views with moving set (one group, rigidly) to where their
  * overlaps' log radiance agrees with the placed views' (lens, vignetting and
  * the other views' gains held; each moving view's gain solved with it):
@@ -142,5 +158,22 @@ void solve_vignette(int count, const solve_features *feat, double (*rot)[3][3], 
 bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3][3],
                          const bool *moving, const bool *placed, const sl_lens *lens,
                          double *gain, double max_turn_deg, double max_sigma_deg, char *why, size_t why_size);
+/* The lens refined by the overlaps' smooth radiance
+ * (stitch_solve_radiance_lens.c): ln focal, k1, k2 (as opt solves them),
+ * v1, v2, the free views' rotations and the gains by Gauss-Newton on the
+ * log radiance difference at the solved pairs' overlaps, from the
+ * features' solution. Applied (lens, rot, gain updated) and true when the
+ * residual fell and the change is the hundredths of a pixel the features
+ * leave. */
+typedef struct solve_radiance_lens_result {
+    int samples;
+    double rms_start, rms; /* Huber-weighted RMS log residual before and after */
+    double focal_change;   /* relative */
+    bool kept;
+} solve_radiance_lens_result;
+bool solve_radiance_lens(int count, const solve_features *feat, double (*rot)[3][3],
+                         const bool *free_view, const sl_stitch_pair *pair, int pairs,
+                         const sl_stitch_solve_options *opt, sl_lens *lens, double *gain,
+                         solve_radiance_lens_result *out);
 
 #endif

@@ -51,6 +51,7 @@ void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
     o->centre_from_circle = true;
     o->radiance_poses = true;
     o->radiance_max_sigma_deg = 0.02;
+    o->radiance_lens = true;
 }
 
 const char *sl_stitch_pair_status_name(sl_stitch_pair_status s)
@@ -924,6 +925,17 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     if (opt->solve_vignette && res->pairs_solved > 0)
         solve_vignette(count, st.feat, st.rot, &lens, res);
     t = sl_seconds();
+    if (opt->radiance_lens && res->vignette_solved && !res->lens_held) {
+        solve_radiance_lens_result rl;
+        res->radiance_lens = solve_radiance_lens(count, st.feat, st.rot, free_view, res->pair,
+                                                 res->pairs, opt, &lens, res->gain, &rl);
+        res->radiance_lens_samples = rl.samples;
+        res->radiance_lens_rms[0] = rl.rms_start;
+        res->radiance_lens_rms[1] = rl.rms;
+        res->radiance_lens_focal_change = rl.focal_change;
+        if (res->radiance_lens)
+            measure(&st, &lens); /* the features' residuals under the refined lens */
+    }
     if (opt->radiance_poses && opt->solve_poses && res->vignette_solved)
         place_by_radiance(&st, &lens, group);
     res->seconds_radiance = sl_seconds() - t;

@@ -4,7 +4,7 @@
  * placed views: direct photometric alignment of the log radiance, coarse to
  * fine, over the group's three rotation angles and each moved view's gain,
  * the lens and vignetting held at what the features solved (docs/stitch.md,
- * "Solve", step 8). */
+ * "Solve", step 9). */
 #include "merge_private.h"
 #include "stitch_private.h"
 
@@ -44,93 +44,22 @@ typedef struct radiance_sample {
     double ref_log;   /* the placed view's log radiance there, its falloff and gain removed */
 } radiance_sample;
 
-typedef struct level_image {
-    float *log; /* ln luminance, NaN where not confident, dark or outside the circle */
-    int width, height;
-    double scale; /* full pixels per pixel */
-} level_image;
-
 typedef struct radiance_problem {
     int count;
     const bool *moving, *placed;
     double (*rot)[3][3];
     const sl_lens *lens, *inner;
-    level_image *img; /* per view, the current level */
+    solve_log_image *img; /* per view, the current level */
     radiance_sample *s;
     int n;
     int slot[SL_STITCH_MAX_VIEWS]; /* gain parameter index of a moving view */
     int params;
 } radiance_problem;
 
-/* ln luminance of a view's features' copy (NaN where not confident or
- * dark) reduced `factor` times by 2 x 2 means: NaN wherever the reduction
- * reaches such a pixel (an edge of the circle is not averaged into the
- * sky). */
-static bool level_make(const solve_features *f, int factor, level_image *out)
-{
-    int w = f->luminance.width, h = f->luminance.height;
-    float *a = malloc((size_t)w * h * sizeof *a);
-    out->log = NULL;
-    if (!a)
-        return false;
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            float l = *sl_image_pixel(&f->luminance, x, y);
-            bool ok = l > 0.0f && *sl_image_pixel(&f->confidence, x, y) >= 0.99f;
-            a[(size_t)y * w + x] = ok ? logf(l) : NAN;
-        }
-    double scale = f->scale;
-    for (int k = 1; k < factor && w >= 32 && h >= 32; k *= 2) {
-        int hw = w / 2, hh = h / 2;
-        for (int y = 0; y < hh; y++)
-            for (int x = 0; x < hw; x++) {
-                const float *p = a + (size_t)(2 * y) * w + 2 * x;
-                a[(size_t)y * hw + x] = 0.25f * (p[0] + p[1] + p[w] + p[w + 1]);
-            }
-        /* 2 hw pixels of the old rows are the new hw: the image stays in
-         * place (each new row is written after the rows it reads from). */
-        w = hw, h = hh;
-        scale *= 2.0;
-    }
-    out->log = a;
-    out->width = w;
-    out->height = h;
-    out->scale = scale;
-    return true;
-}
-
-/* Bilinear ln radiance at full-resolution (x, y); false off the data or on
- * a hard edge. */
-static bool level_at(const level_image *l, double x, double y, double *out)
-{
-    double u = x / l->scale - 0.5, v = y / l->scale - 0.5;
-    int x0 = (int)floor(u), y0 = (int)floor(v);
-    if (x0 < 0 || y0 < 0 || x0 + 1 >= l->width || y0 + 1 >= l->height)
-        return false;
-    const float *p = l->log + (size_t)y0 * l->width + x0;
-    double a = p[0], b = p[1], c = p[l->width], d = p[l->width + 1];
-    double lo = fmin(fmin(a, b), fmin(c, d)), hi = fmax(fmax(a, b), fmax(c, d));
-    if (!(hi - lo <= EDGE_LOG)) /* NaN fails too */
-        return false;
-    double fx = u - x0, fy = v - y0;
-    *out = (1 - fy) * ((1 - fx) * a + fx * b) + fy * ((1 - fx) * c + fx * d);
-    return true;
-}
-
-/* ln radiance a view sees in world direction d (rotation rot), its falloff
- * removed; false where the inner circle or the data end. */
-static bool view_log(const radiance_problem *p, const level_image *l, const double rot[3][3],
+static bool view_log(const radiance_problem *p, const solve_log_image *l, const double rot[3][3],
                      const double d[3], double *out)
 {
-    double c[3], x, y, v;
-    solve_to_camera(rot, d, c);
-    if (!sl_lens_ray_to_pixel(p->inner, c, &x, &y) || !level_at(l, x, y, &v))
-        return false;
-    double g = sl_lens_vignette(p->lens, x, y);
-    if (!(g > 0.0))
-        return false;
-    *out = v - log(g);
-    return true;
+    return solve_log_radiance(l, p->lens, p->inner, rot, d, EDGE_LOG, out);
 }
 
 /* The moving views' samples: directions they and a placed view both see
@@ -277,7 +206,7 @@ bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3]
     p.inner = &inner;
     double log_gain[SL_STITCH_MAX_VIEWS], x[3 + SL_STITCH_MAX_VIEWS] = {0};
     int cap = 2 * level_directions[LEVELS - 1];
-    level_image img[SL_STITCH_MAX_VIEWS] = {{0}};
+    solve_log_image img[SL_STITCH_MAX_VIEWS] = {{0}};
     p.img = img;
     p.s = malloc((size_t)cap * sizeof *p.s);
     p.params = 3;
@@ -293,7 +222,7 @@ bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3]
     for (int level = 0; ok && level < LEVELS; level++) {
         for (int v = 0; ok && v < count; v++) {
             free(img[v].log);
-            ok = level_make(&feat[v], level_factor[level], &img[v]);
+            ok = solve_log_image_make(&feat[v], level_factor[level], &img[v]);
         }
         /* The samples at the pose reached so far. */
         double turned[SL_STITCH_MAX_VIEWS][3][3];
@@ -352,3 +281,4 @@ bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3]
     free(p.s);
     return accept;
 }
+

@@ -1022,6 +1022,10 @@ typedef struct sl_stitch_solve_options {
      * nominal pose. */
     bool radiance_poses;
     double radiance_max_sigma_deg;
+    /* The focal, radial terms, vignetting, rotations and gains refined
+     * together by the solved pairs' smooth overlap radiance after the
+     * vignetting fit (default true): kept when the residual falls. */
+    bool radiance_lens;
 } sl_stitch_solve_options;
 
 void sl_stitch_solve_options_init(sl_stitch_solve_options *o);
@@ -1071,6 +1075,12 @@ typedef struct sl_stitch_solve_result {
     bool vignette_solved;        /* false: too few overlap samples, or not asked */
     int vignette_samples;
     double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
+    /* The lens refined by the overlaps' radiance: kept, its samples, the
+     * log residual before and after, the focal's change by it. */
+    bool radiance_lens;
+    int radiance_lens_samples;
+    double radiance_lens_rms[2];
+    double radiance_lens_focal_change;
     /* The centre: from the image circles (their views, centre and one
      * standard deviation per axis), from the overlaps alone (and its
      * standard deviations), whether the circles' was used, and why (the
