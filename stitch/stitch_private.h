@@ -110,6 +110,12 @@ int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const boo
 double solve_match_error(const solve_match *m, double (*rot)[3][3], const sl_lens *unbounded,
                          double *err_b_in_a, double *err_a_in_b);
 
+/* The match's residuals, pixels: b's point seen in a (x, y), a's in b (x,
+ * y); an edge's one residual across it first, the rest 0. False if a ray
+ * cannot be formed. */
+bool solve_match_residuals(const solve_match *m, double (*rot)[3][3], const sl_lens *unbounded,
+                           double res[4]);
+
 /* The optical centre measured by the views' image circles (opt->circles,
  * else found): the inverse-variance mean of the views' centres (a view far
  * from the others' median left out), its spread widened by their scatter;
@@ -157,22 +163,25 @@ bool solve_log_radiance(const solve_log_image *l, const sl_lens *lens, const sl_
  * says which. */
 bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3][3],
                          const bool *moving, const bool *placed, const sl_lens *lens,
-                         double *gain, double max_turn_deg, double max_sigma_deg, char *why, size_t why_size);
-/* The lens refined by the overlaps' smooth radiance
- * (stitch_solve_radiance_lens.c): ln focal, k1, k2 (as opt solves them),
- * v1, v2, the free views' rotations and the gains by Gauss-Newton on the
- * log radiance difference at the solved pairs' overlaps, from the
- * features' solution. Applied (lens, rot, gain updated) and true when the
- * residual fell and the change is the hundredths of a pixel the features
- * leave. */
+                         double *gain, double max_turn_deg, double max_sigma_deg, char *why,
+                         size_t why_size);
+/* The lens refined by the overlaps' smooth radiance together with the
+ * features (stitch_solve_radiance_lens.c): ln focal, k1, k2 (as opt
+ * solves them), v1, v2, the free views' rotations and the gains by
+ * Gauss-Newton on the log radiance difference at the solved pairs'
+ * overlaps and the inlier matches' reprojection residuals, each weighed by
+ * its own scatter at the features' solution, from which it starts.
+ * Applied (lens, rot, gain updated) and true when the joint cost fell. */
 typedef struct solve_radiance_lens_result {
     int samples;
     double rms_start, rms; /* Huber-weighted RMS log residual before and after */
+    double px_start, px;   /* RMS reprojection residual (per coordinate) before and after */
     double focal_change;   /* relative */
     bool kept;
 } solve_radiance_lens_result;
 bool solve_radiance_lens(int count, const solve_features *feat, double (*rot)[3][3],
                          const bool *free_view, const sl_stitch_pair *pair, int pairs,
+                         const solve_match *matches, int match_count,
                          const sl_stitch_solve_options *opt, sl_lens *lens, double *gain,
                          solve_radiance_lens_result *out);
 

@@ -545,6 +545,44 @@ static void place_by_radiance(solve_state *st, const sl_lens *lens, int *group)
     }
 }
 
+/* The features' residuals may grow by this much (pixels of the full
+ * views) under the lens the radiance refined: more, and the two disagree
+ * about the geometry; the features' lens stands. */
+#define RADIANCE_MAX_RMS_RISE_PX 0.1
+
+static void measure(solve_state *st, const sl_lens *lens);
+
+/* Step 8: the lens refined by the overlaps' smooth radiance
+ * (solve_radiance_lens), the features' residuals measured again under it. */
+static void refine_by_radiance(solve_state *st, const bool *free_view, sl_lens *lens)
+{
+    sl_stitch_solve_result *res = st->res;
+    int count = st->count;
+    double rot[SL_STITCH_MAX_VIEWS][3][3], gain[SL_STITCH_MAX_VIEWS];
+    sl_lens before = *lens;
+    double rms_before = res->rms_px;
+    memcpy(rot, st->rot, (size_t)count * sizeof *st->rot);
+    memcpy(gain, res->gain, (size_t)count * sizeof *gain);
+    solve_radiance_lens_result rl;
+    res->radiance_lens = solve_radiance_lens(count, st->feat, st->rot, free_view, res->pair,
+                                             res->pairs, st->matches, st->match_count, st->opt,
+                                             lens, res->gain, &rl);
+    res->radiance_lens_samples = rl.samples;
+    res->radiance_lens_rms[0] = rl.rms_start;
+    res->radiance_lens_rms[1] = rl.rms;
+    res->radiance_lens_focal_change = rl.focal_change;
+    if (!res->radiance_lens)
+        return;
+    measure(st, lens);
+    if (res->rms_px <= rms_before + RADIANCE_MAX_RMS_RISE_PX)
+        return;
+    res->radiance_lens = false;
+    *lens = before;
+    memcpy(st->rot, rot, (size_t)count * sizeof *st->rot);
+    memcpy(res->gain, gain, (size_t)count * sizeof *gain);
+    measure(st, lens);
+}
+
 /* Reprojection errors of the inliers, overall and per pair. */
 static void measure(solve_state *st, const sl_lens *lens)
 {
@@ -925,17 +963,9 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     if (opt->solve_vignette && res->pairs_solved > 0)
         solve_vignette(count, st.feat, st.rot, &lens, res);
     t = sl_seconds();
-    if (opt->radiance_lens && res->vignette_solved && !res->lens_held) {
-        solve_radiance_lens_result rl;
-        res->radiance_lens = solve_radiance_lens(count, st.feat, st.rot, free_view, res->pair,
-                                                 res->pairs, opt, &lens, res->gain, &rl);
-        res->radiance_lens_samples = rl.samples;
-        res->radiance_lens_rms[0] = rl.rms_start;
-        res->radiance_lens_rms[1] = rl.rms;
-        res->radiance_lens_focal_change = rl.focal_change;
-        if (res->radiance_lens)
-            measure(&st, &lens); /* the features' residuals under the refined lens */
-    }
+    if (opt->radiance_lens && res->vignette_solved && !res->lens_held &&
+        count <= SL_STITCH_MAX_VIEWS)
+        refine_by_radiance(&st, free_view, &lens);
     if (opt->radiance_poses && opt->solve_poses && res->vignette_solved)
         place_by_radiance(&st, &lens, group);
     res->seconds_radiance = sl_seconds() - t;

@@ -76,7 +76,8 @@ static int collect(radiance_problem *p, const double *log_gain, int directions, 
                 continue;
             for (int o = 0; o < p->count && n < cap; o++) {
                 double lo;
-                if (!p->placed[o] || !view_log(p, &p->img[o], (const double (*)[3])p->rot[o], d, &lo))
+                if (!p->placed[o] ||
+                    !view_log(p, &p->img[o], (const double (*)[3])p->rot[o], d, &lo))
                     continue;
                 radiance_sample *s = &p->s[n++];
                 s->moving = m;
@@ -161,7 +162,8 @@ static bool gauss_newton(const radiance_problem *p, double *x, bool last, radian
         }
         if (it == MAX_ITERATIONS)
             break; /* hess and the spread at the final x */
-        double step[3 + SL_STITCH_MAX_VIEWS], a[(3 + SL_STITCH_MAX_VIEWS) * (3 + SL_STITCH_MAX_VIEWS)];
+        double step[3 + SL_STITCH_MAX_VIEWS];
+        double a[(3 + SL_STITCH_MAX_VIEWS) * (3 + SL_STITCH_MAX_VIEWS)];
         memcpy(a, hess, sizeof a);
         for (int u = 0; u < np; u++)
             step[u] = -g[u];

@@ -6,8 +6,10 @@
  * agree only where both are right. So the focal, the radial terms, the
  * vignetting, the free views' rotations and the gains are refined together
  * by Gauss-Newton on the log radiance difference of the solved pairs'
- * overlaps, starting from the features' solution (docs/stitch.md, "Solve",
- * step 8). */
+ * overlaps and the inlier matches' reprojection residuals, each weighed by
+ * its own scatter at the features' solution, from which it starts: where
+ * the radiance is noisy the features hold the lens (docs/stitch.md,
+ * "Solve", step 8). */
 #include "merge_private.h"
 #include "stitch_private.h"
 
@@ -42,6 +44,10 @@ typedef struct lens_problem {
     int (*views)[2]; /* per sample: the pair's views */
     double (*dir)[3];
     int n;
+    const solve_match *matches; /* the inliers */
+    int match_count;
+    int total;                  /* residuals: n radiance, then 4 per match */
+    double sigma_log, sigma_px; /* each kind's scatter at the start */
     int rot_slot[SL_STITCH_MAX_VIEWS], gain_slot[SL_STITCH_MAX_VIEWS]; /* -1: held */
     bool lens_free[LENS_PARAMS];
     int params;
@@ -67,13 +73,19 @@ static void lens_at(const lens_problem *p, const double *x, sl_lens *lens, sl_le
     }
 }
 
-/* Per sample ln L_a - ln g_a - (ln L_b - ln g_b); NaN where a view's data
- * ends. */
+/* Per sample ln L_a - ln g_a - (ln L_b - ln g_b), NaN where a view's data
+ * ends; then each match's four reprojection residuals (pixels). */
 static void residuals(const lens_problem *p, const double *x, double *r)
 {
-    sl_lens lens, inner;
+    sl_lens lens, inner, unbounded;
     double rot[SL_STITCH_MAX_VIEWS][3][3];
     lens_at(p, x, &lens, &inner, rot);
+    solve_lens_unbounded(&lens, &unbounded);
+    for (int i = 0; i < p->match_count; i++) {
+        double *e = r + p->n + 4 * i;
+        if (!solve_match_residuals(&p->matches[i], rot, &unbounded, e))
+            e[0] = e[1] = e[2] = e[3] = NAN;
+    }
     for (int i = 0; i < p->n; i++) {
         int a = p->views[i][0], b = p->views[i][1];
         double la, lb;
@@ -90,18 +102,45 @@ static void residuals(const lens_problem *p, const double *x, double *r)
     }
 }
 
-/* Huber-weighted RMS of the residuals at x over the samples finite there. */
-static double spread(const lens_problem *p, const double *x, double *r)
+/* The weight of residual i of value r: a radiance sample's Huber weight
+ * over its kind's variance, a match's over its. */
+static double weight(const lens_problem *p, int i, double r)
+{
+    if (i >= p->n)
+        return 1.0 / (p->sigma_px * p->sigma_px);
+    double huber = fabs(r) <= HUBER_LOG ? 1.0 : HUBER_LOG / fabs(r);
+    return huber / (p->sigma_log * p->sigma_log);
+}
+
+/* The residuals at x: each kind's RMS (Huber-weighted for the radiance,
+ * per coordinate for the matches) and the joint cost (weighted squares
+ * over the residuals that are finite). */
+typedef struct lens_cost {
+    double rms_log, rms_px, cost;
+} lens_cost;
+
+static lens_cost evaluate(const lens_problem *p, const double *x, double *r)
 {
     residuals(p, x, r);
-    double sum = 0.0, weights = 0.0;
-    for (int i = 0; i < p->n; i++)
-        if (isfinite(r[i])) {
-            double w = fabs(r[i]) <= HUBER_LOG ? 1.0 : HUBER_LOG / fabs(r[i]);
-            sum += w * r[i] * r[i];
-            weights += w;
-        }
-    return weights > 0.0 ? sqrt(sum / weights) : INFINITY;
+    double sum[2] = {0, 0}, weights[2] = {0, 0}, cost = 0.0;
+    int used = 0;
+    for (int i = 0; i < p->total; i++) {
+        if (!isfinite(r[i]))
+            continue;
+        int kind = i >= p->n;
+        double huber = kind ? 1.0 : fabs(r[i]) <= HUBER_LOG ? 1.0 : HUBER_LOG / fabs(r[i]);
+        /* an edge's unused residuals are 0: not coordinates */
+        if (kind && r[i] == 0.0)
+            continue;
+        sum[kind] += huber * r[i] * r[i];
+        weights[kind] += huber;
+        cost += weight(p, i, r[i]) * r[i] * r[i];
+        used++;
+    }
+    lens_cost c = {weights[0] > 0 ? sqrt(sum[0] / weights[0]) : INFINITY,
+                   weights[1] > 0 ? sqrt(sum[1] / weights[1]) : 0.0,
+                   used ? cost / used : INFINITY};
+    return c;
 }
 
 /* The directions both views of a solved pair see, smooth in both. */
@@ -135,7 +174,7 @@ static int collect(lens_problem *p, const sl_stitch_pair *pair, int pairs, int c
 static bool step(const lens_problem *p, double *x, double *r0, double *rp, double *rm,
                  double *jac)
 {
-    int np = p->params, n = p->n;
+    int np = p->params, n = p->total;
     double h[MAX_PARAMS];
     bool numeric[MAX_PARAMS];
     for (int k = 0; k < np; k++) {
@@ -162,20 +201,22 @@ static bool step(const lens_problem *p, double *x, double *r0, double *rp, doubl
     double hess[MAX_PARAMS * MAX_PARAMS] = {0}, g[MAX_PARAMS] = {0};
     for (int i = 0; i < n; i++) {
         double *j = jac + (size_t)i * np;
-        int a = p->views[i][0], b = p->views[i][1];
         for (int k = 0; k < np; k++)
             if (!numeric[k])
                 j[k] = 0.0;
-        if (p->gain_slot[a] >= 0)
-            j[p->gain_slot[a]] = -1.0;
-        if (p->gain_slot[b] >= 0)
-            j[p->gain_slot[b]] = 1.0;
+        if (i < p->n) { /* a radiance sample: the two views' gains */
+            int a = p->views[i][0], b = p->views[i][1];
+            if (p->gain_slot[a] >= 0)
+                j[p->gain_slot[a]] = -1.0;
+            if (p->gain_slot[b] >= 0)
+                j[p->gain_slot[b]] = 1.0;
+        }
         bool finite = isfinite(r0[i]);
         for (int k = 0; k < np && finite; k++)
             finite = isfinite(j[k]);
         if (!finite)
             continue;
-        double w = fabs(r0[i]) <= HUBER_LOG ? 1.0 : HUBER_LOG / fabs(r0[i]);
+        double w = weight(p, i, r0[i]);
         for (int a2 = 0; a2 < np; a2++) {
             g[a2] -= w * j[a2] * r0[i];
             for (int b2 = 0; b2 < np; b2++)
@@ -194,6 +235,7 @@ static bool step(const lens_problem *p, double *x, double *r0, double *rp, doubl
 
 bool solve_radiance_lens(int count, const solve_features *feat, double (*rot)[3][3],
                          const bool *free_view, const sl_stitch_pair *pair, int pairs,
+                         const solve_match *matches, int match_count,
                          const sl_stitch_solve_options *opt, sl_lens *lens, double *gain,
                          solve_radiance_lens_result *out)
 {
@@ -222,28 +264,45 @@ bool solve_radiance_lens(int count, const solve_features *feat, double (*rot)[3]
     p.dir = ok ? malloc((size_t)cap * sizeof *p.dir) : NULL;
     p.n = p.views && p.dir ? collect(&p, pair, pairs, cap) : 0;
     out->samples = p.n;
-    size_t n = (size_t)p.n;
+    /* the inlier matches, in one block */
+    solve_match *inliers = malloc((size_t)(match_count + 1) * sizeof *inliers);
+    for (int i = 0; inliers && i < match_count; i++)
+        if (matches[i].inlier)
+            inliers[p.match_count++] = matches[i];
+    p.matches = inliers;
+    p.total = p.n + 4 * p.match_count;
+    size_t n = (size_t)p.total;
     double *r0 = malloc((n + 1) * sizeof *r0), *rp = malloc((n + 1) * sizeof *rp),
            *rm = malloc((n + 1) * sizeof *rm), *jac = malloc((n + 1) * p.params * sizeof *jac);
-    ok = ok && p.n >= MIN_SAMPLES && r0 && rp && rm && jac;
-    out->rms_start = ok ? spread(&p, x, r0) : INFINITY;
-    double best = out->rms_start, best_x[MAX_PARAMS];
+    ok = ok && inliers && p.n >= MIN_SAMPLES && r0 && rp && rm && jac;
+    /* Each kind weighed by its own scatter at the features' solution. */
+    p.sigma_log = p.sigma_px = 1.0;
+    lens_cost start = ok ? evaluate(&p, x, r0) : (lens_cost){INFINITY, INFINITY, INFINITY};
+    p.sigma_log = fmax(start.rms_log, 1e-4);
+    p.sigma_px = fmax(start.rms_px, 0.01);
+    if (ok)
+        start = evaluate(&p, x, r0);
+    out->rms_start = start.rms_log;
+    out->px_start = start.rms_px;
+    lens_cost best = start;
+    double best_x[MAX_PARAMS];
     memcpy(best_x, x, sizeof x);
     for (int it = 0; ok && it < ITERATIONS; it++) {
         if (!step(&p, x, r0, rp, rm, jac))
             break;
-        double s = spread(&p, x, r0);
-        if (!(s < best))
+        lens_cost c = evaluate(&p, x, r0);
+        if (!(c.cost < best.cost))
             break;
-        bool settled = s > best * (1.0 - 1e-4);
-        best = s;
+        bool settled = c.cost > best.cost * (1.0 - 1e-4);
+        best = c;
         memcpy(best_x, x, sizeof x);
         if (settled)
             break;
     }
-    out->rms = best;
+    out->rms = best.rms_log;
+    out->px = best.rms_px;
     out->focal_change = exp(best_x[0]) - 1.0;
-    bool kept = ok && best < out->rms_start && fabs(out->focal_change) <= MAX_FOCAL_CHANGE &&
+    bool kept = ok && best.cost < start.cost && fabs(out->focal_change) <= MAX_FOCAL_CHANGE &&
                 fabs(best_x[1]) <= MAX_K_CHANGE && fabs(best_x[2]) <= MAX_K_CHANGE;
     if (kept) {
         sl_lens refined, inner;
@@ -257,6 +316,6 @@ bool solve_radiance_lens(int count, const solve_features *feat, double (*rot)[3]
     out->kept = kept;
     for (int v = 0; v < count; v++)
         free(img[v].log);
-    free(p.views), free(p.dir), free(r0), free(rp), free(rm), free(jac);
+    free(p.views), free(p.dir), free(inliers), free(r0), free(rp), free(rm), free(jac);
     return kept;
 }

@@ -389,10 +389,12 @@ static void solved_case(solved_row *row)
                sr.radiance_lens ? "kept" : "not kept", sr.radiance_lens_samples,
                sr.radiance_lens_rms[0], sr.radiance_lens_rms[1],
                100 * sr.radiance_lens_focal_change, sr.seconds_radiance);
-        printf("  %s %d: %d pairs solved, %d fell back, %d from radiance, RMS %.3f px, focal %+.3f%%, k1 %.4f, "
+        printf("  %s %d: %d pairs solved, %d fell back, %d from radiance, RMS %.3f px, "
+               "focal %+.3f%%, k1 %.4f, "
                "centre %.3f px, rotations %.4f deg; median %.5f (oracle %.5f, %.2fx, %+.5f), "
                "p95 %.4f (oracle %.4f, %.2fx); solved vs oracle stitch median %.5f\n",
-               row->scene, n, sr.pairs_solved, sr.pairs_fallback, sr.pairs_radiance, sr.rms_px, 100 * row->focal,
+               row->scene, n, sr.pairs_solved, sr.pairs_fallback, sr.pairs_radiance, sr.rms_px,
+               100 * row->focal,
                row->k1, row->centre_px, row->rot_deg, row->sm, row->om, row->sm / row->om,
                row->sm - row->om, row->sp, row->op, row->sp / row->op, row->diff_median);
         if (getenv("SETLIGHT_STITCH_SUBSTITUTE"))

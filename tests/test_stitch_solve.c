@@ -342,8 +342,10 @@ static void zenith_by_radiance(void)
         sl_stitch_solve_result res;
         CHECK_OK(sl_stitch_solve(views, 4, NULL, &res, &err), &err);
         double zenith = relative_error(&tr->truth[0], &tr->truth[3], &res.pose[0], &res.pose[3]);
-        double side = fmax(relative_error(&tr->truth[0], &tr->truth[1], &res.pose[0], &res.pose[1]),
-                           relative_error(&tr->truth[0], &tr->truth[2], &res.pose[0], &res.pose[2]));
+        double side = 0.0;
+        for (int i = 1; i < 3; i++)
+            side = fmax(side, relative_error(&tr->truth[0], &tr->truth[i], &res.pose[0],
+                                             &res.pose[i]));
         printf("sky %s a sun: %d pairs solved, %d from radiance, %d fell back; side views %.4f "
                "deg, zenith %.4f deg off; radiance %.2f s of %.2f s\n",
                sun ? "with" : "without", res.pairs_solved, res.pairs_radiance, res.pairs_fallback,
