@@ -110,10 +110,8 @@ static void residuals(const radiance_problem *p, const double w[3], const double
 }
 
 typedef struct radiance_fit {
-    double w[3];      /* the group's turn, radians (world frame) */
     double rms_start, rms; /* log radiance residual at the nominal pose and the solved one */
-    double sigma_deg; /* one standard deviation along the worst-determined axis */
-    int samples;
+    double sigma_deg;      /* one standard deviation along the worst-determined axis */
 } radiance_fit;
 
 /* Gauss-Newton with a Huber loss on the current level's samples; on the
@@ -220,7 +218,7 @@ bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3]
             x[p.params++] = log_gain[v];
         }
     }
-    radiance_fit fit = {.rms_start = INFINITY};
+    radiance_fit fit = {.rms_start = INFINITY, .rms = INFINITY, .sigma_deg = INFINITY};
     for (int level = 0; ok && level < LEVELS; level++) {
         for (int v = 0; ok && v < count; v++) {
             free(img[v].log);
@@ -256,7 +254,6 @@ bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3]
         }
         ok = ok && gauss_newton(&p, x, level == LEVELS - 1, &fit);
     }
-    fit.samples = p.n;
     double turn = sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) / DEG;
     bool accept = ok && turn <= max_turn_deg && fit.sigma_deg <= max_sigma_deg &&
                   fit.rms <= fit.rms_start;

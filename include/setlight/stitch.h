@@ -1023,8 +1023,9 @@ typedef struct sl_stitch_solve_options {
     bool radiance_poses;
     double radiance_max_sigma_deg;
     /* The focal, radial terms, vignetting, rotations and gains refined
-     * together by the solved pairs' smooth overlap radiance after the
-     * vignetting fit (default true): kept when the residual falls. */
+     * together by the solved pairs' smooth overlap radiance and the
+     * matches, each weighed by its own scatter, after the vignetting fit
+     * (default true): kept when the joint cost falls. */
     bool radiance_lens;
 } sl_stitch_solve_options;
 
