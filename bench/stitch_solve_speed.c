@@ -75,8 +75,12 @@ int main(int argc, char **argv)
         return 0;
     }
     sl_stitch_solve_result res;
+    sl_stitch_solve_options opt;
+    sl_stitch_solve_options_init(&opt);
+    /* "features": without the radiance steps (the lens refined, views placed) */
+    opt.radiance_lens = opt.radiance_poses = !(argc > 4 && !strcmp(argv[4], "features"));
     double wall = sl_seconds(), cpu = sl_cpu_seconds();
-    sl_result r = sl_stitch_solve(views, 3, NULL, &res, &err);
+    sl_result r = sl_stitch_solve(views, 3, &opt, &res, &err);
     wall = sl_seconds() - wall;
     cpu = sl_cpu_seconds() - cpu;
     if (r != SL_OK) {
@@ -84,9 +88,9 @@ int main(int argc, char **argv)
         return 1;
     }
     printf("%s, 3 views of %dx%d: %.2f s wall, %.2f s CPU (features %.2f, matching %.2f, "
-           "adjustment %.2f s wall)\n",
+           "adjustment %.2f, radiance %.2f s wall)\n",
            scene_name, width, height, wall, cpu, res.seconds_features, res.seconds_match,
-           res.seconds_adjust);
+           res.seconds_adjust, res.seconds_radiance);
     printf("pairs solved %d of %d, %d inliers, reprojection rms %.3f px, max %.2f px\n",
            res.pairs_solved, res.pairs, res.inliers, res.rms_px, res.max_px);
     printf("focal %+.3f%% of the truth, centre %.2f px off, k1 %.4f (true %.4f), k2 %.4f (true "

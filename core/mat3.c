@@ -4,6 +4,10 @@
 
 #include <math.h>
 
+#ifndef M_PI
+#define M_PI 3.14159265358979323846
+#endif
+
 void sl_mat3_mul(const double a[3][3], const double b[3][3], double out[3][3])
 {
     double t[3][3];
@@ -41,4 +45,29 @@ bool sl_mat3_invert(const double m[3][3], double out[3][3])
         for (int j = 0; j < 3; j++)
             out[i][j] = t[i][j] / det;
     return true;
+}
+
+/* Closed form (Smith 1961). */
+void sl_mat3_sym_eigenvalues(const double a[3][3], double ev[3])
+{
+    double p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+    double q = (a[0][0] + a[1][1] + a[2][2]) / 3;
+    double p2 = (a[0][0] - q) * (a[0][0] - q) + (a[1][1] - q) * (a[1][1] - q) +
+                (a[2][2] - q) * (a[2][2] - q) + 2 * p1;
+    double p = sqrt(p2 / 6);
+    if (!(p > 0)) {
+        ev[0] = ev[1] = ev[2] = q;
+        return;
+    }
+    double b[3][3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            b[i][j] = (a[i][j] - (i == j ? q : 0)) / p;
+    double r = (b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1]) -
+                b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0]) +
+                b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0])) / 2;
+    double phi = r <= -1 ? M_PI / 3 : r >= 1 ? 0 : acos(r) / 3;
+    ev[0] = q + 2 * p * cos(phi);
+    ev[2] = q + 2 * p * cos(phi + 2 * M_PI / 3);
+    ev[1] = 3 * q - ev[0] - ev[2];
 }

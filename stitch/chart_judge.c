@@ -27,31 +27,6 @@ static void hue_chroma(const double rgb[3], const double wb[3], double *hue, dou
     *chroma = mx > 0 ? (mx - mn) / mx : 0;
 }
 
-/* Eigenvalues of a symmetric 3x3 (closed form, Smith 1961), descending. */
-static void sym3_eigenvalues(const double a[3][3], double ev[3])
-{
-    double p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-    double q = (a[0][0] + a[1][1] + a[2][2]) / 3;
-    double p2 = (a[0][0] - q) * (a[0][0] - q) + (a[1][1] - q) * (a[1][1] - q) +
-                (a[2][2] - q) * (a[2][2] - q) + 2 * p1;
-    double p = sqrt(p2 / 6);
-    if (!(p > 0)) {
-        ev[0] = ev[1] = ev[2] = q;
-        return;
-    }
-    double b[3][3];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            b[i][j] = (a[i][j] - (i == j ? q : 0)) / p;
-    double r = (b[0][0] * (b[1][1] * b[2][2] - b[1][2] * b[2][1]) -
-                b[0][1] * (b[1][0] * b[2][2] - b[1][2] * b[2][0]) +
-                b[0][2] * (b[1][0] * b[2][1] - b[1][1] * b[2][0])) / 2;
-    double phi = r <= -1 ? M_PI / 3 : r >= 1 ? 0 : acos(r) / 3;
-    ev[0] = q + 2 * p * cos(phi);
-    ev[2] = q + 2 * p * cos(phi + 2 * M_PI / 3);
-    ev[1] = 3 * q - ev[0] - ev[2];
-}
-
 /* sigma_max / sigma_min. */
 static double condition3(const double m[3][3])
 {
@@ -59,7 +34,7 @@ static double condition3(const double m[3][3])
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++)
             mtm[i][j] = m[0][i] * m[0][j] + m[1][i] * m[1][j] + m[2][i] * m[2][j];
-    sym3_eigenvalues(mtm, ev);
+    sl_mat3_sym_eigenvalues(mtm, ev);
     return ev[2] > 0 ? sqrt(ev[0] / ev[2]) : INFINITY;
 }
 

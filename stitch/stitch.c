@@ -680,9 +680,11 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
             goto done;
         res->solved = true;
         snprintf(res->solve_note, sizeof res->solve_note,
-                 "solved from the overlaps: %d pairs solved, %d fell back to the nominal "
-                 "rotation, %d matches, reprojection RMS %.3f px, max %.3f px%s%s",
-                 res->solve.pairs_solved, res->solve.pairs_fallback, res->solve.inliers,
+                 "solved from the overlaps: %d pairs solved, %d placed by their radiance, %d "
+                 "fell back to the nominal rotation, %d matches, reprojection RMS %.3f px, max "
+                 "%.3f px%s%s",
+                 res->solve.pairs_solved, res->solve.pairs_radiance, res->solve.pairs_fallback,
+                 res->solve.inliers,
                  res->solve.rms_px, res->solve.max_px, res->solve.lens_held ? "; " : "",
                  res->solve.lens_held ? res->solve.lens_note : "");
     } else {

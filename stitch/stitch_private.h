@@ -108,6 +108,12 @@ int solve_adjust(solve_match *matches, int count, double (*rot)[3][3], const boo
 double solve_match_error(const solve_match *m, double (*rot)[3][3], const sl_lens *unbounded,
                          double *err_b_in_a, double *err_a_in_b);
 
+/* The match's residuals, pixels: b's point seen in a (x, y), a's in b (x,
+ * y); an edge's one residual across it first, the rest 0. False if a ray
+ * cannot be formed. */
+bool solve_match_residuals(const solve_match *m, double (*rot)[3][3], const sl_lens *unbounded,
+                           double res[4]);
+
 /* The optical centre measured by the views' image circles (opt->circles,
  * else found): the inverse-variance mean of the views' centres (a view far
  * from the others' median left out), its spread widened by their scatter;
@@ -128,5 +134,53 @@ bool solve_centre_agrees(const solve_centre_prior *prior, const sl_lens *overlap
  * overlaps of res's solved pairs; fills res's vignette fields and gain. */
 void solve_vignette(int count, const solve_features *feat, double (*rot)[3][3], sl_lens *lens,
                     sl_stitch_solve_result *res);
+
+/* A view's ln luminance at the features' scale reduced `factor` times by
+ * 2 x 2 means; NaN where the merge was not confident or the view is dark,
+ * and wherever a reduction reaches such a pixel. */
+typedef struct solve_log_image {
+    float *log;
+    int width, height;
+    double scale; /* full pixels per pixel */
+} solve_log_image;
+bool solve_log_image_make(const solve_features *f, int factor, solve_log_image *out);
+/* ln radiance a view (cam_to_world rot) sees in world direction d, its
+ * vignetting (lens) removed, bilinear; false outside inner's circle, off
+ * the data, or on a hard edge (its 2 x 2 pixels spanning more than
+ * edge_log). */
+bool solve_log_radiance(const solve_log_image *l, const sl_lens *lens, const sl_lens *inner,
+                        const double rot[3][3], const double d[3], double edge_log, double *out);
+
+/* Turns the views with moving set (one group, rigidly) to where their
+ * overlaps' log radiance agrees with the placed views' (lens, vignetting and
+ * the other views' gains held; each moving view's gain solved with it):
+ * coarse to fine Gauss-Newton over the group's rotation. Applied (rot and
+ * gain updated) and true only when the turn is within max_turn_deg, its
+ * worst-determined axis known to max_sigma_deg (the Hessian's smallest
+ * eigenvalue against the residuals' spread) and the residual fell; why
+ * says which. */
+bool solve_radiance_turn(int count, const solve_features *feat, double (*rot)[3][3],
+                         const bool *moving, const bool *placed, const sl_lens *lens,
+                         double *gain, double max_turn_deg, double max_sigma_deg, char *why,
+                         size_t why_size);
+/* The lens refined by the overlaps' smooth radiance together with the
+ * features (stitch_solve_radiance_lens.c): ln focal, k1, k2 (as opt
+ * solves them), v1, v2, the free views' rotations and the gains by
+ * Gauss-Newton on the log radiance difference at the solved pairs'
+ * overlaps and the inlier matches' reprojection residuals, each weighed by
+ * its own scatter at the features' solution, from which it starts.
+ * Applied (lens, rot, gain updated) and true when the joint cost fell. */
+typedef struct solve_radiance_lens_result {
+    int samples;
+    double rms_start, rms; /* Huber-weighted RMS log residual before and after */
+    double px_start, px;   /* RMS reprojection residual (per coordinate) before and after */
+    double focal_change;   /* relative */
+    bool kept;
+} solve_radiance_lens_result;
+bool solve_radiance_lens(int count, const solve_features *feat, double (*rot)[3][3],
+                         const bool *free_view, const sl_stitch_pair *pair, int pairs,
+                         const solve_match *matches, int match_count,
+                         const sl_stitch_solve_options *opt, sl_lens *lens, double *gain,
+                         solve_radiance_lens_result *out);
 
 #endif

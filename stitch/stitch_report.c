@@ -71,9 +71,11 @@ static void summary(sl_report *rep, const sl_stitch_result *res, const char *out
                    l->vignette[0], l->vignette[1], l->max_theta_deg, l->circle_radius_px);
     if (res->solved)
         sl_report_text(rep, "Reprojection error: RMS %.3f px, max %.3f px over %d matches; %d "
-                            "pairs solved, %d fell back to the nominal rotation.%s%s",
+                            "pairs solved, %d placed by their radiance, %d fell back to the "
+                            "nominal rotation.%s%s",
                        res->solve.rms_px, res->solve.max_px, res->solve.inliers,
-                       res->solve.pairs_solved, res->solve.pairs_fallback,
+                       res->solve.pairs_solved, res->solve.pairs_radiance,
+                       res->solve.pairs_fallback,
                        res->solve.lens_held ? " " : "",
                        res->solve.lens_held ? res->solve.lens_note : "");
     if (res->solved && res->solve.circle_views > 0)

@@ -70,10 +70,19 @@ static json_t *result_json(const sl_stitch_result *res, const char *out_path)
         "pairs", pairs);
     if (res->solved)
         json_object_set_new(j, "reprojection",
-                            json_pack("{s:f, s:f, s:i, s:i, s:i}", "rms_px", res->solve.rms_px,
-                                      "max_px", res->solve.max_px, "matches", res->solve.inliers,
-                                      "pairs_solved", res->solve.pairs_solved, "pairs_fallback",
-                                      res->solve.pairs_fallback));
+                            json_pack("{s:f, s:f, s:i, s:i, s:i, s:i}", "rms_px",
+                                      res->solve.rms_px, "max_px", res->solve.max_px, "matches",
+                                      res->solve.inliers, "pairs_solved", res->solve.pairs_solved,
+                                      "pairs_fallback", res->solve.pairs_fallback,
+                                      "pairs_radiance", res->solve.pairs_radiance));
+    if (res->solved && res->solve.radiance_lens_samples > 0)
+        json_object_set_new(j, "radiance_lens",
+                            json_pack("{s:b, s:i, s:[f, f], s:f}", "kept",
+                                      res->solve.radiance_lens, "samples",
+                                      res->solve.radiance_lens_samples, "rms_log",
+                                      res->solve.radiance_lens_rms[0],
+                                      res->solve.radiance_lens_rms[1], "focal_change_percent",
+                                      100.0 * res->solve.radiance_lens_focal_change));
     if (res->solved && res->solve.circle_views > 0) {
         const sl_stitch_solve_result *sr = &res->solve;
         json_t *centre = json_pack(

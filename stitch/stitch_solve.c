@@ -49,6 +49,9 @@ void sl_stitch_solve_options_init(sl_stitch_solve_options *o)
     o->max_correction_deg = 10.0;
     o->seed = 1;
     o->centre_from_circle = true;
+    o->radiance_poses = true;
+    o->radiance_max_sigma_deg = 0.02;
+    o->radiance_lens = true;
 }
 
 const char *sl_stitch_pair_status_name(sl_stitch_pair_status s)
@@ -62,6 +65,8 @@ const char *sl_stitch_pair_status_name(sl_stitch_pair_status s)
         return "too few matches";
     case SL_STITCH_PAIR_INCONSISTENT:
         return "inconsistent with the nominal poses";
+    case SL_STITCH_PAIR_RADIANCE:
+        return "solved from radiance";
     }
     return "unknown";
 }
@@ -489,6 +494,95 @@ static void drop_disagreeing_pairs(solve_state *st)
     }
 }
 
+/* Each group of views the solved pairs do not join to view 0's (a
+ * featureless zenith) turned by the radiance of its overlaps with the
+ * views placed so far (solve_radiance_turn); its fallen-back pairs with
+ * them say how, or why not. Needs the lens and vignetting solved: an
+ * unknown falloff differs between the two sides of an overlap and would
+ * pull the pose. */
+static void place_by_radiance(solve_state *st, const sl_lens *lens, int *group)
+{
+    sl_stitch_solve_result *res = st->res;
+    int count = st->count;
+    bool moving[SL_STITCH_MAX_VIEWS], placed_view[SL_STITCH_MAX_VIEWS];
+    if (count > SL_STITCH_MAX_VIEWS)
+        return;
+    for (int root = 0; root < count; root++) {
+        bool any = false;
+        for (int v = 0; v < count; v++) {
+            moving[v] = group[v] == root && group[0] != root;
+            placed_view[v] = group[v] == group[0];
+            any |= moving[v];
+        }
+        if (!any)
+            continue;
+        char why[160];
+        bool placed = solve_radiance_turn(count, st->feat, st->rot, moving, placed_view, lens,
+                                          res->gain,
+                                          st->opt->max_correction_deg,
+                                          st->opt->radiance_max_sigma_deg, why, sizeof why);
+        for (int p = 0; p < res->pairs; p++) {
+            sl_stitch_pair *pr = &res->pair[p];
+            bool across = (moving[pr->a] && placed_view[pr->b]) ||
+                          (moving[pr->b] && placed_view[pr->a]);
+            if (!pr->fallback || pr->status == SL_STITCH_PAIR_NO_OVERLAP || !across)
+                continue;
+            if (placed) {
+                pr->status = SL_STITCH_PAIR_RADIANCE;
+                pr->fallback = false;
+                res->pairs_radiance++;
+                res->pairs_fallback--;
+                snprintf(pr->why, sizeof pr->why, "%s", why);
+            } else {
+                size_t used = strlen(pr->why);
+                snprintf(pr->why + used, sizeof pr->why - used, "; %s", why);
+            }
+        }
+        if (placed)
+            for (int v = 0; v < count; v++)
+                if (moving[v])
+                    group[v] = group[0];
+    }
+}
+
+/* The features' residuals may grow by this much (pixels of the full
+ * views) under the lens the radiance refined: more, and the two disagree
+ * about the geometry; the features' lens stands. */
+#define RADIANCE_MAX_RMS_RISE_PX 0.1
+
+static void measure(solve_state *st, const sl_lens *lens);
+
+/* Step 8: the lens refined by the overlaps' smooth radiance
+ * (solve_radiance_lens), the features' residuals measured again under it. */
+static void refine_by_radiance(solve_state *st, const bool *free_view, sl_lens *lens)
+{
+    sl_stitch_solve_result *res = st->res;
+    int count = st->count;
+    double rot[SL_STITCH_MAX_VIEWS][3][3], gain[SL_STITCH_MAX_VIEWS];
+    sl_lens before = *lens;
+    double rms_before = res->rms_px;
+    memcpy(rot, st->rot, (size_t)count * sizeof *st->rot);
+    memcpy(gain, res->gain, (size_t)count * sizeof *gain);
+    solve_radiance_lens_result rl;
+    res->radiance_lens = solve_radiance_lens(count, st->feat, st->rot, free_view, res->pair,
+                                             res->pairs, st->matches, st->match_count, st->opt,
+                                             lens, res->gain, &rl);
+    res->radiance_lens_samples = rl.samples;
+    res->radiance_lens_rms[0] = rl.rms_start;
+    res->radiance_lens_rms[1] = rl.rms;
+    res->radiance_lens_focal_change = rl.focal_change;
+    if (!res->radiance_lens)
+        return;
+    measure(st, lens);
+    if (res->rms_px <= rms_before + RADIANCE_MAX_RMS_RISE_PX)
+        return;
+    res->radiance_lens = false;
+    *lens = before;
+    memcpy(st->rot, rot, (size_t)count * sizeof *st->rot);
+    memcpy(res->gain, gain, (size_t)count * sizeof *gain);
+    measure(st, lens);
+}
+
 /* Reprojection errors of the inliers, overall and per pair. */
 static void measure(solve_state *st, const sl_lens *lens)
 {
@@ -868,6 +962,13 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
     res->seconds_adjust = sl_seconds() - t;
     if (opt->solve_vignette && res->pairs_solved > 0)
         solve_vignette(count, st.feat, st.rot, &lens, res);
+    t = sl_seconds();
+    if (opt->radiance_lens && res->vignette_solved && !res->lens_held &&
+        count <= SL_STITCH_MAX_VIEWS)
+        refine_by_radiance(&st, free_view, &lens);
+    if (opt->radiance_poses && opt->solve_poses && res->vignette_solved)
+        place_by_radiance(&st, &lens, group);
+    res->seconds_radiance = sl_seconds() - t;
     res->lens = lens;
     for (int v = 0; v < count; v++) {
         sl_view_pose_from_matrix((const double (*)[3])st.rot[v], &res->pose[v]);

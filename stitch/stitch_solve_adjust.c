@@ -115,6 +115,15 @@ static bool residuals(const solve_match *m, double (*rot)[3][3], const sl_lens *
     return true;
 }
 
+bool solve_match_residuals(const solve_match *m, double (*rot)[3][3], const sl_lens *unbounded,
+                           double res[4])
+{
+    double ra[3], rb[3];
+    return sl_lens_pixel_to_ray(unbounded, m->pa[0], m->pa[1], ra) &&
+           sl_lens_pixel_to_ray(unbounded, m->pb[0], m->pb[1], rb) &&
+           residuals(m, rot, unbounded, ra, rb, res);
+}
+
 double solve_match_error(const solve_match *m, double (*rot)[3][3], const sl_lens *unbounded,
                          double *err_b_in_a, double *err_a_in_b)
 {

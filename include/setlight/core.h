@@ -699,6 +699,8 @@ void sl_mat3_mul(const double a[3][3], const double b[3][3], double out[3][3]);
 void sl_mat3_apply(const double m[3][3], const double v[3], double out[3]);
 /* Inverse by cofactors; false (out untouched) when singular. */
 bool sl_mat3_invert(const double m[3][3], double out[3][3]);
+/* Eigenvalues of a symmetric 3x3, descending. */
+void sl_mat3_sym_eigenvalues(const double a[3][3], double ev[3]);
 
 /* Row-major 3x3 rotation: world_dir = rot * map_dir. Right-handed: a
  * positive angle about Y turns +Z toward +X. Euler: rot = Ry(yaw) Rx(pitch)

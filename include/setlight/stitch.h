@@ -1015,6 +1015,18 @@ typedef struct sl_stitch_solve_options {
      * (count entries), or NULL: found by the solve (sl_stitch_circle_find). */
     bool centre_from_circle;
     const struct sl_stitch_circle *circles;
+    /* A view (or group) no solved pair places is turned to where its
+     * overlaps' radiance agrees with the placed views' once the lens and
+     * vignetting are solved (default true), when its worst-determined axis
+     * is known to radiance_max_sigma_deg (default 0.02); else it keeps its
+     * nominal pose. */
+    bool radiance_poses;
+    double radiance_max_sigma_deg;
+    /* The focal, radial terms, vignetting, rotations and gains refined
+     * together by the solved pairs' smooth overlap radiance and the
+     * matches, each weighed by its own scatter, after the vignetting fit
+     * (default true): kept when the joint cost falls. */
+    bool radiance_lens;
 } sl_stitch_solve_options;
 
 void sl_stitch_solve_options_init(sl_stitch_solve_options *o);
@@ -1023,10 +1035,12 @@ typedef enum {
     SL_STITCH_PAIR_SOLVED = 0,   /* its inliers are in the adjustment */
     SL_STITCH_PAIR_NO_OVERLAP,   /* the nominal poses do not overlap: not matched */
     SL_STITCH_PAIR_FEW_MATCHES,  /* fallback: too few inliers (a featureless pair) */
-    SL_STITCH_PAIR_INCONSISTENT  /* fallback: its rotation is far from the nominal one */
+    SL_STITCH_PAIR_INCONSISTENT, /* fallback: its rotation is far from the nominal one */
+    SL_STITCH_PAIR_RADIANCE      /* no features: placed from its overlap's radiance */
 } sl_stitch_pair_status;
 
-/* "solved", "no overlap", "too few matches", "inconsistent with the nominal poses" */
+/* "solved", "no overlap", "too few matches", "inconsistent with the nominal poses",
+ * "solved from radiance" */
 const char *sl_stitch_pair_status_name(sl_stitch_pair_status s);
 
 typedef struct sl_stitch_pair {
@@ -1051,6 +1065,7 @@ typedef struct sl_stitch_solve_result {
     int pairs;
     sl_stitch_pair *pair;
     int pairs_solved, pairs_fallback;
+    int pairs_radiance;          /* featureless pairs placed from their radiance instead */
     int inliers;                 /* matches in the adjustment */
     double rms_px, max_px;       /* reprojection error over them, pixels of the full views */
     int iterations;              /* Levenberg-Marquardt iterations */
@@ -1061,6 +1076,12 @@ typedef struct sl_stitch_solve_result {
     bool vignette_solved;        /* false: too few overlap samples, or not asked */
     int vignette_samples;
     double vignette_rms_log;     /* RMS of the log radiance ratios after the fit */
+    /* The lens refined by the overlaps' radiance: kept, its samples, the
+     * log residual before and after, the focal's change by it. */
+    bool radiance_lens;
+    int radiance_lens_samples;
+    double radiance_lens_rms[2];
+    double radiance_lens_focal_change;
     /* The centre: from the image circles (their views, centre and one
      * standard deviation per axis), from the overlaps alone (and its
      * standard deviations), whether the circles' was used, and why (the
@@ -1071,7 +1092,7 @@ typedef struct sl_stitch_solve_result {
     bool centre_from_circle;
     char centre_note[320];
 
-    double seconds_features, seconds_match, seconds_adjust, seconds_total;
+    double seconds_features, seconds_match, seconds_adjust, seconds_radiance, seconds_total;
 } sl_stitch_solve_result;
 
 /* Solves the views' poses and their shared lens from the overlaps:
