@@ -91,14 +91,15 @@ if st:
     # The day's tail: the slot time left idle after the last moment every
     # slot held a job (a setup's serial chain running alone), and the wait
     # from the last other job's end to the index's start.
-    events = sorted([(b, 1) for b, _, _ in st] + [(e, -1) for _, e, _ in st])
-    at, full = 0, min(b for b, _, _ in st)
+    work = [(b, e) for b, e, _ in st if b != index]
+    events = sorted([(b, 1) for b, _ in work] + [(e, -1) for _, e in work])
+    at, full = 0, min(b for b, _ in work) if work else 0
     for t, d in events:
         if at >= int(cores) and at + d < int(cores):
             full = t
         at += d
-    others = [e for b, e, _ in st if b != index]
-    tail = sum(max(0.0, e - max(b, full)) for b, e, _ in st if b != index)
+    others = [e for _, e in work]
+    tail = sum(max(0.0, e - max(b, full)) for b, e in work)
     stamps = {"jobs": len(st), "span": span, "busy": busy,
               "slot_gaps": int(cores) * span - busy, "wrapper": sum(e - b - w for b, e, w in st),
               "command": sum(w for _, _, w in st),
