@@ -127,10 +127,10 @@ static void put_quoted(FILE *f, const char *s)
     fputc('\'', f);
 }
 
-/* A grouped setup's script: its jobs in the graph's order through `setlight
- * job`, each only when the jobs it depends on succeeded; exit 1 when one
- * failed or did not run. The Slurm job's log names each setup it ran. NULL
- * when out of memory. */
+/* A grouped setup's script: its jobs in the graph's order, in one `setlight
+ * job JOBS.json ID...` (one start-up for the setup; each job only when the
+ * jobs it depends on succeeded; exit 1 when one failed or did not run). The
+ * Slurm job's log names each setup it ran. NULL when out of memory. */
 static char *setup_script(const char *name, const json_t *members)
 {
     char *script = NULL;
@@ -140,29 +140,16 @@ static char *setup_script(const char *name, const json_t *members)
         return NULL;
     fputs("echo 'setlight: setup '", f);
     put_quoted(f, name);
-    fputs("\nf=0\n", f);
+    fputc('\n', f);
     json_t *m;
     json_array_foreach(members, i, m) {
-        fprintf(f, "s%zu=1; if [ 0", i);
-        size_t d;
-        json_t *dep;
-        json_array_foreach(json_object_get(m, "deps"), d, dep) {
-            size_t at;
-            json_t *other;
-            json_array_foreach(members, at, other)
-                if (at < i && json_equal(json_object_get(other, "id"), dep))
-                    fprintf(f, " = \"$s%zu\" ] && [ 0", at);
+        json_t *argv = json_object_get(m, "argv"); /* EXE job JOBS.json ID */
+        for (size_t a = i ? 3 : 0; a < 4; a++) {
+            const char *word = json_string_value(json_array_get(argv, a));
+            put_quoted(f, word ? word : "");
+            fputc(a == 3 && i + 1 == json_array_size(members) ? '\n' : ' ', f);
         }
-        fputs(" = 0 ]; then", f);
-        size_t a;
-        json_t *arg;
-        json_array_foreach(json_object_get(m, "argv"), a, arg) {
-            fputc(' ', f);
-            put_quoted(f, json_string_value(arg));
-        }
-        fprintf(f, " && s%zu=0; fi; [ \"$s%zu\" = 0 ] || f=1\n", i, i);
     }
-    fputs("exit $f\n", f);
     fclose(f);
     return script;
 }
