@@ -137,18 +137,27 @@ static void test_rerun_counts(void)
 /* A day of one short and one long setup: the short one becomes one Slurm
  * job (its script in dir, memory the largest of the grouped jobs'), in its
  * place; the long one's jobs stay as they were. */
+/* The day's graph as the Slurm runner sends it (the index left out: it runs
+ * here), its grouped setups (choices c) grouped, scripts in the test's
+ * folder `sub`, its path in dir. */
+static json_t *grouped_farm(const json_t *graph, const json_t *c, const char *sub, char dir[1024])
+{
+    json_t *farm = json_deep_copy(graph), *jobs = json_object_get(farm, "jobs");
+    json_array_remove(jobs, json_array_size(jobs) - 1);
+    snprintf(dir, 1024, "%s/%s", sl_test_tmpdir(), sub);
+    sl_error err = {0};
+    CHECK_OK(pl_farm_group(farm, c, "/d", dir, &err), &err);
+    return farm;
+}
+
 static void test_group_in_place(void)
 {
     json_t *jobs = json_array();
     add_setup(jobs, "long", 60, 900, -1);
     add_setup(jobs, "short", 0.44, 160, -1);
     json_t *graph = day(jobs), *c = pl_farm_choices(graph, SL_FARM_GROUP_AUTO);
-    json_t *farm = json_deep_copy(graph);
-    json_array_remove(json_object_get(farm, "jobs"), 32); /* the index runs here */
     char dir[1024];
-    snprintf(dir, sizeof dir, "%s/farm", sl_test_tmpdir());
-    sl_error err = {0};
-    CHECK_OK(pl_farm_group(farm, c, "/d", dir, &err), &err);
+    json_t *farm = grouped_farm(graph, c, "farm", dir);
     json_t *fj = json_object_get(farm, "jobs");
     CHECK(json_array_size(fj) == 17);
     for (size_t k = 0; k < 16 && k < json_array_size(fj); k++)
@@ -183,12 +192,8 @@ static void test_group_longest_first(void)
     add_setup(jobs, "b", 0.6, 100, -1);
     add_setup(jobs, "c", 0.44, 100, -1);
     json_t *graph = day(jobs), *c = pl_farm_choices(graph, SL_FARM_GROUP_AUTO);
-    json_t *farm = json_deep_copy(graph);
-    json_array_remove(json_object_get(farm, "jobs"), 64); /* the index runs here */
     char dir[1024];
-    snprintf(dir, sizeof dir, "%s/farm_order", sl_test_tmpdir());
-    sl_error err = {0};
-    CHECK_OK(pl_farm_group(farm, c, "/d", dir, &err), &err);
+    json_t *farm = grouped_farm(graph, c, "farm_order", dir);
     json_t *fj = json_object_get(farm, "jobs");
     CHECK(json_array_size(fj) == 19);
     const char *order[] = {"b", "c", "a"};

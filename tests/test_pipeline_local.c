@@ -34,6 +34,25 @@ static json_t *shell_job(const char *dir, const char *id, const char *stage, con
     return job;
 }
 
+/* Runs jobs (taken) as a graph out of dir, at most `slots` at once within
+ * budget_mb (0: the default); the jobs' statuses (the caller's to free). */
+static json_t *run_jobs(const char *dir, json_t *jobs, int slots, int budget_mb,
+                        sl_pipeline_result *res)
+{
+    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
+                              "setlight", sl_version(), "out", dir, "jobs", jobs);
+    sl_pipeline_options o;
+    sl_pipeline_options_init(&o);
+    o.jobs = slots;
+    o.memory_mb = budget_mb;
+    memset(res, 0, sizeof *res);
+    json_t *status = json_object();
+    sl_error err;
+    CHECK_OK(pl_run_local(&o, graph, status, res, &err), &err);
+    json_decref(graph);
+    return status;
+}
+
 /* Four jobs that each hold OUT/lock for 0.2 s, run with a budget. */
 static int overlaps(int budget_mb, int job_mb, int *ran)
 {
@@ -50,22 +69,11 @@ static int overlaps(int budget_mb, int job_mb, int *ran)
                  dir, dir, dir);
         json_array_append_new(jobs, shell_job(dir, id, "merge", line, job_mb, NULL));
     }
-    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
-                              "setlight", sl_version(), "out", dir, "jobs", jobs);
-    sl_pipeline_options o;
-    sl_pipeline_options_init(&o);
-    o.jobs = 4;
-    o.memory_mb = budget_mb;
     sl_pipeline_result res;
-    memset(&res, 0, sizeof res);
-    json_t *status = json_object();
-    sl_error err;
-    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    json_decref(run_jobs(dir, jobs, 4, budget_mb, &res));
     *ran = res.jobs_run - res.jobs_failed;
     char path[1024];
     snprintf(path, sizeof path, "%s/overlap", dir);
-    json_decref(status);
-    json_decref(graph);
     return sl_test_file_exists(path);
 }
 
@@ -102,16 +110,8 @@ static void test_dependencies(void)
     json_t *index = shell_job(dir, "index", "index", idx, 10, "s/stitch");
     json_object_set_new(index, "setup", json_null());
     json_array_append_new(jobs, index);
-    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
-                              "setlight", sl_version(), "out", dir, "jobs", jobs);
-    sl_pipeline_options o;
-    sl_pipeline_options_init(&o);
-    o.jobs = 3;
     sl_pipeline_result res;
-    memset(&res, 0, sizeof res);
-    json_t *status = json_object();
-    sl_error err;
-    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    json_t *status = run_jobs(dir, jobs, 3, 0, &res);
     CHECK(!strcmp(json_string_value(json_object_get(status, "s/merge/0")), "ran"));
     CHECK(!strcmp(json_string_value(json_object_get(status, "s/stitch")), "ran"));
     CHECK(!strcmp(json_string_value(json_object_get(status, "s/merge/1")), "failed"));
@@ -119,7 +119,6 @@ static void test_dependencies(void)
     CHECK(!strcmp(json_string_value(json_object_get(status, "index")), "ran"));
     CHECK(res.jobs == 5 && res.jobs_failed == 1 && res.jobs_run == 4);
     json_decref(status);
-    json_decref(graph);
 }
 
 /* Eight independent jobs of 0.2 s listed before a chain of three jobs of
@@ -152,16 +151,8 @@ static void test_critical_path_first(void)
         json_object_set_new(job, "cpu_seconds", json_real(0.3));
         json_array_append_new(jobs, job);
     }
-    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
-                              "setlight", sl_version(), "out", dir, "jobs", jobs);
-    sl_pipeline_options o;
-    sl_pipeline_options_init(&o);
-    o.jobs = 2;
     sl_pipeline_result res;
-    memset(&res, 0, sizeof res);
-    json_t *status = json_object();
-    sl_error err;
-    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    json_t *status = run_jobs(dir, jobs, 2, 0, &res);
     CHECK(res.jobs_run == 11 && res.jobs_failed == 0);
     /* The order of starts: the chain's head among the first two (the
      * graph's order would start two merges), and its last link before the
@@ -187,7 +178,6 @@ static void test_critical_path_first(void)
               "the chain's last link started %d-th, the last merge %d-th", last_link + 1,
               last_merge + 1);
     json_decref(status);
-    json_decref(graph);
 }
 
 int main(void)
