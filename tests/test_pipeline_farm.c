@@ -186,11 +186,12 @@ static void test_group_in_place(void)
  * cancels what is still pending of them. */
 static void test_group_longest_first(void)
 {
+    /* Three short setups (grouped) round a long one (job by job). */
+    const char *setups[] = {"a", "long", "b", "c"};
+    const double cpu[] = {0.3, 60, 0.6, 0.44};
     json_t *jobs = json_array();
-    add_setup(jobs, "a", 0.3, 100, -1);
-    add_setup(jobs, "long", 60, 900, -1);
-    add_setup(jobs, "b", 0.6, 100, -1);
-    add_setup(jobs, "c", 0.44, 100, -1);
+    for (int k = 0; k < 4; k++)
+        add_setup(jobs, setups[k], cpu[k], k == 1 ? 900 : 100, -1);
     json_t *graph = day(jobs), *c = pl_farm_choices(graph, SL_FARM_GROUP_AUTO);
     char dir[1024];
     json_t *farm = grouped_farm(graph, c, "farm_order", dir);
