@@ -229,7 +229,7 @@ static void longest_first(json_t *groups, json_t *list)
  * Slurm's next pass while grouped setups are left: the Slurm job of setup K
  * runs its own setup, then any grouped setup no job has taken yet (taken by
  * mkdir dir/claims/K, atomic, on a shared file system too); a job whose
- * setup was taken ends at once, and the first to find every setup taken
+ * setup was taken ends at once, and one that finds every setup taken
  * cancels the ones still pending. So those jobs ask for the largest memory
  * of the grouped jobs. The grouped setups go longest first (longest_first).
  * A setup whose jobs are all up to date is not submitted.
