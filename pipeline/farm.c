@@ -158,9 +158,10 @@ static char *setup_script(const char *name, const json_t *members)
  * (" 0 3 4": the setups submitted) that no job has taken yet. Then every
  * setup is taken, and the Slurm jobs of this run still pending (by their
  * names, `names`, and working folder, `out`) would only start to find theirs
- * taken, a scheduling pass each, ahead of the day's index: they are
- * cancelled (where the node has squeue and scancel; else they start and end
- * at once). */
+ * taken, a scheduling pass each, ahead of the day's index: the first job to
+ * get here cancels them (where the node has squeue and scancel; else they
+ * start and end at once); the others, the day's last among them, end
+ * without asking the controller. */
 static char *runner_script(const char *dir, size_t own, const char *all, const char *names,
                            const char *out)
 {
@@ -178,7 +179,8 @@ static char *runner_script(const char *dir, size_t own, const char *all, const c
     put_quoted(f, out);
     fputs(" n=", f);
     put_quoted(f, names);
-    fputs("\nif command -v squeue >/dev/null && command -v scancel >/dev/null; then\n"
+    fputs("\nif mkdir \"$d/claims/cancel\" 2>/dev/null && command -v squeue >/dev/null &&\n"
+          "  command -v scancel >/dev/null; then\n"
           "  ids=$(squeue -h -t PD -u \"$(id -un)\" -n \"$n\" -o '%i|%Z' 2>/dev/null |"
           " o=\"$o\" awk -F'|' '$2 == ENVIRON[\"o\"] { print $1 }')\n"
           "  [ -z \"$ids\" ] || scancel $ids 2>/dev/null\nfi\nexit $f\n",
