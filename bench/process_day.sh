@@ -75,20 +75,36 @@ path, timef, mode, cores, rc, l0, l1, out = sys.argv[1:]
 # the first job's start to the last one's end, the slot time no job held
 # (scheduling passes, process start-up between jobs, the tail) and the
 # wrapper's own time inside each job (graph, input hashes, stamp).
-st = []
+st, index = [], None
 for f in glob.glob(out + "/**/*.stamp.json", recursive=True):
     try:
         s = json.load(open(f))
         st.append((s["started"], s["ended"], s["seconds"]))
+        if s.get("id") == "index":
+            index = s["started"]
     except (ValueError, KeyError):
         pass
 stamps = None
 if st:
     span = max(e for _, e, _ in st) - min(b for b, _, _ in st)
     busy = sum(e - b for b, e, _ in st)
+    # The day's tail: the slot time left idle after the last moment every
+    # slot held a job (a setup's serial chain running alone), and the wait
+    # from the last other job's end to the index's start.
+    work = [(b, e) for b, e, _ in st if b != index]
+    events = sorted([(b, 1) for b, _ in work] + [(e, -1) for _, e in work])
+    at, full = 0, min(b for b, _ in work) if work else 0
+    for t, d in events:
+        if at >= int(cores) and at + d < int(cores):
+            full = t
+        at += d
+    others = [e for _, e in work]
+    tail = sum(max(0.0, e - max(b, full)) for b, e in work)
     stamps = {"jobs": len(st), "span": span, "busy": busy,
               "slot_gaps": int(cores) * span - busy, "wrapper": sum(e - b - w for b, e, w in st),
-              "command": sum(w for _, _, w in st)}
+              "command": sum(w for _, _, w in st),
+              "tail_idle": int(cores) * (max(others) - full) - tail if others else 0,
+              "index_wait": index - max(others) if index is not None and others else None}
 try:
     d = json.load(open(path))
 except ValueError:
@@ -140,15 +156,18 @@ for mode in dict.fromkeys(r["mode"] for r in rows):
 print()
 print("From the jobs' stamps (first start to last end): per job, the slot time no job held and the")
 print("wrapper's own time (graph, input hashes, stamp), against the commands' own wall time:")
-print("| mode | jobs | span s | commands s/job | slot gaps s/job | wrapper s/job | gaps + wrapper, share of the commands |")
-print("|---|---|---|---|---|---|---|")
+print("(tail: slot time idle after the last moment every slot was busy; index: its start after the")
+print("last other job's end)")
+print("| mode | jobs | span s | commands s/job | slot gaps s/job | wrapper s/job | gaps + wrapper, share of the commands | tail s | index s |")
+print("|---|---|---|---|---|---|---|---|---|")
 for mode in dict.fromkeys(r["mode"] for r in rows):
     rs = [r for r in rows if r["mode"] == mode and r.get("stamps")]
     if not rs:
         continue
     med = lambda f: statistics.median(f(r["stamps"]) for r in rs)
-    print("| %s | %d | %.0f | %.3f | %.3f | %.3f | %.1f%% |" % (
+    print("| %s | %d | %.0f | %.3f | %.3f | %.3f | %.1f%% | %.1f | %s |" % (
         mode, med(lambda s: s["jobs"]), med(lambda s: s["span"]), med(lambda s: s["command"] / s["jobs"]),
         med(lambda s: s["slot_gaps"] / s["jobs"]), med(lambda s: s["wrapper"] / s["jobs"]),
-        med(lambda s: 100 * (s["slot_gaps"] + s["wrapper"]) / s["command"])))
+        med(lambda s: 100 * (s["slot_gaps"] + s["wrapper"]) / s["command"]), med(lambda s: s["tail_idle"]),
+        "%.1f" % med(lambda s: s["index_wait"]) if all(r["stamps"]["index_wait"] is not None for r in rs) else "-"))
 PY

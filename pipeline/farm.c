@@ -127,10 +127,10 @@ static void put_quoted(FILE *f, const char *s)
     fputc('\'', f);
 }
 
-/* A grouped setup's script: its jobs in the graph's order through `setlight
- * job`, each only when the jobs it depends on succeeded; exit 1 when one
- * failed or did not run. The Slurm job's log names each setup it ran. NULL
- * when out of memory. */
+/* A grouped setup's script: its jobs in the graph's order, in one `setlight
+ * job JOBS.json ID...` (one start-up for the setup; each job only when the
+ * jobs it depends on succeeded; exit 1 when one failed or did not run). The
+ * Slurm job's log names each setup it ran. NULL when out of memory. */
 static char *setup_script(const char *name, const json_t *members)
 {
     char *script = NULL;
@@ -140,36 +140,30 @@ static char *setup_script(const char *name, const json_t *members)
         return NULL;
     fputs("echo 'setlight: setup '", f);
     put_quoted(f, name);
-    fputs("\nf=0\n", f);
+    fputc('\n', f);
     json_t *m;
     json_array_foreach(members, i, m) {
-        fprintf(f, "s%zu=1; if [ 0", i);
-        size_t d;
-        json_t *dep;
-        json_array_foreach(json_object_get(m, "deps"), d, dep) {
-            size_t at;
-            json_t *other;
-            json_array_foreach(members, at, other)
-                if (at < i && json_equal(json_object_get(other, "id"), dep))
-                    fprintf(f, " = \"$s%zu\" ] && [ 0", at);
+        json_t *argv = json_object_get(m, "argv"); /* EXE job JOBS.json ID */
+        for (size_t a = i ? 3 : 0; a < 4; a++) {
+            const char *word = json_string_value(json_array_get(argv, a));
+            put_quoted(f, word ? word : "");
+            fputc(a == 3 && i + 1 == json_array_size(members) ? '\n' : ' ', f);
         }
-        fputs(" = 0 ]; then", f);
-        size_t a;
-        json_t *arg;
-        json_array_foreach(json_object_get(m, "argv"), a, arg) {
-            fputc(' ', f);
-            put_quoted(f, json_string_value(arg));
-        }
-        fprintf(f, " && s%zu=0; fi; [ \"$s%zu\" = 0 ] || f=1\n", i, i);
     }
-    fputs("exit $f\n", f);
     fclose(f);
     return script;
 }
 
 /* What the Slurm job of setup `own` runs: that setup, then each of `all`
- * (" 0 3 4": the setups submitted) that no job has taken yet. */
-static char *runner_script(const char *dir, size_t own, const char *all)
+ * (" 0 3 4": the setups submitted) that no job has taken yet. Then every
+ * setup is taken, and the Slurm jobs of this run still pending (by their
+ * names, `names`, and working folder, `out`) would only start to find theirs
+ * taken, a scheduling pass each, ahead of the day's index: the first job to
+ * get here cancels them (where the node has squeue and scancel; else they
+ * start and end at once); the others, the day's last among them, end
+ * without asking the controller. */
+static char *runner_script(const char *dir, size_t own, const char *all, const char *names,
+                           const char *out)
 {
     char *script = NULL;
     size_t len = 0;
@@ -179,11 +173,56 @@ static char *runner_script(const char *dir, size_t own, const char *all)
     fputs("d=", f);
     put_quoted(f, dir);
     fprintf(f, "\nf=0\nrun() { mkdir \"$d/claims/$1\" 2>/dev/null || return 0; "
-               "/bin/sh \"$d/$1.sh\" || f=1; }\nrun %zu\nfor k in%s; do run \"$k\"; done\n"
-               "exit $f\n",
+               "/bin/sh \"$d/$1.sh\" || f=1; }\nrun %zu\nfor k in%s; do run \"$k\"; done\n",
             own, all);
+    fputs("o=", f);
+    put_quoted(f, out);
+    fputs(" n=", f);
+    put_quoted(f, names);
+    fputs("\nif mkdir \"$d/claims/cancel\" 2>/dev/null && command -v squeue >/dev/null &&\n"
+          "  command -v scancel >/dev/null; then\n"
+          "  ids=$(squeue -h -t PD -u \"$(id -un)\" -n \"$n\" -o '%i|%Z' 2>/dev/null |"
+          " o=\"$o\" awk -F'|' '$2 == ENVIRON[\"o\"] { print $1 }')\n"
+          "  [ -z \"$ids\" ] || scancel $ids 2>/dev/null\nfi\nexit $f\n",
+          f);
     fclose(f);
     return script;
+}
+
+typedef struct ranked_group {
+    double cpu;
+    size_t at;
+    json_t *group;
+} ranked_group;
+
+/* The most estimated CPU first, then the graph's order. */
+static int cmp_group(const void *a, const void *b)
+{
+    const ranked_group *x = a, *y = b;
+    return x->cpu > y->cpu ? -1 : x->cpu < y->cpu ? 1 : (x->at > y->at) - (x->at < y->at);
+}
+
+/* Reorders groups, and their places in list, longest first: the Slurm jobs
+ * are submitted, and take the grouped setups, in this order, so the day
+ * ends on its shortest setups (the CPU that finishes first waits for the
+ * other's last setup). Left as they are when out of memory. */
+static void longest_first(json_t *groups, json_t *list)
+{
+    size_t n = json_array_size(groups), k, i, next = 0;
+    ranked_group *r = calloc(n + 1, sizeof *r);
+    if (!r)
+        return;
+    json_t *g;
+    json_array_foreach(groups, k, g)
+        r[k] = (ranked_group){json_number_value(json_object_get(g, "cpu_seconds")), k, g};
+    qsort(r, n, sizeof *r, cmp_group);
+    json_array_foreach(list, i, g)
+        if (json_object_get(g, "members") && next < n)
+            json_array_set(list, i, r[next++].group);
+    json_array_clear(groups);
+    for (k = 0; k < n; k++)
+        json_array_append(groups, r[k].group);
+    free(r);
 }
 
 /* The grouped setups (choices, pl_farm_choices): one Slurm job per setup,
@@ -192,8 +231,10 @@ static char *runner_script(const char *dir, size_t own, const char *all)
  * Slurm's next pass while grouped setups are left: the Slurm job of setup K
  * runs its own setup, then any grouped setup no job has taken yet (taken by
  * mkdir dir/claims/K, atomic, on a shared file system too); a job whose
- * setup was taken ends at once. So those jobs ask for the largest memory of
- * the grouped jobs. A setup whose jobs are all up to date is not submitted.
+ * setup was taken ends at once, and one that finds every setup taken
+ * cancels the ones still pending. So those jobs ask for the largest memory
+ * of the grouped jobs. The grouped setups go longest first (longest_first).
+ * A setup whose jobs are all up to date is not submitted.
  * The other setups' jobs stay as they are; each group takes the place of
  * its setup's first job in farm's "jobs" (the graph's jobs less the index). */
 sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, const char *dir,
@@ -233,15 +274,19 @@ sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, co
         if (!json_is_true(json_object_get(job, "up_to_date")))
             json_object_set_new(found, "up_to_date", json_false());
     }
+    longest_first(groups, list);
     char claims[PATH_MAX + 300];
     snprintf(claims, sizeof claims, "%s/claims", dir);
     sl_result r = json_array_size(groups) ? pl_mkdirs(claims, err) : SL_OK;
-    sl_text all = {0};
+    sl_text all = {0}, names = {0};
     json_array_foreach(groups, k, g) {
         if (r)
             break;
-        if (!json_is_true(json_object_get(g, "up_to_date")))
+        if (!json_is_true(json_object_get(g, "up_to_date"))) {
             sl_text_printf(&all, " %zu", k);
+            sl_text_printf(&names, "%s%s", names.len ? "," : "",
+                           json_string_value(json_object_get(g, "id")));
+        }
         char *script = setup_script(json_string_value(json_object_get(g, "id")),
                                     json_object_get(g, "members"));
         char path[PATH_MAX + 300];
@@ -253,7 +298,9 @@ sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, co
         json_object_set_new(g, "memory_mb", json_integer(group_mb));
     }
     json_array_foreach(groups, k, g) {
-        char *script = r || all.failed ? NULL : runner_script(dir, k, all.s ? all.s : "");
+        char *script = r || all.failed || names.failed
+                           ? NULL
+                           : runner_script(dir, k, all.s ? all.s : "", names.s ? names.s : "", out);
         if (!r && !script)
             r = sl_error_set(err, SL_ERR_NOMEM, "out of memory");
         if (r)
@@ -265,6 +312,7 @@ sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, co
         free(script);
     }
     sl_text_free(&all);
+    sl_text_free(&names);
     json_decref(groups);
     if (r) {
         json_decref(list);

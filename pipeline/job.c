@@ -243,19 +243,17 @@ static double own_peak_rss_mb(void)
     return kb / 1024.0;
 }
 
-sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
-                              bool *skipped, sl_error *err)
+/* The job `id` of graph (both loaded by pl_graph_load_job, references
+ * taken) from `started` (the epoch) on, when this process had waited
+ * wait0 s for a CPU: what sl_pipeline_job_run does once it has read the
+ * job. */
+static sl_result job_run(const char *jobs_json, const char *id, json_t *graph, json_t *job,
+                         double started, double wait0, int *exit_code, bool *skipped,
+                         sl_error *err)
 {
-    double started = pl_epoch_seconds();
+    sl_result r = SL_OK;
     *exit_code = 0;
     *skipped = false;
-    /* Checked whole when it was written (pl_graph_write): while unchanged,
-     * only this job is read; an edited graph is checked whole again. */
-    json_t *graph = NULL, *job = NULL;
-    bool checked_whole;
-    sl_result r = pl_graph_load_job(jobs_json, id, &graph, &job, &checked_whole, err);
-    if (r)
-        return r;
     char key[65];
     if (!strcmp(json_string_value(json_object_get(job, "stage")), "index") &&
         (r = pl_index_prepare(graph, err))) {
@@ -359,7 +357,7 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     }
     if (*exit_code && !message[0])
         last_line(log, message, sizeof message);
-    cpu_wait += pl_runqueue_wait_seconds(0); /* and this process's own */
+    cpu_wait += pl_runqueue_wait_seconds(0) - wait0; /* and this process's own */
     json_t *st = json_pack("{s:s,s:s,s:s,s:i,s:f,s:f,s:f,s:f,s:f,s:f,s:f,s:o}", "id", id, "key",
                            key, "status", *exit_code ? "failed" : "ok", "exit", *exit_code,
                            "seconds", wall, "cpu_seconds", cpu, "cpu_wait_seconds", cpu_wait,
@@ -375,4 +373,55 @@ done:
     json_decref(job);
     json_decref(graph);
     return r;
+}
+
+sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
+                              bool *skipped, sl_error *err)
+{
+    double started = pl_epoch_seconds();
+    *exit_code = 0;
+    *skipped = false;
+    /* Checked whole when it was written (pl_graph_write): while unchanged,
+     * only this job is read; an edited graph is checked whole again. */
+    json_t *graph = NULL, *job = NULL;
+    bool checked_whole;
+    sl_result r = pl_graph_load_job(jobs_json, id, &graph, &job, &checked_whole, err);
+    return r ? r : job_run(jobs_json, id, graph, job, started, 0, exit_code, skipped, err);
+}
+
+/* Whether job depends on a job of ids[0..count) that did not succeed
+ * (codes). */
+static bool after_failure(const json_t *job, char *const *ids, const int *codes, int count)
+{
+    size_t d;
+    json_t *dep;
+    json_array_foreach(json_object_get(job, "deps"), d, dep)
+        for (int k = 0; k < count; k++)
+            if (codes[k] && !strcmp(ids[k], json_string_value(dep)))
+                return true;
+    return false;
+}
+
+void sl_pipeline_jobs_run(const char *jobs_json, char *const *ids, int count, int *codes,
+                          sl_error *errs)
+{
+    for (int i = 0; i < count; i++) {
+        /* the process's start and its waits till now go to the first job */
+        double started = pl_epoch_seconds(), wait0 = i ? pl_runqueue_wait_seconds(0) : 0;
+        json_t *graph = NULL, *job = NULL;
+        bool checked_whole, skipped;
+        sl_error_clear(&errs[i]);
+        sl_result r = pl_graph_load_job(jobs_json, ids[i], &graph, &job, &checked_whole, &errs[i]);
+        if (!r && after_failure(job, ids, codes, i)) {
+            codes[i] = -1;
+            json_decref(job);
+            json_decref(graph);
+            continue;
+        }
+        if (!r)
+            r = job_run(jobs_json, ids[i], graph, job, started, wait0, &codes[i], &skipped,
+                        &errs[i]);
+        if (r)
+            codes[i] = sl_result_exit_code(r);
+    }
 }

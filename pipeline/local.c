@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* The local runner: the graph's jobs in dependency order, as many at once
- * as --jobs and the memory budget allow, each through `setlight job`. */
+ * as --jobs and the memory budget allow, each through `setlight job`; of the
+ * jobs ready, the one with the most work after it first. */
 #include <errno.h>
 #include <signal.h>
 #include <spawn.h>
@@ -26,6 +27,7 @@ typedef struct lj {
     int memory_mb;
     pid_t pid;
     bool is_index;
+    double rank; /* its CPU estimate plus that of the longest chain after it */
 } lj;
 
 static int find(lj *js, int n, const char *id)
@@ -58,14 +60,52 @@ static int readiness(const lj *js, int n, const lj *j)
     return r;
 }
 
+/* Longest remaining work first (critical path): a job's rank is its
+ * cpu_seconds (1 without an estimate) plus the largest rank of the jobs that
+ * depend on it. Started in rank order, no setup's serial tail (stitch ->
+ * calibrate -> rig -> renders -> report) is left to run alone at the end of
+ * the day while the other slots have nothing to do. The graph lists each
+ * job after its dependencies, so in reverse its dependants are ranked first.
+ * The index runs last whatever its rank. */
+static void rank_jobs(lj *js, int n)
+{
+    for (int i = n - 1; i >= 0; i--) {
+        if (js[i].is_index)
+            continue;
+        json_t *c = json_object_get(js[i].job, "cpu_seconds");
+        js[i].rank += json_is_number(c) ? json_number_value(c) : 1;
+        for (int k = 0; k < js[i].dep_count; k++) {
+            lj *d = &js[js[i].deps[k]];
+            if (d->rank < js[i].rank)
+                d->rank = js[i].rank;
+        }
+    }
+}
+
+typedef struct ranked {
+    double rank;
+    int at; /* index in the graph */
+} ranked;
+
+/* Highest rank first, then the graph's order. */
+static int cmp_rank(const void *a, const void *b)
+{
+    const ranked *x = a, *y = b;
+    return x->rank > y->rank ? -1 : x->rank < y->rank ? 1 : (x->at > y->at) - (x->at < y->at);
+}
+
 sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *status,
                        sl_pipeline_result *res, sl_error *err)
 {
     json_t *jobs = json_object_get(graph, "jobs");
     int n = (int)json_array_size(jobs);
     lj *js = calloc((size_t)n + 1, sizeof *js);
-    if (!js)
+    ranked *order = calloc((size_t)n + 1, sizeof *order);
+    if (!js || !order) {
+        free(js);
+        free(order);
         return sl_error_set(err, SL_ERR_NOMEM, "out of memory");
+    }
     for (int i = 0; i < n; i++) {
         js[i].job = json_array_get(jobs, (size_t)i);
         js[i].memory_mb = (int)json_integer_value(json_object_get(js[i].job, "memory_mb"));
@@ -80,6 +120,10 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
                 js[i].deps[js[i].dep_count++] = at;
         }
     }
+    rank_jobs(js, n);
+    for (int i = 0; i < n; i++)
+        order[i] = (ranked){js[i].rank, i};
+    qsort(order, (size_t)n, sizeof *order, cmp_rank);
     int parallel = o->jobs > 0 ? o->jobs : (int)sysconf(_SC_NPROCESSORS_ONLN);
     if (parallel < 1)
         parallel = 1;
@@ -96,9 +140,9 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
     sl_result r = SL_OK;
     const char *jobs_path = json_string_value(json_object_get(graph, "out"));
     while (done < n && !r) {
-        /* Start what is ready, in graph order. */
+        /* Start what is ready, the most work after it first. */
         for (int i = 0; i < n && running < parallel; i++) {
-            lj *j = &js[i];
+            lj *j = &js[order[i].at];
             if (j->state != J_PENDING)
                 continue;
             int ready = readiness(js, n, j);
@@ -205,5 +249,6 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
     }
     res->jobs = n;
     free(js);
+    free(order);
     return r;
 }

@@ -74,9 +74,11 @@ sl_result pl_graph_load_job(const char *path, const char *id, json_t **graph, js
 
 /* The graph (its jobs' argv name jobs_path; "" there: OUT/jobs.json, set)
  * and the setups as planned: name, source, status "ok" or "failed" and the
- * reason (also OUT/setups.json). */
+ * reason (also OUT/setups.json). The CPU and CPU waits of the processes
+ * that ingest the setups ahead of the plan are added to cost's runner
+ * figures. */
 sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_path_size,
-                  json_t **graph, json_t **setups, sl_error *err);
+                  json_t **graph, json_t **setups, sl_pipeline_result *cost, sl_error *err);
 
 /* The pictures a setup's report writes beside report.html (OUT/SETUP/):
  * the lat-long, then the renders under the HDRI and under the rig. They are

@@ -4,11 +4,14 @@
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "pipeline_private.h"
@@ -357,8 +360,76 @@ static void setup_name(const char *path, char *name, size_t size)
     snprintf(name, size, "%s", b && b[1] ? b + 1 : buf);
 }
 
+/* sp (zeroed) for setup i, named `name`, of OUT: its source's real path in
+ * src, its folder made, its views loaded (ingested first when needed,
+ * pl_load_setup). */
+static sl_result setup_load(setup_plan *sp, const sl_pipeline_options *o, const char *out, int i,
+                            const char *name, char src[PATH_MAX], sl_error *err)
+{
+    sp->o = o;
+    sp->name = name;
+    sp->warnings = json_array();
+    snprintf(sp->dir, sizeof sp->dir, "%s/%s", out, name);
+    if (!realpath(o->setups[i], src))
+        snprintf(src, PATH_MAX, "%s", o->setups[i]);
+    sl_error_clear(err);
+    sl_result r = pl_mkdirs(sp->dir, err);
+    return r ? r : pl_load_setup(sp, src, err);
+}
+
+/* The ingest (every frame copied into OUT and hashed) is the runner's work
+ * before the first job starts, while the slots idle: so the setups are
+ * loaded first in as many processes as the run has slots (--jobs, at most
+ * the cores), each setup i by process i mod N; the plan then loads each
+ * again, in order, and finds its ingest up to date (ingest_cached). A setup
+ * a process could not load is left to the plan, which says why. The
+ * processes' CPU and their waits for a CPU go to cost's runner figures. */
+static void ingest_ahead(const sl_pipeline_options *o, const char *out, char names[][256],
+                         sl_pipeline_result *cost)
+{
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    int n = o->jobs > 0 ? o->jobs : (int)cores;
+    if (cores > 0 && n > cores)
+        n = (int)cores;
+    if (n > o->setup_count)
+        n = o->setup_count;
+    if (n < 2 || n > 64)
+        return;
+    pid_t pids[64];
+    int started = 0;
+    fflush(NULL); /* nothing buffered is written twice */
+    for (int c = 0; c < n; c++) {
+        pid_t pid = fork();
+        if (pid == 0) {
+            for (int i = c; i < o->setup_count; i += n) {
+                setup_plan *sp = calloc(1, sizeof *sp);
+                char src[PATH_MAX];
+                sl_error ignored;
+                if (sp)
+                    setup_load(sp, o, out, i, names[i], src, &ignored);
+                /* freed by _exit */
+            }
+            _exit(0);
+        }
+        if (pid > 0)
+            pids[started++] = pid;
+    }
+    for (int c = 0; c < started; c++) {
+        siginfo_t info;
+        struct rusage ru;
+        memset(&ru, 0, sizeof ru);
+        while (waitid(P_PID, (id_t)pids[c], &info, WEXITED | WNOWAIT) < 0 && errno == EINTR) {
+        }
+        cost->runner_cpu_wait_seconds += pl_runqueue_wait_seconds(pids[c]);
+        int st;
+        while (wait4(pids[c], &st, 0, &ru) < 0 && errno == EINTR) {
+        }
+        cost->runner_cpu_seconds += pl_cpu_seconds(&ru);
+    }
+}
+
 sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_path_size,
-                  json_t **graph, json_t **setups, sl_error *err)
+                  json_t **graph, json_t **setups, sl_pipeline_result *cost, sl_error *err)
 {
     *graph = NULL;
     *setups = NULL;
@@ -393,6 +464,7 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
     if ((r = pl_mkdirs(logs, err)))
         return r;
 
+    ingest_ahead(o, out, names, cost);
     json_t *jobs = json_array(), *list = json_array();
     json_t *index_deps = json_array();
     for (int i = 0; i < o->setup_count; i++) {
@@ -401,18 +473,9 @@ sl_result pl_plan(const sl_pipeline_options *o, char *jobs_path, size_t jobs_pat
             r = sl_error_set(err, SL_ERR_NOMEM, "out of memory");
             break;
         }
-        sp->o = o;
-        sp->name = names[i];
-        sp->warnings = json_array();
-        snprintf(sp->dir, sizeof sp->dir, "%s/%s", out, names[i]);
         char src[PATH_MAX];
-        if (!realpath(o->setups[i], src))
-            snprintf(src, sizeof src, "%s", o->setups[i]);
         sl_error se;
-        sl_error_clear(&se);
-        sl_result sr = pl_mkdirs(sp->dir, &se);
-        if (!sr)
-            sr = pl_load_setup(sp, src, &se);
+        sl_result sr = setup_load(sp, o, out, i, names[i], src, &se);
         int fisheye = 0;
         for (int v = 0; v < sp->view_count; v++)
             fisheye += !sp->views[v].probe;

@@ -182,8 +182,8 @@ static json_t *run_cost(const sl_pipeline_options *o, const json_t *graph, const
     free(spans);
     struct rusage self;
     getrusage(RUSAGE_SELF, &self);
-    res->runner_cpu_seconds = pl_cpu_seconds(&self);
-    res->runner_cpu_wait_seconds = pl_runqueue_wait_seconds(0);
+    res->runner_cpu_seconds += pl_cpu_seconds(&self);
+    res->runner_cpu_wait_seconds += pl_runqueue_wait_seconds(0);
     res->peak_memory_mb = peak_jobs_mb + (double)self.ru_maxrss / 1024.0;
     long budget = o->memory_mb;
     if (budget <= 0)
@@ -236,7 +236,7 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     }
     json_t *graph = NULL, *setups = NULL;
     char out_abs[PATH_MAX];
-    sl_result r = pl_plan(o, jobs_path, sizeof jobs_path, &graph, &setups, err);
+    sl_result r = pl_plan(o, jobs_path, sizeof jobs_path, &graph, &setups, res, err);
     if (r)
         return r;
     snprintf(out_abs, sizeof out_abs, "%s", json_string_value(json_object_get(graph, "out")));

@@ -6,7 +6,7 @@
  * estimate, and leaves it job by job otherwise; "setup" and "job" decide
  * alone; a setup with nothing to submit is neither. Then the grouped
  * setups' jobs become one Slurm job each in the farm's graph, in their
- * setup's place, the others untouched. */
+ * setup's place, the others untouched, the longest grouped setup first. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -137,18 +137,27 @@ static void test_rerun_counts(void)
 /* A day of one short and one long setup: the short one becomes one Slurm
  * job (its script in dir, memory the largest of the grouped jobs'), in its
  * place; the long one's jobs stay as they were. */
+/* The day's graph as the Slurm runner sends it (the index left out: it runs
+ * here), its grouped setups (choices c) grouped, scripts in the test's
+ * folder `sub`, its path in dir. */
+static json_t *grouped_farm(const json_t *graph, const json_t *c, const char *sub, char dir[1024])
+{
+    json_t *farm = json_deep_copy(graph), *jobs = json_object_get(farm, "jobs");
+    json_array_remove(jobs, json_array_size(jobs) - 1);
+    snprintf(dir, 1024, "%s/%s", sl_test_tmpdir(), sub);
+    sl_error err = {0};
+    CHECK_OK(pl_farm_group(farm, c, "/d", dir, &err), &err);
+    return farm;
+}
+
 static void test_group_in_place(void)
 {
     json_t *jobs = json_array();
     add_setup(jobs, "long", 60, 900, -1);
     add_setup(jobs, "short", 0.44, 160, -1);
     json_t *graph = day(jobs), *c = pl_farm_choices(graph, SL_FARM_GROUP_AUTO);
-    json_t *farm = json_deep_copy(graph);
-    json_array_remove(json_object_get(farm, "jobs"), 32); /* the index runs here */
     char dir[1024];
-    snprintf(dir, sizeof dir, "%s/farm", sl_test_tmpdir());
-    sl_error err = {0};
-    CHECK_OK(pl_farm_group(farm, c, "/d", dir, &err), &err);
+    json_t *farm = grouped_farm(graph, c, "farm", dir);
     json_t *fj = json_object_get(farm, "jobs");
     CHECK(json_array_size(fj) == 17);
     for (size_t k = 0; k < 16 && k < json_array_size(fj); k++)
@@ -170,10 +179,54 @@ static void test_group_in_place(void)
     json_decref(graph);
 }
 
+/* The grouped setups go longest first (estimated CPU): their Slurm jobs
+ * submitted, and the setups taken, in that order, so the day ends on its
+ * shortest; they take the grouped setups' places among the other jobs. Each
+ * group's script runs its own setup, then the others in that order, then
+ * cancels what is still pending of them. */
+static void test_group_longest_first(void)
+{
+    /* Three short setups (grouped) round a long one (job by job). */
+    const char *setups[] = {"a", "long", "b", "c"};
+    const double cpu[] = {0.3, 60, 0.6, 0.44};
+    json_t *jobs = json_array();
+    for (int k = 0; k < 4; k++)
+        add_setup(jobs, setups[k], cpu[k], k == 1 ? 900 : 100, -1);
+    json_t *graph = day(jobs), *c = pl_farm_choices(graph, SL_FARM_GROUP_AUTO);
+    char dir[1024];
+    json_t *farm = grouped_farm(graph, c, "farm_order", dir);
+    json_t *fj = json_object_get(farm, "jobs");
+    CHECK(json_array_size(fj) == 19);
+    const char *order[] = {"b", "c", "a"};
+    size_t at[] = {0, 17, 18};
+    for (int k = 0; k < 3; k++) {
+        json_t *g = json_array_get(fj, at[k]);
+        CHECK_MSG(!strcmp(json_string_value(json_object_get(g, "id")), order[k]),
+                  "group %d is %s", k, json_string_value(json_object_get(g, "id")));
+        char script[1100], own[64], run[32];
+        snprintf(script, sizeof script, "%s/%d.sh", dir, k);
+        char *text = sl_test_read_file(script, NULL);
+        snprintf(own, sizeof own, "'%s/job/15'", order[k]);
+        CHECK_MSG(text && strstr(text, own), "%s", text ? text : "(no script)");
+        free(text);
+        const char *runner = json_string_value(json_array_get(json_object_get(g, "argv"), 2));
+        snprintf(run, sizeof run, "\nrun %d\n", k);
+        CHECK_MSG(runner && strstr(runner, run) && strstr(runner, "for k in 0 1 2;") &&
+                      strstr(runner, "n='b,c,a'") && strstr(runner, "scancel"),
+                  "%s", runner ? runner : "(no runner)");
+    }
+    for (size_t k = 1; k < 17 && k < json_array_size(fj); k++)
+        CHECK(json_equal(json_array_get(fj, k), json_array_get(json_object_get(graph, "jobs"), 15 + k)));
+    json_decref(farm);
+    json_decref(c);
+    json_decref(graph);
+}
+
 int main(void)
 {
     RUN(test_auto_threshold);
     RUN(test_rerun_counts);
     RUN(test_group_in_place);
+    RUN(test_group_longest_first);
     return sl_test_finish();
 }

@@ -3,7 +3,8 @@
  * budget keeps jobs apart (a lock folder each takes while it runs: two at
  * once would find it taken), a wider budget lets them overlap, a job larger
  * than the budget still runs (alone), dependencies come first, and a failed
- * job's dependants are not run while the index runs anyway. */
+ * job's dependants are not run while the index runs anyway; of the jobs
+ * ready, the one with the longest chain of work after it starts first. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,6 +34,25 @@ static json_t *shell_job(const char *dir, const char *id, const char *stage, con
     return job;
 }
 
+/* Runs jobs (taken) as a graph out of dir, at most `slots` at once within
+ * budget_mb (0: the default); the jobs' statuses (the caller's to free). */
+static json_t *run_jobs(const char *dir, json_t *jobs, int slots, int budget_mb,
+                        sl_pipeline_result *res)
+{
+    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
+                              "setlight", sl_version(), "out", dir, "jobs", jobs);
+    sl_pipeline_options o;
+    sl_pipeline_options_init(&o);
+    o.jobs = slots;
+    o.memory_mb = budget_mb;
+    memset(res, 0, sizeof *res);
+    json_t *status = json_object();
+    sl_error err;
+    CHECK_OK(pl_run_local(&o, graph, status, res, &err), &err);
+    json_decref(graph);
+    return status;
+}
+
 /* Four jobs that each hold OUT/lock for 0.2 s, run with a budget. */
 static int overlaps(int budget_mb, int job_mb, int *ran)
 {
@@ -49,22 +69,11 @@ static int overlaps(int budget_mb, int job_mb, int *ran)
                  dir, dir, dir);
         json_array_append_new(jobs, shell_job(dir, id, "merge", line, job_mb, NULL));
     }
-    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
-                              "setlight", sl_version(), "out", dir, "jobs", jobs);
-    sl_pipeline_options o;
-    sl_pipeline_options_init(&o);
-    o.jobs = 4;
-    o.memory_mb = budget_mb;
     sl_pipeline_result res;
-    memset(&res, 0, sizeof res);
-    json_t *status = json_object();
-    sl_error err;
-    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    json_decref(run_jobs(dir, jobs, 4, budget_mb, &res));
     *ran = res.jobs_run - res.jobs_failed;
     char path[1024];
     snprintf(path, sizeof path, "%s/overlap", dir);
-    json_decref(status);
-    json_decref(graph);
     return sl_test_file_exists(path);
 }
 
@@ -101,16 +110,8 @@ static void test_dependencies(void)
     json_t *index = shell_job(dir, "index", "index", idx, 10, "s/stitch");
     json_object_set_new(index, "setup", json_null());
     json_array_append_new(jobs, index);
-    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:o}", "format", "setlight-jobs", "version", 1,
-                              "setlight", sl_version(), "out", dir, "jobs", jobs);
-    sl_pipeline_options o;
-    sl_pipeline_options_init(&o);
-    o.jobs = 3;
     sl_pipeline_result res;
-    memset(&res, 0, sizeof res);
-    json_t *status = json_object();
-    sl_error err;
-    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    json_t *status = run_jobs(dir, jobs, 3, 0, &res);
     CHECK(!strcmp(json_string_value(json_object_get(status, "s/merge/0")), "ran"));
     CHECK(!strcmp(json_string_value(json_object_get(status, "s/stitch")), "ran"));
     CHECK(!strcmp(json_string_value(json_object_get(status, "s/merge/1")), "failed"));
@@ -118,12 +119,71 @@ static void test_dependencies(void)
     CHECK(!strcmp(json_string_value(json_object_get(status, "index")), "ran"));
     CHECK(res.jobs == 5 && res.jobs_failed == 1 && res.jobs_run == 4);
     json_decref(status);
-    json_decref(graph);
+}
+
+/* Eight independent jobs of 0.2 s listed before a chain of three jobs of
+ * 0.3 s, on two slots. In the graph's order the eight would start first and
+ * leave the chain to run alone at the end (0.8 s, then 0.9 s on one slot);
+ * longest remaining work first, the chain's head starts at once, each next
+ * link as soon as the last ends, and the short jobs fill the other slot
+ * (the chain done at 0.9 s, the short jobs at 1.6 s). Checked on the order
+ * the jobs started in. */
+static void test_critical_path_first(void)
+{
+    const char *dir = sl_test_tmpdir();
+    char cmd[2200], line[1200], starts[1024];
+    snprintf(starts, sizeof starts, "%s/starts", dir);
+    snprintf(cmd, sizeof cmd, "rm -rf %s/s %s", dir, starts);
+    CHECK(system(cmd) == 0);
+    json_t *jobs = json_array();
+    for (int i = 0; i < 8; i++) {
+        char id[32];
+        snprintf(id, sizeof id, "s/merge/%d", i);
+        snprintf(line, sizeof line, "echo %s >>%s; sleep 0.2", id, starts);
+        json_t *job = shell_job(dir, id, "merge", line, 10, NULL);
+        json_object_set_new(job, "cpu_seconds", json_real(0.2));
+        json_array_append_new(jobs, job);
+    }
+    const char *chain[] = {"s/stitch", "s/calibrate", "s/rig"};
+    for (int i = 0; i < 3; i++) {
+        snprintf(line, sizeof line, "echo %s >>%s; sleep 0.3", chain[i], starts);
+        json_t *job = shell_job(dir, chain[i], chain[i] + 2, line, 10, i ? chain[i - 1] : NULL);
+        json_object_set_new(job, "cpu_seconds", json_real(0.3));
+        json_array_append_new(jobs, job);
+    }
+    sl_pipeline_result res;
+    json_t *status = run_jobs(dir, jobs, 2, 0, &res);
+    CHECK(res.jobs_run == 11 && res.jobs_failed == 0);
+    /* The order of starts: the chain's head among the first two (the
+     * graph's order would start two merges), and its last link before the
+     * last merge (the graph's order would start it last of all). */
+    char order[16][32];
+    int count = 0, head = -1, last_link = -1, last_merge = -1;
+    FILE *f = fopen(starts, "r");
+    CHECK(f != NULL);
+    while (f && count < 16 && fscanf(f, "%31s", order[count]) == 1) {
+        if (!strcmp(order[count], "s/stitch"))
+            head = count;
+        if (!strcmp(order[count], "s/rig"))
+            last_link = count;
+        if (!strncmp(order[count], "s/merge/", 8))
+            last_merge = count;
+        count++;
+    }
+    if (f)
+        fclose(f);
+    CHECK(count == 11);
+    CHECK_MSG(head >= 0 && head < 2, "the chain's head started %d-th", head + 1);
+    CHECK_MSG(last_link >= 0 && last_link < last_merge,
+              "the chain's last link started %d-th, the last merge %d-th", last_link + 1,
+              last_merge + 1);
+    json_decref(status);
 }
 
 int main(void)
 {
     RUN(test_memory_budget);
     RUN(test_dependencies);
+    RUN(test_critical_path_first);
     return sl_test_finish();
 }

@@ -173,7 +173,7 @@ int cmd_process(int argc, char **argv, const sl_cli *cli)
 }
 
 static const char job_help[] =
-    "usage: setlight job JOBS.json ID\n"
+    "usage: setlight job JOBS.json ID [ID...]\n"
     "\n"
     "Runs one job of a graph that 'setlight process --emit-jobs' wrote (docs/process.md):\n"
     "nothing when its stamp says it is up to date with its inputs, else its command\n"
@@ -187,7 +187,12 @@ static const char job_help[] =
     "over 16 MB) is refused before anything is written or run.\n"
     "\n"
     "Exit codes: the command's (0 also when up to date); 3 a graph that does not hold\n"
-    "together, one line naming the file and the job; 2 usage, or no job of that id.\n";
+    "together, one line naming the file and the job; 2 usage, or no job of that id.\n"
+    "\n"
+    "With several IDs (a grouped setup's Slurm job, docs/slurm.md): each in turn in this\n"
+    "one process, a job only when the jobs listed before it that it depends on\n"
+    "succeeded; a line for each that could not run; exit 1 when one failed or was not\n"
+    "run, else 0.\n";
 
 /* setlight job JOBS.json ID: exits 0 at once when the job is up to date,
  * else with its command's code. */
@@ -197,8 +202,28 @@ int cmd_job(int argc, char **argv, const sl_cli *cli)
         fputs(job_help, stdout);
         return 0;
     }
-    if (argc != 3)
-        return cli_usage_error(cli, "usage: setlight job JOBS.json ID");
+    if (argc < 3)
+        return cli_usage_error(cli, "usage: setlight job JOBS.json ID [ID...]");
+    if (argc > 3) {
+        /* A grouped setup's jobs: exit 1 when one failed or was not run. */
+        int n = argc - 2, rc = 0;
+        int *codes = calloc((size_t)n, sizeof *codes);
+        sl_error *errs = calloc((size_t)n, sizeof *errs);
+        if (codes && errs) {
+            sl_pipeline_jobs_run(argv[1], argv + 2, n, codes, errs);
+            for (int i = 0; i < n; i++) {
+                if (errs[i].code)
+                    cli_fail(cli, &errs[i]);
+                rc |= codes[i] != 0;
+            }
+        } else {
+            fprintf(stderr, "setlight %s: out of memory\n", cli->command);
+            rc = 1;
+        }
+        free(codes);
+        free(errs);
+        return rc;
+    }
     int code;
     bool skipped;
     sl_error err;

@@ -87,6 +87,15 @@ void sl_pipeline_result_free(sl_pipeline_result *res);
 sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_code,
                               bool *skipped, sl_error *err);
 
+/* Jobs ids[0..count) of the graph in turn in one process (what a grouped
+ * setup's Slurm job runs, docs/slurm.md: one start-up for the setup), each
+ * as sl_pipeline_job_run and only when the jobs of ids it depends on
+ * succeeded. codes[i]: its exit code (0 also when up to date); -1 when not
+ * run (a dependency failed or was not run); when it could not run, the exit
+ * code of its error, errs[i] (else cleared). */
+void sl_pipeline_jobs_run(const char *jobs_json, char *const *ids, int count, int *codes,
+                          sl_error *errs);
+
 /* A job graph read back ("setlight-jobs" version 1, docs/process.md): what
  * `setlight job`, the report and the index act on, checked whole first. */
 typedef struct sl_pipeline_graph sl_pipeline_graph;

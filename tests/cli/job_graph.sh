@@ -45,6 +45,22 @@ err_one_line
 err_has "good.json: no job 's/none'"
 rm -rf "$D"
 
+# Several jobs in one process (a grouped setup's Slurm job): in turn, each
+# only after the listed jobs it depends on succeeded. A failed job's
+# dependant is not run, an unrelated job is; exit 1. Then all three run.
+graph "$T/many.json" "$(job s/a "" ',"command":["/bin/false"]')" "$(job s/b s/a)" "$(job s/c "")"
+expect 1 "$S" job "$T/many.json" s/a s/b s/c
+if grep -q '"status": "failed"' "$D/s/a.stamp.json"; then ok; else bad "s/a: no failed stamp"; fi
+absent "$D/s/b.stamp.json"
+present "$D/s/c.txt"
+graph "$T/many.json" "$(job s/a "")" "$(job s/b s/a)" "$(job s/c "")"
+expect 0 "$S" job "$T/many.json" s/a s/b s/c
+present "$D/s/b.txt"
+expect 1 "$S" job "$T/many.json" s/c s/none
+err_one_line
+err_has "many.json: no job 's/none'"
+rm -rf "$D"
+
 # An input that is no regular file (a device never ends, a FIFO blocks):
 # refused before it is hashed or anything is written.
 graph "$T/device.json" "$(job s/a "" ',"inputs":["/dev/zero"]')"
