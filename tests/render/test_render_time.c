@@ -14,10 +14,11 @@
  * always runs (classifying the pixels, the dome's sun/rest split, the
  * Lambert fill's first pass at a coarse tolerance once past the deadline)
  * and the work in flight when the deadline passes, on a machine loaded by
- * other jobs (far slower under ASan). */
+ * other jobs (far slower under ASan: 1.21 s of plan for a 1 s budget at a
+ * load of 6 on 2 cores). */
 #if defined(__SANITIZE_ADDRESS__)
 #define BUDGET 1.0
-#define PLAN_SLACK 0.4
+#define PLAN_SLACK 0.6
 #else
 #define BUDGET 0.25
 #define PLAN_SLACK 0.2
