@@ -10,8 +10,9 @@
  *   power-weighted mean direction (exact when L is one point in the cell,
  *   a sun; second order in the cell size otherwise);
  * - its error is estimated as P times the range of k over the cell's
- *   centre, four corners, mean direction and, when the cone holds it, the
- *   mirror direction (the lobe's peak); cells wholly below the horizon add
+ *   centre, four corners, mean direction and, when the cell is wider than
+ *   the lobe and within LOBE_REACH alphas of it, the mirror direction (the
+ *   lobe's peak); cells wholly below the horizon add
  *   nothing, exactly;
  * - the cell with the largest error is split (mip level by level, then
  *   inside a texel, down to 1/256 of it) until the summed error is below

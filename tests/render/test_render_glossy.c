@@ -429,7 +429,7 @@ static void test_batch_within_estimate(void)
  * (-X) at normals 71-89 degrees off it, metal 0.3, each within its own
  * error estimate of the brute force (pieces 1/4 of a texel). At 71.05
  * degrees a mip cell wider than the lobe that its tail reaches, the mirror
- * just outside its cone, was 5.2% off at an estimate of 0.34% (issue #21). */
+ * just outside its cone, was 5.1% off at an estimate of 0.34% (issue #21). */
 static void test_grazing_real_map(void)
 {
     const char *path = sl_test_data("hdri/Grace_Cathedral_500x250.hdr");
