@@ -10,8 +10,9 @@
  *   power-weighted mean direction (exact when L is one point in the cell,
  *   a sun; second order in the cell size otherwise);
  * - its error is estimated as P times the range of k over the cell's
- *   centre, four corners, mean direction and, when the cone holds it, the
- *   mirror direction (the lobe's peak); cells wholly below the horizon add
+ *   centre, four corners, mean direction and, when the cell is wider than
+ *   the lobe and within LOBE_REACH alphas of it, the mirror direction (the
+ *   lobe's peak); cells wholly below the horizon add
  *   nothing, exactly;
  * - the cell with the largest error is split (mip level by level, then
  *   inside a texel, down to 1/256 of it) until the summed error is below
@@ -39,6 +40,12 @@ static inline double min2(double a, double b) { return a < b ? a : b; }
 
 /* Cells kept at once; past it the error is what it is (reported). */
 #define CELL_CAP 2048
+/* A cell wider than the lobe is bounded by its min/max when the lobe's
+ * mirror is within this many alphas of its cone, not only inside it: at
+ * grazing views the lobe's tail reaches into a neighbouring wide cell that
+ * the 5 points miss (Grace_Cathedral, metal 0.3, 71 degrees: 5.2% off at
+ * an estimate of 0.34% with the mirror inside only). */
+#define LOBE_REACH 2.0
 /* Deepest split inside a texel (1/2^k of its width). */
 #define SUBTEXEL_DEPTH 8
 
@@ -53,6 +60,7 @@ typedef struct lobe {
     double t[3], b[3], n[3]; /* the integrator's shading frame, in the map's frame */
     double mirror[3];        /* the lobe's peak (about), map frame */
     double cos_width;        /* cos of the lobe's narrowest width (alpha) */
+    double reach;            /* LOBE_REACH x its widest alpha (radians) */
 } lobe;
 
 /* k(w) = f(wo, w) max(0, n.w) per channel, w in the map's frame. */
@@ -218,10 +226,10 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
         const lobe *lp = &st->l[l];
         cell_lobe *b = &g->lb[l];
         double (*k)[3] = b->k;
-        /* A cell wider than the lobe that may hold its peak: the sample
+        /* A cell wider than the lobe that its peak may reach: the sample
          * points cannot tell its shape. Narrower cells see a smooth k. */
         bool peak = !below[l] && (c->wide || (c->cos_r < lp->cos_width &&
-                                              v3_dot(lp->mirror, c->centre) >= c->cos_r));
+                                              v3_dot(lp->mirror, c->centre) >= cos(acos(c->cos_r) + lp->reach)));
         if (peak && !st->have_k_mirror[l]) {
             st->kernel_calls++;
             kernel(lp, lp->mirror, st->k_mirror[l]);
@@ -342,6 +350,7 @@ static bool lobe_init(lobe *l, const sl_glossy_material *gm, const double rot[3]
     v3_normalize(l->mirror);
     sl_ggx g = sl_ggx_make(gm->m->roughness, gm->m->anisotropy);
     l->cos_width = cos(fmin(g.ax, g.ay));
+    l->reach = LOBE_REACH * fmax(g.ax, g.ay);
     return wo[2] > 0;
 }
 

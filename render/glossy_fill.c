@@ -44,6 +44,12 @@
 #define BATCH_TURN 0.25
 /* Below 4 px a block's nine points are more than the pixels it owns. */
 #define BLOCK_MIN 4
+/* A block interpolates only where the view's mirror direction turns by at
+ * most this many GGX alphas across it: past that the nine points are
+ * further apart than the lobe's blur and miss the reflection's features
+ * (env_test.exr, metal 0.3, 256 px: an 8 px block at 65-69 degrees 4.7%
+ * off at an estimate of 2.8%). */
+#define BLOCK_TURN 4.0
 #define REST_SHARE 0.5
 #define INTERP_SHARE 0.25
 #define SUN_SHARE 0.25
@@ -308,6 +314,28 @@ static bool pending_on(const fill_job *j, int x, int y, int shape)
  * units of half the block. */
 static const int POINT[9][2] = {{0, 0}, {2, 0}, {0, 2}, {2, 2}, {1, 0}, {0, 1}, {2, 1}, {1, 2}, {1, 1}};
 
+/* The view's mirror direction at pixel p. */
+static void mirror_at(const fill_job *j, size_t p, double m[3])
+{
+    const double *n = j->px->n[p], *wo = j->px->wo[p];
+    double cn = v3_dot(n, wo);
+    for (int i = 0; i < 3; i++)
+        m[i] = 2.0 * cn * n[i] - wo[i];
+}
+
+/* Narrow: the mirror direction turns by at most BLOCK_TURN x the lobe's
+ * width across the block's diagonals, so the reflection, the map blurred
+ * by the lobe, is smooth at the nine points' spacing. */
+static bool block_narrow(const fill_job *j, const block *b, int S)
+{
+    size_t p0 = (size_t)b->y0 * j->w + b->x0;
+    const sl_glossy_material *gm = material_of(j, p0);
+    double c = cos(BLOCK_TURN * fmin(gm->ggx.ax, gm->ggx.ay)), m[4][3];
+    for (int k = 0; k < 4; k++)
+        mirror_at(j, (size_t)(b->y0 + (k >> 1) * S) * j->w + (size_t)(b->x0 + (k & 1) * S), m[k]);
+    return v3_dot(m[0], m[3]) >= c && v3_dot(m[1], m[2]) >= c;
+}
+
 /* Whole: every pixel of the closed block on the corner's object. */
 static bool block_whole(const fill_job *j, const block *b, int S)
 {
@@ -551,7 +579,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         /* The nine points of every whole block. */
         int nnext = 0;
         for (int i = 0; i < ncur; i++) {
-            if (!block_whole(&j, &cur[i], S))
+            if (!block_whole(&j, &cur[i], S) || !block_narrow(&j, &cur[i], S))
                 continue;
             for (int k = 0; k < 9; k++)
                 j.need[(size_t)(cur[i].y0 + POINT[k][1] * S / 2) * w + (cur[i].x0 + POINT[k][0] * S / 2)] = 1;
@@ -566,7 +594,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
                     size_t p = (size_t)y * w + x;
                     any = image_blocked(&j, p) && !j.rest_state[p] && !row_cut[y];
                 }
-            if (!any || (block_whole(&j, b, S) && try_block(&j, b, S)))
+            if (!any || (block_whole(&j, b, S) && block_narrow(&j, b, S) && try_block(&j, b, S)))
                 continue;
             for (int k = 0; k < 4 && S > BLOCK_MIN; k++)
                 next[nnext++] = (block){b->x0 + (k & 1) * S / 2, b->y0 + (k >> 1) * S / 2};
