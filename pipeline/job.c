@@ -225,6 +225,19 @@ double pl_runqueue_wait_seconds(pid_t pid)
     return n == 2 ? 1e-9 * (double)wait_ns : 0;
 }
 
+int pl_reap(pid_t pid, struct rusage *ru, double *cpu_wait)
+{
+    siginfo_t info;
+    while (waitid(P_PID, (id_t)pid, &info, WEXITED | WNOWAIT) < 0 && errno == EINTR) {
+    }
+    *cpu_wait = pl_runqueue_wait_seconds(pid); /* readable until the child is reaped */
+    int status = 0;
+    memset(ru, 0, sizeof *ru);
+    while (wait4(pid, &status, 0, ru) < 0 && errno == EINTR) {
+    }
+    return status;
+}
+
 /* This process's own peak resident memory (VmHWM), in MB. Not getrusage's
  * ru_maxrss: a process started by posix_spawn inherits in it the peak of
  * the process that spawned it (the runner), whose memory it shared until
@@ -323,15 +336,9 @@ static sl_result job_run(const char *jobs_json, const char *id, json_t *graph, j
         r = sl_error_set(err, SL_ERR_IO, "%s: cannot run %s: %s", id, argv[0], strerror(e));
         goto done;
     }
-    int status = 0;
     struct rusage ru;
-    memset(&ru, 0, sizeof ru);
-    siginfo_t info;
-    while (waitid(P_PID, (id_t)pid, &info, WEXITED | WNOWAIT) < 0 && errno == EINTR) {
-    }
-    double cpu_wait = pl_runqueue_wait_seconds(pid); /* readable until the child is reaped */
-    while (wait4(pid, &status, 0, &ru) < 0 && errno == EINTR) {
-    }
+    double cpu_wait;
+    int status = pl_reap(pid, &ru, &cpu_wait);
     double wall = sl_seconds() - t0;
     double cpu = pl_cpu_seconds(&ru);
     *exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);

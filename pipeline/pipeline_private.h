@@ -115,6 +115,10 @@ double pl_epoch_seconds(void);
  * this is the time it lost to the others, which its CPU time does not show. */
 double pl_runqueue_wait_seconds(pid_t pid);
 
+/* Waits for child pid and reaps it: its wait status, its wait4 usage (ru)
+ * and how long it waited for a CPU (cpu_wait, read before the reaping). */
+int pl_reap(pid_t pid, struct rusage *ru, double *cpu_wait);
+
 /* Whether job id's stamp says it ran to the end with its current key. */
 bool pl_job_stamp_ok(const json_t *graph, const char *id);
 

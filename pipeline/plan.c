@@ -4,14 +4,12 @@
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
-#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "pipeline_private.h"
@@ -415,16 +413,11 @@ static void ingest_ahead(const sl_pipeline_options *o, const char *out, char nam
             pids[started++] = pid;
     }
     for (int c = 0; c < started; c++) {
-        siginfo_t info;
         struct rusage ru;
-        memset(&ru, 0, sizeof ru);
-        while (waitid(P_PID, (id_t)pids[c], &info, WEXITED | WNOWAIT) < 0 && errno == EINTR) {
-        }
-        cost->runner_cpu_wait_seconds += pl_runqueue_wait_seconds(pids[c]);
-        int st;
-        while (wait4(pids[c], &st, 0, &ru) < 0 && errno == EINTR) {
-        }
+        double cpu_wait;
+        pl_reap(pids[c], &ru, &cpu_wait);
         cost->runner_cpu_seconds += pl_cpu_seconds(&ru);
+        cost->runner_cpu_wait_seconds += cpu_wait;
     }
 }
 
