@@ -189,19 +189,6 @@ static char *runner_script(const char *dir, size_t own, const char *all, const c
     return script;
 }
 
-typedef struct ranked_group {
-    double cpu;
-    size_t at;
-    json_t *group;
-} ranked_group;
-
-/* The most estimated CPU first, then the graph's order. */
-static int cmp_group(const void *a, const void *b)
-{
-    const ranked_group *x = a, *y = b;
-    return x->cpu > y->cpu ? -1 : x->cpu < y->cpu ? 1 : (x->at > y->at) - (x->at < y->at);
-}
-
 /* Reorders groups, and their places in list, longest first: the Slurm jobs
  * are submitted, and take the grouped setups, in this order, so the day
  * ends on its shortest setups (the CPU that finishes first waits for the
@@ -209,20 +196,26 @@ static int cmp_group(const void *a, const void *b)
 static void longest_first(json_t *groups, json_t *list)
 {
     size_t n = json_array_size(groups), k, i, next = 0;
-    ranked_group *r = calloc(n + 1, sizeof *r);
-    if (!r)
+    pl_ranked *r = calloc(n + 1, sizeof *r);
+    json_t *sorted = json_array();
+    if (!r || !sorted) {
+        free(r);
+        json_decref(sorted);
         return;
+    }
     json_t *g;
     json_array_foreach(groups, k, g)
-        r[k] = (ranked_group){json_number_value(json_object_get(g, "cpu_seconds")), k, g};
-    qsort(r, n, sizeof *r, cmp_group);
+        r[k] = (pl_ranked){json_number_value(json_object_get(g, "cpu_seconds")), k};
+    qsort(r, n, sizeof *r, pl_cmp_ranked); /* the most estimated CPU first */
+    for (k = 0; k < n; k++)
+        json_array_append(sorted, json_array_get(groups, r[k].at));
+    free(r);
     json_array_foreach(list, i, g)
         if (json_object_get(g, "members") && next < n)
-            json_array_set(list, i, r[next++].group);
+            json_array_set(list, i, json_array_get(sorted, next++));
     json_array_clear(groups);
-    for (k = 0; k < n; k++)
-        json_array_append(groups, r[k].group);
-    free(r);
+    json_array_extend(groups, sorted);
+    json_decref(sorted);
 }
 
 /* The grouped setups (choices, pl_farm_choices): one Slurm job per setup,

@@ -82,25 +82,13 @@ static void rank_jobs(lj *js, int n)
     }
 }
 
-typedef struct ranked {
-    double rank;
-    int at; /* index in the graph */
-} ranked;
-
-/* Highest rank first, then the graph's order. */
-static int cmp_rank(const void *a, const void *b)
-{
-    const ranked *x = a, *y = b;
-    return x->rank > y->rank ? -1 : x->rank < y->rank ? 1 : (x->at > y->at) - (x->at < y->at);
-}
-
 sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *status,
                        sl_pipeline_result *res, sl_error *err)
 {
     json_t *jobs = json_object_get(graph, "jobs");
     int n = (int)json_array_size(jobs);
     lj *js = calloc((size_t)n + 1, sizeof *js);
-    ranked *order = calloc((size_t)n + 1, sizeof *order);
+    pl_ranked *order = calloc((size_t)n + 1, sizeof *order);
     if (!js || !order) {
         free(js);
         free(order);
@@ -122,8 +110,8 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
     }
     rank_jobs(js, n);
     for (int i = 0; i < n; i++)
-        order[i] = (ranked){js[i].rank, i};
-    qsort(order, (size_t)n, sizeof *order, cmp_rank);
+        order[i] = (pl_ranked){js[i].rank, (size_t)i};
+    qsort(order, (size_t)n, sizeof *order, pl_cmp_ranked); /* the graph's order on ties */
     int parallel = o->jobs > 0 ? o->jobs : (int)sysconf(_SC_NPROCESSORS_ONLN);
     if (parallel < 1)
         parallel = 1;

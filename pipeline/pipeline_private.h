@@ -101,6 +101,14 @@ json_t *pl_stamp_load(const json_t *graph, const json_t *job);
  * status and key (rewritten only when one changed). */
 sl_result pl_index_prepare(const json_t *graph, sl_error *err);
 
+/* An item of a list (its index, at) ranked for qsort by pl_cmp_ranked: the
+ * highest rank first, then the list's order. */
+typedef struct pl_ranked {
+    double rank;
+    size_t at;
+} pl_ranked;
+int pl_cmp_ranked(const void *a, const void *b);
+
 /* User + system CPU time of a getrusage or wait4 answer. */
 struct rusage;
 double pl_cpu_seconds(const struct rusage *ru);

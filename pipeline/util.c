@@ -56,6 +56,12 @@ sl_result pl_json_write(const char *path, const json_t *value, sl_error *err)
     return r;
 }
 
+int pl_cmp_ranked(const void *a, const void *b)
+{
+    const pl_ranked *x = a, *y = b;
+    return x->rank > y->rank ? -1 : x->rank < y->rank ? 1 : (x->at > y->at) - (x->at < y->at);
+}
+
 double pl_cpu_seconds(const struct rusage *ru)
 {
     return (double)ru->ru_utime.tv_sec + 1e-6 * (double)ru->ru_utime.tv_usec +
