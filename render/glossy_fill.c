@@ -462,9 +462,7 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (j->px->state[pix] != SL_GLOSSY_PENDING)
                 continue;
             double sun[3] = {0, 0, 0}, serr[3] = {0, 0, 0};
-            double floor[3];
-            for (int c = 0; c < 3; c++)
-                floor[c] = j->rest[pix][c];
+            const double *floor = j->rest[pix]; /* the sun's tolerance scale */
             sl_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = floor, .start_cells = gd->sun_cells,
                          .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
             bool reuse = j->sun_state[pix];
@@ -605,7 +603,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
     }
     j.need = (free(j.need), NULL);
     finish_bands(&j);
-    if (!res && cf->gdome->sun)
+    if (cf->gdome->sun)
         keep_cut_suns(&j);
 done:
     for (int i = 0; j.scratch && i < j.workers; i++)
