@@ -117,7 +117,7 @@ typedef struct plan_job {
     double (*centre)[3]; /* centre value per pixel */
     sl_irradiance_cost *row_cost;
     double *row_foot; /* largest relative footprint estimate per row */
-    sl_glossy_pixels glossy; /* pixels left to sl_glossy_fill: glossy at centres, Lambert */
+    sl_glossy_pixels glossy; /* pixels left to sl_glossy_fill: glossy at centres */
     double deadline;  /* --time: rows not planned by then are sampled */
     uint8_t *row_cut; /* the row ran into the deadline */
     int32_t *row_late; /* rim pixels of a finished row the deadline left to sampling */

@@ -103,9 +103,9 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
                                sl_error *err);
 void sl_glossy_dome_free(sl_glossy_dome *gd);
 
-/* Closed-form pixels left to the fill: glossy ones at pixel centres, and
- * Lambert ones under the dome. The rest of the map is evaluated on a lattice
- * of 16 x 16 px blocks, refined to 8 and 4 px blocks, and interpolated
+/* Closed-form pixels left to the fill: glossy ones at pixel centres. The
+ * rest of the map is evaluated on a lattice of 16 x 16 px blocks, refined
+ * to 8 and 4 px blocks, and interpolated
  * bilinearly inside a block whose centre and edge midpoints, evaluated too,
  * agree with the interpolation (glossy_fill.c says how closely; the largest
  * difference is added to its pixels' error); the sun is evaluated at every
@@ -115,14 +115,12 @@ typedef struct sl_glossy_pixels {
     uint8_t *state;        /* per pixel: SL_GLOSSY_* */
     double (*n)[3];        /* world normal of a pending pixel */
     double (*wo)[3];       /* its view direction */
-    double (*value)[3];    /* out: its radiance; in, for a Lambert pixel: the
-                              irradiance of the rig's lights (its bound in
-                              cf->bound) */
+    double (*value)[3];    /* out: its radiance */
 } sl_glossy_pixels;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
- * costs per image row. The rest over normals first (Lambert: cheap, shared
- * by all pixels), then row by row in image order each row in full (its
- * pixels' own evaluations and the sun): rows not started by the deadline
+ * costs per image row. Every pixel's sun and the image blocks' rest first,
+ * then row by row in image order each row in full (its pixels' own
+ * evaluations and the sun): rows not started by the deadline
  * (seconds, as sl_seconds), or from row_limit on when it is > 0 (tests),
  * are marked in row_cut, to be sampled; finished rows keep their values. */
 sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px,

@@ -1,15 +1,14 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* Closed-form pixels at pixel centres (glossy lobes, and Lambert objects
- * under the dome), in two parts of the dome:
+/* Glossy closed-form pixels at pixel centres, in two parts of the dome
+ * (Lambert pixels are filled over normals, normal_fill.c):
  *
  * - the sun: the texels brighter than SUN_RATIO x the map's mean radiance
- *   (at most SUN_CAP of them), whose highlight (or, on a Lambert object,
- *   terminator) moves across the ball faster than any lattice could
- *   follow. Evaluated at every pixel; few cells hold light, so an
- *   evaluation costs a handful of cells;
+ *   (at most SUN_CAP of them), whose highlight moves across the ball faster
+ *   than any lattice could follow. Evaluated at every pixel; few cells
+ *   hold light, so an evaluation costs a handful of cells;
  * - the rest: its reflection varies slowly across the ball (the lobe, tens
- *   of degrees at roughness 0.3, or the cosine lobe, averages it), so it is
- *   evaluated on a lattice of 16 x 16 px blocks and interpolated bilinearly
+ *   of degrees at roughness 0.3, averages it), so it is evaluated on a
+ *   lattice of 16 x 16 px blocks and interpolated bilinearly
  *   where the block's centre and edge midpoints, evaluated too, agree with
  *   the interpolation; a block that fails is split in four, down to 4 x 4
  *   px; a block that crosses the silhouette (the corners would mix objects)
@@ -21,12 +20,7 @@
  * Tolerance shares of a pixel's error estimate: glossy, the rest's
  * quadrature half, the interpolation check a quarter (relative to the
  * rest) past twice the points' quadrature estimates, the sun a quarter of
- * the pixel's whole value. A Lambert pixel's rest is interpolated over
- * normals (normal_fill.c), its quadrature bound half the tolerance, its
- * interpolation check a tenth with no slack: the bound is about 100 times
- * the quadrature's true error, and as slack it would let interpolation
- * errors of a percent through. A Lambert pixel's rig lights are their own
- * closed form, computed per pixel before (closed_form.c). */
+ * the pixel's whole value. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -295,8 +289,7 @@ typedef struct block {
     int x0, y0;
 } block;
 
-/* A glossy pixel whose rest the image blocks interpolate (a Lambert
- * pixel's is interpolated over normals, normal_fill.c). */
+/* A pixel whose rest the image blocks interpolate: every pending one. */
 static bool image_blocked(const fill_job *j, size_t p)
 {
     return j->px->state[p] == SL_GLOSSY_PENDING;
@@ -462,9 +455,7 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
             if (j->px->state[pix] != SL_GLOSSY_PENDING)
                 continue;
             double sun[3] = {0, 0, 0}, serr[3] = {0, 0, 0};
-            double floor[3];
-            for (int c = 0; c < 3; c++)
-                floor[c] = j->rest[pix][c];
+            const double *floor = j->rest[pix]; /* the sun's tolerance scale */
             sl_quad q = {.tol = SUN_SHARE * j->cf->tol, .floor = floor, .start_cells = gd->sun_cells,
                          .start_count = gd->sun_cell_count, .start_level = gd->sun_level};
             bool reuse = j->sun_state[pix];
@@ -605,7 +596,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
     }
     j.need = (free(j.need), NULL);
     finish_bands(&j);
-    if (!res && cf->gdome->sun)
+    if (cf->gdome->sun)
         keep_cut_suns(&j);
 done:
     for (int i = 0; j.scratch && i < j.workers; i++)

@@ -457,10 +457,7 @@ sl_result sl_lambert_fill(const sl_glossy_dome *gd, double tol, sl_lambert_point
     for (int w = 0; w < f.workers; w++)
         for (int k = 0; k < 2; k++) {
             const sl_irradiance_cost *c = k ? &f.worker_cost[w] : &f.j.worker_cost[w];
-            st->cost.evaluations += c->evaluations;
-            st->cost.cells += c->cells;
-            if (c->evaluations && c->finest_level < st->cost.finest_level)
-                st->cost.finest_level = c->finest_level;
+            sl_irradiance_cost_add(&st->cost, c->evaluations, c->cells, c->finest_level);
         }
 done:
     fill_free(&f);
