@@ -149,6 +149,7 @@ static void plan_job_free(plan_job *j)
     free(j->glossy.state);
     free(j->glossy.n);
     free(j->glossy.wo);
+    free(j->glossy.coarse);
 }
 
 /* The plan's share of a --time budget: the first pass (one sample per half
@@ -625,6 +626,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     j.glossy.n = malloc(npix * sizeof *j.glossy.n);
     j.glossy.wo = malloc(npix * sizeof *j.glossy.wo);
     j.glossy.value = j.centre;
+    j.glossy.coarse = calloc(npix, 1);
     j.row_cut = calloc((size_t)cam->height, 1);
     j.row_late = calloc((size_t)cam->height, sizeof *j.row_late);
     j.drop = calloc(npix, 1);
@@ -635,7 +637,8 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     if (j.point && j.sub) /* no fill point (memset -1: every byte 0xff) */
         memset(j.point, 0xff, npix * sizeof *j.point), memset(j.sub, 0xff, npix * sizeof *j.sub);
     if (!cf->mode || !cf->shape || !cf->value || !cf->bound || !j.centre || !j.row_cost ||
-        !j.row_foot || !j.row_cut || !j.row_late || !j.drop || !j.lambert || !j.point || !j.sub || !j.glossy.state || !j.glossy.n || !j.glossy.wo) {
+        !j.row_foot || !j.row_cut || !j.row_late || !j.drop || !j.lambert || !j.point || !j.sub || !j.glossy.state || !j.glossy.n || !j.glossy.wo ||
+        !j.glossy.coarse) {
         plan_job_free(&j);
         sl_closed_form_free(cf);
         return sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the closed form");
@@ -674,10 +677,12 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         res = fill_lambert(&j, until, st, err);
     }
     if (!res && pending) {
-        {
-            res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost,
-                                 j.deadline, o->plan_row_limit, j.row_cut, err);
-        }
+        /* The coarse pass may run to the budget's end. */
+        sl_glossy_limits lim = {.deadline = j.deadline,
+                                .coarse_deadline = o->time_limit > 0 ? t0 + o->time_limit : INFINITY,
+                                .row_limit = o->plan_row_limit,
+                                .coarse_row_limit = o->plan_coarse_row_limit};
+        res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost, &lim, j.row_cut, err);
     }
     if (res) {
         plan_job_free(&j);
@@ -704,7 +709,8 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     for (int y = 0; y < cam->height; y++)
         if (j.row_cut[y]) {
             /* Glossy pixels keep what the fill gave them in a cut row: all
-             * (the blocks had their rest) or their sun, the rest sampled. */
+             * (the full plan's or the coarse pass's rest) or their sun, the
+             * rest sampled. */
             for (int x = 0; x < cam->width; x++) {
                 size_t pix = (size_t)y * (size_t)cam->width + (size_t)x;
                 int gs = j.glossy.state[pix];
@@ -752,7 +758,8 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         }
         bool interpolated = j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
         st->interpolated_pixels += interpolated;
-        st->at_tolerance_pixels += j.lambert[i] != 2;
+        st->at_tolerance_pixels += j.lambert[i] != 2 && !j.glossy.coarse[i];
+        st->coarse_pixels += j.glossy.coarse[i];
         if (k < SL_CLOSED_FORM_MAX_OBJECTS) {
             st->object_exact[k] += m == SL_PIXEL_EXACT;
             st->object_control[k] += m == SL_PIXEL_CONTROL;
@@ -771,6 +778,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     }
     int64_t closed = st->exact_pixels + st->control_variate_pixels;
     st->rms_rel_bound = closed ? sqrt(st->rms_rel_bound / (double)closed) : 0;
+    st->coarse_tolerance = st->coarse_pixels ? SL_GLOSSY_COARSE * cf->tol : 0;
     for (int y = 0; y < cam->height; y++)
         st->max_footprint_error = fmax(st->max_footprint_error, j.row_foot[y]);
     plan_job_free(&j);

@@ -116,16 +116,31 @@ typedef struct sl_glossy_pixels {
     double (*n)[3];        /* world normal of a pending pixel */
     double (*wo)[3];       /* its view direction */
     double (*value)[3];    /* out: its radiance */
+    uint8_t *coarse;       /* out: 1 where it keeps the coarse pass's rest (a cut row) */
 } sl_glossy_pixels;
+/* Under --time the rest is first evaluated at every pixel at this times
+ * the tolerance (the coarse pass), for the rows the full plan does not
+ * reach. */
+#define SL_GLOSSY_COARSE 8.0
+/* Where sl_glossy_fill is cut: the full plan's rows not started by
+ * deadline (seconds, as sl_seconds), the coarse pass's by coarse_deadline
+ * (later); tests: from row_limit, coarse_row_limit on when > 0. */
+typedef struct sl_glossy_limits {
+    double deadline, coarse_deadline;
+    int row_limit, coarse_row_limit;
+} sl_glossy_limits;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
- * costs per image row. Every pixel's sun and the image blocks' rest first,
- * then row by row in image order each row in full (its pixels' own
- * evaluations and the sun): rows not started by the deadline
- * (seconds, as sl_seconds), or from row_limit on when it is > 0 (tests),
- * are marked in row_cut, to be sampled; finished rows keep their values. */
+ * costs per image row. Every pixel's sun first; when the plan may be cut
+ * (a finite deadline or a row limit) the coarse pass; then the image
+ * blocks' rest and row by row in image order each row in full (its
+ * pixels' own evaluations and the sun). Rows the cut left are marked in
+ * row_cut: their pixels keep the sun plus the best rest known (the full
+ * plan's blocks', else the coarse pass's), or without one the sun alone
+ * (cf->mode SL_PIXEL_SUN, the rest to be sampled); finished rows keep their
+ * values. */
 sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glossy_pixels *px,
-                         int w, int h, sl_irradiance_cost *row_cost, double deadline,
-                         int row_limit, uint8_t *row_cut, sl_error *err);
+                         int w, int h, sl_irradiance_cost *row_cost, const sl_glossy_limits *lim,
+                         uint8_t *row_cut, sl_error *err);
 
 /* The blocks' check (glossy_fill.c): v, e the values and error estimates
  * at a block's corners (top left, top right, bottom left, bottom right),

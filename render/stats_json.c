@@ -22,7 +22,7 @@ static void level_words(int k, char *buf, size_t size)
 
 const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, size_t size)
 {
-    char top[48], fine[48], lights[96] = "", cut[352] = "";
+    char top[48], fine[48], lights[96] = "", cut[352] = "", coarse[128] = "";
     size_t n = 0;
     if (st->evaluations > 0 && st->cells > 0) {
         level_words(st->top_level, top, sizeof top);
@@ -45,8 +45,12 @@ const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, s
                  "of them glossy with the sun exact, the rest of the map sampled)",
                  (long long)st->at_tolerance_pixels, (long long)(st->exact_pixels + st->control_variate_pixels),
                  (long long)st->cut_pixels, (long long)st->sun_exact_pixels);
+    if (st->coarse_pixels > 0)
+        snprintf(coarse, sizeof coarse,
+                 "; --time ran out: %lld pixels keep the coarse pass's value and bound (tolerance %g)",
+                 (long long)st->coarse_pixels, st->coarse_tolerance);
     if (n < size)
-        snprintf(buf + n, size - n, "%s%s", lights, cut);
+        snprintf(buf + n, size - n, "%s%s%s", lights, cut, coarse);
     return buf;
 }
 
@@ -123,10 +127,12 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "cut_by_time", json_boolean(cf->cut_by_time));
     json_object_set_new(jc, "cut_pixels", json_integer(cf->cut_pixels));
     json_object_set_new(jc, "sun_exact_pixels", json_integer(cf->sun_exact_pixels));
+    json_object_set_new(jc, "coarse_pixels", json_integer(cf->coarse_pixels));
+    json_object_set_new(jc, "coarse_tolerance", json_real(cf->coarse_tolerance));
     json_object_set_new(jc, "shadow_exact_pixels", json_integer(cf->shadow_exact_pixels));
     json_object_set_new(jc, "shadow_evaluations", json_integer(cf->shadow_evaluations));
     json_object_set_new(jc, "shadow_cells", json_integer(cf->shadow_cells));
-    char words[512];
+    char words[640];
     json_object_set_new(jc, "summary", json_string(sl_closed_form_describe(cf, words, sizeof words)));
     json_object_set_new(jc, "seconds", json_real(cf->seconds));
     json_object_set_new(root, "closed_form", jc);

@@ -275,7 +275,7 @@ int cmd_render(int argc, char **argv, const sl_cli *cli)
                res.est_rel_rmse, res.stats.stop_reason);
     if (!r && !cli->json) {
         const sl_closed_form_stats *cf = &res.stats.closed_form;
-        char words[512];
+        char words[640];
         if (cf->used)
             sl_log(SL_LOG_INFO,
                    "closed form: %lld pixels exact, %lld control variate, %lld sampled; bound "

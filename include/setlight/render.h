@@ -296,10 +296,14 @@ typedef struct sl_render_options {
     void *on_pass_ctx;
     /* Tests: the plan's per-pixel pass stops at this image row, as if --time
      * ran out there before the rest's plan reached it (rows from it on are
-     * sampled; their glossy pixels keep their sun exact and sample the rest
-     * of the map); 0 = no such cut. A deterministic stand-in for the
-     * deadline. */
+     * sampled; their glossy pixels keep the coarse pass's closed form, run
+     * first); 0 = no such cut. A deterministic stand-in for the deadline. */
     int plan_row_limit;
+    /* Tests: the glossy coarse pass (run when the plan may be cut) stops
+     * at this image row, as if the whole budget ran out there: its pixels
+     * from it on keep their sun exact and sample the rest of the map; 0 =
+     * no such cut. */
+    int plan_coarse_row_limit;
     /* Tests: the Lambert fill's refinement stops after this many
      * evaluations past its first pass, as if --time ran out there; 0 = no
      * such cut. */
@@ -340,6 +344,9 @@ typedef struct sl_closed_form_stats {
                                     rest of the map sampled (at the render's spp) */
     int64_t at_tolerance_pixels; /* closed-form pixels refined to the tolerance (the
                                     others: a cut left their interpolation coarser) */
+    int64_t coarse_pixels;       /* glossy pixels of rows a cut left that keep the coarse
+                                    pass's rest and its error estimate */
+    double coarse_tolerance;     /* that pass's tolerance (0 when no pixel kept it) */
     double rms_rel_bound;        /* RMS over closed-form pixels of the relative bound */
     double seconds;
     /* Per object (as objects[]): its material's type, its exact and

@@ -1,13 +1,18 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
-/* A glossy plan cut by --time: every cut pixel keeps its sun exact and
- * samples only the rest of the map (the map without the sun's texels). The
- * estimate converges to the uncut closed form (no sun counted twice or
- * missed), and at equal spp its noise is far below the whole-map
- * sampler's. plan_row_limit = 1 cuts the rest's plan before any ball row,
- * as a deadline right after the sun pass would. */
+/* A glossy plan cut by --time. Cut after the coarse pass (plan_row_limit
+ * = 1: the full plan stops before any ball row), every cut pixel keeps the
+ * coarse pass's closed form, within its reported error estimate of a tight
+ * plan. Cut before the coarse pass too (plan_coarse_row_limit = 1, as a
+ * budget that ran out right after the sun pass), every cut pixel keeps its
+ * sun exact and samples only the rest of the map (the map without the
+ * sun's texels): the estimate converges to the uncut closed form (no sun
+ * counted twice or missed), and at equal spp its noise is far below the
+ * whole-map sampler's. */
 #include <stdlib.h>
 #include <string.h>
 
+#include "../../render/closed_form.h"
+#include "../../render/glossy.h"
 #include "setlight/render.h"
 #include "testing.h"
 
@@ -50,7 +55,8 @@ static void scene_for(sl_scene *s, const sl_image *env, const cut_case *c)
                               c->roughness);
 }
 
-/* row_limit < 0: the closed form off (the whole map sampled). */
+/* row_limit < 0: the closed form off (the whole map sampled); > 0: the
+ * plan and its coarse pass cut there. */
 static void render(const sl_scene *s, int64_t spp, int row_limit, sl_image *img, sl_render_stats *st)
 {
     sl_render_options o;
@@ -58,7 +64,7 @@ static void render(const sl_scene *s, int64_t spp, int row_limit, sl_image *img,
     o.spp = spp;
     o.pixel_centers = true;
     o.closed_form = row_limit >= 0;
-    o.plan_row_limit = row_limit > 0 ? row_limit : 0;
+    o.plan_row_limit = o.plan_coarse_row_limit = row_limit > 0 ? row_limit : 0;
     sl_error err = {0};
     CHECK_OK(sl_render(s, &o, img, st, &err), &err);
 }
@@ -151,18 +157,79 @@ static void check_case(const sl_image *env, const cut_case *c)
     sl_scene_free(&s);
 }
 
-static void test_sun_exact_rest_sampled(void)
+/* Cut after the coarse pass: every ball pixel but row 0's keeps the coarse
+ * closed form (none sampled), each within its error estimate of a plan at
+ * a 10 times tighter tolerance (plus that plan's own estimate). */
+static void check_coarse(const sl_image *env, const cut_case *c)
+{
+    sl_scene s;
+    scene_for(&s, env, c);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.pixel_centers = true;
+    sl_closed_form tight, cut;
+    sl_closed_form_stats ts, cs;
+    sl_error err = {0};
+    o.closed_form_tolerance = 1e-3;
+    CHECK_OK(sl_closed_form_plan(&tight, &s, &o, &ts, &err), &err);
+    o.closed_form_tolerance = 0;
+    o.plan_row_limit = 1;
+    CHECK_OK(sl_closed_form_plan(&cut, &s, &o, &cs, &err), &err);
+    int64_t ball = ts.exact_pixels, outside = 0;
+    CHECK(!ts.cut_by_time && cs.cut_by_time && ball > 1000);
+    CHECK_MSG(cs.exact_pixels == ball && cs.cut_pixels == 0 && cs.sun_exact_pixels == 0 &&
+                  cs.coarse_pixels > ball * 9 / 10 && cs.coarse_pixels == cs.exact_pixels - cs.at_tolerance_pixels,
+              "%s: %lld exact, %lld coarse, %lld at the tolerance, %lld cut of %lld", c->name,
+              (long long)cs.exact_pixels, (long long)cs.coarse_pixels, (long long)cs.at_tolerance_pixels,
+              (long long)cs.cut_pixels, (long long)ball);
+    CHECK(cs.coarse_tolerance == SL_GLOSSY_COARSE * cs.tolerance);
+    double worst = 0, num = 0, den = 0;
+    for (size_t i = 0; i < (size_t)WIDTH * WIDTH; i++) {
+        if (tight.mode[i] != SL_PIXEL_EXACT)
+            continue;
+        CHECK(cut.mode[i] == SL_PIXEL_EXACT);
+        for (int k = 0; k < 3; k++) {
+            double d = fabs((double)cut.value[i][k] - tight.value[i][k]), b = (double)cut.bound[i][k] + tight.bound[i][k];
+            CHECK(isfinite(cut.value[i][k]) && cut.value[i][k] >= 0);
+            outside += d > b;
+            worst = fmax(worst, d / b);
+            num += d * d, den += (double)tight.value[i][k] * tight.value[i][k];
+        }
+    }
+    printf("  %s: %lld of %lld ball pixels coarse (tolerance %g), rel RMSE %.3f%% to the tight plan at an RMS "
+           "estimate of %.3f%%; worst %.2f x its estimate\n",
+           c->name, (long long)cs.coarse_pixels, (long long)ball, cs.coarse_tolerance, 100 * sqrt(num / den),
+           100 * cs.rms_rel_bound, worst);
+    CHECK_MSG(outside == 0, "%s: %lld values outside their estimates", c->name, (long long)outside);
+    sl_closed_form_free(&tight);
+    sl_closed_form_free(&cut);
+    sl_scene_free(&s);
+}
+
+/* Each check under sun_and_sky() for metal 0.3, metal 0.8 and plastic 0.4. */
+static void for_each_case(void (*check)(const sl_image *env, const cut_case *c))
 {
     sl_image env;
     sun_and_sky(&env);
     const cut_case cases[] = {{"metal 0.3", false, 0.3}, {"metal 0.8", false, 0.8}, {"plastic 0.4", true, 0.4}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
-        check_case(&env, &cases[i]);
+        check(&env, &cases[i]);
     sl_image_free(&env);
+}
+
+static void test_cut_keeps_the_coarse_pass(void)
+{
+    for_each_case(check_coarse);
+}
+
+static void test_sun_exact_rest_sampled(void)
+{
+    for_each_case(check_case);
 }
 
 int main(void)
 {
+    RUN(test_cut_keeps_the_coarse_pass);
     RUN(test_sun_exact_rest_sampled);
     return sl_test_finish();
 }
