@@ -124,7 +124,7 @@ typedef struct sl_glossy_pixels {
 #define SL_GLOSSY_COARSE 8.0
 /* Where sl_glossy_fill is cut: the full plan's rows not started by
  * deadline (seconds, as sl_seconds), the coarse pass's by coarse_deadline
- * (later); tests: from row_limit, coarse_row_limit on when > 0. */
+ * (no earlier; the render uses the same); tests: from row_limit, coarse_row_limit on when > 0. */
 typedef struct sl_glossy_limits {
     double deadline, coarse_deadline;
     int row_limit, coarse_row_limit;
