@@ -3,6 +3,7 @@
 "The noise floor of the point matches").
 
   /usr/bin/python3 bench/stitch_match_bound.py DUMP VIEWDIR CLEANDIR [--drop-list FILE PX]
+                                                [--noisy-gradients]
 
 DUMP: the solve's stderr with bench/stitch_match_dump.patch applied and
 SL_DUMP_RES=1 (a "STEP" line, then per inlier "RES a b pa pb edge normal e1 e2
@@ -20,9 +21,9 @@ the two views' noise covariance over the patch (b's taken on a's grid):
 Cov >= (J^T C^-1 J)^-1. A point's bound is sqrt(var_x + var_y), an edge's
 the variance across the edge; both compare with |refined - true|.
 --drop-list writes the matches whose bound exceeds PX (a b pb per line), for
-the patch's SL_DROP.
+the patch's SL_DROP. --noisy-gradients takes J from the merged view instead
+(what the solve itself has).
 """
-import os
 import sys
 
 import numpy as np
@@ -123,7 +124,7 @@ def main():
         a, b = int(r[0]), int(r[1])
         pa, pb, edge, normal, pt = r[2:4], r[4:6], r[6] > 0, r[7:9], r[11:13]
         x, y = pa[0] + GRID_I * step, pa[1] + GRID_J * step
-        cl = clean[a]
+        cl = noisy[a] if "--noisy-gradients" in sys.argv else clean[a]
         gx = bilinear(cl, x + 0.5, y) - bilinear(cl, x - 0.5, y)
         gy = bilinear(cl, x, y + 0.5) - bilinear(cl, x, y - 0.5)
         jac = np.stack([gx, gy, np.ones_like(gx), GRID_I / HALF, GRID_J / HALF], 1)
