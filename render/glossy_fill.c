@@ -127,7 +127,7 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
         sl_glossy_dome_free(gd);
         return res;
     }
-    sl_image_fill(&gd->sun_dome.image, 0.0f);
+    /* sl_image_alloc's image is zero: only the sun's texels are written. */
     for (int64_t k = 0; k < count; k++) {
         int x = (int)(cand[k].index % W), y = (int)(cand[k].index / W);
         float *r = sl_image_pixel(&gd->rest_dome.image, x, y), *s = sl_image_pixel(&gd->sun_dome.image, x, y);
