@@ -126,11 +126,10 @@ typedef struct sl_glossy_pixels {
 #define SL_GLOSSY_COARSE_CHECK 6.0
 /* Where sl_glossy_fill is cut: the full plan's rows not started by
  * deadline (seconds, as sl_seconds), the coarse pass's by coarse_deadline
- * (no earlier; the render uses the same); tests: from row_limit, coarse_row_limit on when > 0,
- * and the coarse pass stopped after coarse_levels lattice levels when > 0. */
+ * (no earlier; the render uses the same); tests: from row_limit, coarse_row_limit on when > 0. */
 typedef struct sl_glossy_limits {
     double deadline, coarse_deadline;
-    int row_limit, coarse_row_limit, coarse_levels;
+    int row_limit, coarse_row_limit;
 } sl_glossy_limits;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
  * costs per image row. Every pixel's sun first; when the plan may be cut

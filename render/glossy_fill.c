@@ -29,9 +29,10 @@
  * blocks' check is at SL_GLOSSY_COARSE_CHECK x the tolerance and allows no
  * slack for the points' estimates: at that tolerance they are ~15x the
  * points' true error, and with the slack blocks passed 16% off at an
- * estimate of 7% (env_test.exr, metal 0.3). The pixels no block can
- * interpolate (the rim) are evaluated with the first level's points, so a
- * cut leaves the interior's finer levels to sampling, not the rim. */
+ * estimate of 7% (env_test.exr, metal 0.3). The pixels no block
+ * interpolates (the rim) come last: left to sampling by a cut, their
+ * error is far smaller than the interior's failed blocks' would be
+ * (docs/render.md). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -192,8 +193,6 @@ typedef struct fill_job {
     double slack;     /* the blocks' check: x the points' largest error estimate allowed */
     double deadline;  /* --time: the pass's rows not started by then are cut */
     int row_limit;    /* tests: rows from this one on are cut as by the deadline (0: none) */
-    int levels;       /* tests: the lattice stops after this many levels (0: none) */
-    bool rim_first;   /* the coarse pass: pixels no block can interpolate join the first level */
     int row0;         /* finish_rows: the band's first row */
     uint8_t *row_cut; /* per image row: ran into the deadline */
     uint8_t *need;    /* per pixel: its rest to be evaluated in this pass */
@@ -583,31 +582,15 @@ static void lattice(fill_job *j, block *cur, block *next)
     for (int y = 0; y < h; y += BLOCK0)
         for (int x = 0; x < w; x += BLOCK0)
             cur[ncur++] = (block){x, y};
-    for (int S = BLOCK0, level = 1; S >= BLOCK_MIN && ncur > 0; S /= 2, level++) {
-        /* On the first level of a rim-first pass, the own pixels of every
-         * block the finest level could interpolate are marked covered (2);
-         * then the nine points of every whole block (1). */
+    for (int S = BLOCK0; S >= BLOCK_MIN && ncur > 0; S /= 2) {
+        /* The nine points of every whole block. */
         int nnext = 0;
-        bool rim = j->rim_first && S == BLOCK0;
-        for (int y0 = 0; rim && y0 < h; y0 += BLOCK_MIN)
-            for (int x0 = 0; x0 < w; x0 += BLOCK_MIN) {
-                block b = {x0, y0};
-                if (!block_whole(j, &b, BLOCK_MIN) || !block_narrow(j, &b, BLOCK_MIN))
-                    continue;
-                for (int y = y0; y < y0 + BLOCK_MIN; y++)
-                    memset(j->need + (size_t)y * w + x0, 2, BLOCK_MIN);
-            }
         for (int i = 0; i < ncur; i++) {
             if (!block_whole(j, &cur[i], S) || !block_narrow(j, &cur[i], S))
                 continue;
             for (int k = 0; k < 9; k++)
                 j->need[(size_t)(cur[i].y0 + POINT[k][1] * S / 2) * w + (cur[i].x0 + POINT[k][0] * S / 2)] = 1;
         }
-        /* The pixels no block can cover (the rim: evaluated one by one in
-         * any case) with the first points, so that a cut leaves the
-         * interior's finer levels to sampling, not the rim. */
-        for (size_t p = 0; rim && p < npix; p++)
-            j->need[p] = j->need[p] == 1 || (j->need[p] == 0 && image_blocked(j, p));
         sl_parallel_for(h, 1, rest_rows, j);
         memset(j->need, 0, npix);
         for (int i = 0; i < ncur; i++) {
@@ -626,8 +609,6 @@ static void lattice(fill_job *j, block *cur, block *next)
         block *t = cur;
         cur = next, next = t;
         ncur = nnext;
-        if (j->levels > 0 && level >= j->levels)
-            break;
     }
 }
 
@@ -678,11 +659,8 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
          * plan does not reach. */
         j.tol = SL_GLOSSY_COARSE * cf->tol, j.check_tol = SL_GLOSSY_COARSE_CHECK * cf->tol, j.slack = 0;
         j.deadline = lim->coarse_deadline, j.row_limit = lim->coarse_row_limit;
-        j.levels = lim->coarse_levels, j.rim_first = true;
         lattice(&j, cur, next);
-        if (!j.levels)
-            sl_parallel_for(h, 1, rest_left_rows, &j);
-        j.levels = 0, j.rim_first = false;
+        sl_parallel_for(h, 1, rest_left_rows, &j);
         uint8_t *ts = j.coarse_state;
         double(*tv)[3] = j.coarse, (*te)[3] = j.coarse_err;
         j.coarse_state = j.rest_state, j.coarse = j.rest, j.coarse_err = j.rest_err;

@@ -304,10 +304,6 @@ typedef struct sl_render_options {
      * from it on keep their sun exact and sample the rest of the map; 0 =
      * no such cut. */
     int plan_coarse_row_limit;
-    /* Tests: the glossy coarse pass stops after this many levels of its
-     * lattice (1: the 16 px blocks' points and the pixels no block can
-     * interpolate), as if the budget ran out there; 0 = no such cut. */
-    int plan_coarse_levels;
     /* Tests: the Lambert fill's refinement stops after this many
      * evaluations past its first pass, as if --time ran out there; 0 = no
      * such cut. */

@@ -206,51 +206,6 @@ static void check_coarse(const sl_image *env, const cut_case *c)
     sl_scene_free(&s);
 }
 
-/* The coarse pass stopped after its first level (the 16 px blocks' points
- * and the pixels no block can interpolate, evaluated together): the only
- * ball pixels left to sampling (sun exact) are inside whole 4 px blocks
- * of the lattice (every pixel of the closed block on the ball); the rim
- * already has its coarse value. */
-static void check_rim_first(const sl_image *env, const cut_case *c)
-{
-    sl_scene s;
-    scene_for(&s, env, c);
-    sl_render_options o;
-    sl_render_options_init(&o);
-    o.pixel_centers = true;
-    sl_closed_form all, cut;
-    sl_closed_form_stats as, cs;
-    sl_error err = {0};
-    CHECK_OK(sl_closed_form_plan(&all, &s, &o, &as, &err), &err);
-    o.plan_row_limit = 1;
-    o.plan_coarse_levels = 1;
-    CHECK_OK(sl_closed_form_plan(&cut, &s, &o, &cs, &err), &err);
-    int64_t ball = as.exact_pixels, rim = 0, left = 0, misplaced = 0;
-    for (int y = 0; y < WIDTH; y++)
-        for (int x = 0; x < WIDTH; x++) {
-            size_t i = (size_t)y * WIDTH + x;
-            if (all.mode[i] != SL_PIXEL_EXACT)
-                continue;
-            /* inside a whole 4 px block: its closed block all on the ball */
-            int x0 = x / 4 * 4, y0 = y / 4 * 4;
-            bool whole = x0 + 4 < WIDTH && y0 + 4 < WIDTH;
-            for (int v = y0; v <= y0 + 4 && whole; v++)
-                for (int u = x0; u <= x0 + 4 && whole; u++)
-                    whole = all.mode[(size_t)v * WIDTH + u] == SL_PIXEL_EXACT;
-            rim += !whole;
-            left += cut.mode[i] == SL_PIXEL_SUN;
-            misplaced += cut.mode[i] != SL_PIXEL_EXACT && !whole;
-        }
-    printf("  %s: coarse pass stopped after its first level: %lld of %lld ball pixels left to sampling, "
-           "%lld of the %lld outside whole blocks\n",
-           c->name, (long long)left, (long long)ball, (long long)misplaced, (long long)rim);
-    CHECK(rim > 0 && cs.cut_by_time && left == cs.sun_exact_pixels);
-    CHECK_MSG(misplaced == 0, "%s: %lld pixels outside whole blocks left to sampling", c->name, (long long)misplaced);
-    sl_closed_form_free(&all);
-    sl_closed_form_free(&cut);
-    sl_scene_free(&s);
-}
-
 /* Each check under sun_and_sky() for metal 0.3, metal 0.8 and plastic 0.4. */
 static void for_each_case(void (*check)(const sl_image *env, const cut_case *c))
 {
@@ -267,11 +222,6 @@ static void test_cut_keeps_the_coarse_pass(void)
     for_each_case(check_coarse);
 }
 
-static void test_coarse_pass_rim_first(void)
-{
-    for_each_case(check_rim_first);
-}
-
 static void test_sun_exact_rest_sampled(void)
 {
     for_each_case(check_case);
@@ -280,7 +230,6 @@ static void test_sun_exact_rest_sampled(void)
 int main(void)
 {
     RUN(test_cut_keeps_the_coarse_pass);
-    RUN(test_coarse_pass_rim_first);
     RUN(test_sun_exact_rest_sampled);
     return sl_test_finish();
 }
