@@ -161,6 +161,19 @@ static void plan_job_free(plan_job *j)
  * share; they always finish, coarser past it. */
 #define SHADOW_FILL_START 0.6
 
+/* Every closed-form pixel glossy at its centre, with no rig light: those
+ * integrate the map's sun and rest (glossy_fill.c), not the whole map, so
+ * the whole map's levels are built only if a pixel needs them. */
+static bool glossy_at_centres_only(const sl_scene *scene, const sl_render_options *o)
+{
+    if (!o->pixel_centers || scene->light_count)
+        return false;
+    for (int i = 0; i < scene->shape_count; i++)
+        if (scene->materials[scene->shapes[i].material].type == SL_MAT_LAMBERT)
+            return false;
+    return true;
+}
+
 static bool ray_at(const sl_camera *cam, double sx, double sy, double o[3], double d[3])
 {
     return sl_camera_ray(cam, sx / cam->width, sy / cam->height, o, d);
@@ -595,7 +608,8 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
     if (o->target_error > 0)
         cf->tol = fmin(cf->tol, 0.5 * o->target_error);
     sl_error local = {0};
-    if (scene->dome.present && sl_irradiance_build(&scene->dome, &cf->ir, &local)) {
+    bool defer_whole = glossy_at_centres_only(scene, o);
+    if (scene->dome.present && !defer_whole && sl_irradiance_build(&scene->dome, &cf->ir, &local)) {
         snprintf(st->reason, sizeof st->reason, "%.95s", local.message);
         return SL_OK;
     }
@@ -651,7 +665,6 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         lambert |= j.lambert[i];
         control |= cf->mode[i] == SL_PIXEL_CONTROL;
     }
-    st->finest_level = st->top_level = cf->ir ? sl_irradiance_top_level(cf->ir) : 0;
     if (pending || lambert) {
         cf->gdome = calloc(1, sizeof *cf->gdome);
         res = cf->gdome ? SL_OK : sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
@@ -664,6 +677,23 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
             st->sun_share = cf->gdome->sun_share;
         }
     }
+    /* The whole map's levels, deferred: needed by a control variate, or as
+     * the rest when the map had no sun to split off (or no room for it). */
+    bool need_whole = control || (cf->gdome && !cf->gdome->rest);
+    if (!res && scene->dome.present && !cf->ir && need_whole) {
+        if (sl_irradiance_build(&scene->dome, &cf->ir, &local)) {
+            plan_job_free(&j);
+            sl_closed_form_free(cf);
+            memset(st, 0, sizeof *st);
+            st->sampled_pixels = (int64_t)npix;
+            snprintf(st->reason, sizeof st->reason, "%.95s", local.message);
+            return SL_OK;
+        }
+        if (cf->gdome && !cf->gdome->rest)
+            cf->gdome->rest = cf->ir;
+    }
+    const sl_irradiance *levels = cf->ir ? cf->ir : cf->gdome ? cf->gdome->rest : NULL;
+    st->finest_level = st->top_level = levels ? sl_irradiance_top_level(levels) : 0;
     if (!res && lambert) {
         /* Control variates leave the shadowed part to sampling: it gets
          * the larger part of the budget; with no bounces and no rig light

@@ -120,8 +120,10 @@ typedef struct sl_glossy_pixels {
 } sl_glossy_pixels;
 /* Under --time the rest is first evaluated at every pixel at this times
  * the tolerance (the coarse pass), for the rows the full plan does not
- * reach. */
+ * reach; its blocks interpolate where their check passes at
+ * SL_GLOSSY_COARSE_CHECK times the tolerance. */
 #define SL_GLOSSY_COARSE 8.0
+#define SL_GLOSSY_COARSE_CHECK 6.0
 /* Where sl_glossy_fill is cut: the full plan's rows not started by
  * deadline (seconds, as sl_seconds), the coarse pass's by coarse_deadline
  * (no earlier; the render uses the same); tests: from row_limit, coarse_row_limit on when > 0. */

@@ -26,9 +26,13 @@
  * SL_GLOSSY_COARSE x the tolerance (the coarse pass: the same lattice and
  * evaluations, far fewer cells), so that a row the full plan does not
  * reach keeps that value and its error estimate instead of sampling. Its
- * blocks' check allows no slack for the points' estimates: at that
- * tolerance they are ~15x the points' true error, and with the slack
- * blocks passed 16% off at an estimate of 7% (env_test.exr, metal 0.3). */
+ * blocks' check is at SL_GLOSSY_COARSE_CHECK x the tolerance and allows no
+ * slack for the points' estimates: at that tolerance they are ~15x the
+ * points' true error, and with the slack blocks passed 16% off at an
+ * estimate of 7% (env_test.exr, metal 0.3). The pixels no block
+ * interpolates (the rim) come last: left to sampling by a cut, their
+ * error is far smaller than the interior's failed blocks' would be
+ * (docs/render.md). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -127,7 +131,7 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
         sl_glossy_dome_free(gd);
         return res;
     }
-    sl_image_fill(&gd->sun_dome.image, 0.0f);
+    /* sl_image_alloc's image is zero: only the sun's texels are written. */
     for (int64_t k = 0; k < count; k++) {
         int x = (int)(cand[k].index % W), y = (int)(cand[k].index / W);
         float *r = sl_image_pixel(&gd->rest_dome.image, x, y), *s = sl_image_pixel(&gd->sun_dome.image, x, y);
@@ -185,6 +189,7 @@ typedef struct fill_job {
     int w, h;
     sl_irradiance_cost *row_cost;
     double tol;       /* the pass's tolerance: the plan's, or the coarse pass's */
+    double check_tol; /* the blocks' check: the pass's interpolation tolerance */
     double slack;     /* the blocks' check: x the points' largest error estimate allowed */
     double deadline;  /* --time: the pass's rows not started by then are cut */
     int row_limit;    /* tests: rows from this one on are cut as by the deadline (0: none) */
@@ -403,7 +408,7 @@ static bool try_block(fill_job *j, const block *b, int S)
         memcpy(v[k], j->rest[p], sizeof v[k]);
         memcpy(e[k], j->rest_err[p], sizeof e[k]);
     }
-    if (!sl_fill_check(v, e, NULL, INTERP_SHARE * j->tol, j->slack, bmax))
+    if (!sl_fill_check(v, e, NULL, INTERP_SHARE * j->check_tol, j->slack, bmax))
         return false;
     for (int y = b->y0; y < b->y0 + S; y++)
         for (int x = b->x0; x < b->x0 + S; x++) {
@@ -652,7 +657,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         /* The coarse pass: every pixel's rest, cut only by the second
          * deadline; then its values are kept aside for the rows the full
          * plan does not reach. */
-        j.tol = SL_GLOSSY_COARSE * cf->tol, j.slack = 0;
+        j.tol = SL_GLOSSY_COARSE * cf->tol, j.check_tol = SL_GLOSSY_COARSE_CHECK * cf->tol, j.slack = 0;
         j.deadline = lim->coarse_deadline, j.row_limit = lim->coarse_row_limit;
         lattice(&j, cur, next);
         sl_parallel_for(h, 1, rest_left_rows, &j);
@@ -661,7 +666,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         j.coarse_state = j.rest_state, j.coarse = j.rest, j.coarse_err = j.rest_err;
         j.rest_state = ts, j.rest = tv, j.rest_err = te;
     }
-    j.tol = cf->tol, j.slack = 2.0;
+    j.tol = j.check_tol = cf->tol, j.slack = 2.0;
     j.deadline = lim->deadline, j.row_limit = lim->row_limit;
     lattice(&j, cur, next);
     finish_bands(&j);

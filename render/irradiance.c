@@ -124,6 +124,50 @@ static void cell_at(const sl_irradiance *ir, int k, int x, int y, cell_sum *s)
         *s = ir->lv[k].cells[(size_t)y * ir->lv[k].w + x];
 }
 
+typedef struct level_job {
+    const sl_irradiance *ir;
+    int k;
+} level_job;
+
+static bool cell_zero(const cell_sum *c)
+{
+    for (int ch = 0; ch < 3; ch++)
+        if (c->p[ch] != 0 || c->v[ch][0] != 0 || c->v[ch][1] != 0 || c->v[ch][2] != 0)
+            return false;
+    return true;
+}
+
+/* Rows [begin, end) of level k's cells, each the sum of its (up to) four
+ * children. A child that is all zero adds nothing and is skipped, so a cell
+ * with no light is never written: a sparse map (the sun alone) touches few
+ * of its levels' pages, and the sums keep their bits (x + 0 = x). */
+static void sum_rows(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    const level_job *lj = ctx;
+    const sl_irradiance *ir = lj->ir;
+    const level *l = &ir->lv[lj->k], *f = &ir->lv[lj->k - 1];
+    for (int64_t y = begin; y < end; y++)
+        for (int x = 0; x < l->w; x++) {
+            cell_sum *s = &l->cells[(size_t)y * l->w + x];
+            for (int j = 0; j < 2; j++)
+                for (int i = 0; i < 2; i++) {
+                    int cx = 2 * x + i, cy = 2 * (int)y + j;
+                    if (cx >= f->w || cy >= f->h)
+                        continue;
+                    cell_sum c;
+                    cell_at(ir, lj->k - 1, cx, cy, &c);
+                    if (cell_zero(&c))
+                        continue;
+                    for (int ch = 0; ch < 3; ch++) {
+                        for (int d = 0; d < 3; d++)
+                            s->v[ch][d] += c.v[ch][d];
+                        s->p[ch] += c.p[ch];
+                    }
+                }
+        }
+}
+
 sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error *err)
 {
     *out = NULL;
@@ -174,24 +218,8 @@ sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error
         }
         if (k == 0)
             continue;
-        const level *f = &ir->lv[k - 1];
-        for (int y = 0; y < l->h; y++)
-            for (int x = 0; x < l->w; x++) {
-                cell_sum *s = &l->cells[(size_t)y * l->w + x];
-                for (int j = 0; j < 2; j++)
-                    for (int i = 0; i < 2; i++) {
-                        int cx = 2 * x + i, cy = 2 * y + j;
-                        if (cx >= f->w || cy >= f->h)
-                            continue;
-                        cell_sum c;
-                        cell_at(ir, k - 1, cx, cy, &c);
-                        for (int ch = 0; ch < 3; ch++) {
-                            for (int d = 0; d < 3; d++)
-                                s->v[ch][d] += c.v[ch][d];
-                            s->p[ch] += c.p[ch];
-                        }
-                    }
-            }
+        level_job lj = {ir, k};
+        sl_parallel_for(l->h, 16, sum_rows, &lj);
     }
     *out = ir;
     return SL_OK;
