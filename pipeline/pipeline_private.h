@@ -97,6 +97,12 @@ void pl_stamp_path(const json_t *graph, const json_t *job, char *path, size_t si
 bool pl_stamp_current(const json_t *graph, const json_t *job, const char *key);
 /* The stamp (NULL when absent or unreadable). */
 json_t *pl_stamp_load(const json_t *graph, const json_t *job);
+/* In a process the local runner forked for it: runs job of graph (the
+ * runner's, whole) as `setlight job JOBS.json ID` would, and returns that
+ * command's exit code, an error said on stderr as it says it. key: NULL,
+ * or the job's key just computed by the runner, which found its stamp not
+ * current (and, for the index, prepared its status.json first). */
+int pl_job_run_forked(const char *jobs_json, json_t *graph, json_t *job, const char *key);
 /* Writes OUT/status.json, the index job's input: every other job's stamp
  * status and key (rewritten only when one changed). */
 sl_result pl_index_prepare(const json_t *graph, sl_error *err);
