@@ -259,9 +259,8 @@ static double own_peak_rss_mb(void)
 /* The job `id` of graph (both loaded by pl_graph_load_job, references
  * taken) from `started` (the epoch) on, when this process had waited
  * wait0 s for a CPU: what sl_pipeline_job_run does once it has read the
- * job. known_key: NULL, or the job's key the local runner computed (its
- * index's status.json prepared first) just before it forked this process
- * and found the stamp not current. */
+ * job. known_key: NULL, or the job's key the local runner computed just
+ * before it forked this process and found the stamp not current. */
 static sl_result job_run(const char *jobs_json, const char *id, json_t *graph, json_t *job,
                          const char *known_key, double started, double wait0, int *exit_code,
                          bool *skipped, sl_error *err)
@@ -270,7 +269,7 @@ static sl_result job_run(const char *jobs_json, const char *id, json_t *graph, j
     *exit_code = 0;
     *skipped = false;
     char key[65];
-    if (!known_key && !strcmp(json_string_value(json_object_get(job, "stage")), "index") &&
+    if (!strcmp(json_string_value(json_object_get(job, "stage")), "index") &&
         (r = pl_index_prepare(graph, err))) {
         json_decref(job);
         json_decref(graph);

@@ -108,14 +108,16 @@ static bool one_thread(void)
  * process, which has the graph read and the key computed, instead of a
  * new setlight: its start (the binary, its libraries, OpenSSL's set-up)
  * was about half of the wrapper's cost (docs/process.md, "Cost of a run").
- * Anything else, or while this process has other threads, is started as
- * its argv says. 0, or the errno of the failure. */
+ * Not the index, which reads every job's stamp through JOBS.json (after
+ * Slurm, this runner's graph holds the index alone); nor anything else,
+ * nor while this process has other threads: those are started as their
+ * argv says. 0, or the errno of the failure. */
 static int start_job(const sl_pipeline_options *o, json_t *graph, lj *j, char **argv, size_t argc,
                      const char *key)
 {
     const char *id = json_string_value(json_object_get(j->job, "id"));
-    if (argc == 4 && o->exe && !strcmp(argv[0], o->exe) && !strcmp(argv[1], "job") &&
-        !strcmp(argv[3], id) && one_thread()) {
+    if (!j->is_index && argc == 4 && o->exe && !strcmp(argv[0], o->exe) &&
+        !strcmp(argv[1], "job") && !strcmp(argv[3], id) && one_thread()) {
         fflush(NULL); /* nothing buffered is written twice */
         pid_t pid = fork();
         if (pid == 0) {

@@ -101,7 +101,7 @@ json_t *pl_stamp_load(const json_t *graph, const json_t *job);
  * runner's, whole) as `setlight job JOBS.json ID` would, and returns that
  * command's exit code, an error said on stderr as it says it. key: NULL,
  * or the job's key just computed by the runner, which found its stamp not
- * current (and, for the index, prepared its status.json first). */
+ * current. */
 int pl_job_run_forked(const char *jobs_json, json_t *graph, json_t *job, const char *key);
 /* Writes OUT/status.json, the index job's input: every other job's stamp
  * status and key (rewritten only when one changed). */
