@@ -415,12 +415,18 @@ static void ingest_ahead(const sl_pipeline_options *o, const char *out, char nam
         if (pid > 0)
             pids[started++] = pid;
     }
+    /* The waits stand for slot time the machine's other work took; more
+     * processes than slots also wait for each other, so theirs count for
+     * the slots only: slots / n of their sum. */
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    int slots = o->jobs > 0 && (cores < 1 || o->jobs < cores) ? o->jobs : (int)cores;
+    double share = slots > 0 && slots < n ? (double)slots / n : 1;
     for (int c = 0; c < started; c++) {
         struct rusage ru;
         double cpu_wait;
         pl_reap(pids[c], &ru, &cpu_wait);
         cost->runner_cpu_seconds += pl_cpu_seconds(&ru);
-        cost->runner_cpu_wait_seconds += cpu_wait;
+        cost->runner_cpu_wait_seconds += cpu_wait * share;
     }
 }
 
