@@ -244,16 +244,8 @@ int pl_reap(pid_t pid, struct rusage *ru, double *cpu_wait)
  * its exec. */
 static double own_peak_rss_mb(void)
 {
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f)
-        return 0;
-    char line[256];
-    double kb = 0;
-    while (fgets(line, sizeof line, f))
-        if (sscanf(line, "VmHWM: %lf", &kb) == 1)
-            break;
-    fclose(f);
-    return kb / 1024.0;
+    double kb = pl_self_status("VmHWM");
+    return kb > 0 ? kb / 1024.0 : 0;
 }
 
 /* The job `id` of graph (both loaded by pl_graph_load_job, references

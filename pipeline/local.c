@@ -90,16 +90,7 @@ static void rank_jobs(lj *js, int n)
  * child. */
 static bool one_thread(void)
 {
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f)
-        return false;
-    char line[256];
-    int threads = 0;
-    while (fgets(line, sizeof line, f))
-        if (sscanf(line, "Threads: %d", &threads) == 1)
-            break;
-    fclose(f);
-    return threads == 1;
+    return pl_self_status("Threads") == 1;
 }
 
 /* Starts job j, whose argv is argc words; key: its key, or NULL when it

@@ -119,6 +119,10 @@ int pl_cmp_ranked(const void *a, const void *b);
 struct rusage;
 double pl_cpu_seconds(const struct rusage *ru);
 
+/* The number of a field of /proc/self/status ("VmHWM" in kB, "Threads"),
+ * or -1 when it cannot be read. */
+double pl_self_status(const char *field);
+
 /* Wall-clock time since the epoch: stamps of jobs run on different nodes
  * (or by different runners) are compared by it. */
 double pl_epoch_seconds(void);
