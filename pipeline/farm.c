@@ -161,7 +161,8 @@ static char *setup_script(const char *name, const json_t *members)
  * taken, a scheduling pass each, ahead of the day's index: the first job to
  * get here cancels them (where the node has squeue and scancel; else they
  * start and end at once); the others, the day's last among them, end
- * without asking the controller. */
+ * without asking the controller. Each says it ended with a file in dir
+ * (ended.SLURM_JOB_ID), which wakes the runner's wait for its squeue. */
 static char *runner_script(const char *dir, size_t own, const char *all, const char *names,
                            const char *out)
 {
@@ -183,7 +184,8 @@ static char *runner_script(const char *dir, size_t own, const char *all, const c
           "  command -v scancel >/dev/null; then\n"
           "  ids=$(squeue -h -t PD -u \"$(id -un)\" -n \"$n\" -o '%i|%Z' 2>/dev/null |"
           " o=\"$o\" awk -F'|' '$2 == ENVIRON[\"o\"] { print $1 }')\n"
-          "  [ -z \"$ids\" ] || scancel $ids 2>/dev/null\nfi\nexit $f\n",
+          "  [ -z \"$ids\" ] || scancel $ids 2>/dev/null\nfi\n"
+          ": >\"$d/ended.${SLURM_JOB_ID:-$$}\" 2>/dev/null\nexit $f\n",
           f);
     fclose(f);
     return script;

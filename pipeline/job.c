@@ -244,25 +244,18 @@ int pl_reap(pid_t pid, struct rusage *ru, double *cpu_wait)
  * its exec. */
 static double own_peak_rss_mb(void)
 {
-    FILE *f = fopen("/proc/self/status", "r");
-    if (!f)
-        return 0;
-    char line[256];
-    double kb = 0;
-    while (fgets(line, sizeof line, f))
-        if (sscanf(line, "VmHWM: %lf", &kb) == 1)
-            break;
-    fclose(f);
-    return kb / 1024.0;
+    double kb = pl_self_status("VmHWM");
+    return kb > 0 ? kb / 1024.0 : 0;
 }
 
 /* The job `id` of graph (both loaded by pl_graph_load_job, references
  * taken) from `started` (the epoch) on, when this process had waited
  * wait0 s for a CPU: what sl_pipeline_job_run does once it has read the
- * job. */
+ * job. known_key: NULL, or the job's key the local runner computed just
+ * before it forked this process and found the stamp not current. */
 static sl_result job_run(const char *jobs_json, const char *id, json_t *graph, json_t *job,
-                         double started, double wait0, int *exit_code, bool *skipped,
-                         sl_error *err)
+                         const char *known_key, double started, double wait0, int *exit_code,
+                         bool *skipped, sl_error *err)
 {
     sl_result r = SL_OK;
     *exit_code = 0;
@@ -285,12 +278,14 @@ static sl_result job_run(const char *jobs_json, const char *id, json_t *graph, j
         json_decref(graph);
         return r;
     }
-    if (!pl_job_key(job, key)) {
+    if (known_key)
+        snprintf(key, sizeof key, "%s", known_key);
+    else if (!pl_job_key(job, key)) {
         json_decref(job);
         json_decref(graph);
         return sl_error_set(err, SL_ERR_INPUT, "%s: an input cannot be read", id);
     }
-    if (pl_stamp_current(graph, job, key)) {
+    if (!known_key && pl_stamp_current(graph, job, key)) {
         *skipped = true;
         json_decref(job);
         json_decref(graph);
@@ -393,7 +388,24 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
     json_t *graph = NULL, *job = NULL;
     bool checked_whole;
     sl_result r = pl_graph_load_job(jobs_json, id, &graph, &job, &checked_whole, err);
-    return r ? r : job_run(jobs_json, id, graph, job, started, 0, exit_code, skipped, err);
+    return r ? r : job_run(jobs_json, id, graph, job, NULL, started, 0, exit_code, skipped, err);
+}
+
+int pl_job_run_forked(const char *jobs_json, json_t *graph, json_t *job, const char *key)
+{
+    double started = pl_epoch_seconds();
+    int code;
+    bool skipped;
+    sl_error err;
+    const char *id = json_string_value(json_object_get(job, "id"));
+    json_incref(graph);
+    json_incref(job);
+    if (job_run(jobs_json, id, graph, job, key, started, 0, &code, &skipped, &err)) {
+        /* as `setlight job` says it */
+        fprintf(stderr, "setlight job: %s\n", err.message[0] ? err.message : sl_result_name(err.code));
+        return sl_result_exit_code(err.code);
+    }
+    return code;
 }
 
 /* Whether job depends on a job of ids[0..count) that did not succeed
@@ -426,7 +438,7 @@ void sl_pipeline_jobs_run(const char *jobs_json, char *const *ids, int count, in
             continue;
         }
         if (!r)
-            r = job_run(jobs_json, ids[i], graph, job, started, wait0, &codes[i], &skipped,
+            r = job_run(jobs_json, ids[i], graph, job, NULL, started, wait0, &codes[i], &skipped,
                         &errs[i]);
         if (r)
             codes[i] = sl_result_exit_code(r);

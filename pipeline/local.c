@@ -1,10 +1,13 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* The local runner: the graph's jobs in dependency order, as many at once
- * as --jobs and the memory budget allow, each through `setlight job`; of the
- * jobs ready, the one with the most work after it first. */
+ * as --jobs and the memory budget allow, each through `setlight job` (run in
+ * a fork of this process); of the jobs ready, the one with the most work
+ * after it first. */
 #include <errno.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
@@ -82,6 +85,52 @@ static void rank_jobs(lj *js, int n)
     }
 }
 
+/* Whether this process has a single thread: a fork copies only the
+ * calling thread, so a lock another thread held would stay taken in the
+ * child. */
+static bool one_thread(void)
+{
+    return pl_self_status("Threads") == 1;
+}
+
+/* Starts job j, whose argv is argc words; key: its key, or NULL when it
+ * could not be computed. A job that is `setlight job JOBS.json ID` of this
+ * very setlight (pl_plan makes every one so) runs in a fork of this
+ * process, which has the graph read and the key computed, instead of a
+ * new setlight: its start (the binary, its libraries, OpenSSL's set-up)
+ * was about half of the wrapper's cost (docs/process.md, "Cost of a run").
+ * Not the index, which reads every job's stamp through JOBS.json (after
+ * Slurm, this runner's graph holds the index alone); nor anything else,
+ * nor while this process has other threads: those are started as their
+ * argv says. 0, or the errno of the failure. */
+static int start_job(const sl_pipeline_options *o, json_t *graph, lj *j, char **argv, size_t argc,
+                     const char *key)
+{
+    const char *id = json_string_value(json_object_get(j->job, "id"));
+    if (!j->is_index && argc == 4 && o->exe && !strcmp(argv[0], o->exe) &&
+        !strcmp(argv[1], "job") && !strcmp(argv[3], id) && one_thread()) {
+        fflush(NULL); /* nothing buffered is written twice */
+        pid_t pid = fork();
+        if (pid == 0) {
+            /* Its peak memory (the stamp's job_max_rss_mb) from here on,
+             * not the runner's before the fork. */
+            int fd = open("/proc/self/clear_refs", O_WRONLY);
+            if (fd >= 0) {
+                if (write(fd, "5", 1) < 0) {
+                    /* an older kernel: the peak includes the runner's */
+                }
+                close(fd);
+            }
+            _exit(pl_job_run_forked(argv[2], graph, j->job, key));
+        }
+        if (pid < 0)
+            return errno;
+        j->pid = pid;
+        return 0;
+    }
+    return posix_spawn(&j->pid, argv[0], NULL, NULL, argv, environ);
+}
+
 sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *status,
                        sl_pipeline_result *res, sl_error *err)
 {
@@ -148,7 +197,8 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
             char key[65];
             if (j->is_index && (r = pl_index_prepare(graph, err)))
                 break;
-            if (pl_job_key(j->job, key) && pl_stamp_current(graph, j->job, key)) {
+            bool keyed = pl_job_key(j->job, key);
+            if (keyed && pl_stamp_current(graph, j->job, key)) {
                 j->state = J_SKIPPED;
                 done++;
                 if (o->progress)
@@ -168,7 +218,7 @@ sl_result pl_run_local(const sl_pipeline_options *o, json_t *graph, json_t *stat
             }
             for (size_t a = 0; a < argc; a++)
                 argv[a] = (char *)json_string_value(json_array_get(argv_j, a));
-            int e = posix_spawn(&j->pid, argv[0], NULL, NULL, argv, environ);
+            int e = start_job(o, graph, j, argv, argc, keyed ? key : NULL);
             free(argv);
             if (e) {
                 /* This job fails (its setup with it); the others go on. */

@@ -97,6 +97,12 @@ void pl_stamp_path(const json_t *graph, const json_t *job, char *path, size_t si
 bool pl_stamp_current(const json_t *graph, const json_t *job, const char *key);
 /* The stamp (NULL when absent or unreadable). */
 json_t *pl_stamp_load(const json_t *graph, const json_t *job);
+/* In a process the local runner forked for it: runs job of graph (the
+ * runner's, whole) as `setlight job JOBS.json ID` would, and returns that
+ * command's exit code, an error said on stderr as it says it. key: NULL,
+ * or the job's key just computed by the runner, which found its stamp not
+ * current. */
+int pl_job_run_forked(const char *jobs_json, json_t *graph, json_t *job, const char *key);
 /* Writes OUT/status.json, the index job's input: every other job's stamp
  * status and key (rewritten only when one changed). */
 sl_result pl_index_prepare(const json_t *graph, sl_error *err);
@@ -112,6 +118,10 @@ int pl_cmp_ranked(const void *a, const void *b);
 /* User + system CPU time of a getrusage or wait4 answer. */
 struct rusage;
 double pl_cpu_seconds(const struct rusage *ru);
+
+/* The number of a field of /proc/self/status ("VmHWM" in kB, "Threads"),
+ * or -1 when it cannot be read. */
+double pl_self_status(const char *field);
 
 /* Wall-clock time since the epoch: stamps of jobs run on different nodes
  * (or by different runners) are compared by it. */

@@ -77,6 +77,8 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
     snprintf(farm_path, sizeof farm_path, "%s.slurm.json", jobs_path);
     sl_pipeline_slurm_options so;
     sl_pipeline_slurm_options_init(&so);
+    if (grouping)
+        so.wake_dir = group_dir; /* the grouped setups' scripts say there when they end */
     sl_pipeline_slurm_result sr;
     memset(&sr, 0, sizeof sr);
     if (!r)

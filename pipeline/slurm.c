@@ -700,6 +700,34 @@ static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result 
     }
 }
 
+/* The mtime of o->wake_dir (0 without one). */
+static double wake_mtime(const sl_pipeline_slurm_options *o)
+{
+    struct stat st;
+    if (!o->wake_dir || stat(o->wake_dir, &st))
+        return 0;
+    return (double)st.st_mtim.tv_sec + 1e-9 * (double)st.st_mtim.tv_nsec;
+}
+
+/* Sleeps `pause` s, less when the wake folder changes meanwhile (a job
+ * ended: true). */
+static bool pause_or_wake(const sl_pipeline_slurm_options *o, double pause, double *seen)
+{
+    double step = o->wake_dir ? 0.05 : pause, left = pause;
+    while (left > 0) {
+        double d = step < left ? step : left;
+        struct timespec ts = {(time_t)d, (long)((d - (double)(time_t)d) * 1e9)};
+        nanosleep(&ts, NULL);
+        left -= d;
+        double m = wake_mtime(o);
+        if (m != *seen) {
+            *seen = m;
+            return true;
+        }
+    }
+    return false;
+}
+
 static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
                            sl_pipeline_slurm_result *res, double t_start, sl_error *err)
 {
@@ -710,7 +738,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
     /* Nothing here waits on a job's end (Slurm starts the dependants), so
      * the period grows from poll_seconds to poll_max_seconds: on a small
      * cluster the controller and squeue share the CPUs with the jobs. */
-    double pause = o->poll_seconds;
+    double pause = o->poll_seconds, woken = wake_mtime(o);
     sl_result r = SL_OK;
     for (;;) {
         /* squeue -j of the batches with a job still running */
@@ -815,11 +843,14 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
             all_done &= !g->jobs[i].submit || g->jobs[i].done;
         if (all_done)
             continue; /* the loop's head ends it */
-        struct timespec ts = {(time_t)pause, (long)((pause - (double)(time_t)pause) * 1e9)};
-        nanosleep(&ts, NULL);
-        pause = pause * 1.5 < o->poll_max_seconds ? pause * 1.5
-                : o->poll_max_seconds > o->poll_seconds ? o->poll_max_seconds
-                                                        : o->poll_seconds;
+        /* A job that said it ended is still completing in Slurm for a
+         * moment: asked again from the shortest period. */
+        if (pause_or_wake(o, pause, &woken))
+            pause = o->poll_seconds;
+        else
+            pause = pause * 1.5 < o->poll_max_seconds ? pause * 1.5
+                    : o->poll_max_seconds > o->poll_seconds ? o->poll_max_seconds
+                                                            : o->poll_seconds;
     }
     free(seen);
     return r;

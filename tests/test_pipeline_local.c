@@ -180,10 +180,78 @@ static void test_critical_path_first(void)
     json_decref(status);
 }
 
+/* A job as pl_plan makes them, `EXE job JOBS.json ID` running command line
+ * `line` with one input and one output. */
+static json_t *wrapped_job(const char *dir, const char *exe, const char *id, const char *line)
+{
+    char jobs[1024], in[1024], out[1024], log[1024];
+    snprintf(jobs, sizeof jobs, "%s/jobs.json", dir);
+    snprintf(in, sizeof in, "%s/in.txt", dir);
+    snprintf(out, sizeof out, "%s/%s.txt", dir, id);
+    snprintf(log, sizeof log, "%s/%s.log", dir, id);
+    return json_pack("{s:s,s:s,s:s,s:[ssss],s:[sss],s:[s],s:[s],s:[],s:n,s:i,s:i,s:s,s:n,s:b}",
+                     "id", id, "setup", "s", "stage", "merge", "argv", exe, "job", jobs, id,
+                     "command", "/bin/sh", "-c", line, "inputs", in, "outputs", out, "deps",
+                     "array", "memory_mb", 10, "cpus", 1, "log", log, "key", "up_to_date", 0);
+}
+
+/* `setlight job` runs in a fork of the runner when the argv is this very
+ * setlight's (o.exe, here a path no file has: starting it would fail): the
+ * command runs and the stamp has the key of its input; a failing command's
+ * code is in its stamp; a job whose argv is another program's is started
+ * as its argv says (here: cannot be, so it fails). */
+static void test_forked_jobs(void)
+{
+    const char *dir = sl_test_tmpdir();
+    char cmd[1200], line[1200], in[1024];
+    snprintf(cmd, sizeof cmd, "rm -rf %s/s && mkdir -p %s/s", dir, dir);
+    CHECK(system(cmd) == 0);
+    snprintf(in, sizeof in, "%s/in.txt", dir);
+    CHECK(sl_write_file_atomic(in, "frame", 5, NULL) == SL_OK);
+    const char *exe = "/nonexistent/setlight";
+    json_t *jobs = json_array();
+    snprintf(line, sizeof line, "printf made >%s/s/ok.txt", dir);
+    json_array_append_new(jobs, wrapped_job(dir, exe, "s/ok", line));
+    json_array_append_new(jobs, wrapped_job(dir, exe, "s/fails", "exit 3"));
+    json_array_append_new(jobs, wrapped_job(dir, "/nonexistent/other", "s/other", "true"));
+    json_t *graph = json_pack("{s:s,s:i,s:s,s:s,s:O}", "format", "setlight-jobs", "version", 1,
+                              "setlight", sl_version(), "out", dir, "jobs", jobs);
+    sl_pipeline_options o;
+    sl_pipeline_options_init(&o);
+    o.jobs = 2;
+    o.exe = exe;
+    sl_pipeline_result res;
+    memset(&res, 0, sizeof res);
+    json_t *status = json_object();
+    sl_error err;
+    CHECK_OK(pl_run_local(&o, graph, status, &res, &err), &err);
+    CHECK(!strcmp(json_string_value(json_object_get(status, "s/ok")), "ran"));
+    CHECK(!strcmp(json_string_value(json_object_get(status, "s/fails")), "failed"));
+    CHECK(!strcmp(json_string_value(json_object_get(status, "s/other")), "failed"));
+    char path[1200], key[65];
+    snprintf(path, sizeof path, "%s/s/ok.txt", dir);
+    CHECK(sl_test_file_exists(path));
+    CHECK(pl_job_key(json_array_get(jobs, 0), key));
+    json_t *st = pl_stamp_load(graph, json_array_get(jobs, 0));
+    CHECK(st && !strcmp(json_string_value(json_object_get(st, "status")), "ok"));
+    CHECK(st && !strcmp(json_string_value(json_object_get(st, "key")), key));
+    CHECK(st && json_number_value(json_object_get(st, "job_max_rss_mb")) > 0);
+    json_decref(st);
+    st = pl_stamp_load(graph, json_array_get(jobs, 1));
+    CHECK(st && !strcmp(json_string_value(json_object_get(st, "status")), "failed") &&
+          json_integer_value(json_object_get(st, "exit")) == 3);
+    json_decref(st);
+    CHECK(pl_stamp_load(graph, json_array_get(jobs, 2)) == NULL);
+    json_decref(status);
+    json_decref(jobs);
+    json_decref(graph);
+}
+
 int main(void)
 {
     RUN(test_memory_budget);
     RUN(test_dependencies);
     RUN(test_critical_path_first);
+    RUN(test_forked_jobs);
     return sl_test_finish();
 }
