@@ -53,7 +53,7 @@ typedef struct view_file {
     sl_image radiance, weight;   /* radiance empty when `half` holds it */
     stitch_half_image half;
     int solve_factor;            /* 1: the solve uses radiance and weight */
-    bool as_half;                /* a large view whose samples are all half values */
+    bool as_half;                /* a large view, held as half */
     sl_image solve_radiance, solve_weight;
     sl_meta meta;
     double peak; /* largest RGB sample */
@@ -295,9 +295,11 @@ static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solv
         r = sl_image_ensure_rgb(&v->radiance, v->path, err);
     int64_t bad = 0;
     bool half_exact = as_read_half;
+    double magnitude = 0.0;
     if (!r)
-        r = as_read_half ? stitch_half_scan(&v->half, &bad, &v->peak, err)
-                         : stitch_view_scan(&v->radiance, &bad, &v->peak, &half_exact, err);
+        r = as_read_half
+                ? stitch_half_scan(&v->half, &bad, &v->peak, err)
+                : stitch_view_scan(&v->radiance, &bad, &v->peak, &magnitude, &half_exact, err);
     if (r)
         return r;
     if (bad)
@@ -312,22 +314,34 @@ static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solv
                             v->path, v->width, v->height, v0->path, v0->width, v0->height);
     if ((r = read_confidence(v, vr, err)))
         return r;
-    /* A large view is solved on a reduced copy and blended from half; a
-     * small one (or one whose size the factors do not divide) is solved at
-     * full resolution, so it stays float. */
+    /* A large view is solved on a reduced copy and blended from half (a
+     * float one scaled by a power of two and rounded unless its samples
+     * are half values); a small one (or one whose size the factors do not
+     * divide) is solved at full resolution, so it stays float. */
     bool big = v->width > SOLVE_MAX_WIDTH;
     v->solve_factor = solving && big ? stitch_solve_factor(v->width, v->height, SOLVE_MAX_WIDTH)
                                      : 1;
-    v->as_half = big && half_exact && (v->solve_factor > 1 || !solving);
+    int exp2 = 0; /* the scale a view not of half values is held at */
+    bool fits = half_exact || stitch_half_exponent(magnitude, &exp2);
+    v->as_half = big && fits && (v->solve_factor > 1 || !solving);
     hold_job j = {v, thumb, SL_OK, {0}};
     sl_parallel_for(2, 1, hold_task, &j);
     if (j.status) {
         *err = j.err;
         return j.status;
     }
-    /* in the float view's memory once the circle and the copies are made */
-    if (v->as_half && !as_read_half)
-        stitch_view_take_half(&v->radiance, &v->half);
+    /* in the float view's memory once the circle and the copies are made
+     * (from the float samples) */
+    stitch_half_loss loss = {0, 0};
+    if (v->as_half && !as_read_half &&
+        stitch_view_take_half(&v->radiance, exp2, &v->half,
+                              half_exact ? NULL : &loss)) {
+        vr->half_rounded = !half_exact;
+        vr->half_exp2 = v->half.exp2;
+        vr->below_half_normal = loss.below_normal;
+        vr->flushed_to_zero = loss.flushed;
+    }
+    vr->held_as_half = v->half.rgb != NULL;
     return SL_OK;
 }
 

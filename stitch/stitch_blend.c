@@ -185,6 +185,13 @@ sl_result stitch_prepare_views(const sl_stitch_view *views, int count,
         p->radiance = hv ? NULL : img;
         p->half = hv;
         p->half_table = hv ? stitch_half_table() : NULL;
+        if (hv && hv->exp2) { /* every pattern's value times 2^exp2: exact in float */
+            if (!(p->scaled_table = malloc(65536 * sizeof *p->scaled_table)))
+                return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
+            for (int k = 0; k < 65536; k++)
+                p->scaled_table[k] = ldexpf(p->half_table[k], hv->exp2);
+            p->half_table = p->scaled_table;
+        }
         p->weight = v->weight;
         double m[3][3];
         sl_view_pose_matrix(&v->pose, m);
@@ -212,6 +219,8 @@ void stitch_release_views(stitch_view_prep *prep, int count)
         prep[i].q_table = NULL;
         free(prep[i].ramp_table);
         prep[i].ramp_table = NULL;
+        free(prep[i].scaled_table);
+        prep[i].scaled_table = NULL;
     }
 }
 
