@@ -319,7 +319,8 @@ typedef struct blend_pass {
     double noise_floor;
     bool ghosts;
     const sl_image *fill;      /* coarse filled lat-long, or NULL */
-    float *rows;               /* STRIP_ROWS rows of width * 4 */
+    float *rows;               /* STRIP_ROWS rows of width * 4: the strip being blended */
+    float *rows_out;           /* the same: the strip before, being written */
     int y0;                    /* first row of the strip */
     stitch_row_stats *stats;   /* per row of the strip */
     stitch_ray_view rays[SL_STITCH_MAX_VIEWS]; /* the views for the float row loop */
@@ -849,6 +850,7 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
     p->ss_hot = ss_hot;
     p->nadir_lat = opt->nadir_mask_deg > 0 ? (opt->nadir_mask_deg - 90.0) * DEG : -INFINITY;
     p->rows = malloc((size_t)STRIP_ROWS * width * 4 * sizeof(float));
+    p->rows_out = malloc((size_t)STRIP_ROWS * width * 4 * sizeof(float));
     p->stats = malloc(STRIP_ROWS * sizeof(stitch_row_stats));
     /* The sub-samples' sines and cosines, once per pass, not per texel. */
     bool ok = angle_table(width * ss, 1.0, -2.0, &p->sin_lon, &p->cos_lon) &&
@@ -868,7 +870,7 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
     p->scratch = ok ? calloc((size_t)p->workers, sizeof *p->scratch) : NULL;
     for (int w = 0; p->scratch && w < p->workers; w++)
         ok = ok && scratch_alloc(&p->scratch[w], width, ss, count);
-    if (!ok || !p->rows || !p->stats || !p->scratch)
+    if (!ok || !p->rows || !p->rows_out || !p->stats || !p->scratch)
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory for a %d wide lat-long",
                             width);
     return SL_OK;
@@ -885,6 +887,7 @@ static void pass_free(blend_pass *p)
     free(p->sin_lat_hot);
     free(p->cos_lat_hot);
     free(p->rows);
+    free(p->rows_out);
     free(p->stats);
     free(p->sin_lon_f);
     free(p->cos_lon_f);
@@ -895,11 +898,56 @@ static void pass_free(blend_pass *p)
     free(p->scratch);
 }
 
+/* One strip handed to the sink on a thread of its own: the file's
+ * conversion, compression and writing of a strip (partly on one core: the
+ * chunks written in order, the last ones compressed) beside the blend of
+ * the next, so neither leaves a core idle. The sink sees the strips in
+ * order, one call at a time, as without it. */
+typedef struct sink_call {
+    sl_stitch_rows_fn sink;
+    void *user;
+    const float *rows;
+    int y0, count;
+    size_t stride;
+    sl_result status;
+    sl_error err;
+    pthread_t thread;
+    bool running;
+} sink_call;
+
+static void *sink_main(void *arg)
+{
+    sink_call *c = arg;
+    c->status = c->sink(c->user, c->rows, c->y0, c->count, c->stride, &c->err);
+    return NULL;
+}
+
+/* Waits for the strip being written; its error, if any, into err. */
+static sl_result sink_wait(sink_call *c, sl_error *err)
+{
+    if (c->running)
+        pthread_join(c->thread, NULL);
+    c->running = false;
+    if (c->status && err)
+        *err = c->err;
+    return c->status;
+}
+
+static void sink_start(sink_call *c)
+{
+    c->status = SL_OK;
+    c->running = pthread_create(&c->thread, NULL, sink_main, c) == 0;
+    if (!c->running) /* no thread: written here, in turn */
+        sink_main(c);
+}
+
 /* Runs a pass over every row, strip by strip, into sink (or into `whole`). */
 static sl_result pass_run(blend_pass *p, sl_stitch_rows_fn sink, void *user, sl_image *whole,
                           sl_stitch_coverage *cov, sl_error *err)
 {
-    for (int y0 = 0; y0 < p->height; y0 += STRIP_ROWS) {
+    sink_call call = {.sink = sink, .user = user, .stride = (size_t)p->width * 4};
+    sl_result res = SL_OK;
+    for (int y0 = 0; y0 < p->height && !res; y0 += STRIP_ROWS) {
         int count = p->height - y0 < STRIP_ROWS ? p->height - y0 : STRIP_ROWS;
         p->y0 = y0;
         sl_parallel_for(count, 1, blend_rows, p);
@@ -909,13 +957,22 @@ static sl_result pass_run(blend_pass *p, sl_stitch_rows_fn sink, void *user, sl_
             for (int r = 0; r < count; r++)
                 memcpy(sl_image_pixel(whole, 0, y0 + r), p->rows + (size_t)r * p->width * 4,
                        (size_t)p->width * 4 * sizeof(float));
-        } else {
-            sl_result res = sink(user, p->rows, y0, count, (size_t)p->width * 4, err);
-            if (res)
-                return res;
+            continue;
         }
+        /* the strip before is written: this one goes, and the next is
+         * blended into the other buffer */
+        if ((res = sink_wait(&call, err)))
+            break;
+        float *done = p->rows;
+        p->rows = p->rows_out;
+        p->rows_out = done;
+        call.rows = done;
+        call.y0 = y0;
+        call.count = count;
+        sink_start(&call);
     }
-    return SL_OK;
+    sl_result last = sink_wait(&call, res ? NULL : err);
+    return res ? res : last;
 }
 
 /* The coarse lat-long the fill and the noise floor come from: the blend
