@@ -69,6 +69,13 @@ static json_t *result_json(const sl_stitch_result *res, const char *out_path)
                             json_pack("{s:f, s:f}", "wall", res->wall[p], "cpu", res->cpu[p]));
     json_object_set_new(timing, "total",
                         json_pack("{s:f, s:f}", "wall", res->seconds, "cpu", res->cpu_seconds));
+    if (res->solved) /* the solve's stages, wall seconds */
+        json_object_set_new(timing, "solve_stages",
+                            json_pack("{s:f, s:f, s:f, s:f}", "features",
+                                      res->solve.seconds_features, "match",
+                                      res->solve.seconds_match, "adjust",
+                                      res->solve.seconds_adjust, "radiance",
+                                      res->solve.seconds_radiance));
     const sl_lens *n = &res->lens_nominal, *l = &res->lens;
     json_t *j = json_pack(
         "{s:s, s:i, s:i, s:o, s:o, s:s, s:{s:f, s:f, s:f}, s:b, s:s, s:o, s:o}", "output",
