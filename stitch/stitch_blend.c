@@ -320,7 +320,6 @@ typedef struct blend_pass {
     bool ghosts;
     const sl_image *fill;      /* coarse filled lat-long, or NULL */
     float *rows;               /* STRIP_ROWS rows of width * 4: the strip being blended */
-    float *rows_out;           /* the same: the strip before, being written */
     int y0;                    /* first row of the strip */
     stitch_row_stats *stats;   /* per row of the strip */
     stitch_ray_view rays[SL_STITCH_MAX_VIEWS]; /* the views for the float row loop */
@@ -850,7 +849,6 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
     p->ss_hot = ss_hot;
     p->nadir_lat = opt->nadir_mask_deg > 0 ? (opt->nadir_mask_deg - 90.0) * DEG : -INFINITY;
     p->rows = malloc((size_t)STRIP_ROWS * width * 4 * sizeof(float));
-    p->rows_out = malloc((size_t)STRIP_ROWS * width * 4 * sizeof(float));
     p->stats = malloc(STRIP_ROWS * sizeof(stitch_row_stats));
     /* The sub-samples' sines and cosines, once per pass, not per texel. */
     bool ok = angle_table(width * ss, 1.0, -2.0, &p->sin_lon, &p->cos_lon) &&
@@ -870,7 +868,7 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
     p->scratch = ok ? calloc((size_t)p->workers, sizeof *p->scratch) : NULL;
     for (int w = 0; p->scratch && w < p->workers; w++)
         ok = ok && scratch_alloc(&p->scratch[w], width, ss, count);
-    if (!ok || !p->rows || !p->rows_out || !p->stats || !p->scratch)
+    if (!ok || !p->rows || !p->stats || !p->scratch)
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory for a %d wide lat-long",
                             width);
     return SL_OK;
@@ -887,7 +885,6 @@ static void pass_free(blend_pass *p)
     free(p->sin_lat_hot);
     free(p->cos_lat_hot);
     free(p->rows);
-    free(p->rows_out);
     free(p->stats);
     free(p->sin_lon_f);
     free(p->cos_lon_f);
@@ -898,57 +895,93 @@ static void pass_free(blend_pass *p)
     free(p->scratch);
 }
 
-/* One strip handed to the sink on a thread of its own: the file's
- * conversion, compression and writing of a strip (partly on one core: the
- * chunks written in order, the last ones compressed) beside the blend of
- * the next, so neither leaves a core idle. The sink sees the strips in
- * order, one call at a time, as without it. */
-typedef struct sink_call {
+/* Strips handed to the sink (the file's conversion, compression and
+ * in-order write) on a thread of its own, up to SINK_QUEUE strips behind
+ * the blend: its bursts (every 8 strips a batch's chunks compressed, the
+ * last ones on one core, then written in order on one) do not hold the
+ * blend, and the blend's strips keep the other core busy meanwhile. The
+ * sink sees the strips in order, one call at a time, as without it. */
+#define SINK_QUEUE 10
+
+typedef struct sink_queue {
     sl_stitch_rows_fn sink;
     void *user;
-    const float *rows;
-    int y0, count;
     size_t stride;
+    float *buf[SINK_QUEUE];
+    int y0[SINK_QUEUE], count[SINK_QUEUE];
+    int head, tail; /* strips queued: [tail, head), each in buf[i % SINK_QUEUE] */
+    bool closed;    /* no more strips come */
     sl_result status;
     sl_error err;
+    pthread_mutex_t lock;
+    pthread_cond_t changed;
     pthread_t thread;
-    bool running;
-} sink_call;
+} sink_queue;
 
 static void *sink_main(void *arg)
 {
-    sink_call *c = arg;
-    c->status = c->sink(c->user, c->rows, c->y0, c->count, c->stride, &c->err);
+    sink_queue *q = arg;
+    pthread_mutex_lock(&q->lock);
+    for (;;) {
+        while (q->tail == q->head && !q->closed)
+            pthread_cond_wait(&q->changed, &q->lock);
+        if (q->tail == q->head)
+            break;
+        int i = q->tail % SINK_QUEUE;
+        pthread_mutex_unlock(&q->lock);
+        sl_error err;
+        sl_result r = q->sink(q->user, q->buf[i], q->y0[i], q->count[i], q->stride, &err);
+        pthread_mutex_lock(&q->lock);
+        q->tail++;
+        if (r && !q->status) {
+            q->status = r;
+            q->err = err;
+        }
+        pthread_cond_broadcast(&q->changed);
+        if (r)
+            break;
+    }
+    pthread_mutex_unlock(&q->lock);
     return NULL;
-}
-
-/* Waits for the strip being written; its error, if any, into err. */
-static sl_result sink_wait(sink_call *c, sl_error *err)
-{
-    if (c->running)
-        pthread_join(c->thread, NULL);
-    c->running = false;
-    if (c->status && err)
-        *err = c->err;
-    return c->status;
-}
-
-static void sink_start(sink_call *c)
-{
-    c->status = SL_OK;
-    c->running = pthread_create(&c->thread, NULL, sink_main, c) == 0;
-    if (!c->running) /* no thread: written here, in turn */
-        sink_main(c);
 }
 
 /* Runs a pass over every row, strip by strip, into sink (or into `whole`). */
 static sl_result pass_run(blend_pass *p, sl_stitch_rows_fn sink, void *user, sl_image *whole,
                           sl_stitch_coverage *cov, sl_error *err)
 {
-    sink_call call = {.sink = sink, .user = user, .stride = (size_t)p->width * 4};
+    sink_queue q = {.sink = sink, .user = user, .stride = (size_t)p->width * 4};
+    bool queued = false; /* else each strip goes to the sink here, in turn */
+    if (!whole) {
+        bool ok = true;
+        for (int i = 0; i < SINK_QUEUE; i++)
+            ok &= (q.buf[i] = malloc((size_t)STRIP_ROWS * q.stride * sizeof(float))) != NULL;
+        queued = ok && !pthread_mutex_init(&q.lock, NULL);
+        if (queued && pthread_cond_init(&q.changed, NULL)) {
+            pthread_mutex_destroy(&q.lock);
+            queued = false;
+        }
+        if (queued && pthread_create(&q.thread, NULL, sink_main, &q)) {
+            pthread_cond_destroy(&q.changed);
+            pthread_mutex_destroy(&q.lock);
+            queued = false;
+        }
+    }
+    float *own_rows = p->rows;
     sl_result res = SL_OK;
     for (int y0 = 0; y0 < p->height && !res; y0 += STRIP_ROWS) {
         int count = p->height - y0 < STRIP_ROWS ? p->height - y0 : STRIP_ROWS;
+        int slot = 0;
+        if (queued) { /* a free buffer, unless the sink failed */
+            pthread_mutex_lock(&q.lock);
+            while (q.head - q.tail >= SINK_QUEUE && !q.status)
+                pthread_cond_wait(&q.changed, &q.lock);
+            res = q.status;
+            slot = q.head % SINK_QUEUE;
+            pthread_mutex_unlock(&q.lock);
+            if (res)
+                break;
+            p->rows = q.buf[slot];
+        }
         p->y0 = y0;
         sl_parallel_for(count, 1, blend_rows, p);
         for (int r = 0; r < count; r++)
@@ -957,22 +990,34 @@ static sl_result pass_run(blend_pass *p, sl_stitch_rows_fn sink, void *user, sl_
             for (int r = 0; r < count; r++)
                 memcpy(sl_image_pixel(whole, 0, y0 + r), p->rows + (size_t)r * p->width * 4,
                        (size_t)p->width * 4 * sizeof(float));
-            continue;
+        } else if (queued) {
+            pthread_mutex_lock(&q.lock);
+            q.y0[slot] = y0;
+            q.count[slot] = count;
+            q.head++;
+            pthread_cond_broadcast(&q.changed);
+            pthread_mutex_unlock(&q.lock);
+        } else {
+            res = sink(user, p->rows, y0, count, q.stride, err);
         }
-        /* the strip before is written: this one goes, and the next is
-         * blended into the other buffer */
-        if ((res = sink_wait(&call, err)))
-            break;
-        float *done = p->rows;
-        p->rows = p->rows_out;
-        p->rows_out = done;
-        call.rows = done;
-        call.y0 = y0;
-        call.count = count;
-        sink_start(&call);
     }
-    sl_result last = sink_wait(&call, res ? NULL : err);
-    return res ? res : last;
+    if (queued) { /* the strips queued written (or the sink's error) */
+        pthread_mutex_lock(&q.lock);
+        q.closed = true;
+        pthread_cond_broadcast(&q.changed);
+        pthread_mutex_unlock(&q.lock);
+        pthread_join(q.thread, NULL);
+        if (q.status) {
+            res = q.status;
+            *err = q.err;
+        }
+        pthread_cond_destroy(&q.changed);
+        pthread_mutex_destroy(&q.lock);
+    }
+    p->rows = own_rows;
+    for (int i = 0; i < SINK_QUEUE; i++)
+        free(q.buf[i]);
+    return res;
 }
 
 /* The coarse lat-long the fill and the noise floor come from: the blend
