@@ -133,6 +133,29 @@ static void disc_view(sl_image *img, double cx, double cy, double r, uint64_t se
                 memset(sl_image_pixel(img, x, y), 0, 3 * sizeof(float));
 }
 
+/* A sky near 1e-3 and a sun near 1e6 (radiance a float view holds, not
+ * half values: each sample a random factor of 1 to 1.3 off): */
+static void sun_and_sky(sl_image *img, double cx, double cy, double r, uint64_t seed)
+{
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            float *p = sl_image_pixel(img, x, y);
+            double d = hypot(x + 0.5 - cx, y + 0.5 - cy);
+            bool sun = hypot(x + 0.5 - (cx + 0.4 * r), y + 0.5 - cy) < 6.0;
+            for (int c = 0; c < 3; c++)
+                p[c] = d > r ? 0.0f : (float)((sun ? 1e6 / 1.3 : 1e-3) * (1.0 + 0.3 * uniform(&seed)));
+        }
+}
+
+/* A view wider than 3072 px (held as half by sl_stitch), filled by `fill`
+ * with a disc of radius 110 px round its middle. */
+static void wide_view(sl_image *img, void (*fill)(sl_image *, double, double, double, uint64_t),
+                      sl_error *err)
+{
+    CHECK_OK(sl_image_alloc(img, 3200, 240, 3, err), err);
+    fill(img, 1601.0, 120.0, 110.0, 9);
+}
+
 /* A half EXR read straight into half: the samples' bits as the float read
  * has them, and the scan, the solve's reduced copies and the image circle
  * on it the float view's; a file it does not read is left to sl_exr_read. */
@@ -244,8 +267,7 @@ static void stitch_of_half_file_is_of_float_file(void)
 {
     sl_error err;
     sl_image img;
-    CHECK_OK(sl_image_alloc(&img, 3200, 240, 3, &err), &err); /* wider than 3072 */
-    disc_view(&img, 1601.0, 120.0, 110.0, 9);
+    wide_view(&img, disc_view, &err);
     const char *half_path = sl_test_path("wide_half.exr"), *float_path =
                                                                 sl_test_path("wide_float.exr");
     CHECK_OK(sl_exr_write(half_path, &img, NULL, SL_PIXEL_HALF, &err), &err);
@@ -270,20 +292,6 @@ static void stitch_of_half_file_is_of_float_file(void)
     CHECK(out[0].width == 256 && out[1].width == 256 &&
           !memcmp(out[0].data, out[1].data, (size_t)256 * 128 * 4 * sizeof(float)));
     sl_image_free(&out[0]), sl_image_free(&out[1]);
-}
-
-/* A sky near 1e-3 and a sun near 1e6 (radiance a float view holds, not
- * half values: each sample a random factor of 1 to 1.3 off): */
-static void sun_and_sky(sl_image *img, double cx, double cy, double r, uint64_t seed)
-{
-    for (int y = 0; y < img->height; y++)
-        for (int x = 0; x < img->width; x++) {
-            float *p = sl_image_pixel(img, x, y);
-            double d = hypot(x + 0.5 - cx, y + 0.5 - cy);
-            bool sun = hypot(x + 0.5 - (cx + 0.4 * r), y + 0.5 - cy) < 6.0;
-            for (int c = 0; c < 3; c++)
-                p[c] = d > r ? 0.0f : (float)((sun ? 1e6 / 1.3 : 1e-3) * (1.0 + 0.3 * uniform(&seed)));
-        }
 }
 
 /* A float view held as half divided by a power of two: 1e6 does not
@@ -342,8 +350,7 @@ static void stitch_of_scaled_half_is_of_float(void)
 {
     sl_error err;
     sl_image img;
-    CHECK_OK(sl_image_alloc(&img, 3200, 240, 3, &err), &err); /* wider than 3072 */
-    sun_and_sky(&img, 1601.0, 120.0, 110.0, 9);
+    wide_view(&img, sun_and_sky, &err);
     const char *path = sl_test_path("sun_float.exr"), *o = sl_test_path("sun_stitch.exr");
     CHECK_OK(sl_exr_write(path, &img, NULL, SL_PIXEL_FLOAT, &err), &err);
     sl_stitch_options opt;
