@@ -902,7 +902,7 @@ static void pass_free(blend_pass *p)
  * blend, and the blend's strips keep the other core busy meanwhile. The
  * sink sees the strips in order, one call at a time, as without it.
  * Deeper, the strips leave the cache before they are written (10: the
- * blend's CPU time 0.05-0.1 s more than with 4; 2: the blend stalls again). */
+ * blend's CPU time about 0.1 s more than with 4; 2: the blend stalls again). */
 #define SINK_QUEUE 4
 
 typedef struct sink_queue {
