@@ -6,6 +6,7 @@
 
 #include <libgen.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -53,14 +54,16 @@ typedef struct view_file {
     sl_image radiance, weight;   /* radiance empty when `half` holds it */
     stitch_half_image half;
     int solve_factor;            /* 1: the solve uses radiance and weight */
-    bool as_half;                /* a large view whose samples are all half values */
+    bool as_half;                /* a large view, held as half */
     sl_image solve_radiance, solve_weight;
     sl_meta meta;
     double peak; /* largest RGB sample */
     sl_stitch_circle circle;     /* found as the view is read, used for a fisheye */
     sl_result circle_status;
     sl_error circle_err;
-    double circle_cpu, circle_wall;
+    double circle_cpu;
+    pthread_t circle_thread;     /* finding it beside the next views' reading */
+    bool circle_running;
 } view_file;
 
 /* The merge's clipped mask named by the radiance (as given to merge, or
@@ -197,16 +200,10 @@ static sl_result nominal_lens(const view_file *views, int count, const sl_stitch
 }
 
 /* What a view keeps once read: the report's thumbnail and the solve's
- * reduced copies; beside them its image circle is found on the radiance
- * (float, or the half view as read: both only read it; a float view
- * becomes half after, in place). */
-typedef struct hold_job {
-    view_file *v;
-    sl_image *thumb;
-    sl_result status;
-    sl_error err;
-} hold_job;
-
+ * reduced copies; beside them, on a thread of its own, its image circle
+ * is found on the radiance (float, or the half view as read: both only
+ * read it; a float view becomes half after, in place). The circle (one
+ * core) goes on while the next views are read and decoded. */
 static sl_result hold_copies(view_file *v, sl_image *thumb, sl_error *err)
 {
     sl_result r = SL_OK;
@@ -227,25 +224,30 @@ static sl_result hold_copies(view_file *v, sl_image *thumb, sl_error *err)
     return SL_OK;
 }
 
-static void hold_task(void *ctx, int64_t begin, int64_t end, int worker)
+static void *circle_main(void *arg)
 {
-    (void)worker;
-    hold_job *j = ctx;
-    view_file *v = j->v;
-    for (int64_t t = begin; t < end; t++) {
-        if (t == 0) {
-            double w0 = sl_seconds(), c0 = sl_thread_cpu_seconds();
-            v->circle_status =
-                v->half.rgb
-                    ? stitch_circle_find_half(&v->half, v->path, &v->circle, &v->circle_err)
-                    : sl_stitch_circle_find(&v->radiance, v->path, NULL, &v->circle,
-                                            &v->circle_err);
-            v->circle_wall = sl_seconds() - w0;
-            v->circle_cpu = sl_thread_cpu_seconds() - c0;
-        } else {
-            j->status = hold_copies(v, j->thumb, &j->err);
-        }
-    }
+    view_file *v = arg;
+    double c0 = sl_thread_cpu_seconds();
+    v->circle_status = v->half.rgb
+                           ? stitch_circle_find_half(&v->half, v->path, &v->circle, &v->circle_err)
+                           : sl_stitch_circle_find(&v->radiance, v->path, NULL, &v->circle,
+                                                   &v->circle_err);
+    v->circle_cpu = sl_thread_cpu_seconds() - c0;
+    return NULL;
+}
+
+static void circle_start(view_file *v)
+{
+    v->circle_running = pthread_create(&v->circle_thread, NULL, circle_main, v) == 0;
+    if (!v->circle_running) /* no thread: found here */
+        circle_main(v);
+}
+
+static void circle_wait(view_file *v)
+{
+    if (v->circle_running)
+        pthread_join(v->circle_thread, NULL);
+    v->circle_running = false;
 }
 
 /* A view read as half (sl_exr_read_half_rgb) is kept so when it is in the
@@ -295,9 +297,11 @@ static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solv
         r = sl_image_ensure_rgb(&v->radiance, v->path, err);
     int64_t bad = 0;
     bool half_exact = as_read_half;
+    double magnitude = 0.0;
     if (!r)
-        r = as_read_half ? stitch_half_scan(&v->half, &bad, &v->peak, err)
-                         : stitch_view_scan(&v->radiance, &bad, &v->peak, &half_exact, err);
+        r = as_read_half
+                ? stitch_half_scan(&v->half, &bad, &v->peak, err)
+                : stitch_view_scan(&v->radiance, &bad, &v->peak, &magnitude, &half_exact, err);
     if (r)
         return r;
     if (bad)
@@ -312,22 +316,34 @@ static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solv
                             v->path, v->width, v->height, v0->path, v0->width, v0->height);
     if ((r = read_confidence(v, vr, err)))
         return r;
-    /* A large view is solved on a reduced copy and blended from half; a
-     * small one (or one whose size the factors do not divide) is solved at
-     * full resolution, so it stays float. */
+    /* A large view is solved on a reduced copy and blended from half (a
+     * float one scaled by a power of two and rounded unless its samples
+     * are half values); a small one (or one whose size the factors do not
+     * divide) is solved at full resolution, so it stays float. */
     bool big = v->width > SOLVE_MAX_WIDTH;
     v->solve_factor = solving && big ? stitch_solve_factor(v->width, v->height, SOLVE_MAX_WIDTH)
                                      : 1;
-    v->as_half = big && half_exact && (v->solve_factor > 1 || !solving);
-    hold_job j = {v, thumb, SL_OK, {0}};
-    sl_parallel_for(2, 1, hold_task, &j);
-    if (j.status) {
-        *err = j.err;
-        return j.status;
+    int exp2 = 0; /* the scale a view not of half values is held at */
+    bool fits = half_exact || stitch_half_exponent(magnitude, &exp2);
+    v->as_half = big && fits && (v->solve_factor > 1 || !solving);
+    circle_start(v);
+    if ((r = hold_copies(v, thumb, err)))
+        return r;
+    /* in the float view's memory once the circle and the copies are made
+     * (from the float samples) */
+    bool convert = v->as_half && !as_read_half;
+    if (convert)
+        circle_wait(v);
+    stitch_half_loss loss = {0, 0};
+    if (convert &&
+        stitch_view_take_half(&v->radiance, exp2, &v->half,
+                              half_exact ? NULL : &loss)) {
+        vr->half_rounded = !half_exact;
+        vr->half_exp2 = v->half.exp2;
+        vr->below_half_normal = loss.below_normal;
+        vr->flushed_to_zero = loss.flushed;
     }
-    /* in the float view's memory once the circle and the copies are made */
-    if (v->as_half && !as_read_half)
-        stitch_view_take_half(&v->radiance, &v->half);
+    vr->held_as_half = v->half.rgb != NULL;
     return SL_OK;
 }
 
@@ -606,14 +622,20 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         r = read_view(v, &opt, opt.solve && count >= 2, &res->views[i], i > 0 ? &files[0] : NULL,
                       report ? &report->thumb[i] : NULL, err);
     }
+    /* The circles were found beside the reading: their threads' CPU time
+     * is the circle phase's, not the read's, and the wall time the stitch
+     * waits for them after the last view is read. */
+    phase_end(res, SL_STITCH_READ, &t, &c);
+    double circle_cpu = 0.0;
+    for (int i = 0; i < count; i++) {
+        circle_wait(&files[i]);
+        circle_cpu += files[i].circle_cpu;
+    }
+    phase_end(res, SL_STITCH_CIRCLE, &t, &c);
+    res->cpu[SL_STITCH_READ] += res->cpu[SL_STITCH_CIRCLE] - circle_cpu;
+    res->cpu[SL_STITCH_CIRCLE] = circle_cpu;
     if (r)
         goto done;
-    /* The circles were found beside the conversions: their CPU and wall
-     * time are the circle phase's, not the read's. */
-    for (int i = 0; i < count; i++) {
-        res->cpu[SL_STITCH_CIRCLE] += files[i].circle_cpu;
-        res->wall[SL_STITCH_CIRCLE] += files[i].circle_wall;
-    }
     if ((r = nominal_lens(files, count, &opt, &res->lens_nominal, res->lens_source,
                           sizeof res->lens_source, err)))
         goto done;
@@ -629,8 +651,6 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         res->views[i].nominal = v->pose;
     }
     phase_end(res, SL_STITCH_READ, &t, &c);
-    res->cpu[SL_STITCH_READ] -= res->cpu[SL_STITCH_CIRCLE];
-    res->wall[SL_STITCH_READ] -= res->wall[SL_STITCH_CIRCLE];
     /* A circular fisheye's image circle, found in every view: the optical
      * centre and the circle the solve starts from (a profile keeps its own). */
     bool given = opt.lens || opt.lens_profile;

@@ -14,20 +14,37 @@
 typedef struct stitch_half_image {
     uint16_t *rgb;
     int width, height;
+    int exp2; /* the radiance is the half values times 2^exp2 (0: as they are) */
 } stitch_half_image;
+
+/* What holding a float view as scaled half lost beyond half's rounding
+ * (relative 2^-11 = 0.049% for every sample in half's normal range). */
+typedef struct stitch_half_loss {
+    int64_t below_normal; /* non-zero samples under half's normal range once scaled: coarser */
+    int64_t flushed;      /* of them, those that became 0 */
+} stitch_half_loss;
 
 /* The float value of every half bit pattern (the blend's lookups). */
 const float *stitch_half_table(void);
 
-/* Counts the non-finite samples of a view, finds its largest RGB sample
- * and whether every RGB sample is a half value. */
-sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, bool *half_exact,
-                           sl_error *err);
-/* A view whose RGB samples are all half values (stitch_view_scan) as half,
- * converted in its own memory (no new pages; the float tail freed): img
- * is emptied. False (img kept) only for fewer than 3 channels or no memory
- * for one row. */
-bool stitch_view_take_half(sl_image *img, stitch_half_image *out);
+/* Counts the non-finite samples of a view, finds its largest RGB sample,
+ * its largest RGB magnitude (|sample|: a negative one too) and whether
+ * every RGB sample is a half value. */
+sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, double *magnitude,
+                           bool *half_exact, sl_error *err);
+/* The power of two a view whose largest magnitude is `magnitude` is
+ * divided by to be held as half: its largest sample then between 32768
+ * and 65504 (half's top, so the dark end keeps the most range). False
+ * for a view half cannot hold so (beyond 1e30: kept float). */
+bool stitch_half_exponent(double magnitude, int *exp2);
+/* A view as half, converted in its own memory (no new pages; the float
+ * tail freed): img is emptied. Each sample is divided by 2^exp2 (exact)
+ * and rounded to half; with exp2 from stitch_half_exponent none overflows.
+ * loss (may be NULL: a view whose samples are all half values, exp2 0,
+ * loses nothing) counts the samples under half's normal range. False
+ * (img kept) only for fewer than 3 channels or no memory for one row. */
+bool stitch_view_take_half(sl_image *img, int exp2, stitch_half_image *out,
+                           stitch_half_loss *loss);
 /* The view as half when every RGB sample converts exactly (what merge
  * writes), else false and nothing held (the float view is used). */
 bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *err);
@@ -38,8 +55,8 @@ sl_result stitch_half_scan(const stitch_half_image *img, int64_t *bad, double *p
                            sl_error *err);
 /* The half view as a float RGB image (the same values); h is freed. */
 sl_result stitch_half_to_float(stitch_half_image *h, sl_image *img, sl_error *err);
-/* The image circle (sl_stitch_circle_find) of a half view: the same
- * answer as on its float values. */
+/* The image circle (sl_stitch_circle_find) of a half view (exp2 0): the
+ * same answer as on its float values. */
 sl_result stitch_circle_find_half(const stitch_half_image *img, const char *name,
                                   sl_stitch_circle *out, sl_error *err);
 /* The factor, 2 or 4, that divides the view's width and height and brings
@@ -49,8 +66,8 @@ int stitch_solve_factor(int width, int height, int max_width);
  * width / k x height / k, in one pass and no intermediate image; another
  * factor: sl_image_resample). */
 sl_result stitch_reduce(const sl_image *src, int k, sl_image *dst, sl_error *err);
-/* The same from a half view (k 2 or 4, dividing its size): the bytes
- * stitch_reduce gives on its float values. */
+/* The same from a half view (exp2 0; k 2 or 4, dividing its size): the
+ * bytes stitch_reduce gives on its float values. */
 sl_result stitch_reduce_half(const stitch_half_image *src, int k, sl_image *dst, sl_error *err);
 /* A lens scaled by s for an image of width x height (focal, centre, circle). */
 void stitch_lens_scale(sl_lens *lens, double s, int width, int height);
@@ -61,7 +78,8 @@ typedef struct stitch_view_prep {
     sl_lens lens;
     const sl_image *radiance, *weight;
     const stitch_half_image *half; /* not NULL: the radiance, in place of `radiance` */
-    const float *half_table;
+    const float *half_table;       /* each half pattern's radiance (its 2^exp2 applied) */
+    float *scaled_table;           /* owned: half_table when the view's exp2 is not 0 */
     double to_cam[3][3];
     double axis[3];
     double theta_max, cos_max, ramp; /* radians */

@@ -1,9 +1,11 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* How the stitch holds a view between reading it and blending it: its
  * float radiance scanned for NaN/Inf, its peak and whether every sample is
- * a half value, then kept as half when it is (merge writes half: 0.14 GB
- * for 24 MP instead of 0.29; converted in the float view's own memory), and
- * a copy reduced by a whole factor for the solve. */
+ * a half value, then kept as half (0.14 GB for 24 MP instead of 0.29;
+ * converted in the float view's own memory): as it is when every sample is
+ * a half value (what merge writes), else divided by a power of two that
+ * puts its peak at half's top and rounded; and a copy reduced by a whole
+ * factor for the solve. */
 #include "stitch_blend_private.h"
 
 #define IMATH_HALF_NO_LOOKUP_TABLE /* Imath's conversions alone, without libImath */
@@ -19,35 +21,40 @@ typedef struct scan_job {
     const sl_image *img;
     int64_t *bad;   /* per chunk */
     float *peak;    /* per chunk */
+    float *mag;     /* per chunk: the largest |RGB sample| */
     bool *inexact;  /* per chunk: an RGB sample that is not a half value */
     bool f16c;
 } scan_job;
 
 /* Eight samples of a row scanned at once where the CPU has F16C: their
- * non-finite count, peak and whether each is a half value (the same
- * answers as the loop of scan_rows). */
+ * non-finite count, peak, largest magnitude and whether each is a half
+ * value (the same answers as the loop of scan_rows). */
 #if (defined(__x86_64__) || defined(__i386__)) && !defined(__clang__) && __GNUC__ >= 12
 #define HAVE_F16C_ROWS 1
 __attribute__((target("f16c,avx"))) static int scan_f16c(const float *src, int n, int64_t *bad,
-                                                         float *peak, bool *inexact)
+                                                         float *peak, float *mag, bool *inexact)
 {
     const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
     const __m256 big = _mm256_set1_ps(3.40282347e38f);
-    __m256 top = _mm256_set1_ps(*peak);
+    __m256 top = _mm256_set1_ps(*peak), top_abs = _mm256_set1_ps(*mag);
     int i = 0, nonfinite = 0;
     bool off = false;
     for (; i + 8 <= n; i += 8) {
-        __m256 v = _mm256_loadu_ps(src + i);
-        __m256 finite = _mm256_cmp_ps(_mm256_and_ps(v, abs_mask), big, _CMP_LE_OQ);
+        __m256 v = _mm256_loadu_ps(src + i), a = _mm256_and_ps(v, abs_mask);
+        __m256 finite = _mm256_cmp_ps(a, big, _CMP_LE_OQ);
         nonfinite += 8 - __builtin_popcount((unsigned)_mm256_movemask_ps(finite));
         top = _mm256_max_ps(top, _mm256_and_ps(finite, v)); /* a NaN lane counts 0 */
+        top_abs = _mm256_max_ps(top_abs, _mm256_and_ps(finite, a));
         __m256 back = _mm256_cvtph_ps(_mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
         off |= _mm256_movemask_ps(_mm256_cmp_ps(back, v, _CMP_NEQ_UQ)) != 0;
     }
-    float t[8];
+    float t[8], ta[8];
     _mm256_storeu_ps(t, top);
-    for (int k = 0; k < 8; k++)
+    _mm256_storeu_ps(ta, top_abs);
+    for (int k = 0; k < 8; k++) {
         *peak = t[k] > *peak ? t[k] : *peak;
+        *mag = ta[k] > *mag ? ta[k] : *mag;
+    }
     *bad += nonfinite;
     *inexact |= off;
     return i;
@@ -61,14 +68,14 @@ static void scan_rows(void *ctx, int64_t begin, int64_t end, int worker)
     const sl_image *img = j->img;
     const float *table = stitch_half_table();
     int64_t bad = 0;
-    float peak = 0.0f;
+    float peak = 0.0f, mag = 0.0f;
     bool inexact = false;
     for (int64_t y = begin; y < end; y++) {
         const float *row = sl_image_pixel(img, 0, (int)y);
         int done = 0;
 #ifdef HAVE_F16C_ROWS
         if (img->channels == 3 && j->f16c) /* whole pixels: 8 of them a step of 3 */
-            done = scan_f16c(row, 3 * img->width / 24 * 24, &bad, &peak, &inexact) / 3;
+            done = scan_f16c(row, 3 * img->width / 24 * 24, &bad, &peak, &mag, &inexact) / 3;
 #endif
         for (int x = done; x < img->width; x++)
             for (int c = 0; c < img->channels; c++) {
@@ -77,12 +84,15 @@ static void scan_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 bad += !finite;
                 if (finite && c < 3 && v > peak)
                     peak = v;
+                if (finite && c < 3 && fabsf(v) > mag)
+                    mag = fabsf(v);
                 if (c < 3)
                     inexact |= !finite || table[imath_float_to_half(v)] != v;
             }
     }
     j->bad[begin / SCAN_ROWS] = bad;
     j->peak[begin / SCAN_ROWS] = peak;
+    j->mag[begin / SCAN_ROWS] = mag;
     j->inexact[begin / SCAN_ROWS] = inexact;
 }
 
@@ -95,28 +105,44 @@ static bool cpu_f16c(void)
 #endif
 }
 
-sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, bool *half_exact,
-                           sl_error *err)
+sl_result stitch_view_scan(const sl_image *img, int64_t *bad, double *peak, double *magnitude,
+                           bool *half_exact, sl_error *err)
 {
     int64_t chunks = (img->height + SCAN_ROWS - 1) / SCAN_ROWS;
     scan_job j = {img, calloc((size_t)chunks, sizeof(int64_t)),
-                  calloc((size_t)chunks, sizeof(float)), calloc((size_t)chunks, sizeof(bool)),
-                  cpu_f16c()};
-    if (!j.bad || !j.peak || !j.inexact) {
-        free(j.bad), free(j.peak), free(j.inexact);
+                  calloc((size_t)chunks, sizeof(float)), calloc((size_t)chunks, sizeof(float)),
+                  calloc((size_t)chunks, sizeof(bool)), cpu_f16c()};
+    if (!j.bad || !j.peak || !j.mag || !j.inexact) {
+        free(j.bad), free(j.peak), free(j.mag), free(j.inexact);
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
     }
     sl_parallel_for(img->height, SCAN_ROWS, scan_rows, &j);
     *bad = 0;
-    *peak = 0.0;
+    *peak = *magnitude = 0.0;
     *half_exact = img->channels >= 3;
     for (int64_t i = 0; i < chunks; i++) {
         *bad += j.bad[i];
         *peak = fmax(*peak, j.peak[i]);
+        *magnitude = fmax(*magnitude, j.mag[i]);
         *half_exact &= !j.inexact[i];
     }
-    free(j.bad), free(j.peak), free(j.inexact);
+    free(j.bad), free(j.peak), free(j.mag), free(j.inexact);
     return SL_OK;
+}
+
+bool stitch_half_exponent(double magnitude, int *exp2)
+{
+    *exp2 = 0;
+    if (!(magnitude <= 1e30))
+        return false;
+    if (!(magnitude > 0.0))
+        return true; /* black: any scale */
+    int e;
+    frexp(magnitude, &e); /* magnitude = m 2^e, m in [0.5, 1): 2^(e - 16) puts it in [32768, 65536) */
+    *exp2 = e - 16;
+    if (ldexp(magnitude, -*exp2) > 65504.0)
+        (*exp2)++;
+    return true;
 }
 
 typedef struct half_scan_job {
@@ -193,7 +219,7 @@ sl_result stitch_half_to_float(stitch_half_image *h, sl_image *img, sl_error *er
         const uint16_t *src = h->rgb + (size_t)y * h->width * 3;
         float *dst = sl_image_pixel(img, 0, y);
         for (int i = 0; i < 3 * h->width; i++)
-            dst[i] = table[src[i]];
+            dst[i] = ldexpf(table[src[i]], h->exp2);
     }
     stitch_half_free(h);
     return SL_OK;
@@ -283,40 +309,68 @@ bool stitch_view_to_half(const sl_image *img, stitch_half_image *out, sl_error *
     return exact;
 }
 
-bool stitch_view_take_half(sl_image *img, stitch_half_image *out)
+/* Halves under 2^-14 (exponent bits 0) whose float was not 0: below
+ * half's normal range, and of them those that became 0. */
+static void count_loss(const uint16_t *h, const float *src, int n, int channels,
+                       stitch_half_loss *loss)
+{
+    for (int k = 0; k < n; k++)
+        if (!(h[k] & 0x7c00u) && src[(k / 3) * channels + k % 3] != 0.0f) {
+            loss->below_normal++;
+            loss->flushed += !(h[k] & 0x7fffu);
+        }
+}
+
+bool stitch_view_take_half(sl_image *img, int exp2, stitch_half_image *out,
+                           stitch_half_loss *loss)
 {
     memset(out, 0, sizeof *out);
+    if (loss)
+        memset(loss, 0, sizeof *loss);
     int w = img->width, h = img->height;
     size_t row_halves = (size_t)w * 3;
     uint16_t *row = malloc(row_halves * sizeof *row);
-    if (!row || img->channels < 3) {
-        free(row);
+    float *scaled = exp2 ? malloc(row_halves * sizeof *scaled) : NULL;
+    if (!row || (exp2 && !scaled) || img->channels < 3) {
+        free(row), free(scaled);
         return false;
     }
     uint16_t *dst = (uint16_t *)img->data;
+    const float inv = ldexpf(1.0f, -exp2); /* a power of two: the division exact */
 #ifdef HAVE_F16C_ROWS
-    bool f16c = cpu_f16c(), inexact = false; /* known exact: the flag is not read */
+    bool f16c = cpu_f16c(), inexact = false; /* the flag is not read */
 #endif
     /* Row by row in order, each through `row`: half row y ends at or
      * before the start of float row (y + 1) / 2, so it only overwrites
      * rows already read. */
     for (int y = 0; y < h; y++) {
         const float *src = sl_image_pixel(img, 0, y);
+        int ch = img->channels;
+        if (scaled) { /* RGB only, divided by 2^exp2 */
+            for (size_t k = 0; k < row_halves; k++)
+                scaled[k] = src[(k / 3) * ch + k % 3] * inv;
+            src = scaled;
+            ch = 3;
+        }
         int done = 0;
 #ifdef HAVE_F16C_ROWS
-        if (img->channels == 3 && f16c)
+        if (ch == 3 && f16c)
             done = row_f16c(src, row, 3 * w, &inexact);
 #endif
         for (int k = done; k < 3 * w; k++)
-            row[k] = imath_float_to_half(src[(k / 3) * img->channels + k % 3]);
+            row[k] = imath_float_to_half(src[(k / 3) * ch + k % 3]);
+        if (loss)
+            count_loss(row, src, 3 * w, ch, loss);
         memcpy(dst + (size_t)y * row_halves, row, row_halves * sizeof *row);
     }
     free(row);
+    free(scaled);
     /* the float tail goes back to the system (a large block shrinks in place) */
     uint16_t *kept = realloc(dst, (size_t)h * row_halves * sizeof *kept);
     out->rgb = kept ? kept : dst;
     out->width = w;
     out->height = h;
+    out->exp2 = exp2;
     memset(img, 0, sizeof *img);
     return true;
 }

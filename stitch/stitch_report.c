@@ -88,6 +88,18 @@ static void summary(sl_report *rep, const sl_stitch_result *res, const char *out
                    "masked), confidence under 0.5 %.3f sr, %lld ghost texels (%.4f sr).",
                    c->seen_sr, c->filled_sr, 100.0 * c->filled_sr / sphere, c->masked_sr,
                    c->low_sr, (long long)c->ghost_texels, c->ghost_sr);
+    int rounded = 0;
+    int64_t below = 0, flushed = 0;
+    for (int i = 0; i < res->view_count; i++) {
+        rounded += res->views[i].half_rounded;
+        below += res->views[i].below_half_normal;
+        flushed += res->views[i].flushed_to_zero;
+    }
+    if (rounded)
+        sl_report_text(rep, "Views held as half (%d, each scaled by a power of two): rounding "
+                            "up to 0.05%% relative; %lld samples under half's normal range "
+                            "(coarser), %lld flushed to 0.",
+                       rounded, (long long)below, (long long)flushed);
 }
 
 static void pair_table(sl_report *rep, const sl_stitch_result *res)

@@ -39,12 +39,21 @@ static json_t *result_json(const sl_stitch_result *res, const char *out_path)
     json_t *views = json_array(), *pairs = json_array(), *timing = json_object();
     for (int i = 0; i < res->view_count; i++) {
         const sl_stitch_view_result *v = &res->views[i];
-        json_array_append_new(
-            views, json_pack("{s:s, s:[f, f, f], s:[f, f, f], s:f, s:b}", "path", v->path,
-                             "nominal_ypr_deg", v->nominal.yaw_deg, v->nominal.pitch_deg,
-                             v->nominal.roll_deg, "ypr_deg", v->pose.yaw_deg, v->pose.pitch_deg,
-                             v->pose.roll_deg, "contributes_sr", c->view_sr[i],
-                             "clipped_mask_weighted", v->confidence));
+        json_t *vj = json_pack("{s:s, s:[f, f, f], s:[f, f, f], s:f, s:b, s:s}", "path", v->path,
+                               "nominal_ypr_deg", v->nominal.yaw_deg, v->nominal.pitch_deg,
+                               v->nominal.roll_deg, "ypr_deg", v->pose.yaw_deg,
+                               v->pose.pitch_deg, v->pose.roll_deg, "contributes_sr",
+                               c->view_sr[i], "clipped_mask_weighted", v->confidence, "held",
+                               !v->held_as_half   ? "float"
+                               : v->half_rounded ? "half, rounded"
+                                                 : "half");
+        if (vj && v->half_rounded)
+            json_object_update_new(
+                vj, json_pack("{s:i, s:f, s:I, s:I}", "half_scale_exp2", v->half_exp2,
+                              "rounding_max_relative", ldexp(1.0, -11), "below_half_normal",
+                              (json_int_t)v->below_half_normal, "flushed_to_zero",
+                              (json_int_t)v->flushed_to_zero));
+        json_array_append_new(views, vj);
     }
     for (int i = 0; res->solved && i < res->solve.pairs; i++) {
         const sl_stitch_pair *p = &res->solve.pair[i];
@@ -60,6 +69,13 @@ static json_t *result_json(const sl_stitch_result *res, const char *out_path)
                             json_pack("{s:f, s:f}", "wall", res->wall[p], "cpu", res->cpu[p]));
     json_object_set_new(timing, "total",
                         json_pack("{s:f, s:f}", "wall", res->seconds, "cpu", res->cpu_seconds));
+    if (res->solved) /* the solve's stages, wall seconds */
+        json_object_set_new(timing, "solve_stages",
+                            json_pack("{s:f, s:f, s:f, s:f}", "features",
+                                      res->solve.seconds_features, "match",
+                                      res->solve.seconds_match, "adjust",
+                                      res->solve.seconds_adjust, "radiance",
+                                      res->solve.seconds_radiance));
     const sl_lens *n = &res->lens_nominal, *l = &res->lens;
     json_t *j = json_pack(
         "{s:s, s:i, s:i, s:o, s:o, s:s, s:{s:f, s:f, s:f}, s:b, s:s, s:o, s:o}", "output",
@@ -152,6 +168,15 @@ sl_result sl_stitch_run(const sl_stitch_run_options *o, sl_stitch_run_result *re
                         "masked), %lld ghost texels",
            cv->seen_sr, cv->filled_sr, 100.0 * cv->filled_sr / (4 * M_PI), cv->masked_sr,
            (long long)cv->ghost_texels);
+    for (int i = 0; i < o->view_count; i++) {
+        const sl_stitch_view_result *v = &s->views[i];
+        if (v->half_rounded)
+            sl_log(SL_LOG_INFO, "%s: held as half (x 2^%d): rounding up to 0.05%% relative; "
+                                "%lld samples under half's normal range (under about 1e-9 of "
+                                "its peak), %lld of them flushed to 0",
+                   v->path, v->half_exp2, (long long)v->below_half_normal,
+                   (long long)v->flushed_to_zero);
+    }
     json_t *j = result_json(s, o->out_path);
     res->json = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
     json_decref(j);

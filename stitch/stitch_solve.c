@@ -4,6 +4,9 @@
 #include "merge_private.h"
 #include "stitch_private.h"
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -97,6 +100,28 @@ static double overlap_solid_angle(const sl_lens *lens, const double a[3][3], con
             both++;
     }
     return 4.0 * M_PI * both / N;
+}
+
+/* OpenCV's SIFT allocates its pyramid afresh for each view (about 0.28 GB
+ * for the 1536-wide copy, in levels of 25 MB), and glibc maps and unmaps
+ * blocks that large: each view faulted in some 70 000 fresh zeroed pages.
+ * While the features are found, blocks under 32 MB come from the heap and
+ * what is freed stays there, so the next view reuses the pages; after,
+ * the freed pages go back (three 24 MP views: 110 000 fewer page faults,
+ * the solve about 0.2 CPU s less, peak RSS 0.94 GB instead of 0.92). */
+static void keep_freed_blocks(bool keep)
+{
+#ifdef __GLIBC__
+    if (keep) {
+        mallopt(M_MMAP_THRESHOLD, 32 << 20); /* glibc's own largest dynamic threshold */
+        mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    } else {
+        mallopt(M_TRIM_THRESHOLD, 128 << 10); /* glibc's default */
+        malloc_trim(0);
+    }
+#else
+    (void)keep;
+#endif
 }
 
 static double angle_between(const double a[3], const double b[3])
@@ -857,11 +882,13 @@ sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solv
         }
     bool wanted = opt->solve_poses || opt->solve_focal || opt->solve_centre ||
                   opt->radial_terms > 0 || opt->solve_vignette;
+    keep_freed_blocks(true);
     for (int v = 0; r == SL_OK && v < count && wanted; v++)
         if (needs && needs[v]) {
             r = solve_find_features(&views[v], opt, &st.feat[v], err);
             res->features[v] = st.feat[v].count;
         }
+    keep_freed_blocks(false);
     free(needs);
     res->seconds_features = sl_seconds() - start;
     double t = sl_seconds();

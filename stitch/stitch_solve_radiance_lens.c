@@ -73,8 +73,40 @@ static void lens_at(const lens_problem *p, const double *x, sl_lens *lens, sl_le
     }
 }
 
+/* The radiance residuals of samples [begin, end) at one point (each
+ * sample's alone: the same values on any number of threads). */
+typedef struct residual_job {
+    const lens_problem *p;
+    const double *x;
+    const sl_lens *lens, *inner;
+    const double (*rot)[3][3];
+    double *r;
+} residual_job;
+
+static void radiance_residuals(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    (void)worker;
+    const residual_job *j = ctx;
+    const lens_problem *p = j->p;
+    for (int64_t i = begin; i < end; i++) {
+        int a = p->views[i][0], b = p->views[i][1];
+        double la, lb;
+        if (!solve_log_radiance(&p->img[a], j->lens, j->inner, j->rot[a], p->dir[i],
+                                SMOOTH_LOG, &la) ||
+            !solve_log_radiance(&p->img[b], j->lens, j->inner, j->rot[b], p->dir[i],
+                                SMOOTH_LOG, &lb)) {
+            j->r[i] = NAN;
+            continue;
+        }
+        double ga = p->gain_slot[a] >= 0 ? j->x[p->gain_slot[a]] : 0.0;
+        double gb = p->gain_slot[b] >= 0 ? j->x[p->gain_slot[b]] : 0.0;
+        j->r[i] = (la - ga) - (lb - gb);
+    }
+}
+
 /* Per sample ln L_a - ln g_a - (ln L_b - ln g_b), NaN where a view's data
- * ends; then each match's four reprojection residuals (pixels). */
+ * ends (on every core: the refinement evaluates them some 200 times); then
+ * each match's four reprojection residuals (pixels). */
 static void residuals(const lens_problem *p, const double *x, double *r)
 {
     sl_lens lens, inner, unbounded;
@@ -86,20 +118,8 @@ static void residuals(const lens_problem *p, const double *x, double *r)
         if (!solve_match_residuals(&p->matches[i], rot, &unbounded, e))
             e[0] = e[1] = e[2] = e[3] = NAN;
     }
-    for (int i = 0; i < p->n; i++) {
-        int a = p->views[i][0], b = p->views[i][1];
-        double la, lb;
-        if (!solve_log_radiance(&p->img[a], &lens, &inner, (const double (*)[3])rot[a],
-                                p->dir[i], SMOOTH_LOG, &la) ||
-            !solve_log_radiance(&p->img[b], &lens, &inner, (const double (*)[3])rot[b],
-                                p->dir[i], SMOOTH_LOG, &lb)) {
-            r[i] = NAN;
-            continue;
-        }
-        double ga = p->gain_slot[a] >= 0 ? x[p->gain_slot[a]] : 0.0;
-        double gb = p->gain_slot[b] >= 0 ? x[p->gain_slot[b]] : 0.0;
-        r[i] = (la - ga) - (lb - gb);
-    }
+    residual_job j = {p, x, &lens, &inner, (const double (*)[3][3])rot, r};
+    sl_parallel_for(p->n, 2048, radiance_residuals, &j);
 }
 
 /* The weight of residual i of value r: a radiance sample's Huber weight

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* How the stitch holds its views (stitch/stitch_hold.c) and what the blend
- * does with them: a view kept as half only when every sample converts
- * exactly, a half file read as half the same as read as float, the blend of half views the same bytes as of the float views,
+ * does with them: a view kept as half as it is only when every sample
+ * converts exactly, else scaled by a power of two within half's rounding, a half file read as half the same as read as float, the blend of half views the same bytes as of the float views,
  * the solve's reduction factor, and the per-row spans of the views' fields
  * never losing a direction a view sees (the seen solid angle of one view is
  * its field's, wherever it points); the blend's float row loop against the
@@ -62,14 +62,14 @@ static void half_only_when_exact(void)
     /* the scan finds it exact, and the view converted in its own memory
      * is the same half */
     int64_t bad = -1;
-    double peak = 0;
+    double peak = 0, mag = 0;
     bool exact = false;
-    CHECK_OK(stitch_view_scan(&img, &bad, &peak, &exact, &err), &err);
+    CHECK_OK(stitch_view_scan(&img, &bad, &peak, &mag, &exact, &err), &err);
     CHECK(exact && bad == 0);
     sl_image copy;
     CHECK_OK(sl_image_copy(&img, &copy, &err), &err);
     stitch_half_image in_place;
-    CHECK(stitch_view_take_half(&copy, &in_place));
+    CHECK(stitch_view_take_half(&copy, 0, &in_place, NULL));
     CHECK(copy.data == NULL && in_place.width == 97 && in_place.height == 13);
     CHECK(h.rgb && in_place.rgb &&
           !memcmp(h.rgb, in_place.rgb, (size_t)97 * 13 * 3 * sizeof(uint16_t)));
@@ -84,7 +84,7 @@ static void half_only_when_exact(void)
         sl_image_pixel(&img, x, 7)[k % 3] = odd[k];
         CHECK_MSG(!stitch_view_to_half(&img, &h, &err), "%g was taken as half", odd[k]);
         CHECK(h.rgb == NULL);
-        CHECK_OK(stitch_view_scan(&img, &bad, &peak, &exact, &err), &err);
+        CHECK_OK(stitch_view_scan(&img, &bad, &peak, &mag, &exact, &err), &err);
         CHECK_MSG(!exact && bad == 0, "%g: scanned as half", odd[k]);
         CHECK(peak == (odd[k] > 512.0f ? odd[k] : peak));
     }
@@ -92,11 +92,11 @@ static void half_only_when_exact(void)
      * of the peak */
     half_valued(&img, 3);
     double clean_peak;
-    CHECK_OK(stitch_view_scan(&img, &bad, &clean_peak, &exact, &err), &err);
+    CHECK_OK(stitch_view_scan(&img, &bad, &clean_peak, &mag, &exact, &err), &err);
     sl_image_pixel(&img, 3, 2)[1] = NAN;
     sl_image_pixel(&img, 96, 4)[2] = INFINITY;
     sl_image_pixel(&img, 40, 9)[0] = -INFINITY;
-    CHECK_OK(stitch_view_scan(&img, &bad, &peak, &exact, &err), &err);
+    CHECK_OK(stitch_view_scan(&img, &bad, &peak, &mag, &exact, &err), &err);
     CHECK_MSG(bad == 3 && !exact && peak == clean_peak, "%lld bad, peak %g (clean %g)",
               (long long)bad, peak, clean_peak);
     sl_image_free(&img);
@@ -133,6 +133,29 @@ static void disc_view(sl_image *img, double cx, double cy, double r, uint64_t se
                 memset(sl_image_pixel(img, x, y), 0, 3 * sizeof(float));
 }
 
+/* A sky near 1e-3 and a sun near 1e6 (radiance a float view holds, not
+ * half values: each sample a random factor of 1 to 1.3 off): */
+static void sun_and_sky(sl_image *img, double cx, double cy, double r, uint64_t seed)
+{
+    for (int y = 0; y < img->height; y++)
+        for (int x = 0; x < img->width; x++) {
+            float *p = sl_image_pixel(img, x, y);
+            double d = hypot(x + 0.5 - cx, y + 0.5 - cy);
+            bool sun = hypot(x + 0.5 - (cx + 0.4 * r), y + 0.5 - cy) < 6.0;
+            for (int c = 0; c < 3; c++)
+                p[c] = d > r ? 0.0f : (float)((sun ? 1e6 / 1.3 : 1e-3) * (1.0 + 0.3 * uniform(&seed)));
+        }
+}
+
+/* A view wider than 3072 px (held as half by sl_stitch), filled by `fill`
+ * with a disc of radius 110 px round its middle. */
+static void wide_view(sl_image *img, void (*fill)(sl_image *, double, double, double, uint64_t),
+                      sl_error *err)
+{
+    CHECK_OK(sl_image_alloc(img, 3200, 240, 3, err), err);
+    fill(img, 1601.0, 120.0, 110.0, 9);
+}
+
 /* A half EXR read straight into half: the samples' bits as the float read
  * has them, and the scan, the solve's reduced copies and the image circle
  * on it the float view's; a file it does not read is left to sl_exr_read. */
@@ -167,15 +190,15 @@ static void half_read_is_the_float_read(void)
         sl_image_pixel(&back, 150 + i, 100)[i] = table[odd[i]];
     }
     int64_t bad = 0, fbad = 0;
-    double peak = 0, fpeak = 0;
+    double peak = 0, fpeak = 0, fmag = 0;
     bool exact;
     CHECK_OK(stitch_half_scan(&h, &bad, &peak, &err), &err);
-    CHECK_OK(stitch_view_scan(&back, &fbad, &fpeak, &exact, &err), &err);
+    CHECK_OK(stitch_view_scan(&back, &fbad, &fpeak, &fmag, &exact, &err), &err);
     CHECK_MSG(bad == 3 && fbad == 3 && peak == fpeak && peak > 100.0 && peak < 65504.0, "%lld/%lld bad, peak %g/%g",
               (long long)bad, (long long)fbad, peak, fpeak);
     /* the same in a view whose samples are not a multiple of the scan's
      * eight: odd values in the tail too */
-    stitch_half_image small = {calloc(13 * 7 * 3, sizeof(uint16_t)), 13, 7};
+    stitch_half_image small = {calloc(13 * 7 * 3, sizeof(uint16_t)), 13, 7, 0};
     sl_image fsmall;
     CHECK_OK(sl_image_alloc(&fsmall, 13, 7, 3, &err), &err);
     uint64_t seed = 17;
@@ -188,7 +211,7 @@ static void half_read_is_the_float_read(void)
         sl_image_pixel(&fsmall, (i / 3) % 13, i / 39)[i % 3] = table[small.rgb[i]];
     }
     CHECK_OK(stitch_half_scan(&small, &bad, &peak, &err), &err);
-    CHECK_OK(stitch_view_scan(&fsmall, &fbad, &fpeak, &exact, &err), &err);
+    CHECK_OK(stitch_view_scan(&fsmall, &fbad, &fpeak, &fmag, &exact, &err), &err);
     CHECK_MSG(bad == 2 && fbad == 2 && peak == fpeak && peak > 0.0, "%lld/%lld bad, peak %g/%g",
               (long long)bad, (long long)fbad, peak, fpeak);
     stitch_half_free(&small);
@@ -244,8 +267,7 @@ static void stitch_of_half_file_is_of_float_file(void)
 {
     sl_error err;
     sl_image img;
-    CHECK_OK(sl_image_alloc(&img, 3200, 240, 3, &err), &err); /* wider than 3072 */
-    disc_view(&img, 1601.0, 120.0, 110.0, 9);
+    wide_view(&img, disc_view, &err);
     const char *half_path = sl_test_path("wide_half.exr"), *float_path =
                                                                 sl_test_path("wide_float.exr");
     CHECK_OK(sl_exr_write(half_path, &img, NULL, SL_PIXEL_HALF, &err), &err);
@@ -270,6 +292,103 @@ static void stitch_of_half_file_is_of_float_file(void)
     CHECK(out[0].width == 256 && out[1].width == 256 &&
           !memcmp(out[0].data, out[1].data, (size_t)256 * 128 * 4 * sizeof(float)));
     sl_image_free(&out[0]), sl_image_free(&out[1]);
+}
+
+/* A float view held as half divided by a power of two: 1e6 does not
+ * overflow half's 65504, 1e-3 keeps half's 11 bits (each sample within
+ * 2^-11 relative), and what falls under half's normal range is counted. */
+static void scaled_half_keeps_the_light(void)
+{
+    sl_error err;
+    sl_image img, copy;
+    CHECK_OK(sl_image_alloc(&img, 97, 61, 3, &err), &err); /* odd width: F16C's tail too */
+    sun_and_sky(&img, 48.0, 30.0, 28.0, 5);
+    sl_image_pixel(&img, 3, 3)[0] = 1e-6f;   /* 2^-24 once scaled: a subnormal */
+    sl_image_pixel(&img, 96, 60)[2] = 1e-13f; /* flushed */
+    int64_t bad;
+    double peak, mag;
+    bool exact;
+    int exp2 = 99;
+    CHECK_OK(stitch_view_scan(&img, &bad, &peak, &mag, &exact, &err), &err);
+    CHECK(!exact && bad == 0 && peak == mag && peak > 9e5);
+    CHECK(stitch_half_exponent(mag, &exp2));
+    CHECK_MSG(exp2 == 4 && ldexp(mag, -exp2) <= 65504.0 && ldexp(mag, -exp2) > 32768.0,
+              "2^%d for %g", exp2, mag);
+    CHECK_OK(sl_image_copy(&img, &copy, &err), &err);
+    stitch_half_image h;
+    stitch_half_loss loss;
+    CHECK(stitch_view_take_half(&copy, exp2, &h, &loss));
+    CHECK(copy.data == NULL && h.exp2 == 4);
+    CHECK_MSG(loss.below_normal == 2 && loss.flushed == 1, "%lld under normal, %lld flushed",
+              (long long)loss.below_normal, (long long)loss.flushed);
+    sl_image back;
+    CHECK_OK(stitch_half_to_float(&h, &back, &err), &err);
+    double worst = 0.0, sun_max = 0.0;
+    int odd = 0; /* non-finite, negative, or 0 where the view is not 0 and not the flushed one */
+    for (int y = 0; y < img.height; y++)
+        for (int x = 0; x < img.width; x++)
+            for (int c = 0; c < 3; c++) {
+                double a = sl_image_pixel(&img, x, y)[c], b = sl_image_pixel(&back, x, y)[c];
+                odd += !isfinite(b) || b < 0.0 || (b == 0.0) != (a < 1e-9);
+                if (a > 1e-4) /* the counted two are not held to it */
+                    worst = fmax(worst, fabs(b / a - 1.0));
+                sun_max = fmax(sun_max, b);
+            }
+    CHECK_MSG(odd == 0 && worst <= ldexp(1.0, -11) && sun_max > 9e5,
+              "%d odd samples, worst %.3g relative, sun %g", odd, worst, sun_max);
+    /* beyond what a float holds once rounded: kept float */
+    CHECK(!stitch_half_exponent(1e31, &exp2) && stitch_half_exponent(0.0, &exp2) && exp2 == 0);
+    sl_image_free(&back);
+    sl_image_free(&img);
+}
+
+/* sl_stitch of a large float view of a 1e6 sun over a 1e-3 sky (held as
+ * scaled half) against the blend of the float view itself: every texel
+ * within half's rounding, the power within 0.05%, nothing negative or
+ * non-finite, and the result says how the view was held. */
+static void stitch_of_scaled_half_is_of_float(void)
+{
+    sl_error err;
+    sl_image img;
+    wide_view(&img, sun_and_sky, &err);
+    const char *path = sl_test_path("sun_float.exr"), *o = sl_test_path("sun_stitch.exr");
+    CHECK_OK(sl_exr_write(path, &img, NULL, SL_PIXEL_FLOAT, &err), &err);
+    sl_stitch_options opt;
+    sl_stitch_options_init(&opt);
+    opt.focal_mm = 8.0;
+    opt.sensor_mm[0] = 36.0;
+    opt.blend.width = 256;
+    sl_stitch_result res;
+    CHECK_OK(sl_stitch(&path, 1, o, &opt, &res, &err), &err);
+    const sl_stitch_view_result *vr = &res.views[0];
+    CHECK_MSG(vr->held_as_half && vr->half_rounded && vr->half_exp2 == 4 &&
+                  vr->below_half_normal == 0 && res.float_samples,
+              "held %d rounded %d 2^%d, %lld under normal", vr->held_as_half, vr->half_rounded,
+              vr->half_exp2, (long long)vr->below_half_normal);
+    sl_stitch_view v = {"float", &img, NULL, res.lens, res.views[0].pose};
+    sl_image ref = {0}, out = {0};
+    sl_stitch_coverage cov;
+    CHECK_OK(stitch_blend_run(&v, 1, NULL, false, &opt.blend, NULL, NULL, &ref, &cov, &err),
+             &err);
+    CHECK_OK(sl_exr_read(o, &out, NULL, &err), &err);
+    double worst = 0.0, p_ref = 0.0, p_out = 0.0;
+    int bad = 0;
+    for (int y = 0; y < out.height; y++)
+        for (int x = 0; x < out.width; x++)
+            for (int c = 0; c < 3; c++) {
+                double a = sl_image_pixel(&ref, x, y)[c], b = sl_image_pixel(&out, x, y)[c];
+                bad += !isfinite(b) || b < 0.0;
+                if (a > 0.0)
+                    worst = fmax(worst, fabs(b / a - 1.0));
+                p_ref += a;
+                p_out += b;
+            }
+    CHECK_MSG(bad == 0 && worst <= ldexp(1.0, -11) + 1e-6 && fabs(p_out / p_ref - 1.0) < 5e-4 &&
+                  p_ref > 1e6,
+              "%d bad texels, worst %.3g relative, power %.6f of the float view's", bad, worst,
+              p_out / p_ref);
+    sl_stitch_result_free(&res);
+    sl_image_free(&ref), sl_image_free(&out), sl_image_free(&img);
 }
 
 static void solve_factor(void)
@@ -511,6 +630,8 @@ static void float_rows_match_the_double_loop(void)
 int main(void)
 {
     RUN(half_only_when_exact);
+    RUN(scaled_half_keeps_the_light);
+    RUN(stitch_of_scaled_half_is_of_float);
     RUN(solve_factor);
     RUN(reduce_is_resample);
     RUN(half_read_is_the_float_read);

@@ -1387,6 +1387,15 @@ typedef struct sl_stitch_view_result {
     sl_view_pose nominal, pose;  /* as given, as used (solved) */
     bool confidence;             /* a merge clipped mask weighted it */
     char confidence_source[4096];
+    /* How the blend held the view's radiance: float, or half (a view wider
+     * than 3072 px): as it is when every sample is a half value, else
+     * `half_rounded`: divided by 2^half_exp2 (its peak at half's top) and
+     * rounded, each sample within 2^-11 (0.049%) relative except the
+     * `below_half_normal` under half's normal range once scaled (under
+     * about 1e-9 of the peak: coarser), `flushed_to_zero` of them 0. */
+    bool held_as_half, half_rounded;
+    int half_exp2;
+    int64_t below_half_normal, flushed_to_zero;
 } sl_stitch_view_result;
 
 typedef struct sl_stitch_result {
