@@ -74,13 +74,13 @@ static double frame_mp(const char *path)
 typedef struct cpu_model {
     double fixed_s, per_mp_s;
 } cpu_model;
-static const cpu_model cpu_merge = {0.04, 0.07};      /* per MP of the bracket's frames */
-static const cpu_model cpu_stitch = {0.1, 1.3};       /* per MP of the fisheye views */
+static const cpu_model cpu_merge = {0.025, 0.05};    /* per MP of the bracket's frames */
+static const cpu_model cpu_stitch = {0.06, 0.71};     /* per MP of the fisheye views */
 static const cpu_model cpu_unwrap = {0.03, 0.3};      /* per MP of the chrome ball's view */
-static const cpu_model cpu_calibrate = {0.8, 0.5};    /* per MP of the fisheye views */
-static const cpu_model cpu_rig = {0.35, 0.45};        /* per MP of the fisheye views */
-static const cpu_model cpu_render = {0.8, 0};         /* 128 px, 32 spp */
-static const cpu_model cpu_report = {0.5, 0.1};       /* per MP of the fisheye views */
+static const cpu_model cpu_calibrate = {0.45, 0.27};  /* per MP of the fisheye views */
+static const cpu_model cpu_rig = {0.15, 0.3};         /* per MP of the fisheye views */
+static const cpu_model cpu_render = {0.25, 0};        /* 128 px, 32 spp */
+static const cpu_model cpu_report = {0.27, 0.073};    /* per MP of the fisheye views */
 static const cpu_model cpu_index = {0.02, 0};
 
 static double cpu_estimate(cpu_model m, double mp)

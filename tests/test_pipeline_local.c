@@ -8,6 +8,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "../pipeline/pipeline_private.h"
 #include "testing.h"
@@ -200,7 +202,7 @@ static json_t *wrapped_job(const char *dir, const char *exe, const char *id, con
  * command runs and the stamp has the key of its input; a failing command's
  * code is in its stamp; a job whose argv is another program's is started
  * as its argv says (here: cannot be, so it fails). */
-static void test_forked_jobs(void)
+static void forked_jobs(void)
 {
     const char *dir = sl_test_tmpdir();
     char cmd[1200], line[1200], in[1024];
@@ -245,6 +247,23 @@ static void test_forked_jobs(void)
     json_decref(status);
     json_decref(jobs);
     json_decref(graph);
+}
+
+/* forked_jobs in a child of its own: a fork copies only the calling
+ * thread, so its runner is single-threaded (and forks its jobs) whatever
+ * threads this process or a sanitizer's runtime has started. */
+static void test_forked_jobs(void)
+{
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        int before = sl_test_failed;
+        forked_jobs();
+        fflush(NULL);
+        _exit(sl_test_failed != before);
+    }
+    int status = 0;
+    CHECK(pid > 0 && waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0);
 }
 
 int main(void)
