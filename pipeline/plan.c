@@ -74,7 +74,7 @@ static double frame_mp(const char *path)
 typedef struct cpu_model {
     double fixed_s, per_mp_s;
 } cpu_model;
-static const cpu_model cpu_merge = {0.025, 0.05};    /* per MP of the bracket's frames */
+static const cpu_model cpu_merge = {0.025, 0.05};     /* per MP of the bracket's frames */
 static const cpu_model cpu_stitch = {0.06, 0.71};     /* per MP of the fisheye views */
 static const cpu_model cpu_unwrap = {0.03, 0.3};      /* per MP of the chrome ball's view */
 static const cpu_model cpu_calibrate = {0.45, 0.27};  /* per MP of the fisheye views */

@@ -710,7 +710,6 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         /* The coarse pass runs to the plan's share of the budget too: the
          * pixels it leaves are sampled in the rest (test_render_time). */
         sl_glossy_limits lim = {.deadline = j.deadline,
-                                .coarse_deadline = j.deadline,
                                 .row_limit = o->plan_row_limit,
                                 .coarse_row_limit = o->plan_coarse_row_limit};
         res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost, &lim, j.row_cut, err);

@@ -124,11 +124,12 @@ typedef struct sl_glossy_pixels {
  * SL_GLOSSY_COARSE_CHECK times the tolerance. */
 #define SL_GLOSSY_COARSE 8.0
 #define SL_GLOSSY_COARSE_CHECK 6.0
-/* Where sl_glossy_fill is cut: the full plan's rows not started by
- * deadline (seconds, as sl_seconds), the coarse pass's by coarse_deadline
- * (no earlier; the render uses the same); tests: from row_limit, coarse_row_limit on when > 0. */
+/* Where sl_glossy_fill is cut: the coarse pass's and the full plan's rows
+ * not started by deadline (seconds, as sl_seconds); tests: the full
+ * plan's from row_limit, the coarse pass's from coarse_row_limit on when
+ * > 0. */
 typedef struct sl_glossy_limits {
-    double deadline, coarse_deadline;
+    double deadline;
     int row_limit, coarse_row_limit;
 } sl_glossy_limits;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);

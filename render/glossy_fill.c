@@ -654,11 +654,11 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
         sl_parallel_for(h, 1, sun_rows, &j);
     }
     if (coarse) {
-        /* The coarse pass: every pixel's rest, cut only by the second
-         * deadline; then its values are kept aside for the rows the full
-         * plan does not reach. */
+        /* The coarse pass: every pixel's rest, to the deadline; then its
+         * values are kept aside for the rows the full plan does not reach
+         * (which gets what time it leaves). */
         j.tol = SL_GLOSSY_COARSE * cf->tol, j.check_tol = SL_GLOSSY_COARSE_CHECK * cf->tol, j.slack = 0;
-        j.deadline = lim->coarse_deadline, j.row_limit = lim->coarse_row_limit;
+        j.deadline = lim->deadline, j.row_limit = lim->coarse_row_limit;
         lattice(&j, cur, next);
         sl_parallel_for(h, 1, rest_left_rows, &j);
         uint8_t *ts = j.coarse_state;

@@ -215,11 +215,12 @@ sl_result stitch_half_to_float(stitch_half_image *h, sl_image *img, sl_error *er
     if (r)
         return r;
     const float *table = stitch_half_table();
+    const float scale = ldexpf(1.0f, h->exp2); /* a power of two: the product exact */
     for (int y = 0; y < h->height; y++) {
         const uint16_t *src = h->rgb + (size_t)y * h->width * 3;
         float *dst = sl_image_pixel(img, 0, y);
         for (int i = 0; i < 3 * h->width; i++)
-            dst[i] = ldexpf(table[src[i]], h->exp2);
+            dst[i] = table[src[i]] * scale;
     }
     stitch_half_free(h);
     return SL_OK;

@@ -300,7 +300,7 @@ typedef struct sl_render_options {
      * first); 0 = no such cut. A deterministic stand-in for the deadline. */
     int plan_row_limit;
     /* Tests: the glossy coarse pass (run when the plan may be cut) stops
-     * at this image row, as if the whole budget ran out there: its pixels
+     * at this image row, as if the deadline came there: its pixels
      * from it on keep their sun exact and sample the rest of the map; 0 =
      * no such cut. */
     int plan_coarse_row_limit;
