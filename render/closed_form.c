@@ -711,7 +711,8 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
          * pixels it leaves are sampled in the rest (test_render_time). */
         sl_glossy_limits lim = {.deadline = j.deadline,
                                 .row_limit = o->plan_row_limit,
-                                .coarse_row_limit = o->plan_coarse_row_limit};
+                                .coarse_row_limit = o->plan_coarse_row_limit,
+                                .coarse_block_limit = o->plan_coarse_block_limit};
         res = sl_glossy_fill(cf, scene, &j.glossy, cam->width, cam->height, j.row_cost, &lim, j.row_cut, err);
     }
     if (res) {
@@ -789,7 +790,8 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         bool interpolated = j.glossy.state[i] == SL_GLOSSY_INTERPOLATED;
         st->interpolated_pixels += interpolated;
         st->at_tolerance_pixels += j.lambert[i] != 2 && !j.glossy.coarse[i];
-        st->coarse_pixels += j.glossy.coarse[i];
+        st->coarse_pixels += j.glossy.coarse[i] != 0;
+        st->provisional_pixels += j.glossy.coarse[i] == SL_GLOSSY_COARSE_PROVISIONAL;
         if (k < SL_CLOSED_FORM_MAX_OBJECTS) {
             st->object_exact[k] += m == SL_PIXEL_EXACT;
             st->object_control[k] += m == SL_PIXEL_CONTROL;

@@ -116,21 +116,24 @@ typedef struct sl_glossy_pixels {
     double (*n)[3];        /* world normal of a pending pixel */
     double (*wo)[3];       /* its view direction */
     double (*value)[3];    /* out: its radiance */
-    uint8_t *coarse;       /* out: 1 where it keeps the coarse pass's rest (a cut row) */
+    uint8_t *coarse;       /* out: where it keeps the coarse pass's rest (a cut row):
+                              SL_GLOSSY_COARSE_KEPT, or ..._PROVISIONAL from a failed block */
 } sl_glossy_pixels;
 /* Under --time the rest is first evaluated at every pixel at this times
  * the tolerance (the coarse pass), for the rows the full plan does not
  * reach; its blocks interpolate where their check passes at
  * SL_GLOSSY_COARSE_CHECK times the tolerance. */
 #define SL_GLOSSY_COARSE 8.0
+enum { SL_GLOSSY_COARSE_KEPT = 1, SL_GLOSSY_COARSE_PROVISIONAL = 2 };
 #define SL_GLOSSY_COARSE_CHECK 6.0
 /* Where sl_glossy_fill is cut: the coarse pass's and the full plan's rows
  * not started by deadline (seconds, as sl_seconds); tests: the full
  * plan's from row_limit, the coarse pass's from coarse_row_limit on when
- * > 0. */
+ * > 0, every row after the coarse pass's blocks of coarse_block_limit px
+ * (16, 8 or 4) when > 0. */
 typedef struct sl_glossy_limits {
     double deadline;
-    int row_limit, coarse_row_limit;
+    int row_limit, coarse_row_limit, coarse_block_limit;
 } sl_glossy_limits;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
  * costs per image row. Every pixel's sun first; when the plan may be cut
@@ -150,8 +153,8 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
  * edge midpoints (top, left, right, bottom) and centre. True when the
  * bilinear interpolation of the corners agrees at the other five within
  * tol x the point's scale (NULL: its value) past slack x the points'
- * largest error; err is then the interpolated values' error (that largest
- * error plus the largest difference). */
+ * largest error; err is, either way, the interpolated values' error
+ * estimate (that largest error plus the largest difference). */
 bool sl_fill_check(const double v[9][3], const double e[9][3], const double (*scale)[3], double tol, double slack,
                    double err[3]);
 /* Bilinear interpolation of corners v (as above) at (fx, fy) in [0, 1]^2. */

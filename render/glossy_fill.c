@@ -182,6 +182,18 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
 
 /* ---- the pixels ---- */
 
+/* A pixel's rest in a pass: none yet, evaluated, interpolated by a block
+ * that passed its check, or (coarse pass) interpolated by one that failed
+ * it, with the difference it found as the error, until a finer block or
+ * the pixel's own evaluation replaces it. */
+enum { REST_NONE, REST_EVALUATED, REST_INTERPOLATED, REST_PROVISIONAL };
+
+/* Known at the pass's tolerance. */
+static bool rest_known(uint8_t state)
+{
+    return state == REST_EVALUATED || state == REST_INTERPOLATED;
+}
+
 typedef struct fill_job {
     const sl_closed_form *cf;
     const sl_scene *scene;
@@ -196,7 +208,7 @@ typedef struct fill_job {
     int row0;         /* finish_rows: the band's first row */
     uint8_t *row_cut; /* per image row: ran into the deadline */
     uint8_t *need;    /* per pixel: its rest to be evaluated in this pass */
-    uint8_t *rest_state; /* 0 unknown, 1 evaluated, 2 interpolated */
+    uint8_t *rest_state; /* REST_NONE ... REST_PROVISIONAL */
     double (*rest)[3], (*rest_err)[3];
     uint8_t *coarse_state; /* the coarse pass's rest_state, rest and rest_err, or NULL */
     double (*coarse)[3], (*coarse_err)[3];
@@ -204,6 +216,8 @@ typedef struct fill_job {
     uint8_t *sun_state;              /* 1: sun evaluated at sun_floor's scale */
     double sun_floor[3];             /* the sun pass's refinement scale (the rest unknown yet) */
     double sun_tol;                  /* the sun pass's tolerance */
+    bool provisional;  /* the coarse pass: a failed block's pixels keep its interpolation meanwhile */
+    int block_limit;   /* tests: the lattice stops after its blocks of this size, all rows cut */
     sl_glossy_scratch **scratch; /* per worker */
     int workers;
     bool failed;      /* no memory for a scratch: the rows are left to sampling */
@@ -240,7 +254,7 @@ static void eval_rest(fill_job *j, const size_t *pix, int count, sl_glossy_scrat
     for (int i = 0; i < count; i++) {
         memcpy(j->rest[pix[i]], out[i], sizeof out[i]);
         memcpy(j->rest_err[pix[i]], err[i], sizeof err[i]);
-        j->rest_state[pix[i]] = 1;
+        j->rest_state[pix[i]] = REST_EVALUATED;
     }
 }
 
@@ -268,8 +282,8 @@ static bool rest_of_row(fill_job *j, int64_t y, bool points, double deadline, sl
     int count = 0;
     for (int x = 0; x <= j->w; x++) {
         size_t p = (size_t)y * j->w + x;
-        bool want = x < j->w && (points ? j->need[p] && j->rest_state[p] != 1
-                                        : j->px->state[p] == SL_GLOSSY_PENDING && !j->rest_state[p]);
+        bool want = x < j->w && (points ? j->need[p] && j->rest_state[p] != REST_EVALUATED
+                                        : j->px->state[p] == SL_GLOSSY_PENDING && !rest_known(j->rest_state[p]));
         /* the batch so far is done when this pixel cannot join it */
         if (count > 0 && (x == j->w || (int)(p - pix[0]) > BATCH_SPAN ||
                           (want && (count == SL_GLOSSY_BATCH || !lobes_overlap(j, pix[0], p))))) {
@@ -366,6 +380,7 @@ bool sl_fill_check(const double v[9][3], const double e[9][3], const double (*sc
 {
     if (!scale)
         scale = v;
+    bool pass = true;
     for (int c = 0; c < 3; c++) {
         /* Interpolations at the edge midpoints (top, left, right, bottom)
          * and the centre. */
@@ -380,13 +395,12 @@ bool sl_fill_check(const double v[9][3], const double e[9][3], const double (*sc
         double d = 0;
         for (int k = 0; k < 5; k++) {
             double dk = fabs(lin[k] - v[4 + k][c]);
-            if (dk > tol * scale[4 + k][c] + slack * bmax)
-                return false;
+            pass &= dk <= tol * scale[4 + k][c] + slack * bmax;
             d = fmax(d, dk);
         }
         err[c] = bmax + d;
     }
-    return true;
+    return pass;
 }
 
 void sl_fill_bilinear(const double v[4][3], double fx, double fy, double out[3])
@@ -397,29 +411,32 @@ void sl_fill_bilinear(const double v[4][3], double fx, double fy, double out[3])
 }
 
 /* Checks a whole block's interpolation at its centre and edge midpoints;
- * on success fills its own pixels [x0, x0 + S)^2 not evaluated. */
+ * on success fills its own pixels [x0, x0 + S)^2 not evaluated. On
+ * failure, in the coarse pass, they keep it provisionally (REST_PROVISIONAL,
+ * the difference found as its error), for a cut that leaves them there. */
 static bool try_block(fill_job *j, const block *b, int S)
 {
     double v[9][3], e[9][3], bmax[3];
     for (int k = 0; k < 9; k++) {
         size_t p = (size_t)(b->y0 + POINT[k][1] * S / 2) * j->w + (size_t)(b->x0 + POINT[k][0] * S / 2);
-        if (j->rest_state[p] != 1)
+        if (j->rest_state[p] != REST_EVALUATED)
             return false;
         memcpy(v[k], j->rest[p], sizeof v[k]);
         memcpy(e[k], j->rest_err[p], sizeof e[k]);
     }
-    if (!sl_fill_check(v, e, NULL, INTERP_SHARE * j->check_tol, j->slack, bmax))
+    bool pass = sl_fill_check(v, e, NULL, INTERP_SHARE * j->check_tol, j->slack, bmax);
+    if (!pass && !j->provisional)
         return false;
     for (int y = b->y0; y < b->y0 + S; y++)
         for (int x = b->x0; x < b->x0 + S; x++) {
             size_t q = (size_t)y * j->w + x;
-            if (j->rest_state[q] == 1)
+            if (j->rest_state[q] == REST_EVALUATED)
                 continue;
             sl_fill_bilinear((const double(*)[3])v, (double)(x - b->x0) / S, (double)(y - b->y0) / S, j->rest[q]);
             memcpy(j->rest_err[q], bmax, sizeof bmax);
-            j->rest_state[q] = 2;
+            j->rest_state[q] = pass ? REST_INTERPOLATED : REST_PROVISIONAL;
         }
-    return true;
+    return pass;
 }
 
 /* The sun at every glossy pixel, first: a --time cut then leaves each one
@@ -451,8 +468,8 @@ static void sun_rows(void *ctx, int64_t begin, int64_t end, int worker)
 
 /* Each row in full, in image order: the rest at every pixel no block
  * interpolated, then the sun at every pixel, and the pixel's totals. A
- * --time cut then leaves the rows finished before it exact, and only the
- * rows after it to sampling. */
+ * --time cut leaves the rows finished before it at the tolerance and the
+ * others with the best rest known (keep_cut_rows). */
 static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     fill_job *j = ctx;
@@ -466,7 +483,13 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
             j->failed |= !s;
             continue;
         }
-        rest_of_row(j, y, false, INFINITY, s); /* a started row is finished */
+        /* A row the deadline cuts keeps what its pixels have (keep_cut_rows):
+         * a row of pixels evaluated one by one at the full tolerance would
+         * overrun it by up to ~0.1 s. */
+        if (!rest_of_row(j, y, false, j->deadline, s)) {
+            j->row_cut[y] = 1;
+            continue;
+        }
         for (int x = 0; x < j->w; x++) {
             size_t pix = (size_t)y * j->w + x;
             if (j->px->state[pix] != SL_GLOSSY_PENDING)
@@ -487,7 +510,7 @@ static void finish_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 j->px->value[pix][c] = floor[c] + sun[c];
                 j->cf->bound[pix][c] = (float)(j->rest_err[pix][c] + serr[c]);
             }
-            j->px->state[pix] = j->rest_state[pix] == 2 ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
+            j->px->state[pix] = j->rest_state[pix] == REST_INTERPOLATED ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
         }
     }
 }
@@ -547,8 +570,10 @@ static void keep_cut_rows(fill_job *j)
                 j->cf->bound[pix][c] = (float)((sun ? j->sun_err[pix][c] : 0.0) + (has_rest ? rest_err[pix][c] : 0.0));
             }
             if (has_rest) {
-                j->px->state[pix] = state[pix] == 2 ? SL_GLOSSY_INTERPOLATED : SL_GLOSSY_DONE;
-                j->px->coarse[pix] = state == j->coarse_state;
+                j->px->state[pix] = state[pix] == REST_EVALUATED ? SL_GLOSSY_DONE : SL_GLOSSY_INTERPOLATED;
+                if (state == j->coarse_state)
+                    j->px->coarse[pix] = state[pix] == REST_PROVISIONAL ? SL_GLOSSY_COARSE_PROVISIONAL
+                                                                        : SL_GLOSSY_COARSE_KEPT;
             } else {
                 j->cf->mode[pix] = SL_PIXEL_SUN;
             }
@@ -599,7 +624,7 @@ static void lattice(fill_job *j, block *cur, block *next)
             for (int y = b->y0; y < b->y0 + S && y < h && !any; y++)
                 for (int x = b->x0; x < b->x0 + S && x < w && !any; x++) {
                     size_t p = (size_t)y * w + x;
-                    any = image_blocked(j, p) && !j->rest_state[p] && !j->row_cut[y];
+                    any = image_blocked(j, p) && !rest_known(j->rest_state[p]) && !j->row_cut[y];
                 }
             if (!any || (block_whole(j, b, S) && block_narrow(j, b, S) && try_block(j, b, S)))
                 continue;
@@ -609,6 +634,10 @@ static void lattice(fill_job *j, block *cur, block *next)
         block *t = cur;
         cur = next, next = t;
         ncur = nnext;
+        if (j->block_limit >= S) { /* tests: as if the deadline came now */
+            memset(j->row_cut, 1, (size_t)h);
+            break;
+        }
     }
 }
 
@@ -620,7 +649,8 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
     fill_job j = {.cf = cf, .scene = scene, .px = px, .w = w, .h = h, .row_cost = row_cost, .row_cut = row_cut};
     /* A plan that may be cut (the deadline, or the tests' stand-in) gets
      * the coarse pass first. */
-    bool coarse = isfinite(lim->deadline) || lim->row_limit > 0 || lim->coarse_row_limit > 0;
+    bool coarse = isfinite(lim->deadline) || lim->row_limit > 0 || lim->coarse_row_limit > 0 ||
+                  lim->coarse_block_limit > 0;
     j.workers = sl_threads_get();
     j.scratch = calloc((size_t)j.workers, sizeof *j.scratch);
     j.need = calloc(npix, 1);
@@ -659,6 +689,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
          * (which gets what time it leaves). */
         j.tol = SL_GLOSSY_COARSE * cf->tol, j.check_tol = SL_GLOSSY_COARSE_CHECK * cf->tol, j.slack = 0;
         j.deadline = lim->deadline, j.row_limit = lim->coarse_row_limit;
+        j.provisional = true, j.block_limit = lim->coarse_block_limit;
         lattice(&j, cur, next);
         sl_parallel_for(h, 1, rest_left_rows, &j);
         uint8_t *ts = j.coarse_state;
@@ -668,6 +699,7 @@ sl_result sl_glossy_fill(const sl_closed_form *cf, const sl_scene *scene, sl_glo
     }
     j.tol = j.check_tol = cf->tol, j.slack = 2.0;
     j.deadline = lim->deadline, j.row_limit = lim->row_limit;
+    j.provisional = false, j.block_limit = 0;
     lattice(&j, cur, next);
     finish_bands(&j);
     keep_cut_rows(&j);

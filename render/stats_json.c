@@ -22,7 +22,7 @@ static void level_words(int k, char *buf, size_t size)
 
 const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, size_t size)
 {
-    char top[48], fine[48], lights[96] = "", cut[352] = "", coarse[128] = "";
+    char top[48], fine[48], lights[96] = "", cut[352] = "", coarse[192] = "";
     size_t n = 0;
     if (st->evaluations > 0 && st->cells > 0) {
         level_words(st->top_level, top, sizeof top);
@@ -47,8 +47,9 @@ const char *sl_closed_form_describe(const sl_closed_form_stats *st, char *buf, s
                  (long long)st->cut_pixels, (long long)st->sun_exact_pixels);
     if (st->coarse_pixels > 0)
         snprintf(coarse, sizeof coarse,
-                 "; --time ran out: %lld pixels keep the coarse pass's value and bound (tolerance %g)",
-                 (long long)st->coarse_pixels, st->coarse_tolerance);
+                 "; --time ran out: %lld pixels keep the coarse pass's value and bound (tolerance %g; "
+                 "%lld of them a failed block's interpolation)",
+                 (long long)st->coarse_pixels, st->coarse_tolerance, (long long)st->provisional_pixels);
     if (n < size)
         snprintf(buf + n, size - n, "%s%s%s", lights, cut, coarse);
     return buf;
@@ -129,6 +130,7 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "sun_exact_pixels", json_integer(cf->sun_exact_pixels));
     json_object_set_new(jc, "coarse_pixels", json_integer(cf->coarse_pixels));
     json_object_set_new(jc, "coarse_tolerance", json_real(cf->coarse_tolerance));
+    json_object_set_new(jc, "provisional_pixels", json_integer(cf->provisional_pixels));
     json_object_set_new(jc, "shadow_exact_pixels", json_integer(cf->shadow_exact_pixels));
     json_object_set_new(jc, "shadow_evaluations", json_integer(cf->shadow_evaluations));
     json_object_set_new(jc, "shadow_cells", json_integer(cf->shadow_cells));

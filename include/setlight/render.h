@@ -304,6 +304,12 @@ typedef struct sl_render_options {
      * from it on keep their sun exact and sample the rest of the map; 0 =
      * no such cut. */
     int plan_coarse_row_limit;
+    /* Tests: the glossy coarse pass stops after its image blocks of this
+     * size (16, 8 or 4 px), as if the deadline came then: a pixel of a
+     * block that failed its check keeps that block's interpolation, with
+     * the difference the check found as its error estimate; 0 = no such
+     * cut. */
+    int plan_coarse_block_limit;
     /* Tests: the Lambert fill's refinement stops after this many
      * evaluations past its first pass, as if --time ran out there; 0 = no
      * such cut. */
@@ -347,6 +353,9 @@ typedef struct sl_closed_form_stats {
     int64_t coarse_pixels;       /* glossy pixels of rows a cut left that keep the coarse
                                     pass's rest and its error estimate */
     double coarse_tolerance;     /* that pass's tolerance (0 when no pixel kept it) */
+    int64_t provisional_pixels;  /* of those, pixels whose coarse block failed its check and
+                                    the cut came before a finer one: they keep its
+                                    interpolation, the difference found as their estimate */
     double rms_rel_bound;        /* RMS over closed-form pixels of the relative bound */
     double seconds;
     /* Per object (as objects[]): its material's type, its exact and

@@ -36,23 +36,40 @@ static void sun_and_sky(sl_image *env)
     }
 }
 
+/* sun_and_sky() with a lamp in the rest (below the sun's threshold), whose
+ * reflection makes blocks fail their check. */
+static void sun_sky_and_lamp(sl_image *env)
+{
+    sun_and_sky(env);
+    for (int y = 20; y < 26; y++)
+        for (int x = 150; x < 158; x++) {
+            float *p = sl_image_pixel(env, x, y);
+            p[0] = p[1] = p[2] = 20.0f;
+        }
+}
+
 typedef struct cut_case {
     const char *name;
     bool plastic;
     double roughness;
 } cut_case;
 
-static void scene_for(sl_scene *s, const sl_image *env, const cut_case *c)
+static void scene_at(sl_scene *s, const sl_image *env, const cut_case *c, int width)
 {
     sl_error err = {0};
     sl_scene_init(s);
-    CHECK_OK(sl_scene_preset(s, "grey", WIDTH, &err), &err);
+    CHECK_OK(sl_scene_preset(s, "grey", width, &err), &err);
     CHECK_OK(sl_scene_set_dome(s, env, 0, 1, "sky", &err), &err);
     if (c->plastic)
         sl_material_plastic(&s->materials[0], (const double[3]){0.5, 0.5, 0.5}, 1.5, c->roughness);
     else
         sl_material_conductor(&s->materials[0], (const double[3]){0.9, 0.9, 0.9}, (const double[3]){1, 1, 1},
                               c->roughness);
+}
+
+static void scene_for(sl_scene *s, const sl_image *env, const cut_case *c)
+{
+    scene_at(s, env, c, WIDTH);
 }
 
 /* row_limit < 0: the closed form off (the whole map sampled); > 0: the
@@ -206,11 +223,75 @@ static void check_coarse(const sl_image *env, const cut_case *c)
     sl_scene_free(&s);
 }
 
-/* Each check under sun_and_sky() for metal 0.3, metal 0.8 and plastic 0.4. */
-static void for_each_case(void (*check)(const sl_image *env, const cut_case *c))
+/* Wide enough for whole 8 px blocks narrow enough for metal 0.3's lobe. */
+#define BLOCKS_WIDTH 96
+
+/* Cut in the coarse pass right after its 8 px or its 4 px blocks (as a
+ * deadline there): every pixel a whole block covered keeps a closed form
+ * (measured at 96 px: 65-90% of the ball after the 4 px blocks),
+ * the pixels of a block that failed its check (the lamp's reflection) its
+ * interpolation, each within its error estimate of the tight plan (plus
+ * that plan's); only pixels no block covered (the rim) are left to
+ * sampling, with their sun exact. */
+static void check_provisional(const sl_image *env, const cut_case *c)
+{
+    sl_scene s;
+    scene_at(&s, env, c, BLOCKS_WIDTH);
+    sl_render_options o;
+    sl_render_options_init(&o);
+    o.pixel_centers = true;
+    sl_closed_form tight;
+    sl_closed_form_stats ts;
+    sl_error err = {0};
+    o.closed_form_tolerance = 1e-3;
+    CHECK_OK(sl_closed_form_plan(&tight, &s, &o, &ts, &err), &err);
+    o.closed_form_tolerance = 0;
+    int64_t ball = ts.exact_pixels, exact_before = 0;
+    for (int size = 8; size >= 4; size /= 2) {
+        sl_closed_form cut;
+        sl_closed_form_stats cs;
+        o.plan_coarse_block_limit = size;
+        CHECK_OK(sl_closed_form_plan(&cut, &s, &o, &cs, &err), &err);
+        int64_t outside = 0;
+        double worst = 0;
+        for (size_t i = 0; i < (size_t)BLOCKS_WIDTH * BLOCKS_WIDTH; i++) {
+            if (cut.mode[i] != SL_PIXEL_EXACT)
+                continue;
+            bool out = false;
+            for (int k = 0; k < 3; k++) {
+                double d = fabs((double)cut.value[i][k] - tight.value[i][k]),
+                       b = (double)cut.bound[i][k] + tight.bound[i][k];
+                CHECK(isfinite(cut.value[i][k]) && cut.value[i][k] >= 0);
+                out |= d > b;
+                worst = fmax(worst, d / b);
+            }
+            outside += out;
+        }
+        printf("  %s, cut after the %d px blocks: %lld exact (%lld of them a failed block's interpolation), "
+               "%lld sun exact of %lld; worst %.2f x its estimate\n",
+               c->name, size, (long long)cs.exact_pixels, (long long)cs.provisional_pixels,
+               (long long)cs.sun_exact_pixels, (long long)ball, worst);
+        /* Metal 0.3's lobe is too narrow for 8 px blocks at this size:
+         * its first blocks are of 4 px. */
+        CHECK_MSG(cs.cut_by_time && cs.exact_pixels + cs.sun_exact_pixels == ball &&
+                      cs.coarse_pixels == cs.exact_pixels && cs.exact_pixels >= exact_before &&
+                      (size > 4 || (cs.provisional_pixels > 0 && cs.exact_pixels > ball / 2)),
+                  "%s: %lld exact, %lld coarse, %lld provisional, %lld sun exact of %lld", c->name,
+                  (long long)cs.exact_pixels, (long long)cs.coarse_pixels, (long long)cs.provisional_pixels,
+                  (long long)cs.sun_exact_pixels, (long long)ball);
+        CHECK_MSG(outside == 0, "%s: %lld values outside their estimates", c->name, (long long)outside);
+        exact_before = cs.exact_pixels;
+        sl_closed_form_free(&cut);
+    }
+    sl_closed_form_free(&tight);
+    sl_scene_free(&s);
+}
+
+/* Each check under env_of() for metal 0.3, metal 0.8 and plastic 0.4. */
+static void for_each_case_under(void (*env_of)(sl_image *env), void (*check)(const sl_image *env, const cut_case *c))
 {
     sl_image env;
-    sun_and_sky(&env);
+    env_of(&env);
     const cut_case cases[] = {{"metal 0.3", false, 0.3}, {"metal 0.8", false, 0.8}, {"plastic 0.4", true, 0.4}};
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++)
         check(&env, &cases[i]);
@@ -219,17 +300,23 @@ static void for_each_case(void (*check)(const sl_image *env, const cut_case *c))
 
 static void test_cut_keeps_the_coarse_pass(void)
 {
-    for_each_case(check_coarse);
+    for_each_case_under(sun_and_sky, check_coarse);
+}
+
+static void test_cut_keeps_failed_blocks(void)
+{
+    for_each_case_under(sun_sky_and_lamp, check_provisional);
 }
 
 static void test_sun_exact_rest_sampled(void)
 {
-    for_each_case(check_case);
+    for_each_case_under(sun_and_sky, check_case);
 }
 
 int main(void)
 {
     RUN(test_cut_keeps_the_coarse_pass);
+    RUN(test_cut_keeps_failed_blocks);
     RUN(test_sun_exact_rest_sampled);
     return sl_test_finish();
 }
