@@ -792,6 +792,7 @@ sl_result sl_closed_form_plan(sl_closed_form *cf, const sl_scene *scene, const s
         st->at_tolerance_pixels += j.lambert[i] != 2 && !j.glossy.coarse[i];
         st->coarse_pixels += j.glossy.coarse[i] != 0;
         st->provisional_pixels += j.glossy.coarse[i] == SL_GLOSSY_COARSE_PROVISIONAL;
+        st->refined_pixels += j.glossy.coarse[i] == SL_GLOSSY_COARSE_REFINED;
         if (k < SL_CLOSED_FORM_MAX_OBJECTS) {
             st->object_exact[k] += m == SL_PIXEL_EXACT;
             st->object_control[k] += m == SL_PIXEL_CONTROL;

@@ -117,14 +117,15 @@ typedef struct sl_glossy_pixels {
     double (*wo)[3];       /* its view direction */
     double (*value)[3];    /* out: its radiance */
     uint8_t *coarse;       /* out: where it keeps the coarse pass's rest (a cut row):
-                              SL_GLOSSY_COARSE_KEPT, or ..._PROVISIONAL from a failed block */
+                              SL_GLOSSY_COARSE_KEPT, ..._PROVISIONAL from a failed block,
+                              ..._REFINED evaluated by the coarse pass's refinement */
 } sl_glossy_pixels;
 /* Under --time the rest is first evaluated at every pixel at this times
  * the tolerance (the coarse pass), for the rows the full plan does not
  * reach; its blocks interpolate where their check passes at
  * SL_GLOSSY_COARSE_CHECK times the tolerance. */
 #define SL_GLOSSY_COARSE 8.0
-enum { SL_GLOSSY_COARSE_KEPT = 1, SL_GLOSSY_COARSE_PROVISIONAL = 2 };
+enum { SL_GLOSSY_COARSE_KEPT = 1, SL_GLOSSY_COARSE_PROVISIONAL, SL_GLOSSY_COARSE_REFINED };
 #define SL_GLOSSY_COARSE_CHECK 6.0
 /* Where sl_glossy_fill is cut: the coarse pass's and the full plan's rows
  * not started by deadline (seconds, as sl_seconds); tests: the full

@@ -131,6 +131,7 @@ sl_result sl_render_stats_write_json(const sl_render_stats *st, const sl_render_
     json_object_set_new(jc, "coarse_pixels", json_integer(cf->coarse_pixels));
     json_object_set_new(jc, "coarse_tolerance", json_real(cf->coarse_tolerance));
     json_object_set_new(jc, "provisional_pixels", json_integer(cf->provisional_pixels));
+    json_object_set_new(jc, "refined_pixels", json_integer(cf->refined_pixels));
     json_object_set_new(jc, "shadow_exact_pixels", json_integer(cf->shadow_exact_pixels));
     json_object_set_new(jc, "shadow_evaluations", json_integer(cf->shadow_evaluations));
     json_object_set_new(jc, "shadow_cells", json_integer(cf->shadow_cells));

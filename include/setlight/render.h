@@ -356,6 +356,8 @@ typedef struct sl_closed_form_stats {
     int64_t provisional_pixels;  /* of those, pixels whose coarse block failed its check and
                                     the cut came before a finer one: they keep its
                                     interpolation, the difference found as their estimate */
+    int64_t refined_pixels;      /* of those, pixels the coarse pass interpolated, then evaluated
+                                    (its refinement: the largest error estimates first) */
     double rms_rel_bound;        /* RMS over closed-form pixels of the relative bound */
     double seconds;
     /* Per object (as objects[]): its material's type, its exact and
