@@ -203,8 +203,7 @@ static void check_coarse(const sl_image *env, const cut_case *c)
     CHECK(cs.coarse_tolerance == SL_GLOSSY_COARSE * cs.tolerance);
     /* The refinement ran where the coarse pass interpolated (metal 0.3's
      * lobe is too narrow for blocks at 48 px): the pixels with the largest
-     * estimates evaluated (each within its estimate, below), a quarter of
-     * the squared estimates left interpolated. */
+     * estimates evaluated (each within its estimate, below). */
     CHECK_MSG(cs.interpolated_pixels > 0 ? cs.refined_pixels > 0 : cs.refined_pixels == 0, "%s: %lld refined",
               c->name, (long long)cs.refined_pixels);
     double worst = 0, num = 0, den = 0;
