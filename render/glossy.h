@@ -138,7 +138,9 @@ typedef struct sl_glossy_limits {
 } sl_glossy_limits;
 /* Fills value and cf->bound of every pending pixel (cf->shape set);
  * costs per image row. Every pixel's sun first; when the plan may be cut
- * (a finite deadline or a row limit) the coarse pass; then the image
+ * (a finite deadline or a test's limit) the coarse pass, ended by its
+ * refinement (the interpolated pixels with the largest estimates
+ * evaluated); then the image
  * blocks' rest and row by row in image order each row in full (its
  * pixels' own evaluations and the sun). Rows the cut left are marked in
  * row_cut: their pixels keep the sun plus the best rest known (the full

@@ -29,10 +29,13 @@
  * blocks' check is at SL_GLOSSY_COARSE_CHECK x the tolerance and allows no
  * slack for the points' estimates: at that tolerance they are ~15x the
  * points' true error, and with the slack blocks passed 16% off at an
- * estimate of 7% (env_test.exr, metal 0.3). The pixels no block
- * interpolates (the rim) come last: left to sampling by a cut, their
- * error is far smaller than the interior's failed blocks' would be
- * (docs/render.md). */
+ * estimate of 7% (env_test.exr, metal 0.3). A block that fails gives its
+ * pixels its interpolation meanwhile (REST_PROVISIONAL), so a cut inside
+ * the pass leaves to sampling only what no block has covered. The pixels
+ * no block interpolates (the rim) come last: left to sampling by a cut,
+ * their error is far smaller than the interior's failed blocks' would be
+ * (docs/render.md). Then, time permitting, the interpolated pixels with
+ * the largest error estimates are evaluated (refine_interpolated). */
 #include <stdlib.h>
 #include <string.h>
 
