@@ -146,7 +146,8 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
         sl_glossy_dome_free(gd);
         return res;
     }
-    /* sl_image_alloc's image is zero: only the sun's texels are written. */
+    /* sl_image_alloc's image is zero: only the sun's texels are written,
+     * and only their cells' ancestors are summed. */
     for (int64_t k = 0; k < count; k++) {
         int x = (int)(cand[k].index % W), y = (int)(cand[k].index / W);
         float *r = sl_image_pixel(&gd->rest_dome.image, x, y), *s = sl_image_pixel(&gd->sun_dome.image, x, y);
@@ -155,11 +156,16 @@ sl_result sl_glossy_dome_build(const sl_dome *dome, const sl_irradiance *whole, 
         for (int c = 0; c < img->channels; c++)
             s[c] = r[c], r[c] = 0.0f;
     }
-    free(cand);
+    int64_t *sun_at = malloc((size_t)count * sizeof *sun_at);
+    for (int64_t k = 0; sun_at && k < count; k++)
+        sun_at[k] = cand[k].index;
     gd->sun_texels = count;
     gd->sun_share = power > 0 ? sun_power / power : 0;
-    if ((res = sl_irradiance_build(&gd->sun_dome, &gd->sun, err)) ||
-        (res = sl_irradiance_build(&gd->rest_dome, &gd->own_rest, err))) {
+    res = sun_at ? sl_irradiance_build_sparse(&gd->sun_dome, sun_at, count, &gd->sun, err)
+                 : sl_error_set(err, SL_ERR_NOMEM, "render: out of memory for the dome split");
+    free(sun_at);
+    free(cand);
+    if (res || (res = sl_irradiance_build(&gd->rest_dome, &gd->own_rest, err))) {
         sl_glossy_dome_free(gd);
         return res;
     }

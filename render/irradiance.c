@@ -137,38 +137,72 @@ static bool cell_zero(const cell_sum *c)
     return true;
 }
 
-/* Rows [begin, end) of level k's cells, each the sum of its (up to) four
- * children. A child that is all zero adds nothing and is skipped, so a cell
- * with no light is never written: a sparse map (the sun alone) touches few
- * of its levels' pages, and the sums keep their bits (x + 0 = x). */
+/* Level k's cell (x, y): the sum of its (up to) four children. A child
+ * that is all zero adds nothing and is skipped, so a cell with no light is
+ * never written: a sparse map (the sun alone) touches few of its levels'
+ * pages, and the sums keep their bits (x + 0 = x). */
+static void sum_cell(const sl_irradiance *ir, int k, int x, int y)
+{
+    const level *l = &ir->lv[k], *f = &ir->lv[k - 1];
+    cell_sum *s = &l->cells[(size_t)y * l->w + x];
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 2; i++) {
+            int cx = 2 * x + i, cy = 2 * y + j;
+            if (cx >= f->w || cy >= f->h)
+                continue;
+            cell_sum c;
+            cell_at(ir, k - 1, cx, cy, &c);
+            if (cell_zero(&c))
+                continue;
+            for (int ch = 0; ch < 3; ch++) {
+                for (int d = 0; d < 3; d++)
+                    s->v[ch][d] += c.v[ch][d];
+                s->p[ch] += c.p[ch];
+            }
+        }
+}
+
+/* Rows [begin, end) of level k's cells. */
 static void sum_rows(void *ctx, int64_t begin, int64_t end, int worker)
 {
     (void)worker;
     const level_job *lj = ctx;
-    const sl_irradiance *ir = lj->ir;
-    const level *l = &ir->lv[lj->k], *f = &ir->lv[lj->k - 1];
     for (int64_t y = begin; y < end; y++)
-        for (int x = 0; x < l->w; x++) {
-            cell_sum *s = &l->cells[(size_t)y * l->w + x];
-            for (int j = 0; j < 2; j++)
-                for (int i = 0; i < 2; i++) {
-                    int cx = 2 * x + i, cy = 2 * (int)y + j;
-                    if (cx >= f->w || cy >= f->h)
-                        continue;
-                    cell_sum c;
-                    cell_at(ir, lj->k - 1, cx, cy, &c);
-                    if (cell_zero(&c))
-                        continue;
-                    for (int ch = 0; ch < 3; ch++) {
-                        for (int d = 0; d < 3; d++)
-                            s->v[ch][d] += c.v[ch][d];
-                        s->p[ch] += c.p[ch];
-                    }
-                }
-        }
+        for (int x = 0; x < lj->ir->lv[lj->k].w; x++)
+            sum_cell(lj->ir, lj->k, x, (int)y);
+}
+
+static int cmp_int64(const void *a, const void *b)
+{
+    int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* Level k's cells over the cells (y * width + x) of level k - 1 listed in
+ * `at` (sorted, unique), the only ones with light; `at` becomes level k's
+ * list. The cells sum as in sum_rows, so their bits are the same. */
+static int64_t sum_listed(const sl_irradiance *ir, int k, int64_t *at, int64_t count)
+{
+    int fw = ir->lv[k - 1].w, w = ir->lv[k].w;
+    for (int64_t i = 0; i < count; i++)
+        at[i] = (at[i] / fw / 2) * w + (at[i] % fw) / 2;
+    qsort(at, (size_t)count, sizeof *at, cmp_int64);
+    int64_t n = 0;
+    for (int64_t i = 0; i < count; i++)
+        if (n == 0 || at[i] != at[n - 1])
+            at[n++] = at[i];
+    for (int64_t i = 0; i < n; i++)
+        sum_cell(ir, k, (int)(at[i] % w), (int)(at[i] / w));
+    return n;
 }
 
 sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error *err)
+{
+    return sl_irradiance_build_sparse(dome, NULL, 0, out, err);
+}
+
+sl_result sl_irradiance_build_sparse(const sl_dome *dome, const int64_t *texels, int64_t count,
+                                     sl_irradiance **out, sl_error *err)
 {
     *out = NULL;
     const sl_image *img = &dome->image;
@@ -187,6 +221,14 @@ sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error
         free(ir);
         return sl_error_set(err, SL_ERR_NOMEM, "irradiance: out of memory");
     }
+    int64_t *at = NULL; /* the sparse map's cells with light, level by level */
+    if (texels && !(at = malloc((size_t)(count > 0 ? count : 1) * sizeof *at))) {
+        free(ir->lv);
+        free(ir);
+        return sl_error_set(err, SL_ERR_NOMEM, "irradiance: out of memory");
+    }
+    if (texels)
+        memcpy(at, texels, (size_t)count * sizeof *at);
     ir->img = img;
     ir->nlevels = n;
     memcpy(ir->rot, dome->rot, sizeof ir->rot);
@@ -202,6 +244,7 @@ sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error
             l->cells = calloc((size_t)l->w * (size_t)l->h, sizeof *l->cells);
         if (!l->rows || !l->cols || (k > 0 && !l->cells)) {
             sl_irradiance_free(ir);
+            free(at);
             return sl_error_set(err, SL_ERR_NOMEM, "irradiance: out of memory for the mip levels");
         }
         double width = fmin(2.0 * SL_PI, 2.0 * SL_PI * span / W);
@@ -219,8 +262,12 @@ sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error
         if (k == 0)
             continue;
         level_job lj = {ir, k};
-        sl_parallel_for(l->h, 16, sum_rows, &lj);
+        if (at)
+            count = sum_listed(ir, k, at, count);
+        else
+            sl_parallel_for(l->h, 16, sum_rows, &lj);
     }
+    free(at);
     *out = ir;
     return SL_OK;
 }

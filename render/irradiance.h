@@ -16,6 +16,11 @@ typedef struct sl_irradiance_cost {
 void sl_irradiance_cost_add(sl_irradiance_cost *cost, int64_t evaluations, int64_t cells, int finest);
 /* Mip levels of the dome's exact cell sums (intensity and rotation kept). */
 sl_result sl_irradiance_build(const sl_dome *dome, sl_irradiance **out, sl_error *err);
+/* The same for a dome whose radiance is zero but at texels[0..count-1]
+ * (y * width + x, distinct): only their cells' ancestors are summed, with
+ * the same bits as sl_irradiance_build's (the glossy split's sun map). */
+sl_result sl_irradiance_build_sparse(const sl_dome *dome, const int64_t *texels, int64_t count,
+                                     sl_irradiance **out, sl_error *err);
 void sl_irradiance_free(sl_irradiance *ir);
 int sl_irradiance_top_level(const sl_irradiance *ir);
 /* E[c] = integral of L max(0, n.w) dw for the world normal n, and bound[c]
