@@ -300,9 +300,10 @@ typedef struct sl_render_options {
      * first); 0 = no such cut. A deterministic stand-in for the deadline. */
     int plan_row_limit;
     /* Tests: the glossy coarse pass (run when the plan may be cut) stops
-     * at this image row, as if the deadline came there: its pixels
-     * from it on keep their sun exact and sample the rest of the map; 0 =
-     * no such cut. */
+     * at this image row, as if the deadline came there: past its first
+     * level of blocks, which always completes, its pixels from it on keep
+     * what those blocks gave them, else their sun exact and sample the
+     * rest of the map; 0 = no such cut. */
     int plan_coarse_row_limit;
     /* Tests: the glossy coarse pass stops after its image blocks of this
      * size (16, 8 or 4 px), as if the deadline came then: a pixel of a

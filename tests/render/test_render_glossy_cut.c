@@ -3,12 +3,14 @@
  * = 1: the full plan stops before any ball row), every cut pixel keeps the
  * coarse pass's closed form (its refinement included), within its reported
  * error estimate of a tight plan; cut inside the coarse pass, after its 8
- * or 4 px blocks, so do those its blocks reached. Cut before the coarse pass too (plan_coarse_row_limit = 1, as a
- * budget that ran out right after the sun pass), every cut pixel keeps its
- * sun exact and samples only the rest of the map (the map without the
- * sun's texels): the estimate converges to the uncut closed form (no sun
- * counted twice or missed), and at equal spp its noise is far below the
- * whole-map sampler's. */
+ * or 4 px blocks, so do those its blocks reached. Cut right after the sun
+ * pass (plan_coarse_row_limit = 1, as a budget that ran out there), the
+ * coarse pass's first blocks still complete (the same pixels and values as
+ * a cut after them), and every pixel they do not cover keeps its sun exact
+ * and samples only the rest of the map (the map without the sun's
+ * texels): the estimate converges to the uncut closed form (no sun counted
+ * twice or missed), and at equal spp its noise is far below the whole-map
+ * sampler's. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -135,9 +137,13 @@ static void check_case(const sl_image *env, const cut_case *c)
     int64_t spp = sl_test_sanitized() ? 64 : 256;
     render(&s, spp, 1, &cut, &cs);
     CHECK(cs.closed_form.cut_by_time);
-    /* Row 0 (the limit) is finished: its pixels exact, every other one cut. */
+    /* Row 0 (the limit) is finished; of the other rows' pixels, those the
+     * coarse pass's first blocks covered keep their value (metal 0.8: 261;
+     * metal 0.3's and plastic 0.4's lobes are too narrow for 16 px blocks
+     * at 48 px), the others are sun exact. */
     CHECK_MSG(cs.closed_form.sun_exact_pixels + cs.closed_form.exact_pixels == ball &&
-                  cs.closed_form.sun_exact_pixels > ball * 9 / 10 && cs.closed_form.cut_pixels == cs.closed_form.sun_exact_pixels,
+                  cs.closed_form.exact_pixels - cs.closed_form.coarse_pixels <= WIDTH &&
+                  cs.closed_form.sun_exact_pixels > ball * 8 / 10 && cs.closed_form.cut_pixels == cs.closed_form.sun_exact_pixels,
               "%s: %lld sun-exact, %lld exact, %lld cut pixels, %lld on the ball", c->name,
               (long long)cs.closed_form.sun_exact_pixels, (long long)cs.closed_form.exact_pixels,
               (long long)cs.closed_form.cut_pixels, (long long)ball);
@@ -254,6 +260,28 @@ static void check_provisional(const sl_image *env, const cut_case *c)
     CHECK_OK(sl_closed_form_plan(&tight, &s, &o, &ts, &err), &err);
     o.closed_form_tolerance = 0;
     int64_t ball = ts.exact_pixels, exact_before = 0;
+    /* A cut right after the sun pass (row 0 finished): the first (16 px)
+     * blocks complete all the same, the same pixels and values as a cut
+     * after them. */
+    sl_closed_form first, after16;
+    sl_closed_form_stats fs, as;
+    o.plan_coarse_row_limit = 1;
+    CHECK_OK(sl_closed_form_plan(&first, &s, &o, &fs, &err), &err);
+    o.plan_coarse_row_limit = 0, o.plan_coarse_block_limit = 16;
+    CHECK_OK(sl_closed_form_plan(&after16, &s, &o, &as, &err), &err);
+    size_t row1 = BLOCKS_WIDTH, np = (size_t)BLOCKS_WIDTH * BLOCKS_WIDTH;
+    int64_t from_blocks = 0;
+    for (size_t i = row1; i < np; i++)
+        from_blocks += first.mode[i] == SL_PIXEL_EXACT;
+    CHECK_MSG(memcmp(first.mode + row1, after16.mode + row1, np - row1) == 0 &&
+                  memcmp(first.value + row1, after16.value + row1, (np - row1) * sizeof *first.value) == 0 &&
+                  (c->roughness < 0.5 || from_blocks > ball / 4),
+              "%s: cut after the sun pass %lld exact, after the 16 px blocks %lld", c->name,
+              (long long)fs.exact_pixels, (long long)as.exact_pixels);
+    printf("  %s, cut right after the sun pass: %lld of %lld pixels from the first blocks\n", c->name,
+           (long long)from_blocks, (long long)ball);
+    sl_closed_form_free(&first);
+    sl_closed_form_free(&after16);
     for (int size = 8; size >= 4; size /= 2) {
         sl_closed_form cut;
         sl_closed_form_stats cs;
