@@ -235,7 +235,7 @@ static bool sphere_cone(const sl_light *l, const double p[3], double axis[3], do
 bool sl_light_sample(const sl_light *l, const double p[3], const double u[2], double wi[3],
                      double *dist, double L[3], double *pdf, bool *delta)
 {
-    double q[3];
+    double q[3] = {0, 0, 0}; /* every light type sets it; the compiler cannot see the switch is whole */
     *delta = false;
     *pdf = 0;
     switch (l->type) {
