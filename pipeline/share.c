@@ -224,6 +224,8 @@ void sl_pipeline_jobs_share(const char *jobs_json, const char *claims_dir, char 
     if (fd >= 0)
         close(fd);
     for (int i = 0; i < count; i++) {
+        if (codes[i] == SL_PIPELINE_JOB_ELSEWHERE)
+            sl_error_clear(&errs[i]); /* the process that took it says it */
         json_decref(jobs[i]);
         json_decref(graphs[i]);
     }
