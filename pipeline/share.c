@@ -86,14 +86,16 @@ static int job_state(const char *dir, int i)
     return claimant_gone(dir, path) ? S_FAILED : S_TAKEN;
 }
 
-/* Takes job i: true when this process made its claim file. */
-static bool claim(const char *dir, int i)
+/* Takes job i: 1 when this process made its claim file, 0 when another
+ * process has it, -1 (errno set) when it cannot be made: no such folder,
+ * no permission, the disk full. */
+static int claim(const char *dir, int i)
 {
     char path[PATH_MAX + 64], text[400], host[256] = "?";
     claim_path(dir, i, "", path, sizeof path);
     int fd = open(path, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
     if (fd < 0)
-        return false;
+        return errno == EEXIST ? 0 : -1;
     gethostname(host, sizeof host - 1);
     const char *slurm_id = getenv("SLURM_JOB_ID");
     int len = snprintf(text, sizeof text, "%s %ld %s\n", host, (long)getpid(),
@@ -102,7 +104,7 @@ static bool claim(const char *dir, int i)
         /* a claim is its existence; what it says only helps find a dead one */
     }
     close(fd);
-    return true;
+    return 1;
 }
 
 /* Job i ended with code (-1: not run): N.done, written whole then renamed
@@ -162,8 +164,8 @@ void sl_pipeline_jobs_share(const char *jobs_json, const char *claims_dir, char 
         close(watch);
         watch = -1;
     }
-    bool ran_any = false;
-    for (;;) {
+    bool ran_any = false, stop = false;
+    while (!stop) {
         for (int i = 0; i < count; i++)
             state[i] = job_state(claims_dir, i);
         bool waiting = false, took = false;
@@ -184,7 +186,16 @@ void sl_pipeline_jobs_share(const char *jobs_json, const char *claims_dir, char 
                 waiting = true;
                 continue;
             }
-            if (!claim(claims_dir, i))
+            int mine = claim(claims_dir, i);
+            if (mine < 0) {
+                /* not run here, and said: never an exit 0 for jobs not run */
+                codes[i] = sl_result_exit_code(SL_ERR_IO);
+                sl_error_set(&errs[i], SL_ERR_IO, "%s: cannot claim %s in %s: %s", jobs_json,
+                             ids[i], claims_dir, strerror(errno));
+                stop = true;
+                break;
+            }
+            if (!mine)
                 continue; /* taken meanwhile by another process */
             took = true;
             if (blocked) {
@@ -200,7 +211,7 @@ void sl_pipeline_jobs_share(const char *jobs_json, const char *claims_dir, char 
             }
             mark_done(claims_dir, i, codes[i]);
         }
-        if (took)
+        if (took || stop)
             continue;
         if (!waiting)
             break; /* every job taken: nothing left here for this process */
@@ -220,7 +231,7 @@ void sl_pipeline_jobs_share(const char *jobs_json, const char *claims_dir, char 
     /* every job taken: the scripts skip this setup without a start of setlight */
     char all[PATH_MAX + 64];
     snprintf(all, sizeof all, "%s/all", claims_dir);
-    int fd = open(all, O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+    int fd = stop ? -1 : open(all, O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
     if (fd >= 0)
         close(fd);
     for (int i = 0; i < count; i++) {

@@ -8,7 +8,8 @@
  * together split its jobs, each job runs exactly once and the outputs are
  * those of one worker alone; a failed job's dependants are not run by
  * either; a job whose claimant died without ending it (on this host, or
- * with its Slurm job said ended) does not leave the other waiting. */
+ * with its Slurm job said ended) does not leave the other waiting; a claims
+ * folder that takes no claim runs nothing and says so. */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -233,10 +234,29 @@ static void test_gone_claimant(void)
     }
 }
 
+/* A claims folder that cannot take a claim: nothing run, and said (not an
+ * exit 0 with every job "taken elsewhere"). */
+static void test_claims_folder_missing(void)
+{
+    char out[1024], jobs[1100], claims[1100];
+    snprintf(out, sizeof out, "%s/noclaims", sl_test_tmpdir());
+    snprintf(jobs, sizeof jobs, "%s/jobs.json", out);
+    snprintf(claims, sizeof claims, "%s/farm/none", out);
+    write_setup(out, jobs, -1);
+    int codes[N];
+    sl_error errs[N];
+    sl_pipeline_jobs_share(jobs, claims, (char *const *)ids, N, codes, errs);
+    CHECK_MSG(codes[0] == sl_result_exit_code(SL_ERR_IO) && errs[0].code == SL_ERR_IO &&
+                  strstr(errs[0].message, "cannot claim s/merge/0"),
+              "code %d: %s", codes[0], errs[0].message);
+    CHECK(runs_of(out, 0) == 0);
+}
+
 int main(void)
 {
     RUN(test_two_workers_split_a_setup);
     RUN(test_failure_not_run_by_either);
     RUN(test_gone_claimant);
+    RUN(test_claims_folder_missing);
     return sl_test_finish();
 }

@@ -232,7 +232,7 @@ int cmd_job(int argc, char **argv, const sl_cli *cli)
                 if (errs[i].code)
                     cli_fail(cli, &errs[i]);
                 rc |= codes[i] != 0 && codes[i] != SL_PIPELINE_JOB_ELSEWHERE;
-                took += codes[i] != SL_PIPELINE_JOB_ELSEWHERE;
+                took += codes[i] != SL_PIPELINE_JOB_ELSEWHERE && !errs[i].code;
             }
             if (claims && !cli->quiet) /* the Slurm job's log: who ran what */
                 fprintf(stderr, "setlight job: took %d of %d jobs\n", took, n);
