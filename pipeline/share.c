@@ -36,10 +36,10 @@ static void claim_path(const char *dir, int i, const char *suffix, char *path, s
 }
 
 /* Whether the process named in claim file `path` ("HOST PID SLURM_JOB_ID")
- * is gone: on this host no such process, or its Slurm job said it ended
- * (FARM/ended.ID, FARM the claims folder's grandparent; the Slurm runner
- * writes it for a job that was killed) while the job has no N.done. An
- * unreadable or half-written claim is taken as alive. */
+ * is gone: on this host no such process, or its Slurm job seen ended by the
+ * Slurm runner without saying so itself (killed: FARM/ended/ID, FARM the
+ * claims folder's grandparent) while the job has no N.done. An unreadable
+ * or half-written claim is taken as alive. */
 static bool claimant_gone(const char *dir, const char *path)
 {
     char text[512] = "", host[256] = "", here[256] = "", slurm_id[64] = "";
@@ -59,7 +59,7 @@ static bool claimant_gone(const char *dir, const char *path)
     if (got == 3 && strcmp(slurm_id, "-")) {
         char ended[PATH_MAX + 128];
         struct stat sb;
-        snprintf(ended, sizeof ended, "%s/../../ended.%s", dir, slurm_id);
+        snprintf(ended, sizeof ended, "%s/../../ended/%s", dir, slurm_id);
         return !stat(ended, &sb);
     }
     return false;

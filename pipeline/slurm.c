@@ -729,25 +729,27 @@ static bool pause_or_wake(const sl_pipeline_slurm_options *o, double pause, doub
 }
 
 /* A job seen ending that did not say so itself in o->wake_dir (killed:
- * scancel, a time or memory limit) is said there for it, ended.SLURM_ID:
- * a grouped setup's job it had taken is then known not to end, on any
- * node (sl_pipeline_jobs_share). true when a file was written. */
-static bool say_ended(const graph *g, const sl_pipeline_slurm_options *o, const bool *was_done,
+ * scancel, a time or memory limit) is said for it in the folder's ended/
+ * (ended/SLURM_ID, a subfolder: its files do not wake this wait): a
+ * grouped setup's job it had taken is then known not to end, on any node
+ * (sl_pipeline_jobs_share). */
+static void say_ended(const graph *g, const sl_pipeline_slurm_options *o, const bool *was_done,
                       const sl_pipeline_slurm_result *res)
 {
-    bool wrote = false;
     for (int i = 0; o->wake_dir && i < g->count; i++) {
         if (was_done[i] || !g->jobs[i].done || !res->jobs[i].slurm_id[0])
             continue;
         char path[PATH_MAX + 64];
         snprintf(path, sizeof path, "%s/ended.%s", o->wake_dir, res->jobs[i].slurm_id);
-        if (access(path, F_OK)) {
-            int fd = open(path, O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
-            if (fd >= 0)
-                close(fd), wrote = true;
-        }
+        if (!access(path, F_OK))
+            continue; /* it said so itself */
+        snprintf(path, sizeof path, "%s/ended", o->wake_dir);
+        mkdir(path, 0755);
+        snprintf(path, sizeof path, "%s/ended/%s", o->wake_dir, res->jobs[i].slurm_id);
+        int fd = open(path, O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+        if (fd >= 0)
+            close(fd);
     }
-    return wrote;
 }
 
 static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
@@ -863,8 +865,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
                     j->missing = 0;
                 }
             }
-            if (say_ended(g, o, was_done, res))
-                woken = wake_mtime(o);
+            say_ended(g, o, was_done, res);
         }
         free(out);
         free(errout);

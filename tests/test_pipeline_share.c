@@ -215,7 +215,9 @@ static void test_gone_claimant(void)
             /* on another node, its Slurm job seen ended by the runner */
             snprintf(text, sizeof text, "elsewhere.invalid 1 4242\n");
             char ended[1100];
-            snprintf(ended, sizeof ended, "%s/farm/ended.4242", out);
+            snprintf(ended, sizeof ended, "%s/farm/ended", out);
+            CHECK(mkdir(ended, 0755) == 0);
+            snprintf(ended, sizeof ended, "%s/farm/ended/4242", out);
             FILE *f = fopen(ended, "w");
             CHECK(f != NULL);
             if (f)
