@@ -127,18 +127,22 @@ static void put_quoted(FILE *f, const char *s)
     fputc('\'', f);
 }
 
-/* A grouped setup's script: its jobs in the graph's order, in one `setlight
- * job JOBS.json ID...` (one start-up for the setup; each job only when the
- * jobs it depends on succeeded; exit 1 when one failed or did not run). The
- * Slurm job's log names each setup it ran. NULL when out of memory. */
-static char *setup_script(const char *name, const json_t *members)
+/* A grouped setup's script, dir/K.sh: its jobs in the graph's order, in one
+ * `setlight job --claims DIR/claims/K JOBS.json ID...` (one start-up for the
+ * setup), shared with any Slurm job that runs the script to help it
+ * (sl_pipeline_jobs_share: each job run once, each only when the jobs it
+ * depends on succeeded; exit 1 when one it took failed or did not run). Its
+ * first argument: what the Slurm job's log says before the setup's name
+ * ("" for the job that took the setup, "helping " for a helper). NULL when
+ * out of memory. */
+static char *setup_script(const char *name, const char *dir, size_t k, const json_t *members)
 {
     char *script = NULL;
     size_t len = 0, i;
     FILE *f = open_memstream(&script, &len);
     if (!f)
         return NULL;
-    fputs("echo 'setlight: setup '", f);
+    fputs("echo \"setlight: ${1}setup \"", f);
     put_quoted(f, name);
     fputc('\n', f);
     json_t *m;
@@ -148,6 +152,13 @@ static char *setup_script(const char *name, const json_t *members)
             const char *word = json_string_value(json_array_get(argv, a));
             put_quoted(f, word ? word : "");
             fputc(a == 3 && i + 1 == json_array_size(members) ? '\n' : ' ', f);
+            if (i == 0 && a == 1) {
+                char claims[PATH_MAX + 330];
+                snprintf(claims, sizeof claims, "%s/claims/%zu", dir, k);
+                fputs("--claims ", f);
+                put_quoted(f, claims);
+                fputc(' ', f);
+            }
         }
     }
     fclose(f);
@@ -160,8 +171,11 @@ static char *setup_script(const char *name, const json_t *members)
  * names, `names`, and working folder, `out`) would only start to find theirs
  * taken, a scheduling pass each, ahead of the day's index: the first job to
  * get here cancels them (where the node has squeue and scancel; else they
- * start and end at once); the others, the day's last among them, end
- * without asking the controller. Each says it ended with a file in dir
+ * start and end at once). Then, rather than leave its CPU idle while
+ * another Slurm job runs the day's last setup (the day's tail), it helps
+ * each setup that still has jobs nobody took (claims/K/all absent): it runs
+ * the setup's script, which takes the jobs that are ready and ends when
+ * every job is taken. Each says it ended with a file in dir
  * (ended.SLURM_JOB_ID), which wakes the runner's wait for its squeue. */
 static char *runner_script(const char *dir, size_t own, const char *all, const char *names,
                            const char *out)
@@ -184,9 +198,12 @@ static char *runner_script(const char *dir, size_t own, const char *all, const c
           "  command -v scancel >/dev/null; then\n"
           "  ids=$(squeue -h -t PD -u \"$(id -un)\" -n \"$n\" -o '%i|%Z' 2>/dev/null |"
           " o=\"$o\" awk -F'|' '$2 == ENVIRON[\"o\"] { print $1 }')\n"
-          "  [ -z \"$ids\" ] || scancel $ids 2>/dev/null\nfi\n"
-          ": >\"$d/ended.${SLURM_JOB_ID:-$$}\" 2>/dev/null\nexit $f\n",
+          "  [ -z \"$ids\" ] || scancel $ids 2>/dev/null\nfi\n",
           f);
+    fprintf(f, "for k in%s; do [ -e \"$d/claims/$k/all\" ] || /bin/sh \"$d/$k.sh\" 'helping ' || f=1; "
+               "done\n",
+            all);
+    fputs(": >\"$d/ended.${SLURM_JOB_ID:-$$}\" 2>/dev/null\nexit $f\n", f);
     fclose(f);
     return script;
 }
@@ -282,7 +299,7 @@ sl_result pl_farm_group(json_t *farm, const json_t *choices, const char *out, co
             sl_text_printf(&names, "%s%s", names.len ? "," : "",
                            json_string_value(json_object_get(g, "id")));
         }
-        char *script = setup_script(json_string_value(json_object_get(g, "id")),
+        char *script = setup_script(json_string_value(json_object_get(g, "id")), dir, k,
                                     json_object_get(g, "members"));
         char path[PATH_MAX + 300];
         snprintf(path, sizeof path, "%s/%zu.sh", dir, k);

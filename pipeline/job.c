@@ -408,6 +408,18 @@ int pl_job_run_forked(const char *jobs_json, json_t *graph, json_t *job, const c
     return code;
 }
 
+sl_result pl_job_run_next(const char *jobs_json, json_t *graph, json_t *job, bool first,
+                          int *exit_code, sl_error *err)
+{
+    /* the process's start and its waits till now go to its first job */
+    double started = pl_epoch_seconds(), wait0 = first ? 0 : pl_runqueue_wait_seconds(0);
+    bool skipped;
+    json_incref(graph);
+    json_incref(job);
+    return job_run(jobs_json, json_string_value(json_object_get(job, "id")), graph, job, NULL,
+                   started, wait0, exit_code, &skipped, err);
+}
+
 /* Whether job depends on a job of ids[0..count) that did not succeed
  * (codes). */
 static bool after_failure(const json_t *job, char *const *ids, const int *codes, int count)
@@ -425,21 +437,16 @@ void sl_pipeline_jobs_run(const char *jobs_json, char *const *ids, int count, in
                           sl_error *errs)
 {
     for (int i = 0; i < count; i++) {
-        /* the process's start and its waits till now go to the first job */
-        double started = pl_epoch_seconds(), wait0 = i ? pl_runqueue_wait_seconds(0) : 0;
         json_t *graph = NULL, *job = NULL;
-        bool checked_whole, skipped;
+        bool checked_whole;
         sl_error_clear(&errs[i]);
         sl_result r = pl_graph_load_job(jobs_json, ids[i], &graph, &job, &checked_whole, &errs[i]);
-        if (!r && after_failure(job, ids, codes, i)) {
+        if (!r && after_failure(job, ids, codes, i))
             codes[i] = -1;
-            json_decref(job);
-            json_decref(graph);
-            continue;
-        }
-        if (!r)
-            r = job_run(jobs_json, ids[i], graph, job, NULL, started, wait0, &codes[i], &skipped,
-                        &errs[i]);
+        else if (!r)
+            r = pl_job_run_next(jobs_json, graph, job, i == 0, &codes[i], &errs[i]);
+        json_decref(job);
+        json_decref(graph);
         if (r)
             codes[i] = sl_result_exit_code(r);
     }

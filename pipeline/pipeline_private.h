@@ -103,6 +103,13 @@ json_t *pl_stamp_load(const json_t *graph, const json_t *job);
  * or the job's key just computed by the runner, which found its stamp not
  * current. */
 int pl_job_run_forked(const char *jobs_json, json_t *graph, json_t *job, const char *key);
+/* Runs job of graph (both as pl_graph_load_job gives them; the caller keeps
+ * its references) as `setlight job JOBS.json ID` would, in a process that
+ * runs several jobs: the process's start and its CPU waits before its first
+ * job (first) count to that job. *exit_code: the command's, 0 when up to
+ * date. */
+sl_result pl_job_run_next(const char *jobs_json, json_t *graph, json_t *job, bool first,
+                          int *exit_code, sl_error *err);
 /* Writes OUT/status.json, the index job's input: every other job's stamp
  * status and key (rewritten only when one changed). */
 sl_result pl_index_prepare(const json_t *graph, sl_error *err);

@@ -728,12 +728,40 @@ static bool pause_or_wake(const sl_pipeline_slurm_options *o, double pause, doub
     return false;
 }
 
+/* A job seen ending that did not say so itself in o->wake_dir (killed:
+ * scancel, a time or memory limit) is said for it in the folder's ended/
+ * (ended/SLURM_ID, a subfolder: its files do not wake this wait): a
+ * grouped setup's job it had taken is then known not to end, on any node
+ * (sl_pipeline_jobs_share). */
+static void say_ended(const graph *g, const sl_pipeline_slurm_options *o, const bool *was_done,
+                      const sl_pipeline_slurm_result *res)
+{
+    for (int i = 0; o->wake_dir && i < g->count; i++) {
+        if (was_done[i] || !g->jobs[i].done || !res->jobs[i].slurm_id[0])
+            continue;
+        char path[PATH_MAX + 64];
+        snprintf(path, sizeof path, "%s/ended.%s", o->wake_dir, res->jobs[i].slurm_id);
+        if (!access(path, F_OK))
+            continue; /* it said so itself */
+        snprintf(path, sizeof path, "%s/ended", o->wake_dir);
+        mkdir(path, 0755);
+        snprintf(path, sizeof path, "%s/ended/%s", o->wake_dir, res->jobs[i].slurm_id);
+        int fd = open(path, O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+        if (fd >= 0)
+            close(fd);
+    }
+}
+
 static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
                            sl_pipeline_slurm_result *res, double t_start, sl_error *err)
 {
     bool *seen = calloc((size_t)g->count + 1, sizeof(bool));
-    if (!seen)
+    bool *was_done = calloc((size_t)g->count + 1, sizeof(bool));
+    if (!seen || !was_done) {
+        free(seen);
+        free(was_done);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", g->path);
+    }
     double failing_since = -1;
     /* Nothing here waits on a job's end (Slurm starts the dependants), so
      * the period grows from poll_seconds to poll_max_seconds: on a small
@@ -817,6 +845,8 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
         } else {
             failing_since = -1;
             memset(seen, 0, (size_t)g->count * sizeof(bool));
+            for (int i = 0; i < g->count; i++)
+                was_done[i] = g->jobs[i].done;
             for (char *line = out, *next; line && *line; line = next) {
                 next = strchr(line, '\n');
                 if (next)
@@ -835,6 +865,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
                     j->missing = 0;
                 }
             }
+            say_ended(g, o, was_done, res);
         }
         free(out);
         free(errout);
@@ -853,6 +884,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
                                                             : o->poll_seconds;
     }
     free(seen);
+    free(was_done);
     return r;
 }
 

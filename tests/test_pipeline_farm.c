@@ -183,7 +183,8 @@ static void test_group_in_place(void)
  * submitted, and the setups taken, in that order, so the day ends on its
  * shortest; they take the grouped setups' places among the other jobs. Each
  * group's script runs its own setup, then the others in that order, then
- * cancels what is still pending of them. */
+ * cancels what is still pending of them, then helps each setup whose jobs
+ * are not all taken. */
 static void test_group_longest_first(void)
 {
     /* Three short setups (grouped) round a long one (job by job). */
@@ -203,16 +204,21 @@ static void test_group_longest_first(void)
         json_t *g = json_array_get(fj, at[k]);
         CHECK_MSG(!strcmp(json_string_value(json_object_get(g, "id")), order[k]),
                   "group %d is %s", k, json_string_value(json_object_get(g, "id")));
-        char script[1100], own[64], run[32];
+        char script[1100], own[64], run[32], claims[1200];
         snprintf(script, sizeof script, "%s/%d.sh", dir, k);
         char *text = sl_test_read_file(script, NULL);
         snprintf(own, sizeof own, "'%s/job/15'", order[k]);
-        CHECK_MSG(text && strstr(text, own), "%s", text ? text : "(no script)");
+        /* its jobs shared through the setup's claims folder */
+        snprintf(claims, sizeof claims, "'job' --claims '%s/claims/%d' '/d/jobs.json'", dir, k);
+        CHECK_MSG(text && strstr(text, own) && strstr(text, claims), "%s",
+                  text ? text : "(no script)");
         free(text);
         const char *runner = json_string_value(json_array_get(json_object_get(g, "argv"), 2));
         snprintf(run, sizeof run, "\nrun %d\n", k);
         CHECK_MSG(runner && strstr(runner, run) && strstr(runner, "for k in 0 1 2;") &&
-                      strstr(runner, "n='b,c,a'") && strstr(runner, "scancel"),
+                      strstr(runner, "n='b,c,a'") && strstr(runner, "scancel") &&
+                      strstr(runner, "for k in 0 1 2; do [ -e \"$d/claims/$k/all\" ] || "
+                                     "/bin/sh \"$d/$k.sh\" 'helping '"),
                   "%s", runner ? runner : "(no runner)");
     }
     for (size_t k = 1; k < 17 && k < json_array_size(fj); k++)

@@ -218,6 +218,13 @@ static void test_day_on_slurm(void)
     sl_pipeline_slurm_options_init(&o);
     o.poll_seconds = 0.1;
     o.timeout_seconds = 60;
+    /* where a grouped setup's script says it ended; the runner says it in
+     * ended/ for a job that did not (a killed one: a grouped setup's job it
+     * had taken will not end, sl_pipeline_jobs_share) */
+    char wake[4200];
+    snprintf(wake, sizeof wake, "%s/wake", out_dir());
+    mkdir(wake, 0755);
+    o.wake_dir = wake;
     sl_pipeline_slurm_result res;
     sl_error err = {0};
     double t0 = sl_seconds();
@@ -252,6 +259,9 @@ static void test_day_on_slurm(void)
     CHECK(strcmp(res.jobs[m1].state, "FAILED") == 0);
     CHECK(res.jobs[st].end == SL_SLURM_CANCELLED && res.jobs[st].exit_code == -1);
     CHECK(res.jobs[rep].end == SL_SLURM_CANCELLED);
+    char said[4300];
+    snprintf(said, sizeof said, "%s/ended/%s", wake, res.jobs[st].slurm_id);
+    CHECK_MSG(sl_test_file_exists(said), "%s not written for the cancelled stitch", said);
     CHECK(res.jobs[m0].end == SL_SLURM_COMPLETED && res.jobs[m0].exit_code == 0);
     CHECK(res.jobs[bp].end == SL_SLURM_COMPLETED);
     /* the outputs: what ran, and nothing after the failure */

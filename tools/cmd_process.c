@@ -173,7 +173,7 @@ int cmd_process(int argc, char **argv, const sl_cli *cli)
 }
 
 static const char job_help[] =
-    "usage: setlight job JOBS.json ID [ID...]\n"
+    "usage: setlight job [--claims DIR] JOBS.json ID [ID...]\n"
     "\n"
     "Runs one job of a graph that 'setlight process --emit-jobs' wrote (docs/process.md):\n"
     "nothing when its stamp says it is up to date with its inputs, else its command\n"
@@ -192,7 +192,14 @@ static const char job_help[] =
     "With several IDs (a grouped setup's Slurm job, docs/slurm.md): each in turn in this\n"
     "one process, a job only when the jobs listed before it that it depends on\n"
     "succeeded; a line for each that could not run; exit 1 when one failed or was not\n"
-    "run, else 0.\n";
+    "run, else 0.\n"
+    "\n"
+    "--claims DIR: the IDs are shared with the other processes given the same DIR (an\n"
+    "existing folder; a grouped setup's Slurm job and one helping it, docs/slurm.md):\n"
+    "each job runs once, in the process that takes it (a claim file in DIR); this one\n"
+    "takes any job nobody has taken whose dependencies succeeded, waits while the jobs\n"
+    "left wait for jobs running elsewhere, and exits once every job is taken: 1 when a\n"
+    "job it took failed or was not run, else 0.\n";
 
 /* setlight job JOBS.json ID: exits 0 at once when the job is up to date,
  * else with its command's code. */
@@ -202,20 +209,33 @@ int cmd_job(int argc, char **argv, const sl_cli *cli)
         fputs(job_help, stdout);
         return 0;
     }
+    const char *claims = NULL;
+    if (argc >= 3 && !strcmp(argv[1], "--claims")) {
+        claims = argv[2];
+        argc -= 2;
+        argv += 2;
+    }
     if (argc < 3)
-        return cli_usage_error(cli, "usage: setlight job JOBS.json ID [ID...]");
-    if (argc > 3) {
+        return cli_usage_error(cli, "usage: setlight job [--claims DIR] JOBS.json ID [ID...]");
+    if (argc > 3 || claims) {
         /* A grouped setup's jobs: exit 1 when one failed or was not run. */
         int n = argc - 2, rc = 0;
         int *codes = calloc((size_t)n, sizeof *codes);
         sl_error *errs = calloc((size_t)n, sizeof *errs);
         if (codes && errs) {
-            sl_pipeline_jobs_run(argv[1], argv + 2, n, codes, errs);
+            if (claims)
+                sl_pipeline_jobs_share(argv[1], claims, argv + 2, n, codes, errs);
+            else
+                sl_pipeline_jobs_run(argv[1], argv + 2, n, codes, errs);
+            int took = 0;
             for (int i = 0; i < n; i++) {
                 if (errs[i].code)
                     cli_fail(cli, &errs[i]);
-                rc |= codes[i] != 0;
+                rc |= codes[i] != 0 && codes[i] != SL_PIPELINE_JOB_ELSEWHERE;
+                took += codes[i] != SL_PIPELINE_JOB_ELSEWHERE && !errs[i].code;
             }
+            if (claims && !cli->quiet) /* the Slurm job's log: who ran what */
+                fprintf(stderr, "setlight job: took %d of %d jobs\n", took, n);
         } else {
             fprintf(stderr, "setlight %s: out of memory\n", cli->command);
             rc = 1;

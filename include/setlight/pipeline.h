@@ -96,6 +96,22 @@ sl_result sl_pipeline_job_run(const char *jobs_json, const char *id, int *exit_c
 void sl_pipeline_jobs_run(const char *jobs_json, char *const *ids, int count, int *codes,
                           sl_error *errs);
 
+/* sl_pipeline_jobs_share's code of a job another process took. */
+#define SL_PIPELINE_JOB_ELSEWHERE (-2)
+
+/* Jobs ids[0..count) of the graph (a grouped setup's, docs/slurm.md) shared
+ * with the other processes given the same claims_dir (an existing folder,
+ * one per run and group): each job is run once, by the process that takes
+ * it (an O_CREAT|O_EXCL claim file in claims_dir), as sl_pipeline_job_run
+ * would; a process takes, in the list's order, any job nobody has taken
+ * whose dependencies among ids succeeded, marks one whose dependency failed
+ * (or whose claimant is gone without ending it) not run, waits without busy
+ * polling while the jobs left wait for jobs run elsewhere, and returns once
+ * every job is taken. codes[i] and errs[i] as sl_pipeline_jobs_run's for the
+ * jobs this process took; SL_PIPELINE_JOB_ELSEWHERE for the others. */
+void sl_pipeline_jobs_share(const char *jobs_json, const char *claims_dir, char *const *ids,
+                            int count, int *codes, sl_error *errs);
+
 /* A job graph read back ("setlight-jobs" version 1, docs/process.md): what
  * `setlight job`, the report and the index act on, checked whole first. */
 typedef struct sl_pipeline_graph sl_pipeline_graph;

@@ -153,8 +153,11 @@ rm -rf "$T/farm"
 # 3c. Three setups (hard-linked copies of ext) grouped on the 2 CPUs: the
 # Slurm job that ends its setup first goes on with the third setup at once
 # (no wait for Slurm's next pass), so the third setup's own Slurm job finds
-# it taken and ends; each setup runs once, all ok, with its outputs; the
-# setups' scripts and claims are removed.
+# it taken and ends; the other, its setup done while the third still has
+# jobs nobody took, helps it (its log says so) instead of ending; every job
+# ran (its stamp written this run), all ok, with its outputs; the setups'
+# scripts and claims are removed. (That each job runs once, whichever Slurm
+# job took it, is tests/test_pipeline_share.c's.)
 cp -al "$T/ext" "$T/s1" && cp -al "$T/ext" "$T/s2" && cp -al "$T/ext" "$T/s3"
 expect 0 "$S" process "$T/s1" "$T/s2" "$T/s3" -o "$T/three" "${P[@]}" --farm slurm --farm-group setup --json -q
 json_eval "$T/out" 'd["jobs"]["failed"] == 0 and d["jobs"]["ran"] == d["jobs"]["total"] and all(s["status"] == "ok" for s in d["setups"])'
@@ -162,6 +165,9 @@ ran_by=$(cd "$T/three/logs" && grep -H '^setlight: setup ' s?.slurm.log | sed 's
 if [ "$(echo "$ran_by" | awk '{print $2}' | sort | tr '\n' ' ')" = "s1 s2 s3 " ] &&
   [ -n "$(echo "$ran_by" | awk '$1 != $2')" ]; then ok; else
   bad "each setup once, one by another setup's Slurm job: $(echo "$ran_by" | tr '\n' ';')"
+fi
+if grep -q "^setlight: helping setup s" "$T/three/logs"/s?.slurm.log; then ok; else
+  bad "no Slurm job helped the last setup: $(cat "$T/three/logs"/s?.slurm.log | tr '\n' ';')"
 fi
 if ls -d "$T/three/logs"/farm-* >/dev/null 2>&1; then bad "the grouped setups' scripts were left"; else ok; fi
 for s in s1 s2 s3; do present "$T/three/$s/stitch/hdri.exr"; present "$T/three/$s/rig/rig.usda"; done
