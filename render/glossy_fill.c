@@ -76,9 +76,11 @@
  * pixels with 75% of the squared estimates carry 71% of the squared error;
  * docs/render.md). At most REFINE_MOST x the pass's own evaluations: where
  * the estimates are even (metal 0.8: 53 378 pixels for 75%) the full plan
- * is the better use of the time. */
+ * is the better use of the time. A fifth rather than a quarter left: with
+ * the biquadratic blocks metal 0.3 then refines 2713 pixels to 0.215%
+ * against 2072 to 0.229%. */
 #define REFINE_TOL 4.0
-#define REFINE_LEFT 0.25
+#define REFINE_LEFT 0.2
 #define REFINE_MOST 0.25
 
 /* ---- the split ---- */
