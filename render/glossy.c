@@ -61,6 +61,7 @@ typedef struct lobe {
     double mirror[3];        /* the lobe's peak (about), map frame */
     double cos_width;        /* cos of the lobe's narrowest width (alpha) */
     double reach;            /* LOBE_REACH x its widest alpha (radians) */
+    double cos_reach, sin_reach;
 } lobe;
 
 /* k(w) = f(wo, w) max(0, n.w) per channel, w in the map's frame. */
@@ -245,7 +246,8 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, const i
         /* A cell wider than the lobe that its peak may reach: the sample
          * points cannot tell its shape. Narrower cells see a smooth k. */
         bool peak = !below[l] && (c->wide || (c->cos_r < lp->cos_width &&
-                                              v3_dot(lp->mirror, c->centre) >= cos(acos(c->cos_r) + lp->reach)));
+                                              v3_dot(lp->mirror, c->centre) >=
+                                                  c->cos_r * lp->cos_reach - c->sin_r * lp->sin_reach));
         if (peak && !st->have_k_mirror[l]) {
             st->kernel_calls++;
             kernel(lp, lp->mirror, st->k_mirror[l]);
@@ -371,6 +373,8 @@ static bool lobe_init(lobe *l, const sl_glossy_material *gm, const double rot[3]
     sl_ggx g = sl_ggx_make(gm->m->roughness, gm->m->anisotropy);
     l->cos_width = cos(fmin(g.ax, g.ay));
     l->reach = LOBE_REACH * fmax(g.ax, g.ay);
+    /* cos(radius + reach) for a cell's cone: its cos and sin are known */
+    l->cos_reach = cos(l->reach), l->sin_reach = sin(l->reach);
     return wo[2] > 0;
 }
 
