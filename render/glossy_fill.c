@@ -29,7 +29,10 @@
  * blocks' check is at SL_GLOSSY_COARSE_CHECK x the tolerance and allows no
  * slack for the points' estimates: at that tolerance they are ~15x the
  * points' true error, and with the slack blocks passed 16% off at an
- * estimate of 7% (env_test.exr, metal 0.3). A block that fails gives its
+ * estimate of 7% (env_test.exr, metal 0.3). A block that fails tries the
+ * biquadratic through its nine points, checked at its quarters' centres
+ * (try_quadratic: four points, which the quarters need anyway if it fails
+ * too). A block that fails both gives its
  * pixels its interpolation meanwhile (REST_PROVISIONAL), so a cut inside
  * the pass leaves to sampling only what no block has covered. The pixels
  * no block interpolates (the rim) come last: left to sampling by a cut,
