@@ -449,13 +449,9 @@ void sl_fill_bilinear(const double v[4][3], double fx, double fy, double out[3])
         out[c] = wts[0] * v[0][c] + wts[1] * v[1][c] + wts[2] * v[2][c] + wts[3] * v[3][c];
 }
 
-/* Checks a whole block's interpolation at its centre and edge midpoints;
- * on success fills its own pixels [x0, x0 + S)^2 not evaluated. On
- * failure, in the coarse pass, they keep it provisionally (REST_PROVISIONAL,
- * the difference found as its error), for a cut that leaves them there. */
-static bool try_block(fill_job *j, const block *b, int S)
+/* The rests at a block's nine points; false while one is not evaluated. */
+static bool block_points(const fill_job *j, const block *b, int S, double v[9][3], double e[9][3])
 {
-    double v[9][3], e[9][3], bmax[3];
     for (int k = 0; k < 9; k++) {
         size_t p = (size_t)(b->y0 + POINT[k][1] * S / 2) * j->w + (size_t)(b->x0 + POINT[k][0] * S / 2);
         if (j->rest_state[p] != REST_EVALUATED)
@@ -463,19 +459,7 @@ static bool try_block(fill_job *j, const block *b, int S)
         memcpy(v[k], j->rest[p], sizeof v[k]);
         memcpy(e[k], j->rest_err[p], sizeof e[k]);
     }
-    bool pass = sl_fill_check(v, e, NULL, INTERP_SHARE * j->check_tol, j->slack, bmax);
-    if (!pass && !j->provisional)
-        return false;
-    for (int y = b->y0; y < b->y0 + S; y++)
-        for (int x = b->x0; x < b->x0 + S; x++) {
-            size_t q = (size_t)y * j->w + x;
-            if (j->rest_state[q] == REST_EVALUATED)
-                continue;
-            sl_fill_bilinear((const double(*)[3])v, (double)(x - b->x0) / S, (double)(y - b->y0) / S, j->rest[q]);
-            memcpy(j->rest_err[q], bmax, sizeof bmax);
-            j->rest_state[q] = pass ? REST_INTERPOLATED : REST_PROVISIONAL;
-        }
-    return pass;
+    return true;
 }
 
 /* The biquadratic through a block's nine points (POINT's order) at (fx,
@@ -494,6 +478,47 @@ static void biquadratic(const double v[9][3], double fx, double fy, double out[3
     }
 }
 
+/* Gives a block's own pixels [x0, x0 + S)^2 not evaluated the bilinear
+ * interpolation of its corners or (quadratic) the biquadratic of its nine
+ * points, clamped at zero (it may undershoot), with error err. */
+static void fill_block(fill_job *j, const block *b, int S, const double v[9][3], bool quadratic,
+                       const double err[3], uint8_t state)
+{
+    for (int y = b->y0; y < b->y0 + S; y++)
+        for (int x = b->x0; x < b->x0 + S; x++) {
+            size_t q = (size_t)y * j->w + x;
+            if (j->rest_state[q] == REST_EVALUATED)
+                continue;
+            double fx = (double)(x - b->x0) / S, fy = (double)(y - b->y0) / S;
+            if (quadratic) {
+                biquadratic(v, fx, fy, j->rest[q]);
+                for (int c = 0; c < 3; c++)
+                    j->rest[q][c] = fmax(0.0, j->rest[q][c]);
+            } else {
+                sl_fill_bilinear(v, fx, fy, j->rest[q]);
+            }
+            memcpy(j->rest_err[q], err, 3 * sizeof *err);
+            j->rest_state[q] = state;
+        }
+}
+
+/* Checks a whole block's interpolation at its centre and edge midpoints;
+ * on success fills its own pixels [x0, x0 + S)^2 not evaluated. On
+ * failure, in the coarse pass, they keep it provisionally (REST_PROVISIONAL,
+ * the difference found as its error), for a cut that leaves them there. */
+static bool try_block(fill_job *j, const block *b, int S)
+{
+    double v[9][3], e[9][3], bmax[3];
+    if (!block_points(j, b, S, v, e))
+        return false;
+    bool pass = sl_fill_check((const double(*)[3])v, (const double(*)[3])e, NULL, INTERP_SHARE * j->check_tol,
+                              j->slack, bmax);
+    if (!pass && !j->provisional)
+        return false;
+    fill_block(j, b, S, (const double(*)[3])v, false, bmax, pass ? REST_INTERPOLATED : REST_PROVISIONAL);
+    return pass;
+}
+
 /* The centres of a block's four quarters (px offsets, S / 4 and 3 S / 4):
  * the check points of its biquadratic, and the quarters' own centres if
  * it fails. */
@@ -505,20 +530,25 @@ static size_t quarter_centre(const fill_job *j, const block *b, int S, int k)
 /* A block whose bilinear check failed, in the coarse pass: the
  * biquadratic through its nine points checked at its quarters' centres,
  * as try_block checks the bilinear (the same tolerance, no slack), fills
- * its pixels on success (clamped at zero, the largest difference plus the
- * points' largest estimate as their error). Four evaluations instead of
- * the quarters' sixteen new points. */
+ * its pixels on success (the largest difference plus the points' largest
+ * estimate as their error). Four evaluations instead of the quarters'
+ * sixteen new points. */
 static bool try_quadratic(fill_job *j, const block *b, int S)
 {
-    double v[9][3], q[4][3], bmax[3] = {0, 0, 0}, d[3] = {0, 0, 0};
+    double v[9][3], e[9][3], q[4][3], bmax[3] = {0, 0, 0}, d[3] = {0, 0, 0};
+    if (!block_points(j, b, S, v, e))
+        return false;
     for (int k = 0; k < 13; k++) {
-        size_t p = k < 9 ? (size_t)(b->y0 + POINT[k][1] * S / 2) * j->w + (size_t)(b->x0 + POINT[k][0] * S / 2)
-                         : quarter_centre(j, b, S, k - 9);
-        if (j->rest_state[p] != REST_EVALUATED)
-            return false;
-        memcpy(k < 9 ? v[k] : q[k - 9], j->rest[p], sizeof v[0]);
+        const double *ek = e[k < 9 ? k : 0];
+        if (k >= 9) {
+            size_t p = quarter_centre(j, b, S, k - 9);
+            if (j->rest_state[p] != REST_EVALUATED)
+                return false;
+            memcpy(q[k - 9], j->rest[p], sizeof q[0]);
+            ek = j->rest_err[p];
+        }
         for (int c = 0; c < 3; c++)
-            bmax[c] = fmax(bmax[c], j->rest_err[p][c]);
+            bmax[c] = fmax(bmax[c], ek[c]);
     }
     bool pass = true;
     double tol = INTERP_SHARE * j->check_tol;
@@ -533,18 +563,9 @@ static bool try_quadratic(fill_job *j, const block *b, int S)
     }
     if (!pass)
         return false;
-    for (int y = b->y0; y < b->y0 + S; y++)
-        for (int x = b->x0; x < b->x0 + S; x++) {
-            size_t p = (size_t)y * j->w + x;
-            if (j->rest_state[p] == REST_EVALUATED)
-                continue;
-            biquadratic((const double(*)[3])v, (double)(x - b->x0) / S, (double)(y - b->y0) / S, j->rest[p]);
-            for (int c = 0; c < 3; c++) {
-                j->rest[p][c] = fmax(0.0, j->rest[p][c]);
-                j->rest_err[p][c] = bmax[c] + d[c];
-            }
-            j->rest_state[p] = REST_INTERPOLATED;
-        }
+    for (int c = 0; c < 3; c++)
+        d[c] += bmax[c];
+    fill_block(j, b, S, (const double(*)[3])v, true, d, REST_INTERPOLATED);
     return true;
 }
 
@@ -779,6 +800,19 @@ static sl_result refine_interpolated(fill_job *j, int64_t most)
     return SL_OK;
 }
 
+/* Evaluates the rests marked in need and clears it; whole: all of them,
+ * deadline or not (the first level of blocks). */
+static void eval_needed(fill_job *j, bool whole)
+{
+    double deadline = j->deadline;
+    int row_limit = j->row_limit; /* the tests' stand-in for it */
+    if (whole)
+        j->deadline = INFINITY, j->row_limit = 0;
+    sl_parallel_for(j->h, 1, rest_rows, j);
+    j->deadline = deadline, j->row_limit = row_limit;
+    memset(j->need, 0, (size_t)j->w * j->h);
+}
+
 /* The image blocks at j->tol: every whole 16 px block's nine points, then
  * the blocks whose check failed split in four, down to BLOCK_MIN; the
  * blocks that pass interpolate their pixels' rest. cur and next hold room
@@ -807,13 +841,7 @@ static void lattice(fill_job *j, block *cur, block *next, block *fail)
             for (int k = 0; k < 9; k++)
                 j->need[(size_t)(cur[i].y0 + POINT[k][1] * S / 2) * w + (cur[i].x0 + POINT[k][0] * S / 2)] = 1;
         }
-        double deadline = j->deadline;
-        int row_limit = j->row_limit; /* the tests' stand-in for it */
-        if (whole_level)
-            j->deadline = INFINITY, j->row_limit = 0;
-        sl_parallel_for(h, 1, rest_rows, j);
-        j->deadline = deadline, j->row_limit = row_limit;
-        memset(j->need, 0, npix);
+        eval_needed(j, whole_level);
         for (int i = 0; i < ncur; i++) {
             const block *b = &cur[i];
             bool any = false;
@@ -837,13 +865,9 @@ static void lattice(fill_job *j, block *cur, block *next, block *fail)
         /* The failed blocks' biquadratics, their check points evaluated
          * first (the first level's always, as its points); those that fail
          * too are split, and their quarters' centres are already known. */
-        if (nfail > 0 && (whole_level || !past_deadline(j))) {
-            if (whole_level)
-                j->deadline = INFINITY, j->row_limit = 0;
-            sl_parallel_for(h, 1, rest_rows, j);
-            j->deadline = deadline, j->row_limit = row_limit;
-        }
-        memset(j->need, 0, npix);
+        if (nfail > 0 && (whole_level || !past_deadline(j)))
+            eval_needed(j, whole_level);
+        memset(j->need, 0, npix); /* also when the deadline skipped them */
         for (int i = 0; i < nfail; i++) {
             if (try_quadratic(j, &fail[i], S))
                 continue;
