@@ -61,6 +61,7 @@ typedef struct lobe {
     double mirror[3];        /* the lobe's peak (about), map frame */
     double cos_width;        /* cos of the lobe's narrowest width (alpha) */
     double reach;            /* LOBE_REACH x its widest alpha (radians) */
+    double cos_reach, sin_reach;
 } lobe;
 
 /* k(w) = f(wo, w) max(0, n.w) per channel, w in the map's frame. */
@@ -114,6 +115,10 @@ typedef struct gstate {
     bool have_k_mirror[SL_GLOSSY_BATCH];
     double k_mirror[SL_GLOSSY_BATCH][3]; /* k at each lobe's peak, once per integral */
     int64_t kernel_calls;
+    /* k at the corners of the start level's cells, (tw + 1) x (th + 1)
+     * points in row order, when every cell of a level starts (else NULL). */
+    double (*grid_k)[SL_GLOSSY_BATCH][3];
+    bool *grid_have;
 } gstate;
 
 /* k of every lobe at w; lobes whose horizon the cell is wholly below
@@ -134,10 +139,21 @@ static void kernel_counted(gstate *st, const bool *below, const double w[3], dou
 #define SAME_PARAM 1e-12
 
 /* k of every lobe at corner `corner` of g, from the split's cache when it
- * has the point. */
+ * has the point, or from the start level's corner grid (grid_at >= 0). */
 static void point_k(gstate *st, point_cache *pc, const bool *below, double t, double a, const double w[3],
-                    gcell *g, int corner)
+                    gcell *g, int corner, int grid_at)
 {
+    if (grid_at >= 0) {
+        if (!st->grid_have[grid_at]) {
+            /* A lobe this cell is wholly below has k = 0 at the corner
+             * anyway: the grid holds the true k for every cell. */
+            kernel_counted(st, below, w, st->grid_k[grid_at]);
+            st->grid_have[grid_at] = true;
+        }
+        for (int l = 0; l < st->nl; l++)
+            memcpy(g->lb[l].k[corner], st->grid_k[grid_at][l], sizeof st->grid_k[grid_at][l]);
+        return;
+    }
     for (int i = 0; pc && i < pc->n; i++)
         if (fabs(t - pc->t[i]) <= SAME_PARAM && fabs(a - pc->a[i]) <= SAME_PARAM) {
             for (int l = 0; l < st->nl; l++)
@@ -181,8 +197,9 @@ static void pop(gstate *st, gcell *top)
 }
 
 /* Estimates a cell's share and its error for every lobe; false when it
- * adds nothing to any. pc: the split's known points (NULL: none). */
-static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *g)
+ * adds nothing to any. pc: the split's known points (NULL: none); grid_at:
+ * a start cell's corners in st->grid_k (NULL: not one). */
+static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, const int *grid_at, gcell *g)
 {
     st->cells++;
     if (!(c->p[0] > 0 || c->p[1] > 0 || c->p[2] > 0))
@@ -213,7 +230,7 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
         memcpy(g->lb[l].k[0], kc[l], sizeof kc[l]);
     const double pt[4] = {c->t0, c->t0, c->t1, c->t1}, pa[4] = {c->a, c->b, c->a, c->b};
     for (int i = 0; i < 4; i++)
-        point_k(st, pc, below, pt[i], pa[i], c->corner[i], g, 1 + i);
+        point_k(st, pc, below, pt[i], pa[i], c->corner[i], g, 1 + i, grid_at ? grid_at[i] : -1);
     /* How spread the cell's light is against a uniform cell's: 0 for a
      * point (a sun), where k(d) is exact, 1 for uniform light, where the
      * mean of k over the cell is the better estimate. */
@@ -229,7 +246,8 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
         /* A cell wider than the lobe that its peak may reach: the sample
          * points cannot tell its shape. Narrower cells see a smooth k. */
         bool peak = !below[l] && (c->wide || (c->cos_r < lp->cos_width &&
-                                              v3_dot(lp->mirror, c->centre) >= cos(acos(c->cos_r) + lp->reach)));
+                                              v3_dot(lp->mirror, c->centre) >=
+                                                  c->cos_r * lp->cos_reach - c->sin_r * lp->sin_reach));
         if (peak && !st->have_k_mirror[l]) {
             st->kernel_calls++;
             kernel(lp, lp->mirror, st->k_mirror[l]);
@@ -265,10 +283,10 @@ static bool estimate(gstate *st, const sl_dome_cell *c, point_cache *pc, gcell *
     return true;
 }
 
-static void add(gstate *st, const sl_dome_cell *c, point_cache *pc)
+static void add(gstate *st, const sl_dome_cell *c, point_cache *pc, const int *grid_at)
 {
     gcell g;
-    if (estimate(st, c, pc, &g))
+    if (estimate(st, c, pc, grid_at, &g))
         push(st, &g);
 }
 
@@ -288,7 +306,7 @@ static void split(gstate *st, const gcell *g)
     sl_dome_cell c[4];
     int n = sl_irradiance_children(st->ir, g->level, g->x, g->y, g->t0, g->t1, g->a, g->b, c);
     for (int i = 0; i < n; i++)
-        add(st, &c[i], pc);
+        add(st, &c[i], pc, NULL);
     if (g->level - 1 < st->finest)
         st->finest = g->level - 1;
 }
@@ -317,6 +335,8 @@ static bool error_met(const gstate *st, double tol, const double floor[3])
 
 /* At most the top level's 16 x 8 cells or a start list's (kept as short). */
 #define FIRST_MAX (SL_GLOSSY_START_MAX > 16 * 8 ? SL_GLOSSY_START_MAX : 16 * 8)
+/* The top level's corners. */
+#define GRID_MAX (17 * 9)
 
 struct sl_glossy_scratch {
     gstate st;
@@ -324,6 +344,8 @@ struct sl_glossy_scratch {
     gcell pool[CELL_CAP];
     gcell first[FIRST_MAX];
     int idx[2 * CELL_CAP];
+    double grid_k[GRID_MAX][SL_GLOSSY_BATCH][3];
+    bool grid_have[GRID_MAX];
 };
 
 sl_glossy_scratch *sl_glossy_scratch_new(void) { return calloc(1, sizeof(sl_glossy_scratch)); }
@@ -351,6 +373,8 @@ static bool lobe_init(lobe *l, const sl_glossy_material *gm, const double rot[3]
     sl_ggx g = sl_ggx_make(gm->m->roughness, gm->m->anisotropy);
     l->cos_width = cos(fmin(g.ax, g.ay));
     l->reach = LOBE_REACH * fmax(g.ax, g.ay);
+    /* cos(radius + reach) for a cell's cone: its cos and sin are known */
+    l->cos_reach = cos(l->reach), l->sin_reach = sin(l->reach);
     return wo[2] > 0;
 }
 
@@ -395,11 +419,22 @@ void sl_glossy_integrate_batch(const sl_irradiance *ir, const sl_glossy_material
             sl_irradiance_level_size(ir, level, &tw, &th);
         }
         int ncells = q->start_cells ? q->start_count : tw * th;
+        /* Every cell of the level: each corner is evaluated once, not by
+         * each of the up to four cells around it (the same directions bit
+         * for bit: neighbours' row and column bounds are the same numbers).
+         * Corner (t0, a) of cell (x, y) is grid point (x + 1, y): longitude
+         * falls as x grows. */
+        if (!q->start_cells && (tw + 1) * (th + 1) <= GRID_MAX) {
+            st->grid_k = scratch->grid_k, st->grid_have = scratch->grid_have;
+            memset(scratch->grid_have, 0, (size_t)(tw + 1) * (th + 1) * sizeof *scratch->grid_have);
+        }
         for (int i = 0; i < ncells; i++) {
-            int t = q->start_cells ? q->start_cells[i] : i;
+            int t = q->start_cells ? q->start_cells[i] : i, x = t % tw, y = t / tw;
             sl_dome_cell c;
-            sl_irradiance_cell(ir, level, t % tw, t / tw, &c);
-            add(st, &c, NULL);
+            sl_irradiance_cell(ir, level, x, y, &c);
+            const int at[4] = {y * (tw + 1) + x + 1, y * (tw + 1) + x, (y + 1) * (tw + 1) + x + 1,
+                               (y + 1) * (tw + 1) + x};
+            add(st, &c, NULL, st->grid_k ? at : NULL);
         }
         /* Cells are ranked by their error relative to the first estimate. */
         for (int l = 0; l < st->nl; l++)
