@@ -3,7 +3,6 @@
  * and checked, the nominal lens and poses, the overlaps checked, then the
  * blend written a strip at a time. */
 #include "stitch_blend_private.h"
-#include "stitch_private.h"
 
 #include <libgen.h>
 #include <math.h>
@@ -11,7 +10,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #ifndef M_PI
 #define M_PI 3.14159265358979323846
@@ -66,29 +64,7 @@ typedef struct view_file {
     double circle_cpu;
     pthread_t circle_thread;     /* finding it beside the next views' reading */
     bool circle_running;
-    struct early_features *early; /* NULL: the solve finds the features */
-    bool circle_done;            /* under early's lock */
-    bool holding_memory;         /* early's memory lock, while read as float */
-    solve_features feat;         /* found by `early` (scale 0: not found) */
 } view_file;
-
-/* The solve's features found beside the reading, a view at a time (one
- * SIFT pyramid, 0.28 GB, at a time), each as soon as its solve copies and
- * its own image circle are there: masked by the view's own circle, not by
- * the mean of all the views' circles, which waits for the last view. */
-typedef struct early_features {
-    pthread_mutex_t lock;
-    pthread_cond_t changed;
-    view_file *views;
-    int count;
-    int copies_made; /* views 0..copies_made-1 have their solve copies */
-    bool stop;       /* a view failed to read: no more */
-    /* A view read as float (0.29 GB at 24 MP) and a SIFT pyramid (0.28
-     * GB) never at once: the peak stays that of the half views. */
-    pthread_mutex_t memory;
-    pthread_t thread;
-    bool running;
-} early_features;
 
 /* The merge's clipped mask named by the radiance (as given to merge, or
  * beside the radiance) as a confidence: 1, or 1e-3 where a channel is
@@ -257,12 +233,6 @@ static void *circle_main(void *arg)
                            : sl_stitch_circle_find(&v->radiance, v->path, NULL, &v->circle,
                                                    &v->circle_err);
     v->circle_cpu = sl_thread_cpu_seconds() - c0;
-    if (v->early) {
-        pthread_mutex_lock(&v->early->lock);
-        v->circle_done = true;
-        pthread_cond_broadcast(&v->early->changed);
-        pthread_mutex_unlock(&v->early->lock);
-    }
     return NULL;
 }
 
@@ -278,119 +248,6 @@ static void circle_wait(view_file *v)
     if (v->circle_running)
         pthread_join(v->circle_thread, NULL);
     v->circle_running = false;
-}
-
-static void *early_main(void *arg)
-{
-    early_features *e = arg;
-    sl_stitch_solve_options so;
-    sl_stitch_solve_options_init(&so);
-    bool keeping = false;
-    for (int i = 0; i < e->count; i++) {
-        view_file *v = &e->views[i];
-        pthread_mutex_lock(&e->lock);
-        while (!e->stop && !(e->copies_made > i && v->circle_done))
-            pthread_cond_wait(&e->changed, &e->lock);
-        bool stop = e->stop;
-        pthread_mutex_unlock(&e->lock);
-        if (stop)
-            break;
-        int k = v->solve_factor;
-        if (v->circle_status != SL_OK || k < 2)
-            continue;
-        if (!keeping)
-            stitch_keep_freed_blocks(keeping = true);
-        /* the features read only the circle of the lens, in the copy's pixels */
-        sl_stitch_view sv = {.name = v->path, .radiance = &v->solve_radiance,
-                             .weight = v->solve_weight.data ? &v->solve_weight : NULL};
-        sv.lens.cx = v->circle.cx / k;
-        sv.lens.cy = v->circle.cy / k;
-        sv.lens.circle_radius_px = v->circle.radius / k;
-        sl_error err;
-        pthread_mutex_lock(&e->memory);
-        solve_find_features(&sv, &so, &v->feat, &err); /* failed: the solve tries and says */
-        pthread_mutex_unlock(&e->memory);
-    }
-    if (keeping)
-        stitch_keep_freed_blocks(false);
-    return NULL;
-}
-
-static void early_start(early_features *e, view_file *views, int count)
-{
-    e->views = views;
-    e->count = count;
-    for (int i = 0; i < count; i++)
-        views[i].early = e;
-    e->running = !pthread_mutex_init(&e->lock, NULL);
-    if (e->running && pthread_mutex_init(&e->memory, NULL)) {
-        pthread_mutex_destroy(&e->lock);
-        e->running = false;
-    }
-    if (e->running && pthread_cond_init(&e->changed, NULL)) {
-        pthread_mutex_destroy(&e->memory);
-        pthread_mutex_destroy(&e->lock);
-        e->running = false;
-    }
-    if (e->running && pthread_create(&e->thread, NULL, early_main, e)) {
-        pthread_cond_destroy(&e->changed);
-        pthread_mutex_destroy(&e->memory);
-        pthread_mutex_destroy(&e->lock);
-        e->running = false;
-    }
-    if (!e->running) /* no thread: the solve finds them */
-        for (int i = 0; i < count; i++)
-            views[i].early = NULL;
-}
-
-static void early_copies_made(early_features *e, int views)
-{
-    if (!e->running)
-        return;
-    pthread_mutex_lock(&e->lock);
-    e->copies_made = views;
-    pthread_cond_broadcast(&e->changed);
-    pthread_mutex_unlock(&e->lock);
-}
-
-/* The features' thread's CPU seconds so far. */
-static double early_cpu(const early_features *e)
-{
-    clockid_t id;
-    struct timespec ts;
-    if (!e->running || pthread_getcpuclockid(e->thread, &id) || clock_gettime(id, &ts))
-        return 0.0;
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-/* Waits for the features (stop: for the view being found only). */
-static void early_finish(early_features *e, bool stop)
-{
-    if (!e->running)
-        return;
-    pthread_mutex_lock(&e->lock);
-    e->stop |= stop;
-    pthread_cond_broadcast(&e->changed);
-    pthread_mutex_unlock(&e->lock);
-    pthread_join(e->thread, NULL);
-    pthread_cond_destroy(&e->changed);
-    pthread_mutex_destroy(&e->memory);
-    pthread_mutex_destroy(&e->lock);
-    e->running = false;
-}
-
-/* The view is about to be read (or converted) as float. */
-static void early_hold_memory(view_file *v)
-{
-    if (v->early && !v->holding_memory)
-        v->holding_memory = !pthread_mutex_lock(&v->early->memory);
-}
-
-static void early_release_memory(view_file *v)
-{
-    if (v->holding_memory)
-        pthread_mutex_unlock(&v->early->memory);
-    v->holding_memory = false;
 }
 
 /* A view read as half (sl_exr_read_half_rgb) is kept so when it is in the
@@ -418,7 +275,6 @@ static sl_result read_half_view(view_file *v, const sl_stitch_options *opt, bool
         return SL_OK;
     }
     /* what sl_image_read_linear gives */
-    early_hold_memory(v);
     if (!(r = stitch_half_to_float(&v->half, &v->radiance, err)))
         r = sl_image_linearize(&v->radiance, &v->meta, v->path, NULL, NULL, err);
     return r;
@@ -426,14 +282,12 @@ static sl_result read_half_view(view_file *v, const sl_stitch_options *opt, bool
 
 /* Reads one view, refuses NaN/Inf and a size other than view 0's, finds
  * its circle and keeps it as it will be used. */
-static sl_result read_view_held(view_file *v, const sl_stitch_options *opt, bool solving,
-                                sl_stitch_view_result *vr, const view_file *v0, sl_image *thumb,
-                                sl_error *err)
+static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solving,
+                           sl_stitch_view_result *vr, const view_file *v0, sl_image *thumb,
+                           sl_error *err)
 {
     bool as_read_half = false;
     sl_result r = read_half_view(v, opt, solving, thumb != NULL, &as_read_half, err);
-    if (!r && !as_read_half)
-        early_hold_memory(v);
     if (!r && !as_read_half && !v->radiance.data) {
         sl_meta_free(&v->meta);
         r = sl_image_read_linear(v->path, opt->input_colorspace, &v->radiance, &v->meta, NULL,
@@ -493,20 +347,11 @@ static sl_result read_view_held(view_file *v, const sl_stitch_options *opt, bool
     return SL_OK;
 }
 
-static sl_result read_view(view_file *v, const sl_stitch_options *opt, bool solving,
-                           sl_stitch_view_result *vr, const view_file *v0, sl_image *thumb,
-                           sl_error *err)
-{
-    sl_result r = read_view_held(v, opt, solving, vr, v0, thumb, err);
-    early_release_memory(v);
-    return r;
-}
-
 /* The solve on the views' reduced copies (when they have them), its lens
  * and pixel errors scaled back to the full views. */
-static sl_result solve_reduced(view_file *files, sl_stitch_view *views, int count,
-                               const sl_stitch_solve_options *so, bool early,
-                               sl_stitch_solve_result *res, sl_error *err)
+static sl_result solve_reduced(const view_file *files, sl_stitch_view *views, int count,
+                               const sl_stitch_solve_options *so, sl_stitch_solve_result *res,
+                               sl_error *err)
 {
     int k = files[0].solve_factor, w = files[0].width, h = files[0].height;
     sl_stitch_view sv[SL_STITCH_MAX_VIEWS];
@@ -532,14 +377,7 @@ static sl_result solve_reduced(view_file *files, sl_stitch_view *views, int coun
             stitch_lens_scale(&sv[i].lens, 1.0 / k, w / k, h / k);
         }
     }
-    solve_features found[SL_STITCH_MAX_VIEWS];
-    for (int i = 0; i < count; i++) {
-        found[i] = files[i].feat;
-        memset(&files[i].feat, 0, sizeof files[i].feat);
-    }
-    sl_result r = stitch_solve_found(sv, count, so, early ? found : NULL, res, err);
-    for (int i = 0; i < count; i++)
-        solve_features_free(&found[i]); /* those the solve did not take */
+    sl_result r = sl_stitch_solve(sv, count, so, res, err);
     if (r || k == 1) {
         for (int i = 0; !r && i < count; i++) {
             views[i].lens = sv[i].lens;
@@ -755,7 +593,6 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
     sl_meta meta;
     sl_meta_init(&meta);
     out_file out = {0};
-    early_features early = {0};
     stitch_report_images *report = NULL;
     if (res_out)
         memset(res_out, 0, sizeof *res_out);
@@ -777,11 +614,6 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         r = sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
         goto done;
     }
-    /* A fisheye's features are found beside the reading when the solve
-     * would mask them by the views' circles (a given lens has its own). */
-    bool given = opt.lens || opt.lens_profile;
-    if (opt.solve && count >= 2 && !given && opt.projection != SL_LENS_RECTILINEAR)
-        early_start(&early, files, count);
     for (int i = 0; i < count && !r; i++) {
         view_file *v = &files[i];
         v->path = view_paths[i];
@@ -789,13 +621,10 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         snprintf(res->views[i].path, sizeof res->views[i].path, "%s", v->path);
         r = read_view(v, &opt, opt.solve && count >= 2, &res->views[i], i > 0 ? &files[0] : NULL,
                       report ? &report->thumb[i] : NULL, err);
-        if (!r)
-            early_copies_made(&early, i + 1);
     }
     /* The circles were found beside the reading: their threads' CPU time
      * is the circle phase's, not the read's, and the wall time the stitch
-     * waits for them after the last view is read. The features' thread's
-     * CPU time is the solve's. */
+     * waits for them after the last view is read. */
     phase_end(res, SL_STITCH_READ, &t, &c);
     double circle_cpu = 0.0;
     for (int i = 0; i < count; i++) {
@@ -803,10 +632,8 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
         circle_cpu += files[i].circle_cpu;
     }
     phase_end(res, SL_STITCH_CIRCLE, &t, &c);
-    double early_cpu_read = early_cpu(&early);
-    res->cpu[SL_STITCH_READ] += res->cpu[SL_STITCH_CIRCLE] - circle_cpu - early_cpu_read;
+    res->cpu[SL_STITCH_READ] += res->cpu[SL_STITCH_CIRCLE] - circle_cpu;
     res->cpu[SL_STITCH_CIRCLE] = circle_cpu;
-    res->cpu[SL_STITCH_SOLVE] += early_cpu_read;
     if (r)
         goto done;
     if ((r = nominal_lens(files, count, &opt, &res->lens_nominal, res->lens_source,
@@ -826,6 +653,7 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
     phase_end(res, SL_STITCH_READ, &t, &c);
     /* A circular fisheye's image circle, found in every view: the optical
      * centre and the circle the solve starts from (a profile keeps its own). */
+    bool given = opt.lens || opt.lens_profile;
     if (res->lens_nominal.projection != SL_LENS_RECTILINEAR &&
         res->lens_nominal.circle_radius_px > 0) {
         double sx = 0, sy = 0, sr = 0;
@@ -868,15 +696,8 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
             so.solve_focal = so.solve_centre = so.solve_vignette = false;
             so.radial_terms = 0;
         }
-        double wait = sl_seconds();
-        early_finish(&early, false);
-        wait = sl_seconds() - wait;
-        if ((r = solve_reduced(files, views, count, &so, res->circle_found && !given,
-                               &res->solve, err)))
+        if ((r = solve_reduced(files, views, count, &so, &res->solve, err)))
             goto done;
-        /* the features' stage: the wait for those found beside the reading */
-        res->solve.seconds_features += wait;
-        res->solve.seconds_total += wait;
         res->solved = true;
         snprintf(res->solve_note, sizeof res->solve_note,
                  "solved from the overlaps: %d pairs solved, %d placed by their radiance, %d "
@@ -968,7 +789,6 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
     phase_end(res, SL_STITCH_BLEND, &t, &c);
 
 done:
-    early_finish(&early, true);
     sl_exr_stream_abort(out.stream);
     res->seconds = sl_seconds() - t0;
     res->cpu_seconds = sl_cpu_seconds() - c0;
@@ -982,7 +802,6 @@ done:
         stitch_half_free(&files[i].half);
         sl_image_free(&files[i].solve_radiance);
         sl_image_free(&files[i].solve_weight);
-        solve_features_free(&files[i].feat);
         if (files[i].path)
             sl_meta_free(&files[i].meta);
     }

@@ -47,15 +47,6 @@ typedef struct solve_features {
 sl_result solve_find_features(const sl_stitch_view *view, const sl_stitch_solve_options *opt,
                               solve_features *out, sl_error *err);
 void solve_features_free(solve_features *f);
-/* sl_stitch_solve with the features of the views whose found[v] was
- * found already (scale > 0; found beside the reading, by
- * solve_find_features): those are taken (zeroed in found), the rest found
- * here. found may be NULL. */
-sl_result stitch_solve_found(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
-                             solve_features *found, sl_stitch_solve_result *res, sl_error *err);
-/* While the features are found: freed blocks under 32 MB stay in the heap
- * for the next view's SIFT pyramid (true); after, they go back (false). */
-void stitch_keep_freed_blocks(bool keep);
 /* Cross-checked ratio-test matches between the features with keep set
  * (NULL: all); *pairs (index pairs into a's and b's features) is malloc'd. */
 sl_result solve_match_features(const solve_features *a, const bool *keep_a,

@@ -109,7 +109,7 @@ static double overlap_solid_angle(const sl_lens *lens, const double a[3][3], con
  * what is freed stays there, so the next view reuses the pages; after,
  * the freed pages go back (three 24 MP views: 110 000 fewer page faults,
  * the solve about 0.2 CPU s less, peak RSS 0.94 GB instead of 0.92). */
-void stitch_keep_freed_blocks(bool keep)
+static void keep_freed_blocks(bool keep)
 {
 #ifdef __GLIBC__
     if (keep) {
@@ -825,12 +825,6 @@ static sl_result check_views(const sl_stitch_view *views, int count, sl_error *e
 sl_result sl_stitch_solve(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
                           sl_stitch_solve_result *res, sl_error *err)
 {
-    return stitch_solve_found(views, count, opt, NULL, res, err);
-}
-
-sl_result stitch_solve_found(sl_stitch_view *views, int count, const sl_stitch_solve_options *opt,
-                             solve_features *found, sl_stitch_solve_result *res, sl_error *err)
-{
     memset(res, 0, sizeof *res);
     double start = sl_seconds();
     sl_stitch_solve_options defaults;
@@ -888,18 +882,13 @@ sl_result stitch_solve_found(sl_stitch_view *views, int count, const sl_stitch_s
         }
     bool wanted = opt->solve_poses || opt->solve_focal || opt->solve_centre ||
                   opt->radial_terms > 0 || opt->solve_vignette;
-    stitch_keep_freed_blocks(true);
+    keep_freed_blocks(true);
     for (int v = 0; r == SL_OK && v < count && wanted; v++)
         if (needs && needs[v]) {
-            if (found && found[v].scale > 0.0) {
-                st.feat[v] = found[v];
-                memset(&found[v], 0, sizeof found[v]);
-            } else {
-                r = solve_find_features(&views[v], opt, &st.feat[v], err);
-            }
+            r = solve_find_features(&views[v], opt, &st.feat[v], err);
             res->features[v] = st.feat[v].count;
         }
-    stitch_keep_freed_blocks(false);
+    keep_freed_blocks(false);
     free(needs);
     res->seconds_features = sl_seconds() - start;
     double t = sl_seconds();
