@@ -17,10 +17,12 @@
 #include "exr_zip.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <libdeflate.h>
 #include <openexr.h>
@@ -1056,6 +1058,10 @@ struct sl_exr_stream {
     bool own_zip;
     int workers;
     exr_zip_scratch *zip; /* per worker */
+    /* The file's written pages handed to the disk a batch at a time, so
+     * the commit's fsync does not wait for all of them at the end (-1:
+     * not opened; then the fsync does it all). */
+    int writeback_fd;
 };
 
 /* Keeps the compressed bytes instead of writing them (the caller writes in order). */
@@ -1187,6 +1193,10 @@ static exr_result_t flush_batch(sl_exr_stream *s)
         if (rv == EXR_ERR_SUCCESS)
             rv = exr_write_scanline_chunk(s->ctx, 0, s->out[k].y, s->out[k].bytes, s->out[k].size);
     }
+#ifdef SYNC_FILE_RANGE_WRITE
+    if (rv == EXR_ERR_SUCCESS && s->writeback_fd >= 0) /* starts it, does not wait */
+        sync_file_range(s->writeback_fd, 0, 0, SYNC_FILE_RANGE_WRITE);
+#endif
     s->row0 += s->rows;
     s->rows = 0;
     return rv;
@@ -1224,6 +1234,7 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
         free(s);
         return sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", path);
     }
+    s->writeback_fd = -1;
     sl_meta_init(&s->meta);
     sl_result r = meta ? sl_meta_copy(meta, &s->meta, err) : SL_OK;
     if (!r)
@@ -1248,6 +1259,8 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
         rv = write_header(s->ctx, &shape, meta, type, compression);
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_write_header(s->ctx);
+    if (rv == EXR_ERR_SUCCESS)
+        s->writeback_fd = open(s->f.temp_path, O_RDONLY | O_CLOEXEC);
     int32_t lines = 1;
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_scanlines_per_chunk(s->ctx, 0, &lines);
@@ -1526,6 +1539,8 @@ void sl_exr_stream_abort(sl_exr_stream *s)
         return;
     if (s->ctx)
         exr_finish(&s->ctx);
+    if (s->writeback_fd >= 0)
+        close(s->writeback_fd);
     if (s->f.temp_path[0])
         sl_atomic_abort(&s->f);
     sl_meta_free(&s->meta);

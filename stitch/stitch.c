@@ -66,6 +66,61 @@ typedef struct view_file {
     bool circle_running;
 } view_file;
 
+/* Runs fn(arg) on a thread of its own, or here when none can be started:
+ * true when on a thread (then joined by join_beside). */
+static bool run_beside(pthread_t *thread, void *(*fn)(void *), void *arg)
+{
+    if (pthread_create(thread, NULL, fn, arg) == 0)
+        return true;
+    fn(arg);
+    return false;
+}
+
+static void join_beside(pthread_t thread, bool *running)
+{
+    if (*running)
+        pthread_join(thread, NULL);
+    *running = false;
+}
+
+/* Blocks freed on a thread of its own beside what comes next: a 24 MP
+ * half view takes about 0.016 s to unmap and a solve copy 0.007 s, and at
+ * the end of the stitch nothing else is left to run. */
+typedef struct release {
+    pthread_t thread;
+    bool running;
+    int count;
+    void *blocks[4 * SL_STITCH_MAX_VIEWS];
+} release;
+
+static void *release_main(void *arg)
+{
+    release *r = arg;
+    for (int i = 0; i < r->count; i++)
+        free(r->blocks[i]);
+    return NULL;
+}
+
+/* Takes an image's memory (the image is left empty). */
+static void release_image(release *r, sl_image *img)
+{
+    if (img->data && r->count < (int)(sizeof r->blocks / sizeof r->blocks[0])) {
+        r->blocks[r->count++] = img->data;
+        memset(img, 0, sizeof *img);
+    }
+}
+
+static void release_start(release *r)
+{
+    r->running = r->count > 0 && run_beside(&r->thread, release_main, r);
+}
+
+static void release_wait(release *r)
+{
+    join_beside(r->thread, &r->running);
+    r->count = 0;
+}
+
 /* The merge's clipped mask named by the radiance (as given to merge, or
  * beside the radiance) as a confidence: 1, or 1e-3 where a channel is
  * clipped in every frame (a lower bound: any unclipped view wins). */
@@ -238,16 +293,12 @@ static void *circle_main(void *arg)
 
 static void circle_start(view_file *v)
 {
-    v->circle_running = pthread_create(&v->circle_thread, NULL, circle_main, v) == 0;
-    if (!v->circle_running) /* no thread: found here */
-        circle_main(v);
+    v->circle_running = run_beside(&v->circle_thread, circle_main, v);
 }
 
 static void circle_wait(view_file *v)
 {
-    if (v->circle_running)
-        pthread_join(v->circle_thread, NULL);
-    v->circle_running = false;
+    join_beside(v->circle_thread, &v->circle_running);
 }
 
 /* A view read as half (sl_exr_read_half_rgb) is kept so when it is in the
@@ -593,6 +644,7 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
     sl_meta meta;
     sl_meta_init(&meta);
     out_file out = {0};
+    release freeing = {0}; /* memory freed beside what comes next */
     stitch_report_images *report = NULL;
     if (res_out)
         memset(res_out, 0, sizeof *res_out);
@@ -730,6 +782,12 @@ sl_result sl_stitch(const char *const *view_paths, int count, const char *out_pa
             goto done;
     }
     phase_end(res, SL_STITCH_SOLVE, &t, &c);
+    /* The solve's copies are done with: freed beside the blend. */
+    for (int i = 0; i < count; i++) {
+        release_image(&freeing, &files[i].solve_radiance);
+        release_image(&freeing, &files[i].solve_weight);
+    }
+    release_start(&freeing);
 
     int width = opt.blend.width > 0 ? opt.blend.width
                                     : sl_stitch_default_width(&res->lens, opt.blend.max_width);
@@ -792,6 +850,16 @@ done:
     sl_exr_stream_abort(out.stream);
     res->seconds = sl_seconds() - t0;
     res->cpu_seconds = sl_cpu_seconds() - c0;
+    release_wait(&freeing);
+    /* every other view's memory freed on a thread of its own beside the rest */
+    for (int i = 1; i < SL_STITCH_MAX_VIEWS; i += 2) {
+        if (files[i].half.rgb && freeing.count < (int)(sizeof freeing.blocks / sizeof freeing.blocks[0])) {
+            freeing.blocks[freeing.count++] = files[i].half.rgb;
+            files[i].half.rgb = NULL;
+        }
+        release_image(&freeing, &files[i].radiance);
+    }
+    release_start(&freeing);
     if (!r && res_out)
         *res_out = *res; /* the solve's arrays go with it */
     else
@@ -805,6 +873,7 @@ done:
         if (files[i].path)
             sl_meta_free(&files[i].meta);
     }
+    release_wait(&freeing);
     sl_meta_free(&meta);
     if (report) {
         for (int i = 0; i < SL_STITCH_MAX_VIEWS; i++)
