@@ -85,9 +85,11 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         r = pl_json_write(farm_path, farm, err);
     if (!r)
         r = sl_pipeline_slurm_run(farm_path, &so, &sr, err);
-    /* Kept only while a job submitted may still be on the cluster. */
-    if (grouping && (!r || !sr.sbatch_calls))
-        sl_remove_tree(group_dir);
+    /* Kept only while a job submitted may still be on the cluster; removed
+     * after the day's index (below), not before it: its claims are a file
+     * or two a job (50 tiny setups: about 1700), whose removal took over a
+     * second on this shared machine's disk. */
+    bool remove_group_dir = grouping && (!r || !sr.sbatch_calls);
     for (int i = 0; !r && i < sr.job_count; i++) {
         const sl_pipeline_slurm_job *j = &sr.jobs[i];
         json_t *c = json_object_get(choices, j->id);
@@ -119,6 +121,8 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         r = pl_run_local(o, day, status, res, err);
         res->jobs = (int)json_array_size(json_object_get(graph, "jobs"));
     }
+    if (remove_group_dir)
+        sl_remove_tree(group_dir);
     json_decref(farm);
     json_decref(day);
     return r;
