@@ -1,10 +1,13 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 /* setlight process: plan the day, write its graph, run it, sum it up. */
+#include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "pipeline_private.h"
@@ -36,16 +39,58 @@ static void add_failure(sl_pipeline_result *res, const char *setup, const char *
 }
 
 
+/* Removes the folder path in a grandchild of this process, so that no
+ * wait for any child here (the local runner's wait4(-1)) meets it, while
+ * this process goes on. Returns the read end of a pipe whose write end
+ * only the grandchild holds: it reads end-of-file once the folder is gone
+ * (remove_wait). -1 when removed here, at once. */
+static int remove_behind(const char *path)
+{
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC)) {
+        sl_remove_tree(path);
+        return -1;
+    }
+    fflush(NULL); /* nothing buffered is written twice */
+    pid_t child = fork();
+    if (child == 0) {
+        close(fds[0]);
+        if (fork() > 0)
+            _exit(0);
+        sl_remove_tree(path); /* the grandchild, or the child if that fork failed */
+        _exit(0);
+    }
+    close(fds[1]);
+    if (child < 0) {
+        close(fds[0]);
+        sl_remove_tree(path);
+        return -1;
+    }
+    while (waitpid(child, NULL, 0) < 0 && errno == EINTR) {
+    }
+    return fds[0];
+}
+
+static void remove_wait(int fd)
+{
+    char c;
+    while (fd >= 0 && (read(fd, &c, 1) > 0 || errno == EINTR)) {
+    }
+    if (fd >= 0)
+        close(fd);
+}
+
 /* The graph through Slurm, all but the day's index: the index follows
  * every other job whatever its end (an afterok dependency would cancel it
  * with the first failure), so it runs here once Slurm is done. The jobs
  * Slurm runs are the same `setlight job JOBS.json ID` the local runner
  * starts, so they skip themselves when up to date and stamp what they ran.
  * choices: per setup, grouped into one Slurm job or not (pl_farm_choices);
- * a grouped setup whose Slurm job was killed gets its "slurm_state". */
+ * a grouped setup whose Slurm job was killed gets its "slurm_state".
+ * *removing: remove_behind's pipe for the day's farm folder, or -1. */
 static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
                            json_t *choices, const char *jobs_path, json_t *status,
-                           sl_pipeline_result *res, sl_error *err)
+                           sl_pipeline_result *res, int *removing, sl_error *err)
 {
     json_t *farm = json_deep_copy(graph), *day = json_deep_copy(graph);
     json_t *farm_jobs = json_object_get(farm, "jobs"), *index_jobs = json_array();
@@ -85,9 +130,11 @@ static sl_result run_slurm(const sl_pipeline_options *o, const json_t *graph,
         r = pl_json_write(farm_path, farm, err);
     if (!r)
         r = sl_pipeline_slurm_run(farm_path, &so, &sr, err);
-    /* Kept only while a job submitted may still be on the cluster. */
-    if (grouping && (!r || !sr.sbatch_calls))
-        sl_remove_tree(group_dir);
+    /* Kept only while a job submitted may still be on the cluster. Its
+     * claims are a file or two a job (50 tiny setups: about 1700), whose
+     * removal took about a second on this shared machine's disk: done
+     * behind the day's index and the summaries, not before them. */
+    *removing = grouping && (!r || !sr.sbatch_calls) ? remove_behind(group_dir) : -1;
     for (int i = 0; !r && i < sr.job_count; i++) {
         const sl_pipeline_slurm_job *j = &sr.jobs[i];
         json_t *c = json_object_get(choices, j->id);
@@ -248,8 +295,9 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     json_t *choices = o->farm == SL_FARM_SLURM && !o->emit_jobs
                           ? pl_farm_choices(graph, o->farm_group)
                           : NULL;
+    int removing = -1;
     if (choices)
-        r = run_slurm(o, graph, choices, jobs_path, status, res, err), res->slots = 0;
+        r = run_slurm(o, graph, choices, jobs_path, status, res, &removing, err), res->slots = 0;
     else if (!o->emit_jobs)
         r = pl_run_local(o, graph, status, res, err);
     else
@@ -301,6 +349,7 @@ sl_result sl_pipeline_process(const sl_pipeline_options *o, sl_pipeline_result *
     json_decref(doc);
     json_decref(status);
     json_decref(choices);
+    remove_wait(removing); /* the farm folder is gone when this returns */
 done:
     json_decref(graph);
     json_decref(setups);

@@ -251,6 +251,8 @@ typedef struct batch {
     int count;
     bool array;
     long slurm_id;
+    bool running; /* squeue said RUNNING or COMPLETING */
+    bool said_ended; /* its script wrote wake_dir/ended.SLURM_ID, its last act */
 } batch;
 
 typedef struct graph {
@@ -640,7 +642,19 @@ static bool in_task_range(const char *spec, long task)
     return false;
 }
 
-static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result *res)
+/* Whether the Slurm job said it ended: a grouped setup's script writes
+ * wake_dir/ended.SLURM_ID as its last act (pipeline/farm.c). */
+static bool said_it_ended(const char *wake_dir, long slurm_id)
+{
+    if (!wake_dir)
+        return false;
+    char path[PATH_MAX + 64];
+    snprintf(path, sizeof path, "%s/ended.%ld", wake_dir, slurm_id);
+    return access(path, F_OK) == 0;
+}
+
+static void apply_row(graph *g, const char *wake_dir, char *row, bool *seen,
+                      sl_pipeline_slurm_result *res)
 {
     char *f[10];
     int n = 0;
@@ -675,12 +689,24 @@ static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result 
         seen[i] = true;
         sl_pipeline_slurm_job *rj = &res->jobs[i];
         sl_pipeline_slurm_end e;
-        /* A range row is an array's tasks that never started: final only
-         * when they were cancelled together (a dependency failed). */
-        if (!state_is_final(f[3], &e)) {
-            /* A held job (an admin hold, or a launch that failed and was
+        const char *state = f[3];
+        long raw = strtol(f[4], NULL, 10);
+        batch *b = &g->batches[j->batch];
+        b->running = !strcmp(state, "RUNNING") || !strcmp(state, "COMPLETING");
+        /* A script that said it ended, shown completing, has run its last
+         * command and exited with the code squeue gives: Slurm's final
+         * state follows from it. Waited for, it can come seconds later
+         * (slurmd looks for the job's processes again a second later when
+         * they were still exiting), and the day's index waits for it. */
+        if (!strcmp(state, "COMPLETING") && said_it_ended(wake_dir, job_id)) {
+            e = raw == 0 ? SL_SLURM_COMPLETED : SL_SLURM_FAILED;
+            state = raw == 0 ? "COMPLETED" : "FAILED";
+        } else if (!state_is_final(state, &e)) {
+            /* A range row is an array's tasks that never started: final
+             * only when they were cancelled together (a dependency failed).
+             * A held job (an admin hold, or a launch that failed and was
              * requeued held) waits for `scontrol release`: said once. */
-            if (!j->held_warned && (strcasestr(f[8], "held") || strstr(f[3], "HOLD"))) {
+            if (!j->held_warned && (strcasestr(f[8], "held") || strstr(state, "HOLD"))) {
                 j->held_warned = true;
                 sl_log(SL_LOG_WARN, "Slurm job %s (%s) is held (%s): it runs once released "
                        "(scontrol release)", f[0], j->id, f[8]);
@@ -689,8 +715,7 @@ static void apply_row(graph *g, char *row, bool *seen, sl_pipeline_slurm_result 
         }
         j->done = true;
         rj->end = e;
-        snprintf(rj->state, sizeof rj->state, "%s", f[3]);
-        long raw = strtol(f[4], NULL, 10);
+        snprintf(rj->state, sizeof rj->state, "%s", state);
         double submit = slurm_time(f[5]), start = slurm_time(f[6]), stop = slurm_time(f[7]);
         bool ran = !(e == SL_SLURM_CANCELLED && raw == 0) && start >= 0;
         rj->exit_code = ran ? (int)((raw >> 8) & 0xff) : -1;
@@ -709,9 +734,33 @@ static double wake_mtime(const sl_pipeline_slurm_options *o)
     return (double)st.st_mtim.tv_sec + 1e-9 * (double)st.st_mtim.tv_nsec;
 }
 
-/* Sleeps `pause` s, less when the wake folder changes meanwhile (a job
- * ended: true). */
-static bool pause_or_wake(const sl_pipeline_slurm_options *o, double pause, double *seen)
+static bool batch_open(const graph *g, const batch *b)
+{
+    for (int m = 0; m < b->count; m++)
+        if (!g->jobs[b->members[m]].done)
+            return true;
+    return false;
+}
+
+/* Looks for the ended file of each open batch squeue last showed running:
+ * true when one has said it ended since. A look per running job, so at
+ * most one per CPU of the cluster. */
+static bool newly_ended(graph *g, const char *wake_dir)
+{
+    bool any = false;
+    for (int k = 0; wake_dir && k < g->batch_count; k++) {
+        batch *b = &g->batches[k];
+        if (b->running && !b->said_ended && batch_open(g, b) && said_it_ended(wake_dir, b->slurm_id))
+            b->said_ended = any = true;
+    }
+    return any;
+}
+
+/* Sleeps `pause` s, less when a job says it ended meanwhile: its file
+ * (newly_ended), or any change of the wake folder (its mtime: a job
+ * that started and ended between two squeue), looked at every 50 ms. */
+static bool pause_or_wake(graph *g, const sl_pipeline_slurm_options *o, double pause,
+                          double *seen)
 {
     double step = o->wake_dir ? 0.05 : pause, left = pause;
     while (left > 0) {
@@ -720,7 +769,8 @@ static bool pause_or_wake(const sl_pipeline_slurm_options *o, double pause, doub
         nanosleep(&ts, NULL);
         left -= d;
         double m = wake_mtime(o);
-        if (m != *seen) {
+        bool ended = newly_ended(g, o->wake_dir);
+        if (m != *seen || ended) {
             *seen = m;
             return true;
         }
@@ -766,6 +816,11 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
     /* Nothing here waits on a job's end (Slurm starts the dependants), so
      * the period grows from poll_seconds to poll_max_seconds: on a small
      * cluster the controller and squeue share the CPUs with the jobs. */
+    if (o->wake_dir) { /* made now, so that say_ended's files do not wake this wait */
+        char path[PATH_MAX + 16];
+        snprintf(path, sizeof path, "%s/ended", o->wake_dir);
+        mkdir(path, 0755);
+    }
     double pause = o->poll_seconds, woken = wake_mtime(o);
     sl_result r = SL_OK;
     for (;;) {
@@ -774,9 +829,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
         bool ok = true;
         int left = 0;
         for (int b = 0; b < g->batch_count && ok; b++) {
-            bool open = false;
-            for (int m = 0; m < g->batches[b].count; m++)
-                open |= !g->jobs[g->batches[b].members[m]].done;
+            bool open = batch_open(g, &g->batches[b]);
             if (open)
                 ok = sl_text_printf(&ids, "%s%ld", ids.len ? "," : "", g->batches[b].slurm_id);
             left += open;
@@ -851,7 +904,7 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
                 next = strchr(line, '\n');
                 if (next)
                     *next++ = '\0';
-                apply_row(g, line, seen, res);
+                apply_row(g, o->wake_dir, line, seen, res);
             }
             /* A job squeue no longer knows (purged, MinJobAge) before it
              * was seen ending: lost, after three polls to be sure. */
@@ -874,9 +927,14 @@ static sl_result wait_jobs(graph *g, const sl_pipeline_slurm_options *o,
             all_done &= !g->jobs[i].submit || g->jobs[i].done;
         if (all_done)
             continue; /* the loop's head ends it */
-        /* A job that said it ended is still completing in Slurm for a
-         * moment: asked again from the shortest period. */
-        if (pause_or_wake(o, pause, &woken))
+        /* A job that said it ended is running or completing in Slurm for
+         * a moment: asked again at a short period, the shortest after a
+         * wake. */
+        double next = pause;
+        for (int b = 0; b < g->batch_count; b++)
+            if (g->batches[b].said_ended && batch_open(g, &g->batches[b]) && next > 0.1)
+                next = 0.1;
+        if (pause_or_wake(g, o, next, &woken))
             pause = o->poll_seconds;
         else
             pause = pause * 1.5 < o->poll_max_seconds ? pause * 1.5

@@ -29,9 +29,11 @@ typedef struct sl_pipeline_slurm_options {
     double poll_seconds; /* 0.25: squeue's first period while waiting */
     double poll_max_seconds; /* 2: the period grows by 1.5x a poll up to this */
     double timeout_seconds; /* 0: wait as long as the jobs take */
-    /* NULL, or a folder the jobs write a file in as they end (a grouped
-     * setup's script does, docs/slurm.md): while waiting, a change of it
-     * (its mtime, looked at every 50 ms) brings the next squeue forward. */
+    /* NULL, or a folder the jobs write ended.SLURM_ID in as their last act
+     * (a grouped setup's script does, docs/slurm.md): while waiting, such a
+     * file or a change of the folder (looked at every 50 ms) brings the
+     * next squeue forward, and a job that wrote its file and that squeue
+     * shows COMPLETING has ended, with the exit code squeue gives. */
     const char *wake_dir;
 } sl_pipeline_slurm_options;
 

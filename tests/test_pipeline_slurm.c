@@ -465,11 +465,113 @@ static void test_bad_graphs(void)
     sl_pipeline_slurm_result_free(&res);
 }
 
+/* A fake Slurm command, DIR/NAME, running body. */
+static void fake_command(const char *dir, const char *name, const char *body)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "w");
+    CHECK(f != NULL);
+    if (!f)
+        return;
+    fprintf(f, "#!/bin/sh\n%s\n", body);
+    fclose(f);
+    CHECK(chmod(path, 0755) == 0);
+}
+
+/* A grouped setup's script writes wake_dir/ended.SLURM_ID as its last act;
+ * Slurm then shows the job COMPLETING until slurmd has seen its processes
+ * gone, which can take seconds. A job that said it ended and is shown
+ * completing has ended, with the exit code squeue gives; without its
+ * file, COMPLETING is no end (a cancelled job completes too). Fake
+ * commands: squeue answers COMPLETING forever. */
+static void test_said_ended_and_completing(void)
+{
+    char bin[4200], wake[4200], ended[4300];
+    snprintf(bin, sizeof bin, "%s", keep_path("fake_slurm"));
+    snprintf(wake, sizeof wake, "%s", keep_path("fake_wake"));
+    sl_remove_tree(bin);
+    sl_remove_tree(wake);
+    CHECK(mkdir(bin, 0755) == 0 && mkdir(wake, 0755) == 0);
+    fake_command(bin, "scontrol", "exit 0");
+    char body[8800];
+    snprintf(body, sizeof body,
+             "cat >/dev/null; n=$(cat '%s/n' 2>/dev/null || echo 40); n=$((n + 1)); "
+             "echo $n >'%s/n'; echo $n",
+             bin, bin);
+    fake_command(bin, "sbatch", body);
+    fake_command(bin, "squeue",
+                 "t=2026-11-29T00:30:56\n"
+                 "echo \"41|41|N/A|COMPLETING|0|$t|$t|$t|None|\"\n"
+                 "echo \"42|42|N/A|COMPLETING|256|$t|$t|$t|None|\"");
+    const char *graph = keep_path("jobs_completing.json");
+    FILE *f = fopen(graph, "w");
+    CHECK(f != NULL);
+    if (!f)
+        return;
+    fprintf(f, "{\"format\":\"setlight-jobs\",\"version\":1,\"out\":\"%s\",\"jobs\":[", out_dir());
+    for (int k = 0; k < 2; k++)
+        fprintf(f,
+                "%s{\"id\":\"%c\",\"setup\":null,\"stage\":\"merge\",\"command\":[\"x\"],"
+                "\"inputs\":[],\"outputs\":[],\"key\":null,\"argv\":[\"true\"],\"deps\":[],"
+                "\"array\":null,\"memory_mb\":16,\"cpus\":1,\"log\":\"%s/logs/%c.log\","
+                "\"up_to_date\":false}",
+                k ? "," : "", 'a' + k, out_dir(), 'a' + k);
+    fputs("]}\n", f);
+    fclose(f);
+    for (int k = 41; k <= 42; k++) {
+        snprintf(ended, sizeof ended, "%s/ended.%d", wake, k);
+        int fd = open(ended, O_WRONLY | O_CREAT, 0644);
+        CHECK(fd >= 0);
+        if (fd >= 0)
+            close(fd);
+    }
+
+    char sbatch[4300], squeue[4300], scontrol[4300];
+    snprintf(sbatch, sizeof sbatch, "%s/sbatch", bin);
+    snprintf(squeue, sizeof squeue, "%s/squeue", bin);
+    snprintf(scontrol, sizeof scontrol, "%s/scontrol", bin);
+    sl_pipeline_slurm_options o;
+    sl_pipeline_slurm_options_init(&o);
+    o.sbatch = sbatch;
+    o.squeue = squeue;
+    o.scontrol = scontrol;
+    o.wake_dir = wake;
+    o.timeout_seconds = 3;
+    sl_pipeline_slurm_result res;
+    sl_error err = {0};
+    double t0 = sl_seconds();
+    CHECK_RESULT(sl_pipeline_slurm_run(graph, &o, &res, &err), SL_OK, &err);
+    CHECK_MSG(sl_seconds() - t0 < 2, "%.2f s", sl_seconds() - t0); /* the first squeue */
+    CHECK(res.job_count == 2 && res.completed == 1 && res.failed == 1);
+    if (res.job_count == 2) {
+        CHECK(!strcmp(res.jobs[0].slurm_id, "41") && res.jobs[0].end == SL_SLURM_COMPLETED &&
+              !strcmp(res.jobs[0].state, "COMPLETED") && res.jobs[0].exit_code == 0);
+        CHECK(!strcmp(res.jobs[1].slurm_id, "42") && res.jobs[1].end == SL_SLURM_FAILED &&
+              !strcmp(res.jobs[1].state, "FAILED") && res.jobs[1].exit_code == 1);
+    }
+    sl_pipeline_slurm_result_free(&res);
+
+    /* Job 42 did not say it ended: it is still waited for. */
+    snprintf(ended, sizeof ended, "%s/ended.42", wake);
+    CHECK(unlink(ended) == 0);
+    snprintf(ended, sizeof ended, "%s/n", bin);
+    unlink(ended);
+    o.timeout_seconds = 1;
+    CHECK_RESULT(sl_pipeline_slurm_run(graph, &o, &res, &err), SL_ERR_IO, &err);
+    CHECK_MSG(strstr(err.message, "Slurm jobs 42 still queued or running") != NULL, "%s",
+              err.message);
+    if (res.job_count == 2)
+        CHECK(res.jobs[0].end == SL_SLURM_COMPLETED && res.jobs[1].end != SL_SLURM_COMPLETED);
+    sl_pipeline_slurm_result_free(&res);
+}
+
 int main(void)
 {
     sl_test_tmpdir();
     RUN(test_bad_graphs);
     RUN(test_sbatch_missing);
+    RUN(test_said_ended_and_completing);
     if (start_cluster())
         RUN(test_day_on_slurm);
     stop_cluster();
