@@ -1059,8 +1059,9 @@ struct sl_exr_stream {
     int workers;
     exr_zip_scratch *zip; /* per worker */
     /* The file's written pages handed to the disk a batch at a time, so
-     * the commit's fsync does not wait for all of them at the end (-1:
-     * not opened; then the fsync does it all). */
+     * the commit's fsync does not wait for all of them at the end, and
+     * its blocks reserved up front (-1: not opened; then the fsync does
+     * it all and the writes allocate as they go). */
     int writeback_fd;
 };
 
@@ -1202,6 +1203,35 @@ static exr_result_t flush_batch(sl_exr_stream *s)
     return rv;
 }
 
+/* The file's blocks reserved at once, past its end, for as many bytes as
+ * the pixels uncompressed (no less than ZIP writes: a chunk that does not
+ * compress is stored raw): ext4 then allocates no blocks write by write.
+ * Best effort: without it the writes allocate as they go. */
+static void reserve_blocks(sl_exr_stream *s, int lines, sl_pixel_type type)
+{
+#ifdef FALLOC_FL_KEEP_SIZE
+    off_t end = s->writeback_fd >= 0 ? lseek(s->writeback_fd, 0, SEEK_END) : -1;
+    int64_t chunks = (s->height + lines - 1) / lines;
+    int64_t bytes = (int64_t)s->width * s->height * s->channels *
+                        (type == SL_PIXEL_HALF ? 2 : 4) +
+                    chunks * 16; /* each chunk's offset, line and size */
+    if (end >= 0)
+        (void)fallocate(s->writeback_fd, FALLOC_FL_KEEP_SIZE, end, (off_t)bytes);
+#else
+    (void)s, (void)lines, (void)type;
+#endif
+}
+
+/* The reserved blocks past the file's end given back. */
+static exr_result_t release_reserve(sl_exr_stream *s)
+{
+    if (s->writeback_fd < 0)
+        return EXR_ERR_SUCCESS;
+    off_t end = lseek(s->writeback_fd, 0, SEEK_END);
+    return end >= 0 && ftruncate(s->writeback_fd, end) == 0 ? EXR_ERR_SUCCESS
+                                                              : EXR_ERR_WRITE_IO;
+}
+
 static sl_result stream_fail(sl_exr_stream *s, exr_result_t rv, sl_error *err)
 {
     /* Attribute problems come from the caller's meta, not the disk. */
@@ -1260,10 +1290,12 @@ sl_result sl_exr_stream_open(const char *path, int width, int height, int channe
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_write_header(s->ctx);
     if (rv == EXR_ERR_SUCCESS)
-        s->writeback_fd = open(s->f.temp_path, O_RDONLY | O_CLOEXEC);
+        s->writeback_fd = open(s->f.temp_path, O_WRONLY | O_CLOEXEC);
     int32_t lines = 1;
     if (rv == EXR_ERR_SUCCESS)
         rv = exr_get_scanlines_per_chunk(s->ctx, 0, &lines);
+    if (rv == EXR_ERR_SUCCESS)
+        reserve_blocks(s, lines, type);
     if (rv != EXR_ERR_SUCCESS)
         return stream_fail(s, rv, err);
     /* Eight chunks per thread a batch: enough to keep every thread busy. */
@@ -1521,6 +1553,8 @@ sl_result sl_exr_stream_finish(sl_exr_stream *s, const sl_meta *update, sl_error
     }
     /* exr_finish writes the chunk offset table: it can fail too. */
     exr_result_t rv = exr_finish(&s->ctx);
+    if (rv == EXR_ERR_SUCCESS)
+        rv = release_reserve(s);
     if (rv != EXR_ERR_SUCCESS)
         return stream_fail(s, rv, err);
     sl_result r = update ? patch_header(s, update, err) : SL_OK;

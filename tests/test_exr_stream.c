@@ -2,9 +2,11 @@
 /* sl_exr_stream_*: rows written in uneven pieces round-trip for every
  * compression and thread count (float exactly, half rounded to nearest),
  * all-zero chunks (compressed once, reused) come back zero, attributes are
- * finished in place, and every misuse leaves no file. */
+ * finished in place, the disk holds no more than the file's bytes, and
+ * every misuse leaves no file. */
 #include <dirent.h>
 #include <math.h>
+#include <sys/stat.h>
 #include <stdio.h>
 #include <string.h>
 #include <unistd.h>
@@ -206,11 +208,33 @@ static void test_misuse_leaves_nothing(void)
     CHECK(leftovers() == 0);
 }
 
+/* The blocks reserved for the pixels uncompressed (12 MB here) are given
+ * back at the finish: a black image's file holds only its own bytes. */
+static void test_no_blocks_past_the_end(void)
+{
+    enum { BW = 1000, BH = 1000 };
+    static float black[BW * 3];
+    sl_error err;
+    const char *path = sl_test_path("stream_black.exr");
+    sl_exr_stream *s;
+    CHECK_OK(sl_exr_stream_open(path, BW, BH, 3, NULL, SL_PIXEL_FLOAT, SL_EXR_ZIP, &s, &err), &err);
+    for (int y = 0; y < BH && s; y++)
+        CHECK_OK(sl_exr_stream_write(s, black, 1, BW * 3, &err), &err);
+    CHECK_OK(sl_exr_stream_finish(s, NULL, &err), &err);
+    struct stat st;
+    CHECK(stat(path, &st) == 0);
+    CHECK_MSG((int64_t)st.st_blocks * 512 <= st.st_size + 65536,
+              "%lld bytes on disk for a file of %lld", (long long)st.st_blocks * 512,
+              (long long)st.st_size);
+    unlink(path);
+}
+
 int main(void)
 {
     RUN(test_round_trips);
     RUN(test_half_clamp);
     RUN(test_finish_update);
     RUN(test_misuse_leaves_nothing);
+    RUN(test_no_blocks_past_the_end);
     return sl_test_finish();
 }
