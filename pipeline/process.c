@@ -73,11 +73,15 @@ static int remove_behind(const char *path)
 
 static void remove_wait(int fd)
 {
+    if (fd < 0)
+        return;
     char c;
-    while (fd >= 0 && (read(fd, &c, 1) > 0 || errno == EINTR)) {
+    ssize_t n;
+    /* errno is read only after a failed read: a stale EINTR at end-of-file
+     * would loop for ever */
+    while ((n = read(fd, &c, 1)) > 0 || (n < 0 && errno == EINTR)) {
     }
-    if (fd >= 0)
-        close(fd);
+    close(fd);
 }
 
 /* The graph through Slurm, all but the day's index: the index follows
