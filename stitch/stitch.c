@@ -101,13 +101,22 @@ static void *release_main(void *arg)
     return NULL;
 }
 
+/* Takes a block (*block set to NULL); false when full (then the owner frees it). */
+static bool release_block(release *r, void **block)
+{
+    if (!*block || r->count >= (int)(sizeof r->blocks / sizeof r->blocks[0]))
+        return false;
+    r->blocks[r->count++] = *block;
+    *block = NULL;
+    return true;
+}
+
 /* Takes an image's memory (the image is left empty). */
 static void release_image(release *r, sl_image *img)
 {
-    if (img->data && r->count < (int)(sizeof r->blocks / sizeof r->blocks[0])) {
-        r->blocks[r->count++] = img->data;
+    void *data = img->data;
+    if (release_block(r, &data))
         memset(img, 0, sizeof *img);
-    }
 }
 
 static void release_start(release *r)
@@ -853,10 +862,9 @@ done:
     release_wait(&freeing);
     /* every other view's memory freed on a thread of its own beside the rest */
     for (int i = 1; i < SL_STITCH_MAX_VIEWS; i += 2) {
-        if (files[i].half.rgb && freeing.count < (int)(sizeof freeing.blocks / sizeof freeing.blocks[0])) {
-            freeing.blocks[freeing.count++] = files[i].half.rgb;
+        void *half = files[i].half.rgb;
+        if (release_block(&freeing, &half))
             files[i].half.rgb = NULL;
-        }
         release_image(&freeing, &files[i].radiance);
     }
     release_start(&freeing);
