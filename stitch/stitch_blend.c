@@ -324,6 +324,7 @@ typedef struct blend_pass {
     stitch_row_stats *stats;   /* per row of the strip */
     stitch_ray_view rays[SL_STITCH_MAX_VIEWS]; /* the views for the float row loop */
     float *sin_lon_f, *cos_lon_f;              /* sin_lon, cos_lon in float */
+    float *sin_lon_hot_f, *cos_lon_hot_f;      /* sin_lon_hot, cos_lon_hot in float */
     struct row_scratch *scratch;               /* per worker */
     int workers;
 } blend_pass;
@@ -510,18 +511,28 @@ typedef struct row_scratch {
     bool *hot;                          /* width */
     bool *seen;                         /* width * count */
     bool *skip;                         /* width * ss: masked samples */
+    /* the row's hot texels, their ss_hot samples per sub-row packed */
+    int *hot_x;                          /* width: the hot texels' columns */
+    float *hot_sin, *hot_cos;            /* width * ss_hot: their longitudes */
+    float *hot_px, *hot_py, *hot_weight, *hot_inv_gain; /* width * ss_hot */
+    bool *hot_skip;                      /* width * ss_hot */
+    double *hot_acc;                     /* count * width * 4 */
+    double *hot_masked_area;             /* width */
 } row_scratch;
 
 static void scratch_free(row_scratch *s)
 {
     free(s->px), free(s->py), free(s->weight), free(s->inv_gain);
     free(s->acc), free(s->masked_area), free(s->hot), free(s->seen), free(s->skip);
+    free(s->hot_x), free(s->hot_sin), free(s->hot_cos), free(s->hot_px), free(s->hot_py);
+    free(s->hot_weight), free(s->hot_inv_gain), free(s->hot_skip), free(s->hot_acc);
+    free(s->hot_masked_area);
     memset(s, 0, sizeof *s);
 }
 
-static bool scratch_alloc(row_scratch *s, int width, int ss, int count)
+static bool scratch_alloc(row_scratch *s, int width, int ss, int ss_hot, int count)
 {
-    size_t n = (size_t)width * ss;
+    size_t n = (size_t)width * ss, nh = (size_t)width * ss_hot;
     s->px = malloc(n * sizeof(float));
     s->py = malloc(n * sizeof(float));
     s->weight = malloc(n * sizeof(float));
@@ -531,8 +542,19 @@ static bool scratch_alloc(row_scratch *s, int width, int ss, int count)
     s->hot = malloc((size_t)width);
     s->seen = malloc((size_t)width * count);
     s->skip = malloc(n);
+    s->hot_x = malloc((size_t)width * sizeof(int));
+    s->hot_sin = malloc(nh * sizeof(float));
+    s->hot_cos = malloc(nh * sizeof(float));
+    s->hot_px = malloc(nh * sizeof(float));
+    s->hot_py = malloc(nh * sizeof(float));
+    s->hot_weight = malloc(nh * sizeof(float));
+    s->hot_inv_gain = malloc(nh * sizeof(float));
+    s->hot_skip = malloc(nh);
+    s->hot_acc = malloc((size_t)width * count * 4 * sizeof(double));
+    s->hot_masked_area = malloc((size_t)width * sizeof(double));
     if (s->px && s->py && s->weight && s->inv_gain && s->acc && s->masked_area && s->hot &&
-        s->seen && s->skip)
+        s->seen && s->skip && s->hot_x && s->hot_sin && s->hot_cos && s->hot_px && s->hot_py &&
+        s->hot_weight && s->hot_inv_gain && s->hot_skip && s->hot_acc && s->hot_masked_area)
         return true;
     scratch_free(s);
     return false;
@@ -550,7 +572,7 @@ static inline bool hot_pixels(float a, float b, float c, float d)
 /* The half view's bilinear lookup in float (the table's values, the
  * weights of sl_bilinear_at); true when its four pixels' G differ by more
  * than HOT_CONTRAST. */
-static inline bool fetch_half(const stitch_half_image *img, const float *table, float x, float y,
+static inline __attribute__((always_inline)) bool fetch_half(const stitch_half_image *img, const float *table, float x, float y,
                               float rgb[3])
 {
     sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
@@ -565,7 +587,7 @@ static inline bool fetch_half(const stitch_half_image *img, const float *table, 
 }
 
 /* The same of a float view. */
-static inline bool fetch_float(const sl_image *img, float x, float y, float rgb[3])
+static inline __attribute__((always_inline)) bool fetch_float(const sl_image *img, float x, float y, float rgb[3])
 {
     sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
     const float *p00 = sl_image_pixel(img, b.x0, b.y0), *p10 = sl_image_pixel(img, b.x1, b.y0);
@@ -581,6 +603,18 @@ bool stitch_blend_reference = false;
 
 /* Samples ahead whose view pixels are fetched into the cache. */
 #define PREFETCH_AHEAD 16
+
+/* Asks for the cache lines a lookup at (x, y) will read: the first load of
+ * a view pixel is what the sample loops wait on. */
+static inline void prefetch_pixel(const stitch_half_image *hv, float x, float y)
+{
+    int px = (int)x, py = (int)y;
+    px = px < 1 ? 0 : (px >= hv->width ? hv->width - 1 : px - 1);
+    py = py < 1 ? 0 : (py >= hv->height ? hv->height - 1 : py - 1);
+    const uint16_t *row = hv->rgb + ((size_t)py * hv->width + px) * 3;
+    __builtin_prefetch(row);
+    __builtin_prefetch(row + (size_t)hv->width * 3);
+}
 
 /* The row's base samples of view k over texels [x0, x1): their pixels and
  * weights 8 at a time (stitch_rays), then each sample's lookup added to its
@@ -599,15 +633,8 @@ static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int 
                 sc->px + s0, sc->py + s0, sc->weight + s0, sc->inv_gain + s0);
     const stitch_half_image *hv = vw->half;
     for (int s = s0; s < s0 + ns; s++) {
-        if (hv && s + PREFETCH_AHEAD < s0 + ns && sc->weight[s + PREFETCH_AHEAD] > 0.0f) {
-            /* the first load of a view pixel is what the loop waits on */
-            int px = (int)sc->px[s + PREFETCH_AHEAD], py = (int)sc->py[s + PREFETCH_AHEAD];
-            px = px < 1 ? 0 : (px >= hv->width ? hv->width - 1 : px - 1);
-            py = py < 1 ? 0 : (py >= hv->height ? hv->height - 1 : py - 1);
-            const uint16_t *row = hv->rgb + ((size_t)py * hv->width + px) * 3;
-            __builtin_prefetch(row);
-            __builtin_prefetch(row + (size_t)hv->width * 3);
-        }
+        if (hv && s + PREFETCH_AHEAD < s0 + ns && sc->weight[s + PREFETCH_AHEAD] > 0.0f)
+            prefetch_pixel(hv, sc->px[s + PREFETCH_AHEAD], sc->py[s + PREFETCH_AHEAD]);
         float w = sc->weight[s];
         if (!(w > 0.0f) || sc->skip[s])
             continue;
@@ -669,6 +696,71 @@ static void row_samples(const blend_pass *p, int y, row_scratch *sc, double *are
     }
 }
 
+/* The row's nhot hot texels (columns sc->hot_x) sampled ss_hot x ss_hot as
+ * the base samples are (stitch_rays in float, the sums in double): their
+ * samples packed one texel after another, each sub-row through each view
+ * once, each lookup added to its texel's sums in sc->hot_acc. */
+static void hot_samples(const blend_pass *p, int y, row_scratch *sc, int nhot)
+{
+    const int W = p->width, H = p->height, hs = p->ss_hot, n = p->count, ns = nhot * hs;
+    const bool masking = p->opt->mask || p->nadir_lat > -INFINITY;
+    memset(sc->hot_acc, 0, (size_t)n * nhot * 4 * sizeof(double));
+    memset(sc->hot_masked_area, 0, (size_t)nhot * sizeof(double));
+    for (int t = 0; t < nhot; t++) {
+        size_t from = (size_t)sc->hot_x[t] * hs;
+        memcpy(sc->hot_sin + (size_t)t * hs, p->sin_lon_hot_f + from, (size_t)hs * sizeof(float));
+        memcpy(sc->hot_cos + (size_t)t * hs, p->cos_lon_hot_f + from, (size_t)hs * sizeof(float));
+    }
+    for (int j = 0; j < hs; j++) {
+        int row = y * hs + j;
+        double v = (y + (j + 0.5) / hs) / H, lat = M_PI * (0.5 - v), a = p->cos_lat_hot[row];
+        for (int s = 0; s < ns; s++) {
+            int x = sc->hot_x[s / hs];
+            sc->hot_skip[s] = masking && masked(p, (x + (s % hs + 0.5) / hs) / W, v, lat);
+            if (sc->hot_skip[s])
+                sc->hot_masked_area[s / hs] += a;
+        }
+        float sin_lat = (float)p->sin_lat_hot[row], cos_lat = (float)p->cos_lat_hot[row];
+        for (int k = 0; k < n; k++) {
+            const stitch_view_prep *vw = &p->views[k];
+            const bool *seen = sc->seen + (size_t)k * W;
+            bool any = false;
+            for (int t = 0; t < nhot && !any; t++)
+                any = seen[sc->hot_x[t]];
+            if (!any)
+                continue;
+            stitch_rays(&p->rays[k], sc->hot_sin, sc->hot_cos, sin_lat, cos_lat, ns, sc->hot_px,
+                        sc->hot_py, sc->hot_weight, sc->hot_inv_gain);
+            double *acc_k = sc->hot_acc + (size_t)k * nhot * 4;
+            const stitch_half_image *hv = vw->half;
+            for (int s = 0; s < ns; s++) {
+                if (hv && s + PREFETCH_AHEAD < ns && sc->hot_weight[s + PREFETCH_AHEAD] > 0.0f)
+                    prefetch_pixel(hv, sc->hot_px[s + PREFETCH_AHEAD], sc->hot_py[s + PREFETCH_AHEAD]);
+                float w = sc->hot_weight[s];
+                if (!(w > 0.0f) || sc->hot_skip[s] || !seen[sc->hot_x[s / hs]])
+                    continue;
+                float x = sc->hot_px[s], yy = sc->hot_py[s];
+                double wd = w;
+                if (vw->weight && !((wd *= confidence_at(vw->weight, x, yy)) > 0))
+                    continue;
+                float rgb[3];
+                if (hv)
+                    fetch_half(hv, vw->half_table, x, yy, rgb);
+                else
+                    fetch_float(vw->radiance, x, yy, rgb);
+                if (!(sc->hot_inv_gain[s] > 0.0f))
+                    continue;
+                double *acc = acc_k + (size_t)(s / hs) * 4;
+                wd *= a;
+                acc[0] += wd;
+                double wg = wd * sc->hot_inv_gain[s];
+                for (int ch = 0; ch < 3; ch++)
+                    acc[1 + ch] += rgb[ch] > 0.0f ? wg * rgb[ch] : 0.0;
+            }
+        }
+    }
+}
+
 static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *st,
                       row_scratch *sc)
 {
@@ -679,9 +771,23 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
     row_spans(p, y, span);
     for (int k = 0; k < n; k++)
         span_fill(&span[k], W, sc->seen + (size_t)k * W);
-    double row_area = 0;
-    if (!stitch_blend_reference)
+    double row_area = 0, hot_area = 0;
+    int nhot = 0, hot_next = 0; /* the row's hot texels; the next one's slot in sc->hot_acc */
+    if (!stitch_blend_reference) {
         row_samples(p, y, sc, &row_area);
+        for (int x = 0; p->ss_hot > p->ss && x < W; x++)
+            if (sc->hot[x])
+                sc->hot_x[nhot++] = x;
+        if (nhot > 0) {
+            hot_samples(p, y, sc, nhot);
+            for (int j = 0; j < p->ss_hot; j++)
+                for (int i = 0; i < p->ss_hot; i++)
+                    hot_area += p->cos_lat_hot[y * p->ss_hot + j];
+        }
+    }
+    /* the row's two areas' inverses once (a texel's own in the reference loop) */
+    double inv_row_area = row_area > 0 ? 1.0 / row_area : 0.0;
+    double inv_hot_area = hot_area > 0 ? 1.0 / hot_area : 0.0;
     /* the row's sums in locals, not through st: the same order, from 0 */
     double seen_sr = 0, low_sr = 0, seen_power[3] = {0, 0, 0}, power[3] = {0, 0, 0};
     double view_sr[SL_STITCH_MAX_VIEWS] = {0};
@@ -690,7 +796,7 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
         for (int k = 0; k < n; k++)
             seen[k] = sc->seen[(size_t)k * W + x];
         double acc_w[SL_STITCH_MAX_VIEWS], acc_l[SL_STITCH_MAX_VIEWS][3];
-        double area = row_area, masked_area = 0;
+        double area = row_area, area_inverse = inv_row_area, masked_area = 0;
         bool hot;
         if (stitch_blend_reference) {
             memset(acc_w, 0, (size_t)n * sizeof *acc_w);
@@ -707,16 +813,30 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             masked_area = sc->masked_area[x];
             hot = sc->hot[x];
         }
-        /* A bright small source or a hard edge: sampled finer (in double,
-         * one sample at a time), so its energy does not depend on where the
-         * samples fall. */
+        /* A bright small source or a hard edge: sampled finer (hot_samples;
+         * the reference loop in double, one sample at a time), so its energy
+         * does not depend on where the samples fall. */
         if (hot && p->ss_hot > p->ss) {
-            memset(acc_w, 0, (size_t)n * sizeof *acc_w);
-            memset(acc_l, 0, (size_t)n * sizeof *acc_l);
-            area = masked_area = 0;
-            texel_samples(p, x, y, p->ss_hot, seen, acc_w, acc_l, &area, &masked_area);
+            if (stitch_blend_reference) {
+                memset(acc_w, 0, (size_t)n * sizeof *acc_w);
+                memset(acc_l, 0, (size_t)n * sizeof *acc_l);
+                area = masked_area = 0;
+                texel_samples(p, x, y, p->ss_hot, seen, acc_w, acc_l, &area, &masked_area);
+            } else {
+                int t = hot_next++;
+                for (int k = 0; k < n; k++) {
+                    const double *acc = sc->hot_acc + ((size_t)k * nhot + t) * 4;
+                    acc_w[k] = seen[k] ? acc[0] : 0.0;
+                    for (int ch = 0; ch < 3; ch++)
+                        acc_l[k][ch] = seen[k] ? acc[1 + ch] : 0.0;
+                }
+                area = hot_area;
+                area_inverse = inv_hot_area;
+                masked_area = sc->hot_masked_area[t];
+            }
             st->hot_texels++;
         }
+        double inv_area = stitch_blend_reference ? 1.0 / area : area_inverse;
         /* Per view: its mean weight over the texel; the mean radiance of
          * the views weighing GHOST_MIN_WEIGHT or more only when there are
          * two of them (the ghost test needs two). */
@@ -725,7 +845,7 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
         for (int k = 0; k < n; k++) {
             if (!(acc_w[k] > 0))
                 continue;
-            double wk = acc_w[k] / area;
+            double wk = acc_w[k] * inv_area;
             wsum += wk;
             if (wk > best_w) {
                 best_w = wk;
@@ -734,10 +854,10 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             good += wk >= GHOST_MIN_WEIGHT;
         }
         for (int k = 0; good >= 2 && p->ghosts && k < n; k++) {
-            if (!(acc_w[k] > 0) || !(acc_w[k] / area >= GHOST_MIN_WEIGHT))
+            if (!(acc_w[k] > 0) || !(acc_w[k] * inv_area >= GHOST_MIN_WEIGHT))
                 continue;
-            double l[3] = {acc_l[k][0] / acc_w[k], acc_l[k][1] / acc_w[k],
-                           acc_l[k][2] / acc_w[k]};
+            double inv_w = 1.0 / acc_w[k];
+            double l[3] = {acc_l[k][0] * inv_w, acc_l[k][1] * inv_w, acc_l[k][2] * inv_w};
             double y_k = luminance(l); /* finite, >= 0: no libm fmin */
             lmin = y_k < lmin ? y_k : lmin;
             lmax = y_k > lmax ? y_k : lmax;
@@ -754,8 +874,9 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
                 for (int ch = 0; ch < 3; ch++)
                     sl[ch] += acc_l[k][ch];
             }
+            double inv_sw = 1.0 / sw;
             for (int ch = 0; ch < 3; ch++)
-                o[ch] = (float)(sl[ch] / sw);
+                o[ch] = (float)(sl[ch] * inv_sw);
             o[3] = (float)(wsum < 1.0 ? wsum : 1.0); /* no libm call */
             seen_sr += texel_sr;
             if (wsum < 0.5)
@@ -857,17 +978,23 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
               angle_table(p->height * ss_hot, 0.5, -1.0, &p->sin_lat_hot, &p->cos_lat_hot);
     p->sin_lon_f = malloc((size_t)width * ss * sizeof(float));
     p->cos_lon_f = malloc((size_t)width * ss * sizeof(float));
-    ok = ok && p->sin_lon_f && p->cos_lon_f;
+    p->sin_lon_hot_f = malloc((size_t)width * ss_hot * sizeof(float));
+    p->cos_lon_hot_f = malloc((size_t)width * ss_hot * sizeof(float));
+    ok = ok && p->sin_lon_f && p->cos_lon_f && p->sin_lon_hot_f && p->cos_lon_hot_f;
     for (int i = 0; ok && i < width * ss; i++) {
         p->sin_lon_f[i] = (float)p->sin_lon[i];
         p->cos_lon_f[i] = (float)p->cos_lon[i];
+    }
+    for (int i = 0; ok && i < width * ss_hot; i++) {
+        p->sin_lon_hot_f[i] = (float)p->sin_lon_hot[i];
+        p->cos_lon_hot_f[i] = (float)p->cos_lon_hot[i];
     }
     for (int k = 0; ok && k < count; k++)
         ok = stitch_ray_view_init(&views[k], &p->rays[k]);
     p->workers = sl_threads_get();
     p->scratch = ok ? calloc((size_t)p->workers, sizeof *p->scratch) : NULL;
     for (int w = 0; p->scratch && w < p->workers; w++)
-        ok = ok && scratch_alloc(&p->scratch[w], width, ss, count);
+        ok = ok && scratch_alloc(&p->scratch[w], width, ss, ss_hot, count);
     if (!ok || !p->rows || !p->stats || !p->scratch)
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory for a %d wide lat-long",
                             width);
@@ -888,6 +1015,8 @@ static void pass_free(blend_pass *p)
     free(p->stats);
     free(p->sin_lon_f);
     free(p->cos_lon_f);
+    free(p->sin_lon_hot_f);
+    free(p->cos_lon_hot_f);
     for (int k = 0; k < p->count; k++)
         stitch_ray_view_free(&p->rays[k]);
     for (int w = 0; p->scratch && w < p->workers; w++)

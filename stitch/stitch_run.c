@@ -120,11 +120,12 @@ static json_t *result_json(const sl_stitch_result *res, const char *out_path)
                                       res->circle.rms_px, "support", res->circle.support));
     json_object_set_new(
         j, "coverage",
-        json_pack("{s:f, s:f, s:f, s:f, s:f, s:I, s:f, s:i, s:i}", "seen_sr", c->seen_sr,
+        json_pack("{s:f, s:f, s:f, s:f, s:f, s:I, s:f, s:i, s:i, s:I}", "seen_sr", c->seen_sr,
                   "filled_sr", c->filled_sr, "filled_percent", 100.0 * c->filled_sr / (4 * M_PI),
                   "masked_sr", c->masked_sr, "low_confidence_sr", c->low_sr, "ghost_texels",
                   (json_int_t)c->ghost_texels, "ghost_sr", c->ghost_sr, "supersample",
-                  c->supersample, "supersample_edges", c->supersample_hot));
+                  c->supersample, "supersample_edges", c->supersample_hot, "edge_texels",
+                  (json_int_t)c->hot_texels));
     json_object_set_new(j, "float_samples", json_boolean(res->float_samples));
     json_object_set_new(j, "timing", timing);
     return j;
