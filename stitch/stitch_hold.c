@@ -399,7 +399,8 @@ typedef struct reduce_job {
     sl_image *dst;
     int k;
     float *mid; /* per worker: k rows of the x pass */
-    float *row; /* per worker: a half source row as float */
+    float *row; /* per worker: two half source rows as float */
+    bool f16c;  /* half rows converted through F16C */
 } reduce_job;
 
 /* sl_image_resample's box taps for a factor k of 2 or 4, both passes per
@@ -447,6 +448,53 @@ static void reduce_rows(void *ctx, int64_t begin, int64_t end, int worker)
     }
 }
 
+/* A half row as floats: four at a time through F16C where the processor
+ * has it (inline assembly: this file is built for the baseline processor),
+ * else, and for the tail, through the table. */
+static void half_row_to_float(const uint16_t *src, size_t n, const float *table, bool f16c,
+                              float *out)
+{
+    size_t i = 0;
+#if defined(__x86_64__) && defined(__GNUC__)
+    for (; f16c && i + 4 <= n; i += 4) {
+        const uint16_t(*four)[4] = (const void *)(src + i);
+        __m128 f;
+        __asm__("vcvtph2ps %1, %0" : "=x"(f) : "m"(*four));
+        _mm_storeu_ps(out + i, f);
+    }
+#else
+    (void)f16c;
+#endif
+    for (; i < n; i++)
+        out[i] = table[src[i]];
+}
+
+/* reduce_rows() for k = 2 of a half view, in float: 0.5 a + 0.5 b of two
+ * half values is what the double sums give before their rounding to float
+ * (the products exact, and a float addition rounds the exact sum once,
+ * where the double one is exact or lands on the same float): the same
+ * bytes, both passes at once. */
+static void reduce_half_rows_2(void *ctx, int64_t begin, int64_t end, int worker)
+{
+    const reduce_job *j = ctx;
+    const int w = j->dst->width;
+    const size_t m = (size_t)j->half->width * 3;
+    const float *table = stitch_half_table();
+    float *r0 = j->row + (size_t)worker * 2 * m, *r1 = r0 + m;
+    for (int64_t y = begin; y < end; y++) {
+        const uint16_t *src = j->half->rgb + (size_t)y * 2 * m;
+        half_row_to_float(src, m, table, j->f16c, r0);
+        half_row_to_float(src + m, m, table, j->f16c, r1);
+        float *out = sl_image_pixel(j->dst, 0, (int)y);
+        for (int x = 0; x < w; x++)
+            for (int c = 0; c < 3; c++) {
+                float top = 0.5f * r0[6 * x + c] + 0.5f * r0[6 * x + 3 + c];
+                float bottom = 0.5f * r1[6 * x + c] + 0.5f * r1[6 * x + 3 + c];
+                out[3 * x + c] = 0.5f * top + 0.5f * bottom;
+            }
+    }
+}
+
 static sl_result reduce(const sl_image *src, const stitch_half_image *half, int k, sl_image *dst,
                         sl_error *err)
 {
@@ -460,13 +508,14 @@ static sl_result reduce(const sl_image *src, const stitch_half_image *half, int 
     int workers = sl_threads_get();
     reduce_job j = {src, half, dst, k,
                     malloc((size_t)workers * k * dst->width * ch * sizeof(float)),
-                    half ? malloc((size_t)workers * w * 3 * sizeof(float)) : NULL};
+                    half ? malloc((size_t)workers * 2 * w * 3 * sizeof(float)) : NULL,
+                    cpu_f16c() && !stitch_rays_portable_only};
     if (!j.mid || (half && !j.row)) {
         free(j.mid), free(j.row);
         sl_image_free(dst);
         return sl_error_set(err, SL_ERR_NOMEM, "stitch: out of memory");
     }
-    sl_parallel_for(dst->height, 16, reduce_rows, &j);
+    sl_parallel_for(dst->height, 16, half && k == 2 ? reduce_half_rows_2 : reduce_rows, &j);
     free(j.mid), free(j.row);
     return SL_OK;
 }
