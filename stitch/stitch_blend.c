@@ -607,7 +607,8 @@ static inline __m128 halves_to_floats(const uint16_t *h)
  * bytes. A corner's fourth half is the next pixel's red, so the view's
  * last pixel takes the table. */
 static inline __attribute__((always_inline)) bool fetch_half_f16c(const stitch_half_image *img,
-                                                                  const float *table, float x,
+                                                                  const float *table,
+                                                                  float scale_by, float x,
                                                                   float y, float rgb[3])
 {
     sl_bilinear b = sl_bilinear_at(img->width, img->height, x, y);
@@ -615,7 +616,7 @@ static inline __attribute__((always_inline)) bool fetch_half_f16c(const stitch_h
         return fetch_half(img, table, x, y, rgb);
     const uint16_t *h00, *h10, *h01, *h11;
     half_corners(img, &b, &h00, &h10, &h01, &h11);
-    __m128 scale = _mm_set1_ps(ldexpf(1.0f, img->exp2));
+    __m128 scale = _mm_set1_ps(scale_by);
     __m128 p00 = _mm_mul_ps(halves_to_floats(h00), scale);
     __m128 p10 = _mm_mul_ps(halves_to_floats(h10), scale);
     __m128 p01 = _mm_mul_ps(halves_to_floats(h01), scale);
@@ -635,16 +636,18 @@ static inline __attribute__((always_inline)) bool fetch_half_f16c(const stitch_h
 }
 #endif
 
-/* A half view's lookup, through F16C where the pass has it. */
+/* A half view's lookup, through F16C where the pass has it (scale: the
+ * view's 2^exp2, made once by the caller: ldexpf is a library call). */
 static inline __attribute__((always_inline)) bool fetch_half_any(const stitch_half_image *img,
                                                                  const float *table, bool f16c,
-                                                                 float x, float y, float rgb[3])
+                                                                 float scale, float x, float y,
+                                                                 float rgb[3])
 {
 #ifdef HAVE_F16C_FETCH
     if (f16c)
-        return fetch_half_f16c(img, table, x, y, rgb);
+        return fetch_half_f16c(img, table, scale, x, y, rgb);
 #else
-    (void)f16c;
+    (void)f16c, (void)scale;
 #endif
     return fetch_half(img, table, x, y, rgb);
 }
@@ -695,6 +698,7 @@ static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int 
     stitch_rays(&p->rays[k], p->sin_lon_f + s0, p->cos_lon_f + s0, sin_lat, cos_lat, ns,
                 sc->px + s0, sc->py + s0, sc->weight + s0, sc->inv_gain + s0);
     const stitch_half_image *hv = vw->half;
+    const float scale = hv ? ldexpf(1.0f, hv->exp2) : 1.0f;
     for (int s = s0; s < s0 + ns; s++) {
         if (hv && s + PREFETCH_AHEAD < s0 + ns && sc->weight[s + PREFETCH_AHEAD] > 0.0f)
             prefetch_pixel(hv, sc->px[s + PREFETCH_AHEAD], sc->py[s + PREFETCH_AHEAD]);
@@ -707,7 +711,7 @@ static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int 
             continue;
         float rgb[3];
         int tx = s / ss;
-        sc->hot[tx] |= hv ? fetch_half_any(hv, vw->half_table, p->f16c, x, yy, rgb)
+        sc->hot[tx] |= hv ? fetch_half_any(hv, vw->half_table, p->f16c, scale, x, yy, rgb)
                           : fetch_float(vw->radiance, x, yy, rgb);
         if (!(sc->inv_gain[s] > 0.0f))
             continue;
@@ -796,6 +800,7 @@ static void hot_samples(const blend_pass *p, int y, row_scratch *sc, int nhot)
                         sc->hot_py, sc->hot_weight, sc->hot_inv_gain);
             double *acc_k = sc->hot_acc + (size_t)k * nhot * 4;
             const stitch_half_image *hv = vw->half;
+            const float scale = hv ? ldexpf(1.0f, hv->exp2) : 1.0f;
             for (int s = 0; s < ns; s++) {
                 if (hv && s + PREFETCH_AHEAD < ns && sc->hot_weight[s + PREFETCH_AHEAD] > 0.0f)
                     prefetch_pixel(hv, sc->hot_px[s + PREFETCH_AHEAD], sc->hot_py[s + PREFETCH_AHEAD]);
@@ -808,7 +813,7 @@ static void hot_samples(const blend_pass *p, int y, row_scratch *sc, int nhot)
                     continue;
                 float rgb[3];
                 if (hv)
-                    fetch_half_any(hv, vw->half_table, p->f16c, x, yy, rgb);
+                    fetch_half_any(hv, vw->half_table, p->f16c, scale, x, yy, rgb);
                 else
                     fetch_float(vw->radiance, x, yy, rgb);
                 if (!(sc->hot_inv_gain[s] > 0.0f))

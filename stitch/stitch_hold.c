@@ -170,7 +170,9 @@ static void half_scan_rows(void *ctx, int64_t begin, int64_t end, int worker)
     for (; i + 8 <= n; i += 8) {
         __m128i v = _mm_loadu_si128((const __m128i *)(p + i));
         __m128i odd = _mm_cmpeq_epi16(_mm_and_si128(v, exp_mask), exp_mask);
-        bad += __builtin_popcount((unsigned)_mm_movemask_epi8(odd)) / 2;
+        unsigned mask = (unsigned)_mm_movemask_epi8(odd);
+        if (mask) /* rare: no library call for the count otherwise */
+            bad += __builtin_popcount(mask) / 2;
         top8 = _mm_max_epi16(top8, _mm_andnot_si128(odd, v));
     }
     uint16_t t[8];

@@ -461,32 +461,43 @@ static void blend_of_half_is_blend_of_float(void)
     sl_stitch_blend_options opt;
     sl_stitch_blend_options_init(&opt);
     opt.width = 512;
-    sl_image from_float = {0}, from_half = {0};
-    sl_stitch_coverage cf, ch;
-    CHECK_OK(stitch_blend_run(v, 3, NULL, false, &opt, NULL, NULL, &from_float, &cf, &err), &err);
     sl_stitch_view only_half[3]; /* no float image: the half one is what is read */
     for (int i = 0; i < 3; i++) {
         only_half[i] = v[i];
         only_half[i].radiance = NULL;
     }
-    /* the half lookups through F16C where the processor has it, and through
-     * the table (the portable loops) */
-    for (int portable = 0; portable < 2; portable++) {
-        stitch_rays_portable_only = portable;
-        CHECK_OK(stitch_blend_run(only_half, 3, half, true, &opt, NULL, NULL, &from_half, &ch,
-                                  &err),
+    /* as read (exp2 0), and held at 2^5 (the float views 32 times brighter:
+     * exactly the half values times 2^5) */
+    for (int exp2 = 0; exp2 <= 5; exp2 += 5) {
+        for (int i = 0; exp2 && i < 3; i++) {
+            half[i].exp2 = exp2;
+            for (int y = 0; y < img[i].height; y++)
+                for (int x = 0; x < img[i].width * 3; x++)
+                    sl_image_pixel(&img[i], 0, y)[x] *= 32.0f;
+        }
+        sl_image from_float = {0}, from_half = {0};
+        sl_stitch_coverage cf, ch;
+        CHECK_OK(stitch_blend_run(v, 3, NULL, false, &opt, NULL, NULL, &from_float, &cf, &err),
                  &err);
-        stitch_rays_portable_only = false;
-        CHECK_MSG(cf.hot_texels > 1000, "%lld texels sampled finely: the edges are not tested",
-                  (long long)cf.hot_texels);
-        CHECK(cf.hot_texels == ch.hot_texels && cf.ghost_texels == ch.ghost_texels);
-        size_t bytes = (size_t)from_float.height * from_float.stride * sizeof(float);
-        CHECK_MSG(from_half.data && !memcmp(from_float.data, from_half.data, bytes),
-                  "the blend of the half views differs from the float views' (%s loops)",
-                  portable ? "portable" : "processor's");
-        sl_image_free(&from_half);
+        /* the half lookups through F16C where the processor has it, and
+         * through the table (the portable loops) */
+        for (int portable = 0; portable < 2; portable++) {
+            stitch_rays_portable_only = portable;
+            CHECK_OK(stitch_blend_run(only_half, 3, half, true, &opt, NULL, NULL, &from_half, &ch,
+                                      &err),
+                     &err);
+            stitch_rays_portable_only = false;
+            CHECK_MSG(cf.hot_texels > 1000, "%lld texels sampled finely: the edges are not tested",
+                      (long long)cf.hot_texels);
+            CHECK(cf.hot_texels == ch.hot_texels && cf.ghost_texels == ch.ghost_texels);
+            size_t bytes = (size_t)from_float.height * from_float.stride * sizeof(float);
+            CHECK_MSG(from_half.data && !memcmp(from_float.data, from_half.data, bytes),
+                      "the blend of the half views (2^%d) differs from the float views' (%s loops)",
+                      exp2, portable ? "portable" : "processor's");
+            sl_image_free(&from_half);
+        }
+        sl_image_free(&from_float);
     }
-    sl_image_free(&from_float);
     for (int i = 0; i < 3; i++) {
         stitch_half_free(&half[i]);
         sl_image_free(&img[i]);
