@@ -749,15 +749,40 @@ static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_m
         lambda = 10 * pow(fmin(fmax(widest, 1), 4) / 3, 1.5);
     }
     sl_response fitted;
-    sl_result r = opt->response_mode == SL_RESPONSE_ROBERTSON
-                      ? merge_fit_robertson(&m->samples, loge, RESPONSE_NODES, opt->samples,
-                                            m->black, m->saturation, opt->seed, &fitted, err)
-                      : merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda,
-                                           opt->samples, m->black, m->saturation,
-                                           opt->noise_gain, opt->noise_floor, opt->seed, &fitted,
-                                           err);
-    if (r)
-        return r;
+    if (opt->response_mode == SL_RESPONSE_ROBERTSON) {
+        sl_result r = merge_fit_robertson(&m->samples, loge, RESPONSE_NODES, opt->samples,
+                                          m->black, m->saturation, opt->seed, &fitted, err);
+        if (r)
+            return r;
+    } else {
+        double free_misfit[2], misfit[2];
+        sl_result r = merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda, opt->samples,
+                                         m->black, m->saturation, opt->noise_gain,
+                                         opt->noise_floor, opt->seed, NULL, 0,
+                                         opt->response_prior ? free_misfit : NULL,
+                                         &fitted, err);
+        if (r)
+            return r;
+        res->response_prior[0] = 0;
+        res->response_prior_misfit = 0;
+        if (opt->response_prior) {
+            sl_response with;
+            double w = opt->response_prior_weight > 0 ? opt->response_prior_weight : 1;
+            r = merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda, opt->samples,
+                                   m->black, m->saturation, opt->noise_gain, opt->noise_floor,
+                                   opt->seed, opt->response_prior, w, misfit, &with, err);
+            if (r) {
+                sl_response_free(&fitted);
+                return r;
+            }
+            res->response_prior_misfit =
+                misfit[0] / misfit[1] / (free_misfit[0] / free_misfit[1]) - 1;
+            sl_response_free(&fitted);
+            fitted = with;
+            snprintf(res->response_prior, sizeof res->response_prior, "%s",
+                     opt->response_prior->name);
+        }
+    }
     sl_response_free(&res->response);
     res->response = fitted;
     return SL_OK;

@@ -1,0 +1,200 @@
+/* SPDX-License-Identifier: BSD-3-Clause */
+/* A Gaussian prior on camera-curve shapes for the self-calibrated fit:
+ * the mean and principal components of d(z) = g(z) - g(z_mid), g = ln f^-1,
+ * over a set of measured curves (docs/merge.md "Real camera curves").
+ * Equal bracket steps leave g free along g + p(g), p periodic in ln
+ * exposure; the fit's smoothness picks a member of that class, and the
+ * prior pulls it towards the shapes real curves have. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "merge_private.h"
+
+/* Below this code ln f^-1 runs to -inf and says little about a shape. */
+#define PRIOR_FROM_CODE 0.02
+/* Linear values below this fraction of mid-grey's count as this (a curve
+ * black before PRIOR_FROM_CODE would otherwise have d = -inf there). */
+#define PRIOR_FLOOR 1e-4
+
+int merge_prior_first_node(int nodes)
+{
+    return (int)ceil(PRIOR_FROM_CODE * (nodes - 1));
+}
+
+/* Eigenvalues (descending, into ev) and unit eigenvectors (columns of v)
+ * of the symmetric n x n matrix a (destroyed) by cyclic Jacobi rotations:
+ * short, and exact enough for a few hundred curves. */
+static void jacobi_eigen(double *a, int n, double *ev, double *v)
+{
+    for (int i = 0; i < n * n; i++)
+        v[i] = 0;
+    for (int i = 0; i < n; i++)
+        v[i * n + i] = 1;
+    for (int sweep = 0; sweep < 60; sweep++) {
+        double off = 0, diag = 0;
+        for (int i = 0; i < n; i++) {
+            diag += a[i * n + i] * a[i * n + i];
+            for (int j = i + 1; j < n; j++)
+                off += a[i * n + j] * a[i * n + j];
+        }
+        if (off <= 1e-30 * diag)
+            break;
+        for (int p = 0; p < n; p++)
+            for (int q = p + 1; q < n; q++) {
+                double apq = a[p * n + q];
+                if (fabs(apq) < 1e-300)
+                    continue;
+                double theta = (a[q * n + q] - a[p * n + p]) / (2 * apq);
+                double t = (theta >= 0 ? 1 : -1) / (fabs(theta) + sqrt(theta * theta + 1));
+                double c = 1 / sqrt(t * t + 1), s = t * c;
+                for (int k = 0; k < n; k++) { /* columns p, q */
+                    double akp = a[k * n + p], akq = a[k * n + q];
+                    a[k * n + p] = c * akp - s * akq;
+                    a[k * n + q] = s * akp + c * akq;
+                }
+                for (int k = 0; k < n; k++) { /* rows p, q */
+                    double apk = a[p * n + k], aqk = a[q * n + k];
+                    a[p * n + k] = c * apk - s * aqk;
+                    a[q * n + k] = s * apk + c * aqk;
+                }
+                for (int k = 0; k < n; k++) {
+                    double vkp = v[k * n + p], vkq = v[k * n + q];
+                    v[k * n + p] = c * vkp - s * vkq;
+                    v[k * n + q] = s * vkp + c * vkq;
+                }
+            }
+    }
+    /* Sort descending (selection: n is small). */
+    for (int i = 0; i < n; i++)
+        ev[i] = a[i * n + i];
+    for (int i = 0; i < n; i++) {
+        int best = i;
+        for (int j = i + 1; j < n; j++)
+            if (ev[j] > ev[best])
+                best = j;
+        if (best == i)
+            continue;
+        double t = ev[i];
+        ev[i] = ev[best];
+        ev[best] = t;
+        for (int k = 0; k < n; k++) {
+            t = v[k * n + i];
+            v[k * n + i] = v[k * n + best];
+            v[k * n + best] = t;
+        }
+    }
+}
+
+sl_result sl_response_prior_build(const sl_response *curves, int count, int components,
+                                  const char *name, sl_response_prior **out, sl_error *err)
+{
+    *out = NULL;
+    int nodes = MERGE_PRIOR_NODES, first = merge_prior_first_node(nodes), dim = nodes - first;
+    if (count < 2 || components < 1 || components >= count || components >= dim)
+        return sl_error_set(err, SL_ERR_INPUT,
+                            "response prior: %d curves cannot give %d components", count,
+                            components);
+    sl_response_prior *p = calloc(1, sizeof *p);
+    /* mean, basis and variance in one block */
+    double *own = malloc(((size_t)components * nodes + nodes + components) * sizeof *own);
+    double *x = malloc((size_t)count * dim * sizeof *x);
+    double *gram = malloc((size_t)count * count * sizeof *gram);
+    double *ev = malloc((size_t)count * sizeof *ev);
+    double *vec = malloc((size_t)count * count * sizeof *vec);
+    if (!p || !own || !x || !gram || !ev || !vec) {
+        free(p), free(own), free(x), free(gram), free(ev), free(vec);
+        return sl_error_set(err, SL_ERR_NOMEM, "response prior: out of memory");
+    }
+    double *mean = own, *variance = own + nodes, *basis = own + nodes + components;
+    memset(mean, 0, (size_t)nodes * sizeof *mean);
+    p->owned = own;
+    p->mean = mean;
+    p->variance = variance;
+    p->basis = basis;
+    p->nodes = nodes;
+    p->first = first;
+    snprintf(p->name, sizeof p->name, "%s", name ? name : "");
+    /* Each curve's shape d on the covered nodes, and their mean. */
+    for (int i = 0; i < count; i++) {
+        double mid = sl_response_eval(&curves[i], 0, (double)(nodes / 2) / (nodes - 1));
+        for (int k = first; k < nodes; k++) {
+            double y = sl_response_eval(&curves[i], 0, (double)k / (nodes - 1));
+            x[(size_t)i * dim + k - first] = log(fmax(y, PRIOR_FLOOR * mid) / mid);
+        }
+    }
+    for (int j = 0; j < dim; j++) {
+        double s = 0;
+        for (int i = 0; i < count; i++)
+            s += x[(size_t)i * dim + j];
+        mean[first + j] = s / count;
+        for (int i = 0; i < count; i++)
+            x[(size_t)i * dim + j] -= s / count;
+    }
+    /* Principal components through the curves' Gram matrix (count x count,
+     * smaller than dim x dim): X X^T v = l v gives X^T v / sqrt(l). */
+    for (int i = 0; i < count; i++)
+        for (int j = 0; j <= i; j++) {
+            double s = 0;
+            for (int k = 0; k < dim; k++)
+                s += x[(size_t)i * dim + k] * x[(size_t)j * dim + k];
+            gram[i * count + j] = gram[j * count + i] = s;
+        }
+    double total = 0;
+    for (int i = 0; i < count; i++)
+        total += gram[i * count + i];
+    jacobi_eigen(gram, count, ev, vec);
+    /* Components the curves do not vary along (a family of fewer shapes
+     * than asked for) are left out: their direction is rounding noise. */
+    while (components > 1 && !(ev[components - 1] > 1e-12 * ev[0]))
+        components--;
+    p->components = components;
+    double kept = 0;
+    for (int c = 0; c < components; c++) {
+        double l = fmax(ev[c], 1e-300);
+        for (int k = 0; k < nodes; k++) {
+            double s = 0;
+            for (int i = 0; k >= first && i < count; i++)
+                s += x[(size_t)i * dim + k - first] * vec[i * count + c];
+            basis[(size_t)c * nodes + k] = s / sqrt(l);
+        }
+        variance[c] = ev[c] / (count - 1);
+        kept += ev[c];
+    }
+    /* What the components leave, spread evenly over the covered nodes
+     * (probabilistic PCA's isotropic residual). */
+    p->residual = fmax((total - kept) / (count - 1) / (dim - components), 1e-9 * p->variance[0]);
+    free(x), free(gram), free(ev), free(vec);
+    *out = p;
+    return SL_OK;
+}
+
+void sl_response_prior_free(sl_response_prior *p)
+{
+    if (!p)
+        return;
+    free(p->owned);
+    free(p);
+}
+
+void merge_prior_precision(const sl_response_prior *p, double *prec, double *prec_mean)
+{
+    int n = p->nodes, first = p->first;
+    memset(prec, 0, (size_t)n * n * sizeof *prec);
+    /* P = I / r + sum_c (1 / l_c - 1 / r) u_c u_c^T on the covered nodes. */
+    for (int k = first; k < n; k++)
+        prec[k * n + k] = 1 / p->residual;
+    for (int c = 0; c < p->components; c++) {
+        const double *u = p->basis + (size_t)c * n;
+        double f = 1 / p->variance[c] - 1 / p->residual;
+        for (int i = first; i < n; i++)
+            for (int j = first; j < n; j++)
+                prec[i * n + j] += f * u[i] * u[j];
+    }
+    for (int i = 0; i < n; i++) {
+        double s = 0;
+        for (int j = first; j < n; j++)
+            s += prec[i * n + j] * p->mean[j];
+        prec_mean[i] = s;
+    }
+}
