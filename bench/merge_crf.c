@@ -23,9 +23,11 @@
  *                                 [--sensor-noise: the merges told the sensor's noise]
  *                                 [--alt-stops S: steps alternate 3 and S stops
  *                                  (no null-space oracle: no equal steps)]
- *                                 [--prior off|lofo: the self-calibrated merge with a curve-shape
- *                                  prior from the other curves, the tested curve's family left
- *                                  out (tests/vset_bracket.h vb_dorf_family)]
+ *                                 [--prior lofo|off|builtin: the self-calibrated merge's
+ *                                  curve-shape prior: by default (lofo) of the other curves,
+ *                                  the tested curve's family left out (tests/vset_bracket.h
+ *                                  vb_dorf_family); off: none; builtin: the merge's own, of
+ *                                  all 201 (it has seen the curve)]
  *                                 [--prior-weight W] [--prior-components K] [--families]
  *                                 [--curve-file F: instead of the DoRF curves, one curve file
  *                                  (sl_vset_response_load); its prior is of all 201]
@@ -46,7 +48,8 @@ typedef struct result {
     double self_median, self_p99, true_median, true_p99, ideal_median, ideal_p99, real_median,
         real_p99, null_median, null_p99, curve, null_curve;
     int named; /* frames the self-calibrated merge's exposure check names (EXIF is true) */
-    double prior_misfit; /* the data's mean square with the curve prior over without, less 1 */
+    bool prior_dropped;       /* the merge left the curve prior out (the data are too far) */
+    double prior_distance[2]; /* the curves fitted without and with it: their distance */
 } result;
 
 static double smoothness; /* --smoothness: the merge's lambda (0: its default) */
@@ -54,16 +57,18 @@ static int samples;       /* --samples: response samples per channel (0: its def
 static bool sensor_noise; /* --sensor-noise: the merges get the sensor's noise model */
 static double well_e, read_e;
 static const sl_response_prior *prior; /* --prior lofo: the curve under test's */
+static bool prior_on = true;           /* not --prior off */
 static double prior_weight;            /* --prior-weight (0: the merge's default) */
 
 static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve,
-                       int *named, double *prior_misfit)
+                       int *named, bool *prior_dropped, double *prior_distance)
 {
     sl_merge_options opt;
     sl_merge_options_init(&opt);
     opt.response_mode = given ? SL_RESPONSE_GIVEN : SL_RESPONSE_AUTO;
     opt.response = given;
-    opt.response_prior = given ? NULL : prior;
+    opt.response_prior = prior;
+    opt.use_response_prior = prior_on;
     opt.response_prior_weight = prior_weight;
     opt.smoothness = smoothness;
     if (samples > 0)
@@ -80,7 +85,9 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
     }
     *px = vb_compare(&res.radiance, b, 1, true);
     *named = res.disagreeing_frames;
-    *prior_misfit = res.response_prior_misfit;
+    *prior_dropped = res.response_prior_dropped;
+    prior_distance[0] = res.response_prior_distance[0];
+    prior_distance[1] = res.response_prior_distance[1];
     double wz;
     if (curve)
         *curve = vb_response_error(&res.response, &b->cam.response, b->code_lo, b->code_hi, &wz);
@@ -116,12 +123,13 @@ static int run_curve(const char *dorf, const char *name, const vb_spec *base, co
     if (b.null_space.data)
         null = vb_compare(&b.null_space, &b, 1, true);
     int named = 0, named_true;
-    double misfit = 0, misfit_true;
-    rc = rc || merge_score(&b, NULL, &self, &out->curve, &named, &misfit) ||
-         merge_score(&b, &truth, &tru, NULL, &named_true, &misfit_true);
+    bool dropped = false, dropped_true;
+    double distance[2] = {0, 0}, distance_true[2];
+    rc = rc || merge_score(&b, NULL, &self, &out->curve, &named, &dropped, distance) ||
+         merge_score(&b, &truth, &tru, NULL, &named_true, &dropped_true, distance_true);
     *out = (result){self.median, self.p99,  tru.median,  tru.p99,    ideal.median,
                     ideal.p99,   real.median, real.p99, null.median, null.p99,
-                    out->curve,  b.null_space.data ? b.null_space_curve : NAN, named, misfit};
+                    out->curve,  b.null_space.data ? b.null_space_curve : NAN, named, dropped, {distance[0], distance[1]}};
     sl_response_free(&truth);
     vb_free(&b);
     return rc;
@@ -151,8 +159,9 @@ int main(int argc, char **argv)
                                           {"prior-components", 1, 0, 'K'},
                                           {"families", 0, 0, 'F'},
                                           {"curve-file", 1, 0, 'C'},
+                                          {"distance", 0, 0, 'D'},
                                           {0, 0, 0, 0}};
-    bool lofo = false, families = false;
+    bool lofo = true, families = false, distance = false;
     const char *curve_file = NULL;
     int components = 16;
     for (int o; (o = getopt_long(argc, argv, "", longs, NULL)) != -1;) {
@@ -178,8 +187,9 @@ int main(int argc, char **argv)
             sp.noise_free = true;
         else if (o == 'a')
             sp.alt_stops = atof(optarg);
-        else if (o == 'p' && (strcmp(optarg, "lofo") == 0 || strcmp(optarg, "off") == 0))
-            lofo = strcmp(optarg, "lofo") == 0;
+        else if (o == 'p' && (strcmp(optarg, "lofo") == 0 || strcmp(optarg, "off") == 0 ||
+                              strcmp(optarg, "builtin") == 0))
+            lofo = strcmp(optarg, "lofo") == 0, prior_on = strcmp(optarg, "off") != 0;
         else if (o == 'W')
             prior_weight = atof(optarg);
         else if (o == 'K')
@@ -188,6 +198,8 @@ int main(int argc, char **argv)
             families = true;
         else if (o == 'C')
             curve_file = optarg;
+        else if (o == 'D')
+            distance = true;
         else
             return 2;
     }
@@ -249,15 +261,17 @@ int main(int argc, char **argv)
         printf(" alternating with %g", sp.alt_stops);
     printf(", 8-bit lossless, well %.0f e, read %.1f e, seed %llu", sp.full_well_e,
            sp.read_noise_e, (unsigned long long)sp.seed);
+    printf(", curve prior %s", !prior_on ? "off" : lofo ? "of the other families" : "built in");
     if (lofo)
-        printf(", curve prior of the other families (%d components, weight %g)", components,
-               prior_weight > 0 ? prior_weight : 1);
+        printf(" (%d components)", components);
+    if (prior_weight > 0)
+        printf(" at weight %g", prior_weight);
     printf("\n");
     printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal, "
            "realizable, null-space; median, p99 ratios: self / ideal, realizable / ideal, "
            "self / realizable, null-space / ideal, self / null-space; curve error %%: "
-           "self-calibrated, null-space; frames named; with a prior, the data's mean square "
-           "with it over without, less 1\n");
+           "self-calibrated, null-space; frames named; curve prior dropped (1), the curve's "
+           "distance from it fitted without and with it\n");
     /* The ratios, per comparison: self / ideal, true curve / ideal,
      * realizable / ideal, self / realizable, true curve / realizable. */
     enum { SELF_IDEAL, TRUE_IDEAL, REAL_IDEAL, SELF_REAL, TRUE_REAL, NULL_IDEAL, SELF_NULL,
@@ -282,6 +296,17 @@ int main(int argc, char **argv)
             return 1;
         }
         prior = own;
+        if (distance && own) { /* the true curve's distance from its prior; no merge */
+            sl_vset_response resp;
+            sl_response inv = {0};
+            if (!sl_vset_response_load(curve_file ? curve_file : dorf, name, &resp, &err) &&
+                !vb_response_inverse(&resp, &inv, &err))
+                printf("%3d %-32s %.3f\n", pick[j], names[pick[j]],
+                       sl_response_prior_distance(own, &inv, 0));
+            sl_response_free(&inv);
+            sl_response_prior_free(own);
+            continue;
+        }
         int bad = run_curve(curve_file ? curve_file : dorf, name, &sp, dir, &r);
         sl_response_prior_free(own);
         prior = NULL;
@@ -316,14 +341,15 @@ int main(int argc, char **argv)
             snprintf(gap + at, sizeof gap - at, "%s%d", null_only++ ? "," : "", pick[j]);
         }
         printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  "
-               "%.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.2f %.2f  %d  %.4f\n",
+               "%.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.2f %.2f  %d  %d %.3f %.3f\n",
                pick[j], names[pick[j]], 100 * r.self_median, 100 * r.self_p99,
                100 * r.true_median, 100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99,
                100 * r.real_median, 100 * r.real_p99, 100 * r.null_median, 100 * r.null_p99,
                rmed[SELF_IDEAL][done], rp99[SELF_IDEAL][done], rmed[REAL_IDEAL][done],
                rp99[REAL_IDEAL][done], rmed[SELF_REAL][done], rp99[SELF_REAL][done],
                rmed[NULL_IDEAL][done], rp99[NULL_IDEAL][done], rmed[SELF_NULL][done],
-               rp99[SELF_NULL][done], 100 * r.curve, 100 * r.null_curve, r.named, r.prior_misfit);
+               rp99[SELF_NULL][done], 100 * r.curve, 100 * r.null_curve, r.named, r.prior_dropped,
+               r.prior_distance[0], r.prior_distance[1]);
         fflush(stdout);
         done++;
     }

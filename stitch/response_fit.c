@@ -363,7 +363,7 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                              double lambda, int max_samples, double black, double saturation,
                              double noise_gain, double noise_floor, uint64_t seed,
                              const sl_response_prior *prior, double prior_weight,
-                             double misfit[2], sl_response *out, sl_error *err)
+                             sl_response *out, sl_error *err)
 {
     memset(out, 0, sizeof *out);
     int f = s->frames;
@@ -427,8 +427,6 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                 target[e] = (float)log_exposure[q];
             }
         }
-    if (prior)
-        merge_prior_precision(prior, prec, prec_mean);
     /* The data rows' weight per unit of likelihood under the noise model:
      * a row's weight is var(mid-grey)^1/2 over its deviation in ln y (the
      * forward rounds' model weights; the hat weights are 0.5 at mid-grey
@@ -445,6 +443,20 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         for (int c = 0; c < 3; c++)
             add_samples(f, m[c], wt + base[c], rw + base[c], pos + base[c], target + base[c],
                         nodes, a, b, idx, val, &equations);
+        /* The prior speaks for the codes the data reach: beyond them the
+         * smoothness extrapolates as without it. */
+        if (prior) {
+            double most = 0;
+            int lo = nodes, hi = -1;
+            for (int k = 0; k < nodes; k++)
+                most = fmax(most, a[k * nodes + k]);
+            for (int k = 0; k < nodes; k++)
+                if (a[k * nodes + k] > 1e-3 * most) {
+                    lo = k < lo ? k : lo;
+                    hi = k;
+                }
+            merge_prior_precision(prior, lo, hi, prec, prec_mean);
+        }
         /* Smoothness of g against ln z: gamma-like curves are nearly straight
          * there, while the log-periodic wiggle that brackets with wide steps
          * cannot pin down (Debevec-Malik's weak spot) is strongly curved.
@@ -520,18 +532,6 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
             double scale = fmax(TUKEY_CUT * sigma, cut[e]), u = scale > 0 ? res[e] / scale : 0;
             rw[e] = fabs(u) < 1 ? (float)((1 - u * u) * (1 - u * u)) : 0;
         }
-    }
-    if (!r && misfit) { /* the final equations' weighted squares, and their count */
-        misfit[0] = misfit[1] = 0;
-        for (int c = 0, n = 0; c < 3; c++)
-            n += sample_residuals(f, s->code_step, m[c], wt + base[c], rw + base[c],
-                                  pos + base[c], target + base[c], b, nodes, res + base[c],
-                                  cut + base[c], mag + n);
-        for (size_t e = 0; e < (size_t)total * f; e++)
-            if (!isnan(res[e])) {
-                misfit[0] += (double)res[e] * res[e] * rw[e];
-                misfit[1] += rw[e];
-            }
     }
     if (!r) {
         for (int k = 1; k < nodes; k++)

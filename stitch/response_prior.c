@@ -177,24 +177,106 @@ void sl_response_prior_free(sl_response_prior *p)
     free(p);
 }
 
-void merge_prior_precision(const sl_response_prior *p, double *prec, double *prec_mean)
+void merge_prior_precision(const sl_response_prior *p, int lo, int hi, double *prec,
+                           double *prec_mean)
 {
-    int n = p->nodes, first = p->first;
+    int n = p->nodes, kc = p->components;
+    lo = lo > p->first ? lo : p->first;
+    hi = hi < n - 1 ? hi : n - 1;
     memset(prec, 0, (size_t)n * n * sizeof *prec);
-    /* P = I / r + sum_c (1 / l_c - 1 / r) u_c u_c^T on the covered nodes. */
-    for (int k = first; k < n; k++)
-        prec[k * n + k] = 1 / p->residual;
-    for (int c = 0; c < p->components; c++) {
-        const double *u = p->basis + (size_t)c * n;
-        double f = 1 / p->variance[c] - 1 / p->residual;
-        for (int i = first; i < n; i++)
-            for (int j = first; j < n; j++)
-                prec[i * n + j] += f * u[i] * u[j];
+    memset(prec_mean, 0, (size_t)n * sizeof *prec_mean);
+    if (hi - lo < 2)
+        return;
+    /* The prior's marginal on nodes lo..hi, C = U L U^T + r I, inverted by
+     * Woodbury: P = (I - U^T M^-1 U) / r with M = r L^-1 + U U^T (K x K). */
+    double *mm = malloc((size_t)kc * kc * sizeof *mm), *inv = malloc((size_t)kc * kc * sizeof *inv);
+    double *col = malloc((size_t)kc * kc * sizeof *col), *v = malloc((size_t)kc * n * sizeof *v);
+    double *ones = malloc((size_t)n * sizeof *ones);
+    if (!mm || !inv || !col || !v || !ones) {
+        free(mm), free(inv), free(col), free(v), free(ones);
+        return; /* no prior rather than a wrong one */
     }
-    for (int i = 0; i < n; i++) {
+    for (int a = 0; a < kc; a++)
+        for (int b = 0; b < kc; b++) {
+            double s = a == b ? p->residual / p->variance[a] : 0;
+            for (int k = lo; k <= hi; k++)
+                s += p->basis[(size_t)a * n + k] * p->basis[(size_t)b * n + k];
+            mm[a * kc + b] = s;
+        }
+    bool ok = true;
+    for (int a = 0; a < kc && ok; a++) { /* M^-1, a column at a time */
+        memcpy(col, mm, (size_t)kc * kc * sizeof *col);
+        for (int b = 0; b < kc; b++)
+            inv[b * kc + a] = a == b;
+        double rhs[256];
+        for (int b = 0; b < kc; b++)
+            rhs[b] = inv[b * kc + a];
+        ok = kc <= 256 && merge_cholesky_solve(col, rhs, kc);
+        for (int b = 0; b < kc && ok; b++)
+            inv[b * kc + a] = rhs[b];
+    }
+    for (int a = 0; a < kc && ok; a++) /* V = M^-1 U */
+        for (int k = lo; k <= hi; k++) {
+            double s = 0;
+            for (int b = 0; b < kc; b++)
+                s += inv[a * kc + b] * p->basis[(size_t)b * n + k];
+            v[(size_t)a * n + k] = s;
+        }
+    for (int i = lo; i <= hi && ok; i++)
+        for (int j = lo; j <= hi; j++) {
+            double s = i == j;
+            for (int a = 0; a < kc; a++)
+                s -= p->basis[(size_t)a * n + i] * v[(size_t)a * n + j];
+            prec[i * n + j] = s / p->residual;
+        }
+    /* The level is the data's (and g(mid) = 0's): a free offset c on the
+     * shape, integrated out, leaves P - P 1 1^T P / (1^T P 1). */
+    double total = 0;
+    for (int i = lo; i <= hi && ok; i++) {
         double s = 0;
-        for (int j = first; j < n; j++)
+        for (int j = lo; j <= hi; j++)
+            s += prec[i * n + j];
+        ones[i] = s;
+        total += s;
+    }
+    for (int i = lo; i <= hi && ok && total > 0; i++)
+        for (int j = lo; j <= hi; j++)
+            prec[i * n + j] -= ones[i] * ones[j] / total;
+    for (int i = lo; i <= hi && ok; i++) {
+        double s = 0;
+        for (int j = lo; j <= hi; j++)
             s += prec[i * n + j] * p->mean[j];
         prec_mean[i] = s;
     }
+    if (!ok)
+        memset(prec, 0, (size_t)n * n * sizeof *prec);
+    free(mm), free(inv), free(col), free(v), free(ones);
+}
+
+double sl_response_prior_distance(const sl_response_prior *p, const sl_response *curve, int channel)
+{
+    int n = p->nodes, first = p->first;
+    double mid = sl_response_eval(curve, channel, (double)(n / 2) / (n - 1));
+    double *d = malloc((size_t)n * sizeof *d);
+    if (!d || !(mid > 0)) {
+        free(d);
+        return NAN;
+    }
+    for (int k = first; k < n; k++) {
+        double y = sl_response_eval(curve, channel, (double)k / (n - 1));
+        d[k] = log(fmax(y, PRIOR_FLOOR * mid) / mid) - p->mean[k];
+    }
+    /* d^T P d = |d|^2 / r + sum_c (1 / l_c - 1 / r) (u_c . d)^2 */
+    double s = 0;
+    for (int k = first; k < n; k++)
+        s += d[k] * d[k];
+    s /= p->residual;
+    for (int c = 0; c < p->components; c++) {
+        double u = 0;
+        for (int k = first; k < n; k++)
+            u += p->basis[(size_t)c * n + k] * d[k];
+        s += (1 / p->variance[c] - 1 / p->residual) * u * u;
+    }
+    free(d);
+    return s / (n - first);
 }
