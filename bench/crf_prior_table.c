@@ -30,13 +30,9 @@ int main(void)
     static sl_response inverse[MAX_CURVES];
     int count = vb_dorf_names(dorf, names, MAX_CURVES);
     sl_error err;
-    for (int i = 0; i < count; i++) {
-        sl_vset_response resp;
-        if (sl_vset_response_load(dorf, names[i], &resp, &err) ||
-            vb_response_inverse(&resp, &inverse[i], &err)) {
-            fprintf(stderr, "%s\n", err.message);
-            return 1;
-        }
+    if (count > 0 && vb_dorf_inverses(dorf, names, count, inverse, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
     }
     sl_response_prior *p;
     if (count <= 0 ||

@@ -23,11 +23,13 @@
  *                                 [--sensor-noise: the merges told the sensor's noise]
  *                                 [--alt-stops S: steps alternate 3 and S stops
  *                                  (no null-space oracle: no equal steps)]
- *                                 [--prior lofo|off|builtin: the self-calibrated merge's
- *                                  curve-shape prior: by default (lofo) of the other curves,
- *                                  the tested curve's family left out (tests/vset_bracket.h
- *                                  vb_dorf_family); off: none; builtin: the merge's own, of
- *                                  all 201 (it has seen the curve)]
+ *                                 [--prior off|lofo|builtin: the self-calibrated merge's
+ *                                  curve-shape prior: off (the merge's default) or of the
+ *                                  other curves, the tested curve's family left out
+ *                                  (tests/vset_bracket.h vb_dorf_family), or the merge's own
+ *                                  of all 201 (it has seen the curve)]
+ *                                 [--distance: with --prior lofo, only each true curve's
+ *                                  distance from its prior (sl_response_prior_distance)]
  *                                 [--prior-weight W] [--prior-components K] [--families]
  *                                 [--curve-file F: instead of the DoRF curves, one curve file
  *                                  (sl_vset_response_load); its prior is of all 201]
@@ -57,7 +59,7 @@ static int samples;       /* --samples: response samples per channel (0: its def
 static bool sensor_noise; /* --sensor-noise: the merges get the sensor's noise model */
 static double well_e, read_e;
 static const sl_response_prior *prior; /* --prior lofo: the curve under test's */
-static bool prior_on = true;           /* not --prior off */
+static bool prior_on;                  /* --prior lofo or builtin */
 static double prior_weight;            /* --prior-weight (0: the merge's default) */
 
 static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve,
@@ -161,7 +163,7 @@ int main(int argc, char **argv)
                                           {"curve-file", 1, 0, 'C'},
                                           {"distance", 0, 0, 'D'},
                                           {0, 0, 0, 0}};
-    bool lofo = true, families = false, distance = false;
+    bool lofo = false, families = false, distance = false;
     const char *curve_file = NULL;
     int components = 16;
     for (int o; (o = getopt_long(argc, argv, "", longs, NULL)) != -1;) {
@@ -221,14 +223,10 @@ int main(int argc, char **argv)
     }
     /* Every curve's inverse table, for the priors. */
     static sl_response inverse[MAX_CURVES];
-    for (int i = 0; i < count && lofo; i++) {
-        sl_error e;
-        sl_vset_response resp;
-        if (sl_vset_response_load(dorf, names[i], &resp, &e) ||
-            vb_response_inverse(&resp, &inverse[i], &e)) {
-            fprintf(stderr, "%s\n", e.message);
-            return 1;
-        }
+    sl_error err;
+    if (lofo && vb_dorf_inverses(dorf, names, count, inverse, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
     }
     int pick[MAX_CURVES], n = 0;
     if (curve_file) /* one curve, in slot count: its name from the file */
@@ -246,7 +244,6 @@ int main(int argc, char **argv)
             s = end;
         }
     sl_vset_scene scene;
-    sl_error err;
     if (vb_scene(sp.scene, sp.width, &scene, &err)) {
         fprintf(stderr, "%s\n", err.message);
         return 1;

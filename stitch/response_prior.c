@@ -108,12 +108,8 @@ sl_result sl_response_prior_build(const sl_response *curves, int count, int comp
     }
     double *mean = own, *variance = own + nodes, *basis = own + nodes + components;
     memset(mean, 0, (size_t)nodes * sizeof *mean);
-    p->owned = own;
-    p->mean = mean;
-    p->variance = variance;
-    p->basis = basis;
-    p->nodes = nodes;
-    p->first = first;
+    *p = (sl_response_prior){.nodes = nodes, .first = first, .mean = mean, .basis = basis,
+                             .variance = variance, .owned = own};
     snprintf(p->name, sizeof p->name, "%s", name ? name : "");
     /* Each curve's shape d on the covered nodes, and their mean. */
     for (int i = 0; i < count; i++) {

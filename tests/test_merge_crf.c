@@ -117,6 +117,28 @@ static int pick_curves(const char *dorf, char (*names)[128], int count,
     return m;
 }
 
+/* The DoRF file, its curve names and how many (0 when it is absent: the
+ * tests that need it are skipped), read once by main. */
+static char dorf[1024];
+static char names[MAX_CURVES][128];
+static int count;
+
+static bool have_dorf(void)
+{
+    if (count == 0)
+        printf("  skipped: %s absent\n", dorf);
+    return count > 0;
+}
+
+/* Sorts the curves' median and p99 ratios; the median of each into *m, *p. */
+static void sort_ratios(double *median, double *p99, int n, double *m, double *p)
+{
+    qsort(median, (size_t)n, sizeof(double), vb_cmp_double);
+    qsort(p99, (size_t)n, sizeof(double), vb_cmp_double);
+    *m = median[n / 2];
+    *p = p99[n / 2];
+}
+
 static void check_clean(const sl_image *img)
 {
     sl_image_stats st;
@@ -126,14 +148,8 @@ static void check_clean(const sl_image *img)
 
 static void test_dorf_curves(void)
 {
-    char dorf[1024];
-    snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
-    static char names[MAX_CURVES][128];
-    int count = vb_dorf_names(dorf, names, MAX_CURVES);
-    if (count <= 0) {
-        printf("  skipped: %s absent\n", dorf);
+    if (!have_dorf())
         return;
-    }
     CHECK(count == 201);
     static sl_vset_response curves[PICKED];
     int m = pick_curves(dorf, names, count, curves);
@@ -145,11 +161,7 @@ static void test_dorf_curves(void)
         return;
     /* Every curve's inverse table, for the priors. */
     static sl_response inverse[MAX_CURVES];
-    for (int i = 0; i < count; i++) {
-        sl_vset_response r;
-        CHECK_OK(sl_vset_response_load(dorf, names[i], &r, &err), &err);
-        CHECK_OK(vb_response_inverse(&r, &inverse[i], &err), &err);
-    }
+    CHECK_OK(vb_dorf_inverses(dorf, names, count, inverse, &err), &err);
     double self_median[PICKED], self_p99[PICKED], real_median[PICKED], real_p99[PICKED];
     double prior_median[PICKED], prior_p99[PICKED];
     int scored = 0, at_goal = 0, null_at_goal = 0, fit_gap = 0, prior_at_goal = 0;
@@ -253,10 +265,9 @@ static void test_dorf_curves(void)
         vb_free(&b);
     }
     CHECK(scored == PICKED);
-    qsort(self_median, (size_t)scored, sizeof(double), vb_cmp_double);
-    qsort(self_p99, (size_t)scored, sizeof(double), vb_cmp_double);
     if (scored) {
-        double mm = self_median[scored / 2], mp = self_p99[scored / 2];
+        double mm, mp, rm, rp, pm, pp;
+        sort_ratios(self_median, self_p99, scored, &mm, &mp);
         printf("  self-calibrated over the ideal estimator, median of %d curves: median %.3f "
                "(worst %.3f), p99 %.3f (worst %.3f)\n",
                scored, mm, self_median[scored - 1], mp, self_p99[scored - 1]);
@@ -264,9 +275,7 @@ static void test_dorf_curves(void)
         CHECK_MSG(self_median[scored - 1] <= SELF_WORST_GUARD,
                   "self-calibrated worst median ratio %.3f", self_median[scored - 1]);
         CHECK_MSG(mp <= SELF_P99_GUARD, "self-calibrated p99 ratio %.3f", mp);
-        qsort(real_median, (size_t)scored, sizeof(double), vb_cmp_double);
-        qsort(real_p99, (size_t)scored, sizeof(double), vb_cmp_double);
-        double rm = real_median[scored / 2], rp = real_p99[scored / 2];
+        sort_ratios(real_median, real_p99, scored, &rm, &rp);
         printf("  self-calibrated over the realizable oracle: %d of %d curves at the goal; median "
                "%.3f (worst %.3f), p99 %.3f (worst %.3f)\n",
                at_goal, scored, rm, real_median[scored - 1], rp, real_p99[scored - 1]);
@@ -283,9 +292,7 @@ static void test_dorf_curves(void)
         CHECK_MSG(fit_gap <= FIT_GAP_GUARD, "the fit's own gap: %d curves", fit_gap);
         CHECK_MSG(self_over_null < SELF_BEATS_NULL,
                   "self-calibrated / null-space at least %.3f", self_over_null);
-        qsort(prior_median, (size_t)scored, sizeof(double), vb_cmp_double);
-        qsort(prior_p99, (size_t)scored, sizeof(double), vb_cmp_double);
-        double pm = prior_median[scored / 2], pp = prior_p99[scored / 2];
+        sort_ratios(prior_median, prior_p99, scored, &pm, &pp);
         printf("  with the other families' prior over the ideal estimator: %d of %d at the goal; "
                "median %.3f (worst %.3f), p99 %.3f (worst %.3f)\n",
                prior_at_goal, scored, pm, prior_median[scored - 1], pp, prior_p99[scored - 1]);
@@ -352,14 +359,8 @@ static void test_null_space_known(void)
  * one the 201 curves give (stitch/response_prior_dorf.c is not stale). */
 static void test_dorf_families(void)
 {
-    char dorf[1024];
-    snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
-    static char names[MAX_CURVES][128];
-    int count = vb_dorf_names(dorf, names, MAX_CURVES);
-    if (count <= 0) {
-        printf("  skipped: %s absent\n", dorf);
+    if (!have_dorf())
         return;
-    }
     static const char *const pairs[][2] = {
         {"Ektachrome-64CDRed", "Ektachrome-64"},   {"Ektachrome-64TCDBlue", "Ektachrome-64T"},
         {"dscs315G2", "dscs315"},                  {"dscs315R6", "dscs315"},
@@ -388,11 +389,7 @@ static void test_dorf_families(void)
     CHECK(families == 63);
     static sl_response inverse[MAX_CURVES];
     sl_error err;
-    for (int i = 0; i < count; i++) {
-        sl_vset_response r;
-        CHECK_OK(sl_vset_response_load(dorf, names[i], &r, &err), &err);
-        CHECK_OK(vb_response_inverse(&r, &inverse[i], &err), &err);
-    }
+    CHECK_OK(vb_dorf_inverses(dorf, names, count, inverse, &err), &err);
     sl_response_prior *p = NULL;
     CHECK_OK(vb_dorf_prior(inverse, names, count, NULL, MERGE_PRIOR_COMPONENTS, &p, &err), &err);
     const sl_response_prior *t = &merge_prior_dorf;
@@ -469,6 +466,9 @@ static void test_prior_far_curve(void)
 
 int main(void)
 {
+    snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
+    count = vb_dorf_names(dorf, names, MAX_CURVES);
+    count = count > 0 ? count : 0;
     RUN(test_dorf_families);
     RUN(test_prior_far_curve);
     RUN(test_null_space_known);

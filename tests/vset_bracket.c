@@ -649,6 +649,19 @@ sl_result vb_response_inverse(const sl_vset_response *curve, sl_response *out, s
     return r;
 }
 
+sl_result vb_dorf_inverses(const char *path, char (*names)[128], int count, sl_response *out,
+                           sl_error *err)
+{
+    sl_result r = SL_OK;
+    for (int i = 0; i < count && !r; i++) {
+        sl_vset_response resp;
+        r = sl_vset_response_load(path, names[i], &resp, err);
+        if (!r)
+            r = vb_response_inverse(&resp, &out[i], err);
+    }
+    return r;
+}
+
 sl_result vb_dorf_prior(const sl_response *curves, char (*names)[128], int count,
                         const char *name, int components, sl_response_prior **out,
                         sl_error *err)

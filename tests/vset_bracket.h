@@ -142,6 +142,10 @@ int vb_dorf_names(const char *path, char (*names)[128], int max);
 void vb_dorf_family(const char *name, char *family, size_t size);
 /* The inverse table (256 nodes, three equal channels) of a forward curve. */
 sl_result vb_response_inverse(const sl_vset_response *curve, sl_response *out, sl_error *err);
+/* The inverse tables of the `count` curves `names` of a DoRF file (free
+ * each with sl_response_free). */
+sl_result vb_dorf_inverses(const char *path, char (*names)[128], int count, sl_response *out,
+                           sl_error *err);
 /* The curve-shape prior of `count` DoRF curves (inverse tables, names)
  * leaving out every curve of the family of `name` (NULL: none left out). */
 sl_result vb_dorf_prior(const sl_response *curves, char (*names)[128], int count,
