@@ -185,11 +185,11 @@ void merge_prior_precision(const sl_response_prior *p, int lo, int hi, double *p
         return;
     /* The prior's marginal on nodes lo..hi, C = U L U^T + r I, inverted by
      * Woodbury: P = (I - U^T M^-1 U) / r with M = r L^-1 + U U^T (K x K). */
-    double *mm = malloc((size_t)kc * kc * sizeof *mm), *inv = malloc((size_t)kc * kc * sizeof *inv);
-    double *col = malloc((size_t)kc * kc * sizeof *col), *v = malloc((size_t)kc * n * sizeof *v);
+    double *mm = malloc((size_t)kc * kc * sizeof *mm), *col = malloc((size_t)kc * kc * sizeof *col);
+    double *v = malloc((size_t)kc * n * sizeof *v), *rhs = malloc((size_t)kc * sizeof *rhs);
     double *ones = malloc((size_t)n * sizeof *ones);
-    if (!mm || !inv || !col || !v || !ones) {
-        free(mm), free(inv), free(col), free(v), free(ones);
+    if (!mm || !col || !v || !rhs || !ones) {
+        free(mm), free(col), free(v), free(rhs), free(ones);
         return; /* no prior rather than a wrong one */
     }
     for (int a = 0; a < kc; a++)
@@ -200,24 +200,14 @@ void merge_prior_precision(const sl_response_prior *p, int lo, int hi, double *p
             mm[a * kc + b] = s;
         }
     bool ok = true;
-    for (int a = 0; a < kc && ok; a++) { /* M^-1, a column at a time */
+    for (int k = lo; k <= hi && ok; k++) { /* V = M^-1 U, a node at a time */
         memcpy(col, mm, (size_t)kc * kc * sizeof *col);
-        for (int b = 0; b < kc; b++)
-            inv[b * kc + a] = a == b;
-        double rhs[256];
-        for (int b = 0; b < kc; b++)
-            rhs[b] = inv[b * kc + a];
-        ok = kc <= 256 && merge_cholesky_solve(col, rhs, kc);
-        for (int b = 0; b < kc && ok; b++)
-            inv[b * kc + a] = rhs[b];
+        for (int a = 0; a < kc; a++)
+            rhs[a] = p->basis[(size_t)a * n + k];
+        ok = merge_cholesky_solve(col, rhs, kc);
+        for (int a = 0; a < kc; a++)
+            v[(size_t)a * n + k] = rhs[a];
     }
-    for (int a = 0; a < kc && ok; a++) /* V = M^-1 U */
-        for (int k = lo; k <= hi; k++) {
-            double s = 0;
-            for (int b = 0; b < kc; b++)
-                s += inv[a * kc + b] * p->basis[(size_t)b * n + k];
-            v[(size_t)a * n + k] = s;
-        }
     for (int i = lo; i <= hi && ok; i++)
         for (int j = lo; j <= hi; j++) {
             double s = i == j;
@@ -246,7 +236,7 @@ void merge_prior_precision(const sl_response_prior *p, int lo, int hi, double *p
     }
     if (!ok)
         memset(prec, 0, (size_t)n * n * sizeof *prec);
-    free(mm), free(inv), free(col), free(v), free(ones);
+    free(mm), free(col), free(v), free(rhs), free(ones);
 }
 
 double sl_response_prior_distance(const sl_response_prior *p, const sl_response *curve, int channel)
