@@ -23,6 +23,16 @@
  *                                 [--sensor-noise: the merges told the sensor's noise]
  *                                 [--alt-stops S: steps alternate 3 and S stops
  *                                  (no null-space oracle: no equal steps)]
+ *                                 [--prior off|lofo|builtin: the self-calibrated merge's
+ *                                  curve-shape prior: off (the merge's default) or of the
+ *                                  other curves, the tested curve's family left out
+ *                                  (tests/vset_bracket.h vb_dorf_family), or the merge's own
+ *                                  of all 201 (it has seen the curve)]
+ *                                 [--distance: with --prior lofo, only each true curve's
+ *                                  distance from its prior (sl_response_prior_distance)]
+ *                                 [--prior-weight W] [--prior-components K] [--families]
+ *                                 [--curve-file F: instead of the DoRF curves, one curve file
+ *                                  (sl_vset_response_load); its prior is of all 201]
  */
 #include <getopt.h>
 #include <math.h>
@@ -40,20 +50,28 @@ typedef struct result {
     double self_median, self_p99, true_median, true_p99, ideal_median, ideal_p99, real_median,
         real_p99, null_median, null_p99, curve, null_curve;
     int named; /* frames the self-calibrated merge's exposure check names (EXIF is true) */
+    bool prior_dropped;       /* the merge left the curve prior out (the data are too far) */
+    double prior_distance[2]; /* the curves fitted without and with it: their distance */
 } result;
 
 static double smoothness; /* --smoothness: the merge's lambda (0: its default) */
 static int samples;       /* --samples: response samples per channel (0: its default) */
 static bool sensor_noise; /* --sensor-noise: the merges get the sensor's noise model */
 static double well_e, read_e;
+static const sl_response_prior *prior; /* --prior lofo: the curve under test's */
+static bool prior_on;                  /* --prior lofo or builtin */
+static double prior_weight;            /* --prior-weight (0: the merge's default) */
 
 static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve,
-                       int *named)
+                       int *named, bool *prior_dropped, double *prior_distance)
 {
     sl_merge_options opt;
     sl_merge_options_init(&opt);
     opt.response_mode = given ? SL_RESPONSE_GIVEN : SL_RESPONSE_AUTO;
     opt.response = given;
+    opt.response_prior = prior;
+    opt.use_response_prior = prior_on;
+    opt.response_prior_weight = prior_weight;
     opt.smoothness = smoothness;
     if (samples > 0)
         opt.samples = samples;
@@ -69,6 +87,9 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
     }
     *px = vb_compare(&res.radiance, b, 1, true);
     *named = res.disagreeing_frames;
+    *prior_dropped = res.response_prior_dropped;
+    prior_distance[0] = res.response_prior_distance[0];
+    prior_distance[1] = res.response_prior_distance[1];
     double wz;
     if (curve)
         *curve = vb_response_error(&res.response, &b->cam.response, b->code_lo, b->code_hi, &wz);
@@ -89,7 +110,7 @@ static int run_curve(const char *dorf, const char *name, const vb_spec *base, co
     sp.response = &resp;
     vb_bracket b;
     if (vb_make(dir, "crf", &sp, &b, &err)) {
-        fprintf(stderr, "%s: %s\n", name, err.message);
+        fprintf(stderr, "%s: %s\n", resp.name, err.message);
         vb_free(&b);
         return 1;
     }
@@ -104,11 +125,13 @@ static int run_curve(const char *dorf, const char *name, const vb_spec *base, co
     if (b.null_space.data)
         null = vb_compare(&b.null_space, &b, 1, true);
     int named = 0, named_true;
-    rc = rc || merge_score(&b, NULL, &self, &out->curve, &named) ||
-         merge_score(&b, &truth, &tru, NULL, &named_true);
+    bool dropped = false, dropped_true;
+    double distance[2] = {0, 0}, distance_true[2];
+    rc = rc || merge_score(&b, NULL, &self, &out->curve, &named, &dropped, distance) ||
+         merge_score(&b, &truth, &tru, NULL, &named_true, &dropped_true, distance_true);
     *out = (result){self.median, self.p99,  tru.median,  tru.p99,    ideal.median,
                     ideal.p99,   real.median, real.p99, null.median, null.p99,
-                    out->curve,  b.null_space.data ? b.null_space_curve : NAN, named};
+                    out->curve,  b.null_space.data ? b.null_space_curve : NAN, named, dropped, {distance[0], distance[1]}};
     sl_response_free(&truth);
     vb_free(&b);
     return rc;
@@ -133,7 +156,16 @@ int main(int argc, char **argv)
                                           {"samples", 1, 0, 'n'},
                                           {"sensor-noise", 0, 0, 'z'},
                                           {"alt-stops", 1, 0, 'a'},
+                                          {"prior", 1, 0, 'p'},
+                                          {"prior-weight", 1, 0, 'W'},
+                                          {"prior-components", 1, 0, 'K'},
+                                          {"families", 0, 0, 'F'},
+                                          {"curve-file", 1, 0, 'C'},
+                                          {"distance", 0, 0, 'D'},
                                           {0, 0, 0, 0}};
+    bool lofo = false, families = false, distance = false;
+    const char *curve_file = NULL;
+    int components = 16;
     for (int o; (o = getopt_long(argc, argv, "", longs, NULL)) != -1;) {
         if (o == 'w')
             sp.width = atoi(optarg);
@@ -157,6 +189,19 @@ int main(int argc, char **argv)
             sp.noise_free = true;
         else if (o == 'a')
             sp.alt_stops = atof(optarg);
+        else if (o == 'p' && (strcmp(optarg, "lofo") == 0 || strcmp(optarg, "off") == 0 ||
+                              strcmp(optarg, "builtin") == 0))
+            lofo = strcmp(optarg, "lofo") == 0, prior_on = strcmp(optarg, "off") != 0;
+        else if (o == 'W')
+            prior_weight = atof(optarg);
+        else if (o == 'K')
+            components = atoi(optarg);
+        else if (o == 'F')
+            families = true;
+        else if (o == 'C')
+            curve_file = optarg;
+        else if (o == 'D')
+            distance = true;
         else
             return 2;
     }
@@ -168,8 +213,25 @@ int main(int argc, char **argv)
         fprintf(stderr, "bench_merge_crf: %s: cannot read the DoRF curves\n", dorf);
         return 1;
     }
+    if (families) {
+        char family[128];
+        for (int i = 0; i < count; i++) {
+            vb_dorf_family(names[i], family, sizeof family);
+            printf("%3d %-32s %s\n", i, names[i], family);
+        }
+        return 0;
+    }
+    /* Every curve's inverse table, for the priors. */
+    static sl_response inverse[MAX_CURVES];
+    sl_error err;
+    if (lofo && vb_dorf_inverses(dorf, names, count, inverse, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        return 1;
+    }
     int pick[MAX_CURVES], n = 0;
-    if (strcmp(curves, "all") == 0)
+    if (curve_file) /* one curve, in slot count: its name from the file */
+        snprintf(names[count], sizeof names[count], "%s", curve_file), pick[n++] = count;
+    else if (strcmp(curves, "all") == 0)
         for (int i = 0; i < count; i++)
             pick[n++] = i;
     else
@@ -182,7 +244,6 @@ int main(int argc, char **argv)
             s = end;
         }
     sl_vset_scene scene;
-    sl_error err;
     if (vb_scene(sp.scene, sp.width, &scene, &err)) {
         fprintf(stderr, "%s\n", err.message);
         return 1;
@@ -195,12 +256,19 @@ int main(int argc, char **argv)
     printf("# %s %dx%d, %d x %d stops", sp.scene, sp.width, sp.width / 2, sp.frames, sp.stops);
     if (sp.alt_stops > 0)
         printf(" alternating with %g", sp.alt_stops);
-    printf(", 8-bit lossless, well %.0f e, read %.1f e, seed %llu\n", sp.full_well_e,
+    printf(", 8-bit lossless, well %.0f e, read %.1f e, seed %llu", sp.full_well_e,
            sp.read_noise_e, (unsigned long long)sp.seed);
+    printf(", curve prior %s", !prior_on ? "off" : lofo ? "of the other families" : "built in");
+    if (lofo)
+        printf(" (%d components)", components);
+    if (prior_weight > 0)
+        printf(" at weight %g", prior_weight);
+    printf("\n");
     printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal, "
            "realizable, null-space; median, p99 ratios: self / ideal, realizable / ideal, "
            "self / realizable, null-space / ideal, self / null-space; curve error %%: "
-           "self-calibrated, null-space; frames named\n");
+           "self-calibrated, null-space; frames named; curve prior dropped (1), the curve's "
+           "distance from it fitted without and with it\n");
     /* The ratios, per comparison: self / ideal, true curve / ideal,
      * realizable / ideal, self / realizable, true curve / realizable. */
     enum { SELF_IDEAL, TRUE_IDEAL, REAL_IDEAL, SELF_REAL, TRUE_REAL, NULL_IDEAL, SELF_NULL,
@@ -218,7 +286,28 @@ int main(int argc, char **argv)
     int worst_i[RATIOS] = {0}, at_goal[RATIOS] = {0}, done = 0, failed = 0;
     for (int j = 0; j < n; j++) {
         result r;
-        if (run_curve(dorf, names[pick[j]], &sp, dir, &r)) {
+        sl_response_prior *own = NULL;
+        const char *name = curve_file ? NULL : names[pick[j]];
+        if (lofo && vb_dorf_prior(inverse, names, count, name, components, &own, &err)) {
+            fprintf(stderr, "%s\n", err.message);
+            return 1;
+        }
+        prior = own;
+        if (distance && own) { /* the true curve's distance from its prior; no merge */
+            sl_vset_response resp;
+            sl_response inv = {0};
+            if (!sl_vset_response_load(curve_file ? curve_file : dorf, name, &resp, &err) &&
+                !vb_response_inverse(&resp, &inv, &err))
+                printf("%3d %-32s %.3f\n", pick[j], names[pick[j]],
+                       sl_response_prior_distance(own, &inv, 0));
+            sl_response_free(&inv);
+            sl_response_prior_free(own);
+            continue;
+        }
+        int bad = run_curve(curve_file ? curve_file : dorf, name, &sp, dir, &r);
+        sl_response_prior_free(own);
+        prior = NULL;
+        if (bad) {
             failed++;
             continue;
         }
@@ -249,14 +338,15 @@ int main(int argc, char **argv)
             snprintf(gap + at, sizeof gap - at, "%s%d", null_only++ ? "," : "", pick[j]);
         }
         printf("%3d %-32s %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  %.2f / %.2f  "
-               "%.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.2f %.2f  %d\n",
+               "%.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.3f %.3f  %.2f %.2f  %d  %d %.3f %.3f\n",
                pick[j], names[pick[j]], 100 * r.self_median, 100 * r.self_p99,
                100 * r.true_median, 100 * r.true_p99, 100 * r.ideal_median, 100 * r.ideal_p99,
                100 * r.real_median, 100 * r.real_p99, 100 * r.null_median, 100 * r.null_p99,
                rmed[SELF_IDEAL][done], rp99[SELF_IDEAL][done], rmed[REAL_IDEAL][done],
                rp99[REAL_IDEAL][done], rmed[SELF_REAL][done], rp99[SELF_REAL][done],
                rmed[NULL_IDEAL][done], rp99[NULL_IDEAL][done], rmed[SELF_NULL][done],
-               rp99[SELF_NULL][done], 100 * r.curve, 100 * r.null_curve, r.named);
+               rp99[SELF_NULL][done], 100 * r.curve, 100 * r.null_curve, r.named, r.prior_dropped,
+               r.prior_distance[0], r.prior_distance[1]);
         fflush(stdout);
         done++;
     }

@@ -732,6 +732,20 @@ static void mark_spoilt(merge_ctx *m, const sl_merge_result *res, const sl_respo
             m->samples.spoilt[(size_t)i * f + q] = merge_block_spoilt(m, resp, loge, q, m->sample_pos[i]);
 }
 
+/* The curve-shape prior's strength against the fit's rows (their weight per
+ * unit of likelihood under the noise model), chosen by cross-validation on
+ * the DoRF curves with each curve's family left out of its prior
+ * (docs/merge.md "Real camera curves"). Far above 1: the default noise
+ * model (a 50000-electron well) and the bias noise puts into the fitted
+ * curve make the rows look surer than they are. */
+#define PRIOR_WEIGHT 1000
+/* The prior is dropped when the curve fitted without it is further from it
+ * than this (sl_response_prior_distance): a camera unlike the curves it was
+ * made of. DoRF's curves fitted with their own family left out of the
+ * prior: median 0.42, at most 4.4 but for gamma+0.2 (43); a hybrid
+ * log-gamma curve: 7.9 and 19 (test_merge_crf, bench_merge_crf). */
+#define PRIOR_FAR 6
+
 static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,
                                   bool use_fitted, sl_error *err)
 {
@@ -749,15 +763,49 @@ static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_m
         lambda = 10 * pow(fmin(fmax(widest, 1), 4) / 3, 1.5);
     }
     sl_response fitted;
-    sl_result r = opt->response_mode == SL_RESPONSE_ROBERTSON
-                      ? merge_fit_robertson(&m->samples, loge, RESPONSE_NODES, opt->samples,
-                                            m->black, m->saturation, opt->seed, &fitted, err)
-                      : merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda,
-                                           opt->samples, m->black, m->saturation,
-                                           opt->noise_gain, opt->noise_floor, opt->seed, &fitted,
-                                           err);
-    if (r)
-        return r;
+    if (opt->response_mode == SL_RESPONSE_ROBERTSON) {
+        sl_result r = merge_fit_robertson(&m->samples, loge, RESPONSE_NODES, opt->samples,
+                                          m->black, m->saturation, opt->seed, &fitted, err);
+        if (r)
+            return r;
+    } else {
+        sl_result r = merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda, opt->samples,
+                                         m->black, m->saturation, opt->noise_gain,
+                                         opt->noise_floor, opt->seed, NULL, 0, &fitted, err);
+        if (r)
+            return r;
+        const sl_response_prior *prior = !opt->use_response_prior ? NULL
+                                         : opt->response_prior     ? opt->response_prior
+                                                                   : &merge_prior_dorf;
+        res->response_prior[0] = 0;
+        res->response_prior_dropped = false;
+        res->response_prior_distance[0] = res->response_prior_distance[1] = 0;
+        if (prior) {
+            snprintf(res->response_prior, sizeof res->response_prior, "%s", prior->name);
+            double far = sl_response_prior_distance(prior, &fitted, 0);
+            res->response_prior_distance[0] = far;
+            res->response_prior_dropped = !(far <= PRIOR_FAR);
+            if (res->response_prior_dropped)
+                snprintf(fitted.source, sizeof fitted.source,
+                         "debevec-malik, prior %.12s dropped (curve far from it)", prior->name);
+        }
+        if (prior && !res->response_prior_dropped) {
+            sl_response with;
+            double w = opt->response_prior_weight > 0 ? opt->response_prior_weight : PRIOR_WEIGHT;
+            r = merge_fit_response(&m->samples, loge, RESPONSE_NODES, lambda, opt->samples,
+                                   m->black, m->saturation, opt->noise_gain, opt->noise_floor,
+                                   opt->seed, prior, w, &with, err);
+            if (r) {
+                sl_response_free(&fitted);
+                return r;
+            }
+            res->response_prior_distance[1] = sl_response_prior_distance(prior, &with, 0);
+            sl_response_free(&fitted);
+            fitted = with;
+            snprintf(fitted.source, sizeof fitted.source, "debevec-malik, prior %.40s",
+                     prior->name);
+        }
+    }
     sl_response_free(&res->response);
     res->response = fitted;
     return SL_OK;

@@ -52,13 +52,39 @@ void merge_block_max(const void *buf, int code_bytes, double top, int width, int
 
 /* Debevec-Malik: the log inverse response g(z) on `nodes` nodes such that
  * g(z_ir) = ln E_i + ln e_r, with hat weights, smoothness `lambda` on the
- * second derivative of g against ln z, and samples chosen stratified over
- * scene intensity. Solved in double through the Schur complement of the
+ * second derivative of g against ln z, the curve-shape prior (if any) at
+ * prior_weight, and samples chosen stratified over scene intensity. Solved in double through the Schur complement of the
  * per-sample unknowns (a dense nodes x nodes Cholesky, merge_cholesky_solve). */
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
                              double noise_gain, double noise_floor, uint64_t seed,
+                             const sl_response_prior *prior, double prior_weight,
                              sl_response *out, sl_error *err);
+
+/* The curve-shape prior (response_prior.c): mean and components on
+ * MERGE_PRIOR_NODES code nodes, zero below node `first`. */
+/* The built-in prior's components: the DoRF dozen-and-evens measurement
+ * levels off from 16 (docs/merge.md). */
+enum { MERGE_PRIOR_NODES = 256, MERGE_PRIOR_COMPONENTS = 16 };
+struct sl_response_prior {
+    int nodes, first, components;
+    const double *mean;     /* nodes values, 0 below first */
+    const double *basis;    /* components rows of nodes values, unit length */
+    const double *variance; /* components values, descending */
+    double residual;        /* variance per node beyond the components */
+    char name[64];
+    double *owned;          /* the three above when built (not the table's) */
+};
+/* First node the prior covers for a fit on `nodes` nodes. */
+int merge_prior_first_node(int nodes);
+/* The precision P (nodes x nodes) of the prior's marginal on nodes lo..hi
+ * (those the data reach; from its first node), with the shape's level left
+ * free (P 1 = 0), and P mean; zero elsewhere. The fit adds w P to its
+ * matrix and w P mean to its right side. */
+void merge_prior_precision(const sl_response_prior *p, int lo, int hi, double *prec,
+                           double *prec_mean);
+/* The built-in prior: DoRF's 201 curves (response_prior_dorf.c, generated). */
+extern const sl_response_prior merge_prior_dorf;
 
 /* The fit's smoothness term at node k (2 <= k <= nodes - 2): the second
  * derivative of g against ln z from nodes k - 1, k, k + 1 is

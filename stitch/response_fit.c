@@ -362,6 +362,7 @@ static double weight_sum(const float *w, const float *rw, size_t n)
 sl_result merge_fit_response(const merge_samples *s, const double *log_exposure, int nodes,
                              double lambda, int max_samples, double black, double saturation,
                              double noise_gain, double noise_floor, uint64_t seed,
+                             const sl_response_prior *prior, double prior_weight,
                              sl_response *out, sl_error *err)
 {
     memset(out, 0, sizeof *out);
@@ -384,9 +385,13 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
     float *target = malloc(eqs * sizeof *target);
     double *rising = malloc((size_t)nodes * sizeof *rising);
     uint8_t *usable = malloc(per * (size_t)f); /* optional: NULL finds them per channel */
+    if (prior && prior->nodes != nodes)
+        prior = NULL;
+    double *prec = prior ? malloc(nn * sizeof *prec) : NULL;
+    double *prec_mean = prior ? malloc((size_t)nodes * sizeof *prec_mean) : NULL;
     sl_result r = SL_OK;
     if (!a || !b || !inv || !chosen || !idx || !val || !wt || !rw || !res || !cut || !mag ||
-        !pos || !target || !rising) {
+        !pos || !target || !rising || (prior && (!prec || !prec_mean))) {
         r = sl_error_set(err, SL_ERR_NOMEM, "response: out of memory");
         goto done;
     }
@@ -422,6 +427,11 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                 target[e] = (float)log_exposure[q];
             }
         }
+    /* The data rows' weight per unit of likelihood under the noise model:
+     * a row's weight is var(mid-grey)^1/2 over its deviation in ln y (the
+     * forward rounds' model weights; the hat weights are 0.5 at mid-grey
+     * as those are), times the rescaling that keeps the data's total. */
+    double unit = noise_gain * 0.5 + noise_floor;
     int rounds = ROBUST_ROUNDS + (s->coded ? 0 : FORWARD_ROUNDS);
     for (int round = 0; round < rounds && !r; round++) {
         /* One curve for the three channels: cameras apply one tone curve after
@@ -433,6 +443,20 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         for (int c = 0; c < 3; c++)
             add_samples(f, m[c], wt + base[c], rw + base[c], pos + base[c], target + base[c],
                         nodes, a, b, idx, val, &equations);
+        /* The prior speaks for the codes the data reach: beyond them the
+         * smoothness extrapolates as without it. */
+        if (prior) {
+            double most = 0;
+            int lo = nodes, hi = -1;
+            for (int k = 0; k < nodes; k++)
+                most = fmax(most, a[k * nodes + k]);
+            for (int k = 0; k < nodes; k++)
+                if (a[k * nodes + k] > 1e-3 * most) {
+                    lo = k < lo ? k : lo;
+                    hi = k;
+                }
+            merge_prior_precision(prior, lo, hi, prec, prec_mean);
+        }
         /* Smoothness of g against ln z: gamma-like curves are nearly straight
          * there, while the log-periodic wiggle that brackets with wide steps
          * cannot pin down (Debevec-Malik's weak spot) is strongly curved.
@@ -460,6 +484,12 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         a[2 * nodes + 2] += l2;
         /* g(mid) = 0 fixes the free offset; the curve is rescaled below. */
         a[(nodes / 2) * nodes + nodes / 2] += 1 + equations;
+        /* The prior on curve shapes, as a Gaussian posterior would weigh it
+         * against rows of that weight. */
+        for (size_t e = 0; prior && e < nn; e++)
+            a[e] += prior_weight * unit * prec[e];
+        for (int k = 0; prior && k < nodes; k++)
+            b[k] += prior_weight * unit * prec_mean[k];
         if (merge_fit_system_hook)
             merge_fit_system_hook(a, b, nodes);
         if (!merge_cholesky_solve(a, b, nodes)) {
@@ -484,6 +514,8 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
             double after = weight_sum(wt, rw, (size_t)total * f);
             for (size_t e = 0; e < (size_t)total * f && after > 0; e++)
                 wt[e] = (float)(wt[e] * sqrt(before / after));
+            if (after > 0)
+                unit = (noise_gain * 0.5 + noise_floor) * before / after;
             continue;
         }
         int n = 0;
@@ -508,6 +540,8 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
         inv = NULL;
     }
 done:
+    free(prec);
+    free(prec_mean);
     free(usable);
     free(a);
     free(b);

@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../stitch/merge_private.h" /* the built-in prior's table */
 #include "setlight/stitch.h"
 #include "testing.h"
 #include "vset_bracket.h"
@@ -67,6 +68,15 @@ enum { MAX_CURVES = 256, PICKED = 12 };
 #define NULL_AT_GOAL_MAX 7
 #define SELF_BEATS_NULL 0.8
 #define FIT_GAP_GUARD 4
+/* Self-calibrated with the curve-shape prior of the other families' curves
+ * (each curve's family left out: vb_dorf_family) over the ideal
+ * estimator: curves at the goal (measured 3: kaf3000CD, both Portras), the
+ * median of the median ratios (1.154; without the prior 1.417), the worst
+ * (1.630, agfa-scala-200xCDPush1) and the median p99 ratio (1.063). */
+#define PRIOR_AT_GOAL 3
+#define PRIOR_MEDIAN_GUARD 1.20
+#define PRIOR_WORST_GUARD 1.75
+#define PRIOR_P99_GUARD 1.10
 
 typedef struct keyed {
     double key;
@@ -107,6 +117,28 @@ static int pick_curves(const char *dorf, char (*names)[128], int count,
     return m;
 }
 
+/* The DoRF file, its curve names and how many (0 when it is absent: the
+ * tests that need it are skipped), read once by main. */
+static char dorf[1024];
+static char names[MAX_CURVES][128];
+static int count;
+
+static bool have_dorf(void)
+{
+    if (count == 0)
+        printf("  skipped: %s absent\n", dorf);
+    return count > 0;
+}
+
+/* Sorts the curves' median and p99 ratios; the median of each into *m, *p. */
+static void sort_ratios(double *median, double *p99, int n, double *m, double *p)
+{
+    qsort(median, (size_t)n, sizeof(double), vb_cmp_double);
+    qsort(p99, (size_t)n, sizeof(double), vb_cmp_double);
+    *m = median[n / 2];
+    *p = p99[n / 2];
+}
+
 static void check_clean(const sl_image *img)
 {
     sl_image_stats st;
@@ -116,14 +148,8 @@ static void check_clean(const sl_image *img)
 
 static void test_dorf_curves(void)
 {
-    char dorf[1024];
-    snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
-    static char names[MAX_CURVES][128];
-    int count = vb_dorf_names(dorf, names, MAX_CURVES);
-    if (count <= 0) {
-        printf("  skipped: %s absent\n", dorf);
+    if (!have_dorf())
         return;
-    }
     CHECK(count == 201);
     static sl_vset_response curves[PICKED];
     int m = pick_curves(dorf, names, count, curves);
@@ -133,8 +159,12 @@ static void test_dorf_curves(void)
     CHECK_OK(vb_scene("exterior", 256, &scene, &err), &err);
     if (!scene.latlong.data)
         return;
+    /* Every curve's inverse table, for the priors. */
+    static sl_response inverse[MAX_CURVES];
+    CHECK_OK(vb_dorf_inverses(dorf, names, count, inverse, &err), &err);
     double self_median[PICKED], self_p99[PICKED], real_median[PICKED], real_p99[PICKED];
-    int scored = 0, at_goal = 0, null_at_goal = 0, fit_gap = 0;
+    double prior_median[PICKED], prior_p99[PICKED];
+    int scored = 0, at_goal = 0, null_at_goal = 0, fit_gap = 0, prior_at_goal = 0;
     double self_over_null = INFINITY;
     for (int i = 0; i < m; i++) {
         vb_spec sp = {.scene = "exterior", .response = &curves[i], .frames = 7, .stops = 3,
@@ -150,9 +180,19 @@ static void test_dorf_curves(void)
                 truth.inverse[c * 256 + k] = sl_vset_response_invert(&curves[i], k / 255.0);
         sl_merge_options opt;
         sl_merge_options_init(&opt);
-        sl_merge_result self, given;
+        sl_merge_result self, given, with_prior;
         opt.response_mode = SL_RESPONSE_AUTO;
         CHECK_OK(vb_merge(&b, &opt, &self, &err), &err);
+        /* With the prior of the other families' curves. */
+        sl_response_prior *prior = NULL;
+        CHECK_OK(vb_dorf_prior(inverse, names, count, curves[i].name, MERGE_PRIOR_COMPONENTS,
+                               &prior, &err),
+                 &err);
+        opt.use_response_prior = true;
+        opt.response_prior = prior;
+        CHECK_OK(vb_merge(&b, &opt, &with_prior, &err), &err);
+        opt.use_response_prior = false;
+        sl_response_prior_free(prior);
         /* With the true curve, also the sensor's noise model (what --noise
          * gives): the merge's default is a 50000-electron well's. */
         opt.response_mode = SL_RESPONSE_GIVEN;
@@ -160,7 +200,8 @@ static void test_dorf_curves(void)
         opt.noise_gain = 1 / sp.full_well_e;
         opt.noise_floor = (sp.read_noise_e / sp.full_well_e) * (sp.read_noise_e / sp.full_well_e);
         CHECK_OK(vb_merge(&b, &opt, &given, &err), &err);
-        if (self.radiance.data && given.radiance.data && b.oracle.data) {
+        if (self.radiance.data && given.radiance.data && with_prior.radiance.data &&
+            b.oracle.data) {
             vb_stats got = vb_compare(&self.radiance, &b, 1, true);
             vb_stats tru = vb_compare(&given.radiance, &b, 1, false);
             vb_stats ideal = vb_compare(&b.oracle, &b, 1, false);
@@ -197,6 +238,19 @@ static void test_dorf_curves(void)
             null_at_goal += null_ok;
             fit_gap += null_ok && !(rm <= 1.1 && rp <= 1.2);
             self_over_null = fmin(self_over_null, got.median / null.median);
+            vb_stats pri = vb_compare(&with_prior.radiance, &b, 1, true);
+            double pm = pri.median / ideal.median, pp = pri.p99 / ideal.p99;
+            printf("  %-30s with the other families' prior (%s): / ideal %.3f / %.3f, curve "
+                   "within %.2f%%\n",
+                   curves[i].name,
+                   with_prior.response_prior_dropped ? "dropped" : "used", pm, pp,
+                   100 * vb_response_error(&with_prior.response, &curves[i], b.code_lo,
+                                           b.code_hi, &wz));
+            CHECK(strstr(with_prior.response.source, "prior dorf-without-") != NULL);
+            check_clean(&with_prior.radiance);
+            prior_median[scored] = pm;
+            prior_p99[scored] = pp;
+            prior_at_goal += pm <= 1.1 && pp <= 1.2;
             real_median[scored] = sm;
             real_p99[scored] = spp;
             at_goal += sm <= 1.1 && spp <= 1.2;
@@ -206,14 +260,14 @@ static void test_dorf_curves(void)
         }
         sl_merge_result_free(&self);
         sl_merge_result_free(&given);
+        sl_merge_result_free(&with_prior);
         sl_response_free(&truth);
         vb_free(&b);
     }
     CHECK(scored == PICKED);
-    qsort(self_median, (size_t)scored, sizeof(double), vb_cmp_double);
-    qsort(self_p99, (size_t)scored, sizeof(double), vb_cmp_double);
     if (scored) {
-        double mm = self_median[scored / 2], mp = self_p99[scored / 2];
+        double mm, mp, rm, rp, pm, pp;
+        sort_ratios(self_median, self_p99, scored, &mm, &mp);
         printf("  self-calibrated over the ideal estimator, median of %d curves: median %.3f "
                "(worst %.3f), p99 %.3f (worst %.3f)\n",
                scored, mm, self_median[scored - 1], mp, self_p99[scored - 1]);
@@ -221,9 +275,7 @@ static void test_dorf_curves(void)
         CHECK_MSG(self_median[scored - 1] <= SELF_WORST_GUARD,
                   "self-calibrated worst median ratio %.3f", self_median[scored - 1]);
         CHECK_MSG(mp <= SELF_P99_GUARD, "self-calibrated p99 ratio %.3f", mp);
-        qsort(real_median, (size_t)scored, sizeof(double), vb_cmp_double);
-        qsort(real_p99, (size_t)scored, sizeof(double), vb_cmp_double);
-        double rm = real_median[scored / 2], rp = real_p99[scored / 2];
+        sort_ratios(real_median, real_p99, scored, &rm, &rp);
         printf("  self-calibrated over the realizable oracle: %d of %d curves at the goal; median "
                "%.3f (worst %.3f), p99 %.3f (worst %.3f)\n",
                at_goal, scored, rm, real_median[scored - 1], rp, real_p99[scored - 1]);
@@ -240,7 +292,19 @@ static void test_dorf_curves(void)
         CHECK_MSG(fit_gap <= FIT_GAP_GUARD, "the fit's own gap: %d curves", fit_gap);
         CHECK_MSG(self_over_null < SELF_BEATS_NULL,
                   "self-calibrated / null-space at least %.3f", self_over_null);
+        sort_ratios(prior_median, prior_p99, scored, &pm, &pp);
+        printf("  with the other families' prior over the ideal estimator: %d of %d at the goal; "
+               "median %.3f (worst %.3f), p99 %.3f (worst %.3f)\n",
+               prior_at_goal, scored, pm, prior_median[scored - 1], pp, prior_p99[scored - 1]);
+        CHECK_MSG(prior_at_goal >= PRIOR_AT_GOAL, "with the prior: %d at the goal", prior_at_goal);
+        CHECK_MSG(pm <= PRIOR_MEDIAN_GUARD, "with the prior: median ratio %.3f", pm);
+        CHECK_MSG(pm < mm, "with the prior: median ratio %.3f, without %.3f", pm, mm);
+        CHECK_MSG(prior_median[scored - 1] <= PRIOR_WORST_GUARD,
+                  "with the prior: worst median ratio %.3f", prior_median[scored - 1]);
+        CHECK_MSG(pp <= PRIOR_P99_GUARD, "with the prior: p99 ratio %.3f", pp);
     }
+    for (int i = 0; i < count; i++)
+        sl_response_free(&inverse[i]);
     sl_vset_scene_free(&scene);
 }
 
@@ -289,8 +353,124 @@ static void test_null_space_known(void)
     CHECK_MSG(worst < 0.02, "null-space member %.4f off the power law", worst);
 }
 
+/* The families the priors leave out (vb_dorf_family) on the 201 names:
+ * channels, development variants, a camera's settings and dates, and the
+ * gamma curves each one family; 63 in all. And the built-in prior is the
+ * one the 201 curves give (stitch/response_prior_dorf.c is not stale). */
+static void test_dorf_families(void)
+{
+    if (!have_dorf())
+        return;
+    static const char *const pairs[][2] = {
+        {"Ektachrome-64CDRed", "Ektachrome-64"},   {"Ektachrome-64TCDBlue", "Ektachrome-64T"},
+        {"dscs315G2", "dscs315"},                  {"dscs315R6", "dscs315"},
+        {"Portra-160NCCDGreen", "Portra-160NC"},   {"FP2900ZB", "FP2900Z"},
+        {"agfa-scala-200xCDPush1", "agfa-scala-200x"}, {"agfa-scala-200xPull1", "agfa-scala-200x"},
+        {"Eastman-Double-X-NegCD12min", "Eastman-Double-X-Neg"}, {"gamma+2.6", "gamma"},
+        {"optura981111.SLRR", "optura"},           {"Kodachrome-25CDBlue", "Kodachrome-25"},
+        {"Kodachrome-25Red", "Kodachrome-25"},     {"kaf3000CD", "kaf3000"},
+        {"Sony-DXC-9000", "Sony-DXC-9000"}};
+    char family[128];
+    for (size_t i = 0; i < sizeof pairs / sizeof pairs[0]; i++) {
+        vb_dorf_family(pairs[i][0], family, sizeof family);
+        CHECK_MSG(strcmp(family, pairs[i][1]) == 0, "%s: family %s", pairs[i][0], family);
+    }
+    static char seen[MAX_CURVES][128];
+    int families = 0;
+    for (int i = 0; i < count; i++) {
+        vb_dorf_family(names[i], family, sizeof family);
+        bool known = false;
+        for (int j = 0; j < families && !known; j++)
+            known = strcmp(seen[j], family) == 0;
+        if (!known)
+            snprintf(seen[families++], sizeof seen[0], "%s", family);
+    }
+    printf("  %d curves, %d families\n", count, families);
+    CHECK(families == 63);
+    static sl_response inverse[MAX_CURVES];
+    sl_error err;
+    CHECK_OK(vb_dorf_inverses(dorf, names, count, inverse, &err), &err);
+    sl_response_prior *p = NULL;
+    CHECK_OK(vb_dorf_prior(inverse, names, count, NULL, MERGE_PRIOR_COMPONENTS, &p, &err), &err);
+    const sl_response_prior *t = &merge_prior_dorf;
+    double worst = 0;
+    for (int k = 0; p && k < t->nodes; k++) {
+        worst = fmax(worst, fabs(p->mean[k] - t->mean[k]));
+        for (int c = 0; c < t->components; c++) /* a component's sign is arbitrary */
+            worst = fmax(worst, fabs(fabs(p->basis[c * t->nodes + k]) -
+                                     fabs(t->basis[c * t->nodes + k])));
+    }
+    for (int c = 0; p && c < t->components; c++)
+        worst = fmax(worst, fabs(p->variance[c] / t->variance[c] - 1));
+    printf("  the built-in prior against the 201 curves': %.2e\n", worst);
+    CHECK(p && p->components == t->components && p->first == t->first);
+    CHECK_MSG(worst < 1e-8, "stitch/response_prior_dorf.c is stale (%.3g): "
+                            "./build/bench/bench_crf_prior_table > stitch/response_prior_dorf.c",
+              worst);
+    sl_response_prior_free(p);
+    for (int i = 0; i < count; i++)
+        sl_response_free(&inverse[i]);
+}
+
+/* A curve far from every DoRF shape (hybrid log-gamma, ITU-R BT.2100: a
+ * square root below 1/12, logarithmic above): the merge drops the built-in
+ * prior (the curve fitted without it is too far from it) and the result is
+ * the merge without it, bit for bit. */
+static void test_prior_far_curve(void)
+{
+    sl_vset_response hlg;
+    memset(&hlg, 0, sizeof hlg);
+    snprintf(hlg.name, sizeof hlg.name, "hlg");
+    for (int i = 0; i < SL_VSET_CRF_SAMPLES; i++) {
+        double x = (double)i / (SL_VSET_CRF_SAMPLES - 1);
+        hlg.curve[i] = x <= 1.0 / 12 ? sqrt(3 * x)
+                                     : 0.17883277 * log(12 * x - 0.28466892) + 0.55991073;
+    }
+    sl_error err;
+    sl_vset_scene scene;
+    CHECK_OK(vb_scene("exterior", 256, &scene, &err), &err);
+    if (!scene.latlong.data)
+        return;
+    vb_spec sp = {.scene = "exterior", .response = &hlg, .frames = 7, .stops = 3,
+                  .jpeg = true, .lossless = true, .width = 256, .saturation = 0.95,
+                  .seed = 3, .full_well_e = 4000, .read_noise_e = 3,
+                  .latlong = &scene.latlong};
+    vb_bracket b;
+    CHECK_OK(vb_make(sl_test_tmpdir(), "hlg", &sp, &b, &err), &err);
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.response_mode = SL_RESPONSE_AUTO;
+    sl_merge_result without, with;
+    CHECK_OK(vb_merge(&b, &opt, &without, &err), &err);
+    opt.use_response_prior = true;
+    CHECK_OK(vb_merge(&b, &opt, &with, &err), &err);
+    printf("  hlg: curve fitted without the prior %.1f from it (%s), source \"%s\"\n",
+           with.response_prior_distance[0], with.response_prior_dropped ? "dropped" : "used",
+           with.response.source);
+    CHECK(with.response_prior_dropped);
+    CHECK(strcmp(with.response_prior, "dorf") == 0);
+    CHECK(strstr(with.response.source, "dropped") != NULL);
+    if (with.radiance.data && without.radiance.data) {
+        vb_stats a = vb_compare(&without.radiance, &b, 1, true);
+        vb_stats c = vb_compare(&with.radiance, &b, 1, true);
+        printf("  hlg: per pixel median / p99 without the prior %.2f / %.2f%%, with %.2f / "
+               "%.2f%%\n",
+               100 * a.median, 100 * a.p99, 100 * c.median, 100 * c.p99);
+        CHECK(c.median == a.median && c.p99 == a.p99);
+    }
+    sl_merge_result_free(&without);
+    sl_merge_result_free(&with);
+    vb_free(&b);
+    sl_vset_scene_free(&scene);
+}
+
 int main(void)
 {
+    snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
+    count = vb_dorf_names(dorf, names, MAX_CURVES);
+    count = count > 0 ? count : 0;
+    RUN(test_dorf_families);
+    RUN(test_prior_far_curve);
     RUN(test_null_space_known);
     RUN(test_dorf_curves);
     return sl_test_finish();

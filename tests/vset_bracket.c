@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: BSD-3-Clause */
 #include "vset_bracket.h"
 
+#include <ctype.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -593,6 +594,96 @@ int vb_dorf_names(const char *path, char (*names)[128], int max)
     return n;
 }
 
+/* Removes `suffix` from the end of s when it is there. */
+static bool strip_suffix(char *s, const char *suffix)
+{
+    size_t n = strlen(s), k = strlen(suffix);
+    if (n <= k || strcmp(s + n - k, suffix) != 0)
+        return false;
+    s[n - k] = 0;
+    return true;
+}
+
+/* Removes a trailing run of digits (and '.') of `min` to `max` characters
+ * after `prefix` ("Push", "+", ""); false if there is none. */
+static bool strip_number(char *s, const char *prefix, int min, int max)
+{
+    size_t n = strlen(s), d = n;
+    while (d > 0 && (isdigit((unsigned char)s[d - 1]) || s[d - 1] == '.'))
+        d--;
+    size_t k = strlen(prefix);
+    if ((int)(n - d) < min || (int)(n - d) > max || d < k + 1 ||
+        strncmp(s + d - k, prefix, k) != 0)
+        return false;
+    s[d - k] = 0;
+    return true;
+}
+
+void vb_dorf_family(const char *name, char *family, size_t size)
+{
+    char s[128];
+    snprintf(s, sizeof s, "%s", name);
+    strip_suffix(s, ".SLRR");
+    if (!strip_suffix(s, "Red") && !strip_suffix(s, "Green") && !strip_suffix(s, "Blue")) {
+        size_t n = strlen(s), d = n > 0 && isdigit((unsigned char)s[n - 1]) ? n - 1 : n;
+        if (d > 1 && strchr("RGB", s[d - 1]) && isalnum((unsigned char)s[d - 2]))
+            s[d - 1] = 0;
+    }
+    strip_suffix(s, "CD");
+    bool variant = strip_suffix(s, "Standard") || strip_number(s, "Push", 1, 1) ||
+                   strip_number(s, "Pull", 1, 1) || strip_number(s, "+", 1, 4);
+    if (!variant && strip_suffix(s, "min"))
+        strip_number(s, "", 1, 2);
+    else if (!variant)
+        strip_number(s, "", 6, 6); /* a date: optura981111 */
+    strip_suffix(s, "CD");
+    snprintf(family, size, "%s", s);
+}
+
+sl_result vb_response_inverse(const sl_vset_response *curve, sl_response *out, sl_error *err)
+{
+    sl_result r = sl_response_linear(out, 256, err);
+    for (int c = 0; c < 3 && !r; c++)
+        for (int k = 0; k < 256; k++)
+            out->inverse[c * 256 + k] = sl_vset_response_invert(curve, k / 255.0);
+    return r;
+}
+
+sl_result vb_dorf_inverses(const char *path, char (*names)[128], int count, sl_response *out,
+                           sl_error *err)
+{
+    sl_result r = SL_OK;
+    for (int i = 0; i < count && !r; i++) {
+        sl_vset_response resp;
+        r = sl_vset_response_load(path, names[i], &resp, err);
+        if (!r)
+            r = vb_response_inverse(&resp, &out[i], err);
+    }
+    return r;
+}
+
+sl_result vb_dorf_prior(const sl_response *curves, char (*names)[128], int count,
+                        const char *name, int components, sl_response_prior **out,
+                        sl_error *err)
+{
+    char left_out[128] = "", family[128];
+    if (name)
+        vb_dorf_family(name, left_out, sizeof left_out);
+    sl_response *kept = malloc((size_t)count * sizeof *kept);
+    if (!kept)
+        return sl_error_set(err, SL_ERR_NOMEM, "out of memory");
+    int n = 0;
+    for (int i = 0; i < count; i++) {
+        vb_dorf_family(names[i], family, sizeof family);
+        if (!name || strcmp(family, left_out) != 0)
+            kept[n++] = curves[i];
+    }
+    char label[160];
+    snprintf(label, sizeof label, "dorf-without-%s", name ? left_out : "none");
+    sl_result r = sl_response_prior_build(kept, n, components, label, out, err);
+    free(kept);
+    return r;
+}
 sl_result vb_merge(const vb_bracket *b, const sl_merge_options *opt, sl_merge_result *res,
                    sl_error *err)
 {

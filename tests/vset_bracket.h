@@ -135,5 +135,21 @@ void vb_null_space_curve(const sl_vset_response *truth, const vb_periodic *p,
 /* The curve names of a DoRF database file (six lines a curve)
  * in file order, at most max; -1 when it cannot be read. */
 int vb_dorf_names(const char *path, char (*names)[128], int max);
+/* A DoRF curve's family (the same film or camera): the name without, in
+ * turn, ".SLRR", the channel ("Red", "Green", "Blue", or R, G or B with an
+ * optional digit: dscs315G2, FP2900ZB), "CD", the variant ("Standard",
+ * "Push1", "Pull1", "12min", a gamma's "+2.2", a six-digit date) and "CD". */
+void vb_dorf_family(const char *name, char *family, size_t size);
+/* The inverse table (256 nodes, three equal channels) of a forward curve. */
+sl_result vb_response_inverse(const sl_vset_response *curve, sl_response *out, sl_error *err);
+/* The inverse tables of the `count` curves `names` of a DoRF file (free
+ * each with sl_response_free). */
+sl_result vb_dorf_inverses(const char *path, char (*names)[128], int count, sl_response *out,
+                           sl_error *err);
+/* The curve-shape prior of `count` DoRF curves (inverse tables, names)
+ * leaving out every curve of the family of `name` (NULL: none left out). */
+sl_result vb_dorf_prior(const sl_response *curves, char (*names)[128], int count,
+                        const char *name, int components, sl_response_prior **out,
+                        sl_error *err);
 
 #endif

@@ -55,6 +55,11 @@ static const char *merge_help =
     "  --tolerance STOPS      EXIF vs data disagreement reported above (default 0.2)\n"
     "  --samples N            response samples per channel (default 4000)\n"
     "  --smoothness L         response smoothness (default 10 at 3-stop steps)\n"
+    "  --response-prior P     a prior on the self-calibrated curve's shape: off (default)\n"
+    "                         or dorf (the 201 camera and film curves of Columbia's DoRF\n"
+    "                         database; left out when the curve fitted without it is far\n"
+    "                         from them). For film-like curves and scenes spanning the\n"
+    "                         codes; it bends the scale of pure gamma curves (docs/merge.md)\n"
     "  --absolute             output in cd/m^2 from EXIF time, f-number and ISO:\n"
     "                         L = 120 y N^2 / (t ISO), y linear with 1 = saturation (ISO\n"
     "                         12232 saturation speed, lens factor 0.65); default relative\n"
@@ -77,7 +82,8 @@ static const char *response_help =
     "'setlight merge --response CRF.json' on the rest of a shoot.\n\n"
     "  -o, --output CRF.json  the response curve file (required)\n"
     "  --times, --exposures, --saturation, --black, --samples, --smoothness,\n"
-    "  --tolerance, --align   as for setlight merge (alignment auto by default)\n"
+    "  --response-prior, --tolerance, --align\n"
+    "                         as for setlight merge (alignment auto by default)\n"
     "  --json                 print the exposure check and curve summary as JSON\n";
 
 
@@ -152,7 +158,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
            OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK,
            OPT_ABS, OPT_ALIGN, OPT_ALIGN_SHIFT, OPT_ALIGN_ANGLE, OPT_HALF, OPT_FLOAT,
-           OPT_COMPRESSION, OPT_HOLD };
+           OPT_COMPRESSION, OPT_HOLD, OPT_PRIOR };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"output", required_argument, NULL, 'o'},
@@ -177,6 +183,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         {"float", no_argument, NULL, OPT_FLOAT},
         {"compression", required_argument, NULL, OPT_COMPRESSION},
         {"hold-mb", required_argument, NULL, OPT_HOLD},
+        {"response-prior", required_argument, NULL, OPT_PRIOR},
         {0, 0, 0, 0}};
     sl_merge_options_init(&a->opt);
     a->opt.response_mode = SL_RESPONSE_AUTO;
@@ -316,6 +323,11 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         case OPT_SAMPLES:
             if (!cli_parse_int(optarg, &a->opt.samples) || a->opt.samples < 16)
                 return cli_usage_error(cli, "--samples needs a whole number >= 16, not '%s'", optarg);
+            break;
+        case OPT_PRIOR:
+            if (strcmp(optarg, "off") != 0 && strcmp(optarg, "dorf") != 0)
+                return cli_usage_error(cli, "--response-prior needs dorf or off, not '%s'", optarg);
+            a->opt.use_response_prior = strcmp(optarg, "dorf") == 0;
             break;
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);

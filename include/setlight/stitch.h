@@ -51,6 +51,19 @@ double sl_response_eval(const sl_response *resp, int channel, double z);
 sl_result sl_response_read(const char *path, sl_response *resp, sl_error *err);
 sl_result sl_response_write(const char *path, const sl_response *resp, sl_error *err);
 
+/* A Gaussian prior on curve shapes for the self-calibrated fit: the mean
+ * and top principal components of ln f^-1(z) - ln f^-1(z_mid) over a set of
+ * curves (channel 0 of each), codes 0.02 and up (docs/merge.md "Real camera
+ * curves"). `name` is what the merge's report calls it. */
+typedef struct sl_response_prior sl_response_prior;
+sl_result sl_response_prior_build(const sl_response *curves, int count, int components,
+                                  const char *name, sl_response_prior **out, sl_error *err);
+void sl_response_prior_free(sl_response_prior *prior);
+/* A curve's squared Mahalanobis distance from the prior's mean shape, per
+ * covered node (about 1 for a curve drawn from the prior). */
+double sl_response_prior_distance(const sl_response_prior *prior, const sl_response *curve,
+                                  int channel);
+
 /* AUTO: Debevec-Malik from the bracket; ROBERTSON: Robertson-Borman-Stevenson. */
 typedef enum {
     SL_RESPONSE_LINEAR = 0,
@@ -75,6 +88,11 @@ typedef struct sl_merge_options {
     sl_response_mode response_mode;
     const sl_response *response; /* for SL_RESPONSE_GIVEN */
     double smoothness;          /* Debevec-Malik lambda; 0: 10 (widest step / 3 stops)^1.5 */
+    bool use_response_prior;    /* a prior on curve shapes in the self-calibrated fit (default
+                                   off: docs/merge.md "Real camera curves") */
+    const sl_response_prior *response_prior; /* that prior; NULL: the built-in one (the
+                                                201 curves of Columbia's DoRF database) */
+    double response_prior_weight; /* its strength against the data's noise model; 0: 1000 */
     int samples;                /* response samples per channel; 0: default 4000 */
     double noise_gain;          /* Poisson term: var(y) = gain * y + floor, y linear in [0, 1] */
     double noise_floor;         /*   0, 0: defaults 2e-5, 1e-6 (docs/merge.md) */
@@ -186,6 +204,13 @@ typedef struct sl_merge_result {
     sl_image ghost;             /* with deghost: 1 channel, 1 where a frame was left out */
     sl_response response;
     sl_merge_response_check response_check;
+    /* The curve-shape prior of the self-calibrated fit ("" when none), and
+     * whether it was dropped: the curve fitted without it was further from
+     * it than any of its own curves' (response_prior_distance[0]; [1]: the
+     * curve fitted with it; sl_response_prior_distance, 0 when not fitted). */
+    char response_prior[64];
+    bool response_prior_dropped;
+    double response_prior_distance[2];
     sl_merge_frame *frames;     /* in the given order */
     int frame_count;
     int reference;              /* frame whose exposure scales the radiance (median) */

@@ -63,6 +63,11 @@ expect 0 "$SETLIGHT" merge "${F[0]}" --times $TIMES "${F[1]}" -o "$T/among.exr" 
 present "$T/among.exr"
 expect 0 "$SETLIGHT" merge --json --response robertson -o "$T/rob.exr" --times $TIMES "${F[@]}"
 json_eval "$T/out" 'd["response"] == "robertson" and d["disagreeing_frames"] == 0'
+# The curve-shape prior: opt-in, named in the result; a wrong value is a usage error.
+expect 0 "$SETLIGHT" merge --json --response-prior dorf -o "$T/prior.exr" --times $TIMES "${F[@]}"
+json_eval "$T/out" 'd["response"].startswith("debevec-malik, prior dorf")'
+expect 2 "$SETLIGHT" merge --response-prior emor -o "$T/x.exr" --times $TIMES "${F[@]}"
+err_has "--response-prior"; err_one_line; absent "$T/x.exr"
 # Absolute units need EXIF f-number and ISO on every frame (PNG has none).
 expect 3 "$SETLIGHT" merge --absolute -o "$T/abs.exr" --times $TIMES "${F[@]}"; err_has "br_0.png"; err_has "f-number"; err_one_line
 absent "$T/abs.exr"
