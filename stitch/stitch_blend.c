@@ -667,6 +667,32 @@ static inline __attribute__((always_inline)) bool fetch_float(const sl_image *im
 
 bool stitch_blend_reference = false;
 
+/* One sample of view vw at its pixel (x, y), blend weight w, vignetting
+ * 1 / gain inv_gain and area a, added to its texel's sums acc (weight,
+ * then RGB). Returns whether its four pixels' G differ by more than
+ * HOT_CONTRAST (false where its confidence is 0: not looked up). */
+static inline __attribute__((always_inline)) bool add_sample(const blend_pass *p,
+                                                             const stitch_view_prep *vw,
+                                                             float scale, float x, float y,
+                                                             float w, float inv_gain, double a,
+                                                             double *acc)
+{
+    double wd = w;
+    if (vw->weight && !((wd *= confidence_at(vw->weight, x, y)) > 0))
+        return false;
+    float rgb[3];
+    bool hot = vw->half ? fetch_half_any(vw->half, vw->half_table, p->f16c, scale, x, y, rgb)
+                        : fetch_float(vw->radiance, x, y, rgb);
+    if (!(inv_gain > 0.0f))
+        return hot;
+    wd *= a;
+    acc[0] += wd;
+    double wg = wd * inv_gain;
+    for (int ch = 0; ch < 3; ch++)
+        acc[1 + ch] += rgb[ch] > 0.0f ? wg * rgb[ch] : 0.0;
+    return hot;
+}
+
 /* Samples ahead whose view pixels are fetched into the cache. */
 #define PREFETCH_AHEAD 16
 
@@ -702,25 +728,9 @@ static void run_samples(const blend_pass *p, row_scratch *sc, int k, int y, int 
     for (int s = s0; s < s0 + ns; s++) {
         if (hv && s + PREFETCH_AHEAD < s0 + ns && sc->weight[s + PREFETCH_AHEAD] > 0.0f)
             prefetch_pixel(hv, sc->px[s + PREFETCH_AHEAD], sc->py[s + PREFETCH_AHEAD]);
-        float w = sc->weight[s];
-        if (!(w > 0.0f) || sc->skip[s])
-            continue;
-        float x = sc->px[s], yy = sc->py[s];
-        double wd = w;
-        if (vw->weight && !((wd *= confidence_at(vw->weight, x, yy)) > 0))
-            continue;
-        float rgb[3];
-        int tx = s / ss;
-        sc->hot[tx] |= hv ? fetch_half_any(hv, vw->half_table, p->f16c, scale, x, yy, rgb)
-                          : fetch_float(vw->radiance, x, yy, rgb);
-        if (!(sc->inv_gain[s] > 0.0f))
-            continue;
-        double *acc = acc_k + (size_t)tx * 4;
-        wd *= a;
-        acc[0] += wd;
-        double wg = wd * sc->inv_gain[s];
-        for (int ch = 0; ch < 3; ch++)
-            acc[1 + ch] += rgb[ch] > 0.0f ? wg * rgb[ch] : 0.0;
+        if (sc->weight[s] > 0.0f && !sc->skip[s])
+            sc->hot[s / ss] |= add_sample(p, vw, scale, sc->px[s], sc->py[s], sc->weight[s],
+                                          sc->inv_gain[s], a, acc_k + (size_t)(s / ss) * 4);
     }
 }
 
@@ -804,26 +814,9 @@ static void hot_samples(const blend_pass *p, int y, row_scratch *sc, int nhot)
             for (int s = 0; s < ns; s++) {
                 if (hv && s + PREFETCH_AHEAD < ns && sc->hot_weight[s + PREFETCH_AHEAD] > 0.0f)
                     prefetch_pixel(hv, sc->hot_px[s + PREFETCH_AHEAD], sc->hot_py[s + PREFETCH_AHEAD]);
-                float w = sc->hot_weight[s];
-                if (!(w > 0.0f) || sc->hot_skip[s] || !seen[sc->hot_x[s / hs]])
-                    continue;
-                float x = sc->hot_px[s], yy = sc->hot_py[s];
-                double wd = w;
-                if (vw->weight && !((wd *= confidence_at(vw->weight, x, yy)) > 0))
-                    continue;
-                float rgb[3];
-                if (hv)
-                    fetch_half_any(hv, vw->half_table, p->f16c, scale, x, yy, rgb);
-                else
-                    fetch_float(vw->radiance, x, yy, rgb);
-                if (!(sc->hot_inv_gain[s] > 0.0f))
-                    continue;
-                double *acc = acc_k + (size_t)(s / hs) * 4;
-                wd *= a;
-                acc[0] += wd;
-                double wg = wd * sc->hot_inv_gain[s];
-                for (int ch = 0; ch < 3; ch++)
-                    acc[1 + ch] += rgb[ch] > 0.0f ? wg * rgb[ch] : 0.0;
+                if (sc->hot_weight[s] > 0.0f && !sc->hot_skip[s] && seen[sc->hot_x[s / hs]])
+                    add_sample(p, vw, scale, sc->hot_px[s], sc->hot_py[s], sc->hot_weight[s],
+                               sc->hot_inv_gain[s], a, acc_k + (size_t)(s / hs) * 4);
             }
         }
     }
