@@ -1054,7 +1054,7 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
         ok = stitch_ray_view_init(&views[k], &p->rays[k]);
     p->workers = sl_threads_get();
 #ifdef HAVE_F16C_FETCH
-    p->f16c = !stitch_rays_portable_only && __builtin_cpu_supports("f16c");
+    p->f16c = !stitch_rays_portable_only && stitch_cpu_f16c();
 #endif
     p->scratch = ok ? calloc((size_t)p->workers, sizeof *p->scratch) : NULL;
     for (int w = 0; p->scratch && w < p->workers; w++)

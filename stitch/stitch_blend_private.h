@@ -163,12 +163,16 @@ void stitch_ray_view_free(stitch_ray_view *v);
 void stitch_rays(const stitch_ray_view *v, const float *sin_lon, const float *cos_lon,
                  float sin_lat, float cos_lat, int n, float *px, float *py, float *weight,
                  float *inv_gain);
-/* Tests: stitch_rays without AVX2 (it gives the same bytes). */
+/* Tests: the portable loops (stitch_rays without AVX2; a half view's
+ * lookups and solve copy through the table, not F16C): the same bytes. */
 extern bool stitch_rays_portable_only;
 
-/* Tests and benchmarks only: every texel's base samples through the double
- * loop, one sample at a time, that the float row loop is checked against
- * (hot texels are resampled in double either way). */
+/* Whether the processor (and its OS) can run F16C's conversions. */
+bool stitch_cpu_f16c(void);
+
+/* Tests and benchmarks only: every texel's samples (its finer ones on a
+ * hard edge too) through the double loop, one sample at a time, that the
+ * float row loop is checked against. */
 extern bool stitch_blend_reference;
 
 /* Blend weight of a view for a ray theta (radians) off its axis. */

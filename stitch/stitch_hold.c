@@ -11,6 +11,9 @@
 #define IMATH_HALF_NO_LOOKUP_TABLE /* Imath's conversions alone, without libImath */
 #include <Imath/half.h>
 #include <immintrin.h>
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <cpuid.h>
+#endif
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -96,10 +99,23 @@ static void scan_rows(void *ctx, int64_t begin, int64_t end, int worker)
     j->inexact[begin / SCAN_ROWS] = inexact;
 }
 
+bool stitch_cpu_f16c(void)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+    /* cpuid for F16C: clang's __builtin_cpu_supports does not know it; AVX
+     * (which the OS must enable for these VEX instructions) it does */
+    unsigned a, b, c, d;
+    return __builtin_cpu_supports("avx") && __get_cpuid(1, &a, &b, &c, &d) && (c & bit_F16C);
+#else
+    return false;
+#endif
+}
+
+/* Whether the F16C row loops built here (GCC 12 and later) can run. */
 static bool cpu_f16c(void)
 {
 #ifdef HAVE_F16C_ROWS
-    return __builtin_cpu_supports("f16c") && __builtin_cpu_supports("avx");
+    return stitch_cpu_f16c();
 #else
     return false;
 #endif
@@ -511,7 +527,7 @@ static sl_result reduce(const sl_image *src, const stitch_half_image *half, int 
     reduce_job j = {src, half, dst, k,
                     malloc((size_t)workers * k * dst->width * ch * sizeof(float)),
                     half ? malloc((size_t)workers * 2 * w * 3 * sizeof(float)) : NULL,
-                    cpu_f16c() && !stitch_rays_portable_only};
+                    stitch_cpu_f16c() && !stitch_rays_portable_only};
     if (!j.mid || (half && !j.row)) {
         free(j.mid), free(j.row);
         sl_image_free(dst);
