@@ -33,6 +33,14 @@
  *                                 [--prior-weight W] [--prior-components K] [--families]
  *                                 [--curve-file F: instead of the DoRF curves, one curve file
  *                                  (sl_vset_response_load); its prior is of all 201]
+ *                                 [--realizable-variant oracle|observed|own-channel|
+ *                                  no-raw-clip|no-near-clip|merge-like|merge-rules: the
+ *                                  realizable oracle with one of the merge's simplifications,
+ *                                  all of them, or all and the merge's code rules
+ *                                  (tests/vset_bracket.h vb_realizable_variant); "realizable"
+ *                                  is then that variant]
+ *                                 [--merge-saturation Z: the merges' saturation code (their
+ *                                  --saturation; the truth's clipped pixels stay at 0.95)]
  */
 #include <getopt.h>
 #include <math.h>
@@ -61,6 +69,7 @@ static double well_e, read_e;
 static const sl_response_prior *prior; /* --prior lofo: the curve under test's */
 static bool prior_on;                  /* --prior lofo or builtin */
 static double prior_weight;            /* --prior-weight (0: the merge's default) */
+static double merge_saturation;        /* --merge-saturation: the merges' (0: their default) */
 
 static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve,
                        int *named, bool *prior_dropped, double *prior_distance)
@@ -73,6 +82,7 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
     opt.use_response_prior = prior_on;
     opt.response_prior_weight = prior_weight;
     opt.smoothness = smoothness;
+    opt.saturation = merge_saturation;
     if (samples > 0)
         opt.samples = samples;
     if (sensor_noise) {
@@ -162,7 +172,14 @@ int main(int argc, char **argv)
                                           {"families", 0, 0, 'F'},
                                           {"curve-file", 1, 0, 'C'},
                                           {"distance", 0, 0, 'D'},
+                                          {"realizable-variant", 1, 0, 'V'},
+                                          {"merge-saturation", 1, 0, 'M'},
                                           {0, 0, 0, 0}};
+    /* In the order of vb_realizable_variant. */
+    static const char *const variants[] = {"oracle",       "observed",   "own-channel",
+                                           "no-raw-clip",  "no-near-clip", "merge-like",
+                                           "merge-rules"};
+    enum { VARIANTS = (int)(sizeof variants / sizeof *variants) };
     bool lofo = false, families = false, distance = false;
     const char *curve_file = NULL;
     int components = 16;
@@ -202,7 +219,16 @@ int main(int argc, char **argv)
             curve_file = optarg;
         else if (o == 'D')
             distance = true;
-        else
+        else if (o == 'M')
+            merge_saturation = atof(optarg);
+        else if (o == 'V') {
+            int v = 0;
+            while (v < VARIANTS && strcmp(optarg, variants[v]) != 0)
+                v++;
+            if (v == VARIANTS)
+                return 2;
+            sp.realizable_variant = (vb_realizable_variant)v;
+        } else
             return 2;
     }
     char dorf[1024];
@@ -263,7 +289,11 @@ int main(int argc, char **argv)
         printf(" (%d components)", components);
     if (prior_weight > 0)
         printf(" at weight %g", prior_weight);
-    printf("\n");
+    if (sensor_noise)
+        printf(", merges told the sensor's noise");
+    if (merge_saturation > 0)
+        printf(", merges' saturation code %g", merge_saturation);
+    printf(", realizable oracle: %s\n", variants[sp.realizable_variant]);
     printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal, "
            "realizable, null-space; median, p99 ratios: self / ideal, realizable / ideal, "
            "self / realizable, null-space / ideal, self / null-space; curve error %%: "

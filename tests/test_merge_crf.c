@@ -464,6 +464,58 @@ static void test_prior_far_curve(void)
     sl_vset_scene_free(&scene);
 }
 
+/* The realizable oracle with the merge's simplifications and code rules
+ * (vb_realizable_variant merge-rules) is a second implementation of the
+ * merge with the true curve told the sensor's noise: their per-pixel median
+ * and p99 errors agree within 1.5% (measured 0.005%; the realizable oracle
+ * as is does 8% better than the merge on this curve, Kodachrome-64CDGreen). */
+static void test_merge_rules_model(void)
+{
+    if (!have_dorf())
+        return;
+    sl_error err;
+    sl_vset_response curve;
+    CHECK_OK(sl_vset_response_load(dorf, "Kodachrome-64CDGreen", &curve, &err), &err);
+    sl_vset_scene scene;
+    CHECK_OK(vb_scene("exterior", 256, &scene, &err), &err);
+    if (!scene.latlong.data)
+        return;
+    const double well = 4000, read = 3;
+    vb_spec sp = {.scene = "exterior", .response = &curve, .frames = 7, .stops = 3,
+                  .jpeg = true, .lossless = true, .width = 256, .saturation = 0.95,
+                  .seed = 3, .full_well_e = well, .read_noise_e = read,
+                  .latlong = &scene.latlong, .realizable = true,
+                  .realizable_variant = VB_REALIZABLE_MERGE_RULES};
+    vb_bracket b;
+    CHECK_OK(vb_make(sl_test_tmpdir(), "rules", &sp, &b, &err), &err);
+    sl_response truth = {0};
+    CHECK_OK(vb_response_inverse(&curve, &truth, &err), &err);
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    opt.response_mode = SL_RESPONSE_GIVEN;
+    opt.response = &truth;
+    opt.noise_gain = 1 / well;
+    opt.noise_floor = (read / well) * (read / well);
+    sl_merge_result given;
+    CHECK_OK(vb_merge(&b, &opt, &given, &err), &err);
+    if (given.radiance.data && b.realizable.data) {
+        vb_stats merged = vb_compare(&given.radiance, &b, 1, false);
+        vb_stats rules = vb_compare(&b.realizable, &b, 1, false);
+        printf("  %s: per pixel median / p99 the true-curve merge %.4f / %.4f%%, the "
+               "merge-rules oracle %.4f / %.4f%%\n",
+               curve.name, 100 * merged.median, 100 * merged.p99, 100 * rules.median,
+               100 * rules.p99);
+        CHECK_MSG(fabs(merged.median / rules.median - 1) < 0.015, "median %.4f / %.4f",
+                  merged.median, rules.median);
+        CHECK_MSG(fabs(merged.p99 / rules.p99 - 1) < 0.015, "p99 %.4f / %.4f", merged.p99,
+                  rules.p99);
+    }
+    sl_merge_result_free(&given);
+    sl_response_free(&truth);
+    vb_free(&b);
+    sl_vset_scene_free(&scene);
+}
+
 int main(void)
 {
     snprintf(dorf, sizeof dorf, "%s/crf/dorfCurves.txt", SETLIGHT_SHARED_DATA);
@@ -472,6 +524,7 @@ int main(void)
     RUN(test_dorf_families);
     RUN(test_prior_far_curve);
     RUN(test_null_space_known);
+    RUN(test_merge_rules_model);
     RUN(test_dorf_curves);
     return sl_test_finish();
 }

@@ -115,14 +115,37 @@ static void exposed_codes(vb_bracket *b, const sl_image *ll, double sat_lin)
     b->code_hi = fmax(b->code_lo, fmin(0.9, (bin + 1.0) / CODE_BINS));
 }
 
+/* What the camera's model knows: all of it for the ideal estimator and the
+ * realizable oracle; the realizable oracle's variants (vb_realizable_variant)
+ * take away what a merge does not know. */
+typedef struct model_knows {
+    bool mixing;    /* an output channel's variance mixes the raw channels' noise */
+    bool raw_clips; /* frames left out within 3 sigma of a raw (balanced) clip */
+    bool near_clip; /* frames left out within 3 sigma of the output's clip */
+    double merge_black; /* > 0: weights cut at this black code and faded below the merge's
+                           saturation code, as the merge's */
+} model_knows;
+
+static const model_knows knows_all = {true, true, true, 0};
+
+/* The merge's black code (its default). */
+static double merge_black(void)
+{
+    sl_merge_options defaults;
+    sl_merge_options_init(&defaults);
+    return defaults.black > 0 ? defaults.black : 0.004;
+}
+
 /* The camera's model of a frame at exposure scale sk for a pixel of Rec.709
  * radiance lv: each output channel's expected linear value out[c] and its
  * variance var[c] (shot and read noise of the raw channels through white
- * balance and colour matrix, 14-bit quantisation and, through the curve,
- * the 8-bit code step at out[c]). False where the value is within 3 sigma
- * of a clip (raw, balanced or output, or near code 1 for JPEG). */
-static bool frame_model(const vb_bracket *b, const double lv[3], double sk, double out[3],
-                        double var[3])
+ * balance and colour matrix, or without knows.mixing the sensor's noise at
+ * out[c] itself, 14-bit quantisation and, through the curve, the 8-bit code
+ * step at out[c]). False where the value is within 3 sigma of a clip (raw or
+ * balanced, with knows.raw_clips; output, or near code 1 for JPEG, with
+ * knows.near_clip). */
+static bool frame_model(const vb_bracket *b, const double lv[3], double sk, model_knows knows,
+                        double out[3], double var[3])
 {
     const sl_vset_camera *cam = &b->cam;
     double q = 1.0 / ((1u << cam->raw_bits) - 1u), qvar = q * q / 12;
@@ -133,7 +156,7 @@ static bool frame_model(const vb_bracket *b, const double lv[3], double sk, doub
         raw[j] *= sk;
         double sd = b->spec.noise_free ? 0 : sl_vset_sensor_noise_std(cam, b->iso, raw[j]);
         var_raw[j] = sd * sd + qvar;
-        usable = usable && cam->wb[j] * (raw[j] + 3 * sqrt(var_raw[j])) < 1;
+        usable = usable && (!knows.raw_clips || cam->wb[j] * (raw[j] + 3 * sqrt(var_raw[j])) < 1);
     }
     for (int c = 0; c < 3; c++) {
         out[c] = var[c] = 0;
@@ -142,10 +165,15 @@ static bool frame_model(const vb_bracket *b, const double lv[3], double sk, doub
             out[c] += m * raw[j];
             var[c] += m * m * var_raw[j];
         }
+        if (!knows.mixing) { /* as if the channel were a raw one, as a merge models it */
+            double sd = b->spec.noise_free ? 0 : sl_vset_sensor_noise_std(cam, b->iso, out[c]);
+            var[c] = sd * sd + qvar;
+        }
         var[c] += qvar; /* the output's own 14 bits */
         double top = out[c] + 3 * sqrt(var[c]);
-        usable = usable && (b->spec.jpeg ? sl_vset_response_apply(&cam->response, top) < 0.98
-                                         : top < 1);
+        usable = usable && (!knows.near_clip ||
+                            (b->spec.jpeg ? sl_vset_response_apply(&cam->response, top) < 0.98
+                                          : top < 1));
         if (b->spec.jpeg) {
             double step =
                 1 / (255 * fmax(sl_vset_response_slope(&cam->response, fmax(out[c], 0)), 1e-3));
@@ -209,30 +237,53 @@ static sl_result frames_load(const vb_bracket *b, const vb_periodic *believed, f
     return SL_OK;
 }
 
+/* The merge's rules on frame k's codes at pixel i, as factors of its
+ * weights (stitch/merge_pass.c): 0 at or below the black code, and fading
+ * from 1 to 0 over the 0.05 below the saturation code by the pixel's
+ * brightest channel. False where that fade is 0 (saturated). */
+static bool merge_code_weights(const vb_bracket *b, const frames_read *fr, int k, size_t i,
+                               double black, double cut[3])
+{
+    double z[3], zmax = 0;
+    for (int c = 0; c < 3; c++) {
+        double v = fr->value[k][3 * i + c] / fr->to_ref[k];
+        z[c] = b->spec.jpeg ? sl_vset_response_apply(&b->cam.response, v) : v;
+        zmax = fmax(zmax, z[c]);
+    }
+    double fade = fmin(1, fmax(0, (b->spec.saturation - zmax) / 0.05));
+    for (int c = 0; c < 3; c++)
+        cut[c] = z[c] <= black ? 0 : fade;
+    return fade > 0;
+}
+
 /* One pixel's estimate (three channels, output-linear at the reference
- * exposure) from the frames, each weighted by the inverse of its variance
- * under the camera's model for radiance lv, used where the model leaves it
- * 3 sigma clear of every clip (and, with censor, where it does not read at a
- * clip); where no frame is, the shortest frame's value (a lower bound).
- * Returns how many frames were used. */
-static int pixel_estimate(const vb_bracket *b, const frames_read *fr, size_t i, const double lv[3],
-                          bool censor, double est[3])
+ * exposure) from the frames, each frame k weighted by the inverse of its
+ * variance under the camera's model for radiance at[k], used where the model
+ * leaves it 3 sigma clear of every clip it knows (and, with censor, where it
+ * does not read at a clip); where no frame is, the shortest frame's value (a
+ * lower bound; with the merge's code rules, as the merge, the longest frame
+ * its saturation leaves). Returns how many frames were used. */
+static int pixel_estimate(const vb_bracket *b, const frames_read *fr, size_t i,
+                          const double at[][3], model_knows knows, bool censor, double est[3])
 {
     double num[3] = {0}, den[3] = {0};
-    int used = 0;
+    int used = 0, fallback = 0;
     for (int k = 0; k < b->frames; k++) {
-        double out[3], var[3];
-        if (!frame_model(b, lv, fr->scale[k], out, var) || (censor && fr->at_clip[k][i]))
+        double out[3], var[3], cut[3] = {1, 1, 1};
+        if (!frame_model(b, at[k], fr->scale[k], knows, out, var) ||
+            (censor && fr->at_clip[k][i]))
             continue;
+        if (knows.merge_black > 0 && merge_code_weights(b, fr, k, i, knows.merge_black, cut))
+            fallback = k;
         used++;
         for (int c = 0; c < 3; c++) {
-            double w = 1 / (var[c] * fr->to_ref[k] * fr->to_ref[k]);
+            double w = cut[c] / (var[c] * fr->to_ref[k] * fr->to_ref[k]);
             num[c] += w * fr->value[k][3 * i + c];
             den[c] += w;
         }
     }
     for (int c = 0; c < 3; c++)
-        est[c] = den[c] > 0 ? num[c] / den[c] : fr->value[0][3 * i + c];
+        est[c] = den[c] > 0 ? num[c] / den[c] : fr->value[fallback][3 * i + c];
     return used;
 }
 
@@ -243,9 +294,11 @@ static void oracle_ideal(vb_bracket *b, const sl_image *ll, const frames_read *f
     for (int y = 0; y < ll->height; y++)
         for (int x = 0; x < ll->width; x++) {
             const float *l = sl_image_pixel(ll, x, y);
-            double lv[3] = {l[0], l[1], l[2]}, est[3];
+            double at[VB_MAX_FRAMES][3], est[3];
+            for (int k = 0; k < b->frames; k++)
+                at[k][0] = l[0], at[k][1] = l[1], at[k][2] = l[2];
             size_t i = (size_t)y * ll->width + x;
-            pixel_estimate(b, fr, i, lv, false, est);
+            pixel_estimate(b, fr, i, at, knows_all, false, est);
             for (int c = 0; c < 3; c++)
                 b->oracle.data[3 * i + c] = (float)est[c];
         }
@@ -255,21 +308,55 @@ static void oracle_ideal(vb_bracket *b, const sl_image *ll, const frames_read *f
  * weights move by a few percent per round once the clip decisions settle. */
 enum { REALIZABLE_ROUNDS = 8 };
 
+/* Rec.709 radiance of output-linear values v at the reference exposure. */
+static void radiance_of(const vb_bracket *b, const double to_radiance[3][3], const double v[3],
+                        double lv[3])
+{
+    double t[3] = {v[0] / b->ref_scale, v[1] / b->ref_scale, v[2] / b->ref_scale};
+    sl_mat3_apply(to_radiance, t, lv);
+}
+
+/* What the realizable oracle's model knows in each variant. */
+static model_knows variant_knows(vb_realizable_variant v)
+{
+    model_knows k = knows_all;
+    bool merge_like = v == VB_REALIZABLE_MERGE_LIKE || v == VB_REALIZABLE_MERGE_RULES;
+    k.mixing = v != VB_REALIZABLE_OWN_CHANNEL && !merge_like;
+    k.raw_clips = v != VB_REALIZABLE_NO_RAW_CLIP && !merge_like;
+    k.near_clip = v != VB_REALIZABLE_NO_NEAR_CLIP && !merge_like;
+    k.merge_black = v == VB_REALIZABLE_MERGE_RULES ? merge_black() : 0;
+    return k;
+}
+
 /* The realizable oracle (vb_bracket.realizable): the ideal estimator with
  * the noise-free radiance it judges weights and clips at replaced by its
  * own estimate from the frames, iterated (maximum likelihood under the
  * Gaussian model: the weights evaluated at the current estimate, not at the
  * noisy observed codes, which favour the values noise pushed down). It
  * starts from the longest frame whose codes read below 0.9 (none: the
- * shortest) and leaves out frames that read at a clip (censored). */
-static void oracle_realizable(const vb_bracket *b, const frames_read *fr, sl_image *out)
+ * shortest) and leaves out frames that read at a clip (censored). The
+ * observed and merge-like variants judge each frame at its own value
+ * instead, once, as a merge does. */
+static void oracle_realizable(const vb_bracket *b, const frames_read *fr,
+                              vb_realizable_variant variant, sl_image *out)
 {
     double m[3][3], to_radiance[3][3];
     sl_vset_camera_output_matrix(&b->cam, m);
     if (!sl_mat3_invert(m, to_radiance))
         return;
+    model_knows knows = variant_knows(variant);
+    bool observed = variant == VB_REALIZABLE_OBSERVED || variant == VB_REALIZABLE_MERGE_LIKE ||
+                    variant == VB_REALIZABLE_MERGE_RULES;
     for (size_t i = 0; i < (size_t)out->width * out->height; i++) {
-        double est[3];
+        double est[3], at[VB_MAX_FRAMES][3];
+        if (observed) {
+            for (int k = 0; k < b->frames; k++)
+                radiance_of(b, to_radiance, &fr->value[k][3 * i], at[k]);
+            pixel_estimate(b, fr, i, at, knows, true, est);
+            for (int c = 0; c < 3; c++)
+                out->data[3 * i + c] = (float)est[c];
+            continue;
+        }
         int k0 = 0;
         for (int k = b->frames - 1; k > 0 && !k0; k--) {
             bool low = true;
@@ -283,10 +370,11 @@ static void oracle_realizable(const vb_bracket *b, const frames_read *fr, sl_ima
         for (int c = 0; c < 3; c++)
             est[c] = fr->value[k0][3 * i + c];
         for (int round = 0; round < REALIZABLE_ROUNDS; round++) {
-            double t[3] = {est[0] / b->ref_scale, est[1] / b->ref_scale, est[2] / b->ref_scale},
-                   lv[3], next[3];
-            sl_mat3_apply(to_radiance, t, lv);
-            pixel_estimate(b, fr, i, lv, true, next);
+            double next[3];
+            radiance_of(b, to_radiance, est, at[0]);
+            for (int k = 1; k < b->frames; k++)
+                memcpy(at[k], at[0], sizeof at[0]);
+            pixel_estimate(b, fr, i, at, knows, true, next);
             double moved = 0;
             for (int c = 0; c < 3; c++) {
                 moved = fmax(moved, fabs(next[c] - est[c]) / fmax(fabs(est[c]), 1e-9));
@@ -306,9 +394,7 @@ static void oracle_realizable(const vb_bracket *b, const frames_read *fr, sl_ima
  * code steps and clip in its noise model. */
 static sl_result oracle_null_space(vb_bracket *b, const sl_image *ll, sl_error *err)
 {
-    sl_merge_options defaults;
-    sl_merge_options_init(&defaults);
-    double black = defaults.black > 0 ? defaults.black : 0.004;
+    double black = merge_black();
     double period = log(b->times[b->frames - 1] / b->times[0]) / (b->frames - 1);
     vb_periodic p;
     b->null_space_rises =
@@ -330,7 +416,7 @@ static sl_result oracle_null_space(vb_bracket *b, const sl_image *ll, sl_error *
     memset(&fr, 0, sizeof fr);
     if (!r && !(r = frames_load(b, &p, &fr, err)) &&
         !(r = sl_image_alloc(&b->null_space, ll->width, ll->height, 3, err)))
-        oracle_realizable(&believed, &fr, &b->null_space);
+        oracle_realizable(&believed, &fr, VB_REALIZABLE_ORACLE, &b->null_space);
     frames_free(&fr);
     return r;
 }
@@ -343,7 +429,7 @@ static sl_result oracle_make(vb_bracket *b, const sl_image *ll, sl_error *err)
         oracle_ideal(b, ll, &fr);
     if (!r && b->spec.realizable &&
         !(r = sl_image_alloc(&b->realizable, ll->width, ll->height, 3, err)))
-        oracle_realizable(b, &fr, &b->realizable);
+        oracle_realizable(b, &fr, b->spec.realizable_variant, &b->realizable);
     frames_free(&fr);
     if (!r && b->spec.null_space && b->spec.jpeg &&
         (!(b->spec.alt_stops > 0) || b->spec.alt_stops == b->spec.stops))

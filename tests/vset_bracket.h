@@ -11,6 +11,26 @@
 
 enum { VB_MAX_FRAMES = 16 };
 
+/* The realizable oracle with one of the merge's simplifications, to measure
+ * what the merge with the true curve lacks (bench/merge_crf.c
+ * --realizable-variant): the model judged at each frame's observed value
+ * (not iterated), each output channel's variance the sensor's in its own
+ * value (no colour-matrix mixing of the raw channels' noise), frames left
+ * out only by their codes (not by the model's raw clips), frames left out
+ * only where they read at the clip code (not 3 sigma before an output clip),
+ * all four (merge-like), or merge-like with the merge's own code rules:
+ * weight 0 at or below its black code, and from the pixel's brightest code
+ * fading to 0 over the 0.05 below its saturation code (merge-rules). */
+typedef enum vb_realizable_variant {
+    VB_REALIZABLE_ORACLE,
+    VB_REALIZABLE_OBSERVED,
+    VB_REALIZABLE_OWN_CHANNEL,
+    VB_REALIZABLE_NO_RAW_CLIP,
+    VB_REALIZABLE_NO_NEAR_CLIP,
+    VB_REALIZABLE_MERGE_LIKE,
+    VB_REALIZABLE_MERGE_RULES,
+} vb_realizable_variant;
+
 typedef struct vb_spec {
     const char *scene;    /* "exterior", "stage", "night" */
     const char *curve;    /* camera response preset ("canon", "srgb", "filmic") */
@@ -33,6 +53,7 @@ typedef struct vb_spec {
                              quantised to 14 bits and, for JPEG, to 8-bit codes */
     const sl_image *latlong; /* the scene's lat-long (vb_scene), or NULL: made from scene, width */
     bool realizable;      /* also vb_bracket.realizable (iterated per pixel: costs a second) */
+    vb_realizable_variant realizable_variant; /* with realizable: which one */
     bool null_space;      /* with jpeg and equal steps: also vb_bracket.null_space (as much again) */
     double alt_stops;     /* > 0: the steps alternate `stops` and this many stops, centred on
                              the metered shutter speed (times off the full-stop scale, as a
