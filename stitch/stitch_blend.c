@@ -587,20 +587,7 @@ static inline __attribute__((always_inline)) bool fetch_half(const stitch_half_i
     return hot_pixels(table[h00[1]], table[h10[1]], table[h01[1]], table[h11[1]]);
 }
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#define HAVE_F16C_FETCH 1
-#include <immintrin.h>
-/* Four halves to floats in one instruction (F16C). Inline assembly, not the
- * intrinsic: the sample loops are built for the baseline processor, and
- * this runs only where the processor has it (blend_pass.f16c). */
-static inline __m128 halves_to_floats(const uint16_t *h)
-{
-    const uint16_t(*four)[4] = (const void *)h;
-    __m128 f;
-    __asm__("vcvtph2ps %1, %0" : "=x"(f) : "m"(*four));
-    return f;
-}
-
+#ifdef STITCH_HAVE_F16C_ASM
 /* fetch_half() with each corner's RGB converted at once: two loads and two
  * conversions a row instead of twelve table lookups, the same float
  * operations in the same order (scaling by 2^exp2 is exact): the same
@@ -617,10 +604,10 @@ static inline __attribute__((always_inline)) bool fetch_half_f16c(const stitch_h
     const uint16_t *h00, *h10, *h01, *h11;
     half_corners(img, &b, &h00, &h10, &h01, &h11);
     __m128 scale = _mm_set1_ps(scale_by);
-    __m128 p00 = _mm_mul_ps(halves_to_floats(h00), scale);
-    __m128 p10 = _mm_mul_ps(halves_to_floats(h10), scale);
-    __m128 p01 = _mm_mul_ps(halves_to_floats(h01), scale);
-    __m128 p11 = _mm_mul_ps(halves_to_floats(h11), scale);
+    __m128 p00 = _mm_mul_ps(stitch_halves_to_floats(h00), scale);
+    __m128 p10 = _mm_mul_ps(stitch_halves_to_floats(h10), scale);
+    __m128 p01 = _mm_mul_ps(stitch_halves_to_floats(h01), scale);
+    __m128 p11 = _mm_mul_ps(stitch_halves_to_floats(h11), scale);
     float ax = (float)b.ax, ay = (float)b.ay;
     float w00 = (1 - ay) * (1 - ax), w10 = (1 - ay) * ax, w01 = ay * (1 - ax), w11 = ay * ax;
     __m128 v = _mm_add_ps(_mm_add_ps(_mm_add_ps(_mm_mul_ps(_mm_set1_ps(w00), p00),
@@ -643,7 +630,7 @@ static inline __attribute__((always_inline)) bool fetch_half_any(const stitch_ha
                                                                  float scale, float x, float y,
                                                                  float rgb[3])
 {
-#ifdef HAVE_F16C_FETCH
+#ifdef STITCH_HAVE_F16C_ASM
     if (f16c)
         return fetch_half_f16c(img, table, scale, x, y, rgb);
 #else
@@ -1053,7 +1040,7 @@ static sl_result pass_init(blend_pass *p, const stitch_view_prep *views, int cou
     for (int k = 0; ok && k < count; k++)
         ok = stitch_ray_view_init(&views[k], &p->rays[k]);
     p->workers = sl_threads_get();
-#ifdef HAVE_F16C_FETCH
+#ifdef STITCH_HAVE_F16C_ASM
     p->f16c = !stitch_rays_portable_only && stitch_cpu_f16c();
 #endif
     p->scratch = ok ? calloc((size_t)p->workers, sizeof *p->scratch) : NULL;

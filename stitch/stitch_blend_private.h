@@ -170,6 +170,21 @@ extern bool stitch_rays_portable_only;
 /* Whether the processor (and its OS) can run F16C's conversions. */
 bool stitch_cpu_f16c(void);
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define STITCH_HAVE_F16C_ASM 1
+#include <immintrin.h>
+/* Four halves to floats in one instruction (F16C), where stitch_cpu_f16c()
+ * says so. Inline assembly, not the intrinsic: the loops calling it are
+ * built for the baseline processor. */
+static inline __m128 stitch_halves_to_floats(const uint16_t *h)
+{
+    const uint16_t(*four)[4] = (const void *)h;
+    __m128 f;
+    __asm__("vcvtph2ps %1, %0" : "=x"(f) : "m"(*four));
+    return f;
+}
+#endif
+
 /* Tests and benchmarks only: every texel's samples (its finer ones on a
  * hard edge too) through the double loop, one sample at a time, that the
  * float row loop is checked against. */

@@ -411,6 +411,22 @@ int stitch_solve_factor(int width, int height, int max_width)
     return 1;
 }
 
+/* A half row as floats: four at a time through F16C where the processor
+ * has it, else, and for the tail, through the table. */
+static void half_row_to_float(const uint16_t *src, size_t n, const float *table, bool f16c,
+                              float *out)
+{
+    size_t i = 0;
+#ifdef STITCH_HAVE_F16C_ASM
+    for (; f16c && i + 4 <= n; i += 4)
+        _mm_storeu_ps(out + i, stitch_halves_to_floats(src + i));
+#else
+    (void)f16c;
+#endif
+    for (; i < n; i++)
+        out[i] = table[src[i]];
+}
+
 typedef struct reduce_job {
     const sl_image *src;          /* or, not NULL, half: */
     const stitch_half_image *half;
@@ -441,8 +457,7 @@ static void reduce_rows(void *ctx, int64_t begin, int64_t end, int worker)
                 size_t m = (size_t)j->half->width * 3;
                 const uint16_t *src = j->half->rgb + ((size_t)y * k + t) * m;
                 float *row = j->row + (size_t)worker * m;
-                for (size_t i = 0; i < m; i++)
-                    row[i] = table[src[i]];
+                half_row_to_float(src, m, table, j->f16c, row);
                 in = row;
             } else {
                 in = sl_image_pixel(j->src, 0, (int)y * k + t);
@@ -464,27 +479,6 @@ static void reduce_rows(void *ctx, int64_t begin, int64_t end, int worker)
             out[i] = (float)acc;
         }
     }
-}
-
-/* A half row as floats: four at a time through F16C where the processor
- * has it (inline assembly: this file is built for the baseline processor),
- * else, and for the tail, through the table. */
-static void half_row_to_float(const uint16_t *src, size_t n, const float *table, bool f16c,
-                              float *out)
-{
-    size_t i = 0;
-#if defined(__x86_64__) && defined(__GNUC__)
-    for (; f16c && i + 4 <= n; i += 4) {
-        const uint16_t(*four)[4] = (const void *)(src + i);
-        __m128 f;
-        __asm__("vcvtph2ps %1, %0" : "=x"(f) : "m"(*four));
-        _mm_storeu_ps(out + i, f);
-    }
-#else
-    (void)f16c;
-#endif
-    for (; i < n; i++)
-        out[i] = table[src[i]];
 }
 
 /* reduce_rows() for k = 2 of a half view, in float: 0.5 a + 0.5 b of two
