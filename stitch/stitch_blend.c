@@ -770,10 +770,13 @@ static void hot_samples(const blend_pass *p, int y, row_scratch *sc, int nhot)
     const bool masking = p->opt->mask || p->nadir_lat > -INFINITY;
     memset(sc->hot_acc, 0, (size_t)n * nhot * 4 * sizeof(double));
     memset(sc->hot_masked_area, 0, (size_t)nhot * sizeof(double));
+    bool reaches[SL_STITCH_MAX_VIEWS] = {false}; /* views that see one of them */
     for (int t = 0; t < nhot; t++) {
         size_t from = (size_t)sc->hot_x[t] * hs;
         memcpy(sc->hot_sin + (size_t)t * hs, p->sin_lon_hot_f + from, (size_t)hs * sizeof(float));
         memcpy(sc->hot_cos + (size_t)t * hs, p->cos_lon_hot_f + from, (size_t)hs * sizeof(float));
+        for (int k = 0; k < n; k++)
+            reaches[k] |= sc->seen[(size_t)k * W + sc->hot_x[t]];
     }
     for (int j = 0; j < hs; j++) {
         int row = y * hs + j;
@@ -788,10 +791,7 @@ static void hot_samples(const blend_pass *p, int y, row_scratch *sc, int nhot)
         for (int k = 0; k < n; k++) {
             const stitch_view_prep *vw = &p->views[k];
             const bool *seen = sc->seen + (size_t)k * W;
-            bool any = false;
-            for (int t = 0; t < nhot && !any; t++)
-                any = seen[sc->hot_x[t]];
-            if (!any)
+            if (!reaches[k])
                 continue;
             stitch_rays(&p->rays[k], sc->hot_sin, sc->hot_cos, sin_lat, cos_lat, ns, sc->hot_px,
                         sc->hot_py, sc->hot_weight, sc->hot_inv_gain);
@@ -806,6 +806,19 @@ static void hot_samples(const blend_pass *p, int y, row_scratch *sc, int nhot)
                                sc->hot_inv_gain[s], a, acc_k + (size_t)(s / hs) * 4);
             }
         }
+    }
+}
+
+/* A texel's sums per view from acc (view k's at acc + k * view_stride, 4
+ * doubles: weight, then RGB), zero for the views that do not reach it. */
+static void take_sums(const double *acc, size_t view_stride, const bool *seen, int n,
+                      double *acc_w, double (*acc_l)[3])
+{
+    for (int k = 0; k < n; k++) {
+        const double *a = acc + (size_t)k * view_stride;
+        acc_w[k] = seen[k] ? a[0] : 0.0;
+        for (int ch = 0; ch < 3; ch++)
+            acc_l[k][ch] = seen[k] ? a[1 + ch] : 0.0;
     }
 }
 
@@ -844,7 +857,7 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
         for (int k = 0; k < n; k++)
             seen[k] = sc->seen[(size_t)k * W + x];
         double acc_w[SL_STITCH_MAX_VIEWS], acc_l[SL_STITCH_MAX_VIEWS][3];
-        double area = row_area, area_inverse = inv_row_area, masked_area = 0;
+        double area = row_area, inv_area = inv_row_area, masked_area = 0;
         bool hot;
         if (stitch_blend_reference) {
             memset(acc_w, 0, (size_t)n * sizeof *acc_w);
@@ -852,12 +865,7 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
             area = 0;
             hot = texel_samples(p, x, y, p->ss, seen, acc_w, acc_l, &area, &masked_area);
         } else {
-            for (int k = 0; k < n; k++) {
-                const double *acc = sc->acc + ((size_t)k * W + x) * 4;
-                acc_w[k] = seen[k] ? acc[0] : 0.0;
-                for (int ch = 0; ch < 3; ch++)
-                    acc_l[k][ch] = seen[k] ? acc[1 + ch] : 0.0;
-            }
+            take_sums(sc->acc + (size_t)x * 4, (size_t)W * 4, seen, n, acc_w, acc_l);
             masked_area = sc->masked_area[x];
             hot = sc->hot[x];
         }
@@ -872,19 +880,15 @@ static void blend_row(const blend_pass *p, int y, float *out, stitch_row_stats *
                 texel_samples(p, x, y, p->ss_hot, seen, acc_w, acc_l, &area, &masked_area);
             } else {
                 int t = hot_next++;
-                for (int k = 0; k < n; k++) {
-                    const double *acc = sc->hot_acc + ((size_t)k * nhot + t) * 4;
-                    acc_w[k] = seen[k] ? acc[0] : 0.0;
-                    for (int ch = 0; ch < 3; ch++)
-                        acc_l[k][ch] = seen[k] ? acc[1 + ch] : 0.0;
-                }
+                take_sums(sc->hot_acc + (size_t)t * 4, (size_t)nhot * 4, seen, n, acc_w, acc_l);
                 area = hot_area;
-                area_inverse = inv_hot_area;
+                inv_area = inv_hot_area;
                 masked_area = sc->hot_masked_area[t];
             }
             st->hot_texels++;
         }
-        double inv_area = stitch_blend_reference ? 1.0 / area : area_inverse;
+        if (stitch_blend_reference)
+            inv_area = 1.0 / area;
         /* Per view: its mean weight over the texel; the mean radiance of
          * the views weighing GHOST_MIN_WEIGHT or more only when there are
          * two of them (the ghost test needs two). */
