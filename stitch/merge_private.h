@@ -62,9 +62,9 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                              sl_response *out, sl_error *err);
 
 /* The curve-shape prior (response_prior.c): mean and components on
- * MERGE_PRIOR_NODES code nodes, zero below node `first`. */
-/* The built-in prior's components: the DoRF dozen-and-evens measurement
- * levels off from 16 (docs/merge.md). */
+ * MERGE_PRIOR_NODES code nodes, zero below node `first`; the built-in
+ * prior keeps 16 components (the DoRF measurement levels off there,
+ * docs/merge.md). */
 enum { MERGE_PRIOR_NODES = 256, MERGE_PRIOR_COMPONENTS = 16 };
 struct sl_response_prior {
     int nodes, first, components;
