@@ -22,6 +22,14 @@ int merge_prior_first_node(int nodes)
     return (int)ceil(PRIOR_FROM_CODE * (nodes - 1));
 }
 
+/* A curve's shape at node k of `nodes`: ln f^-1 less its value at mid-grey
+ * (mid: f^-1 there), floored as PRIOR_FLOOR says. */
+static double shape_at(const sl_response *curve, int channel, int k, int nodes, double mid)
+{
+    double y = sl_response_eval(curve, channel, (double)k / (nodes - 1));
+    return log(fmax(y, PRIOR_FLOOR * mid) / mid);
+}
+
 /* Eigenvalues (descending, into ev) and unit eigenvectors (columns of v)
  * of the symmetric n x n matrix a (destroyed) by cyclic Jacobi rotations:
  * short, and exact enough for a few hundred curves. */
@@ -114,10 +122,8 @@ sl_result sl_response_prior_build(const sl_response *curves, int count, int comp
     /* Each curve's shape d on the covered nodes, and their mean. */
     for (int i = 0; i < count; i++) {
         double mid = sl_response_eval(&curves[i], 0, (double)(nodes / 2) / (nodes - 1));
-        for (int k = first; k < nodes; k++) {
-            double y = sl_response_eval(&curves[i], 0, (double)k / (nodes - 1));
-            x[(size_t)i * dim + k - first] = log(fmax(y, PRIOR_FLOOR * mid) / mid);
-        }
+        for (int k = first; k < nodes; k++)
+            x[(size_t)i * dim + k - first] = shape_at(&curves[i], 0, k, nodes, mid);
     }
     for (int j = 0; j < dim; j++) {
         double s = 0;
@@ -248,10 +254,8 @@ double sl_response_prior_distance(const sl_response_prior *p, const sl_response 
         free(d);
         return NAN;
     }
-    for (int k = first; k < n; k++) {
-        double y = sl_response_eval(curve, channel, (double)k / (n - 1));
-        d[k] = log(fmax(y, PRIOR_FLOOR * mid) / mid) - p->mean[k];
-    }
+    for (int k = first; k < n; k++)
+        d[k] = shape_at(curve, channel, k, n, mid) - p->mean[k];
     /* d^T P d = |d|^2 / r + sum_c (1 / l_c - 1 / r) (u_c . d)^2 */
     double s = 0;
     for (int k = first; k < n; k++)
