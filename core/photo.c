@@ -188,6 +188,7 @@ sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
         info->code_bytes = s->file.is_float ? 0 : s->code_bytes;
         info->block_w = s->file.block_w;
         info->block_h = s->file.block_h;
+        info->lossless = !s->file.jpeg && !s->file.is_float; /* PNG, or TIFF of a lossless codec */
     }
     if (res) {
         sl_photo_strips_close(s);

@@ -597,6 +597,18 @@ static bool read_rows(sl_photo_strips *s, int y0, int y1, TypeDesc type, void *d
     return true;
 }
 
+/* Formats that store integer codes exactly (a TIFF unless JPEG-compressed);
+ * any other (JPEG, HEIF, WebP, JPEG 2000, ...) may ring below the clip. */
+static bool lossless_format(const char *format, const ImageSpec &spec)
+{
+    static const char *const exact[] = {"png", "pnm", "bmp", "targa", "sgi"};
+    for (const char *f : exact)
+        if (std::strcmp(format, f) == 0)
+            return true;
+    return std::strcmp(format, "tiff") == 0 &&
+           spec.get_string_attribute("compression").find("jpeg") == std::string::npos;
+}
+
 extern "C" sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
                                           sl_photo_strip_info *info, sl_error *err)
 {
@@ -624,6 +636,7 @@ extern "C" sl_result sl_photo_strips_open(const char *path, sl_photo_strips **st
             s->code_bytes = info->code_bytes = (int)spec.format.size();
         if (std::strcmp(s->in->format_name(), "jpeg") == 0)
             jpeg_block(spec, &info->block_w, &info->block_h);
+        info->lossless = info->code_bytes > 0 && lossless_format(s->in->format_name(), spec);
         *strips = s.release();
         return SL_OK;
     } catch (const std::bad_alloc &e) {

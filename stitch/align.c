@@ -727,6 +727,8 @@ sl_result sl_align_bracket(const char *const *paths, int count, const double *ex
     if ((r = sl_photo_strips_open(paths[0], &rd, &info, err)))
         return r;
     sl_photo_strips_close(rd);
+    if (opt.saturation == 0)
+        opt.saturation = merge_saturation_default(opt.response_mode, info.lossless);
     int scale = 1;
     while ((double)(info.width / scale) * (info.height / scale) > ALIGN_PIXELS)
         scale++;

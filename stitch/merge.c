@@ -93,6 +93,7 @@ static sl_result setup_frames(const char *const *paths, int count, const sl_merg
         m->block[2 * i] = info.block_w;
         m->block[2 * i + 1] = info.block_h;
         m->marked_linear = (i == 0 || m->marked_linear) && sl_file_is_scene_linear(&meta);
+        m->lossless = (i == 0 || m->lossless) && info.lossless;
         f->exif_time = meta.exposure_time;
         f->f_number = meta.f_number;
         f->iso = meta.iso;
@@ -936,8 +937,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     memset(m, 0, sizeof *m);
     sl_merge_options opt = merge_options_or_default(opt_in);
     m->black = opt.black;
-    m->saturation = opt.saturation;
-    if (!(opt.saturation > opt.black + 0.1) || !(opt.black >= 0) || !(opt.saturation <= 1) ||
+    if (!(opt.saturation == 0 || opt.saturation > opt.black + 0.1) || !(opt.black >= 0) || !(opt.saturation <= 1) ||
         !(opt.noise_gain >= 0) || !(opt.noise_floor > 0) || !(opt.smoothness >= 0) ||
         opt.samples < 16 || !(opt.tolerance_stops > 0) || !(opt.deghost_sigma > 0) ||
         !(opt.deghost_model_error >= 0) || !(opt.align_auto_px >= 0) ||
@@ -954,6 +954,9 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     bool linear_by_file = !r && opt.response_mode == SL_RESPONSE_AUTO && m->marked_linear && !m->is_float;
     if (linear_by_file)
         opt.response_mode = SL_RESPONSE_LINEAR;
+    if (opt.saturation == 0)
+        opt.saturation = merge_saturation_default(opt.response_mode, m->lossless);
+    m->saturation = opt.saturation;
     bool recovered = opt.response_mode == SL_RESPONSE_AUTO || opt.response_mode == SL_RESPONSE_ROBERTSON;
     if (!r && m->is_float && recovered)
         r = sl_error_set(err, SL_ERR_INPUT,

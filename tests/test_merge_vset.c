@@ -594,13 +594,13 @@ static void test_jpeg_blocks(void)
     sl_photo_strips *rd = NULL;
     sl_photo_strip_info info;
     CHECK_OK(sl_photo_strips_open(b.paths[0], &rd, &info, &err), &err);
-    CHECK(info.block_w == 16 && info.block_h == 16);
+    CHECK(info.block_w == 16 && info.block_h == 16 && !info.lossless);
     sl_photo_strips_close(rd);
     vb_free(&b);
     sp.jpeg = false;
     CHECK_OK(vb_make(sl_test_tmpdir(), "blocks", &sp, &b, &err), &err);
     CHECK_OK(sl_photo_strips_open(b.paths[0], &rd, &info, &err), &err);
-    CHECK(info.block_w == 0 && info.block_h == 0);
+    CHECK(info.block_w == 0 && info.block_h == 0 && info.lossless);
     sl_photo_strips_close(rd);
     vb_free(&b);
 }

@@ -539,6 +539,53 @@ static void test_corrupt_tiff(void)
     free(whole);
 }
 
+/* Which files store their codes exactly (the merge saturates those only at
+ * the clip code): lossless TIFF codecs, native or through OpenImageIO, but
+ * not a JPEG-compressed TIFF nor float samples. */
+static void test_lossless_flag(void)
+{
+    sl_error err;
+    const char *jpeg_tif = sl_test_path("rgb8_jpeg.tif");
+    TIFF *tif = TIFFOpen(jpeg_tif, "w");
+    CHECK(tif != NULL);
+    if (!tif)
+        return;
+    enum { W = 32, H = 16 };
+    TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, W);
+    TIFFSetField(tif, TIFFTAG_IMAGELENGTH, H);
+    TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, 3);
+    TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 8);
+    TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_RGB);
+    TIFFSetField(tif, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    TIFFSetField(tif, TIFFTAG_COMPRESSION, COMPRESSION_JPEG);
+    TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, 16);
+    unsigned char row[W * 3];
+    bool written = true;
+    for (int y = 0; y < H; y++) {
+        for (int x = 0; x < W * 3; x++)
+            row[x] = (unsigned char)(x * 7 + y * 13);
+        written = written && TIFFWriteScanline(tif, row, (uint32_t)y, 0) == 1;
+    }
+    TIFFClose(tif);
+    CHECK(written);
+    const struct {
+        const char *path;
+        bool lossless;
+    } files[] = {{sl_test_path("rgb8.tif"), true},       {sl_test_path("rgb16_zip.tif"), true},
+                 {sl_test_path("rgbf.tif"), false},      {sl_test_path("palette.tif"), true},
+                 {jpeg_tif, false}};
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
+        sl_photo_strips *s;
+        sl_photo_strip_info info;
+        CHECK_OK(sl_photo_strips_open(files[i].path, &s, &info, &err), &err);
+        if (!s)
+            continue;
+        CHECK_MSG(info.lossless == files[i].lossless, "%s: lossless %d", files[i].path,
+                  info.lossless);
+        sl_photo_strips_close(s);
+    }
+}
+
 int main(void)
 {
     RUN(test_tiff_does_not_start_oiio);
@@ -547,6 +594,7 @@ int main(void)
     RUN(test_declined_go_to_oiio);
     RUN(test_vset_tiffs_match_oiio);
     RUN(test_real_tiffs_match_oiio);
+    RUN(test_lossless_flag); /* last: it starts OpenImageIO for a JPEG TIFF */
     for (int i = 0; i < VARIANTS; i++) {
         sl_image_free(&native[i]);
         sl_meta_free(&native_meta[i]);

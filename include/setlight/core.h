@@ -489,6 +489,10 @@ typedef struct sl_photo_strip_info {
      * with 4:2:2), aligned to the image origin: DCT ringing and chroma bleed
      * stay inside it. 0 for formats without lossy blocks. */
     int block_w, block_h;
+    /* Integer codes stored exactly (PNG, TIFF not JPEG-compressed, PNM, BMP,
+     * Targa, SGI): no lossy codec rings below the clip code. False for
+     * JPEG, HEIF, WebP and formats not known to be lossless. */
+    bool lossless;
 } sl_photo_strip_info;
 sl_result sl_photo_strips_open(const char *path, sl_photo_strips **strips,
                                sl_photo_strip_info *info, sl_error *err);

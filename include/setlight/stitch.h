@@ -96,9 +96,11 @@ typedef struct sl_merge_options {
     int samples;                /* response samples per channel; 0: default 4000 */
     double noise_gain;          /* Poisson term: var(y) = gain * y + floor, y linear in [0, 1] */
     double noise_floor;         /*   0, 0: defaults 2e-5, 1e-6 (docs/merge.md) */
-    double saturation;          /* z at or above which a sample is saturated; 0: 0.95 through a
-                                   curve (JPEG rings a few codes below 255 inside clipped
-                                   areas), 0.98 with SL_RESPONSE_LINEAR (raw, linear TIFF) */
+    double saturation;          /* z at or above which a sample is saturated; 0: from the
+                                   frames: 0.95 through a curve from a lossy codec (JPEG rings
+                                   a few codes below 255 inside clipped areas), 1 (the clip
+                                   code) through a curve from lossless codes (PNG, TIFF), 0.98
+                                   with SL_RESPONSE_LINEAR or files marked linear (raw) */
     double black;               /* z at or below which a sample has no weight; 0: 0.004 */
     double tolerance_stops;     /* EXIF vs data disagreement reported above; 0: 0.2 */
     uint64_t seed;              /* for sample positions */
