@@ -957,6 +957,11 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     if (opt.saturation == 0)
         opt.saturation = merge_saturation_default(opt.response_mode, m->lossless);
     m->saturation = opt.saturation;
+    if (!r && !(opt.saturation > opt.black + 0.1))
+        r = sl_error_set(err, SL_ERR_USAGE,
+                         "merge: --black %g is too close to the saturation code %g (0 <= black < "
+                         "saturation - 0.1)",
+                         opt.black, opt.saturation);
     bool recovered = opt.response_mode == SL_RESPONSE_AUTO || opt.response_mode == SL_RESPONSE_ROBERTSON;
     if (!r && m->is_float && recovered)
         r = sl_error_set(err, SL_ERR_INPUT,

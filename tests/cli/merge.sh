@@ -57,6 +57,9 @@ json_eval "$T/out" 'd["disagreeing_frames"] == 0 and d["mask"].endswith("out_cli
 present "$T/out.exr"; present "$T/out_clipped.exr"; no_temp "$T"
 # lossless PNG codes: only the clip code is saturated (JPEG: 0.95, below)
 json_eval "$T/out" 'd["units"] == "relative" and d["weights"]["saturation"] == 1 and d["weights"]["noise_gain"] == 2e-5'
+# the default saturation chosen from the frames still leaves room above --black
+expect 2 "$SETLIGHT" merge -o "$T/x.exr" --black 0.9 --times $TIMES "${F[@]}"; err_has "too close to the saturation code 1"
+absent "$T/x.exr"
 # GNU order: options after and among the frames give the same merge; '--' ends options
 expect 0 "$SETLIGHT" merge -o "$T/late.exr" "${F[@]}" --times $TIMES --json
 json_eval "$T/out" 'len(d["frames"]) == 3 and d["disagreeing_frames"] == 0'; present "$T/late.exr"
