@@ -930,6 +930,15 @@ static sl_result sample_frames(merge_ctx *m, sl_merge_result *res, const sl_merg
     return r;
 }
 
+/* The default saturation once alignment has resampled the frames: the
+ * resampling blends a clipped pixel into its neighbours' codes below the
+ * clip code, so lossless codes are that no more (test_merge_align: at the
+ * clip code the aligned bracket's median error was 4x the still one's). */
+static void saturation_of_resampled(merge_ctx *m, sl_merge_options *opt)
+{
+    m->saturation = opt->saturation = merge_saturation_default(opt->response_mode, false);
+}
+
 sl_result merge_prepare(const char *const *paths, int count, const sl_merge_options *opt_in,
                         bool hold, merge_ctx *m, sl_merge_result *out, sl_error *err)
 {
@@ -954,7 +963,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     bool linear_by_file = !r && opt.response_mode == SL_RESPONSE_AUTO && m->marked_linear && !m->is_float;
     if (linear_by_file)
         opt.response_mode = SL_RESPONSE_LINEAR;
-    if (opt.saturation == 0)
+    bool default_saturation = opt.saturation == 0;
+    if (default_saturation)
         opt.saturation = merge_saturation_default(opt.response_mode, m->lossless);
     m->saturation = opt.saturation;
     if (!r && !(opt.saturation > opt.black + 0.1))
@@ -982,6 +992,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     if (!r && opt.align == SL_ALIGN_ON) {
         r = align_frames(paths, count, &opt, out, err);
         snprintf(out->align_note, sizeof out->align_note, "on: %s", out->aligned ? "registered" : "nothing to resample");
+        if (default_saturation && out->aligned)
+            saturation_of_resampled(m, &opt);
     } else if (opt.align == SL_ALIGN_OFF)
         snprintf(out->align_note, sizeof out->align_note, "off: not measured, merged as shot");
     if (!r)
@@ -995,6 +1007,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
             r = align_frames(paths, count, &opt, out, err);
             /* Resampled frames: samples, codes and held frames from them. */
             if (!r && out->aligned) {
+                if (default_saturation)
+                    saturation_of_resampled(m, &opt);
                 reset_sample_pass(m, out);
                 r = sample_frames(m, out, &opt, hold, false, err);
             }
