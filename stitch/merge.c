@@ -930,13 +930,15 @@ static sl_result sample_frames(merge_ctx *m, sl_merge_result *res, const sl_merg
     return r;
 }
 
-/* The default saturation once alignment has resampled the frames: the
- * resampling blends a clipped pixel into its neighbours' codes below the
- * clip code, so lossless codes are that no more (test_merge_align: at the
- * clip code the aligned bracket's median error was 4x the still one's). */
-static void saturation_of_resampled(merge_ctx *m, sl_merge_options *opt)
+/* The saturation the frames call for when the options leave it 0. Frames
+ * alignment has resampled are lossless codes no more: the resampling blends
+ * a clipped pixel into its neighbours' codes below the clip code
+ * (test_merge_align: at the clip code the aligned bracket's median error was
+ * 4x the still one's). */
+static void default_saturation_of(merge_ctx *m, sl_merge_options *opt, bool resampled)
 {
-    m->saturation = opt->saturation = merge_saturation_default(opt->response_mode, false);
+    m->saturation = opt->saturation =
+        merge_saturation_default(opt->response_mode, m->lossless && !resampled);
 }
 
 sl_result merge_prepare(const char *const *paths, int count, const sl_merge_options *opt_in,
@@ -946,7 +948,8 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
     memset(m, 0, sizeof *m);
     sl_merge_options opt = merge_options_or_default(opt_in);
     m->black = opt.black;
-    if (!(opt.saturation == 0 || opt.saturation > opt.black + 0.1) || !(opt.black >= 0) || !(opt.saturation <= 1) ||
+    if (!(opt.saturation == 0 || opt.saturation > opt.black + 0.1) || !(opt.black >= 0) ||
+        !(opt.saturation <= 1) ||
         !(opt.noise_gain >= 0) || !(opt.noise_floor > 0) || !(opt.smoothness >= 0) ||
         opt.samples < 16 || !(opt.tolerance_stops > 0) || !(opt.deghost_sigma > 0) ||
         !(opt.deghost_model_error >= 0) || !(opt.align_auto_px >= 0) ||
@@ -965,9 +968,9 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         opt.response_mode = SL_RESPONSE_LINEAR;
     bool default_saturation = opt.saturation == 0;
     if (default_saturation)
-        opt.saturation = merge_saturation_default(opt.response_mode, m->lossless);
+        default_saturation_of(m, &opt, false);
     m->saturation = opt.saturation;
-    if (!r && !(opt.saturation > opt.black + 0.1))
+    if (!r && default_saturation && !(opt.saturation > opt.black + 0.1))
         r = sl_error_set(err, SL_ERR_USAGE,
                          "merge: --black %g is too close to the saturation code %g (0 <= black < "
                          "saturation - 0.1)",
@@ -993,7 +996,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         r = align_frames(paths, count, &opt, out, err);
         snprintf(out->align_note, sizeof out->align_note, "on: %s", out->aligned ? "registered" : "nothing to resample");
         if (default_saturation && out->aligned)
-            saturation_of_resampled(m, &opt);
+            default_saturation_of(m, &opt, true);
     } else if (opt.align == SL_ALIGN_OFF)
         snprintf(out->align_note, sizeof out->align_note, "off: not measured, merged as shot");
     if (!r)
@@ -1008,7 +1011,7 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
             /* Resampled frames: samples, codes and held frames from them. */
             if (!r && out->aligned) {
                 if (default_saturation)
-                    saturation_of_resampled(m, &opt);
+                    default_saturation_of(m, &opt, true);
                 reset_sample_pass(m, out);
                 r = sample_frames(m, out, &opt, hold, false, err);
             }

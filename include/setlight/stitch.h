@@ -100,8 +100,8 @@ typedef struct sl_merge_options {
                                    frames: 0.95 through a curve from a lossy codec (JPEG rings
                                    a few codes below 255 inside clipped areas), 1 (the clip
                                    code) through a curve from lossless codes (PNG, TIFF) not
-                                   resampled by alignment, 0.98
-                                   with SL_RESPONSE_LINEAR or files marked linear (raw) */
+                                   resampled by alignment, 0.98 with SL_RESPONSE_LINEAR or
+                                   files marked linear (raw) */
     double black;               /* z at or below which a sample has no weight; 0: 0.004 */
     double tolerance_stops;     /* EXIF vs data disagreement reported above; 0: 0.2 */
     uint64_t seed;              /* for sample positions */
