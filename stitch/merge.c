@@ -196,6 +196,52 @@ static const char *base_name(const char *path)
     return slash ? slash + 1 : path;
 }
 
+/* SL_ALIGN_AUTO, after registering: the registration's own estimates must
+ * show the motion the quick measurement saw (a frame moved beyond twice its
+ * spread and the threshold), or no frame is resampled. On a sky over a
+ * horizon the measurement of a dark frame can find tens of pixels along the
+ * horizon where the registration, with more rounds of the tone map, finds a
+ * doubtful few (docs/merge.md "Alignment"); resampling a still frame by them
+ * would move its sun. */
+static void keep_confirmed_registration(sl_merge_result *res, const char *const *paths,
+                                        double measured, double auto_px)
+{
+    int count = res->frame_count, sure = -1, worst = -1;
+    double counted = 0, moved = 0;
+    for (int i = 0; i < count; i++) {
+        const sl_align_transform *t = &res->frames[i].align;
+        if (t->refused || !t->applied)
+            continue;
+        double c = sl_align_sure_displacement(t, res->width, res->height);
+        double d = sl_align_displacement(t, res->width, res->height);
+        if (c > counted) {
+            counted = c;
+            sure = i;
+        }
+        if (d > moved) {
+            moved = d;
+            worst = i;
+        }
+    }
+    if (sure >= 0 && counted > auto_px)
+        return;
+    for (int i = 0; i < count; i++)
+        res->frames[i].align.applied = false;
+    res->aligned = false;
+    res->misalignment_px = worst < 0 ? measured : moved; /* the closer look's */
+    if (worst < 0)
+        snprintf(res->align_note, sizeof res->align_note,
+                 "auto: measured %.2f px, but registration found nothing to resample: merged as "
+                 "shot",
+                 measured);
+    else
+        snprintf(res->align_note, sizeof res->align_note,
+                 "auto: measured %.2f px; registered, %.32s moves %.2f px, spread %.2f px "
+                 "(not beyond twice it and %.2g px): merged as shot",
+                 measured, base_name(paths[worst]), moved, res->frames[worst].align.shift_spread_px,
+                 auto_px);
+}
+
 /* SL_ALIGN_AUTO after the first sample pass: the misalignment measured on
  * the planes that pass filled, and whether it calls for registration. */
 static sl_result measure_alignment(merge_ctx *m, const char *const *paths,
@@ -1008,17 +1054,14 @@ sl_result merge_prepare(const char *const *paths, int count, const sl_merge_opti
         if (!r && needed) {
             double measured = out->misalignment_px;
             r = align_frames(paths, count, &opt, out, err);
+            if (!r)
+                keep_confirmed_registration(out, paths, measured, opt.align_auto_px);
             /* Resampled frames: samples, codes and held frames from them. */
             if (!r && out->aligned) {
                 if (default_saturation)
                     default_saturation_of(m, &opt, true);
                 reset_sample_pass(m, out);
                 r = sample_frames(m, out, &opt, hold, false, err);
-            }
-            if (!r && !out->aligned) {
-                out->misalignment_px = measured;
-                snprintf(out->align_note, sizeof out->align_note,
-                         "auto: measured %.2f px, but registration found nothing to resample", measured);
             }
         }
     }
