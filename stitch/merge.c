@@ -196,6 +196,35 @@ static const char *base_name(const char *path)
     return slash ? slash + 1 : path;
 }
 
+/* The frames' largest displacement and the largest counted one (beyond
+ * twice the spread: sl_align_sure_displacement), with their frames (-1:
+ * none), over the frames not refused and not `skip`. */
+typedef struct largest_motion {
+    double moved, counted;
+    int worst, sure;
+} largest_motion;
+
+static largest_motion find_largest_motion(const sl_align_transform *t, int count, int skip,
+                                          int width, int height)
+{
+    largest_motion l = {-1, 0, -1, -1};
+    for (int i = 0; i < count; i++) {
+        if (t[i].refused || i == skip)
+            continue;
+        double d = sl_align_displacement(&t[i], width, height);
+        double c = sl_align_sure_displacement(&t[i], width, height);
+        if (d > l.moved) {
+            l.moved = d;
+            l.worst = i;
+        }
+        if (c > l.counted) {
+            l.counted = c;
+            l.sure = i;
+        }
+    }
+    return l;
+}
+
 /* SL_ALIGN_AUTO, after registering: the registration's own estimates must
  * show the motion the quick measurement saw (a frame moved beyond twice its
  * spread and the threshold), or no frame is resampled. On a sky over a
@@ -206,30 +235,20 @@ static const char *base_name(const char *path)
 static void keep_confirmed_registration(sl_merge_result *res, const char *const *paths,
                                         double measured, double auto_px)
 {
-    int count = res->frame_count, sure = -1, worst = -1;
-    double counted = 0, moved = 0;
+    int count = res->frame_count;
+    sl_align_transform t[MERGE_MAX_FRAMES] = {0};
     for (int i = 0; i < count; i++) {
-        const sl_align_transform *t = &res->frames[i].align;
-        if (t->refused || !t->applied)
-            continue;
-        double c = sl_align_sure_displacement(t, res->width, res->height);
-        double d = sl_align_displacement(t, res->width, res->height);
-        if (c > counted) {
-            counted = c;
-            sure = i;
-        }
-        if (d > moved) {
-            moved = d;
-            worst = i;
-        }
+        t[i] = res->frames[i].align;
+        t[i].refused = t[i].refused || !t[i].applied; /* the reference is not applied */
     }
-    if (sure >= 0 && counted > auto_px)
+    largest_motion l = find_largest_motion(t, count, -1, res->width, res->height);
+    if (l.sure >= 0 && l.counted > auto_px)
         return;
     for (int i = 0; i < count; i++)
         res->frames[i].align.applied = false;
     res->aligned = false;
-    res->misalignment_px = worst < 0 ? measured : moved; /* the closer look's */
-    if (worst < 0)
+    res->misalignment_px = l.worst < 0 ? measured : l.moved; /* the closer look's */
+    if (l.worst < 0)
         snprintf(res->align_note, sizeof res->align_note,
                  "auto: measured %.2f px, but registration found nothing to resample: merged as "
                  "shot",
@@ -238,7 +257,7 @@ static void keep_confirmed_registration(sl_merge_result *res, const char *const 
         snprintf(res->align_note, sizeof res->align_note,
                  "auto: measured %.2f px; registered, %.32s moves %.2f px, spread %.2f px "
                  "(not beyond twice it and %.2g px): merged as shot",
-                 measured, base_name(paths[worst]), moved, res->frames[worst].align.shift_spread_px,
+                 measured, base_name(paths[l.worst]), l.moved, t[l.worst].shift_spread_px,
                  auto_px);
 }
 
@@ -266,24 +285,13 @@ static sl_result measure_alignment(merge_ctx *m, const char *const *paths,
      * resampling blurs, and smooth content can fake a shift (docs/merge.md,
      * "Alignment"). worst: the largest displacement; sure: the largest
      * counted one. */
-    int worst = -1, sure = -1;
-    double moved = -1, counted = 0;
     for (int i = 0; i < count; i++) {
         t[i].applied = false;
         res->frames[i].align = t[i];
-        if (t[i].refused || i == m->order[(count - 1) / 2])
-            continue;
-        double d = sl_align_displacement(&t[i], m->width, m->height);
-        double c = sl_align_sure_displacement(&t[i], m->width, m->height);
-        if (d > moved) {
-            moved = d;
-            worst = i;
-        }
-        if (c > counted) {
-            counted = c;
-            sure = i;
-        }
     }
+    largest_motion l = find_largest_motion(t, count, m->order[(count - 1) / 2], m->width, m->height);
+    int worst = l.worst, sure = l.sure;
+    double moved = l.moved, counted = l.counted;
     res->misalignment_px = moved;
     *needed = counted > opt->align_auto_px;
     if (worst < 0)
