@@ -204,15 +204,15 @@ typedef struct largest_motion {
     int worst, sure;
 } largest_motion;
 
-static largest_motion find_largest_motion(const sl_align_transform *t, int count, int skip,
-                                          int width, int height)
+static largest_motion find_largest_motion(const sl_merge_result *res, int skip)
 {
     largest_motion l = {-1, 0, -1, -1};
-    for (int i = 0; i < count; i++) {
-        if (t[i].refused || i == skip)
+    for (int i = 0; i < res->frame_count; i++) {
+        const sl_align_transform *t = &res->frames[i].align;
+        if (t->refused || i == skip)
             continue;
-        double d = sl_align_displacement(&t[i], width, height);
-        double c = sl_align_sure_displacement(&t[i], width, height);
+        double d = sl_align_displacement(t, res->width, res->height);
+        double c = sl_align_sure_displacement(t, res->width, res->height);
         if (d > l.moved) {
             l.moved = d;
             l.worst = i;
@@ -235,20 +235,17 @@ static largest_motion find_largest_motion(const sl_align_transform *t, int count
 static void keep_confirmed_registration(sl_merge_result *res, const char *const *paths,
                                         double measured, double auto_px)
 {
-    int count = res->frame_count;
-    sl_align_transform t[MERGE_MAX_FRAMES] = {0};
-    for (int i = 0; i < count; i++) {
-        t[i] = res->frames[i].align;
-        t[i].refused = t[i].refused || !t[i].applied; /* the reference is not applied */
-    }
-    largest_motion l = find_largest_motion(t, count, -1, res->width, res->height);
+    /* Frames left as they are (the reference among them) sit within 0.05 px:
+     * the largest motion is an applied frame's whenever one was. */
+    largest_motion l = find_largest_motion(res, -1);
     if (l.sure >= 0 && l.counted > auto_px)
         return;
-    for (int i = 0; i < count; i++)
+    bool resampling = res->aligned;
+    for (int i = 0; i < res->frame_count; i++)
         res->frames[i].align.applied = false;
     res->aligned = false;
-    res->misalignment_px = l.worst < 0 ? measured : l.moved; /* the closer look's */
-    if (l.worst < 0)
+    res->misalignment_px = resampling ? l.moved : measured; /* the closer look's */
+    if (!resampling)
         snprintf(res->align_note, sizeof res->align_note,
                  "auto: measured %.2f px, but registration found nothing to resample: merged as "
                  "shot",
@@ -257,8 +254,8 @@ static void keep_confirmed_registration(sl_merge_result *res, const char *const 
         snprintf(res->align_note, sizeof res->align_note,
                  "auto: measured %.2f px; registered, %.32s moves %.2f px, spread %.2f px "
                  "(not beyond twice it and %.2g px): merged as shot",
-                 measured, base_name(paths[l.worst]), l.moved, t[l.worst].shift_spread_px,
-                 auto_px);
+                 measured, base_name(paths[l.worst]), l.moved,
+                 res->frames[l.worst].align.shift_spread_px, auto_px);
 }
 
 /* SL_ALIGN_AUTO after the first sample pass: the misalignment measured on
@@ -289,7 +286,7 @@ static sl_result measure_alignment(merge_ctx *m, const char *const *paths,
         t[i].applied = false;
         res->frames[i].align = t[i];
     }
-    largest_motion l = find_largest_motion(t, count, m->order[(count - 1) / 2], m->width, m->height);
+    largest_motion l = find_largest_motion(res, m->order[(count - 1) / 2]);
     int worst = l.worst, sure = l.sure;
     double moved = l.moved, counted = l.counted;
     res->misalignment_px = moved;
