@@ -47,12 +47,21 @@ static void luma_free(luma *l)
     memset(l, 0, sizeof *l);
 }
 
-/* Well-exposed pixels (in both frames) an estimate needs: 5% of the image.
- * Fewer, in a dark or clipped frame, can still pull the match off by a
- * pixel or more; such a frame is better left alone and said so. */
+/* Well-exposed pixels (in both frames) a full estimate uses: 5% of the
+ * image. A dark frame's lamps and windows, or a clipped frame's shadows,
+ * can be fewer and still place it (a 640x427 room's 1/4000 s frame: 3 900
+ * pixels, within 0.1 px), but they can also pull the fit away
+ * (align_pair checks it against the bitmap match then); under 0.5% the
+ * frame is not measured. */
 static int64_t min_overlap(const plane *p)
 {
     int64_t n = (int64_t)p->w * p->h / 20;
+    return n < 200 ? 200 : n;
+}
+
+static int64_t min_few(const plane *p)
+{
+    int64_t n = (int64_t)p->w * p->h / 200;
     return n < 200 ? 200 : n;
 }
 
@@ -345,7 +354,7 @@ static int64_t refine(const plane *a, const uint8_t *inner, const plane *b, int 
                 used++;
             }
         }
-        if (used < min_overlap(a) / 4)
+        if (used < min_few(a))
             return used;
         /* The shift's weakest direction: a ramp (gradients all one way)
          * leaves a shift along it free to stand in for a tone error. */
@@ -522,9 +531,24 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm, uint8
         apply_map(&b->lv[0], map, &bm->lv[0]);
         *used = refine(&a->lv[0], a->inner[0], &bm->lv[0], 0, how.tol, how.quick, out, spread);
     }
-    if (*used < min_overlap(&a->lv[0])) {
+    /* A fit on few pixels must stay by the bitmaps' match and be sure to
+     * within a pixel: on a clipped frame's dark corners it can wander off by
+     * tens of pixels, or settle a pixel off within its spread. */
+    double wander = hypot(out->tx - sx, out->ty - sy);
+    if (*used < min_few(&a->lv[0])) {
         snprintf(note, note_size, "%lld pixels well exposed in both frames (too few)",
                  (long long)*used);
+        memset(out, 0, sizeof *out);
+    } else if (*used < min_overlap(&a->lv[0]) && (wander > 1.5 || !(spread[0] <= 1))) {
+        if (wander > 1.5)
+            snprintf(note, note_size,
+                     "%d pixels well exposed in both frames (few, and the fit strayed %.0f px)",
+                     (int)*used, fmin(wander * scale, 9999));
+        else
+            snprintf(note, note_size,
+                     "%d pixels well exposed in both frames (few, and the fit's spread is %.1f "
+                     "px)",
+                     (int)*used, fmin(spread[0] * scale, 9999));
         memset(out, 0, sizeof *out);
     }
 }

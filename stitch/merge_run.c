@@ -107,11 +107,15 @@ static void log_frames(const sl_merge_result *res, bool aligned, double auto_px)
         const sl_merge_frame *f = &res->frames[i];
         if (aligned && !strcmp(f->align.note, "reference"))
             sl_log(SL_LOG_INFO, "%s: alignment reference", f->path);
+        else if (aligned && f->align.refused)
+            sl_log(SL_LOG_WARN,
+                   "%s: %s: not aligned; %s where its neighbour in exposure is (shift %+.2f, "
+                   "%+.2f px, rotation %+.3f deg)",
+                   f->path, f->align.note, f->align.applied ? "resampled" : "left",
+                   f->align.dx, f->align.dy, f->align.angle);
         else if (aligned)
-            sl_log(f->align.refused ? SL_LOG_WARN : SL_LOG_INFO,
-                   "%s: shift %+.2f, %+.2f px, rotation %+.3f deg%s%s", f->path, f->align.dx,
-                   f->align.dy, f->align.angle,
-                   f->align.refused ? "; not aligned: " : f->align.note[0] ? "; " : "",
+            sl_log(SL_LOG_INFO, "%s: shift %+.2f, %+.2f px, rotation %+.3f deg%s%s", f->path,
+                   f->align.dx, f->align.dy, f->align.angle, f->align.note[0] ? "; " : "",
                    f->align.note);
         if (f->disagrees)
             sl_log(SL_LOG_WARN,

@@ -224,6 +224,39 @@ static void test_dark_frame(void)
     CHECK(corner_error(&out[2], &t[2], s.w, s.h) <= 0.25);
 }
 
+/* A handheld bracket's shortest frame sees little but the lamps (here 2%
+ * of its pixels well exposed), and each frame moved its own way. It is
+ * measured on those pixels, not placed where its neighbour is (which put a
+ * room's 1/4000 s frame 4 px off). */
+static void test_dark_frames_moved(void)
+{
+    sl_error err;
+    scene s;
+    make_scene(&s, size_still(400), size_still(300), 23);
+    /* Forty small sharp lamps, 7-9 stops over the scene. */
+    for (int i = 0; i < 40; i++) {
+        s.b[i].sigma = 1.5 + 0.1 * (i % 20);
+        s.b[i].stops = 7 + 0.05 * i;
+    }
+    const warp t[7] = {{1, 3, 0}, {-3, -1, 0}, {2, -2, 0}, {0, 0, 0}, {0.5, 0.5, 0}, {0, 0, 0}, {0, 0, 0}};
+    bracket b;
+    make_bracket(&b, "align_dark_moved", &s, 7, 3, 0.5, t);
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    sl_align_transform out[7];
+    CHECK_OK(sl_align_bracket(b.ptr, 7, b.exposure, &opt, out, &err), &err);
+    for (int k = 0; k < 3; k++) {
+        double e = corner_error(&out[k], &t[k], s.w, s.h);
+        printf("  frame %d: (%.3f, %.3f, %.4f deg) want (%.0f, %.0f): %.3f px at the corners, "
+               "%lld px used (%.1f%%) %s\n",
+               k, out[k].dx, out[k].dy, out[k].angle, t[k].dx, t[k].dy, e,
+               (long long)out[k].pixels, 100.0 * out[k].pixels / (s.w * s.h), out[k].note);
+        CHECK_MSG(!out[k].refused && out[k].applied, "frame %d: %s", k, out[k].note);
+        CHECK(e <= 0.3);
+    }
+    CHECK(out[0].pixels < s.w * s.h / 20);
+}
+
 /* Median relative error of a merge's green against the scene as the
  * reference frame sees it, away from the border moved frames miss. */
 static double median_error(const sl_merge_result *res, const scene *s, const double *l2)
@@ -471,6 +504,7 @@ int main(void)
     RUN(test_known_warp);
     RUN(test_aligned_frames);
     RUN(test_dark_frame);
+    RUN(test_dark_frames_moved);
     RUN(test_merge_aligned);
     RUN(test_auto_alignment);
     RUN(test_real_brackets);

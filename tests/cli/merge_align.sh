@@ -20,10 +20,11 @@ def png(path, rows):
     raw = b"".join(b"\0" + r for r in rows)
     hdr = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)
     open(path, "wb").write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", hdr) + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
-sets = {"al": [(0, 0), (0, 0), (3, -2)], "st": [(0, 0)] * 3}
+sets = {"al": [(0, 0), (0, 0), (3, -2)], "st": [(0, 0)] * 3, "dk": [(0, 0)]}
 for name, moves in sets.items():
-  for k in range(3):
+  for k in range(len(moves)):
     dx, dy = moves[k]
+    step = -5 if name == "dk" else k  # dk: 12 stops under al_1, black
     rows = []
     for y in range(h):
         vals = []
@@ -34,7 +35,7 @@ for name, moves in sets.items():
                 d2 = (px - bx) ** 2 + (py - by) ** 2
                 if d2 < 16 * s * s:
                     l2 += a * math.exp(-d2 / (2 * s * s))
-            lin = 2 ** (l2 + 2 * (k - 1))
+            lin = 2 ** (l2 + 2 * (step - 1))
             z = min(1.0, lin) ** (1 / 2.2)
             vals += [int(round(z * 255))] * 3
         rows.append(bytes(vals))
@@ -95,6 +96,12 @@ err_has "(merged as shot)"
 if grep -q warning "$T/err"; then bad "warning on still frames: $(cat "$T/err")"; else ok; fi
 expect 0 "$SETLIGHT" info --json "$T/still.exr"
 out_has "auto: frames within 0."
+
+# --- a black frame cannot be measured: said so, and where it was put
+expect 0 "$SETLIGHT" merge --json --align=on -o "$T/dark.exr" --times 1/1024,$TIMES "$T/dk_0.png" "${F[@]}"
+json_eval "$T/out" 'd["frames"][0]["align"]["refused"] and "too few" in d["frames"][0]["align"]["note"]'
+json_eval "$T/out" 'd["frames"][0]["align"]["dx"] == d["frames"][1]["align"]["dx"]'
+err_has "warning: $T/dk_0.png: 0 pixels well exposed in both frames (too few): not aligned; left where its neighbour in exposure is (shift +0."
 
 # --- a mode that is none: usage error, one line, no output
 expect 2 "$SETLIGHT" merge --align=sometimes -o "$T/bad.exr" --times $TIMES "${F[@]}"
