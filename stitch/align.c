@@ -49,7 +49,7 @@ static void luma_free(luma *l)
 
 /* Well-exposed pixels (in both frames) a full estimate uses: 5% of the
  * image. A dark frame's lamps and windows, or a clipped frame's shadows,
- * can be fewer and still place it (a 640x427 room's 1/4000 s frame: 3 900
+ * can be fewer and still place it (a 640x427 room's 1/1000 s frame: 3 900
  * pixels, within 0.1 px), but they can also pull the fit away
  * (align_pair checks it against the bitmap match then); under 0.5% the
  * frame is not measured. */
