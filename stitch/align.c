@@ -53,17 +53,13 @@ static void luma_free(luma *l)
  * pixels, within 0.1 px), but they can also pull the fit away
  * (align_pair checks it against the bitmap match then); under 0.5% the
  * frame is not measured. */
-static int64_t min_overlap(const plane *p)
+static int64_t pixels_share(const plane *p, int divisor)
 {
-    int64_t n = (int64_t)p->w * p->h / 20;
+    int64_t n = (int64_t)p->w * p->h / divisor;
     return n < 200 ? 200 : n;
 }
-
-static int64_t min_few(const plane *p)
-{
-    int64_t n = (int64_t)p->w * p->h / 200;
-    return n < 200 ? 200 : n;
-}
+static int64_t min_overlap(const plane *p) { return pixels_share(p, 20); }
+static int64_t min_few(const plane *p) { return pixels_share(p, 200); }
 
 static inline bool valid(float v) { return v >= 0 && v <= 1; }
 
@@ -534,23 +530,22 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm, uint8
     /* A fit on few pixels must stay by the bitmaps' match and be sure to
      * within a pixel: on a clipped frame's dark corners it can wander off by
      * tens of pixels, or settle a pixel off within its spread. */
+    bool few = *used < min_overlap(&a->lv[0]);
     double wander = hypot(out->tx - sx, out->ty - sy);
-    if (*used < min_few(&a->lv[0])) {
+    if (*used < min_few(&a->lv[0]))
         snprintf(note, note_size, "%lld pixels well exposed in both frames (too few)",
                  (long long)*used);
-        memset(out, 0, sizeof *out);
-    } else if (*used < min_overlap(&a->lv[0]) && (wander > 1.5 || !(spread[0] <= 1))) {
-        if (wander > 1.5)
-            snprintf(note, note_size,
-                     "%d pixels well exposed in both frames (few, and the fit strayed %.0f px)",
-                     (int)*used, fmin(wander * scale, 9999));
-        else
-            snprintf(note, note_size,
-                     "%d pixels well exposed in both frames (few, and the fit's spread is %.1f "
-                     "px)",
-                     (int)*used, fmin(spread[0] * scale, 9999));
-        memset(out, 0, sizeof *out);
-    }
+    else if (few && wander > 1.5)
+        snprintf(note, note_size,
+                 "%d pixels well exposed in both frames (few, and the fit strayed %.0f px)",
+                 (int)*used, fmin(wander * scale, 9999));
+    else if (few && !(spread[0] <= 1))
+        snprintf(note, note_size,
+                 "%d pixels well exposed in both frames (few, and the fit's spread is %.1f px)",
+                 (int)*used, fmin(spread[0] * scale, 9999));
+    else
+        return;
+    memset(out, 0, sizeof *out);
 }
 
 typedef struct luma_job {
