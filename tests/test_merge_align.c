@@ -132,6 +132,15 @@ static void make_bracket(bracket *b, const char *name, const scene *s, int n, do
     }
 }
 
+/* The bracket registered with the default options. */
+static void align_default(const bracket *b, sl_align_transform *out)
+{
+    sl_error err;
+    sl_merge_options opt;
+    sl_merge_options_init(&opt);
+    CHECK_OK(sl_align_bracket(b->ptr, b->n, b->exposure, &opt, out, &err), &err);
+}
+
 /* Largest displacement error over the frame's corners (pixels). */
 static double corner_error(const sl_align_transform *got, const warp *want, int w, int h)
 {
@@ -148,16 +157,13 @@ static double corner_error(const sl_align_transform *got, const warp *want, int 
 
 static void test_known_warp(void)
 {
-    sl_error err;
     scene s;
     make_scene(&s, size(480), size(360), 7);
     const warp t[5] = {{20, -13, 1}, {-20, 7.4, -0.5}, {0, 0, 0}, {12.3, 19.6, 0.8}, {-17.75, -20, -1}};
     bracket b;
     make_bracket(&b, "align_warp", &s, 5, 2, 0, t);
-    sl_merge_options opt;
-    sl_merge_options_init(&opt);
     sl_align_transform out[5];
-    CHECK_OK(sl_align_bracket(b.ptr, 5, b.exposure, &opt, out, &err), &err);
+    align_default(&b, out);
     double worst = 0;
     for (int k = 0; k < 5; k++) {
         double e = corner_error(&out[k], &t[k], s.w, s.h);
@@ -177,17 +183,14 @@ static void test_known_warp(void)
  * 63 px on such frames). */
 static void test_aligned_frames(void)
 {
-    sl_error err;
     scene s;
     make_scene(&s, size_still(400), size_still(300), 11);
     warp t[7];
     memset(t, 0, sizeof t);
     bracket b;
     make_bracket(&b, "align_still", &s, 7, 3, 0.5, t);
-    sl_merge_options opt;
-    sl_merge_options_init(&opt);
     sl_align_transform out[7];
-    CHECK_OK(sl_align_bracket(b.ptr, 7, b.exposure, &opt, out, &err), &err);
+    align_default(&b, out);
     double worst = 0;
     for (int k = 0; k < 7; k++) {
         double e = corner_error(&out[k], &t[k], s.w, s.h);
@@ -212,10 +215,8 @@ static void test_dark_frame(void)
     /* Replace frame 0 by a nearly black one (12 stops under the middle). */
     CHECK_OK(write_frame(b.paths[0], &s, &t[0], -12, 99, &err), &err);
     b.exposure[0] = exp2(-12) / 30;
-    sl_merge_options opt;
-    sl_merge_options_init(&opt);
     sl_align_transform out[3];
-    CHECK_OK(sl_align_bracket(b.ptr, 3, b.exposure, &opt, out, &err), &err);
+    align_default(&b, out);
     printf("  dark frame: (%.3f, %.3f) %s; frame 2 error %.3f px\n", out[0].dx, out[0].dy,
            out[0].note, corner_error(&out[2], &t[2], s.w, s.h));
     CHECK(!out[0].applied);
@@ -230,7 +231,6 @@ static void test_dark_frame(void)
  * room's 1/4000 s frame 4 px off). */
 static void test_dark_frames_moved(void)
 {
-    sl_error err;
     scene s;
     /* Full size under sanitizers too: smaller, the frame's other pixels
      * make up more than 5% of it. */
@@ -243,10 +243,8 @@ static void test_dark_frames_moved(void)
     const warp t[7] = {{1, 3, 0}, {-3, -1, 0}, {2, -2, 0}, {0, 0, 0}, {0.5, 0.5, 0}, {0, 0, 0}, {0, 0, 0}};
     bracket b;
     make_bracket(&b, "align_dark_moved", &s, 7, 3, 0.5, t);
-    sl_merge_options opt;
-    sl_merge_options_init(&opt);
     sl_align_transform out[7];
-    CHECK_OK(sl_align_bracket(b.ptr, 7, b.exposure, &opt, out, &err), &err);
+    align_default(&b, out);
     for (int k = 0; k < 3; k++) {
         double e = corner_error(&out[k], &t[k], s.w, s.h);
         printf("  frame %d: (%.3f, %.3f, %.4f deg) want (%.0f, %.0f): %.3f px at the corners, "
