@@ -23,10 +23,10 @@ def load_dorf(path):
     lines = open(path).read().split('\n')
     curves, i = [], 0
     while i < len(lines):
-        if lines[i].strip() == 'I =':
-            intensity = np.array(lines[i + 1].split(), float)
-            irradiance = np.array(lines[i + 3].split(), float)
-            curves.append((lines[i - 2].strip(), intensity, irradiance))
+        if lines[i].strip() == 'I =':  # I: irradiance (a uniform grid), B: brightness
+            irradiance = np.array(lines[i + 1].split(), float)
+            brightness = np.array(lines[i + 3].split(), float)
+            curves.append((lines[i - 2].strip(), irradiance, brightness))
             i += 4
         else:
             i += 1
@@ -45,8 +45,8 @@ def main():
     curves = load_dorf(args.dorf)
     z = np.linspace(lo, hi, 300)
     g = []
-    for _, intensity, irradiance in curves:
-        codes, first = np.unique(intensity, return_index=True)
+    for _, irradiance, brightness in curves:
+        codes, first = np.unique(brightness, return_index=True)
         g.append(np.log(np.maximum(np.interp(z, codes, irradiance[first]), 1e-9)))
     g = np.array(g)
     period, harmonics = args.step * np.log(2), 12
