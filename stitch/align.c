@@ -534,18 +534,18 @@ static void align_pair(const luma *a, const luma *b, float *map, luma *bm, uint8
      * pixels, or settle a pixel off within its spread. */
     bool few = *used < min_overlap(&a->lv[0]);
     double wander = hypot(out->tx - sx, out->ty - sy);
-    if (few && wander > 1.5) {
+    bool strayed = few && wander > 1.5;
+    if (strayed) {
         int64_t n_mtb, n_fit;
         double at_mtb = mtb_cost(&a->lv[0], ba[0], &bm->lv[0], bb[0], sx, sy, &n_mtb);
         double at_fit = mtb_cost(&a->lv[0], ba[0], &bm->lv[0], bb[0], (int)lround(out->tx),
                                  (int)lround(out->ty), &n_fit);
-        if (n_fit > 0 && at_fit <= at_mtb)
-            wander = 0;
+        strayed = !(n_fit > 0 && at_fit <= at_mtb);
     }
     if (*used < min_few(&a->lv[0]))
         snprintf(note, note_size, "%lld pixels well exposed in both frames (too few)",
                  (long long)*used);
-    else if (few && wander > 1.5)
+    else if (strayed)
         snprintf(note, note_size,
                  "%d pixels well exposed in both frames (few, and the fit strayed %.0f px)",
                  (int)*used, fmin(wander * scale, 9999));

@@ -228,7 +228,7 @@ static void test_dark_frame(void)
 /* A handheld bracket's shortest frame sees little but the lamps, and each
  * frame moved its own way. It is measured on those pixels, not placed where
  * its neighbour is (which put a room's 1/4000 s frame 4 px off): with 2.2%
- * of its pixels well exposed; with 0.9%, where the bitmaps' coarse-to-fine
+ * of its pixels well exposed; with 0.95%, where the bitmaps' coarse-to-fine
  * match stops 5 px off and the fit must be taken over it; and with 0.27%. */
 static void test_dark_frames_moved(void)
 {
