@@ -64,21 +64,20 @@ def main():
     matched = rising = 0
     partnered, sizes = set(), []
     for a in range(n):
-        design = basis(g[a])
-        for b in range(n):
-            if a == b:
-                continue
-            coef, *_ = np.linalg.lstsq(design, g[b] - g[a], rcond=None)
-            if np.sqrt(np.mean((g[b] - g[a] - design @ coef) ** 2)) >= args.residual:
-                continue
-            p = phase_basis @ coef[1:]
-            if np.std(p) <= args.periodic:
+        # Every curve b against a at once: one pseudo-inverse of a's design.
+        diff = g - g[a]
+        coef = diff @ np.linalg.pinv(basis(g[a])).T
+        residual = np.sqrt(np.mean((diff - coef @ basis(g[a]).T) ** 2, axis=1))
+        p = coef[:, 1:] @ phase_basis.T
+        size = np.std(p, axis=1)
+        for b in np.flatnonzero((residual < args.residual) & (size > args.periodic)):
+            if b == a:
                 continue
             matched += 1
-            if (1 + np.gradient(p, phase)).min() > 0:
+            if (1 + np.gradient(p[b], phase)).min() > 0:
                 rising += 1
                 partnered.add(b)
-                sizes.append(np.std(p))
+                sizes.append(size[b])
     print('%d curves; codes %g-%g span %.2f periods of %.3f stops (median; %.2f-%.2f)'
           % (n, lo, hi, np.median(span), args.step, span.min(), span.max()))
     print('ordered pairs within %.2f%% rms of g_a + p(g_a) + c, p over %.0f%% rms: %d; '
