@@ -41,12 +41,18 @@
  *                                  is then that variant]
  *                                 [--merge-saturation Z: the merges' saturation code (their
  *                                  --saturation; the truth's clipped pixels stay at 0.95)]
+ *
+ * BENCH_KEEP=DIR keeps the (last) bracket in DIR: its frames, times.txt, the true
+ * curve's inverse at the 256 codes (truth.txt), the self-calibrated curve (self.json)
+ * and the camera's noise constants and colour matrix (camera.txt), for
+ * bench/crf_class_likelihood.py.
  */
 #include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "setlight/stitch.h"
 #include "testing.h"
@@ -70,6 +76,41 @@ static const sl_response_prior *prior; /* --prior lofo: the curve under test's *
 static bool prior_on;                  /* --prior lofo or builtin */
 static double prior_weight;            /* --prior-weight (0: the merge's default) */
 static double merge_saturation;        /* --merge-saturation: the merges' (0: their default) */
+
+/* BENCH_KEEP: what bench/crf_class_likelihood.py reads beside the frames. */
+static void keep_bracket(const char *dir, const vb_bracket *b, const sl_response *fitted)
+{
+    char path[600];
+    sl_error err;
+    snprintf(path, sizeof path, "%s/self.json", dir);
+    if (sl_response_write(path, fitted, &err))
+        fprintf(stderr, "BENCH_KEEP: %s\n", err.message);
+    snprintf(path, sizeof path, "%s/times.txt", dir);
+    FILE *f = fopen(path, "w");
+    for (int i = 0; f && i < b->frames; i++)
+        fprintf(f, "%s %.9g\n", b->paths[i], b->times[i]);
+    if (f)
+        fclose(f);
+    /* full well and read noise in electrons at the bracket's ISO, raw bits; then
+     * the colour matrix's rows, each with its channel's white-balance gain */
+    const sl_vset_camera *cam = &b->cam;
+    double post = cam->read_noise_post_e * 100.0 / b->iso;
+    snprintf(path, sizeof path, "%s/camera.txt", dir);
+    if ((f = fopen(path, "w"))) {
+        fprintf(f, "%.9g %.9g %d\n", cam->full_well_e * 100.0 / b->iso,
+                sqrt(cam->read_noise_pre_e * cam->read_noise_pre_e + post * post), cam->raw_bits);
+        for (int i = 0; i < 3; i++)
+            fprintf(f, "%.9g %.9g %.9g  %.9g\n", cam->ccm[i][0], cam->ccm[i][1], cam->ccm[i][2],
+                    cam->wb[i]);
+        fclose(f);
+    }
+    snprintf(path, sizeof path, "%s/truth.txt", dir); /* linear value at code k / 255 */
+    if ((f = fopen(path, "w"))) {
+        for (int k = 0; k < 256; k++)
+            fprintf(f, "%.9g\n", sl_vset_response_invert(&b->cam.response, k / 255.0));
+        fclose(f);
+    }
+}
 
 static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *px, double *curve,
                        int *named, bool *prior_dropped, double *prior_distance)
@@ -101,6 +142,8 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
     prior_distance[0] = res.response_prior_distance[0];
     prior_distance[1] = res.response_prior_distance[1];
     double wz;
+    if (getenv("BENCH_KEEP") && curve)
+        keep_bracket(getenv("BENCH_KEEP"), b, &res.response);
     if (curve)
         *curve = vb_response_error(&res.response, &b->cam.response, b->code_lo, b->code_hi, &wz);
     sl_merge_result_free(&res);
@@ -276,8 +319,11 @@ int main(int argc, char **argv)
     }
     sp.latlong = &scene.latlong;
     well_e = sp.full_well_e, read_e = sp.read_noise_e;
-    char dir[] = "/tmp/bench_merge_crf_XXXXXX";
-    if (!mkdtemp(dir))
+    char dir[600] = "/tmp/bench_merge_crf_XXXXXX";
+    if (getenv("BENCH_KEEP")) {
+        snprintf(dir, sizeof dir, "%s", getenv("BENCH_KEEP"));
+        mkdir(dir, 0777); /* or there already */
+    } else if (!mkdtemp(dir))
         return 1;
     printf("# %s %dx%d, %d x %d stops", sp.scene, sp.width, sp.width / 2, sp.frames, sp.stops);
     if (sp.alt_stops > 0)
@@ -400,6 +446,6 @@ int main(int argc, char **argv)
                both, null_only, null_only ? gap : "none", self_only, neither);
     sl_vset_scene_free(&scene);
     char cmd[128];
-    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    snprintf(cmd, sizeof cmd, "%s %s", getenv("BENCH_KEEP") ? "true" : "rm -rf", dir);
     return system(cmd) == 0 && !failed ? 0 : 1;
 }
