@@ -30,6 +30,8 @@ import sys
 import cv2
 import numpy as np
 
+from crf_class_pairs import load_dorf  # the script's own folder is on the path
+
 
 def ndtr(x):
     """Standard normal CDF (Abramowitz-Stegun erfc, 1.2e-7), vectorised, no scipy."""
@@ -45,12 +47,10 @@ def ndtr(x):
 
 def dorf_inverse_at_half_codes(path, name):
     """Linear exposure at codes (k + 0.5) / 255 through the DoRF curve `name`."""
-    lines = open(path).read().split('\n')
-    k = [i for i, l in enumerate(lines) if l.strip() == name]
-    if not k:
+    curve = [c for c in load_dorf(path) if c[0] == name]
+    if not curve:
         sys.exit('%s: no curve named %s' % (path, name))
-    irradiance = np.array(lines[k[0] + 3].split(), float)  # after "I ="
-    brightness = np.array(lines[k[0] + 5].split(), float)  # after "B ="
+    _, irradiance, brightness = curve[0]
     return np.interp((np.arange(255) + 0.5) / 255, brightness, irradiance)
 
 
@@ -66,7 +66,12 @@ def main():
                                                     'shared', 'data', 'crf', 'dorfCurves.txt'))
     o = ap.parse_args()
 
-    rows = [l.split() for l in open(os.path.join(o.dir, 'times.txt'))]
+    need = [os.path.join(o.dir, n) for n in ('times.txt', 'camera.txt', 'truth.txt')]
+    missing = [n for n in need if not os.path.exists(n)]
+    if missing:
+        sys.exit('%s: not a kept bracket (no %s); keep one with BENCH_KEEP=DIR '
+                 'bench_merge_crf' % (o.dir, ', '.join(os.path.basename(n) for n in missing)))
+    rows = [l.split() for l in open(need[0])]
     times = np.array([float(r[1]) for r in rows])
     frames = [cv2.imread(r[0], cv2.IMREAD_UNCHANGED) for r in rows]
     if any(f is None or f.dtype != np.uint8 for f in frames):
@@ -74,7 +79,7 @@ def main():
     z = np.stack([f[..., ::-1] for f in frames]).reshape(len(rows), -1, 3)[:, ::o.sub, :]
     z = z.astype(int)
     cam = [l.split() for l in open(os.path.join(o.dir, 'camera.txt'))]
-    well, read = float(cam[0][0]), float(cam[0][1])
+    gain, floor = float(cam[0][0]), float(cam[0][1])  # raw variance: gain x + floor
     ccm = np.array([[float(v) for v in r[:3]] for r in cam[1:]])
     wb = np.array([float(r[3]) for r in cam[1:]])
     to_out = ccm * wb[None, :]
@@ -90,7 +95,7 @@ def main():
     best = np.abs(z - 128).argmin(0)
     e0 = np.take_along_axis(x, best[None], 0)[0]
     raw = np.einsum('ij,knj->kni', to_raw, e0[None] * times[:, None, None]).clip(0, 1)
-    var = np.einsum('ij,knj->kni', to_out ** 2, raw / well + (read / well) ** 2)
+    var = np.einsum('ij,knj->kni', to_out ** 2, gain * raw + floor)
 
     def loglik(inv_half):
         lo = np.concatenate([[-np.inf], inv_half])

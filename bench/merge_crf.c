@@ -44,7 +44,7 @@
  *
  * BENCH_KEEP=DIR keeps the (last) bracket in DIR: its frames, times.txt, the true
  * curve's inverse at the 256 codes (truth.txt), the self-calibrated curve (self.json)
- * and the camera's noise constants and colour matrix (camera.txt), for
+ * and the camera's raw noise model and colour matrix (camera.txt), for
  * bench/crf_class_likelihood.py.
  */
 #include <getopt.h>
@@ -77,7 +77,10 @@ static bool prior_on;                  /* --prior lofo or builtin */
 static double prior_weight;            /* --prior-weight (0: the merge's default) */
 static double merge_saturation;        /* --merge-saturation: the merges' (0: their default) */
 
-/* BENCH_KEEP: what bench/crf_class_likelihood.py reads beside the frames. */
+/* BENCH_KEEP: where the bracket stays (NULL: a temporary folder, removed), and
+ * what bench/crf_class_likelihood.py reads there beside the frames. */
+static const char *keep_dir;
+
 static void keep_bracket(const char *dir, const vb_bracket *b, const sl_response *fitted)
 {
     char path[600];
@@ -91,14 +94,14 @@ static void keep_bracket(const char *dir, const vb_bracket *b, const sl_response
         fprintf(f, "%s %.9g\n", b->paths[i], b->times[i]);
     if (f)
         fclose(f);
-    /* full well and read noise in electrons at the bracket's ISO, raw bits; then
-     * the colour matrix's rows, each with its channel's white-balance gain */
+    /* the raw noise's variance at raw value x, gain x + floor (the camera's own
+     * model at the bracket's ISO), and the raw bits; then the colour matrix's
+     * rows, each with its channel's white-balance gain */
     const sl_vset_camera *cam = &b->cam;
-    double post = cam->read_noise_post_e * 100.0 / b->iso;
+    double sd0 = sl_vset_sensor_noise_std(cam, b->iso, 0), sd1 = sl_vset_sensor_noise_std(cam, b->iso, 1);
     snprintf(path, sizeof path, "%s/camera.txt", dir);
     if ((f = fopen(path, "w"))) {
-        fprintf(f, "%.9g %.9g %d\n", cam->full_well_e * 100.0 / b->iso,
-                sqrt(cam->read_noise_pre_e * cam->read_noise_pre_e + post * post), cam->raw_bits);
+        fprintf(f, "%.9g %.9g %d\n", sd1 * sd1 - sd0 * sd0, sd0 * sd0, cam->raw_bits);
         for (int i = 0; i < 3; i++)
             fprintf(f, "%.9g %.9g %.9g  %.9g\n", cam->ccm[i][0], cam->ccm[i][1], cam->ccm[i][2],
                     cam->wb[i]);
@@ -142,8 +145,8 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
     prior_distance[0] = res.response_prior_distance[0];
     prior_distance[1] = res.response_prior_distance[1];
     double wz;
-    if (getenv("BENCH_KEEP") && curve)
-        keep_bracket(getenv("BENCH_KEEP"), b, &res.response);
+    if (keep_dir && curve)
+        keep_bracket(keep_dir, b, &res.response);
     if (curve)
         *curve = vb_response_error(&res.response, &b->cam.response, b->code_lo, b->code_hi, &wz);
     sl_merge_result_free(&res);
@@ -320,8 +323,9 @@ int main(int argc, char **argv)
     sp.latlong = &scene.latlong;
     well_e = sp.full_well_e, read_e = sp.read_noise_e;
     char dir[600] = "/tmp/bench_merge_crf_XXXXXX";
-    if (getenv("BENCH_KEEP")) {
-        snprintf(dir, sizeof dir, "%s", getenv("BENCH_KEEP"));
+    keep_dir = getenv("BENCH_KEEP");
+    if (keep_dir) {
+        snprintf(dir, sizeof dir, "%s", keep_dir);
         mkdir(dir, 0777); /* or there already */
     } else if (!mkdtemp(dir))
         return 1;
@@ -446,6 +450,6 @@ int main(int argc, char **argv)
                both, null_only, null_only ? gap : "none", self_only, neither);
     sl_vset_scene_free(&scene);
     char cmd[128];
-    snprintf(cmd, sizeof cmd, "%s %s", getenv("BENCH_KEEP") ? "true" : "rm -rf", dir);
+    snprintf(cmd, sizeof cmd, "%s %s", keep_dir ? "true" : "rm -rf", dir);
     return system(cmd) == 0 && !failed ? 0 : 1;
 }
