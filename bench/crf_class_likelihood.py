@@ -13,7 +13,13 @@ The frames come from the bench, which keeps one bracket with exact steps:
   /usr/bin/python3 bench/crf_class_likelihood.py /tmp/k Ektachrome-64CDRed [--mode M]
 
 The noise model is the camera's own (bench writes it: raw Poisson and read noise through
-white balance and colour matrix); codes are exact 8-bit bins, top codes censored. Modes,
+white balance and colour matrix). With --noise member (the default) each member's frames
+carry the variance of a grey pixel at the member's own linear value, A mu + B, with a
+factor on it fitted from --gains: a member moves each pixel's linear value by exp(p),
+and the sensor's noise does not follow (the information bench/crf_class_floor.py
+counts); --noise fixed gives every member the true curve's variance, pixel by pixel.
+Codes are exact 8-bit bins, top codes censored. For each phase the peak of a parabola
+through the scores says where the likelihood puts the curve along that member. Modes,
 for each pixel's unknown radiance E (per channel):
   profile  E at its maximum (what a fit does; biased with few frames a pixel)
   flat     E integrated out under a flat prior in ln E of the member's own radiance
@@ -21,7 +27,7 @@ for each pixel's unknown radiance E (per channel):
            member's own radiance (a kernel estimate, leave-one-out): the default
 A member changes the scene's radiance (E -> E exp(p)), so its flat prior is a different
 prior on the scene; the density mode lets each member carry the scene it implies.
-numpy and OpenCV (cv2) only; about 3 minutes a curve at --sub 4.
+numpy and OpenCV (cv2) only; about 5 minutes a curve at --sub 8 (member noise).
 """
 import argparse
 import os
@@ -61,6 +67,11 @@ def main():
     ap.add_argument('--mode', choices=('profile', 'flat', 'density'), default='density')
     ap.add_argument('--sub', type=int, default=4, help='every N-th pixel (4)')
     ap.add_argument('--amp', type=float, default=0.05, help='member amplitude a at s = 1, ln')
+    ap.add_argument('--noise', choices=('member', 'fixed'), default='member',
+                    help='variance in each member\'s own linear value (member) or the '
+                         'true curve\'s, the same for every member (fixed)')
+    ap.add_argument('--gains', default='0.9,1,1.1',
+                    help='member noise: factors on the variance, the best kept')
     ap.add_argument('--bandwidth', type=float, default=0.05, help='density kernel, ln E')
     ap.add_argument('--dorf', default=os.path.join(os.path.dirname(__file__), '..', '..',
                                                     'shared', 'data', 'crf', 'dorfCurves.txt'))
@@ -97,6 +108,12 @@ def main():
     raw = np.einsum('ij,knj->kni', to_raw, e0[None] * times[:, None, None]).clip(0, 1)
     var = np.einsum('ij,knj->kni', to_out ** 2, gain * raw + floor)
 
+    # A grey pixel's variance law in the linear value: A mu + B (the noise a member
+    # carries follows its own linear value, which is what the member gets wrong)
+    a_law = gain * (to_out ** 2) @ (to_raw @ np.ones(3))
+    b_law = floor * (to_out ** 2).sum(1)
+    noise_factor = [1.0]
+
     def loglik(inv_half):
         lo = np.concatenate([[-np.inf], inv_half])
         hi = np.concatenate([inv_half, [np.inf]])
@@ -105,11 +122,13 @@ def main():
         total = 0.0
         for c in range(3):
             zc = z[:, :, c]
-            L, H, sd = lo[zc], hi[zc], np.sqrt(var[:, :, c])
+            L, H, sd_true = lo[zc], hi[zc], np.sqrt(var[:, :, c])
             use = ((zc > 0) & (zc < censored)).sum(0) >= 2
 
             def frames_ll(ln_e):
                 mu = np.exp(ln_e)[None, :] * times[:, None]
+                sd = sd_true if o.noise == 'fixed' else \
+                    np.sqrt(noise_factor[0] * (a_law[c] * mu + b_law[c]))
                 p = ndtr((H - mu) / sd) - ndtr((L - mu) / sd)
                 return np.log(np.maximum(p, 1e-300)).sum(0)
             ln_e = np.log(np.maximum(e0[:, c], 1e-12))
@@ -138,6 +157,14 @@ def main():
         return total
 
     def best_over_scale(inv_half):
+        """The maximum over the variance's factors (member noise) and the scale."""
+        best = -np.inf
+        for factor in [float(v) for v in o.gains.split(',')] if o.noise == 'member' else [1]:
+            noise_factor[0] = factor
+            best = max(best, best_over_scale_only(inv_half))
+        return best
+
+    def best_over_scale_only(inv_half):
         """The likelihood's maximum over a free scale (a curve is known up to one)."""
         best, at = -np.inf, 0.0
         for ls in np.linspace(-0.1, 0.1, 11):
@@ -149,17 +176,23 @@ def main():
         return best
 
     base = best_over_scale(half)
-    print('# %s, %s, mode %s: log-likelihood of members g + s %.3g sin(2 pi g / %.3f + phi) '
-          'less the true curve\'s (%.1f)' % (o.dir, o.curve, o.mode, o.amp, step, base))
+    print('# %s, %s, mode %s, noise %s: log-likelihood of members g + s %.3g '
+          'sin(2 pi g / %.3f + phi) less the true curve\'s (%.1f)' %
+          (o.dir, o.curve, o.mode, o.noise, o.amp, step, base))
     worst = -np.inf
     gh = np.log(np.maximum(half, 1e-12))
     for phi in (0, np.pi / 2):
-        cells = []
-        for s in (-1, -0.5, 0.5, 1):
+        cells, grid, vals = [], (-1, -0.5, 0.5, 1), [0.0]
+        for s in grid:
             v = best_over_scale(half * np.exp(s * o.amp * np.sin(2 * np.pi * gh / step + phi)))
             worst = max(worst, v - base)
             cells.append('s %+.1f: %+8.1f' % (s, v - base))
-        print('phi %.2f  %s' % (phi, '  '.join(cells)), flush=True)
+            vals.append(v - base)
+        # where the likelihood peaks along this phase: a parabola through s = 0 and the grid
+        curve2, slope, _ = np.polyfit((0,) + grid, vals, 2)
+        peak = -slope / (2 * curve2) if curve2 < 0 else float('nan')
+        print('phi %.2f  %s  peak at s %+.2f (%.2f%% in ln)' % (
+            phi, '  '.join(cells), peak, 100 * peak * o.amp), flush=True)
     print('true curve is the maximum: %s (best member %+.1f nats)' %
           ('yes' if worst < 0 else 'no', worst))
 
