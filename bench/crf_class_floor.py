@@ -52,11 +52,12 @@ def class_information(edge, ln_e, counts, times, a_c, b_c, count, step, censor):
 
     edge: linear exposure at the half codes (k + 0.5) / 255 through the curve; ln_e,
     counts: the scene's histogram of ln E; a_c, b_c: the noise's variance law."""
-    lo = np.concatenate([[0.0], edge])[:censor + 1]
+    lo = np.concatenate([[-np.inf], edge])[:censor + 1]  # code 0: that code or less
     hi = np.concatenate([edge, [np.inf]])[:censor + 1].copy()
     hi[censor] = np.inf  # code `censor`: that code or more
     finite_hi = np.where(np.isfinite(hi), hi, 0)
-    b_lo = harmonics(np.log(np.maximum(lo, 1e-30)), count, step) * (lo > 0)[:, None]
+    finite_lo = np.where(np.isfinite(lo), lo, 0)
+    b_lo = harmonics(np.log(np.maximum(finite_lo, 1e-30)), count, step) * (lo > 0)[:, None]
     b_hi = harmonics(np.log(np.where(np.isfinite(hi), hi, 1)), count, step) * \
         np.isfinite(hi)[:, None]
     n = 1 + 2 * count + 2
@@ -74,7 +75,7 @@ def class_information(edge, ln_e, counts, times, a_c, b_c, count, step, censor):
         scores = [mu * (d_mu + d_sd * a_c / (2 * sd))]  # ln E: mu and the noise move
         for j in range(2 * count):  # theta_j scales each edge by exp(b_j(ln edge))
             scores.append((pa * finite_hi[None] * b_hi[None, :, j] -
-                           pb * lo[None] * b_lo[None, :, j]) / sd)
+                           pb * finite_lo[None] * b_lo[None, :, j]) / sd)
         scores += [d_sd * mu / (2 * sd), d_sd / (2 * sd)]  # A, B
         s = np.stack(scores, -1)
         info += np.einsum('bzp,bzq,bz->bpq', s, s, ok / p)
