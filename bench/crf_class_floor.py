@@ -125,7 +125,14 @@ def main():
     scene = np.take_along_axis(truth[z] / times[:, None, None], best[None], 0)[0]
     scale = o.pixels / z.shape[1]
     curves = load_dorf(o.dorf)
-    pick = range(len(curves)) if o.curves == 'all' else [int(v) for v in o.curves.split(',')]
+    try:
+        pick = range(len(curves)) if o.curves == 'all' else \
+            [int(v) for v in o.curves.split(',')]
+    except ValueError:
+        sys.exit('--curves: indices 0-%d separated by commas, not %s' % (len(curves) - 1,
+                                                                         o.curves))
+    if any(not 0 <= ci < len(curves) for ci in pick):
+        sys.exit('--curves: %s: %s holds curves 0-%d' % (o.curves, o.dorf, len(curves) - 1))
     ideal = {}
     if o.ideal:
         for fields in (l.split() for l in open(o.ideal)):
