@@ -41,6 +41,9 @@
  *                                  is then that variant]
  *                                 [--merge-saturation Z: the merges' saturation code (their
  *                                  --saturation; the truth's clipped pixels stay at 0.95)]
+ *                                 [--self-response F: the "self-calibrated" merge is given
+ *                                  the curve in F (a setlight-response JSON, e.g. a fit made
+ *                                  outside from a kept bracket) instead of fitting one]
  *
  * BENCH_KEEP=DIR keeps the (last) bracket in DIR: its frames, times.txt, the true
  * curve's inverse at the 256 codes (truth.txt), the self-calibrated curve (self.json)
@@ -76,6 +79,7 @@ static const sl_response_prior *prior; /* --prior lofo: the curve under test's *
 static bool prior_on;                  /* --prior lofo or builtin */
 static double prior_weight;            /* --prior-weight (0: the merge's default) */
 static double merge_saturation;        /* --merge-saturation: the merges' (0: their default) */
+static const char *self_response; /* --self-response: the self-calibrated merge given this */
 
 /* BENCH_KEEP: where the bracket stays (NULL: a temporary folder, removed), and
  * what bench/crf_class_likelihood.py reads there beside the frames. */
@@ -183,12 +187,20 @@ static int run_curve(const char *dorf, const char *name, const vb_spec *base, co
     int named = 0, named_true;
     bool dropped = false, dropped_true;
     double distance[2] = {0, 0}, distance_true[2];
-    rc = rc || merge_score(&b, NULL, &self, &out->curve, &named, &dropped, distance) ||
+    sl_response given = {0};
+    if (!rc && self_response && sl_response_read(self_response, &given, &err)) {
+        fprintf(stderr, "%s\n", err.message);
+        rc = 1;
+    }
+    rc = rc ||
+         merge_score(&b, self_response ? &given : NULL, &self, &out->curve, &named, &dropped,
+                     distance) ||
          merge_score(&b, &truth, &tru, NULL, &named_true, &dropped_true, distance_true);
     *out = (result){self.median, self.p99,  tru.median,  tru.p99,    ideal.median,
                     ideal.p99,   real.median, real.p99, null.median, null.p99,
                     out->curve,  b.null_space.data ? b.null_space_curve : NAN, named, dropped, {distance[0], distance[1]}};
     sl_response_free(&truth);
+    sl_response_free(&given);
     vb_free(&b);
     return rc;
 }
@@ -220,6 +232,7 @@ int main(int argc, char **argv)
                                           {"distance", 0, 0, 'D'},
                                           {"realizable-variant", 1, 0, 'V'},
                                           {"merge-saturation", 1, 0, 'M'},
+                                          {"self-response", 1, 0, 'R'},
                                           {0, 0, 0, 0}};
     /* In the order of vb_realizable_variant. */
     static const char *const variants[] = {"oracle",       "observed",   "own-channel",
@@ -267,6 +280,8 @@ int main(int argc, char **argv)
             distance = true;
         else if (o == 'M')
             merge_saturation = atof(optarg);
+        else if (o == 'R')
+            self_response = optarg;
         else if (o == 'V') {
             int v = 0;
             while (v < VARIANTS && strcmp(optarg, variants[v]) != 0)
@@ -343,6 +358,8 @@ int main(int argc, char **argv)
         printf(", merges told the sensor's noise");
     if (merge_saturation > 0)
         printf(", merges' saturation code %g", merge_saturation);
+    if (self_response)
+        printf(", \"self-calibrated\": given %s", self_response);
     printf(", realizable oracle: %s\n", variants[sp.realizable_variant]);
     printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal, "
            "realizable, null-space; median, p99 ratios: self / ideal, realizable / ideal, "
