@@ -41,6 +41,8 @@
  *                                  is then that variant]
  *                                 [--merge-saturation Z: the merges' saturation code (their
  *                                  --saturation; the truth's clipped pixels stay at 0.95)]
+ *                                 [--refine: the self-calibrated curve refined by maximum
+ *                                  likelihood under the noise (the merge's refine_response)]
  *                                 [--self-response F: the "self-calibrated" merge is given
  *                                  the curve in F (a setlight-response JSON, e.g. a fit made
  *                                  outside from a kept bracket) instead of fitting one]
@@ -80,6 +82,7 @@ static bool prior_on;                  /* --prior lofo or builtin */
 static double prior_weight;            /* --prior-weight (0: the merge's default) */
 static double merge_saturation;        /* --merge-saturation: the merges' (0: their default) */
 static const char *self_response; /* --self-response: the self-calibrated merge given this */
+static bool refine;               /* --refine: the self-calibrated curve refined under the noise */
 
 /* BENCH_KEEP: where the bracket stays (NULL: a temporary folder, removed), and
  * what bench/crf_class_likelihood.py reads there beside the frames. */
@@ -130,6 +133,7 @@ static int merge_score(const vb_bracket *b, const sl_response *given, vb_stats *
     opt.use_response_prior = prior_on;
     opt.response_prior_weight = prior_weight;
     opt.smoothness = smoothness;
+    opt.refine_response = refine;
     opt.saturation = merge_saturation;
     if (samples > 0)
         opt.samples = samples;
@@ -233,6 +237,7 @@ int main(int argc, char **argv)
                                           {"realizable-variant", 1, 0, 'V'},
                                           {"merge-saturation", 1, 0, 'M'},
                                           {"self-response", 1, 0, 'R'},
+                                          {"refine", 0, 0, 'f' + 256},
                                           {0, 0, 0, 0}};
     /* In the order of vb_realizable_variant. */
     static const char *const variants[] = {"oracle",       "observed",   "own-channel",
@@ -282,6 +287,8 @@ int main(int argc, char **argv)
             merge_saturation = atof(optarg);
         else if (o == 'R')
             self_response = optarg;
+        else if (o == 'f' + 256)
+            refine = true;
         else if (o == 'V') {
             int v = 0;
             while (v < VARIANTS && strcmp(optarg, variants[v]) != 0)
@@ -360,6 +367,8 @@ int main(int argc, char **argv)
         printf(", merges' saturation code %g", merge_saturation);
     if (self_response)
         printf(", \"self-calibrated\": given %s", self_response);
+    if (refine)
+        printf(", self-calibrated curve refined under the noise");
     printf(", realizable oracle: %s\n", variants[sp.realizable_variant]);
     printf("# index name: per pixel median / p99 %%: self-calibrated, true curve, ideal, "
            "realizable, null-space; median, p99 ratios: self / ideal, realizable / ideal, "

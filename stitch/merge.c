@@ -797,6 +797,41 @@ static void mark_spoilt(merge_ctx *m, const sl_merge_result *res, const sl_respo
  * prior: median 0.42, at most 4.4 but for gamma+0.2 (43); a hybrid
  * log-gamma curve: 7.9 and 19 (test_merge_crf, bench_merge_crf). */
 #define PRIOR_FAR 6
+/* Sample positions the refinement under the noise reads (three series each). */
+#define REFINE_POSITIONS 2000
+
+/* The self-calibrated curve refined by maximum likelihood under the
+ * sensor's noise (response_ml.c), with the exposures it was fitted with. */
+static sl_result refine_response(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,
+                                 const double *loge, sl_error *err)
+{
+    res->response_refined = false;
+    snprintf(res->response_refine_note, sizeof res->response_refine_note, "%s",
+             opt->response_mode == SL_RESPONSE_ROBERTSON ? "robertson: not refined"
+                                                         : "not refined (not asked)");
+    if (opt->response_mode == SL_RESPONSE_ROBERTSON || !opt->refine_response)
+        return SL_OK;
+    merge_refine_report rep;
+    sl_result r = merge_refine_response(&m->samples, loge, REFINE_POSITIONS, &res->response,
+                                        &rep, err);
+    if (r)
+        return r;
+    res->response_refined = rep.refined;
+    if (rep.refined) {
+        char source[sizeof res->response.source];
+        snprintf(source, sizeof source, "%.44s, refined", res->response.source);
+        memcpy(res->response.source, source, sizeof source);
+    }
+    snprintf(res->response_refine_note, sizeof res->response_refine_note, "%s", rep.note);
+    res->response_refine_series = rep.series;
+    res->response_refine_gain_nats = rep.loglik - rep.start_loglik;
+    res->response_refine_moved = rep.moved;
+    for (int c = 0; c < 3; c++) {
+        res->response_noise_gain[c] = rep.noise_gain[c];
+        res->response_noise_floor[c] = rep.noise_floor[c];
+    }
+    return SL_OK;
+}
 
 static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_merge_options *opt,
                                   bool use_fitted, sl_error *err)
@@ -860,7 +895,10 @@ static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_m
     }
     sl_response_free(&res->response);
     res->response = fitted;
-    return SL_OK;
+    /* Refined in every round: the exposures measured next are measured
+     * through it (measured through the first curve's bends, they kept
+     * agfa-scala-200xCDPush1 at 1.55x the ideal instead of 1.02x). */
+    return refine_response(m, res, opt, loge, err);
 }
 
 /* Half (10-bit mantissa, largest 65504, normal down to 2^-14 then steps of

@@ -61,6 +61,25 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
                              const sl_response_prior *prior, double prior_weight,
                              sl_response *out, sl_error *err);
 
+/* The self-calibrated curve refined under the noise (response_ml.c). */
+typedef struct merge_refine_report {
+    bool refined;
+    char note[96];
+    int series, rounds, steps;
+    double start_loglik, loglik; /* the first curve's and the refined one's, under the
+                                    fitted noise and scene */
+    double moved;                /* largest change of ln g (scale free) */
+    double noise_gain[3], noise_floor[3];
+} merge_refine_report;
+/* Refines resp (one curve for the three channels, 256 nodes) by maximum
+ * likelihood of 8-bit lossless samples under a fitted noise law, reading
+ * up to max_positions sample positions; other samples, too few series, or
+ * a refinement no likelier than resp or moving it by more than a factor 2
+ * leave it as it is (rep->note says why). */
+sl_result merge_refine_response(const merge_samples *s, const double *log_exposure,
+                                int max_positions, sl_response *resp, merge_refine_report *rep,
+                                sl_error *err);
+
 /* The curve-shape prior (response_prior.c): mean and components on
  * MERGE_PRIOR_NODES code nodes, zero below node `first`; the built-in
  * prior keeps 16 components (the DoRF measurement levels off there,

@@ -35,6 +35,19 @@ static json_t *response_check_json(const sl_merge_response_check *rc)
                      rc->frame_p90_stops, "compared", (json_int_t)rc->compared, "note", rc->note);
 }
 
+/* The refinement under the noise for --json: done or why not, and the
+ * noise law it fitted per channel (var = gain * y + floor, y on 0..1). */
+static json_t *refine_json(const sl_merge_result *res)
+{
+    return json_pack("{s:b, s:s, s:i, s:f, s:f, s:[f,f,f], s:[f,f,f]}", "refined",
+                     res->response_refined, "note", res->response_refine_note, "series",
+                     res->response_refine_series, "gain_nats", res->response_refine_gain_nats,
+                     "moved_ln", res->response_refine_moved, "noise_gain",
+                     res->response_noise_gain[0], res->response_noise_gain[1],
+                     res->response_noise_gain[2], "noise_floor", res->response_noise_floor[0],
+                     res->response_noise_floor[1], res->response_noise_floor[2]);
+}
+
 static json_t *align_json(const sl_merge_result *res)
 {
     return json_pack("{s:s, s:b, s:o, s:s, s:f, s:f, s:f}", "mode",
@@ -203,6 +216,8 @@ sl_result sl_merge_run(const sl_merge_run_options *o, sl_merge_run_result *res, 
         timing_json(m));
     free(mask);
     free(ghost);
+    if (j)
+        json_object_set_new(j, "response_refine", refine_json(m));
     res->json = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
     json_decref(j);
     /* The files are in place; only the summary could not be made. */
@@ -234,6 +249,8 @@ sl_result sl_response_run(const sl_merge_run_options *o, sl_merge_run_result *re
                           frames_json(m, m->align_mode != SL_ALIGN_OFF), "align", align_json(m),
                           "disagreeing_frames", (json_int_t)m->disagreeing_frames, "seconds",
                           m->seconds, "timing", timing_json(m));
+    if (j)
+        json_object_set_new(j, "response_refine", refine_json(m));
     res->json = j ? json_dumps(j, JSON_INDENT(2)) : NULL;
     json_decref(j);
     return res->json ? SL_OK : sl_error_set(err, SL_ERR_NOMEM, "%s: out of memory", o->out_path);

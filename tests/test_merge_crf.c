@@ -80,6 +80,14 @@ enum { MAX_CURVES = 256, PICKED = 12 };
 #define PRIOR_WORST_GUARD 1.9
 #define PRIOR_P99_GUARD 1.10
 
+/* Refined under the noise (the merge's refine_response) over the ideal
+ * estimator: curves at the goal (1.1 / 1.2), the worst median ratio and the
+ * median p99 ratio: measured in the test's output; all 201 in
+ * bench/merge_crf.c --refine (docs/merge.md). */
+#define REFINED_AT_GOAL 12
+#define REFINED_WORST_GUARD 1.1
+#define REFINED_P99_GUARD 1.1
+
 typedef struct keyed {
     double key;
     int index;
@@ -165,7 +173,8 @@ static void test_dorf_curves(void)
     static sl_response inverse[MAX_CURVES];
     CHECK_OK(vb_dorf_inverses(dorf, names, count, inverse, &err), &err);
     double self_median[PICKED], self_p99[PICKED], real_median[PICKED], real_p99[PICKED];
-    double prior_median[PICKED], prior_p99[PICKED];
+    double prior_median[PICKED], prior_p99[PICKED], refined_median[PICKED], refined_p99[PICKED];
+    int refined_at_goal = 0, refined_count = 0;
     int scored = 0, at_goal = 0, null_at_goal = 0, fit_gap = 0, prior_at_goal = 0;
     double self_over_null = INFINITY;
     for (int i = 0; i < m; i++) {
@@ -182,9 +191,13 @@ static void test_dorf_curves(void)
                 truth.inverse[c * 256 + k] = sl_vset_response_invert(&curves[i], k / 255.0);
         sl_merge_options opt;
         sl_merge_options_init(&opt);
-        sl_merge_result self, given, with_prior;
+        sl_merge_result self, given, with_prior, refined;
         opt.response_mode = SL_RESPONSE_AUTO;
         CHECK_OK(vb_merge(&b, &opt, &self, &err), &err);
+        /* Refined under the noise (the goal). */
+        opt.refine_response = true;
+        CHECK_OK(vb_merge(&b, &opt, &refined, &err), &err);
+        opt.refine_response = false;
         /* With the prior of the other families' curves. */
         sl_response_prior *prior = NULL;
         CHECK_OK(vb_dorf_prior(inverse, names, count, curves[i].name, MERGE_PRIOR_COMPONENTS,
@@ -257,10 +270,24 @@ static void test_dorf_curves(void)
             real_p99[scored] = spp;
             at_goal += sm <= 1.1 && spp <= 1.2;
             check_clean(&self.radiance);
+            vb_stats ref = vb_compare(&refined.radiance, &b, 1, true);
+            double fm = ref.median / ideal.median, fp = ref.p99 / ideal.p99;
+            printf("  %-30s %s: / ideal %.3f / %.3f, curve within "
+                   "%.2f%%\n",
+                   curves[i].name, refined.response_refine_note, fm, fp,
+                   100 * vb_response_error(&refined.response, &curves[i], b.code_lo, b.code_hi,
+                                           &wz));
+            CHECK(strstr(refined.response.source, "refined") != NULL || !refined.response_refined);
+            check_clean(&refined.radiance);
+            refined_median[scored] = fm;
+            refined_p99[scored] = fp;
+            refined_at_goal += fm <= 1.1 && fp <= 1.2;
+            refined_count += refined.response_refined;
             self_median[scored] = rm;
             self_p99[scored++] = rp;
         }
         sl_merge_result_free(&self);
+        sl_merge_result_free(&refined);
         sl_merge_result_free(&given);
         sl_merge_result_free(&with_prior);
         sl_response_free(&truth);
@@ -294,6 +321,18 @@ static void test_dorf_curves(void)
         CHECK_MSG(fit_gap <= FIT_GAP_GUARD, "the fit's own gap: %d curves", fit_gap);
         CHECK_MSG(self_over_null < SELF_BEATS_NULL,
                   "self-calibrated / null-space at least %.3f", self_over_null);
+        double fm, fp;
+        sort_ratios(refined_median, refined_p99, scored, &fm, &fp);
+        printf("  refined under the noise over the ideal estimator: %d of %d at the goal (%d "
+               "refined); median %.3f (worst %.3f), p99 %.3f (worst %.3f)\n",
+               refined_at_goal, scored, refined_count, fm, refined_median[scored - 1], fp,
+               refined_p99[scored - 1]);
+        CHECK_MSG(refined_count == scored, "refined on %d of %d", refined_count, scored);
+        CHECK_MSG(refined_at_goal >= REFINED_AT_GOAL, "refined: %d at the goal", refined_at_goal);
+        CHECK_MSG(refined_median[scored - 1] <= REFINED_WORST_GUARD,
+                  "refined: worst median ratio %.3f", refined_median[scored - 1]);
+        CHECK_MSG(fp <= REFINED_P99_GUARD, "refined: p99 ratio %.3f", fp);
+        CHECK_MSG(fm < mm, "refined: median ratio %.3f, Debevec-Malik alone %.3f", fm, mm);
         sort_ratios(prior_median, prior_p99, scored, &pm, &pp);
         printf("  with the other families' prior over the ideal estimator: %d of %d at the goal; "
                "median %.3f (worst %.3f), p99 %.3f (worst %.3f)\n",

@@ -61,6 +61,11 @@ static const char *merge_help =
     "                         database; left out when the curve fitted without it is far\n"
     "                         from them). For film-like curves and scenes spanning the\n"
     "                         codes; it bends the scale of pure gamma curves (docs/merge.md)\n"
+    "  --response-refine R    off (default) or on: the self-calibrated curve from 8-bit\n"
+    "                         lossless frames refined by maximum likelihood under the\n"
+    "                         sensor's noise, fitted from the frames: 1-2 s more, and\n"
+    "                         the curve nearer the truth (docs/merge.md). setlight\n"
+    "                         response refines by default\n"
     "  --absolute             output in cd/m^2 from EXIF time, f-number and ISO:\n"
     "                         L = 120 y N^2 / (t ISO), y linear with 1 = saturation (ISO\n"
     "                         12232 saturation speed, lens factor 0.65); default relative\n"
@@ -83,8 +88,9 @@ static const char *response_help =
     "'setlight merge --response CRF.json' on the rest of a shoot.\n\n"
     "  -o, --output CRF.json  the response curve file (required)\n"
     "  --times, --exposures, --saturation, --black, --samples, --smoothness,\n"
-    "  --response-prior, --tolerance, --align\n"
-    "                         as for setlight merge (alignment auto by default)\n"
+    "  --response-prior, --response-refine, --tolerance, --align\n"
+    "                         as for setlight merge (alignment auto, and the curve\n"
+    "                         refined under the noise, by default)\n"
     "  --json                 print the exposure check and curve summary as JSON\n";
 
 
@@ -159,7 +165,7 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
     enum { OPT_TIMES = 1000, OPT_RESP, OPT_EXPO, OPT_MASK, OPT_NOMASK, OPT_NOISE, OPT_SAT,
            OPT_BLACK, OPT_TOL, OPT_SAMPLES, OPT_SMOOTH, OPT_DEGHOST, OPT_GHOSTMASK,
            OPT_ABS, OPT_ALIGN, OPT_ALIGN_SHIFT, OPT_ALIGN_ANGLE, OPT_HALF, OPT_FLOAT,
-           OPT_COMPRESSION, OPT_HOLD, OPT_PRIOR };
+           OPT_COMPRESSION, OPT_HOLD, OPT_PRIOR, OPT_REFINE };
     static const struct option opts[] = {
         {"help", no_argument, NULL, 'h'},
         {"output", required_argument, NULL, 'o'},
@@ -185,8 +191,11 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
         {"compression", required_argument, NULL, OPT_COMPRESSION},
         {"hold-mb", required_argument, NULL, OPT_HOLD},
         {"response-prior", required_argument, NULL, OPT_PRIOR},
+        {"response-refine", required_argument, NULL, OPT_REFINE},
         {0, 0, 0, 0}};
     sl_merge_options_init(&a->opt);
+    /* a curve made once for a shoot is worth the refinement's second or two */
+    a->opt.refine_response = !is_merge;
     a->opt.response_mode = SL_RESPONSE_AUTO;
     cli_getopt_reset();
     int c, which = 0;
@@ -329,6 +338,11 @@ static int parse_args(int argc, char **argv, const sl_cli *cli, bool is_merge, m
             if (strcmp(optarg, "off") != 0 && strcmp(optarg, "dorf") != 0)
                 return cli_usage_error(cli, "--response-prior needs dorf or off, not '%s'", optarg);
             a->opt.use_response_prior = strcmp(optarg, "dorf") == 0;
+            break;
+        case OPT_REFINE:
+            if (strcmp(optarg, "off") != 0 && strcmp(optarg, "on") != 0)
+                return cli_usage_error(cli, "--response-refine needs on or off, not '%s'", optarg);
+            a->opt.refine_response = strcmp(optarg, "on") == 0;
             break;
         default:
             return cli_usage_error(cli, "unknown option '%s'", argv[optind - 1]);

@@ -93,6 +93,10 @@ typedef struct sl_merge_options {
     const sl_response_prior *response_prior; /* that prior; NULL: the built-in one (the
                                                 201 curves of Columbia's DoRF database) */
     double response_prior_weight; /* its strength against the data's noise model; 0: 1000 */
+    bool refine_response;       /* refine the self-calibrated curve from 8-bit lossless
+                                   frames by maximum likelihood under the noise (docs/merge.md
+                                   "Refining the curve under the noise"); default off: it
+                                   costs 1-2 s a bracket (setlight response turns it on) */
     int samples;                /* response samples per channel; 0: default 4000 */
     double noise_gain;          /* Poisson term: var(y) = gain * y + floor, y linear in [0, 1] */
     double noise_floor;         /*   0, 0: defaults 2e-5, 1e-6 (docs/merge.md) */
@@ -214,6 +218,16 @@ typedef struct sl_merge_result {
     char response_prior[64];
     bool response_prior_dropped;
     double response_prior_distance[2];
+    /* The self-calibrated curve refined by maximum likelihood under the
+     * sensor's noise: done or why not, the series it used, the fitted noise
+     * law per channel (var = gain * y + floor, y on the curve's 0..1 scale),
+     * the log-likelihood gained and the largest change of ln g it made. */
+    bool response_refined;
+    char response_refine_note[96];
+    int response_refine_series;
+    double response_refine_gain_nats;
+    double response_refine_moved;
+    double response_noise_gain[3], response_noise_floor[3];
     sl_merge_frame *frames;     /* in the given order */
     int frame_count;
     int reference;              /* frame whose exposure scales the radiance (median) */

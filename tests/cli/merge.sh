@@ -120,6 +120,26 @@ expect 0 "$SETLIGHT" info --json "$T/dg_ghost.exr"
 json_eval "$T/out" 'd["files"][0]["channel_stats"][0]["max"] == 0'
 expect 2 "$SETLIGHT" response --deghost -o "$T/x.json" --times $TIMES "${F[@]}"; err_has "--deghost"
 
+# --- the curve refined under the noise: setlight response by default, merge when asked
+gen "$T" rf 256 128 2 5 8 || bad "fixture"
+R=("$T/rf_0.png" "$T/rf_1.png" "$T/rf_2.png" "$T/rf_3.png" "$T/rf_4.png")
+RT=1/16,1/4,1,4,16
+expect 0 "$SETLIGHT" response --json -o "$T/rf.json" --times $RT "${R[@]}"
+json_eval "$T/out" 'd["response_refine"]["refined"] and d["source"] == "debevec-malik, refined"'
+json_eval "$T/out" 'abs(d["linear_at_half"][1] / 0.5 ** 2.2 - 1) < 0.01 and d["response_refine"]["noise_gain"][0] == 0'
+expect 0 "$SETLIGHT" response --json --response-refine off -o "$T/rf_off.json" --times $RT "${R[@]}"
+json_eval "$T/out" 'not d["response_refine"]["refined"] and d["response_refine"]["note"] == "not refined (not asked)"'
+expect 0 "$SETLIGHT" merge --json -o "$T/rf.exr" --times $RT "${R[@]}"
+json_eval "$T/out" 'not d["response_refine"]["refined"] and d["response"] == "debevec-malik"'
+expect 0 "$SETLIGHT" merge --json --response-refine on -o "$T/rf_on.exr" --times $RT "${R[@]}"
+json_eval "$T/out" 'd["response_refine"]["refined"] and d["response_refine"]["series"] >= 300'
+expect 2 "$SETLIGHT" merge --response-refine maybe -o "$T/x.exr" --times $RT "${R[@]}"
+err_has "--response-refine"; err_one_line; absent "$T/x.exr"
+# too small a bracket to refine: the curve stands and the note says why
+gen "$T" tiny 8 8 2 3 8 || bad "fixture"
+expect 0 "$SETLIGHT" response --json -o "$T/small.json" --times $TIMES "$T/tiny_0.png" "$T/tiny_1.png" "$T/tiny_2.png"
+json_eval "$T/out" 'not d["response_refine"]["refined"] and "too few" in d["response_refine"]["note"]'
+
 # --- a response saved once and reused
 expect 0 "$SETLIGHT" response --json -o "$T/crf.json" --times $TIMES "${F[@]}"
 json_ok "$T/crf.json"
