@@ -682,10 +682,26 @@ sl_result merge_refine_response(const merge_samples *s, const double *log_exposu
         goto done;
     }
     x_from_y(&B, y, x);
-    if (!admissible(x)) { /* the spline of a kinked start: made increasing */
+    for (int pass = 0; pass < 4 && !admissible(x); pass++) {
+        /* the spline of a kinked start folds: made increasing, refitted */
         project(x);
         y_from_x(&B, x, y);
         x_from_y(&B, y, x);
+    }
+    if (!admissible(x)) {
+        /* still folding: spline coefficients made increasing (a B-spline
+         * with increasing coefficients increases), the free edges below */
+        for (int k = 1; k < SPLINE; k++)
+            y[k] = fmax(y[k], y[k - 1] + MIN_GAP);
+        x_from_y(&B, y, x);
+        for (int j = FREE_EDGES - 1; j >= 0; j--)
+            y[SPLINE + j] = fmin(y[SPLINE + j], x[j + 1] - MIN_GAP);
+        x_from_y(&B, y, x);
+    }
+    if (!admissible(x)) {
+        snprintf(rep->note, sizeof rep->note,
+                 "not refined: the first curve bends where the spline cannot follow");
+        goto done;
     }
     place_windows(&m, x);
     if (!update_density(&m, x) || !update_density(&m, x)) {
@@ -717,6 +733,10 @@ sl_result merge_refine_response(const merge_samples *s, const double *log_exposu
     x_from_y(&B, y, x);
     rep->loglik = F;
     rep->steps = steps;
+    if (steps == 0) {
+        snprintf(rep->note, sizeof rep->note, "not refined: no step made the frames likelier");
+        goto done;
+    }
     bool used[3] = {false, false, false};
     for (int i = 0; i < m.n_series; i++)
         used[m.series[i].channel] = true;

@@ -206,6 +206,13 @@ if [ -d "$M" ]; then
   json_eval "$T/out" 'len(d["frames"]) == 5 and all(f["fitted_exposure"] > 0 for f in d["frames"])'
   expect 0 "$SETLIGHT" info --json "$T/memorial.exr"
   json_eval "$T/out" 'd["files"][0]["nan_count"] == 0 and d["files"][0]["negative_count"] == 0'
+  # the whole scanned-film bracket: response refines by default, and where the
+  # refinement cannot beat the first curve it says so and the first curve stands
+  MT=32,16,8,4,2,1,1/2,1/4,1/8,1/16,1/32,1/64,1/128,1/256,1/512,1/1024
+  expect 0 "$SETLIGHT" response --json -o "$T/mem.json" --times $MT "$M"/memorial00*.png
+  json_eval "$T/out" '(d["source"] == "debevec-malik") == (not d["response_refine"]["refined"]) and d["response_refine"]["note"]'
+  expect 0 "$SETLIGHT" response --json --response-refine off -o "$T/mem_off.json" --times $MT "$M"/memorial00*.png
+  json_eval "$T/mem.json" 'd["source"].endswith("refined") or d["inverse"] == json.load(open("'"$T/mem_off.json"'"))["inverse"]'
 else
   skip "brackets/memorial absent"
 fi
