@@ -897,7 +897,7 @@ static sl_result recover_response(merge_ctx *m, sl_merge_result *res, const sl_m
     res->response = fitted;
     /* Refined in every round: the exposures measured next are measured
      * through it (measured through the first curve's bends, they kept
-     * agfa-scala-200xCDPush1 at 1.55x the ideal instead of 1.02x). */
+     * agfa-scala-200xCDPush1 at 1.55x the ideal instead of 1.04x). */
     return refine_response(m, res, opt, loge, err);
 }
 

@@ -65,7 +65,7 @@ sl_result merge_fit_response(const merge_samples *s, const double *log_exposure,
 typedef struct merge_refine_report {
     bool refined;
     char note[96];
-    int series, rounds, steps;
+    int series, steps;
     double start_loglik, loglik; /* the first curve's and the refined one's, under the
                                     fitted noise and scene */
     double moved;                /* largest change of ln g (scale free) */

@@ -48,6 +48,15 @@ static json_t *refine_json(const sl_merge_result *res)
                      res->response_noise_floor[1], res->response_noise_floor[2]);
 }
 
+/* A refinement asked for and not made: one line saying why (--json has it too). */
+static void log_unrefined(const sl_merge_run_options *o, const sl_merge_result *m)
+{
+    if (o->merge.refine_response && o->merge.response_mode == SL_RESPONSE_AUTO &&
+        !m->response_refined)
+        sl_log(SL_LOG_WARN, "%s: response %s: %s", o->out_path, m->response.source,
+               m->response_refine_note);
+}
+
 static json_t *align_json(const sl_merge_result *res)
 {
     return json_pack("{s:s, s:b, s:o, s:s, s:f, s:f, s:f}", "mode",
@@ -195,6 +204,7 @@ sl_result sl_merge_run(const sl_merge_run_options *o, sl_merge_run_result *res, 
     const sl_merge_response_check *rc = &m->response_check;
     if (!rc->plausible)
         sl_log(SL_LOG_WARN, "%s: response %s: %s", o->out_path, m->response.source, rc->note);
+    log_unrefined(o, m);
     json_t *j = json_pack(
         "{s:s, s:s?, s:s?, s:I, s:i, s:i, s:s, s:o, s:s, s:o, s:o, s:i, s:I, s:[I,I,I], s:f, s:f, s:I, s:I, s:I, s:s, s:f, s:{s:f, s:f, s:f, s:f}, s:{s:s, s:s, s:f, s:s}, s:i, s:f, s:o}",
         "output", o->out_path, "mask", mask, "ghost_mask", ghost, "ghost_pixels",
@@ -242,6 +252,7 @@ sl_result sl_response_run(const sl_merge_run_options *o, sl_merge_run_result *re
     if (!m->response_check.plausible)
         sl_log(SL_LOG_WARN, "%s: response %s: %s", o->out_path, m->response.source,
                m->response_check.note);
+    log_unrefined(o, m);
     json_t *j = json_pack("{s:s, s:s, s:o, s:i, s:[f,f,f], s:o, s:o, s:I, s:f, s:o}", "output",
                           o->out_path, "source", m->response.source, "response_check",
                           response_check_json(&m->response_check), "nodes", m->response.nodes,

@@ -65,6 +65,7 @@ typedef struct {
     int n_series, n_obs, frames;
     double *H; /* PARAMS x PARAMS */
     double *work;
+    double *M; /* MAX_TOUCH x MAX_TOUCH: one series' Hessian */
     /* the scene's density of u per channel: dens[c][b] on bins of DENS_BIN
      * from dens_u0[c] (NULL: flat) */
     double *dens[3], dens_u0[3];
@@ -185,6 +186,32 @@ static void obs_params(const ml_obs *o, int idx[4])
     idx[3] = EDGES + 3 + o->channel;
 }
 
+/* A series' likelihood at each of its GRID points (the scene's density
+ * times its observations' probabilities, the trapezoid's end weights with
+ * `trapezoid`) into prod; their sum returned. dl, d2l (or NULL): each
+ * observation's derivatives at each point, at [k * GRID + q]. */
+static double series_likelihood(const ml_ctx *m, const ml_series *s, const double *e, double A,
+                                double B, bool trapezoid, double *prod, double *dl, double *d2l)
+{
+    const ml_obs *o = m->obs + s->first;
+    double L = 0, t[MERGE_MAX_FRAMES], scratch[4];
+    for (int k = 0; k < s->count; k++) /* mu at the window's start; times exp(du) a point */
+        t[k] = exp(s->lo + m->loge[o[k].rank]);
+    double step = exp(s->du), grow = 1;
+    for (int q = 0; q < GRID; q++, grow *= step) {
+        double u = s->lo + q * s->du;
+        double p = (trapezoid && (q == 0 || q == GRID - 1) ? 0.5 : 1) * density_at(m, s->channel, u);
+        for (int k = 0; k < s->count; k++) {
+            size_t at = (size_t)k * GRID + q;
+            p *= obs_prob(&o[k], e, t[k] * grow, A, B, dl ? dl + at * 4 : scratch,
+                          d2l ? d2l + at * 16 : NULL);
+        }
+        prod[q] = p;
+        L += p;
+    }
+    return L;
+}
+
 /* Log-likelihood of all series at parameters x; with g and H its gradient
  * and minus its Hessian (the observed information). */
 static double evaluate(const ml_ctx *m, const double *x, double *g, double *H)
@@ -205,21 +232,8 @@ static double evaluate(const ml_ctx *m, const double *x, double *g, double *H)
         const ml_series *s = &m->series[i];
         const ml_obs *o = m->obs + s->first;
         int c = s->channel;
-        double prod[GRID], L = 0, t[MERGE_MAX_FRAMES];
-        for (int k = 0; k < s->count; k++) /* mu at the window's start; times exp(du) a point */
-            t[k] = exp(s->lo + m->loge[o[k].rank]);
-        double step = exp(s->du), grow = 1;
-        for (int q = 0; q < GRID; q++, grow *= step) {
-            double u = s->lo + q * s->du;
-            double p = ((q == 0 || q == GRID - 1) ? 0.5 : 1) * density_at(m, c, u);
-            for (int k = 0; k < s->count; k++) {
-                double mu = t[k] * grow;
-                size_t at = (size_t)k * GRID + q;
-                p *= obs_prob(&o[k], e, mu, A[c], B[c], dl + at * 4, g ? d2l + at * 16 : NULL);
-            }
-            prod[q] = p;
-            L += p;
-        }
+        double prod[GRID];
+        double L = series_likelihood(m, s, e, A[c], B[c], true, prod, dl, g ? d2l : NULL);
         F += log(L * s->du);
         if (!g)
             continue;
@@ -243,7 +257,7 @@ static double evaluate(const ml_ctx *m, const double *x, double *g, double *H)
         }
         /* score S = E[d]; Hessian of ln L = E[D + d d^T] - S S^T, over the
          * posterior of u (weights prod / L) */
-        double S[MAX_TOUCH] = {0}, M[MAX_TOUCH * MAX_TOUCH];
+        double S[MAX_TOUCH] = {0}, *M = m->M;
         memset(M, 0, (size_t)n * n * sizeof *M);
         for (int q = 0; q < GRID; q++) {
             double w = prod[q] / L;
@@ -522,7 +536,8 @@ done:
 }
 
 /* The observations of sample position i's channel c, in rank order, into
- * o (returns how many, or 0 when fewer than two codes are in 1 .. TOP - 1). */
+ * o; returns how many, 0 when none of its codes is in 1 .. TOP - 1 or only
+ * one frame says anything. */
 static int series_obs(const merge_samples *s, int i, int c, ml_obs *o)
 {
     int f = s->frames, n = 0, bins = 0;
@@ -579,20 +594,13 @@ static bool update_density(ml_ctx *m, const double *x)
             const ml_series *s = &m->series[i];
             if (s->channel != c)
                 continue;
-            double w[GRID], L = 0;
-            for (int q = 0; q < GRID; q++) {
-                double u = s->lo + q * s->du, p = 1, d[4];
-                if (m->dens[c]) {
-                    p = density_at(m, c, u);
-                    for (int k = 0; k < s->count; k++) {
-                        const ml_obs *o = &m->obs[s->first + k];
-                        p *= obs_prob(o, e, exp(u + m->loge[o->rank]), exp(x[EDGES + c]),
-                                      exp(x[EDGES + 3 + c]), d, NULL);
-                    }
-                }
-                w[q] = p;
-                L += p;
-            }
+            double w[GRID], L = GRID;
+            if (m->dens[c])
+                L = series_likelihood(m, s, e, exp(x[EDGES + c]), exp(x[EDGES + 3 + c]), false, w,
+                                      NULL, NULL);
+            else
+                for (int q = 0; q < GRID; q++)
+                    w[q] = 1;
             for (int q = 0; q < GRID; q++) {
                 int b = (int)((s->lo + q * s->du - u0) / DENS_BIN);
                 h[b < 0 ? 0 : b >= n ? n - 1 : b] += w[q] / L;
@@ -638,12 +646,13 @@ sl_result merge_refine_response(const merge_samples *s, const double *log_exposu
     m.obs = malloc((size_t)cap * f * sizeof *m.obs);
     m.H = malloc((size_t)PARAMS * PARAMS * sizeof *m.H);
     m.work = malloc((size_t)f * GRID * 20 * sizeof *m.work);
+    m.M = malloc((size_t)MAX_TOUCH * MAX_TOUCH * sizeof *m.M);
     double *x = malloc(PARAMS * sizeof *x), *y = malloc(NY * sizeof *y);
     double *x0 = malloc(PARAMS * sizeof *x0); /* the first curve, for the verdict */
     bool *active = malloc(NY * sizeof *active);
     double *out = NULL;
     sl_result result = SL_OK;
-    if (!m.series || !m.obs || !m.H || !m.work || !x || !x0 || !y || !active || !basis_init(&B)) {
+    if (!m.series || !m.obs || !m.H || !m.work || !m.M || !x || !x0 || !y || !active || !basis_init(&B)) {
         result = sl_error_set(err, SL_ERR_NOMEM, "response: out of memory");
         goto done;
     }
@@ -665,7 +674,7 @@ sl_result merge_refine_response(const merge_samples *s, const double *log_exposu
     }
     rep->series = m.n_series;
     if (m.n_series < MIN_SERIES) {
-        snprintf(rep->note, sizeof rep->note, "%d series with two codes: too few, not refined",
+        snprintf(rep->note, sizeof rep->note, "%d series with a code in 1-249: too few, not refined",
                  m.n_series);
         goto done;
     }
@@ -724,7 +733,6 @@ sl_result merge_refine_response(const merge_samples *s, const double *log_exposu
             goto done;
         }
         double Fr = climb(&m, &B, y, active, 50, 0.01, &steps);
-        rep->rounds = round + 1;
         bool settled = round > 2 && fabs(Fr - F) < 0.5;
         F = Fr;
         if (settled)
@@ -800,6 +808,7 @@ done:
     free(m.obs);
     free(m.H);
     free(m.work);
+    free(m.M);
     free(x);
     free(x0);
     free(y);

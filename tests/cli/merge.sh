@@ -221,6 +221,10 @@ if [ -d "$R" ]; then
   expect 0 "$SETLIGHT" merge --json -o "$T/room.exr" "$R"/stack_room_exp_*.jpg
   json_eval "$T/out" 'len(d["frames"]) == 7 and d["frames"][0]["f_number"] == 4.5 and d["frames"][0]["iso"] == 200'
   json_eval "$T/out" 'd["weights"]["saturation"] == 0.95'
+  # JPEG codes are not refined: asked for, the merge says so in a line
+  expect 0 "$SETLIGHT" merge --json --response-refine on -o "$T/room_r.exr" "$R"/stack_room_exp_*.jpg
+  err_has "not 8-bit lossless codes: not refined"
+  json_eval "$T/out" 'not d["response_refine"]["refined"] and d["response"] == "debevec-malik"'
 else
   skip "brackets/stack_room absent"
 fi
